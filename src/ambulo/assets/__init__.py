@@ -1,0 +1,37 @@
+"""Bundled robot and scene models (MJCF written for ambulo) and where to find them.
+
+``path("jetbot")`` is the file of a bundled asset; ``get_assets_root_path()`` is the
+folder that holds them, so Isaac-style ``assets_root + "/jetbot.xml"`` works too.
+"""
+
+from __future__ import annotations
+
+import difflib
+from pathlib import Path
+
+_DATA = Path(__file__).resolve().parent / "data"
+
+
+def get_assets_root_path() -> str:
+    """Folder of the bundled assets (Isaac Sim's ``get_assets_root_path``)."""
+    return str(_DATA)
+
+
+def names() -> list[str]:
+    """Names of the bundled assets."""
+    return sorted(p.stem for p in _DATA.glob("*.xml"))
+
+
+def path(name: str) -> str:
+    """File of bundled asset ``name`` (e.g. ``"jetbot"``, ``"humanoid"``)."""
+    file = _DATA / f"{name}.xml"
+    if not file.is_file():
+        close = difflib.get_close_matches(name, names(), n=3)
+        hint = f" Did you mean {', '.join(map(repr, close))}?" if close else ""
+        raise FileNotFoundError(
+            f"no bundled asset named {name!r}.{hint} Bundled: {', '.join(names())}."
+        )
+    return str(file)
+
+
+__all__ = ["get_assets_root_path", "names", "path"]

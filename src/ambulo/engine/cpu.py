@@ -1,0 +1,194 @@
+"""CpuEngine: N worlds of one MjModel on ``mujoco.batch.Batch``'s thread pool.
+
+State tensors are zero-copy ``torch`` views of the batch's state rows, so writing
+``engine.qpos[...]`` writes the simulation state itself; derived fields are views of
+the batch's output buffers, refreshed in place by every call. Results are
+bit-identical to a loop over one ``MjData`` per world at any thread count
+(a property of ``mujoco.batch``), which is what makes seeded runs reproducible.
+"""
+
+from __future__ import annotations
+
+import logging
+import warnings
+from typing import Sequence
+
+import mujoco
+import numpy as np
+import torch
+from mujoco import batch as mj_batch
+
+from .protocol import STATE_FIELDS
+
+log = logging.getLogger(__name__)
+
+# MuJoCo resets a world to qpos0 and bumps these counters when its state turns
+# NaN/Inf or huge (mj_checkPos/Vel/Acc); we treat that as divergence.
+_DIVERGENCE_WARNINGS = (
+    int(mujoco.mjtWarning.mjWARN_BADQPOS),
+    int(mujoco.mjtWarning.mjWARN_BADQVEL),
+    int(mujoco.mjtWarning.mjWARN_BADQACC),
+)
+
+WorldIds = Sequence[int] | np.ndarray | torch.Tensor | None
+
+
+def _as_ids(world_ids: WorldIds, num_worlds: int) -> np.ndarray | None:
+    """Sorted unique int32 world ids for the batch, or None for all worlds."""
+    if world_ids is None:
+        return None
+    if isinstance(world_ids, torch.Tensor):
+        world_ids = world_ids.detach().cpu().numpy()
+    ids = np.asarray(world_ids)
+    if ids.dtype == bool:
+        ids = np.flatnonzero(ids)
+    ids = np.unique(ids.astype(np.int64).ravel())
+    if ids.size and (ids[0] < 0 or ids[-1] >= num_worlds):
+        raise IndexError(
+            f"world id {ids[0] if ids[0] < 0 else ids[-1]} is out of range for "
+            f"{num_worlds} worlds; pass ids in [0, {num_worlds})"
+        )
+    return ids.astype(np.int32)
+
+
+def _readonly_tensor(array: np.ndarray) -> torch.Tensor:
+    # The batch marks outputs read-only because it overwrites them every call;
+    # torch cannot express read-only, so we share the memory and say so in docs.
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        return torch.from_numpy(array)
+
+
+class CpuEngine:
+    """N worlds of ``model`` stepped by ``mujoco.batch.Batch`` on ``num_threads`` threads.
+
+    Args:
+      model: the compiled model; the engine keeps its own copy.
+      num_worlds: N.
+      num_threads: batch threads; 0 uses every CPU.
+      keyframe: keyframe index or name for the initial state, or None for qpos0.
+    """
+
+    device = torch.device("cpu")
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        num_worlds: int = 1,
+        num_threads: int = 0,
+        keyframe: int | str | None = None,
+    ):
+        if num_worlds < 1:
+            raise ValueError(f"num_worlds must be >= 1, got {num_worlds}")
+        self.num_worlds = int(num_worlds)
+        # persistent: one MjData per world, so every derived field (and
+        # get_data for rendering) reflects that world, and stepping with
+        # stage=VEL leaves poses current at no extra cost.
+        self._batch = mj_batch.Batch(model, self.num_worlds, num_threads, persistent=True)
+        self.model = self._batch.model
+        self._tensors: dict[str, torch.Tensor] = {}
+        self._model_tensors: dict[str, torch.Tensor] = {}
+        key = -1
+        if keyframe is not None:
+            key = keyframe if isinstance(keyframe, int) else self.model.key(keyframe).id
+        self._keyframe = key
+        self._batch.reset(keyframe=key)
+        self.initial_state = self._batch.state.copy()
+        """(N, nstate) float64: the state ``reset`` restores; edit rows to change it."""
+        self._warn_counts = self._divergence_counts()
+        self.num_diverged = 0
+        """Total number of world divergences detected (and reset) so far."""
+
+    # -- fields ---------------------------------------------------------------
+    def field(self, name: str) -> torch.Tensor:
+        tensor = self._tensors.get(name)
+        if tensor is not None:
+            return tensor
+        if name in STATE_FIELDS:
+            tensor = torch.from_numpy(self._batch.bind(name))
+        else:
+            try:
+                array = self._batch.bind(name)
+            except ValueError as err:
+                raise ValueError(f"engine field {name!r}: {err}") from None
+            tensor = _readonly_tensor(array)
+            # a newly bound output is zero until the next call: fill it now
+            self._batch.forward(stage=mujoco.mjtStage.mjSTAGE_ACC.value)
+        self._tensors[name] = tensor
+        return tensor
+
+    def model_field(self, name: str) -> torch.Tensor:
+        tensor = self._model_tensors.get(name)
+        if tensor is None:
+            try:
+                tensor = torch.from_numpy(self._batch.expand(name))
+            except ValueError as err:
+                raise ValueError(f"model field {name!r}: {err}") from None
+            self._model_tensors[name] = tensor
+        return tensor
+
+    def set_const(self, world_ids: WorldIds = None) -> None:
+        """Recompute derived model constants (after writing body masses/inertias)."""
+        self._batch.set_const(_as_ids(world_ids, self.num_worlds))
+
+    def __getattr__(self, name: str) -> torch.Tensor:
+        # engine.qpos, engine.xpos, ... as on MjData; only for field names
+        if name.startswith("_") or name not in mj_batch.DATA_FIELDS:
+            raise AttributeError(f"CpuEngine has no attribute {name!r}")
+        return self.field(name)
+
+    # -- stepping -------------------------------------------------------------
+    def step(self, num_substeps: int = 1) -> torch.Tensor:
+        failed = np.zeros(0, np.int64)
+        try:
+            self._batch.step(nstep=num_substeps, stage=mujoco.mjtStage.mjSTAGE_VEL.value)
+        except mj_batch.SimulationError as err:
+            failed = np.asarray(err.ids)
+        counts = self._divergence_counts()
+        diverged = (counts > self._warn_counts).any(axis=1)
+        diverged[failed] = True
+        if diverged.any():
+            ids = np.flatnonzero(diverged)
+            self.num_diverged += len(ids)
+            log.warning(
+                "%d of %d worlds diverged (NaN or unstable state), first: world %d; "
+                "they were reset to their initial state. Lower the timestep, check "
+                "actions for NaN/huge values, or raise solver iterations.",
+                len(ids), self.num_worlds, ids[0],
+            )
+            self.reset(ids)
+            counts = self._divergence_counts()
+        self._warn_counts = counts
+        return torch.from_numpy(diverged)
+
+    def forward(self, world_ids: WorldIds = None) -> None:
+        self._batch.forward(_as_ids(world_ids, self.num_worlds))
+
+    def reset(self, world_ids: WorldIds = None) -> None:
+        ids = _as_ids(world_ids, self.num_worlds)
+        if ids is None:
+            self._batch.state[:] = self.initial_state
+        elif ids.size:
+            self._batch.state[ids] = self.initial_state[ids]
+        else:
+            return
+        self._batch.forward(ids)
+
+    def _divergence_counts(self) -> np.ndarray:
+        return self._batch.warning[:, list(_DIVERGENCE_WARNINGS), 1].copy()
+
+    # -- single-world access ----------------------------------------------------
+    def get_data(self, world: int, data: mujoco.MjData | None = None) -> mujoco.MjData:
+        return self._batch.get_data(int(world), data)
+
+    def get_model(self, world: int, model: mujoco.MjModel | None = None) -> mujoco.MjModel:
+        return self._batch.get_model(int(world), model)
+
+    def ray(self, pnt, vec, **kwargs):
+        """Batched ``mj_ray`` over worlds; see ``mujoco.batch.Batch.ray``."""
+        return self._batch.ray(pnt, vec, **kwargs)
+
+    @property
+    def batch(self) -> mj_batch.Batch:
+        """The underlying ``mujoco.batch.Batch`` (escape hatch for CPU-only code)."""
+        return self._batch

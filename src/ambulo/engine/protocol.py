@@ -1,0 +1,60 @@
+"""The engine contract: N worlds of one compiled MjModel, state as torch tensors.
+
+Every engine owns the changing state of ``num_worlds`` copies of one static
+``mujoco.MjModel``. State fields are live ``torch`` tensors of shape
+``(num_worlds, ...)`` on ``device``: writing ``engine.qpos[i] = ...`` changes world
+``i`` at its next step; derived fields (body poses, sensor data) are refreshed by
+``step``/``forward``. Env, reward and sensor code is written once against this
+protocol and runs on the CPU engine and on a GPU engine alike.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol, Sequence, runtime_checkable
+
+import mujoco
+import torch
+
+# MjData fields that are simulation state (writable) rather than derived outputs.
+STATE_FIELDS = (
+    "qpos", "qvel", "act", "ctrl", "qfrc_applied", "xfrc_applied", "mocap_pos",
+    "mocap_quat", "time",
+)
+
+
+@runtime_checkable
+class Engine(Protocol):
+    """N parallel worlds of one ``mujoco.MjModel``.
+
+    Attributes:
+      model: the compiled model all worlds share (per-world overrides live in
+        ``model_field``).
+      num_worlds: N.
+      device: where the tensors live.
+    """
+
+    model: mujoco.MjModel
+    num_worlds: int
+    device: torch.device
+
+    def field(self, name: str) -> torch.Tensor:
+        """Live (N, ...) tensor of an MjData field: state is writable, outputs read-only."""
+
+    def model_field(self, name: str) -> torch.Tensor:
+        """Live, writable (N, ...) per-world values of an MjModel field (e.g. ``geom_friction``)."""
+
+    def step(self, num_substeps: int = 1) -> torch.Tensor:
+        """Advance every world by ``num_substeps`` physics steps; return the (N,) bool mask
+        of worlds that diverged (NaN/instability) and were reset."""
+
+    def forward(self, world_ids: Sequence[int] | torch.Tensor | None = None) -> None:
+        """Recompute derived fields from the current state (no time advance)."""
+
+    def reset(self, world_ids: Sequence[int] | torch.Tensor | None = None) -> None:
+        """Restore worlds to their initial state (``initial_state``) and recompute derived fields."""
+
+    def get_data(self, world: int, data: mujoco.MjData | None = None) -> mujoco.MjData:
+        """World ``world`` as a full ``MjData`` (derived fields current), for rendering or mj_ calls."""
+
+    def get_model(self, world: int, model: mujoco.MjModel | None = None) -> mujoco.MjModel:
+        """World ``world``'s model with its per-world field values."""
