@@ -174,6 +174,12 @@ class CpuEngine:
             return
         self._batch.forward(ids)
 
+    def capture_initial_state(self, world_ids: WorldIds = None) -> None:
+        """Make the worlds' current state the one ``reset`` restores."""
+        ids = _as_ids(world_ids, self.num_worlds)
+        rows = slice(None) if ids is None else ids
+        self.initial_state[rows] = self._batch.state[rows]
+
     def _divergence_counts(self) -> np.ndarray:
         return self._batch.warning[:, list(_DIVERGENCE_WARNINGS), 1].copy()
 

@@ -53,6 +53,9 @@ class Engine(Protocol):
     def reset(self, world_ids: Sequence[int] | torch.Tensor | None = None) -> None:
         """Restore worlds to their initial state (``initial_state``) and recompute derived fields."""
 
+    def capture_initial_state(self, world_ids: Sequence[int] | torch.Tensor | None = None) -> None:
+        """Make the worlds' current state the one ``reset`` restores."""
+
     def get_data(self, world: int, data: mujoco.MjData | None = None) -> mujoco.MjData:
         """World ``world`` as a full ``MjData`` (derived fields current), for rendering or mj_ calls."""
 

@@ -1,0 +1,141 @@
+"""ArticulationController: joint targets -> drive controls, with gains and control modes.
+
+A drive's ctrl is ``kp * q_target + kd * qd_target + tau_ff`` (see ``drives.py``),
+so position, velocity and effort commands combine in one implicit PD per joint.
+Control modes set the gains an Isaac user expects: "position" uses (kp, kd),
+"velocity" (0, kd), "effort" (0, 0).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import torch
+
+if TYPE_CHECKING:
+    from .articulation import Articulation, ArticulationAction
+    from .world import World
+
+_MODES = ("position", "velocity", "effort")
+
+
+class ArticulationController:
+    def __init__(self):
+        self._art: Articulation | None = None
+
+    def _initialize(self, articulation: Articulation, world: World) -> None:
+        self._art, self._world = articulation, world
+        bias = world.engine.model_field("actuator_biasprm")
+        idx = articulation._actuator_idx
+        self._kp = (-bias[:, idx, 1]).clone()
+        """(N, dof) stiffness the user set, restored by "position" mode."""
+        self._kd = (-bias[:, idx, 2]).clone()
+        self._modes = ["position"] * articulation.num_dof
+        self._reset()
+
+    def _reset(self) -> None:
+        engine = self._world.engine
+        art = self._art
+        # hold the pose the robot starts in, rather than yank it to zero
+        self._q_target = engine.qpos[:, art._qpos_idx].clone()
+        self._qd_target = torch.zeros_like(self._q_target)
+        self._tau_ff = torch.zeros_like(self._q_target)
+        self._write_ctrl()
+
+    # -- commands ---------------------------------------------------------------
+    def apply_action(self, control_actions: ArticulationAction) -> None:
+        art = self._require()
+        idx = art._indices(control_actions.joint_indices)
+        for value, target, what in (
+            (control_actions.joint_positions, self._q_target, "joint_positions"),
+            (control_actions.joint_velocities, self._qd_target, "joint_velocities"),
+            (control_actions.joint_efforts, self._tau_ff, "joint_efforts"),
+        ):
+            if value is None:
+                continue
+            given = self._as_targets(value, len(idx), what)
+            # NaN entries mean "leave this joint uncommanded"
+            current = target[:, idx]
+            target[:, idx] = torch.where(torch.isnan(given), current, given)
+        self._write_ctrl()
+
+    def _as_targets(self, value, count: int, what: str) -> torch.Tensor:
+        tensor = torch.as_tensor(value, dtype=torch.float64)
+        n = self._world.num_worlds
+        if tensor.shape == (count,):
+            tensor = tensor.expand(n, count)
+        if tuple(tensor.shape) != (n, count):
+            raise ValueError(
+                f"{what}: expected shape ({count},) or ({n}, {count}) for {self._art.prim_path}, "
+                f"got {tuple(tensor.shape)}; pass one value per commanded joint ({self._art.num_dof} "
+                "joints in dof_names order, or set joint_indices)"
+            )
+        if torch.isinf(tensor).any():
+            raise ValueError(f"{what}: contains inf; pass finite targets (NaN leaves a joint uncommanded)")
+        return tensor
+
+    def _write_ctrl(self) -> None:
+        bias = self._world.engine.model_field("actuator_biasprm")
+        idx = self._art._actuator_idx
+        kp, kd = -bias[:, idx, 1], -bias[:, idx, 2]
+        self._world.engine.ctrl[:, idx] = kp * self._q_target + kd * self._qd_target + self._tau_ff
+
+    def get_applied_action(self) -> ArticulationAction:
+        from .articulation import ArticulationAction  # noqa: PLC0415
+
+        out = self._world._out
+        return ArticulationAction(joint_positions=out(self._q_target), joint_velocities=out(self._qd_target),
+                                  joint_efforts=out(self._tau_ff))
+
+    # -- gains and modes ------------------------------------------------------------
+    def set_gains(self, kps=None, kds=None, joint_indices=None) -> None:
+        """Drive stiffness kp (N*m/rad) and damping kd (N*m*s/rad), per joint (and per world)."""
+        art = self._require()
+        idx = art._indices(joint_indices)
+        if kps is not None:
+            kp = self._as_targets(kps, len(idx), "kps")
+            if (kp < 0).any():
+                raise ValueError("kps must be >= 0")
+            self._kp[:, idx] = kp
+        if kds is not None:
+            kd = self._as_targets(kds, len(idx), "kds")
+            if (kd < 0).any():
+                raise ValueError("kds must be >= 0")
+            self._kd[:, idx] = kd
+        self._apply_gains(idx)
+
+    def get_gains(self):
+        """(kps, kds) in effect, (N, dof) or (dof,)."""
+        self._require()
+        bias = self._world.engine.model_field("actuator_biasprm")
+        idx = self._art._actuator_idx
+        return self._world._out(-bias[:, idx, 1]), self._world._out(-bias[:, idx, 2])
+
+    def switch_control_mode(self, mode: str, joint_indices=None) -> None:
+        """Make joints position-, velocity- or effort-controlled (Isaac's control modes)."""
+        if mode not in _MODES:
+            raise ValueError(f"unknown control mode {mode!r}; use one of {_MODES}")
+        idx = self._require()._indices(joint_indices)
+        for i in idx.tolist():
+            self._modes[i] = mode
+        self._apply_gains(idx)
+
+    def switch_dof_control_mode(self, dof_index: int, mode: str) -> None:
+        self.switch_control_mode(mode, [dof_index])
+
+    def get_control_modes(self) -> list[str]:
+        return list(self._modes)
+
+    def _apply_gains(self, idx: torch.Tensor) -> None:
+        bias = self._world.engine.model_field("actuator_biasprm")
+        for i in idx.tolist():
+            a = int(self._art._actuator_idx[i])
+            mode = self._modes[i]
+            bias[:, a, 1] = 0.0 if mode != "position" else -self._kp[:, i]
+            bias[:, a, 2] = 0.0 if mode == "effort" else -self._kd[:, i]
+        self._write_ctrl()
+
+    def _require(self) -> Articulation:
+        if self._art is None:
+            raise RuntimeError("the articulation is not initialized: add it to world.scene and call world.reset()")
+        return self._art

@@ -1,0 +1,144 @@
+"""Primitive objects (Isaac's DynamicCuboid, FixedSphere, VisualCapsule, ...) and the ground plane.
+
+Each constructor adds a body with one geom to the World's stage at ``prim_path``.
+Dynamic objects get a free joint; fixed ones hang from the world; visual ones
+have no collision. Sizes: cuboid edge ``size * scale`` (m), sphere ``radius``,
+cylinder/capsule ``radius`` and ``height`` (cylinder: full height; capsule: of the
+straight part), all along local z.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import mujoco
+
+from .materials import PhysicsMaterial
+from .prims import RigidPrim, XFormPrim
+from .semantics import set_semantic_label
+
+_G = mujoco.mjtGeom
+
+
+def _current_stage() -> mujoco.MjSpec:
+    from .world import World  # noqa: PLC0415
+
+    world = World.instance()
+    if world is None:
+        raise RuntimeError("create a World before adding objects to the stage")
+    return world.stage
+
+
+class _Primitive(RigidPrim):
+    _geom_type: int = _G.mjGEOM_BOX
+    _dynamic = True
+    _collision = True
+
+    def __init__(
+        self,
+        prim_path: str,
+        name: str | None = None,
+        position=None,
+        orientation=None,
+        scale=None,
+        color=None,
+        mass: float | None = None,
+        density: float | None = None,
+        physics_material: PhysicsMaterial | None = None,
+        semantic_label: str | None = None,
+        visible: bool = True,
+        **size_kwargs,
+    ):
+        stage = _current_stage()
+        if stage.body(prim_path) is not None:
+            raise ValueError(f"a prim already exists at {prim_path!r}; choose another prim_path")
+        if mass is not None and mass <= 0:
+            raise ValueError(f"mass must be > 0 kg, got {mass}")
+        scale = np.ones(3) if scale is None else np.broadcast_to(np.asarray(scale, float), (3,))
+        body = stage.worldbody.add_body(
+            name=prim_path,
+            pos=[0.0, 0.0, 0.0] if position is None else [float(v) for v in position],
+            quat=[1.0, 0.0, 0.0, 0.0] if orientation is None else [float(v) for v in orientation],
+        )
+        if self._dynamic:
+            body.add_freejoint(name=prim_path + "/root_joint")
+        geom = body.add_geom(name=prim_path + "/geom", type=self._geom_type,
+                             size=self._geom_size(scale, **size_kwargs))
+        rgba = [0.5, 0.5, 0.5, 1.0] if color is None else [*map(float, color[:3]), 1.0]
+        geom.rgba = rgba if visible else [rgba[0], rgba[1], rgba[2], 0.0]
+        if mass is not None:
+            geom.mass = float(mass)
+        elif density is not None:
+            geom.density = float(density)
+        if not self._collision:
+            geom.contype = geom.conaffinity = 0
+            geom.mass = 0.0 if not self._dynamic else geom.mass
+        if physics_material is not None:
+            physics_material.apply_to(geom)
+        if semantic_label is not None:
+            set_semantic_label(stage, prim_path, semantic_label)
+        self.color = rgba[:3]
+        super().__init__(prim_path, name)
+
+    def _geom_size(self, scale: np.ndarray, **kw) -> list[float]:
+        raise NotImplementedError
+
+
+class _Cuboid(_Primitive):
+    _geom_type = _G.mjGEOM_BOX
+
+    def _geom_size(self, scale, size: float = 1.0):
+        return list(0.5 * size * scale)
+
+
+class _Sphere(_Primitive):
+    _geom_type = _G.mjGEOM_SPHERE
+
+    def _geom_size(self, scale, radius: float = 0.5):
+        return [radius * float(scale.max()), 0.0, 0.0]
+
+
+class _Cylinder(_Primitive):
+    _geom_type = _G.mjGEOM_CYLINDER
+
+    def _geom_size(self, scale, radius: float = 0.5, height: float = 1.0):
+        return [radius * float(max(scale[0], scale[1])), 0.5 * height * float(scale[2]), 0.0]
+
+
+class _Capsule(_Cylinder):
+    _geom_type = _G.mjGEOM_CAPSULE
+
+
+def _variants(base, doc):
+    dynamic = type(f"Dynamic{base.__name__[1:]}", (base,), {"__doc__": f"A dynamic {doc} (free joint)."})
+    fixed = type(f"Fixed{base.__name__[1:]}", (base,), {"_dynamic": False, "__doc__": f"A static {doc}."})
+    visual = type(f"Visual{base.__name__[1:]}", (base,),
+                  {"_dynamic": False, "_collision": False, "__doc__": f"A {doc} without collision."})
+    for cls in (dynamic, fixed, visual):
+        cls.__module__ = __name__
+    return dynamic, fixed, visual
+
+
+DynamicCuboid, FixedCuboid, VisualCuboid = _variants(_Cuboid, "box")
+DynamicSphere, FixedSphere, VisualSphere = _variants(_Sphere, "sphere")
+DynamicCylinder, FixedCylinder, VisualCylinder = _variants(_Cylinder, "cylinder")
+DynamicCapsule, FixedCapsule, VisualCapsule = _variants(_Capsule, "capsule")
+
+
+class GroundPlane(XFormPrim):
+    """A static infinite plane (rendered 100 m square) at ``z_position``."""
+
+    def __init__(self, prim_path: str = "/World/groundPlane", name: str | None = None,
+                 z_position: float = 0.0, color=(0.35, 0.4, 0.45),
+                 physics_material: PhysicsMaterial | None = None, size_m: float = 100.0):
+        stage = _current_stage()
+        body = stage.worldbody.add_body(name=prim_path, pos=[0.0, 0.0, float(z_position)])
+        stage.add_texture(name=prim_path + "/grid", type=mujoco.mjtTexture.mjTEXTURE_2D,
+                          builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER, width=256, height=256,
+                          rgb1=list(color), rgb2=[c * 0.8 for c in color])
+        material = stage.add_material(name=prim_path + "/material", texrepeat=[size_m, size_m])
+        material.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = prim_path + "/grid"
+        geom = body.add_geom(name=prim_path + "/geom", type=_G.mjGEOM_PLANE,
+                             size=[size_m / 2, size_m / 2, 0.1], material=prim_path + "/material")
+        if physics_material is not None:
+            physics_material.apply_to(geom)
+        super().__init__(prim_path, name)

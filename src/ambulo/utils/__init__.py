@@ -1,0 +1,1 @@
+"""Small shared helpers (math on batched quaternions)."""
