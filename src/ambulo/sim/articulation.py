@@ -30,7 +30,8 @@ class ArticulationAction:
     """Targets for some or all joints; None leaves that quantity uncommanded.
 
     ``joint_indices`` selects the joints the arrays refer to (default: all, in
-    ``dof_names`` order). Within an array, NaN leaves that one joint uncommanded.
+    ``dof_names`` order). Inside a list, None leaves that one joint uncommanded;
+    NaN or inf is an error.
     """
 
     joint_positions: object = None

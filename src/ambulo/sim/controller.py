@@ -53,13 +53,17 @@ class ArticulationController:
         ):
             if value is None:
                 continue
-            given = self._as_targets(value, len(idx), what)
-            # NaN entries mean "leave this joint uncommanded"
-            current = target[:, idx]
-            target[:, idx] = torch.where(torch.isnan(given), current, given)
+            given, commanded = self._as_targets(value, len(idx), what, allow_none=True)
+            target[:, idx] = torch.where(commanded, given, target[:, idx])
         self._write_ctrl()
 
-    def _as_targets(self, value, count: int, what: str) -> torch.Tensor:
+    def _as_targets(self, value, count: int, what: str, allow_none: bool = False):
+        """``value`` as an (N, count) float64 tensor; with ``allow_none`` also the mask of
+        commanded entries (None inside a list leaves that joint uncommanded)."""
+        commanded = None
+        if allow_none and isinstance(value, (list, tuple)) and any(v is None for v in value):
+            commanded = torch.tensor([v is not None for v in value])
+            value = [0.0 if v is None else v for v in value]
         tensor = torch.as_tensor(value, dtype=torch.float64)
         n = self._world.num_worlds
         if tensor.shape == (count,):
@@ -70,9 +74,15 @@ class ArticulationController:
                 f"got {tuple(tensor.shape)}; pass one value per commanded joint ({self._art.num_dof} "
                 "joints in dof_names order, or set joint_indices)"
             )
-        if torch.isinf(tensor).any():
-            raise ValueError(f"{what}: contains inf; pass finite targets (NaN leaves a joint uncommanded)")
-        return tensor
+        if not torch.isfinite(tensor).all():
+            raise ValueError(
+                f"{what}: contains NaN or inf for {self._art.prim_path}; pass finite targets "
+                "(None, or None inside a list, leaves joints uncommanded)"
+            )
+        if not allow_none:
+            return tensor
+        mask = torch.ones_like(tensor, dtype=torch.bool) if commanded is None else commanded.expand_as(tensor)
+        return tensor, mask
 
     def _write_ctrl(self) -> None:
         bias = self._world.engine.model_field("actuator_biasprm")

@@ -126,7 +126,11 @@ def _load_usd(file: Path) -> mujoco.MjSpec:
         from pxr import Usd  # noqa: PLC0415 - only USD needs pxr
     except ImportError:
         raise AssetError("reading USD needs pxr: pip install 'mujoco[usd]'") from None
-    stage = Usd.Stage.Open(str(file))
+    try:
+        stage = Usd.Stage.Open(str(file))
+    except Exception as err:  # pxr raises its own Tf.ErrorException
+        first = str(err).strip().splitlines()[-1] if str(err).strip() else ""
+        raise AssetError(f"{file}: not a readable USD stage ({first.strip()}); fix or re-export it.") from None
     if stage is None:
         raise AssetError(f"{file}: not a readable USD stage.")
     default = stage.GetDefaultPrim()

@@ -21,6 +21,18 @@ if TYPE_CHECKING:
 _FREE = mujoco.mjtJoint.mjJNT_FREE
 
 
+class _NotInitialized:
+    """Stands in for the World until ``initialize``: any use says what to do."""
+
+    def __init__(self, prim_path: str):
+        self._prim_path = prim_path
+
+    def __getattr__(self, name):
+        raise RuntimeError(
+            f"{self._prim_path} is not initialized: add it to world.scene and call world.reset()"
+        )
+
+
 class XFormPrim:
     """A prim with a world pose: a body (or the root body of a referenced subtree).
 
@@ -35,7 +47,7 @@ class XFormPrim:
             raise ValueError(f"prim paths are absolute, like '/World/Cube'; got {prim_path!r}")
         self.prim_path = prim_path
         self.name = name or prim_path.rstrip("/").rsplit("/", 1)[-1]
-        self._world: World | None = None
+        self._world: World = _NotInitialized(prim_path)
         self._body_id: int | None = None
         self._free_qpos: int | None = None
         self._free_qvel: int | None = None
@@ -76,7 +88,7 @@ class XFormPrim:
 
     @property
     def _engine(self):
-        if self._world is None or self._body_id is None:
+        if self._body_id is None:
             raise RuntimeError(
                 f"{self.prim_path} is not initialized: add it to world.scene and call world.reset()"
             )

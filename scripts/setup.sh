@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# One-time set-up: system libraries for headless rendering, then a virtual
+# environment with ambulo and everything its demo and tests use.
+# Idempotent: re-running only installs what is missing.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+VENV=${VENV:-.venv}
+PYTHON=${PYTHON:-python3}
+
+# Headless GL: EGL (Mesa's llvmpipe without a GPU) is what MuJoCo's renderer uses;
+# OSMesa is the fallback (MUJOCO_GL=osmesa).
+need_apt=()
+for lib in libEGL.so.1 libGL.so.1 libOSMesa.so.8; do
+  ldconfig -p 2>/dev/null | grep -q "$lib" || need_apt+=("$lib")
+done
+if [ ${#need_apt[@]} -gt 0 ]; then
+  if command -v apt-get >/dev/null && [ "$(id -u)" = 0 ]; then
+    echo "installing headless GL libraries (missing: ${need_apt[*]})"
+    apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libegl1 libgl1 libgles2 libosmesa6 libglx-mesa0 >/dev/null
+  else
+    echo "warning: missing ${need_apt[*]}; install libegl1 libgl1 libosmesa6 (Debian/Ubuntu) for headless rendering" >&2
+  fi
+fi
+
+if [ ! -x "$VENV/bin/python" ]; then
+  "$PYTHON" -m venv "$VENV"
+fi
+stamp="$VENV/.ambulo-installed"
+if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
+  "$VENV/bin/python" -m pip install -q --upgrade pip
+  # the CPU build of torch first, pinned, so nothing pulls a multi-GB CUDA build
+  "$VENV/bin/python" -m pip install -q "torch==${TORCH_VERSION:-2.13.0}"
+  "$VENV/bin/python" -m pip install -q -e ".[data,rl,dev,robots]"
+  touch "$stamp"
+fi
+echo "ambulo is set up in $VENV"
