@@ -43,9 +43,10 @@ class Engine(Protocol):
     def model_field(self, name: str) -> torch.Tensor:
         """Live, writable (N, ...) per-world values of an MjModel field (e.g. ``geom_friction``)."""
 
-    def step(self, num_substeps: int = 1) -> torch.Tensor:
+    def step(self, num_substeps: int = 1, refresh: bool = False) -> torch.Tensor:
         """Advance every world by ``num_substeps`` physics steps; return the (N,) bool mask
-        of worlds that diverged (NaN/instability) and were reset."""
+        of worlds that diverged (NaN/instability) and were reset. Derived fields lag one
+        substep (as after ``mj_step``) unless ``refresh``."""
 
     def forward(self, world_ids: Sequence[int] | torch.Tensor | None = None) -> None:
         """Recompute derived fields from the current state (no time advance)."""

@@ -28,6 +28,8 @@ class AssetError(ValueError):
 def load_spec(path: str | os.PathLike, *, drives: DriveDefaults | None = None,
               fixed_base: bool | None = None) -> mujoco.MjSpec:
     """Load ``path`` (MJCF ``.xml``, URDF ``.urdf``, USD ``.usd*``) as a spec with drives."""
+    """``fixed_base``: weld the root to the world (URDF: no free joint is added; MJCF/USD: the
+    root's free joint is removed); None/False keeps a floating base."""
     file = Path(path).expanduser()
     if not file.is_file():
         raise AssetError(
@@ -46,8 +48,21 @@ def load_spec(path: str | os.PathLike, *, drives: DriveDefaults | None = None,
             f"{file.name}: unknown file kind {suffix!r}; ambulo reads MJCF (.xml), "
             f"URDF (.urdf) and USD ({', '.join(_USD_SUFFIXES)})."
         )
+    if fixed_base and suffix != ".urdf":
+        _weld_root(spec, file)
     ensure_drives(spec, drives or DriveDefaults())
     return spec
+
+
+def _weld_root(spec: mujoco.MjSpec, file: Path) -> None:
+    """Remove the root body's free joint: the robot hangs from the world where placed."""
+    root = spec.worldbody.first_body()
+    free = [j for j in (root.joints if root is not None else [])
+            if j.type == mujoco.mjtJoint.mjJNT_FREE]
+    if not free:
+        raise AssetError(f"{file.name}: fixed_base=True but its root body has no free joint to remove")
+    for joint in free:
+        spec.delete(joint)
 
 
 def _root_tag(file: Path) -> str:

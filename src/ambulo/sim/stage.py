@@ -36,8 +36,8 @@ def add_reference_to_stage(
     The file's default prim (MJCF/URDF: its world body; USD: the stage's
     defaultPrim) becomes ``prim_path``, so a child ``box`` lands at
     ``prim_path/box``. Joints without a drive get one with ``drive_stiffness``
-    (N*m/rad) and ``drive_damping`` (N*m*s/rad). ``fixed_base`` welds a URDF's root
-    link to the world (MJCF/USD state it themselves).
+    (N*m/rad) and ``drive_damping`` (N*m*s/rad). ``fixed_base`` welds the root body to the
+    world (Isaac's "fix base"): a robot on a gantry, an arm on a table.
 
     Returns the frame that holds the reference (its pose is the prim's pose).
     """

@@ -229,7 +229,8 @@ class World:
         for _ in range(self._physics_steps_per_step):
             for callback in list(self._physics_callbacks.values()):
                 callback(dt)
-            engine.step(self.physics.substeps)
+            # the scene API promises current poses after every step
+            engine.step(self.physics.substeps, refresh=True)
             self._step_index += 1
 
     def step_async(self, step_size: float | None = None) -> None:

@@ -1,0 +1,86 @@
+"""CpuEngine steps/s vs raw ``mujoco.batch.Batch`` on the same model and N (the ceiling).
+
+    python benchmarks/engine_cpu.py [--num-worlds 256] [--steps 200] [--threads 0]
+
+Both step the 21-DoF humanoid scene with the same random controls; ours includes
+torch control writes, divergence checks and stage=VEL (poses current after step).
+Prints the ratio and ends with one ``RESULT {json}`` line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+
+import mujoco
+import numpy as np
+import torch
+from mujoco.batch import Batch
+
+from ambulo import assets
+from ambulo.engine import CpuEngine
+
+
+def humanoid_scene() -> mujoco.MjModel:
+    spec = mujoco.MjSpec()
+    spec.option.timestep = 0.005
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[50, 50, 0.1])
+    spec.attach(mujoco.MjSpec.from_file(assets.path("humanoid")), prefix="h/", frame=spec.worldbody.add_frame())
+    return spec.compile()
+
+
+def time_raw(model, n, steps, threads, ctrl) -> float:
+    batch = Batch(model, n, threads)
+    bound = batch.bind("ctrl")
+    batch.step(nstep=5)
+    start = time.perf_counter()
+    for t in range(steps):
+        bound[:] = ctrl[t % len(ctrl)]
+        batch.step()
+    return n * steps / (time.perf_counter() - start)
+
+
+def time_engine(model, n, steps, threads, ctrl) -> float:
+    engine = CpuEngine(model, n, num_threads=threads)
+    ctrl_t = torch.from_numpy(ctrl)
+    engine.step(5)
+    start = time.perf_counter()
+    for t in range(steps):
+        engine.ctrl[:] = ctrl_t[t % len(ctrl)]
+        engine.step()
+    return n * steps / (time.perf_counter() - start)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--num-worlds", type=int, nargs="+", default=[64, 256])
+    parser.add_argument("--steps", type=int, default=200)
+    parser.add_argument("--threads", type=int, default=0)
+    parser.add_argument("--repeats", type=int, default=5)
+    args = parser.parse_args()
+    model = humanoid_scene()
+    figures = {}
+    for n in args.num_worlds:
+        # PD-hold-like controls around the standing pose, plus noise
+        rng = np.random.default_rng(0)
+        ctrl = rng.normal(0.0, 20.0, size=(50, n, model.nu))
+        # best of interleaved repeats, so both see the same machine load
+        raws, ourss = [], []
+        for _ in range(args.repeats):
+            raws.append(time_raw(model, n, args.steps, args.threads, ctrl))
+            ourss.append(time_engine(model, n, args.steps, args.threads, ctrl))
+        raw, ours = max(raws), max(ourss)
+        figures[n] = {"engine_steps_per_s": round(ours), "raw_batch_steps_per_s": round(raw),
+                      "ratio": round(ours / raw, 3)}
+        print(f"N={n:5d}: CpuEngine {ours:10.0f} steps/s   raw mujoco.batch {raw:10.0f} steps/s   "
+              f"ratio {ours / raw:.3f}")
+    worst = min(f["ratio"] for f in figures.values())
+    print("RESULT " + json.dumps({"benchmark": "engine_cpu", "model": "humanoid (21 DoF) on plane",
+                                  "cpus": os.cpu_count(), "per_n": figures, "ratio": worst}))
+
+
+if __name__ == "__main__":
+    main()
