@@ -72,9 +72,13 @@ class Scene:
             prim_path=prim_path, name=name, z_position=z_position, color=color,
             physics_material=_material(prim_path, static_friction, dynamic_friction, restitution),
         )
-        if not any(light.name == "/World/defaultLight" for light in self._world.stage.lights):
-            add_light(self._world.stage, "/World/defaultLight", kind="distant",
-                      direction=(0.3, 0.2, -1.0), intensity=0.7)
+        stage = self._world.stage
+        if not any(light.name == "/World/defaultLight" for light in stage.lights):
+            add_light(stage, "/World/defaultLight", kind="distant", direction=(0.3, 0.2, -1.0), intensity=0.7)
+        if stage.texture("/World/sky") is None:
+            stage.add_texture(name="/World/sky", type=mujoco.mjtTexture.mjTEXTURE_SKYBOX,
+                              builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT, width=256, height=256,
+                              rgb1=[0.55, 0.7, 0.9], rgb2=[0.1, 0.12, 0.18])
         return self.add(ground)
 
 
