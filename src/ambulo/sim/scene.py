@@ -19,13 +19,21 @@ class Scene:
         self._world = world
         self._objects: dict[str, XFormPrim] = {}
 
-    def add(self, obj: XFormPrim) -> XFormPrim:
-        """Register ``obj`` under ``obj.name``; it is initialized at the next ``world.reset()``."""
+    def add(self, obj):
+        """Register a prim or a sensor under ``obj.name``; it is initialized at the next ``world.reset()``.
+
+        Prims (XFormPrim and subclasses) are already on the stage. Sensors
+        (``ambulo.sensors``) add their elements now through ``_build(stage)`` and
+        are initialized with the engine once the stage is compiled.
+        """
         if obj.name in self._objects and self._objects[obj.name] is not obj:
             raise ValueError(
                 f"the scene already has an object named {obj.name!r}; pass a unique name="
             )
         self._objects[obj.name] = obj
+        if not is_prim(obj):
+            obj._build(self._world.stage)  # compiled in at the next reset()
+            return obj
         if self._world.engine is not None and self._world.model is not None:
             try:
                 obj.initialize(self._world)
@@ -80,6 +88,12 @@ class Scene:
                               builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT, width=256, height=256,
                               rgb1=[0.55, 0.7, 0.9], rgb2=[0.1, 0.12, 0.18])
         return self.add(ground)
+
+
+def is_prim(obj) -> bool:
+    from .prims import XFormPrim  # noqa: PLC0415
+
+    return isinstance(obj, XFormPrim)
 
 
 def _material(prim_path, static_friction, dynamic_friction, restitution):

@@ -18,7 +18,7 @@ import numpy as np
 import torch
 
 from ..engine import Engine, make_engine
-from .scene import Scene
+from .scene import Scene, is_prim
 
 log = logging.getLogger(__name__)
 
@@ -157,7 +157,8 @@ class World:
             self.engine.reset()
         self._step_index = 0
         for obj in self.scene.objects():
-            obj.post_reset()
+            if hasattr(obj, "post_reset"):
+                obj.post_reset()
         self.engine.forward()
         self._playing = True
 
@@ -182,7 +183,8 @@ class World:
                                   **({"num_threads": self._num_threads} if self.device == "cpu" else {}))
         self._compiled_signature = self._stage_signature()
         for obj in self.scene.objects():
-            obj.initialize(self)
+            # prims resolve against the World; sensors only read the engine
+            obj.initialize(self if is_prim(obj) else self.engine)
         # the initial state includes what objects set in initialize (default poses)
         self.engine.forward()
         self.engine.capture_initial_state()

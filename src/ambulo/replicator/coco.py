@@ -1,0 +1,87 @@
+"""COCO instance annotations: per-frame records (RLE masks via pycocotools) and the merged file.
+
+Each frame's record is self-contained JSON (image entry, annotations without
+ids, camera, randomization log); ``merge_coco`` numbers images and annotations
+in frame order, so a dataset made by one process, by resumed runs or by Ray
+shards is the same file.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+from pycocotools import mask as mask_utils
+
+
+def frame_annotations(capture: dict, semantic_ids: np.ndarray, instance_names: list[str],
+                      min_visible_pixels: int = 1) -> list[dict]:
+    """COCO annotations (no ids yet) for the visible instances of one camera capture.
+
+    ``semantic_ids`` (K+1,) maps instance id -> category id (``InstanceTable``).
+
+    Fully occluded or out-of-view instances have no pixels and are left out;
+    ``bbox`` is the box of the RLE mask itself (``toBbox``), so they agree exactly.
+    """
+    tight = capture["bounding_box_2d_tight"]
+    keep = tight["pixels"] >= max(1, min_visible_pixels)
+    ids = tight["instance_id"][keep]
+    if len(ids) == 0:
+        return []
+    instances = capture["instance_segmentation"]
+    # pycocotools wants (H, W, K) uint8 in Fortran order: fill it slice by slice, no extra copies
+    masks = np.empty((*instances.shape, len(ids)), np.uint8, order="F")
+    for k, iid in enumerate(ids):
+        np.equal(instances, iid, out=masks[:, :, k].view(bool))
+    rles = mask_utils.encode(masks)
+    boxes = mask_utils.toBbox(rles)
+    areas = mask_utils.area(rles)
+    loose = dict(zip(capture.get("bounding_box_2d_loose", {}).get("instance_id", []),
+                     capture.get("bounding_box_2d_loose", {}).get("box", [])))
+    b3 = capture.get("bounding_box_3d")
+    fraction = capture.get("visible_fraction")
+    out = []
+    for k, iid in enumerate(ids.tolist()):
+        ann = {
+            "category_id": int(semantic_ids[iid]),
+            "bbox": [float(v) for v in boxes[k]],
+            "area": int(areas[k]),
+            "segmentation": {"size": [int(s) for s in rles[k]["size"]], "counts": rles[k]["counts"].decode()},
+            "iscrowd": 0,
+            "instance_id": iid,
+            "prim_path": instance_names[iid - 1],
+        }
+        if iid in loose:
+            x0, y0, x1, y1 = (float(v) for v in loose[iid])
+            ann["bbox_loose"] = [x0 + 0.5, y0 + 0.5, x1 - x0, y1 - y0]  # COCO: pixel edges, not centres
+        if b3 is not None:
+            i = iid - 1
+            ann["bbox_3d"] = {"center_w": b3["center_w"][i].tolist(), "rot_w": b3["rot_w"][i].tolist(),
+                              "half_extent": b3["half_extent"][i].tolist(),
+                              "center_c": b3["center_c"][i].tolist(), "rot_c": b3["rot_c"][i].tolist()}
+        if fraction is not None:
+            ann["visible_fraction"] = float(fraction[iid - 1])
+        out.append(ann)
+    return out
+
+
+def coco_categories(categories: list[str]) -> list[dict]:
+    """Category entries with ids 1..C in sorted-label order (0 is background in COCO tools)."""
+    if len(set(categories)) != len(categories):
+        raise ValueError(f"duplicate category labels: {categories}")
+    return [{"id": i + 1, "name": name, "supercategory": "object"} for i, name in enumerate(categories)]
+
+
+def merge_coco(frames_dir: Path, num_frames: int, categories: list[str], info: dict) -> dict:
+    """The COCO dict of frames 0..num_frames-1 from their per-frame records."""
+    images, annotations = [], []
+    for index in range(num_frames):
+        record = json.loads((Path(frames_dir) / f"{index:06d}.json").read_text())
+        image_id = index + 1
+        images.append({"id": image_id, "file_name": record["file_name"], "width": record["width"],
+                       "height": record["height"], "frame": index})
+        for ann in record["annotations"]:
+            annotations.append({**ann, "id": len(annotations) + 1, "image_id": image_id})
+    return {"info": info, "licenses": [], "categories": coco_categories(categories),
+            "images": images, "annotations": annotations}

@@ -1,0 +1,206 @@
+"""Make a dataset: frames rendered and annotated in order, written atomically, resumable, on Ray if asked.
+
+Frame ``i`` depends only on (config, seed, i): the engine is reset, every
+randomizer draws from ``default_rng([seed, randomizer index, i // every_n])``
+and is applied, then the camera captures. So a killed run resumes by skipping
+frames whose record exists, and K Ray workers produce the same files as one.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import os
+import platform
+from pathlib import Path
+
+import mujoco
+import numpy as np
+from tqdm import tqdm
+
+from ambulo.engine import CpuEngine
+from ambulo.sensors import Camera
+
+from .coco import merge_coco
+from .config import DatasetConfig
+from .io import atomic_write_json, remove_partial_files
+from .randomizers import SceneContext
+from .writers import frame_stem, prepare_dirs, write_frame
+
+_MAX_PENDING_WRITES = 4  # frames queued for the writer thread; bounds memory
+
+
+class FrameProducer:
+    """Builds the scene once and renders any frame index of a seeded dataset."""
+
+    def __init__(self, config: DatasetConfig):
+        self.config = config
+        spec = config.build_scene()
+        for r in config.randomizers:
+            r._build(spec)
+        annotators = tuple(config.camera.annotators)
+        if config.visible_fraction and "visible_fraction" not in annotators:
+            annotators += ("visible_fraction",)
+        self.camera = Camera(_with_annotators(config.camera, annotators))
+        self.camera._build(spec)
+        self.model = spec.compile()
+        # one thread: rendering (llvmpipe) already uses every core
+        self.engine = CpuEngine(self.model, 1, num_threads=1)
+        self.camera.initialize(self.engine)
+        self.ctx = SceneContext(model=self.model, engine=self.engine, cameras={self.camera.name: self.camera})
+        names = [r.name or type(r).__name__ for r in config.randomizers]
+        if len(set(names)) != len(names):
+            raise ValueError(f"randomizer names must be unique (they key the frame log): {names}")
+        for r in config.randomizers:
+            r.initialize(self.ctx)
+        self._names = names
+        self._cache: dict[int, tuple[int, dict]] = {}
+
+    @property
+    def table(self):
+        return self.camera.table
+
+    @property
+    def gl_renderer(self) -> str:
+        return self.camera.renderer.gl_renderer
+
+    def randomize(self, seed: int, index: int) -> dict:
+        """Reset world 0 and apply every randomizer for frame ``index``; returns the frame log."""
+        self.engine.reset()
+        self.camera.reset_pose()
+        log = {}
+        for k, (name, r) in enumerate(zip(self._names, self.config.randomizers)):
+            block = index // max(1, r.every_n_frames)
+            cached = self._cache.get(k)
+            if cached is None or cached[0] != (seed, block):
+                params = r.sample(np.random.default_rng([seed, k, block]), self.ctx)
+                self._cache[k] = ((seed, block), params)
+            params = self._cache[k][1]
+            r.apply(params, self.ctx)
+            log[name] = params
+        self.engine.forward()
+        return log
+
+    def replay(self, log: dict) -> None:
+        """Apply a logged frame's parameters (no random draws): regenerates that frame alone."""
+        self.engine.reset()
+        self.camera.reset_pose()
+        for name, r in zip(self._names, self.config.randomizers):
+            r.apply(log[name], self.ctx)
+        self.engine.forward()
+
+    def capture(self) -> dict:
+        return self.camera.capture(0)
+
+    def frames(self, seed: int, indices: list[int]):
+        """Yield (index, log, capture) for ``indices``, randomizing frame i+1 while frame i's id pass rasterizes."""
+        indices = list(indices)
+        if not indices:
+            return
+        log = self.randomize(seed, indices[0])
+        self.camera.begin_capture(0)
+        for k, index in enumerate(indices):
+            following = indices[k + 1] if k + 1 < len(indices) else None
+            next_log = self.randomize(seed, following) if following is not None else None
+            capture = self.camera.end_capture()
+            if following is not None:
+                self.camera.begin_capture(0)
+            yield index, log, capture
+            log = next_log
+
+    def close(self) -> None:
+        self.camera.close()
+
+
+def _with_annotators(cfg, annotators):
+    from dataclasses import replace
+
+    return replace(cfg, annotators=tuple(dict.fromkeys(annotators)))
+
+
+def done_frames(out: Path, num_frames: int) -> set[int]:
+    frames = Path(out) / "frames"
+    if not frames.is_dir():
+        return set()
+    return {i for i in range(num_frames) if (frames / f"{frame_stem(i)}.json").is_file()}
+
+
+def run_frames(config: DatasetConfig, out: Path, seed: int, frames: list[int], progress=None,
+               producer: FrameProducer | None = None) -> str:
+    """Render and write ``frames`` (skipping none); returns the GL renderer string.
+
+    The writer thread encodes and writes frame i while frame i+1 renders.
+    """
+    out = Path(out)
+    owned = producer is None
+    producer = producer or FrameProducer(config)
+    pending: list[cf.Future] = []
+    try:
+        with cf.ThreadPoolExecutor(max_workers=1, thread_name_prefix="ambulo-writer") as pool:
+            for index, log, capture in producer.frames(seed, frames):
+                pending.append(pool.submit(write_frame, out, index, capture, producer.table, log, config.writer))
+                if len(pending) >= _MAX_PENDING_WRITES:
+                    pending.pop(0).result()
+                    if progress is not None:
+                        progress(1)
+            for fut in pending:
+                fut.result()
+                if progress is not None:
+                    progress(1)
+        return producer.gl_renderer
+    finally:
+        if owned:
+            producer.close()
+
+
+def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int = 0, workers: int = 1,
+             show_progress: bool = True) -> Path:
+    """Write (or finish) a dataset of ``num_frames`` frames in ``out``; returns annotations.json.
+
+    Frames already complete in ``out`` are kept; temporaries of a killed run
+    are removed. ``workers`` > 1 runs shards on Ray (a local cluster unless
+    ``ray.init`` was called or RAY_ADDRESS is set) and merges one COCO file.
+    """
+    if num_frames < 1:
+        raise ValueError(f"--frames must be >= 1, got {num_frames}")
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    prepare_dirs(out, config.writer)
+    remove_partial_files(out)
+    todo = sorted(set(range(num_frames)) - done_frames(out, num_frames))
+    bar = tqdm(total=num_frames, initial=num_frames - len(todo), desc="frames", unit="frame",
+               disable=not show_progress)
+    try:
+        if not todo:
+            renderer = _read_metadata_renderer(out)
+        elif workers > 1:
+            from .ray_workers import run_on_ray
+
+            renderer = run_on_ray(config, out, seed, todo, workers, bar.update)
+        else:
+            renderer = run_frames(config, out, seed, todo, bar.update)
+    finally:
+        bar.close()
+    categories = _categories(config)
+    metadata = {"name": config.name, "seed": seed, "num_frames": num_frames, "gl_renderer": renderer,
+                "mujoco_version": mujoco.__version__, "platform": platform.machine(),
+                "categories": categories, "annotators": list(config.camera.annotators)}
+    atomic_write_json(out / "metadata.json", metadata)
+    info = {"description": config.name, "version": "1.0", "gl_renderer": renderer, "seed": seed}
+    coco = merge_coco(out / "frames", num_frames, categories, info)
+    path = out / "annotations.json"
+    atomic_write_json(path, coco)
+    return path
+
+
+def _categories(config: DatasetConfig) -> list[str]:
+    from ambulo.sensors.annotators import instance_table
+
+    spec = config.build_scene()
+    return instance_table(spec.compile()).categories
+
+
+def _read_metadata_renderer(out: Path) -> str:
+    import json
+
+    meta = out / "metadata.json"
+    return json.loads(meta.read_text())["gl_renderer"] if meta.is_file() else os.environ.get("MUJOCO_GL", "")

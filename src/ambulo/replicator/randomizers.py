@@ -1,0 +1,268 @@
+"""Domain randomizers: declarative dataclasses, each a pure ``sample`` then an ``apply``.
+
+``sample(rng, ctx)`` draws a frame's parameters as plain JSON data (the frame
+log); ``apply(params, ctx)`` writes them into the engine's world 0. Applying a
+logged dict reproduces the frame without drawing anything, which is how a
+single frame is regenerated. ``every_n_frames`` keeps parameters for blocks of
+frames (drawn from the block's own seed, so any frame can still start a run).
+"""
+
+from __future__ import annotations
+
+import fnmatch
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+import torch
+
+from ambulo.sensors.frames import mat_to_quat, quat_to_mat, rot_about_axes
+
+from .distributions import Distribution, as_distribution, normal, uniform
+
+
+@dataclass
+class SceneContext:
+    """What randomizers act on: the compiled model, the engine (world 0) and the cameras."""
+
+    model: mujoco.MjModel
+    engine: object
+    cameras: dict
+    world: int = 0
+
+
+def match_bodies(model: mujoco.MjModel, pattern: str) -> list[int]:
+    """Body ids whose name matches glob ``pattern`` (whole name or last path component)."""
+    out = []
+    for b in range(1, model.nbody):
+        name = model.body(b).name
+        if fnmatch.fnmatchcase(name, pattern) or fnmatch.fnmatchcase(name.rsplit("/", 1)[-1], pattern):
+            out.append(b)
+    return out
+
+
+def subtree_geoms(model: mujoco.MjModel, body: int) -> np.ndarray:
+    """Geoms of ``body`` and all its descendants."""
+    inside = np.zeros(model.nbody, bool)
+    inside[body] = True
+    for b in range(body + 1, model.nbody):  # parents precede children
+        inside[b] = inside[model.body_parentid[b]]
+    return np.flatnonzero(inside[model.geom_bodyid])
+
+
+def to_json(value):
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, (np.floating, np.integer)):
+        return value.item()
+    if isinstance(value, dict):
+        return {k: to_json(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [to_json(v) for v in value]
+    return value
+
+
+@dataclass(kw_only=True)
+class Randomizer:
+    """Base: a name for the frame log and how often new values are drawn."""
+
+    name: str = ""
+    every_n_frames: int = 1
+
+    def _build(self, spec: mujoco.MjSpec) -> None:
+        """Add what the randomizer needs to the scene before compilation (default: nothing)."""
+
+    def initialize(self, ctx: SceneContext) -> None:
+        """Resolve names to ids in the compiled model."""
+
+    def sample(self, rng: np.random.Generator, ctx: SceneContext) -> dict:
+        raise NotImplementedError
+
+    def apply(self, params: dict, ctx: SceneContext) -> None:
+        raise NotImplementedError
+
+
+@dataclass(kw_only=True)
+class LightRandomizer(Randomizer):
+    """Light colour, intensity and direction (azimuth/elevation of the light's aim)."""
+
+    lights: str = "*"
+    intensity: Distribution = field(default_factory=lambda: uniform(0.35, 0.9))
+    color: Distribution = field(default_factory=lambda: uniform((0.8, 0.8, 0.75), (1.0, 1.0, 1.0)))
+    ambient: Distribution = field(default_factory=lambda: uniform(0.15, 0.3))
+    azimuth_deg: Distribution = field(default_factory=lambda: uniform(-180.0, 180.0))
+    elevation_deg: Distribution = field(default_factory=lambda: uniform(30.0, 75.0))
+
+    def initialize(self, ctx):
+        names = [ctx.model.light(i).name for i in range(ctx.model.nlight)]
+        self._ids = [i for i, n in enumerate(names) if fnmatch.fnmatchcase(n, self.lights)]
+        if not self._ids:
+            raise ValueError(f"{self.name}: no light matches {self.lights!r}; lights: {names}")
+
+    def sample(self, rng, ctx):
+        out = []
+        for _ in self._ids:
+            intensity = float(as_distribution(self.intensity).sample(rng))
+            color = as_distribution(self.color).sample(rng)
+            az, el = np.radians(as_distribution(self.azimuth_deg).sample(rng)), np.radians(
+                as_distribution(self.elevation_deg).sample(rng))
+            direction = [np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), -np.sin(el)]
+            out.append({"diffuse": intensity * np.asarray(color), "ambient": float(as_distribution(self.ambient).sample(rng)),
+                        "dir": direction})
+        return to_json({"lights": out})
+
+    def apply(self, params, ctx):
+        w = ctx.world
+        diffuse, ambient, direction = (ctx.engine.model_field(f) for f in ("light_diffuse", "light_ambient", "light_dir"))
+        for lid, p in zip(self._ids, params["lights"]):
+            diffuse[w, lid] = torch.tensor(p["diffuse"], dtype=diffuse.dtype)
+            ambient[w, lid] = p["ambient"]
+            direction[w, lid] = torch.tensor(p["dir"], dtype=direction.dtype)
+
+
+@dataclass(kw_only=True)
+class ColorRandomizer(Randomizer):
+    """One random colour per matched body (all geoms of its subtree), drawn in HSV."""
+
+    prims: str
+    hue: Distribution = field(default_factory=lambda: uniform(0.0, 1.0))
+    saturation: Distribution = field(default_factory=lambda: uniform(0.2, 0.9))
+    value: Distribution = field(default_factory=lambda: uniform(0.35, 1.0))
+
+    def initialize(self, ctx):
+        self._bodies = match_bodies(ctx.model, self.prims)
+        if not self._bodies:
+            raise ValueError(f"{self.name}: no body matches {self.prims!r}")
+        self._geoms = [subtree_geoms(ctx.model, b) for b in self._bodies]
+
+    def sample(self, rng, ctx):
+        colors = []
+        for _ in self._bodies:
+            h, s, v = (float(as_distribution(d).sample(rng)) for d in (self.hue, self.saturation, self.value))
+            colors.append(_hsv_to_rgb(h, s, v) + [1.0])
+        return {"rgba": colors}
+
+    def apply(self, params, ctx):
+        rgba = ctx.engine.model_field("geom_rgba")
+        for geoms, color in zip(self._geoms, params["rgba"]):
+            rgba[ctx.world, geoms] = torch.tensor(color, dtype=rgba.dtype)
+
+
+def _hsv_to_rgb(h: float, s: float, v: float) -> list[float]:
+    i = int(h * 6.0) % 6
+    f = h * 6.0 - int(h * 6.0)
+    p, q, t = v * (1 - s), v * (1 - s * f), v * (1 - s * (1 - f))
+    return [[v, t, p], [q, v, p], [p, v, t], [p, q, v], [t, p, v], [v, p, q]][i]
+
+
+@dataclass(kw_only=True)
+class MaterialRandomizer(Randomizer):
+    """Textured materials (checker, gradient, noise) assigned per matched body.
+
+    ``_build`` adds a palette of ``palette_size`` procedural textures whose
+    colours come from ``palette_seed`` (the palette is part of the scene, the
+    same for every frame); each frame picks a palette entry or none per body.
+    """
+
+    prims: str
+    palette_size: int = 8
+    palette_seed: int = 0
+    untextured_probability: float = 0.3
+
+    def _build(self, spec):
+        rng = np.random.default_rng(self.palette_seed)
+        builtins = [mujoco.mjtBuiltin.mjBUILTIN_CHECKER, mujoco.mjtBuiltin.mjBUILTIN_GRADIENT]
+        self._names = []
+        for i in range(self.palette_size):
+            name = f"{self.name or 'material'}_palette_{i}"
+            spec.add_texture(name=name, type=mujoco.mjtTexture.mjTEXTURE_2D, builtin=builtins[i % 2],
+                             rgb1=rng.uniform(0.1, 1.0, 3).tolist(), rgb2=rng.uniform(0.1, 1.0, 3).tolist(),
+                             width=64, height=64, mark=mujoco.mjtMark.mjMARK_RANDOM if i % 3 == 2 else 0,
+                             random=0.1, markrgb=rng.uniform(0, 1, 3).tolist())
+            mat = spec.add_material(name=name, texrepeat=[2, 2], texuniform=True,
+                                    specular=float(rng.uniform(0.1, 0.6)), shininess=float(rng.uniform(0.1, 0.8)))
+            mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = name
+            self._names.append(name)
+
+    def initialize(self, ctx):
+        self._bodies = match_bodies(ctx.model, self.prims)
+        if not self._bodies:
+            raise ValueError(f"{self.name}: no body matches {self.prims!r}")
+        self._geoms = [subtree_geoms(ctx.model, b) for b in self._bodies]
+        self._mat_ids = [ctx.model.material(n).id for n in self._names]
+        self._base = ctx.model.geom_matid.copy()
+
+    def sample(self, rng, ctx):
+        picks = []
+        for _ in self._bodies:
+            plain = rng.uniform() < self.untextured_probability
+            picks.append(-1 if plain else int(rng.integers(len(self._mat_ids))))
+        return {"palette_index": picks}
+
+    def apply(self, params, ctx):
+        matid = ctx.engine.model_field("geom_matid")
+        for geoms, pick in zip(self._geoms, params["palette_index"]):
+            value = self._base[geoms] if pick < 0 else np.full(len(geoms), self._mat_ids[pick])
+            matid[ctx.world, geoms] = torch.as_tensor(value, dtype=matid.dtype)
+
+
+@dataclass(kw_only=True)
+class CameraJitter(Randomizer):
+    """Perturb a camera around its mount offset: position (m, mount frame) and rotation (deg)."""
+
+    camera: str
+    position_m: Distribution = field(default_factory=lambda: normal((0, 0, 0), (0.02, 0.02, 0.02)))
+    rotation_deg: Distribution = field(default_factory=lambda: normal((0, 0, 0), (3.0, 3.0, 3.0)))
+
+    def initialize(self, ctx):
+        if self.camera not in ctx.cameras:
+            raise ValueError(f"{self.name}: no camera {self.camera!r}; cameras: {list(ctx.cameras)}")
+
+    def sample(self, rng, ctx):
+        return to_json({"position_m": as_distribution(self.position_m).sample(rng),
+                        "rotation_deg": as_distribution(self.rotation_deg).sample(rng)})
+
+    def apply(self, params, ctx):
+        cam = ctx.cameras[self.camera]
+        base_pos, base_rot = cam._default_offset
+        rot = rot_about_axes(np.radians(params["rotation_deg"])) @ base_rot
+        cam.set_local_pose(base_pos + np.asarray(params["position_m"]), mat_to_quat(rot),
+                           convention="opengl", world_ids=[ctx.world])
+
+
+@dataclass(kw_only=True)
+class JointRandomizer(Randomizer):
+    """Hinge/slide joint positions drawn uniformly from a fraction of each joint's range."""
+
+    joints: str
+    range_fraction: float = 0.5
+    """1 uses the whole limited range; unlimited joints use +-range_fraction * pi."""
+
+    def initialize(self, ctx):
+        m = ctx.model
+        kinds = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+        self._joints = [j for j in range(m.njnt) if m.jnt_type[j] in kinds and (
+            fnmatch.fnmatchcase(m.joint(j).name, self.joints)
+            or fnmatch.fnmatchcase(m.joint(j).name.rsplit("/", 1)[-1], self.joints))]
+        if not self._joints:
+            raise ValueError(f"{self.name}: no hinge/slide joint matches {self.joints!r}")
+        self._adr = m.jnt_qposadr[self._joints]
+        lo, hi = m.jnt_range[self._joints].T
+        limited = m.jnt_limited[self._joints].astype(bool)
+        mid, half = (lo + hi) / 2, (hi - lo) / 2
+        self._low = np.where(limited, mid - self.range_fraction * half, -self.range_fraction * np.pi)
+        self._high = np.where(limited, mid + self.range_fraction * half, self.range_fraction * np.pi)
+
+    def sample(self, rng, ctx):
+        return {"qpos": rng.uniform(self._low, self._high).tolist()}
+
+    def apply(self, params, ctx):
+        ctx.engine.qpos[ctx.world, torch.as_tensor(self._adr)] = torch.tensor(params["qpos"], dtype=torch.float64)
+
+
+def quat_yaw(yaw: float) -> list[float]:
+    return [float(np.cos(yaw / 2)), 0.0, 0.0, float(np.sin(yaw / 2))]
+
+
+def yaw_matrix(yaw: float) -> np.ndarray:
+    return quat_to_mat(np.asarray(quat_yaw(yaw)))

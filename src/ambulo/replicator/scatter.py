@@ -1,0 +1,199 @@
+"""Scatter objects on a surface without overlaps, checked by MuJoCo's own collision detection.
+
+Placement is rejection sampling: draw every object's pose, run ``mj_collision``
+on a private ``MjData``, redraw only the objects in penetrating contacts (with
+each other, the robot or static scenery; the support surface is ignored), and
+repeat. Objects still colliding after ``max_tries`` rounds are parked under
+the floor and logged as hidden, so a crowded region degrades instead of overlapping.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+import torch
+
+from ambulo.sensors.frames import quat_to_mat
+
+from .distributions import Distribution, as_distribution, uniform, uniform_int
+from .randomizers import Randomizer, match_bodies, quat_yaw, subtree_geoms
+
+
+def park_z(body_id: int) -> float:
+    """Height (m) where an unused body waits: under the floor, 3 m apart per body, so none touch."""
+    return -10.0 - 3.0 * body_id
+
+_PENETRATION_M = 1e-4
+
+
+class CollisionChecker:
+    """Which free bodies penetrate anything but the ignored geoms, for a full qpos."""
+
+    def __init__(self, model: mujoco.MjModel, ignore_geoms: np.ndarray):
+        self.model = model
+        self.data = mujoco.MjData(model)
+        self._ignore = np.zeros(model.ngeom, bool)
+        self._ignore[np.asarray(ignore_geoms, int)] = True
+        self._root = model.body_rootid
+
+    def colliding_roots(self, qpos: np.ndarray) -> set[int]:
+        """Root bodies (of geoms) in penetrating contacts."""
+        d = self.data
+        d.qpos[:] = qpos
+        mujoco.mj_kinematics(self.model, d)
+        mujoco.mj_collision(self.model, d)
+        n = d.ncon
+        if n == 0:
+            return set()
+        geoms = d.contact.geom[:n]
+        hit = (d.contact.dist[:n] < -_PENETRATION_M) & ~self._ignore[geoms].any(1)
+        bodies = self.model.geom_bodyid[geoms[hit]]
+        return {int(b) for b in self._root[bodies].ravel()}
+
+
+@dataclass(kw_only=True)
+class Scatter2D(Randomizer):
+    """Place free-jointed bodies upright at random (x, y, yaw) on a horizontal surface.
+
+    ``surface`` names the geom(s) the objects stand on (glob); their top is
+    ``surface_z_m``. The region is ((x_min, y_min), (x_max, y_max)) in metres.
+    """
+
+    prims: str
+    region: tuple[tuple[float, float], tuple[float, float]]
+    surface: str = "*floor*"
+    surface_z_m: float = 0.0
+    yaw_rad: Distribution = field(default_factory=lambda: uniform(-np.pi, np.pi))
+    check_collisions: bool = True
+    max_tries: int = 30
+    count: Distribution | None = None
+    """How many of the matched bodies to place (the rest are parked); None places all."""
+
+    def initialize(self, ctx):
+        m = ctx.model
+        self._bodies = match_bodies(m, self.prims)
+        self._bodies = [b for b in self._bodies if m.body_parentid[b] == 0]
+        if not self._bodies:
+            raise ValueError(f"{self.name}: no top-level body matches {self.prims!r}")
+        self._qadr = []
+        for b in self._bodies:
+            j = m.body_jntadr[b]
+            if j < 0 or int(m.jnt_type[j]) != int(mujoco.mjtJoint.mjJNT_FREE):
+                raise ValueError(f"{self.name}: body {m.body(b).name!r} needs a free joint to be scattered")
+            self._qadr.append(int(m.jnt_qposadr[j]))
+        self._geoms = [subtree_geoms(m, b) for b in self._bodies]
+        names = [m.geom(g).name for g in range(m.ngeom)]
+        surface = [g for g, n in enumerate(names) if n and fnmatch.fnmatchcase(n, self.surface)]
+        if self.check_collisions and not surface:
+            raise ValueError(f"{self.name}: no geom matches surface {self.surface!r}")
+        self._checker = CollisionChecker(m, surface) if self.check_collisions else None
+        self._bottom = [self._bottom_offset(m, b, g) for b, g in zip(self._bodies, self._geoms)]
+
+    @staticmethod
+    def _bottom_offset(m, body, geoms) -> float:
+        """Depth (m) of the body's lowest bounding-box corner below its origin, when upright.
+
+        Yaw does not change heights, so one number per body sets its resting z.
+        """
+        aabb = m.geom_aabb[geoms].reshape(-1, 2, 3)
+        lowest = np.inf
+        for g, (center, half) in zip(geoms, aabb):
+            rot = _geom_rot_in_root(m, g, body)
+            pos = _geom_pos_in_root(m, g, body)
+            corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * half + center
+            lowest = min(lowest, float((corners @ rot.T + pos)[:, 2].min()))
+        return -lowest
+
+    def sample(self, rng, ctx):
+        n = len(self._bodies)
+        count = n if self.count is None else int(np.clip(as_distribution(self.count).sample(rng), 0, n))
+        active = sorted(rng.choice(n, size=count, replace=False).tolist()) if count < n else list(range(n))
+        (x0, y0), (x1, y1) = self.region
+        poses = {}
+        qpos = ctx.engine.qpos[ctx.world].numpy().copy()
+        self._park_all(qpos)
+        todo = list(active)
+        for _ in range(self.max_tries):
+            for i in todo:
+                poses[i] = [float(rng.uniform(x0, x1)), float(rng.uniform(y0, y1)),
+                            float(as_distribution(self.yaw_rad).sample(rng))]
+                self._write(qpos, i, poses[i])
+            if self._checker is None:
+                todo = []
+                break
+            hits = self._checker.colliding_roots(qpos)
+            todo = [i for i in active if self._bodies[i] in hits]
+            if not todo:
+                break
+        hidden = sorted(todo)
+        return {"active": [i for i in active if i not in hidden], "hidden": hidden,
+                "pose_xy_yaw": {str(i): poses[i] for i in active if i not in hidden}}
+
+    def apply(self, params, ctx):
+        qpos = ctx.engine.qpos[ctx.world]
+        values = qpos.numpy().copy()
+        self._park_all(values)
+        for key, pose in params["pose_xy_yaw"].items():
+            self._write(values, int(key), pose)
+        qpos[:] = torch.from_numpy(values)
+        if self._checker is not None:
+            # later scatterers (distractors) check against where these objects now are
+            self._checker.data.qpos[:] = values
+
+    def _write(self, qpos: np.ndarray, i: int, pose) -> None:
+        adr = self._qadr[i]
+        x, y, yaw = pose
+        qpos[adr:adr + 3] = [x, y, self.surface_z_m + self._bottom[i]]
+        qpos[adr + 3:adr + 7] = quat_yaw(yaw)
+
+    def _park_all(self, qpos: np.ndarray) -> None:
+        for i, adr in enumerate(self._qadr):
+            qpos[adr:adr + 7] = [0.0, 0.0, park_z(self._bodies[i]), 1, 0, 0, 0]
+
+
+def _geom_rot_in_root(m, geom: int, root: int) -> np.ndarray:
+    rot = quat_to_mat(m.geom_quat[geom])
+    b = m.geom_bodyid[geom]
+    while b != root:
+        rot = quat_to_mat(m.body_quat[b]) @ rot
+        b = m.body_parentid[b]
+    return rot
+
+
+def _geom_pos_in_root(m, geom: int, root: int) -> np.ndarray:
+    pos = m.geom_pos[geom].copy()
+    b = m.geom_bodyid[geom]
+    while b != root:
+        pos = m.body_pos[b] + quat_to_mat(m.body_quat[b]) @ pos
+        b = m.body_parentid[b]
+    return pos
+
+
+@dataclass(kw_only=True)
+class Distractors(Scatter2D):
+    """Unlabelled clutter: a pool of random primitives added at build, a random number placed per frame.
+
+    Shapes, sizes and colours of the pool come from ``pool_seed`` (part of the
+    scene); each frame draws how many are placed and where, avoiding everything
+    placed before it.
+    """
+
+    prims: str = "/World/distractors/*"
+    pool_size: int = 8
+    pool_seed: int = 1
+    size_m: tuple[float, float] = (0.05, 0.25)
+    count: Distribution | None = field(default_factory=lambda: uniform_int(2, 6))
+
+    def _build(self, spec):
+        rng = np.random.default_rng(self.pool_seed)
+        shapes = [mujoco.mjtGeom.mjGEOM_BOX, mujoco.mjtGeom.mjGEOM_SPHERE, mujoco.mjtGeom.mjGEOM_CYLINDER,
+                  mujoco.mjtGeom.mjGEOM_CAPSULE, mujoco.mjtGeom.mjGEOM_ELLIPSOID]
+        root = self.prims.rstrip("*").rstrip("/")
+        for i in range(self.pool_size):
+            body = spec.worldbody.add_body(name=f"{root}/distractor_{i}", pos=[0, 0, -10.0 - 3.0 * i])
+            body.add_freejoint()
+            size = rng.uniform(*self.size_m, 3)
+            body.add_geom(type=shapes[i % len(shapes)], size=size, rgba=[*rng.uniform(0.1, 1.0, 3), 1.0])

@@ -1,0 +1,242 @@
+"""Ground truth computed from a rendered geom-id image, depth and the model's geometry.
+
+Instances are the bodies that carry a semantic label (``ambulo.sim.semantics``);
+an instance owns its body's geoms and those of descendants without their own
+label, so labelling a robot's root labels the whole robot. Instance ids are
+1..K in body order, 0 is background; semantic ids are 1..C in label order.
+
+Image coordinates follow OpenCV: pixel (u, v) = (column, row) has its centre at
+integer coordinates, and the camera frame has x right, y down, z forward.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from ambulo.sim.semantics import semantic_labels
+
+# Corners of the unit cube [-1, 1]^3 and its 12 edges as corner index pairs.
+_CUBE = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], np.float64)
+_EDGES = np.array([(a, b) for a in range(8) for b in range(a + 1, 8)
+                   if np.abs(_CUBE[a] - _CUBE[b]).sum() == 2], np.int64)
+
+
+@dataclass(kw_only=True)
+class InstanceTable:
+    """The labelled objects of a model and how geoms map to them."""
+
+    body_ids: np.ndarray
+    """(K,) int: the labelled body of instance k+1."""
+    labels: list[str]
+    """K class labels."""
+    categories: list[str]
+    """Sorted unique labels; semantic id of label c is categories.index(c) + 1."""
+    semantic_ids: np.ndarray
+    """(K+1,) int: semantic id per instance id (index 0 = background = 0)."""
+    geom_instance: np.ndarray
+    """(ngeom+1,) int32: instance id of geom g at index g+1; index 0 (no geom) -> 0."""
+    names: list[str]
+    """K body names (prim paths)."""
+
+    @property
+    def num_instances(self) -> int:
+        return len(self.labels)
+
+    def geoms_of(self, instance_id: int) -> np.ndarray:
+        return np.flatnonzero(self.geom_instance[1:] == instance_id)
+
+    @property
+    def instance_geoms(self) -> tuple[np.ndarray, np.ndarray]:
+        """All geoms of instances, sorted by instance, and each geom's instance id (cached)."""
+        if getattr(self, "_instance_geoms", None) is None:
+            geoms = np.flatnonzero(self.geom_instance[1:] > 0)
+            order = np.argsort(self.geom_instance[1:][geoms], kind="stable")
+            geoms = geoms[order]
+            self._instance_geoms = (geoms, self.geom_instance[1:][geoms])
+        return self._instance_geoms
+
+
+def instance_table(model: mujoco.MjModel) -> InstanceTable:
+    labels_by_body = semantic_labels(model)
+    body_ids = np.array(sorted(labels_by_body), np.int64)
+    instance_of_body = np.zeros(model.nbody, np.int32)
+    for k, b in enumerate(body_ids):
+        instance_of_body[b] = k + 1
+    # bodies are stored parent-first, so one forward pass propagates labels down the tree
+    for b in range(1, model.nbody):
+        if instance_of_body[b] == 0:
+            instance_of_body[b] = instance_of_body[model.body_parentid[b]]
+    labels = [labels_by_body[b] for b in body_ids]
+    categories = sorted(set(labels))
+    semantic = np.array([0] + [categories.index(c) + 1 for c in labels], np.int32)
+    geom_instance = np.concatenate([[0], instance_of_body[model.geom_bodyid]]).astype(np.int32)
+    names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, int(b)) or f"body{b}" for b in body_ids]
+    return InstanceTable(body_ids=body_ids, labels=labels, categories=categories,
+                         semantic_ids=semantic, geom_instance=geom_instance, names=names)
+
+
+def instance_map(geom_ids: np.ndarray, table: InstanceTable) -> np.ndarray:
+    """(H, W) geom ids (-1 = none) -> (H, W) int32 instance ids (0 = background)."""
+    return table.geom_instance[geom_ids + 1]
+
+
+def tight_boxes(instances: np.ndarray, num_instances: int) -> tuple[np.ndarray, np.ndarray]:
+    """Box of each instance's visible pixels and its pixel count.
+
+    Returns ``boxes`` (K, 4) int [x_min, y_min, x_max, y_max] inclusive pixel
+    indices (-1 where invisible) and ``pixels`` (K,) int visible pixel counts.
+    """
+    h, w = instances.shape
+    k1 = num_instances + 1
+    # presence of instance k in row r / column c via one bincount each over k*size + index
+    rows = np.bincount((instances * h + np.arange(h)[:, None]).ravel(), minlength=k1 * h).reshape(k1, h)
+    cols = np.bincount((instances * w + np.arange(w)[None, :]).ravel(), minlength=k1 * w).reshape(k1, w)
+    pixels = rows[1:].sum(1)
+    rows, cols = rows[1:] > 0, cols[1:] > 0
+    boxes = np.stack([
+        cols.argmax(1), rows.argmax(1),
+        w - 1 - cols[:, ::-1].argmax(1), h - 1 - rows[:, ::-1].argmax(1),
+    ], 1)
+    boxes[pixels == 0] = -1
+    return boxes, pixels
+
+
+def instance_boxes_3d(table: InstanceTable, model: mujoco.MjModel, body_pos_w: np.ndarray,
+                      body_rot_w: np.ndarray, geom_pos_w: np.ndarray, geom_rot_w: np.ndarray):
+    """Oriented 3D box of each instance, aligned with its labelled body's frame.
+
+    The box encloses the bounding boxes (``geom_aabb``) of the instance's geoms.
+    Inputs are one world's poses: body (nbody, 3) and (nbody, 3, 3), geom
+    (ngeom, 3) and (ngeom, 3, 3). Returns ``center_w`` (K, 3) m, ``rot_w``
+    (K, 3, 3) (box axes as columns) and ``half_extent`` (K, 3) m.
+    """
+    k = table.num_instances
+    center_w, rot_w, half = np.zeros((k, 3)), np.tile(np.eye(3), (k, 1, 1)), np.zeros((k, 3))
+    geoms, owner = table.instance_geoms
+    if len(geoms) == 0:
+        return center_w, rot_w, half
+    bodies = table.body_ids[owner - 1]
+    corners = geom_corners_w(geoms, model, geom_pos_w, geom_rot_w)  # (G, 8, 3)
+    local = np.einsum("gcj,gji->gci", corners - body_pos_w[bodies][:, None], body_rot_w[bodies])
+    starts = np.flatnonzero(np.r_[True, owner[1:] != owner[:-1]])
+    lo = np.minimum.reduceat(local.min(1), starts)
+    hi = np.maximum.reduceat(local.max(1), starts)
+    idx = owner[starts] - 1
+    b = table.body_ids[idx]
+    center_w[idx] = body_pos_w[b] + np.einsum("kij,kj->ki", body_rot_w[b], (lo + hi) / 2)
+    rot_w[idx], half[idx] = body_rot_w[b], (hi - lo) / 2
+    return center_w, rot_w, half
+
+
+def geom_corners_w(geoms: np.ndarray, model: mujoco.MjModel, geom_pos_w: np.ndarray,
+                   geom_rot_w: np.ndarray) -> np.ndarray:
+    """(G, 8, 3) world corners of the geoms' local bounding boxes (``geom_aabb``)."""
+    aabb = model.geom_aabb[geoms].reshape(-1, 2, 3)
+    local = aabb[:, None, 0] + _CUBE[None] * aabb[:, None, 1]
+    return geom_pos_w[geoms, None] + np.einsum("gij,gcj->gci", geom_rot_w[geoms], local)
+
+
+def loose_boxes(table: InstanceTable, model: mujoco.MjModel, geom_pos_w: np.ndarray, geom_rot_w: np.ndarray,
+                extrinsics_cw: np.ndarray, k_matrix: np.ndarray, width: int, height: int,
+                near_m: float) -> list[np.ndarray | None]:
+    """Loose 2D box per instance (see ``project_box_corners``), all instances' geoms at once."""
+    geoms, owner = table.instance_geoms
+    corners = geom_corners_w(geoms, model, geom_pos_w, geom_rot_w)
+    corners_c = corners @ extrinsics_cw[:3, :3].T + extrinsics_cw[:3, 3]
+    z = corners_c[..., 2]
+    a, b = corners_c[:, _EDGES[:, 0]], corners_c[:, _EDGES[:, 1]]
+    za, zb = a[..., 2], b[..., 2]
+    crossing = (za - near_m) * (zb - near_m) < 0
+    t = np.where(crossing, (near_m - za) / np.where(crossing, zb - za, 1.0), 0.0)
+    cut = a + t[..., None] * (b - a)
+    points = np.concatenate([corners_c, cut], 1)  # (G, 20, 3)
+    valid = np.concatenate([z >= near_m, crossing], 1)
+    zs = np.where(valid, points[..., 2], 1.0)
+    uv = points[..., :2] / zs[..., None] * np.diag(k_matrix)[:2] + k_matrix[:2, 2]
+    lo = np.where(valid[..., None], uv, np.inf).min(1)
+    hi = np.where(valid[..., None], uv, -np.inf).max(1)
+    out: list[np.ndarray | None] = [None] * table.num_instances
+    starts = np.flatnonzero(np.r_[True, owner[1:] != owner[:-1]]) if len(owner) else np.array([], int)
+    if len(starts) == 0:
+        return out
+    lo_i = np.minimum.reduceat(lo, starts)
+    hi_i = np.maximum.reduceat(hi, starts)
+    for inst, l, h in zip(owner[starts], lo_i, hi_i):
+        l = np.maximum(l, -0.5)
+        h = np.minimum(h, [width - 0.5, height - 0.5])
+        if np.all(h > l):
+            out[inst - 1] = np.concatenate([l, h])
+    return out
+
+
+def project_box_corners(corners_c: np.ndarray, k_matrix: np.ndarray, width: int, height: int,
+                        near_m: float) -> np.ndarray | None:
+    """Image box [x_min, y_min, x_max, y_max] (float px, clipped) of boxes (G, 8, 3) in the camera.
+
+    ``corners_c`` are in the OpenCV camera frame. Edges crossing the near plane
+    are cut there, so boxes partly behind the camera still project correctly.
+    Returns None when nothing is in front of the camera or inside the image.
+    """
+    z = corners_c[..., 2]
+    a, b = corners_c[:, _EDGES[:, 0]], corners_c[:, _EDGES[:, 1]]
+    za, zb = a[..., 2], b[..., 2]
+    crossing = (za - near_m) * (zb - near_m) < 0
+    t = np.where(crossing, (near_m - za) / np.where(crossing, zb - za, 1.0), 0.0)
+    cut = a + t[..., None] * (b - a)
+    points = np.concatenate([corners_c[z >= near_m], cut[crossing]], 0)
+    if len(points) == 0:
+        return None
+    uv = points[:, :2] / points[:, 2:3] * np.diag(k_matrix)[:2] + k_matrix[:2, 2]
+    lo = np.maximum(uv.min(0), -0.5)
+    hi = np.minimum(uv.max(0), [width - 0.5, height - 0.5])
+    if np.any(hi <= lo):
+        return None
+    return np.concatenate([lo, hi])
+
+
+def distance_from_depth(depth: np.ndarray, k_matrix: np.ndarray) -> np.ndarray:
+    """(H, W) distance to the camera centre (m) from distance to the image plane."""
+    h, w = depth.shape
+    x = (np.arange(w) - k_matrix[0, 2]) / k_matrix[0, 0]
+    y = (np.arange(h) - k_matrix[1, 2]) / k_matrix[1, 1]
+    return depth * np.sqrt(1.0 + x[None, :] ** 2 + y[:, None] ** 2)
+
+
+def points_from_depth(depth: np.ndarray, k_matrix: np.ndarray) -> np.ndarray:
+    """(H, W, 3) points in the OpenCV camera frame (m) from depth to the image plane."""
+    h, w = depth.shape
+    x = (np.arange(w) - k_matrix[0, 2]) / k_matrix[0, 0]
+    y = (np.arange(h) - k_matrix[1, 2]) / k_matrix[1, 1]
+    return np.stack([depth * x[None, :], depth * y[:, None], depth], -1)
+
+
+def normals_from_depth(depth: np.ndarray, k_matrix: np.ndarray) -> np.ndarray:
+    """(H, W, 3) unit surface normals in the OpenCV camera frame, facing the camera.
+
+    Cross product of back-projected point differences along x and y; of the two
+    neighbours on each axis the one at the closer depth is used, so normals stay
+    exact on planar faces up to depth discontinuities. Zero where depth is infinite.
+    """
+    p = points_from_depth(np.where(np.isfinite(depth), depth, np.nan), k_matrix)
+    dx = _one_sided_difference(p, axis=1)
+    dy = _one_sided_difference(p, axis=0)
+    n = np.cross(dy, dx)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    n = np.where(np.sum(n * p, -1, keepdims=True) > 0, -n, n)
+    return np.nan_to_num(n, nan=0.0).astype(np.float32)
+
+
+def _one_sided_difference(p: np.ndarray, axis: int) -> np.ndarray:
+    fwd = np.full_like(p, np.nan)
+    bwd = np.full_like(p, np.nan)
+    ahead = [slice(None)] * 3
+    behind = [slice(None)] * 3
+    ahead[axis], behind[axis] = slice(1, None), slice(None, -1)
+    ahead, behind = tuple(ahead), tuple(behind)
+    fwd[behind] = p[ahead] - p[behind]
+    bwd[ahead] = p[ahead] - p[behind]
+    use_fwd = ~(np.abs(bwd[..., 2]) < np.abs(fwd[..., 2])) & ~np.isnan(fwd[..., 2])
+    return np.where(use_fwd[..., None], fwd, bwd)

@@ -1,0 +1,367 @@
+"""Pinhole camera sensor: rgb, depth, segmentation, normals, 2D/3D boxes, batched over worlds.
+
+The camera sits on a mount (a body or site) at an offset that can differ per
+world (pose jitter, ``set_camera_view``). Each world is rendered with one
+reused ``OffscreenRenderer``; ground truth comes from ``annotators``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+import torch
+
+from ambulo.render import OffscreenRenderer, RenderSettings, fast_render_settings
+
+from . import annotators as ann
+from .base import MountPose, Sensor, spec_body
+from .frames import GL_IN, check_convention, look_at_gl, mat_to_quat, quat_to_mat
+
+ANNOTATORS = (
+    "rgb", "depth", "distance_to_camera", "semantic_segmentation", "instance_segmentation",
+    "normals", "bounding_box_2d_tight", "bounding_box_2d_loose", "bounding_box_3d",
+    "visible_fraction",
+)
+# Isaac Replicator names for the same outputs
+ALIASES = {"distance_to_image_plane": "depth", "rgba": "rgb", "occlusion": "visible_fraction"}
+_NEEDS_IDS = {"semantic_segmentation", "instance_segmentation", "bounding_box_2d_tight",
+              "visible_fraction"}
+_NEEDS_DEPTH = {"depth", "distance_to_camera", "normals"}
+
+
+@dataclass(kw_only=True)
+class CameraCfg:
+    """A pinhole camera on a body or site."""
+
+    prim_path: str
+    """The camera's prim path; its mount is the longest prefix naming a body or site."""
+    width: int = 320
+    """Image width (px)."""
+    height: int = 240
+    """Image height (px)."""
+    fovy_deg: float = 60.0
+    """Vertical field of view (deg); ignored when ``focal_length_px`` is set."""
+    focal_length_px: float | None = None
+    """Focal length (px, square pixels); sets the field of view from ``height``."""
+    offset_pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """Position (m) in the mount frame."""
+    offset_quat: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
+    """Orientation (w, x, y, z) in the mount frame, in ``offset_convention`` axes."""
+    offset_convention: str = "world"
+    """'world' (x forward, z up), 'opengl' (MuJoCo: looks along -z) or 'opencv'/'ros'."""
+    clipping_range_m: tuple[float, float] = (0.05, 100.0)
+    """Near and far clip distances (m); depth resolution is best with a far-away near plane."""
+    frequency_hz: float | None = None
+    """Update rate (Hz) in simulated time; None renders on every request."""
+    annotators: tuple[str, ...] = ("rgb", "depth")
+    """Outputs of ``get_current_frame``; see ``ANNOTATORS``."""
+    render: RenderSettings = field(default_factory=fast_render_settings)
+
+
+def _normalize_annotators(names) -> tuple[str, ...]:
+    out = []
+    for name in names:
+        name = ALIASES.get(name, name)
+        if name not in ANNOTATORS:
+            raise ValueError(f"unknown camera annotator {name!r}; choose from {ANNOTATORS}")
+        out.append(name)
+    return tuple(dict.fromkeys(out))
+
+
+class Camera(Sensor):
+    """Camera(CameraCfg(...)) or, as in the Isaac tutorials, Camera(prim_path=..., resolution=(w, h))."""
+
+    def __init__(self, cfg: CameraCfg | None = None, **kwargs):
+        if cfg is None:
+            if "resolution" in kwargs:
+                kwargs["width"], kwargs["height"] = kwargs.pop("resolution")
+            if "frequency" in kwargs:
+                kwargs["frequency_hz"] = kwargs.pop("frequency")
+            cfg = CameraCfg(**kwargs)
+        elif kwargs:
+            raise TypeError("pass either a CameraCfg or keyword arguments, not both")
+        check_convention(cfg.offset_convention)
+        self.cfg = cfg
+        self.annotators = _normalize_annotators(cfg.annotators)
+        period = 0.0 if not cfg.frequency_hz else 1.0 / cfg.frequency_hz
+        super().__init__(cfg.prim_path, period)
+        self.name = cfg.prim_path
+        self._renderer: OffscreenRenderer | None = None
+        self._pending = None
+        self._frames: list[dict | None] = []
+
+    # -- lifecycle ------------------------------------------------------------
+    def _build(self, spec: mujoco.MjSpec) -> None:
+        super()._build(spec)
+        if spec.camera(self.name) is not None:
+            raise ValueError(f"a camera named {self.name!r} already exists; give each camera its own prim path")
+        pos, rot = self._offset_in_body(np.asarray(spec.site(self.mount.site).pos, float) if self.mount.site else None,
+                                        np.asarray(spec.site(self.mount.site).quat, float) if self.mount.site else None)
+        spec_body(spec, self.mount).add_camera(
+            name=self.name, pos=pos, quat=mat_to_quat(rot), fovy=self.fovy_deg)
+
+    def initialize(self, engine) -> None:
+        super().initialize(engine)
+        model = engine.model
+        self.cam_id = model.camera(self.name).id
+        self._mount_pose = MountPose(engine, self.mount)
+        n = engine.num_worlds
+        site = self.mount.site
+        pos, rot = self._offset_in_mount()
+        self._offset_pos = np.tile(pos, (n, 1))
+        """(N, 3) m: camera position in the mount frame, per world."""
+        self._offset_rot_gl = np.tile(rot, (n, 1, 1))
+        """(N, 3, 3): camera OpenGL axes in the mount frame, per world."""
+        self._default_offset = (pos, rot)
+        self._site_local = None
+        if site is not None:
+            sid = model.site(site).id
+            self._site_local = (model.site_pos[sid].copy(), quat_to_mat(model.site_quat[sid]))
+        self.table = ann.instance_table(model)
+        self._model_buf = engine.get_model(0)
+        self._data_buf = engine.get_data(0)
+        self._frames = [None] * n
+        self._sync_model_camera()
+
+    @property
+    def renderer(self) -> OffscreenRenderer:
+        if self._renderer is None:
+            self._require_initialized()
+            self._renderer = OffscreenRenderer(self.engine.model, self.cfg.width, self.cfg.height,
+                                               self.cfg.render)
+        return self._renderer
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    # -- intrinsics / extrinsics ------------------------------------------------
+    @property
+    def resolution(self) -> tuple[int, int]:
+        return self.cfg.width, self.cfg.height
+
+    @property
+    def fovy_deg(self) -> float:
+        if self.cfg.focal_length_px:
+            return math.degrees(2 * math.atan(self.cfg.height / 2 / self.cfg.focal_length_px))
+        return float(self.cfg.fovy_deg)
+
+    def get_intrinsics_matrix(self) -> np.ndarray:
+        """(3, 3) float64 K (OpenCV: pixel centres at integer coordinates, square pixels)."""
+        f = self.cfg.height / 2 / math.tan(math.radians(self.fovy_deg) / 2)
+        return np.array([[f, 0, self.cfg.width / 2 - 0.5], [0, f, self.cfg.height / 2 - 0.5], [0, 0, 1]])
+
+    def get_world_pose(self, convention: str = "world") -> tuple[torch.Tensor, torch.Tensor]:
+        """Camera position (N, 3) m and orientation (N, 4) wxyz in the world, in ``convention`` axes."""
+        pos, rot_gl = self._pose_gl()
+        rot = rot_gl @ check_convention(convention).T
+        return torch.from_numpy(pos), torch.from_numpy(mat_to_quat(rot))
+
+    def get_extrinsics_matrix(self) -> np.ndarray:
+        """(N, 4, 4) float64 world -> OpenCV camera transform T_cw (p_c = R p_w + t)."""
+        pos, rot_gl = self._pose_gl()
+        rot_cv = rot_gl @ GL_IN["opencv"]
+        t = np.tile(np.eye(4), (len(pos), 1, 1))
+        t[:, :3, :3] = np.swapaxes(rot_cv, 1, 2)
+        t[:, :3, 3] = -np.einsum("nji,nj->ni", rot_cv, pos)
+        return t
+
+    # -- posing -----------------------------------------------------------------
+    def set_local_pose(self, pos=None, quat=None, convention: str = "world", world_ids=None) -> None:
+        """Set the offset from the mount (m, wxyz) for ``world_ids`` (default all)."""
+        ids = self._ids(world_ids)
+        if pos is not None:
+            self._offset_pos[ids] = np.asarray(pos, float)
+        if quat is not None:
+            self._offset_rot_gl[ids] = quat_to_mat(np.asarray(quat, float)) @ check_convention(convention)
+        self._sync_model_camera(ids)
+
+    def set_world_pose(self, pos, rot_w_gl, world_ids=None) -> None:
+        """Place the camera at world position (.., 3) with OpenGL axes rot_w_gl (.., 3, 3)."""
+        ids = self._ids(world_ids)
+        mount_pos, mount_rot = self._mount_frame()
+        r_t = np.swapaxes(mount_rot[ids], -1, -2)
+        pos = np.broadcast_to(np.asarray(pos, float), (len(ids), 3))
+        rot = np.broadcast_to(np.asarray(rot_w_gl, float), (len(ids), 3, 3))
+        self._offset_pos[ids] = np.einsum("nij,nj->ni", r_t, pos - mount_pos[ids])
+        self._offset_rot_gl[ids] = r_t @ rot
+        self._sync_model_camera(ids)
+
+    def set_camera_view(self, eye, target, up=(0.0, 0.0, 1.0), world_ids=None) -> None:
+        """Put the camera at ``eye`` (m, world) looking at ``target``, as in Isaac's set_camera_view."""
+        self.set_world_pose(eye, look_at_gl(eye, target, up), world_ids)
+
+    def reset_pose(self, world_ids=None) -> None:
+        """Back to the configured offset (what pose jitter perturbs)."""
+        ids = self._ids(world_ids)
+        self._offset_pos[ids], self._offset_rot_gl[ids] = self._default_offset
+        self._sync_model_camera(ids)
+
+    # -- capture ----------------------------------------------------------------
+    def capture(self, world: int = 0, annotators=None) -> dict:
+        """Render world ``world`` now and return its annotator outputs (NumPy, see module doc)."""
+        self.begin_capture(world, annotators)
+        return self.end_capture()
+
+    def begin_capture(self, world: int = 0, annotators=None) -> None:
+        """Render the colour image and queue the id/depth pass of world ``world``.
+
+        The rasterizer works on the queued pass while the caller does other
+        things (e.g. randomizing the next frame): the engine may change before
+        ``end_capture``, which uses only what was recorded here.
+        """
+        self._require_initialized()
+        names = self.annotators if annotators is None else _normalize_annotators(annotators)
+        r = self.renderer
+        model = self.engine.get_model(world, self._model_buf)
+        data = self.engine.get_data(world, self._data_buf)
+        pos, rot_gl = self._pose_gl()
+        r.update(model, data, self.cam_id, pos[world], rot_gl[world], self.cfg.clipping_range_m)
+        k_matrix = self.get_intrinsics_matrix()
+        extr = self.get_extrinsics_matrix()[world]
+        out: dict = {"camera": {
+            "intrinsics": k_matrix, "extrinsics_cw": extr, "pos_w": pos[world],
+            "quat_w_opengl": mat_to_quat(rot_gl[world]), "width": self.cfg.width, "height": self.cfg.height}}
+        if "rgb" in names:
+            out["rgb"] = r.render_rgb().copy()
+        need = set(names)
+        wants_ids = bool(need & (_NEEDS_IDS | _NEEDS_DEPTH | {"bounding_box_2d_loose", "bounding_box_3d"}))
+        want_depth = bool(need & _NEEDS_DEPTH)
+        if wants_ids:
+            r.queue_ids()
+        self._pending = (out, names, wants_ids, want_depth, data)
+
+    def end_capture(self) -> dict:
+        """Finish the capture started by ``begin_capture`` and compute the annotations."""
+        out, names, wants_ids, want_depth, data = self._pending
+        self._pending = None
+        if wants_ids:
+            geom_ids, depth = self.renderer.read_ids(want_depth)
+            instances = ann.instance_map(geom_ids, self.table)
+            out["geom_ids"] = geom_ids
+            cam = out["camera"]
+            self._annotate(out, names, instances, depth, cam["intrinsics"], cam["extrinsics_cw"], data)
+        return out
+
+    def _annotate(self, out, names, instances, depth, k_matrix, extr, data) -> None:
+        table = self.table
+        if "depth" in names:
+            out["depth"] = depth
+        if "distance_to_camera" in names:
+            out["distance_to_camera"] = ann.distance_from_depth(depth, k_matrix).astype(np.float32)
+        if "normals" in names:
+            n_c = ann.normals_from_depth(depth, k_matrix)
+            out["normals"] = (n_c @ extr[:3, :3]).astype(np.float32)  # R_cw^T: camera -> world
+        if "instance_segmentation" in names:
+            out["instance_segmentation"] = instances
+        if "semantic_segmentation" in names:
+            out["semantic_segmentation"] = table.semantic_ids[instances]
+        boxes, pixels = ann.tight_boxes(instances, table.num_instances)
+        visible = np.flatnonzero(pixels > 0)
+        if "bounding_box_2d_tight" in names:
+            out["bounding_box_2d_tight"] = {
+                "instance_id": visible + 1, "semantic_id": table.semantic_ids[visible + 1],
+                "box": boxes[visible], "pixels": pixels[visible]}
+        if not {"bounding_box_2d_loose", "bounding_box_3d", "visible_fraction"} & set(names):
+            return
+        geom_pos = data.geom_xpos
+        geom_rot = data.geom_xmat.reshape(-1, 3, 3)
+        if "bounding_box_2d_loose" in names or "visible_fraction" in names:
+            loose = self._loose_boxes(geom_pos, geom_rot, k_matrix, extr)
+            in_view = np.array([b is not None for b in loose], bool)
+            if "bounding_box_2d_loose" in names:
+                ids = np.flatnonzero(in_view)
+                out["bounding_box_2d_loose"] = {
+                    "instance_id": ids + 1, "semantic_id": table.semantic_ids[ids + 1],
+                    "box": np.array([loose[i] for i in ids]).reshape(-1, 4)}
+            if "visible_fraction" in names:
+                out["visible_fraction"] = self._visible_fraction(pixels, in_view)
+        if "bounding_box_3d" in names:
+            center_w, rot_w, half = ann.instance_boxes_3d(
+                table, self.engine.model, data.xpos, data.xmat.reshape(-1, 3, 3), geom_pos, geom_rot)
+            out["bounding_box_3d"] = {
+                "instance_id": np.arange(1, table.num_instances + 1), "semantic_id": table.semantic_ids[1:],
+                "center_w": center_w, "rot_w": rot_w, "half_extent": half,
+                "center_c": center_w @ extr[:3, :3].T + extr[:3, 3], "rot_c": extr[:3, :3] @ rot_w}
+
+    def _loose_boxes(self, geom_pos, geom_rot, k_matrix, extr) -> list:
+        return ann.loose_boxes(self.table, self.engine.model, geom_pos, geom_rot, extr, k_matrix,
+                               self.cfg.width, self.cfg.height, self.renderer.near_far()[0])
+
+    def _visible_fraction(self, pixels: np.ndarray, in_view: np.ndarray) -> np.ndarray:
+        """(K,) visible / unoccluded pixels in the image; 0 for objects out of view."""
+        fraction = np.zeros(self.table.num_instances)
+        for i in np.flatnonzero(in_view):
+            if pixels[i] == 0:
+                continue
+            alone = self.renderer.render_ids_isolated(self.table.geoms_of(i + 1))
+            total = np.count_nonzero(self.table.geom_instance[alone + 1] == i + 1)
+            fraction[i] = min(1.0, pixels[i] / max(total, 1))
+        return fraction
+
+    def get_current_frame(self, world_ids=None) -> dict:
+        """Latest outputs of ``world_ids`` (default all), re-rendered where an update is due.
+
+        Images are stacked into torch tensors (N, H, W, ...); per-object outputs
+        (boxes, visible fraction) are lists with one entry per world.
+        """
+        self._require_initialized()
+        ids = self._ids(world_ids)
+        due = self._due().numpy()
+        for w in ids:
+            if due[w] or self._frames[w] is None:
+                self._frames[w] = self.capture(int(w))
+                self._mark_updated(torch.from_numpy(np.arange(self.num_worlds) == w))
+        frames = [self._frames[w] for w in ids]
+        out = {}
+        for key in frames[0]:
+            values = [f[key] for f in frames]
+            if isinstance(values[0], np.ndarray):
+                out[key] = torch.from_numpy(np.stack(values))
+            else:
+                out[key] = values
+        return out
+
+    # -- helpers ----------------------------------------------------------------
+    def _ids(self, world_ids) -> np.ndarray:
+        self._require_initialized()
+        if world_ids is None:
+            return np.arange(self.engine.num_worlds)
+        if isinstance(world_ids, torch.Tensor):
+            world_ids = world_ids.cpu().numpy()
+        return np.atleast_1d(np.asarray(world_ids, np.int64))
+
+    def _offset_in_mount(self) -> tuple[np.ndarray, np.ndarray]:
+        rot = quat_to_mat(np.asarray(self.cfg.offset_quat, float)) @ check_convention(self.cfg.offset_convention)
+        return np.asarray(self.cfg.offset_pos, float), rot
+
+    def _offset_in_body(self, site_pos, site_quat) -> tuple[np.ndarray, np.ndarray]:
+        pos, rot = self._offset_in_mount()
+        if site_pos is None:
+            return pos, rot
+        site_rot = quat_to_mat(site_quat)
+        return site_pos + site_rot @ pos, site_rot @ rot
+
+    def _mount_frame(self) -> tuple[np.ndarray, np.ndarray]:
+        return self._mount_pose.pos_w(), self._mount_pose.rot_w()
+
+    def _pose_gl(self) -> tuple[np.ndarray, np.ndarray]:
+        """World position (N, 3) and OpenGL axes (N, 3, 3) of the camera."""
+        mount_pos, mount_rot = self._mount_frame()
+        pos = mount_pos + np.einsum("nij,nj->ni", mount_rot, self._offset_pos)
+        return pos, mount_rot @ self._offset_rot_gl
+
+    def _sync_model_camera(self, ids=None) -> None:
+        # keep the model's camera (what viewers show) on the same pose as the renders
+        cam_pos, cam_quat = self.engine.model_field("cam_pos"), self.engine.model_field("cam_quat")
+        ids = np.arange(self.engine.num_worlds) if ids is None else ids
+        pos, rot = self._offset_pos[ids], self._offset_rot_gl[ids]
+        if self._site_local is not None:
+            site_pos, site_rot = self._site_local
+            pos, rot = site_pos + pos @ site_rot.T, site_rot @ rot
+        cam_pos[ids, self.cam_id] = torch.from_numpy(np.ascontiguousarray(pos))
+        cam_quat[ids, self.cam_id] = torch.from_numpy(mat_to_quat(rot))
