@@ -1,0 +1,36 @@
+"""Vectorized RL tasks: N envs stepped together as torch tensors, and their registry.
+
+    env = ambulo.envs.make("humanoid-walk", num_envs=1024, device="cpu", seed=0)
+    obs = env.reset()                                  # (N, env.num_obs) float32
+    obs, rewards, dones, extras = env.step(actions)    # actions (N, env.num_actions)
+
+``ambulo.envs.names()`` lists the tasks; ``GymVectorEnv`` adapts any of them to
+``gymnasium.vector.VectorEnv``.
+"""
+
+from . import cartpole, humanoid_walk, jetbot_goal  # noqa: F401  (each registers its task)
+from .base import EnvCfg, RLEnv
+from .registry import TaskSpec, make, make_cfg, names, register, registry, spec
+
+
+def __getattr__(name: str):
+    # gymnasium is an optional dependency (the "rl" extra): import it only when asked.
+    if name == "GymVectorEnv":
+        from .gym_vector import GymVectorEnv  # noqa: PLC0415
+
+        return GymVectorEnv
+    raise AttributeError(f"module 'ambulo.envs' has no attribute {name!r}")
+
+
+__all__ = [
+    "EnvCfg",
+    "GymVectorEnv",
+    "RLEnv",
+    "TaskSpec",
+    "make",
+    "make_cfg",
+    "names",
+    "register",
+    "registry",
+    "spec",
+]

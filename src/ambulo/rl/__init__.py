@@ -1,0 +1,13 @@
+"""Training, playing, exporting and evaluating policies for ``ambulo.envs`` tasks.
+
+PPO comes from rsl-rl-lib (the ``rl`` extra). ``train`` writes a run folder
+(``runs/<task>/<time>/``) that ``play``, ``export`` and ``evaluate`` take back.
+"""
+
+from .config import PpoCfg, ppo_cfg
+from .evaluate import evaluate
+from .export import export
+from .play import play
+from .train import train
+
+__all__ = ["PpoCfg", "evaluate", "export", "play", "ppo_cfg", "train"]

@@ -1,0 +1,86 @@
+"""play: roll a trained policy out headless and write an MP4 of env 0.
+
+Rendering uses ``mujoco.Renderer``, which needs an OpenGL platform chosen before MuJoCo is
+imported: ``MUJOCO_GL=egl`` (GPU or Mesa EGL) or ``MUJOCO_GL=osmesa`` (software).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import imageio
+import mujoco
+import torch
+from tqdm import tqdm
+
+from . import runs
+
+
+def _camera(model: mujoco.MjModel, distance_m: float) -> mujoco.MjvCamera | int:
+    """The scene's first fixed camera, else a camera tracking the first floating body."""
+    if model.ncam > 0:
+        return 0
+    camera = mujoco.MjvCamera()
+    camera.type = mujoco.mjtCamera.mjCAMERA_TRACKING
+    free_bodies = [model.jnt_bodyid[j] for j in range(model.njnt)
+                   if int(model.jnt_type[j]) == mujoco.mjtJoint.mjJNT_FREE.value]
+    camera.trackbodyid = int(free_bodies[0]) if free_bodies else 0
+    camera.distance = distance_m
+    camera.elevation = -20.0
+    camera.azimuth = 135.0
+    return camera
+
+
+def _renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer:
+    model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
+    model.vis.global_.offheight = max(model.vis.global_.offheight, height)
+    try:
+        return mujoco.Renderer(model, height, width)
+    except Exception as err:  # MuJoCo raises FatalError without a GL platform
+        raise RuntimeError(
+            f"cannot create an OpenGL context for rendering ({err}). Run headless with "
+            "MUJOCO_GL=egl (or MUJOCO_GL=osmesa) set before Python starts, e.g. "
+            "`MUJOCO_GL=egl ambulo play <run>`"
+        ) from None
+
+
+def play(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = None,
+         seconds: float = 10.0, out: str | os.PathLike | None = None, width: int = 640,
+         height: int = 480, seed: int = 1, num_envs: int = 1,
+         log_root: str | os.PathLike = "runs") -> Path:
+    """Run the policy of ``run`` for ``seconds`` and write ``<run>/videos/play.mp4`` (or ``out``).
+
+    Env 0 is filmed; it auto-resets like in training, so falls and restarts are visible.
+    Returns the video's path.
+    """
+    run_dir = runs.resolve_run(run, log_root)
+    info = runs.read_run_info(run_dir)
+    env = runs.make_env_for_run(info, num_envs=num_envs, seed=seed)
+    runner, ckpt = runs.load_runner(run_dir, env, checkpoint)
+    policy = runner.get_inference_policy(device=str(env.device))
+    renderer = _renderer(env.model, width, height)
+    camera = _camera(env.model, getattr(env, "viewer_distance_m", 3.0))
+    path = Path(out) if out else run_dir / "videos" / "play.mp4"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fps = round(1.0 / env.step_dt_s)
+    num_steps = max(1, round(seconds / env.step_dt_s))
+    data = mujoco.MjData(env.model)
+    obs = runner.env.get_observations()
+    total_reward, episodes = 0.0, 0
+    with imageio.get_writer(path, fps=fps, codec="libx264", quality=8,
+                            macro_block_size=8) as writer:
+        for _ in tqdm(range(num_steps), desc=f"play {info['task']}", unit="step"):
+            with torch.inference_mode():
+                actions = policy(obs)
+            obs, rewards, dones, _ = runner.env.step(actions)
+            total_reward += float(rewards[0])
+            episodes += int(dones[0])
+            env.engine.get_data(0, data)
+            renderer.update_scene(data, camera=camera)
+            writer.append_data(renderer.render())
+    renderer.close()
+    env.close()
+    print(f"{path}: {num_steps} frames at {fps} fps from {ckpt.name}; env 0 reward "
+          f"{total_reward:.2f}, {episodes} episode end(s)")
+    return path

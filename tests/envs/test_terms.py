@@ -1,0 +1,105 @@
+"""Observation and reward terms against hand-computed values on constructed states."""
+
+import math
+
+import pytest
+import torch
+
+import ambulo.envs as envs
+from ambulo.envs import observations as obs_terms
+from ambulo.envs import rewards
+from ambulo.envs.quat import quat_from_axis_angle, quat_mul, quat_rotate, quat_rotate_inverse
+
+X, Z = torch.tensor([[1.0, 0.0, 0.0]], dtype=torch.float64), torch.tensor([[0.0, 0.0, 1.0]],
+                                                                       dtype=torch.float64)
+
+
+def tilt_x(angle):
+    return quat_from_axis_angle(X, torch.tensor([angle], dtype=torch.float64))
+
+
+def test_projected_gravity_of_a_known_tilt():
+    theta = math.radians(30.0)
+    g = obs_terms.projected_gravity_b(tilt_x(theta))
+    # R_x(theta)^T (0, 0, -1) = (0, -sin theta, -cos theta)
+    torch.testing.assert_close(g, torch.tensor([[0.0, -math.sin(theta), -math.cos(theta)]],
+                                               dtype=torch.float64))
+    assert rewards.upright(g).item() == pytest.approx(math.cos(theta))
+
+
+def test_base_velocity_frames():
+    yaw90 = quat_from_axis_angle(Z, torch.tensor([math.pi / 2], dtype=torch.float64))
+    v_w = torch.tensor([[1.0, 0.0, 0.0]], dtype=torch.float64)
+    torch.testing.assert_close(obs_terms.base_lin_vel_b(yaw90, v_w),
+                               torch.tensor([[0.0, -1.0, 0.0]], dtype=torch.float64))
+    # heading frame ignores pitch/roll: a base pitched 40 deg and yawed 90 deg moving +y
+    # in the world moves straight forward in its heading frame
+    pitched = quat_from_axis_angle(torch.tensor([[0.0, 1.0, 0.0]], dtype=torch.float64),
+                                   torch.tensor([math.radians(40)], dtype=torch.float64))
+    quat = quat_mul(yaw90, pitched)
+    v = obs_terms.base_lin_vel_yaw(quat, torch.tensor([[0.0, 0.7, 0.0]], dtype=torch.float64))
+    torch.testing.assert_close(v, torch.tensor([[0.7, 0.0]], dtype=torch.float64))
+
+
+def test_quat_rotate_inverse_undoes_rotate():
+    q = quat_from_axis_angle(torch.tensor([[0.6, 0.0, 0.8]], dtype=torch.float64),
+                             torch.tensor([1.1], dtype=torch.float64))
+    v = torch.tensor([[0.3, -2.0, 0.5]], dtype=torch.float64)
+    torch.testing.assert_close(quat_rotate_inverse(q, quat_rotate(q, v)), v)
+
+
+def test_velocity_tracking_at_a_known_error():
+    cmd = torch.tensor([[1.0, 0.0]], dtype=torch.float64)
+    vel = torch.tensor([[0.5, 0.0]], dtype=torch.float64)
+    # exp(-0.5^2 / 0.5^2) = e^-1
+    assert rewards.track_lin_vel_xy_exp(cmd, vel, 0.5).item() == pytest.approx(math.exp(-1.0))
+    yaw = rewards.track_ang_vel_z_exp(torch.tensor([0.5]), torch.tensor([-0.5]), 0.5)
+    assert yaw.item() == pytest.approx(math.exp(-4.0))
+
+
+def test_penalties_and_air_time():
+    rate = rewards.action_rate_l2(torch.tensor([[1.0, 2.0]]), torch.tensor([[0.0, 4.0]]))
+    assert rate.item() == 5.0
+    pos = torch.tensor([[0.95, -1.2, 0.0]])
+    lower, upper = torch.tensor([-0.9, -0.9, -0.9]), torch.tensor([0.9, 0.9, 0.9])
+    assert rewards.joint_pos_limits(pos, lower, upper).item() == pytest.approx(0.05 + 0.3)
+    air = torch.tensor([[0.6, 0.2]])
+    first = torch.tensor([[True, False]])
+    moving, standing = torch.tensor([[0.5, 0.0]]), torch.tensor([[0.05, 0.0]])
+    assert rewards.feet_air_time(air, first, 0.4, moving).item() == pytest.approx(0.2)
+    assert rewards.feet_air_time(air, first, 0.4, standing).item() == 0.0
+
+
+def humanoid(num_envs=2):
+    return envs.make("humanoid-walk", num_envs=num_envs, seed=0, num_threads=1)
+
+
+def test_humanoid_observes_a_constructed_tilt_and_command():
+    env = humanoid()
+    theta = math.radians(30.0)
+    env.engine.qpos[:, env.robot.quat_slice] = tilt_x(theta).expand(2, 4)
+    env.engine.forward()
+    env.commands[:] = torch.tensor([0.5, -0.25, 1.0], dtype=torch.float64)
+    obs = env._get_observations()
+    torch.testing.assert_close(obs[:, 0:3], torch.tensor(
+        [[0.0, -math.sin(theta), -math.cos(theta)]] * 2))
+    torch.testing.assert_close(obs[:, 3:6], torch.tensor([[1.0, -0.5, 0.25]] * 2))
+
+
+def test_humanoid_tracking_reward_and_terminations_on_constructed_states():
+    env = humanoid()
+    engine, robot = env.engine, env.robot
+    engine.qpos[:, robot.quat_slice] = torch.tensor([1.0, 0, 0, 0], dtype=torch.float64)
+    engine.qvel[:] = 0.0
+    engine.qvel[:, robot.lin_vel_slice.start] = 0.6     # 0.6 m/s forward in the world
+    env.commands[:] = torch.tensor([1.0, 0.0, 0.0], dtype=torch.float64)
+    engine.qpos[1, robot.pos_slice.start + 2] = 0.4     # env 1 below 0.5 m
+    engine.forward()
+    terms = env._get_terminations()
+    assert terms["base_height"].tolist() == [False, True]
+    assert not terms["tilt"].any()
+    reward = env._get_rewards()["track_lin_vel_xy_exp"]
+    torch.testing.assert_close(reward, torch.full((2,), math.exp(-0.4**2 / 0.5**2),
+                                                  dtype=torch.float64))
+    engine.qpos[:, robot.quat_slice] = tilt_x(math.radians(70.0)).expand(2, 4)
+    assert env._get_terminations()["tilt"].all()
