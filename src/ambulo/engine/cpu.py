@@ -23,12 +23,10 @@ from .protocol import STATE_FIELDS
 log = logging.getLogger(__name__)
 
 # MuJoCo resets a world to qpos0 and bumps these counters when its state turns
-# NaN/Inf or huge (mj_checkPos/Vel/Acc); we treat that as divergence.
-_DIVERGENCE_WARNINGS = (
-    int(mujoco.mjtWarning.mjWARN_BADQPOS),
-    int(mujoco.mjtWarning.mjWARN_BADQVEL),
-    int(mujoco.mjtWarning.mjWARN_BADQACC),
-)
+# NaN/Inf or huge (mj_checkPos/Vel/Acc); we treat that as divergence. The three
+# warnings are adjacent in mjtWarning, so one slice reads them.
+_DIVERGENCE = slice(int(mujoco.mjtWarning.mjWARN_BADQPOS), int(mujoco.mjtWarning.mjWARN_BADQACC) + 1)
+assert _DIVERGENCE.stop - _DIVERGENCE.start == 3 and int(mujoco.mjtWarning.mjWARN_BADQVEL) == _DIVERGENCE.start + 1
 
 WorldIds = Sequence[int] | np.ndarray | torch.Tensor | None
 
@@ -97,6 +95,7 @@ class CpuEngine:
         self.initial_state = self._batch.state.copy()
         """(N, nstate) float64: the state ``reset`` restores; edit rows to change it."""
         self._warn_counts = self._divergence_counts()
+        self._warn_total = self._warn_counts.sum()
         self.num_diverged = 0
         """Total number of world divergences detected (and reset) so far."""
 
@@ -150,6 +149,9 @@ class CpuEngine:
         except mj_batch.SimulationError as err:
             failed = np.asarray(err.ids)
         counts = self._divergence_counts()
+        if not failed.size and counts.sum() == self._warn_total:
+            # the common case: no world's counters moved, nothing to compare per world
+            return torch.zeros(self.num_worlds, dtype=torch.bool)
         diverged = (counts > self._warn_counts).any(axis=1)
         diverged[failed] = True
         if diverged.any():
@@ -163,7 +165,7 @@ class CpuEngine:
             )
             self.reset(ids)
             counts = self._divergence_counts()
-        self._warn_counts = counts
+        self._warn_counts, self._warn_total = counts, counts.sum()
         return torch.from_numpy(diverged)
 
     def forward(self, world_ids: WorldIds = None) -> None:
@@ -186,7 +188,7 @@ class CpuEngine:
         self.initial_state[rows] = self._batch.state[rows]
 
     def _divergence_counts(self) -> np.ndarray:
-        return self._batch.warning[:, list(_DIVERGENCE_WARNINGS), 1].copy()
+        return self._batch.warning[:, _DIVERGENCE, 1].copy()
 
     # -- single-world access ----------------------------------------------------
     def get_data(self, world: int, data: mujoco.MjData | None = None) -> mujoco.MjData:
