@@ -24,7 +24,7 @@ from ambulo import assets
 from . import observations as obs_terms
 from . import rewards
 from .base import EnvCfg, RLEnv
-from .quat import quat_from_axis_angle, quat_rotate
+from ..utils.math import quat_from_axis_angle, quat_rotate
 from .registry import register
 from .robot import PdRobot
 from .scene import ROBOT_PREFIX, add_floor_contact_sensor, scene_spec

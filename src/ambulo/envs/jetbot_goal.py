@@ -19,7 +19,7 @@ from ambulo import assets
 from . import observations as obs_terms
 from . import rewards
 from .base import EnvCfg, RLEnv
-from .quat import quat_from_axis_angle
+from ..utils.math import quat_from_axis_angle
 from .registry import register
 from .robot import PdRobot
 from .scene import ROBOT_PREFIX, scene_spec

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import torch
 
-from .quat import quat_rotate_inverse, rotate_yaw_inverse, yaw_from_quat
+from ..utils.math import quat_rotate_inverse, rotate_yaw_inverse, yaw_from_quat
 
 
 def projected_gravity_b(base_quat_w: torch.Tensor) -> torch.Tensor:

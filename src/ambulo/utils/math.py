@@ -14,8 +14,15 @@ def quat_rotate(quat_wxyz: torch.Tensor, vec: torch.Tensor) -> torch.Tensor:
 
 
 def quat_rotate_inverse(quat_wxyz: torch.Tensor, vec: torch.Tensor) -> torch.Tensor:
-    """Rotate ``vec`` by the inverse of ``quat_wxyz``: R(q)^T v (world -> body frame)."""
-    return quat_rotate(quat_conjugate(quat_wxyz), vec)
+    """Rotate ``vec`` by the inverse of ``quat_wxyz``: R(q)^T v (world -> body frame).
+
+    Same formula as ``quat_rotate`` with w negated, so no conjugate is allocated
+    (this runs on every env step).
+    """
+    w = quat_wxyz[..., :1]
+    xyz = quat_wxyz[..., 1:]
+    t = 2.0 * torch.cross(xyz, vec, dim=-1)
+    return vec - w * t + torch.cross(xyz, t, dim=-1)
 
 
 def quat_conjugate(quat_wxyz: torch.Tensor) -> torch.Tensor:
@@ -35,6 +42,19 @@ def quat_mul(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
         ),
         dim=-1,
     )
+
+
+def quat_from_axis_angle(axis: torch.Tensor, angle: torch.Tensor) -> torch.Tensor:
+    """Unit quaternion (..., 4) of a rotation by ``angle`` (...,) rad about unit ``axis`` (..., 3)."""
+    half = 0.5 * angle.unsqueeze(-1)
+    return torch.cat([torch.cos(half), axis * torch.sin(half)], dim=-1)
+
+
+def rotate_yaw_inverse(yaw: torch.Tensor, vec_xy: torch.Tensor) -> torch.Tensor:
+    """Express world-frame planar vectors ``vec_xy`` (..., 2) in the heading frame of ``yaw`` (...,)."""
+    c, s = torch.cos(yaw), torch.sin(yaw)
+    x, y = vec_xy[..., 0], vec_xy[..., 1]
+    return torch.stack([c * x + s * y, -s * x + c * y], dim=-1)
 
 
 def yaw_from_quat(quat_wxyz: torch.Tensor) -> torch.Tensor:
