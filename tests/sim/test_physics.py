@@ -151,3 +151,19 @@ def test_humanoid_stands_10_s_under_pd_hold():
     tilt = math.degrees(math.acos(np.clip(1 - 2 * (x * x + y * y), -1, 1)))
     assert lowest > 0.9 * start
     assert tilt < 10.0
+
+
+def test_rigid_prim_velocities_are_world_frame_at_the_body_origin():
+    world = World(gravity=(0.0, 0.0, 0.0))
+    rod = world.scene.add(DynamicCuboid(prim_path="/World/rod", position=[0, 0, 2.0], size=1.0,
+                                        scale=[0.4, 0.1, 0.1], orientation=[np.cos(0.4), 0, 0, np.sin(0.4)]))
+    world.reset()
+    rod.set_linear_velocity([0.5, -0.2, 0.1])
+    rod.set_angular_velocity([0.0, 0.0, 2.0])
+    np.testing.assert_allclose(rod.get_linear_velocity(), [0.5, -0.2, 0.1], atol=1e-9)
+    np.testing.assert_allclose(rod.get_angular_velocity(), [0.0, 0.0, 2.0], atol=1e-9)
+    start_yaw = _yaw(rod.get_world_pose()[1])
+    for _ in range(100):  # 0.5 s of free flight without gravity
+        world.step()
+    assert _yaw(rod.get_world_pose()[1]) - start_yaw == pytest.approx(1.0, abs=1e-3)
+    np.testing.assert_allclose(rod.get_world_pose()[0], [0.25, -0.1, 2.05], atol=1e-6)

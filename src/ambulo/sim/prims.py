@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 import mujoco
 import torch
 
-from ..utils.math import quat_rotate
+from ..utils.math import quat_rotate_inverse
 from .paths import resolve_body, resolve_spec_body
 
 if TYPE_CHECKING:
@@ -175,8 +175,7 @@ class RigidPrim(XFormPrim):
         omega_w = self._world._in(velocity, (3,), "angular velocity")
         quat = self._engine.xquat[:, self._body_id]
         # a free joint's angular velocity is in the body frame
-        inv = torch.cat([quat[:, :1], -quat[:, 1:]], dim=-1)
-        self._engine.qvel[:, self._free_qvel + 3:self._free_qvel + 6] = quat_rotate(inv, omega_w)
+        self._engine.qvel[:, self._free_qvel + 3:self._free_qvel + 6] = quat_rotate_inverse(quat, omega_w)
         self._engine.forward()
 
     def get_mass(self):
