@@ -115,6 +115,12 @@ class OffscreenRenderer:
             self._scene.lights[0].pos[:] = pos_w
             self._scene.lights[0].dir[:] = forward
 
+    def update_view(self, model: mujoco.MjModel, data: mujoco.MjData, camera: mujoco.MjvCamera) -> None:
+        """Load a world's geoms seen from a viewer camera (free, tracking or fixed ``MjvCamera``)."""
+        mujoco.mjv_updateScene(model, data, self._option, None, camera, _CATMASK, self._scene)
+        self._scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = self.settings.shadows
+        self._scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = self.settings.reflections
+
     def near_far(self) -> tuple[float, float]:
         """Clip distances (m) of the current frustum."""
         cam = self._scene.camera[0]

@@ -137,8 +137,10 @@ class GroundPlane(XFormPrim):
                           rgb1=list(color), rgb2=[c * 0.8 for c in color])
         material = stage.add_material(name=prim_path + "/material", texrepeat=[size_m, size_m])
         material.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = prim_path + "/grid"
+        # a plane's third size is its render grid spacing: MuJoCo draws (size/spacing)^2
+        # quads, so 0.1 m on a 100 m plane is a million quads -- 20 ms a frame in llvmpipe
         geom = body.add_geom(name=prim_path + "/geom", type=_G.mjGEOM_PLANE,
-                             size=[size_m / 2, size_m / 2, 0.1], material=prim_path + "/material")
+                             size=[size_m / 2, size_m / 2, 5.0], material=prim_path + "/material")
         if physics_material is not None:
             physics_material.apply_to(geom)
         super().__init__(prim_path, name)
