@@ -28,6 +28,19 @@ def test_ppo_solves_cartpole(cartpole_run):
     assert read_run_info(run_dir)["task"] == "cartpole"
 
 
+def test_tensorboard_reads_the_learning_curve(cartpole_run):
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    run_dir, _ = cartpole_run
+    events = EventAccumulator(str(run_dir))
+    events.Reload()
+    reward_tags = [t for t in events.Tags()["scalars"] if "mean_reward" in t]
+    assert reward_tags, events.Tags()["scalars"]
+    curve = [e.value for e in events.Scalars(reward_tags[0])]
+    assert len(curve) >= 50
+    assert np.mean(curve[-5:]) > np.mean(curve[:5])  # it learned
+
+
 def test_eval_over_100_episodes(cartpole_run):
     run_dir, _ = cartpole_run
     result = evaluate(run_dir, num_episodes=100, episode_length_s=None, quiet=True)
