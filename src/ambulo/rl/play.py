@@ -1,7 +1,7 @@
 """play: roll a trained policy out headless and write an MP4 of env 0.
 
-Rendering uses ``mujoco.Renderer``, which needs an OpenGL platform chosen before MuJoCo is
-imported: ``MUJOCO_GL=egl`` (GPU or Mesa EGL) or ``MUJOCO_GL=osmesa`` (software).
+Rendering goes through ``ambulo.render.OffscreenRenderer`` (headless EGL or OSMesa, no
+shadows or multisampling: ~10x faster on a software rasterizer).
 """
 
 from __future__ import annotations
@@ -14,14 +14,16 @@ import mujoco
 import torch
 from tqdm import tqdm
 
+from ..render import OffscreenRenderer
 from . import runs
 
 
-def _camera(model: mujoco.MjModel, distance_m: float) -> mujoco.MjvCamera | int:
+def _camera(model: mujoco.MjModel, distance_m: float) -> mujoco.MjvCamera:
     """The scene's first fixed camera, else a camera tracking the first floating body."""
-    if model.ncam > 0:
-        return 0
     camera = mujoco.MjvCamera()
+    if model.ncam > 0:
+        camera.type, camera.fixedcamid = mujoco.mjtCamera.mjCAMERA_FIXED, 0
+        return camera
     camera.type = mujoco.mjtCamera.mjCAMERA_TRACKING
     free_bodies = [model.jnt_bodyid[j] for j in range(model.njnt)
                    if int(model.jnt_type[j]) == mujoco.mjtJoint.mjJNT_FREE.value]
@@ -30,19 +32,6 @@ def _camera(model: mujoco.MjModel, distance_m: float) -> mujoco.MjvCamera | int:
     camera.elevation = -20.0
     camera.azimuth = 135.0
     return camera
-
-
-def _renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer:
-    model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
-    model.vis.global_.offheight = max(model.vis.global_.offheight, height)
-    try:
-        return mujoco.Renderer(model, height, width)
-    except Exception as err:  # MuJoCo raises FatalError without a GL platform
-        raise RuntimeError(
-            f"cannot create an OpenGL context for rendering ({err}). Run headless with "
-            "MUJOCO_GL=egl (or MUJOCO_GL=osmesa) set before Python starts, e.g. "
-            "`MUJOCO_GL=egl ambulo play <run>`"
-        ) from None
 
 
 def play(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = None,
@@ -59,7 +48,7 @@ def play(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = None,
     env = runs.make_env_for_run(info, num_envs=num_envs, seed=seed)
     runner, ckpt = runs.load_runner(run_dir, env, checkpoint)
     policy = runner.get_inference_policy(device=str(env.device))
-    renderer = _renderer(env.model, width, height)
+    renderer = OffscreenRenderer(env.model, width, height)
     camera = _camera(env.model, getattr(env, "viewer_distance_m", 3.0))
     path = Path(out) if out else run_dir / "videos" / "play.mp4"
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -77,8 +66,8 @@ def play(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = None,
             total_reward += float(rewards[0])
             episodes += int(dones[0])
             env.engine.get_data(0, data)
-            renderer.update_scene(data, camera=camera)
-            writer.append_data(renderer.render())
+            renderer.update_view(env.model, data, camera)
+            writer.append_data(renderer.render_rgb().copy())
     renderer.close()
     env.close()
     print(f"{path}: {num_steps} frames at {fps} fps from {ckpt.name}; env 0 reward "
