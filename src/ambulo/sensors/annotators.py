@@ -146,14 +146,7 @@ def loose_boxes(table: InstanceTable, model: mujoco.MjModel, geom_pos_w: np.ndar
     geoms, owner = table.instance_geoms
     corners = geom_corners_w(geoms, model, geom_pos_w, geom_rot_w)
     corners_c = corners @ extrinsics_cw[:3, :3].T + extrinsics_cw[:3, 3]
-    z = corners_c[..., 2]
-    a, b = corners_c[:, _EDGES[:, 0]], corners_c[:, _EDGES[:, 1]]
-    za, zb = a[..., 2], b[..., 2]
-    crossing = (za - near_m) * (zb - near_m) < 0
-    t = np.where(crossing, (near_m - za) / np.where(crossing, zb - za, 1.0), 0.0)
-    cut = a + t[..., None] * (b - a)
-    points = np.concatenate([corners_c, cut], 1)  # (G, 20, 3)
-    valid = np.concatenate([z >= near_m, crossing], 1)
+    points, valid = _near_clipped(corners_c, near_m)
     zs = np.where(valid, points[..., 2], 1.0)
     uv = points[..., :2] / zs[..., None] * np.diag(k_matrix)[:2] + k_matrix[:2, 2]
     lo = np.where(valid[..., None], uv, np.inf).min(1)
@@ -172,6 +165,18 @@ def loose_boxes(table: InstanceTable, model: mujoco.MjModel, geom_pos_w: np.ndar
     return out
 
 
+def _near_clipped(corners_c: np.ndarray, near_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """Box corners (G, 8, 3) plus the points where the 12 edges cross the near plane, (G, 20, 3),
+    and which of them are in front of it (G, 20): the outline a camera can see."""
+    z = corners_c[..., 2]
+    a, b = corners_c[:, _EDGES[:, 0]], corners_c[:, _EDGES[:, 1]]
+    za, zb = a[..., 2], b[..., 2]
+    crossing = (za - near_m) * (zb - near_m) < 0
+    t = np.where(crossing, (near_m - za) / np.where(crossing, zb - za, 1.0), 0.0)
+    cut = a + t[..., None] * (b - a)
+    return np.concatenate([corners_c, cut], 1), np.concatenate([z >= near_m, crossing], 1)
+
+
 def project_box_corners(corners_c: np.ndarray, k_matrix: np.ndarray, width: int, height: int,
                         near_m: float) -> np.ndarray | None:
     """Image box [x_min, y_min, x_max, y_max] (float px, clipped) of boxes (G, 8, 3) in the camera.
@@ -180,13 +185,8 @@ def project_box_corners(corners_c: np.ndarray, k_matrix: np.ndarray, width: int,
     are cut there, so boxes partly behind the camera still project correctly.
     Returns None when nothing is in front of the camera or inside the image.
     """
-    z = corners_c[..., 2]
-    a, b = corners_c[:, _EDGES[:, 0]], corners_c[:, _EDGES[:, 1]]
-    za, zb = a[..., 2], b[..., 2]
-    crossing = (za - near_m) * (zb - near_m) < 0
-    t = np.where(crossing, (near_m - za) / np.where(crossing, zb - za, 1.0), 0.0)
-    cut = a + t[..., None] * (b - a)
-    points = np.concatenate([corners_c[z >= near_m], cut[crossing]], 0)
+    points, valid = _near_clipped(corners_c, near_m)
+    points = points[valid]
     if len(points) == 0:
         return None
     uv = points[:, :2] / points[:, 2:3] * np.diag(k_matrix)[:2] + k_matrix[:2, 2]
