@@ -177,3 +177,52 @@ def test_unitree_g1_urdf_from_example_robot_data_loads_and_stands_briefly():
     for _ in range(100):
         world.step()
     assert np.isfinite(g1.get_joint_positions()).all()
+
+
+def _author_arm_usd(path, body0=None):
+    from pxr import Gf, Usd, UsdGeom, UsdPhysics
+
+    stage = Usd.Stage.CreateNew(str(path))
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
+    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+    stage.SetDefaultPrim(UsdGeom.Xform.Define(stage, "/Arm").GetPrim())
+    UsdPhysics.CollisionAPI.Apply(UsdGeom.Cube.Define(stage, "/Arm/base").GetPrim())
+    link = UsdGeom.Cube.Define(stage, "/Arm/link")
+    link.CreateSizeAttr(0.1)
+    link.AddTranslateOp().Set(Gf.Vec3d(0, 0, 0.3))
+    UsdPhysics.RigidBodyAPI.Apply(link.GetPrim())
+    UsdPhysics.MassAPI.Apply(link.GetPrim()).CreateMassAttr(1.0)
+    joint = UsdPhysics.RevoluteJoint.Define(stage, "/Arm/shoulder")
+    if body0:
+        joint.CreateBody0Rel().SetTargets([body0])
+    joint.CreateBody1Rel().SetTargets(["/Arm/link"])
+    joint.CreateAxisAttr("Y")
+    joint.CreateLocalPos0Attr(Gf.Vec3f(0, 0, 0.1))
+    joint.CreateLocalPos1Attr(Gf.Vec3f(0, 0, -0.2))
+    drive = UsdPhysics.DriveAPI.Apply(joint.GetPrim(), "angular")
+    drive.CreateStiffnessAttr(3.0)
+    drive.CreateDampingAttr(0.1)
+    drive.CreateMaxForceAttr(50.0)
+    stage.Save()
+
+
+def test_usd_drive_gains_become_joint_drives_per_radian(tmp_path):
+    file = tmp_path / "arm.usda"
+    _author_arm_usd(file)
+    world = World()
+    add_reference_to_stage(usd_path=str(file), prim_path="/World/Arm")
+    arm = world.scene.add(Robot(prim_path="/World/Arm"))
+    world.reset()
+    kps, kds = arm.get_articulation_controller().get_gains()
+    # UsdPhysics angular drive gains are per degree
+    assert kps[0] == pytest.approx(3.0 * 180 / np.pi) and kds[0] == pytest.approx(0.1 * 180 / np.pi)
+    act = world.model.actuator("/World/Arm/shoulder")
+    assert world.model.actuator_forcerange[act.id][1] == pytest.approx(50.0)
+
+
+def test_usd_joint_to_a_static_collider_warns_that_it_was_dropped(tmp_path):
+    file = tmp_path / "arm.usda"
+    _author_arm_usd(file, body0="/Arm/base")
+    World()
+    with pytest.warns(UserWarning, match="leave body0 empty"):
+        add_reference_to_stage(usd_path=str(file), prim_path="/World/Arm")

@@ -9,7 +9,9 @@ Every hinge/slide joint leaves with one drive actuator in ambulo's convention
 
 from __future__ import annotations
 
+import math
 import os
+import warnings
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -153,13 +155,51 @@ def _load_usd(file: Path) -> mujoco.MjSpec:
     # MuJoCo names USD elements by prim path; re-root them at the default prim so
     # the referencing prim path replaces it, as a USD reference does.
     root = str(default.GetPath()) if default else ""
+
+    def relative(path: str) -> str:
+        return path[len(root) + 1:] if path.startswith(root + "/") else path.lstrip("/")
+
     for element in _named_elements(spec):
-        name = element.name
-        if name.startswith(root + "/"):
-            element.name = name[len(root) + 1:]
-        elif name.startswith("/"):
-            element.name = name[1:]
+        element.name = relative(element.name)
+    _add_usd_drives(stage, spec, relative, file)
     return spec
+
+
+def _add_usd_drives(stage, spec: mujoco.MjSpec, relative, file: Path) -> None:
+    """Turn UsdPhysics DriveAPI gains into ambulo drives (MuJoCo's importer skips them).
+
+    UsdPhysics states angular drive gains per degree; ambulo's are per radian.
+    """
+    from pxr import UsdPhysics  # noqa: PLC0415
+
+    per_rad = 180.0 / math.pi
+    for prim in stage.Traverse():
+        if not prim.IsA(UsdPhysics.Joint):
+            continue
+        joint = spec.joint(relative(str(prim.GetPath())))
+        if joint is None:
+            body0 = UsdPhysics.Joint(prim).GetBody0Rel().GetTargets()
+            warnings.warn(
+                f"{file.name}: joint {prim.GetPath()} was not imported (MuJoCo's USD importer "
+                f"drops joints whose body0 {[str(b) for b in body0]} is not a rigid body); leave "
+                "body0 empty to attach a link to the world", stacklevel=3)
+            continue
+        for kind in ("angular", "linear"):
+            drive = UsdPhysics.DriveAPI.Get(prim, kind)
+            if not drive or not prim.HasAPI(UsdPhysics.DriveAPI, kind):
+                continue
+            scale = per_rad if kind == "angular" else 1.0
+            kp = float(drive.GetStiffnessAttr().Get() or 0.0) * scale
+            kd = float(drive.GetDampingAttr().Get() or 0.0) * scale
+            act = spec.add_actuator(name=joint.name, target=joint.name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+            act.gaintype, act.biastype = mujoco.mjtGain.mjGAIN_FIXED, mujoco.mjtBias.mjBIAS_AFFINE
+            act.gainprm[0] = 1.0
+            act.biasprm[:3] = [0.0, -kp, -kd]
+            act.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+            max_force = drive.GetMaxForceAttr().Get()
+            if max_force is not None and math.isfinite(max_force) and max_force > 0:
+                act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+                act.forcerange = [-max_force, max_force]
 
 
 def _named_elements(spec: mujoco.MjSpec):
