@@ -28,3 +28,14 @@ def test_view_unknown_asset_names_the_bundled_ones():
 def test_every_command_is_registered():
     commands = build_parser()._subparsers._group_actions[0].choices
     assert {"demo", "view", "generate", "train", "play", "export", "eval"} <= set(commands)
+
+
+def test_missing_optional_package_names_the_extra(monkeypatch, capsys):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "rsl_rl", None)  # as if rsl-rl-lib were not installed
+    monkeypatch.setitem(sys.modules, "rsl_rl.runners", None)
+    for name in [m for m in sys.modules if m.startswith("ambulo.rl")]:
+        monkeypatch.delitem(sys.modules, name)
+    assert main(["train", "cartpole", "--max-iterations", "1"]) == 2
+    assert "pip install 'ambulo[rl]'" in capsys.readouterr().err

@@ -81,9 +81,25 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+# optional packages -> the extra that installs them
+_EXTRAS = {
+    "rsl_rl": "rl", "tensordict": "rl", "tensorboard": "rl", "onnx": "rl", "onnxruntime": "rl",
+    "onnxscript": "rl", "gymnasium": "rl", "pycocotools": "data", "ray": "data", "PIL": "data",
+    "mujoco_warp": "gpu", "warp": "gpu", "example_robot_data": "robots",
+}
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    return int(args.func(args) or 0)
+    try:
+        return int(args.func(args) or 0)
+    except ModuleNotFoundError as err:
+        extra = _EXTRAS.get((err.name or "").split(".")[0])
+        if extra is None:
+            raise
+        print(f"ambulo {args.command} needs the package {err.name!r}, which is not installed: "
+              f"pip install 'ambulo[{extra}]'", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

@@ -8,13 +8,7 @@ from __future__ import annotations
 
 import argparse
 import ast
-import os
 import sys
-
-# MuJoCo picks its OpenGL platform when it is first imported; headless machines need EGL
-# (or OSMesa) for `play`, so choose it before anything imports mujoco.
-if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
-    os.environ["MUJOCO_GL"] = "egl"
 
 
 def _overrides(pairs: list[str] | None) -> dict:

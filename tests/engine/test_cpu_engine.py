@@ -1,7 +1,6 @@
 """CpuEngine: zero-copy tensors, determinism, per-world reset and fields, divergence handling."""
 
 import mujoco
-import numpy as np
 import pytest
 import torch
 

@@ -1,8 +1,6 @@
 """Referencing USD, URDF and MJCF files at prim paths, and the errors for bad files."""
 
-import importlib.util
 import glob
-import os
 
 import numpy as np
 import pytest
@@ -151,9 +149,6 @@ def test_unknown_prim_path_suggests_close_names():
 
 
 def _g1_urdf():
-    if importlib.util.find_spec("cmeel") is None and not glob.glob(
-            os.path.join(os.path.dirname(os.__file__), "..", "**", "g1_29dof_rev_1_0.urdf"), recursive=True):
-        pass
     from ambulo.sim.packages import package_search_path
 
     for folder in package_search_path():
