@@ -2,7 +2,7 @@
 VENV ?= .venv
 PY := $(VENV)/bin/python
 
-.PHONY: setup demo test test-slow bench clean
+.PHONY: setup demo test lint bench clean
 
 setup:
 	@bash scripts/setup.sh
@@ -13,8 +13,8 @@ demo: setup
 test: setup
 	$(PY) -m pytest -q -p no:cacheprovider
 
-test-slow: setup
-	$(PY) -m pytest -q -m slow
+lint: setup
+	$(PY) -m ruff check src tests examples benchmarks scripts
 
 bench: setup
 	$(PY) benchmarks/engine_cpu.py
