@@ -13,6 +13,8 @@ import mujoco
 import numpy as np
 import torch
 
+from ..sim.drives import is_drive
+
 
 def _index(idx: np.ndarray, device: torch.device) -> slice | torch.Tensor:
     """A slice when ``idx`` is contiguous (a zero-copy view when indexing), else an index tensor."""
@@ -44,13 +46,10 @@ class PdRobot:
         self.lin_vel_slice = slice(dadr, dadr + 3)
         self.ang_vel_slice = slice(dadr + 3, dadr + 6)
 
-        if np.any(model.actuator_trntype != mujoco.mjtTrn.mjTRN_JOINT.value):
-            raise ValueError("every actuator must drive a joint (trntype 'joint')")
-        if np.any(model.actuator_biastype != mujoco.mjtBias.mjBIAS_AFFINE.value) or np.any(
-                model.actuator_gainprm[:, 0] != 1.0):
+        if not all(is_drive(model.actuator(a)) for a in range(model.nu)):
             raise ValueError(
-                "actuators must follow the implicit-PD convention: gainprm='1' "
-                "biastype='affine' biasprm='0 -KP -KD'")
+                "every actuator must be an implicit-PD joint drive: <general joint=... gainprm='1' "
+                "biastype='affine' biasprm='0 -KP -KD'/>")
         joints = model.actuator_trnid[:, 0]
         self.num_joints = len(joints)
         self.joint_names = [model.joint(j).name.removeprefix(prefix) for j in joints]

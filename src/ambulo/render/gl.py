@@ -1,15 +1,14 @@
 """Headless OpenGL contexts for MuJoCo's renderer, and the GL renderer string.
 
 MuJoCo picks its GL backend from ``MUJOCO_GL`` when ``mujoco`` is first imported;
-on a headless Linux machine the default (GLFW) needs a display and fails. We
-therefore choose ourselves: ``MUJOCO_GL`` when the user set it, otherwise EGL
-without a display (Mesa's llvmpipe when there is no GPU) and GLFW with one.
+on a headless Linux machine the default (GLFW) needs a display and fails, so
+``ambulo/__init__.py`` sets EGL there (Mesa's llvmpipe when there is no GPU).
+Contexts are created here from that same choice, whatever mujoco saw.
 """
 
 from __future__ import annotations
 
 import os
-import platform
 
 _BACKEND_ERRORS = (ImportError, AttributeError, OSError, RuntimeError)
 
@@ -27,13 +26,9 @@ def _context_class(backend: str):
 
 
 def gl_backend() -> str:
-    """The backend ``create_gl_context`` uses: ``MUJOCO_GL`` or a headless default."""
-    chosen = os.environ.get("MUJOCO_GL", "").strip().lower()
-    if chosen:
-        return chosen
-    if platform.system() == "Linux" and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-        return "egl"
-    return "glfw"
+    """The backend ``create_gl_context`` uses: ``MUJOCO_GL``, which importing ``ambulo`` set to
+    EGL on a headless Linux machine unless the user chose; GLFW (a window system) otherwise."""
+    return os.environ.get("MUJOCO_GL", "").strip().lower() or "glfw"
 
 
 def create_gl_context(width: int, height: int):

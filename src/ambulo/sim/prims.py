@@ -138,9 +138,6 @@ class XFormPrim:
             )
         engine.forward()
 
-    def get_local_scale(self):
-        return self._world._out(torch.ones(self._world.num_worlds, 3, dtype=torch.float64))
-
 
 class RigidPrim(XFormPrim):
     """A rigid body: pose plus velocities and mass."""

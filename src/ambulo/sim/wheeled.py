@@ -87,4 +87,4 @@ class DifferentialController:
         return ArticulationAction(joint_velocities=wheels.numpy())
 
     def reset(self) -> None:
-        pass
+        """Isaac's controller API; this controller keeps no state between calls."""

@@ -235,9 +235,6 @@ class World:
             engine.step(self.physics.substeps, refresh=True)
             self._step_index += 1
 
-    def step_async(self, step_size: float | None = None) -> None:
-        self.step(render=False)
-
     # -- callbacks -------------------------------------------------------------
     def add_physics_callback(self, callback_name: str, callback_fn: Callable[[float], None]) -> None:
         """Call ``callback_fn(step_size_s)`` before every physics step."""
