@@ -1,5 +1,7 @@
 """Every example (an Isaac tutorial ported) runs headless and does what it says."""
 
+import ast
+import functools
 import importlib.util
 import math
 from pathlib import Path
@@ -17,12 +19,30 @@ def run_example(name: str, *argv: str) -> dict:
     return module.main(list(argv))
 
 
-def test_every_example_has_a_test():
-    tested = {"hello_world", "hello_robot", "simple_wheeled_robot", "humanoid_creation",
-              "humanoid_walk_cycle", "usd_scene"}
-    others = {p.stem for p in EXAMPLES.glob("*.py")} - tested
-    # examples of other packages (replicator_*, rl_*) are run by their own test modules
-    assert all(name.startswith(("replicator", "rl_", "train")) for name in others), others
+@functools.cache
+def _examples_loaded_by_tests() -> frozenset[str]:
+    """Names of the examples some test module loads: ``run_example("name", ...)``, or a path
+    ``... "examples" / "name.py"`` (string constants "examples" and "name.py" in one module)."""
+    loaded = set()
+    for file in Path(__file__).resolve().parent.rglob("test_*.py"):
+        strings = set()
+        for node in ast.walk(ast.parse(file.read_text(), str(file))):
+            if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "run_example"
+                    and node.args and isinstance(node.args[0], ast.Constant)):
+                loaded.add(node.args[0].value)
+            elif isinstance(node, ast.Constant) and isinstance(node.value, str):
+                strings.add(node.value)
+        if "examples" in strings:
+            loaded |= {s[:-3] for s in strings if s.endswith(".py") and s[:-3].isidentifier()}
+    return frozenset(loaded)
+
+
+@pytest.mark.parametrize("example", sorted(p.stem for p in EXAMPLES.glob("*.py")))
+def test_every_example_has_a_test(example):
+    assert example in _examples_loaded_by_tests(), (
+        f"examples/{example}.py is run by no test: add one to tests/test_examples.py "
+        f"(run_example({example!r}, ...)) or to its package's test module"
+    )
 
 
 def test_hello_world_cube_lands_at_half_its_edge(tmp_path):

@@ -62,18 +62,54 @@ def test_state_tensors_are_zero_copy_views_and_outputs_refresh():
     assert engine.xpos[2, pelvis, 2] - engine.xpos[0, pelvis, 2] == pytest.approx(1.0)
 
 
+def _humanoid_with_filtered_actuator_model():
+    """The humanoid scene plus one first-order filter actuator, so that worlds carry ``act`` state."""
+    spec = mujoco.MjSpec()
+    spec.option.timestep = 0.005
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[10, 10, 0.1])
+    spec.attach(mujoco.MjSpec.from_file(assets.path("humanoid")), prefix="h/",
+                frame=spec.worldbody.add_frame())
+    spec.add_actuator(name="filtered", target="h/torso_yaw", trntype=mujoco.mjtTrn.mjTRN_JOINT,
+                      dyntype=mujoco.mjtDyn.mjDYN_FILTER, dynprm=[0.05] + [0.0] * 9,
+                      gainprm=[20.0] + [0.0] * 9)
+    return spec.compile()
+
+
 def test_reset_restores_only_the_given_worlds():
-    model = _humanoid_scene_model()
-    engine = CpuEngine(model, 4)
-    engine.ctrl[:] = 30.0
-    engine.step(50)
-    moved = engine.qpos.clone()
+    model = _humanoid_with_filtered_actuator_model()
+    assert model.na == 1
+    engine = CpuEngine(model, 4, num_threads=1)
+    fields = ("time", "qpos", "qvel", "act")
+    initial = {f: engine.field(f).clone() for f in fields}
+    engine.xpos  # bind the output now: from here on only the engine's own calls refresh it
+    # what a fresh forward of the initial state computes, from plain MuJoCo
+    fresh = mujoco.MjData(model)
+    mujoco.mj_forward(model, fresh)
+    assert torch.equal(initial["qpos"][1], torch.from_numpy(fresh.qpos))
+    # drive every world somewhere else: different controls per world, so all four differ
+    gen = torch.Generator().manual_seed(1)
+    for _ in range(40):
+        engine.ctrl[:] = 20.0 * torch.randn(4, model.nu, generator=gen, dtype=torch.float64)
+        engine.step()
+    before = {f: engine.field(f).clone() for f in fields}
+    for world in range(4):
+        for f in ("qpos", "qvel", "act"):
+            assert not torch.equal(before[f][world], initial[f][world]), (f, world)
+    assert not torch.equal(before["qpos"][1], before["qpos"][3])
+
     engine.reset([1, 3])
-    initial = torch.from_numpy(engine.initial_state)
-    assert torch.equal(engine.qpos[0], moved[0]) and torch.equal(engine.qpos[2], moved[2])
-    assert torch.equal(engine.qpos[1], engine.qpos[3])
-    assert engine.time[1] == 0.0 and engine.time[0] > 0.0
-    assert initial.shape[0] == 4
+
+    for f in fields:
+        after = engine.field(f)
+        for world in (1, 3):  # reset: exactly the initial state, not only the clock
+            assert torch.equal(after[world], initial[f][world]), (f, world)
+        for world in (0, 2):  # untouched: exactly as before the reset
+            assert torch.equal(after[world], before[f][world]), (f, world)
+    # derived fields of the reset worlds describe the initial state, as a fresh mj_forward does
+    for world in (1, 3):
+        torch.testing.assert_close(engine.xpos[world], torch.from_numpy(fresh.xpos), rtol=0, atol=1e-12)
+    assert not torch.allclose(engine.xpos[0], torch.from_numpy(fresh.xpos))
 
 
 def test_per_world_friction_changes_only_that_world():

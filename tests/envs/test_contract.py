@@ -8,8 +8,8 @@ import ambulo.envs as envs
 NUM_ENVS = 8
 
 
-def make(name, seed=3):
-    return envs.make(name, num_envs=NUM_ENVS, seed=seed, num_threads=1)
+def make(name, seed=3, **overrides):
+    return envs.make(name, num_envs=NUM_ENVS, seed=seed, num_threads=1, **overrides)
 
 
 def random_actions(env, generator):
@@ -39,6 +39,8 @@ def test_shapes_dtypes_and_no_nan_over_200_random_steps(name):
         assert torch.isfinite(obs).all() and torch.isfinite(rewards).all()
         if "observations" in extras:
             assert extras["observations"]["critic"].shape == (NUM_ENVS, env.num_privileged_obs)
+    # a diverged world is reset silently (its state stays finite), so count divergences
+    assert env.engine.num_diverged == 0
 
 
 @pytest.mark.parametrize("name", envs.names())
@@ -57,34 +59,55 @@ def test_same_seed_gives_identical_rollouts(name):
     assert not torch.equal(other.reset(), make(name, seed=11).reset())
 
 
+def twins(name, **overrides):
+    """Two envs of one seed stepped alike: what one does differently shows against the other."""
+    pair = [make(name, **overrides) for _ in range(2)]
+    zero = torch.zeros(NUM_ENVS, pair[0].num_actions)
+    for env in pair:
+        env.reset()
+        env.step(zero)
+    return pair, zero
+
+
 @pytest.mark.parametrize("name", envs.names())
 def test_step_resets_only_the_envs_that_finished(name):
-    env = make(name)
-    env.reset()
-    zero = torch.zeros(NUM_ENVS, env.num_actions)
-    env.step(zero)
+    (env, twin), zero = twins(name, stats_interval_steps=1)
     env.episode_length_buf[0] = env.max_episode_length - 1  # env 0 times out next step
-    before = env.episode_length_buf.clone()
-    qpos_before = env.engine.qpos.clone()
     _, _, dones, extras = env.step(zero)
-    assert dones[0] and extras["time_outs"][0] and "episode" in extras
-    assert env.episode_length_buf[0] == 0
-    kept = ~dones
-    assert kept.sum() > 0
-    assert torch.equal(env.episode_length_buf[kept], before[kept] + 1)
-    # the envs that went on continued from their own state: not back at the initial state
-    assert not torch.equal(env.engine.qpos[kept], qpos_before[kept])
+    twin.step(zero)
+    assert dones.tolist() == [True] + [False] * (NUM_ENVS - 1)
+    assert extras["time_outs"][0] and env.episode_length_buf[0] == 0
+    # the episode statistics count that one ended episode, which timed out
+    assert extras["episode"]["Episode/num_ended"] == 1
+    assert extras["episode"]["Episode_Termination/time_out"] == 1.0
+    # the other envs went on exactly as the twin's, which reset nothing
+    assert torch.equal(env.engine.qpos[1:], twin.engine.qpos[1:])
+    assert torch.equal(env.engine.qvel[1:], twin.engine.qvel[1:])
+    assert torch.equal(env.episode_length_buf[1:], twin.episode_length_buf[1:])
+    # env 0 restarted from the initial state (its randomized reset), not from where it was
+    assert not torch.equal(env.engine.qpos[0], twin.engine.qpos[0])
+    assert env.engine.time[0] == 0.0 and twin.engine.time[0] > 0.0
 
 
 @pytest.mark.parametrize("name", envs.names())
-def test_reset_subset_reports_all_observations(name):
-    env = make(name)
-    env.reset()
-    env.step(torch.full((NUM_ENVS, env.num_actions), 0.3))
+def test_reset_subset_changes_only_those_envs(name):
+    (env, twin), _ = twins(name)
     env.episode_length_buf[:] = 5
     obs = env.reset(torch.tensor([1, 3]))
     assert obs.shape == (NUM_ENVS, env.num_obs)
     assert env.episode_length_buf.tolist() == [5, 0, 5, 0, 5, 5, 5, 5]
+    reset = torch.zeros(NUM_ENVS, dtype=torch.bool)
+    reset[[1, 3]] = True
+    assert torch.equal(env.engine.qpos[~reset], twin.engine.qpos[~reset])
+    assert torch.equal(env.engine.time[reset], torch.zeros(2, dtype=torch.float64))
+    assert (twin.engine.time[reset] > 0).all()
+
+
+@pytest.mark.parametrize("name", envs.names())
+def test_play_variant_builds_and_steps(name):
+    env = make(name, play=True)
+    obs, rewards, _, _ = env.step(torch.zeros(NUM_ENVS, env.num_actions))
+    assert torch.isfinite(obs).all() and torch.isfinite(rewards).all()
 
 
 def test_bad_actions_are_rejected_with_the_fix():

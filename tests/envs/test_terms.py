@@ -70,30 +70,48 @@ def test_penalties_and_air_time():
     assert rewards.feet_air_time(air, first, 0.4, standing).item() == 0.0
 
 
-def humanoid(num_envs=2):
-    return envs.make("humanoid-walk", num_envs=num_envs, seed=0, num_threads=1)
+def humanoid(num_envs=2, play=True):
+    return envs.make("humanoid-walk", num_envs=num_envs, seed=0, num_threads=1, play=play)
 
 
 def test_humanoid_observes_a_constructed_tilt_and_command():
     env = humanoid()
     theta = math.radians(30.0)
-    env.engine.qpos[:, env.robot.quat_slice] = tilt_x(theta).expand(2, 4)
+    env.robot.write_root_pose(quat_w=tilt_x(theta).expand(2, 4))
     env.engine.forward()
-    env.commands[:] = torch.tensor([0.5, -0.25, 1.0], dtype=torch.float64)
-    obs = env._get_observations()
+    env.commands.command[:] = torch.tensor([0.5, -0.25, 1.0])
+    obs = env._compute_observations()
     torch.testing.assert_close(obs[:, 0:3], torch.tensor(
         [[0.0, -math.sin(theta), -math.cos(theta)]] * 2))
     torch.testing.assert_close(obs[:, 3:6], torch.tensor([[1.0, -0.5, 0.25]] * 2))
 
 
+def test_observation_noise_reaches_the_actor_only_within_its_bounds():
+    env = humanoid(num_envs=64, play=False)
+    obs, critic = env.get_observations(), env.get_privileged_observations()
+    clean = critic[:, :env.num_obs]
+    noise = obs - clean
+    # term order: gravity 3, command 3, joint pos 21, joint vel 21, ang vel 3, actions 21
+    bounds = [(0, 3, 0.05), (3, 6, 0.0), (6, 27, 0.01), (27, 48, 0.075), (48, 51, 0.05), (51, 72, 0.0)]
+    for start, stop, half_width in bounds:
+        part = noise[:, start:stop].abs()
+        assert part.max() <= half_width + 1e-6
+        if half_width:
+            assert part.max() > 0.5 * half_width  # 64 envs x k draws: the bound is approached
+    play = humanoid(num_envs=4)
+    torch.testing.assert_close(play.get_observations(), play.get_privileged_observations()[:, :play.num_obs])
+
+
 def test_humanoid_tracking_reward_and_terminations_on_constructed_states():
     env = humanoid()
     engine, robot = env.engine, env.robot
-    engine.qpos[:, robot.quat_slice] = torch.tensor([1.0, 0, 0, 0], dtype=torch.float64)
+    robot.write_root_pose(quat_w=torch.tensor([[1.0, 0, 0, 0]], dtype=torch.float64).expand(2, 4))
     engine.qvel[:] = 0.0
-    engine.qvel[:, robot.lin_vel_slice.start] = 0.6     # 0.6 m/s forward in the world
-    env.commands[:] = torch.tensor([1.0, 0.0, 0.0], dtype=torch.float64)
-    engine.qpos[1, robot.pos_slice.start + 2] = 0.4     # env 1 below 0.5 m
+    robot.write_root_velocity(lin_vel_w=torch.tensor([[0.6, 0.0, 0.0]], dtype=torch.float64).expand(2, 3))
+    env.commands.command[:] = torch.tensor([1.0, 0.0, 0.0])
+    pos = robot.data.root_pos_w.clone()
+    pos[1, 2] = 0.4     # env 1 below 0.5 m
+    robot.write_root_pose(pos_w=pos)
     engine.forward()
     terms = env._get_terminations()
     assert terms["base_height"].tolist() == [False, True]
@@ -101,5 +119,5 @@ def test_humanoid_tracking_reward_and_terminations_on_constructed_states():
     reward = env._get_rewards()["track_lin_vel_xy_exp"]
     torch.testing.assert_close(reward, torch.full((2,), math.exp(-0.4**2 / 0.5**2),
                                                   dtype=torch.float64))
-    engine.qpos[:, robot.quat_slice] = tilt_x(math.radians(70.0)).expand(2, 4)
+    robot.write_root_pose(quat_w=tilt_x(math.radians(70.0)).expand(2, 4))
     assert env._get_terminations()["tilt"].all()

@@ -1,4 +1,4 @@
-"""The generated COCO file passes pycocotools, evaluates itself to AP = 1, and agrees with the PNGs."""
+"""The generated COCO file: pycocotools scores perturbed detections as computed by hand; it agrees with the PNGs."""
 
 import contextlib
 import io
@@ -20,18 +20,78 @@ def load(dataset):
         return COCO(str(dataset / "annotations.json"))
 
 
-def test_self_evaluation_gives_ap_1_for_bbox_and_segm(dataset):
-    gt = load(dataset)
-    detections = [{**a, "score": 1.0} for a in gt.dataset["annotations"]]
-    assert len(detections) > 20
+def evaluate(gt, detections, iou_type):
     with contextlib.redirect_stdout(io.StringIO()):
-        dt = gt.loadRes(detections)
-        for iou_type in ("bbox", "segm"):
-            ev = COCOeval(gt, dt, iou_type)
-            ev.evaluate()
-            ev.accumulate()
-            ev.summarize()
-            assert ev.stats[0] == 1.0, iou_type  # AP@[.5:.95]
+        ev = COCOeval(gt, gt.loadRes(detections), iou_type)
+        ev.evaluate()
+        ev.accumulate()
+        ev.summarize()
+    return ev.stats
+
+
+def test_perturbed_detections_score_the_hand_computed_ap_and_ar(dataset):
+    """Detections made from the instance PNGs (not from annotations.json), perturbed in known ways.
+
+    Per category with n ground-truth objects (all boxes and masks come from the PNG):
+      - its first object is missed (no detection);
+      - the other n - 1 are found: the box is shifted right by 0.2 w, so its IoU with the
+        true box is (w - 0.2 w) h / ((w + 0.2 w) h) = 0.8 / 1.2 = 2/3; the mask is exact (IoU 1);
+      - one false positive (a box off the image, the image's background as mask: IoU 0 with
+        every object) has the highest score, above every true detection.
+    Ranked by score the detections are FP, TP, ..., TP: precision after the k-th TP is
+    k / (k + 1), so COCO's interpolated precision (the maximum at any recall >= r) is
+    (n - 1) / n at every recall point up to the final recall (n - 1) / n, and 0 above it.
+    COCO averages it over the 101 recall points 0, 0.01, ..., 1, then over categories:
+      AP_c = (n - 1) / n * #{r in recall points : r <= (n - 1) / n} / 101.
+    A box with IoU 2/3 matches at the IoU thresholds .50, .55, .60, .65 (4 of the 10 in
+    .50:.05:.95) and is a false positive at the other 6, where AP and recall are 0; an exact
+    mask matches at all 10.
+    """
+    gt = load(dataset)
+    boxes, masks = [], []
+    missed, score = set(), 0.9
+    for img in gt.dataset["images"]:
+        instances = np.asarray(Image.open(dataset / "instance" / img["file_name"].split("/")[-1]))
+        for ann in gt.loadAnns(gt.getAnnIds(imgIds=img["id"])):
+            if ann["category_id"] not in missed:
+                missed.add(ann["category_id"])  # the category's first object: no detection
+                continue
+            mask = instances == ann["instance_id"]
+            assert mask.any(), f"annotation {ann['id']}: its instance is not in its image's instance PNG"
+            ys, xs = np.nonzero(mask)
+            x, y, w, h = xs.min(), ys.min(), xs.max() - xs.min() + 1, ys.max() - ys.min() + 1
+            score -= 0.001  # distinct scores, all below the false positives' 1.0
+            det = {"image_id": img["id"], "category_id": ann["category_id"], "score": score}
+            boxes.append({**det, "bbox": [float(x + 0.2 * w), float(y), float(w), float(h)]})
+            rle = mask_utils.encode(np.asfortranarray(mask.astype(np.uint8)))
+            masks.append({**det, "segmentation": {"size": rle["size"], "counts": rle["counts"].decode()}})
+    img = gt.dataset["images"][0]
+    background = np.asarray(Image.open(dataset / "instance" / img["file_name"].split("/")[-1])) == 0
+    assert background.any()
+    rle = mask_utils.encode(np.asfortranarray(background.astype(np.uint8)))
+    for cat in gt.getCatIds():
+        det = {"image_id": img["id"], "category_id": cat, "score": 1.0}
+        boxes.append({**det, "bbox": [-100.0, -100.0, 20.0, 20.0]})
+        masks.append({**det, "segmentation": {"size": rle["size"], "counts": rle["counts"].decode()}})
+
+    # the hand arithmetic of the docstring, per category present in the ground truth
+    counts = np.bincount([a["category_id"] for a in gt.dataset["annotations"]])
+    n = counts[counts > 0].astype(float)
+    assert len(n) >= 3 and n.min() >= 2  # each category's AP is non-trivial
+    final_recall = (n - 1) / n
+    recall_points = np.linspace(0.0, 1.00, 101)  # COCO's recall points, as pycocotools makes them
+    ap = final_recall * (recall_points[None, :] <= final_recall[:, None]).sum(1) / 101
+    assert 0.5 < ap.mean() < 0.99
+
+    bbox = evaluate(gt, boxes, "bbox")
+    assert bbox[0] == pytest.approx(4 / 10 * ap.mean(), abs=1e-12)  # AP@[.50:.95]
+    assert bbox[1] == pytest.approx(ap.mean(), abs=1e-12)  # AP@.50
+    assert bbox[2] == 0.0  # AP@.75: IoU 2/3 < .75
+    assert bbox[8] == pytest.approx(4 / 10 * final_recall.mean(), abs=1e-12)  # AR@100
+    segm = evaluate(gt, masks, "segm")
+    assert segm[0] == pytest.approx(ap.mean(), abs=1e-12)
+    assert segm[2] == pytest.approx(ap.mean(), abs=1e-12)
+    assert segm[8] == pytest.approx(final_recall.mean(), abs=1e-12)
 
 
 def test_categories_images_and_boxes_are_well_formed(dataset):

@@ -1,4 +1,6 @@
-"""Generation is a pure function of (config, seed, frame): determinism, resume after a kill, Ray shards."""
+"""Generation is a pure function of (config, seed, frame): determinism, resume after a kill, Ray shards.
+
+Local worker processes: test_parallel.py."""
 
 import filecmp
 import os
@@ -52,7 +54,7 @@ def test_a_frame_regenerates_alone_from_its_log(tmp_path, small_config):
 
 
 def _cli(out: Path, frames: int, *extra) -> list[str]:
-    return [sys.executable, "-m", "ambulo.cli_data", "generate", "--frames", str(frames), "--out", str(out),
+    return [sys.executable, "-m", "ambulo.cli", "generate", "--frames", str(frames), "--out", str(out),
             "--seed", "4", "--width", str(SIZE[0]), "--height", str(SIZE[1]), "--quiet", *extra]
 
 
@@ -83,7 +85,7 @@ def test_ray_workers_produce_the_same_dataset(tmp_path, small_config):
     pytest.importorskip("ray")
     config = small_config()
     rep.generate(config, tmp_path / "serial", num_frames=10, seed=3, show_progress=False)
-    rep.generate(config, tmp_path / "ray", num_frames=10, seed=3, workers=2, show_progress=False)
+    rep.generate(config, tmp_path / "ray", num_frames=10, seed=3, workers=2, show_progress=False, backend="ray")
     serial, sharded = tree(tmp_path / "serial"), tree(tmp_path / "ray")
     assert serial.keys() == sharded.keys()
     assert filecmp.cmp(tmp_path / "serial" / "annotations.json", tmp_path / "ray" / "annotations.json", shallow=False)

@@ -34,7 +34,7 @@ def producer():
 
 def test_scatter_places_objects_on_the_floor_in_the_region_without_overlap(producer):
     model = producer.model
-    floor = model.geom("/World/floor").id
+    floor = model.geom("/World/floor/geom").id
     objects = [b for b in range(model.nbody) if model.body(b).name.startswith("/World/objects/")]
     for frame in range(6):
         log = producer.randomize(seed=11, index=frame)
@@ -67,7 +67,7 @@ def test_crowded_region_hides_objects_instead_of_overlapping():
         log = p.randomize(seed=0, index=0)
         assert log["objects"]["hidden"], "ten objects cannot fit in 0.6 m x 0.6 m"
         model = p.model
-        assert penetrations(model, p.engine.qpos[0].numpy(), model.geom("/World/floor").id) == []
+        assert penetrations(model, p.engine.qpos[0].numpy(), model.geom("/World/floor/geom").id) == []
         objects = [b for b in range(model.nbody) if model.body(b).name.startswith("/World/objects/")]
         for i in log["objects"]["hidden"]:
             assert p.engine.get_data(0).xpos[objects[i]][2] < -5  # parked under the floor

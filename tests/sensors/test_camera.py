@@ -6,7 +6,7 @@ import pytest
 
 from ambulo.engine import CpuEngine
 from ambulo.sensors import Camera
-from ambulo.sim.semantics import set_semantic_label
+from ambulo.core.semantics import set_semantic_label
 
 BOX = mujoco.mjtGeom.mjGEOM_BOX
 ALL = ("rgb", "depth", "distance_to_camera", "semantic_segmentation", "instance_segmentation",
@@ -23,7 +23,7 @@ def scene(boxes, num_worlds=1, **camera_kwargs):
         body.add_geom(type=BOX, size=half, rgba=[0.8, 0.2, 0.2, 1])
         set_semantic_label(spec, name, label)
     camera = Camera(prim_path="/World/camera", annotators=ALL, **camera_kwargs)
-    camera._build(spec)
+    camera.build(spec)
     engine = CpuEngine(spec.compile(), num_worlds, num_threads=1)
     camera.initialize(engine)
     return engine, camera
@@ -168,7 +168,7 @@ def test_mounted_camera_follows_its_body():
     # looks down: world-convention camera (x forward) pitched 90 deg about y
     camera = Camera(prim_path="/World/robot/camera", offset_pos=(0.1, 0, 0),
                     offset_quat=(np.cos(np.pi / 4), 0, np.sin(np.pi / 4), 0))
-    camera._build(spec)
+    camera.build(spec)
     engine = CpuEngine(spec.compile(), 1, num_threads=1)
     camera.initialize(engine)
     engine.mocap_pos[0, 0] = engine.mocap_pos.new_tensor([2.0, 1.0, 1.5])
@@ -185,6 +185,6 @@ def test_mounted_camera_follows_its_body():
 def test_bad_prim_path_and_annotator_give_clear_errors():
     spec = mujoco.MjSpec()
     with pytest.raises(ValueError, match="names no body or site"):
-        Camera(prim_path="/World/nothing/here/camera")._build(spec)
+        Camera(prim_path="/World/nothing/here/camera").build(spec)
     with pytest.raises(ValueError, match="unknown camera annotator"):
         Camera(prim_path="/World/cam", annotators=("rgb", "lidar"))

@@ -8,6 +8,7 @@ import torch
 
 from ambulo.engine import CpuEngine
 from ambulo.sensors import Imu, ImuCfg, euroc_adis16448
+from ambulo.sim import DynamicCuboid, World
 
 RATE_HZ = 200.0
 
@@ -20,7 +21,7 @@ def box_with_imu(imu_cfg: ImuCfg, num_worlds=1, height=0.1):
     body.add_freejoint()
     body.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.1, 0.1, 0.1])
     imu = Imu(imu_cfg)
-    imu._build(spec)
+    imu.build(spec)
     engine = CpuEngine(spec.compile(), num_worlds, num_threads=1)
     imu.initialize(engine)
     return engine, imu
@@ -68,6 +69,44 @@ def test_rate_holds_samples_between_updates_and_noise_is_seeded():
     engine2, imu2 = box_with_imu(cfg, num_worlds=2)
     engine2.step()
     assert torch.equal(imu2.get_current_frame().lin_acc_b, readings[0])
+
+
+def test_rate_samples_exactly_at_multiples_of_the_period():
+    # 50 Hz on 2 ms physics steps: a sample period is 10 steps. Reading after every step
+    # over 4 periods must give the samples taken at t = 0, 20, 40, 60, 80 ms and nothing else.
+    rate_hz, dt, periods = 50.0, 0.002, 4
+    steps_per_period = 10
+    world = World(physics_dt=dt)
+    world.scene.add_default_ground_plane()
+    world.scene.add(DynamicCuboid(prim_path="/World/box", position=[0, 0, 0.1], size=0.2))
+    imu = world.scene.add(Imu(ImuCfg(prim_path="/World/box/imu", rate_hz=rate_hz,
+                                     noise=euroc_adis16448(), seed=7)))
+    world.reset()
+
+    def read():
+        frame = imu.get_current_frame()
+        return (float(frame.time_s[0]), frame.lin_acc_b[0].clone(), frame.ang_vel_b[0].clone())
+
+    samples = [read()]  # step 0, t = 0: the first read samples
+    for step in range(1, periods * steps_per_period + 1):
+        world.step()
+        assert world.current_time == pytest.approx(step * dt, abs=1e-12)
+        samples.append(read())
+        again = read()  # a second read at the same time returns the same sample
+        assert again[0] == samples[-1][0]
+        assert torch.equal(again[1], samples[-1][1]) and torch.equal(again[2], samples[-1][2])
+
+    for step, (time_s, acc, gyro) in enumerate(samples):
+        # the sample is the one taken at the last multiple of 1/R at or before now
+        assert time_s == pytest.approx((step // steps_per_period) / rate_hz, abs=1e-12), step
+        previous_time, previous_acc, previous_gyro = samples[max(step - 1, 0)]
+        if step % steps_per_period:  # inside a period: the very same sample
+            assert time_s == previous_time
+            assert torch.equal(acc, previous_acc) and torch.equal(gyro, previous_gyro)
+        elif step:  # a period elapsed: a new sample, with new noise
+            assert time_s > previous_time
+            assert not torch.equal(acc, previous_acc) and not torch.equal(gyro, previous_gyro)
+    assert len({time_s for time_s, _, _ in samples}) == periods + 1
 
 
 def allan_fit(signal: np.ndarray, rate_hz: float) -> tuple[float, float]:

@@ -22,7 +22,7 @@ def walled_room(sensor, num_worlds=1):
     spec.worldbody.add_geom(type=BOX, pos=[-4.1, 0, 1], size=[0.1, 5, 1])
     post = spec.worldbody.add_body(name="/World/post", pos=[0, 0, 0.5])
     post.add_geom(type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[0.05, 0.05])
-    sensor._build(spec)
+    sensor.build(spec)
     engine = CpuEngine(spec.compile(), num_worlds, num_threads=1)
     sensor.initialize(engine)
     return engine, sensor
@@ -66,7 +66,7 @@ def test_standing_humanoid_feet_touch_and_airborne_ones_do_not():
     spec = mujoco.MjSpec.from_file(assets.path("humanoid"))
     spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[10, 10, 0.1])
     feet = ContactSensor(prim_paths=("left_foot", "right_foot"))
-    feet._build(spec)
+    feet.build(spec)
     model = spec.compile()
     engine = CpuEngine(model, 2, num_threads=1)
     feet.initialize(engine)
@@ -87,4 +87,4 @@ def test_standing_humanoid_feet_touch_and_airborne_ones_do_not():
 def test_contact_sensor_names_missing_bodies():
     spec = mujoco.MjSpec.from_file(assets.path("humanoid"))
     with pytest.raises(ValueError, match="no body matches 'left_hoof'"):
-        ContactSensor(prim_paths=("left_hoof",))._build(spec)
+        ContactSensor(prim_paths=("left_hoof",)).build(spec)

@@ -7,7 +7,7 @@ import pytest
 
 from ambulo import assets
 from ambulo.sim import (
-    ArticulationAction, DifferentialController, DynamicCuboid, Robot, WheeledRobot, World,
+    ArticulationAction, DifferentialController, DynamicCuboid, RigidPrim, Robot, WheeledRobot, World,
     add_reference_to_stage,
 )
 
@@ -167,3 +167,90 @@ def test_rigid_prim_velocities_are_world_frame_at_the_body_origin():
         world.step()
     assert _yaw(rod.get_world_pose()[1]) - start_yaw == pytest.approx(1.0, abs=1e-3)
     np.testing.assert_allclose(rod.get_world_pose()[0], [0.25, -0.1, 2.05], atol=1e-6)
+
+
+# A free body whose frame origin is 0.3 m from its centre of mass: all its mass is a
+# sphere centred at (0.3, 0, 0) in the body frame, so its inertia about the CoM is
+# isotropic and, without gravity, both the CoM velocity and the angular velocity stay
+# constant in the world frame.
+OFFSET_ROTOR_MJCF = """
+<mujoco>
+  <worldbody>
+    <body name="rotor" pos="0 0 2">
+      <freejoint/>
+      <geom type="sphere" pos="0.3 0 0" size="0.05" mass="1"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def _quat_to_mat(q):
+    w, x, y, z = q
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+def test_rigid_prim_linear_velocity_is_the_body_origin_not_the_com(tmp_path):
+    com_b = np.array([0.3, 0.0, 0.0])  # centre of mass in the body frame (the sphere's centre)
+    file = tmp_path / "rotor.xml"
+    file.write_text(OFFSET_ROTOR_MJCF)
+    world = World(physics_dt=0.001, gravity=(0.0, 0.0, 0.0))
+    add_reference_to_stage(usd_path=str(file), prim_path="/World/Rotor")
+    rotor = world.scene.add(RigidPrim(prim_path="/World/Rotor/rotor"))
+    world.reset()
+    v_origin0, omega = np.array([0.4, -0.1, 0.2]), np.array([0.5, -1.0, 2.0])
+    rotor.set_linear_velocity(v_origin0)  # MuJoCo's free joint: velocity of the frame origin
+    rotor.set_angular_velocity(omega)
+    np.testing.assert_allclose(rotor.get_angular_velocity(), omega, atol=1e-9)
+    np.testing.assert_allclose(rotor.get_linear_velocity(), v_origin0, atol=1e-9)
+
+    # by hand: v_com = v_origin + w x (p_com - p_origin), constant in free flight
+    p0, q0 = rotor.get_world_pose()
+    r0 = _quat_to_mat(q0) @ com_b  # p_com - p_origin at the start (identity rotation: (0.3, 0, 0))
+    v_com = v_origin0 + np.cross(omega, r0)
+    np.testing.assert_allclose(v_com, [0.4, 0.5, 0.5], atol=1e-12)  # w x (0.3, 0, 0) = (0, 0.6, 0.3)
+    # nor is it the CoM's velocity: the two differ by |w x r| = 0.67 m/s
+    assert np.linalg.norm(rotor.get_linear_velocity() - v_com) > 0.6
+
+    for _ in range(300):  # 0.3 s: the body turns by |w| t = 0.69 rad about w
+        world.step()
+    p, q = rotor.get_world_pose()
+    r = _quat_to_mat(q) @ com_b
+    assert np.linalg.norm(r - r0) > 0.1  # the offset has rotated
+    np.testing.assert_allclose(rotor.get_angular_velocity(), omega, atol=1e-6)
+    np.testing.assert_allclose(p + r, p0 + r0 + 0.3 * v_com, atol=2e-3)  # straight on (integrator drift ~4e-4)
+    # v_origin = v_com + w x (p_origin - p_com)
+    np.testing.assert_allclose(rotor.get_linear_velocity(), v_com + np.cross(omega, -r), atol=2e-3)
+
+
+# A rod swinging about a hinge at its body origin: the origin is on the axis, so it does
+# not move, while the centre of mass (0.5 m out) moves at w * 0.5 m.
+HINGED_ROD_MJCF = """
+<mujoco>
+  <worldbody>
+    <body name="rod" pos="0 0 1">
+      <joint name="hinge" type="hinge" axis="0 1 0"/>
+      <geom type="sphere" pos="0.5 0 0" size="0.05" mass="1"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_rigid_prim_on_a_hinge_axis_has_zero_linear_velocity(tmp_path):
+    file = tmp_path / "rod.xml"
+    file.write_text(HINGED_ROD_MJCF)
+    world = World(physics_dt=0.001, gravity=(0.0, 0.0, 0.0))
+    add_reference_to_stage(usd_path=str(file), prim_path="/World/Rod")
+    robot = world.scene.add(Robot(prim_path="/World/Rod"))
+    rod = world.scene.add(RigidPrim(prim_path="/World/Rod/rod", name="rod_body"))
+    world.reset()
+    robot.set_joint_positions([0.7])
+    robot.set_joint_velocities([3.0])
+    # w = 3 rad/s about +y; the CoM, 0.5 m out, moves at 1.5 m/s, the origin not at all
+    np.testing.assert_allclose(rod.get_angular_velocity(), [0.0, 3.0, 0.0], atol=1e-9)
+    np.testing.assert_allclose(rod.get_linear_velocity(), [0.0, 0.0, 0.0], atol=1e-9)

@@ -17,15 +17,18 @@ def get_assets_root_path() -> str:
     return str(_DATA)
 
 
+_SUFFIXES = (".xml", ".urdf")
+
+
 def names() -> list[str]:
-    """Names of the bundled assets."""
-    return sorted(p.stem for p in _DATA.glob("*.xml"))
+    """Names of the bundled assets (MJCF ``.xml`` and URDF ``.urdf`` files)."""
+    return sorted(p.stem for p in _DATA.iterdir() if p.suffix in _SUFFIXES)
 
 
 def path(name: str) -> str:
-    """File of bundled asset ``name`` (e.g. ``"jetbot"``, ``"humanoid"``)."""
-    file = _DATA / f"{name}.xml"
-    if not file.is_file():
+    """File of bundled asset ``name`` (e.g. ``"jetbot"``, ``"humanoid"``, ``"cartpole"``)."""
+    file = next((_DATA / f"{name}{s}" for s in _SUFFIXES if (_DATA / f"{name}{s}").is_file()), None)
+    if file is None:
         close = difflib.get_close_matches(name, names(), n=3)
         hint = f" Did you mean {', '.join(map(repr, close))}?" if close else ""
         raise FileNotFoundError(

@@ -10,7 +10,9 @@ bit-identical to a loop over one ``MjData`` per world at any thread count
 from __future__ import annotations
 
 import logging
+import os
 import warnings
+from pathlib import Path
 from typing import Sequence
 
 import mujoco
@@ -65,6 +67,8 @@ class CpuEngine:
       num_worlds: N.
       num_threads: batch threads; 0 uses every CPU.
       keyframe: keyframe index or name for the initial state, or None for qpos0.
+      divergence_dump_dir: if set, every divergence writes the diverged worlds' state before
+        the failing step (and the model, once) there to reproduce it; see ``dump_divergence``.
     """
 
     device = torch.device("cpu")
@@ -75,6 +79,7 @@ class CpuEngine:
         num_worlds: int = 1,
         num_threads: int = 0,
         keyframe: int | str | None = None,
+        divergence_dump_dir: str | os.PathLike | None = None,
     ):
         if num_worlds < 1:
             raise ValueError(f"num_worlds must be >= 1, got {num_worlds}")
@@ -98,6 +103,8 @@ class CpuEngine:
         self._warn_total = self._warn_counts.sum()
         self.num_diverged = 0
         """Total number of world divergences detected (and reset) so far."""
+        self.divergence_dump_dir = None if divergence_dump_dir is None else Path(divergence_dump_dir)
+        self._state_before_step: np.ndarray | None = None
 
     # -- fields ---------------------------------------------------------------
     def field(self, name: str) -> torch.Tensor:
@@ -144,6 +151,10 @@ class CpuEngine:
         and velocities at the new state (one extra kinematics pass per world)."""
         failed = np.zeros(0, np.int64)
         stage = mujoco.mjtStage.mjSTAGE_VEL if refresh else mujoco.mjtStage.mjSTAGE_NONE
+        if self.divergence_dump_dir is not None:
+            # MuJoCo resets a diverging world in place, so the state to dump is the one before
+            self._state_before_step = self._batch.state.copy()
+            self._ctrl_before_step = self.field("ctrl").numpy().copy()
         try:
             self._batch.step(nstep=num_substeps, stage=stage.value)
         except mj_batch.SimulationError as err:
@@ -157,6 +168,8 @@ class CpuEngine:
         if diverged.any():
             ids = np.flatnonzero(diverged)
             self.num_diverged += len(ids)
+            if self.divergence_dump_dir is not None:
+                self.dump_divergence(ids)
             log.warning(
                 "%d of %d worlds diverged (NaN or unstable state), first: world %d; "
                 "they were reset to their initial state. Lower the timestep, check "
@@ -169,9 +182,11 @@ class CpuEngine:
         return torch.from_numpy(diverged)
 
     def forward(self, world_ids: WorldIds = None) -> None:
-        self._batch.forward(_as_ids(world_ids, self.num_worlds))
+        ids = _as_ids(world_ids, self.num_worlds)
+        if ids is None or ids.size:
+            self._batch.forward(ids)
 
-    def reset(self, world_ids: WorldIds = None) -> None:
+    def reset(self, world_ids: WorldIds = None, forward: bool = True) -> None:
         ids = _as_ids(world_ids, self.num_worlds)
         if ids is None:
             self._batch.state[:] = self.initial_state
@@ -179,7 +194,25 @@ class CpuEngine:
             self._batch.state[ids] = self.initial_state[ids]
         else:
             return
-        self._batch.forward(ids)
+        if forward:
+            self._batch.forward(ids)
+
+    def dump_divergence(self, world_ids: np.ndarray) -> Path:
+        """Write the diverged worlds' full physics state before the failing step.
+
+        ``<dir>/diverged_<count>.npz`` holds ``world_ids``, ``state`` (rows of
+        ``Batch.state`` in ``mujoco.batch``'s layout), ``ctrl`` and ``timestep``; ``<dir>/model.mjb`` the
+        model. Reproduce with ``mujoco.mj_setState`` on an ``MjData`` of that model and ``mj_step``.
+        """
+        out = self.divergence_dump_dir
+        out.mkdir(parents=True, exist_ok=True)
+        if not (out / "model.mjb").is_file():
+            mujoco.mj_saveModel(self.model, str(out / "model.mjb"), None)
+        path = out / f"diverged_{self.num_diverged:06d}.npz"
+        np.savez(path, world_ids=world_ids, state=self._state_before_step[world_ids],
+                 ctrl=self._ctrl_before_step[world_ids], timestep=self.model.opt.timestep)
+        log.warning("diverged worlds %s dumped to %s", world_ids.tolist()[:8], path)
+        return path
 
     def capture_initial_state(self, world_ids: WorldIds = None) -> None:
         """Make the worlds' current state the one ``reset`` restores."""
@@ -209,9 +242,14 @@ class CpuEngine:
             self._scratch_model = self._batch.get_model(world)
         return self._batch.get_model(world, self._scratch_model)
 
-    def ray(self, pnt, vec, **kwargs):
-        """Batched ``mj_ray`` over worlds; see ``mujoco.batch.Batch.ray``."""
-        return self._batch.ray(pnt, vec, **kwargs)
+    def ray(self, pnt, vec, **kwargs) -> tuple[torch.Tensor, torch.Tensor]:
+        """Batched ``mj_ray``: ``pnt``, ``vec`` (N, R, 3) world frame (tensors or arrays) ->
+        distances (N, R) float64 m and geom ids (N, R) int32, -1 for a miss. Keyword
+        arguments as ``mujoco.batch.Batch.ray`` (``bodyexclude``, ``geomgroup``, ...)."""
+        pnt = pnt.detach().cpu().numpy() if isinstance(pnt, torch.Tensor) else np.asarray(pnt)
+        vec = vec.detach().cpu().numpy() if isinstance(vec, torch.Tensor) else np.asarray(vec)
+        dist, geom = self._batch.ray(np.ascontiguousarray(pnt), np.ascontiguousarray(vec), **kwargs)
+        return torch.from_numpy(dist), torch.from_numpy(geom)
 
     @property
     def batch(self) -> mj_batch.Batch:

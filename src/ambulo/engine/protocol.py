@@ -36,6 +36,8 @@ class Engine(Protocol):
     model: mujoco.MjModel
     num_worlds: int
     device: torch.device
+    num_diverged: int
+    """Total number of world divergences detected (and reset) so far."""
 
     def field(self, name: str) -> torch.Tensor:
         """Live (N, ...) tensor of an MjData field: state is writable, outputs read-only."""
@@ -51,8 +53,16 @@ class Engine(Protocol):
     def forward(self, world_ids: Sequence[int] | torch.Tensor | None = None) -> None:
         """Recompute derived fields from the current state (no time advance)."""
 
-    def reset(self, world_ids: Sequence[int] | torch.Tensor | None = None) -> None:
-        """Restore worlds to their initial state (``initial_state``) and recompute derived fields."""
+    def reset(self, world_ids: Sequence[int] | torch.Tensor | None = None, forward: bool = True) -> None:
+        """Restore worlds to their initial state and, if ``forward``, recompute derived fields
+        (callers that edit the state further pass False and call ``forward`` once)."""
+
+    def set_const(self, world_ids: Sequence[int] | torch.Tensor | None = None) -> None:
+        """Recompute derived model constants after writing per-world masses or inertias."""
+
+    def ray(self, pnt, vec, **kwargs):
+        """Batched ray casts against each world's geometry: ``pnt``/``vec`` (N, R, 3), world
+        frame; returns (distances (N, R), geom ids (N, R)), -1 distance/id for no hit."""
 
     def capture_initial_state(self, world_ids: Sequence[int] | torch.Tensor | None = None) -> None:
         """Make the worlds' current state the one ``reset`` restores."""

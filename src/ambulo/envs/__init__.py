@@ -10,7 +10,8 @@
 
 from . import cartpole, humanoid_walk, jetbot_goal  # noqa: F401  (each registers its task)
 from .base import EnvCfg, RLEnv
-from .registry import TaskSpec, make, make_cfg, names, register, registry, spec
+from .ppo import PpoCfg
+from .registry import Criterion, TaskSpec, make, make_cfg, names, register, registry, spec
 
 
 def __getattr__(name: str):
@@ -23,7 +24,9 @@ def __getattr__(name: str):
 
 
 __all__ = [
+    "Criterion",
     "EnvCfg",
+    "PpoCfg",
     "GymVectorEnv",
     "RLEnv",
     "TaskSpec",

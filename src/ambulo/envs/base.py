@@ -1,9 +1,15 @@
 """RLEnv: N copies of a task stepped together as torch tensors (Isaac Lab's direct workflow).
 
-One ``step(actions)`` is one policy step: the task turns actions into controls once, the
-engine advances ``decimation`` physics steps in a single batched call, then terminations,
-rewards and observations are computed for all envs at once and the finished envs are reset
-in place. Nothing on this path loops over envs in Python.
+The scene is built by the core (``ambulo.core``): the task's robot through ``add_robot``
+(the same importers and drives as ``World``), the ground through ``add_ground``, physics
+from the config's ``PhysicsCfg``, sensors as lifecycle components of one ``Simulation``.
+The robot is read and driven through an ``ambulo.core.Entity``.
+
+One ``step(actions)`` is one policy step: the task turns actions into drive targets once, the
+engine advances ``decimation`` physics steps in a single batched call, sensors update, then
+terminations, rewards and observations are computed for all envs at once and the finished
+envs are reset in place through masks. No Python loop over envs and no host sync on this path:
+resets, action checks and episode statistics are tensor operations.
 
 A task subclasses ``RLEnv`` and fills in the ``_``-methods; sizes (``num_obs``) are derived
 from a real reset, not declared.
@@ -11,13 +17,13 @@ from a real reset, not declared.
 
 from __future__ import annotations
 
+import contextlib
 import math
 from dataclasses import dataclass, field
 
-import mujoco
 import torch
 
-from ambulo.engine import make_engine
+from ambulo.core import Entity, GroundCfg, PhysicsCfg, RobotCfg, Simulation, add_ground, add_robot, new_scene
 
 
 @dataclass(kw_only=True)
@@ -29,23 +35,42 @@ class EnvCfg:
     device: str = "cpu"
     """Engine and tensor device: ``"cpu"`` or ``"cuda[:N]"``."""
     seed: int = 0
-    """Seed of the env's random generator (resets, commands, randomization)."""
+    """Seed of the env's random generator (resets, commands, randomization, noise)."""
     num_threads: int = 0
     """CPU engine threads; 0 uses every CPU."""
-    physics_dt_s: float = 0.005
-    """Physics timestep, s (written into the model)."""
+    torch_threads: int = 1
+    """torch intra-op threads while a CPU env steps: MuJoCo's batch threads already use every
+    core, and torch's pool competing for them cost a third of a humanoid step (issue #7)."""
+    physics: PhysicsCfg = field(default_factory=PhysicsCfg)
+    """Solver and integrator settings (``timestep_s`` is the physics step)."""
     decimation: int = 4
-    """Physics steps per policy step: policy dt = physics_dt_s * decimation."""
+    """Physics steps per policy step: policy dt = physics.timestep_s * decimation."""
     episode_length_s: float = 20.0
     """Episode time limit, s; reaching it is a time-out, not a termination."""
     action_clip: float = 100.0
     """Actions are clipped to [-action_clip, action_clip] before use."""
     reward_weights: dict[str, float] = field(default_factory=dict)
     """Weight per reward term, per second of simulated time."""
+    robot: RobotCfg
+    """The robot file, where it stands and its drive defaults."""
+    robot_keyframe: str | None = None
+    """Keyframe of the robot file giving the default joint pose and root height (None: qpos0)."""
+    default_joint_pos: dict[str, float] = field(default_factory=dict)
+    """Default pose overrides per joint name (relative to the robot's prim path), rad or m."""
+    soft_joint_limit_factor: float = 0.9
+    """``robot.soft_joint_pos_limits``: this fraction of each joint's range about its middle."""
+    ground: GroundCfg | None = field(default_factory=GroundCfg)
+    """The ground plane (its friction, restitution); None for none."""
+    observation_noise: dict[str, float] = field(default_factory=dict)
+    """Uniform noise half-width per policy observation term (actor only; the critic sees
+    clean values), in the term's units after scaling."""
+    stats_interval_steps: int = 24
+    """Episode statistics (``extras["episode"]``) cover the episodes that ended in windows of
+    this many policy steps, so the step path needs no host sync to find ended episodes."""
 
 
 class RLEnv:
-    """Vectorized RL env over one engine of ``cfg.num_envs`` worlds.
+    """Vectorized RL env over one ``Simulation`` of ``cfg.num_envs`` worlds.
 
     Attributes:
       num_envs: N.
@@ -55,73 +80,113 @@ class RLEnv:
       step_dt_s: policy step, s.
       max_episode_length: policy steps per episode before a time-out.
       episode_length_buf: (N,) int64, policy steps since each env's last reset.
+      robot: the ``Entity`` of ``cfg.robot``.
     """
 
     num_actions: int
-    success_terminations: tuple[str, ...] = ()
-    """Termination names that mean success (e.g. a goal reached), not failure."""
 
-    def __init__(self, cfg: EnvCfg, model: mujoco.MjModel):
+    def __init__(self, cfg: EnvCfg):
         if cfg.decimation < 1:
             raise ValueError(f"decimation must be >= 1, got {cfg.decimation}")
         self.cfg = cfg
-        model.opt.timestep = cfg.physics_dt_s
-        self.engine = make_engine(model, cfg.num_envs, cfg.device, num_threads=cfg.num_threads)
+        spec = new_scene(type(self).__name__)
+        if cfg.ground is not None:
+            add_ground(spec, cfg.ground)
+        self.robot_asset = add_robot(spec, cfg.robot)
+        self.sim = Simulation(spec, cfg.physics, num_worlds=cfg.num_envs, device=cfg.device,
+                              num_threads=cfg.num_threads)
+        self._design_scene(spec)
+        self.engine = self.sim.start()
         self.model = self.engine.model
         self.num_envs = cfg.num_envs
         self.device = torch.device(self.engine.device)
-        self.physics_dt_s = cfg.physics_dt_s
-        self.step_dt_s = cfg.physics_dt_s * cfg.decimation
+        self.physics_dt_s = cfg.physics.timestep_s
+        self.step_dt_s = cfg.physics.timestep_s * cfg.decimation
         self.max_episode_length = math.ceil(cfg.episode_length_s / self.step_dt_s)
         self.generator = torch.Generator(device=self.device)
         self.generator.manual_seed(cfg.seed)
         self.return_final_obs = False
         """When True, ``extras["final_obs"]`` holds every env's observation before resets."""
+        self.robot = self._make_robot()
+        self.num_actions = self._num_actions()
 
-        n, dev = self.num_envs, self.device
+        n, dev, f32 = self.num_envs, self.device, dict(dtype=torch.float32, device=self.device)
         self.episode_length_buf = torch.zeros(n, dtype=torch.long, device=dev)
-        self.actions = torch.zeros(n, self.num_actions, dtype=torch.float64, device=dev)
-        """(N, num_actions) float64: the last (clipped) policy action."""
+        self.actions = torch.zeros(n, self.num_actions, **f32)
+        """(N, num_actions) float32: the last (clipped) policy action."""
         self.prev_actions = torch.zeros_like(self.actions)
         self.reward_names = list(cfg.reward_weights)
-        self._reward_weights = torch.tensor(
-            [cfg.reward_weights[k] for k in self.reward_names], dtype=torch.float64, device=dev
-        ) * self.step_dt_s
-        self.episode_sums = torch.zeros(n, len(self.reward_names), dtype=torch.float64, device=dev)
+        self._reward_weights = torch.tensor([cfg.reward_weights[k] for k in self.reward_names], **f32) \
+            * self.step_dt_s
+        self.episode_sums = torch.zeros(n, len(self.reward_names), **f32)
         """(N, num_reward_terms): weighted reward per term summed over the current episode."""
+        self._nonfinite_actions = torch.zeros((), dtype=torch.long, device=dev)
 
         self._setup()
+        self._terms_seen: list[str] | None = None
         self.obs_buf = self._reset_all()
         self.num_obs = self.obs_buf.shape[1]
-        privileged = self._get_privileged_observations()
-        self.num_privileged_obs = 0 if privileged is None else privileged.shape[1]
+        self.num_privileged_obs = 0 if self._critic_buf is None else self._critic_buf.shape[1]
         unknown = sorted(set(self.reward_names) - set(self._get_rewards()))
         if unknown:
-            raise ValueError(
-                f"reward_weights name unknown reward terms {unknown}; "
-                f"{type(self).__name__} has {sorted(self._get_rewards())}"
-            )
+            raise ValueError(f"reward_weights name unknown reward terms {unknown}; "
+                             f"{type(self).__name__} has {sorted(self._get_rewards())}")
+        noisy = sorted(set(cfg.observation_noise) - set(self._terms_seen))
+        if noisy:
+            raise ValueError(f"observation_noise names unknown observation terms {noisy}; "
+                             f"{type(self).__name__} has {self._terms_seen}")
+        self._stats = _EpisodeStats(self)
 
     # -- task interface ----------------------------------------------------------
+    def _design_scene(self, spec) -> None:
+        """Add task elements to ``spec`` (markers) and components to ``self.sim`` (sensors)."""
+
+    def _make_robot(self) -> Entity:
+        """The robot's ``Entity`` with its default pose; the pose becomes the initial state."""
+        cfg = self.cfg
+        pose = {}
+        root_pos = None
+        if cfg.robot_keyframe is not None:
+            key = self.robot_asset.keyframes.get(cfg.robot_keyframe)
+            if key is None:
+                raise ValueError(f"{cfg.robot.file} has no keyframe {cfg.robot_keyframe!r} "
+                                 f"(has {sorted(self.robot_asset.keyframes)}); set robot_keyframe=None")
+            pose = dict(key.joint_pos)
+            root_pos = key.root_pos_m
+        pose.update(cfg.default_joint_pos)
+        robot = Entity(self.engine, cfg.robot.prim_path, default_joint_pos=pose,
+                       soft_limit_factor=cfg.soft_joint_limit_factor)
+        robot.write_joint_state(pos=robot.default_joint_pos.expand(self.num_envs, -1))
+        if root_pos is not None and robot.is_floating:
+            offset = torch.as_tensor(cfg.robot.pos_m, dtype=torch.float64, device=self.device)
+            robot.write_root_pose(pos_w=torch.as_tensor(root_pos, device=self.device) + offset)
+        self.engine.forward()
+        self.engine.capture_initial_state()
+        return robot
+
+    def _num_actions(self) -> int:
+        """Action size; default: one per robot joint."""
+        return self.robot.num_joints
+
     def _setup(self) -> None:
-        """Precompute index tensors and task buffers (after the engine exists)."""
+        """Precompute index tensors and task buffers (after the engine and robot exist)."""
 
     def _apply_action(self, actions: torch.Tensor) -> None:
-        """Write controls for the next ``decimation`` physics steps from (N, A) float64 actions."""
+        """Write drive targets for the next ``decimation`` physics steps from (N, A) float32 actions."""
         raise NotImplementedError
 
     def _pre_physics(self) -> None:
-        """Per-policy-step state changes before physics (pushes, ...)."""
+        """Per-policy-step state changes before physics (pushes, command updates, ...)."""
 
     def _post_physics(self) -> None:
-        """Update task state after physics and before dones/rewards (contact timers, ...)."""
+        """Update task state after physics and sensors, before dones/rewards."""
 
-    def _get_observations(self) -> torch.Tensor:
-        """(N, num_obs) float32 policy observations."""
+    def _policy_terms(self) -> dict[str, torch.Tensor]:
+        """Policy observation terms by name, each (N, k); concatenated in order."""
         raise NotImplementedError
 
-    def _get_privileged_observations(self) -> torch.Tensor | None:
-        """(N, K) float32 extra observations for a critic, or None."""
+    def _privileged_terms(self) -> dict[str, torch.Tensor] | None:
+        """Extra critic-only terms, each (N, k), or None."""
         return None
 
     def _get_rewards(self) -> dict[str, torch.Tensor]:
@@ -132,23 +197,32 @@ class RLEnv:
         """(N,) bool masks of task terminations by name (failure or success, not time-outs)."""
         raise NotImplementedError
 
-    def _reset_idx(self, env_ids: torch.Tensor) -> None:
-        """Randomize the state of ``env_ids`` after the engine restored their initial state."""
+    def _reset_idx(self, mask: torch.Tensor) -> None:
+        """Randomize the envs where ``mask`` (N,) is true, after the engine restored their
+        initial state. Draw values for all N envs and write them with ``torch.where``/entity
+        writes taking the mask, so no host sync finds the envs."""
 
     # -- public API --------------------------------------------------------------
     def reset(self, env_ids: torch.Tensor | None = None) -> torch.Tensor:
-        """Reset ``env_ids`` (all if None); return the observations of all envs, (N, num_obs)."""
+        """Reset ``env_ids`` (indices or an (N,) bool mask; all if None); return all observations."""
         if env_ids is None:
             self.obs_buf = self._reset_all()
         else:
-            ids = torch.as_tensor(env_ids, device=self.device).reshape(-1).long()
-            self._reset_envs(ids)
-            self.obs_buf = self._get_observations()
+            ids = torch.as_tensor(env_ids, device=self.device).reshape(-1)
+            mask = ids if ids.dtype == torch.bool else torch.zeros(
+                self.num_envs, dtype=torch.bool, device=self.device).index_fill_(0, ids.long(), True)
+            self._reset_envs(mask)
+            self.obs_buf = self._compute_observations()
         return self.obs_buf
 
     def get_observations(self) -> torch.Tensor:
         """Observations after the last ``reset``/``step``, (N, num_obs) float32."""
         return self.obs_buf
+
+    def get_privileged_observations(self) -> torch.Tensor | None:
+        """Critic observations after the last ``reset``/``step``: the clean policy terms and the
+        privileged terms, (N, num_privileged_obs) float32, or None."""
+        return self._critic_buf
 
     def step(self, actions: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, dict]:
         """Advance every env by one policy step.
@@ -160,17 +234,21 @@ class RLEnv:
           obs: (N, num_obs) float32, after resets (a finished env shows its new episode).
           rewards: (N,) float32.
           dones: (N,) bool, terminated or timed out (those envs were reset).
-          extras: ``time_outs`` (N,) bool, ``terminated`` (N,) bool, ``terminations``
-            (the (N,) bool mask of each termination term), ``episode``
-            (mean statistics of the episodes that ended, when any did), ``observations``
-            (``{"critic": ...}`` when the task has privileged observations).
+          extras: ``time_outs`` (N,) bool, ``terminated`` (N,) bool, ``terminations`` (the
+            (N,) bool mask of each termination term), ``episode`` (means over the episodes
+            that ended in the last ``stats_interval_steps`` steps, every that many steps),
+            ``observations`` (``{"critic": ...}`` when the task has privileged observations).
         """
+        with self._torch_threads():
+            return self._step(actions)
+
+    def _step(self, actions):
         actions = self._validate_actions(actions)
         self.prev_actions.copy_(self.actions)
         self.actions.copy_(actions.clamp(-self.cfg.action_clip, self.cfg.action_clip))
         self._apply_action(self.actions)
         self._pre_physics()
-        diverged = self.engine.step(self.cfg.decimation).to(self.device)
+        diverged = self.sim.step(self.cfg.decimation).to(self.device)
         self.episode_length_buf += 1
         self._post_physics()
 
@@ -180,29 +258,32 @@ class RLEnv:
             terminated |= mask
         time_outs = (self.episode_length_buf >= self.max_episode_length) & ~terminated
         terms = self._get_rewards()
-        weighted = torch.stack([terms[k] for k in self.reward_names], dim=1) * self._reward_weights
+        weighted = torch.stack([terms[k].float() for k in self.reward_names], dim=1) * self._reward_weights
         self.episode_sums += weighted
-        rewards = weighted.sum(dim=1).float()
+        rewards = weighted.sum(dim=1)
 
-        extras: dict = {"time_outs": time_outs, "terminated": terminated,
-                        "terminations": terminations}
+        extras: dict = {"time_outs": time_outs, "terminated": terminated, "terminations": terminations}
         if self.return_final_obs:
-            extras["final_obs"] = self._get_observations()
+            extras["final_obs"] = self._compute_observations()
         dones = terminated | time_outs
-        reset_ids = dones.nonzero().squeeze(-1)
-        if reset_ids.numel():
-            extras["episode"] = self._episode_stats(reset_ids, terminations, time_outs, diverged)
-            self._reset_envs(reset_ids)
-        self.obs_buf = self._get_observations()
-        privileged = self._get_privileged_observations()
-        if privileged is not None:
-            extras["observations"] = {"critic": privileged}
+        stats = self._stats.add(dones, terminations, time_outs, diverged)
+        if stats is not None:
+            extras["episode"] = stats
+        self._reset_envs(dones)
+        self.obs_buf = self._compute_observations()
+        if self._critic_buf is not None:
+            extras["observations"] = {"critic": self._critic_buf}
         return self.obs_buf, rewards, dones, extras
 
     def close(self) -> None:
         """Release resources (the engine is freed with the env)."""
 
     # -- internals -----------------------------------------------------------------
+    def _torch_threads(self):
+        if self.device.type != "cpu" or self.cfg.torch_threads <= 0:
+            return contextlib.nullcontext()
+        return _TorchThreads(self.cfg.torch_threads)
+
     def _validate_actions(self, actions: torch.Tensor) -> torch.Tensor:
         if not isinstance(actions, torch.Tensor):
             actions = torch.as_tensor(actions)
@@ -212,46 +293,110 @@ class RLEnv:
                 f"actions have shape {tuple(actions.shape)}, expected {expected} "
                 f"(num_envs, num_actions); pass one row of {self.num_actions} values per env"
             )
-        actions = actions.to(device=self.device, dtype=torch.float64)
-        if not torch.isfinite(actions).all():
-            bad = (~torch.isfinite(actions)).any(dim=1).nonzero().squeeze(-1)
-            raise ValueError(
-                f"actions contain NaN or Inf in {bad.numel()} envs (first: env {int(bad[0])}); "
-                "check the policy's outputs (e.g. exploding weights) or sanitize with "
-                "torch.nan_to_num before stepping"
-            )
-        return actions
+        actions = actions.to(device=self.device, dtype=torch.float32)
+        finite = torch.isfinite(actions)
+        if self.device.type == "cpu":
+            # free on the CPU: no device to wait for
+            if not bool(finite.all()):
+                bad = (~finite).any(dim=1).nonzero().squeeze(-1)
+                raise ValueError(
+                    f"actions contain NaN or Inf in {bad.numel()} envs (first: env {int(bad[0])}); "
+                    "check the policy's outputs (e.g. exploding weights) or sanitize with "
+                    "torch.nan_to_num before stepping")
+            return actions
+        # on a GPU a check would wait for the device: zero bad actions and count them instead
+        self._nonfinite_actions += (~finite).any(dim=1).sum()
+        return torch.where(finite, actions, torch.zeros_like(actions))
 
     def _reset_all(self) -> torch.Tensor:
-        self._reset_envs(torch.arange(self.num_envs, device=self.device))
-        return self._get_observations()
+        self._reset_envs(torch.ones(self.num_envs, dtype=torch.bool, device=self.device))
+        return self._compute_observations()
 
-    def _reset_envs(self, env_ids: torch.Tensor) -> None:
-        self.engine.reset(env_ids)
-        self.episode_length_buf[env_ids] = 0
-        self.actions[env_ids] = 0.0
-        self.prev_actions[env_ids] = 0.0
-        self.episode_sums[env_ids] = 0.0
-        self._reset_idx(env_ids)
-        self.engine.forward(env_ids)
+    def _reset_envs(self, mask: torch.Tensor) -> None:
+        # one kinematics pass at the end, after the task has written its randomized state
+        self.sim.reset(mask, forward=False)
+        self.episode_length_buf.masked_fill_(mask, 0)
+        self.actions.masked_fill_(mask[:, None], 0.0)
+        self.prev_actions.masked_fill_(mask[:, None], 0.0)
+        self.episode_sums.masked_fill_(mask[:, None], 0.0)
+        self._reset_idx(mask)
+        self.engine.forward(mask)
 
-    def _episode_stats(self, ids: torch.Tensor, terminations: dict[str, torch.Tensor],
-                       time_outs: torch.Tensor, diverged: torch.Tensor) -> dict[str, torch.Tensor]:
-        """Means over the episodes ending now: reward sums per term and how they ended."""
-        stats = {}
-        sums = self.episode_sums[ids].mean(dim=0).float()
-        for i, name in enumerate(self.reward_names):
-            stats[f"Episode_Reward/{name}"] = sums[i]
-        length = self.episode_length_buf[ids].double().mean() * self.step_dt_s
-        stats["Episode/length_s"] = length.float()
-        for name, mask in terminations.items():
-            stats[f"Episode_Termination/{name}"] = mask[ids].float().mean()
-        stats["Episode_Termination/time_out"] = time_outs[ids].float().mean()
-        stats["Episode_Termination/diverged"] = diverged[ids].float().mean()
-        return stats
+    def _compute_observations(self) -> torch.Tensor:
+        terms = self._policy_terms()
+        self._terms_seen = list(terms)
+        clean = torch.cat([t.float() for t in terms.values()], dim=1)
+        noise = self.cfg.observation_noise
+        if noise:
+            noisy = [t.float() + (2.0 * torch.rand(t.shape, generator=self.generator, device=self.device) - 1.0)
+                     * noise[k] if k in noise else t.float() for k, t in terms.items()]
+            obs = torch.cat(noisy, dim=1)
+        else:
+            obs = clean
+        privileged = self._privileged_terms()
+        self._critic_buf = None if privileged is None else torch.cat(
+            [clean] + [t.float() for t in privileged.values()], dim=1)
+        return obs
 
-    def _uniform(self, shape: tuple[int, ...], low: float, high: float) -> torch.Tensor:
-        """Uniform float64 samples in [low, high) from the env's generator."""
-        sample = torch.rand(shape, generator=self.generator, dtype=torch.float64,
-                            device=self.device)
+    def _uniform(self, shape: tuple[int, ...], low, high, dtype=torch.float32) -> torch.Tensor:
+        """Uniform samples in [low, high) from the env's generator (``low``/``high`` broadcast)."""
+        sample = torch.rand(shape, generator=self.generator, dtype=dtype, device=self.device)
+        low = torch.as_tensor(low, dtype=dtype, device=self.device)
+        high = torch.as_tensor(high, dtype=dtype, device=self.device)
         return low + (high - low) * sample
+
+
+class _TorchThreads:
+    """Context: torch's intra-op pool at ``n`` threads (set/restore cost ~0.2 us)."""
+
+    def __init__(self, n: int):
+        self.n = n
+
+    def __enter__(self):
+        self.previous = torch.get_num_threads()
+        if self.previous != self.n:
+            torch.set_num_threads(self.n)
+
+    def __exit__(self, *exc):
+        if self.previous != self.n:
+            torch.set_num_threads(self.previous)
+
+
+class _EpisodeStats:
+    """Per-term means over the episodes that end within windows of ``stats_interval_steps``.
+
+    Sums and counts stay on the device; a window is published every that many steps (a Python
+    counter decides, so nothing waits for the device).
+    """
+
+    def __init__(self, env: RLEnv):
+        self.env = env
+        self.interval = max(1, env.cfg.stats_interval_steps)
+        self.steps = 0
+        self.sums: dict[str, torch.Tensor] = {}
+        self.count = torch.zeros((), dtype=torch.float32, device=env.device)
+
+    def add(self, dones, terminations, time_outs, diverged) -> dict[str, torch.Tensor] | None:
+        env, ended = self.env, dones.float()
+        values = {f"Episode_Reward/{name}": env.episode_sums[:, i] for i, name in enumerate(env.reward_names)}
+        values["Episode/length_s"] = env.episode_length_buf.float() * env.step_dt_s
+        for name, mask in terminations.items():
+            values[f"Episode_Termination/{name}"] = mask.float()
+        values["Episode_Termination/time_out"] = time_outs.float()
+        values["Episode_Termination/diverged"] = diverged.float()
+        for key, value in values.items():
+            total = (value * ended).sum()
+            self.sums[key] = self.sums[key] + total if key in self.sums else total
+        self.count = self.count + ended.sum()
+        self.steps += 1
+        if self.steps < self.interval:
+            return None
+        count = self.count.clamp(min=1.0)
+        out = {key: total / count for key, total in self.sums.items()}
+        out["Episode/num_ended"] = self.count
+        out["Episode/nonfinite_actions"] = env._nonfinite_actions.float()
+        self.sums, self.count, self.steps = {}, torch.zeros_like(self.count), 0
+        return out
+
+
+__all__ = ["EnvCfg", "RLEnv"]

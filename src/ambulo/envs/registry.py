@@ -1,37 +1,73 @@
-"""The task registry: one dict, one ``register`` call next to each task, copies out.
+"""The task registry: one ``TaskSpec`` per task, registered next to the task.
 
-It feeds ``ambulo.envs.make``, the CLI (``ambulo train <task>``) and the contract test.
+A ``TaskSpec`` is everything the rest of ambulo knows about a task: the env class, its
+config factory and play variant, its PPO settings, the metrics evaluation measures and the
+criteria that say the task is solved. ``envs.make``, ``ambulo.rl`` (train, play, eval), the
+CLI, the docs and the contract test read it; nothing asks an env what it can do.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import difflib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Callable
 
+import torch
+
 from .base import EnvCfg, RLEnv
+from .ppo import PpoCfg
+
+StepMetrics = Callable[[RLEnv], dict[str, torch.Tensor]]
+
+
+@dataclass(frozen=True)
+class Criterion:
+    """A named pass/fail bar over evaluation metrics: every ``metric <= limit`` must hold."""
+
+    name: str
+    """E.g. ``"walks"``; evaluation reports it as a bool."""
+    max_values: dict[str, float]
+    """Metric name (a key of the evaluation result) -> largest passing value."""
+
+    def holds(self, result: dict[str, float]) -> bool:
+        return all(result[k] <= v for k, v in self.max_values.items())
 
 
 @dataclass(frozen=True)
 class TaskSpec:
-    """A registered task: its env class, the function building its default config, a summary."""
+    """A registered task."""
 
     name: str
     env_cls: type[RLEnv]
     cfg_fn: Callable[[], EnvCfg]
+    """Default training config."""
     description: str
+    play_cfg_fn: Callable[[], EnvCfg] | None = None
+    """Config for ``play``/``eval`` of a policy (no pushes or noise); None: ``cfg_fn``."""
+    ppo_cfg_fn: Callable[[], PpoCfg] = PpoCfg
+    """PPO settings for ``ambulo train``."""
+    step_metrics: StepMetrics | None = None
+    """Per-step (N,) values evaluation averages over every step of every episode, reported as
+    ``mean_<name>`` (e.g. the velocity tracking error)."""
+    success_terminations: tuple[str, ...] = ()
+    """Termination names that mean success (a goal reached), not failure."""
+    criteria: tuple[Criterion, ...] = field(default=())
+    """What "solved" means, checked by ``ambulo eval``."""
+
+    def play_cfg(self) -> EnvCfg:
+        return (self.play_cfg_fn or self.cfg_fn)()
 
 
 _REGISTRY: dict[str, TaskSpec] = {}
 
 
-def register(name: str, env_cls: type[RLEnv], cfg_fn: Callable[[], EnvCfg],
-             description: str) -> None:
+def register(spec_: TaskSpec) -> TaskSpec:
     """Add a task; names are unique."""
-    if name in _REGISTRY:
-        raise ValueError(f"task {name!r} is already registered")
-    _REGISTRY[name] = TaskSpec(name, env_cls, cfg_fn, description)
+    if spec_.name in _REGISTRY:
+        raise ValueError(f"task {spec_.name!r} is already registered")
+    _REGISTRY[spec_.name] = spec_
+    return spec_
 
 
 def registry() -> dict[str, TaskSpec]:
@@ -56,31 +92,31 @@ def spec(name: str) -> TaskSpec:
         ) from None
 
 
-def make_cfg(name: str, **overrides: Any) -> EnvCfg:
-    """A fresh default config of task ``name`` with ``overrides`` (config field names) applied.
-
-    ``None`` values are ignored, so CLI flags that were not given keep the task default.
-    """
-    cfg = spec(name).cfg_fn()
+def make_cfg(name: str, *, play: bool = False, **overrides: Any) -> EnvCfg:
+    """A fresh config of task ``name`` (its play variant if ``play``) with ``overrides``
+    (top-level config field names) applied; ``None`` values keep the task default."""
+    task = spec(name)
+    cfg = task.play_cfg() if play else task.cfg_fn()
     overrides = {k: v for k, v in overrides.items() if v is not None}
     known = {f.name for f in dataclasses.fields(cfg)}
     unknown = sorted(set(overrides) - known)
     if unknown:
-        raise TypeError(
-            f"{type(cfg).__name__} has no field(s) {unknown}; fields: {', '.join(sorted(known))}"
-        )
+        close = {u: difflib.get_close_matches(u, known, n=1) for u in unknown}
+        hints = "; ".join(f"{u!r} (did you mean {c[0]!r}?)" if c else repr(u) for u, c in close.items())
+        raise TypeError(f"{type(cfg).__name__} has no field {hints}; fields: {', '.join(sorted(known))}")
     return dataclasses.replace(cfg, **overrides)
 
 
 def make(name: str, *, num_envs: int | None = None, device: str | None = None,
-         seed: int | None = None, **overrides: Any) -> RLEnv:
+         seed: int | None = None, play: bool = False, **overrides: Any) -> RLEnv:
     """Build task ``name`` with ``num_envs`` envs on ``device``, seeded with ``seed``.
 
     Other keyword arguments override fields of the task's config, e.g.
-    ``make("humanoid-walk", num_envs=512, episode_length_s=20.0)``.
+    ``make("humanoid-walk", num_envs=512, episode_length_s=20.0)``; ``play=True`` starts from
+    the task's play variant.
     """
-    cfg = make_cfg(name, num_envs=num_envs, device=device, seed=seed, **overrides)
+    cfg = make_cfg(name, play=play, num_envs=num_envs, device=device, seed=seed, **overrides)
     return spec(name).env_cls(cfg)
 
 
-__all__ = ["TaskSpec", "make", "make_cfg", "names", "register", "registry", "spec"]
+__all__ = ["Criterion", "TaskSpec", "make", "make_cfg", "names", "register", "registry", "spec"]

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 import mujoco
 
+from ambulo.core import PhysicsCfg
 from ambulo.sensors import CameraCfg
 
 from .randomizers import Randomizer
@@ -21,7 +22,10 @@ DATASET_ANNOTATORS = ("rgb", "depth", "instance_segmentation", "semantic_segment
 class DatasetConfig:
     name: str = "ambulo_dataset"
     build_scene: Callable[[], mujoco.MjSpec]
-    """Returns the scene's spec with semantic labels (``ambulo.sim.semantics``); called once per process."""
+    """Returns the scene's spec (built with ``ambulo.core.scene``) with semantic labels
+    (``ambulo.core.set_semantic_label``); called once per process."""
+    physics: PhysicsCfg = field(default_factory=PhysicsCfg)
+    """Physics of the scene (poses are set, not simulated, but the model compiles with it)."""
     camera: CameraCfg
     """The camera that takes the dataset's pictures."""
     randomizers: list[Randomizer] = field(default_factory=list)

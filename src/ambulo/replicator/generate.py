@@ -1,9 +1,10 @@
-"""Make a dataset: frames rendered and annotated in order, written atomically, resumable, on Ray if asked.
+"""Make a dataset: frames rendered, annotated and written atomically; resumable; on N processes or Ray.
 
 Frame ``i`` depends only on (config, seed, i): the engine is reset, every
 randomizer draws from ``default_rng([seed, randomizer index, i // every_n])``
 and is applied, then the camera captures. So a killed run resumes by skipping
-frames whose record exists, and K Ray workers produce the same files as one.
+frames whose record exists, and N local processes (``processes.py``) or Ray
+workers (``ray_workers.py``, for several machines) produce the same files as one.
 """
 
 from __future__ import annotations
@@ -11,18 +12,20 @@ from __future__ import annotations
 import concurrent.futures as cf
 import os
 import platform
+import sys
 from pathlib import Path
 
 import mujoco
 import numpy as np
 from tqdm import tqdm
 
-from ambulo.engine import CpuEngine
+from ambulo.core import Simulation
 from ambulo.sensors import Camera
 
 from .coco import merge_coco
 from .config import DatasetConfig
-from .io import atomic_write_json, remove_partial_files
+from .io import PNG_DEFLATE, atomic_write_json, remove_partial_files
+from .processes import default_workers, run_on_processes
 from .randomizers import SceneContext
 from .writers import frame_stem, prepare_dirs, write_frame
 
@@ -34,24 +37,22 @@ class FrameProducer:
 
     def __init__(self, config: DatasetConfig):
         self.config = config
-        spec = config.build_scene()
-        for r in config.randomizers:
-            r._build(spec)
-        annotators = tuple(config.camera.annotators)
-        if config.visible_fraction and "visible_fraction" not in annotators:
-            annotators += ("visible_fraction",)
-        self.camera = Camera(_with_annotators(config.camera, annotators))
-        self.camera._build(spec)
-        self.model = spec.compile()
-        # one thread: rendering (llvmpipe) already uses every core
-        self.engine = CpuEngine(self.model, 1, num_threads=1)
-        self.camera.initialize(self.engine)
-        self.ctx = SceneContext(model=self.model, engine=self.engine, cameras={self.camera.name: self.camera})
         names = [r.name or type(r).__name__ for r in config.randomizers]
         if len(set(names)) != len(names):
             raise ValueError(f"randomizer names must be unique (they key the frame log): {names}")
-        for r in config.randomizers:
-            r.initialize(self.ctx)
+        annotators = tuple(config.camera.annotators)
+        if config.visible_fraction and "visible_fraction" not in annotators:
+            annotators += ("visible_fraction",)
+        # the core lifecycle: randomizers and the camera are components of one Simulation;
+        # one engine thread, since rendering (llvmpipe) already uses every core
+        self.sim = Simulation(config.build_scene(), config.physics, num_worlds=1, num_threads=1)
+        for name, r in zip(names, config.randomizers):
+            r.name = name
+            self.sim.add(r)
+        self.camera = self.sim.add(Camera(_with_annotators(config.camera, annotators)))
+        self.engine = self.sim.start()
+        self.model = self.sim.model
+        self.ctx = SceneContext(model=self.model, engine=self.engine, cameras={self.camera.name: self.camera})
         self._names = names
         self._cache: dict[int, tuple[int, dict]] = {}
 
@@ -64,8 +65,11 @@ class FrameProducer:
         return self.camera.renderer.gl_renderer
 
     def randomize(self, seed: int, index: int) -> dict:
-        """Reset world 0 and apply every randomizer for frame ``index``; returns the frame log."""
-        self.engine.reset()
+        """Reset world 0 and apply every randomizer for frame ``index``; returns the frame log.
+
+        No kinematics pass here: the camera's capture runs the only one, on the final state.
+        """
+        self.sim.reset(forward=False)
         self.camera.reset_pose()
         log = {}
         for k, (name, r) in enumerate(zip(self._names, self.config.randomizers)):
@@ -77,16 +81,14 @@ class FrameProducer:
             params = self._cache[k][1]
             r.apply(params, self.ctx)
             log[name] = params
-        self.engine.forward()
         return log
 
     def replay(self, log: dict) -> None:
         """Apply a logged frame's parameters (no random draws): regenerates that frame alone."""
-        self.engine.reset()
+        self.sim.reset(forward=False)
         self.camera.reset_pose()
         for name, r in zip(self._names, self.config.randomizers):
             r.apply(log[name], self.ctx)
-        self.engine.forward()
 
     def capture(self) -> dict:
         return self.camera.capture(0)
@@ -152,37 +154,52 @@ def run_frames(config: DatasetConfig, out: Path, seed: int, frames: list[int], p
             producer.close()
 
 
-def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int = 0, workers: int = 1,
-             show_progress: bool = True) -> Path:
+BACKENDS = ("auto", "processes", "ray")
+
+
+def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int = 0, workers: int | None = 1,
+             show_progress: bool = True, backend: str = "auto") -> Path:
     """Write (or finish) a dataset of ``num_frames`` frames in ``out``; returns annotations.json.
 
     Frames already complete in ``out`` are kept; temporaries of a killed run
-    are removed. ``workers`` > 1 runs shards on Ray (a local cluster unless
-    ``ray.init`` was called or RAY_ADDRESS is set) and merges one COCO file.
+    are removed. ``workers`` > 1 renders chunks of frames in that many
+    processes; None picks one per CPU (fewer for short runs). ``backend``:
+    'processes' (local, spawned), 'ray' (actors on a Ray cluster, which needs
+    ``out`` on shared storage; a local one unless ``ray.init`` was called or
+    RAY_ADDRESS is set), or 'auto': Ray when RAY_ADDRESS is set or Ray is
+    initialized, else processes. The files do not depend on any of this.
     """
+    if backend not in BACKENDS:
+        raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
     if num_frames < 1:
         raise ValueError(f"--frames must be >= 1, got {num_frames}")
+    if workers is not None and workers < 1:
+        raise ValueError(f"--workers must be >= 1, got {workers}")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     prepare_dirs(out, config.writer)
     remove_partial_files(out)
     todo = sorted(set(range(num_frames)) - done_frames(out, num_frames))
+    workers = default_workers(len(todo)) if workers is None else min(workers, max(1, len(todo)))
+    use_ray = backend == "ray" or (backend == "auto" and workers > 1 and _ray_requested())
     bar = tqdm(total=num_frames, initial=num_frames - len(todo), desc="frames", unit="frame",
                disable=not show_progress)
     try:
         if not todo:
             renderer = _read_metadata_renderer(out)
-        elif workers > 1:
+        elif use_ray:
             from .ray_workers import run_on_ray
 
             renderer = run_on_ray(config, out, seed, todo, workers, bar.update)
+        elif workers > 1:
+            renderer = run_on_processes(config, out, seed, todo, workers, bar.update)
         else:
             renderer = run_frames(config, out, seed, todo, bar.update)
     finally:
         bar.close()
     categories = _categories(config)
     metadata = {"name": config.name, "seed": seed, "num_frames": num_frames, "gl_renderer": renderer,
-                "mujoco_version": mujoco.__version__, "platform": platform.machine(),
+                "mujoco_version": mujoco.__version__, "platform": platform.machine(), "png_deflate": PNG_DEFLATE,
                 "categories": categories, "annotators": list(config.camera.annotators)}
     atomic_write_json(out / "metadata.json", metadata)
     info = {"description": config.name, "version": "1.0", "gl_renderer": renderer, "seed": seed}
@@ -190,6 +207,12 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
     path = out / "annotations.json"
     atomic_write_json(path, coco)
     return path
+
+
+def _ray_requested() -> bool:
+    """A Ray cluster to join: RAY_ADDRESS, or ``ray.init`` already called (without importing Ray to ask)."""
+    ray = sys.modules.get("ray")
+    return bool(os.environ.get("RAY_ADDRESS")) or (ray is not None and ray.is_initialized())
 
 
 def _categories(config: DatasetConfig) -> list[str]:

@@ -2,8 +2,9 @@
 
 Every output file is written to a temporary name in its folder and moved into
 place with ``os.replace`` (atomic on POSIX), so a run killed at any instant
-leaves each file either complete or absent. PNG encoding uses ``zlib``, which
-releases the GIL, so a writer thread overlaps with rendering.
+leaves each file either complete or absent. PNG deflate uses ISA-L (the
+``isal`` package, ~4x faster than zlib at the same size) when it is installed,
+else ``zlib``; both release the GIL, so a writer thread overlaps with rendering.
 """
 
 from __future__ import annotations
@@ -17,6 +18,26 @@ from pathlib import Path
 import numpy as np
 
 TMP_MARK = ".tmp-"
+
+try:
+    from isal import __version__ as _isal_version
+    from isal import isal_zlib as _isal_zlib
+except ImportError:
+    _isal_zlib = None
+
+# Recorded in metadata: the same frames give other (equally valid) PNG bytes with the other deflate.
+PNG_DEFLATE = f"isal {_isal_version}" if _isal_zlib is not None else f"zlib {zlib.ZLIB_RUNTIME_VERSION}"
+
+
+def deflate(data: bytes, zlib_level: int) -> bytes:
+    """zlib-format stream of ``data``; ``zlib_level`` 0-9 as in ``zlib.compress``.
+
+    ISA-L has levels 0-3: zlib's 1-3, 4-6 and 7-9 map to 1, 2 and 3. Level 0
+    (store) stays zlib's, since ISA-L's level 0 still compresses.
+    """
+    if _isal_zlib is None or zlib_level == 0:
+        return zlib.compress(data, zlib_level)
+    return _isal_zlib.compress(data, min(3, (zlib_level + 2) // 3))
 
 
 def atomic_write_bytes(path: Path, payload: bytes) -> None:
@@ -49,7 +70,8 @@ def remove_partial_files(root: Path) -> int:
 
 
 def _chunk(kind: bytes, data: bytes) -> bytes:
-    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+    crc = zlib.crc32(data, zlib.crc32(kind))  # chained: no copy of kind + data
+    return b"".join((struct.pack(">I", len(data)), kind, data, struct.pack(">I", crc & 0xFFFFFFFF)))
 
 
 def encode_png(image: np.ndarray, compress_level: int = 1) -> bytes:
@@ -57,7 +79,8 @@ def encode_png(image: np.ndarray, compress_level: int = 1) -> bytes:
 
     Rows use the "Up" filter (difference to the row above), computed with
     NumPy; it compresses rendered images and depth far better than no filter
-    at the same zlib level.
+    at the same level. The bytes are a pure function of the image, the level
+    and ``PNG_DEFLATE``.
     """
     if image.dtype not in (np.uint8, np.uint16):
         raise ValueError(f"encode_png needs uint8 or uint16, got {image.dtype}")
@@ -73,7 +96,7 @@ def encode_png(image: np.ndarray, compress_level: int = 1) -> bytes:
     header = struct.pack(">IIBBBBB", w, h, bit_depth, color_type, 0, 0, 0)
     return b"".join([
         b"\x89PNG\r\n\x1a\n", _chunk(b"IHDR", header),
-        _chunk(b"IDAT", zlib.compress(filtered.tobytes(), compress_level)), _chunk(b"IEND", b""),
+        _chunk(b"IDAT", deflate(filtered.data, compress_level)), _chunk(b"IEND", b""),
     ])
 
 

@@ -9,21 +9,21 @@ frames (drawn from the block's own seed, so any frame can still start a run).
 
 from __future__ import annotations
 
-import fnmatch
 from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
 import torch
 
-from ambulo.sensors.frames import mat_to_quat, quat_to_mat, rot_about_axes
+from ambulo.core import match_names
+from ambulo.sensors.frames import mat_to_quat, rot_about_axes
 
 from .distributions import Distribution, as_distribution, normal, uniform
 
 
 @dataclass
 class SceneContext:
-    """What randomizers act on: the compiled model, the engine (world 0) and the cameras."""
+    """What ``sample``/``apply`` act on: the compiled model, the engine (world 0) and the cameras."""
 
     model: mujoco.MjModel
     engine: object
@@ -32,13 +32,9 @@ class SceneContext:
 
 
 def match_bodies(model: mujoco.MjModel, pattern: str) -> list[int]:
-    """Body ids whose name matches glob ``pattern`` (whole name or last path component)."""
-    out = []
-    for b in range(1, model.nbody):
-        name = model.body(b).name
-        if fnmatch.fnmatchcase(name, pattern) or fnmatch.fnmatchcase(name.rsplit("/", 1)[-1], pattern):
-            out.append(b)
-    return out
+    """Body ids (not the world body) whose name matches glob ``pattern`` (whole name or last
+    path component)."""
+    return [b + 1 for b in match_names([model.body(b).name for b in range(1, model.nbody)], pattern)]
 
 
 def subtree_geoms(model: mujoco.MjModel, body: int) -> np.ndarray:
@@ -64,16 +60,27 @@ def to_json(value):
 
 @dataclass(kw_only=True)
 class Randomizer:
-    """Base: a name for the frame log and how often new values are drawn."""
+    """Base: a name for the frame log and how often new values are drawn.
+
+    A lifecycle component (``ambulo.core.Component``): ``build(spec)`` adds what it needs to
+    the scene, ``initialize(engine)`` resolves names in ``engine.model``; ``update`` and
+    ``reset`` do nothing (a frame's parameters are applied by the generator).
+    """
 
     name: str = ""
     every_n_frames: int = 1
 
-    def _build(self, spec: mujoco.MjSpec) -> None:
+    def build(self, spec: mujoco.MjSpec) -> None:
         """Add what the randomizer needs to the scene before compilation (default: nothing)."""
 
-    def initialize(self, ctx: SceneContext) -> None:
-        """Resolve names to ids in the compiled model."""
+    def initialize(self, engine) -> None:
+        """Resolve names to ids in ``engine.model``."""
+
+    def update(self, dt_s: float) -> None:
+        """Nothing: randomizers act per frame through ``apply``."""
+
+    def reset(self, world_ids=None) -> None:
+        """Nothing: the generator applies each frame's parameters after a reset."""
 
     def sample(self, rng: np.random.Generator, ctx: SceneContext) -> dict:
         raise NotImplementedError
@@ -93,9 +100,9 @@ class LightRandomizer(Randomizer):
     azimuth_deg: Distribution = field(default_factory=lambda: uniform(-180.0, 180.0))
     elevation_deg: Distribution = field(default_factory=lambda: uniform(30.0, 75.0))
 
-    def initialize(self, ctx):
-        names = [ctx.model.light(i).name for i in range(ctx.model.nlight)]
-        self._ids = [i for i, n in enumerate(names) if fnmatch.fnmatchcase(n, self.lights)]
+    def initialize(self, engine):
+        names = [engine.model.light(i).name for i in range(engine.model.nlight)]
+        self._ids = match_names(names, self.lights)
         if not self._ids:
             raise ValueError(f"{self.name}: no light matches {self.lights!r}; lights: {names}")
 
@@ -129,11 +136,11 @@ class ColorRandomizer(Randomizer):
     saturation: Distribution = field(default_factory=lambda: uniform(0.2, 0.9))
     value: Distribution = field(default_factory=lambda: uniform(0.35, 1.0))
 
-    def initialize(self, ctx):
-        self._bodies = match_bodies(ctx.model, self.prims)
+    def initialize(self, engine):
+        self._bodies = match_bodies(engine.model, self.prims)
         if not self._bodies:
             raise ValueError(f"{self.name}: no body matches {self.prims!r}")
-        self._geoms = [subtree_geoms(ctx.model, b) for b in self._bodies]
+        self._geoms = [subtree_geoms(engine.model, b) for b in self._bodies]
 
     def sample(self, rng, ctx):
         colors = []
@@ -169,7 +176,7 @@ class MaterialRandomizer(Randomizer):
     palette_seed: int = 0
     untextured_probability: float = 0.3
 
-    def _build(self, spec):
+    def build(self, spec):
         rng = np.random.default_rng(self.palette_seed)
         builtins = [mujoco.mjtBuiltin.mjBUILTIN_CHECKER, mujoco.mjtBuiltin.mjBUILTIN_GRADIENT]
         self._names = []
@@ -184,13 +191,13 @@ class MaterialRandomizer(Randomizer):
             mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = name
             self._names.append(name)
 
-    def initialize(self, ctx):
-        self._bodies = match_bodies(ctx.model, self.prims)
+    def initialize(self, engine):
+        self._bodies = match_bodies(engine.model, self.prims)
         if not self._bodies:
             raise ValueError(f"{self.name}: no body matches {self.prims!r}")
-        self._geoms = [subtree_geoms(ctx.model, b) for b in self._bodies]
-        self._mat_ids = [ctx.model.material(n).id for n in self._names]
-        self._base = ctx.model.geom_matid.copy()
+        self._geoms = [subtree_geoms(engine.model, b) for b in self._bodies]
+        self._mat_ids = [engine.model.material(n).id for n in self._names]
+        self._base = engine.model.geom_matid.copy()
 
     def sample(self, rng, ctx):
         picks = []
@@ -214,9 +221,10 @@ class CameraJitter(Randomizer):
     position_m: Distribution = field(default_factory=lambda: normal((0, 0, 0), (0.02, 0.02, 0.02)))
     rotation_deg: Distribution = field(default_factory=lambda: normal((0, 0, 0), (3.0, 3.0, 3.0)))
 
-    def initialize(self, ctx):
-        if self.camera not in ctx.cameras:
-            raise ValueError(f"{self.name}: no camera {self.camera!r}; cameras: {list(ctx.cameras)}")
+    def initialize(self, engine):
+        cameras = [engine.model.camera(i).name for i in range(engine.model.ncam)]
+        if self.camera not in cameras:
+            raise ValueError(f"{self.name}: no camera {self.camera!r}; cameras: {cameras}")
 
     def sample(self, rng, ctx):
         return to_json({"position_m": as_distribution(self.position_m).sample(rng),
@@ -238,12 +246,11 @@ class JointRandomizer(Randomizer):
     range_fraction: float = 0.5
     """1 uses the whole limited range; unlimited joints use +-range_fraction * pi."""
 
-    def initialize(self, ctx):
-        m = ctx.model
+    def initialize(self, engine):
+        m = engine.model
         kinds = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
-        self._joints = [j for j in range(m.njnt) if m.jnt_type[j] in kinds and (
-            fnmatch.fnmatchcase(m.joint(j).name, self.joints)
-            or fnmatch.fnmatchcase(m.joint(j).name.rsplit("/", 1)[-1], self.joints))]
+        matched = set(match_names([m.joint(j).name for j in range(m.njnt)], self.joints))
+        self._joints = [j for j in range(m.njnt) if m.jnt_type[j] in kinds and j in matched]
         if not self._joints:
             raise ValueError(f"{self.name}: no hinge/slide joint matches {self.joints!r}")
         self._adr = m.jnt_qposadr[self._joints]
@@ -263,6 +270,3 @@ class JointRandomizer(Randomizer):
 def quat_yaw(yaw: float) -> list[float]:
     return [float(np.cos(yaw / 2)), 0.0, 0.0, float(np.sin(yaw / 2))]
 
-
-def yaw_matrix(yaw: float) -> np.ndarray:
-    return quat_to_mat(np.asarray(quat_yaw(yaw)))

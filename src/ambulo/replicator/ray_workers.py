@@ -1,7 +1,8 @@
 """Shards of a dataset on Ray actors: each actor builds the scene once and renders chunks of frames.
 
-The same code runs on a laptop (a local Ray started here) and on a cluster
-(``RAY_ADDRESS`` or an earlier ``ray.init``); the output folder must be shared.
+For several machines: on a cluster (``RAY_ADDRESS`` or an earlier ``ray.init``)
+the output folder must be shared. On one machine, plain processes
+(``processes.py``) are faster: a local Ray is started here only when asked.
 """
 
 from __future__ import annotations
@@ -52,6 +53,9 @@ def run_on_ray(config, out: Path, seed: int, frames: list[int], workers: int, pr
 class _Shard:
     def __init__(self, config, out: str, seed: int):
         from .generate import FrameProducer
+        from .processes import prepare_producer_process
+
+        prepare_producer_process()  # one CPU per actor: llvmpipe renders inline (before the GL context)
 
         self.producer = FrameProducer(config)
         self.out = Path(out)
@@ -59,8 +63,6 @@ class _Shard:
         self.config = config
 
     def run(self, frames: list[int]) -> str:
-        from .writers import write_frame
+        from .generate import run_frames
 
-        for index, log, capture in self.producer.frames(self.seed, frames):
-            write_frame(self.out, index, capture, self.producer.table, log, self.config.writer)
-        return self.producer.gl_renderer
+        return run_frames(self.config, self.out, self.seed, frames, producer=self.producer)

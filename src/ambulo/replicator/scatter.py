@@ -72,8 +72,8 @@ class Scatter2D(Randomizer):
     count: Distribution | None = None
     """How many of the matched bodies to place (the rest are parked); None places all."""
 
-    def initialize(self, ctx):
-        m = ctx.model
+    def initialize(self, engine):
+        m = engine.model
         self._bodies = match_bodies(m, self.prims)
         self._bodies = [b for b in self._bodies if m.body_parentid[b] == 0]
         if not self._bodies:
@@ -187,7 +187,7 @@ class Distractors(Scatter2D):
     size_m: tuple[float, float] = (0.05, 0.25)
     count: Distribution | None = field(default_factory=lambda: uniform_int(2, 6))
 
-    def _build(self, spec):
+    def build(self, spec):
         rng = np.random.default_rng(self.pool_seed)
         shapes = [mujoco.mjtGeom.mjGEOM_BOX, mujoco.mjtGeom.mjGEOM_SPHERE, mujoco.mjtGeom.mjGEOM_CYLINDER,
                   mujoco.mjtGeom.mjGEOM_CAPSULE, mujoco.mjtGeom.mjGEOM_ELLIPSOID]

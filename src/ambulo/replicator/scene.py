@@ -1,8 +1,8 @@
 """The tutorial scene: a warehouse bay, a humanoid with a head camera, scattered labelled objects.
 
-Built directly with ``mujoco.MjSpec`` (z up, metres); object bodies are named by
-prim path (``/World/objects/box_0``) and labelled for COCO with
-``ambulo.sim.semantics``.
+Built with the core scene builder (``ambulo.core.scene``: the same ground, lights and robot
+importer as ``World`` and the RL tasks; z up, metres); object bodies are named by prim path
+(``/World/objects/box_0``) and labelled for COCO with ``ambulo.core.set_semantic_label``.
 """
 
 from __future__ import annotations
@@ -12,9 +12,8 @@ import math
 import mujoco
 import numpy as np
 
-from ambulo import assets
+from ambulo.core import GroundCfg, RobotCfg, add_ground, add_light, add_robot, new_scene, set_semantic_label
 from ambulo.sensors import CameraCfg
-from ambulo.sim.semantics import set_semantic_label
 
 from .config import DATASET_ANNOTATORS, DatasetConfig
 from .distributions import normal, uniform
@@ -38,34 +37,24 @@ def _geom_type(name: str) -> int:
 
 
 def build_warehouse_scene() -> mujoco.MjSpec:
-    spec = mujoco.MjSpec()
-    spec.modelname = "ambulo_warehouse"
-    spec.option.timestep = 0.005
-    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-    spec.visual.global_.offwidth, spec.visual.global_.offheight = 1280, 960
+    spec = new_scene("ambulo_warehouse")
     # software rasterizers pay per triangle: coarser spheres/capsules and no headlight
     # (the scene's own lights are randomized) halve the render time at 320x240
     spec.visual.quality.numslices, spec.visual.quality.numstacks = 16, 8
     spec.visual.headlight.active = 0
-    spec.add_texture(name="floor", type=mujoco.mjtTexture.mjTEXTURE_2D, builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER,
-                     rgb1=[0.42, 0.42, 0.40], rgb2=[0.36, 0.36, 0.35], width=256, height=256)
-    floor_mat = spec.add_material(name="floor", texrepeat=[8, 8], texuniform=True)
-    floor_mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = "floor"
+    # 2 m render grid: a 0.1 m grid is 14,400 quads
+    add_ground(spec, GroundCfg(prim_path="/World/floor", size_m=2 * ROOM_HALF_M, render_grid_m=2.0,
+                               checker_m=0.75, color=(0.42, 0.42, 0.40), sky=False, sun=False))
     world = spec.worldbody
-    world.add_geom(name="/World/floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[ROOM_HALF_M, ROOM_HALF_M, 2.0],
-                   material="floor")  # 2 m render grid: a 0.1 m grid is 14,400 quads
     for i, (x, y, sx, sy) in enumerate([(ROOM_HALF_M, 0, 0.1, ROOM_HALF_M), (-ROOM_HALF_M, 0, 0.1, ROOM_HALF_M),
                                         (0, ROOM_HALF_M, ROOM_HALF_M, 0.1), (0, -ROOM_HALF_M, ROOM_HALF_M, 0.1)]):
         world.add_geom(name=f"/World/wall_{i}", type=mujoco.mjtGeom.mjGEOM_BOX, pos=[x, y, WALL_HEIGHT_M / 2],
                        size=[sx, sy, WALL_HEIGHT_M / 2], rgba=[0.75, 0.74, 0.70, 1])
     _add_shelves(world)
-    world.add_light(name="/World/sun", pos=[0, 0, WALL_HEIGHT_M], dir=[0.3, 0.2, -1],
-                    type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL, diffuse=[0.7, 0.7, 0.7], ambient=[0.2] * 3,
-                    castshadow=False)
-    world.add_light(name="/World/lamp", pos=[2.0, 0, WALL_HEIGHT_M - 0.2], dir=[0, 0, -1],
-                    diffuse=[0.3, 0.3, 0.3], castshadow=False)
-    robot = mujoco.MjSpec.from_file(assets.path("humanoid"))
-    spec.attach(robot, prefix="/World/robot/", frame=world.add_frame(pos=[-1.0, 0, 0]))
+    add_light(spec, "/World/sun", kind="distant", position=(0, 0, WALL_HEIGHT_M), direction=(0.3, 0.2, -1),
+              intensity=0.7, ambient=0.2)
+    add_light(spec, "/World/lamp", kind="sphere", position=(2.0, 0, WALL_HEIGHT_M - 0.2), intensity=0.3)
+    add_robot(spec, RobotCfg(file="humanoid", prim_path="/World/robot", pos_m=(-1.0, 0.0, 0.0)))
     for i, (label, kind, size) in enumerate(OBJECTS):
         body = world.add_body(name=f"/World/objects/{label}_{i}", pos=[0, 0, -10.0 - 3.0 * i])
         body.add_freejoint()
@@ -104,8 +93,8 @@ def example_config(width: int = 320, height: int = 240) -> DatasetConfig:
         camera=head_camera_cfg(width, height),
         randomizers=[
             JointRandomizer(name="robot_joints", joints="*shoulder*", range_fraction=0.4),
-            Scatter2D(name="objects", prims="/World/objects/*", region=region, surface="/World/floor"),
-            Distractors(name="distractors", region=region, surface="/World/floor"),
+            Scatter2D(name="objects", prims="/World/objects/*", region=region, surface="/World/floor/*"),
+            Distractors(name="distractors", region=region, surface="/World/floor/*"),
             ColorRandomizer(name="object_colors", prims="/World/objects/*"),
             MaterialRandomizer(name="object_materials", prims="/World/objects/*"),
             LightRandomizer(name="lights", lights="/World/*"),

@@ -1,117 +1,21 @@
-"""PPO settings per task, and their translation to rsl-rl-lib's runner configuration."""
+"""The PPO settings of a task: its ``TaskSpec.ppo_cfg_fn`` with overrides."""
 
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
-
-@dataclass(kw_only=True)
-class PpoCfg:
-    """PPO with an MLP actor-critic (rsl-rl-lib's ``OnPolicyRunner``)."""
-
-    num_envs: int = 4096
-    """Default number of parallel envs for training this task."""
-    max_iterations: int = 1500
-    num_steps_per_env: int = 24
-    """Rollout length per env per iteration: batch = num_envs * num_steps_per_env."""
-    save_interval: int = 50
-    """Checkpoint every this many iterations (and at the end)."""
-    actor_hidden_dims: tuple[int, ...] = (256, 128, 128)
-    critic_hidden_dims: tuple[int, ...] = (256, 128, 128)
-    activation: str = "elu"
-    init_noise_std: float = 1.0
-    obs_normalization: bool = True
-    """Running mean/std normalization of observations (exported with the policy)."""
-    learning_rate: float = 1.0e-3
-    schedule: str = "adaptive"
-    """``adaptive`` scales the learning rate to keep the KL near ``desired_kl``."""
-    desired_kl: float = 0.01
-    num_learning_epochs: int = 5
-    num_mini_batches: int = 4
-    clip_param: float = 0.2
-    gamma: float = 0.99
-    lam: float = 0.95
-    value_loss_coef: float = 1.0
-    entropy_coef: float = 0.01
-    max_grad_norm: float = 1.0
-    init_at_random_ep_len: bool = True
-    """Start envs at random points of their first episode so resets spread out in time."""
-
-    def to_rsl_rl(self, has_critic_obs: bool) -> dict[str, Any]:
-        """The ``train_cfg`` dict of ``rsl_rl.runners.OnPolicyRunner`` (rsl-rl-lib 5.x)."""
-
-        def model(hidden: tuple[int, ...], stochastic: bool) -> dict[str, Any]:
-            cfg: dict[str, Any] = {
-                "class_name": "MLPModel",
-                "hidden_dims": list(hidden),
-                "activation": self.activation,
-                "obs_normalization": self.obs_normalization,
-            }
-            if stochastic:
-                cfg["distribution_cfg"] = {"class_name": "GaussianDistribution",
-                                           "init_std": self.init_noise_std}
-            return cfg
-
-        return {
-            "num_steps_per_env": self.num_steps_per_env,
-            "save_interval": self.save_interval,
-            "obs_groups": {
-                "actor": ["policy"],
-                "critic": ["policy", "critic"] if has_critic_obs else ["policy"],
-            },
-            "actor": model(self.actor_hidden_dims, stochastic=True),
-            "critic": model(self.critic_hidden_dims, stochastic=False),
-            "algorithm": {
-                "class_name": "PPO",
-                "learning_rate": self.learning_rate,
-                "schedule": self.schedule,
-                "desired_kl": self.desired_kl,
-                "num_learning_epochs": self.num_learning_epochs,
-                "num_mini_batches": self.num_mini_batches,
-                "clip_param": self.clip_param,
-                "gamma": self.gamma,
-                "lam": self.lam,
-                "value_loss_coef": self.value_loss_coef,
-                "entropy_coef": self.entropy_coef,
-                "max_grad_norm": self.max_grad_norm,
-                "use_clipped_value_loss": True,
-            },
-            "logger": "tensorboard",
-            "check_for_nan": True,
-        }
-
-
-def cartpole_ppo() -> PpoCfg:
-    """Small nets and short rollouts: cartpole is solved in ~50 iterations."""
-    return PpoCfg(num_envs=64, max_iterations=60, num_steps_per_env=32, save_interval=20,
-                  actor_hidden_dims=(32, 32), critic_hidden_dims=(32, 32),
-                  entropy_coef=0.005, num_mini_batches=2)
-
-
-def jetbot_goal_ppo() -> PpoCfg:
-    return PpoCfg(num_envs=256, max_iterations=300, num_steps_per_env=32, save_interval=50,
-                  actor_hidden_dims=(64, 64), critic_hidden_dims=(64, 64))
-
-
-def humanoid_walk_ppo() -> PpoCfg:
-    """legged_gym / Isaac Lab humanoid settings: 24-step rollouts, entropy 0.008."""
-    return PpoCfg(num_envs=4096, max_iterations=3000, num_steps_per_env=24, save_interval=50,
-                  actor_hidden_dims=(256, 128, 128), critic_hidden_dims=(256, 128, 128),
-                  entropy_coef=0.008)
-
-
-_PPO_CFGS: dict[str, Callable[[], PpoCfg]] = {
-    "cartpole": cartpole_ppo,
-    "jetbot-goal": jetbot_goal_ppo,
-    "humanoid-walk": humanoid_walk_ppo,
-}
+from ambulo import envs
+from ambulo.envs.ppo import PpoCfg
 
 
 def ppo_cfg(task: str, **overrides: Any) -> PpoCfg:
-    """PPO settings of ``task`` (the defaults for tasks without their own) with ``overrides``."""
-    cfg = _PPO_CFGS.get(task, PpoCfg)()
+    """PPO settings of ``task`` (from its registry entry) with ``overrides`` (None: keep)."""
+    cfg = envs.spec(task).ppo_cfg_fn()
+    known = {f.name for f in dataclasses.fields(cfg)}
+    unknown = sorted(set(overrides) - known)
+    if unknown:
+        raise TypeError(f"PpoCfg has no field(s) {unknown}; fields: {', '.join(sorted(known))}")
     return dataclasses.replace(cfg, **{k: v for k, v in overrides.items() if v is not None})
 
 

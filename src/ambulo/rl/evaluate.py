@@ -1,10 +1,12 @@
 """evaluate: measure a trained policy over many complete episodes.
 
-Each of ``num_episodes`` envs runs exactly one episode of ``episode_length_s`` with the
-deterministic policy (the action mean). An episode *fails* when it ends by a termination
-that is not a success (for humanoid-walk: a fall). For tasks with velocity commands the
-mean absolute planar velocity error |v_cmd - v| (heading frame) and yaw rate error are
-averaged over every policy step of every episode until it ends.
+Each of ``num_episodes`` envs runs exactly one episode of ``episode_length_s`` of the task's
+play variant (no pushes, no observation noise) with the deterministic policy (the action
+mean). An episode *fails* when it ends by a termination that is not a success (the task's
+``success_terminations``; for humanoid-walk every termination is a fall). The task's
+``step_metrics`` (for humanoid-walk the planar velocity and yaw-rate errors) are averaged
+over every policy step of every episode until it ends, and each of its ``criteria`` is
+reported as a bool.
 """
 
 from __future__ import annotations
@@ -15,12 +17,9 @@ import os
 import torch
 from tqdm import tqdm
 
+from ambulo import envs
+
 from . import runs
-
-WALK_MAX_FALL_RATE = 0.05
-WALK_MAX_VEL_ERROR_M_S = 0.2
-"""Issue #4's bar for "walks": fall rate <= 5 % and velocity error <= 0.2 m/s."""
-
 
 def evaluate(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = None,
              num_episodes: int = 100, episode_length_s: float | None = 20.0, seed: int = 12345,
@@ -29,7 +28,10 @@ def evaluate(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = N
     ``<run>/eval.json``."""
     run_dir = runs.resolve_run(run, log_root)
     info = runs.read_run_info(run_dir)
-    env = runs.make_env_for_run(info, num_envs=num_episodes, seed=seed,
+    task = envs.spec(info["task"])
+    if episode_length_s is None:  # the play variant has no time-out: use the training length
+        episode_length_s = task.cfg_fn().episode_length_s
+    env = runs.make_env_for_run(info, num_envs=num_episodes, seed=seed, play=True,
                                 episode_length_s=episode_length_s)
     runner, ckpt = runs.load_runner(run_dir, env, checkpoint)
     policy = runner.get_inference_policy(device=str(env.device))
@@ -39,24 +41,22 @@ def evaluate(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = N
     succeeded = torch.zeros(n, dtype=torch.bool, device=dev)
     returns = torch.zeros(n, dtype=torch.float64, device=dev)
     lengths = torch.zeros(n, dtype=torch.float64, device=dev)
-    tracks = hasattr(env, "velocity_tracking_error")
-    lin_err_sum = torch.zeros(n, dtype=torch.float64, device=dev)
-    yaw_err_sum = torch.zeros_like(lin_err_sum)
+    metric_sums: dict[str, torch.Tensor] = {}
     obs = runner.env.reset()
     for _ in tqdm(range(env.max_episode_length), desc=f"eval {info['task']}", unit="step",
                   disable=quiet):
         with torch.inference_mode():
             actions = policy(obs)
-        if tracks:  # error of the state the policy acted on, for envs still in their episode
-            lin_err, yaw_err = env.velocity_tracking_error()
-            lin_err_sum += lin_err * running
-            yaw_err_sum += yaw_err * running
+        if task.step_metrics is not None:  # of the state the policy acted on, for running envs
+            for name, value in task.step_metrics(env).items():
+                total = value.double() * running
+                metric_sums[name] = metric_sums[name] + total if name in metric_sums else total
         obs, rewards, dones, extras = runner.env.step(actions)
         returns += rewards.double() * running
         lengths += running.double()
         ended = running & dones.bool()
         for name, mask in extras["terminations"].items():
-            target = succeeded if name in env.success_terminations else failed
+            target = succeeded if name in task.success_terminations else failed
             target |= ended & mask
         failed |= ended & extras["terminated"] & ~succeeded
         running &= ~dones.bool()
@@ -75,11 +75,10 @@ def evaluate(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = N
         "mean_return": float(returns.mean()),
         "mean_episode_length_s": float(lengths.mean() * env.step_dt_s),
     }
-    if tracks:
-        result["mean_abs_vel_error_m_s"] = float((lin_err_sum / steps).mean())
-        result["mean_abs_yaw_rate_error_rad_s"] = float((yaw_err_sum / steps).mean())
-        result["walks"] = (result["fall_rate"] <= WALK_MAX_FALL_RATE
-                           and result["mean_abs_vel_error_m_s"] <= WALK_MAX_VEL_ERROR_M_S)
+    for name, total in metric_sums.items():
+        result[f"mean_{name}"] = float((total / steps).mean())
+    for criterion in task.criteria:
+        result[criterion.name] = criterion.holds(result)
     runs.atomic_write_bytes(run_dir / "eval.json", json.dumps(result, indent=2).encode())
     if not quiet:
         print(json.dumps(result, indent=2))

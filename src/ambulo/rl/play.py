@@ -40,16 +40,17 @@ def play(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = None,
          log_root: str | os.PathLike = "runs") -> Path:
     """Run the policy of ``run`` for ``seconds`` and write ``<run>/videos/play.mp4`` (or ``out``).
 
-    Env 0 is filmed; it auto-resets like in training, so falls and restarts are visible.
+    The task's play variant runs (no pushes, no observation noise, no time-out); env 0 is
+    filmed, and a fall resets it, so falls and restarts are visible.
     Returns the video's path.
     """
     run_dir = runs.resolve_run(run, log_root)
     info = runs.read_run_info(run_dir)
-    env = runs.make_env_for_run(info, num_envs=num_envs, seed=seed)
+    env = runs.make_env_for_run(info, num_envs=num_envs, seed=seed, play=True)
     runner, ckpt = runs.load_runner(run_dir, env, checkpoint)
     policy = runner.get_inference_policy(device=str(env.device))
     renderer = OffscreenRenderer(env.model, width, height)
-    camera = _camera(env.model, getattr(env, "viewer_distance_m", 3.0))
+    camera = _camera(env.model, distance_m=3.0)
     path = Path(out) if out else run_dir / "videos" / "play.mp4"
     path.parent.mkdir(parents=True, exist_ok=True)
     fps = round(1.0 / env.step_dt_s)

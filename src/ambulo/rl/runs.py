@@ -108,12 +108,13 @@ def atomic_torch_save(obj: Any, path: Path) -> None:
 
 
 def make_env_for_run(info: dict[str, Any], *, num_envs: int, seed: int | None = None,
-                     device: str | None = None, **overrides: Any) -> envs.RLEnv:
-    """The run's task env with its training overrides, resized to ``num_envs``."""
+                     device: str | None = None, play: bool = False, **overrides: Any) -> envs.RLEnv:
+    """The run's task env with its training overrides, resized to ``num_envs``; ``play``
+    starts from the task's play variant (no pushes or observation noise)."""
     env_overrides = dict(info.get("env_overrides", {}))
     env_overrides.update({k: v for k, v in overrides.items() if v is not None})
     return envs.make(info["task"], num_envs=num_envs, device=device or info["device"],
-                     seed=info["seed"] if seed is None else seed, **env_overrides)
+                     seed=info["seed"] if seed is None else seed, play=play, **env_overrides)
 
 
 def ppo_from_info(info: dict[str, Any]) -> PpoCfg:

@@ -24,7 +24,7 @@ class RslRlVecEnv(VecEnv):
         self.max_episode_length = env.max_episode_length
         self.device = env.device
         self.cfg = env.cfg
-        self._critic_obs = env._get_privileged_observations()
+        self._critic_obs = env.get_privileged_observations()
 
     @property
     def episode_length_buf(self) -> torch.Tensor:
@@ -46,7 +46,7 @@ class RslRlVecEnv(VecEnv):
 
     def reset(self) -> TensorDict:
         policy = self.env.reset()
-        self._critic_obs = self.env._get_privileged_observations()
+        self._critic_obs = self.env.get_privileged_observations()
         return self._obs(policy)
 
     def step(self, actions: torch.Tensor) -> tuple[TensorDict, torch.Tensor, torch.Tensor, dict]:

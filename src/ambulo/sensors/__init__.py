@@ -1,7 +1,8 @@
 """Sensors that read an engine's state (never step it), batched over worlds.
 
 Every sensor is created with a prim path (its mount body or site) and follows the
-World lifecycle: ``_build(spec)`` before compilation, ``initialize(engine)`` after.
+component lifecycle (``ambulo.core.Component``): ``build(spec)`` before compilation,
+``initialize(engine)`` after, ``update(dt_s)`` after physics, ``reset(world_ids)``.
 """
 
 from .base import Mount, Sensor, resolve_mount

@@ -1,6 +1,6 @@
 """Ground truth computed from a rendered geom-id image, depth and the model's geometry.
 
-Instances are the bodies that carry a semantic label (``ambulo.sim.semantics``);
+Instances are the bodies that carry a semantic label (``ambulo.core.semantics``);
 an instance owns its body's geoms and those of descendants without their own
 label, so labelling a robot's root labels the whole robot. Instance ids are
 1..K in body order, 0 is background; semantic ids are 1..C in label order.
@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from ambulo.sim.semantics import semantic_labels
+from ambulo.core.semantics import semantic_labels
 
 # Corners of the unit cube [-1, 1]^3 and its 12 edges as corner index pairs.
 _CUBE = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], np.float64)

@@ -1,9 +1,10 @@
-"""What every sensor shares: a prim path resolved to a mount, and the two-phase lifecycle.
+"""What every sensor shares: a prim path resolved to a mount, and the component lifecycle.
 
-Lifecycle (the one Isaac's World drives): ``_build(spec)`` adds what the sensor
+Sensors implement ``ambulo.core.Component``: ``build(spec)`` adds what the sensor
 needs to the scene's ``MjSpec`` before compilation (a camera, a site, MuJoCo
-sensors); ``initialize(engine)`` resolves ids in the compiled model; after that
-the sensor only reads the engine's state tensors and never steps it.
+sensors); ``initialize(engine)`` resolves ids in the compiled model; ``update(dt_s)``
+runs after physics; ``reset(world_ids)`` forgets those worlds' samples. A sensor only
+reads the engine's state tensors and never steps it.
 
 Prim paths: models composed by ``World`` name bodies and sites by prim path
 (``/World/robot/head``); a sensor's own path is its mount's path plus a leaf
@@ -65,19 +66,37 @@ class MountPose:
         if mount.site is not None:
             sid = model.site(mount.site).id
             self._pos, self._mat, self._index = engine.field("site_xpos"), engine.field("site_xmat"), sid
+            self._site_pos = self._pos
             self.body_id = int(model.site_bodyid[sid])
         else:
             bid = 0 if mount.body == "world" else model.body(mount.body).id
             self._pos, self._mat, self._index = engine.field("xpos"), engine.field("xmat"), bid
+            self._site_pos = None
             self.body_id = bid
 
-    def pos_w(self) -> np.ndarray:
-        """(N, 3) float64 m, world frame."""
-        return self._pos[:, self._index].numpy()
+    def of_data(self, data) -> tuple[np.ndarray, np.ndarray]:
+        """(3,) position and (3, 3) axes of the mount in one world's ``MjData`` (after mj_forward)."""
+        if self._pos is self._site_pos:
+            return data.site_xpos[self._index].copy(), data.site_xmat[self._index].reshape(3, 3).copy()
+        return data.xpos[self._index].copy(), data.xmat[self._index].reshape(3, 3).copy()
 
-    def rot_w(self) -> np.ndarray:
+    def pos_w(self) -> torch.Tensor:
+        """(N, 3) float64 m, world frame, on the engine's device."""
+        return self._pos[:, self._index]
+
+    def rot_w(self) -> torch.Tensor:
         """(N, 3, 3) float64: the mount's axes (columns) in the world frame."""
-        return self._mat[:, self._index].numpy().reshape(-1, 3, 3)
+        return self._mat[:, self._index].reshape(-1, 3, 3)
+
+
+def fill_worlds(buf: torch.Tensor, world_ids: torch.Tensor | None, value: float) -> None:
+    """Set the rows of ``world_ids`` (None: all; indices; or an (N,) bool mask) to ``value``."""
+    if world_ids is None:
+        buf.fill_(value)
+    elif world_ids.dtype == torch.bool:
+        buf.masked_fill_(world_ids.reshape(-1, *([1] * (buf.dim() - 1))), value)
+    else:
+        buf[world_ids] = value
 
 
 class Sensor:
@@ -99,20 +118,28 @@ class Sensor:
         self._require_initialized()
         return self.engine.num_worlds
 
-    def _build(self, spec: mujoco.MjSpec) -> None:
+    def build(self, spec: mujoco.MjSpec) -> None:
+        """Add the sensor's elements to ``spec`` (before compilation)."""
         self.mount = resolve_mount(spec, self.prim_path)
 
     def initialize(self, engine) -> None:
-        """Resolve ids in ``engine.model``; call after the spec that ``_build`` edited is compiled."""
+        """Resolve ids in ``engine.model``; call after the spec that ``build`` edited is compiled."""
         if self.mount is None:
             raise RuntimeError(
-                f"{type(self).__name__} {self.prim_path!r}: _build(spec) was not called before "
+                f"{type(self).__name__} {self.prim_path!r}: build(spec) was not called before "
                 "compiling; add the sensor to the scene before world.reset()"
             )
         self.engine = engine
-        self._last_update_s = torch.full((engine.num_worlds,), -np.inf, dtype=torch.float64)
+        self._last_update_s = torch.full((engine.num_worlds,), -np.inf, dtype=torch.float64,
+                                         device=engine.device)
 
-    _initialize = initialize
+    def update(self, dt_s: float) -> None:
+        """After physics advanced ``dt_s``; sensors that sample on read do nothing here."""
+
+    def reset(self, world_ids: torch.Tensor | None = None) -> None:
+        """Forget the last sample of ``world_ids`` (None: all): the next read samples anew."""
+        if self._last_update_s is not None:
+            fill_worlds(self._last_update_s, world_ids, -np.inf)
 
     def _require_initialized(self) -> None:
         if self.engine is None:

@@ -61,6 +61,15 @@ class CameraCfg:
     render: RenderSettings = field(default_factory=fast_render_settings)
 
 
+def _extrinsics(pos: np.ndarray, rot_gl: np.ndarray) -> np.ndarray:
+    """(N, 4, 4) world -> OpenCV camera transforms of cameras at (N, 3) with OpenGL axes (N, 3, 3)."""
+    rot_cv = rot_gl @ GL_IN["opencv"]
+    t = np.tile(np.eye(4), (len(pos), 1, 1))
+    t[:, :3, :3] = np.swapaxes(rot_cv, 1, 2)
+    t[:, :3, 3] = -np.einsum("nji,nj->ni", rot_cv, pos)
+    return t
+
+
 def _normalize_annotators(names) -> tuple[str, ...]:
     out = []
     for name in names:
@@ -94,8 +103,8 @@ class Camera(Sensor):
         self._frames: list[dict | None] = []
 
     # -- lifecycle ------------------------------------------------------------
-    def _build(self, spec: mujoco.MjSpec) -> None:
-        super()._build(spec)
+    def build(self, spec: mujoco.MjSpec) -> None:
+        super().build(spec)
         if spec.camera(self.name) is not None:
             raise ValueError(f"a camera named {self.name!r} already exists; give each camera its own prim path")
         pos, rot = self._offset_in_body(np.asarray(spec.site(self.mount.site).pos, float) if self.mount.site else None,
@@ -163,12 +172,7 @@ class Camera(Sensor):
 
     def get_extrinsics_matrix(self) -> np.ndarray:
         """(N, 4, 4) float64 world -> OpenCV camera transform T_cw (p_c = R p_w + t)."""
-        pos, rot_gl = self._pose_gl()
-        rot_cv = rot_gl @ GL_IN["opencv"]
-        t = np.tile(np.eye(4), (len(pos), 1, 1))
-        t[:, :3, :3] = np.swapaxes(rot_cv, 1, 2)
-        t[:, :3, 3] = -np.einsum("nji,nj->ni", rot_cv, pos)
-        return t
+        return _extrinsics(*self._pose_gl())
 
     # -- posing -----------------------------------------------------------------
     def set_local_pose(self, pos=None, quat=None, convention: str = "world", world_ids=None) -> None:
@@ -218,14 +222,18 @@ class Camera(Sensor):
         names = self.annotators if annotators is None else _normalize_annotators(annotators)
         r = self.renderer
         model = self.engine.get_model(world, self._model_buf)
+        # get_data runs mj_forward for the renderer; the camera pose comes from that same data,
+        # so callers need no kinematics pass of their own before capturing
         data = self.engine.get_data(world, self._data_buf)
-        pos, rot_gl = self._pose_gl()
-        r.update(model, data, self.cam_id, pos[world], rot_gl[world], self.cfg.clipping_range_m)
+        mount_pos, mount_rot = self._mount_pose.of_data(data)
+        pos = mount_pos + mount_rot @ self._offset_pos[world]
+        rot_gl = mount_rot @ self._offset_rot_gl[world]
+        r.update(model, data, self.cam_id, pos, rot_gl, self.cfg.clipping_range_m)
         k_matrix = self.get_intrinsics_matrix()
-        extr = self.get_extrinsics_matrix()[world]
+        extr = _extrinsics(pos[None], rot_gl[None])[0]
         out: dict = {"camera": {
-            "intrinsics": k_matrix, "extrinsics_cw": extr, "pos_w": pos[world],
-            "quat_w_opengl": mat_to_quat(rot_gl[world]), "width": self.cfg.width, "height": self.cfg.height}}
+            "intrinsics": k_matrix, "extrinsics_cw": extr, "pos_w": pos,
+            "quat_w_opengl": mat_to_quat(rot_gl), "width": self.cfg.width, "height": self.cfg.height}}
         if "rgb" in names:
             out["rgb"] = r.render_rgb().copy()
         need = set(names)
@@ -311,11 +319,14 @@ class Camera(Sensor):
         """
         self._require_initialized()
         ids = self._ids(world_ids)
-        due = self._due().numpy()
+        due = self._due().cpu().numpy()
+        rendered = np.zeros(self.num_worlds, bool)
         for w in ids:
             if due[w] or self._frames[w] is None:
                 self._frames[w] = self.capture(int(w))
-                self._mark_updated(torch.from_numpy(np.arange(self.num_worlds) == w))
+                rendered[w] = True
+        if rendered.any():
+            self._mark_updated(torch.from_numpy(rendered).to(self._last_update_s.device))
         frames = [self._frames[w] for w in ids]
         out = {}
         for key in frames[0]:
@@ -347,7 +358,9 @@ class Camera(Sensor):
         return site_pos + site_rot @ pos, site_rot @ rot
 
     def _mount_frame(self) -> tuple[np.ndarray, np.ndarray]:
-        return self._mount_pose.pos_w(), self._mount_pose.rot_w()
+        # rendering runs on the host (MuJoCo's renderer), so the pose math does too
+        return (self._mount_pose.pos_w().detach().cpu().numpy(),
+                self._mount_pose.rot_w().detach().cpu().numpy())
 
     def _pose_gl(self) -> tuple[np.ndarray, np.ndarray]:
         """World position (N, 3) and OpenGL axes (N, 3, 3) of the camera."""
@@ -363,5 +376,6 @@ class Camera(Sensor):
         if self._site_local is not None:
             site_pos, site_rot = self._site_local
             pos, rot = site_pos + pos @ site_rot.T, site_rot @ rot
-        cam_pos[ids, self.cam_id] = torch.from_numpy(np.ascontiguousarray(pos))
-        cam_quat[ids, self.cam_id] = torch.from_numpy(mat_to_quat(rot))
+        ids_t = torch.as_tensor(ids, device=cam_pos.device)
+        cam_pos[ids_t, self.cam_id] = torch.from_numpy(np.ascontiguousarray(pos)).to(cam_pos)
+        cam_quat[ids_t, self.cam_id] = torch.from_numpy(mat_to_quat(rot)).to(cam_quat)

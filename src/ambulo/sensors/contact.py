@@ -1,7 +1,9 @@
-"""Contact sensor: per-body in-contact flag, contact count and net contact force.
+"""Contact sensor: per-body in-contact flag, contact count, net contact force and air time.
 
 Built on MuJoCo's ``contact`` sensor with ``reduce="netforce"``, one per body,
-so the reduction runs in C for every world in the batch.
+so the reduction runs in C for every world in the batch. ``update(dt_s)`` (called by
+the lifecycle after physics) keeps air and contact timers per body, as legged robots'
+gait rewards need (Isaac Lab's / mjlab's ``ContactSensor`` air time).
 """
 
 from __future__ import annotations
@@ -12,7 +14,7 @@ from dataclasses import dataclass
 import mujoco
 import torch
 
-from .base import Sensor
+from .base import Mount, Sensor, fill_worlds
 
 _FOUND, _FORCE = 1, 2  # bits of the contact sensor's data specification (mjtConDataField order)
 _NETFORCE = 3          # mjtSensor contact reduce: none, mindist, maxforce, netforce
@@ -26,6 +28,10 @@ class ContactSensorCfg:
     """Count contacts of the bodies' descendants too."""
     force_threshold_n: float = 0.0
     """A body is in contact when a contact exists and the net force exceeds this (N)."""
+    against: str | None = None
+    """Only count contacts with this geom (its name), e.g. the ground's ``.../geom``."""
+    name: str | None = None
+    """Component name; defaults to the first prim path."""
 
 
 @dataclass
@@ -36,6 +42,14 @@ class ContactData:
     """(N, B) int64: contacts involving the body."""
     net_force_w: torch.Tensor
     """(N, B, 3) float64 N: total contact force the environment applies to the body, world frame."""
+    current_air_time_s: torch.Tensor
+    """(N, B) s since the body last left contact (0 while in contact); advanced by ``update``."""
+    last_air_time_s: torch.Tensor
+    """(N, B) s of the body's last completed flight (set at touchdown)."""
+    current_contact_time_s: torch.Tensor
+    """(N, B) s since the body last touched down (0 while in the air)."""
+    first_contact: torch.Tensor
+    """(N, B) bool: the body touched down during the last ``update`` interval."""
 
 
 class ContactSensor(Sensor):
@@ -44,10 +58,11 @@ class ContactSensor(Sensor):
         if isinstance(cfg.prim_paths, str):
             cfg.prim_paths = (cfg.prim_paths,)
         super().__init__(cfg.prim_paths[0])
+        self.name = cfg.name or cfg.prim_paths[0]
         self.cfg = cfg
         self.body_names: list[str] = []
 
-    def _build(self, spec: mujoco.MjSpec) -> None:
+    def build(self, spec: mujoco.MjSpec) -> None:
         names = [b.name for b in spec.bodies if b.name]
         matched = []
         for pattern in self.cfg.prim_paths:
@@ -58,25 +73,50 @@ class ContactSensor(Sensor):
         self.body_names = matched
         self.mount = None
         objtype = mujoco.mjtObj.mjOBJ_XBODY if self.cfg.include_subtree else mujoco.mjtObj.mjOBJ_BODY
+        ref = {} if self.cfg.against is None else {"reftype": mujoco.mjtObj.mjOBJ_GEOM, "refname": self.cfg.against}
         for name in matched:
-            spec.add_sensor(name=f"{name}:contact", type=mujoco.mjtSensor.mjSENS_CONTACT,
-                            objtype=objtype, objname=name,
-                            intprm=[_FOUND | _FORCE, _NETFORCE, 1])
-        from .base import Mount
+            spec.add_sensor(name=f"{self.name}:{name}:contact", type=mujoco.mjtSensor.mjSENS_CONTACT,
+                            objtype=objtype, objname=name, intprm=[_FOUND | _FORCE, _NETFORCE, 1], **ref)
         self.mount = Mount(body=matched[0])
 
     def initialize(self, engine) -> None:
         super().initialize(engine)
         model = engine.model
-        self._adr = torch.tensor([int(model.sensor_adr[model.sensor(f"{n}:contact").id])
-                                  for n in self.body_names])
+        adr = torch.tensor([int(model.sensor_adr[model.sensor(f"{self.name}:{n}:contact").id])
+                            for n in self.body_names], device=engine.device)
+        self._block = adr[:, None] + torch.arange(4, device=engine.device)  # found, force xyz
+        zeros = torch.zeros(engine.num_worlds, len(self.body_names), dtype=torch.float64, device=engine.device)
+        self._air, self._last_air, self._contact_time = zeros, zeros.clone(), zeros.clone()
+        self._first = torch.zeros_like(zeros, dtype=torch.bool)
 
-    def get_current_frame(self) -> ContactData:
-        self._require_initialized()
-        s = self.engine.field("sensordata")
-        block = s[:, self._adr[:, None] + torch.arange(4)]  # (N, B, 4): found, force xyz
+    def _read(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        block = self.engine.field("sensordata")[:, self._block]  # (N, B, 4)
         count = block[..., 0].round().long()
         # the sensor reports the force body1 (ours) exerts on body2; we want the reaction
         force = -block[..., 1:4]
         touching = (count > 0) & (force.norm(dim=-1) >= self.cfg.force_threshold_n)
-        return ContactData(in_contact=touching, num_contacts=count, net_force_w=force)
+        return touching, count, force
+
+    def update(self, dt_s: float) -> None:
+        """Advance the air/contact timers by ``dt_s`` with the current contact state."""
+        touching, _, _ = self._read()
+        was_in_air = self._air > 0.0  # the timer is held at 0 while touching
+        self._air += dt_s
+        # a touchdown ends a flight: remember how long it was
+        self._first = touching & was_in_air
+        self._last_air = torch.where(self._first, self._air, self._last_air)
+        self._air = torch.where(touching, torch.zeros_like(self._air), self._air)
+        self._contact_time = torch.where(touching, self._contact_time + dt_s,
+                                         torch.zeros_like(self._contact_time))
+
+    def reset(self, world_ids: torch.Tensor | None = None) -> None:
+        super().reset(world_ids)
+        for buf in (self._air, self._last_air, self._contact_time, self._first):
+            fill_worlds(buf, world_ids, 0)
+
+    def get_current_frame(self) -> ContactData:
+        self._require_initialized()
+        touching, count, force = self._read()
+        return ContactData(in_contact=touching, num_contacts=count, net_force_w=force,
+                           current_air_time_s=self._air, last_air_time_s=self._last_air,
+                           current_contact_time_s=self._contact_time, first_contact=self._first)

@@ -1,7 +1,7 @@
 """IMU: specific force, angular velocity and orientation at a site, with Kalibr noise.
 
 Readings come from MuJoCo's accelerometer, gyro and framequat sensors that
-``_build`` adds at the IMU site; the accelerometer includes gravity, so an IMU at
+``build`` adds at the IMU site; the accelerometer includes gravity, so an IMU at
 rest with z up reads (0, 0, +9.81) m/s^2, as a real one (and Isaac's
 ``readGravity``) does.
 """
@@ -54,8 +54,8 @@ class Imu(Sensor):
         self.cfg = cfg
         self.site_name: str | None = None
 
-    def _build(self, spec: mujoco.MjSpec) -> None:
-        super()._build(spec)
+    def build(self, spec: mujoco.MjSpec) -> None:
+        super().build(spec)
         default_offset = tuple(self.cfg.offset_pos) == (0, 0, 0) and tuple(self.cfg.offset_quat) == (1, 0, 0, 0)
         if self.mount.site is not None and default_offset:
             self.site_name = self.mount.site
@@ -80,17 +80,17 @@ class Imu(Sensor):
         self._adr = {k: int(model.sensor_adr[model.sensor(f"{self.prim_path}:{k}").id])
                      for k in ("acc", "gyro", "quat")}
         self._site_id = model.site(self.site_name).id
-        n = engine.num_worlds
-        gen = torch.Generator().manual_seed(self.cfg.seed)
+        n, dev = engine.num_worlds, engine.device
+        gen = torch.Generator(device=dev).manual_seed(self.cfg.seed)
         c = self.cfg.noise
         self.accel_noise = KalibrNoise(c.accel_noise_density, c.accel_random_walk,
                                        c.accel_turn_on_bias_std, n, gen)
         self.gyro_noise = KalibrNoise(c.gyro_noise_density, c.gyro_random_walk,
                                       c.gyro_turn_on_bias_std, n, gen)
-        self._gravity = torch.as_tensor(model.opt.gravity, dtype=torch.float64)
-        zeros = torch.zeros(n, 3, dtype=torch.float64)
-        self._data = ImuData(zeros.clone(), zeros.clone(), torch.zeros(n, 4, dtype=torch.float64),
-                             torch.zeros(n, dtype=torch.float64))
+        f64 = dict(dtype=torch.float64, device=dev)
+        self._gravity = torch.as_tensor(model.opt.gravity, **f64)
+        zeros = torch.zeros(n, 3, **f64)
+        self._data = ImuData(zeros.clone(), zeros.clone(), torch.zeros(n, 4, **f64), torch.zeros(n, **f64))
         self._timestep = float(model.opt.timestep)
 
     def clean_reading(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -101,7 +101,7 @@ class Imu(Sensor):
         gyro = s[:, self._adr["gyro"]:self._adr["gyro"] + 3].clone()
         quat = s[:, self._adr["quat"]:self._adr["quat"] + 4].clone()
         if not self.cfg.include_gravity:
-            rot = torch.from_numpy(self.engine.field("site_xmat")[:, self._site_id].numpy().reshape(-1, 3, 3))
+            rot = self.engine.field("site_xmat")[:, self._site_id].reshape(-1, 3, 3)
             acc = acc + torch.einsum("nji,j->ni", rot, self._gravity)  # R^T g removes gravity
         return acc, gyro, quat
 

@@ -67,7 +67,8 @@ class KalibrNoise:
         self.noise_density = float(noise_density)
         self.random_walk = float(random_walk)
         self._gen = generator
-        self.bias = turn_on_bias_std * torch.randn(num_worlds, 3, generator=generator, dtype=torch.float64)
+        self.bias = turn_on_bias_std * torch.randn(num_worlds, 3, generator=generator, dtype=torch.float64,
+                                                   device=generator.device)
         """(N, 3) current bias, in the signal's units."""
 
     def sample(self, clean: torch.Tensor, dt_s: float | torch.Tensor,
@@ -79,12 +80,13 @@ class KalibrNoise:
         ``advance`` (N,) bool is true (default all).
         """
         steps, n = clean.shape[0], clean.shape[1]
-        dt = torch.as_tensor(dt_s, dtype=torch.float64).reshape(-1, 1) if torch.is_tensor(dt_s) else dt_s
+        dev = self.bias.device
+        dt = dt_s.to(dev, torch.float64).reshape(-1, 1) if torch.is_tensor(dt_s) else dt_s
         white_std = self.noise_density / (dt ** 0.5)
         walk_std = self.random_walk * (dt ** 0.5)
         shape = (steps, n, 3)
-        white = torch.randn(shape, generator=self._gen, dtype=torch.float64) * white_std
-        walk = torch.randn(shape, generator=self._gen, dtype=torch.float64) * walk_std
+        white = torch.randn(shape, generator=self._gen, dtype=torch.float64, device=dev) * white_std
+        walk = torch.randn(shape, generator=self._gen, dtype=torch.float64, device=dev) * walk_std
         bias = self.bias + torch.cumsum(walk, 0)
         last = bias[-1].clone()
         self.bias = last if advance is None else torch.where(advance[:, None], last, self.bias)

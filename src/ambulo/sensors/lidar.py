@@ -88,8 +88,11 @@ class Lidar(Sensor):
     def initialize(self, engine) -> None:
         super().initialize(engine)
         self._mount_pose = MountPose(engine, self.mount)
-        self._rot_ms = quat_to_mat(np.asarray(self.cfg.offset_quat, float))
-        self._gen = torch.Generator().manual_seed(self.cfg.seed)
+        f64 = dict(dtype=torch.float64, device=engine.device)
+        self._rot_ms = torch.as_tensor(quat_to_mat(np.asarray(self.cfg.offset_quat, float)), **f64)
+        self._offset_m = torch.as_tensor(self.cfg.offset_pos, **f64)
+        self._dirs_s = torch.as_tensor(self.directions_s, **f64)
+        self._gen = torch.Generator(device=engine.device).manual_seed(self.cfg.seed)
         self._data = None
 
     def get_current_frame(self) -> LidarData:
@@ -98,24 +101,22 @@ class Lidar(Sensor):
             return self._data
         n = self.engine.num_worlds
         mount_pos, mount_rot = self._mount_pose.pos_w(), self._mount_pose.rot_w()
-        origin = mount_pos + mount_rot @ np.asarray(self.cfg.offset_pos, float)
-        rot_ws = mount_rot @ self._rot_ms
-        dirs_w = np.einsum("nij,rj->nri", rot_ws, self.directions_s)
+        origin = mount_pos + mount_rot @ self._offset_m          # (N, 3) world frame
+        rot_ws = mount_rot @ self._rot_ms                        # (N, 3, 3) sensor axes in world
+        dirs_w = torch.einsum("nij,rj->nri", rot_ws, self._dirs_s)
         exclude = self._mount_pose.body_id if self.cfg.exclude_mount_body and self._mount_pose.body_id > 0 else -1
-        dist, geom = self.engine.ray(np.ascontiguousarray(np.broadcast_to(origin[:, None], dirs_w.shape)),
-                                     dirs_w, bodyexclude=exclude)
-        dist = torch.from_numpy(dist)
+        dist, geom = self.engine.ray(origin[:, None].expand_as(dirs_w), dirs_w, bodyexclude=exclude)
+        dist, geom = dist.to(origin.device), geom.to(origin.device)
         if self.cfg.range_noise_std_m > 0:
-            dist = dist + self.cfg.range_noise_std_m * torch.randn(dist.shape, generator=self._gen,
-                                                                   dtype=torch.float64)
-        hit = (torch.from_numpy(geom) >= 0) & (dist >= self.cfg.min_range_m) & (dist <= self.cfg.max_range_m)
+            dist = dist + self.cfg.range_noise_std_m * torch.randn(
+                dist.shape, generator=self._gen, dtype=torch.float64, device=dist.device)
+        hit = (geom >= 0) & (dist >= self.cfg.min_range_m) & (dist <= self.cfg.max_range_m)
         ranges = torch.where(hit, dist, torch.full_like(dist, self.cfg.max_range_m))
-        points_s = ranges[..., None] * torch.from_numpy(self.directions_s)
-        points_w = torch.from_numpy(origin)[:, None] + torch.einsum(
-            "nij,nrj->nri", torch.from_numpy(rot_ws), points_s)
+        points_s = ranges[..., None] * self._dirs_s
+        points_w = origin[:, None] + torch.einsum("nij,nrj->nri", rot_ws, points_s)
         v, h = self.shape
-        geom_ids = torch.from_numpy(np.where(hit.numpy(), geom, -1).astype(np.int32))
+        geom_ids = torch.where(hit, geom, torch.full_like(geom, -1)).to(torch.int32)
         self._data = LidarData(ranges=ranges.reshape(n, v, h), hit=hit.reshape(n, v, h), points_s=points_s,
                                points_w=points_w, geom_ids=geom_ids.reshape(n, v, h))
-        self._mark_updated(torch.ones(n, dtype=torch.bool))
+        self._mark_updated(torch.ones(n, dtype=torch.bool, device=origin.device))
         return self._data

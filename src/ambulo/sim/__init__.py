@@ -4,24 +4,21 @@ A tutorial written for Isaac Sim ports by changing its imports to ``ambulo.sim``
 """
 
 from ..assets import get_assets_root_path
+from ..core import (AssetError, DriveDefaults, PhysicsCfg, PhysicsMaterial, PrimNotFoundError, add_light,
+                    semantic_labels, set_semantic_label)
 from .articulation import Articulation, ArticulationAction, Robot
 from .controller import ArticulationController
-from .drives import DriveDefaults
-from .importers import AssetError
-from .materials import PhysicsMaterial
 from .objects import (
     DynamicCapsule, DynamicCuboid, DynamicCylinder, DynamicSphere, FixedCapsule, FixedCuboid,
     FixedCylinder, FixedSphere, GroundPlane, VisualCapsule, VisualCuboid, VisualCylinder,
     VisualSphere,
 )
-from .paths import PrimNotFoundError
 from .prims import RigidPrim, XFormPrim
-from .scene import Scene, add_light
-from .semantics import semantic_labels, set_semantic_label
+from .scene import Scene
 from .stage import add_reference_to_stage, get_current_stage
 from .viewport import set_camera_view
 from .wheeled import DifferentialController, WheeledRobot
-from .world import PhysicsSettings, World
+from .world import World
 
 
 def add_update_semantics(prim_path: str, semantic_label: str) -> None:
@@ -30,7 +27,7 @@ def add_update_semantics(prim_path: str, semantic_label: str) -> None:
 
 
 __all__ = [
-    "World", "PhysicsSettings", "Scene", "Robot", "Articulation", "ArticulationAction",
+    "World", "PhysicsCfg", "Scene", "Robot", "Articulation", "ArticulationAction",
     "ArticulationController", "WheeledRobot", "DifferentialController", "XFormPrim", "RigidPrim",
     "add_reference_to_stage", "get_current_stage", "get_assets_root_path", "set_camera_view",
     "PhysicsMaterial", "DriveDefaults", "GroundPlane", "add_light", "add_update_semantics",

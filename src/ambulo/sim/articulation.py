@@ -10,19 +10,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-import mujoco
 import torch
 
 from .controller import ArticulationController
-from .drives import is_drive
-from .paths import subtree_body_ids
 from .prims import RigidPrim
 
 if TYPE_CHECKING:
     from .world import World
-
-# ints: a numpy int compares equal to an enum, but `in` on a tuple of enums fails
-_DOF_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
 
 
 @dataclass
@@ -43,6 +37,8 @@ class ArticulationAction:
 class Articulation(RigidPrim):
     """The joints under ``prim_path`` (a referenced robot), with world pose of its root body."""
 
+    _requires_drives = True
+
     def __init__(self, prim_path: str, name: str | None = None, position=None, orientation=None,
                  articulation_controller: ArticulationController | None = None):
         super().__init__(prim_path, name, position, orientation)
@@ -54,30 +50,10 @@ class Articulation(RigidPrim):
 
     def initialize(self, world: World) -> None:
         super().initialize(world)
-        model = world.model
-        bodies = set(subtree_body_ids(model, self.prim_path)) or {self._body_id}
-        joints = [j for j in range(model.njnt)
-                  if int(model.jnt_bodyid[j]) in bodies and int(model.jnt_type[j]) in _DOF_JOINTS]
-        if not joints:
+        if self.entity.num_joints == 0:
             raise ValueError(f"{self.prim_path} has no hinge or slide joints: not an articulation")
-        prefix = self.prim_path.rstrip("/") + "/"
-        self._joint_ids = joints
-        self.dof_names = [model.joint(j).name.removeprefix(prefix) for j in joints]
-        self.num_dof = len(joints)
-        self._qpos_idx = torch.tensor([model.jnt_qposadr[j] for j in joints])
-        self._dof_idx = torch.tensor([model.jnt_dofadr[j] for j in joints])
-        actuator_of = {}
-        for a in range(model.nu):
-            act = model.actuator(a)
-            if model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT and is_drive(act):
-                actuator_of[int(model.actuator_trnid[a, 0])] = a
-        missing = [model.joint(j).name for j in joints if j not in actuator_of]
-        if missing:
-            raise ValueError(
-                f"joints {missing[:5]} of {self.prim_path} have no ambulo drive; load the robot "
-                "with add_reference_to_stage (which adds drives) or add <general> drive actuators"
-            )
-        self._actuator_idx = torch.tensor([actuator_of[j] for j in joints])
+        self.dof_names = list(self.entity.joint_names)
+        self.num_dof = self.entity.num_joints
         self._controller._initialize(self, world)
 
     def post_reset(self) -> None:
@@ -90,46 +66,47 @@ class Articulation(RigidPrim):
 
     # -- names -------------------------------------------------------------------
     def get_dof_index(self, dof_name: str) -> int:
-        self._engine
+        self._data
         if dof_name not in self.dof_names:
             raise KeyError(f"unknown joint {dof_name!r} of {self.prim_path}; joints: {self.dof_names}")
         return self.dof_names.index(dof_name)
 
     def _indices(self, joint_indices) -> torch.Tensor:
         if joint_indices is None:
-            return torch.arange(self.num_dof)
-        idx = torch.as_tensor(joint_indices, dtype=torch.long).reshape(-1)
+            return torch.arange(self.num_dof, device=self.entity.device)
+        idx = torch.as_tensor(joint_indices, dtype=torch.long, device=self.entity.device).reshape(-1)
         if idx.numel() and (idx.min() < 0 or idx.max() >= self.num_dof):
             raise IndexError(f"joint index out of range [0, {self.num_dof}) for {self.prim_path}")
         return idx
 
     # -- joint state -------------------------------------------------------------
     def get_joint_positions(self, joint_indices=None):
-        return self._world._out(self._engine.qpos[:, self._qpos_idx[self._indices(joint_indices)]])
+        return self._world._out(self._data.joint_pos[:, self._indices(joint_indices)])
 
     def get_joint_velocities(self, joint_indices=None):
-        return self._world._out(self._engine.qvel[:, self._dof_idx[self._indices(joint_indices)]])
+        return self._world._out(self._data.joint_vel[:, self._indices(joint_indices)])
 
     def get_measured_joint_efforts(self, joint_indices=None):
         """N*m the drives exert on the joints (after force limits)."""
-        return self._world._out(self._engine.qfrc_actuator[:, self._dof_idx[self._indices(joint_indices)]])
+        return self._world._out(self._data.joint_effort[:, self._indices(joint_indices)])
 
     def get_applied_joint_efforts(self, joint_indices=None):
         return self.get_measured_joint_efforts(joint_indices)
 
     def set_joint_positions(self, positions, joint_indices=None) -> None:
         idx = self._indices(joint_indices)
-        self._engine.qpos[:, self._qpos_idx[idx]] = self._world._in(positions, (len(idx),), "joint positions")
-        self._engine.forward()
+        self.entity.write_joint_state(pos=self._world._in(positions, (len(idx),), "joint positions"), joint_ids=idx)
+        self.entity.engine.forward()
 
     def set_joint_velocities(self, velocities, joint_indices=None) -> None:
         idx = self._indices(joint_indices)
-        self._engine.qvel[:, self._dof_idx[idx]] = self._world._in(velocities, (len(idx),), "joint velocities")
-        self._engine.forward()
+        self.entity.write_joint_state(vel=self._world._in(velocities, (len(idx),), "joint velocities"),
+                                      joint_ids=idx)
+        self.entity.engine.forward()
 
     def set_joints_default_state(self, positions=None, velocities=None) -> None:
         """Joint state restored by every ``world.reset()``."""
-        self._engine
+        self._data
         n = (self.num_dof,)
         if positions is not None:
             self._default_joint_positions = self._world._in(positions, n, "default joint positions").clone()
@@ -138,13 +115,9 @@ class Articulation(RigidPrim):
 
     def get_dof_limits(self):
         """(num_dof, 2) lower/upper joint limits (rad or m); +-inf where unlimited."""
-        model = self._world.model
-        limits = torch.full((self.num_dof, 2), float("inf"), dtype=torch.float64)
-        limits[:, 0] = -float("inf")
-        for i, j in enumerate(self._joint_ids):
-            if model.jnt_limited[j]:
-                limits[i] = torch.from_numpy(model.jnt_range[j].copy())
-        return limits.numpy() if self._world.backend == "numpy" else limits
+        self._data  # raises if not initialized
+        limits = self.entity.joint_pos_limits.clone()
+        return limits.cpu().numpy() if self._world.backend == "numpy" else limits
 
     # -- control -------------------------------------------------------------------
     def get_articulation_controller(self) -> ArticulationController:

@@ -25,19 +25,16 @@ class ArticulationController:
 
     def _initialize(self, articulation: Articulation, world: World) -> None:
         self._art, self._world = articulation, world
-        bias = world.engine.model_field("actuator_biasprm")
-        idx = articulation._actuator_idx
-        self._kp = (-bias[:, idx, 1]).clone()
+        self._entity = articulation.entity
+        self._kp = self._entity.data.joint_stiffness.clone()
         """(N, dof) stiffness the user set, restored by "position" mode."""
-        self._kd = (-bias[:, idx, 2]).clone()
+        self._kd = self._entity.data.joint_damping.clone()
         self._modes = ["position"] * articulation.num_dof
         self._reset()
 
     def _reset(self) -> None:
-        engine = self._world.engine
-        art = self._art
         # hold the pose the robot starts in, rather than yank it to zero
-        self._q_target = engine.qpos[:, art._qpos_idx].clone()
+        self._q_target = self._entity.data.joint_pos.clone()
         self._qd_target = torch.zeros_like(self._q_target)
         self._tau_ff = torch.zeros_like(self._q_target)
         self._write_ctrl()
@@ -62,9 +59,9 @@ class ArticulationController:
         commanded entries (None inside a list leaves that joint uncommanded)."""
         commanded = None
         if allow_none and isinstance(value, (list, tuple)) and any(v is None for v in value):
-            commanded = torch.tensor([v is not None for v in value])
+            commanded = torch.tensor([v is not None for v in value], device=self._entity.device)
             value = [0.0 if v is None else v for v in value]
-        tensor = torch.as_tensor(value, dtype=torch.float64)
+        tensor = torch.as_tensor(value, dtype=torch.float64, device=self._entity.device)
         n = self._world.num_worlds
         if tensor.shape == (count,):
             tensor = tensor.expand(n, count)
@@ -85,10 +82,7 @@ class ArticulationController:
         return tensor, mask
 
     def _write_ctrl(self) -> None:
-        bias = self._world.engine.model_field("actuator_biasprm")
-        idx = self._art._actuator_idx
-        kp, kd = -bias[:, idx, 1], -bias[:, idx, 2]
-        self._world.engine.ctrl[:, idx] = kp * self._q_target + kd * self._qd_target + self._tau_ff
+        self._entity.set_joint_targets(self._q_target, self._qd_target, self._tau_ff)
 
     def get_applied_action(self) -> ArticulationAction:
         from .articulation import ArticulationAction  # noqa: PLC0415
@@ -117,9 +111,8 @@ class ArticulationController:
     def get_gains(self):
         """(kps, kds) in effect, (N, dof) or (dof,)."""
         self._require()
-        bias = self._world.engine.model_field("actuator_biasprm")
-        idx = self._art._actuator_idx
-        return self._world._out(-bias[:, idx, 1]), self._world._out(-bias[:, idx, 2])
+        data = self._entity.data
+        return self._world._out(data.joint_stiffness), self._world._out(data.joint_damping)
 
     def switch_control_mode(self, mode: str, joint_indices=None) -> None:
         """Make joints position-, velocity- or effort-controlled (Isaac's control modes)."""
@@ -137,12 +130,11 @@ class ArticulationController:
         return list(self._modes)
 
     def _apply_gains(self, idx: torch.Tensor) -> None:
-        bias = self._world.engine.model_field("actuator_biasprm")
-        for i in idx.tolist():
-            a = int(self._art._actuator_idx[i])
-            mode = self._modes[i]
-            bias[:, a, 1] = 0.0 if mode != "position" else -self._kp[:, i]
-            bias[:, a, 2] = 0.0 if mode == "effort" else -self._kd[:, i]
+        modes = [self._modes[i] for i in idx.tolist()]
+        dev = self._entity.device
+        keep_kp = torch.tensor([m == "position" for m in modes], device=dev)
+        keep_kd = torch.tensor([m != "effort" for m in modes], device=dev)
+        self._entity.write_gains(kp=self._kp[:, idx] * keep_kp, kd=self._kd[:, idx] * keep_kd, joint_ids=idx)
         self._write_ctrl()
 
     def _require(self) -> Articulation:

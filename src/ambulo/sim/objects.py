@@ -12,20 +12,15 @@ from __future__ import annotations
 import numpy as np
 import mujoco
 
-from .materials import PhysicsMaterial
+from ..core import GroundCfg, PhysicsMaterial, add_ground, set_semantic_label
+from .current import current_world
 from .prims import RigidPrim, XFormPrim
-from .semantics import set_semantic_label
 
 _G = mujoco.mjtGeom
 
 
 def _current_stage() -> mujoco.MjSpec:
-    from .world import World  # noqa: PLC0415
-
-    world = World.instance()
-    if world is None:
-        raise RuntimeError("create a World before adding objects to the stage")
-    return world.stage
+    return current_world("adding objects to the stage").stage
 
 
 class _Primitive(RigidPrim):
@@ -125,22 +120,18 @@ DynamicCapsule, FixedCapsule, VisualCapsule = _variants(_Capsule, "capsule")
 
 
 class GroundPlane(XFormPrim):
-    """A static infinite plane (rendered 100 m square) at ``z_position``."""
+    """A static infinite plane (rendered ``size_m`` square) at ``z_position``, built by
+    ``ambulo.core.add_ground`` (the ground every app uses); ``cfg`` overrides the arguments."""
 
     def __init__(self, prim_path: str = "/World/groundPlane", name: str | None = None,
                  z_position: float = 0.0, color=(0.35, 0.4, 0.45),
-                 physics_material: PhysicsMaterial | None = None, size_m: float = 100.0):
-        stage = _current_stage()
-        body = stage.worldbody.add_body(name=prim_path, pos=[0.0, 0.0, float(z_position)])
-        stage.add_texture(name=prim_path + "/grid", type=mujoco.mjtTexture.mjTEXTURE_2D,
-                          builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER, width=256, height=256,
-                          rgb1=list(color), rgb2=[c * 0.8 for c in color])
-        material = stage.add_material(name=prim_path + "/material", texrepeat=[size_m, size_m])
-        material.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = prim_path + "/grid"
-        # a plane's third size is its render grid spacing: MuJoCo draws (size/spacing)^2
-        # quads, so 0.1 m on a 100 m plane is a million quads -- 20 ms a frame in llvmpipe
-        geom = body.add_geom(name=prim_path + "/geom", type=_G.mjGEOM_PLANE,
-                             size=[size_m / 2, size_m / 2, 5.0], material=prim_path + "/material")
-        if physics_material is not None:
-            physics_material.apply_to(geom)
-        super().__init__(prim_path, name)
+                 physics_material: PhysicsMaterial | None = None, size_m: float = 100.0,
+                 cfg: GroundCfg | None = None):
+        if cfg is None:
+            material = physics_material or PhysicsMaterial()
+            cfg = GroundCfg(prim_path=prim_path, z_m=z_position, color=tuple(color), size_m=size_m,
+                            static_friction=material.static_friction,
+                            dynamic_friction=material.dynamic_friction,
+                            restitution=material.restitution, sky=False, sun=False)
+        add_ground(_current_stage(), cfg)
+        super().__init__(cfg.prim_path, name)

@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 
+from .current import current_world
+
 
 def set_camera_view(eye, target, camera_prim_path: str = "/OmniverseKit_Persp", world=None) -> None:
     """Place the viewport camera at ``eye`` looking at ``target`` (world frame, m).
@@ -13,11 +15,7 @@ def set_camera_view(eye, target, camera_prim_path: str = "/OmniverseKit_Persp", 
     ``camera_prim_path`` naming a camera sensor in the scene aims that camera
     instead (its ``set_camera_view``).
     """
-    from .world import World  # noqa: PLC0415
-
-    world = world or World.instance()
-    if world is None:
-        raise RuntimeError("create a World before setting the camera view")
+    world = world or current_world("setting the camera view")
     eye, target = np.asarray(eye, float), np.asarray(target, float)
     if eye.shape != (3,) or target.shape != (3,):
         raise ValueError("eye and target are 3-vectors in metres")

@@ -1,65 +1,44 @@
-"""World: the stage (an ``MjSpec``), the physics settings, the engine and the clock.
+"""World: the Isaac-style face of ``ambulo.core.Simulation`` (stage, physics, engine, clock).
 
 Lifecycle, as in Isaac Sim: build the stage (``scene.add...``,
-``add_reference_to_stage``), then ``reset()`` compiles it into one ``MjModel``,
-starts the engine with ``num_worlds`` copies and initializes every scene object
-(articulation properties are None before that). Later ``reset()`` calls restore the
-initial state; a stage edited after compiling is recompiled at the next ``reset()``.
+``add_reference_to_stage``), then ``reset()`` compiles it into one ``MjModel`` through the
+core lifecycle (the physics of one ``PhysicsCfg``), starts the engine with ``num_worlds``
+copies and initializes every scene object (articulation properties are None before that).
+Later ``reset()`` calls restore the initial state; a stage edited after compiling is
+recompiled at the next ``reset()``.
 """
 
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
 from typing import Callable, Literal
 
 import mujoco
 import numpy as np
 import torch
 
-from ..engine import Engine, make_engine
-from .scene import Scene, is_prim
+from ..core import PhysicsCfg, Simulation, new_scene
+from ..engine import Engine
+from .current import current_world_or_none, set_current_world
+from .scene import Scene
 
 log = logging.getLogger(__name__)
-
-_INTEGRATORS = {
-    "euler": mujoco.mjtIntegrator.mjINT_EULER,
-    "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
-    "implicit": mujoco.mjtIntegrator.mjINT_IMPLICIT,
-    "rk4": mujoco.mjtIntegrator.mjINT_RK4,
-}
-
-
-@dataclass(kw_only=True)
-class PhysicsSettings:
-    """Physics settings of a World; every field has a sane default."""
-
-    physics_dt: float = 0.005
-    """s, simulated time of one physics step (what physics callbacks receive)."""
-    rendering_dt: float | None = None
-    """s, simulated time of one ``World.step``; None means ``physics_dt``."""
-    substeps: int = 1
-    """MuJoCo steps per physics step (each of ``physics_dt / substeps``)."""
-    solver_iterations: int = 50
-    gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
-    """m/s^2, world frame."""
-    integrator: Literal["euler", "implicitfast", "implicit", "rk4"] = "implicitfast"
-    """implicitfast integrates drive damping implicitly (Isaac's implicit PD)."""
 
 
 class World:
     """The simulation: stage, physics settings, ``num_worlds`` parallel copies, clock.
 
     Args:
-      physics_dt, rendering_dt, substeps, solver_iterations, gravity, integrator:
-        see ``PhysicsSettings``.
+      physics_dt: s, simulated time of one physics step (what physics callbacks receive).
+      rendering_dt: s, simulated time of one ``World.step``; None means ``physics_dt``.
+      substeps: MuJoCo steps per physics step (each of ``physics_dt / substeps``).
+      solver_iterations, gravity, integrator: see ``ambulo.core.PhysicsCfg``; ``physics``
+        (a whole ``PhysicsCfg``) overrides them and ``physics_dt``/``substeps``' timestep.
       num_worlds: parallel copies of the scene (the single-robot API is N = 1).
       device: ``"cpu"`` (MuJoCo) or ``"cuda"`` (MuJoCo Warp).
       backend: ``"numpy"`` (Isaac's default) or ``"torch"`` for object getters.
       stage_units_in_meters: accepted for Isaac compatibility; must be 1.0.
     """
-
-    _instance: World | None = None
 
     def __init__(
         self,
@@ -70,6 +49,7 @@ class World:
         solver_iterations: int = 50,
         gravity=(0.0, 0.0, -9.81),
         integrator: str = "implicitfast",
+        physics: PhysicsCfg | None = None,
         num_worlds: int = 1,
         device: str = "cpu",
         backend: Literal["numpy", "torch"] = "numpy",
@@ -78,33 +58,24 @@ class World:
     ):
         if stage_units_in_meters != 1.0:
             raise ValueError("ambulo stages are in metres: pass stage_units_in_meters=1.0")
-        if integrator not in _INTEGRATORS:
-            raise ValueError(f"unknown integrator {integrator!r}; use one of {sorted(_INTEGRATORS)}")
         if physics_dt <= 0 or substeps < 1:
             raise ValueError("physics_dt must be > 0 and substeps >= 1")
         if backend not in ("numpy", "torch"):
             raise ValueError(f"backend must be 'numpy' or 'torch', got {backend!r}")
-        self.physics = PhysicsSettings(
-            physics_dt=physics_dt, rendering_dt=rendering_dt, substeps=substeps,
-            solver_iterations=solver_iterations, gravity=tuple(gravity), integrator=integrator,
-        )
-        steps = (rendering_dt or physics_dt) / physics_dt
-        if abs(steps - round(steps)) > 1e-6 or round(steps) < 1:
-            raise ValueError(
-                f"rendering_dt ({rendering_dt}) must be a whole multiple of physics_dt ({physics_dt})"
-            )
-        self._physics_steps_per_step = round(steps)
+        if physics is None:
+            physics = PhysicsCfg(timestep_s=physics_dt / substeps, gravity_m_s2=tuple(gravity),
+                                 integrator=integrator, solver_iterations=solver_iterations)
+        self.physics_dt = float(physics_dt)
+        self.rendering_dt = rendering_dt
+        self.substeps = int(substeps)
+        self._physics_steps_per_step = self._steps_per_render(rendering_dt)
         self.num_worlds = int(num_worlds)
         self.device = device
         self.backend = backend
-        self._num_threads = num_threads
-        self.stage = mujoco.MjSpec()
-        """The ``MjSpec`` being built: Isaac's USD stage."""
-        self.stage.modelname = "World"
-        self._apply_settings(self.stage)
+        self.sim = Simulation(new_scene("World"), physics, num_worlds=num_worlds, device=device,
+                              num_threads=num_threads)
+        """The core lifecycle object this World drives."""
         self.scene = Scene(self)
-        self.engine: Engine | None = None
-        self.model: mujoco.MjModel | None = None
         self._compiled_signature: int | None = None
         self._physics_callbacks: dict[str, Callable[[float], None]] = {}
         self._playing = False
@@ -114,27 +85,57 @@ class World:
         self.viewport_camera.lookat[:] = (0.0, 0.0, 0.3)
         self.viewport_camera.distance, self.viewport_camera.azimuth = 3.0, 135.0
         self.viewport_camera.elevation = -25.0
-        World._instance = self
+        set_current_world(self)
 
     @classmethod
     def instance(cls) -> World | None:
         """The most recently created World (Isaac's ``World.instance()``)."""
-        return cls._instance
+        return current_world_or_none()
+
+    def _steps_per_render(self, rendering_dt: float | None) -> int:
+        steps = (rendering_dt or self.physics_dt) / self.physics_dt
+        if abs(steps - round(steps)) > 1e-6 or round(steps) < 1:
+            raise ValueError(
+                f"rendering_dt ({rendering_dt}) must be a whole multiple of physics_dt ({self.physics_dt})"
+            )
+        return round(steps)
+
+    # -- the core objects ------------------------------------------------------
+    @property
+    def stage(self) -> mujoco.MjSpec:
+        """The ``MjSpec`` being built: Isaac's USD stage."""
+        return self.sim.spec
+
+    @property
+    def physics(self) -> PhysicsCfg:
+        """The physics settings applied at every compile."""
+        return self.sim.physics
+
+    @property
+    def engine(self) -> Engine | None:
+        return self.sim.engine
+
+    @property
+    def model(self) -> mujoco.MjModel | None:
+        return self.sim.model
 
     # -- settings -------------------------------------------------------------
     def get_physics_dt(self) -> float:
-        return self.physics.physics_dt
+        return self.physics_dt
 
     def get_rendering_dt(self) -> float:
-        return self.physics.physics_dt * self._physics_steps_per_step
+        return self.physics_dt * self._physics_steps_per_step
 
     def set_simulation_dt(self, physics_dt: float | None = None, rendering_dt: float | None = None):
         """Change the time steps; takes effect at the next ``reset()``."""
         if physics_dt is not None:
-            self.physics.physics_dt = physics_dt
+            if physics_dt <= 0:
+                raise ValueError("physics_dt must be > 0")
+            self.physics_dt = float(physics_dt)
+            self.physics.timestep_s = self.physics_dt / self.substeps
         if rendering_dt is not None:
-            self.physics.rendering_dt = rendering_dt
-        self._physics_steps_per_step = max(1, round(self.get_rendering_dt() / self.physics.physics_dt))
+            self.rendering_dt = rendering_dt
+        self._physics_steps_per_step = self._steps_per_render(self.rendering_dt)
         self._compiled_signature = None
 
     @property
@@ -154,11 +155,10 @@ class World:
         if self.engine is None or self._stage_signature() != self._compiled_signature:
             self._compile()
         else:
-            self.engine.reset()
+            self.sim.reset()
         self._step_index = 0
-        for obj in self.scene.objects():
-            if hasattr(obj, "post_reset"):
-                obj.post_reset()
+        for obj in self.scene.prims():
+            obj.post_reset()
         self.engine.forward()
         self._playing = True
 
@@ -166,33 +166,18 @@ class World:
         """Compile the stage and start the engine without resetting objects' states."""
         self._compile()
 
-    def _apply_settings(self, spec: mujoco.MjSpec) -> None:
-        p = self.physics
-        spec.option.timestep = p.physics_dt / p.substeps
-        spec.option.gravity = list(p.gravity)
-        spec.option.iterations = p.solver_iterations
-        spec.option.integrator = _INTEGRATORS[p.integrator]
-
     def _compile(self) -> None:
-        self._apply_settings(self.stage)
-        try:
-            self.model = self.stage.compile()
-        except ValueError as err:
-            raise ValueError(f"the stage does not compile: {err}") from None
-        self.engine = make_engine(self.model, self.num_worlds, self.device,
-                                  **({"num_threads": self._num_threads} if self.device == "cpu" else {}))
+        self.sim.start()
         self._compiled_signature = self._stage_signature()
-        for obj in self.scene.objects():
-            # prims resolve against the World; sensors only read the engine
-            obj.initialize(self if is_prim(obj) else self.engine)
+        for obj in self.scene.prims():
+            obj.initialize(self)
         # the initial state includes what objects set in initialize (default poses)
         self.engine.forward()
         self.engine.capture_initial_state()
 
     def _stage_signature(self) -> int:
         # the spec has no dirty flag; its XML is a cheap, faithful fingerprint
-        return hash((self.stage.to_xml(), self.physics.physics_dt, self.physics.substeps,
-                     self.physics.solver_iterations, self.physics.gravity, self.physics.integrator))
+        return hash((self.stage.to_xml(), repr(self.physics)))
 
     def _require_engine(self) -> Engine:
         if self.engine is None:
@@ -224,15 +209,14 @@ class World:
         compatibility; recording is done by ``ambulo.sim.Recorder``, which calls
         ``render`` on its own schedule.
         """
-        engine = self._require_engine()
+        self._require_engine()
         if not (step_sim and self._playing):
             return
-        dt = self.physics.physics_dt
         for _ in range(self._physics_steps_per_step):
             for callback in list(self._physics_callbacks.values()):
-                callback(dt)
+                callback(self.physics_dt)
             # the scene API promises current poses after every step
-            engine.step(self.physics.substeps, refresh=True)
+            self.sim.step(self.substeps, refresh=True)
             self._step_index += 1
 
     # -- callbacks -------------------------------------------------------------
@@ -263,8 +247,9 @@ class World:
 
     def _in(self, value, trailing: tuple[int, ...], what: str) -> torch.Tensor:
         """User input as a float64 (N, *trailing) tensor, broadcasting a single value."""
+        device = self.engine.device if self.engine is not None else "cpu"
         tensor = torch.as_tensor(np.asarray(value, dtype=np.float64) if not torch.is_tensor(value) else value,
-                                 dtype=torch.float64)
+                                 dtype=torch.float64, device=device)
         want = (self.num_worlds, *trailing)
         if tensor.shape == trailing:
             tensor = tensor.expand(want)

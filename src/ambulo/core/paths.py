@@ -8,6 +8,7 @@ subtree referenced there; its root body is the one whose parent lies outside it.
 from __future__ import annotations
 
 import difflib
+import fnmatch
 
 import mujoco
 
@@ -69,3 +70,11 @@ def resolve_spec_body(stage: mujoco.MjSpec, prim_path: str) -> mujoco.MjsBody:
             f"{[b.name for b in roots][:5]}"
         )
     return roots[0]
+
+
+def match_names(names: list[str], pattern: str) -> list[int]:
+    """Indices of ``names`` matching glob ``pattern``, by the whole name or its last path
+    component (so ``*_foot`` matches ``/World/robot/left_foot``)."""
+    return [i for i, name in enumerate(names)
+            if name and (fnmatch.fnmatchcase(name, pattern)
+                         or fnmatch.fnmatchcase(name.rsplit("/", 1)[-1], pattern))]

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import mujoco
 
-from .drives import DriveDefaults, ensure_drives
+from .drives import DriveDefaults, add_drive, ensure_drives
 from .packages import resolve_package_uri
 
 _USD_SUFFIXES = (".usd", ".usda", ".usdc", ".usdz")
@@ -191,15 +191,9 @@ def _add_usd_drives(stage, spec: mujoco.MjSpec, relative, file: Path) -> None:
             scale = per_rad if kind == "angular" else 1.0
             kp = float(drive.GetStiffnessAttr().Get() or 0.0) * scale
             kd = float(drive.GetDampingAttr().Get() or 0.0) * scale
-            act = spec.add_actuator(name=joint.name, target=joint.name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
-            act.gaintype, act.biastype = mujoco.mjtGain.mjGAIN_FIXED, mujoco.mjtBias.mjBIAS_AFFINE
-            act.gainprm[0] = 1.0
-            act.biasprm[:3] = [0.0, -kp, -kd]
-            act.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
             max_force = drive.GetMaxForceAttr().Get()
-            if max_force is not None and math.isfinite(max_force) and max_force > 0:
-                act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
-                act.forcerange = [-max_force, max_force]
+            limited = max_force is not None and math.isfinite(max_force) and max_force > 0
+            add_drive(spec, joint.name, kp, kd, max_force if limited else None)
 
 
 def _named_elements(spec: mujoco.MjSpec):

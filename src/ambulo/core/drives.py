@@ -67,11 +67,25 @@ def ensure_drives(spec: mujoco.MjSpec, defaults: DriveDefaults) -> None:
         driven.add(act.target)
     for joint in spec.joints:
         if int(joint.type) in _DRIVEN and joint.name and joint.name not in driven:
-            act = spec.add_actuator(name=joint.name, target=joint.name, trntype=_JOINT)
-            act.gaintype, act.biastype = _FIXED, _AFFINE
-            act.gainprm[0] = 1.0
-            act.biasprm[:3] = [0.0, -defaults.stiffness, -defaults.damping]
-            act.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+            add_drive(spec, joint.name, defaults.stiffness, defaults.damping)
+
+
+def add_drive(spec: mujoco.MjSpec, joint: str, kp: float, kd: float,
+              max_force: float | None = None):
+    """Add the ambulo drive of ``joint`` (gains kp N*m/rad, kd N*m*s/rad; optional force limit N*m)."""
+    act = spec.add_actuator(name=joint, target=joint, trntype=_JOINT)
+    _set_gains(act, kp, kd)
+    if max_force is not None:
+        act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+        act.forcerange = [-max_force, max_force]
+    return act
+
+
+def _set_gains(act, kp: float, kd: float) -> None:
+    act.gaintype, act.biastype = _FIXED, _AFFINE
+    act.gainprm[:3] = [1.0, 0.0, 0.0]
+    act.biasprm[:3] = [0.0, -kp, -kd]
+    act.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
 
 
 def _convert(act) -> None:
@@ -94,7 +108,4 @@ def _convert(act) -> None:
     if gear != 1.0:
         act.forcerange = [r * gear for r in act.forcerange]
         act.gear[0] = 1.0
-    act.gaintype, act.biastype = _FIXED, _AFFINE
-    act.gainprm[:3] = [1.0, 0.0, 0.0]
-    act.biasprm[:3] = [0.0, -kp, -kd]
-    act.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+    _set_gains(act, kp, kd)

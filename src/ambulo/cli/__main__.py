@@ -1,0 +1,7 @@
+"""``python -m ambulo.cli <command> ...``: the same as the ``ambulo`` console script."""
+
+import sys
+
+from . import main
+
+sys.exit(main())

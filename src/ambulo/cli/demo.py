@@ -1,0 +1,25 @@
+"""``ambulo demo``: the Jetbot + humanoid scene, headless, written to an MP4."""
+
+from __future__ import annotations
+
+import argparse
+
+
+def run(args: argparse.Namespace) -> int:
+    from ambulo.demo import run_demo  # noqa: PLC0415
+
+    report = run_demo(seconds=args.seconds, video=None if args.no_video else args.video,
+                      progress=not args.quiet)
+    for line in report.lines():
+        print(line)
+    return 0 if report.humanoid_stood else 1
+
+
+def add_commands(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``demo`` to the ``ambulo`` parser."""
+    p = subparsers.add_parser("demo", help="Jetbot + humanoid scene, headless, written to an MP4")
+    p.add_argument("--seconds", type=float, default=8.0, help="simulated seconds")
+    p.add_argument("--video", default="out/demo.mp4", help="MP4 to write")
+    p.add_argument("--no-video", action="store_true", help="skip rendering")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=run)

@@ -1,0 +1,378 @@
+"""Entity: one robot or rigid body tree in N worlds, as documented batched tensors.
+
+An ``Entity`` resolves a prim path in the compiled model once (root body, free joint,
+hinge/slide joints, their drive actuators, bodies of the subtree) and then reads and
+writes the engine's state tensors directly: RL tasks, randomizers and the Isaac-style
+``Articulation``/``RigidPrim`` all go through it. Every tensor is ``(N, ...)`` on the
+engine's device, float64 like the engine state.
+
+Lag: state fields (``root_pos_w`` of a free body, ``joint_pos``, ``joint_vel``, velocities of a
+free root) are read from ``qpos``/``qvel`` and are current after every engine step.
+Derived fields (``body_pos_w``, ``body_quat_w``, ``body_lin_vel_w``, ``joint_effort``, the
+root pose of a jointed or fixed root) come from kinematics that, after
+``engine.step(refresh=False)``, describe the state one substep before the last
+(as after ``mj_step``); ``engine.step(refresh=True)`` or ``engine.forward()`` makes them current.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import torch
+
+from ..utils.math import quat_rotate, quat_rotate_inverse, yaw_from_quat
+from .drives import is_drive
+from .paths import resolve_body, subtree_body_ids
+
+_FREE = int(mujoco.mjtJoint.mjJNT_FREE)
+_DOF_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+
+
+def _index(idx: np.ndarray, device: torch.device) -> slice | torch.Tensor:
+    """A slice when ``idx`` is contiguous (indexing then gives a view), else an index tensor."""
+    if idx.size and np.array_equal(idx, np.arange(idx[0], idx[0] + idx.size)):
+        return slice(int(idx[0]), int(idx[0] + idx.size))
+    return torch.as_tensor(idx, dtype=torch.long, device=device)
+
+
+def _put(dst: torch.Tensor, cols, value: torch.Tensor, env_ids: torch.Tensor | None) -> None:
+    """``dst[rows, cols] = value`` for ``env_ids``: None (all rows), indices (``value`` has one
+    row per index) or an (N,) bool mask (``value`` has N rows; masked rows are written with
+    ``torch.where``, so finding them needs no host sync)."""
+    if env_ids is None:
+        dst[:, cols] = value
+    elif env_ids.dtype == torch.bool:
+        old = dst[:, cols]
+        mask = env_ids.reshape(-1, *([1] * (old.dim() - 1)))
+        dst[:, cols] = torch.where(mask, value.to(old.dtype), old)
+    elif isinstance(cols, torch.Tensor):
+        dst[env_ids.reshape(-1, 1), cols] = value
+    else:
+        dst[env_ids, cols] = value
+
+
+class Entity:
+    """The bodies and joints under ``prim_path`` in every world of ``engine``.
+
+    Args:
+      engine: an ``ambulo.engine.Engine`` over the compiled scene.
+      prim_path: the entity's prim path (``/World/robot``): a body of that name or the root
+        of the subtree of bodies named ``<prim_path>/...``.
+      default_joint_pos: joint name (relative to ``prim_path``) -> default position, rad or m;
+        other joints default to the model's ``qpos0``.
+      soft_limit_factor: fraction of each joint's range, about its middle, that is "safe".
+      require_drives: every joint must have an ambulo drive (``core.drives``).
+    """
+
+    def __init__(self, engine, prim_path: str, *, default_joint_pos: dict[str, float] | None = None,
+                 soft_limit_factor: float = 0.9, require_drives: bool = True):
+        model: mujoco.MjModel = engine.model
+        self.engine = engine
+        self.prim_path = prim_path.rstrip("/")
+        self.device = torch.device(engine.device)
+        self.num_worlds = engine.num_worlds
+        prefix = self.prim_path + "/"
+        self.root_body_id = resolve_body(model, self.prim_path)
+        bodies = subtree_body_ids(model, self.prim_path) or [self.root_body_id]
+        self.body_names = [model.body(b).name.removeprefix(prefix) for b in bodies]
+        """Names of the entity's bodies relative to the prim path, in ``body_*`` order."""
+        self._body_ids_np = np.asarray(bodies)
+        self._roots_np = model.body_rootid[self._body_ids_np]
+
+        jnt = model.body_jntadr[self.root_body_id]
+        self.is_floating = bool(model.body_jntnum[self.root_body_id] >= 1 and model.jnt_type[jnt] == _FREE)
+        """Whether the root body has a free joint (else it is fixed or jointed to a parent)."""
+        self._free_qpos = int(model.jnt_qposadr[jnt]) if self.is_floating else None
+        self._free_dof = int(model.jnt_dofadr[jnt]) if self.is_floating else None
+        self._root_static = (not self.is_floating
+                             and int(model.body_parentid[self.root_body_id]) == 0
+                             and int(model.body_jntnum[self.root_body_id]) == 0)
+
+        body_set = set(bodies)
+        joints = [j for j in range(model.njnt)
+                  if int(model.jnt_bodyid[j]) in body_set and int(model.jnt_type[j]) in _DOF_JOINTS]
+        self.joint_names = [model.joint(j).name.removeprefix(prefix) for j in joints]
+        """Hinge/slide joint names relative to the prim path, in ``joint_*`` order."""
+        self.num_joints = len(joints)
+        self._joint_ids = np.asarray(joints, dtype=np.int64)
+        self._qpos_adr = model.jnt_qposadr[self._joint_ids] if joints else np.zeros(0, np.int64)
+        self._dof_adr = model.jnt_dofadr[self._joint_ids] if joints else np.zeros(0, np.int64)
+        actuator_of = {int(model.actuator_trnid[a, 0]): a for a in range(model.nu)
+                       if model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT and is_drive(model.actuator(a))}
+        missing = [model.joint(j).name for j in joints if j not in actuator_of]
+        if missing and require_drives:
+            raise ValueError(
+                f"joints {missing[:5]} of {self.prim_path} have no ambulo drive; load the robot "
+                "through ambulo.core.add_robot / add_reference_to_stage (which adds drives)")
+        self.has_drives = not missing
+        self._act_adr = np.asarray([actuator_of.get(j, -1) for j in joints], dtype=np.int64)
+
+        default = model.qpos0[self._qpos_adr].copy()
+        overrides = dict(default_joint_pos or {})
+        unknown = sorted(set(overrides) - set(self.joint_names))
+        if unknown:
+            raise ValueError(f"default joint positions name unknown joints {unknown}; "
+                             f"joints of {self.prim_path}: {self.joint_names}")
+        for name, value in overrides.items():
+            default[self.joint_names.index(name)] = value
+        limited = model.jnt_limited[self._joint_ids].astype(bool)
+        rng = model.jnt_range[self._joint_ids].reshape(-1, 2)
+        lower, upper = np.where(limited, rng[:, 0], -np.inf), np.where(limited, rng[:, 1], np.inf)
+        mid, half = 0.5 * (rng[:, 0] + rng[:, 1]), 0.5 * (rng[:, 1] - rng[:, 0]) * soft_limit_factor
+
+        dev, f64 = self.device, dict(dtype=torch.float64, device=self.device)
+        self.body_ids = torch.as_tensor(self._body_ids_np, device=dev)
+        self._root_of_body = torch.as_tensor(self._roots_np, device=dev)
+        self.qpos_idx = _index(self._qpos_adr, dev)
+        self.dof_idx = _index(self._dof_adr, dev)
+        self.actuator_idx = _index(self._act_adr, dev) if self.has_drives else None
+        self._qpos_idx_t = torch.as_tensor(self._qpos_adr, dtype=torch.long, device=dev)
+        self._dof_idx_t = torch.as_tensor(self._dof_adr, dtype=torch.long, device=dev)
+        self.default_joint_pos = torch.as_tensor(default, **f64)
+        """(J,) default joint positions, rad or m."""
+        self.joint_pos_limits = torch.as_tensor(np.stack([lower, upper], -1), **f64).reshape(-1, 2)
+        """(J, 2) lower/upper joint limits, rad or m; +-inf where unlimited."""
+        self.soft_joint_pos_limits = torch.as_tensor(
+            np.stack([np.where(limited, mid - half, -np.inf), np.where(limited, mid + half, np.inf)], -1),
+            **f64).reshape(-1, 2)
+        """(J, 2) the ``soft_limit_factor`` share of each range about its middle."""
+        self.data = EntityData(self)
+
+    # -- joints by name -------------------------------------------------------------------
+    def find_joints(self, names) -> list[int]:
+        """Indices (into ``joint_*``) of joints by name; a helpful KeyError for unknown names."""
+        out = []
+        for name in [names] if isinstance(names, str) else names:
+            if name not in self.joint_names:
+                raise KeyError(f"unknown joint {name!r} of {self.prim_path}; joints: {self.joint_names}")
+            out.append(self.joint_names.index(name))
+        return out
+
+    def find_bodies(self, names) -> list[int]:
+        """Indices (into ``body_*``) of bodies by name."""
+        out = []
+        for name in [names] if isinstance(names, str) else names:
+            if name not in self.body_names:
+                raise KeyError(f"unknown body {name!r} of {self.prim_path}; bodies: {self.body_names}")
+            out.append(self.body_names.index(name))
+        return out
+
+    # -- writes -----------------------------------------------------------------------------
+    def write_root_pose(self, pos_w: torch.Tensor | None = None, quat_w: torch.Tensor | None = None,
+                        env_ids: torch.Tensor | None = None) -> None:
+        """Set the root position (n, 3) m and orientation (n, 4) wxyz, world frame, of ``env_ids``.
+
+        A free root writes its joint state; a static root (a body fixed to the world) moves per
+        world through the model's ``body_pos``/``body_quat``. Derived fields update at the next
+        ``engine.forward()``/step.
+        """
+        if self.is_floating:
+            a = self._free_qpos
+            if pos_w is not None:
+                _put(self.engine.qpos, slice(a, a + 3), pos_w, env_ids)
+            if quat_w is not None:
+                _put(self.engine.qpos, slice(a + 3, a + 7), quat_w, env_ids)
+        elif self._root_static:
+            b = slice(self.root_body_id, self.root_body_id + 1)
+            if pos_w is not None:
+                _put(self.engine.model_field("body_pos"), b, pos_w.reshape(-1, 1, 3), env_ids)
+            if quat_w is not None:
+                _put(self.engine.model_field("body_quat"), b, quat_w.reshape(-1, 1, 4), env_ids)
+        else:
+            raise ValueError(f"{self.prim_path} is jointed to a parent body; move its root or "
+                             "set its joint positions instead")
+
+    def write_root_velocity(self, lin_vel_w: torch.Tensor | None = None,
+                            ang_vel_w: torch.Tensor | None = None,
+                            env_ids: torch.Tensor | None = None) -> None:
+        """Set the free root's linear (n, 3) m/s and angular (n, 3) rad/s velocity, world frame."""
+        if not self.is_floating:
+            raise ValueError(f"{self.prim_path} has no free joint (it is fixed or jointed)")
+        d = self._free_dof
+        if lin_vel_w is not None:
+            _put(self.engine.qvel, slice(d, d + 3), lin_vel_w, env_ids)
+        if ang_vel_w is not None:
+            quat = self.data.root_quat_w
+            if env_ids is not None and env_ids.dtype != torch.bool:
+                quat = quat[env_ids]
+            # MuJoCo keeps a free joint's angular velocity in the body frame
+            _put(self.engine.qvel, slice(d + 3, d + 6), quat_rotate_inverse(quat, ang_vel_w), env_ids)
+
+    def write_joint_state(self, pos: torch.Tensor | None = None, vel: torch.Tensor | None = None,
+                          env_ids: torch.Tensor | None = None, joint_ids=None) -> None:
+        """Set joint positions (n, j) and velocities (n, j) of ``env_ids`` and ``joint_ids`` (None: all).
+
+        ``env_ids`` (here and in every ``write_*``): None, indices (values have one row each) or
+        an (N,) bool mask (values have N rows; only masked worlds change, with no host sync)."""
+        qpos_idx = self.qpos_idx if joint_ids is None else self._qpos_idx_t[joint_ids]
+        dof_idx = self.dof_idx if joint_ids is None else self._dof_idx_t[joint_ids]
+        if pos is not None:
+            _put(self.engine.qpos, qpos_idx, pos, env_ids)
+        if vel is not None:
+            _put(self.engine.qvel, dof_idx, vel, env_ids)
+
+    def set_joint_targets(self, pos: torch.Tensor, vel: torch.Tensor | None = None,
+                          effort: torch.Tensor | None = None) -> None:
+        """Drive every joint of every world: ``tau = kp (pos - q) + kd (vel - qd) + effort``.
+
+        ``pos``, ``vel``, ``effort``: (N, J) targets (rad, rad/s, N m). Writes the drives'
+        ``ctrl = kp pos + kd vel + effort`` with each world's own gains, so gain randomization
+        holds; MuJoCo integrates the damping implicitly.
+        """
+        bias = self.engine.model_field("actuator_biasprm")
+        act = self._require_drives()
+        ctrl = -bias[:, act, 1] * pos
+        if vel is not None:
+            ctrl -= bias[:, act, 2] * vel
+        if effort is not None:
+            ctrl += effort
+        self.engine.ctrl[:, act] = ctrl
+
+    def write_gains(self, kp: torch.Tensor | None = None, kd: torch.Tensor | None = None,
+                    joint_ids=None, env_ids: torch.Tensor | None = None) -> None:
+        """Set drive stiffness kp (N m/rad) and damping kd (N m s/rad) per world and joint."""
+        self._require_drives()
+        idx = torch.as_tensor(self._act_adr, device=self.device)
+        idx = idx if joint_ids is None else idx[torch.as_tensor(joint_ids, device=self.device)]
+        bias = self.engine.model_field("actuator_biasprm")
+        if kp is not None:
+            _put(bias[..., 1], idx, -kp, env_ids)
+        if kd is not None:
+            _put(bias[..., 2], idx, -kd, env_ids)
+
+    def _require_drives(self):
+        if self.actuator_idx is None:
+            raise ValueError(f"{self.prim_path} has joints without ambulo drives; it cannot be driven")
+        return self.actuator_idx
+
+
+class EntityData:
+    """Live batched state of an ``Entity``: each property reads the engine's tensors."""
+
+    def __init__(self, entity: Entity):
+        self._e = entity
+        self._gravity_w = torch.tensor([0.0, 0.0, -1.0], dtype=torch.float64, device=entity.device)
+
+    # -- root -------------------------------------------------------------------------------
+    @property
+    def root_pos_w(self) -> torch.Tensor:
+        """(N, 3) root body origin in the world frame, m."""
+        e = self._e
+        if e.is_floating:
+            return e.engine.qpos[:, e._free_qpos:e._free_qpos + 3]
+        return e.engine.xpos[:, e.root_body_id]
+
+    @property
+    def root_quat_w(self) -> torch.Tensor:
+        """(N, 4) root body orientation (w, x, y, z) in the world frame."""
+        e = self._e
+        if e.is_floating:
+            return e.engine.qpos[:, e._free_qpos + 3:e._free_qpos + 7]
+        return e.engine.xquat[:, e.root_body_id]
+
+    @property
+    def root_lin_vel_w(self) -> torch.Tensor:
+        """(N, 3) velocity of the root body origin in the world frame, m/s."""
+        e = self._e
+        if e.is_floating:
+            return e.engine.qvel[:, e._free_dof:e._free_dof + 3]
+        return self.body_lin_vel_w[:, 0]
+
+    @property
+    def root_ang_vel_b(self) -> torch.Tensor:
+        """(N, 3) root angular velocity in the root body frame, rad/s."""
+        e = self._e
+        if e.is_floating:
+            return e.engine.qvel[:, e._free_dof + 3:e._free_dof + 6]
+        return quat_rotate_inverse(self.root_quat_w, self.root_ang_vel_w)
+
+    @property
+    def root_ang_vel_w(self) -> torch.Tensor:
+        """(N, 3) root angular velocity in the world frame, rad/s."""
+        e = self._e
+        if e.is_floating:
+            return quat_rotate(self.root_quat_w, self.root_ang_vel_b)
+        return e.engine.cvel[:, e.root_body_id, :3]
+
+    @property
+    def root_lin_vel_b(self) -> torch.Tensor:
+        """(N, 3) velocity of the root origin in the root body frame, m/s."""
+        return quat_rotate_inverse(self.root_quat_w, self.root_lin_vel_w)
+
+    @property
+    def projected_gravity_b(self) -> torch.Tensor:
+        """(N, 3) unit gravity direction in the root body frame: (0, 0, -1) when upright."""
+        quat = self.root_quat_w
+        return quat_rotate_inverse(quat, self._gravity_w.expand(quat.shape[0], 3))
+
+    @property
+    def heading_w(self) -> torch.Tensor:
+        """(N,) yaw of the root about world z, rad."""
+        return yaw_from_quat(self.root_quat_w)
+
+    # -- joints -----------------------------------------------------------------------------
+    @property
+    def joint_pos(self) -> torch.Tensor:
+        """(N, J) joint positions, rad or m."""
+        return self._e.engine.qpos[:, self._e.qpos_idx]
+
+    @property
+    def joint_vel(self) -> torch.Tensor:
+        """(N, J) joint velocities, rad/s or m/s."""
+        return self._e.engine.qvel[:, self._e.dof_idx]
+
+    @property
+    def joint_pos_rel(self) -> torch.Tensor:
+        """(N, J) joint positions relative to ``default_joint_pos``, rad or m."""
+        return self.joint_pos - self._e.default_joint_pos
+
+    @property
+    def joint_effort(self) -> torch.Tensor:
+        """(N, J) torque the drives exert on the joints (after force limits), N m (derived, lags)."""
+        return self._e.engine.qfrc_actuator[:, self._e.dof_idx]
+
+    @property
+    def joint_stiffness(self) -> torch.Tensor:
+        """(N, J) drive stiffness kp per world, N m/rad (a copy)."""
+        return -self._e.engine.model_field("actuator_biasprm")[:, self._e._require_drives(), 1]
+
+    @property
+    def joint_damping(self) -> torch.Tensor:
+        """(N, J) drive damping kd per world, N m s/rad (a copy)."""
+        return -self._e.engine.model_field("actuator_biasprm")[:, self._e._require_drives(), 2]
+
+    # -- bodies (derived: lag one substep after a step without refresh) ---------------------
+    @property
+    def body_pos_w(self) -> torch.Tensor:
+        """(N, B, 3) body frame origins in the world frame, m."""
+        return self._e.engine.xpos[:, self._e.body_ids]
+
+    @property
+    def body_quat_w(self) -> torch.Tensor:
+        """(N, B, 4) body orientations (w, x, y, z), world frame."""
+        return self._e.engine.xquat[:, self._e.body_ids]
+
+    @property
+    def body_ang_vel_w(self) -> torch.Tensor:
+        """(N, B, 3) body angular velocities, world frame, rad/s."""
+        return self._e.engine.cvel[:, self._e.body_ids, :3]
+
+    @property
+    def body_lin_vel_w(self) -> torch.Tensor:
+        """(N, B, 3) velocities of the body frame origins, world frame, m/s.
+
+        MuJoCo's ``cvel`` is a spatial velocity expressed at the subtree centre of mass of
+        the kinematic tree's root, so the origin's velocity is v + w x (p_body - p_com).
+        """
+        engine, ids = self._e.engine, self._e.body_ids
+        cvel = engine.cvel[:, ids]
+        offset = engine.xpos[:, ids] - engine.subtree_com[:, self._e._root_of_body]
+        return cvel[..., 3:] + torch.cross(cvel[..., :3], offset, dim=-1)
+
+    @property
+    def body_mass(self) -> torch.Tensor:
+        """(N, B) body masses per world, kg (a copy)."""
+        return self._e.engine.model_field("body_mass")[:, self._e.body_ids]
+
+
+__all__ = ["Entity", "EntityData"]

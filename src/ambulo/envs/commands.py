@@ -1,0 +1,85 @@
+"""Velocity commands for locomotion: resampled within episodes, heading control, standing envs.
+
+As mjlab's / Isaac Lab's ``UniformVelocityCommand``: every env draws a planar velocity
+command (heading frame) and a yaw rate, and draws again after a random resampling time, so
+one episode trains several commands. With heading control a share of envs is given a
+target heading instead of a yaw rate, and the yaw rate command steers towards it
+(``stiffness * heading error``, clipped to the yaw-rate range). A share of envs is told to
+stand (zero command). Everything is (N,) tensors updated with masks.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import torch
+
+
+@dataclass(kw_only=True)
+class VelocityCommandCfg:
+    lin_vel_x_m_s: tuple[float, float] = (-1.0, 1.0)
+    """Forward velocity range, heading frame."""
+    lin_vel_y_m_s: tuple[float, float] = (-0.5, 0.5)
+    """Leftward velocity range, heading frame."""
+    yaw_rate_rad_s: tuple[float, float] = (-1.0, 1.0)
+    """Yaw-rate range; heading-controlled envs are clipped to it too."""
+    heading_rad: tuple[float, float] = (-math.pi, math.pi)
+    """Target heading range for heading-controlled envs."""
+    heading_fraction: float = 0.5
+    """Share of envs that track a target heading instead of a yaw rate."""
+    heading_stiffness: float = 0.5
+    """Yaw rate per rad of heading error, 1/s."""
+    standing_fraction: float = 0.1
+    """Share of envs commanded to stand still."""
+    resampling_time_s: tuple[float, float] = (4.0, 8.0)
+    """A new command is drawn after a time uniform in this range."""
+
+
+def wrap_to_pi(angle: torch.Tensor) -> torch.Tensor:
+    return torch.remainder(angle + math.pi, 2.0 * math.pi) - math.pi
+
+
+class VelocityCommand:
+    """(N, 3) commands (vx, vy in the heading frame, m/s; yaw rate, rad/s) for N envs."""
+
+    def __init__(self, cfg: VelocityCommandCfg, num_envs: int, generator: torch.Generator,
+                 device: torch.device):
+        self.cfg, self.num_envs, self.gen, self.device = cfg, num_envs, generator, device
+        f32 = dict(dtype=torch.float32, device=device)
+        self.command = torch.zeros(num_envs, 3, **f32)
+        """(N, 3): commanded (vx, vy) in the heading frame, m/s, and yaw rate, rad/s."""
+        self.heading_target = torch.zeros(num_envs, **f32)
+        self.is_heading = torch.zeros(num_envs, dtype=torch.bool, device=device)
+        self.is_standing = torch.zeros_like(self.is_heading)
+        self.time_left_s = torch.zeros(num_envs, **f32)
+
+    def _uniform(self, low: float, high: float) -> torch.Tensor:
+        u = torch.rand(self.num_envs, generator=self.gen, device=self.device)
+        return low + (high - low) * u
+
+    def resample(self, mask: torch.Tensor) -> None:
+        """Draw new commands for the envs where ``mask`` (N,) is true."""
+        c = self.cfg
+        new = torch.stack([self._uniform(*c.lin_vel_x_m_s), self._uniform(*c.lin_vel_y_m_s),
+                           self._uniform(*c.yaw_rate_rad_s)], dim=1)
+        self.command = torch.where(mask[:, None], new, self.command)
+        self.heading_target = torch.where(mask, self._uniform(*c.heading_rad), self.heading_target)
+        self.is_heading = torch.where(mask, self._uniform(0.0, 1.0) < c.heading_fraction, self.is_heading)
+        self.is_standing = torch.where(mask, self._uniform(0.0, 1.0) < c.standing_fraction, self.is_standing)
+        self.time_left_s = torch.where(mask, self._uniform(*c.resampling_time_s), self.time_left_s)
+
+    def update(self, dt_s: float, heading_w: torch.Tensor) -> None:
+        """Advance timers by ``dt_s``, resample where due, steer heading envs, zero standing ones.
+
+        ``heading_w``: (N,) current yaw of each robot, rad.
+        """
+        self.time_left_s -= dt_s
+        self.resample(self.time_left_s <= 0.0)
+        low, high = self.cfg.yaw_rate_rad_s
+        steer = (self.cfg.heading_stiffness * wrap_to_pi(self.heading_target - heading_w.float())).clamp(low, high)
+        self.command[:, 2] = torch.where(self.is_heading, steer, self.command[:, 2])
+        self.command.masked_fill_(self.is_standing[:, None], 0.0)
+
+
+__all__ = ["VelocityCommand", "VelocityCommandCfg", "wrap_to_pi"]

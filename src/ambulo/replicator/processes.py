@@ -1,0 +1,177 @@
+"""Frames of one dataset made by N local processes: each builds the scene once and renders chunks of frames.
+
+Processes are started with 'spawn' (a fresh interpreter), never forked from
+a process that may hold a GL context. Each one renders with the software
+rasterizer inline (``LP_NUM_THREADS=0``): the processes already occupy the
+cores, and llvmpipe's own threads would only add hand-offs between them.
+Frame ``i`` depends only on (config, seed, i), so which process renders it
+does not change its files; every file is written atomically, so a worker or
+parent killed at any instant leaves no partial file behind (``generate``).
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import multiprocessing as mp
+import os
+import pickle
+import signal
+import sys
+import threading
+import time
+from pathlib import Path
+
+LP_THREADS_ENV = "LP_NUM_THREADS"
+_MIN_CHUNK, _MAX_CHUNK = 4, 32  # frames per task: short for progress and balance, long enough to keep
+                                # the render/write pipeline full (it drains at the end of each task)
+_FRAMES_PER_EXTRA_WORKER = 64  # a process costs ~2 s to start (imports, scene, GL): not for a handful of frames
+
+
+def usable_cpus() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1
+
+
+def default_workers(num_frames: int) -> int:
+    """One process per usable CPU, but none that would get fewer than ~64 frames to make."""
+    return max(1, min(usable_cpus(), num_frames // _FRAMES_PER_EXTRA_WORKER))
+
+
+def prepare_producer_process() -> None:
+    """Render inline in this process unless the user chose llvmpipe's thread count.
+
+    Call before the first GL context: llvmpipe reads LP_NUM_THREADS once, when
+    its screen is created. Ignored by GPU drivers.
+    """
+    os.environ.setdefault(LP_THREADS_ENV, "0")
+
+
+class ProducerPool:
+    """``workers`` spawned processes that write frames of (config, seed) into ``out``.
+
+    Each process builds its ``FrameProducer`` on its first task. Use as a
+    context manager; ``run`` may be called many times (the benchmark warms up
+    first).
+    """
+
+    def __init__(self, config, out: str | Path, seed: int, workers: int):
+        if workers < 1:
+            raise ValueError(f"workers must be >= 1, got {workers}")
+        self.workers = workers
+        ctx = mp.get_context("spawn")
+        self._barrier = ctx.Barrier(workers)
+        self._pool = cf.ProcessPoolExecutor(
+            workers, mp_context=ctx, initializer=_start_worker,
+            initargs=(_dump_config(config), str(out), seed, os.getpid(), self._barrier))
+
+    def run(self, frames: list[int], progress=None) -> str:
+        """Render and write ``frames`` across the processes; returns the GL renderer string."""
+        futures = {self._pool.submit(_run_chunk, chunk): len(chunk) for chunk in _chunks(frames, self.workers)}
+        renderer = ""
+        try:
+            for fut in cf.as_completed(futures):
+                renderer = fut.result()
+                if progress is not None:
+                    progress(futures[fut])
+        except cf.process.BrokenProcessPool as err:
+            raise RuntimeError(
+                "a frame-producer process died (see its error above). Workers are spawned and import the "
+                "main module: a script calling generate(workers > 1) needs `if __name__ == '__main__':`"
+            ) from err
+        except BaseException:
+            for fut in futures:
+                fut.cancel()
+            raise
+        return renderer
+
+    def run_on_each(self, fn, *args) -> list:
+        """``fn(producer, *args)`` once in every process, started together (a barrier); call on an idle,
+        fresh pool. For measurements such as the benchmark's render floor; ``fn`` must be picklable."""
+        futures = [self._pool.submit(_on_each, fn, args) for _ in range(self.workers)]
+        return [fut.result() for fut in futures]
+
+    def close(self) -> None:
+        # workers ignore Ctrl-C: after an interrupt they finish the chunk in hand and exit here
+        self._pool.shutdown(wait=True, cancel_futures=True)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def run_on_processes(config, out: Path, seed: int, frames: list[int], workers: int, progress=None) -> str:
+    with ProducerPool(config, out, seed, workers) as pool:
+        return pool.run(frames, progress)
+
+
+def _chunks(frames: list[int], workers: int) -> list[list[int]]:
+    size = max(_MIN_CHUNK, min(_MAX_CHUNK, len(frames) // (4 * workers)))
+    return [frames[i:i + size] for i in range(0, len(frames), size)]
+
+
+def _dump_config(config) -> bytes:
+    """The config for the spawned processes. cloudpickle copies by value what a new interpreter
+    can't import by name: functions of a config file run by ``ambulo generate``, of a notebook or
+    script (``__main__``), lambdas; plain pickle is the fallback without it."""
+    try:
+        import cloudpickle
+    except ImportError:
+        return pickle.dumps(config)
+    return cloudpickle.dumps(config)
+
+
+# -- in the worker processes ------------------------------------------------------
+
+_worker: dict = {}
+
+
+def _start_worker(payload: bytes, out: str, seed: int, parent_pid: int, barrier) -> None:
+    _die_with_parent(parent_pid)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's: it stops the pool
+    prepare_producer_process()
+    _worker.update(payload=payload, out=Path(out), seed=seed, barrier=barrier)
+
+
+def _producer():
+    if "producer" not in _worker:
+        from .generate import FrameProducer
+
+        _worker["config"] = pickle.loads(_worker.pop("payload"))
+        _worker["producer"] = FrameProducer(_worker["config"])
+    return _worker["producer"]
+
+
+def _run_chunk(frames: list[int]) -> str:
+    from .generate import run_frames
+
+    producer = _producer()
+    return run_frames(_worker["config"], _worker["out"], _worker["seed"], frames, producer=producer)
+
+
+def _on_each(fn, args):
+    producer = _producer()
+    _worker["barrier"].wait()
+    return fn(producer, *args)
+
+
+def _die_with_parent(parent_pid: int) -> None:
+    """Exit when the parent dies (e.g. SIGKILL), so no orphan keeps writing into a dataset being resumed."""
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        pr_set_pdeathsig = 1
+        ctypes.CDLL(None).prctl(pr_set_pdeathsig, signal.SIGKILL)
+    else:
+        threading.Thread(target=_watch_parent, args=(parent_pid,), daemon=True).start()
+    if os.getppid() != parent_pid:  # it died before we asked
+        os._exit(1)
+
+
+def _watch_parent(parent_pid: int) -> None:
+    while os.getppid() == parent_pid:
+        time.sleep(0.5)
+    os._exit(1)

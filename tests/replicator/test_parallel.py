@@ -1,0 +1,100 @@
+"""Local worker processes: the same files as one process, a killed parallel run resumes, worker errors surface."""
+
+import dataclasses
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from ambulo import replicator as rep
+from ambulo.replicator.processes import _chunks, default_workers
+
+SIZE = (160, 120)
+SRC = str(Path(rep.__file__).resolve().parents[2])
+
+
+def tree(root: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def test_one_and_two_worker_processes_write_identical_files(tmp_path, small_config):
+    config = small_config()
+    # a closure, as a config file or notebook would give: the workers get it by value (cloudpickle)
+    build = config.build_scene
+    config = dataclasses.replace(config, build_scene=lambda: build())
+    rep.generate(config, tmp_path / "one", num_frames=10, seed=7, workers=1, show_progress=False)
+    rep.generate(config, tmp_path / "two", num_frames=10, seed=7, workers=2, show_progress=False,
+                 backend="processes")
+    one, two = tree(tmp_path / "one"), tree(tmp_path / "two")
+    assert one.keys() == two.keys() and len(one) > 40
+    assert [name for name in one if one[name] != two[name]] == []
+
+
+def test_an_error_in_a_worker_process_is_raised_by_generate(tmp_path, small_config):
+    def broken_scene():
+        raise RuntimeError("no scene here")
+
+    config = dataclasses.replace(small_config(), build_scene=broken_scene)
+    with pytest.raises(RuntimeError, match="no scene here"):
+        rep.generate(config, tmp_path, num_frames=8, seed=0, workers=2, show_progress=False)
+
+
+def test_default_workers_and_chunks():
+    assert default_workers(10) == 1  # process start-up would cost more than it saves
+    assert 1 <= default_workers(100_000) <= os.cpu_count()
+    frames = list(range(3, 1000))
+    chunks = _chunks(frames, 2)
+    assert [i for c in chunks for i in c] == frames and max(map(len, chunks)) <= 32
+
+
+def _children(pid: int) -> list[int]:
+    kids = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid:
+            kids.append(int(stat.parent.name))
+    return kids
+
+
+def _cli(out: Path, frames: int, workers: int) -> list[str]:
+    return [sys.executable, "-m", "ambulo.cli", "generate", "--frames", str(frames), "--out", str(out),
+            "--seed", "4", "--width", str(SIZE[0]), "--height", str(SIZE[1]), "--quiet", "--workers", str(workers)]
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_killed_parallel_run_leaves_no_workers_and_resumes_to_the_one_process_result(tmp_path):
+    env = {**os.environ, "PYTHONPATH": SRC + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    frames = 120
+    victim = subprocess.Popen(_cli(tmp_path / "resumed", frames, 2), env=env,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    records = tmp_path / "resumed" / "frames"
+    deadline = time.time() + 120
+    while time.time() < deadline and victim.poll() is None:
+        if records.is_dir() and len(list(records.glob("*.json"))) >= 5:
+            break
+        time.sleep(0.02)
+    assert victim.poll() is None, "the run finished before it could be killed: raise `frames`"
+    workers = [pid for pid in _children(victim.pid) if "spawn_main" in Path(f"/proc/{pid}/cmdline").read_text()]
+    victim.send_signal(signal.SIGKILL)
+    victim.wait()
+    assert len(workers) == 2
+    deadline = time.time() + 10
+    while any(Path(f"/proc/{pid}").exists() for pid in workers) and time.time() < deadline:
+        time.sleep(0.05)
+    # they died with their parent: nothing writes into the folder while it is resumed
+    assert not [pid for pid in workers if Path(f"/proc/{pid}").exists() and
+                (Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z")]
+    done_before = len(list(records.glob("*.json")))
+    assert 5 <= done_before < frames
+    subprocess.run(_cli(tmp_path / "resumed", frames, 2), env=env, check=True, capture_output=True)
+    subprocess.run(_cli(tmp_path / "straight", frames, 1), env=env, check=True, capture_output=True)
+    resumed, straight = tree(tmp_path / "resumed"), tree(tmp_path / "straight")
+    assert not [name for name in resumed if ".tmp-" in name]
+    assert resumed == straight
