@@ -19,17 +19,16 @@ import numpy as np
 import torch
 from mujoco.batch import Batch
 
-from ambulo import assets
+from ambulo.core import GroundCfg, PhysicsCfg, RobotCfg, add_ground, add_robot, compile_scene, new_scene
 from ambulo.engine import CpuEngine
 
 
 def humanoid_scene() -> mujoco.MjModel:
-    spec = mujoco.MjSpec()
-    spec.option.timestep = 0.005
-    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-    spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[50, 50, 0.1])
-    spec.attach(mujoco.MjSpec.from_file(assets.path("humanoid")), prefix="h/", frame=spec.worldbody.add_frame())
-    return spec.compile()
+    """The bundled humanoid on the default ground, built by the core scene builder."""
+    spec = new_scene("engine_bench")
+    add_ground(spec, GroundCfg())
+    add_robot(spec, RobotCfg(file="humanoid", prim_path="/World/robot"))
+    return compile_scene(spec, PhysicsCfg(timestep_s=0.005))
 
 
 def time_raw(model, n, steps, threads, ctrl) -> float:

@@ -1,6 +1,6 @@
 """Annotated synthetic-data frames/s on CPU vs the two-pass render floor, with the same process count.
 
-    python benchmarks/replicator_cpu.py [--frames 600] [--workers 1 2] [--repeats 2]
+    python benchmarks/replicator_cpu.py [--frames 600] [--workers 1 2] [--repeats 2] [--sizes 320x240 640x480]
 
 For each image size and worker count P, in the same run:
 
@@ -9,8 +9,8 @@ For each image size and worker count P, in the same run:
   randomized example scene of frame 0); frames/s summed over the processes.
 - annotated: what ``ambulo generate --workers P`` does in steady state:
   randomize, render both passes, instance/semantic maps, 2D/3D boxes, COCO RLE,
-  PNG rgb + 16-bit depth + instance/semantic, KITTI-free frame records, all
-  written atomically. P = 1 runs in this process (llvmpipe's default threads),
+  PNG rgb + 16-bit depth + instance/semantic PNGs and the frame record, all
+  written atomically (into ``--dir``, a temporary folder by default). P = 1 runs in this process (llvmpipe's default threads),
   P > 1 on ``ProducerPool`` (spawned processes, llvmpipe inline).
 
 Process start-up (imports, scene, GL context; ~2 s a process) is left out of
@@ -112,10 +112,10 @@ class Pool:
         self.pool.close()
 
 
-def measure(width: int, height: int, workers: int, frames: int, repeats: int) -> dict:
+def measure(root: Path, width: int, height: int, workers: int, frames: int, repeats: int) -> dict:
     config = rep.example_config(width, height)
-    with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp)
+    out = root / f"{width}x{height}_p{workers}"
+    if True:
         prepare_dirs(out, config.writer)
         side = InProcess(config, out) if workers == 1 else Pool(config, out, workers)
         try:

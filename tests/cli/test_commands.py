@@ -8,6 +8,7 @@ PpoCfg and commands.
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 import subprocess
 import sys
@@ -139,18 +140,16 @@ def test_env_cfg_values_reach_train_typed(fake_tasks):
     assert args == ("walk",)
     env = kwargs["env_overrides"]
     assert env == {"episode_length_s": 10.0, "push": False, "friction_range": (0.5, 1.0),
-                   "reward_weights": {"alive": 2.0}, "robot_file": None}
+                   "reward_weights.alive": 2.0, "robot_file": None}
     assert type(env["episode_length_s"]) is float and type(env["friction_range"]) is tuple
     assert kwargs["ppo_overrides"] == {}
 
 
-def test_env_cfg_dotted_key_gives_the_whole_nested_field(fake_tasks, monkeypatch, capsys):
-    line = fails(capsys, ["train", "walk", "--env-cfg", "physics.solver_iterations=50"])
-    assert "--env-cfg physics.solver_iterations: nested config fields cannot be saved" in line
-    assert not fake_tasks
-    monkeypatch.setattr(cli_rl, "TRAIN_SAVES_NESTED_CONFIGS", True)  # once ambulo.rl.train can
+def test_env_cfg_dotted_key_reaches_train_as_a_json_safe_dotted_key(fake_tasks):
     assert main(["train", "walk", "--env-cfg", "physics.solver_iterations=50"]) == 0
-    assert fake_tasks[0][1]["env_overrides"] == {"physics": FakePhysics(solver_iterations=50)}
+    overrides = fake_tasks[0][1]["env_overrides"]
+    assert overrides == {"physics.solver_iterations": 50}
+    assert json.loads(json.dumps(overrides)) == overrides  # what run.json stores
 
 
 def test_ppo_cfg_values_reach_train_typed(fake_tasks):
@@ -313,8 +312,6 @@ def test_real_task_configs_type_the_overrides(recorded_train, monkeypatch):
     """Every registered task: keys found in its real config, by annotation, arrive typed."""
     from ambulo import envs
 
-    monkeypatch.setattr(cli_rl, "TRAIN_SAVES_NESTED_CONFIGS", True)  # train is a recorder here
-
     for task in envs.names():
         cfg = envs.spec(task).cfg_fn()
         argv = ["train", task, "--env-cfg", "episode_length_s=7"]
@@ -330,19 +327,27 @@ def test_real_task_configs_type_the_overrides(recorded_train, monkeypatch):
         if cfg.reward_weights:
             term = next(iter(cfg.reward_weights))
             argv += ["--env-cfg", f"reward_weights.{term}=0.5"]
-            expected["reward_weights"] = {**cfg.reward_weights, term: 0.5}
+            expected[f"reward_weights.{term}"] = 0.5
         nested = _first_field(cfg, dataclasses.is_dataclass)
         if nested:
             inner = _first_field(getattr(cfg, nested), lambda tp: tp in (int, float))
             if inner:
                 argv += ["--env-cfg", f"{nested}.{inner}=3"]
-                expected[nested] = dataclasses.replace(getattr(cfg, nested), **{inner: 3})
+                expected[f"{nested}.{inner}"] = 3 if typing.get_type_hints(type(getattr(cfg, nested)))[inner] is int \
+                    else 3.0
         argv += ["--ppo-cfg", "actor_hidden_dims=64,64", "--ppo-cfg", "entropy_coef=0"]
         recorded_train.clear()
         assert main(argv) == 0, argv
         kwargs = recorded_train[0][1]
         assert kwargs["env_overrides"] == expected, task
         assert type(kwargs["env_overrides"]["episode_length_s"]) is float
+        # the task's registry config takes the same dotted overrides back (what train does)
+        applied = envs.make_cfg(task, **kwargs["env_overrides"])
+        assert applied.episode_length_s == 7.0
+        if cfg.reward_weights:
+            assert applied.reward_weights[term] == 0.5 and len(applied.reward_weights) == len(cfg.reward_weights)
+        if nested and inner:
+            assert getattr(getattr(applied, nested), inner) == 3
         assert kwargs["ppo_overrides"] == {"actor_hidden_dims": (64, 64), "entropy_coef": 0.0}
 
 

@@ -10,7 +10,7 @@ from typing import Literal, Optional
 
 import pytest
 
-from ambulo.cli.overrides import (OverrideError, apply_overrides, parse_overrides, replace_dotted,
+from ambulo.utils.overrides import (OverrideError, apply_overrides, parse_overrides, replace_dotted,
                                   type_name)
 
 

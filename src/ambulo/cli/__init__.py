@@ -12,7 +12,7 @@ import argparse
 
 from . import data, demo, rl, view
 from .errors import ArgumentParser, CliError, missing_extra, missing_file, report
-from .overrides import OverrideError, apply_overrides
+from ..utils.overrides import OverrideError, apply_overrides
 
 _COMMAND_MODULES = (demo, view, data, rl)
 

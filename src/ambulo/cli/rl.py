@@ -3,7 +3,7 @@
 Each handler imports ``ambulo.rl`` (and so rsl-rl-lib and torch) only when it runs. Task
 configs come from the task registry (``ambulo.envs.spec(task).cfg_fn()``) and PPO settings
 from ``default_ppo_cfg``; ``--env-cfg`` / ``--ppo-cfg`` overrides are typed against them
-(``ambulo.cli.overrides``).
+(``ambulo.utils.overrides``).
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from .errors import CliError
-from .overrides import OverrideError, parse_overrides, replace_dotted
+from ..utils.overrides import OverrideError, parse_overrides
 
 # ---------------------------------------------------------------------------------------------
 # where the CLI gets tasks and their configs
@@ -76,21 +76,12 @@ def tasks_help() -> str:
 _ENV_KEYS_WITH_FLAGS = {"num_envs": "--num-envs", "device": "--device", "seed": "--seed"}
 """Task config fields that ``ambulo train`` sets from its own flags (not by --env-cfg)."""
 
-TRAIN_SAVES_NESTED_CONFIGS = False
-"""Whether ``ambulo.rl.train`` can take a nested config as an override value. It writes
-``env_overrides`` to run.json with ``json.dumps`` and applies them as top-level fields, so a
-dotted key into a nested dataclass (``physics.timestep_s=0.002``, giving ``{"physics":
-PhysicsCfg(...)}``) cannot be saved yet: such keys are refused with one line instead of a
-traceback after the run folder is made. Set True once train stores them (e.g. the dotted
-``parse_overrides`` dict, applied with ``replace_dotted``)."""
-
-
 def typed_overrides(flag: str, cfg: Any, pairs: list[str] | None,
                     reserved: dict[str, str] | None = None) -> dict[str, Any]:
-    """``--flag KEY=VALUE`` pairs checked against dataclass ``cfg`` -> ``{top-level field: new
-    value}`` (a dotted key yields its whole, updated top-level field), ready for
-    ``ambulo.rl.train``'s ``env_overrides`` / ``ppo_overrides``. ``CliError`` on a bad pair or
-    a key in ``reserved`` (key -> the flag that sets it)."""
+    """``--flag KEY=VALUE`` pairs checked against dataclass ``cfg`` -> ``{dotted key: typed
+    value}``, JSON-safe for the run's ``run.json`` and applied by ``ambulo.envs.make_cfg`` /
+    ``ambulo.rl.config.ppo_cfg``. ``CliError`` on a bad pair or a key in ``reserved`` (key ->
+    the flag that sets it)."""
     if not pairs:
         return {}
     try:
@@ -101,13 +92,7 @@ def typed_overrides(flag: str, cfg: Any, pairs: list[str] | None,
         head = key.split(".")[0]
         if reserved and head in reserved:
             raise CliError(f"{flag} cannot set {head}", f"use {reserved[head]} instead")
-    new = replace_dotted(cfg, values)
-    result = {head: getattr(new, head) for head in dict.fromkeys(k.split(".")[0] for k in values)}
-    nested = [k for k in values if dataclasses.is_dataclass(result[k.split(".")[0]])]
-    if nested and not TRAIN_SAVES_NESTED_CONFIGS:
-        raise CliError(f"{flag} {nested[0]}: nested config fields cannot be saved in a run "
-                       "yet", "set it in the task's config factory for now")
-    return result
+    return values
 
 
 # ---------------------------------------------------------------------------------------------
@@ -227,7 +212,10 @@ def evaluate(args: argparse.Namespace) -> int:
     result = run_eval(args.run, checkpoint=args.checkpoint, num_episodes=args.episodes,
                       episode_length_s=args.episode_length_s, seed=args.seed,
                       log_root=args.log_root)
-    return 0 if result.get("walks", True) or not args.require_walk else 1
+    if not args.require_criteria:
+        return 0
+    failed = [name for name in result.get("criteria", []) if not result[name]]
+    return 1 if failed else 0
 
 
 def add_commands(subparsers: argparse._SubParsersAction) -> None:
@@ -280,9 +268,11 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("run", help=run_help)
     p.add_argument("--checkpoint")
     p.add_argument("--episodes", type=int, default=100)
-    p.add_argument("--episode-length-s", type=float, default=20.0)
+    p.add_argument("--episode-length-s", type=float, default=None,
+                   help="seconds per episode (default: the task's training episode length)")
     p.add_argument("--seed", type=int, default=12345)
     p.add_argument("--log-root", default="runs")
-    p.add_argument("--require-walk", action="store_true",
-                   help="exit 1 unless fall rate <= 5%% and velocity error <= 0.2 m/s")
+    p.add_argument("--require-criteria", "--require-walk", dest="require_criteria", action="store_true",
+                   help="exit 1 unless every success criterion of the task holds (humanoid-walk's "
+                        "'walks': fall rate <= 5%% and velocity error <= 0.2 m/s)")
     p.set_defaults(func=evaluate)

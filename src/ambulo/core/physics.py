@@ -70,4 +70,14 @@ def apply_physics(spec: mujoco.MjSpec, cfg: PhysicsCfg) -> None:
     option.tolerance = cfg.tolerance
 
 
-__all__ = ["INTEGRATORS", "PhysicsCfg", "apply_physics"]
+_OPTION_FIELDS = [f for f in dir(mujoco.MjSpec().option) if not f.startswith("_")]
+
+
+def match_options(child: mujoco.MjSpec, parent: mujoco.MjSpec) -> None:
+    """Give ``child`` the options of ``parent`` before attaching it: MuJoCo refuses to attach a
+    spec whose options conflict, and ``apply_physics`` sets the scene's options at compile."""
+    for name in _OPTION_FIELDS:
+        setattr(child.option, name, getattr(parent.option, name))
+
+
+__all__ = ["INTEGRATORS", "PhysicsCfg", "apply_physics", "match_options"]

@@ -19,9 +19,8 @@ from .. import assets
 from .drives import DriveDefaults
 from .importers import load_spec
 from .materials import PhysicsMaterial
-from .physics import PhysicsCfg, apply_physics
+from .physics import PhysicsCfg, apply_physics, match_options
 
-_OPTION_FIELDS = [f for f in dir(mujoco.MjSpec().option) if not f.startswith("_")]
 _DOF_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
 
 
@@ -172,9 +171,7 @@ def add_robot(spec: mujoco.MjSpec, cfg: RobotCfg) -> AttachedRobot:
     # one robot's keyframes do not fit a scene with others: they are returned instead
     for key in list(child.keys):
         child.delete(key)
-    # the scene's options win at compile time; matching them avoids attach-conflict errors
-    for name in _OPTION_FIELDS:
-        setattr(child.option, name, getattr(spec.option, name))
+    match_options(child, spec)
     frame = spec.worldbody.add_frame(name=path, pos=list(cfg.pos_m), quat=list(cfg.quat))
     spec.attach(child, prefix=path + "/", frame=frame)
     return AttachedRobot(path, frame, keyframes)

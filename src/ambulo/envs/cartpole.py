@@ -15,12 +15,12 @@ from dataclasses import dataclass
 
 import torch
 
-from ambulo.core import DriveDefaults, PhysicsCfg, RobotCfg
+from ambulo.core import GroundCfg, DriveDefaults, PhysicsCfg, RobotCfg
 
 from . import rewards
 from .base import EnvCfg, RLEnv
 from .ppo import PpoCfg
-from .registry import TaskSpec, register
+from .registry import Criterion, TaskSpec, register
 
 
 @dataclass(kw_only=True)
@@ -42,6 +42,7 @@ def cartpole_cfg() -> CartpoleCfg:
     return CartpoleCfg(
         robot=RobotCfg(file="cartpole", prim_path="/World/cartpole", fixed_base=True,
                        drives=DriveDefaults(stiffness=0.0, damping=0.0)),
+        ground=GroundCfg(static_friction=1.0, dynamic_friction=1.0, restitution=0.0),
         physics=PhysicsCfg(timestep_s=0.01, integrator="implicitfast", solver_iterations=50),
         decimation=2,
         episode_length_s=5.0,
@@ -111,4 +112,5 @@ register(TaskSpec(
     cfg_fn=cartpole_cfg,
     ppo_cfg_fn=cartpole_ppo,
     description="balance a pole on a cart (a URDF robot; 1 action, 4 observations); the trainer's sanity task",
+    criteria=(Criterion("balances", max_values={"fall_rate": 0.05}),),
 ))

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import torch
 
-from ambulo.core import PhysicsCfg, RobotCfg
+from ambulo.core import GroundCfg, PhysicsCfg, RobotCfg
 from ambulo.sensors import ContactSensor, ContactSensorCfg
 
 from ..utils.math import quat_from_axis_angle, quat_rotate
@@ -71,6 +71,7 @@ def humanoid_walk_cfg() -> HumanoidWalkCfg:
     return HumanoidWalkCfg(
         robot=RobotCfg(file="humanoid", prim_path="/World/robot"),
         robot_keyframe="home",
+        ground=GroundCfg(static_friction=1.0, dynamic_friction=1.0, restitution=0.0),
         physics=PhysicsCfg(timestep_s=0.005, integrator="implicitfast", solver_iterations=50,
                            ls_iterations=50),
         decimation=4,
@@ -253,5 +254,5 @@ register(TaskSpec(
     ppo_cfg_fn=humanoid_walk_ppo,
     description="21-DoF humanoid tracks commanded (vx, vy, yaw rate) through joint PD targets",
     step_metrics=humanoid_walk_metrics,
-    criteria=(Criterion("walks", {"fall_rate": 0.05, "mean_abs_vel_error_m_s": 0.2}),),
+    criteria=(Criterion("walks", max_values={"fall_rate": 0.05, "mean_abs_vel_error_m_s": 0.2}),),
 ))

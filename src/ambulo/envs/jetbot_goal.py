@@ -14,14 +14,14 @@ from dataclasses import dataclass
 import mujoco
 import torch
 
-from ambulo.core import PhysicsCfg, RobotCfg
+from ambulo.core import GroundCfg, PhysicsCfg, RobotCfg
 
 from . import observations as obs_terms
 from . import rewards
 from .base import EnvCfg, RLEnv
 from ..utils.math import quat_from_axis_angle
 from .ppo import PpoCfg
-from .registry import TaskSpec, register
+from .registry import Criterion, TaskSpec, register
 
 
 @dataclass(kw_only=True)
@@ -40,6 +40,7 @@ def jetbot_goal_cfg() -> JetbotGoalCfg:
     """Default jetbot-goal: 200 Hz physics, 20 Hz policy, 10 s episodes."""
     return JetbotGoalCfg(
         robot=RobotCfg(file="jetbot", prim_path="/World/jetbot"),
+        ground=GroundCfg(static_friction=1.0, dynamic_friction=1.0, restitution=0.0),
         physics=PhysicsCfg(timestep_s=0.005, integrator="implicitfast", solver_iterations=50),
         decimation=10,
         episode_length_s=10.0,
@@ -135,4 +136,5 @@ register(TaskSpec(
     ppo_cfg_fn=jetbot_goal_ppo,
     description="differential-drive Jetbot drives to a random goal 0.5-1.5 m away (wheel speed actions)",
     success_terminations=("goal_reached",),
+    criteria=(Criterion("reaches", min_values={"success_rate": 0.9}),),
 ))

@@ -6,7 +6,7 @@ their PPO settings next to their env config."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
 
 @dataclass(kw_only=True)
@@ -22,12 +22,14 @@ class PpoCfg:
     """Checkpoint every this many iterations (and at the end)."""
     actor_hidden_dims: tuple[int, ...] = (256, 128, 128)
     critic_hidden_dims: tuple[int, ...] = (256, 128, 128)
-    activation: str = "elu"
+    activation: Literal["elu", "selu", "relu", "crelu", "lrelu", "tanh", "sigmoid", "softplus", "gelu", "swish",
+                        "mish", "identity"] = "elu"
+    """Hidden-layer activation (the names rsl-rl-lib resolves)."""
     init_noise_std: float = 1.0
     obs_normalization: bool = True
     """Running mean/std normalization of observations (exported with the policy)."""
     learning_rate: float = 1.0e-3
-    schedule: str = "adaptive"
+    schedule: Literal["adaptive", "fixed"] = "adaptive"
     """``adaptive`` scales the learning rate to keep the KL near ``desired_kl``."""
     desired_kl: float = 0.01
     num_learning_epochs: int = 5

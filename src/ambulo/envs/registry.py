@@ -8,13 +8,13 @@ CLI, the docs and the contract test read it; nothing asks an env what it can do.
 
 from __future__ import annotations
 
-import dataclasses
 import difflib
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
 import torch
 
+from ..utils.overrides import replace_dotted
 from .base import EnvCfg, RLEnv
 from .ppo import PpoCfg
 
@@ -23,15 +23,18 @@ StepMetrics = Callable[[RLEnv], dict[str, torch.Tensor]]
 
 @dataclass(frozen=True)
 class Criterion:
-    """A named pass/fail bar over evaluation metrics: every ``metric <= limit`` must hold."""
+    """A named pass/fail bar over evaluation metrics (keys of ``ambulo eval``'s result)."""
 
     name: str
     """E.g. ``"walks"``; evaluation reports it as a bool."""
-    max_values: dict[str, float]
-    """Metric name (a key of the evaluation result) -> largest passing value."""
+    max_values: dict[str, float] = field(default_factory=dict)
+    """Metric -> largest passing value."""
+    min_values: dict[str, float] = field(default_factory=dict)
+    """Metric -> smallest passing value."""
 
     def holds(self, result: dict[str, float]) -> bool:
-        return all(result[k] <= v for k, v in self.max_values.items())
+        return (all(result[k] <= v for k, v in self.max_values.items())
+                and all(result[k] >= v for k, v in self.min_values.items()))
 
 
 @dataclass(frozen=True)
@@ -93,29 +96,28 @@ def spec(name: str) -> TaskSpec:
 
 
 def make_cfg(name: str, *, play: bool = False, **overrides: Any) -> EnvCfg:
-    """A fresh config of task ``name`` (its play variant if ``play``) with ``overrides``
-    (top-level config field names) applied; ``None`` values keep the task default."""
+    """A fresh config of task ``name`` (its play variant if ``play``) with ``overrides`` applied.
+
+    Keys are field names, or dotted paths into nested configs and dict fields
+    (``**{"physics.timestep_s": 0.002, "reward_weights.upright": 1.0}``); each value is checked
+    against the field's type (``OverrideError`` names the key, the type and close matches).
+    """
     task = spec(name)
     cfg = task.play_cfg() if play else task.cfg_fn()
-    overrides = {k: v for k, v in overrides.items() if v is not None}
-    known = {f.name for f in dataclasses.fields(cfg)}
-    unknown = sorted(set(overrides) - known)
-    if unknown:
-        close = {u: difflib.get_close_matches(u, known, n=1) for u in unknown}
-        hints = "; ".join(f"{u!r} (did you mean {c[0]!r}?)" if c else repr(u) for u, c in close.items())
-        raise TypeError(f"{type(cfg).__name__} has no field {hints}; fields: {', '.join(sorted(known))}")
-    return dataclasses.replace(cfg, **overrides)
+    return replace_dotted(cfg, overrides, check_types=True)
 
 
 def make(name: str, *, num_envs: int | None = None, device: str | None = None,
          seed: int | None = None, play: bool = False, **overrides: Any) -> RLEnv:
-    """Build task ``name`` with ``num_envs`` envs on ``device``, seeded with ``seed``.
+    """Build task ``name`` with ``num_envs`` envs on ``device``, seeded with ``seed`` (None
+    keeps the task default).
 
-    Other keyword arguments override fields of the task's config, e.g.
+    Other keyword arguments override fields of the task's config (see ``make_cfg``), e.g.
     ``make("humanoid-walk", num_envs=512, episode_length_s=20.0)``; ``play=True`` starts from
     the task's play variant.
     """
-    cfg = make_cfg(name, play=play, num_envs=num_envs, device=device, seed=seed, **overrides)
+    given = {k: v for k, v in dict(num_envs=num_envs, device=device, seed=seed).items() if v is not None}
+    cfg = make_cfg(name, play=play, **given, **overrides)
     return spec(name).env_cls(cfg)
 
 

@@ -1,22 +1,20 @@
-"""The PPO settings of a task: its ``TaskSpec.ppo_cfg_fn`` with overrides."""
+"""The PPO settings of a task: its ``TaskSpec.ppo_cfg_fn`` with checked overrides."""
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any
 
 from ambulo import envs
 from ambulo.envs.ppo import PpoCfg
+from ambulo.utils.overrides import replace_dotted
 
 
-def ppo_cfg(task: str, **overrides: Any) -> PpoCfg:
-    """PPO settings of ``task`` (from its registry entry) with ``overrides`` (None: keep)."""
-    cfg = envs.spec(task).ppo_cfg_fn()
-    known = {f.name for f in dataclasses.fields(cfg)}
-    unknown = sorted(set(overrides) - known)
-    if unknown:
-        raise TypeError(f"PpoCfg has no field(s) {unknown}; fields: {', '.join(sorted(known))}")
-    return dataclasses.replace(cfg, **{k: v for k, v in overrides.items() if v is not None})
+def ppo_cfg(task: str, *, num_envs: int | None = None, max_iterations: int | None = None,
+            **overrides: Any) -> PpoCfg:
+    """PPO settings of ``task`` (its registry entry) with ``num_envs``/``max_iterations`` (None:
+    the task's) and ``overrides`` (field names, checked against ``PpoCfg``'s types)."""
+    given = {k: v for k, v in dict(num_envs=num_envs, max_iterations=max_iterations).items() if v is not None}
+    return replace_dotted(envs.spec(task).ppo_cfg_fn(), {**given, **overrides}, check_types=True)
 
 
 __all__ = ["PpoCfg", "ppo_cfg"]

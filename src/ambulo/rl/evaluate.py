@@ -22,7 +22,7 @@ from ambulo import envs
 from . import runs
 
 def evaluate(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = None,
-             num_episodes: int = 100, episode_length_s: float | None = 20.0, seed: int = 12345,
+             num_episodes: int = 100, episode_length_s: float | None = None, seed: int = 12345,
              log_root: str | os.PathLike = "runs", quiet: bool = False) -> dict:
     """Evaluate ``run`` and return (and print) a dict of metrics; also written to
     ``<run>/eval.json``."""
@@ -77,6 +77,7 @@ def evaluate(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = N
     }
     for name, total in metric_sums.items():
         result[f"mean_{name}"] = float((total / steps).mean())
+    result["criteria"] = [c.name for c in task.criteria]
     for criterion in task.criteria:
         result[criterion.name] = criterion.holds(result)
     runs.atomic_write_bytes(run_dir / "eval.json", json.dumps(result, indent=2).encode())

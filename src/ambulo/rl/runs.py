@@ -21,6 +21,8 @@ import torch
 
 from ambulo import envs
 
+from ambulo.utils.overrides import replace_dotted
+
 from .config import PpoCfg
 
 RUN_FILE = "run.json"
@@ -118,10 +120,9 @@ def make_env_for_run(info: dict[str, Any], *, num_envs: int, seed: int | None = 
 
 
 def ppo_from_info(info: dict[str, Any]) -> PpoCfg:
+    """The run's PPO settings (JSON lists become the tuples ``PpoCfg`` declares)."""
     fields = {f.name for f in dataclasses.fields(PpoCfg)}
-    values = {k: (tuple(v) if isinstance(v, list) else v) for k, v in info["ppo"].items()
-              if k in fields}
-    return PpoCfg(**values)
+    return replace_dotted(PpoCfg(), {k: v for k, v in info["ppo"].items() if k in fields}, check_types=True)
 
 
 def load_runner(run_dir: Path, env: envs.RLEnv, checkpoint: str | os.PathLike | None = None):

@@ -103,7 +103,8 @@ def train(task: str | None = None, *, num_envs: int | None = None,
       seed: seeds the env and torch.
       resume: True for the task's latest run under ``log_root``, or a run folder/checkpoint:
         continue that run from its last complete checkpoint, in the same folder.
-      env_overrides: task config fields to change (e.g. ``{"episode_length_s": 10.0}``).
+      env_overrides: task config fields to change, dotted keys reach nested ones
+        (e.g. ``{"episode_length_s": 10.0, "physics.solver_iterations": 20}``); saved in run.json.
       verbose: print rsl-rl's full report each iteration instead of a progress bar.
     """
     if resume:
@@ -115,7 +116,8 @@ def train(task: str | None = None, *, num_envs: int | None = None,
     else:
         if task is None:
             raise ValueError("name the task to train, e.g. `ambulo train cartpole`")
-        envs.spec(task)  # unknown names fail here, before any folder is made
+        # unknown names and bad overrides fail here, before any folder is made
+        envs.make_cfg(task, **(env_overrides or {}))
         ppo = ppo_cfg(task, num_envs=num_envs, max_iterations=max_iterations,
                       **(ppo_overrides or {}))
         run_dir = runs.new_run_dir(task, log_root)

@@ -118,13 +118,22 @@ def parse_override(cfg: Any, pair: str) -> tuple[str, Any]:
         raise OverrideError(key, f"bad value {text!r} for {key}: expected {type_name(tp)}", fix) from None
 
 
-def replace_dotted(cfg: T, values: Mapping[str, Any]) -> T:
+def replace_dotted(cfg: T, values: Mapping[str, Any], *, check_types: bool = False) -> T:
     """A copy of dataclass ``cfg`` with ``{"key": value}`` set, where a dotted key reaches a
-    nested dataclass field or dict entry (``dataclasses.replace`` level by level). Values are
-    taken as given (no type check; ``parse_overrides`` makes them)."""
+    nested dataclass field or dict entry (``dataclasses.replace`` level by level).
+
+    Values are taken as given (``parse_overrides`` makes them typed) unless ``check_types``:
+    then each is checked against its field's annotation and widened where lossless (int to
+    float, a JSON list to a tuple), raising ``OverrideError`` if it does not fit."""
     _require_dataclass(cfg)
     for key, value in values.items():
-        _resolve(cfg, key)  # unknown keys fail with the same message as in parse_override
+        tp, _ = _resolve(cfg, key)  # unknown keys fail with the same message as in parse_override
+        if check_types:
+            try:
+                value = _coerce(value, tp)
+            except _BadValue:
+                raise OverrideError(key, f"bad value {value!r} for {key}: expected {type_name(tp)}",
+                                    "pass a value of that type") from None
         cfg = _with(cfg, key.split("."), value)
     return cfg
 
