@@ -9,7 +9,6 @@ from ``default_ppo_cfg``; ``--env-cfg`` / ``--ppo-cfg`` overrides are typed agai
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import difflib
 import re
 from pathlib import Path
