@@ -66,15 +66,15 @@ class JetbotGoalEnv(RLEnv):
 
     def _setup(self) -> None:
         n, dev = self.num_envs, self.device
-        self.goal_pos_w = torch.zeros(n, 3, dtype=torch.float64, device=dev)
+        self.goal_pos_w = torch.zeros(n, 3, dtype=torch.float32, device=dev)
         """(N, 3) goal position in the world frame, m."""
-        self._distance = torch.zeros(n, dtype=torch.float64, device=dev)
+        self._distance = torch.zeros(n, dtype=torch.float32, device=dev)
         self._progress = torch.zeros_like(self._distance)
         self._reached = torch.zeros(n, dtype=torch.bool, device=dev)
         self._zeros = torch.zeros(n, self.robot.num_joints, dtype=torch.float64, device=dev)
 
     def _goal_distance(self) -> torch.Tensor:
-        base_xy = self.robot.data.root_pos_w[:, :2]
+        base_xy = self.robot.data.root_pos_w[:, :2].float()
         return torch.linalg.vector_norm(self.goal_pos_w[:, :2] - base_xy, dim=-1)
 
     def _apply_action(self, actions: torch.Tensor) -> None:
@@ -88,7 +88,7 @@ class JetbotGoalEnv(RLEnv):
 
     def _policy_terms(self) -> dict[str, torch.Tensor]:
         data = self.robot.data
-        goal_b = obs_terms.goal_pos_b(data.root_pos_w, data.root_quat_w, self.goal_pos_w)
+        goal_b = obs_terms.goal_pos_b(data.root_pos_w, data.root_quat_w, self.goal_pos_w.double())
         return {
             "goal_pos_b": goal_b[:, :2],
             "goal_distance": self._distance.unsqueeze(1),
@@ -115,16 +115,14 @@ class JetbotGoalEnv(RLEnv):
         z_axis = torch.tensor([0.0, 0.0, 1.0], dtype=torch.float64, device=self.device).expand(n, 3)
         yaw = self._uniform((n,), -math.pi, math.pi, dtype=torch.float64)
         self.robot.write_root_pose(quat_w=quat_from_axis_angle(z_axis, yaw), env_ids=mask)
-        bearing = self._uniform((n,), -math.pi, math.pi, dtype=torch.float64)
-        distance = self._uniform((n,), *cfg.goal_distance_m, dtype=torch.float64)
+        bearing = self._uniform((n,), -math.pi, math.pi)
+        distance = self._uniform((n,), *cfg.goal_distance_m)
         goal = torch.stack([distance * torch.cos(bearing), distance * torch.sin(bearing),
                             torch.zeros_like(distance)], dim=1)
         self.goal_pos_w = torch.where(mask[:, None], goal, self.goal_pos_w)
-        self.engine.mocap_pos[:, 0] = self.goal_pos_w
+        self.engine.mocap_pos[:, 0] = self.goal_pos_w.to(self.engine.mocap_pos.dtype)
         # the chassis has not moved yet: its distance is measured from the reset pose
-        root_xy = self.robot.data.root_pos_w[:, :2]
-        start = torch.linalg.vector_norm(self.goal_pos_w[:, :2] - root_xy, dim=-1)
-        self._distance = torch.where(mask, start, self._distance)
+        self._distance = torch.where(mask, self._goal_distance(), self._distance)
         self._progress = self._progress.masked_fill(mask, 0.0)
         self._reached = self._reached & ~mask
 

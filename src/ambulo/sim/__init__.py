@@ -6,7 +6,8 @@ A tutorial written for Isaac Sim ports by changing its imports to ``ambulo.sim``
 from ..assets import get_assets_root_path
 from ..core import (AssetError, DriveDefaults, PhysicsCfg, PhysicsMaterial, PrimNotFoundError, add_light,
                     semantic_labels, set_semantic_label)
-from .articulation import Articulation, ArticulationAction, Robot
+from .actions import ArticulationAction
+from .articulation import Articulation, Robot
 from .controller import ArticulationController
 from .objects import (
     DynamicCapsule, DynamicCuboid, DynamicCylinder, DynamicSphere, FixedCapsule, FixedCuboid,

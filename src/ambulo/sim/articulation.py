@@ -7,31 +7,16 @@ articulation properties (``num_dof``, ``dof_names``) are None, as in Isaac.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import torch
 
+from .actions import ArticulationAction
 from .controller import ArticulationController
 from .prims import RigidPrim
 
 if TYPE_CHECKING:
     from .world import World
-
-
-@dataclass
-class ArticulationAction:
-    """Targets for some or all joints; None leaves that quantity uncommanded.
-
-    ``joint_indices`` selects the joints the arrays refer to (default: all, in
-    ``dof_names`` order). Inside a list, None leaves that one joint uncommanded;
-    NaN or inf is an error.
-    """
-
-    joint_positions: object = None
-    joint_velocities: object = None
-    joint_efforts: object = None
-    joint_indices: object = None
 
 
 class Articulation(RigidPrim):

@@ -12,8 +12,10 @@ from typing import TYPE_CHECKING
 
 import torch
 
+from .actions import ArticulationAction
+
 if TYPE_CHECKING:
-    from .articulation import Articulation, ArticulationAction
+    from .articulation import Articulation
     from .world import World
 
 _MODES = ("position", "velocity", "effort")
@@ -85,8 +87,6 @@ class ArticulationController:
         self._entity.set_joint_targets(self._q_target, self._qd_target, self._tau_ff)
 
     def get_applied_action(self) -> ArticulationAction:
-        from .articulation import ArticulationAction  # noqa: PLC0415
-
         out = self._world._out
         return ArticulationAction(joint_positions=out(self._q_target), joint_velocities=out(self._qd_target),
                                   joint_efforts=out(self._tau_ff))

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import torch
 
-from .articulation import ArticulationAction, Robot
+from .actions import ArticulationAction
+from .articulation import Robot
+from .stage import add_reference_to_stage
 
 
 class WheeledRobot(Robot):
@@ -21,8 +23,6 @@ class WheeledRobot(Robot):
         if create_robot:
             if usd_path is None:
                 raise ValueError("create_robot=True needs usd_path= (a USD, URDF or MJCF file)")
-            from .stage import add_reference_to_stage  # noqa: PLC0415
-
             add_reference_to_stage(usd_path=usd_path, prim_path=prim_path)
         if wheel_dof_names is None and wheel_dof_indices is None:
             raise ValueError("give wheel_dof_names= (e.g. ['left_wheel_joint', 'right_wheel_joint'])")
