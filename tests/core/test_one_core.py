@@ -8,6 +8,7 @@ import torch
 import ambulo.envs as envs
 from ambulo import assets
 from ambulo.core import PhysicsCfg, Simulation, add_ground, compile_scene, new_scene, GroundCfg
+from ambulo.engine import Engine
 from ambulo.sim import World, add_reference_to_stage
 
 _OPTION_FIELDS = ("timestep", "gravity", "integrator", "solver", "iterations", "ls_iterations", "cone",
@@ -53,6 +54,7 @@ def test_a_urdf_robot_compiles_identically_through_world_and_a_registered_task()
                 np.testing.assert_array_equal(left[key], right[key], err_msg=f"{field} of {key}")
     # and the task drives that robot through the same Entity the World's Articulation wraps
     assert env.robot.joint_names == ["slider", "hinge"]
+    assert isinstance(env.engine, Engine) and isinstance(world.engine, Engine)
 
 
 def test_physics_cfg_is_the_only_source_of_solver_options():

@@ -39,6 +39,24 @@ class Engine(Protocol):
     num_diverged: int
     """Total number of world divergences detected (and reset) so far."""
 
+    # MjData fields as attributes (``engine.qpos`` is ``engine.field("qpos")``), each a live
+    # (N, ...) tensor on ``device``. State (writable): qpos (N, nq), qvel (N, nv), act, ctrl
+    # (N, nu), time (N,), mocap_pos (N, nmocap, 3), mocap_quat, qfrc_applied, xfrc_applied.
+    # Derived (read-only, lag one substep after step(refresh=False)): xpos (N, nbody, 3),
+    # xquat (N, nbody, 4), xmat (N, nbody, 9), cvel (N, nbody, 6: angular, linear at the
+    # tree's subtree CoM), subtree_com (N, nbody, 3), site_xpos, site_xmat, sensordata
+    # (N, nsensordata), qfrc_actuator (N, nv), actuator_force (N, nu).
+    qpos: torch.Tensor
+    qvel: torch.Tensor
+    ctrl: torch.Tensor
+    time: torch.Tensor
+    mocap_pos: torch.Tensor
+    xpos: torch.Tensor
+    xquat: torch.Tensor
+    cvel: torch.Tensor
+    subtree_com: torch.Tensor
+    qfrc_actuator: torch.Tensor
+
     def field(self, name: str) -> torch.Tensor:
         """Live (N, ...) tensor of an MjData field: state is writable, outputs read-only."""
 
