@@ -18,19 +18,18 @@ from ..render import OffscreenRenderer
 from . import runs
 
 
-def _camera(model: mujoco.MjModel, distance_m: float) -> mujoco.MjvCamera:
-    """The scene's first fixed camera, else a camera tracking the first floating body."""
+def _camera(env, distance_m: float = 3.0) -> mujoco.MjvCamera:
+    """A camera on the task's robot: tracking a floating robot, else aimed at a fixed one."""
     camera = mujoco.MjvCamera()
-    if model.ncam > 0:
-        camera.type, camera.fixedcamid = mujoco.mjtCamera.mjCAMERA_FIXED, 0
-        return camera
-    camera.type = mujoco.mjtCamera.mjCAMERA_TRACKING
-    free_bodies = [model.jnt_bodyid[j] for j in range(model.njnt)
-                   if int(model.jnt_type[j]) == mujoco.mjtJoint.mjJNT_FREE.value]
-    camera.trackbodyid = int(free_bodies[0]) if free_bodies else 0
-    camera.distance = distance_m
-    camera.elevation = -20.0
-    camera.azimuth = 135.0
+    camera.distance, camera.elevation, camera.azimuth = distance_m, -20.0, 135.0
+    robot = env.robot
+    if robot.is_floating:
+        camera.type = mujoco.mjtCamera.mjCAMERA_TRACKING
+        camera.trackbodyid = robot.root_body_id
+    else:  # a fixed-base robot: look at the middle of its bodies, from further away
+        camera.type = mujoco.mjtCamera.mjCAMERA_FREE
+        camera.lookat[:] = robot.data.body_pos_w[0].mean(dim=0).cpu().numpy()
+        camera.distance, camera.azimuth = 1.5 * distance_m, 90.0
     return camera
 
 
@@ -50,7 +49,7 @@ def play(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = None,
     runner, ckpt = runs.load_runner(run_dir, env, checkpoint)
     policy = runner.get_inference_policy(device=str(env.device))
     renderer = OffscreenRenderer(env.model, width, height)
-    camera = _camera(env.model, distance_m=3.0)
+    camera = _camera(env)
     path = Path(out) if out else run_dir / "videos" / "play.mp4"
     path.parent.mkdir(parents=True, exist_ok=True)
     fps = round(1.0 / env.step_dt_s)
