@@ -313,6 +313,8 @@ class RLEnv:
         return self._compute_observations()
 
     def _reset_envs(self, mask: torch.Tensor) -> None:
+        if not self._any(mask):
+            return
         # one kinematics pass at the end, after the task has written its randomized state
         self.sim.reset(mask, forward=False)
         self.episode_length_buf.masked_fill_(mask, 0)
@@ -337,6 +339,11 @@ class RLEnv:
         self._critic_buf = None if privileged is None else torch.cat(
             [clean] + [t.float() for t in privileged.values()], dim=1)
         return obs
+
+    def _any(self, mask: torch.Tensor) -> bool:
+        """Whether masked work may be needed: on the CPU the exact answer (free), on a GPU always
+        True (asking would wait for the device; masked writes are cheap there)."""
+        return bool(mask.any()) if self.device.type == "cpu" else True
 
     def _uniform(self, shape: tuple[int, ...], low, high, dtype=torch.float32) -> torch.Tensor:
         """Uniform samples in [low, high) from the env's generator (``low``/``high`` broadcast)."""

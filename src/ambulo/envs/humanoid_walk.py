@@ -175,12 +175,18 @@ class HumanoidWalkEnv(RLEnv):
             return
         self._push_time_left_s -= self.step_dt_s
         due = self._push_time_left_s <= 0.0
+        if not self._any(due):
+            return
         v = self.cfg.push_velocity_m_s
         kick = torch.zeros(self.num_envs, 3, dtype=torch.float64, device=self.device)
         kick[:, :2] = self._uniform((self.num_envs, 2), -v, v, dtype=torch.float64)
         self.robot.write_root_velocity(lin_vel_w=self.robot.data.root_lin_vel_w + kick, env_ids=due)
         self._push_time_left_s = torch.where(due, self._uniform((self.num_envs,), *self.cfg.push_interval_s),
                                              self._push_time_left_s)
+
+    def _post_physics(self) -> None:
+        # one read of the feet per step, shared by rewards and the critic's observations
+        self._feet = self.feet.get_current_frame()
 
     def _policy_terms(self) -> dict[str, torch.Tensor]:
         cfg, data = self.cfg, self.robot.data
@@ -198,7 +204,7 @@ class HumanoidWalkEnv(RLEnv):
         return {
             "base_lin_vel": data.root_lin_vel_b,
             "base_height": data.root_pos_w[:, 2:3],
-            "feet_contact": self.feet.get_current_frame().in_contact.float(),
+            "feet_contact": self.feet.get_current_frame().in_contact.float(),  # after resets too
         }
 
     def _get_terminations(self) -> dict[str, torch.Tensor]:
@@ -214,7 +220,7 @@ class HumanoidWalkEnv(RLEnv):
         cmd = self.commands.command
         vel_yaw = obs_terms.base_lin_vel_yaw(data.root_quat_w, data.root_lin_vel_w)
         ang_vel_b = data.root_ang_vel_b
-        feet = self.feet.get_current_frame()
+        feet = self._feet
         return {
             "track_lin_vel_xy_exp": rewards.track_lin_vel_xy_exp(cmd[:, :2], vel_yaw, cfg.tracking_std),
             "track_ang_vel_z_exp": rewards.track_ang_vel_z_exp(
