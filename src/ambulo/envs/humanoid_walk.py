@@ -141,6 +141,7 @@ class HumanoidWalkEnv(RLEnv):
         # set by _get_terminations each step and reused by the rewards
         self._gravity_b = torch.zeros(n, 3, dtype=torch.float64, device=dev)
         self._fell = torch.zeros(n, dtype=torch.bool, device=dev)
+        self._feet = self.feet.get_current_frame()
         self._randomize_physics()
 
     def _randomize_physics(self) -> None:
