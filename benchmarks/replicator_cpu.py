@@ -1,6 +1,7 @@
 """Annotated synthetic-data frames/s on CPU vs the two-pass render floor, with the same process count.
 
     python benchmarks/replicator_cpu.py [--frames 600] [--workers 1 2] [--repeats 2] [--sizes 320x240 640x480]
+                                        [--dir DIR]
 
 For each image size and worker count P, in the same run:
 
@@ -10,17 +11,23 @@ For each image size and worker count P, in the same run:
 - annotated: what ``ambulo generate --workers P`` does in steady state:
   randomize, render both passes, instance/semantic maps, 2D/3D boxes, COCO RLE,
   PNG rgb + 16-bit depth + instance/semantic PNGs and the frame record, all
-  written atomically (into ``--dir``, a temporary folder by default). P = 1 runs in this process (llvmpipe's default threads),
-  P > 1 on ``ProducerPool`` (spawned processes, llvmpipe inline).
+  written atomically into ``--dir`` (default: the system's temporary folder).
+  P = 1 runs in this process (llvmpipe's default threads), P > 1 on
+  ``ProducerPool`` (spawned processes, llvmpipe inline).
 
-Process start-up (imports, scene, GL context; ~2 s a process) is left out of
-both, and shown separately as ``end_to_end_fps_320x240``: the wall-clock rate of
-one whole ``generate`` call (start-up and the COCO merge included). Floor and
-annotated runs alternate and the best of each is kept, which damps noise from
-other load; the table shows every run's range. Shadows and MSAA off (the
-defaults). Ends with one line ``RESULT {json}``; "ratio" is annotated / floor
-at 320x240 for the RESULT's worker count (the most measured). Target (issue
-item 8): >= 150 annotated frames/s at 320x240 on 2 cores.
+Both also report CPU ms per frame (all threads of all producer processes),
+which other load on the machine barely moves: 1000 * cores / (CPU ms per
+frame) is the frames/s the cores would give if nothing else ran. Process
+start-up (imports, scene, GL context; ~2 s a process) is left out of both,
+and shown as ``end_to_end_fps_320x240``: the wall-clock rate of one whole
+``generate`` call (start-up and the COCO merge included). Floor and annotated
+runs alternate and the best of each is kept, which damps noise from other
+load; the table shows every run's range. ``file_create_ms`` is the CPU cost of
+creating one file in ``--dir`` (five a frame): on an ext4 without journal it
+grows with the files deleted there in the last ~50 min. Shadows and MSAA off
+(the defaults). Ends with one line ``RESULT {json}``; "ratio" is annotated /
+floor at 320x240 for the RESULT's worker count (the most measured). Target
+(issue item 8): >= 150 annotated frames/s at 320x240 on 2 cores.
 """
 
 from __future__ import annotations
@@ -42,8 +49,8 @@ TARGET_FPS = 150
 SEED = 1
 
 
-def render_floor(producer: FrameProducer, frames: int) -> float:
-    """Seconds for ``frames`` x (scene update + rgb pass + id/depth pass, read back), after a warm-up."""
+def render_floor(producer: FrameProducer, frames: int) -> tuple[float, float]:
+    """(wall s, CPU s) for ``frames`` x (scene update + rgb pass + id/depth pass, read back), after a warm-up."""
     camera = producer.camera
     producer.randomize(SEED, 0)
 
@@ -53,14 +60,18 @@ def render_floor(producer: FrameProducer, frames: int) -> float:
 
     for _ in range(10):  # warm caches and the rasterizer's shader compile
         two_passes()
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     for _ in range(frames):
         two_passes()
-    return time.perf_counter() - start
+    return time.perf_counter() - start, time.process_time() - cpu
 
 
-def _warm(producer: FrameProducer) -> float:
+def _warm(producer: FrameProducer) -> tuple[float, float]:
     return render_floor(producer, 1)
+
+
+def _cpu_seconds(producer: FrameProducer) -> float:
+    return time.process_time()  # every thread of the worker: main, writer, llvmpipe's
 
 
 class InProcess:
@@ -72,13 +83,16 @@ class InProcess:
         self.config, self.out = config, out
         self.producer = FrameProducer(config)
 
-    def floor_fps(self, frames: int) -> float:
-        return frames / render_floor(self.producer, frames)
+    def floor(self, frames: int) -> tuple[float, float]:
+        """(frames/s, CPU ms a frame)"""
+        wall, cpu = render_floor(self.producer, frames)
+        return frames / wall, 1000 * cpu / frames
 
-    def annotated_fps(self, frames: list[int]) -> float:
-        start = time.perf_counter()
+    def annotated(self, frames: list[int]) -> tuple[float, float]:
+        start, cpu = time.perf_counter(), time.process_time()
         run_frames(self.config, self.out, SEED, frames, producer=self.producer)
-        return len(frames) / (time.perf_counter() - start)
+        wall, cpu = time.perf_counter() - start, time.process_time() - cpu
+        return len(frames) / wall, 1000 * cpu / len(frames)
 
     def renderer(self) -> str:
         return self.producer.gl_renderer
@@ -96,14 +110,19 @@ class Pool:
         self.pool.run_on_each(_warm)  # every process built its scene and GL context
         self._renderer = ""
 
-    def floor_fps(self, frames: int) -> float:
+    def floor(self, frames: int) -> tuple[float, float]:
         # started together by a barrier; the slowest process bounds the wall time
-        return self.workers * frames / max(self.pool.run_on_each(render_floor, frames))
+        runs = self.pool.run_on_each(render_floor, frames)
+        total = self.workers * frames
+        return total / max(wall for wall, _ in runs), 1000 * sum(cpu for _, cpu in runs) / total
 
-    def annotated_fps(self, frames: list[int]) -> float:
+    def annotated(self, frames: list[int]) -> tuple[float, float]:
+        cpu = sum(self.pool.run_on_each(_cpu_seconds))
         start = time.perf_counter()
         self._renderer = self.pool.run(frames)
-        return len(frames) / (time.perf_counter() - start)
+        wall = time.perf_counter() - start
+        cpu = sum(self.pool.run_on_each(_cpu_seconds)) - cpu
+        return len(frames) / wall, 1000 * cpu / len(frames)
 
     def renderer(self) -> str:
         return self._renderer
@@ -112,24 +131,35 @@ class Pool:
         self.pool.close()
 
 
+def file_create_ms(folder: Path, count: int = 200) -> float:
+    """CPU ms to create one empty file in ``folder`` (the files stay: deleting them would slow later creates)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    cpu = time.process_time()
+    for i in range(count):
+        os.close(os.open(folder / f"{i:06d}", os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644))
+    return 1000 * (time.process_time() - cpu) / count
+
+
 def measure(out: Path, width: int, height: int, workers: int, frames: int, repeats: int) -> dict:
     config = rep.example_config(width, height)
     prepare_dirs(out, config.writer)
     side = InProcess(config, out) if workers == 1 else Pool(config, out, workers)
     try:
-        side.annotated_fps(list(range(8 * workers)))  # warm the writer path
+        side.annotated(list(range(8 * workers)))  # warm the writer path
         floor, annotated = [], []
         first = 8 * workers
         for _ in range(repeats):
-            floor.append(side.floor_fps(frames // workers))
+            floor.append(side.floor(frames // workers))
             # fresh frame indices each time: every frame is randomized and written anew
-            annotated.append(side.annotated_fps(list(range(first, first + frames))))
+            annotated.append(side.annotated(list(range(first, first + frames))))
             first += frames
         renderer = side.renderer()
     finally:
         side.close()
-    return {"floor_fps": max(floor), "annotated_fps": max(annotated), "floor_runs": floor,
-            "annotated_runs": annotated, "gl_renderer": renderer}
+    return {"floor_fps": max(fps for fps, _ in floor), "floor_cpu_ms": min(cpu for _, cpu in floor),
+            "annotated_fps": max(fps for fps, _ in annotated), "annotated_cpu_ms": min(cpu for _, cpu in annotated),
+            "floor_runs": [fps for fps, _ in floor], "annotated_runs": [fps for fps, _ in annotated],
+            "gl_renderer": renderer}
 
 
 def end_to_end_fps(out: Path, width: int, height: int, workers: int, frames: int) -> float:
@@ -152,28 +182,32 @@ def main() -> None:
                         help="process counts to measure (default: 1 and one per usable CPU)")
     parser.add_argument("--repeats", type=int, default=2, help="floor/annotated runs per case; the best is kept")
     parser.add_argument("--sizes", nargs="+", default=["320x240", "640x480"], help="WxH; 320x240 is required")
-    parser.add_argument("--dir", type=Path, default=None, help="where the frames go (default: a temporary folder)")
+    parser.add_argument("--dir", type=Path, default=None,
+                        help="folder for the frames (a temporary folder is made in it; default: the system's)")
     args = parser.parse_args()
     sizes = [tuple(int(v) for v in size.split("x")) for size in args.sizes]
     if (320, 240) not in sizes:
         parser.error("--sizes must include 320x240 (the target's size)")
     results = {}
-    print(f"{'size':>8} {'P':>2} | {'floor fps (runs)':>22} | {'annotated fps (runs)':>22} | ratio")
+    print(f"{'size':>8} {'P':>2} | {'floor fps (runs)':>22} {'CPU ms':>6} | {'annotated fps (runs)':>22} {'CPU ms':>6} "
+          "| ratio")
     # Everything written stays until the end: deleting thousands of files makes ext4 slow to create
     # new ones for a while (it skips recently freed inodes), which would tax the cases after it.
     with tempfile.TemporaryDirectory(dir=args.dir) as tmp:
+        create_ms = file_create_ms(Path(tmp) / "create_probe")
         for width, height in sizes:
             frames = args.frames if width == 320 else max(40, args.frames // 2)
             for workers in args.workers:
                 r = measure(Path(tmp) / f"{width}x{height}_p{workers}", width, height, workers, frames,
                             args.repeats)
                 results[(width, workers)] = r
-                print(f"{width}x{height:<4} {workers:>2} | {r['floor_fps']:6.1f} ({_span(r['floor_runs'])}) | "
-                      f"{r['annotated_fps']:6.1f} ({_span(r['annotated_runs'])}) | "
-                      f"{r['annotated_fps'] / r['floor_fps']:.2f}", flush=True)
+                print(f"{width}x{height:<4} {workers:>2} | {r['floor_fps']:6.1f} ({_span(r['floor_runs'])}) "
+                      f"{r['floor_cpu_ms']:6.2f} | {r['annotated_fps']:6.1f} ({_span(r['annotated_runs'])}) "
+                      f"{r['annotated_cpu_ms']:6.2f} | {r['annotated_fps'] / r['floor_fps']:.2f}", flush=True)
         workers = max(args.workers)
         e2e = end_to_end_fps(Path(tmp) / "end_to_end", 320, 240, workers, args.frames)
-    print(f"ambulo generate --workers {workers} --frames {args.frames} at 320x240, end to end: {e2e:.1f} frames/s")
+    print(f"ambulo generate --workers {workers} --frames {args.frames} at 320x240, end to end: {e2e:.1f} frames/s; "
+          f"creating a file in {args.dir or tempfile.gettempdir()}: {create_ms:.3f} ms CPU")
     low = results[(320, workers)]
     summary = {
         "benchmark": "replicator_cpu", "workers": workers, "cpus": usable_cpus(),
@@ -183,6 +217,9 @@ def main() -> None:
         "floor_fps_320x240": round(low["floor_fps"], 1),
         "ratio": round(low["annotated_fps"] / low["floor_fps"], 3),
         "end_to_end_fps_320x240": round(e2e, 1),
+        "cpu_ms_per_frame_320x240": {"annotated": round(low["annotated_cpu_ms"], 2),
+                                     "floor": round(low["floor_cpu_ms"], 2)},
+        "file_create_ms": round(create_ms, 3),
         "annotated_fps_320x240_by_workers": {p: round(results[(320, p)]["annotated_fps"], 1) for p in args.workers},
         "target_annotated_fps_320x240": TARGET_FPS,
         "meets_target": low["annotated_fps"] >= TARGET_FPS,

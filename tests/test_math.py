@@ -1,9 +1,10 @@
-"""Batched quaternion math against MuJoCo's own functions."""
+"""Batched quaternion math (torch and NumPy) against MuJoCo's own functions."""
 
 import mujoco
 import numpy as np
 import torch
 
+from ambulo.utils import rotations
 from ambulo.utils.math import quat_from_axis_angle, quat_rotate, quat_rotate_inverse, yaw_from_quat
 
 
@@ -26,3 +27,25 @@ def test_axis_angle_and_yaw():
     torch.testing.assert_close(yaw_from_quat(quat), yaw)
     x_axis = quat_rotate(quat, torch.tensor([1.0, 0.0, 0.0], dtype=torch.float64).expand(3, 3))
     torch.testing.assert_close(x_axis[:, 0], torch.cos(yaw))
+
+
+def test_numpy_rotations_match_mujoco_and_the_torch_versions():
+    rng = np.random.default_rng(0)
+    quat = rng.normal(size=(20, 4))
+    quat /= np.linalg.norm(quat, axis=-1, keepdims=True)
+    quat[quat[:, 0] < 0] *= -1  # mat_to_quat returns w >= 0
+    mats = rotations.quat_to_mat(quat)
+    for q, m in zip(quat, mats):
+        want = np.zeros(9)
+        mujoco.mju_quat2Mat(want, q)
+        np.testing.assert_allclose(m.ravel(), want, atol=1e-12)
+        np.testing.assert_allclose(rotations.mat_to_quat(m), q, atol=1e-12)  # one matrix: MuJoCo's routine
+    np.testing.assert_allclose(rotations.mat_to_quat(mats), quat, atol=1e-12)  # batched: Shepperd's method
+    axis = rng.normal(size=(20, 3))
+    axis /= np.linalg.norm(axis, axis=-1, keepdims=True)
+    angle = rng.uniform(-np.pi, np.pi, 20)
+    q = rotations.quat_from_axis_angle(axis, angle)
+    np.testing.assert_allclose(q, quat_from_axis_angle(torch.from_numpy(axis), torch.from_numpy(angle)).numpy(),
+                               atol=1e-15)
+    np.testing.assert_allclose(rotations.rot_about_axes(axis * angle[:, None]), rotations.quat_to_mat(q), atol=1e-12)
+    np.testing.assert_array_equal(rotations.rot_about_axes(np.zeros(3)), np.eye(3))

@@ -8,14 +8,18 @@ from ambulo import assets
 from ambulo.engine import CpuEngine, make_engine
 
 
-def _humanoid_scene_model():
+def _humanoid_scene_spec() -> mujoco.MjSpec:
     spec = mujoco.MjSpec()
     spec.option.timestep = 0.005
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[10, 10, 0.1])
     spec.attach(mujoco.MjSpec.from_file(assets.path("humanoid")), prefix="h/",
                 frame=spec.worldbody.add_frame())
-    return spec.compile()
+    return spec
+
+
+def _humanoid_scene_model():
+    return _humanoid_scene_spec().compile()
 
 
 def _rollout(num_worlds, seed, steps=150):
@@ -64,12 +68,7 @@ def test_state_tensors_are_zero_copy_views_and_outputs_refresh():
 
 def _humanoid_with_filtered_actuator_model():
     """The humanoid scene plus one first-order filter actuator, so that worlds carry ``act`` state."""
-    spec = mujoco.MjSpec()
-    spec.option.timestep = 0.005
-    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-    spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[10, 10, 0.1])
-    spec.attach(mujoco.MjSpec.from_file(assets.path("humanoid")), prefix="h/",
-                frame=spec.worldbody.add_frame())
+    spec = _humanoid_scene_spec()
     spec.add_actuator(name="filtered", target="h/torso_yaw", trntype=mujoco.mjtTrn.mjTRN_JOINT,
                       dyntype=mujoco.mjtDyn.mjDYN_FILTER, dynprm=[0.05] + [0.0] * 9,
                       gainprm=[20.0] + [0.0] * 9)

@@ -8,6 +8,7 @@ import torch
 from ambulo.rl import train
 from ambulo.rl.runs import checkpoints
 from ambulo.rl.vecenv import RslRlVecEnv
+from ambulo.utils.atomic import TMP_MARK
 
 
 def test_resume_after_interruption(tmp_path, monkeypatch):
@@ -26,7 +27,7 @@ def test_resume_after_interruption(tmp_path, monkeypatch):
         train("cartpole", num_envs=16, max_iterations=6, log_root=tmp_path, ppo_overrides=fast)
     run_dir = next((tmp_path / "cartpole").iterdir())
     assert [it for it, _ in checkpoints(run_dir)] == [0, 1, 2]
-    assert not list(run_dir.glob(".*.tmp"))  # writes are atomic: no leftovers
+    assert not list(run_dir.glob(f"*{TMP_MARK}*"))  # writes are atomic: no leftovers
     saved = torch.load(run_dir / "model_2.pt", weights_only=False)
     assert saved["iter"] == 2
 

@@ -10,6 +10,7 @@ from ambulo.sim import (
     ArticulationAction, DifferentialController, DynamicCuboid, RigidPrim, Robot, WheeledRobot, World,
     add_reference_to_stage,
 )
+from ambulo.utils.rotations import quat_to_mat
 
 PENDULUM_MJCF = """
 <mujoco>
@@ -185,15 +186,6 @@ OFFSET_ROTOR_MJCF = """
 """
 
 
-def _quat_to_mat(q):
-    w, x, y, z = q
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-    ])
-
-
 def test_rigid_prim_linear_velocity_is_the_body_origin_not_the_com(tmp_path):
     com_b = np.array([0.3, 0.0, 0.0])  # centre of mass in the body frame (the sphere's centre)
     file = tmp_path / "rotor.xml"
@@ -210,7 +202,7 @@ def test_rigid_prim_linear_velocity_is_the_body_origin_not_the_com(tmp_path):
 
     # by hand: v_com = v_origin + w x (p_com - p_origin), constant in free flight
     p0, q0 = rotor.get_world_pose()
-    r0 = _quat_to_mat(q0) @ com_b  # p_com - p_origin at the start (identity rotation: (0.3, 0, 0))
+    r0 = quat_to_mat(q0) @ com_b  # p_com - p_origin at the start (identity rotation: (0.3, 0, 0))
     v_com = v_origin0 + np.cross(omega, r0)
     np.testing.assert_allclose(v_com, [0.4, 0.5, 0.5], atol=1e-12)  # w x (0.3, 0, 0) = (0, 0.6, 0.3)
     # nor is it the CoM's velocity: the two differ by |w x r| = 0.67 m/s
@@ -219,7 +211,7 @@ def test_rigid_prim_linear_velocity_is_the_body_origin_not_the_com(tmp_path):
     for _ in range(300):  # 0.3 s: the body turns by |w| t = 0.69 rad about w
         world.step()
     p, q = rotor.get_world_pose()
-    r = _quat_to_mat(q) @ com_b
+    r = quat_to_mat(q) @ com_b
     assert np.linalg.norm(r - r0) > 0.1  # the offset has rotated
     np.testing.assert_allclose(rotor.get_angular_velocity(), omega, atol=1e-6)
     np.testing.assert_allclose(p + r, p0 + r0 + 0.3 * v_com, atol=2e-3)  # straight on (integrator drift ~4e-4)

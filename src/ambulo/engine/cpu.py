@@ -95,7 +95,6 @@ class CpuEngine:
         key = -1
         if keyframe is not None:
             key = keyframe if isinstance(keyframe, int) else self.model.key(keyframe).id
-        self._keyframe = key
         self._batch.reset(keyframe=key)
         self.initial_state = self._batch.state.copy()
         """(N, nstate) float64: the state ``reset`` restores; edit rows to change it."""

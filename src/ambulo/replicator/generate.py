@@ -21,10 +21,11 @@ from tqdm import tqdm
 
 from ambulo.core import Simulation
 from ambulo.sensors import Camera
+from ambulo.utils.atomic import atomic_write_json, remove_partial_files
 
 from .coco import merge_coco
 from .config import DatasetConfig
-from .io import PNG_DEFLATE, atomic_write_json, remove_partial_files
+from .io import PNG_DEFLATE
 from .processes import default_workers, run_on_processes
 from .randomizers import SceneContext
 from .writers import frame_stem, prepare_dirs, write_frame

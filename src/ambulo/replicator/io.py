@@ -1,23 +1,16 @@
-"""Atomic file writes and a small, fast, deterministic PNG encoder.
+"""A small, fast, deterministic PNG encoder and depth-image encoding.
 
-Every output file is written to a temporary name in its folder and moved into
-place with ``os.replace`` (atomic on POSIX), so a run killed at any instant
-leaves each file either complete or absent. PNG deflate uses ISA-L (the
-``isal`` package, ~4x faster than zlib at the same size) when it is installed,
-else ``zlib``; both release the GIL, so a writer thread overlaps with rendering.
+PNG deflate uses ISA-L (the ``isal`` package, ~4x faster than zlib at the same
+size) when it is installed, else ``zlib``; both release the GIL, so a writer
+thread overlaps with rendering. Files are written with ``ambulo.utils.atomic``.
 """
 
 from __future__ import annotations
 
-import json
-import os
 import struct
 import zlib
-from pathlib import Path
 
 import numpy as np
-
-TMP_MARK = ".tmp-"
 
 try:
     from isal import __version__ as _isal_version
@@ -38,35 +31,6 @@ def deflate(data: bytes, zlib_level: int) -> bytes:
     if _isal_zlib is None or zlib_level == 0:
         return zlib.compress(data, zlib_level)
     return _isal_zlib.compress(data, min(3, (zlib_level + 2) // 3))
-
-
-def atomic_write_bytes(path: Path, payload: bytes) -> None:
-    path = Path(path)
-    tmp = path.with_name(f"{path.name}{TMP_MARK}{os.getpid()}")
-    with open(tmp, "wb") as f:
-        f.write(payload)
-    os.replace(tmp, path)
-
-
-def atomic_write_json(path: Path, obj) -> None:
-    atomic_write_bytes(path, json.dumps(obj, sort_keys=True, separators=(",", ":")).encode())
-
-
-def atomic_save_npy(path: Path, array: np.ndarray) -> None:
-    path = Path(path)
-    tmp = path.with_name(f"{path.name}{TMP_MARK}{os.getpid()}")
-    with open(tmp, "wb") as f:
-        np.save(f, array)
-    os.replace(tmp, path)
-
-
-def remove_partial_files(root: Path) -> int:
-    """Delete temporaries a killed run left behind; returns how many."""
-    count = 0
-    for tmp in Path(root).rglob(f"*{TMP_MARK}*"):
-        tmp.unlink(missing_ok=True)
-        count += 1
-    return count
 
 
 def _chunk(kind: bytes, data: bytes) -> bytes:

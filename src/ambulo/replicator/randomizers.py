@@ -16,7 +16,7 @@ import numpy as np
 import torch
 
 from ambulo.core import match_names
-from ambulo.sensors.frames import mat_to_quat, rot_about_axes
+from ambulo.utils.rotations import mat_to_quat, rot_about_axes
 
 from .distributions import Distribution, as_distribution, normal, uniform
 
@@ -269,4 +269,3 @@ class JointRandomizer(Randomizer):
 
 def quat_yaw(yaw: float) -> list[float]:
     return [float(np.cos(yaw / 2)), 0.0, 0.0, float(np.sin(yaw / 2))]
-

@@ -9,14 +9,14 @@ the floor and logged as hidden, so a crowded region degrades instead of overlapp
 
 from __future__ import annotations
 
-import fnmatch
 from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
 import torch
 
-from ambulo.sensors.frames import quat_to_mat
+from ambulo.core import match_names
+from ambulo.utils.rotations import quat_to_mat
 
 from .distributions import Distribution, as_distribution, uniform, uniform_int
 from .randomizers import Randomizer, match_bodies, quat_yaw, subtree_geoms
@@ -58,8 +58,9 @@ class CollisionChecker:
 class Scatter2D(Randomizer):
     """Place free-jointed bodies upright at random (x, y, yaw) on a horizontal surface.
 
-    ``surface`` names the geom(s) the objects stand on (glob); their top is
-    ``surface_z_m``. The region is ((x_min, y_min), (x_max, y_max)) in metres.
+    ``surface`` names the geom(s) the objects stand on (glob on the whole name or its last
+    path component, as ``match_names``); their top is ``surface_z_m``. The region is
+    ((x_min, y_min), (x_max, y_max)) in metres.
     """
 
     prims: str
@@ -86,7 +87,7 @@ class Scatter2D(Randomizer):
             self._qadr.append(int(m.jnt_qposadr[j]))
         self._geoms = [subtree_geoms(m, b) for b in self._bodies]
         names = [m.geom(g).name for g in range(m.ngeom)]
-        surface = [g for g, n in enumerate(names) if n and fnmatch.fnmatchcase(n, self.surface)]
+        surface = match_names(names, self.surface)
         if self.check_collisions and not surface:
             raise ValueError(f"{self.name}: no geom matches surface {self.surface!r}")
         self._checker = CollisionChecker(m, surface) if self.check_collisions else None

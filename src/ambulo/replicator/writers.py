@@ -25,8 +25,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ambulo.utils.atomic import atomic_save_npy, atomic_write_bytes, atomic_write_json
+
 from .coco import frame_annotations
-from .io import atomic_save_npy, atomic_write_bytes, atomic_write_json, depth_to_mm_u16, encode_png
+from .io import depth_to_mm_u16, encode_png
 
 WRITERS = ("coco", "depth", "masks", "kitti", "raw")
 

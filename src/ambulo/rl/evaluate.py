@@ -18,6 +18,7 @@ import torch
 from tqdm import tqdm
 
 from ambulo import envs
+from ambulo.utils.atomic import atomic_write_json
 
 from . import runs
 
@@ -80,7 +81,7 @@ def evaluate(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = N
     result["criteria"] = [c.name for c in task.criteria]
     for criterion in task.criteria:
         result[criterion.name] = criterion.holds(result)
-    runs.atomic_write_bytes(run_dir / "eval.json", json.dumps(result, indent=2).encode())
+    atomic_write_json(run_dir / "eval.json", result, indent=2, sort_keys=False, fsync=True)
     if not quiet:
         print(json.dumps(result, indent=2))
     env.close()

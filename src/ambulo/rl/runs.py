@@ -21,6 +21,7 @@ import torch
 
 from ambulo import envs
 
+from ambulo.utils.atomic import atomic_open, atomic_write_json
 from ambulo.utils.overrides import replace_dotted
 
 from .config import PpoCfg
@@ -42,7 +43,7 @@ def new_run_dir(task: str, root: str | os.PathLike = "runs") -> Path:
 
 
 def write_run_info(run_dir: Path, info: dict[str, Any]) -> None:
-    atomic_write_bytes(run_dir / RUN_FILE, json.dumps(info, indent=2, sort_keys=True).encode())
+    atomic_write_json(run_dir / RUN_FILE, info, indent=2, fsync=True)
 
 
 def read_run_info(run_dir: Path) -> dict[str, Any]:
@@ -88,25 +89,11 @@ def latest_checkpoint(run_dir: Path) -> Path:
     return found[-1][1]
 
 
-def atomic_write_bytes(path: Path, data: bytes) -> None:
-    """Write ``data`` so that ``path`` is either the old file or the complete new one."""
-    tmp = path.with_name(f".{path.name}.tmp")
-    with open(tmp, "wb") as f:
-        f.write(data)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
-
-
 def atomic_torch_save(obj: Any, path: Path) -> None:
-    """``torch.save`` through a temporary file and ``os.replace``: a crash never leaves a
-    truncated checkpoint under the final name."""
-    tmp = path.with_name(f".{path.name}.tmp")
-    with open(tmp, "wb") as f:
+    """``torch.save`` through a temporary file, fsync and ``os.replace``: a crash never leaves
+    a truncated checkpoint under the final name."""
+    with atomic_open(path, fsync=True) as f:
         torch.save(obj, f)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
 
 
 def make_env_for_run(info: dict[str, Any], *, num_envs: int, seed: int | None = None,

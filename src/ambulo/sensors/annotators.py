@@ -142,7 +142,13 @@ def geom_corners_w(geoms: np.ndarray, model: mujoco.MjModel, geom_pos_w: np.ndar
 def loose_boxes(table: InstanceTable, model: mujoco.MjModel, geom_pos_w: np.ndarray, geom_rot_w: np.ndarray,
                 extrinsics_cw: np.ndarray, k_matrix: np.ndarray, width: int, height: int,
                 near_m: float) -> list[np.ndarray | None]:
-    """Loose 2D box per instance (see ``project_box_corners``), all instances' geoms at once."""
+    """Loose 2D box per instance, all instances' geoms at once: [x_min, y_min, x_max, y_max]
+    (float px, clipped to the image) around the projected corners of the instance's geoms'
+    bounding boxes, or None when nothing is in front of the camera or inside the image.
+
+    ``extrinsics_cw`` maps world to the OpenCV camera frame. Box edges crossing the near
+    plane are cut there, so boxes partly behind the camera still project correctly.
+    """
     geoms, owner = table.instance_geoms
     corners = geom_corners_w(geoms, model, geom_pos_w, geom_rot_w)
     corners_c = corners @ extrinsics_cw[:3, :3].T + extrinsics_cw[:3, 3]
@@ -175,26 +181,6 @@ def _near_clipped(corners_c: np.ndarray, near_m: float) -> tuple[np.ndarray, np.
     t = np.where(crossing, (near_m - za) / np.where(crossing, zb - za, 1.0), 0.0)
     cut = a + t[..., None] * (b - a)
     return np.concatenate([corners_c, cut], 1), np.concatenate([z >= near_m, crossing], 1)
-
-
-def project_box_corners(corners_c: np.ndarray, k_matrix: np.ndarray, width: int, height: int,
-                        near_m: float) -> np.ndarray | None:
-    """Image box [x_min, y_min, x_max, y_max] (float px, clipped) of boxes (G, 8, 3) in the camera.
-
-    ``corners_c`` are in the OpenCV camera frame. Edges crossing the near plane
-    are cut there, so boxes partly behind the camera still project correctly.
-    Returns None when nothing is in front of the camera or inside the image.
-    """
-    points, valid = _near_clipped(corners_c, near_m)
-    points = points[valid]
-    if len(points) == 0:
-        return None
-    uv = points[:, :2] / points[:, 2:3] * np.diag(k_matrix)[:2] + k_matrix[:2, 2]
-    lo = np.maximum(uv.min(0), -0.5)
-    hi = np.minimum(uv.max(0), [width - 0.5, height - 0.5])
-    if np.any(hi <= lo):
-        return None
-    return np.concatenate([lo, hi])
 
 
 def distance_from_depth(depth: np.ndarray, k_matrix: np.ndarray) -> np.ndarray:

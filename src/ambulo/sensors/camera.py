@@ -15,10 +15,11 @@ import numpy as np
 import torch
 
 from ambulo.render import OffscreenRenderer, RenderSettings, fast_render_settings
+from ambulo.utils.rotations import mat_to_quat, quat_to_mat
 
 from . import annotators as ann
 from .base import MountPose, Sensor, spec_body
-from .frames import GL_IN, check_convention, look_at_gl, mat_to_quat, quat_to_mat
+from .frames import GL_IN, check_convention, look_at_gl
 
 ANNOTATORS = (
     "rgb", "depth", "distance_to_camera", "semantic_segmentation", "instance_segmentation",

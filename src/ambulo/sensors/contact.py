@@ -8,11 +8,12 @@ gait rewards need (Isaac Lab's / mjlab's ``ContactSensor`` air time).
 
 from __future__ import annotations
 
-import fnmatch
 from dataclasses import dataclass
 
 import mujoco
 import torch
+
+from ambulo.core import match_names
 
 from .base import Mount, Sensor, fill_worlds
 
@@ -23,7 +24,8 @@ _NETFORCE = 3          # mjtSensor contact reduce: none, mindist, maxforce, netf
 @dataclass(kw_only=True)
 class ContactSensorCfg:
     prim_paths: tuple[str, ...]
-    """Bodies to watch: names or glob patterns (e.g. '/World/robot/*_foot')."""
+    """Bodies to watch: names or glob patterns, on the whole name or its last path component
+    (e.g. '/World/robot/*_foot' or '*_foot'); see ``ambulo.core.match_names``."""
     include_subtree: bool = False
     """Count contacts of the bodies' descendants too."""
     force_threshold_n: float = 0.0
@@ -66,7 +68,7 @@ class ContactSensor(Sensor):
         names = [b.name for b in spec.bodies if b.name]
         matched = []
         for pattern in self.cfg.prim_paths:
-            hits = [n for n in names if fnmatch.fnmatchcase(n, pattern) or n.rsplit("/", 1)[-1] == pattern]
+            hits = [names[i] for i in match_names(names, pattern)]
             if not hits:
                 raise ValueError(f"contact sensor: no body matches {pattern!r}; bodies: {names[:12]}")
             matched += [h for h in hits if h not in matched]

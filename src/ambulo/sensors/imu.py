@@ -13,8 +13,9 @@ from dataclasses import dataclass, field
 import mujoco
 import torch
 
+from ambulo.utils.rotations import mat_to_quat, quat_to_mat
+
 from .base import Sensor, spec_body
-from .frames import mat_to_quat, quat_to_mat
 from .imu_noise import ImuNoiseCfg, KalibrNoise, noiseless
 
 

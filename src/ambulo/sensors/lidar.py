@@ -12,8 +12,9 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from ambulo.utils.rotations import quat_to_mat
+
 from .base import MountPose, Sensor
-from .frames import quat_to_mat
 
 
 @dataclass(kw_only=True)
