@@ -1,22 +1,28 @@
 """A small, fast, deterministic PNG encoder and depth-image encoding.
 
-PNG deflate uses ISA-L (the ``isal`` package, ~4x faster than zlib at the same
-size) when it is installed, else ``zlib``; both release the GIL, so a writer
-thread overlaps with rendering. Files are written with ``ambulo.utils.atomic``.
+PNG deflate is ``zlib`` by default. ISA-L (the ``isal`` package, ~4x faster at the same
+size) is used when ``AMBULO_PNG_DEFLATE=isal`` is set and it is installed: once in ~60,000
+encodes it produced different bytes for the same pixels (issue #7's measurement), and
+ambulo promises byte-identical datasets for a seed, so speed is opt-in. Both release the
+GIL, so a writer thread overlaps with rendering. Files are written with
+``ambulo.utils.atomic``.
 """
 
 from __future__ import annotations
 
+import os
 import struct
 import zlib
 
 import numpy as np
 
-try:
-    from isal import __version__ as _isal_version
-    from isal import isal_zlib as _isal_zlib
-except ImportError:
-    _isal_zlib = None
+_isal_zlib = None
+if os.environ.get("AMBULO_PNG_DEFLATE", "zlib").lower() == "isal":
+    try:
+        from isal import __version__ as _isal_version
+        from isal import isal_zlib as _isal_zlib
+    except ImportError:
+        pass
 
 # Recorded in metadata: the same frames give other (equally valid) PNG bytes with the other deflate.
 PNG_DEFLATE = f"isal {_isal_version}" if _isal_zlib is not None else f"zlib {zlib.ZLIB_RUNTIME_VERSION}"
