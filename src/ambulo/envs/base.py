@@ -124,6 +124,7 @@ class RLEnv:
 
         self._setup()
         self._terms_seen: list[str] | None = None
+        self._noise_scale: torch.Tensor | None = None
         self.obs_buf = self._reset_all()
         self.num_obs = self.obs_buf.shape[1]
         self.num_privileged_obs = 0 if self._critic_buf is None else self._critic_buf.shape[1]
@@ -328,11 +329,13 @@ class RLEnv:
         terms = self._policy_terms()
         self._terms_seen = list(terms)
         clean = torch.cat([t.float() for t in terms.values()], dim=1)
-        noise = self.cfg.observation_noise
-        if noise:
-            noisy = [t.float() + (2.0 * torch.rand(t.shape, generator=self.generator, device=self.device) - 1.0)
-                     * noise[k] if k in noise else t.float() for k, t in terms.items()]
-            obs = torch.cat(noisy, dim=1)
+        if self.cfg.observation_noise:
+            if self._noise_scale is None:  # (num_obs,) half-width per column, from the term sizes
+                noise = self.cfg.observation_noise
+                self._noise_scale = torch.cat([torch.full((t.shape[1],), noise.get(k, 0.0), device=self.device)
+                                               for k, t in terms.items()])
+            uniform = torch.rand(clean.shape, generator=self.generator, device=self.device)
+            obs = torch.addcmul(clean, 2.0 * uniform - 1.0, self._noise_scale)
         else:
             obs = clean
         privileged = self._privileged_terms()
@@ -380,29 +383,32 @@ class _EpisodeStats:
         self.env = env
         self.interval = max(1, env.cfg.stats_interval_steps)
         self.steps = 0
-        self.sums: dict[str, torch.Tensor] = {}
-        self.count = torch.zeros((), dtype=torch.float32, device=env.device)
+        self.keys: list[str] | None = None
+        self.sums: torch.Tensor | None = None
+        """(K + 1,) masked sums of each statistic over the window, then the episode count."""
 
     def add(self, dones, terminations, time_outs, diverged) -> dict[str, torch.Tensor] | None:
-        env, ended = self.env, dones.float()
-        values = {f"Episode_Reward/{name}": env.episode_sums[:, i] for i, name in enumerate(env.reward_names)}
-        values["Episode/length_s"] = env.episode_length_buf.float() * env.step_dt_s
-        for name, mask in terminations.items():
-            values[f"Episode_Termination/{name}"] = mask.float()
-        values["Episode_Termination/time_out"] = time_outs.float()
-        values["Episode_Termination/diverged"] = diverged.float()
-        for key, value in values.items():
-            total = (value * ended).sum()
-            self.sums[key] = self.sums[key] + total if key in self.sums else total
-        self.count = self.count + ended.sum()
+        env = self.env
+        columns = [env.episode_sums, (env.episode_length_buf.float() * env.step_dt_s)[:, None],
+                   *(mask[:, None] for mask in terminations.values()), time_outs[:, None], diverged[:, None],
+                   torch.ones_like(dones)[:, None]]
+        if self.keys is None:
+            self.keys = ([f"Episode_Reward/{name}" for name in env.reward_names] + ["Episode/length_s"]
+                         + [f"Episode_Termination/{name}" for name in terminations]
+                         + ["Episode_Termination/time_out", "Episode_Termination/diverged"])
+        # one (N, K + 1) table, one masked reduction: the last column counts ended episodes
+        table = torch.cat([c.float() for c in columns], dim=1)
+        total = dones.float() @ table
+        self.sums = total if self.sums is None else self.sums + total
         self.steps += 1
         if self.steps < self.interval:
             return None
-        count = self.count.clamp(min=1.0)
-        out = {key: total / count for key, total in self.sums.items()}
-        out["Episode/num_ended"] = self.count
+        count = self.sums[-1]
+        means = self.sums[:-1] / count.clamp(min=1.0)
+        out = dict(zip(self.keys, means.unbind()))
+        out["Episode/num_ended"] = count
         out["Episode/nonfinite_actions"] = env._nonfinite_actions.float()
-        self.sums, self.count, self.steps = {}, torch.zeros_like(self.count), 0
+        self.sums, self.steps = None, 0
         return out
 
 

@@ -141,7 +141,6 @@ class HumanoidWalkEnv(RLEnv):
         # set by _get_terminations each step and reused by the rewards
         self._gravity_b = torch.zeros(n, 3, dtype=torch.float64, device=dev)
         self._fell = torch.zeros(n, dtype=torch.bool, device=dev)
-        self._feet = self.feet.get_current_frame()
         self._randomize_physics()
 
     def _randomize_physics(self) -> None:
@@ -185,10 +184,6 @@ class HumanoidWalkEnv(RLEnv):
         self._push_time_left_s = torch.where(due, self._uniform((self.num_envs,), *self.cfg.push_interval_s),
                                              self._push_time_left_s)
 
-    def _post_physics(self) -> None:
-        # one read of the feet per step, shared by rewards and the critic's observations
-        self._feet = self.feet.get_current_frame()
-
     def _policy_terms(self) -> dict[str, torch.Tensor]:
         cfg, data = self.cfg, self.robot.data
         return {
@@ -221,7 +216,7 @@ class HumanoidWalkEnv(RLEnv):
         cmd = self.commands.command
         vel_yaw = obs_terms.base_lin_vel_yaw(data.root_quat_w, data.root_lin_vel_w)
         ang_vel_b = data.root_ang_vel_b
-        feet = self._feet
+        feet = self.feet.data  # read once per step by the sensor's update
         return {
             "track_lin_vel_xy_exp": rewards.track_lin_vel_xy_exp(cmd[:, :2], vel_yaw, cfg.tracking_std),
             "track_ang_vel_z_exp": rewards.track_ang_vel_z_exp(

@@ -90,6 +90,8 @@ class ContactSensor(Sensor):
         zeros = torch.zeros(engine.num_worlds, len(self.body_names), dtype=torch.float64, device=engine.device)
         self._air, self._last_air, self._contact_time = zeros, zeros.clone(), zeros.clone()
         self._first = torch.zeros_like(zeros, dtype=torch.bool)
+        self.data: ContactData = self._frame(*self._read())
+        """The frame of the last ``update`` (what a step's rewards should read: no second read)."""
 
     def _read(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         block = self.engine.field("sensordata")[:, self._block]  # (N, B, 4)
@@ -100,8 +102,9 @@ class ContactSensor(Sensor):
         return touching, count, force
 
     def update(self, dt_s: float) -> None:
-        """Advance the air/contact timers by ``dt_s`` with the current contact state."""
-        touching, _, _ = self._read()
+        """Advance the air/contact timers by ``dt_s`` with the current contact state; ``data``
+        then holds the frame of this update."""
+        touching, count, force = self._read()
         was_in_air = self._air > 0.0  # the timer is held at 0 while touching
         self._air += dt_s
         # a touchdown ends a flight: remember how long it was
@@ -110,6 +113,7 @@ class ContactSensor(Sensor):
         self._air = torch.where(touching, torch.zeros_like(self._air), self._air)
         self._contact_time = torch.where(touching, self._contact_time + dt_s,
                                          torch.zeros_like(self._contact_time))
+        self.data = self._frame(touching, count, force)
 
     def reset(self, world_ids: torch.Tensor | None = None) -> None:
         super().reset(world_ids)
@@ -117,8 +121,12 @@ class ContactSensor(Sensor):
             fill_worlds(buf, world_ids, 0)
 
     def get_current_frame(self) -> ContactData:
+        """Contacts read now (current after any state edit and ``engine.forward``), with the
+        timers of the last ``update``."""
         self._require_initialized()
-        touching, count, force = self._read()
+        return self._frame(*self._read())
+
+    def _frame(self, touching, count, force) -> ContactData:
         return ContactData(in_contact=touching, num_contacts=count, net_force_w=force,
                            current_air_time_s=self._air, last_air_time_s=self._last_air,
                            current_contact_time_s=self._contact_time, first_contact=self._first)
