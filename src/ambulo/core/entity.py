@@ -23,6 +23,7 @@ import torch
 from ..utils.math import quat_rotate, quat_rotate_inverse, yaw_from_quat
 from .drives import is_drive
 from .paths import resolve_body, subtree_body_ids
+from .rows import put_rows, take_rows
 
 _FREE = int(mujoco.mjtJoint.mjJNT_FREE)
 _DOF_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
@@ -33,22 +34,6 @@ def _index(idx: np.ndarray, device: torch.device) -> slice | torch.Tensor:
     if idx.size and np.array_equal(idx, np.arange(idx[0], idx[0] + idx.size)):
         return slice(int(idx[0]), int(idx[0] + idx.size))
     return torch.as_tensor(idx, dtype=torch.long, device=device)
-
-
-def _put(dst: torch.Tensor, cols, value: torch.Tensor, env_ids: torch.Tensor | None) -> None:
-    """``dst[rows, cols] = value`` for ``env_ids``: None (all rows), indices (``value`` has one
-    row per index) or an (N,) bool mask (``value`` has N rows; masked rows are written with
-    ``torch.where``, so finding them needs no host sync)."""
-    if env_ids is None:
-        dst[:, cols] = value
-    elif env_ids.dtype == torch.bool:
-        old = dst[:, cols]
-        mask = env_ids.reshape(-1, *([1] * (old.dim() - 1)))
-        dst[:, cols] = torch.where(mask, value.to(old.dtype), old)
-    elif isinstance(cols, torch.Tensor):
-        dst[env_ids.reshape(-1, 1), cols] = value
-    else:
-        dst[env_ids, cols] = value
 
 
 class Entity:
@@ -169,15 +154,15 @@ class Entity:
         if self.is_floating:
             a = self._free_qpos
             if pos_w is not None:
-                _put(self.engine.qpos, slice(a, a + 3), pos_w, env_ids)
+                put_rows(self.engine.qpos, slice(a, a + 3), pos_w, env_ids)
             if quat_w is not None:
-                _put(self.engine.qpos, slice(a + 3, a + 7), quat_w, env_ids)
+                put_rows(self.engine.qpos, slice(a + 3, a + 7), quat_w, env_ids)
         elif self._root_static:
             b = slice(self.root_body_id, self.root_body_id + 1)
             if pos_w is not None:
-                _put(self.engine.model_field("body_pos"), b, pos_w.reshape(-1, 1, 3), env_ids)
+                put_rows(self.engine.model_field("body_pos"), b, pos_w.reshape(-1, 1, 3), env_ids)
             if quat_w is not None:
-                _put(self.engine.model_field("body_quat"), b, quat_w.reshape(-1, 1, 4), env_ids)
+                put_rows(self.engine.model_field("body_quat"), b, quat_w.reshape(-1, 1, 4), env_ids)
         else:
             raise ValueError(f"{self.prim_path} is jointed to a parent body; move its root or "
                              "set its joint positions instead")
@@ -190,13 +175,11 @@ class Entity:
             raise ValueError(f"{self.prim_path} has no free joint (it is fixed or jointed)")
         d = self._free_dof
         if lin_vel_w is not None:
-            _put(self.engine.qvel, slice(d, d + 3), lin_vel_w, env_ids)
+            put_rows(self.engine.qvel, slice(d, d + 3), lin_vel_w, env_ids)
         if ang_vel_w is not None:
-            quat = self.data.root_quat_w
-            if env_ids is not None and env_ids.dtype != torch.bool:
-                quat = quat[env_ids]
+            quat = take_rows(self.data.root_quat_w, env_ids)
             # MuJoCo keeps a free joint's angular velocity in the body frame
-            _put(self.engine.qvel, slice(d + 3, d + 6), quat_rotate_inverse(quat, ang_vel_w), env_ids)
+            put_rows(self.engine.qvel, slice(d + 3, d + 6), quat_rotate_inverse(quat, ang_vel_w), env_ids)
 
     def write_joint_state(self, pos: torch.Tensor | None = None, vel: torch.Tensor | None = None,
                           env_ids: torch.Tensor | None = None, joint_ids=None) -> None:
@@ -207,9 +190,9 @@ class Entity:
         qpos_idx = self.qpos_idx if joint_ids is None else self._qpos_idx_t[joint_ids]
         dof_idx = self.dof_idx if joint_ids is None else self._dof_idx_t[joint_ids]
         if pos is not None:
-            _put(self.engine.qpos, qpos_idx, pos, env_ids)
+            put_rows(self.engine.qpos, qpos_idx, pos, env_ids)
         if vel is not None:
-            _put(self.engine.qvel, dof_idx, vel, env_ids)
+            put_rows(self.engine.qvel, dof_idx, vel, env_ids)
 
     def set_joint_targets(self, pos: torch.Tensor, vel: torch.Tensor | None = None,
                           effort: torch.Tensor | None = None) -> None:
@@ -236,9 +219,9 @@ class Entity:
         idx = idx if joint_ids is None else idx[torch.as_tensor(joint_ids, device=self.device)]
         bias = self.engine.model_field("actuator_biasprm")
         if kp is not None:
-            _put(bias[..., 1], idx, -kp, env_ids)
+            put_rows(bias[..., 1], idx, -kp, env_ids)
         if kd is not None:
-            _put(bias[..., 2], idx, -kd, env_ids)
+            put_rows(bias[..., 2], idx, -kd, env_ids)
 
     def _require_drives(self):
         if self.actuator_idx is None:

@@ -9,7 +9,9 @@ One ``step(actions)`` is one policy step: the task turns actions into drive targ
 engine advances ``decimation`` physics steps in a single batched call, sensors update, then
 terminations, rewards and observations are computed for all envs at once and the finished
 envs are reset in place through masks. No Python loop over envs and no host sync on this path:
-resets, action checks and episode statistics are tensor operations.
+resets, action checks and episode statistics are tensor operations, and the worlds a reset
+touches are row selectors (``ambulo.core.rows``): indices on the CPU, where finding them is
+free and only their values are drawn, a mask on a GPU.
 
 A task subclasses ``RLEnv`` and fills in the ``_``-methods; sizes (``num_obs``) are derived
 from a real reset, not declared.
@@ -24,6 +26,7 @@ from dataclasses import dataclass, field
 import torch
 
 from ambulo.core import Entity, GroundCfg, PhysicsCfg, RobotCfg, Simulation, add_ground, add_robot, new_scene
+from ambulo.core.rows import fill_rows, num_rows, select_rows
 
 
 @dataclass(kw_only=True)
@@ -198,10 +201,10 @@ class RLEnv:
         """(N,) bool masks of task terminations by name (failure or success, not time-outs)."""
         raise NotImplementedError
 
-    def _reset_idx(self, mask: torch.Tensor) -> None:
-        """Randomize the envs where ``mask`` (N,) is true, after the engine restored their
-        initial state. Draw values for all N envs and write them with ``torch.where``/entity
-        writes taking the mask, so no host sync finds the envs."""
+    def _reset_idx(self, rows: torch.Tensor) -> None:
+        """Randomize the envs ``rows`` selects (``ambulo.core.rows``: indices on the CPU, an (N,)
+        mask on a GPU) after the engine restored their initial state. Draw ``num_rows(rows)``
+        values per quantity and write them through entity writes / ``put_rows``."""
 
     # -- public API --------------------------------------------------------------
     def reset(self, env_ids: torch.Tensor | None = None) -> torch.Tensor:
@@ -295,9 +298,12 @@ class RLEnv:
                 f"(num_envs, num_actions); pass one row of {self.num_actions} values per env"
             )
         actions = actions.to(device=self.device, dtype=torch.float32)
-        finite = torch.isfinite(actions)
         if self.device.type == "cpu":
-            # free on the CPU: no device to wait for
+            # free on the CPU: no device to wait for; NaN and Inf survive a sum, so one
+            # reduction tells whether to look closer
+            if math.isfinite(float(actions.sum(dtype=torch.float64))):
+                return actions
+            finite = torch.isfinite(actions)
             if not bool(finite.all()):
                 bad = (~finite).any(dim=1).nonzero().squeeze(-1)
                 raise ValueError(
@@ -306,6 +312,7 @@ class RLEnv:
                     "torch.nan_to_num before stepping")
             return actions
         # on a GPU a check would wait for the device: zero bad actions and count them instead
+        finite = torch.isfinite(actions)
         self._nonfinite_actions += (~finite).any(dim=1).sum()
         return torch.where(finite, actions, torch.zeros_like(actions))
 
@@ -314,16 +321,15 @@ class RLEnv:
         return self._compute_observations()
 
     def _reset_envs(self, mask: torch.Tensor) -> None:
-        if not self._any(mask):
+        rows = select_rows(mask)
+        if rows is None:
             return
         # one kinematics pass at the end, after the task has written its randomized state
-        self.sim.reset(mask, forward=False)
-        self.episode_length_buf.masked_fill_(mask, 0)
-        self.actions.masked_fill_(mask[:, None], 0.0)
-        self.prev_actions.masked_fill_(mask[:, None], 0.0)
-        self.episode_sums.masked_fill_(mask[:, None], 0.0)
-        self._reset_idx(mask)
-        self.engine.forward(mask)
+        self.sim.reset(rows, forward=False)
+        for buf in (self.episode_length_buf, self.actions, self.prev_actions, self.episode_sums):
+            fill_rows(buf, rows, 0)
+        self._reset_idx(rows)
+        self.engine.forward(rows)
 
     def _compute_observations(self) -> torch.Tensor:
         terms = self._policy_terms()
@@ -343,16 +349,15 @@ class RLEnv:
             [clean] + [t.float() for t in privileged.values()], dim=1)
         return obs
 
-    def _any(self, mask: torch.Tensor) -> bool:
-        """Whether masked work may be needed: on the CPU the exact answer (free), on a GPU always
-        True (asking would wait for the device; masked writes are cheap there)."""
-        return bool(mask.any()) if self.device.type == "cpu" else True
+    def _num_rows(self, rows: torch.Tensor | None) -> int:
+        return num_rows(rows, self.num_envs)
 
     def _uniform(self, shape: tuple[int, ...], low, high, dtype=torch.float32) -> torch.Tensor:
         """Uniform samples in [low, high) from the env's generator (``low``/``high`` broadcast)."""
         sample = torch.rand(shape, generator=self.generator, dtype=dtype, device=self.device)
-        low = torch.as_tensor(low, dtype=dtype, device=self.device)
-        high = torch.as_tensor(high, dtype=dtype, device=self.device)
+        if not isinstance(low, (int, float)) or not isinstance(high, (int, float)):
+            low = torch.as_tensor(low, dtype=dtype, device=self.device)
+            high = torch.as_tensor(high, dtype=dtype, device=self.device)
         return low + (high - low) * sample
 
 
@@ -389,9 +394,8 @@ class _EpisodeStats:
 
     def add(self, dones, terminations, time_outs, diverged) -> dict[str, torch.Tensor] | None:
         env = self.env
-        columns = [env.episode_sums, (env.episode_length_buf.float() * env.step_dt_s)[:, None],
-                   *(mask[:, None] for mask in terminations.values()), time_outs[:, None], diverged[:, None],
-                   torch.ones_like(dones)[:, None]]
+        flags = torch.stack([*terminations.values(), time_outs, diverged, torch.ones_like(dones)], dim=1)
+        columns = [env.episode_sums, (env.episode_length_buf * env.step_dt_s)[:, None], flags]
         if self.keys is None:
             self.keys = ([f"Episode_Reward/{name}" for name in env.reward_names] + ["Episode/length_s"]
                          + [f"Episode_Termination/{name}" for name in terminations]

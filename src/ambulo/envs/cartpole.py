@@ -100,10 +100,10 @@ class CartpoleEnv(RLEnv):
             "pole_vel_l1": vel[:, self.hinge].abs(),
         }
 
-    def _reset_idx(self, mask: torch.Tensor) -> None:
+    def _reset_idx(self, rows: torch.Tensor) -> None:
         a = self.cfg.initial_pole_angle_rad
-        angle = self._uniform((self.num_envs, 1), -a, a, dtype=torch.float64)
-        self.robot.write_joint_state(pos=angle, env_ids=mask, joint_ids=[self.hinge])
+        angle = self._uniform((self._num_rows(rows), 1), -a, a, dtype=torch.float64)
+        self.robot.write_joint_state(pos=angle, env_ids=rows, joint_ids=[self.hinge])
 
 
 register(TaskSpec(

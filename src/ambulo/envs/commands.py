@@ -15,6 +15,8 @@ from dataclasses import dataclass
 
 import torch
 
+from ambulo.core.rows import num_rows, put_rows, select_rows
+
 
 @dataclass(kw_only=True)
 class VelocityCommandCfg:
@@ -54,20 +56,21 @@ class VelocityCommand:
         self.is_standing = torch.zeros_like(self.is_heading)
         self.time_left_s = torch.zeros(num_envs, **f32)
 
-    def _uniform(self, low: float, high: float) -> torch.Tensor:
-        u = torch.rand(self.num_envs, generator=self.gen, device=self.device)
-        return low + (high - low) * u
-
-    def resample(self, mask: torch.Tensor) -> None:
-        """Draw new commands for the envs where ``mask`` (N,) is true."""
-        c = self.cfg
-        new = torch.stack([self._uniform(*c.lin_vel_x_m_s), self._uniform(*c.lin_vel_y_m_s),
-                           self._uniform(*c.yaw_rate_rad_s)], dim=1)
-        self.command = torch.where(mask[:, None], new, self.command)
-        self.heading_target = torch.where(mask, self._uniform(*c.heading_rad), self.heading_target)
-        self.is_heading = torch.where(mask, self._uniform(0.0, 1.0) < c.heading_fraction, self.is_heading)
-        self.is_standing = torch.where(mask, self._uniform(0.0, 1.0) < c.standing_fraction, self.is_standing)
-        self.time_left_s = torch.where(mask, self._uniform(*c.resampling_time_s), self.time_left_s)
+    def resample(self, rows: torch.Tensor | None) -> None:
+        """Draw new commands for the envs ``rows`` selects (``ambulo.core.rows``)."""
+        c, n = self.cfg, num_rows(rows, self.num_envs)
+        # one draw for all seven quantities of the selected rows
+        u = torch.rand(n, 7, generator=self.gen, device=self.device)
+        lows = torch.tensor([c.lin_vel_x_m_s[0], c.lin_vel_y_m_s[0], c.yaw_rate_rad_s[0], c.heading_rad[0],
+                             0.0, 0.0, c.resampling_time_s[0]], device=self.device)
+        highs = torch.tensor([c.lin_vel_x_m_s[1], c.lin_vel_y_m_s[1], c.yaw_rate_rad_s[1], c.heading_rad[1],
+                              1.0, 1.0, c.resampling_time_s[1]], device=self.device)
+        v = lows + (highs - lows) * u
+        put_rows(self.command, slice(None), v[:, :3], rows)
+        put_rows(self.heading_target[:, None], slice(None), v[:, 3:4], rows)
+        put_rows(self.is_heading[:, None], slice(None), v[:, 4:5] < c.heading_fraction, rows)
+        put_rows(self.is_standing[:, None], slice(None), v[:, 5:6] < c.standing_fraction, rows)
+        put_rows(self.time_left_s[:, None], slice(None), v[:, 6:7], rows)
 
     def update(self, dt_s: float, heading_w: torch.Tensor) -> None:
         """Advance timers by ``dt_s``, resample where due, steer heading envs, zero standing ones.
@@ -75,10 +78,9 @@ class VelocityCommand:
         ``heading_w``: (N,) current yaw of each robot, rad.
         """
         self.time_left_s -= dt_s
-        due = self.time_left_s <= 0.0
-        # on the CPU skip the draws when no env is due (asking is free there)
-        if self.device.type != "cpu" or bool(due.any()):
-            self.resample(due)
+        rows = select_rows(self.time_left_s <= 0.0)
+        if rows is not None:
+            self.resample(rows)
         low, high = self.cfg.yaw_rate_rad_s
         steer = (self.cfg.heading_stiffness * wrap_to_pi(self.heading_target - heading_w.float())).clamp(low, high)
         self.command[:, 2] = torch.where(self.is_heading, steer, self.command[:, 2])

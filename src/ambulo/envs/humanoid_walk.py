@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import torch
 
 from ambulo.core import GroundCfg, PhysicsCfg, RobotCfg
+from ambulo.core.rows import put_rows, select_rows, take_rows
 from ambulo.sensors import ContactSensor, ContactSensorCfg
 
 from ..utils.math import quat_from_axis_angle, quat_rotate
@@ -174,15 +175,16 @@ class HumanoidWalkEnv(RLEnv):
         if self.cfg.push_interval_s is None:
             return
         self._push_time_left_s -= self.step_dt_s
-        due = self._push_time_left_s <= 0.0
-        if not self._any(due):
+        rows = select_rows(self._push_time_left_s <= 0.0)
+        if rows is None:
             return
-        v = self.cfg.push_velocity_m_s
-        kick = torch.zeros(self.num_envs, 3, dtype=torch.float64, device=self.device)
-        kick[:, :2] = self._uniform((self.num_envs, 2), -v, v, dtype=torch.float64)
-        self.robot.write_root_velocity(lin_vel_w=self.robot.data.root_lin_vel_w + kick, env_ids=due)
-        self._push_time_left_s = torch.where(due, self._uniform((self.num_envs,), *self.cfg.push_interval_s),
-                                             self._push_time_left_s)
+        n, v = self._num_rows(rows), self.cfg.push_velocity_m_s
+        kick = torch.zeros(n, 3, dtype=torch.float64, device=self.device)
+        kick[:, :2] = self._uniform((n, 2), -v, v, dtype=torch.float64)
+        velocity = take_rows(self.robot.data.root_lin_vel_w, rows) + kick
+        self.robot.write_root_velocity(lin_vel_w=velocity, env_ids=rows)
+        put_rows(self._push_time_left_s[:, None], slice(None), self._uniform((n, 1), *self.cfg.push_interval_s),
+                 rows)
 
     def _policy_terms(self) -> dict[str, torch.Tensor]:
         cfg, data = self.cfg, self.robot.data
@@ -232,15 +234,15 @@ class HumanoidWalkEnv(RLEnv):
                 feet.last_air_time_s, feet.first_contact, cfg.air_time_threshold_s, cmd[:, :2]),
         }
 
-    def _reset_idx(self, mask: torch.Tensor) -> None:
-        cfg, n, robot = self.cfg, self.num_envs, self.robot
+    def _reset_idx(self, rows: torch.Tensor) -> None:
+        cfg, n, robot = self.cfg, self._num_rows(rows), self.robot
         yaw = self._uniform((n,), -math.pi, math.pi, dtype=torch.float64)
         z_axis = torch.tensor([0.0, 0.0, 1.0], dtype=torch.float64, device=self.device).expand(n, 3)
-        robot.write_root_pose(quat_w=quat_from_axis_angle(z_axis, yaw), env_ids=mask)
+        robot.write_root_pose(quat_w=quat_from_axis_angle(z_axis, yaw), env_ids=rows)
         noise = self._uniform((n, robot.num_joints), -1.0, 1.0, dtype=torch.float64) * cfg.initial_joint_noise_rad
         pos = (robot.default_joint_pos + noise).clamp(robot.joint_pos_limits[:, 0], robot.joint_pos_limits[:, 1])
-        robot.write_joint_state(pos=pos, env_ids=mask)
-        self.commands.resample(mask)
+        robot.write_joint_state(pos=pos, env_ids=rows)
+        self.commands.resample(rows)
 
 
 def humanoid_walk_metrics(env: HumanoidWalkEnv) -> dict[str, torch.Tensor]:

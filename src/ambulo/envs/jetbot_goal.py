@@ -15,6 +15,7 @@ import mujoco
 import torch
 
 from ambulo.core import GroundCfg, PhysicsCfg, RobotCfg
+from ambulo.core.rows import fill_rows, put_rows, take_rows
 
 from . import observations as obs_terms
 from . import rewards
@@ -110,21 +111,21 @@ class JetbotGoalEnv(RLEnv):
             "action_rate_l2": rewards.action_rate_l2(self.actions, self.prev_actions),
         }
 
-    def _reset_idx(self, mask: torch.Tensor) -> None:
-        n, cfg = self.num_envs, self.cfg
+    def _reset_idx(self, rows: torch.Tensor) -> None:
+        n, cfg = self._num_rows(rows), self.cfg
         z_axis = torch.tensor([0.0, 0.0, 1.0], dtype=torch.float64, device=self.device).expand(n, 3)
         yaw = self._uniform((n,), -math.pi, math.pi, dtype=torch.float64)
-        self.robot.write_root_pose(quat_w=quat_from_axis_angle(z_axis, yaw), env_ids=mask)
+        self.robot.write_root_pose(quat_w=quat_from_axis_angle(z_axis, yaw), env_ids=rows)
         bearing = self._uniform((n,), -math.pi, math.pi)
         distance = self._uniform((n,), *cfg.goal_distance_m)
         goal = torch.stack([distance * torch.cos(bearing), distance * torch.sin(bearing),
                             torch.zeros_like(distance)], dim=1)
-        self.goal_pos_w = torch.where(mask[:, None], goal, self.goal_pos_w)
+        put_rows(self.goal_pos_w, slice(None), goal, rows)
         self.engine.mocap_pos[:, 0] = self.goal_pos_w.to(self.engine.mocap_pos.dtype)
         # the chassis has not moved yet: its distance is measured from the reset pose
-        self._distance = torch.where(mask, self._goal_distance(), self._distance)
-        self._progress = self._progress.masked_fill(mask, 0.0)
-        self._reached = self._reached & ~mask
+        put_rows(self._distance[:, None], slice(None), take_rows(self._goal_distance(), rows)[:, None], rows)
+        fill_rows(self._progress, rows, 0.0)
+        fill_rows(self._reached, rows, False)
 
 
 register(TaskSpec(

@@ -19,6 +19,8 @@ import mujoco
 import numpy as np
 import torch
 
+from ..core.rows import fill_rows
+
 WORLD_NAMES = ("", "/", "/World", "world")
 
 
@@ -89,16 +91,6 @@ class MountPose:
         return self._mat[:, self._index].reshape(-1, 3, 3)
 
 
-def fill_worlds(buf: torch.Tensor, world_ids: torch.Tensor | None, value: float) -> None:
-    """Set the rows of ``world_ids`` (None: all; indices; or an (N,) bool mask) to ``value``."""
-    if world_ids is None:
-        buf.fill_(value)
-    elif world_ids.dtype == torch.bool:
-        buf.masked_fill_(world_ids.reshape(-1, *([1] * (buf.dim() - 1))), value)
-    else:
-        buf[world_ids] = value
-
-
 class Sensor:
     """Base of all sensors: prim path, mount, update period and lifecycle state."""
 
@@ -139,7 +131,7 @@ class Sensor:
     def reset(self, world_ids: torch.Tensor | None = None) -> None:
         """Forget the last sample of ``world_ids`` (None: all): the next read samples anew."""
         if self._last_update_s is not None:
-            fill_worlds(self._last_update_s, world_ids, -np.inf)
+            fill_rows(self._last_update_s, world_ids, -np.inf)
 
     def _require_initialized(self) -> None:
         if self.engine is None:

@@ -15,7 +15,8 @@ import torch
 
 from ambulo.core import match_names
 
-from .base import Mount, Sensor, fill_worlds
+from ..core.rows import fill_rows
+from .base import Mount, Sensor
 
 _FOUND, _FORCE = 1, 2  # bits of the contact sensor's data specification (mjtConDataField order)
 _NETFORCE = 3          # mjtSensor contact reduce: none, mindist, maxforce, netforce
@@ -95,11 +96,13 @@ class ContactSensor(Sensor):
 
     def _read(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         block = self.engine.field("sensordata")[:, self._block]  # (N, B, 4)
-        count = block[..., 0].round().long()
+        found = block[..., 0]  # a whole number of contacts, stored as float
         # the sensor reports the force body1 (ours) exerts on body2; we want the reaction
         force = -block[..., 1:4]
-        touching = (count > 0) & (force.norm(dim=-1) >= self.cfg.force_threshold_n)
-        return touching, count, force
+        touching = found > 0.5
+        if self.cfg.force_threshold_n > 0.0:
+            touching &= force.norm(dim=-1) >= self.cfg.force_threshold_n
+        return touching, found.long(), force
 
     def update(self, dt_s: float) -> None:
         """Advance the air/contact timers by ``dt_s`` with the current contact state; ``data``
@@ -118,7 +121,7 @@ class ContactSensor(Sensor):
     def reset(self, world_ids: torch.Tensor | None = None) -> None:
         super().reset(world_ids)
         for buf in (self._air, self._last_air, self._contact_time, self._first):
-            fill_worlds(buf, world_ids, 0)
+            fill_rows(buf, world_ids, 0)
 
     def get_current_frame(self) -> ContactData:
         """Contacts read now (current after any state edit and ``engine.forward``), with the
