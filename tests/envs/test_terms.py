@@ -121,3 +121,18 @@ def test_humanoid_tracking_reward_and_terminations_on_constructed_states():
                                                   dtype=torch.float64))
     robot.write_root_pose(quat_w=tilt_x(math.radians(70.0)).expand(2, 4))
     assert env._get_terminations()["tilt"].all()
+
+
+def test_humanoid_yaw_rate_reward_uses_the_world_z_rate_of_a_tilted_base():
+    env = humanoid()
+    robot = env.robot
+    tilt = tilt_x(math.radians(25.0)).expand(2, 4)
+    omega_w = torch.tensor([[0.3, -0.2, 0.8]], dtype=torch.float64).expand(2, 3)
+    robot.write_root_pose(quat_w=tilt)
+    robot.write_root_velocity(ang_vel_w=omega_w)
+    env.engine.forward()
+    env.commands.command[:] = torch.tensor([0.0, 0.0, 0.5])
+    env._get_terminations()  # computes the projected gravity the rewards reuse
+    reward = env._get_rewards()["track_ang_vel_z_exp"]
+    # the base spins at 0.8 rad/s about world z whatever its tilt: error 0.3 rad/s
+    torch.testing.assert_close(reward, torch.full((2,), math.exp(-0.3**2 / 0.5**2), dtype=torch.float64))

@@ -22,7 +22,7 @@ from ambulo.core import GroundCfg, PhysicsCfg, RobotCfg
 from ambulo.core.rows import put_rows, select_rows, take_rows
 from ambulo.sensors import ContactSensor, ContactSensorCfg
 
-from ..utils.math import quat_from_axis_angle, quat_rotate
+from ..utils.math import quat_from_axis_angle
 from . import observations as obs_terms
 from . import rewards
 from .base import EnvCfg, RLEnv
@@ -219,10 +219,11 @@ class HumanoidWalkEnv(RLEnv):
         vel_yaw = obs_terms.base_lin_vel_yaw(data.root_quat_w, data.root_lin_vel_w)
         ang_vel_b = data.root_ang_vel_b
         feet = self.feet.data  # read once per step by the sensor's update
+        # the world-z angular rate is e_z . (R w_b) = (R^T e_z) . w_b = -(projected gravity) . w_b
+        yaw_rate_w = -(self._gravity_b * ang_vel_b).sum(dim=-1)
         return {
             "track_lin_vel_xy_exp": rewards.track_lin_vel_xy_exp(cmd[:, :2], vel_yaw, cfg.tracking_std),
-            "track_ang_vel_z_exp": rewards.track_ang_vel_z_exp(
-                cmd[:, 2], quat_rotate(data.root_quat_w, ang_vel_b)[:, 2], cfg.tracking_std),
+            "track_ang_vel_z_exp": rewards.track_ang_vel_z_exp(cmd[:, 2], yaw_rate_w, cfg.tracking_std),
             "upright": rewards.upright(self._gravity_b),
             "terminated": self._fell.float(),
             "ang_vel_xy_l2": rewards.l2(ang_vel_b[:, :2]),
