@@ -1,10 +1,51 @@
 import dataclasses
+import os
+import subprocess
+import sys
+import time
+import types
+from pathlib import Path
 
 import pytest
 
 from ambulo import replicator as rep
 
 SIZE = (160, 120)
+SRC = str(Path(rep.__file__).resolve().parents[2])
+
+
+def file_tree(root: Path) -> dict[str, bytes]:
+    """Every file under ``root`` by relative path, with its bytes."""
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def generate_argv(out: Path, frames: int, *extra: str) -> list[str]:
+    """``ambulo generate`` of the example scene at SIZE, seed 4, as a subprocess command."""
+    return [sys.executable, "-m", "ambulo.cli", "generate", "--frames", str(frames), "--out", str(out),
+            "--seed", "4", "--width", str(SIZE[0]), "--height", str(SIZE[1]), "--quiet", *extra]
+
+
+def cli_env() -> dict[str, str]:
+    return {**os.environ, "PYTHONPATH": SRC + os.pathsep + os.environ.get("PYTHONPATH", "")}
+
+
+def start_and_wait_for_records(argv: list[str], records: Path, at_least: int = 5) -> subprocess.Popen:
+    """Start ``argv`` and return once ``records`` holds ``at_least`` frame records (still running)."""
+    run = subprocess.Popen(argv, env=cli_env(), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    deadline = time.time() + 120
+    while time.time() < deadline and run.poll() is None:
+        if records.is_dir() and len(list(records.glob("*.json"))) >= at_least:
+            break
+        time.sleep(0.02)
+    assert run.poll() is None, "the run finished before it could be killed: raise the frame count"
+    return run
+
+
+@pytest.fixture(name="gen")
+def generate_helpers():
+    """Helpers of the generate tests: file_tree, generate_argv, cli_env, start_and_wait_for_records."""
+    return types.SimpleNamespace(file_tree=file_tree, argv=generate_argv, env=cli_env,
+                                 start=start_and_wait_for_records)
 
 
 def small_config(outputs=("coco", "depth", "masks")):

@@ -13,15 +13,7 @@ import pytest
 from ambulo import replicator as rep
 from ambulo.replicator.processes import _chunks, default_workers
 
-SIZE = (160, 120)
-SRC = str(Path(rep.__file__).resolve().parents[2])
-
-
-def tree(root: Path) -> dict[str, bytes]:
-    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
-
-
-def test_one_and_two_worker_processes_write_identical_files(tmp_path, small_config):
+def test_one_and_two_worker_processes_write_identical_files(tmp_path, small_config, gen):
     config = small_config()
     # a closure, as a config file or notebook would give: the workers get it by value (cloudpickle)
     build = config.build_scene
@@ -29,7 +21,7 @@ def test_one_and_two_worker_processes_write_identical_files(tmp_path, small_conf
     rep.generate(config, tmp_path / "one", num_frames=10, seed=7, workers=1, show_progress=False)
     rep.generate(config, tmp_path / "two", num_frames=10, seed=7, workers=2, show_progress=False,
                  backend="processes")
-    one, two = tree(tmp_path / "one"), tree(tmp_path / "two")
+    one, two = gen.file_tree(tmp_path / "one"), gen.file_tree(tmp_path / "two")
     assert one.keys() == two.keys() and len(one) > 40
     assert [name for name in one if one[name] != two[name]] == []
 
@@ -63,24 +55,11 @@ def _children(pid: int) -> list[int]:
     return kids
 
 
-def _cli(out: Path, frames: int, workers: int) -> list[str]:
-    return [sys.executable, "-m", "ambulo.cli", "generate", "--frames", str(frames), "--out", str(out),
-            "--seed", "4", "--width", str(SIZE[0]), "--height", str(SIZE[1]), "--quiet", "--workers", str(workers)]
-
-
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
-def test_killed_parallel_run_leaves_no_workers_and_resumes_to_the_one_process_result(tmp_path):
-    env = {**os.environ, "PYTHONPATH": SRC + os.pathsep + os.environ.get("PYTHONPATH", "")}
+def test_killed_parallel_run_leaves_no_workers_and_resumes_to_the_one_process_result(tmp_path, gen):
     frames = 120
-    victim = subprocess.Popen(_cli(tmp_path / "resumed", frames, 2), env=env,
-                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     records = tmp_path / "resumed" / "frames"
-    deadline = time.time() + 120
-    while time.time() < deadline and victim.poll() is None:
-        if records.is_dir() and len(list(records.glob("*.json"))) >= 5:
-            break
-        time.sleep(0.02)
-    assert victim.poll() is None, "the run finished before it could be killed: raise `frames`"
+    victim = gen.start(gen.argv(tmp_path / "resumed", frames, "--workers", "2"), records)
     workers = [pid for pid in _children(victim.pid) if "spawn_main" in Path(f"/proc/{pid}/cmdline").read_text()]
     victim.send_signal(signal.SIGKILL)
     victim.wait()
@@ -93,8 +72,10 @@ def test_killed_parallel_run_leaves_no_workers_and_resumes_to_the_one_process_re
                 (Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z")]
     done_before = len(list(records.glob("*.json")))
     assert 5 <= done_before < frames
-    subprocess.run(_cli(tmp_path / "resumed", frames, 2), env=env, check=True, capture_output=True)
-    subprocess.run(_cli(tmp_path / "straight", frames, 1), env=env, check=True, capture_output=True)
-    resumed, straight = tree(tmp_path / "resumed"), tree(tmp_path / "straight")
+    subprocess.run(gen.argv(tmp_path / "resumed", frames, "--workers", "2"), env=gen.env(), check=True,
+                   capture_output=True)
+    subprocess.run(gen.argv(tmp_path / "straight", frames, "--workers", "1"), env=gen.env(), check=True,
+                   capture_output=True)
+    resumed, straight = gen.file_tree(tmp_path / "resumed"), gen.file_tree(tmp_path / "straight")
     assert not [name for name in resumed if ".tmp-" in name]
     assert resumed == straight
