@@ -57,17 +57,18 @@ def raw_batch(env, persistent: bool) -> mj_batch.Batch:
 
 def record_inputs(env, steps: int) -> list[tuple[np.ndarray, np.ndarray]]:
     """(state, ctrl) before each of the env's physics calls over ``steps`` zero-action steps."""
-    inputs, step = [], env.sim.step
+    engine = env.engine
+    inputs, step = [], engine.step
 
     def recording(num_substeps=1, refresh=False):
-        inputs.append((env.engine.batch.state.copy(), env.engine.ctrl.numpy().copy()))
+        inputs.append((engine.batch.state.copy(), engine.ctrl.numpy().copy()))
         return step(num_substeps, refresh)
 
-    env.sim.step = recording
+    engine.step = recording
     actions = torch.zeros(env.num_envs, env.num_actions)
     for _ in range(steps):
         env.step(actions)
-    del env.sim.step  # back to the class's method
+    del engine.step  # back to the class's method
     return inputs
 
 
