@@ -262,7 +262,8 @@ class RLEnv:
             terminated |= mask
         time_outs = (self.episode_length_buf >= self.max_episode_length) & ~terminated
         terms = self._get_rewards()
-        weighted = torch.stack([terms[k].float() for k in self.reward_names], dim=1) * self._reward_weights
+        # one stack (promoting to the widest dtype) and one conversion, not one per term
+        weighted = torch.stack([terms[k] for k in self.reward_names], dim=1).float() * self._reward_weights
         self.episode_sums += weighted
         rewards = weighted.sum(dim=1)
 
@@ -334,7 +335,7 @@ class RLEnv:
     def _compute_observations(self) -> torch.Tensor:
         terms = self._policy_terms()
         self._terms_seen = list(terms)
-        clean = torch.cat([t.float() for t in terms.values()], dim=1)
+        clean = torch.cat(list(terms.values()), dim=1).float()
         if self.cfg.observation_noise:
             if self._noise_scale is None:  # (num_obs,) half-width per column, from the term sizes
                 noise = self.cfg.observation_noise
@@ -346,7 +347,7 @@ class RLEnv:
             obs = clean
         privileged = self._privileged_terms()
         self._critic_buf = None if privileged is None else torch.cat(
-            [clean] + [t.float() for t in privileged.values()], dim=1)
+            [clean, torch.cat(list(privileged.values()), dim=1).float()], dim=1)
         return obs
 
     def _num_rows(self, rows: torch.Tensor | None) -> int:
@@ -393,6 +394,24 @@ class _EpisodeStats:
         """(K + 1,) masked sums of each statistic over the window, then the episode count."""
 
     def add(self, dones, terminations, time_outs, diverged) -> dict[str, torch.Tensor] | None:
+        # on the CPU a step where no episode ended adds nothing (asking is free there)
+        if dones.device.type != "cpu" or bool(dones.any()):
+            self._add(dones, terminations, time_outs, diverged)
+        self.steps += 1
+        if self.steps < self.interval:
+            return None
+        self.steps = 0
+        if self.sums is None:  # no episode ended in this window: nothing to report
+            return None
+        count = self.sums[-1]
+        means = self.sums[:-1] / count.clamp(min=1.0)
+        out = dict(zip(self.keys, means.unbind()))
+        out["Episode/num_ended"] = count
+        out["Episode/nonfinite_actions"] = self.env._nonfinite_actions.float()
+        self.sums = None
+        return out
+
+    def _add(self, dones, terminations, time_outs, diverged) -> None:
         env = self.env
         flags = torch.stack([*terminations.values(), time_outs, diverged, torch.ones_like(dones)], dim=1)
         columns = [env.episode_sums, (env.episode_length_buf * env.step_dt_s)[:, None], flags]
@@ -401,19 +420,9 @@ class _EpisodeStats:
                          + [f"Episode_Termination/{name}" for name in terminations]
                          + ["Episode_Termination/time_out", "Episode_Termination/diverged"])
         # one (N, K + 1) table, one masked reduction: the last column counts ended episodes
-        table = torch.cat([c.float() for c in columns], dim=1)
+        table = torch.cat(columns, dim=1).float()
         total = dones.float() @ table
         self.sums = total if self.sums is None else self.sums + total
-        self.steps += 1
-        if self.steps < self.interval:
-            return None
-        count = self.sums[-1]
-        means = self.sums[:-1] / count.clamp(min=1.0)
-        out = dict(zip(self.keys, means.unbind()))
-        out["Episode/num_ended"] = count
-        out["Episode/nonfinite_actions"] = env._nonfinite_actions.float()
-        self.sums, self.steps = None, 0
-        return out
 
 
 __all__ = ["EnvCfg", "RLEnv"]
