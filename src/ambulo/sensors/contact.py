@@ -88,6 +88,10 @@ class ContactSensor(Sensor):
         adr = torch.tensor([int(model.sensor_adr[model.sensor(f"{self.name}:{n}:contact").id])
                             for n in self.body_names], device=engine.device)
         self._block = adr[:, None] + torch.arange(4, device=engine.device)  # found, force xyz
+        # the sensors were added one after another: one slice of sensordata (a view) reads them
+        start, count = int(adr[0]), len(self.body_names)
+        contiguous = bool(torch.equal(adr.cpu(), start + 4 * torch.arange(count)))
+        self._slice = slice(start, start + 4 * count) if contiguous else None
         zeros = torch.zeros(engine.num_worlds, len(self.body_names), dtype=torch.float64, device=engine.device)
         self._air, self._last_air, self._contact_time = zeros, zeros.clone(), zeros.clone()
         self._first = torch.zeros_like(zeros, dtype=torch.bool)
@@ -95,7 +99,11 @@ class ContactSensor(Sensor):
         """The frame of the last ``update`` (what a step's rewards should read: no second read)."""
 
     def _read(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        block = self.engine.field("sensordata")[:, self._block]  # (N, B, 4)
+        data = self.engine.field("sensordata")
+        if self._slice is not None:
+            block = data[:, self._slice].reshape(data.shape[0], -1, 4)  # (N, B, 4)
+        else:
+            block = data[:, self._block]
         found = block[..., 0]  # a whole number of contacts, stored as float
         # the sensor reports the force body1 (ours) exerts on body2; we want the reaction
         force = -block[..., 1:4]
