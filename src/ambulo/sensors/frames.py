@@ -41,7 +41,7 @@ def look_at_gl(eye: np.ndarray, target: np.ndarray, up=(0.0, 0.0, 1.0)) -> np.nd
     z = back / norm
     up = np.broadcast_to(np.asarray(up, np.float64), z.shape)
     x = np.cross(up, z)
-    # looking straight along `up` leaves x undefined: fall back to world x as the up hint
+    # looking straight along `up` leaves x undefined: fall back to world y as the up hint
     degenerate = np.linalg.norm(x, axis=-1, keepdims=True) < 1e-9
     x = np.where(degenerate, np.cross(np.broadcast_to([0.0, 1.0, 0.0], z.shape), z), x)
     x = x / np.linalg.norm(x, axis=-1, keepdims=True)
