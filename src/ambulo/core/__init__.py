@@ -5,6 +5,7 @@
   importers), ``compile_scene``: the only scene builder.
 - ``entity``: ``Entity``/``EntityData``, the batched view of a robot or body tree.
 - ``lifecycle``: ``Component`` (the sensor/randomizer protocol) and ``Simulation``.
+- ``rows``: row selectors (indices on the CPU, masks on a GPU) for writes to some worlds.
 - ``importers``, ``drives``, ``materials``, ``paths``, ``semantics``: what the builder uses.
 """
 
