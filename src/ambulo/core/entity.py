@@ -20,7 +20,7 @@ import mujoco
 import numpy as np
 import torch
 
-from ..utils.math import quat_rotate, quat_rotate_inverse, yaw_from_quat
+from ..utils.math import projected_gravity, quat_rotate, quat_rotate_inverse, yaw_from_quat
 from .drives import is_drive
 from .paths import resolve_body, subtree_body_ids
 from .rows import put_rows, take_rows
@@ -234,7 +234,6 @@ class EntityData:
 
     def __init__(self, entity: Entity):
         self._e = entity
-        self._gravity_w = torch.tensor([0.0, 0.0, -1.0], dtype=torch.float64, device=entity.device)
 
     # -- root -------------------------------------------------------------------------------
     @property
@@ -285,8 +284,7 @@ class EntityData:
     @property
     def projected_gravity_b(self) -> torch.Tensor:
         """(N, 3) unit gravity direction in the root body frame: (0, 0, -1) when upright."""
-        quat = self.root_quat_w
-        return quat_rotate_inverse(quat, self._gravity_w.expand(quat.shape[0], 3))
+        return projected_gravity(self.root_quat_w)
 
     @property
     def heading_w(self) -> torch.Tensor:

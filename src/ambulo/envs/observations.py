@@ -1,4 +1,5 @@
-"""Observation terms shared by tasks: plain functions of state tensors.
+"""Observation terms shared by tasks beyond what ``ambulo.core.EntityData`` reads directly
+(projected gravity, base-frame velocities, relative joint positions live there).
 
 Names carry their frame: ``_w`` world, ``_b`` the base (root body) frame, ``_yaw`` the
 heading frame (world frame turned by the base's yaw, so z stays vertical). Inputs are
@@ -13,30 +14,9 @@ import torch
 from ..utils.math import quat_rotate_inverse, rotate_yaw_inverse, yaw_from_quat
 
 
-def projected_gravity_b(base_quat_w: torch.Tensor) -> torch.Tensor:
-    """Unit gravity direction (0, 0, -1) expressed in the base frame, (N, 3).
-
-    Upright gives (0, 0, -1); a tilt by angle theta gives a z component of -cos(theta).
-    """
-    gravity_w = torch.zeros(base_quat_w.shape[:-1] + (3,), dtype=base_quat_w.dtype,
-                            device=base_quat_w.device)
-    gravity_w[..., 2] = -1.0
-    return quat_rotate_inverse(base_quat_w, gravity_w)
-
-
-def base_lin_vel_b(base_quat_w: torch.Tensor, base_lin_vel_w: torch.Tensor) -> torch.Tensor:
-    """Linear velocity of the base origin in the base frame, (N, 3) m/s."""
-    return quat_rotate_inverse(base_quat_w, base_lin_vel_w)
-
-
 def base_lin_vel_yaw(base_quat_w: torch.Tensor, base_lin_vel_w: torch.Tensor) -> torch.Tensor:
     """Planar velocity of the base in its heading frame, (N, 2) m/s: (forward, left)."""
     return rotate_yaw_inverse(yaw_from_quat(base_quat_w), base_lin_vel_w[..., :2])
-
-
-def joint_pos_rel(joint_pos: torch.Tensor, default_joint_pos: torch.Tensor) -> torch.Tensor:
-    """Joint positions relative to the default pose, (N, J) rad."""
-    return joint_pos - default_joint_pos
 
 
 def goal_pos_b(base_pos_w: torch.Tensor, base_quat_w: torch.Tensor,
@@ -45,10 +25,4 @@ def goal_pos_b(base_pos_w: torch.Tensor, base_quat_w: torch.Tensor,
     return quat_rotate_inverse(base_quat_w, goal_pos_w - base_pos_w)
 
 
-__all__ = [
-    "base_lin_vel_b",
-    "base_lin_vel_yaw",
-    "goal_pos_b",
-    "joint_pos_rel",
-    "projected_gravity_b",
-]
+__all__ = ["base_lin_vel_yaw", "goal_pos_b"]

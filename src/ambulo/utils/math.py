@@ -25,6 +25,14 @@ def quat_rotate_inverse(quat_wxyz: torch.Tensor, vec: torch.Tensor) -> torch.Ten
     return vec - w * t + torch.cross(xyz, t, dim=-1)
 
 
+def projected_gravity(quat_wxyz: torch.Tensor) -> torch.Tensor:
+    """Unit gravity direction (0, 0, -1) of the world expressed in the frame of ``quat_wxyz``,
+    (..., 3): upright gives (0, 0, -1), a tilt by theta a z component of -cos(theta)."""
+    gravity_w = torch.zeros(quat_wxyz.shape[:-1] + (3,), dtype=quat_wxyz.dtype, device=quat_wxyz.device)
+    gravity_w[..., 2] = -1.0
+    return quat_rotate_inverse(quat_wxyz, gravity_w)
+
+
 def quat_mul(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     """Hamilton product a * b of (..., 4) quaternions."""
     aw, ax, ay, az = a.unbind(-1)
