@@ -8,7 +8,7 @@ import torch
 import ambulo.envs as envs
 from ambulo.envs import observations as obs_terms
 from ambulo.envs import rewards
-from ambulo.utils.math import (projected_gravity, quat_from_axis_angle, quat_mul, quat_rotate,
+from ambulo.utils.math import (projected_gravity, quat_from_axis_angle, quat_from_yaw, quat_mul, quat_rotate,
                                quat_rotate_inverse)
 
 X, Z = torch.tensor([[1.0, 0.0, 0.0]], dtype=torch.float64), torch.tensor([[0.0, 0.0, 1.0]],
@@ -26,6 +26,14 @@ def test_projected_gravity_of_a_known_tilt():
     torch.testing.assert_close(g, torch.tensor([[0.0, -math.sin(theta), -math.cos(theta)]],
                                                dtype=torch.float64))
     assert rewards.upright(g).item() == pytest.approx(math.cos(theta))
+
+
+def test_quat_from_yaw_is_the_rotation_about_world_z():
+    yaw = torch.tensor([0.3, -2.0, math.pi], dtype=torch.float64)
+    torch.testing.assert_close(quat_from_yaw(yaw), quat_from_axis_angle(Z.expand(3, 3), yaw))
+    # a quarter turn maps x to y
+    q = quat_from_yaw(torch.tensor([math.pi / 2], dtype=torch.float64))
+    torch.testing.assert_close(quat_rotate(q, X), torch.tensor([[0.0, 1.0, 0.0]], dtype=torch.float64))
 
 
 def test_base_velocity_frames():

@@ -22,7 +22,7 @@ from ambulo.core import GroundCfg, PhysicsCfg, RobotCfg
 from ambulo.core.rows import put_rows, select_rows, take_rows
 from ambulo.sensors import ContactSensor, ContactSensorCfg
 
-from ..utils.math import quat_from_axis_angle
+from ..utils.math import quat_from_yaw
 from . import observations as obs_terms
 from . import rewards
 from .base import EnvCfg, RLEnv
@@ -238,8 +238,7 @@ class HumanoidWalkEnv(RLEnv):
     def _reset_idx(self, rows: torch.Tensor) -> None:
         cfg, n, robot = self.cfg, self._num_rows(rows), self.robot
         yaw = self._uniform((n,), -math.pi, math.pi, dtype=torch.float64)
-        z_axis = torch.tensor([0.0, 0.0, 1.0], dtype=torch.float64, device=self.device).expand(n, 3)
-        robot.write_root_pose(quat_w=quat_from_axis_angle(z_axis, yaw), env_ids=rows)
+        robot.write_root_pose(quat_w=quat_from_yaw(yaw), env_ids=rows)
         noise = self._uniform((n, robot.num_joints), -1.0, 1.0, dtype=torch.float64) * cfg.initial_joint_noise_rad
         pos = (robot.default_joint_pos + noise).clamp(robot.joint_pos_limits[:, 0], robot.joint_pos_limits[:, 1])
         robot.write_joint_state(pos=pos, env_ids=rows)

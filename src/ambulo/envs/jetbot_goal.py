@@ -20,7 +20,7 @@ from ambulo.core.rows import fill_rows, put_rows, take_rows
 from . import observations as obs_terms
 from . import rewards
 from .base import EnvCfg, RLEnv
-from ..utils.math import quat_from_axis_angle
+from ..utils.math import quat_from_yaw
 from .ppo import PpoCfg
 from .registry import Criterion, TaskSpec, register
 
@@ -113,9 +113,8 @@ class JetbotGoalEnv(RLEnv):
 
     def _reset_idx(self, rows: torch.Tensor) -> None:
         n, cfg = self._num_rows(rows), self.cfg
-        z_axis = torch.tensor([0.0, 0.0, 1.0], dtype=torch.float64, device=self.device).expand(n, 3)
         yaw = self._uniform((n,), -math.pi, math.pi, dtype=torch.float64)
-        self.robot.write_root_pose(quat_w=quat_from_axis_angle(z_axis, yaw), env_ids=rows)
+        self.robot.write_root_pose(quat_w=quat_from_yaw(yaw), env_ids=rows)
         bearing = self._uniform((n,), -math.pi, math.pi)
         distance = self._uniform((n,), *cfg.goal_distance_m)
         goal = torch.stack([distance * torch.cos(bearing), distance * torch.sin(bearing),

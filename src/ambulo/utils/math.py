@@ -54,6 +54,13 @@ def quat_from_axis_angle(axis: torch.Tensor, angle: torch.Tensor) -> torch.Tenso
     return torch.cat([torch.cos(half), axis * torch.sin(half)], dim=-1)
 
 
+def quat_from_yaw(yaw: torch.Tensor) -> torch.Tensor:
+    """Unit quaternions (..., 4) of rotations by ``yaw`` (...,) rad about world z."""
+    half = 0.5 * yaw
+    zero = torch.zeros_like(half)
+    return torch.stack([torch.cos(half), zero, zero, torch.sin(half)], dim=-1)
+
+
 def rotate_yaw_inverse(yaw: torch.Tensor, vec_xy: torch.Tensor) -> torch.Tensor:
     """Express world-frame planar vectors ``vec_xy`` (..., 2) in the heading frame of ``yaw`` (...,)."""
     c, s = torch.cos(yaw), torch.sin(yaw)
