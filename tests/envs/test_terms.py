@@ -145,3 +145,5 @@ def test_humanoid_yaw_rate_reward_uses_the_world_z_rate_of_a_tilted_base():
     reward = env._get_rewards()["track_ang_vel_z_exp"]
     # the base spins at 0.8 rad/s about world z whatever its tilt: error 0.3 rad/s
     torch.testing.assert_close(reward, torch.full((2,), math.exp(-0.3**2 / 0.5**2), dtype=torch.float64))
+    # and evaluation's metric measures the same error
+    torch.testing.assert_close(env.velocity_tracking_error()[1], torch.full((2,), 0.3, dtype=torch.float64))

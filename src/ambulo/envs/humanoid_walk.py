@@ -160,11 +160,18 @@ class HumanoidWalkEnv(RLEnv):
     # -- metrics -----------------------------------------------------------------------
     def velocity_tracking_error(self) -> tuple[torch.Tensor, torch.Tensor]:
         """(N,) |v_cmd - v| of the planar base velocity, m/s, and (N,) |yaw rate error|, rad/s."""
-        data = self.robot.data
-        vel_yaw = obs_terms.base_lin_vel_yaw(data.root_quat_w, data.root_lin_vel_w)
+        vel_yaw, yaw_rate_w = self._planar_velocity(self.robot.data.projected_gravity_b)
         cmd = self.commands.command
         lin_err = torch.linalg.vector_norm(cmd[:, :2] - vel_yaw, dim=-1)
-        return lin_err, (cmd[:, 2] - data.root_ang_vel_w[:, 2]).abs()
+        return lin_err, (cmd[:, 2] - yaw_rate_w).abs()
+
+    def _planar_velocity(self, gravity_b: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """What the commands are tracked against: the base velocity in its heading frame (N, 2)
+        m/s and the yaw rate about world z (N,) rad/s, given the projected gravity (N, 3)."""
+        data = self.robot.data
+        vel_yaw = obs_terms.base_lin_vel_yaw(data.root_quat_w, data.root_lin_vel_w)
+        # e_z . (R w_b) = (R^T e_z) . w_b = -(projected gravity) . w_b: no rotation needed
+        return vel_yaw, -(gravity_b * data.root_ang_vel_b).sum(dim=-1)
 
     # -- RLEnv hooks ---------------------------------------------------------------------
     def _apply_action(self, actions: torch.Tensor) -> None:
@@ -216,11 +223,9 @@ class HumanoidWalkEnv(RLEnv):
     def _get_rewards(self) -> dict[str, torch.Tensor]:
         cfg, data, robot = self.cfg, self.robot.data, self.robot
         cmd = self.commands.command
-        vel_yaw = obs_terms.base_lin_vel_yaw(data.root_quat_w, data.root_lin_vel_w)
+        vel_yaw, yaw_rate_w = self._planar_velocity(self._gravity_b)
         ang_vel_b = data.root_ang_vel_b
         feet = self.feet.data  # read once per step by the sensor's update
-        # the world-z angular rate is e_z . (R w_b) = (R^T e_z) . w_b = -(projected gravity) . w_b
-        yaw_rate_w = -(self._gravity_b * ang_vel_b).sum(dim=-1)
         return {
             "track_lin_vel_xy_exp": rewards.track_lin_vel_xy_exp(cmd[:, :2], vel_yaw, cfg.tracking_std),
             "track_ang_vel_z_exp": rewards.track_ang_vel_z_exp(cmd[:, 2], yaw_rate_w, cfg.tracking_std),
