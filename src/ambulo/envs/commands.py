@@ -55,17 +55,20 @@ class VelocityCommand:
         self.is_heading = torch.zeros(num_envs, dtype=torch.bool, device=device)
         self.is_standing = torch.zeros_like(self.is_heading)
         self.time_left_s = torch.zeros(num_envs, **f32)
+        c = cfg
+        # ranges of the seven quantities one resample draws: vx, vy, yaw rate, heading, the two
+        # share draws (heading-controlled, standing) and the resampling time
+        self._low = torch.tensor([c.lin_vel_x_m_s[0], c.lin_vel_y_m_s[0], c.yaw_rate_rad_s[0], c.heading_rad[0],
+                                  0.0, 0.0, c.resampling_time_s[0]], **f32)
+        self._span = torch.tensor([c.lin_vel_x_m_s[1], c.lin_vel_y_m_s[1], c.yaw_rate_rad_s[1], c.heading_rad[1],
+                                   1.0, 1.0, c.resampling_time_s[1]], **f32) - self._low
 
     def resample(self, rows: torch.Tensor | None) -> None:
         """Draw new commands for the envs ``rows`` selects (``ambulo.core.rows``)."""
         c, n = self.cfg, num_rows(rows, self.num_envs)
         # one draw for all seven quantities of the selected rows
         u = torch.rand(n, 7, generator=self.gen, device=self.device)
-        lows = torch.tensor([c.lin_vel_x_m_s[0], c.lin_vel_y_m_s[0], c.yaw_rate_rad_s[0], c.heading_rad[0],
-                             0.0, 0.0, c.resampling_time_s[0]], device=self.device)
-        highs = torch.tensor([c.lin_vel_x_m_s[1], c.lin_vel_y_m_s[1], c.yaw_rate_rad_s[1], c.heading_rad[1],
-                              1.0, 1.0, c.resampling_time_s[1]], device=self.device)
-        v = lows + (highs - lows) * u
+        v = torch.addcmul(self._low, self._span, u)
         put_rows(self.command, slice(None), v[:, :3], rows)
         put_rows(self.heading_target[:, None], slice(None), v[:, 3:4], rows)
         put_rows(self.is_heading[:, None], slice(None), v[:, 4:5] < c.heading_fraction, rows)
