@@ -113,6 +113,7 @@ class Entity:
         self.actuator_idx = _index(self._act_adr, dev) if self.has_drives else None
         self._qpos_idx_t = torch.as_tensor(self._qpos_adr, dtype=torch.long, device=dev)
         self._dof_idx_t = torch.as_tensor(self._dof_adr, dtype=torch.long, device=dev)
+        self._act_idx_t = torch.as_tensor(self._act_adr, dtype=torch.long, device=dev)
         self.default_joint_pos = torch.as_tensor(default, **f64)
         """(J,) default joint positions, rad or m."""
         self.joint_pos_limits = torch.as_tensor(np.stack([lower, upper], -1), **f64).reshape(-1, 2)
@@ -126,20 +127,18 @@ class Entity:
     # -- joints by name -------------------------------------------------------------------
     def find_joints(self, names) -> list[int]:
         """Indices (into ``joint_*``) of joints by name; a helpful KeyError for unknown names."""
-        out = []
-        for name in [names] if isinstance(names, str) else names:
-            if name not in self.joint_names:
-                raise KeyError(f"unknown joint {name!r} of {self.prim_path}; joints: {self.joint_names}")
-            out.append(self.joint_names.index(name))
-        return out
+        return self._find(names, self.joint_names, "joint", "joints")
 
     def find_bodies(self, names) -> list[int]:
         """Indices (into ``body_*``) of bodies by name."""
+        return self._find(names, self.body_names, "body", "bodies")
+
+    def _find(self, names, pool: list[str], kind: str, kinds: str) -> list[int]:
         out = []
         for name in [names] if isinstance(names, str) else names:
-            if name not in self.body_names:
-                raise KeyError(f"unknown body {name!r} of {self.prim_path}; bodies: {self.body_names}")
-            out.append(self.body_names.index(name))
+            if name not in pool:
+                raise KeyError(f"unknown {kind} {name!r} of {self.prim_path}; {kinds}: {pool}")
+            out.append(pool.index(name))
         return out
 
     # -- writes -----------------------------------------------------------------------------
@@ -215,8 +214,7 @@ class Entity:
                     joint_ids=None, env_ids: torch.Tensor | None = None) -> None:
         """Set drive stiffness kp (N m/rad) and damping kd (N m s/rad) per world and joint."""
         self._require_drives()
-        idx = torch.as_tensor(self._act_adr, device=self.device)
-        idx = idx if joint_ids is None else idx[torch.as_tensor(joint_ids, device=self.device)]
+        idx = self._act_idx_t if joint_ids is None else self._act_idx_t[joint_ids]
         bias = self.engine.model_field("actuator_biasprm")
         if kp is not None:
             put_rows(bias[..., 1], idx, -kp, env_ids)
@@ -258,7 +256,7 @@ class EntityData:
         e = self._e
         if e.is_floating:
             return e.engine.qvel[:, e._free_dof:e._free_dof + 3]
-        return self.body_lin_vel_w[:, 0]
+        return self._origin_lin_vel_w(e.body_ids[:1], e._root_of_body[:1])[:, 0]
 
     @property
     def root_ang_vel_b(self) -> torch.Tensor:
@@ -345,9 +343,12 @@ class EntityData:
         MuJoCo's ``cvel`` is a spatial velocity expressed at the subtree centre of mass of
         the kinematic tree's root, so the origin's velocity is v + w x (p_body - p_com).
         """
-        engine, ids = self._e.engine, self._e.body_ids
+        return self._origin_lin_vel_w(self._e.body_ids, self._e._root_of_body)
+
+    def _origin_lin_vel_w(self, ids: torch.Tensor, roots: torch.Tensor) -> torch.Tensor:
+        engine = self._e.engine
         cvel = engine.cvel[:, ids]
-        offset = engine.xpos[:, ids] - engine.subtree_com[:, self._e._root_of_body]
+        offset = engine.xpos[:, ids] - engine.subtree_com[:, roots]
         return cvel[..., 3:] + torch.cross(cvel[..., :3], offset, dim=-1)
 
     @property

@@ -51,10 +51,8 @@ class Articulation(RigidPrim):
 
     # -- names -------------------------------------------------------------------
     def get_dof_index(self, dof_name: str) -> int:
-        self._data
-        if dof_name not in self.dof_names:
-            raise KeyError(f"unknown joint {dof_name!r} of {self.prim_path}; joints: {self.dof_names}")
-        return self.dof_names.index(dof_name)
+        self._data  # raises if not initialized
+        return self.entity.find_joints(dof_name)[0]
 
     def _indices(self, joint_indices) -> torch.Tensor:
         if joint_indices is None:

@@ -115,11 +115,11 @@ class RigidPrim(XFormPrim):
 
     def get_linear_velocity(self):
         """(.., 3) m/s, velocity of the body frame origin, world frame."""
-        return self._world._out(self._data.body_lin_vel_w[:, 0])
+        return self._world._out(self._data.root_lin_vel_w)
 
     def get_angular_velocity(self):
         """(.., 3) rad/s, world frame."""
-        return self._world._out(self._data.body_ang_vel_w[:, 0])
+        return self._world._out(self._data.root_ang_vel_w)
 
     def get_velocities(self):
         return self.get_linear_velocity(), self.get_angular_velocity()
