@@ -13,11 +13,14 @@ from .errors import CliError
 def _asset_path(target: str) -> str:
     """``target`` as a file: a path, or the file of a bundled asset; ``CliError`` if neither."""
     from ambulo import assets  # noqa: PLC0415
+    from ambulo.core.scene import resolve_file  # noqa: PLC0415 - the rule add_robot uses
 
-    if os.path.exists(target):
-        return target
-    if target in assets.names():
-        return assets.path(target)
+    try:
+        path = resolve_file(target)
+    except FileNotFoundError:  # not a path and no bundled asset of that name
+        path = None
+    if path is not None and os.path.exists(path):
+        return path
     close = difflib.get_close_matches(target, assets.names() + ["demo"], n=3)
     fix = (f"did you mean {' or '.join(map(repr, close))}?" if close else
            f"give 'demo', a bundled asset ({', '.join(assets.names())}) or a .xml/.urdf/.usda file")
