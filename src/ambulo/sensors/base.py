@@ -64,21 +64,20 @@ class MountPose:
     """Batched world pose of a mount, read live from the engine."""
 
     def __init__(self, engine, mount: Mount):
+        self._on_site = mount.site is not None
         model = engine.model
         if mount.site is not None:
             sid = model.site(mount.site).id
             self._pos, self._mat, self._index = engine.field("site_xpos"), engine.field("site_xmat"), sid
-            self._site_pos = self._pos
             self.body_id = int(model.site_bodyid[sid])
         else:
             bid = 0 if mount.body == "world" else model.body(mount.body).id
             self._pos, self._mat, self._index = engine.field("xpos"), engine.field("xmat"), bid
-            self._site_pos = None
             self.body_id = bid
 
     def of_data(self, data) -> tuple[np.ndarray, np.ndarray]:
         """(3,) position and (3, 3) axes of the mount in one world's ``MjData`` (after mj_forward)."""
-        if self._pos is self._site_pos:
+        if self._on_site:
             return data.site_xpos[self._index].copy(), data.site_xmat[self._index].reshape(3, 3).copy()
         return data.xpos[self._index].copy(), data.xmat[self._index].reshape(3, 3).copy()
 
