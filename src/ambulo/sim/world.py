@@ -155,7 +155,7 @@ class World:
         if self.engine is None or self._stage_signature() != self._compiled_signature:
             self._compile()
         else:
-            self.sim.reset()
+            self.sim.reset(forward=False)  # one kinematics pass below, after post_reset
         self._step_index = 0
         for obj in self.scene.prims():
             obj.post_reset()
