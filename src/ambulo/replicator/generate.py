@@ -19,7 +19,7 @@ import mujoco
 import numpy as np
 from tqdm import tqdm
 
-from ambulo.core import Simulation
+from ambulo.core import Simulation, compile_scene
 from ambulo.sensors import Camera
 from ambulo.utils.atomic import atomic_write_json, remove_partial_files
 
@@ -219,8 +219,8 @@ def _ray_requested() -> bool:
 def _categories(config: DatasetConfig) -> list[str]:
     from ambulo.sensors.annotators import instance_table
 
-    spec = config.build_scene()
-    return instance_table(spec.compile()).categories
+    # the parent process may hold no producer (workers render): compile the scene as they do
+    return instance_table(compile_scene(config.build_scene(), config.physics)).categories
 
 
 def _read_metadata_renderer(out: Path) -> str:
