@@ -294,9 +294,11 @@ def test_not_a_dataclass_or_a_single_string():
         apply_overrides(Cfg(), "num_envs=2")
 
 
-def test_nan_and_inf_are_floats():
+def test_inf_is_a_float_but_nan_is_refused():
     assert math.isinf(one("lr=inf").lr)
-    assert math.isnan(one("lr=nan").lr)
+    # NaN passes every `<` check a config makes, to crash a run later: refused at the boundary
+    with pytest.raises(OverrideError, match=r"bad value 'nan' for lr: expected float; .*give a finite one"):
+        one("lr=nan")
 
 
 if False:  # a name only type checkers see, as under ``if TYPE_CHECKING:``

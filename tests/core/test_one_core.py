@@ -64,7 +64,7 @@ def test_physics_cfg_is_the_only_source_of_solver_options():
     model = compile_scene(spec, PhysicsCfg(solver_iterations=33, cone="elliptic", impratio=2.0))
     assert (model.opt.iterations, model.opt.cone, model.opt.impratio) == (
         33, mujoco.mjtCone.mjCONE_ELLIPTIC, 2.0)
-    with pytest.raises(ValueError, match="unknown integrator 'rk5'"):
+    with pytest.raises(ValueError, match="integrator is 'rk5': unknown integrator; use one of"):
         PhysicsCfg(integrator="rk5")
 
 

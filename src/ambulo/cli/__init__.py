@@ -2,45 +2,53 @@
 
 Each command lives in its own module (``demo``, ``view``, ``data``, ``rl``) with an
 ``add_commands(subparsers)`` and imports what it runs only when it runs. Bad input (an
-unknown task, a missing run folder or file, a bad ``--env-cfg``) ends the command with one
-line ``ambulo <command>: error: <problem>; <fix>`` on stderr and exit status 2.
+unknown task, a missing or unwritable file, a bad value, a bad ``--env-cfg``) ends the command
+with one line ``ambulo <command>: error: <problem>; <fix>`` on stderr and exit status 2; Ctrl-C
+with one line and status 130. Any other exception is a bug and keeps its traceback, and
+``--debug`` (before or after the command) shows the traceback of every error.
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 
 from . import data, demo, rl, view
-from .errors import ArgumentParser, CliError, missing_extra, missing_file, report
+from .errors import EXIT_INTERRUPTED, ArgumentParser, CliError, expected_error, report
 from ..utils.overrides import OverrideError, apply_overrides
 
 _COMMAND_MODULES = (demo, view, data, rl)
+_DEBUG_HELP = "show the full traceback of any error (for bug reports)"
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``ambulo`` argument parser with every command; ``args.func(args)`` runs one."""
     parser = ArgumentParser(prog="ambulo", description="ambulo: robotics simulation, synthetic data "
                             "and RL on MuJoCo. `ambulo COMMAND --help` tells more.")
+    parser.add_argument("--debug", action="store_true", help=_DEBUG_HELP)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for module in _COMMAND_MODULES:
         module.add_commands(sub)
+    for command in sub.choices.values():  # `ambulo view x --debug` works too
+        command.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help=_DEBUG_HELP)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run ``ambulo`` with ``argv`` (default ``sys.argv[1:]``); return the exit status."""
     args = build_parser().parse_args(argv)
+    if args.debug:
+        return int(args.func(args) or 0)
     try:
         return int(args.func(args) or 0)
-    except CliError as err:
-        return report(args.command, err)
-    except ModuleNotFoundError as err:
-        extra = missing_extra(err)
-        if extra is None:
+    except KeyboardInterrupt:
+        print(f"ambulo {args.command}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except Exception as err:
+        known = expected_error(err)
+        if known is None:  # a bug: keep the traceback
             raise
-        return report(args.command, extra)
-    except FileNotFoundError as err:
-        return report(args.command, missing_file(err))
+        return report(args.command, known)
 
 
 __all__ = ["CliError", "OverrideError", "apply_overrides", "build_parser", "main"]

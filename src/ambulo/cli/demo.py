@@ -4,8 +4,13 @@ from __future__ import annotations
 
 import argparse
 
+from .errors import check_output_file, check_seconds
+
 
 def run(args: argparse.Namespace) -> int:
+    check_seconds(args.seconds)
+    if not args.no_video:
+        check_output_file(args.video, "--video")
     from ambulo.demo import run_demo  # noqa: PLC0415
 
     report = run_demo(seconds=args.seconds, video=None if args.no_video else args.video,

@@ -7,7 +7,10 @@ import difflib
 import os
 import sys
 
-from .errors import CliError
+from .errors import CliError, check_output_file, check_seconds
+
+_KINDS = (".xml", ".urdf", ".usd", ".usda", ".usdc", ".usdz")
+"""File kinds ``ambulo.core.load_spec`` reads."""
 
 
 def _asset_path(target: str) -> str:
@@ -19,7 +22,16 @@ def _asset_path(target: str) -> str:
         path = resolve_file(target)
     except FileNotFoundError:  # not a path and no bundled asset of that name
         path = None
+    if path is not None and os.path.isdir(path):
+        files = sorted(f for f in os.listdir(path) if os.path.splitext(f)[1].lower() in _KINDS)[:3]
+        fix = (f"give a file in it, e.g. {os.path.join(target, files[0])}" if files else
+               f"give a scene or robot file ({', '.join(_KINDS)})")
+        raise CliError(f"{target!r} is a folder", fix)
     if path is not None and os.path.exists(path):
+        kind = os.path.splitext(path)[1].lower()
+        if kind not in _KINDS:
+            raise CliError(f"{target!r} is not a scene or robot file (unknown kind {kind or 'without suffix'!r})",
+                           f"give an MJCF, URDF or USD file ({', '.join(_KINDS)})")
         return path
     close = difflib.get_close_matches(target, assets.names() + ["demo"], n=3)
     fix = (f"did you mean {' or '.join(map(repr, close))}?" if close else
@@ -29,6 +41,9 @@ def _asset_path(target: str) -> str:
 
 def run(args: argparse.Namespace) -> int:
     path = None if args.target == "demo" else _asset_path(args.target)
+    check_seconds(args.seconds)
+    if args.video:
+        check_output_file(args.video, "--video")
     if not args.video and not os.environ.get("DISPLAY") and sys.platform.startswith("linux"):
         raise CliError("no display for the interactive viewer",
                        "set DISPLAY, or record headless with --video out.mp4")

@@ -118,6 +118,13 @@ class Entity:
         """(J,) default joint positions, rad or m."""
         self.joint_pos_limits = torch.as_tensor(np.stack([lower, upper], -1), **f64).reshape(-1, 2)
         """(J, 2) lower/upper joint limits, rad or m; +-inf where unlimited."""
+        act = np.maximum(self._act_adr, 0)
+        force_limited = (self._act_adr >= 0) & model.actuator_forcelimited[act].astype(bool)
+        force_range = model.actuator_forcerange[act].reshape(-1, 2)
+        self.joint_effort_limits = torch.as_tensor(np.stack(
+            [np.where(force_limited, force_range[:, 0], -np.inf),
+             np.where(force_limited, force_range[:, 1], np.inf)], -1), **f64).reshape(-1, 2)
+        """(J, 2) lower/upper effort of each joint's drive, N m (or N); +-inf where unlimited."""
         self.soft_joint_pos_limits = torch.as_tensor(
             np.stack([np.where(limited, mid - half, -np.inf), np.where(limited, mid + half, np.inf)], -1),
             **f64).reshape(-1, 2)

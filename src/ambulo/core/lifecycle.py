@@ -9,14 +9,18 @@ and ``update``s components; ``reset`` restores worlds and ``reset``s components.
 
 from __future__ import annotations
 
+import logging
 from typing import Protocol, runtime_checkable
 
 import mujoco
 import torch
 
 from ..engine import Engine, make_engine
-from .physics import PhysicsCfg
+from ..utils.checks import check_int
+from .physics import PhysicsCfg, timestep_warning
 from .scene import compile_scene
+
+log = logging.getLogger(__name__)
 
 
 @runtime_checkable
@@ -54,11 +58,16 @@ class Simulation:
 
     def __init__(self, spec: mujoco.MjSpec, physics: PhysicsCfg, *, num_worlds: int = 1,
                  device: str = "cpu", num_threads: int = 0):
+        if not isinstance(physics, PhysicsCfg):
+            raise TypeError(f"physics is a {type(physics).__name__}, not a PhysicsCfg; pass "
+                            "ambulo.core.PhysicsCfg(timestep_s=..., ...)")
         self.spec = spec
         self.physics = physics
-        self.num_worlds = int(num_worlds)
+        self.num_worlds = check_int("num_worlds", num_worlds, "pass a whole number of parallel worlds, "
+                                    "e.g. num_worlds=64", minimum=1)
         self.device = str(device)
-        self.num_threads = num_threads
+        self.num_threads = check_int("num_threads", num_threads, "pass 0 (every CPU) or a thread count",
+                                     minimum=0)
         self.components: dict[str, Component] = {}
         self.model: mujoco.MjModel | None = None
         self.engine: Engine | None = None
@@ -76,6 +85,9 @@ class Simulation:
     def start(self) -> Engine:
         """Compile the spec, create the engine, initialize components, capture the initial state."""
         self.model = compile_scene(self.spec, self.physics)
+        warning = timestep_warning(self.model)
+        if warning is not None:
+            log.warning(warning)
         kwargs = {"num_threads": self.num_threads} if self.device == "cpu" else {}
         self.engine = make_engine(self.model, self.num_worlds, self.device, **kwargs)
         for component in self.components.values():

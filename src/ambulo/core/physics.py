@@ -8,10 +8,13 @@ config simulate the same model.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Literal
 
 import mujoco
+
+from ..utils.checks import InvalidValueError, check_int, check_positive, check_vector
 
 INTEGRATORS = {
     "euler": mujoco.mjtIntegrator.mjINT_EULER,
@@ -47,17 +50,80 @@ class PhysicsCfg:
     """Solver early-termination tolerance."""
 
     def __post_init__(self):
-        if self.timestep_s <= 0:
-            raise ValueError(f"timestep_s must be > 0, got {self.timestep_s}")
+        self.check()
+
+    def check(self) -> None:
+        """Raise ``InvalidValueError`` (one line: the field, why, the fix) on a bad setting;
+        ``apply_physics`` calls it again, for configs edited after construction."""
+        check_timestep("timestep_s", self.timestep_s)
+        check_vector("gravity_m_s2", self.gravity_m_s2, 3, "pass three finite numbers in m/s^2, e.g. (0, 0, -9.81)")
         for name, table in (("integrator", INTEGRATORS), ("cone", _CONES), ("solver", _SOLVERS)):
             if getattr(self, name) not in table:
-                raise ValueError(f"unknown {name} {getattr(self, name)!r}; use one of {sorted(table)}")
-        if self.solver_iterations < 1 or self.ls_iterations < 1:
-            raise ValueError("solver_iterations and ls_iterations must be >= 1")
+                raise InvalidValueError(name, getattr(self, name), f"unknown {name}",
+                                        f"use one of {sorted(table)}")
+        for name in ("solver_iterations", "ls_iterations"):
+            check_int(name, getattr(self, name), f"pass a whole number >= 1, e.g. {name}=50", minimum=1)
+        check_positive("impratio", self.impratio, "pass a ratio > 0; 1 is MuJoCo's default")
+        check_positive("tolerance", self.tolerance, "pass a small number >= 0, e.g. 1e-8 (0 never stops early)",
+                       allow_zero=True)
+
+
+MAX_TIMESTEP_S = 0.05
+"""The largest MuJoCo step ambulo accepts, s. MuJoCo's default contact time constant is 0.02 s
+and it silently raises any constraint's time constant to 2 timesteps, so above ~0.01 s contacts
+already soften, and at 0.05 s an object falling at 2 m/s moves 0.1 m in one step (through
+most collision geoms before a contact exists); a drive of typical gains (kp 100 N m/rad on a 0.01 kg m^2 link, period 0.06 s) is unstable there. Larger
+steps are almost always a unit mistake (ms for s) or a rendering step passed as the physics one."""
+
+
+def check_timestep(what: str, value) -> float:
+    """``value`` as a MuJoCo timestep in (0, ``MAX_TIMESTEP_S``] s; ``InvalidValueError`` if not."""
+    value = check_positive(what, value, "pass seconds, e.g. 0.005")
+    if value > MAX_TIMESTEP_S:
+        raise InvalidValueError(
+            what, value, f"steps above {MAX_TIMESTEP_S} s make contacts soft and stiff drives unstable",
+            f"pass a step <= {MAX_TIMESTEP_S} s (e.g. 0.005) and render less often with rendering_dt "
+            "or decimation instead")
+    return value
+
+
+def fastest_drive(model: mujoco.MjModel) -> tuple[str, float] | None:
+    """(joint name, natural period s) of the stiffest joint drive, ``T = 2 pi sqrt(I / kp)`` with
+    ``I = 1 / dof_invweight0`` (the joint's inertia at the initial pose); None without drives.
+
+    The position gain is integrated explicitly (only damping is implicit in implicitfast), and
+    semi-implicit Euler on a spring is stable only for ``omega dt < 2``: ``dt < T / pi``."""
+    best = None
+    for a in range(model.nu):
+        if model.actuator_trntype[a] != mujoco.mjtTrn.mjTRN_JOINT:
+            continue
+        kp = -float(model.actuator_biasprm[a, 1])
+        dof = int(model.jnt_dofadr[model.actuator_trnid[a, 0]])
+        invweight = float(model.dof_invweight0[dof])
+        if kp <= 0 or invweight <= 0:
+            continue
+        period = 2 * math.pi * math.sqrt(1.0 / invweight / kp)
+        if best is None or period < best[1]:
+            best = (model.joint(int(model.actuator_trnid[a, 0])).name, period)
+    return best
+
+
+def timestep_warning(model: mujoco.MjModel) -> str | None:
+    """A one-line warning when the model's timestep is too large for its stiffest drive, else None
+    (a warning, not an error: contacts and joint limits change the effective inertia)."""
+    fastest = fastest_drive(model)
+    dt = float(model.opt.timestep)
+    if fastest is None or dt * math.pi < fastest[1]:
+        return None
+    joint, period = fastest
+    return (f"timestep {dt:g} s is too large for the drive of joint {joint!r} (natural period "
+            f"{period:.3g} s): it may oscillate or diverge; use a timestep below {period / math.pi:.2g} s "
+            "or lower that joint's stiffness")
 
 
 def apply_physics(spec: mujoco.MjSpec, cfg: PhysicsCfg) -> None:
     """Write ``cfg`` into ``spec.option`` (the one place ambulo sets physics options)."""
+    cfg.check()
     option = spec.option
     option.timestep = cfg.timestep_s
     option.gravity = list(cfg.gravity_m_s2)
@@ -80,4 +146,5 @@ def match_options(child: mujoco.MjSpec, parent: mujoco.MjSpec) -> None:
         setattr(child.option, name, getattr(parent.option, name))
 
 
-__all__ = ["INTEGRATORS", "PhysicsCfg", "apply_physics", "match_options"]
+__all__ = ["INTEGRATORS", "MAX_TIMESTEP_S", "PhysicsCfg", "apply_physics", "check_timestep", "fastest_drive",
+           "match_options", "timestep_warning"]

@@ -27,6 +27,7 @@ import torch
 
 from ambulo.core import Entity, GroundCfg, PhysicsCfg, RobotCfg, Simulation, add_ground, add_robot, new_scene
 from ambulo.core.rows import fill_rows, num_rows, select_rows
+from ambulo.utils.checks import check_int
 
 from .episode_stats import EpisodeStats
 
@@ -91,6 +92,8 @@ class RLEnv:
     num_actions: int
 
     def __init__(self, cfg: EnvCfg):
+        check_int("num_envs", cfg.num_envs, "pass a whole number of parallel envs, e.g. num_envs=64",
+                  minimum=1)
         if cfg.decimation < 1:
             raise ValueError(f"decimation must be >= 1, got {cfg.decimation}")
         self.cfg = cfg

@@ -20,6 +20,7 @@ import numpy as np
 import torch
 
 from ..core.rows import fill_rows
+from ..utils.checks import check_positive
 
 WORLD_NAMES = ("", "/", "/World", "world")
 
@@ -94,8 +95,8 @@ class Sensor:
     """Base of all sensors: prim path, mount, update period and lifecycle state."""
 
     def __init__(self, prim_path: str, update_period_s: float = 0.0):
-        if update_period_s < 0:
-            raise ValueError(f"update period must be >= 0 s, got {update_period_s}")
+        update_period_s = check_positive("update period", update_period_s,
+                                         "pass seconds >= 0 (0: a new sample on every read)", allow_zero=True)
         self.prim_path = prim_path
         self.name = prim_path
         """Scene registry name: the prim path, unique where leaf names are not."""

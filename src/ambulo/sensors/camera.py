@@ -15,6 +15,9 @@ import numpy as np
 import torch
 
 from ambulo.render import OffscreenRenderer, RenderSettings, fast_render_settings
+from ambulo.utils.checks import (
+    InvalidValueError, check_int, check_positive, check_quat, check_range, check_vector,
+)
 from ambulo.utils.rotations import mat_to_quat, quat_to_mat
 
 from . import annotators as ann
@@ -61,6 +64,34 @@ class CameraCfg:
     """Outputs of ``get_current_frame``; see ``ANNOTATORS``."""
     render: RenderSettings = field(default_factory=fast_render_settings)
 
+    def __post_init__(self):
+        """Refuse sizes, angles and ranges no camera can have (one line: the field, why, the fix)."""
+        for name in ("width", "height"):
+            check_int(name, getattr(self, name), f"pass whole pixels >= 1, e.g. {name}=320", minimum=1)
+        if self.focal_length_px is not None:
+            check_positive("focal_length_px", self.focal_length_px, "pass pixels > 0, or None to use fovy_deg")
+        else:
+            fovy = check_positive("fovy_deg", self.fovy_deg, "pass degrees in (0, 180), e.g. 60")
+            if fovy >= 180:
+                raise InvalidValueError("fovy_deg", fovy, "a pinhole camera sees less than 180 deg",
+                                        "pass degrees in (0, 180), e.g. 60")
+        check_range("clipping_range_m", self.clipping_range_m,
+                    "pass (near, far) m with 0 < near < far, e.g. (0.05, 100.0)")
+        if self.clipping_range_m[0] <= 0:
+            raise InvalidValueError("clipping_range_m", self.clipping_range_m, "the near plane must be > 0",
+                                    "pass (near, far) m with 0 < near < far, e.g. (0.05, 100.0)")
+        if self.frequency_hz is not None:
+            check_positive("frequency_hz", self.frequency_hz, "pass Hz > 0, or None to render on every request")
+        check_vector("offset_pos", self.offset_pos, 3, "pass (x, y, z) m in the mount frame")
+        check_quat("offset_quat", self.offset_quat)
+
+
+def _resolution(what: str, value) -> tuple[int, int]:
+    """A ``(width, height)`` pair as given (each checked by ``CameraCfg``); refuses another length."""
+    if isinstance(value, (str, bytes)) or not hasattr(value, "__len__") or len(value) != 2:
+        raise InvalidValueError(what, value, "expected (width, height)", "pass whole pixels, e.g. resolution=(320, 240)")
+    return value[0], value[1]
+
 
 def _extrinsics(pos: np.ndarray, rot_gl: np.ndarray) -> np.ndarray:
     """(N, 4, 4) world -> OpenCV camera transforms of cameras at (N, 3) with OpenGL axes (N, 3, 3)."""
@@ -87,7 +118,8 @@ class Camera(Sensor):
     def __init__(self, cfg: CameraCfg | None = None, **kwargs):
         if cfg is None:
             if "resolution" in kwargs:
-                kwargs["width"], kwargs["height"] = kwargs.pop("resolution")
+                resolution = kwargs.pop("resolution")
+                kwargs["width"], kwargs["height"] = _resolution("resolution", resolution)
             if "frequency" in kwargs:
                 kwargs["frequency_hz"] = kwargs.pop("frequency")
             cfg = CameraCfg(**kwargs)

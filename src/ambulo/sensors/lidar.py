@@ -12,6 +12,9 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from ambulo.utils.checks import (
+    InvalidValueError, check_int, check_positive, check_quat, check_range, check_vector,
+)
 from ambulo.utils.rotations import quat_to_mat
 
 from .base import MountPose, Sensor
@@ -37,6 +40,35 @@ class LidarCfg:
     rate_hz: float | None = None
     exclude_mount_body: bool = True
     """Rays ignore the body the lidar is mounted on."""
+
+    def __post_init__(self):
+        """Refuse angles and ranges no scanner can have (one line: the field, why, the fix)."""
+        fov = check_positive("horizontal_fov_deg", self.horizontal_fov_deg, "pass degrees in (0, 360], e.g. 360")
+        if fov > 360:
+            raise InvalidValueError("horizontal_fov_deg", fov, "a scan covers at most a full circle",
+                                    "pass degrees in (0, 360], e.g. 360")
+        step = check_positive("horizontal_resolution_deg", self.horizontal_resolution_deg,
+                              "pass degrees > 0 between rays, e.g. 1.0")
+        if step > fov:
+            raise InvalidValueError("horizontal_resolution_deg", step, f"coarser than the {fov:g} deg field of view",
+                                    "pass a step no larger than horizontal_fov_deg")
+        fix = "pass (min, max) m with 0 <= min < max, e.g. min_range_m=0.1, max_range_m=30"
+        check_range("(min_range_m, max_range_m)", (self.min_range_m, self.max_range_m), fix)
+        check_positive("range_noise_std_m", self.range_noise_std_m, "pass m >= 0 (0: no noise)", allow_zero=True)
+        elevations = self.elevations_deg
+        if isinstance(elevations, (str, bytes)) or not hasattr(elevations, "__len__") or len(elevations) == 0:
+            raise InvalidValueError("elevations_deg", elevations, "expected one angle per channel",
+                                    "pass degrees, e.g. (0.0,) for a 2D scan")
+        bad = [e for e in check_vector("elevations_deg", elevations, len(elevations), "pass finite degrees")
+               if abs(e) > 90]
+        if bad:
+            raise InvalidValueError("elevations_deg", elevations, f"{bad[0]:g} deg is beyond straight up or down",
+                                    "pass degrees in [-90, 90]")
+        if self.rate_hz is not None:
+            check_positive("rate_hz", self.rate_hz, "pass Hz > 0, or None to scan on every read")
+        check_vector("offset_pos", self.offset_pos, 3, "pass (x, y, z) m in the mount frame")
+        check_quat("offset_quat", self.offset_quat)
+        check_int("seed", self.seed, "pass a whole number")
 
 
 def lidar_2d(prim_path: str, **kwargs) -> LidarCfg:

@@ -9,14 +9,20 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+import numpy as np
 import torch
 
+from ..utils.checks import Described, InvalidValueError
 from .actions import ArticulationAction
 from .controller import ArticulationController
 from .prims import RigidPrim
 
 if TYPE_CHECKING:
     from .world import World
+
+
+class JointIndexError(InvalidValueError, IndexError):
+    """A joint index out of range (an ``IndexError`` too, as before this check was one line)."""
 
 
 class Articulation(RigidPrim):
@@ -55,12 +61,42 @@ class Articulation(RigidPrim):
         return self.entity.find_joints(dof_name)[0]
 
     def _indices(self, joint_indices) -> torch.Tensor:
+        """``joint_indices`` (None: all) as a long tensor of distinct indices into ``dof_names``.
+
+        Floats, bools and text are refused (a float index would be truncated silently), and so
+        are duplicates (which of two values would win is undefined). Values of a CUDA tensor are
+        not read (a GPU->CPU sync): only its dtype is checked."""
+        self._data  # raises if not initialized
         if joint_indices is None:
             return torch.arange(self.num_dof, device=self.entity.device)
-        idx = torch.as_tensor(joint_indices, dtype=torch.long, device=self.entity.device).reshape(-1)
-        if idx.numel() and (idx.min() < 0 or idx.max() >= self.num_dof):
-            raise IndexError(f"joint index out of range [0, {self.num_dof}) for {self.prim_path}")
-        return idx
+        fix = (f"pass whole-number indices into dof_names (0..{self.num_dof - 1}), each once; "
+               "get_dof_index(name) finds one")
+        if torch.is_tensor(joint_indices):
+            if joint_indices.is_floating_point() or joint_indices.is_complex() or joint_indices.dtype == torch.bool:
+                raise InvalidValueError("joint_indices", Described(f"a {joint_indices.dtype} tensor"), "not integers", fix)
+            if joint_indices.device.type != "cpu":
+                return joint_indices.to(self.entity.device, torch.long).reshape(-1)
+            array = joint_indices.numpy()
+        else:
+            try:
+                array = np.asarray(joint_indices)
+            except (TypeError, ValueError):
+                raise InvalidValueError("joint_indices", joint_indices, "not a list of integers", fix) from None
+            if array.size == 0:
+                array = array.astype(np.int64)
+        if array.dtype.kind not in "iu":
+            raise InvalidValueError("joint_indices", joint_indices, "not all whole numbers", fix)
+        array = array.reshape(-1).astype(np.int64)
+        bad = array[(array < 0) | (array >= self.num_dof)]
+        if bad.size:
+            raise JointIndexError("joint_indices", joint_indices,
+                                    f"index {int(bad[0])} is out of range for {self.num_dof} joints of "
+                                    f"{self.prim_path}", fix)
+        values, counts = np.unique(array, return_counts=True)
+        if (counts > 1).any():
+            raise InvalidValueError("joint_indices", joint_indices,
+                                    f"index {int(values[counts > 1][0])} appears more than once", fix)
+        return torch.as_tensor(array, device=self.entity.device)
 
     # -- joint state -------------------------------------------------------------
     def get_joint_positions(self, joint_indices=None):

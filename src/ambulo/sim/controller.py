@@ -4,14 +4,22 @@ A drive's ctrl is ``kp * q_target + kd * qd_target + tau_ff`` (see ``drives.py``
 so position, velocity and effort commands combine in one implicit PD per joint.
 Control modes set the gains an Isaac user expects: "position" uses (kp, kd),
 "velocity" (0, kd), "effort" (0, 0).
+
+Out-of-range commands: efforts beyond a drive's effort limit (its MuJoCo ``forcerange``) are
+clipped to it, as Isaac clips to max effort, and ``get_applied_action`` reports the clipped
+values. Position targets beyond a joint's limits are kept as given (and reported so): the
+joint limit holds the joint at the limit while the drive pushes towards the target with
+``kp * (target - limit)``, which MuJoCo caps at the effort limit too.
 """
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+import numpy as np
 import torch
 
+from ..utils.checks import Described, InvalidValueError, check_all_finite, check_real_dtype
 from .actions import ArticulationAction
 
 if TYPE_CHECKING:
@@ -53,6 +61,9 @@ class ArticulationController:
             if value is None:
                 continue
             given, commanded = self._as_targets(value, len(idx), what, allow_none=True)
+            if target is self._tau_ff:  # Isaac clips commanded efforts to the drive's max effort
+                limits = self._entity.joint_effort_limits[idx]
+                given = torch.clamp(given, limits[:, 0], limits[:, 1])
             target[:, idx] = torch.where(commanded, given, target[:, idx])
         self._write_ctrl()
 
@@ -63,21 +74,22 @@ class ArticulationController:
         if allow_none and isinstance(value, (list, tuple)) and any(v is None for v in value):
             commanded = torch.tensor([v is not None for v in value], device=self._entity.device)
             value = [0.0 if v is None else v for v in value]
-        tensor = torch.as_tensor(value, dtype=torch.float64, device=self._entity.device)
         n = self._world.num_worlds
+        fix = (f"pass finite real numbers of shape ({count},) or ({n}, {count}), one per commanded joint "
+               f"({self._art.num_dof} joints in dof_names order, or set joint_indices); None, or None "
+               "inside a list, leaves a joint uncommanded")
+        check_real_dtype(what, value, fix)
+        try:
+            source = value if torch.is_tensor(value) else np.asarray(value, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise InvalidValueError(what, value, "not an array of real numbers", fix) from None
+        check_all_finite(what, torch.as_tensor(source), fix)  # CPU values only: no GPU sync
+        tensor = torch.as_tensor(source, dtype=torch.float64, device=self._entity.device)
         if tensor.shape == (count,):
             tensor = tensor.expand(n, count)
         if tuple(tensor.shape) != (n, count):
-            raise ValueError(
-                f"{what}: expected shape ({count},) or ({n}, {count}) for {self._art.prim_path}, "
-                f"got {tuple(tensor.shape)}; pass one value per commanded joint ({self._art.num_dof} "
-                "joints in dof_names order, or set joint_indices)"
-            )
-        if not torch.isfinite(tensor).all():
-            raise ValueError(
-                f"{what}: contains NaN or inf for {self._art.prim_path}; pass finite targets "
-                "(None, or None inside a list, leaves joints uncommanded)"
-            )
+            raise InvalidValueError(f"{what} for {self._art.prim_path}", Described(f"of shape {tuple(tensor.shape)}"),
+                                    f"expected shape ({count},) or ({n}, {count})", fix)
         if not allow_none:
             return tensor
         mask = torch.ones_like(tensor, dtype=torch.bool) if commanded is None else commanded.expand_as(tensor)
@@ -87,6 +99,8 @@ class ArticulationController:
         self._entity.set_joint_targets(self._q_target, self._qd_target, self._tau_ff)
 
     def get_applied_action(self) -> ArticulationAction:
+        """The targets in effect: positions and velocities as commanded, efforts after clipping
+        to each drive's effort limit (``Entity.joint_effort_limits``)."""
         out = self._world._out
         return ArticulationAction(joint_positions=out(self._q_target), joint_velocities=out(self._qd_target),
                                   joint_efforts=out(self._tau_ff))
@@ -99,12 +113,12 @@ class ArticulationController:
         if kps is not None:
             kp = self._as_targets(kps, len(idx), "kps")
             if (kp < 0).any():
-                raise ValueError("kps must be >= 0")
+                raise InvalidValueError("kps", kps, "stiffness must be >= 0", "pass N m/rad >= 0 (0: no position hold)")
             self._kp[:, idx] = kp
         if kds is not None:
             kd = self._as_targets(kds, len(idx), "kds")
             if (kd < 0).any():
-                raise ValueError("kds must be >= 0")
+                raise InvalidValueError("kds", kds, "damping must be >= 0", "pass N m s/rad >= 0")
             self._kd[:, idx] = kd
         self._apply_gains(idx)
 
@@ -117,7 +131,7 @@ class ArticulationController:
     def switch_control_mode(self, mode: str, joint_indices=None) -> None:
         """Make joints position-, velocity- or effort-controlled (Isaac's control modes)."""
         if mode not in _MODES:
-            raise ValueError(f"unknown control mode {mode!r}; use one of {_MODES}")
+            raise InvalidValueError("control mode", mode, "not a control mode", f"use one of {_MODES}")
         idx = self._require()._indices(joint_indices)
         for i in idx.tolist():
             self._modes[i] = mode

@@ -13,6 +13,7 @@ import torch
 
 from ..core import Entity
 from ..core.paths import resolve_spec_body
+from ..utils.checks import Described, InvalidValueError, check_quat, check_vector
 from .current import current_world
 
 if TYPE_CHECKING:
@@ -56,9 +57,9 @@ class XFormPrim:
             # a referenced file's prim is its frame; otherwise move the body itself
             target = stage.frame(prim_path) or resolve_spec_body(stage, prim_path)
             if position is not None:
-                target.pos = [float(v) for v in position]
+                target.pos = list(check_vector("position", position, 3, "pass (x, y, z) in m, finite"))
             if orientation is not None:
-                target.quat = [float(v) for v in orientation]
+                target.quat = list(check_quat("orientation", orientation))
 
     # -- lifecycle ------------------------------------------------------------
     def initialize(self, world: World) -> None:
@@ -89,18 +90,22 @@ class XFormPrim:
         return self._world._out(data.root_pos_w), self._world._out(data.root_quat_w)
 
     def set_world_pose(self, position=None, orientation=None) -> None:
-        world = self._world
-        pos = None if position is None else world._in(position, (3,), "position")
-        quat = None if orientation is None else world._in(orientation, (4,), "orientation")
-        self._write_pose(pos, quat)
+        """Move the prim: position (.., 3) m and orientation (.., 4) w x y z, world frame
+        (the quaternion is normalized; NaN, inf and a zero quaternion are refused)."""
+        self._write_pose(*self._pose_in(position, orientation))
 
     def set_default_state(self, position=None, orientation=None) -> None:
         """Pose restored by every ``world.reset()``."""
+        self._default_pose = self._pose_in(position, orientation)
+
+    def _pose_in(self, position, orientation):
         world = self._world
-        self._default_pose = (
-            None if position is None else world._in(position, (3,), "position"),
-            None if orientation is None else world._in(orientation, (4,), "orientation"),
-        )
+        pos = None if position is None else world._in(position, (3,), "position")
+        quat = None if orientation is None else world._in(orientation, (4,), "orientation")
+        if quat is not None and quat.device.type == "cpu" and bool((quat.norm(dim=-1) < 1e-9).any()):
+            raise InvalidValueError("orientation", Described("a zero quaternion"), "it is no rotation",
+                                    "pass a (w, x, y, z) quaternion such as (1, 0, 0, 0)")
+        return pos, quat
 
     def _write_pose(self, pos: torch.Tensor | None, quat: torch.Tensor | None) -> None:
         self._data
@@ -141,7 +146,7 @@ class RigidPrim(XFormPrim):
     def set_mass(self, mass) -> None:
         value = self._world._in(mass, (), "mass")
         if (value <= 0).any():
-            raise ValueError("mass must be > 0 kg")
+            raise InvalidValueError("mass", mass, "it must be > 0", "pass kg, e.g. 1.0")
         self._data
         self.entity.engine.model_field("body_mass")[:, self.entity.root_body_id] = value
         self.entity.engine.set_const()

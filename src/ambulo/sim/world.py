@@ -18,7 +18,11 @@ import numpy as np
 import torch
 
 from ..core import PhysicsCfg, Simulation, new_scene
+from ..core.physics import check_timestep
 from ..engine import Engine
+from ..utils.checks import (
+    Described, InvalidValueError, check_all_finite, check_int, check_positive, check_real_dtype,
+)
 from .current import current_world_or_none, set_current_world
 from .scene import Scene
 
@@ -57,24 +61,29 @@ class World:
         num_threads: int = 0,
     ):
         if stage_units_in_meters != 1.0:
-            raise ValueError("ambulo stages are in metres: pass stage_units_in_meters=1.0")
-        if physics_dt <= 0 or substeps < 1:
-            raise ValueError("physics_dt must be > 0 and substeps >= 1")
+            raise InvalidValueError("stage_units_in_meters", stage_units_in_meters, "ambulo stages are in metres",
+                                    "pass stage_units_in_meters=1.0 and give lengths in m")
+        substeps = check_int("substeps", substeps, "pass a whole number of MuJoCo steps per physics step, e.g. 1",
+                             minimum=1)
         if backend not in ("numpy", "torch"):
-            raise ValueError(f"backend must be 'numpy' or 'torch', got {backend!r}")
+            raise InvalidValueError("backend", backend, "not a backend", "pass 'numpy' or 'torch'")
         if physics is None:
-            physics = PhysicsCfg(timestep_s=physics_dt / substeps, gravity_m_s2=tuple(gravity),
+            physics_dt = check_positive("physics_dt", physics_dt, "pass seconds, e.g. physics_dt=0.005")
+            check_timestep("physics_dt / substeps", physics_dt / substeps)
+            physics = PhysicsCfg(timestep_s=physics_dt / substeps, gravity_m_s2=gravity,
                                  integrator=integrator, solver_iterations=solver_iterations)
+        else:
+            physics_dt = physics.timestep_s * substeps
         self.physics_dt = float(physics_dt)
         self.rendering_dt = rendering_dt
         self.substeps = int(substeps)
         self._physics_steps_per_step = self._steps_per_render(rendering_dt)
-        self.num_worlds = int(num_worlds)
         self.device = device
         self.backend = backend
         self.sim = Simulation(new_scene("World"), physics, num_worlds=num_worlds, device=device,
                               num_threads=num_threads)
         """The core lifecycle object this World drives."""
+        self.num_worlds = self.sim.num_worlds
         self.scene = Scene(self)
         self._compiled_signature: int | None = None
         self._physics_callbacks: dict[str, Callable[[float], None]] = {}
@@ -93,11 +102,14 @@ class World:
         return current_world_or_none()
 
     def _steps_per_render(self, rendering_dt: float | None) -> int:
+        if rendering_dt is not None:
+            rendering_dt = check_positive("rendering_dt", rendering_dt,
+                                          "pass seconds (a whole multiple of physics_dt), or None for physics_dt")
         steps = (rendering_dt or self.physics_dt) / self.physics_dt
         if abs(steps - round(steps)) > 1e-6 or round(steps) < 1:
-            raise ValueError(
-                f"rendering_dt ({rendering_dt}) must be a whole multiple of physics_dt ({self.physics_dt})"
-            )
+            raise InvalidValueError(
+                "rendering_dt", rendering_dt, f"not a whole multiple of physics_dt ({self.physics_dt} s)",
+                f"pass e.g. rendering_dt={max(1, round(steps)) * self.physics_dt:g}")
         return round(steps)
 
     # -- the core objects ------------------------------------------------------
@@ -129,13 +141,19 @@ class World:
     def set_simulation_dt(self, physics_dt: float | None = None, rendering_dt: float | None = None):
         """Change the time steps; takes effect at the next ``reset()``."""
         if physics_dt is not None:
-            if physics_dt <= 0:
-                raise ValueError("physics_dt must be > 0")
-            self.physics_dt = float(physics_dt)
-            self.physics.timestep_s = self.physics_dt / self.substeps
+            physics_dt = check_positive("physics_dt", physics_dt, "pass seconds, e.g. physics_dt=0.005")
+            check_timestep("physics_dt / substeps", physics_dt / self.substeps)
+        old_physics_dt, old_rendering_dt = self.physics_dt, self.rendering_dt
+        if physics_dt is not None:
+            self.physics_dt = physics_dt
         if rendering_dt is not None:
             self.rendering_dt = rendering_dt
-        self._physics_steps_per_step = self._steps_per_render(self.rendering_dt)
+        try:
+            self._physics_steps_per_step = self._steps_per_render(self.rendering_dt)
+        except ValueError:  # leave the World as it was
+            self.physics_dt, self.rendering_dt = old_physics_dt, old_rendering_dt
+            raise
+        self.physics.timestep_s = self.physics_dt / self.substeps
         self._compiled_signature = None
 
     @property
@@ -246,17 +264,23 @@ class World:
         return value.cpu().numpy() if self.backend == "numpy" else value
 
     def _in(self, value, trailing: tuple[int, ...], what: str) -> torch.Tensor:
-        """User input as a float64 (N, *trailing) tensor, broadcasting a single value."""
+        """User input as a float64 (N, *trailing) tensor, broadcasting a single value.
+
+        Text, complex numbers, NaN and inf are refused; a CUDA tensor is checked by shape and
+        dtype only (reading its values would sync the GPU)."""
         device = self.engine.device if self.engine is not None else "cpu"
-        tensor = torch.as_tensor(np.asarray(value, dtype=np.float64) if not torch.is_tensor(value) else value,
-                                 dtype=torch.float64, device=device)
+        fix = f"pass finite real numbers of shape {trailing} or {(self.num_worlds, *trailing)}"
+        check_real_dtype(what, value, fix)
+        try:
+            array = value if torch.is_tensor(value) else np.asarray(value, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise InvalidValueError(what, value, "not an array of numbers", fix) from None
+        check_all_finite(what, torch.as_tensor(array), fix)
+        tensor = torch.as_tensor(array, dtype=torch.float64, device=device)
         want = (self.num_worlds, *trailing)
         if tensor.shape == trailing:
             tensor = tensor.expand(want)
         if tuple(tensor.shape) != want:
-            raise ValueError(
-                f"{what}: expected shape {trailing} or {want}, got {tuple(tensor.shape)}"
-            )
-        if torch.isnan(tensor).any():
-            raise ValueError(f"{what}: contains NaN; pass finite values")
+            raise InvalidValueError(what, Described(f"of shape {tuple(tensor.shape)}"),
+                                    f"expected shape {trailing} or {want}", fix)
         return tensor

@@ -88,7 +88,7 @@ def _apply(cfg: T, overrides: Iterable[str]) -> tuple[T, dict[str, Any]]:
     values: dict[str, Any] = {}
     for pair in overrides:
         key, value = parse_override(cfg, pair)  # checked against the earlier overrides applied
-        cfg = _with(cfg, key.split("."), value)
+        cfg = _with_checked(cfg, key, value)
         values.pop(key, None)  # a repeated key moves to its last place
         values[key] = value
     return cfg, values
@@ -134,8 +134,20 @@ def replace_dotted(cfg: T, values: Mapping[str, Any], *, check_types: bool = Fal
             except _BadValue:
                 raise OverrideError(key, f"bad value {value!r} for {key}: expected {type_name(tp)}",
                                     "pass a value of that type") from None
-        cfg = _with(cfg, key.split("."), value)
+        cfg = _with_checked(cfg, key, value)
     return cfg
+
+
+def _with_checked(cfg: T, key: str, value: Any) -> T:
+    """``_with`` where a config's own check (its ``__post_init__``) refusing ``value`` becomes an
+    ``OverrideError`` naming ``key``: ``physics.timestep_s=-1`` fails here, not later in a run."""
+    try:
+        return _with(cfg, key.split("."), value)
+    except ValueError as err:
+        why, fix = getattr(err, "why", None), getattr(err, "fix", None)
+        if why is None or fix is None:  # a check without the (why, fix) split: keep its whole line
+            why, fix = str(err).replace("\n", " "), f"give {key} another value"
+        raise OverrideError(key, f"bad value {_format_value(value)} for {key}: {why}", fix) from None
 
 
 def type_name(tp: Any) -> str:
@@ -368,9 +380,10 @@ def _parse(text: str, tp: Any) -> Any:
             raise _BadValue() from None
     if tp is float:
         try:
-            return float(stripped)
+            value = float(stripped)
         except ValueError:
             raise _BadValue() from None
+        return _not_nan(value)
     if tp is str:
         return _unquote(stripped)
     if origin in (tuple, list) or tp in (tuple, list):
@@ -394,6 +407,14 @@ def _parse(text: str, tp: Any) -> Any:
         except Exception:
             raise _BadValue() from None
     raise _BadValue()
+
+
+def _not_nan(value: float) -> float:
+    """``value`` unless NaN: no config field means anything by NaN, and it passes every ``<``
+    check a config makes (``nan <= 0`` is false), to surface steps later as a crash."""
+    if value != value:
+        raise _BadValue("nan is not a number any setting can use: give a finite one", example=True)
+    return value
 
 
 def _did_you_mean(word: str, choices: list[str]) -> str:
@@ -476,7 +497,7 @@ def _coerce(value: Any, tp: Any) -> Any:
         raise _BadValue()
     if tp is float:
         if isinstance(value, (int, float)) and not isinstance(value, bool):
-            return float(value)
+            return _not_nan(float(value))
         raise _BadValue()
     if origin in (tuple, list) or tp in (tuple, list):
         if not isinstance(value, (tuple, list)):
