@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from ambulo.utils.atomic import (
-    TMP_MARK, atomic_open, atomic_save_npy, atomic_write_json, atomic_write_text, remove_partial_files,
+    TMP_MARK, atomic_open, atomic_save_npy, atomic_write_json, atomic_write_text, is_partial_file,
+    remove_partial_files, temporary_name,
 )
 
 
@@ -30,9 +31,29 @@ def test_json_and_npy_round_trip(tmp_path):
     np.testing.assert_array_equal(np.load(tmp_path / "a.npy"), array)
 
 
-def test_remove_partial_files_deletes_only_temporaries(tmp_path):
+def test_remove_partial_files_deletes_only_ambulo_temporaries(tmp_path):
     (tmp_path / "sub").mkdir()
-    (tmp_path / "sub" / f"000001.png{TMP_MARK}123").write_bytes(b"partial")
-    (tmp_path / "sub" / "000000.png").write_bytes(b"done")
-    assert remove_partial_files(tmp_path) == 1
-    assert [p.name for p in tmp_path.rglob("*") if p.is_file()] == ["000000.png"]
+    ours = tmp_path / "sub" / temporary_name("000001.png")
+    ours.write_bytes(b"partial")
+    users = ["000000.png", "notes.tmp-1", "a.png.tmp-123", f"x{TMP_MARK}1-deadbeef", f".x{TMP_MARK}1-nothex!"]
+    for name in users:
+        (tmp_path / "sub" / name).write_bytes(b"mine")
+    nested = tmp_path / "sub" / "deeper"
+    nested.mkdir()
+    (nested / temporary_name("a.png")).write_bytes(b"not in the folders given")
+    assert remove_partial_files(tmp_path / "sub", tmp_path / "missing") == 1
+    assert not ours.exists()
+    assert sorted(p.name for p in (tmp_path / "sub").iterdir() if p.is_file()) == sorted(users)
+    assert len(list(nested.iterdir())) == 1
+
+
+def test_temporaries_are_hidden_unique_and_recognised(tmp_path):
+    names = {temporary_name("000001.png") for _ in range(100)}
+    assert len(names) == 100 and all(n.startswith(".000001.png" + TMP_MARK) and is_partial_file(n) for n in names)
+    assert not is_partial_file("000001.png") and not is_partial_file("data.tmp-12")
+
+
+def test_writes_return_their_size_in_bytes(tmp_path):
+    assert atomic_write_text(tmp_path / "a.txt", "héllo") == (tmp_path / "a.txt").stat().st_size == 6
+    size = atomic_save_npy(tmp_path / "a.npy", np.zeros((3, 5), np.float32))
+    assert size == (tmp_path / "a.npy").stat().st_size

@@ -68,6 +68,8 @@ def fake_tasks(monkeypatch):
     calls = []
     rl = types.ModuleType("ambulo.rl")
     rl.train = lambda *args, **kwargs: calls.append((args, kwargs))
+    rl.RunError = type("RunError", (Exception,), {})
+    rl.TrainingInterrupted = type("TrainingInterrupted", (KeyboardInterrupt,), {})
     monkeypatch.setitem(sys.modules, "ambulo.rl", rl)
     return calls
 
@@ -191,7 +193,10 @@ def test_no_overrides_pass_empty_dicts(fake_tasks):
       "did you mean 'adaptive'"]),
     (["--ppo-cfg", "learning_rat=1"], ["did you mean 'learning_rate'"]),
     (["--ppo-cfg", "num_envs=8", "--num-envs", "16"], ["--num-envs and --ppo-cfg num_envs"]),
-    (["--num-envs", "0"], ["--num-envs 0 is not positive"]),
+    (["--num-envs", "0"], ["argument --num-envs: '0' is not a whole number above 0",
+                           "give e.g. --num-envs 64"]),
+    (["--max-iterations", "1.5"], ["'1.5' is not a whole number above 0"]),
+    (["--ppo-cfg", "num_envs=0"], ["--num-envs 0 is not positive"]),
     (["--resume", "--env-cfg", "push=false"], ["apply to new runs only"]),
 ])
 def test_bad_train_input_is_one_line(fake_tasks, capsys, argv, needles):
@@ -235,7 +240,7 @@ def test_missing_run_is_one_line(fake_tasks, capsys, tmp_path, command):
 
 
 @pytest.mark.parametrize("command", ["play", "export", "eval"])
-def test_missing_checkpoint_is_one_line(fake_tasks, capsys, tmp_path, command):
+def test_missing_checkpoint_is_one_line(capsys, tmp_path, command):
     (tmp_path / "run.json").write_text("{}")
     line = fails(capsys, [command, str(tmp_path), "--checkpoint", str(tmp_path / "model_9.pt")])
     assert "checkpoint" in line and "not found" in line
@@ -331,10 +336,10 @@ def test_real_task_configs_type_the_overrides(recorded_train, monkeypatch):
         nested = _first_field(cfg, dataclasses.is_dataclass)
         if nested:
             inner = _first_field(getattr(cfg, nested), lambda tp: tp in (int, float))
-            if inner:
-                argv += ["--env-cfg", f"{nested}.{inner}=3"]
-                expected[f"{nested}.{inner}"] = 3 if typing.get_type_hints(type(getattr(cfg, nested)))[inner] is int \
-                    else 3.0
+            if inner:  # 3 of an int, 0.003 of a float (a valid physics.timestep_s too)
+                is_int = typing.get_type_hints(type(getattr(cfg, nested)))[inner] is int
+                argv += ["--env-cfg", f"{nested}.{inner}={3 if is_int else 0.003}"]
+                expected[f"{nested}.{inner}"] = 3 if is_int else 0.003
         argv += ["--ppo-cfg", "actor_hidden_dims=64,64", "--ppo-cfg", "entropy_coef=0"]
         recorded_train.clear()
         assert main(argv) == 0, argv
@@ -347,7 +352,7 @@ def test_real_task_configs_type_the_overrides(recorded_train, monkeypatch):
         if cfg.reward_weights:
             assert applied.reward_weights[term] == 0.5 and len(applied.reward_weights) == len(cfg.reward_weights)
         if nested and inner:
-            assert getattr(getattr(applied, nested), inner) == 3
+            assert getattr(getattr(applied, nested), inner) == expected[f"{nested}.{inner}"]
         assert kwargs["ppo_overrides"] == {"actor_hidden_dims": (64, 64), "entropy_coef": 0.0}
 
 

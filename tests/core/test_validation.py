@@ -63,11 +63,11 @@ def test_physics_dt_above_the_ceiling_is_refused_with_the_reason():
             "make contacts soft", f"pass a step <= {MAX_TIMESTEP_S} s")
     # the World divides physics_dt into substeps: 0.1 s in 4 substeps is a 0.025 s MuJoCo step
     assert World(physics_dt=too_large, substeps=4).physics.timestep_s == pytest.approx(too_large / 4)
-    world = World()
+    world = World(substeps=1)  # a fixed substep count: 0.5 s would be one 0.5 s MuJoCo step
     _raises(lambda: world.set_simulation_dt(physics_dt=0.5), "physics_dt / substeps is 0.5",
             "rendering_dt")
     _raises(lambda: world.set_simulation_dt(physics_dt=-1.0), "physics_dt is -1.0", "must be > 0")
-    assert world.get_physics_dt() == 0.005  # a refused change leaves the World as it was
+    assert world.get_physics_dt() == pytest.approx(1 / 60)  # a refused change leaves the World as it was
 
 
 def test_a_config_edited_after_construction_is_checked_at_compile():

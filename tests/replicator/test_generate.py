@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from ambulo import replicator as rep
+from ambulo.utils.atomic import TMP_MARK
 
 def test_same_seed_gives_identical_files_and_another_seed_does_not(tmp_path, small_config, gen):
     config = small_config()
@@ -52,7 +53,7 @@ def test_killed_run_resumes_to_the_uninterrupted_result(tmp_path, gen):
     subprocess.run(gen.argv(tmp_path / "resumed", frames), env=gen.env(), check=True, capture_output=True)
     subprocess.run(gen.argv(tmp_path / "straight", frames), env=gen.env(), check=True, capture_output=True)
     resumed, straight = gen.file_tree(tmp_path / "resumed"), gen.file_tree(tmp_path / "straight")
-    assert not [name for name in resumed if ".tmp-" in name]
+    assert not [name for name in resumed if TMP_MARK in name]
     assert resumed == straight
 
 

@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 
 from ambulo import replicator as rep
+from ambulo.utils.atomic import TMP_MARK
 from ambulo.replicator.processes import _chunks, default_workers
 
 def test_one_and_two_worker_processes_write_identical_files(tmp_path, small_config, gen):
@@ -77,5 +78,5 @@ def test_killed_parallel_run_leaves_no_workers_and_resumes_to_the_one_process_re
     subprocess.run(gen.argv(tmp_path / "straight", frames, "--workers", "1"), env=gen.env(), check=True,
                    capture_output=True)
     resumed, straight = gen.file_tree(tmp_path / "resumed"), gen.file_tree(tmp_path / "straight")
-    assert not [name for name in resumed if ".tmp-" in name]
+    assert not [name for name in resumed if TMP_MARK in name]
     assert resumed == straight

@@ -6,18 +6,28 @@
 
 A CONFIG file is Python defining ``config()`` (or ``CONFIG``) that returns an
 ``ambulo.replicator.DatasetConfig``. Re-running the same command finishes an
-interrupted dataset; the same seed gives byte-identical files.
+interrupted dataset (Ctrl-C keeps what is done); the same seed gives byte-identical
+files. --out must be a new or empty folder, or a dataset made with the same config,
+seed and size; --overwrite starts a dataset afresh (only its own files are deleted).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
+import errno
+import os
 import runpy
+import signal
+import sys
+import threading
 from pathlib import Path
 
 from .errors import CliError
 
+_DISK_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EACCES, errno.EPERM, errno.EROFS)
+"""Errors of the disk under --out, not of ambulo: one line, and the frames done are kept."""
 _CONFIG_FIX = "give a Python file whose config() or CONFIG is an ambulo.replicator.DatasetConfig"
 
 
@@ -51,15 +61,65 @@ def load_config(path: str | None, width: int | None = None, height: int | None =
 
 def generate(args: argparse.Namespace) -> int:
     from ambulo import replicator as rep  # noqa: PLC0415
+    from ambulo.replicator.manifest import DatasetFolderError  # noqa: PLC0415
 
     for flag in ("frames", "workers", "width", "height"):
         value = getattr(args, flag)
         if value is not None and value < 1:
             raise CliError(f"--{flag} {value} is not positive", f"give --{flag} 1 or more")
+    if args.seed < 0:
+        raise CliError(f"--seed {args.seed} is negative", "give --seed 0 or more")
     config = load_config(args.config, args.width, args.height)
-    path = rep.generate(config, args.out, num_frames=args.frames, seed=args.seed, workers=args.workers,
-                        show_progress=not args.quiet, backend="ray" if args.ray else "auto")
-    print(f"wrote {path}")
+    try:
+        with _terminate_as_interrupt() as received:
+            path = rep.generate(config, args.out, num_frames=args.frames, seed=args.seed, workers=args.workers,
+                                show_progress=not args.quiet, backend="ray" if args.ray else "auto",
+                                overwrite=args.overwrite)
+    except DatasetFolderError as err:
+        raise CliError(err.problem, err.fix) from None
+    except OSError as err:
+        if err.errno not in _DISK_ERRORS:
+            raise
+        raise CliError(f"can't write the dataset: {err.strerror} ({err.filename})",
+                       "free space or fix permissions, then run the same command again to resume") from None
+    except KeyboardInterrupt:
+        signum = received[0] if received else signal.SIGINT
+        print(f"ambulo generate: stopped by {signal.Signals(signum).name} with {_records(args.out)} of "
+              f"{args.frames} frames written in {args.out}; run the same command again to resume",
+              file=sys.stderr)
+        return 128 + signum
+    if not path.is_file():
+        raise CliError(f"generate finished but {path} is missing", "check the disk and --out, then run again")
+    print(f"wrote a dataset of {args.frames} frames in {args.out} (COCO annotations: {path})")
+    return 0
+
+
+@contextlib.contextmanager
+def _terminate_as_interrupt():
+    """SIGTERM (``kill``, a batch system) stops generation as Ctrl-C does: the frames being
+    written are finished and the folder stays resumable. Yields the signals received; a
+    second signal while stopping is ignored, so the stop itself can't be cut short."""
+    received: list[int] = []
+    if threading.current_thread() is not threading.main_thread():  # only it may set handlers
+        yield received
+        return
+
+    def stop(signum, frame):
+        received.append(signum)
+        if len(received) == 1:
+            raise KeyboardInterrupt
+
+    previous = {s: signal.signal(s, stop) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield received
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+
+def _records(out: Path) -> int:
+    with contextlib.suppress(OSError):
+        return sum(1 for name in os.listdir(Path(out) / "frames") if name.endswith(".json"))
     return 0
 
 
@@ -69,7 +129,7 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
                               description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("config", nargs="?", default=None, help="Python file defining config(); default: example scene")
     p.add_argument("--frames", type=int, default=100, help="number of frames (default 100)")
-    p.add_argument("--out", type=Path, required=True, help="output folder (resumed if it holds a partial run)")
+    p.add_argument("--out", type=Path, required=True, help="output folder: new, empty, or a dataset to resume or extend (same config, seed and size)")
     p.add_argument("--seed", type=int, default=0, help="randomization seed (default 0)")
     p.add_argument("--workers", type=int, default=None,
                    help="processes rendering in parallel (default: one per CPU, fewer for short runs)")
@@ -77,5 +137,7 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
                    help="run the workers on Ray (also when RAY_ADDRESS is set): for several machines sharing --out")
     p.add_argument("--width", type=int, default=None, help="override the camera width (px)")
     p.add_argument("--height", type=int, default=None, help="override the camera height (px)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="delete the ambulo dataset in --out (its own files only) and start afresh")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=generate)

@@ -9,8 +9,14 @@ from ``default_ppo_cfg``; ``--env-cfg`` / ``--ppo-cfg`` overrides are typed agai
 from __future__ import annotations
 
 import argparse
+import contextlib
 import difflib
+import errno
+import math
+import os
 import re
+import sys
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -106,6 +112,79 @@ def _check_positive(args: argparse.Namespace, *names: str) -> None:
             raise CliError(f"{flag} {value} is not positive", f"give {flag} above 0")
 
 
+def whole_above_zero(example: str) -> Callable[[str], int]:
+    """argparse ``type`` for counts and sizes: a whole number > 0 (``1.5``, ``0`` and ``-3``
+    fail at parsing, in one line naming a valid value, before anything runs)."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or value <= 0:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a whole number above 0; give "
+                                             f"e.g. {example}")
+        return value
+
+    return parse
+
+
+def seconds_above_zero(example: str) -> Callable[[str], float]:
+    """argparse ``type`` for durations: a finite number of seconds > 0."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not math.isfinite(value) or value <= 0:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds above 0; "
+                                             f"give e.g. {example}")
+        return value
+
+    return parse
+
+
+def _check_writable(path: str | os.PathLike | None, flag: str, *, folder: bool) -> None:
+    """``CliError`` unless ``path`` (a file, or a ``folder``) can be created: it is not the
+    other kind, and its nearest existing parent is a folder this user may write in. Checked
+    before a command spends minutes on work it could not save."""
+    if path is None:
+        return
+    target = Path(path).absolute()
+    fix = f"give {flag} a place you can write to"
+    if target.exists() and target.is_dir() != folder:
+        kind = "a file" if folder else "a folder"
+        raise CliError(f"{flag} {path} is {kind}", fix)
+    parent = target if folder else target.parent
+    existing = next(p for p in (parent, *parent.parents) if p.exists())
+    if not existing.is_dir():
+        raise CliError(f"cannot write {flag} {path}: {existing} is a file, not a folder", fix)
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise CliError(f"cannot write {flag} {path}: {existing} is not writable", fix)
+
+
+_WRITE_ERRORS = {errno.EACCES, errno.EPERM, errno.EROFS, errno.ENOSPC, errno.EDQUOT,
+                 errno.EEXIST, errno.ENOTDIR, errno.EISDIR}
+
+
+@contextlib.contextmanager
+def _rl_errors(out_flag: str) -> Iterator[None]:
+    """``ambulo.rl``'s own errors (a missing or corrupt checkpoint, a run that cannot resume)
+    and failed writes, as one-line ``CliError``s."""
+    from ambulo.rl import RunError  # noqa: PLC0415
+
+    try:
+        yield
+    except RunError as err:
+        raise CliError(err.problem, err.fix) from None
+    except OSError as err:
+        if err.errno not in _WRITE_ERRORS or err.filename is None:
+            raise
+        raise CliError(f"cannot write {err.filename}: {err.strerror}",
+                       f"give {out_flag} a place you can write to") from None
+
+
 def _check_run(run: str) -> None:
     """``CliError`` unless ``run`` is a run folder, a checkpoint file or a task name (whose
     runs ``ambulo.rl`` looks up under --log-root, with its own messages)."""
@@ -131,12 +210,6 @@ def _check_run(run: str) -> None:
 _RUN_FILE = "run.json"
 """``ambulo.rl.runs.RUN_FILE`` (not imported: it pulls in rsl-rl-lib)."""
 _CHECKPOINT = re.compile(r"^model_\d+\.pt$")
-
-
-def _check_checkpoint(checkpoint: str | None) -> None:
-    if checkpoint is not None and not Path(checkpoint).is_file():
-        raise CliError(f"checkpoint {checkpoint!r} not found",
-                       "give a model_<iteration>.pt of the run, or leave --checkpoint out for the latest")
 
 
 def train(args: argparse.Namespace) -> int:
@@ -172,45 +245,53 @@ def train(args: argparse.Namespace) -> int:
                     raise CliError(f"{flag} and --ppo-cfg {key}=... both given", "give one of them")
                 sizes[key] = ppo_overrides.pop(key)
     _check_positive(argparse.Namespace(**sizes), *sizes)
+    _check_writable(args.log_root, "--log-root", folder=True)
 
+    from ambulo.rl import TrainingInterrupted  # noqa: PLC0415
     from ambulo.rl import train as run_train  # noqa: PLC0415
 
-    run_train(args.task, num_envs=sizes["num_envs"], max_iterations=sizes["max_iterations"],
-              seed=args.seed, device=args.device, resume=resume, log_root=args.log_root,
-              env_overrides=env_overrides, ppo_overrides=ppo_overrides, verbose=args.verbose)
+    try:
+        with _rl_errors("--log-root"):
+            run_train(args.task, num_envs=sizes["num_envs"], max_iterations=sizes["max_iterations"],
+                      seed=args.seed, device=args.device, resume=resume, log_root=args.log_root,
+                      env_overrides=env_overrides, ppo_overrides=ppo_overrides,
+                      verbose=args.verbose)
+    except TrainingInterrupted as stopped:  # SIGINT/SIGTERM: says what was saved, how to resume
+        print(f"ambulo train: {stopped}", file=sys.stderr)
+        return stopped.exit_status
     return 0
 
 
 def play(args: argparse.Namespace) -> int:
-    _check_positive(args, "seconds", "width", "height")
     _check_run(args.run)
-    _check_checkpoint(args.checkpoint)
+    _check_writable(args.out, "--out", folder=False)
     from ambulo.rl import play as run_play  # noqa: PLC0415
 
-    run_play(args.run, checkpoint=args.checkpoint, seconds=args.seconds, out=args.out,
-             width=args.width, height=args.height, log_root=args.log_root)
+    with _rl_errors("--out"):
+        run_play(args.run, checkpoint=args.checkpoint, seconds=args.seconds, out=args.out,
+                 width=args.width, height=args.height, log_root=args.log_root)
     return 0
 
 
 def export(args: argparse.Namespace) -> int:
     _check_run(args.run)
-    _check_checkpoint(args.checkpoint)
+    _check_writable(args.out_dir, "--out-dir", folder=True)
     from ambulo.rl import export as run_export  # noqa: PLC0415
 
-    run_export(args.run, checkpoint=args.checkpoint, out_dir=args.out_dir,
-               log_root=args.log_root)
+    with _rl_errors("--out-dir"):
+        run_export(args.run, checkpoint=args.checkpoint, out_dir=args.out_dir,
+                   log_root=args.log_root)
     return 0
 
 
 def evaluate(args: argparse.Namespace) -> int:
-    _check_positive(args, "episodes", "episode_length_s")
     _check_run(args.run)
-    _check_checkpoint(args.checkpoint)
     from ambulo.rl import evaluate as run_eval  # noqa: PLC0415
 
-    result = run_eval(args.run, checkpoint=args.checkpoint, num_episodes=args.episodes,
-                      episode_length_s=args.episode_length_s, seed=args.seed,
-                      log_root=args.log_root)
+    with _rl_errors("the run folder (eval.json goes there)"):
+        result = run_eval(args.run, checkpoint=args.checkpoint, num_episodes=args.episodes,
+                          episode_length_s=args.episode_length_s, seed=args.seed,
+                          log_root=args.log_root)
     if not args.require_criteria:
         return 0
     failed = [name for name in result.get("criteria", []) if not result[name]]
@@ -221,6 +302,8 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     """Add ``train``, ``play``, ``export`` and ``eval`` to the ``ambulo`` parser."""
     run_help = ("a run folder (runs/<task>/<time>), a checkpoint in one, or a task name "
                 "(its latest run)")
+    checkpoint_help = ("model_<it>.pt or <it> in the run folder, or a path (default: the newest "
+                       "readable)")
 
     p = subparsers.add_parser(
         "train", help="train a task with PPO (rsl-rl-lib)",
@@ -232,12 +315,15 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.lazy_epilog = tasks_help
     p.add_argument("task", nargs="?", metavar="TASK", help="task to train (listed below)")
-    p.add_argument("--num-envs", type=int, help="parallel envs (default: the task's)")
-    p.add_argument("--max-iterations", type=int, help="PPO iterations in total")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--device", default="cpu", help="cpu or cuda[:N]")
+    p.add_argument("--num-envs", type=whole_above_zero("--num-envs 64"),
+                   help="parallel envs (default: the task's)")
+    p.add_argument("--max-iterations", type=whole_above_zero("--max-iterations 100"),
+                   help="PPO iterations in total")
+    p.add_argument("--seed", type=int, help="default 0; a resumed run keeps its own")
+    p.add_argument("--device", help="cpu (default) or cuda[:N]; a resumed run keeps its own")
     p.add_argument("--resume", nargs="?", const=True, metavar="RUN",
-                   help="continue the task's latest run, or RUN, from its last checkpoint")
+                   help="continue the task's latest run, or RUN, from its newest readable "
+                        "checkpoint (SIGINT/SIGTERM during training save one)")
     p.add_argument("--log-root", default="runs", help="where run folders go")
     p.add_argument("--env-cfg", action="append", metavar="KEY=VALUE",
                    help="set a field of the task's config, e.g. episode_length_s=10 (repeatable)")
@@ -248,26 +334,27 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
 
     p = subparsers.add_parser("play", help="roll a trained policy out headless to an MP4")
     p.add_argument("run", help=run_help)
-    p.add_argument("--checkpoint", help="model_<it>.pt to load (default: the latest)")
-    p.add_argument("--seconds", type=float, default=10.0)
+    p.add_argument("--checkpoint", help=checkpoint_help)
+    p.add_argument("--seconds", type=seconds_above_zero("--seconds 10"), default=10.0)
     p.add_argument("--out", help="MP4 path (default: <run>/videos/play.mp4)")
-    p.add_argument("--width", type=int, default=640)
-    p.add_argument("--height", type=int, default=480)
+    p.add_argument("--width", type=whole_above_zero("--width 640"), default=640)
+    p.add_argument("--height", type=whole_above_zero("--height 480"), default=480)
     p.add_argument("--log-root", default="runs")
     p.set_defaults(func=play)
 
     p = subparsers.add_parser("export", help="write ONNX (checked with onnxruntime) + TorchScript")
     p.add_argument("run", help=run_help)
-    p.add_argument("--checkpoint")
+    p.add_argument("--checkpoint", help=checkpoint_help)
     p.add_argument("--out-dir", help="default: <run>/exported")
     p.add_argument("--log-root", default="runs")
     p.set_defaults(func=export)
 
     p = subparsers.add_parser("eval", help="fall rate and velocity error over many episodes")
     p.add_argument("run", help=run_help)
-    p.add_argument("--checkpoint")
-    p.add_argument("--episodes", type=int, default=100)
-    p.add_argument("--episode-length-s", type=float, default=None,
+    p.add_argument("--checkpoint", help=checkpoint_help)
+    p.add_argument("--episodes", type=whole_above_zero("--episodes 100"), default=100)
+    p.add_argument("--episode-length-s", type=seconds_above_zero("--episode-length-s 20"),
+                   default=None,
                    help="seconds per episode (default: the task's training episode length)")
     p.add_argument("--seed", type=int, default=12345)
     p.add_argument("--log-root", default="runs")

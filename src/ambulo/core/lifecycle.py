@@ -82,9 +82,13 @@ class Simulation:
             self.components[name] = component
         return component
 
-    def start(self) -> Engine:
-        """Compile the spec, create the engine, initialize components, capture the initial state."""
-        self.model = compile_scene(self.spec, self.physics)
+    def start(self, spec: mujoco.MjSpec | None = None) -> Engine:
+        """Compile the spec, create the engine, initialize components, capture the initial state.
+
+        ``spec``: compile this one instead of ``self.spec``, e.g. a copy of it with content that
+        is rebuilt at every start (the World's USD-authored prims); components built into
+        ``self.spec`` before the copy are in it."""
+        self.model = compile_scene(self.spec if spec is None else spec, self.physics)
         warning = timestep_warning(self.model)
         if warning is not None:
             log.warning(warning)

@@ -16,6 +16,7 @@ import mujoco
 import numpy as np
 
 from .. import assets
+from ..assets.isaac import is_isaac_path, resolve_isaac_path
 from .drives import DriveDefaults
 from .importers import load_spec
 from .materials import PhysicsMaterial
@@ -149,10 +150,16 @@ class AttachedRobot:
 
 
 def resolve_file(file: str | os.PathLike) -> str:
-    """A path as given if it exists, else the bundled asset of that name."""
-    if os.path.exists(file) or os.sep in str(file) or "." in os.path.basename(str(file)):
-        return str(file)
-    return assets.path(str(file))
+    """A path as given if it exists; an Isaac library path (``<root>/Isaac/Robots/...``) as the
+    file standing in for it; a bare name as the bundled asset of that name."""
+    text = str(file)
+    if os.path.exists(text):
+        return text
+    if is_isaac_path(text):
+        return resolve_isaac_path(text)
+    if os.sep in text or "." in os.path.basename(text):
+        return text
+    return assets.path(text)
 
 
 def add_robot(spec: mujoco.MjSpec, cfg: RobotCfg) -> AttachedRobot:

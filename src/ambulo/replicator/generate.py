@@ -26,9 +26,10 @@ from ambulo.utils.atomic import atomic_write_json, remove_partial_files
 from .coco import merge_coco
 from .config import DatasetConfig
 from .io import PNG_DEFLATE
+from .manifest import open_dataset
 from .processes import default_workers, run_on_processes
 from .randomizers import SceneContext
-from .writers import frame_stem, prepare_dirs, write_frame
+from .writers import FrameWriter, frame_is_complete, frame_subdirs, prepare_dirs
 
 _MAX_PENDING_WRITES = 4  # frames queued for the writer thread; bounds memory
 
@@ -121,34 +122,43 @@ def _with_annotators(cfg, annotators):
 
 
 def done_frames(out: Path, num_frames: int) -> set[int]:
-    frames = Path(out) / "frames"
-    if not frames.is_dir():
+    """The frames of ``out`` that are complete: a record that parses, and every file it lists with its size."""
+    out = Path(out)
+    if not (out / "frames").is_dir():
         return set()
-    return {i for i in range(num_frames) if (frames / f"{frame_stem(i)}.json").is_file()}
+    return {i for i in range(num_frames) if frame_is_complete(out, i)}
 
 
 def run_frames(config: DatasetConfig, out: Path, seed: int, frames: list[int], progress=None,
                producer: FrameProducer | None = None) -> str:
     """Render and write ``frames`` (skipping none); returns the GL renderer string.
 
-    The writer thread encodes and writes frame i while frame i+1 renders.
+    The writer thread encodes and writes frame i while frame i+1 renders. On any exit
+    (Ctrl-C included) the records of the frames already written are written too, so
+    an interrupted run keeps them.
     """
     out = Path(out)
     owned = producer is None
     producer = producer or FrameProducer(config)
+    writer = FrameWriter(out, config.writer)
     pending: list[cf.Future] = []
     try:
         with cf.ThreadPoolExecutor(max_workers=1, thread_name_prefix="ambulo-writer") as pool:
-            for index, log, capture in producer.frames(seed, frames):
-                pending.append(pool.submit(write_frame, out, index, capture, producer.table, log, config.writer))
-                if len(pending) >= _MAX_PENDING_WRITES:
-                    pending.pop(0).result()
+            try:
+                for index, log, capture in producer.frames(seed, frames):
+                    pending.append(pool.submit(writer.write, index, capture, producer.table, log))
+                    if len(pending) >= _MAX_PENDING_WRITES:
+                        pending.pop(0).result()
+                        if progress is not None:
+                            progress(1)
+                for fut in pending:
+                    fut.result()
                     if progress is not None:
                         progress(1)
-            for fut in pending:
-                fut.result()
-                if progress is not None:
-                    progress(1)
+            except BaseException:
+                pool.submit(writer.flush)  # after the queued writes; the pool's exit waits for it
+                raise
+            pool.submit(writer.flush).result()
         return producer.gl_renderer
     finally:
         if owned:
@@ -159,16 +169,18 @@ BACKENDS = ("auto", "processes", "ray")
 
 
 def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int = 0, workers: int | None = 1,
-             show_progress: bool = True, backend: str = "auto") -> Path:
+             show_progress: bool = True, backend: str = "auto", overwrite: bool = False) -> Path:
     """Write (or finish) a dataset of ``num_frames`` frames in ``out``; returns annotations.json.
 
-    Frames already complete in ``out`` are kept; temporaries of a killed run
-    are removed. ``workers`` > 1 renders chunks of frames in that many
-    processes; None picks one per CPU (fewer for short runs). ``backend``:
-    'processes' (local, spawned), 'ray' (actors on a Ray cluster, which needs
-    ``out`` on shared storage; a local one unless ``ray.init`` was called or
-    RAY_ADDRESS is set), or 'auto': Ray when RAY_ADDRESS is set or Ray is
-    initialized, else processes. The files do not depend on any of this.
+    ``out`` must be new, empty, or a dataset of the same config and seed (``dataset.json``):
+    its complete frames are kept (more frames extend it), damaged ones made again, and the
+    temporaries of a killed run removed. ``overwrite`` deletes an ambulo dataset's own files
+    first. Any other folder raises ``manifest.DatasetFolderError`` before anything is written.
+    ``workers`` > 1 renders chunks of frames in that many processes; None picks one per CPU
+    (fewer for short runs). ``backend``: 'processes' (local, spawned), 'ray' (actors on a Ray
+    cluster, which needs ``out`` on shared storage; a local one unless ``ray.init`` was called
+    or RAY_ADDRESS is set), or 'auto': Ray when RAY_ADDRESS is set or Ray is initialized, else
+    processes. The files do not depend on any of this.
     """
     if backend not in BACKENDS:
         raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
@@ -176,10 +188,14 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
         raise ValueError(f"--frames must be >= 1, got {num_frames}")
     if workers is not None and workers < 1:
         raise ValueError(f"--workers must be >= 1, got {workers}")
+    if seed < 0:
+        raise ValueError(f"--seed must be >= 0 (numpy seeds are non-negative), got {seed}")
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    # the parent process may hold no producer (workers render): compile the scene as they do
+    model = compile_scene(config.build_scene(), config.physics)
+    open_dataset(out, config, seed, model, num_frames, overwrite)
     prepare_dirs(out, config.writer)
-    remove_partial_files(out)
+    remove_partial_files(out, *(out / sub for sub in frame_subdirs(config.writer)))
     todo = sorted(set(range(num_frames)) - done_frames(out, num_frames))
     workers = default_workers(len(todo)) if workers is None else min(workers, max(1, len(todo)))
     use_ray = backend == "ray" or (backend == "auto" and workers > 1 and _ray_requested())
@@ -198,15 +214,18 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
             renderer = run_frames(config, out, seed, todo, bar.update)
     finally:
         bar.close()
-    categories = _categories(config)
+    from ambulo.sensors.annotators import instance_table
+
+    categories = instance_table(model).categories
+    fsync = config.writer.fsync
     metadata = {"name": config.name, "seed": seed, "num_frames": num_frames, "gl_renderer": renderer,
                 "mujoco_version": mujoco.__version__, "platform": platform.machine(), "png_deflate": PNG_DEFLATE,
                 "categories": categories, "annotators": list(config.camera.annotators)}
-    atomic_write_json(out / "metadata.json", metadata)
+    atomic_write_json(out / "metadata.json", metadata, fsync=fsync)
     info = {"description": config.name, "version": "1.0", "gl_renderer": renderer, "seed": seed}
     coco = merge_coco(out / "frames", num_frames, categories, info)
     path = out / "annotations.json"
-    atomic_write_json(path, coco)
+    atomic_write_json(path, coco, fsync=fsync)
     return path
 
 
@@ -214,13 +233,6 @@ def _ray_requested() -> bool:
     """A Ray cluster to join: RAY_ADDRESS, or ``ray.init`` already called (without importing Ray to ask)."""
     ray = sys.modules.get("ray")
     return bool(os.environ.get("RAY_ADDRESS")) or (ray is not None and ray.is_initialized())
-
-
-def _categories(config: DatasetConfig) -> list[str]:
-    from ambulo.sensors.annotators import instance_table
-
-    # the parent process may hold no producer (workers render): compile the scene as they do
-    return instance_table(compile_scene(config.build_scene(), config.physics)).categories
 
 
 def _read_metadata_renderer(out: Path) -> str:

@@ -99,7 +99,8 @@ class ProducerPool:
         self._pool.shutdown(wait=True, cancel_futures=True)
 
     def _kill_workers(self) -> None:
-        # Safe at any instant: a killed worker leaves only temporaries, which the next run removes.
+        # Safe at any instant: a killed worker leaves only temporaries (the next run removes them) and
+        # files of frames whose record was not yet written (the next run makes those frames again).
         # (The executor has no public way to do it before Python 3.14's kill_workers.)
         for process in list((getattr(self._pool, "_processes", None) or {}).values()):
             process.kill()

@@ -1,8 +1,11 @@
 """Per-frame dataset writers: PNG rgb, depth, masks, KITTI labels, raw arrays, and the frame record.
 
-``write_frame`` runs on a writer thread. The frame record ``frames/NNNNNN.json``
-is written last: its presence means every file of the frame is complete, which
-is what a resumed run checks.
+A ``FrameWriter`` runs on the generator's writer thread. The frame record ``frames/NNNNNN.json``
+is written last and lists every file of the frame with its size in bytes: a resumed
+run counts a frame as done only when its record parses and each file has that size
+(``frame_is_complete``), so a truncated image or a zero-byte record is made again.
+With ``WriterCfg.fsync`` the data files and their folders reach the disk before the
+record is written: after a power loss a record never points to data that is not there.
 
 Layout of a dataset folder::
 
@@ -15,17 +18,20 @@ Layout of a dataset folder::
     frames/000000.json      record: COCO image + annotations, camera K/extrinsics, randomizer log
     annotations.json        COCO instances file (merged at the end)
     metadata.json           GL renderer, versions, seed, categories
+    dataset.json            what the frames were made with (``manifest.py``), written first
 """
 
 from __future__ import annotations
 
+import json
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ambulo.utils.atomic import atomic_save_npy, atomic_write_bytes, atomic_write_json
+from ambulo.utils.atomic import atomic_save_npy, atomic_write_bytes, atomic_write_json, fsync_dir
 
 from .coco import frame_annotations
 from .io import depth_to_mm_u16, encode_png
@@ -44,6 +50,9 @@ class WriterCfg:
     installed (``isal``) 1-3, 4-6 and 7-9 become its levels 1, 2 and 3 (``io.deflate``)."""
     min_visible_pixels: int = 10
     """Objects with fewer visible pixels get no annotation (they are noise to a detector)."""
+    fsync: bool = True
+    """Flush each frame's files and folders to disk before its record is written (survives a power
+    loss); it changes no file's bytes. Measured cost: see ``FrameWriter``."""
 
 
 def default_writer_cfg() -> WriterCfg:
@@ -54,53 +63,128 @@ def frame_stem(index: int) -> str:
     return f"{index:06d}"
 
 
-def prepare_dirs(out: Path, cfg: WriterCfg) -> None:
+SUBDIRS = ("rgb", "depth", "instance", "semantic", "kitti", "raw", "frames")
+"""Every folder a dataset may have; ``frame_subdirs`` says which ones a writer config uses."""
+FRAME_FILE = re.compile(r"\d{6,}(_[a-z_]+)?\.(png|npy|txt|json)")
+"""The whole name of every file ``write_frame`` makes (``000012.png``, ``000012_depth.npy``)."""
+
+
+def frame_subdirs(cfg: WriterCfg) -> list[str]:
+    """The folders of a dataset written with ``cfg``, in ``SUBDIRS`` order."""
+    used = {"rgb", "frames"}
+    used |= {"depth"} if "depth" in cfg.outputs else set()
+    used |= {"instance", "semantic"} if "masks" in cfg.outputs else set()
+    used |= {"kitti"} if "kitti" in cfg.outputs else set()
+    used |= {"raw"} if "raw" in cfg.outputs else set()
+    return [sub for sub in SUBDIRS if sub in used]
+
+
+def check_writer_cfg(cfg: WriterCfg) -> None:
     unknown = set(cfg.outputs) - set(WRITERS)
     if unknown:
         raise ValueError(f"unknown writer(s) {sorted(unknown)}; choose from {WRITERS}")
     if cfg.depth_format not in ("png16", "npy"):
         raise ValueError(f"depth_format must be 'png16' or 'npy', got {cfg.depth_format!r}")
-    subdirs = {"rgb", "frames"}
-    subdirs |= {"depth"} if "depth" in cfg.outputs else set()
-    subdirs |= {"instance", "semantic"} if "masks" in cfg.outputs else set()
-    subdirs |= {"kitti"} if "kitti" in cfg.outputs else set()
-    subdirs |= {"raw"} if "raw" in cfg.outputs else set()
-    for sub in subdirs:
+
+
+def prepare_dirs(out: Path, cfg: WriterCfg) -> None:
+    check_writer_cfg(cfg)
+    for sub in frame_subdirs(cfg):
         (out / sub).mkdir(parents=True, exist_ok=True)
 
 
+class FrameWriter:
+    """Writes frames' files into dataset ``out``, and their records in batches.
+
+    Used from one thread (the generator's writer thread). ``write`` writes a frame's data
+    files (each flushed to disk first with ``cfg.fsync``) and holds its record back; every
+    ``batch`` frames, and on ``flush``, the folders of those files are flushed once and then
+    the records are written. So a record on disk always points to data on disk, for a few
+    folder flushes per batch instead of per frame. A record itself is not flushed: one lost
+    or torn by a crash fails ``frame_is_complete`` and its frame is made again.
+    Cost measured on 2 shared cores, ext4 (64 frames at 320x240 on 2 processes): ~125 frames/s
+    with fsync, ~150 without, about 15% (the writer thread overlaps it with rendering).
+    """
+
+    def __init__(self, out: Path, cfg: WriterCfg, batch: int = 8):
+        self.out, self.cfg, self.batch = Path(out), cfg, batch
+        self._records: list[tuple[int, dict]] = []
+        self._folders: set[str] = set()
+
+    def write(self, index: int, capture: dict, table, log: dict) -> None:
+        record = write_frame_files(self.out, index, capture, table, log, self.cfg)
+        self._records.append((index, record))
+        self._folders |= {relpath.split("/")[0] for relpath in record["files"]}
+        if len(self._records) >= self.batch:
+            self.flush()
+
+    def flush(self) -> None:
+        """Write the records held back (after flushing their files' folders)."""
+        if self.cfg.fsync:
+            for folder in sorted(self._folders):
+                fsync_dir(self.out / folder)
+        for index, record in self._records:
+            atomic_write_json(self.out / "frames" / f"{frame_stem(index)}.json", record)
+        self._records.clear()
+        self._folders.clear()
+
+
 def write_frame(out: Path, index: int, capture: dict, table, log: dict, cfg: WriterCfg) -> None:
-    """Write every output of frame ``index``; the record goes last (completion marker)."""
+    """Write every file of frame ``index`` and then its record (``FrameWriter`` of one frame)."""
+    writer = FrameWriter(out, cfg, batch=1)
+    writer.write(index, capture, table, log)
+
+
+def write_frame_files(out: Path, index: int, capture: dict, table, log: dict, cfg: WriterCfg) -> dict:
+    """Write the data files of frame ``index`` (each flushed with ``cfg.fsync``); returns its record,
+    which lists every file with its size in bytes, for the caller to write last."""
     stem = frame_stem(index)
     level = cfg.png_compress_level
-    atomic_write_bytes(out / "rgb" / f"{stem}.png", encode_png(capture["rgb"], level))
+    files: dict[str, int] = {}
+
+    def put(relpath: str, data) -> None:
+        path = out / relpath
+        if isinstance(data, np.ndarray):
+            files[relpath] = atomic_save_npy(path, data, fsync=cfg.fsync)
+        else:
+            files[relpath] = atomic_write_bytes(path, data, fsync=cfg.fsync)
+
+    put(f"rgb/{stem}.png", encode_png(capture["rgb"], level))
     if "depth" in cfg.outputs:
         if cfg.depth_format == "png16":
-            atomic_write_bytes(out / "depth" / f"{stem}.png", encode_png(depth_to_mm_u16(capture["depth"]), level))
+            put(f"depth/{stem}.png", encode_png(depth_to_mm_u16(capture["depth"]), level))
         else:
-            atomic_save_npy(out / "depth" / f"{stem}.npy", capture["depth"])
+            put(f"depth/{stem}.npy", capture["depth"])
     if "masks" in cfg.outputs:
-        atomic_write_bytes(out / "instance" / f"{stem}.png",
-                           encode_png(capture["instance_segmentation"].astype(np.uint16), level))
-        atomic_write_bytes(out / "semantic" / f"{stem}.png",
-                           encode_png(capture["semantic_segmentation"].astype(np.uint16), level))
+        put(f"instance/{stem}.png", encode_png(capture["instance_segmentation"].astype(np.uint16), level))
+        put(f"semantic/{stem}.png", encode_png(capture["semantic_segmentation"].astype(np.uint16), level))
     annotations = frame_annotations(capture, table.semantic_ids, table.names, cfg.min_visible_pixels)
     if "kitti" in cfg.outputs:
-        atomic_write_bytes(out / "kitti" / f"{stem}.txt",
-                           kitti_lines(annotations, table.categories, capture).encode())
+        put(f"kitti/{stem}.txt", kitti_lines(annotations, table.categories, capture).encode())
     if "raw" in cfg.outputs:
         for name in ("depth", "instance_segmentation", "semantic_segmentation", "normals", "distance_to_camera"):
             if name in capture:
-                atomic_save_npy(out / "raw" / f"{stem}_{name}.npy", capture[name])
+                put(f"raw/{stem}_{name}.npy", capture[name])
     cam = capture["camera"]
-    record = {
+    return {
         "frame": index, "file_name": f"rgb/{stem}.png", "width": int(cam["width"]), "height": int(cam["height"]),
         "annotations": annotations,
         "camera": {"intrinsics": cam["intrinsics"].tolist(), "extrinsics_cw": cam["extrinsics_cw"].tolist(),
                    "pos_w": cam["pos_w"].tolist(), "quat_w_opengl": cam["quat_w_opengl"].tolist()},
         "randomization": log,
+        "files": files,
     }
-    atomic_write_json(out / "frames" / f"{stem}.json", record)
+
+
+def frame_is_complete(out: Path, index: int) -> bool:
+    """Whether frame ``index`` of dataset ``out`` is whole: its record parses and every file it
+    lists exists with the recorded size (a cheap ``stat``: no file is read but the record)."""
+    try:
+        record = json.loads((out / "frames" / f"{frame_stem(index)}.json").read_bytes())
+        files = record["files"]
+        return all((out / relpath).stat().st_size == size for relpath, size in files.items())
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return False
 
 
 def kitti_lines(annotations: list[dict], categories: list[str], capture: dict) -> str:

@@ -27,14 +27,14 @@ def evaluate(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = N
              log_root: str | os.PathLike = "runs", quiet: bool = False) -> dict:
     """Evaluate ``run`` and return (and print) a dict of metrics; also written to
     ``<run>/eval.json``."""
-    run_dir = runs.resolve_run(run, log_root)
+    run_dir, ckpt = runs.resolve_policy(run, checkpoint, log_root)
     info = runs.read_run_info(run_dir)
     task = envs.spec(info["task"])
     if episode_length_s is None:  # the play variant has no time-out: use the training length
         episode_length_s = task.cfg_fn().episode_length_s
     env = runs.make_env_for_run(info, num_envs=num_episodes, seed=seed, play=True,
                                 episode_length_s=episode_length_s)
-    runner, ckpt = runs.load_runner(run_dir, env, checkpoint)
+    runner = runs.load_runner(run_dir, env, ckpt)
     policy = runner.get_inference_policy(device=str(env.device))
     n, dev = env.num_envs, env.device
     running = torch.ones(n, dtype=torch.bool, device=dev)

@@ -62,10 +62,10 @@ def export(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = Non
     """
     import onnxruntime as ort  # noqa: PLC0415
 
-    run_dir = runs.resolve_run(run, log_root)
+    run_dir, ckpt = runs.resolve_policy(run, checkpoint, log_root)
     info = runs.read_run_info(run_dir)
     env = runs.make_env_for_run(info, num_envs=16, device="cpu")
-    runner, ckpt = runs.load_runner(run_dir, env, checkpoint)
+    runner = runs.load_runner(run_dir, env, ckpt)
     out = Path(out_dir) if out_dir else run_dir / "exported"
     out.mkdir(parents=True, exist_ok=True)
     policy = runner.get_inference_policy(device="cpu")

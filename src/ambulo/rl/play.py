@@ -43,15 +43,16 @@ def play(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = None,
     filmed, and a fall resets it, so falls and restarts are visible.
     Returns the video's path.
     """
-    run_dir = runs.resolve_run(run, log_root)
+    run_dir, ckpt = runs.resolve_policy(run, checkpoint, log_root)
+    path = Path(out) if out else run_dir / "videos" / "play.mp4"
+    path.parent.mkdir(parents=True, exist_ok=True)  # an unwritable place fails before rendering
+    previous = path.stat().st_mtime_ns if path.is_file() else None
     info = runs.read_run_info(run_dir)
     env = runs.make_env_for_run(info, num_envs=num_envs, seed=seed, play=True)
-    runner, ckpt = runs.load_runner(run_dir, env, checkpoint)
+    runner = runs.load_runner(run_dir, env, ckpt)
     policy = runner.get_inference_policy(device=str(env.device))
     renderer = OffscreenRenderer(env.model, width, height)
     camera = _camera(env)
-    path = Path(out) if out else run_dir / "videos" / "play.mp4"
-    path.parent.mkdir(parents=True, exist_ok=True)
     fps = round(1.0 / env.step_dt_s)
     num_steps = max(1, round(seconds / env.step_dt_s))
     data = mujoco.MjData(env.model)
@@ -70,6 +71,10 @@ def play(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = None,
             writer.append_data(renderer.render_rgb().copy())
     renderer.close()
     env.close()
+    written = path.is_file() and path.stat().st_size > 0 and path.stat().st_mtime_ns != previous
+    if not written:  # ffmpeg can fail without raising; say so rather than print success
+        raise runs.RunError(f"no video was written to {path}",
+                            "check that ffmpeg runs and the folder is writable")
     print(f"{path}: {num_steps} frames at {fps} fps from {ckpt.name}; env 0 reward "
           f"{total_reward:.2f}, {episodes} episode end(s)")
     return path

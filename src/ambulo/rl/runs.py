@@ -13,21 +13,21 @@ import datetime
 import io
 import json
 import os
-import re
+import sys
 from pathlib import Path
 from typing import Any
 
-import torch
-
 from ambulo import envs
 
-from ambulo.utils.atomic import atomic_open, atomic_write_json
+from ambulo.utils.atomic import atomic_write_json
 from ambulo.utils.overrides import replace_dotted
 
+from .checkpoints import (CheckpointError, RunError, atomic_torch_save, checkpoints,
+                          find_checkpoint, is_checkpoint_name, latest_checkpoint,
+                          latest_valid_checkpoint)
 from .config import PpoCfg
 
 RUN_FILE = "run.json"
-_CHECKPOINT = re.compile(r"^model_(\d+)\.pt$")
 
 
 def new_run_dir(task: str, root: str | os.PathLike = "runs") -> Path:
@@ -56,44 +56,30 @@ def read_run_info(run_dir: Path) -> dict[str, Any]:
 
 def resolve_run(run: str | os.PathLike, root: str | os.PathLike = "runs") -> Path:
     """The run directory named by ``run``: a run folder, a checkpoint in one, or a task name
-    (its latest run under ``root``)."""
+    (its newest run under ``root`` that saved a checkpoint: a run that stopped before its
+    first save is skipped, with a note, so it does not hide the good runs before it)."""
     path = Path(run)
-    if path.is_file() and _CHECKPOINT.match(path.name):
+    if path.is_file() and is_checkpoint_name(path.name):
         return path.parent
     if (path / RUN_FILE).is_file():
         return path
     if str(run) in envs.names():
-        runs = sorted(p for p in (Path(root) / str(run)).glob("*") if (p / RUN_FILE).is_file())
-        if not runs:
+        found = sorted(p for p in (Path(root) / str(run)).glob("*") if (p / RUN_FILE).is_file())
+        if not found:
             raise FileNotFoundError(f"no runs of task {str(run)!r} under {root}/; "
                                     f"train one with `ambulo train {run}`")
-        return runs[-1]
+        saved = [p for p in found if checkpoints(p)]
+        if not saved:
+            raise FileNotFoundError(f"no run of task {str(run)!r} under {root}/ saved a checkpoint "
+                                    f"({len(found)} stopped before their first save); train "
+                                    f"one with `ambulo train {run}`")
+        skipped = found[found.index(saved[-1]) + 1:]
+        if skipped:
+            print(f"note: using {saved[-1]}; skipping newer {', '.join(p.name for p in skipped)} "
+                  "(no checkpoint: stopped before its first save)", file=sys.stderr)
+        return saved[-1]
     raise FileNotFoundError(f"{run!r} is neither a run folder, a checkpoint nor a task name "
                             f"({', '.join(envs.names())})")
-
-
-def checkpoints(run_dir: Path) -> list[tuple[int, Path]]:
-    """``(iteration, path)`` of the run's complete checkpoints, oldest first."""
-    found = []
-    for path in Path(run_dir).iterdir():
-        match = _CHECKPOINT.match(path.name)
-        if match:
-            found.append((int(match.group(1)), path))
-    return sorted(found)
-
-
-def latest_checkpoint(run_dir: Path) -> Path:
-    found = checkpoints(run_dir)
-    if not found:
-        raise FileNotFoundError(f"run {run_dir} has no checkpoint (model_<iteration>.pt) yet")
-    return found[-1][1]
-
-
-def atomic_torch_save(obj: Any, path: Path) -> None:
-    """``torch.save`` through a temporary file, fsync and ``os.replace``: a crash never leaves
-    a truncated checkpoint under the final name."""
-    with atomic_open(path, fsync=True) as f:
-        torch.save(obj, f)
 
 
 def make_env_for_run(info: dict[str, Any], *, num_envs: int, seed: int | None = None,
@@ -112,8 +98,20 @@ def ppo_from_info(info: dict[str, Any]) -> PpoCfg:
     return replace_dotted(PpoCfg(), {k: v for k, v in info["ppo"].items() if k in fields}, check_types=True)
 
 
-def load_runner(run_dir: Path, env: envs.RLEnv, checkpoint: str | os.PathLike | None = None):
-    """An ``OnPolicyRunner`` on ``env`` with the run's networks and weights (no logging)."""
+def resolve_policy(run: str | os.PathLike, checkpoint: str | os.PathLike | None = None,
+                   root: str | os.PathLike = "runs") -> tuple[Path, Path]:
+    """The run folder and checkpoint that play/eval/export load, checked before any env is
+    built: ``run`` as ``resolve_run`` takes it, ``checkpoint`` as ``find_checkpoint`` does
+    (``None``: the checkpoint ``run`` names if it is one, else the newest readable)."""
+    run_dir = resolve_run(run, root)
+    if checkpoint is None and Path(run).is_file():
+        checkpoint = run
+    return run_dir, find_checkpoint(run_dir, checkpoint)
+
+
+def load_runner(run_dir: Path, env: envs.RLEnv, checkpoint: Path):
+    """An ``OnPolicyRunner`` on ``env`` with the run's networks and the weights of
+    ``checkpoint`` (from ``resolve_policy``), without logging."""
     from rsl_rl.runners import OnPolicyRunner  # noqa: PLC0415
 
     from .vecenv import RslRlVecEnv  # noqa: PLC0415
@@ -123,6 +121,11 @@ def load_runner(run_dir: Path, env: envs.RLEnv, checkpoint: str | os.PathLike | 
     with contextlib.redirect_stdout(io.StringIO()):  # rsl-rl prints the networks
         runner = OnPolicyRunner(RslRlVecEnv(env), ppo.to_rsl_rl(env.num_privileged_obs > 0),
                                 log_dir=None, device=str(env.device))
-    path = Path(checkpoint) if checkpoint else latest_checkpoint(run_dir)
-    runner.load(str(path), map_location=str(env.device))
-    return runner, path
+    runner.load(str(checkpoint), map_location=str(env.device))
+    return runner
+
+
+__all__ = ["RUN_FILE", "CheckpointError", "RunError", "atomic_torch_save", "checkpoints",
+           "find_checkpoint", "latest_checkpoint", "latest_valid_checkpoint", "load_runner",
+           "make_env_for_run", "new_run_dir", "ppo_from_info", "read_run_info", "resolve_policy",
+           "resolve_run", "write_run_info"]

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import contextlib
-import csv
 import dataclasses
 import io
 import os
 import statistics
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -17,17 +17,18 @@ from tqdm import tqdm
 
 import ambulo
 from ambulo import envs
+from ambulo.utils.atomic import remove_partial_files
 
-from . import runs
+from . import interrupt, runs
 from .config import ppo_cfg
+from .metrics import MetricsCsv
 from .vecenv import RslRlVecEnv
-
-_METRICS = ("iteration", "env_steps", "mean_reward", "mean_episode_length_s", "steps_per_s",
-            "collect_s", "learn_s", "action_std")
 
 
 class AmbuloRunner(OnPolicyRunner):
-    """``OnPolicyRunner`` whose checkpoints are atomic and carry the RNG states for resume."""
+    """``OnPolicyRunner`` whose checkpoints are atomic and carry what resume needs: the RNG
+    states, and the episode returns and lengths of the last 100 episodes, so the running means
+    in ``metrics.csv`` and TensorBoard continue where they were instead of restarting empty."""
 
     env: RslRlVecEnv
 
@@ -38,6 +39,8 @@ class AmbuloRunner(OnPolicyRunner):
             **(infos or {}),
             "env_rng": self.env.env.generator.get_state(),
             "torch_rng": torch.get_rng_state(),
+            "episode_returns": list(self.logger.rewbuffer),
+            "episode_lengths": list(self.logger.lenbuffer),
         }
         runs.atomic_torch_save(saved, Path(path))
         self.logger.save_model(path, self.current_learning_iteration)
@@ -49,19 +52,21 @@ class AmbuloRunner(OnPolicyRunner):
             self.env.env.generator.set_state(infos["env_rng"])
         if "torch_rng" in infos:
             torch.set_rng_state(infos["torch_rng"])
+        self.logger.rewbuffer.extend(infos.get("episode_returns", []))
+        self.logger.lenbuffer.extend(infos.get("episode_lengths", []))
         self.current_learning_iteration += 1  # the checkpoint's iteration is complete
         return self.current_learning_iteration
 
 
 def _install_progress(runner: AmbuloRunner, run_dir: Path, start: int, total: int,
-                      verbose: bool, step_dt_s: float) -> tqdm:
-    """Replace rsl-rl's per-iteration console report by a progress bar (unless ``verbose``)
-    and append each iteration's headline numbers to ``metrics.csv``."""
+                      verbose: bool, step_dt_s: float, stop: interrupt.StopRequest) -> tqdm:
+    """Replace rsl-rl's per-iteration console report by a progress bar (unless ``verbose``),
+    append each iteration's headline numbers to ``metrics.csv`` (from ``start``: rows of a
+    killed run's later iterations are dropped) and end training there if ``stop`` was asked."""
     bar = tqdm(total=total, initial=start, desc=f"train {run_dir.parent.name}", unit="it",
                disable=verbose)
     report = runner.logger.log
-    metrics_file = run_dir / "metrics.csv"
-    new_file = not metrics_file.exists()
+    metrics = MetricsCsv(run_dir / "metrics.csv", start)
     steps_per_it = runner.cfg["num_steps_per_env"] * runner.env.num_envs
 
     def log(**kwargs: Any) -> None:
@@ -70,27 +75,47 @@ def _install_progress(runner: AmbuloRunner, run_dir: Path, start: int, total: in
         else:
             with contextlib.redirect_stdout(io.StringIO()):
                 report(**kwargs)
-        logger, it = runner.logger, kwargs["it"]
-        reward = statistics.mean(logger.rewbuffer) if logger.rewbuffer else float("nan")
-        length = statistics.mean(logger.lenbuffer) * step_dt_s if logger.lenbuffer else float("nan")
-        seconds = kwargs["collect_time"] + kwargs["learn_time"]
-        row = [it, (it + 1) * steps_per_it, f"{reward:.4f}", f"{length:.3f}",
-               int(steps_per_it / max(seconds, 1e-9)), f"{kwargs['collect_time']:.3f}",
-               f"{kwargs['learn_time']:.3f}", f"{float(kwargs['action_std'].detach().mean()):.4f}"]
-        with open(metrics_file, "a", newline="") as f:
-            csv.writer(f).writerow(row)
+        logger = runner.logger
+        reward = statistics.mean(logger.rewbuffer) if logger.rewbuffer else None
+        length = statistics.mean(logger.lenbuffer) * step_dt_s if logger.lenbuffer else None
+        row = metrics.append(kwargs["it"], steps_per_it, reward, length, kwargs["collect_time"],
+                             kwargs["learn_time"], float(kwargs["action_std"].detach().mean()))
         bar.update(1)
-        bar.set_postfix(reward=f"{reward:.2f}", ep_len_s=f"{length:.2f}", fps=row[4])
+        bar.set_postfix(reward=row[2] or "-", ep_len_s=row[3] or "-", fps=row[4])
+        stop.check()
 
-    if new_file:
-        with open(metrics_file, "w", newline="") as f:
-            csv.writer(f).writerow(_METRICS)
     runner.logger.log = log
     return bar
 
 
+def _note_kept_settings(info: dict[str, Any], **given: Any) -> None:
+    """One line when a resume was given settings that differ from the run's: a resumed run
+    keeps its run.json (its networks, batch and RNG streams continue), as --env-cfg does."""
+    kept = {"num_envs": info["ppo"]["num_envs"], "seed": info["seed"], "device": info["device"]}
+    differ = {k: v for k, v in given.items() if v is not None and v != kept[k]}
+    if differ:
+        asked = ", ".join(f"{k} {v}" for k, v in differ.items())
+        theirs = ", ".join(f"{k} {kept[k]}" for k in differ)
+        print(f"resume keeps the run's {theirs} (run.json), not {asked}; start a new run to "
+              "change them")
+
+
+def _resume_point(task: str | None, resume: str | os.PathLike | bool,
+                  log_root: str | os.PathLike) -> tuple[Path, Path]:
+    """The run folder to resume and its newest readable checkpoint, found before anything is
+    built; ``RunError`` in one line when the run has none."""
+    run_dir = runs.resolve_run(task if resume is True else resume, log_root)
+    try:
+        return run_dir, runs.latest_valid_checkpoint(run_dir)
+    except runs.CheckpointError as err:
+        info = runs.read_run_info(run_dir)
+        raise runs.CheckpointError(f"cannot resume: {err.problem}",
+                                   f"start a new run with `ambulo train {info.get('task', '<task>')}`"
+                                   ) from None
+
+
 def train(task: str | None = None, *, num_envs: int | None = None,
-          max_iterations: int | None = None, seed: int = 0, device: str = "cpu",
+          max_iterations: int | None = None, seed: int | None = None, device: str | None = None,
           resume: str | os.PathLike | bool | None = None, log_root: str | os.PathLike = "runs",
           env_overrides: dict[str, Any] | None = None, ppo_overrides: dict[str, Any] | None = None,
           verbose: bool = False) -> Path:
@@ -100,16 +125,25 @@ def train(task: str | None = None, *, num_envs: int | None = None,
       task: registered task name (optional when resuming a run folder).
       num_envs, max_iterations: override the task's PPO defaults (``ambulo.rl.config``).
         ``max_iterations`` counts from iteration 0, so a resumed run stops at the same total.
-      seed: seeds the env and torch.
-      resume: True for the task's latest run under ``log_root``, or a run folder/checkpoint:
-        continue that run from its last complete checkpoint, in the same folder.
+      seed: seeds the env and torch (default 0).
+      device: cpu or cuda[:N] (default cpu).
+      resume: True for the task's latest run under ``log_root`` (skipping runs that stopped
+        before their first checkpoint), or a run folder/checkpoint: continue that run from its
+        newest readable checkpoint, in the same folder. The run keeps its run.json settings:
+        ``num_envs``, ``seed`` and ``device`` that differ are reported and not applied.
       env_overrides: task config fields to change, dotted keys reach nested ones
         (e.g. ``{"episode_length_s": 10.0, "physics.solver_iterations": 20}``); saved in run.json.
       verbose: print rsl-rl's full report each iteration instead of a progress bar.
+
+    SIGINT and SIGTERM during training save the iteration under way and raise
+    ``interrupt.TrainingInterrupted`` (see ``ambulo.rl.interrupt``).
     """
     if resume:
-        run_dir = runs.resolve_run(task if resume is True else resume, log_root)
+        run_dir, checkpoint = _resume_point(task, resume, log_root)
         info = runs.read_run_info(run_dir)
+        _note_kept_settings(info, num_envs=num_envs, seed=seed, device=device)
+        if remove_partial_files(run_dir):
+            print(f"removed the partial files a killed run left in {run_dir}", file=sys.stderr)
         if max_iterations is not None:
             info["ppo"]["max_iterations"] = max_iterations
         ppo = runs.ppo_from_info(info)
@@ -121,7 +155,7 @@ def train(task: str | None = None, *, num_envs: int | None = None,
         ppo = ppo_cfg(task, num_envs=num_envs, max_iterations=max_iterations,
                       **(ppo_overrides or {}))
         run_dir = runs.new_run_dir(task, log_root)
-        info = {"task": task, "seed": seed, "device": device,
+        info = {"task": task, "seed": 0 if seed is None else seed, "device": device or "cpu",
                 "env_overrides": dict(env_overrides or {}), "ppo": dataclasses.asdict(ppo),
                 "ambulo_version": ambulo.__version__}
         runs.write_run_info(run_dir, info)
@@ -134,7 +168,6 @@ def train(task: str | None = None, *, num_envs: int | None = None,
     runner.add_git_repo_to_log(ambulo.__file__)
     start = 0
     if resume:
-        checkpoint = runs.latest_checkpoint(run_dir)
         start = runner.load_for_resume(checkpoint)
         print(f"resuming {run_dir} from {checkpoint.name} at iteration {start}")
     else:
@@ -142,11 +175,15 @@ def train(task: str | None = None, *, num_envs: int | None = None,
     remaining = ppo.max_iterations - start
     if remaining <= 0:
         print(f"{run_dir} already ran {start} of {ppo.max_iterations} iterations")
+        env.close()
         return run_dir
-    bar = _install_progress(runner, run_dir, start, ppo.max_iterations, verbose, env.step_dt_s)
+    stop = interrupt.StopRequest()
+    bar = _install_progress(runner, run_dir, start, ppo.max_iterations, verbose, env.step_dt_s,
+                            stop)
     try:
         with contextlib.redirect_stdout(io.StringIO()) if not verbose else contextlib.nullcontext():
-            runner.learn(remaining, init_at_random_ep_len=ppo.init_at_random_ep_len and not resume)
+            interrupt.learn(runner, stop, run_dir, remaining,
+                            init_at_random_ep_len=ppo.init_at_random_ep_len and not resume)
     finally:
         bar.close()
         env.close()

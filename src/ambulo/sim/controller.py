@@ -5,6 +5,10 @@ so position, velocity and effort commands combine in one implicit PD per joint.
 Control modes set the gains an Isaac user expects: "position" uses (kp, kd),
 "velocity" (0, kd), "effort" (0, 0).
 
+Units: position and velocity targets of prismatic joints are in stage units
+(``World.stage_units_in_meters``), of revolute joints rad and rad/s; efforts, gains and max
+efforts stay SI (N m or N; N m/rad; N m s/rad).
+
 Out-of-range commands: efforts beyond a drive's effort limit (its MuJoCo ``forcerange``) are
 clipped to it, as Isaac clips to max effort, and ``get_applied_action`` reports the clipped
 values. Position targets beyond a joint's limits are kept as given (and reported so): the
@@ -30,8 +34,27 @@ _MODES = ("position", "velocity", "effort")
 
 
 class ArticulationController:
+    """The implicit PD drives of one articulation (Isaac's ``ArticulationController``)."""
+
     def __init__(self):
         self._art: Articulation | None = None
+
+    def initialize(self, articulation_view=None) -> None:
+        """Bind to an articulation (an ``Articulation`` or a one-prim ``ArticulationView``); the
+        articulation binds its own controller at ``world.reset()``, so scripts rarely call this."""
+        target = articulation_view
+        if target is not None and hasattr(target, "_prims"):  # a view: its one articulation
+            if len(target._prims) != 1:
+                raise ValueError(f"an ArticulationController drives one articulation; the view has "
+                                 f"{len(target._prims)}: use view.apply_action instead")
+            target = target._prims[0]
+        if target is None:
+            target = self._require()
+        if target.entity is None:
+            target._controller = self  # bound when the articulation initializes
+            return
+        target._controller = self
+        self._initialize(target, target._world)
 
     def _initialize(self, articulation: Articulation, world: World) -> None:
         self._art, self._world = articulation, world
@@ -51,20 +74,41 @@ class ArticulationController:
 
     # -- commands ---------------------------------------------------------------
     def apply_action(self, control_actions: ArticulationAction) -> None:
+        """Set the targets given in ``control_actions`` (others keep theirs) for the next steps."""
         art = self._require()
+        if not isinstance(control_actions, ArticulationAction):
+            raise TypeError(f"apply_action takes an ArticulationAction, got {type(control_actions).__name__}; "
+                            "wrap the arrays: ArticulationAction(joint_positions=...)")
         idx = art._indices(control_actions.joint_indices)
-        for value, target, what in (
-            (control_actions.joint_positions, self._q_target, "joint_positions"),
-            (control_actions.joint_velocities, self._qd_target, "joint_velocities"),
-            (control_actions.joint_efforts, self._tau_ff, "joint_efforts"),
+        scale = art._dof_scale[idx]
+        commands = {}
+        for value, key, what, factor in (
+            (control_actions.joint_positions, "positions", "joint_positions", scale),
+            (control_actions.joint_velocities, "velocities", "joint_velocities", scale),
+            (control_actions.joint_efforts, "efforts", "joint_efforts", 1.0),
         ):
-            if value is None:
-                continue
-            given, commanded = self._as_targets(value, len(idx), what, allow_none=True)
-            if target is self._tau_ff:  # Isaac clips commanded efforts to the drive's max effort
-                limits = self._entity.joint_effort_limits[idx]
-                given = torch.clamp(given, limits[:, 0], limits[:, 1])
-            target[:, idx] = torch.where(commanded, given, target[:, idx])
+            if value is not None:
+                given, commanded = self._as_targets(value, len(idx), what, allow_none=True)
+                commands[key] = (given * factor, commanded)
+        self._command(joint_idx=idx, masked=commands)
+
+    def _command(self, joint_idx: torch.Tensor, positions=None, velocities=None, efforts=None,
+                 env_ids: torch.Tensor | None = None, masked: dict | None = None) -> None:
+        """Write (n, J) SI targets (rad or m, rad/s or m/s, N m or N) of joints ``joint_idx`` for
+        worlds ``env_ids`` (None: all N); ``masked`` maps the same keys to (values, mask) pairs
+        where only masked entries change. Efforts are clipped to the drives' effort limits."""
+        self._require()
+        masked = dict(masked or {})
+        for key, value in (("positions", positions), ("velocities", velocities), ("efforts", efforts)):
+            if value is not None:
+                masked[key] = (value, None)
+        where = (slice(None), joint_idx) if env_ids is None else (env_ids.unsqueeze(1), joint_idx.unsqueeze(0))
+        for key, (value, mask) in masked.items():
+            target = {"positions": self._q_target, "velocities": self._qd_target, "efforts": self._tau_ff}[key]
+            if key == "efforts":  # Isaac clips commanded efforts to the drive's max effort
+                limits = self._entity.joint_effort_limits[joint_idx]
+                value = torch.clamp(value, limits[:, 0], limits[:, 1])
+            target[where] = value if mask is None else torch.where(mask, value, target[where])
         self._write_ctrl()
 
     def _as_targets(self, value, count: int, what: str, allow_none: bool = False):
@@ -101,9 +145,39 @@ class ArticulationController:
     def get_applied_action(self) -> ArticulationAction:
         """The targets in effect: positions and velocities as commanded, efforts after clipping
         to each drive's effort limit (``Entity.joint_effort_limits``)."""
-        out = self._world._out
-        return ArticulationAction(joint_positions=out(self._q_target), joint_velocities=out(self._qd_target),
-                                  joint_efforts=out(self._tau_ff))
+        art, out = self._require(), self._world._out
+        scale = art._dof_scale
+        return ArticulationAction(joint_positions=out(self._q_target / scale),
+                                  joint_velocities=out(self._qd_target / scale), joint_efforts=out(self._tau_ff))
+
+    # -- limits ---------------------------------------------------------------------
+    def get_joint_limits(self):
+        """(num_dof, 2) lower/upper position limits (rad; prismatic stage units); +-inf if none."""
+        return self._require().get_dof_limits()
+
+    def get_max_efforts(self):
+        """(num_dof,) largest effort each drive exerts, N m (prismatic N); inf where unlimited."""
+        self._require()
+        limits = self._entity.joint_effort_limits
+        value = torch.maximum(limits[:, 1], -limits[:, 0])
+        return value.cpu().numpy() if self._world.backend == "numpy" else value.clone()
+
+    def set_max_efforts(self, values, joint_indices=None) -> None:
+        """Cap the drives of ``joint_indices`` (default all) at +-``values`` N m (prismatic N)."""
+        art = self._require()
+        idx = art._indices(joint_indices)
+        value = torch.as_tensor(np.broadcast_to(np.asarray(values, dtype=np.float64), (len(idx),)).copy(),
+                                device=self._entity.device)
+        check_all_finite("max efforts", value, "pass finite N m > 0, one per joint (or one for all)")
+        if (value <= 0).any():
+            raise InvalidValueError("max efforts", values, "they must be > 0", "pass N m > 0, e.g. 10.0")
+        act = self._entity._act_idx_t[idx]
+        engine = self._entity.engine
+        engine.model_field("actuator_forcelimited")[:, act] = 1
+        engine.model_field("actuator_forcerange")[:, act] = torch.stack([-value, value], -1)
+        self._entity.joint_effort_limits[idx] = torch.stack([-value, value], -1)
+        self._tau_ff[:, idx] = self._tau_ff[:, idx].clamp(-value, value)
+        self._write_ctrl()
 
     # -- gains and modes ------------------------------------------------------------
     def set_gains(self, kps=None, kds=None, joint_indices=None) -> None:

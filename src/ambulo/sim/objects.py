@@ -2,9 +2,11 @@
 
 Each constructor adds a body with one geom to the World's stage at ``prim_path``.
 Dynamic objects get a free joint; fixed ones hang from the world; visual ones
-have no collision. Sizes: cuboid edge ``size * scale`` (m), sphere ``radius``,
+have no collision. Sizes: cuboid edge ``size * scale``, sphere ``radius``,
 cylinder/capsule ``radius`` and ``height`` (cylinder: full height; capsule: of the
-straight part), all along local z.
+straight part), all along local z. Positions, sizes and linear velocities are in stage
+units (``World.stage_units_in_meters``: a 50-unit cube in a cm World is 0.5 m); ``scale``
+is unitless, ``mass`` kg, ``density`` kg/m^3.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ import numpy as np
 import mujoco
 
 from ..core import GroundCfg, PhysicsMaterial, add_ground, set_semantic_label
+from ..utils.checks import check_quat, check_vector
 from .current import current_world
 from .prims import RigidPrim, XFormPrim
 
@@ -41,23 +44,31 @@ class _Primitive(RigidPrim):
         physics_material: PhysicsMaterial | None = None,
         semantic_label: str | None = None,
         visible: bool = True,
+        translation=None,
+        linear_velocity=None,
+        angular_velocity=None,
         **size_kwargs,
     ):
-        stage = _current_stage()
+        world = current_world("adding objects to the stage")
+        stage, units = world.stage, world.stage_units_in_meters
         if stage.body(prim_path) is not None:
             raise ValueError(f"a prim already exists at {prim_path!r}; choose another prim_path")
         if mass is not None and mass <= 0:
             raise ValueError(f"mass must be > 0 kg, got {mass}")
+        if not self._dynamic and (linear_velocity is not None or angular_velocity is not None):
+            raise ValueError(f"{type(self).__name__} does not move: give velocities to a Dynamic* object")
+        for what, value in (("position", position), ("translation", translation)):
+            if value is not None:  # checked before the stage changes
+                check_vector(what, value, 3, "pass (x, y, z) in m (in stage units if the World sets stage_units_in_meters), finite")
+        if orientation is not None:
+            check_quat("orientation", orientation)
         scale = np.ones(3) if scale is None else np.broadcast_to(np.asarray(scale, float), (3,))
-        body = stage.worldbody.add_body(
-            name=prim_path,
-            pos=[0.0, 0.0, 0.0] if position is None else [float(v) for v in position],
-            quat=[1.0, 0.0, 0.0, 0.0] if orientation is None else [float(v) for v in orientation],
-        )
+        body = stage.worldbody.add_body(name=prim_path)
         if self._dynamic:
             body.add_freejoint(name=prim_path + "/root_joint")
+        # sizes are in stage units: scaling them by metres per unit is one more factor of scale
         geom = body.add_geom(name=prim_path + "/geom", type=self._geom_type,
-                             size=self._geom_size(scale, **size_kwargs))
+                             size=self._geom_size(scale * units, **size_kwargs))
         rgba = [0.5, 0.5, 0.5, 1.0] if color is None else [*map(float, color[:3]), 1.0]
         geom.rgba = rgba if visible else [rgba[0], rgba[1], rgba[2], 0.0]
         if mass is not None:
@@ -72,10 +83,13 @@ class _Primitive(RigidPrim):
         if semantic_label is not None:
             set_semantic_label(stage, prim_path, semantic_label)
         self.color = rgba[:3]
-        super().__init__(prim_path, name)
+        super().__init__(prim_path, name, position=position, orientation=orientation, translation=translation,
+                         linear_velocity=linear_velocity, angular_velocity=angular_velocity)
 
-    def _geom_size(self, scale: np.ndarray, **kw) -> list[float]:
-        raise NotImplementedError
+    def _geom_size(self, scale: np.ndarray, **sizes) -> list[float]:
+        """MuJoCo geom size (half extents / radius, half length), m: ``sizes`` times ``scale``
+        (metres per stage unit included)."""
+        raise NotImplementedError(f"{type(self).__name__} defines no shape")
 
 
 class _Cuboid(_Primitive):
@@ -120,8 +134,9 @@ DynamicCapsule, FixedCapsule, VisualCapsule = _variants(_Capsule, "capsule")
 
 
 class GroundPlane(XFormPrim):
-    """A static infinite plane (rendered ``size_m`` square) at ``z_position``, built by
-    ``ambulo.core.add_ground`` (the ground every app uses); ``cfg`` overrides the arguments."""
+    """A static infinite plane (rendered ``size_m`` square) at height ``z_position`` (stage
+    units), built by ``ambulo.core.add_ground`` (the ground every app uses); ``cfg`` (metres)
+    overrides the arguments."""
 
     def __init__(self, prim_path: str = "/World/groundPlane", name: str | None = None,
                  z_position: float = 0.0, color=(0.35, 0.4, 0.45),
@@ -129,7 +144,8 @@ class GroundPlane(XFormPrim):
                  cfg: GroundCfg | None = None):
         if cfg is None:
             material = physics_material or PhysicsMaterial()
-            cfg = GroundCfg(prim_path=prim_path, z_m=z_position, color=tuple(color), size_m=size_m,
+            units = current_world("adding a ground plane").stage_units_in_meters
+            cfg = GroundCfg(prim_path=prim_path, z_m=z_position * units, color=tuple(color), size_m=size_m,
                             static_friction=material.static_friction,
                             dynamic_friction=material.dynamic_friction,
                             restitution=material.restitution, sky=False, sun=False)

@@ -54,6 +54,15 @@ class WheeledRobot(Robot):
     def get_wheel_velocities(self):
         return self.get_joint_velocities(self._wheel_idx)
 
+    def set_wheel_positions(self, positions) -> None:
+        """Teleport the wheel joints to ``positions`` (rad, wheel order), as Isaac does."""
+        self.set_joint_positions(positions, self._wheel_idx)
+
+    def set_wheel_velocities(self, velocities) -> None:
+        """Set the wheel joints' velocities (rad/s, wheel order) now; the drives keep their
+        targets, so use ``apply_wheel_actions`` to keep the wheels turning."""
+        self.set_joint_velocities(velocities, self._wheel_idx)
+
 
 class DifferentialController:
     """Unicycle command (v m/s, w rad/s) -> (left, right) wheel speeds (rad/s).

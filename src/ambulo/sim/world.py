@@ -6,11 +6,18 @@ core lifecycle (the physics of one ``PhysicsCfg``), starts the engine with ``num
 copies and initializes every scene object (articulation properties are None before that).
 Later ``reset()`` calls restore the initial state; a stage edited after compiling is
 recompiled at the next ``reset()``.
+
+The World also holds a real USD stage (``self.usd``, see ``usd_stage.py``): prims a script
+authors there with pxr are converted and compiled in with the rest at every ``reset()``.
+Defaults follow Isaac Sim: a physics step of 1/60 s, which the engine splits into MuJoCo
+substeps of at most ``MAX_SUBSTEP_S`` so that stiff robots stay stable.
 """
 
 from __future__ import annotations
 
+import asyncio
 import logging
+import math
 from typing import Callable, Literal
 
 import mujoco
@@ -25,31 +32,47 @@ from ..utils.checks import (
 )
 from .current import current_world_or_none, set_current_world
 from .scene import Scene
+from .usd_stage import stage_for_new_world
 
 log = logging.getLogger(__name__)
+
+MAX_SUBSTEP_S = 0.005
+"""s, the longest MuJoCo step the World takes by default: the bundled humanoid's stiffest drive
+needs dt < ~0.014 s (``ambulo.core.physics.timestep_warning``) and contacts stay crisp at 5 ms."""
+
+
+def default_substeps(physics_dt: float) -> int:
+    """MuJoCo steps per physics step so that each is at most ``MAX_SUBSTEP_S``."""
+    return max(1, math.ceil(physics_dt / MAX_SUBSTEP_S - 1e-9))
 
 
 class World:
     """The simulation: stage, physics settings, ``num_worlds`` parallel copies, clock.
 
     Args:
-      physics_dt: s, simulated time of one physics step (what physics callbacks receive).
-      rendering_dt: s, simulated time of one ``World.step``; None means ``physics_dt``.
-      substeps: MuJoCo steps per physics step (each of ``physics_dt / substeps``).
+      physics_dt: s, simulated time of one physics step (what physics callbacks receive);
+        1/60 as in Isaac Sim.
+      rendering_dt: s, simulated time of one ``World.step``; None means ``physics_dt``. When it
+        is not a whole multiple of ``physics_dt`` (1/60 and 1/500), each step runs the physics
+        steps that fit in the time accumulated so far, as Kit's loop does.
+      substeps: MuJoCo steps per physics step (each of ``physics_dt / substeps``); None picks
+        enough for steps of at most ``MAX_SUBSTEP_S``.
       solver_iterations, gravity, integrator: see ``ambulo.core.PhysicsCfg``; ``physics``
         (a whole ``PhysicsCfg``) overrides them and ``physics_dt``/``substeps``' timestep.
       num_worlds: parallel copies of the scene (the single-robot API is N = 1).
       device: ``"cpu"`` (MuJoCo) or ``"cuda"`` (MuJoCo Warp).
       backend: ``"numpy"`` (Isaac's default) or ``"torch"`` for object getters.
-      stage_units_in_meters: accepted for Isaac compatibility; must be 1.0.
+      stage_units_in_meters: metres per stage unit of the USD stage and of positions, lengths
+        and linear velocities at the prim API (Isaac's ``World(stage_units_in_meters=0.01)``
+        works in centimetres); the MuJoCo model is always in metres.
     """
 
     def __init__(
         self,
-        physics_dt: float = 0.005,
+        physics_dt: float = 1.0 / 60.0,
         rendering_dt: float | None = None,
         *,
-        substeps: int = 1,
+        substeps: int | None = None,
         solver_iterations: int = 50,
         gravity=(0.0, 0.0, -9.81),
         integrator: str = "implicitfast",
@@ -60,19 +83,23 @@ class World:
         stage_units_in_meters: float = 1.0,
         num_threads: int = 0,
     ):
-        if stage_units_in_meters != 1.0:
-            raise InvalidValueError("stage_units_in_meters", stage_units_in_meters, "ambulo stages are in metres",
-                                    "pass stage_units_in_meters=1.0 and give lengths in m")
-        substeps = check_int("substeps", substeps, "pass a whole number of MuJoCo steps per physics step, e.g. 1",
-                             minimum=1)
+        self.stage_units_in_meters = check_positive(
+            "stage_units_in_meters", stage_units_in_meters, "pass metres per stage unit, e.g. 1.0 (m) or 0.01 (cm)")
+        self._auto_substeps = substeps is None
         if backend not in ("numpy", "torch"):
             raise InvalidValueError("backend", backend, "not a backend", "pass 'numpy' or 'torch'")
         if physics is None:
-            physics_dt = check_positive("physics_dt", physics_dt, "pass seconds, e.g. physics_dt=0.005")
+            physics_dt = check_positive("physics_dt", physics_dt, "pass seconds, e.g. physics_dt=1/60")
+            substeps = default_substeps(physics_dt) if substeps is None else substeps
+            substeps = check_int("substeps", substeps, "pass a whole number of MuJoCo steps per physics step, e.g. 1",
+                                 minimum=1)
             check_timestep("physics_dt / substeps", physics_dt / substeps)
             physics = PhysicsCfg(timestep_s=physics_dt / substeps, gravity_m_s2=gravity,
                                  integrator=integrator, solver_iterations=solver_iterations)
         else:
+            substeps = check_int("substeps", 1 if substeps is None else substeps,
+                                 "pass a whole number of MuJoCo steps per physics step, e.g. 1", minimum=1)
+            self._auto_substeps = False
             physics_dt = physics.timestep_s * substeps
         self.physics_dt = float(physics_dt)
         self.rendering_dt = rendering_dt
@@ -85,7 +112,11 @@ class World:
         """The core lifecycle object this World drives."""
         self.num_worlds = self.sim.num_worlds
         self.scene = Scene(self)
+        self.usd = stage_for_new_world(self.stage_units_in_meters)
+        """The USD stage (``ambulo.sim.usd_stage.UsdStage``) scripts author with pxr."""
         self._compiled_signature: int | None = None
+        self._time_debt_s = 0.0
+        self._render_callbacks: dict[str, Callable[[object], None]] = {}
         self._physics_callbacks: dict[str, Callable[[float], None]] = {}
         self._playing = False
         self._step_index = 0
@@ -101,16 +132,16 @@ class World:
         """The most recently created World (Isaac's ``World.instance()``)."""
         return current_world_or_none()
 
-    def _steps_per_render(self, rendering_dt: float | None) -> int:
+    def _steps_per_render(self, rendering_dt: float | None) -> float:
+        """Physics steps per ``World.step`` (a fraction when the ratio is not whole)."""
         if rendering_dt is not None:
-            rendering_dt = check_positive("rendering_dt", rendering_dt,
-                                          "pass seconds (a whole multiple of physics_dt), or None for physics_dt")
+            rendering_dt = check_positive("rendering_dt", rendering_dt, "pass seconds, or None for physics_dt")
         steps = (rendering_dt or self.physics_dt) / self.physics_dt
-        if abs(steps - round(steps)) > 1e-6 or round(steps) < 1:
+        if steps < 1 - 1e-9:
             raise InvalidValueError(
-                "rendering_dt", rendering_dt, f"not a whole multiple of physics_dt ({self.physics_dt} s)",
-                f"pass e.g. rendering_dt={max(1, round(steps)) * self.physics_dt:g}")
-        return round(steps)
+                "rendering_dt", rendering_dt, f"shorter than physics_dt ({self.physics_dt:g} s): a rendered frame "
+                "would not advance physics", f"pass rendering_dt >= {self.physics_dt:g}, or lower physics_dt")
+        return round(steps) if abs(steps - round(steps)) < 1e-9 else steps
 
     # -- the core objects ------------------------------------------------------
     @property
@@ -136,13 +167,14 @@ class World:
         return self.physics_dt
 
     def get_rendering_dt(self) -> float:
-        return self.physics_dt * self._physics_steps_per_step
+        return self.rendering_dt or self.physics_dt
 
     def set_simulation_dt(self, physics_dt: float | None = None, rendering_dt: float | None = None):
         """Change the time steps; takes effect at the next ``reset()``."""
         if physics_dt is not None:
             physics_dt = check_positive("physics_dt", physics_dt, "pass seconds, e.g. physics_dt=0.005")
-            check_timestep("physics_dt / substeps", physics_dt / self.substeps)
+            substeps = default_substeps(physics_dt) if self._auto_substeps else self.substeps
+            check_timestep("physics_dt / substeps", physics_dt / substeps)
         old_physics_dt, old_rendering_dt = self.physics_dt, self.rendering_dt
         if physics_dt is not None:
             self.physics_dt = physics_dt
@@ -153,7 +185,10 @@ class World:
         except ValueError:  # leave the World as it was
             self.physics_dt, self.rendering_dt = old_physics_dt, old_rendering_dt
             raise
+        if self._auto_substeps:
+            self.substeps = default_substeps(self.physics_dt)
         self.physics.timestep_s = self.physics_dt / self.substeps
+        self._time_debt_s = 0.0
         self._compiled_signature = None
 
     @property
@@ -175,6 +210,7 @@ class World:
         else:
             self.sim.reset(forward=False)  # one kinematics pass below, after post_reset
         self._step_index = 0
+        self._time_debt_s = 0.0
         for obj in self.scene.prims():
             obj.post_reset()
         self.engine.forward()
@@ -185,17 +221,59 @@ class World:
         self._compile()
 
     def _compile(self) -> None:
-        self.sim.start()
+        """Compile the spec plus the prims authored on the USD stage, start the engine, initialize objects."""
+        gravity = self.usd.scene_gravity_m_s2()
+        if gravity is not None:
+            self.physics.gravity_m_s2 = gravity
+        iterations = self.usd.solver_iterations()
+        if iterations is not None:
+            self.physics.solver_iterations = iterations
+        authored = self.usd.physics_spec()
+        self.sim.start(spec=None if authored is None else self._with_authored(authored))
         self._compiled_signature = self._stage_signature()
         for obj in self.scene.prims():
             obj.initialize(self)
+        if authored is not None:
+            self._write_authored_velocities()
         # the initial state includes what objects set in initialize (default poses)
         self.engine.forward()
         self.engine.capture_initial_state()
 
+    def _with_authored(self, authored: mujoco.MjSpec) -> mujoco.MjSpec:
+        """A copy of the stage with the USD-authored prims attached under ``/World``, labelled."""
+        from ..core.physics import match_options  # noqa: PLC0415
+        from ..core.semantics import set_semantic_label  # noqa: PLC0415
+        from ..isaac.semantics import authored_labels  # noqa: PLC0415
+
+        spec = self.stage.copy()
+        match_options(authored, spec)
+        frame = spec.worldbody.add_frame(name="/World")
+        spec.attach(authored, prefix="/World/", frame=frame)
+        for path, label in authored_labels(self.usd.stage).items():
+            if spec.body(path) is not None:
+                set_semantic_label(spec, path, label)
+        return spec
+
+    def _write_authored_velocities(self) -> None:
+        """Initial velocities authored with ``physics:velocity`` on free bodies (world frame in;
+        MuJoCo's free joint takes the angular part in the body frame)."""
+        from ..utils.rotations import quat_to_mat  # noqa: PLC0415
+
+        model, qvel = self.engine.model, self.engine.field("qvel")
+        for name, (lin, ang) in self.usd.initial_velocities().items():
+            body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "/World/" + name)
+            if body < 0 or model.body_jntnum[body] == 0:
+                continue
+            joint = model.body_jntadr[body]
+            if model.jnt_type[joint] != mujoco.mjtJoint.mjJNT_FREE:
+                continue
+            adr = model.jnt_dofadr[joint]
+            ang_b = quat_to_mat(model.body_quat[body]).T @ np.asarray(ang)
+            qvel[:, adr:adr + 6] = torch.as_tensor(np.concatenate([lin, ang_b]), dtype=qvel.dtype, device=qvel.device)
+
     def _stage_signature(self) -> int:
-        # the spec has no dirty flag; its XML is a cheap, faithful fingerprint
-        return hash((self.stage.to_xml(), repr(self.physics)))
+        # the spec has no dirty flag; its XML (and the USD layer's text) is a cheap, faithful fingerprint
+        return hash((self.stage.to_xml(), self.usd.signature(), repr(self.physics)))
 
     def _require_engine(self) -> Engine:
         if self.engine is None:
@@ -221,21 +299,57 @@ class World:
         return not self._playing
 
     def step(self, render: bool = True, step_sim: bool = True) -> None:
-        """Advance by ``rendering_dt``: that many physics steps, each after the callbacks.
+        """Advance by ``rendering_dt``: the physics steps that fit, each after the callbacks.
 
-        A paused world does not advance. ``render`` is accepted for Isaac
-        compatibility; recording is done by ``ambulo.sim.Recorder``, which calls
-        ``render`` on its own schedule.
+        With a whole ratio that is ``rendering_dt / physics_dt`` steps every time; otherwise
+        the time left over carries to the next call (1/60 over 1/500 gives 8 or 9 steps, 8.33 on
+        average). A paused world does not advance. ``render=True`` then calls ``render()``.
         """
         self._require_engine()
-        if not (step_sim and self._playing):
-            return
-        for _ in range(self._physics_steps_per_step):
-            for callback in list(self._physics_callbacks.values()):
-                callback(self.physics_dt)
-            # the scene API promises current poses after every step
-            self.sim.step(self.substeps, refresh=True)
-            self._step_index += 1
+        if step_sim and self._playing:
+            self._time_debt_s += self._physics_steps_per_step * self.physics_dt
+            steps = math.floor(self._time_debt_s / self.physics_dt + 1e-9)
+            self._time_debt_s = max(0.0, self._time_debt_s - steps * self.physics_dt)
+            for _ in range(steps):
+                for callback in list(self._physics_callbacks.values()):
+                    callback(self.physics_dt)
+                # the scene API promises current poses after every step
+                self.sim.step(self.substeps, refresh=True)
+                self._step_index += 1
+        if render:
+            self.render()
+
+    def render(self) -> None:
+        """Refresh what observers see without advancing physics: kinematics, then render callbacks
+        (cameras render on request, at their own frequency)."""
+        self._require_engine().forward()
+        for callback in list(self._render_callbacks.values()):
+            callback({"world": self})
+
+    def is_simulating(self) -> bool:
+        return self._playing
+
+    # -- Isaac's coroutine forms (extension-workflow samples await them) ----------------------
+    async def reset_async(self, soft: bool = False) -> None:
+        self.reset()
+
+    async def play_async(self) -> None:
+        self.play()
+
+    async def pause_async(self) -> None:
+        self.pause()
+
+    async def stop_async(self) -> None:
+        self.stop()
+
+    async def step_async(self, step_size: float | None = None) -> None:
+        self.step(render=False)
+
+    async def render_async(self) -> None:
+        self.render()
+
+    async def initialize_simulation_context_async(self) -> None:
+        await asyncio.sleep(0)
 
     # -- callbacks -------------------------------------------------------------
     def add_physics_callback(self, callback_name: str, callback_fn: Callable[[float], None]) -> None:
@@ -254,6 +368,28 @@ class World:
 
     def clear_physics_callbacks(self) -> None:
         self._physics_callbacks.clear()
+
+    def add_render_callback(self, callback_name: str, callback_fn: Callable[[object], None]) -> None:
+        """Call ``callback_fn(event)`` after every ``render()``."""
+        if not callable(callback_fn):
+            raise TypeError(f"render callback {callback_name!r} must be callable")
+        self._render_callbacks[callback_name] = callback_fn
+
+    def remove_render_callback(self, callback_name: str) -> None:
+        if callback_name not in self._render_callbacks:
+            raise KeyError(f"no render callback named {callback_name!r}; have {sorted(self._render_callbacks)}")
+        del self._render_callbacks[callback_name]
+
+    def render_callback_exists(self, callback_name: str) -> bool:
+        return callback_name in self._render_callbacks
+
+    def clear_render_callbacks(self) -> None:
+        self._render_callbacks.clear()
+
+    @classmethod
+    def clear_instance(cls) -> None:
+        """Forget the current World (Isaac's singleton reset); the next ``World()`` starts anew."""
+        set_current_world(None)
 
     # -- conversions for object getters ------------------------------------------
     def _out(self, tensor: torch.Tensor):

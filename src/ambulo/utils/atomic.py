@@ -3,9 +3,11 @@
 ``os.replace`` is atomic on POSIX, so a process killed at any instant leaves each file
 either complete (old or new) or absent, never truncated. ``fsync=True`` also flushes the
 data to disk before the rename, so the file survives an OS crash or power loss; that costs
-a disk round trip per file, worth it for a checkpoint, not for every frame of a dataset.
-Temporaries are named ``<name>.tmp-<pid>``; ``remove_partial_files`` deletes those a killed
-run left behind.
+a disk round trip per file (``fsync_dir`` makes the renames in a folder durable too).
+
+Temporaries are hidden and carry a name only ambulo makes, ``.<name>.ambulo-tmp-<pid>-<8 hex>``,
+so ``remove_partial_files`` can delete those a killed run left behind without ever touching a
+user's file that merely has ``.tmp-`` in its name.
 """
 
 from __future__ import annotations
@@ -13,13 +15,23 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import re
+import secrets
 from collections.abc import Iterator
 from pathlib import Path
 from typing import IO, Any
 
 import numpy as np
 
-TMP_MARK = ".tmp-"
+TMP_MARK = ".ambulo-tmp-"
+"""In every temporary's name (``glob(f"*{TMP_MARK}*")`` finds them)."""
+TMP_PATTERN = re.compile(r"\..+\.ambulo-tmp-\d+-[0-9a-f]{8}")
+"""The whole name of a temporary made by ``atomic_open``; nothing else matches."""
+
+
+def temporary_name(name: str) -> str:
+    """A fresh temporary's name for a file called ``name`` (pid and random: two writers never share one)."""
+    return f".{name}{TMP_MARK}{os.getpid()}-{secrets.token_hex(4)}"
 
 
 @contextlib.contextmanager
@@ -27,7 +39,7 @@ def atomic_open(path: str | os.PathLike, *, fsync: bool = False) -> Iterator[IO[
     """A binary file to write ``path``'s new content into (e.g. with ``torch.save``); it
     replaces ``path`` when the block ends without an exception, else it is deleted."""
     path = Path(path)
-    tmp = path.with_name(f"{path.name}{TMP_MARK}{os.getpid()}")
+    tmp = path.with_name(temporary_name(path.name))
     try:
         with open(tmp, "wb") as f:
             yield f
@@ -40,32 +52,60 @@ def atomic_open(path: str | os.PathLike, *, fsync: bool = False) -> Iterator[IO[
         raise
 
 
-def atomic_write_bytes(path: str | os.PathLike, data: bytes, *, fsync: bool = False) -> None:
+def atomic_write_bytes(path: str | os.PathLike, data: bytes, *, fsync: bool = False) -> int:
+    """Write ``data``; returns its size in bytes."""
     with atomic_open(path, fsync=fsync) as f:
         f.write(data)
+    return len(data)
 
 
-def atomic_write_text(path: str | os.PathLike, text: str, *, fsync: bool = False) -> None:
-    atomic_write_bytes(path, text.encode(), fsync=fsync)
+def atomic_write_text(path: str | os.PathLike, text: str, *, fsync: bool = False) -> int:
+    return atomic_write_bytes(path, text.encode(), fsync=fsync)
 
 
 def atomic_write_json(path: str | os.PathLike, obj: Any, *, indent: int | None = None,
-                      sort_keys: bool = True, fsync: bool = False) -> None:
+                      sort_keys: bool = True, fsync: bool = False) -> int:
     """``obj`` as JSON: compact without ``indent``, else indented for people to read."""
     separators = (",", ":") if indent is None else None
-    atomic_write_text(path, json.dumps(obj, indent=indent, sort_keys=sort_keys, separators=separators),
-                      fsync=fsync)
+    return atomic_write_text(path, json.dumps(obj, indent=indent, sort_keys=sort_keys, separators=separators),
+                             fsync=fsync)
 
 
-def atomic_save_npy(path: str | os.PathLike, array: np.ndarray, *, fsync: bool = False) -> None:
+def atomic_save_npy(path: str | os.PathLike, array: np.ndarray, *, fsync: bool = False) -> int:
+    """``array`` as ``.npy``; returns the file's size in bytes."""
     with atomic_open(path, fsync=fsync) as f:
         np.save(f, array)
+        return f.tell()
 
 
-def remove_partial_files(root: str | os.PathLike) -> int:
-    """Delete temporaries a killed run left behind under ``root``; returns how many."""
+def fsync_dir(folder: str | os.PathLike) -> None:
+    """Make the renames and deletions in ``folder`` durable (POSIX; a no-op where folders can't be opened)."""
+    try:
+        fd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+    except OSError:  # Windows
+        return
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def is_partial_file(name: str) -> bool:
+    """Whether file ``name`` is a temporary of ``atomic_open``."""
+    return TMP_PATTERN.fullmatch(name) is not None
+
+
+def remove_partial_files(*folders: str | os.PathLike) -> int:
+    """Delete the temporaries a killed run left directly in ``folders`` (not below); returns how many.
+
+    Only names ``atomic_open`` makes are deleted; a missing folder is skipped.
+    """
     count = 0
-    for tmp in Path(root).rglob(f"*{TMP_MARK}*"):
-        tmp.unlink(missing_ok=True)
-        count += 1
+    for folder in map(Path, folders):
+        if not folder.is_dir():
+            continue
+        for entry in os.scandir(folder):
+            if entry.is_file(follow_symlinks=False) and is_partial_file(entry.name):
+                Path(entry.path).unlink(missing_ok=True)
+                count += 1
     return count

@@ -1,0 +1,256 @@
+"""``rep.create``: primitives, the camera, lights, render products, groups and colour materials.
+
+Shapes are 1 m across at scale 1 (Replicator's 100 cm primitives on a metre stage), centred on
+their prim: cube = box, sphere = ellipsoid (so non-uniform scale stays exact), cylinder and disk
+(1 mm thick) along z, plane = a 1 mm slab whose top is at its position. A creation argument
+given a distribution is drawn once per run (Replicator evaluates create nodes once).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .distribution import is_random
+from .errors import Namespace, unsupported
+from .graph import ONCE, Item, Node, PrimDecl, current_graph, paths_of
+
+_DEFAULT_COLOR = (0.7, 0.7, 0.7)
+_NOT_A_SHAPE = "ambulo builds cube, sphere, cylinder, disk and plane primitives"
+_LIGHTS = ("distant", "sphere", "dome")
+
+
+def _vec3(value, what: str, default) -> np.ndarray | object:
+    if value is None:
+        return np.asarray(default, float)
+    if is_random(value):
+        return value
+    arr = np.asarray(value, float)
+    if arr.shape == ():
+        arr = np.full(3, float(arr))
+    if arr.shape != (3,):
+        raise ValueError(f"rep.create: {what} must be 3 numbers (or one for all axes), got {value!r}")
+    return arr
+
+
+def _semantics(semantics) -> list[tuple[str, str]]:
+    if semantics is None:
+        return []
+    pairs = [semantics] if isinstance(semantics, tuple) and len(semantics) == 2 and isinstance(semantics[0], str) \
+        else list(semantics)
+    for pair in pairs:
+        if not (isinstance(pair, (tuple, list)) and len(pair) == 2 and all(isinstance(s, str) for s in pair)):
+            raise ValueError(f"semantics are (type, label) pairs, e.g. [('class', 'cube')]; got {semantics!r}")
+    return [(str(k), str(v)) for k, v in pairs]
+
+
+def _shape(kind: str, position=None, scale=None, rotation=None, pivot=None, semantics=None, material=None,
+           visible: bool = True, count: int = 1, parent=None, look_at=None, name: str | None = None) -> Item:
+    if pivot is not None or parent is not None or look_at is not None:
+        arg = "pivot" if pivot is not None else "parent" if parent is not None else "look_at"
+        raise unsupported(f"create.{kind}({arg}=...)", "prims stand alone at position/rotation/scale")
+    if not visible:
+        raise unsupported(f"create.{kind}(visible=False)", "create only the prims the camera should see")
+    if int(count) < 1:
+        raise ValueError(f"rep.create.{kind}: count must be >= 1, got {count}")
+    graph = current_graph()
+    color = None
+    if material is not None:
+        if not isinstance(material, Material):
+            raise unsupported(f"create.{kind}(material={material!r})",
+                              "pass a material from rep.create.material_omnipbr(diffuse=...)")
+        color = material.diffuse
+    base = f"/Replicator/{name or kind.capitalize()}_Xform"
+    paths = []
+    for _ in range(int(count)):
+        prim = PrimDecl(path=graph.unique_path(base), kind=kind, position=np.zeros(3), rotation_deg=np.zeros(3),
+                        scale=np.ones(3), semantics=_semantics(semantics),
+                        color=None if color is None or is_random(color) else tuple(color))
+        _set_pose(graph, prim, position, rotation, scale)
+        graph.add_prim(prim)
+        if is_random(color):
+            graph.static_nodes.append(_once("color", [prim.path], {"colors": color}))
+        paths.append(prim.path)
+    return Item(paths)
+
+
+def _set_pose(graph, prim: PrimDecl, position, rotation, scale) -> None:
+    """Constant pose values go into the prim; distributions become a node drawn once per run."""
+    values = {"position": _vec3(position, "position", (0, 0, 0)),
+              "rotation": _vec3(rotation, "rotation", (0, 0, 0)),
+              "scale": _vec3(scale, "scale", (1, 1, 1))}
+    prim.position = values["position"] if not is_random(values["position"]) else np.zeros(3)
+    prim.rotation_deg = values["rotation"] if not is_random(values["rotation"]) else np.zeros(3)
+    prim.scale = values["scale"] if not is_random(values["scale"]) else np.ones(3)
+    random = {k: v for k, v in values.items() if is_random(v)}
+    if random:
+        graph.static_nodes.append(_once("pose", [prim.path], random))
+
+
+def _once(kind, targets, params) -> Node:
+    return Node(kind, targets, params, ONCE, current_graph().layer)
+
+
+def cube(**kwargs) -> Item:
+    """A 1 m cube (box) per ``count``; ``semantics=[("class", "cube")]`` labels it."""
+    return _shape("cube", **kwargs)
+
+
+def sphere(**kwargs) -> Item:
+    """A sphere of 1 m diameter (an ellipsoid under non-uniform scale)."""
+    return _shape("sphere", **kwargs)
+
+
+def cylinder(**kwargs) -> Item:
+    """A cylinder 1 m across and 1 m tall, axis along z (scale x and y together)."""
+    return _shape("cylinder", **kwargs)
+
+
+def disk(**kwargs) -> Item:
+    """A flat disk 1 m across facing +z (a 1 mm cylinder)."""
+    return _shape("disk", **kwargs)
+
+
+def plane(**kwargs) -> Item:
+    """A 1 m x 1 m plane facing +z (a 1 mm slab whose top is at ``position``); a scatter surface."""
+    return _shape("plane", **kwargs)
+
+
+def camera(position=None, rotation=None, look_at=None, focal_length: float = 24.0,
+           horizontal_aperture: float = 20.955, clipping_range=(1.0, 1000000.0), projection_type: str = "pinhole",
+           name: str | None = None, count: int = 1, **unsupported_args) -> Item:
+    """A pinhole camera: USD axes (looks along -z, y up) turned by ``rotation``, or aimed at ``look_at``.
+
+    ``focal_length`` and ``horizontal_aperture`` are in mm (Replicator's defaults 24 and 20.955);
+    pixels are square, so the vertical aperture follows from the render product's resolution.
+    ``clipping_range`` is in stage units (m); the near plane is kept at 1 cm or more.
+    """
+    if unsupported_args:
+        raise unsupported(f"create.camera({next(iter(unsupported_args))}=...)",
+                          "ambulo cameras take position, rotation, look_at, focal_length, horizontal_aperture, "
+                          "clipping_range")
+    if projection_type != "pinhole":
+        raise unsupported(f"create.camera(projection_type={projection_type!r})", "ambulo cameras are pinhole")
+    if count != 1:
+        raise unsupported(f"create.camera(count={count})", "create one camera per render product")
+    graph = current_graph()
+    prim = PrimDecl(path=graph.unique_path(f"/Replicator/{name or 'Camera'}_Xform"), kind="camera",
+                    position=np.zeros(3), rotation_deg=np.zeros(3), scale=np.ones(3))
+    aim = None if look_at is None else _look_at(look_at)
+    prim.extra = {"focal_length": float(focal_length), "horizontal_aperture": float(horizontal_aperture),
+                  "clipping_range": (max(0.01, float(clipping_range[0])), float(clipping_range[1])),
+                  "look_at": None if is_random(aim) else aim}
+    position, rotation = _vec3(position, "position", (0, 0, 0)), _vec3(rotation, "rotation", (0, 0, 0))
+    prim.position = np.zeros(3) if is_random(position) else position
+    prim.rotation_deg = np.zeros(3) if is_random(rotation) else rotation
+    graph.add_prim(prim)
+    random = {k: v for k, v in (("position", position), ("rotation", rotation), ("look_at", aim)) if is_random(v)}
+    if random:  # one node, so a drawn position and a drawn aim belong to the same pose
+        graph.static_nodes.append(_once("pose", [prim.path], random))
+    return Item([prim.path])
+
+
+def _look_at(target):
+    """A point (3 numbers) or a prim (item/path) whose position the camera aims at."""
+    if isinstance(target, (Item, str)):
+        paths = paths_of(target)
+        if len(paths) != 1:
+            raise ValueError(f"look_at needs one prim, got {len(paths)}")
+        return paths[0]
+    if is_random(target):
+        return target
+    return np.asarray(target, float).reshape(3)
+
+
+def light(light_type: str = "distant", color=(1.0, 1.0, 1.0), intensity: float = 1000.0, position=None,
+          rotation=None, scale=None, count: int = 1, name: str | None = None, **unsupported_args) -> Item:
+    """A light: "distant" (aimed along -z turned by ``rotation``), "sphere" (a point light) or "dome"
+    (uniform ambient light).
+
+    Replicator intensities are nits; ambulo's rasterizer takes a 0-1 diffuse level, so
+    ``intensity`` is scaled to make Replicator's default (1000) ambulo's default sun level (0.7).
+    """
+    if unsupported_args:
+        raise unsupported(f"create.light({next(iter(unsupported_args))}=...)",
+                          "ambulo lights take light_type, color, intensity, position, rotation")
+    kind = str(light_type).lower()
+    if kind not in _LIGHTS:
+        raise unsupported(f"create.light(light_type={light_type!r})", f"ambulo has {', '.join(_LIGHTS)} lights")
+    if is_random(color) or is_random(intensity) or is_random(position) or is_random(rotation):
+        raise unsupported("create.light with distributions",
+                          "create the light with values and randomize it with rep.modify.attribute in a trigger")
+    graph = current_graph()
+    paths = []
+    for _ in range(int(count)):
+        prim = PrimDecl(path=graph.unique_path(f"/Replicator/{name or kind.capitalize() + 'Light'}_Xform"),
+                        kind="light", position=np.zeros(3), rotation_deg=np.zeros(3), scale=np.ones(3))
+        prim.extra = {"light_type": kind, "intensity": float(intensity), "color": tuple(float(c) for c in color)}
+        _set_pose(graph, prim, position, rotation, scale)
+        graph.add_prim(prim)
+        paths.append(prim.path)
+    return Item(paths)
+
+
+@dataclass(frozen=True)
+class Material:
+    """``rep.create.material_omnipbr``: ambulo's rasterizer uses its diffuse colour."""
+
+    diffuse: object
+
+    @property
+    def node(self) -> Material:
+        return self
+
+
+def material_omnipbr(diffuse=None, count: int = 1, **unsupported_args):
+    """A material with a ``diffuse`` colour (RGB 0-1, or a distribution drawn once per prim using it)."""
+    if unsupported_args:
+        raise unsupported(f"create.material_omnipbr({next(iter(unsupported_args))}=...)",
+                          "ambulo's rasterizer uses only the diffuse colour; pass diffuse=(r, g, b)")
+    diffuse = (0.2, 0.2, 0.2) if diffuse is None else diffuse
+    made = [Material(diffuse if is_random(diffuse) else tuple(float(c) for c in diffuse)) for _ in range(int(count))]
+    current_graph().materials.extend(made)
+    return made[0] if count == 1 else made
+
+
+def render_product(camera, resolution, force_new: bool = False, name: str | None = None):
+    """What a writer is attached to: ``camera`` (an item or prim path from rep.create.camera) at
+    ``resolution`` (width, height) px."""
+    from .orchestrator import RenderProduct  # noqa: PLC0415 - orchestrator imports this module
+
+    graph = current_graph()
+    paths = paths_of(camera) if not (isinstance(camera, str) and camera not in graph.prims) else [camera]
+    if len(paths) != 1 or paths[0] not in graph.prims or graph.prims[paths[0]].kind != "camera":
+        raise unsupported(f"create.render_product({camera!r})",
+                          "render products use a camera made with rep.create.camera in this script")
+    width, height = (int(v) for v in resolution)
+    if width < 1 or height < 1:
+        raise ValueError(f"render_product resolution must be (width, height) >= 1, got {resolution!r}")
+    product = RenderProduct(camera=paths[0], width=width, height=height)
+    graph.render_products.append(product)
+    return product
+
+
+def group(items, semantics=None) -> Item:
+    """One item over several (``with rep.create.group([a, b]):`` modifies all of them)."""
+    paths = paths_of(items)
+    if semantics is not None:
+        labels = _semantics(semantics)
+        for path in paths:
+            current_graph().prim(path).semantics = labels
+    return Item(paths)
+
+
+create = Namespace("create", {
+    "cube": cube, "sphere": sphere, "cylinder": cylinder, "disk": disk, "plane": plane, "camera": camera,
+    "light": light, "material_omnipbr": material_omnipbr, "render_product": render_product, "group": group,
+}, {
+    "cone": f"not supported: {_NOT_A_SHAPE}",
+    "torus": f"not supported: {_NOT_A_SHAPE}",
+    "capsule": f"not supported: {_NOT_A_SHAPE}",
+    "from_usd": "USD assets are not loaded into Replicator graphs; build the scene from primitives",
+    "from_dir": "USD assets are not loaded into Replicator graphs; build the scene from primitives",
+    "stereo_camera": "create two cameras with rep.create.camera",
+    "xform": "create the primitive itself at its pose",
+})

@@ -1,0 +1,221 @@
+"""The per-frame work of Replicator nodes, as ``ambulo.replicator`` randomizers.
+
+Each node is a ``Randomizer``: ``sample(rng, ctx)`` draws its values for one frame (one per
+target prim, as Replicator samples a distribution per prim) and returns them as JSON data;
+``apply(params, ctx)`` writes them into the engine (free-joint qpos for poses, per-world
+``geom_rgba``/``geom_size``/light fields, the camera's pose). ``FrameProducer`` calls them in
+declaration order with a generator seeded by (global seed, node, frame // interval).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import torch
+
+from ambulo.replicator import Randomizer
+from ambulo.replicator.randomizers import subtree_geoms, to_json
+from ambulo.replicator.scatter import CollisionChecker, park_z
+from ambulo.sensors.frames import look_at_gl
+from ambulo.utils.rotations import mat_to_quat, quat_to_mat
+
+from .distribution import draw
+from .shapes import euler_xyz_deg_to_mat, geom_size
+
+_SCATTER_TRIES = 30
+
+
+def _rows(values, n: int, width: int) -> np.ndarray:
+    """``n`` draws as an (n, width) array; one number per draw is repeated across the row."""
+    arr = np.asarray(values, float).reshape(n, -1)
+    return np.broadcast_to(arr, (n, width)).copy() if arr.shape[1] == 1 else arr
+
+
+class _FreeBodies:
+    """Free-joint qpos addresses and subtree geoms of the shape prims a node targets."""
+
+    def resolve(self, model, paths: list[str]) -> None:
+        self._qadr, self._geoms = {}, {}
+        for path in paths:
+            body = model.body(path).id
+            self._qadr[path] = int(model.jnt_qposadr[model.body_jntadr[body]])
+            self._geoms[path] = subtree_geoms(model, body)
+
+    def body_position(self, ctx, path: str) -> np.ndarray:
+        adr = self._qadr[path]
+        return ctx.engine.qpos[ctx.world, adr:adr + 3].numpy().copy()
+
+
+@dataclass(kw_only=True)
+class PoseNode(Randomizer, _FreeBodies):
+    """``rep.modify.pose``: position, rotation (XYZ deg), scale of shapes; pose/aim of the camera."""
+
+    targets: list[str]
+    kinds: dict[str, str]
+    camera_pose: dict[str, Any] = field(default_factory=dict)
+    """The camera as created: position (3,), rot_gl (3, 3), look_at (point, prim path or None),
+    and its sensor's name."""
+    position: Any = None
+    rotation: Any = None
+    scale: Any = None
+    look_at: Any = None
+
+    def initialize(self, engine):
+        shapes = [t for t in self.targets if self.kinds[t] != "camera"]
+        aims = [a for a in (self.look_at, self.camera_pose.get("look_at")) if isinstance(a, str)]
+        self.resolve(engine.model, shapes + aims)
+
+    def sample(self, rng, ctx):
+        n, out = len(self.targets), {}
+        for key in ("position", "rotation", "scale"):
+            value = getattr(self, key)
+            if value is not None:
+                out[key] = _rows(draw(value, rng, n), n, 3)
+        if self.look_at is not None and not isinstance(self.look_at, str):
+            out["look_at"] = _rows(draw(self.look_at, rng, n), n, 3)
+        return to_json(out)
+
+    def apply(self, params, ctx):
+        qpos = ctx.engine.qpos[ctx.world]
+        for i, path in enumerate(self.targets):
+            if self.kinds[path] == "camera":
+                self._apply_camera(i, params, ctx)
+                continue
+            adr = self._qadr[path]
+            if "position" in params:
+                qpos[adr:adr + 3] = torch.tensor(params["position"][i], dtype=qpos.dtype)
+            if "rotation" in params:
+                quat = mat_to_quat(euler_xyz_deg_to_mat(params["rotation"][i]))
+                qpos[adr + 3:adr + 7] = torch.tensor(quat, dtype=qpos.dtype)
+            if "scale" in params:
+                sizes = ctx.engine.model_field("geom_size")
+                size = geom_size(self.kinds[path], params["scale"][i])
+                sizes[ctx.world, self._geoms[path]] = torch.tensor(size, dtype=sizes.dtype)
+
+    def _apply_camera(self, i, params, ctx):
+        """Aim: this node's look_at or rotation; else the created look_at (re-aimed from a new
+        position), else the created rotation."""
+        base = self.camera_pose
+        pos = np.asarray(params["position"][i]) if "position" in params else base["position"]
+        if "look_at" in params:
+            rot = look_at_gl(pos, params["look_at"][i])
+        elif isinstance(self.look_at, str):
+            rot = look_at_gl(pos, self.body_position(ctx, self.look_at))
+        elif "rotation" in params:
+            rot = euler_xyz_deg_to_mat(params["rotation"][i])
+        elif base.get("look_at") is not None:
+            aim = base["look_at"]
+            rot = look_at_gl(pos, self.body_position(ctx, aim) if isinstance(aim, str) else aim)
+        else:
+            rot = base["rot_gl"]
+        ctx.cameras[base["sensor"]].set_world_pose(pos, rot, world_ids=[ctx.world])
+
+
+@dataclass(kw_only=True)
+class ColorNode(Randomizer, _FreeBodies):
+    """``rep.randomizer.color`` / ``materials`` / displayColor: one RGB per prim (all its geoms)."""
+
+    targets: list[str]
+    colors: Any
+
+    def initialize(self, engine):
+        self.resolve(engine.model, self.targets)
+
+    def sample(self, rng, ctx):
+        return to_json({"rgb": _rows(draw(self.colors, rng, len(self.targets)), len(self.targets), 3)})
+
+    def apply(self, params, ctx):
+        rgba = ctx.engine.model_field("geom_rgba")
+        for path, rgb in zip(self.targets, params["rgb"]):
+            rgba[ctx.world, self._geoms[path]] = torch.tensor([*np.clip(rgb, 0.0, 1.0), 1.0], dtype=rgba.dtype)
+
+
+def light_level(intensity: float) -> float:
+    """Replicator intensity (nits) -> ambulo's 0-1 light level: the default 1000 is 0.7 (ambulo's
+    default sun, ``ambulo.core.scene.add_ground``); brighter lights saturate at 1."""
+    return float(np.clip(0.7 * intensity / 1000.0, 0.0, 1.0))
+
+
+@dataclass(kw_only=True)
+class LightNode(Randomizer):
+    """``rep.modify.attribute("intensity"/"color")`` of lights: per-world light diffuse (ambient for dome)."""
+
+    targets: list[str]
+    base: dict[str, dict]
+    """Per light: light_type, intensity, color as created."""
+    intensity: Any = None
+    color: Any = None
+
+    def initialize(self, engine):
+        self._ids = [engine.model.light(path).id for path in self.targets]
+
+    def sample(self, rng, ctx):
+        n, out = len(self.targets), {}
+        if self.intensity is not None:
+            out["intensity"] = np.asarray(draw(self.intensity, rng, n), float).reshape(n)
+        if self.color is not None:
+            out["color"] = _rows(draw(self.color, rng, n), n, 3)
+        return to_json(out)
+
+    def apply(self, params, ctx):
+        diffuse, ambient = ctx.engine.model_field("light_diffuse"), ctx.engine.model_field("light_ambient")
+        for i, (path, lid) in enumerate(zip(self.targets, self._ids)):
+            base = self.base[path]
+            level = light_level(params["intensity"][i] if "intensity" in params else base["intensity"])
+            color = np.asarray(params["color"][i] if "color" in params else base["color"], float)
+            field_ = ambient if base["light_type"] == "dome" else diffuse
+            field_[ctx.world, lid] = torch.tensor(level * np.clip(color, 0, 1), dtype=field_.dtype)
+
+
+@dataclass(kw_only=True)
+class ScatterNode(Randomizer, _FreeBodies):
+    """``rep.randomizer.scatter_2d``: prim origins at uniform points of the planes' top faces."""
+
+    targets: list[str]
+    surfaces: list[str]
+    offset: float = 0.0
+    check_for_collisions: bool = False
+
+    def initialize(self, engine):
+        m = engine.model
+        self.resolve(m, self.targets + self.surfaces)
+        surface_geoms = np.concatenate([self._geoms[s] for s in self.surfaces])
+        self._checker = CollisionChecker(m, surface_geoms) if self.check_for_collisions else None
+        self._bodies = {t: m.body(t).id for t in self.targets}
+
+    def sample(self, rng, ctx):
+        qpos = ctx.engine.qpos[ctx.world].numpy().copy()
+        sizes = ctx.engine.model_field("geom_size")[ctx.world].numpy()
+        planes = []
+        for s in self.surfaces:
+            adr, geom = self._qadr[s], self._geoms[s][0]
+            half = sizes[geom]
+            planes.append((qpos[adr:adr + 3].copy(), quat_to_mat(qpos[adr + 3:adr + 7]), half))
+        areas = np.array([4 * h[0] * h[1] for _, _, h in planes])
+        positions: dict[str, list[float]] = {}
+        todo = list(self.targets)
+        for _ in range(_SCATTER_TRIES):
+            for path in todo:
+                pos, rot, half = planes[rng.choice(len(planes), p=areas / areas.sum())]
+                local = [rng.uniform(-half[0], half[0]), rng.uniform(-half[1], half[1]), self.offset]
+                positions[path] = (pos + rot @ np.asarray(local)).tolist()
+                adr = self._qadr[path]
+                qpos[adr:adr + 3] = positions[path]
+            if self._checker is None:
+                todo = []
+                break
+            hits = self._checker.colliding_roots(qpos)
+            todo = [t for t in self.targets if self._bodies[t] in hits]
+            if not todo:
+                break
+        for path in todo:  # still overlapping: out of view, as ambulo's Scatter2D does
+            positions[path] = [0.0, 0.0, park_z(self._bodies[path])]
+        return {"position": positions, "hidden": todo}
+
+    def apply(self, params, ctx):
+        qpos = ctx.engine.qpos[ctx.world]
+        for path, pos in params["position"].items():
+            adr = self._qadr[path]
+            qpos[adr:adr + 3] = torch.tensor(pos, dtype=qpos.dtype)

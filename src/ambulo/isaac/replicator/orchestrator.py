@@ -1,0 +1,127 @@
+"""``rep.orchestrator``: render the graph's frames, synchronously, and hand them to the writers.
+
+In Kit, ``run()`` starts the graph and returns while frames are produced in the background;
+here ``run()`` renders them all before it returns (there is no app loop to wait on), so
+``wait_until_complete()`` finds nothing left to do. ``step()`` renders one frame, as Isaac's
+standalone workflows call it in their own loop. The first frame builds the scene once
+(``scene.py``) and a ``FrameProducer``; frame ``i`` depends only on (graph, seed, i).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ambulo.replicator import FrameProducer
+
+from .errors import Namespace, unsupported
+from .graph import Graph, current_graph
+from .scene import dataset_config
+
+
+@dataclass
+class RenderProduct:
+    """``rep.create.render_product(camera, (width, height))``."""
+
+    camera: str
+    width: int
+    height: int
+
+    @property
+    def path(self) -> str:
+        return f"/Render/RenderProduct_{self.camera.rsplit('/', 1)[-1]}"
+
+    @property
+    def resolution(self) -> tuple[int, int]:
+        return self.width, self.height
+
+
+class Session:
+    """The scene built from the graph, its frame producer and the writers of one run."""
+
+    def __init__(self, graph: Graph):
+        if len(graph.render_products) != 1:
+            raise unsupported(f"orchestrator with {len(graph.render_products)} render products",
+                              "create one rep.create.render_product per run")
+        self.product = graph.render_products[0]
+        self.writers = [w for w in graph.writers if self.product in w.render_products]
+        annotators = ["rgb"] + [a for w in self.writers for a in w.annotators]
+        self.producer = FrameProducer(dataset_config(graph, self.product, dict.fromkeys(annotators)))
+        self.camera = graph.prim(self.product.camera).extra
+        self.seed = graph.seed
+
+    def render(self, indices: list[int]) -> None:
+        for _index, _log, capture in self.producer.frames(self.seed, indices):
+            for writer in self.writers:
+                writer.write(capture, self.producer.table, self.camera)
+
+    def close(self) -> None:
+        self.producer.close()
+
+
+def _session(graph: Graph) -> Session:
+    if graph.session is None:
+        graph.session = Session(graph)
+    return graph.session
+
+
+def _frames_to_run(graph: Graph, num_frames: int | None) -> int:
+    if num_frames is not None:
+        return int(num_frames)
+    counts = [t.num_frames for t in graph.triggers if t.num_frames is not None]
+    if not counts:
+        raise ValueError("rep.orchestrator.run() would run forever: give the trigger num_frames "
+                         "(rep.trigger.on_frame(num_frames=N)) or call rep.orchestrator.run(num_frames=N)")
+    return max(counts)
+
+
+def run(num_frames: int | None = None, start_timeline: bool = False) -> None:
+    """Render the trigger's ``num_frames`` frames (or ``num_frames``) after those already rendered."""
+    graph = current_graph()
+    count = _frames_to_run(graph, num_frames)
+    session = _session(graph)
+    start = graph.frames_done
+    session.render(list(range(start, start + count)))
+    graph.frames_done = start + count
+
+
+def run_until_complete(num_frames: int | None = None, start_timeline: bool = False) -> None:
+    """Same as ``run``: frames are rendered before it returns."""
+    run(num_frames, start_timeline)
+
+
+def step(rt_subframes: int = -1, pause_timeline: bool = True, delta_time: float | None = None,
+         wait_for_render: bool = True) -> None:
+    """Render one frame: the triggers' nodes run, then the writers write it."""
+    graph = current_graph()
+    session = _session(graph)
+    session.render([graph.frames_done])
+    graph.frames_done += 1
+
+
+def wait_until_complete() -> None:
+    """Nothing to wait for: ``run`` and ``step`` return after their frames are written."""
+
+
+def stop() -> None:
+    """End the run: release the renderer; a later ``step``/``run`` builds the scene again."""
+    graph = current_graph()
+    if graph.session is not None:
+        graph.session.close()
+        graph.session = None
+
+
+def set_capture_on_play(value: bool) -> None:
+    """ambulo captures only on ``run``/``step``, never on timeline play: False is what it does."""
+    if value:
+        raise unsupported("orchestrator.set_capture_on_play(True)",
+                          "frames are captured by rep.orchestrator.run() or step()")
+
+
+orchestrator = Namespace("orchestrator", {
+    "run": run, "run_until_complete": run_until_complete, "step": step, "wait_until_complete": wait_until_complete,
+    "stop": stop, "set_capture_on_play": set_capture_on_play,
+}, {
+    "preview": "render frames with rep.orchestrator.step()",
+    "run_async": "use rep.orchestrator.run() (synchronous in ambulo)",
+    "step_async": "use rep.orchestrator.step() (synchronous in ambulo)",
+})

@@ -1,0 +1,68 @@
+"""``run_script``: run an Isaac Sim script, unchanged, on ambulo (what ``ambulo run`` calls)."""
+
+from __future__ import annotations
+
+import os
+import runpy
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+from ambulo.sim.current import current_world_or_none, set_current_world
+
+from .app import run_budget
+from .hook import isaac_names
+
+
+class ScriptPathError(FileNotFoundError):
+    """The script to run is missing or is a folder (not an error raised inside the script)."""
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """What a script run did: simulated seconds and steps of the last World it used."""
+
+    script: str
+    ran_sample: str | None
+    """The ``BaseSample`` subclass run as LOAD then PLAY, or None for a standalone script."""
+    sim_time_s: float
+    physics_steps: int
+
+
+def run_script(path: str | os.PathLike, argv: list[str] | tuple[str, ...] = (), seconds: float = 10.0) -> RunResult:
+    """Run the Isaac script ``path`` with ``sys.argv = [path, *argv]`` and Isaac's module names.
+
+    A script with a ``__main__`` flow (``SimulationApp``, then a World it steps) runs as is;
+    ``while simulation_app.is_running()`` loops stop after ``seconds`` of simulated time. A
+    script that only defines a ``BaseSample`` subclass (an extension-workflow example) is then
+    loaded and played for ``seconds``, as the Examples browser's LOAD and PLAY would.
+    """
+    script = Path(path)
+    if script.is_dir():
+        raise ScriptPathError(f"{script} is a folder; give the Isaac script (.py) to run")
+    if not script.is_file():
+        raise ScriptPathError(f"no script {str(script)!r}; check the path")
+    from .sample import BaseSample, run_sample  # noqa: PLC0415 - imports the World
+
+    saved_argv, saved_path = sys.argv, list(sys.path)
+    set_current_world(None)
+    try:
+        with isaac_names(), run_budget(seconds):
+            sys.argv = [str(script), *argv]
+            sys.path.insert(0, str(script.resolve().parent))  # as `python script.py` would
+            namespace = runpy.run_path(str(script), run_name="__main__")
+            samples = [v for v in namespace.values() if isinstance(v, type) and issubclass(v, BaseSample)
+                       and v is not BaseSample and v.__module__ == "__main__"]
+            ran_sample = None
+            if samples and current_world_or_none() is None:
+                ran_sample = samples[-1].__name__
+                run_sample(samples[-1], seconds)
+    finally:
+        sys.argv, sys.path[:] = saved_argv, saved_path
+    world = current_world_or_none()
+    return RunResult(script=str(script), ran_sample=ran_sample,
+                     sim_time_s=0.0 if world is None else world.current_time,
+                     physics_steps=0 if world is None else world.current_time_step_index)
+
+
+__all__ = ["RunResult", "ScriptPathError", "run_script"]

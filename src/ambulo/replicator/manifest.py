@@ -1,0 +1,194 @@
+"""``dataset.json``: what a dataset folder's frames were made with, so a resume never mixes datasets.
+
+It is written (atomically, flushed) before the first frame and holds a fingerprint of
+everything that decides a frame's bytes: seed, resolution, annotators, writer settings,
+camera, randomizers, a hash of the compiled scene (MuJoCo's binary model: the same bytes in
+every process and run of one MuJoCo version), the MuJoCo version and the PNG deflate. A
+folder is resumed only when the fingerprint is the same; otherwise ``DatasetFolderError``
+names each difference. ``open_dataset`` also refuses to write into, or delete from, a folder
+that is not an ambulo dataset (a non-empty folder without an ambulo ``dataset.json``, even with
+``overwrite``), and ``overwrite`` deletes only the names ambulo writes: a user's files stay.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import hashlib
+import json
+import os
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from ambulo.utils.atomic import atomic_write_json, fsync_dir, is_partial_file
+
+from .config import DatasetConfig
+from .io import PNG_DEFLATE
+from .writers import FRAME_FILE, SUBDIRS, check_writer_cfg
+
+MANIFEST = "dataset.json"
+FORMAT = "ambulo dataset"
+"""The manifest's ``format``: a ``dataset.json`` without it is someone else's (nnU-Net has one)."""
+TOP_FILES = (MANIFEST, "metadata.json", "annotations.json")
+"""The files ambulo writes at a dataset's top level (besides the ``SUBDIRS``)."""
+_FIX = ("resume with the same settings, start afresh with --overwrite (overwrite=True), "
+        "or give another output folder")
+
+
+class DatasetFolderError(Exception):
+    """An output folder that can't be used as asked: ``problem`` says why, ``fix`` what to do."""
+
+    def __init__(self, problem: str, fix: str):
+        self.problem, self.fix = problem, fix
+        super().__init__(f"{problem}; {fix}")
+
+
+def fingerprint(config: DatasetConfig, seed: int, model: mujoco.MjModel) -> dict:
+    """Everything that decides the dataset's bytes, as JSON data (``num_frames`` aside: more frames extend it)."""
+    camera = describe(config.camera)
+    names = [r.name or type(r).__name__ for r in config.randomizers]
+    writer = describe(config.writer)
+    writer.pop("fsync")  # flushing changes no byte
+    return _json({
+        "seed": seed, "width": camera.pop("width"), "height": camera.pop("height"),
+        "annotators": camera.pop("annotators"), "visible_fraction": config.visible_fraction,
+        "name": config.name, "camera": camera, "writer": writer,
+        "randomizers": {name: describe(r) for name, r in zip(names, config.randomizers)},
+        "scene_sha256": model_sha256(model), "mujoco_version": mujoco.__version__, "png_deflate": PNG_DEFLATE,
+    })
+
+
+def model_sha256(model: mujoco.MjModel) -> str:
+    """SHA-256 of the compiled model's MJB bytes (its arrays and names, not where it was built)."""
+    buffer = np.zeros(mujoco.mj_sizeModel(model), np.uint8)
+    mujoco.mj_saveModel(model, None, buffer)
+    return hashlib.sha256(buffer.tobytes()).hexdigest()
+
+
+def describe(value):
+    """``value`` as JSON data that is the same in every process and run: dataclasses by their init
+    fields, functions by qualified name, other objects by type (their repr may hold an address)."""
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    if isinstance(value, enum.Enum):
+        return value.name
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        fields = {f.name: describe(getattr(value, f.name)) for f in dataclasses.fields(value) if f.init}
+        return {"type": type(value).__name__, **fields}
+    if isinstance(value, dict):
+        return {str(k): describe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [describe(v) for v in value]
+    if isinstance(value, (np.ndarray, np.generic)) or hasattr(value, "__array__"):
+        return np.asarray(value).tolist()
+    if callable(value):
+        return f"{getattr(value, '__module__', '?')}.{getattr(value, '__qualname__', type(value).__name__)}"
+    return type(value).__qualname__
+
+
+def open_dataset(out: Path, config: DatasetConfig, seed: int, model: mujoco.MjModel, num_frames: int,
+                 overwrite: bool = False) -> None:
+    """Make ``out`` ready for ``num_frames`` frames of (config, seed): a new dataset in a new or empty
+    folder, the same one resumed (or extended), or, with ``overwrite``, an ambulo dataset's own files
+    deleted first. ``DatasetFolderError`` for anything else; nothing is written before the checks pass."""
+    check_writer_cfg(config.writer)
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise DatasetFolderError(f"output folder {str(out)!r} is an existing file",
+                                 "give the path of a new or empty folder")
+    wanted = fingerprint(config, seed, model)
+    existing = read_manifest(out)
+    if existing is not None and not overwrite:
+        _check_resumable(out, existing, wanted, num_frames)
+    elif existing is None and _has_entries(out):  # overwrite or not: it may be anyone's
+        raise DatasetFolderError(
+            f"output folder {str(out)!r} is not empty and is not an ambulo dataset (it has no {MANIFEST} of ambulo's)",
+            "give a new or empty folder: ambulo writes into and deletes from its own datasets only")
+    if overwrite and out.is_dir():
+        remove_dataset_files(out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        atomic_write_json(out / MANIFEST, {"format": FORMAT, "version": 1, "num_frames": num_frames,
+                                           "fingerprint": wanted}, indent=2, fsync=True)
+        fsync_dir(out)
+    except OSError as err:
+        raise DatasetFolderError(f"can't write to output folder {str(out)!r}: {err.strerror or err}",
+                                 "give a folder you can write to") from None
+
+
+def read_manifest(out: Path) -> dict | None:
+    """The manifest of dataset ``out``; None when there is none or it is not ambulo's."""
+    try:
+        manifest = json.loads((Path(out) / MANIFEST).read_bytes())
+    except (OSError, ValueError):
+        return None
+    return manifest if isinstance(manifest, dict) and manifest.get("format") == FORMAT else None
+
+
+def _check_resumable(out: Path, existing: dict, wanted: dict, num_frames: int) -> None:
+    differences = _differences(existing.get("fingerprint", {}), wanted)
+    if differences:
+        listed = "; ".join(f"{key} {_short(old)} (now {_short(new)})" for key, old, new in differences)
+        raise DatasetFolderError(f"{str(out)!r} holds a dataset made with other settings: {listed}", _FIX)
+    beyond = sorted(int(p.stem) for p in (out / "frames").glob("*.json") if p.stem.isdigit()
+                    and int(p.stem) >= num_frames)
+    if beyond:
+        raise DatasetFolderError(
+            f"{str(out)!r} already holds frames {beyond[0]}-{beyond[-1]}, beyond the {num_frames} asked for",
+            f"give --frames {beyond[-1] + 1} or more to resume it, or --overwrite to start afresh")
+
+
+def _differences(old, new, key: str = "") -> list[tuple[str, object, object]]:
+    """(dotted key, old, new) of every leaf that differs (values compared as JSON text: NaN == NaN)."""
+    if isinstance(old, dict) and isinstance(new, dict):
+        out = []
+        for k in list(old) + [k for k in new if k not in old]:
+            out += _differences(old.get(k), new.get(k), f"{key}.{k}" if key else k)
+        return out
+    same = json.dumps(old, sort_keys=True) == json.dumps(new, sort_keys=True)
+    return [] if same else [(key, old, new)]
+
+
+def _short(value, limit: int = 60) -> str:
+    text = json.dumps(value, separators=(",", ":"))
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+def _json(value):
+    """``value`` as it reads back from JSON (tuples become lists), to compare with a manifest."""
+    return json.loads(json.dumps(value))
+
+
+def _has_entries(out: Path) -> bool:
+    return out.is_dir() and any(os.scandir(out))
+
+
+def _is_own_file(name: str) -> bool:
+    return FRAME_FILE.fullmatch(name) is not None or is_partial_file(name)
+
+
+def remove_dataset_files(out: Path) -> int:
+    """Delete the files of the ambulo dataset in ``out`` (frame records first, manifest last) and its
+    emptied subfolders; any other file (a user's notes in ``rgb/``, say) stays. Returns the count."""
+    count = 0
+    for sub in ("frames", *[s for s in SUBDIRS if s != "frames"]):
+        folder = out / sub
+        if not folder.is_dir() or folder.is_symlink():
+            continue
+        for entry in os.scandir(folder):
+            if entry.is_file(follow_symlinks=False) and _is_own_file(entry.name):
+                os.unlink(entry.path)
+                count += 1
+        if not any(os.scandir(folder)):
+            folder.rmdir()
+    for entry in os.scandir(out):
+        if entry.is_file(follow_symlinks=False) and is_partial_file(entry.name):
+            os.unlink(entry.path)
+            count += 1
+    for name in TOP_FILES:
+        if (out / name).is_file():
+            (out / name).unlink()
+            count += 1
+    return count

@@ -1,0 +1,242 @@
+"""The USD stage of a World: a real in-memory ``Usd.Stage`` that Isaac scripts author with pxr.
+
+Isaac scripts get the stage (``omni.usd.get_context().get_stage()``, ``get_current_stage()``)
+and define prims with ``UsdGeom`` and ``UsdPhysics``. ambulo's model is an ``MjSpec``, so a
+World keeps both:
+
+- prims made through the ambulo API (``scene.add``, ``add_reference_to_stage``) are
+  *mirrored* on the USD stage as placeholders marked ``ambulo:mirrored`` (so
+  ``GetPrimAtPath`` finds them and ``IsValid`` is True); their physics lives in the MjSpec;
+- every other prim was *authored* with pxr: at each ``reset()`` the authored prims are copied
+  to a new layer, converted by MuJoCo's UsdPhysics importer (through
+  ``ambulo.core.importers``, which adds ``DriveAPI`` drives) and attached to the compiled
+  scene under the default prim ``/World``.
+
+What of UsdPhysics is honoured (MuJoCo's importer plus ambulo): rigid bodies
+(``RigidBodyAPI``), colliders (``CollisionAPI`` on Cube, Sphere, Capsule, Cylinder, Mesh),
+``MassAPI`` mass, revolute/prismatic/spherical/fixed joints with limits, ``DriveAPI`` gains
+and max force, the ``PhysicsScene`` gravity, and PhysX's ``physxScene:solverType``-free
+iteration counts (``physxRigidBody:solverPositionIterationCount``, the largest one sets the
+solver iterations). Not honoured: materials' friction combine modes, articulation roots'
+self-collision flags, ``physxScene:timeStepsPerSecond`` (the World's ``physics_dt`` rules),
+and edits made with pxr to mirrored prims (move those through the ambulo API).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+
+import mujoco
+
+MIRRORED = "ambulo:mirrored"
+"""customData key on prims whose physics is in the MjSpec (made through the ambulo API)."""
+
+ROOT = "/World"
+"""The default prim of every ambulo stage, as in Isaac's stages."""
+
+
+def _pxr():
+    try:
+        from pxr import Gf, Sdf, Usd, UsdGeom, UsdPhysics  # noqa: PLC0415 - USD is optional at import
+    except ImportError:
+        raise ImportError("the USD stage needs pxr: pip install 'mujoco[usd]'") from None
+    return Gf, Sdf, Usd, UsdGeom, UsdPhysics
+
+
+class UsdStage:
+    """An in-memory USD stage (z up, ``meters_per_unit``) with ``/World`` as its default prim."""
+
+    def __init__(self, meters_per_unit: float = 1.0):
+        _, _, Usd, UsdGeom, _ = _pxr()
+        self.stage = Usd.Stage.CreateInMemory()
+        UsdGeom.SetStageUpAxis(self.stage, UsdGeom.Tokens.z)
+        UsdGeom.SetStageMetersPerUnit(self.stage, float(meters_per_unit))
+        root = UsdGeom.Xform.Define(self.stage, ROOT).GetPrim()
+        root.SetCustomDataByKey(MIRRORED, True)
+        self.stage.SetDefaultPrim(root)
+
+    @property
+    def meters_per_unit(self) -> float:
+        _, _, _, UsdGeom, _ = _pxr()
+        return float(UsdGeom.GetStageMetersPerUnit(self.stage))
+
+    def open(self, path: str | os.PathLike) -> None:
+        """Replace the stage's content by the file ``path`` (Isaac's ``open_stage``)."""
+        _, Sdf, _, _, _ = _pxr()
+        layer = Sdf.Layer.FindOrOpen(str(path))
+        if layer is None:
+            raise FileNotFoundError(f"cannot open the USD file {str(path)!r}; check the path")
+        self.stage.GetRootLayer().TransferContent(layer)
+        if not self.stage.GetDefaultPrim():
+            raise ValueError(f"{path}: the stage has no default prim; set one (defaultPrim = \"World\")")
+
+    def mirror(self, prim_path: str, type_name: str = "Xform"):
+        """Define a placeholder prim for an object made through the ambulo API; returns it."""
+        prim = self.stage.DefinePrim(prim_path, type_name)
+        prim.SetCustomDataByKey(MIRRORED, True)
+        return prim
+
+    def mirror_spec(self, spec: mujoco.MjSpec) -> None:
+        """Mirror every body and frame of ``spec`` named by a prim path (``/World/...``), with its
+        ancestors, so pxr sees the objects the ambulo API made."""
+        paths = {e.name for group in (spec.bodies, spec.frames) for e in group
+                 if e.name.startswith(ROOT + "/")}
+        for path in sorted(paths):
+            parts = path.split("/")
+            for depth in range(3, len(parts) + 1):
+                prefix = "/".join(parts[:depth])
+                prim = self.stage.GetPrimAtPath(prefix)
+                if not prim:
+                    self.mirror(prefix)
+                elif not prim.GetCustomDataByKey(MIRRORED) and depth < len(parts):
+                    break  # an authored prim's subtree: leave it to pxr
+
+    def is_mirrored(self, prim_path: str) -> bool:
+        prim = self.stage.GetPrimAtPath(prim_path)
+        return bool(prim) and bool(prim.GetCustomDataByKey(MIRRORED))
+
+    def authored_paths(self) -> list[str]:
+        """Prims authored with pxr (not mirrored, not under a mirrored prim other than /World)."""
+        paths = []
+        iterator = iter(self.stage.Traverse())
+        for prim in iterator:
+            if prim.GetCustomDataByKey(MIRRORED):
+                if str(prim.GetPath()) != ROOT:
+                    iterator.PruneChildren()
+                continue
+            paths.append(str(prim.GetPath()))
+        return paths
+
+    def signature(self) -> str:
+        """Text that changes whenever the authored content changes (the World recompiles then)."""
+        return self.stage.GetRootLayer().ExportToString()
+
+    def scene_gravity_m_s2(self) -> tuple[float, float, float] | None:
+        """Gravity of the stage's ``PhysicsScene`` in m/s² (world frame), or None without one."""
+        _, _, _, _, UsdPhysics = _pxr()
+        for prim in self.stage.Traverse():
+            if prim.IsA(UsdPhysics.Scene):
+                scene = UsdPhysics.Scene(prim)
+                direction = scene.GetGravityDirectionAttr().Get()
+                magnitude = scene.GetGravityMagnitudeAttr().Get()
+                if direction is None or magnitude is None or magnitude < 0 or not any(direction):
+                    # UsdPhysics: -inf/unset magnitude and a zero direction mean Earth gravity down the up axis
+                    direction, magnitude = (0.0, 0.0, -1.0), 9.81 / self.meters_per_unit
+                norm = sum(c * c for c in direction) ** 0.5
+                g = [c / norm * magnitude * self.meters_per_unit for c in direction]
+                return (g[0], g[1], g[2])
+        return None
+
+    def solver_iterations(self) -> int | None:
+        """The largest PhysX position-iteration count authored on a body or articulation, if any."""
+        counts = []
+        for prim in self.stage.Traverse():
+            for name in ("physxRigidBody:solverPositionIterationCount",
+                         "physxArticulation:solverPositionIterationCount"):
+                attr = prim.GetAttribute(name)
+                if attr and attr.HasAuthoredValue():
+                    counts.append(int(attr.Get()))
+        return max(counts) if counts else None
+
+    def physics_spec(self, drives=None) -> mujoco.MjSpec | None:
+        """The authored prims as an ``MjSpec`` named relative to ``/World``, or None if there are none.
+
+        The copy drops mirrored prims and scales ``/World`` by ``meters_per_unit``, so the
+        importer sees metres whatever units the script authored in.
+        """
+        if not any(p != ROOT for p in self.authored_paths()):
+            return None
+        Gf, Sdf, Usd, UsdGeom, _ = _pxr()
+        layer = Sdf.Layer.CreateAnonymous(".usda")
+        layer.TransferContent(self.stage.GetRootLayer())
+        copy = Usd.Stage.Open(layer)
+        for prim in list(copy.Traverse()):
+            path = str(prim.GetPath())
+            if path != ROOT and prim.IsValid() and prim.GetCustomDataByKey(MIRRORED):
+                copy.RemovePrim(path)
+        if self.meters_per_unit != 1.0:
+            scale = self.meters_per_unit
+            UsdGeom.Xformable(copy.GetPrimAtPath(ROOT)).AddScaleOp(
+                UsdGeom.XformOp.PrecisionDouble, "toMetres").Set(Gf.Vec3d(scale, scale, scale))
+        from ambulo.core.importers import load_spec  # noqa: PLC0415 - core imports sim lazily
+
+        with tempfile.TemporaryDirectory(prefix="ambulo-stage-") as folder:
+            file = os.path.join(folder, "authored.usda")
+            layer.Export(file)
+            spec = load_spec(file, drives=drives)
+        _apply_display_colors(copy, spec)
+        return spec
+
+    def initial_velocities(self) -> dict[str, tuple[tuple[float, ...], tuple[float, ...]]]:
+        """Body name (relative to ``/World``) -> (linear m/s, angular rad/s) authored with
+        ``physics:velocity`` / ``physics:angularVelocity`` (UsdPhysics states degrees/s)."""
+        _, _, _, _, UsdPhysics = _pxr()
+        scale = self.meters_per_unit
+        found = {}
+        for path in self.authored_paths():
+            prim = self.stage.GetPrimAtPath(path)
+            if not prim.HasAPI(UsdPhysics.RigidBodyAPI):
+                continue
+            body = UsdPhysics.RigidBodyAPI(prim)
+            lin, ang = body.GetVelocityAttr().Get(), body.GetAngularVelocityAttr().Get()
+            if (lin is not None and any(lin)) or (ang is not None and any(ang)):
+                lin = tuple(float(c) * scale for c in (lin or (0, 0, 0)))
+                ang = tuple(math.radians(float(c)) for c in (ang or (0, 0, 0)))
+                found[path[len(ROOT) + 1:]] = (lin, ang)
+        return found
+
+
+def _apply_display_colors(stage, spec: mujoco.MjSpec) -> None:
+    """``primvars:displayColor`` of authored shapes as their geoms' colour (MuJoCo's importer skips it)."""
+    _, _, _, UsdGeom, _ = _pxr()
+    for prim in stage.Traverse():
+        if not prim.IsA(UsdGeom.Gprim):
+            continue
+        colors = UsdGeom.Gprim(prim).GetDisplayColorAttr().Get()
+        geom = spec.geom(str(prim.GetPath())[len(ROOT) + 1:])
+        if colors and geom is not None:
+            geom.rgba = [*map(float, colors[0]), 1.0]
+
+
+_pending: UsdStage | None = None
+"""A stage made before any World (Isaac's stage exists before its World); the next World adopts it."""
+
+
+def current_usd_stage() -> UsdStage:
+    """The stage scripts author on: the current World's, else one waiting for the next World."""
+    from .current import current_world_or_none  # noqa: PLC0415 - leaf module, kept lazy for pxr-less use
+
+    global _pending
+    world = current_world_or_none()
+    if world is not None:
+        return world.usd
+    if _pending is None:
+        _pending = UsdStage()
+    return _pending
+
+
+def stage_for_new_world(meters_per_unit: float) -> UsdStage:
+    """The stage a new World uses: the waiting one if a script authored before creating the
+    World (its units set to ``meters_per_unit``), else a new one."""
+    global _pending
+    stage, _pending = _pending, None
+    if stage is None:
+        return UsdStage(meters_per_unit)
+    _, _, _, UsdGeom, _ = _pxr()
+    UsdGeom.SetStageMetersPerUnit(stage.stage, float(meters_per_unit))
+    return stage
+
+
+def new_usd_stage() -> UsdStage:
+    """Isaac's ``create_new_stage``: an empty stage; the current World is dropped with the old one."""
+    from .current import set_current_world  # noqa: PLC0415
+
+    global _pending
+    set_current_world(None)
+    _pending = UsdStage()
+    return _pending
+
+
+__all__ = ["MIRRORED", "ROOT", "UsdStage", "current_usd_stage", "new_usd_stage", "stage_for_new_world"]

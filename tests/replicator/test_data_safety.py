@@ -1,0 +1,295 @@
+"""`ambulo generate` touches only its own files and never mixes datasets (issue 8, item 3).
+
+Temporaries only ambulo names are deleted; a folder made with other settings is refused with
+the difference named; damaged frames are made again; files are flushed before their record;
+bad --out, bad numbers and SIGINT/SIGTERM/SIGKILL each leave the disk as it was, or resumable.
+"""
+
+import dataclasses
+import errno
+import os
+import shutil
+import signal
+import sys
+from pathlib import Path
+
+import pytest
+
+from ambulo import replicator as rep
+from ambulo.cli import main
+from ambulo.replicator.manifest import DatasetFolderError
+from ambulo.utils.atomic import TMP_MARK, temporary_name
+
+SEED = 1
+FRAMES = 4
+LONG_RUN = 100  # frames of the interrupted runs: enough to still be running when they are stopped
+
+
+def config() -> rep.DatasetConfig:
+    """The example scene at 160x120: what ``ambulo generate --width 160 --height 120`` makes."""
+    return rep.example_config(160, 120)
+
+
+def make(config, out: Path, frames: int, seed: int = SEED, **kwargs) -> Path:
+    rep.generate(config, out, num_frames=frames, seed=seed, show_progress=False, **kwargs)
+    return out
+
+
+@pytest.fixture(scope="module")
+def clean(tmp_path_factory) -> Path:
+    """A dataset of FRAMES frames of the test config, made in one clean run (never modified)."""
+    return make(config(), tmp_path_factory.mktemp("clean"), FRAMES)
+
+
+@pytest.fixture(scope="module")
+def clean_long(tmp_path_factory) -> Path:
+    """LONG_RUN frames in one clean run: what every interrupted run must resume to."""
+    return make(config(), tmp_path_factory.mktemp("clean_long"), LONG_RUN)
+
+
+def copy_of(dataset: Path, tmp_path: Path) -> Path:
+    return Path(shutil.copytree(dataset, tmp_path / "out"))
+
+
+def cli(capsys, *argv: str) -> tuple[int, str, str]:
+    """``ambulo generate`` in this process at the test size: (exit status, stdout, stderr)."""
+    status = main(["generate", "--width", "160", "--height", "120", "--quiet", *argv])
+    captured = capsys.readouterr()
+    return status, captured.out, captured.err
+
+
+def one_error_line(err: str) -> str:
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("ambulo generate: error: "), err
+    return lines[0]
+
+
+# -- only ambulo's own files are deleted -------------------------------------------------------------
+
+def test_user_files_with_tmp_in_their_names_survive_and_ambulo_temporaries_go(tmp_path, clean, gen):
+    out = copy_of(clean, tmp_path)
+    users = {"rgb/000001.png.tmp-42": b"a user's backup", "rgb/notes.tmp-draft.txt": b"notes",
+             "my.tmp-file": b"top level", f"depth/x{TMP_MARK}7-deadbeef": b"not hidden: not ours"}
+    for name, data in users.items():
+        (out / name).write_bytes(data)
+    leftovers = [out / "rgb" / temporary_name("000003.png"), out / temporary_name("metadata.json")]
+    for path in leftovers:
+        path.write_bytes(b"half a file from a killed run")
+    make(config(), out, FRAMES)
+    tree = gen.file_tree(out)
+    assert {name: tree.get(name) for name in users} == users
+    assert not any(path.exists() for path in leftovers)
+    assert {k: v for k, v in tree.items() if k not in users} == gen.file_tree(clean)
+
+
+def test_overwrite_deletes_only_the_datasets_own_files(tmp_path, clean, gen):
+    out = copy_of(clean, tmp_path)
+    users = {"rgb/keep.png": b"my picture", "README.md": b"my notes", "frames/notes.json": b"{}"}
+    for name, data in users.items():
+        (out / name).write_bytes(data)
+    make(config(), out, 2, seed=2, overwrite=True)
+    fresh = make(config(), tmp_path / "fresh", 2, seed=2)
+    tree = gen.file_tree(out)
+    assert {name: tree.get(name) for name in users} == users
+    assert {k: v for k, v in tree.items() if k not in users} == gen.file_tree(fresh)  # frames 2, 3 are gone
+
+
+# -- a resume never mixes datasets ---------------------------------------------------------------------
+
+def test_a_folder_made_with_seed_1_refuses_seed_2_and_names_it(tmp_path, clean, capsys, gen):
+    out = copy_of(clean, tmp_path)
+    before = gen.file_tree(out)
+    status, stdout, err = cli(capsys, "--frames", str(FRAMES), "--out", str(out), "--seed", "2")
+    line = one_error_line(err)
+    assert status == 2 and "wrote" not in stdout
+    assert "seed 1 (now 2)" in line and "--overwrite" in line and "another output folder" in line
+    assert gen.file_tree(out) == before
+
+
+def test_another_resolution_is_refused_naming_width_and_height(tmp_path, clean, capsys, gen):
+    out = copy_of(clean, tmp_path)
+    before = gen.file_tree(out)
+    status, _, err = cli(capsys, "--frames", str(FRAMES), "--out", str(out), "--seed", "1",
+                         "--width", "200", "--height", "100")
+    line = one_error_line(err)
+    assert status == 2 and "width 160 (now 200)" in line and "height 120 (now 100)" in line
+    assert gen.file_tree(out) == before
+
+
+@pytest.mark.parametrize("change, key", [
+    (lambda c: dataclasses.replace(c, randomizers=[
+        dataclasses.replace(r, intensity=rep.uniform(0.1, 0.2)) if r.name == "lights" else r
+        for r in c.randomizers]), "randomizers.lights.intensity"),
+    (lambda c: dataclasses.replace(c, writer=dataclasses.replace(c.writer, outputs=("coco", "kitti"))),
+     "writer.outputs"),
+    (lambda c: dataclasses.replace(c, build_scene=lambda: _scene_with_a_box(c.build_scene)), "scene_sha256"),
+], ids=["randomizer", "writer", "scene"])
+def test_a_config_change_is_refused_naming_the_key(tmp_path, clean, gen, change, key):
+    out = copy_of(clean, tmp_path)
+    before = gen.file_tree(out)
+    with pytest.raises(DatasetFolderError, match=key.replace(".", r"\.")):
+        make(change(config()), out, FRAMES)
+    assert gen.file_tree(out) == before
+
+
+def _scene_with_a_box(build):
+    spec = build()
+    spec.worldbody.add_geom(size=[0.1, 0.1, 0.1], pos=[2.0, 0.0, 0.1])
+    return spec
+
+
+def test_more_frames_extend_a_dataset_and_fewer_are_refused(tmp_path, clean, gen):
+    out = make(config(), tmp_path / "short", 2)
+    make(config(), out, FRAMES)
+    assert gen.file_tree(out) == gen.file_tree(clean)
+    with pytest.raises(DatasetFolderError, match=r"frames 2-3, beyond the 2 asked for.*--frames 4 or more"):
+        make(config(), out, 2)
+    assert gen.file_tree(out) == gen.file_tree(clean)
+
+
+# -- damaged frames are detected and made again -----------------------------------------------------
+
+def test_truncated_images_and_empty_records_are_made_again_byte_identical(tmp_path, clean, gen):
+    out = copy_of(clean, tmp_path)
+    png = out / "rgb" / "000001.png"
+    png.write_bytes(png.read_bytes()[: png.stat().st_size // 2])
+    (out / "frames" / "000002.json").write_bytes(b"")
+    (out / "depth" / "000003.png").write_bytes(b"")
+    (out / "instance" / "000000.png").unlink()
+    make(config(), out, FRAMES)
+    assert gen.file_tree(out) == gen.file_tree(clean)
+
+
+def test_frame_files_reach_the_disk_before_their_record(tmp_path, monkeypatch):
+    """Every data file is flushed before its rename, its folder after it, and only then the record is written."""
+    events = []
+    fsync, replace = os.fsync, os.replace
+
+    def logged_fsync(fd):
+        events.append(("fsync", os.readlink(f"/proc/self/fd/{fd}")))
+        fsync(fd)
+
+    def logged_replace(src, dst):
+        events.append(("replace", str(dst)))
+        replace(src, dst)
+
+    if not sys.platform.startswith("linux"):
+        pytest.skip("reads /proc/self/fd")
+    monkeypatch.setattr(os, "fsync", logged_fsync)
+    monkeypatch.setattr(os, "replace", logged_replace)
+    out = make(config(), tmp_path / "d", 2).resolve()
+    import json
+
+    for index in range(2):
+        record_at = events.index(("replace", str(out / "frames" / f"{index:06d}.json")))
+        files = json.loads((out / "frames" / f"{index:06d}.json").read_text())["files"]
+        assert len(files) == 4
+        for relpath in files:
+            path = out / relpath
+            renamed = events.index(("replace", str(path)))
+            flushed = [i for i, (kind, p) in enumerate(events) if kind == "fsync" and Path(p).name.startswith(
+                f".{path.name}{TMP_MARK}") and Path(p).parent == path.parent]
+            folder = [i for i, e in enumerate(events) if e == ("fsync", str(path.parent))]
+            assert flushed and flushed[-1] < renamed, relpath
+            assert any(renamed < i < record_at for i in folder), relpath
+
+
+# -- the command line: bad --out, bad numbers, the success line ------------------------------------
+
+def test_out_that_is_an_existing_file_is_refused(tmp_path, capsys):
+    target = tmp_path / "results.csv"
+    target.write_bytes(b"a,b\n1,2\n")
+    status, _, err = cli(capsys, "--frames", "1", "--out", str(target))
+    assert status == 2 and "is an existing file" in one_error_line(err)
+    assert target.read_bytes() == b"a,b\n1,2\n" and os.listdir(tmp_path) == ["results.csv"]
+
+
+@pytest.mark.parametrize("overwrite", [False, True])
+def test_a_non_empty_folder_that_is_not_a_dataset_is_refused(tmp_path, capsys, gen, overwrite):
+    folder = tmp_path / "photos"
+    (folder / "rgb").mkdir(parents=True)
+    (folder / "rgb" / "000000.png").write_bytes(b"my photo")
+    (folder / "dataset.json").write_text('{"name": "an nnU-Net dataset"}')
+    (folder / "annotations.json").write_text("{}")
+    before = gen.file_tree(folder)
+    status, _, err = cli(capsys, "--frames", "1", "--out", str(folder), *(["--overwrite"] if overwrite else []))
+    line = one_error_line(err)
+    assert status == 2 and "not an ambulo dataset" in line and "new or empty folder" in line
+    assert gen.file_tree(folder) == before and sorted(os.listdir(folder)) == ["annotations.json", "dataset.json",
+                                                                              "rgb"]
+
+
+@pytest.mark.parametrize("where", ["under_a_file", "read_only_fs"])
+def test_an_unwritable_out_gets_one_line(tmp_path, capsys, where):
+    if where == "under_a_file":
+        (tmp_path / "file").write_bytes(b"x")
+        out = tmp_path / "file" / "data"
+    else:
+        if not Path("/sys/kernel").is_dir():
+            pytest.skip("needs Linux sysfs (read-only to every user, root too)")
+        out = Path("/sys/ambulo-test-data")
+    status, _, err = cli(capsys, "--frames", "1", "--out", str(out))
+    line = one_error_line(err)
+    assert status == 2 and f"can't write to output folder {str(out)!r}" in line and "you can write to" in line
+
+
+@pytest.mark.parametrize("flag, value", [("frames", "0"), ("workers", "0"), ("width", "-3"), ("height", "0"),
+                                         ("frames", "-1"), ("seed", "-1")])
+def test_numbers_that_are_not_positive_get_one_line_with_the_fix(tmp_path, capsys, flag, value):
+    status, _, err = cli(capsys, "--out", str(tmp_path / "d"), f"--{flag}", value)
+    line = one_error_line(err)
+    assert status == 2 and f"--{flag} {value}" in line and f"give --{flag} {0 if flag == 'seed' else 1} or more" in line
+    assert not (tmp_path / "d").exists()
+
+
+def test_success_is_printed_only_when_the_output_exists(tmp_path, capsys, monkeypatch):
+    status, stdout, _ = cli(capsys, "--frames", "1", "--out", str(tmp_path / "d"))
+    out = tmp_path / "d"
+    assert status == 0 and stdout == f"wrote a dataset of 1 frames in {out} (COCO annotations: {out / 'annotations.json'})\n"
+    assert (tmp_path / "d" / "annotations.json").is_file()
+    monkeypatch.setattr(rep, "generate", lambda *a, **k: tmp_path / "gone" / "annotations.json")
+    status, stdout, err = cli(capsys, "--frames", "1", "--out", str(tmp_path / "gone"))
+    assert status == 2 and stdout == "" and "missing" in one_error_line(err)
+
+
+def test_a_full_disk_gets_one_line_saying_how_to_resume(tmp_path, capsys, monkeypatch):
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(tmp_path / "d" / "rgb" / "000007.png"))
+
+    monkeypatch.setattr(rep, "generate", full)
+    status, stdout, err = cli(capsys, "--frames", "9", "--out", str(tmp_path / "d"))
+    line = one_error_line(err)
+    assert status == 2 and stdout == "" and "No space left on device" in line and "000007.png" in line
+    assert "run the same command again to resume" in line
+
+
+# -- stopped runs: one line, and a folder that resumes ------------------------------------------------
+
+@pytest.mark.parametrize("sig, workers", [(signal.SIGTERM, "1"), (signal.SIGINT, "2")],
+                         ids=["SIGTERM-1-process", "SIGINT-2-processes"])
+def test_a_stopped_run_prints_how_to_resume_and_resumes_to_the_clean_result(tmp_path, clean_long, gen, sig, workers):
+    out = tmp_path / "out"
+    argv = gen.argv(out, LONG_RUN, "--seed", str(SEED), "--workers", workers)
+    victim = gen.start(argv, out / "frames")
+    victim.send_signal(sig)
+    _, err = victim.communicate(timeout=60)
+    err = err.decode()
+    assert victim.returncode == 128 + sig, err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    assert f"stopped by {sig.name}" in err and "run the same command again to resume" in err
+    assert 5 <= len(list((out / "frames").glob("*.json"))) < LONG_RUN
+    make(config(), out, LONG_RUN)  # what the command does (test_generate runs it after a SIGKILL)
+    assert gen.file_tree(out) == gen.file_tree(clean_long)
+
+
+def test_a_killed_run_refuses_another_seed_and_resumes_to_the_clean_result(tmp_path, clean_long, gen):
+    out = tmp_path / "out"
+    victim = gen.start(gen.argv(out, LONG_RUN, "--seed", str(SEED)), out / "frames")
+    victim.send_signal(signal.SIGKILL)
+    victim.wait()
+    before = gen.file_tree(out)
+    with pytest.raises(DatasetFolderError, match=r"seed 1 \(now 2\)"):
+        make(config(), out, LONG_RUN, seed=2)
+    assert gen.file_tree(out) == before
+    make(config(), out, LONG_RUN)
+    assert gen.file_tree(out) == gen.file_tree(clean_long)
