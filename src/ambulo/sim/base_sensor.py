@@ -19,6 +19,7 @@ import math
 from ambulo.utils.checks import check_positive
 
 from .current import current_world_or_none
+from .transaction import atomic_constructor
 
 log = logging.getLogger(__name__)
 
@@ -48,6 +49,10 @@ def due(last_s: float | None, now_s: float, period_s: float) -> bool:
 class BaseSensor:
     """An Isaac-named sensor (``name``, ``prim_path``) over the ambulo sensor ``self.sensor``."""
 
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        atomic_constructor(cls)  # a failing constructor leaves the stage as it was
     def __init__(self, sensor, name: str):
         if not isinstance(name, str) or not name:
             raise ValueError(f"sensor name {name!r} must be a non-empty string; pass e.g. name='camera'")
@@ -147,5 +152,7 @@ class BaseSensor:
     def __repr__(self) -> str:
         return f"{type(self).__name__}(prim_path={self.prim_path!r}, name={self.name!r})"
 
+
+atomic_constructor(BaseSensor)
 
 __all__ = ["BaseSensor", "due", "period_from"]

@@ -46,6 +46,18 @@ _UNSUPPORTED = {
 }
 
 
+
+def _check_resolution(value) -> tuple[int, int]:
+    """(width, height) as whole pixels >= 1, else a one-line error."""
+    try:
+        width, height = value
+        ok = all(float(v) == int(v) and int(v) >= 1 for v in (width, height))
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise ValueError(f"resolution {value!r} must be (width, height) in whole pixels >= 1, e.g. (640, 480)")
+    return int(width), int(height)
+
 class Camera(BaseSensor):
     """Isaac's ``Camera(prim_path, name, frequency, dt, resolution, position, orientation, translation)``.
 
@@ -64,7 +76,7 @@ class Camera(BaseSensor):
         if annotator_device not in (None, "cpu"):
             raise ValueError(f"annotator_device={annotator_device!r} is not supported; outputs are NumPy on "
                              "the CPU, drop the argument")
-        width, height = resolution or DEFAULT_RESOLUTION
+        width, height = _check_resolution(resolution or DEFAULT_RESOLUTION)
         period = period_from(frequency, dt, "Camera")
         self._focal_length = DEFAULT_FOCAL_LENGTH
         self._horizontal_aperture = DEFAULT_HORIZONTAL_APERTURE
@@ -300,9 +312,7 @@ class Camera(BaseSensor):
 
     def set_resolution(self, value: tuple[int, int], maintain_square_pixels: bool = True) -> None:
         """(width, height) px; square pixels: the vertical aperture follows the aspect ratio."""
-        width, height = (int(v) for v in value)
-        if width < 1 or height < 1:
-            raise ValueError(f"resolution {value!r} must be whole pixels >= 1, e.g. (640, 480)")
+        width, height = _check_resolution(value)
         self.cfg.width, self.cfg.height = width, height
         self.sensor.close()  # the renderer is sized at creation: a new one at the next render
         self._apply_optics()

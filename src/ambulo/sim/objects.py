@@ -15,7 +15,7 @@ import numpy as np
 import mujoco
 
 from ..core import GroundCfg, PhysicsMaterial, add_ground, set_semantic_label
-from ..utils.checks import check_quat, check_vector
+from ..utils.checks import InvalidValueError, check_positive, check_quat, check_vector
 from .current import current_world
 from .prims import RigidPrim, XFormPrim
 
@@ -62,7 +62,15 @@ class _Primitive(RigidPrim):
                 check_vector(what, value, 3, "pass (x, y, z) in m (in stage units if the World sets stage_units_in_meters), finite")
         if orientation is not None:
             check_quat("orientation", orientation)
-        scale = np.ones(3) if scale is None else np.broadcast_to(np.asarray(scale, float), (3,))
+        scale = np.ones(3) if scale is None else np.broadcast_to(
+            check_vector("scale", np.broadcast_to(np.asarray(scale, float), (3,)), 3, "pass 3 positive factors"), (3,))
+        if (scale <= 0).any():
+            raise InvalidValueError("scale", list(scale), "every factor must be > 0", "pass e.g. scale=(1, 1, 1)")
+        for key, value in size_kwargs.items():
+            check_positive(key, value, f"pass {key} > 0 in stage units")
+        if color is not None:
+            color = check_vector("color", np.asarray(color, float)[:3] if np.size(color) >= 3 else color, 3,
+                                 "pass (r, g, b) in 0..1")
         body = stage.worldbody.add_body(name=prim_path)
         if self._dynamic:
             body.add_freejoint(name=prim_path + "/root_joint")

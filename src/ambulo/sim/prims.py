@@ -24,6 +24,7 @@ from ..utils.checks import Described, InvalidValueError, check_positive, check_q
 from ..utils.math import quat_mul, quat_rotate, quat_rotate_inverse
 from .current import current_world, current_world_or_none
 from .states import DynamicState, XFormPrimState
+from .transaction import atomic_constructor
 
 if TYPE_CHECKING:
     from .world import World
@@ -77,6 +78,10 @@ class XFormPrim:
 
     _requires_drives = False
 
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        atomic_constructor(cls)  # a failing constructor leaves the stage as it was
     def __init__(self, prim_path: str, name: str | None = None, position=None, orientation=None,
                  translation=None):
         if not prim_path.startswith("/"):
@@ -401,3 +406,6 @@ def _body_volume_m3(model: mujoco.MjModel, body: int, prim_path: str) -> float:
     if volume <= 0.0:
         raise ValueError(f"{prim_path} has no collision shapes, so no volume: use set_mass(kg) instead")
     return volume
+
+
+atomic_constructor(XFormPrim)

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING, Iterator
 from ..core import GroundCfg
 from .objects import GroundPlane
 from .prims import XFormPrim
+from ..core.paths import resolve_spec_body
 
 if TYPE_CHECKING:
     from .world import World
@@ -35,12 +36,15 @@ class Scene:
             self._world.sim.add(obj)  # compiled in at the next reset()
             self._objects[obj.name] = obj
             return obj
-        self._objects[obj.name] = obj
         if self._world.engine is not None and self._world.model is not None:
             try:
                 obj.initialize(self._world)
             except KeyError:
-                pass  # added to the stage after compiling: initialized at the next reset()
+                # on the stage since the last compile: initialized at the next reset(); nowhere
+                # on the stage: a wrong path, said now (with did-you-mean) rather than at reset
+                if not _on_stage(self._world.stage, obj.prim_path):
+                    raise
+        self._objects[obj.name] = obj
         return obj
 
     def get_object(self, name: str):
@@ -86,6 +90,17 @@ class Scene:
         cfg = GroundCfg(prim_path=prim_path, z_m=z_position * units, static_friction=static_friction,
                         dynamic_friction=dynamic_friction, restitution=restitution, color=tuple(color))
         return self.add(GroundPlane(cfg=cfg, name=name))
+
+
+def _on_stage(stage, prim_path: str) -> bool:
+    """Whether ``prim_path`` names a body or a referenced file's frame of the (uncompiled) stage."""
+    if stage.frame(prim_path) is not None:
+        return True
+    try:
+        resolve_spec_body(stage, prim_path)
+    except KeyError:
+        return False
+    return True
 
 
 def is_prim(obj) -> bool:

@@ -205,6 +205,7 @@ class World:
     # -- lifecycle --------------------------------------------------------------
     def reset(self) -> None:
         """Compile the stage if it changed, then put every world in its initial state."""
+        self.usd.mirror_spec(self.stage)  # pxr sees the objects the API made since the last reset
         if self.engine is None or self._stage_signature() != self._compiled_signature:
             self._compile()
         else:
