@@ -45,7 +45,8 @@ _TYPES = {**_from(_SIM, "ArticulationAction"), **_from("ambulo.sim.actions", "Ar
           **_all_of("ambulo.sim.states")}
 _VIEWS = "ambulo.sim.views"
 _NUCLEUS = _from(_SIM, "get_assets_root_path")
-_VIEWPORTS = _from(_SIM, "set_camera_view")
+_VIEWPORTS = {**_from(_SIM, "set_camera_view"), **_from("ambulo.sim.viewport", "get_intrinsics_matrix")}
+_TASKS = _from("ambulo.sim.tasks", "BaseTask")
 _SEMANTICS = _from("ambulo.isaac.semantics", "add_update_semantics", "add_labels")
 _PHYSICS_CONTEXT = _from("ambulo.isaac.physics_context", "PhysicsContext")
 _ROTATIONS = _from("ambulo.isaac.rotations", "euler_angles_to_quat", "quat_to_euler_angles",
@@ -72,6 +73,8 @@ MODULES: dict[str, dict[str, str]] = {
     "isaacsim.core.api.physics_context": _PHYSICS_CONTEXT,
     "isaacsim.core.api.robots": _ROBOTS,
     "isaacsim.core.api.scenes": _SCENES,
+    "isaacsim.core.api.tasks": _TASKS,
+    "isaacsim.core.api.tasks.base_task": _TASKS,
     "isaacsim.core.api.controllers": _CONTROLLERS,
     "isaacsim.core.api.controllers.articulation_controller": _from(_SIM, "ArticulationController"),
     "isaacsim.core.api.materials": _MATERIALS,
@@ -98,6 +101,8 @@ MODULES: dict[str, dict[str, str]] = {
     "omni.isaac.core.objects": _OBJECTS,
     "omni.isaac.core.robots": _ROBOTS,
     "omni.isaac.core.scenes": _SCENES,
+    "omni.isaac.core.tasks": _TASKS,
+    "omni.isaac.core.tasks.base_task": _TASKS,
     "omni.isaac.core.controllers": _CONTROLLERS,
     "omni.isaac.core.materials": _MATERIALS,
     "omni.isaac.core.articulations": {**_from(_SIM, "Articulation"), **_from(_VIEWS, "ArticulationView")},
@@ -141,7 +146,6 @@ HINTS: dict[str, str] = {
     "VisualCone": "not supported: ambulo has cuboids, spheres, cylinders and capsules",
     "PreviewSurface": "not supported: give shapes a color= (RGB) instead",
     "OmniPBR": "not supported: give shapes a color= (RGB) instead",
-    "BaseTask": "not supported: build the scene in setup_scene and step the World yourself",
 }
 """What to use instead of an Isaac name that ambulo does not provide."""
 

@@ -32,6 +32,7 @@ from ..utils.checks import (
 )
 from .current import current_world_or_none, set_current_world
 from .scene import Scene
+from .tasks import TaskHost
 from .usd_stage import stage_for_new_world
 
 log = logging.getLogger(__name__)
@@ -46,7 +47,7 @@ def default_substeps(physics_dt: float) -> int:
     return max(1, math.ceil(physics_dt / MAX_SUBSTEP_S - 1e-9))
 
 
-class World:
+class World(TaskHost):
     """The simulation: stage, physics settings, ``num_worlds`` parallel copies, clock.
 
     Args:
@@ -204,7 +205,10 @@ class World:
 
     # -- lifecycle --------------------------------------------------------------
     def reset(self) -> None:
-        """Compile the stage if it changed, then put every world in its initial state."""
+        """Compile the stage if it changed, then put every world in its initial state.
+
+        Tasks (``add_task``) set up their scenes at the first reset, as in Isaac."""
+        self._tasks_before_reset()
         self.usd.mirror_spec(self.stage)  # pxr sees the objects the API made since the last reset
         if self.engine is None or self._stage_signature() != self._compiled_signature:
             self._compile()
@@ -216,6 +220,7 @@ class World:
             obj.post_reset()
         self.engine.forward()
         self._playing = True
+        self._tasks_after_reset()
 
     def initialize_physics(self) -> None:
         """Compile the stage and start the engine without resetting objects' states."""
@@ -307,6 +312,7 @@ class World:
         average). A paused world does not advance. ``render=True`` then calls ``render()``.
         """
         self._require_engine()
+        self._tasks_pre_step()
         if step_sim and self._playing:
             self._time_debt_s += self._physics_steps_per_step * self.physics_dt
             steps = math.floor(self._time_debt_s / self.physics_dt + 1e-9)
