@@ -172,3 +172,17 @@ def test_centimetre_stage_units_and_authored_gravity_and_velocity():
         world.step(render=False)
     cube_z = world.engine.field("xpos")[0, world.model.body("/World/cube").id, 2].item()
     assert cube_z == pytest.approx(0.25, abs=2e-3)  # 50 cm cube resting on the plane, in metres inside
+
+
+def test_physx_helpers_author_round_shapes_that_stand_on_the_ground():
+    world = World()
+    stage = get_current_stage()
+    physics_utils.add_ground_plane(stage, "/World/ground", "Z", 5.0, (0, 0, 0))
+    physics_utils.add_rigid_cylinder(stage, "/World/can", 0.1, 0.4, "Z", (0, 0, 0.5))
+    physics_utils.add_rigid_capsule(stage, "/World/pill", 0.1, 0.4, "Z", (1, 0, 0.5))
+    world.reset()
+    for _ in range(90):
+        world.step(render=False)
+    z = {name: world.engine.field("xpos")[0, world.model.body(f"/World/{name}").id, 2].item() for name in ("can", "pill")}
+    assert z["can"] == pytest.approx(0.2, abs=3e-3)  # half its height
+    assert z["pill"] == pytest.approx(0.3, abs=3e-3)  # half its straight part plus the cap's radius

@@ -112,28 +112,30 @@ def add_rigid_sphere(stage, path: str, radius: float = 1.0, position=None, orien
     return sphere.GetPrim()
 
 
+def _add_rigid_round(schema, stage, path, radius, height, axis, position, orientation, color, density,
+                     lin_velocity, ang_velocity):
+    """A dynamic capsule or cylinder (``schema``) of ``radius`` and ``height`` along ``axis``."""
+    shape = schema.Define(stage, path)
+    shape.CreateRadiusAttr(float(radius))
+    shape.CreateHeightAttr(float(height))
+    shape.CreateAxisAttr(str(axis).upper())
+    _place(shape, position, orientation, color)
+    _make_rigid(shape.GetPrim(), density, lin_velocity, ang_velocity)
+    return shape.GetPrim()
+
+
 def add_rigid_capsule(stage, path: str, radius: float = 1.0, height: float = 1.0, axis: str = "Y", position=None,
                       orientation=None, color=None, density=None, lin_velocity=None, ang_velocity=None):
     _, UsdGeom, _ = _pxr()
-    capsule = UsdGeom.Capsule.Define(stage, path)
-    capsule.CreateRadiusAttr(float(radius))
-    capsule.CreateHeightAttr(float(height))
-    capsule.CreateAxisAttr(str(axis).upper())
-    _place(capsule, position, orientation, color)
-    _make_rigid(capsule.GetPrim(), density, lin_velocity, ang_velocity)
-    return capsule.GetPrim()
+    return _add_rigid_round(UsdGeom.Capsule, stage, path, radius, height, axis, position, orientation, color,
+                            density, lin_velocity, ang_velocity)
 
 
 def add_rigid_cylinder(stage, path: str, radius: float = 1.0, height: float = 1.0, axis: str = "Y", position=None,
                        orientation=None, color=None, density=None, lin_velocity=None, ang_velocity=None):
     _, UsdGeom, _ = _pxr()
-    cylinder = UsdGeom.Cylinder.Define(stage, path)
-    cylinder.CreateRadiusAttr(float(radius))
-    cylinder.CreateHeightAttr(float(height))
-    cylinder.CreateAxisAttr(str(axis).upper())
-    _place(cylinder, position, orientation, color)
-    _make_rigid(cylinder.GetPrim(), density, lin_velocity, ang_velocity)
-    return cylinder.GetPrim()
+    return _add_rigid_round(UsdGeom.Cylinder, stage, path, radius, height, axis, position, orientation, color,
+                            density, lin_velocity, ang_velocity)
 
 
 __all__ = ["add_box", "add_ground_plane", "add_rigid_box", "add_rigid_capsule", "add_rigid_cylinder",

@@ -40,10 +40,8 @@ DEFAULT_CLIPPING_RANGE = (1.0, 1.0e6)
 DEFAULT_RESOLUTION = (128, 128)
 
 SUPPORTED_ANNOTATORS = ("distance_to_image_plane", "distance_to_camera", "semantic_segmentation",
-                        "instance_segmentation", "bounding_box_2d_tight", "pointcloud")
-_UNSUPPORTED = {
-    "motion_vectors": "motion vectors are not supported: MuJoCo's rasterizer has no velocity pass",
-}
+                        "instance_segmentation", "bounding_box_2d_tight", "pointcloud", "motion_vectors")
+_UNSUPPORTED: dict[str, str] = {}
 
 
 
@@ -98,6 +96,8 @@ class Camera(BaseSensor):
         self._frame_time: float | None = None
         self._stale = True
         self._renders = 0
+        self._previous_render = None
+        """(body poses, camera) of the last render: what motion vectors compare against."""
         super().__init__(_Camera(cfg), name)
 
     @property
@@ -118,6 +118,7 @@ class Camera(BaseSensor):
 
     def _after_initialize(self) -> None:
         self._stale = True
+        self._previous_render = None
 
     def initialize(self, physics_sim_view=None, attach_rgb_annotator: bool = True) -> None:
         """Isaac's ``initialize()`` after ``world.reset()`` (attaches the rgb annotator unless told
@@ -131,6 +132,7 @@ class Camera(BaseSensor):
 
     def _on_reset(self) -> None:
         self._stale = True
+        self._previous_render = None  # motion vectors start from rest after a reset
 
     # -- frame -----------------------------------------------------------------------
     def get_current_frame(self, clone: bool = False) -> dict:
@@ -160,8 +162,21 @@ class Camera(BaseSensor):
         self._frame["rendering_frame"] = int(round(now / step))
         if self._rgb:
             self._frame["rgba"] = self._frame["rgb"] = frame_fmt.rgba(capture["rgb"])
+        bodies = self._body_poses() if "motion_vectors" in self._annotators else None
         for key, params in self._annotators.items():
-            self._frame[key] = frame_fmt.annotate(key, capture, self.sensor.table, params)
+            if key == "motion_vectors":
+                self._frame[key] = frame_fmt.motion_vectors(capture, self.sensor.engine.model.geom_bodyid, bodies,
+                                                            self._previous_render)
+            else:
+                self._frame[key] = frame_fmt.annotate(key, capture, self.sensor.table, params)
+        if bodies is not None:
+            self._previous_render = (bodies, capture["camera"])
+
+    def _body_poses(self) -> tuple[np.ndarray, np.ndarray]:
+        """World 0's body positions (nbody, 3) and rotations (nbody, 3, 3) now."""
+        engine = self.sensor.engine
+        return (engine.field("xpos")[0].cpu().numpy().astype(float),
+                engine.field("xmat")[0].reshape(-1, 3, 3).cpu().numpy().astype(float))
 
     # -- annotators --------------------------------------------------------------------
     @property
@@ -250,7 +265,9 @@ class Camera(BaseSensor):
         self.detach_annotator("bounding_box_2d_tight")
 
     def add_motion_vectors_to_frame(self, init_params: dict | None = None) -> None:
-        self.attach_annotator("motion_vectors")
+        """Frame key ``motion_vectors``: (H, W, 4) float32 pixel motion since the previous render
+        (x > 0 leftward, y > 0 upward; see ``camera_frame.motion_vectors``)."""
+        self.attach_annotator("motion_vectors", **(init_params or {}))
 
     def remove_motion_vectors_from_frame(self) -> None:
         self.detach_annotator("motion_vectors")

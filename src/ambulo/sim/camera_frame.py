@@ -27,6 +27,7 @@ ANNOTATOR_NEEDS = {
     "instance_segmentation": ("instance_segmentation",),
     "bounding_box_2d_tight": ("bounding_box_2d_tight", "visible_fraction"),
     "pointcloud": ("depth", "rgb", "instance_segmentation"),
+    "motion_vectors": ("depth",),
 }
 """Isaac annotator -> the ambulo camera annotators its output is computed from."""
 
@@ -127,6 +128,36 @@ def distance_to_camera(capture: dict) -> np.ndarray:
     return capture["distance_to_camera"].astype(np.float32)
 
 
+def motion_vectors(capture: dict, geom_body: np.ndarray, bodies: tuple, previous: tuple | None) -> np.ndarray:
+    """Replicator's ``motion_vectors``: (H, W, 4) float32; channels x, y are where each pixel's
+    surface point was in the previous render minus where it is now, in pixels (x > 0: it moved
+    left, y > 0: it moved up, as Replicator documents); z, w unused (0). Each point moves with
+    the body its geom belongs to, and the camera's own motion counts. Zero at the first render,
+    where nothing is hit, and where the point was behind the previous camera.
+
+    ``bodies`` is (xpos (nbody, 3), xmat (nbody, 3, 3)) now; ``previous`` is (bodies, camera
+    dict of the capture) of the previous render, or None."""
+    depth = capture["depth"]
+    out = np.zeros(depth.shape + (4,), np.float32)
+    if previous is None:
+        return out
+    cam = capture["camera"]
+    hit = np.isfinite(depth) & (capture["geom_ids"] >= 0)
+    rows, cols = np.nonzero(hit)
+    p_w = to_world(camera_points(depth, cam["intrinsics"])[hit], cam["extrinsics_cw"])
+    body = geom_body[capture["geom_ids"][hit]]
+    (pos, mat), ((pos_prev, mat_prev), cam_prev) = bodies, previous
+    local = np.einsum("pji,pj->pi", mat[body], p_w - pos[body])
+    p_w_prev = np.einsum("pij,pj->pi", mat_prev[body], local) + pos_prev[body]
+    extr = cam_prev["extrinsics_cw"]
+    p_c_prev = p_w_prev @ extr[:3, :3].T + extr[:3, 3]
+    uvw = p_c_prev @ np.asarray(cam_prev["intrinsics"], float).T
+    ahead = uvw[:, 2] > 1e-9
+    out[rows[ahead], cols[ahead], 0] = uvw[ahead, 0] / uvw[ahead, 2] - cols[ahead]
+    out[rows[ahead], cols[ahead], 1] = uvw[ahead, 1] / uvw[ahead, 2] - rows[ahead]
+    return out
+
+
 def annotate(name: str, capture: dict, table, params: dict) -> object:
     """The Isaac output of annotator ``name`` (a key of ``ANNOTATOR_NEEDS``) from ``capture``."""
     if name == "distance_to_image_plane":
@@ -144,5 +175,5 @@ def annotate(name: str, capture: dict, table, params: dict) -> object:
     raise KeyError(name)
 
 
-__all__ = ["ANNOTATOR_NEEDS", "BBOX_2D_DTYPE", "annotate", "camera_points", "instance_segmentation", "pointcloud",
-           "rgba", "semantic_segmentation", "to_world"]
+__all__ = ["ANNOTATOR_NEEDS", "BBOX_2D_DTYPE", "annotate", "camera_points", "instance_segmentation",
+           "motion_vectors", "pointcloud", "rgba", "semantic_segmentation", "to_world"]
