@@ -208,3 +208,23 @@ def test_python_m_ambulo_bad_value_through_the_library():
     assert result.returncode == 2, result.stderr
     assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.stderr
     assert "physics.gravity_m_s2" in result.stderr and "e.g. (0, 0, -9.81)" in result.stderr
+
+
+def test_a_device_without_an_engine_is_one_line_and_makes_no_run_folder(tmp_path, capsys):
+    from ambulo.cli import main
+
+    assert main(["train", "cartpole", "--device", "cuda:7", "--max-iterations", "1",
+                 "--log-root", str(tmp_path / "runs")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "device is 'cuda:7'" in err and "device='cpu'" in err
+    assert not (tmp_path / "runs").exists()
+
+
+def test_a_config_file_with_a_syntax_error_names_its_line(tmp_path, capsys):
+    from ambulo.cli import main
+
+    bad = tmp_path / "cfg.py"
+    bad.write_text("import math\ndef config(:\n")
+    assert main(["generate", str(bad), "--frames", "1", "--out", str(tmp_path / "data")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and f"{bad}:2:" in err and "syntax" in err

@@ -43,7 +43,10 @@ def load_config(path: str | None, width: int | None = None, height: int | None =
         if not file.is_file():
             raise CliError(f"config file {path!r} not found",
                            "check the path, or leave it out for the example scene")
-        namespace = runpy.run_path(str(file))
+        try:
+            namespace = runpy.run_path(str(file))
+        except SyntaxError as err:  # the user's file does not parse: where, not our traceback
+            raise CliError(f"{err.filename}:{err.lineno}: {err.msg}", "fix the config file's Python syntax") from None
         if "config" in namespace and callable(namespace["config"]):
             config = namespace["config"]()
         elif "CONFIG" in namespace:

@@ -17,6 +17,7 @@ from tqdm import tqdm
 
 import ambulo
 from ambulo import envs
+from ambulo.engine import engine_class
 from ambulo.utils.atomic import remove_partial_files
 
 from . import interrupt, runs
@@ -150,8 +151,9 @@ def train(task: str | None = None, *, num_envs: int | None = None,
     else:
         if task is None:
             raise ValueError("name the task to train, e.g. `ambulo train cartpole`")
-        # unknown names and bad overrides fail here, before any folder is made
+        # unknown names, bad overrides and a device without an engine fail here, before any folder is made
         envs.make_cfg(task, **(env_overrides or {}))
+        engine_class(device or "cpu")
         ppo = ppo_cfg(task, num_envs=num_envs, max_iterations=max_iterations,
                       **(ppo_overrides or {}))
         run_dir = runs.new_run_dir(task, log_root)
