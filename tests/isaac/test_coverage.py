@@ -42,6 +42,9 @@ def test_a_member_that_only_raises_counts_as_missing(coverage_script):
         def pause(self):
             raise NotImplementedError("use stop")
 
+        def resume(self):
+            return None
+
         @property
         def size(self):
             return 1
@@ -49,7 +52,9 @@ def test_a_member_that_only_raises_counts_as_missing(coverage_script):
     assert coverage_script.resolve_class(Probe, "pause", prop=False) == (False, "not supported: use stop")
     assert coverage_script.resolve_class(Probe, "size", prop=False)[0] is False  # a property, Isaac's a method
     assert coverage_script.resolve_class(Probe, "size", prop=True)[0] is True
-    assert coverage_script.resolve_class(Probe, "resume", prop=False) == (False, "missing")
+    assert coverage_script.resolve_class(Probe, "resume", prop=True)[0] is False  # a method, Isaac's a property
+    assert coverage_script.resolve_class(Probe, "resume", prop=False)[0] is True
+    assert coverage_script.resolve_class(Probe, "stop", prop=False) == (False, "missing")
 
 
 def test_the_member_lists_match_the_research_table(coverage_script):

@@ -114,15 +114,16 @@ def test_motion_vectors_follow_a_moved_cube_in_pixels():
     world.step()
     first = camera.get_current_frame()["motion_vectors"]
     assert first.shape == (64, 64, 4) and first.dtype == np.float32 and not first.any()  # no previous render
-    top_before = np.array([[0.0, 0.0, 0.2]])
-    cube.set_world_pose(position=[0.15, 0.0, 0.1])
+    corner = np.array([0.06, 0.04, 0.1])  # a point on the top face, off its centre (cube frame)
+    yaw = math.radians(30)
+    cube.set_world_pose(position=[0.12, 0.1, 0.1], orientation=[math.cos(yaw / 2), 0, 0, math.sin(yaw / 2)])
     world.step()
     mv = camera.get_current_frame()["motion_vectors"]
-    top_after = cube.get_world_pose()[0] + [0.0, 0.0, 0.1]
-    (u_before, v_before), (u_now, v_now) = camera.get_image_coords_from_world_points(
-        np.vstack([top_before, top_after[None]]))
-    row, col = int(v_now), int(u_now)  # the pixel that sees the top face's centre now
+    rot = np.array([[math.cos(yaw), -math.sin(yaw), 0], [math.sin(yaw), math.cos(yaw), 0], [0, 0, 1]])
+    before, now = np.array([0.0, 0.0, 0.1]) + corner, cube.get_world_pose()[0] + rot @ corner
+    (u_before, v_before), (u_now, v_now) = camera.get_image_coords_from_world_points(np.vstack([before, now]))
+    row, col = int(v_now), int(u_now)  # the pixel that sees that point now
     expected = (u_before - u_now, v_before - v_now)  # where it was minus where it is: x > 0 moved left
-    assert abs(expected[0]) + abs(expected[1]) > 3.0  # the cube visibly moved
+    assert min(abs(expected[0]), abs(expected[1])) > 2.0  # it moved visibly along both image axes
     assert mv[row, col, :2] == pytest.approx(expected, abs=0.6)
     assert not mv[1, 1].any()  # the static ground stays still

@@ -147,8 +147,6 @@ def test_camera_axes_conversions_round_trip_and_match_hand_computed_quaternions(
     camera.set_local_pose(translation=[0.0, 0.0, 1.0], orientation=[1, 0, 0, 0])
     with pytest.raises(ValueError, match="camera_axes"):
         camera.get_world_pose(camera_axes="opencv")
-    with pytest.raises(NotImplementedError, match="motion vectors"):
-        camera.add_motion_vectors_to_frame()
 
 
 def test_camera_on_a_body_and_its_render_rate():
