@@ -186,3 +186,12 @@ def test_physx_helpers_author_round_shapes_that_stand_on_the_ground():
     z = {name: world.engine.field("xpos")[0, world.model.body(f"/World/{name}").id, 2].item() for name in ("can", "pill")}
     assert z["can"] == pytest.approx(0.2, abs=3e-3)  # half its height
     assert z["pill"] == pytest.approx(0.3, abs=3e-3)  # half its straight part plus the cap's radius
+
+
+def test_world_stage_answers_usd_calls_and_mjspec_calls():
+    world = World()
+    world.scene.add(DynamicCuboid(prim_path="/World/cube", size=0.2))
+    assert world.stage.GetPrimAtPath("/World/cube").IsValid()  # Isaac: a Usd.Stage
+    assert world.stage.body("/World/cube") is not None  # ambulo: the MjSpec
+    UsdGeom.Sphere.Define(world.stage.usd_stage, "/World/ball")
+    assert [p.GetName() for p in world.stage.GetPrimAtPath("/World").GetChildren()] == ["cube", "ball"]

@@ -33,6 +33,7 @@ from ..utils.checks import (
 from .current import current_world_or_none, set_current_world
 from .scene import Scene
 from .tasks import TaskHost
+from .stage_view import StageView
 from .usd_stage import stage_for_new_world
 
 log = logging.getLogger(__name__)
@@ -146,9 +147,10 @@ class World(TaskHost):
 
     # -- the core objects ------------------------------------------------------
     @property
-    def stage(self) -> mujoco.MjSpec:
-        """The ``MjSpec`` being built: Isaac's USD stage."""
-        return self.sim.spec
+    def stage(self) -> StageView:
+        """The stage: the ``MjSpec`` being built (its snake_case members) and, for Isaac scripts,
+        the USD stage (``GetPrimAtPath`` and the other ``Usd.Stage`` methods); see ``StageView``."""
+        return StageView(self)
 
     @property
     def physics(self) -> PhysicsCfg:
