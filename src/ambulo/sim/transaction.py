@@ -31,19 +31,22 @@ class _Snapshot:
         self.elements = {group: list(getattr(spec, group)) for group in _GROUPS}
         self.poses = [(e, list(e.pos), list(e.quat)) for group in ("frames", "bodies") for e in getattr(spec, group)]
         self.components = dict(world.sim.components)
-        self.defaults = _default_classes(spec)
 
     def restore(self) -> None:
         spec = self.world.stage
+        # ``add_robot`` attaches a file at a new frame with the prefix "<frame name>/", which its
+        # default classes carry too: those are the defaults to remove (listing every default
+        # takes a full XML write, so it is done here, on failure, not in every snapshot)
+        prefixes = tuple(f.name + "/" for f in spec.frames if f not in self.elements["frames"] and f.name)
         for group in _GROUPS:
             while True:  # re-read after each delete: a deleted parent took its children along
                 new = [e for e in getattr(spec, group) if e not in self.elements[group]]
                 if not new:
                     break
                 spec.delete(new[0])
-        # an attached file brings its default classes; the deepest go first
-        for name in reversed([n for n in _default_classes(spec) if n not in self.defaults]):
-            spec.delete(spec.find_default(name))
+        if prefixes:  # the deepest first
+            for name in reversed([n for n in _default_classes(spec) if n.startswith(prefixes)]):
+                spec.delete(spec.find_default(name))
         for element, pos, quat in self.poses:
             element.pos, element.quat = pos, quat
         self.world.sim.components.clear()
