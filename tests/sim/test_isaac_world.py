@@ -195,3 +195,13 @@ def test_world_stage_answers_usd_calls_and_mjspec_calls():
     assert world.stage.body("/World/cube") is not None  # ambulo: the MjSpec
     UsdGeom.Sphere.Define(world.stage.usd_stage, "/World/ball")
     assert [p.GetName() for p in world.stage.GetPrimAtPath("/World").GetChildren()] == ["cube", "ball"]
+
+
+def test_create_prim_with_a_file_places_it_in_stage_units():
+    from ambulo.isaac.prim_utils import create_prim
+
+    world = World(stage_units_in_meters=0.01)
+    create_prim("/World/Jetbot", usd_path=assets.path("jetbot"), position=(100.0, 0.0, 0.0))
+    world.reset()
+    chassis_x_m = world.engine.field("xpos")[0, world.model.body("/World/Jetbot/chassis").id, 0].item()
+    assert chassis_x_m == pytest.approx(1.0)  # 100 cm

@@ -72,6 +72,12 @@ def resolve_spec_body(stage: mujoco.MjSpec, prim_path: str) -> mujoco.MjsBody:
     return roots[0]
 
 
+def resolve_spec_prim(stage: mujoco.MjSpec, prim_path: str):
+    """What holds the pose of the prim at ``prim_path`` on the stage: a referenced file's frame,
+    else the body there (``resolve_spec_body``, with its did-you-mean error)."""
+    return stage.frame(prim_path) or resolve_spec_body(stage, prim_path)
+
+
 def match_names(names: list[str], pattern: str) -> list[int]:
     """Indices of ``names`` matching glob ``pattern``, by the whole name or its last path
     component (so ``*_foot`` matches ``/World/robot/left_foot``)."""

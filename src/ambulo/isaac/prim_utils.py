@@ -5,6 +5,7 @@ from __future__ import annotations
 import re
 
 from ambulo.sim.current import current_world_or_none
+from ambulo.sim.prims import place_on_stage
 
 from .stage_utils import add_reference_to_stage, get_current_stage, synced_usd_stage
 
@@ -50,13 +51,8 @@ def create_prim(prim_path: str, prim_type: str = "Xform", position=None, transla
     """
     if usd_path is not None:
         prim = add_reference_to_stage(usd_path, prim_path)
-        world = current_world_or_none()
-        frame = world.stage.frame(prim_path) if world is not None else None
-        place = position if position is not None else translation
-        if frame is not None and place is not None:
-            frame.pos = [float(v) for v in place]
-        if frame is not None and orientation is not None:
-            frame.quat = [float(v) for v in orientation]
+        # the prims' own placement: checked, and in stage units like every other pose
+        place_on_stage(prim_path, position, translation, orientation)
         return prim
     from pxr import Gf, UsdGeom  # noqa: PLC0415
 

@@ -19,7 +19,7 @@ import mujoco
 import torch
 
 from ..core import Entity
-from ..core.paths import resolve_spec_body
+from ..core.paths import resolve_spec_prim
 from ..utils.checks import Described, InvalidValueError, check_positive, check_quat, check_vector
 from ..utils.math import quat_mul, quat_rotate, quat_rotate_inverse
 from .current import current_world, current_world_or_none
@@ -44,7 +44,7 @@ class _NotInitialized:
         )
 
 
-def _place(prim_path: str, position, translation, orientation) -> None:
+def place_on_stage(prim_path: str, position, translation, orientation) -> None:
     """Write a pose given at construction into the stage (stage units in, metres stored).
 
     A referenced file's prim is its frame; any other prim is its body. ``translation`` is
@@ -54,7 +54,7 @@ def _place(prim_path: str, position, translation, orientation) -> None:
         return
     world = current_world("creating prims with a pose")
     stage = world.stage
-    target = stage.frame(prim_path) or resolve_spec_body(stage, prim_path)
+    target = resolve_spec_prim(stage, prim_path)
     place = position if position is not None else translation
     if place is not None:
         what = "position" if position is not None else "translation"
@@ -93,7 +93,7 @@ class XFormPrim:
         """The batched view this prim wraps (after ``world.reset()``)."""
         self._default_pose: tuple[torch.Tensor | None, torch.Tensor | None] = (None, None)
         self._initial_pose: tuple[torch.Tensor, torch.Tensor] | None = None
-        _place(prim_path, position, translation, orientation)
+        place_on_stage(prim_path, position, translation, orientation)
 
     # -- lifecycle ------------------------------------------------------------
     def initialize(self, world: World | None = None) -> None:

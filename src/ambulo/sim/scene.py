@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Iterator
 from ..core import GroundCfg
 from .objects import GroundPlane
 from .prims import XFormPrim
-from ..core.paths import resolve_spec_body
+from ..core.paths import resolve_spec_prim
 
 if TYPE_CHECKING:
     from .world import World
@@ -94,10 +94,8 @@ class Scene:
 
 def _on_stage(stage, prim_path: str) -> bool:
     """Whether ``prim_path`` names a body or a referenced file's frame of the (uncompiled) stage."""
-    if stage.frame(prim_path) is not None:
-        return True
     try:
-        resolve_spec_body(stage, prim_path)
+        resolve_spec_prim(stage, prim_path)
     except KeyError:
         return False
     return True

@@ -101,11 +101,11 @@ class BaseTask:
 
 def _shift_on_stage(prim_path: str, offset: np.ndarray) -> None:
     """Move a not-yet-simulated prim's stage pose by ``offset`` (stage units)."""
-    from ..core.paths import resolve_spec_body  # noqa: PLC0415
+    from ..core.paths import resolve_spec_prim  # noqa: PLC0415
     from .current import current_world  # noqa: PLC0415
 
     world = current_world("moving task objects")
-    target = world.stage.frame(prim_path) or resolve_spec_body(world.stage, prim_path)
+    target = resolve_spec_prim(world.stage, prim_path)
     target.pos = [p + o * world.stage_units_in_meters for p, o in zip(target.pos, offset)]
 
 

@@ -27,7 +27,7 @@ from ..utils.checks import Described, InvalidValueError, check_all_finite, check
 from .actions import ArticulationAction, ArticulationActions
 from .articulation import Articulation
 from .current import current_world_or_none
-from .prims import RigidPrim, XFormPrim, _NotInitialized, _place
+from .prims import RigidPrim, XFormPrim, _NotInitialized, place_on_stage
 from .states import DynamicsViewState, JointsState, XFormPrimViewState
 
 
@@ -93,7 +93,7 @@ class XFormPrimView(XFormPrim):
             return None if values is None else np.asarray(values, dtype=float).reshape(len(self._paths), -1)[k]
 
         for k, path in enumerate(self._paths):
-            _place(path, row(positions, k), row(translations, k), row(orientations, k))
+            place_on_stage(path, row(positions, k), row(translations, k), row(orientations, k))
 
     def _match_stage(self) -> list[str]:
         world = current_world_or_none()
