@@ -16,11 +16,8 @@ from ambulo.sim.usd_stage import current_usd_stage, new_usd_stage
 
 def synced_usd_stage():
     """The current ``UsdStage`` with the current World's objects mirrored on it."""
-    usd = current_usd_stage()
     world = current_world_or_none()
-    if world is not None:
-        usd.mirror_spec(world.stage)
-    return usd
+    return world.synced_usd() if world is not None else current_usd_stage()
 
 
 def get_current_stage(fabric: bool = False):

@@ -124,8 +124,7 @@ class XFormPrim:
         world = self._world if self.entity is not None else current_world_or_none()
         if world is None:
             raise RuntimeError(f"{self.prim_path}: no World; create a World() first")
-        world.usd.mirror_spec(world.stage)
-        return world.usd.stage.GetPrimAtPath(self.prim_path)
+        return world.synced_usd().stage.GetPrimAtPath(self.prim_path)
 
     @property
     def _data(self):

@@ -22,9 +22,7 @@ class StageView:
     @property
     def usd_stage(self):
         """The ``Usd.Stage`` itself, with the API objects mirrored on it."""
-        world = self._world
-        world.usd.mirror_spec(world.sim.spec)
-        return world.usd.stage
+        return self._world.synced_usd().stage
 
     def __getattr__(self, name: str):
         if name[:1].isupper():

@@ -136,19 +136,17 @@ class TaskHost:
 
     def get_observations(self, task_name: str | None = None) -> dict:
         """One task's observations, or every task's merged into one dict (later tasks win)."""
-        if task_name is not None:
-            return self.get_task(task_name).get_observations()
-        merged: dict = {}
-        for task in self._current_tasks.values():
-            merged.update(task.get_observations())
-        return merged
+        return self._from_tasks("get_observations", task_name)
 
     def calculate_metrics(self, task_name: str | None = None) -> dict:
-        if task_name is not None:
-            return self.get_task(task_name).calculate_metrics()
+        return self._from_tasks("calculate_metrics", task_name)
+
+    def _from_tasks(self, method: str, task_name: str | None) -> dict:
+        """``task.<method>()`` of one task, or of every task merged (later tasks win)."""
+        tasks = [self.get_task(task_name)] if task_name is not None else self._current_tasks.values()
         merged: dict = {}
-        for task in self._current_tasks.values():
-            merged.update(task.calculate_metrics())
+        for task in tasks:
+            merged.update(getattr(task, method)())
         return merged
 
     def is_done(self, task_name: str | None = None) -> bool:

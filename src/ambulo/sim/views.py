@@ -150,8 +150,8 @@ class XFormPrimView(XFormPrim):
     def prims(self) -> list:
         """The ``Usd.Prim`` of each matched path."""
         world = self._world if self._prims else current_world_or_none()
-        world.usd.mirror_spec(world.stage)
-        return [world.usd.stage.GetPrimAtPath(p) for p in self._paths]
+        stage = world.synced_usd().stage
+        return [stage.GetPrimAtPath(p) for p in self._paths]
 
     def _require(self) -> None:
         if not self._prims:

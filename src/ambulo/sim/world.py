@@ -30,6 +30,7 @@ from ..engine import Engine
 from ..utils.checks import (
     Described, InvalidValueError, check_all_finite, check_int, check_positive, check_real_dtype,
 )
+from .callbacks import NamedCallbacks
 from .current import current_world_or_none, set_current_world
 from .scene import Scene
 from .tasks import TaskHost
@@ -118,8 +119,8 @@ class World(TaskHost):
         """The USD stage (``ambulo.sim.usd_stage.UsdStage``) scripts author with pxr."""
         self._compiled_signature: int | None = None
         self._time_debt_s = 0.0
-        self._render_callbacks: dict[str, Callable[[object], None]] = {}
-        self._physics_callbacks: dict[str, Callable[[float], None]] = {}
+        self._render_callbacks = NamedCallbacks("render")
+        self._physics_callbacks = NamedCallbacks("physics")
         self._playing = False
         self._step_index = 0
         self.viewport_camera = mujoco.MjvCamera()
@@ -151,6 +152,11 @@ class World(TaskHost):
         """The stage: the ``MjSpec`` being built (its snake_case members) and, for Isaac scripts,
         the USD stage (``GetPrimAtPath`` and the other ``Usd.Stage`` methods); see ``StageView``."""
         return StageView(self)
+
+    def synced_usd(self):
+        """``self.usd`` with every object the API made mirrored on it (the one place that syncs)."""
+        self.usd.mirror_spec(self.sim.spec)
+        return self.usd
 
     @property
     def physics(self) -> PhysicsCfg:
@@ -211,7 +217,7 @@ class World(TaskHost):
 
         Tasks (``add_task``) set up their scenes at the first reset, as in Isaac."""
         self._tasks_before_reset()
-        self.usd.mirror_spec(self.stage)  # pxr sees the objects the API made since the last reset
+        self.synced_usd()  # the objects the API made since the last reset appear on the USD stage
         if self.engine is None or self._stage_signature() != self._compiled_signature:
             self._compile()
         else:
@@ -363,14 +369,10 @@ class World(TaskHost):
     # -- callbacks -------------------------------------------------------------
     def add_physics_callback(self, callback_name: str, callback_fn: Callable[[float], None]) -> None:
         """Call ``callback_fn(step_size_s)`` before every physics step."""
-        if not callable(callback_fn):
-            raise TypeError(f"physics callback {callback_name!r} must be callable")
-        self._physics_callbacks[callback_name] = callback_fn
+        self._physics_callbacks.add(callback_name, callback_fn)
 
     def remove_physics_callback(self, callback_name: str) -> None:
-        if callback_name not in self._physics_callbacks:
-            raise KeyError(f"no physics callback named {callback_name!r}; have {sorted(self._physics_callbacks)}")
-        del self._physics_callbacks[callback_name]
+        self._physics_callbacks.remove(callback_name)
 
     def physics_callback_exists(self, callback_name: str) -> bool:
         return callback_name in self._physics_callbacks
@@ -380,14 +382,10 @@ class World(TaskHost):
 
     def add_render_callback(self, callback_name: str, callback_fn: Callable[[object], None]) -> None:
         """Call ``callback_fn(event)`` after every ``render()``."""
-        if not callable(callback_fn):
-            raise TypeError(f"render callback {callback_name!r} must be callable")
-        self._render_callbacks[callback_name] = callback_fn
+        self._render_callbacks.add(callback_name, callback_fn)
 
     def remove_render_callback(self, callback_name: str) -> None:
-        if callback_name not in self._render_callbacks:
-            raise KeyError(f"no render callback named {callback_name!r}; have {sorted(self._render_callbacks)}")
-        del self._render_callbacks[callback_name]
+        self._render_callbacks.remove(callback_name)
 
     def render_callback_exists(self, callback_name: str) -> bool:
         return callback_name in self._render_callbacks
