@@ -317,10 +317,12 @@ class World(TaskHost):
 
         With a whole ratio that is ``rendering_dt / physics_dt`` steps every time; otherwise
         the time left over carries to the next call (1/60 over 1/500 gives 8 or 9 steps, 8.33 on
-        average). A paused world does not advance. ``render=True`` then calls ``render()``.
+        average). A paused world does not advance. ``render=True`` then does what ``render()``
+        does (the kinematics pass only if no physics step just ran one).
         """
         self._require_engine()
         self._tasks_pre_step()
+        steps = 0
         if step_sim and self._playing:
             self._time_debt_s += self._physics_steps_per_step * self.physics_dt
             steps = math.floor(self._time_debt_s / self.physics_dt + 1e-9)
@@ -332,12 +334,16 @@ class World(TaskHost):
                 self.sim.step(self.substeps, refresh=True)
                 self._step_index += 1
         if render:
-            self.render()
+            self._render(kinematics_fresh=steps > 0)
 
     def render(self) -> None:
         """Refresh what observers see without advancing physics: kinematics, then render callbacks
         (cameras render on request, at their own frequency)."""
-        self._require_engine().forward()
+        self._render(kinematics_fresh=False)
+
+    def _render(self, kinematics_fresh: bool) -> None:
+        if not kinematics_fresh:  # a physics step with refresh=True has just computed them
+            self._require_engine().forward()
         for callback in list(self._render_callbacks.values()):
             callback({"world": self})
 
