@@ -24,6 +24,7 @@ import numpy as np
 
 from ambulo.sensors import Camera as _Camera
 from ambulo.sensors import CameraCfg
+from ambulo.utils.checks import check_quat
 from ambulo.utils.rotations import mat_to_quat, quat_to_mat
 
 from . import camera_frame as frame_fmt
@@ -503,9 +504,7 @@ def _fovy_deg(focal_length: float, horizontal_aperture: float, width: int, heigh
 
 
 def _usd_quat(orientation, camera_axes: str) -> np.ndarray:
-    quat = np.asarray(orientation, float).reshape(-1)
-    if quat.shape != (4,) or not np.all(np.isfinite(quat)) or np.linalg.norm(quat) < 1e-9:
-        raise ValueError(f"orientation {orientation!r} must be a finite (w, x, y, z) quaternion, e.g. (1, 0, 0, 0)")
+    quat = np.asarray(check_quat("orientation", orientation))
     return mat_to_quat(rot_to_usd(quat_to_mat(quat), camera_axes))
 
 
