@@ -46,3 +46,13 @@ def test_a_wrong_path_added_after_the_first_reset_fails_at_scene_add_with_did_yo
     second = world.scene.add(Articulation(prim_path="/World/Second"))
     world.reset()
     assert second.num_dof == 2
+
+
+@pytest.mark.parametrize("kwargs, message", [({"mass": float("nan")}, "mass is nan"), ({"mass": -1.0}, "mass is -1.0"),
+                                             ({"density": 0.0}, "density is 0.0")])
+def test_object_mass_and_density_must_be_positive_and_finite(kwargs, message):
+    world = World()
+    before = _stage_state(world)
+    with pytest.raises(ValueError, match=message):
+        DynamicCuboid(prim_path="/World/cube", **kwargs)
+    assert _stage_state(world) == before

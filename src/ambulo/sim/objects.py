@@ -53,8 +53,10 @@ class _Primitive(RigidPrim):
         stage, units = world.stage, world.stage_units_in_meters
         if stage.body(prim_path) is not None:
             raise ValueError(f"a prim already exists at {prim_path!r}; choose another prim_path")
-        if mass is not None and mass <= 0:
-            raise ValueError(f"mass must be > 0 kg, got {mass}")
+        if mass is not None:
+            check_positive("mass", mass, "pass kg > 0, e.g. mass=1.0")
+        if density is not None:
+            check_positive("density", density, "pass kg/m^3 > 0, e.g. density=1000")
         if not self._dynamic and (linear_velocity is not None or angular_velocity is not None):
             raise ValueError(f"{type(self).__name__} does not move: give velocities to a Dynamic* object")
         for what, value in (("position", position), ("translation", translation)):
