@@ -102,8 +102,8 @@ class FrameWriter:
     the records are written. So a record on disk always points to data on disk, for a few
     folder flushes per batch instead of per frame. A record itself is not flushed: one lost
     or torn by a crash fails ``frame_is_complete`` and its frame is made again.
-    Cost measured on 2 shared cores, ext4 (64 frames at 320x240 on 2 processes): ~125 frames/s
-    with fsync, ~150 without, about 15% (the writer thread overlaps it with rendering).
+    What it costs a whole ``generate`` call: ``benchmarks/generate_fsync.py`` (the writer thread
+    overlaps the flushes with rendering).
     """
 
     def __init__(self, out: Path, cfg: WriterCfg, batch: int = 8):
