@@ -31,7 +31,7 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
   "$VENV/bin/python" -m pip install -q --upgrade pip
   # the CPU build of torch first, pinned, so nothing pulls a multi-GB CUDA build
   "$VENV/bin/python" -m pip install -q "torch==${TORCH_VERSION:-2.13.0}"
-  "$VENV/bin/python" -m pip install -q -e ".[data,rl,dev,robots]"
+  "$VENV/bin/python" -m pip install -q -e ".[data,rl,dev,robots,gpu]"
   touch "$stamp"
 fi
 echo "ambulo is set up in $VENV"

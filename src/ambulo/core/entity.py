@@ -4,7 +4,7 @@ An ``Entity`` resolves a prim path in the compiled model once (root body, free j
 hinge/slide joints, their drive actuators, bodies of the subtree) and then reads and
 writes the engine's state tensors directly: RL tasks, randomizers and the Isaac-style
 ``Articulation``/``RigidPrim`` all go through it. Every tensor is ``(N, ...)`` on the
-engine's device, float64 like the engine state.
+engine's device, in the engine's dtype (float64 on the CPU, float32 on a GPU).
 
 Lag: state fields (``root_pos_w`` of a free body, ``joint_pos``, ``joint_vel``, velocities of a
 free root) are read from ``qpos``/``qvel`` and are current after every engine step.
@@ -105,7 +105,7 @@ class Entity:
         lower, upper = np.where(limited, rng[:, 0], -np.inf), np.where(limited, rng[:, 1], np.inf)
         mid, half = 0.5 * (rng[:, 0] + rng[:, 1]), 0.5 * (rng[:, 1] - rng[:, 0]) * soft_limit_factor
 
-        dev, f64 = self.device, dict(dtype=torch.float64, device=self.device)
+        dev, f64 = self.device, dict(dtype=engine.dtype, device=self.device)
         self.body_ids = torch.as_tensor(self._body_ids_np, device=dev)
         self._root_of_body = torch.as_tensor(self._roots_np, device=dev)
         self.qpos_idx = _index(self._qpos_adr, dev)

@@ -15,7 +15,7 @@ from typing import Protocol, runtime_checkable
 import mujoco
 import torch
 
-from ..engine import Engine, make_engine
+from ..engine import Engine, engine_class, make_engine
 from ..utils.checks import check_int
 from .physics import PhysicsCfg, timestep_warning
 from .scene import compile_scene
@@ -54,10 +54,12 @@ class Simulation:
       num_worlds: N parallel copies.
       device: ``"cpu"`` or ``"cuda[:k]"``.
       num_threads: CPU engine threads (0: every CPU).
+      engine: ``"auto"`` (MuJoCo's batch on the CPU, MuJoCo Warp on CUDA), ``"mujoco"`` or
+        ``"warp"`` (``ambulo.engine.ENGINES``).
     """
 
     def __init__(self, spec: mujoco.MjSpec, physics: PhysicsCfg, *, num_worlds: int = 1,
-                 device: str = "cpu", num_threads: int = 0):
+                 device: str = "cpu", num_threads: int = 0, engine: str = "auto"):
         if not isinstance(physics, PhysicsCfg):
             raise TypeError(f"physics is a {type(physics).__name__}, not a PhysicsCfg; pass "
                             "ambulo.core.PhysicsCfg(timestep_s=..., ...)")
@@ -66,6 +68,8 @@ class Simulation:
         self.num_worlds = check_int("num_worlds", num_worlds, "pass a whole number of parallel worlds, "
                                     "e.g. num_worlds=64", minimum=1)
         self.device = str(device)
+        self.engine_name = engine
+        engine_class(self.device, engine)  # a bad device or engine fails before any compile
         self.num_threads = check_int("num_threads", num_threads, "pass 0 (every CPU) or a thread count",
                                      minimum=0)
         self.components: dict[str, Component] = {}
@@ -92,8 +96,10 @@ class Simulation:
         warning = timestep_warning(self.model)
         if warning is not None:
             log.warning(warning)
-        kwargs = {"num_threads": self.num_threads} if self.device == "cpu" else {}
-        self.engine = make_engine(self.model, self.num_worlds, self.device, **kwargs)
+        kwargs = {"num_threads": self.num_threads,
+                  "max_contacts_per_world": self.physics.max_contacts_per_world,
+                  "max_constraints_per_world": self.physics.max_constraints_per_world}
+        self.engine = make_engine(self.model, self.num_worlds, self.device, self.engine_name, **kwargs)
         for component in self.components.values():
             component.initialize(self.engine)
         return self.engine

@@ -48,6 +48,11 @@ class PhysicsCfg:
     """Frictional-to-normal constraint impedance ratio (>1 reduces slip, elliptic cones only)."""
     tolerance: float = 1e-8
     """Solver early-termination tolerance."""
+    max_contacts_per_world: int | None = None
+    """GPU engine: contact buffer per world (MuJoCo Warp's ``nconmax``); None sizes it from the
+    model. Raise it when the engine reports a contact overflow. The CPU engine grows its own."""
+    max_constraints_per_world: int | None = None
+    """GPU engine: constraint rows per world (``njmax``); None sizes it from the contacts."""
 
     def __post_init__(self):
         self.check()
@@ -66,6 +71,10 @@ class PhysicsCfg:
         check_positive("impratio", self.impratio, "pass a ratio > 0; 1 is MuJoCo's default")
         check_positive("tolerance", self.tolerance, "pass a small number >= 0, e.g. 1e-8 (0 never stops early)",
                        allow_zero=True)
+        for name in ("max_contacts_per_world", "max_constraints_per_world"):
+            if getattr(self, name) is not None:
+                check_int(name, getattr(self, name), f"pass None (sized from the model) or a whole number, "
+                          f"e.g. {name}=256", minimum=1)
 
 
 MAX_TIMESTEP_S = 0.05

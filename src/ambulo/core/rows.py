@@ -39,7 +39,10 @@ def take_rows(values: torch.Tensor, rows: torch.Tensor | None) -> torch.Tensor:
 
 def put_rows(dst: torch.Tensor, cols, value: torch.Tensor, rows: torch.Tensor | None) -> None:
     """``dst[rows, cols] = value``: None writes every row; indices take one value row each; an
-    (N,) bool mask takes N value rows and writes the masked ones with ``torch.where``."""
+    (N,) bool mask takes N value rows and writes the masked ones with ``torch.where``. Values
+    take ``dst``'s dtype (float64 on the CPU engine, float32 on the GPU one)."""
+    if isinstance(value, torch.Tensor):
+        value = value.to(dst.dtype)
     if rows is None:
         dst[:, cols] = value
     elif rows.dtype == torch.bool:

@@ -4,31 +4,48 @@ from ..utils.checks import InvalidValueError
 from .cpu import CpuEngine
 from .protocol import STATE_FIELDS, Engine
 
+ENGINES = ("auto", "mujoco", "warp")
+"""``auto``: MuJoCo's batch on the CPU, MuJoCo Warp on CUDA; ``mujoco``: the CPU engine;
+``warp``: MuJoCo Warp on any device (on ``cpu`` it runs on Warp's CPU device: slower than
+``mujoco``, used to test GPU code paths and CPU/GPU parity without a GPU)."""
 
-def engine_class(device: str) -> type:
-    """The engine class for ``device`` (``"cpu"`` or ``"cuda[:N]"``), or a one-line error saying
-    why there is none: callers check a device before they write anything."""
-    if str(device).startswith("cuda"):
+
+def engine_class(device: str, engine: str = "auto") -> type:
+    """The engine class for ``device`` (``"cpu"`` or ``"cuda[:N]"``) and ``engine`` (one of
+    ``ENGINES``), or a one-line error saying why there is none: callers check a device before
+    they write anything."""
+    device = str(device)
+    if engine not in ENGINES:
+        raise InvalidValueError("engine", engine, "unknown engine", f"use one of {', '.join(ENGINES)}")
+    if device != "cpu" and not device.startswith("cuda"):
+        raise InvalidValueError("device", device, "unknown device", "use 'cpu' or 'cuda[:N]'")
+    if engine == "mujoco" and device != "cpu":
+        raise InvalidValueError("engine", engine, f"MuJoCo's batch engine runs on the CPU, not {device}",
+                                "use engine='warp' (or 'auto') on CUDA")
+    if engine == "warp" or device.startswith("cuda"):
         try:
             from .gpu import GpuEngine  # noqa: PLC0415 - optional dependency
         except ImportError as err:
-            if getattr(err, "name", None) == f"{__name__}.gpu":  # ambulo itself has none yet
-                raise InvalidValueError("device", device, "this ambulo has no GPU engine yet",
-                                        "use device='cpu'") from None
             raise InvalidValueError("device", device, f"needs the GPU engine's packages ({err})",
                                     "pip install 'ambulo[gpu]', or use device='cpu'") from None
+        if device.startswith("cuda"):
+            import torch  # noqa: PLC0415
+
+            if not torch.cuda.is_available():
+                raise InvalidValueError("device", device, "torch sees no CUDA device (a CPU-only torch "
+                                        "build, or no GPU)", "use device='cpu'")
         return GpuEngine
-    if str(device) != "cpu":
-        raise InvalidValueError("device", device, "unknown device", "use 'cpu' or 'cuda[:N]'")
     return CpuEngine
 
 
-def make_engine(model, num_worlds: int = 1, device: str = "cpu", **kwargs) -> Engine:
-    """The engine for ``device``: ``"cpu"`` (mujoco.batch) or ``"cuda"`` (MuJoCo Warp)."""
-    cls = engine_class(device)
+def make_engine(model, num_worlds: int = 1, device: str = "cpu", engine: str = "auto", **kwargs) -> Engine:
+    """The engine for ``device`` and ``engine``: MuJoCo's batch (CPU) or MuJoCo Warp."""
+    cls = engine_class(device, engine)
     if cls is CpuEngine:
+        kwargs.pop("max_contacts_per_world", None)
+        kwargs.pop("max_constraints_per_world", None)
         return CpuEngine(model, num_worlds, **kwargs)
     return cls(model, num_worlds, device=device, **kwargs)
 
 
-__all__ = ["Engine", "CpuEngine", "engine_class", "make_engine", "STATE_FIELDS"]
+__all__ = ["Engine", "CpuEngine", "ENGINES", "engine_class", "make_engine", "STATE_FIELDS"]

@@ -72,6 +72,7 @@ class CpuEngine:
     """
 
     device = torch.device("cpu")
+    dtype = torch.float64
 
     def __init__(
         self,

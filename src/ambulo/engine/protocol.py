@@ -36,6 +36,9 @@ class Engine(Protocol):
     model: mujoco.MjModel
     num_worlds: int
     device: torch.device
+    dtype: torch.dtype
+    """Floating dtype of state and model tensors: float64 on the CPU engine (MuJoCo's),
+    float32 on the GPU engine (MuJoCo Warp's). Task code allocates its buffers with it."""
     num_diverged: int
     """Total number of world divergences detected (and reset) so far."""
 

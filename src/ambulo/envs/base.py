@@ -40,6 +40,9 @@ class EnvCfg:
     """Number of parallel envs (engine worlds)."""
     device: str = "cpu"
     """Engine and tensor device: ``"cpu"`` or ``"cuda[:N]"``."""
+    engine: str = "auto"
+    """``"auto"`` (MuJoCo's batch on the CPU, MuJoCo Warp on CUDA), ``"mujoco"`` or ``"warp"``
+    (MuJoCo Warp, also on Warp's CPU device: how GPU code paths are tested without a GPU)."""
     seed: int = 0
     """Seed of the env's random generator (resets, commands, randomization, noise)."""
     num_threads: int = 0
@@ -102,7 +105,7 @@ class RLEnv:
             add_ground(spec, cfg.ground)
         self.robot_asset = add_robot(spec, cfg.robot)
         self.sim = Simulation(spec, cfg.physics, num_worlds=cfg.num_envs, device=cfg.device,
-                              num_threads=cfg.num_threads)
+                              num_threads=cfg.num_threads, engine=cfg.engine)
         self._design_scene(spec)
         self.engine = self.sim.start()
         self.model = self.engine.model
@@ -167,7 +170,7 @@ class RLEnv:
                        soft_limit_factor=cfg.soft_joint_limit_factor)
         robot.write_joint_state(pos=robot.default_joint_pos.expand(self.num_envs, -1))
         if root_pos is not None and robot.is_floating:
-            offset = torch.as_tensor(cfg.robot.pos_m, dtype=torch.float64, device=self.device)
+            offset = torch.as_tensor(cfg.robot.pos_m, dtype=self.engine.dtype, device=self.device)
             robot.write_root_pose(pos_w=torch.as_tensor(root_pos, device=self.device) + offset)
         self.engine.forward()
         self.engine.capture_initial_state()
@@ -359,8 +362,10 @@ class RLEnv:
         return num_rows(rows, self.num_envs)
 
     def _uniform(self, shape: tuple[int, ...], low, high, dtype=torch.float32) -> torch.Tensor:
-        """Uniform samples in [low, high) from the env's generator (``low``/``high`` broadcast)."""
-        sample = torch.rand(shape, generator=self.generator, dtype=dtype, device=self.device)
+        """Uniform samples in [low, high) from the env's generator (``low``/``high`` broadcast).
+        Drawn in float64 whatever ``dtype``, so both engines (float64, float32 state) see the
+        same random stream from one seed."""
+        sample = torch.rand(shape, generator=self.generator, dtype=torch.float64, device=self.device).to(dtype)
         if not isinstance(low, (int, float)) or not isinstance(high, (int, float)):
             low = torch.as_tensor(low, dtype=dtype, device=self.device)
             high = torch.as_tensor(high, dtype=dtype, device=self.device)

@@ -70,7 +70,7 @@ class CartpoleEnv(RLEnv):
 
     def _setup(self) -> None:
         self.slider, self.hinge = self.robot.find_joints(["slider", "hinge"])
-        self._effort = torch.zeros(self.num_envs, self.robot.num_joints, dtype=torch.float64, device=self.device)
+        self._effort = torch.zeros(self.num_envs, self.robot.num_joints, dtype=self.engine.dtype, device=self.device)
         self._zeros = torch.zeros_like(self._effort)
         self._terminated = torch.zeros(self.num_envs, dtype=torch.bool, device=self.device)
 
@@ -102,7 +102,7 @@ class CartpoleEnv(RLEnv):
 
     def _reset_idx(self, rows: torch.Tensor) -> None:
         a = self.cfg.initial_pole_angle_rad
-        angle = self._uniform((self._num_rows(rows), 1), -a, a, dtype=torch.float64)
+        angle = self._uniform((self._num_rows(rows), 1), -a, a, dtype=self.engine.dtype)
         self.robot.write_joint_state(pos=angle, env_ids=rows, joint_ids=[self.hinge])
 
 

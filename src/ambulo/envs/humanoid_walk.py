@@ -140,7 +140,7 @@ class HumanoidWalkEnv(RLEnv):
         if cfg.push_interval_s is not None:
             self._push_time_left_s = self._uniform((n,), *cfg.push_interval_s)
         # set by _get_terminations each step and reused by the rewards
-        self._gravity_b = torch.zeros(n, 3, dtype=torch.float64, device=dev)
+        self._gravity_b = torch.zeros(n, 3, dtype=self.engine.dtype, device=dev)
         self._fell = torch.zeros(n, dtype=torch.bool, device=dev)
         self._randomize_physics()
 
@@ -186,8 +186,8 @@ class HumanoidWalkEnv(RLEnv):
         if rows is None:
             return
         n, v = self._num_rows(rows), self.cfg.push_velocity_m_s
-        kick = torch.zeros(n, 3, dtype=torch.float64, device=self.device)
-        kick[:, :2] = self._uniform((n, 2), -v, v, dtype=torch.float64)
+        kick = torch.zeros(n, 3, dtype=self.engine.dtype, device=self.device)
+        kick[:, :2] = self._uniform((n, 2), -v, v, dtype=self.engine.dtype)
         velocity = take_rows(self.robot.data.root_lin_vel_w, rows) + kick
         self.robot.write_root_velocity(lin_vel_w=velocity, env_ids=rows)
         put_rows(self._push_time_left_s[:, None], slice(None), self._uniform((n, 1), *self.cfg.push_interval_s),
@@ -242,9 +242,9 @@ class HumanoidWalkEnv(RLEnv):
 
     def _reset_idx(self, rows: torch.Tensor) -> None:
         cfg, n, robot = self.cfg, self._num_rows(rows), self.robot
-        yaw = self._uniform((n,), -math.pi, math.pi, dtype=torch.float64)
+        yaw = self._uniform((n,), -math.pi, math.pi, dtype=self.engine.dtype)
         robot.write_root_pose(quat_w=quat_from_yaw(yaw), env_ids=rows)
-        noise = self._uniform((n, robot.num_joints), -1.0, 1.0, dtype=torch.float64) * cfg.initial_joint_noise_rad
+        noise = self._uniform((n, robot.num_joints), -1.0, 1.0, dtype=self.engine.dtype) * cfg.initial_joint_noise_rad
         pos = (robot.default_joint_pos + noise).clamp(robot.joint_pos_limits[:, 0], robot.joint_pos_limits[:, 1])
         robot.write_joint_state(pos=pos, env_ids=rows)
         self.commands.resample(rows)

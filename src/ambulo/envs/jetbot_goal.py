@@ -72,7 +72,7 @@ class JetbotGoalEnv(RLEnv):
         self._distance = torch.zeros(n, dtype=torch.float32, device=dev)
         self._progress = torch.zeros_like(self._distance)
         self._reached = torch.zeros(n, dtype=torch.bool, device=dev)
-        self._zeros = torch.zeros(n, self.robot.num_joints, dtype=torch.float64, device=dev)
+        self._zeros = torch.zeros(n, self.robot.num_joints, dtype=self.engine.dtype, device=dev)
 
     def _goal_distance(self) -> torch.Tensor:
         base_xy = self.robot.data.root_pos_w[:, :2].float()
@@ -89,7 +89,7 @@ class JetbotGoalEnv(RLEnv):
 
     def _policy_terms(self) -> dict[str, torch.Tensor]:
         data = self.robot.data
-        goal_b = obs_terms.goal_pos_b(data.root_pos_w, data.root_quat_w, self.goal_pos_w.double())
+        goal_b = obs_terms.goal_pos_b(data.root_pos_w, data.root_quat_w, self.goal_pos_w.to(self.engine.dtype))
         return {
             "goal_pos_b": goal_b[:, :2],
             "goal_distance": self._distance.unsqueeze(1),
@@ -113,7 +113,7 @@ class JetbotGoalEnv(RLEnv):
 
     def _reset_idx(self, rows: torch.Tensor) -> None:
         n, cfg = self._num_rows(rows), self.cfg
-        yaw = self._uniform((n,), -math.pi, math.pi, dtype=torch.float64)
+        yaw = self._uniform((n,), -math.pi, math.pi, dtype=self.engine.dtype)
         self.robot.write_root_pose(quat_w=quat_from_yaw(yaw), env_ids=rows)
         bearing = self._uniform((n,), -math.pi, math.pi)
         distance = self._uniform((n,), *cfg.goal_distance_m)

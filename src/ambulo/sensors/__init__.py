@@ -11,9 +11,11 @@ from .contact import ContactData, ContactSensor, ContactSensorCfg
 from .imu import Imu, ImuCfg, ImuData
 from .imu_noise import ImuNoiseCfg, KalibrNoise, euroc_adis16448, noiseless
 from .lidar import Lidar, LidarCfg, LidarData, lidar_2d, lidar_vlp16
+from .tiled_camera import TiledCamera, TiledCameraCfg, TiledCameraData
 
 __all__ = [
     "ANNOTATORS", "Camera", "CameraCfg", "ContactData", "ContactSensor", "ContactSensorCfg",
     "Imu", "ImuCfg", "ImuData", "ImuNoiseCfg", "KalibrNoise", "Lidar", "LidarCfg", "LidarData",
-    "Mount", "Sensor", "euroc_adis16448", "lidar_2d", "lidar_vlp16", "noiseless", "resolve_mount",
+    "Mount", "Sensor", "TiledCamera", "TiledCameraCfg", "TiledCameraData", "euroc_adis16448", "lidar_2d",
+    "lidar_vlp16", "noiseless", "resolve_mount",
 ]

@@ -122,7 +122,7 @@ class Sensor:
                 "compiling; add the sensor to the scene before world.reset()"
             )
         self.engine = engine
-        self._last_update_s = torch.full((engine.num_worlds,), -np.inf, dtype=torch.float64,
+        self._last_update_s = torch.full((engine.num_worlds,), -np.inf, dtype=engine.dtype,
                                          device=engine.device)
 
     def update(self, dt_s: float) -> None:

@@ -92,7 +92,7 @@ class ContactSensor(Sensor):
         start, count = int(adr[0]), len(self.body_names)
         contiguous = bool(torch.equal(adr.cpu(), start + 4 * torch.arange(count)))
         self._slice = slice(start, start + 4 * count) if contiguous else None
-        zeros = torch.zeros(engine.num_worlds, len(self.body_names), dtype=torch.float64, device=engine.device)
+        zeros = torch.zeros(engine.num_worlds, len(self.body_names), dtype=engine.dtype, device=engine.device)
         self._air, self._last_air, self._contact_time = zeros, zeros.clone(), zeros.clone()
         self._first = torch.zeros_like(zeros, dtype=torch.bool)
         self.data: ContactData = self._frame(*self._read())

@@ -85,10 +85,10 @@ class Imu(Sensor):
         gen = torch.Generator(device=dev).manual_seed(self.cfg.seed)
         c = self.cfg.noise
         self.accel_noise = KalibrNoise(c.accel_noise_density, c.accel_random_walk,
-                                       c.accel_turn_on_bias_std, n, gen)
+                                       c.accel_turn_on_bias_std, n, gen, engine.dtype)
         self.gyro_noise = KalibrNoise(c.gyro_noise_density, c.gyro_random_walk,
-                                      c.gyro_turn_on_bias_std, n, gen)
-        f64 = dict(dtype=torch.float64, device=dev)
+                                      c.gyro_turn_on_bias_std, n, gen, engine.dtype)
+        f64 = dict(dtype=engine.dtype, device=dev)
         self._gravity = torch.as_tensor(model.opt.gravity, **f64)
         zeros = torch.zeros(n, 3, **f64)
         self._data = ImuData(zeros.clone(), zeros.clone(), torch.zeros(n, 4, **f64), torch.zeros(n, **f64))

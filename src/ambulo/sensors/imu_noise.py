@@ -60,14 +60,15 @@ class KalibrNoise:
       turn_on_bias_std: std of the initial bias.
       num_worlds: N.
       generator: the torch generator all draws come from (determinism).
+      dtype: of the draws and the bias (the engine's).
     """
 
     def __init__(self, noise_density: float, random_walk: float, turn_on_bias_std: float,
-                 num_worlds: int, generator: torch.Generator):
+                 num_worlds: int, generator: torch.Generator, dtype: torch.dtype = torch.float64):
         self.noise_density = float(noise_density)
         self.random_walk = float(random_walk)
         self._gen = generator
-        self.bias = turn_on_bias_std * torch.randn(num_worlds, 3, generator=generator, dtype=torch.float64,
+        self.bias = turn_on_bias_std * torch.randn(num_worlds, 3, generator=generator, dtype=dtype,
                                                    device=generator.device)
         """(N, 3) current bias, in the signal's units."""
 
@@ -81,12 +82,12 @@ class KalibrNoise:
         """
         steps, n = clean.shape[0], clean.shape[1]
         dev = self.bias.device
-        dt = dt_s.to(dev, torch.float64).reshape(-1, 1) if torch.is_tensor(dt_s) else dt_s
+        dt = dt_s.to(dev, self.bias.dtype).reshape(-1, 1) if torch.is_tensor(dt_s) else dt_s
         white_std = self.noise_density / (dt ** 0.5)
         walk_std = self.random_walk * (dt ** 0.5)
         shape = (steps, n, 3)
-        white = torch.randn(shape, generator=self._gen, dtype=torch.float64, device=dev) * white_std
-        walk = torch.randn(shape, generator=self._gen, dtype=torch.float64, device=dev) * walk_std
+        white = torch.randn(shape, generator=self._gen, dtype=self.bias.dtype, device=dev) * white_std
+        walk = torch.randn(shape, generator=self._gen, dtype=self.bias.dtype, device=dev) * walk_std
         bias = self.bias + torch.cumsum(walk, 0)
         last = bias[-1].clone()
         self.bias = last if advance is None else torch.where(advance[:, None], last, self.bias)

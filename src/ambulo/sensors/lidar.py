@@ -121,7 +121,7 @@ class Lidar(Sensor):
     def initialize(self, engine) -> None:
         super().initialize(engine)
         self._mount_pose = MountPose(engine, self.mount)
-        f64 = dict(dtype=torch.float64, device=engine.device)
+        f64 = dict(dtype=engine.dtype, device=engine.device)
         self._rot_ms = torch.as_tensor(quat_to_mat(np.asarray(self.cfg.offset_quat, float)), **f64)
         self._offset_m = torch.as_tensor(self.cfg.offset_pos, **f64)
         self._dirs_s = torch.as_tensor(self.directions_s, **f64)
@@ -142,7 +142,7 @@ class Lidar(Sensor):
         dist, geom = dist.to(origin.device), geom.to(origin.device)
         if self.cfg.range_noise_std_m > 0:
             dist = dist + self.cfg.range_noise_std_m * torch.randn(
-                dist.shape, generator=self._gen, dtype=torch.float64, device=dist.device)
+                dist.shape, generator=self._gen, dtype=dist.dtype, device=dist.device)
         hit = (geom >= 0) & (dist >= self.cfg.min_range_m) & (dist <= self.cfg.max_range_m)
         ranges = torch.where(hit, dist, torch.full_like(dist, self.cfg.max_range_m))
         points_s = ranges[..., None] * self._dirs_s

@@ -1,0 +1,516 @@
+"""GpuEngine: N worlds of one MjModel on MuJoCo Warp, state as zero-copy torch tensors.
+
+The model the CPU engine steps is put on the device once (``mujoco_warp.put_model``) and N
+worlds of data are allocated beside it (``put_data``). Every state and output field is a
+``wp.to_torch`` view of the Warp array, so writing ``engine.qpos[...]`` writes the
+simulation state with no copy, and env code runs unchanged on either engine.
+
+On CUDA the physics of one ``step`` (all its substeps), ``forward`` and resets run as
+CUDA graphs captured once per shape and replayed on torch's current stream: nothing on
+the step path waits for the device or loops over worlds in Python. Divergence (NaN or
+|value| > 1e10 in qpos/qvel/qacc, MuJoCo's ``mj_checkPos/Vel/Acc`` rule) is found with
+tensor reductions and those worlds alone are reset by mask, still on the device.
+
+The same class runs on Warp's CPU device (``device="cpu"``), which is how CI tests GPU
+code paths and CPU/GPU parity on machines without a GPU.
+
+Differences from ``CpuEngine`` callers should know (see docs/gpu.md):
+  * values are float32 (MuJoCo Warp's precision), the CPU engine's float64;
+  * ``forward`` on a subset computes all worlds but restores the derived fields the caller
+    has bound (``field``) for the others, so observations match the CPU semantics;
+  * buffer overflows (contacts, constraints) are checked every ``overflow_check_steps``
+    steps, which is the only host sync, and raise ``EngineOverflowError``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import os
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Callable, Sequence
+
+import mujoco
+import numpy as np
+import torch
+import warp as wp
+import mujoco_warp as mjw
+
+from .protocol import STATE_FIELDS
+
+log = logging.getLogger(__name__)
+
+WorldIds = Sequence[int] | np.ndarray | torch.Tensor | None
+
+# MuJoCo's mjMAXVAL: a state entry beyond it counts as diverged, as in mj_checkPos/Vel/Acc
+_MAX_VALUE = 1e10
+
+# Overflows that drop contacts or constraints (the physics is then wrong). Solver iteration
+# limits (ITERATIONS, LS_ITERATIONS) are normal and not errors.
+_CAPACITY = {
+    mjw.OverflowType.NEFC: ("constraints", "max_constraints_per_world"),
+    mjw.OverflowType.NJMAX_NNZ: ("constraint Jacobian entries", "max_constraints_per_world"),
+    mjw.OverflowType.BROADPHASE: ("broadphase contact candidates", "max_contacts_per_world"),
+    mjw.OverflowType.NARROWPHASE: ("contacts", "max_contacts_per_world"),
+    mjw.OverflowType.CCD: ("convex-collision contacts", "max_contacts_per_world"),
+}
+
+# Every MjData field that is per world state, restored by reset; the protocol's
+# STATE_FIELDS plus the solver warm start (part of MuJoCo's integration state).
+_RESET_FIELDS = STATE_FIELDS + ("qacc_warmstart", "act_dot", "eq_active", "userdata")
+
+
+class EngineOverflowError(RuntimeError):
+    """A contact or constraint buffer of the GPU engine overflowed."""
+
+
+def warp_device(device: str | torch.device) -> str:
+    """The Warp device for a torch device string: ``"cpu"`` or ``"cuda:k"``."""
+    dev = torch.device(device)
+    if dev.type == "cuda":
+        return f"cuda:{dev.index if dev.index is not None else torch.cuda.current_device()}"
+    if dev.type == "cpu":
+        return "cpu"
+    raise ValueError(f"device {device!r}: MuJoCo Warp runs on 'cpu' or 'cuda[:N]'")
+
+
+def _ids_to_mask(world_ids: WorldIds, num_worlds: int, device: torch.device) -> torch.Tensor | None:
+    """An (N,) bool mask on ``device`` for world ids (indices or a mask), None for all."""
+    if world_ids is None:
+        return None
+    ids = torch.as_tensor(world_ids, device=device)
+    if ids.dtype == torch.bool:
+        if ids.shape != (num_worlds,):
+            raise ValueError(f"a world mask has shape {tuple(ids.shape)}; pass ({num_worlds},) booleans")
+        return ids
+    ids = ids.reshape(-1).long()
+    if device.type == "cpu" and ids.numel() and (int(ids.min()) < 0 or int(ids.max()) >= num_worlds):
+        bad = int(ids.min()) if int(ids.min()) < 0 else int(ids.max())
+        raise IndexError(f"world id {bad} is out of range for {num_worlds} worlds; "
+                         f"pass ids in [0, {num_worlds})")
+    return torch.zeros(num_worlds, dtype=torch.bool, device=device).index_fill_(0, ids, True)
+
+
+def _rows(mask: torch.Tensor, like: torch.Tensor) -> torch.Tensor:
+    """``mask`` (N,) shaped to broadcast over ``like`` (N, ...)."""
+    return mask.view(-1, *([1] * (like.dim() - 1)))
+
+
+class _Ticker:
+    """Prints elapsed time every ``period_s`` while a slow first compile runs, so a cold start
+    shows progress instead of silence (the first Warp compile of a humanoid takes minutes)."""
+
+    def __init__(self, what: str, period_s: float = 15.0, first_s: float = 5.0):
+        self.what, self.period_s, self.first_s = what, period_s, first_s
+        self._stop = threading.Event()
+        self.start_s = time.perf_counter()
+        self.announced = False
+
+    def __enter__(self):
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+        return self
+
+    def _run(self):
+        if self._stop.wait(self.first_s):
+            return
+        self.announced = True
+        print(f"ambulo: {self.what} (first run of this model on this device; later runs load "
+              f"them from {wp.config.kernel_cache_dir})", file=sys.stderr, flush=True)
+        while not self._stop.wait(self.period_s):
+            print(f"ambulo: still compiling, {time.perf_counter() - self.start_s:.0f} s", file=sys.stderr,
+                  flush=True)
+
+    def __exit__(self, *exc):
+        self._stop.set()
+        self._thread.join()
+        self.elapsed_s = time.perf_counter() - self.start_s
+        if self.announced:
+            print(f"ambulo: kernels ready after {self.elapsed_s:.0f} s", file=sys.stderr, flush=True)
+
+
+class GpuEngine:
+    dtype = torch.float32
+
+    """N worlds of ``model`` stepped by MuJoCo Warp on ``device``.
+
+    Args:
+      model: the compiled model (the same one ``CpuEngine`` takes); the engine keeps a copy.
+      num_worlds: N.
+      device: ``"cuda[:k]"``, or ``"cpu"`` for Warp's CPU device (tests, parity checks).
+      keyframe: keyframe index or name for the initial state, or None for qpos0.
+      max_contacts_per_world: contact buffer per world (``nconmax``); None sizes it from the
+        model (see ``contact_capacity``).
+      max_constraints_per_world: constraint rows per world (``njmax``); None sizes it from the
+        model and the contact buffer.
+      use_graphs: capture step and forward in CUDA graphs (CUDA only).
+      overflow_check_steps: steps between the overflow checks (each one host sync).
+      num_threads, divergence_dump_dir: accepted for the CpuEngine signature; the first is
+        unused, the second dumps diverged worlds (costs a host sync per step).
+    """
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        num_worlds: int = 1,
+        device: str | torch.device = "cuda",
+        keyframe: int | str | None = None,
+        max_contacts_per_world: int | None = None,
+        max_constraints_per_world: int | None = None,
+        use_graphs: bool = True,
+        overflow_check_steps: int = 100,
+        num_threads: int = 0,
+        divergence_dump_dir: str | os.PathLike | None = None,
+    ):
+        if num_worlds < 1:
+            raise ValueError(f"num_worlds must be >= 1, got {num_worlds}")
+        del num_threads  # Warp's CPU device runs its own threads
+        self.num_worlds = int(num_worlds)
+        self.wp_device = warp_device(device)
+        self.device = torch.device(self.wp_device)
+        if self.device.type == "cuda" and not torch.cuda.is_available():
+            raise ValueError(f"device {device!r}: torch sees no CUDA device; use device='cpu'")
+        self.model = model.__copy__()
+        self.model_version = 0
+        """Bumps whenever a model array is replaced (per-world expansion): captured graphs and
+        render contexts holding model arrays must be rebuilt when it changes."""
+        self.use_graphs = bool(use_graphs) and self.device.type == "cuda"
+        self.overflow_check_steps = int(overflow_check_steps)
+        self.divergence_dump_dir = None if divergence_dump_dir is None else Path(divergence_dump_dir)
+
+        data = mujoco.MjData(self.model)
+        if keyframe is not None:
+            key = keyframe if isinstance(keyframe, int) else self.model.key(keyframe).id
+            mujoco.mj_resetDataKeyframe(self.model, data, key)
+        mujoco.mj_forward(self.model, data)
+        self.nconmax, self.njmax = contact_capacity(self.model, data, max_contacts_per_world,
+                                                    max_constraints_per_world)
+        if "AMBULO_WARP_LOG" not in os.environ:  # our progress line replaces one line per module
+            wp.config.log_level = wp.LOG_WARNING
+        with wp.ScopedDevice(self.wp_device):
+            self.wp_model = mjw.put_model(self.model)
+            self.wp_model.opt.warn_overflow = 0  # checked by check_overflow, not printed per kernel
+            self.wp_data = mjw.put_data(self.model, data, nworld=self.num_worlds,
+                                        nconmax=self.nconmax, njmax=self.njmax)
+        self._tensors: dict[str, torch.Tensor] = {}
+        self._model_tensors: dict[str, torch.Tensor] = {}
+        self._model_keepalive: dict[str, torch.Tensor] = {}
+        self._graphs: dict[tuple, object] = {}
+        self._capture_stream = wp.Stream(self.wp_device) if self.use_graphs else None
+        self._reset_names = [n for n in _RESET_FIELDS if getattr(self.wp_data, n, None) is not None
+                             and getattr(self.wp_data, n).size > 0]
+        self._state = {n: self.field(n) for n in self._reset_names}
+        self.initial_state = {n: t.clone() for n, t in self._state.items()}
+        """Per field (N, ...) tensors: the state ``reset`` restores; edit rows to change it."""
+        self._diverged_total = torch.zeros((), dtype=torch.long, device=self.device)
+        self._steps_since_check = 0
+        self.compile_time_s: float | None = None
+        """Seconds the first step took (kernel compile or cache load), once stepped."""
+
+    # -- fields ---------------------------------------------------------------
+    def field(self, name: str) -> torch.Tensor:
+        """Live (N, ...) tensor of an MjData field; matrices as (N, n, 9) like MjData."""
+        tensor = self._tensors.get(name)
+        if tensor is not None:
+            return tensor
+        array = getattr(self.wp_data, name, None)
+        if not isinstance(array, wp.array) or array.shape[0] != self.num_worlds:
+            raise ValueError(f"engine field {name!r}: not a per-world MjData field of MuJoCo Warp")
+        tensor = wp.to_torch(array)
+        if name == "time" or tensor.dim() == 1:
+            tensor = tensor.view(self.num_worlds)
+        elif tensor.dim() == 4:  # (N, n, 3, 3) matrices: flattened as MjData stores them
+            tensor = tensor.view(self.num_worlds, tensor.shape[1], -1)
+        self._tensors[name] = tensor
+        return tensor
+
+    def __getattr__(self, name: str) -> torch.Tensor:
+        # engine.qpos, engine.xpos, ... as on MjData; only for field names
+        if name.startswith("_") or not isinstance(getattr(self.__dict__.get("wp_data"), name, None), wp.array):
+            raise AttributeError(f"GpuEngine has no attribute {name!r}")
+        return self.field(name)
+
+    def model_field(self, name: str) -> torch.Tensor:
+        """Live, writable (N, ...) per-world values of an MjModel field (shaped like the CPU
+        engine's). The first call for a field gives each world its own copy on the device."""
+        tensor = self._model_tensors.get(name)
+        if tensor is not None:
+            return tensor
+        array = getattr(self.wp_model, name, None)
+        if not isinstance(array, wp.array) or name not in _batchable_fields():
+            raise ValueError(f"model field {name!r}: MuJoCo Warp cannot vary it per world "
+                             f"(per-world fields: body_mass, geom_friction, ... see mujoco_warp.Model)")
+        if array.shape[0] != self.num_worlds:
+            source = wp.to_torch(array)
+            expanded = source[:1].expand(self.num_worlds, *source.shape[1:]).contiguous()
+            new = wp.from_torch(expanded, dtype=array.dtype)
+            setattr(self.wp_model, name, new)
+            self._model_keepalive[name] = expanded
+            self._invalidate()
+            array = new
+        tensor = wp.to_torch(array)
+        mj_shape = np.shape(getattr(self.model, name, None))
+        if mj_shape and math.prod(mj_shape) * self.num_worlds == tensor.numel():
+            tensor = tensor.view(self.num_worlds, *mj_shape)
+        self._model_tensors[name] = tensor
+        return tensor
+
+    def set_const(self, world_ids: WorldIds = None) -> None:
+        """Recompute derived model constants (after writing body masses, inertias, ...) for
+        all worlds (MuJoCo Warp has no subset; unchanged worlds recompute the same values)."""
+        del world_ids
+        # constants derived from per-world inputs must themselves be per world
+        if self._model_tensors:
+            for name in ("body_subtreemass", "body_invweight0", "dof_invweight0", "actuator_acc0",
+                         "tendon_invweight0", "geom_aabb", "geom_rbound", "cam_pos0", "cam_poscom0",
+                         "cam_mat0", "light_pos0", "light_poscom0", "light_dir0"):
+                if name in _batchable_fields() and getattr(self.wp_model, name).size:
+                    self.model_field(name)
+        with self.warp_scope():
+            mjw.set_const(self.wp_model, self.wp_data)
+
+    # -- stepping -------------------------------------------------------------
+    @contextlib.contextmanager
+    def warp_scope(self):
+        """Run Warp launches on this engine's device, ordered with torch's current stream."""
+        if self.device.type != "cuda":
+            with wp.ScopedDevice(self.wp_device):
+                yield
+            return
+        stream = wp.stream_from_torch(torch.cuda.current_stream(self.device))
+        with wp.ScopedDevice(self.wp_device), wp.ScopedStream(stream, sync_enter=False):
+            yield
+
+    def _run(self, key: tuple, body: Callable[[], None]) -> None:
+        """Run ``body`` (Warp launches) as a CUDA graph captured once per ``key``."""
+        if not self.use_graphs:
+            with self.warp_scope():
+                body()
+            return
+        graph = self._graphs.get(key)
+        if graph is None:
+            graph = self._capture(body)
+            self._graphs[key] = graph
+        with self.warp_scope():
+            wp.capture_launch(graph)
+
+    def _capture(self, body: Callable[[], None]):
+        # a capture cannot load modules: run once eagerly (compiling kernels) on a copy of the
+        # state, then restore it, so capturing changes nothing
+        saved = {n: t.clone() for n, t in self._state.items()}
+        with self.warp_scope():
+            body()
+        for n, t in self._state.items():
+            t.copy_(saved[n])
+        torch.cuda.synchronize(self.device)
+        with wp.ScopedDevice(self.wp_device), wp.ScopedCapture(stream=self._capture_stream) as capture:
+            body()
+        return capture.graph
+
+    def _invalidate(self) -> None:
+        self.model_version += 1
+        self._graphs.clear()
+
+    def step(self, num_substeps: int = 1, refresh: bool = False) -> torch.Tensor:
+        """Advance ``num_substeps`` physics steps; return the (N,) bool mask (on the device) of
+        worlds that diverged and were reset. Derived fields then describe the state before the
+        last substep, as after ``mj_step``; ``refresh=True`` recomputes poses and velocities."""
+        m, d = self.wp_model, self.wp_data
+
+        def body():
+            for _ in range(num_substeps):
+                mjw.step(m, d)
+            if refresh:
+                mjw.kinematics(m, d)
+                mjw.com_pos(m, d)
+                mjw.camlight(m, d)
+                mjw.com_vel(m, d)
+
+        before = self._dump_before() if self.divergence_dump_dir is not None else None
+        if self.compile_time_s is None:
+            with _Ticker("compiling MuJoCo Warp kernels") as ticker:
+                self._run(("step", num_substeps, refresh), body)
+                if self.device.type == "cuda":
+                    torch.cuda.synchronize(self.device)
+            self.compile_time_s = ticker.elapsed_s
+            log.info("GpuEngine: first step (kernel compile or cache load) took %.1f s", self.compile_time_s)
+        else:
+            self._run(("step", num_substeps, refresh), body)
+        diverged = self._diverged()
+        self._diverged_total += diverged.sum()
+        self._reset_mask(diverged)
+        if before is not None:
+            self._dump_diverged(diverged, before)
+        self._steps_since_check += 1
+        if self._steps_since_check >= self.overflow_check_steps:
+            self.check_overflow()
+        return diverged
+
+    def _diverged(self) -> torch.Tensor:
+        # |x| <= MAX is False for NaN too, so one comparison catches NaN, inf and huge values
+        ok = (self.field("qpos").abs() <= _MAX_VALUE).all(1)
+        ok &= (self.field("qvel").abs() <= _MAX_VALUE).all(1)
+        ok &= (self.field("qacc").abs() <= _MAX_VALUE).all(1)
+        return ~ok
+
+    @property
+    def num_diverged(self) -> int:
+        """Total number of world divergences detected (and reset) so far (reads the device)."""
+        return int(self._diverged_total)
+
+    def check_overflow(self) -> None:
+        """Raise ``EngineOverflowError`` if any world overflowed a contact or constraint buffer
+        since the last check (one host sync)."""
+        self._steps_since_check = 0
+        flags = self.field("overflow")
+        capacity = 0
+        for bit in _CAPACITY:
+            capacity |= int(bit)
+        hit = flags & capacity
+        if not bool(hit.any()):
+            return
+        world = int(torch.nonzero(hit)[0, 0])
+        bits = int(hit[world])
+        what, setting = next(v for b, v in _CAPACITY.items() if bits & int(b))
+        limit = self.nconmax if setting == "max_contacts_per_world" else self.njmax
+        flags.zero_()
+        raise EngineOverflowError(
+            f"world {world} overflowed its buffer of {what} ({setting}={limit}), so some were "
+            f"dropped and the physics is wrong; raise PhysicsCfg.{setting} (e.g. to {2 * limit})")
+
+    def forward(self, world_ids: WorldIds = None) -> None:
+        """Recompute derived fields from the current state. With ``world_ids`` only those
+        worlds' bound fields change (all worlds are computed, the others restored)."""
+        mask = _ids_to_mask(world_ids, self.num_worlds, self.device)
+        m, d = self.wp_model, self.wp_data
+        derived = [t for n, t in self._tensors.items() if n not in self._state]
+        saved = None if mask is None else [t.clone() for t in derived]
+        self._run(("forward",), lambda: mjw.forward(m, d))
+        if saved is not None:
+            for t, old in zip(derived, saved):
+                t.copy_(torch.where(_rows(mask, t), t, old))
+
+    def reset(self, world_ids: WorldIds = None, forward: bool = True) -> None:
+        mask = _ids_to_mask(world_ids, self.num_worlds, self.device)
+        if mask is None:
+            for n, t in self._state.items():
+                t.copy_(self.initial_state[n])
+        else:
+            self._reset_mask(mask)
+        if forward:
+            self.forward(mask)
+
+    def _reset_mask(self, mask: torch.Tensor) -> None:
+        for n, t in self._state.items():
+            t.copy_(torch.where(_rows(mask, t), self.initial_state[n], t))
+
+    def capture_initial_state(self, world_ids: WorldIds = None) -> None:
+        """Make the worlds' current state the one ``reset`` restores."""
+        mask = _ids_to_mask(world_ids, self.num_worlds, self.device)
+        for n, t in self._state.items():
+            init = self.initial_state[n]
+            init.copy_(t if mask is None else torch.where(_rows(mask, t), t, init))
+
+    # -- divergence dumps (debugging; syncs) --------------------------------------
+    def _dump_before(self) -> dict[str, np.ndarray]:
+        return {n: t.detach().cpu().numpy().copy() for n, t in self._state.items()}
+
+    def _dump_diverged(self, diverged: torch.Tensor, before: dict[str, np.ndarray]) -> None:
+        ids = torch.nonzero(diverged).flatten().cpu().numpy()
+        if not ids.size:
+            return
+        out = self.divergence_dump_dir
+        out.mkdir(parents=True, exist_ok=True)
+        if not (out / "model.mjb").is_file():
+            mujoco.mj_saveModel(self.model, str(out / "model.mjb"), None)
+        path = out / f"diverged_{self.num_diverged:06d}.npz"
+        np.savez(path, world_ids=ids, timestep=self.model.opt.timestep,
+                 **{n: a[ids] for n, a in before.items()})
+        log.warning("diverged worlds %s dumped to %s", ids.tolist()[:8], path)
+
+    # -- single-world access ----------------------------------------------------
+    def get_model(self, world: int, model: mujoco.MjModel | None = None) -> mujoco.MjModel:
+        """World ``world``'s model: the shared model with its per-world field values."""
+        model = self.model.__copy__() if model is None else model
+        for name, tensor in self._model_tensors.items():
+            target = getattr(model, name, None)
+            if isinstance(target, np.ndarray):
+                target[...] = tensor[int(world)].detach().cpu().numpy().reshape(target.shape)
+        return model
+
+    def get_data(self, world: int, data: mujoco.MjData | None = None) -> mujoco.MjData:
+        """World ``world``'s state in an ``MjData`` with every derived field computed
+        (``mj_forward`` on that world's model, in float64), ready for a renderer."""
+        world = int(world)
+        data = mujoco.MjData(self.model) if data is None else data
+        for name in self._reset_names:
+            value = self._state[name][world].detach().cpu().numpy()
+            target = getattr(data, name)
+            if isinstance(target, np.ndarray):
+                target[...] = value.reshape(target.shape)
+            else:
+                setattr(data, name, float(value))
+        mujoco.mj_forward(self.get_model(world) if self._model_tensors else self.model, data)
+        return data
+
+    def ray(self, pnt, vec, geomgroup=None, flg_static: bool = True, bodyexclude: int = -1):
+        """Batched ray casts: ``pnt``, ``vec`` (N, R, 3) world frame -> distances (N, R) and
+        geom ids (N, R) int32, -1 for a miss (``mujoco_warp.rays``)."""
+        pnt = torch.as_tensor(pnt, dtype=torch.float32, device=self.device).contiguous()
+        vec = torch.as_tensor(vec, dtype=torch.float32, device=self.device).contiguous()
+        n, r = pnt.shape[:2]
+        dist = torch.empty(n, r, dtype=torch.float32, device=self.device)
+        geom = torch.empty(n, r, dtype=torch.int32, device=self.device)
+        normal = torch.empty(n, r, 3, dtype=torch.float32, device=self.device)
+        group = tuple(int(g) for g in (geomgroup if geomgroup is not None else (-1,) * 6))
+        exclude = torch.full((r,), int(bodyexclude), dtype=torch.int32, device=self.device)
+        with self.warp_scope():
+            mjw.rays(self.wp_model, self.wp_data, wp.from_torch(pnt, dtype=wp.vec3),
+                     wp.from_torch(vec, dtype=wp.vec3), mjw._src.types.vec6(*group), flg_static,
+                     wp.from_torch(exclude), wp.from_torch(dist), wp.from_torch(geom),
+                     wp.from_torch(normal, dtype=wp.vec3))
+        return dist, geom
+
+
+def _batchable_fields() -> frozenset[str]:
+    global _BATCHABLE
+    if _BATCHABLE is None:
+        import dataclasses  # noqa: PLC0415
+
+        from mujoco_warp._src import types, warp_util  # noqa: PLC0415
+        _BATCHABLE = frozenset(
+            f.name for f in dataclasses.fields(types.Model)
+            if warp_util.is_array_spec(f.type) and getattr(f.type, "shape", ())[:1] == ("*",))
+    return _BATCHABLE
+
+
+_BATCHABLE: frozenset[str] | None = None
+
+
+def contact_capacity(model: mujoco.MjModel, data: mujoco.MjData, max_contacts: int | None,
+                     max_constraints: int | None) -> tuple[int, int]:
+    """Per-world contact and constraint buffer sizes (``nconmax``, ``njmax``).
+
+    Contacts: 4 per geom that can collide with something (a box resting on a plane makes 4),
+    at least 3x the contacts of the initial state and MuJoCo Warp's own default. Constraints:
+    each contact takes up to ``2 (condim - 1)`` rows (pyramidal) or ``condim`` (elliptic),
+    plus one per limited joint, friction-loss dof and equality row.
+    """
+    collidable = int(np.count_nonzero((model.geom_contype != 0) | (model.geom_conaffinity != 0)))
+    default_con = mjw._src.io._default_nconmax(model, data)
+    nconmax = max_contacts or max(default_con, 4 * collidable, 3 * data.ncon)
+    if max_constraints:
+        return int(nconmax), int(max_constraints)
+    condim = int(model.geom_condim.max()) if model.ngeom else 3
+    rows = condim if model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC else max(1, 2 * (condim - 1))
+    other = int(np.count_nonzero(model.jnt_limited)) + int(np.count_nonzero(model.dof_frictionloss)) \
+        + 6 * model.neq + model.ntendon
+    return int(nconmax), int(max(mjw._src.io._default_njmax(model, data), rows * nconmax + other,
+                                 2 * data.nefc))
+
+
+__all__ = ["GpuEngine", "EngineOverflowError", "contact_capacity", "warp_device"]

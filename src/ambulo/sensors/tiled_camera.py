@@ -1,0 +1,368 @@
+"""TiledCamera: one pinhole camera rendered in every world at once by MuJoCo Warp's ray caster.
+
+Isaac Lab's ``TiledCamera`` renders the cameras of all envs in one call and hands back
+(N, H, W, C) tensors; this is the same on MuJoCo Warp (``mujoco_warp.create_render_context``,
+``refit_bvh``, ``render``). It needs the warp engine (``GpuEngine``: a CUDA device, or Warp's
+CPU device with ``engine="warp"``); with MuJoCo's CPU engine use ``ambulo.sensors.Camera``,
+which rasterizes one world at a time with MuJoCo's OpenGL renderer.
+
+Outputs (``camera.data.output[name]``, on the engine's device, row 0 the top of the image):
+
+- ``"rgb"``: (N, H, W, 3) uint8, lit by the model's lights and headlight (no shadows);
+- ``"depth"``: (N, H, W, 1) float32 m, distance to the image plane (as ``Camera``'s
+  ``"depth"``; MuJoCo Warp projects the hit distance onto the optical axis), +inf where the
+  ray hits nothing within the far clip;
+- ``"instance_segmentation"``: (N, H, W, 1) int32 geom id, -1 for none (flex hits too);
+- ``"semantic_segmentation"``: (N, H, W, 1) int32 semantic id of the geom's labelled body
+  (``ambulo.core.semantics``; ids as ``Camera``'s: 0 background or unlabelled, k for
+  ``table.categories[k - 1]``).
+
+Intrinsics are ``Camera``'s for the same config (square pixels, centres at integer OpenCV
+coordinates). Two differences from ``Camera``: rays start at the camera centre, so the near
+clip distance only matters to ``Camera`` (nothing is cut in front of it here), and the image
+is one ray per pixel (no multisampling).
+
+The camera pose is the mount's pose (``xpos``/``site_xpos`` of the engine) times a per-world
+offset (``set_local_pose``, ``set_camera_view``), written into the engine's ``cam_xpos`` and
+``cam_xmat`` before each render; geometry and mount come from the same kinematics pass.
+Rendering is lazy, as Isaac Lab's sensors: ``update`` and ``reset`` mark the images out of
+date and the next read of ``data`` renders every world (one ``refit_bvh`` + ``render``, a CUDA
+graph on a GPU), so an env that resets worlds after physics observes their new state.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+import torch
+
+from ambulo.utils.checks import InvalidValueError
+from ambulo.utils.rotations import mat_to_quat, quat_to_mat
+
+from . import annotators as ann
+from .base import MountPose, Sensor, spec_body
+from .camera import CameraCfg
+from .frames import check_convention, look_at_gl
+
+DATA_TYPES = ("rgb", "depth", "instance_segmentation", "semantic_segmentation")
+# Isaac Replicator names for the same outputs
+_ALIASES = {"distance_to_image_plane": "depth", "rgba": "rgb"}
+_SEGMENTATION = ("instance_segmentation", "semantic_segmentation")
+_OBJ_GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)
+
+
+@dataclass(kw_only=True)
+class TiledCameraCfg:
+    """A pinhole camera on a body or site, rendered in all worlds at once."""
+
+    prim_path: str
+    """The camera's prim path; its mount is the longest prefix naming a body or site."""
+    width: int = 128
+    """Image width (px)."""
+    height: int = 128
+    """Image height (px)."""
+    fovy_deg: float = 60.0
+    """Vertical field of view (deg); ignored when ``focal_length_px`` is set."""
+    focal_length_px: float | None = None
+    """Focal length (px, square pixels); sets the field of view from ``height``."""
+    offset_pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """Position (m) in the mount frame."""
+    offset_quat: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
+    """Orientation (w, x, y, z) in the mount frame, in ``offset_convention`` axes."""
+    offset_convention: str = "world"
+    """'world' (x forward, z up), 'opengl' (MuJoCo: looks along -z) or 'opencv'/'ros'."""
+    clipping_range_m: tuple[float, float] = (0.05, 100.0)
+    """Near and far clip distances (m); only the far one applies (rays start at the camera)."""
+    data_types: tuple[str, ...] = ("rgb",)
+    """Outputs of ``data.output``, a subset of ``DATA_TYPES``."""
+
+    def __post_init__(self):
+        """Refuse what no camera can have: the pinhole fields by ``CameraCfg``'s rules (same
+        one-line errors), then the outputs and the axis convention."""
+        pinhole_cfg(self)
+        if isinstance(self.data_types, str) or not self.data_types:
+            raise InvalidValueError("data_types", self.data_types, "expected a non-empty tuple of names",
+                                    f"pass a subset of {DATA_TYPES}, e.g. ('rgb', 'depth')")
+        for name in self.data_types:
+            if _ALIASES.get(name, name) not in DATA_TYPES:
+                raise InvalidValueError("data_types", self.data_types, f"unknown output {name!r}",
+                                        f"pass a subset of {DATA_TYPES}")
+        if self.offset_convention not in ("world", "opengl", "opencv", "ros"):
+            raise InvalidValueError("offset_convention", self.offset_convention, "unknown camera convention",
+                                    "use 'world', 'opengl', 'opencv' or 'ros'")
+
+
+def pinhole_cfg(cfg: TiledCameraCfg) -> CameraCfg:
+    """The CPU ``CameraCfg`` with the same pinhole and pose (checked by it): both cameras share
+    intrinsics and placement."""
+    return CameraCfg(prim_path=cfg.prim_path, width=cfg.width, height=cfg.height, fovy_deg=cfg.fovy_deg,
+                     focal_length_px=cfg.focal_length_px, offset_pos=cfg.offset_pos,
+                     offset_quat=cfg.offset_quat, offset_convention=cfg.offset_convention,
+                     clipping_range_m=cfg.clipping_range_m, annotators=())
+
+
+@dataclass(kw_only=True)
+class TiledCameraData:
+    """What a ``TiledCamera`` read last (all tensors on the engine's device)."""
+
+    output: dict[str, torch.Tensor]
+    """Images by name, each (N, H, W, C); see the module docstring."""
+    intrinsic_matrices: torch.Tensor
+    """(N, 3, 3) float32 K (OpenCV: pixel centres at integer coordinates), the same per world."""
+    pos_w: torch.Tensor
+    """(N, 3) float32 m: camera centre in the world frame at the last render."""
+    rot_w_gl: torch.Tensor
+    """(N, 3, 3) float32: the camera's OpenGL axes (x right, y up, looking along -z) as columns,
+    in the world frame, at the last render."""
+    image_shape: tuple[int, int]
+    """(H, W) px."""
+
+
+class TiledCamera(Sensor):
+    """TiledCamera(TiledCameraCfg(...)) or TiledCamera(prim_path=..., width=..., ...)."""
+
+    def __init__(self, cfg: TiledCameraCfg | None = None, **kwargs):
+        if cfg is None:
+            cfg = TiledCameraCfg(**kwargs)
+        elif kwargs:
+            raise TypeError("pass either a TiledCameraCfg or keyword arguments, not both")
+        self.cfg = cfg
+        self.data_types = tuple(dict.fromkeys(_ALIASES.get(n, n) for n in cfg.data_types))
+        super().__init__(cfg.prim_path)
+        self._pinhole = pinhole_cfg(cfg)
+        self._context = None
+        self._graph = None
+        self._graph_version = -1
+        self._outdated = True
+
+    # -- lifecycle ------------------------------------------------------------
+    def build(self, spec: mujoco.MjSpec) -> None:
+        super().build(spec)
+        if spec.camera(self.name) is not None:
+            raise ValueError(f"a camera named {self.name!r} already exists; give each camera its own prim path")
+        pos, rot = self._offset_in_mount()
+        if self.mount.site is not None:
+            site = spec.site(self.mount.site)
+            site_rot = quat_to_mat(np.asarray(site.quat, float))
+            pos, rot = np.asarray(site.pos, float) + site_rot @ pos, site_rot @ rot
+        # the model's camera holds the default pose and the field of view the rays are built from
+        spec_body(spec, self.mount).add_camera(name=self.name, pos=pos, quat=mat_to_quat(rot),
+                                               fovy=self.fovy_deg)
+
+    def initialize(self, engine) -> None:
+        super().initialize(engine)
+        if not hasattr(engine, "wp_model"):
+            raise RuntimeError(
+                f"TiledCamera {self.prim_path!r} renders with MuJoCo Warp and needs the warp engine "
+                f"(engine='warp', or a CUDA device), not {type(engine).__name__}; on MuJoCo's CPU "
+                "engine use ambulo.sensors.Camera")
+        n, dev = engine.num_worlds, engine.device
+        h, w = self.cfg.height, self.cfg.width
+        self.cam_id = engine.model.camera(self.name).id
+        self._mount_pose = MountPose(engine, self.mount)
+        pos, rot = self._offset_in_mount()
+        self._default_offset = (torch.as_tensor(pos, dtype=torch.float32, device=dev),
+                                torch.as_tensor(rot, dtype=torch.float32, device=dev))
+        self._offset_pos = self._default_offset[0].repeat(n, 1)
+        """(N, 3) float32 m: camera position in the mount frame, per world."""
+        self._offset_rot_gl = self._default_offset[1].repeat(n, 1, 1)
+        """(N, 3, 3) float32: camera OpenGL axes in the mount frame, per world."""
+        self._cam_xpos, self._cam_xmat = engine.field("cam_xpos"), engine.field("cam_xmat")
+        # bound so that a forward of some worlds keeps the others' geometry in step with their
+        # mount pose (GpuEngine restores bound derived fields of the worlds it did not reset)
+        engine.field("geom_xpos"), engine.field("geom_xmat")
+        self.table = ann.instance_table(engine.model)
+        semantic_of_geom = self.table.semantic_ids[self.table.geom_instance]  # index g + 1, 0: none
+        self._semantic_of_geom = torch.as_tensor(semantic_of_geom, dtype=torch.int32, device=dev)
+        k = torch.as_tensor(self.get_intrinsics_matrix(), dtype=torch.float32, device=dev)
+        self.data = TiledCameraData(
+            output={}, intrinsic_matrices=k.expand(n, 3, 3).contiguous(),
+            pos_w=torch.zeros(n, 3, device=dev), rot_w_gl=torch.zeros(n, 3, 3, device=dev),
+            image_shape=(h, w))
+        self._buffers = {}
+        for name in self.data_types:
+            dtype, channels = {"rgb": (torch.uint8, 3), "depth": (torch.float32, 1)}.get(name, (torch.int32, 1))
+            self._buffers[name] = torch.zeros(n, h, w, channels, dtype=dtype, device=dev)
+        self._inf = torch.tensor(math.inf, device=dev)
+        self._context = self._create_context()
+        self._outdated = True
+
+    def update(self, dt_s: float) -> None:
+        """Physics advanced: the next read of ``data`` renders (no work here)."""
+        self._outdated = True
+
+    def reset(self, world_ids: torch.Tensor | None = None) -> None:
+        """Worlds were reset: the next read of ``data`` renders them anew (all worlds are
+        rendered together, so ``world_ids`` only matters to the base class)."""
+        super().reset(world_ids)
+        self._outdated = True
+
+    # -- outputs --------------------------------------------------------------
+    @property
+    def data(self) -> TiledCameraData:
+        """The images of the current state of every world, rendered if out of date."""
+        if self._outdated:
+            self.render()
+        return self._data
+
+    @data.setter
+    def data(self, value: TiledCameraData) -> None:
+        self._data = value
+
+    def render(self) -> None:
+        """Render every world now and fill ``data`` (no host sync)."""
+        self._require_initialized()
+        engine = self.engine
+        pos, rot = self._pose_gl()
+        self._cam_xpos[:, self.cam_id] = pos
+        self._cam_xmat[:, self.cam_id] = rot.reshape(-1, 9)
+        self._data.pos_w.copy_(pos)
+        self._data.rot_w_gl.copy_(rot)
+        if engine.use_graphs:
+            if self._graph is None or self._graph_version != engine.model_version:
+                self._capture()
+            import warp as wp  # noqa: PLC0415 - the warp engine's dependency
+
+            with engine.warp_scope():
+                wp.capture_launch(self._graph)
+        else:
+            with engine.warp_scope():
+                self._launch()
+        self._unpack()
+        self._data.output = dict(self._buffers)
+        self._outdated = False
+
+    def _launch(self) -> None:
+        import mujoco_warp as mjw  # noqa: PLC0415
+
+        m, d = self.engine.wp_model, self.engine.wp_data
+        mjw.refit_bvh(m, d, self._context)
+        mjw.render(m, d, self._context)
+
+    def _capture(self) -> None:
+        """Capture ``refit_bvh`` + ``render`` as a CUDA graph. The graph holds the engine's
+        model arrays, so it is captured again when ``engine.model_version`` changes; the render
+        context itself holds none (MuJoCo Warp passes them at each launch) and is kept."""
+        import warp as wp  # noqa: PLC0415
+
+        engine = self.engine
+        with engine.warp_scope():
+            self._launch()  # compiles the kernels, which a capture cannot
+        torch.cuda.synchronize(engine.device)
+        stream = wp.Stream(engine.wp_device)
+        with wp.ScopedDevice(engine.wp_device), wp.ScopedCapture(stream=stream) as capture:
+            self._launch()
+        self._graph, self._graph_version, self._capture_stream = capture.graph, engine.model_version, stream
+
+    def _unpack(self) -> None:
+        """Render-context buffers -> (N, H, W, C) outputs, as tensor ops on the device."""
+        import warp as wp  # noqa: PLC0415
+
+        rc, out = self._context, self._buffers
+        n, (h, w) = self.engine.num_worlds, self._data.image_shape
+        if "rgb" in out:
+            # pixels are packed 0xAARRGGBB: little-endian bytes B, G, R, A
+            bgra = wp.to_torch(rc.rgb_data).view(torch.uint8).view(n, h, w, 4)
+            for channel in range(3):
+                out["rgb"][..., channel].copy_(bgra[..., 2 - channel])
+        if "depth" in out:
+            depth = wp.to_torch(rc.depth_data).view(n, h, w, 1)
+            torch.where(depth > 0, depth, self._inf, out=out["depth"])  # 0: nothing hit
+        if any(name in out for name in _SEGMENTATION):
+            seg = wp.to_torch(rc.seg_data).view(n, h, w, 2)  # (object id, object type), -1: none
+            geom = torch.where(seg[..., 1:] == _OBJ_GEOM, seg[..., :1], -1)
+            if "instance_segmentation" in out:
+                out["instance_segmentation"].copy_(geom)
+            if "semantic_segmentation" in out:
+                torch.take(self._semantic_of_geom, geom.long() + 1, out=out["semantic_segmentation"])
+
+    def _create_context(self):
+        import mujoco_warp as mjw  # noqa: PLC0415
+
+        model = self.engine.model.__copy__()
+        # MuJoCo Warp reads the far clip from the model's visual settings (scaled by extent)
+        near, far = self.cfg.clipping_range_m
+        model.vis.map.znear, model.vis.map.zfar = near / model.stat.extent, far / model.stat.extent
+        wants = set(self.data_types)
+        with self.engine.warp_scope():
+            return mjw.create_render_context(
+                model, self.engine.num_worlds, cam_res=(self.cfg.width, self.cfg.height),
+                render_rgb="rgb" in wants, render_depth="depth" in wants,
+                render_seg=bool(wants & set(_SEGMENTATION)), cam_active=[self.cam_id],
+                use_shadows=False)
+
+    # -- intrinsics and pose -----------------------------------------------------
+    @property
+    def resolution(self) -> tuple[int, int]:
+        return self.cfg.width, self.cfg.height
+
+    @property
+    def fovy_deg(self) -> float:
+        if self.cfg.focal_length_px:
+            return math.degrees(2 * math.atan(self.cfg.height / 2 / self.cfg.focal_length_px))
+        return float(self.cfg.fovy_deg)
+
+    def get_intrinsics_matrix(self) -> np.ndarray:
+        """(3, 3) float64 K (OpenCV: pixel centres at integer coordinates, square pixels)."""
+        f = self.cfg.height / 2 / math.tan(math.radians(self.fovy_deg) / 2)
+        return np.array([[f, 0, self.cfg.width / 2 - 0.5], [0, f, self.cfg.height / 2 - 0.5], [0, 0, 1]])
+
+    def set_local_pose(self, pos=None, quat=None, convention: str = "world", world_ids=None) -> None:
+        """Set the offset from the mount (m, wxyz in ``convention`` axes) for ``world_ids``
+        (default all); takes effect at the next render."""
+        ids = self._ids(world_ids)
+        if pos is not None:
+            self._offset_pos[ids] = torch.as_tensor(pos, dtype=torch.float32, device=self.engine.device)
+        if quat is not None:
+            rot = quat_to_mat(np.asarray(quat, float)) @ check_convention(convention)
+            self._offset_rot_gl[ids] = torch.as_tensor(rot, dtype=torch.float32, device=self.engine.device)
+        self._outdated = True
+
+    def set_world_pose(self, pos, rot_w_gl, world_ids=None) -> None:
+        """Place the camera at world position (.., 3) m with OpenGL axes ``rot_w_gl`` (.., 3, 3),
+        relative to where its mount is now."""
+        ids = self._ids(world_ids)
+        dev = self.engine.device
+        mount_pos, mount_rot = self._mount_pose.pos_w()[ids].float(), self._mount_pose.rot_w()[ids].float()
+        pos = torch.as_tensor(pos, dtype=torch.float32, device=dev).expand(len(ids), 3)
+        rot = torch.as_tensor(rot_w_gl, dtype=torch.float32, device=dev).expand(len(ids), 3, 3)
+        r_t = mount_rot.transpose(-1, -2)
+        self._offset_pos[ids] = (r_t @ (pos - mount_pos)[..., None])[..., 0]
+        self._offset_rot_gl[ids] = r_t @ rot
+        self._outdated = True
+
+    def set_camera_view(self, eye, target, up=(0.0, 0.0, 1.0), world_ids=None) -> None:
+        """Put the camera at ``eye`` (m, world) looking at ``target``, as in Isaac's set_camera_view."""
+        self.set_world_pose(np.asarray(eye, float), look_at_gl(eye, target, up), world_ids)
+
+    def reset_pose(self, world_ids=None) -> None:
+        """Back to the configured offset."""
+        ids = self._ids(world_ids)
+        self._offset_pos[ids], self._offset_rot_gl[ids] = self._default_offset
+        self._outdated = True
+
+    # -- helpers ----------------------------------------------------------------
+    def _ids(self, world_ids) -> torch.Tensor:
+        """World indices (a long tensor on the device) of ids, an (N,) mask or None (all)."""
+        self._require_initialized()
+        if world_ids is None:
+            return torch.arange(self.engine.num_worlds, device=self.engine.device)
+        ids = torch.as_tensor(world_ids, device=self.engine.device).reshape(-1)
+        # posing is set-up work, not the step path: finding a mask's rows may wait for the device
+        return ids.nonzero().squeeze(-1) if ids.dtype == torch.bool else ids.long()
+
+    def _offset_in_mount(self) -> tuple[np.ndarray, np.ndarray]:
+        rot = quat_to_mat(np.asarray(self.cfg.offset_quat, float)) @ check_convention(self.cfg.offset_convention)
+        return np.asarray(self.cfg.offset_pos, float), rot
+
+    def _pose_gl(self) -> tuple[torch.Tensor, torch.Tensor]:
+        """World position (N, 3) and OpenGL axes (N, 3, 3) of the camera, float32."""
+        mount_pos, mount_rot = self._mount_pose.pos_w().float(), self._mount_pose.rot_w().float()
+        pos = mount_pos + (mount_rot @ self._offset_pos[..., None])[..., 0]
+        return pos, mount_rot @ self._offset_rot_gl
+
+
+__all__ = ["DATA_TYPES", "TiledCamera", "TiledCameraCfg", "TiledCameraData"]
