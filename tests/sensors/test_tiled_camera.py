@@ -1,9 +1,13 @@
 """TiledCamera (MuJoCo Warp ray casting, all worlds at once) against the OpenGL Camera.
 
-Runs on Warp's CPU device (``engine="warp"``); the same code runs on CUDA.
+Runs on Warp's CPU device by default; ``AMBULO_TEST_DEVICE=cuda`` runs the same tests on a GPU
+(rendering through CUDA graphs there).
 """
 
+import importlib.util
 import math
+import os
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -17,6 +21,7 @@ from ambulo.utils.checks import InvalidValueError
 
 pytest.importorskip("mujoco_warp")
 
+DEVICE = os.environ.get("AMBULO_TEST_DEVICE", "cpu")
 ALL = ("rgb", "depth", "instance_segmentation", "semantic_segmentation")
 SIZE = dict(width=96, height=72)
 # A mounted camera: body yawed 30 deg, site pitched down 20 deg, camera 5 cm ahead of it.
@@ -59,7 +64,7 @@ def pairs():
                            **SIZE)
     model = build_scene([cpu_view, gpu_view, cpu_mounted, gpu_mounted, gpu_near])
     cpu_engine = CpuEngine(model, 1, num_threads=1)
-    gpu_engine = make_engine(model, 3, device="cpu", engine="warp")
+    gpu_engine = make_engine(model, 3, device=DEVICE, engine="warp")
     for camera in (cpu_view, cpu_mounted):
         camera.initialize(cpu_engine)
     for camera in (gpu_view, gpu_mounted, gpu_near):
@@ -88,15 +93,15 @@ def test_depth_segmentation_and_intrinsics_match_the_opengl_camera(pairs, placem
     frame = cpu.capture(0)
     data = gpu.data
     ids_cpu = frame["geom_ids"]
-    ids_gpu = data.output["instance_segmentation"][0, ..., 0].numpy()
-    depth_cpu, depth_gpu = frame["depth"], data.output["depth"][0, ..., 0].numpy()
+    ids_gpu = data.output["instance_segmentation"][0, ..., 0].cpu().numpy()
+    depth_cpu, depth_gpu = frame["depth"], data.output["depth"][0, ..., 0].cpu().numpy()
     band = edge_band(ids_cpu)
     assert len(np.unique(ids_cpu)) >= 3 and band.mean() < 0.1  # floor, box, ball in view
     # segmentation: identical off the 1-px band at geom boundaries (measured: 0 of 6912 pixels
     # differ; 2 with the default 28 x 16 sphere facets, both on the band)
     differ = ids_gpu != ids_cpu
     assert not (differ & ~band).any() and differ.mean() < 0.005
-    semantic_gpu = data.output["semantic_segmentation"][0, ..., 0].numpy()
+    semantic_gpu = data.output["semantic_segmentation"][0, ..., 0].cpu().numpy()
     assert np.array_equal(semantic_gpu[~band], frame["semantic_segmentation"][~band])
     assert set(np.unique(semantic_gpu)) == {0, 1, 2}  # floor, ball, box (labels sorted)
     # depth to the image plane within 1 mm where both hit something (measured max: 0.09 mm, the
@@ -105,11 +110,11 @@ def test_depth_segmentation_and_intrinsics_match_the_opengl_camera(pairs, placem
     assert both.mean() > 0.5  # the mounted camera sees the horizon
     assert np.abs(depth_gpu[both] - depth_cpu[both]).max() < 1e-3
     assert np.array_equal(np.isfinite(depth_gpu)[~band], np.isfinite(depth_cpu)[~band])
-    k_gpu = data.intrinsic_matrices.numpy()
+    k_gpu = data.intrinsic_matrices.cpu().numpy()
     assert k_gpu.shape == (3, 3, 3)
     assert np.array_equal(k_gpu, np.broadcast_to(cpu.get_intrinsics_matrix().astype(np.float32), (3, 3, 3)))
     pos_cpu, _ = cpu.get_world_pose()
-    assert np.allclose(data.pos_w[0].numpy(), pos_cpu[0].numpy(), atol=1e-5)
+    assert np.allclose(data.pos_w[0].cpu().numpy(), pos_cpu[0].cpu().numpy(), atol=1e-5)
 
 
 def test_model_camera_holds_the_mounted_pose(pairs):
@@ -151,7 +156,7 @@ def test_worlds_render_their_own_pose_in_one_call(pairs):
         assert shapes == {"rgb": ((3, 72, 96, 3), torch.uint8), "depth": ((3, 72, 96, 1), torch.float32),
                           "instance_segmentation": ((3, 72, 96, 1), torch.int32),
                           "semantic_segmentation": ((3, 72, 96, 1), torch.int32)}
-        assert np.allclose(data.pos_w.numpy(), eyes, atol=1e-5)
+        assert np.allclose(data.pos_w.cpu().numpy(), eyes, atol=1e-5)
         for name in ALL:
             images = data.output[name]
             for a, b in ((0, 1), (0, 2), (1, 2)):
@@ -185,7 +190,7 @@ def test_per_world_colours_render_after_the_model_array_is_replaced(pairs):
     box = gpu.data.output["instance_segmentation"][..., 0] == box_geom
     version = engine.model_version
     rgba = engine.model_field("geom_rgba")  # expands the array: a new model array, a new version
-    rgba[2, box_geom] = torch.tensor([0.1, 0.9, 0.1, 1.0])
+    rgba[2, box_geom] = torch.tensor([0.1, 0.9, 0.1, 1.0], device=rgba.device)
     gpu.update(0.0)
     try:
         assert engine.model_version > version
@@ -210,3 +215,15 @@ def test_cpu_engine_and_bad_configs_give_one_line_errors():
         with pytest.raises(InvalidValueError) as err:
             TiledCameraCfg(prim_path="/World/cam", **kwargs)
         assert "\n" not in str(err.value) and next(iter(kwargs)) in str(err.value)
+
+
+def test_render_benchmark_runs_on_the_cpu_with_tiny_sizes(capsys):
+    path = Path(__file__).parents[2] / "benchmarks" / "render_gpu.py"
+    spec = importlib.util.spec_from_file_location("render_gpu", path)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    result = bench.main(["--device", "cpu", "--num-worlds", "2", "--width", "24", "--height", "16",
+                         "--steps", "2", "--repeats", "1"])
+    assert "RESULT {" in capsys.readouterr().out
+    assert result["frames_per_s"] > 0 and result["raw_frames_per_s"] > 0
+    assert result["same_segmentation_as_raw"] == 1.0 and result["robot_pixel_fraction"] > 0.02

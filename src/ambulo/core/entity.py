@@ -184,6 +184,7 @@ class Entity:
             put_rows(self.engine.qvel, slice(d, d + 3), lin_vel_w, env_ids)
         if ang_vel_w is not None:
             quat = take_rows(self.data.root_quat_w, env_ids)
+            ang_vel_w = torch.as_tensor(ang_vel_w, dtype=quat.dtype, device=quat.device)
             # MuJoCo keeps a free joint's angular velocity in the body frame
             put_rows(self.engine.qvel, slice(d + 3, d + 6), quat_rotate_inverse(quat, ang_vel_w), env_ids)
 
@@ -215,7 +216,7 @@ class Entity:
             ctrl -= bias[:, act, 2] * vel
         if effort is not None:
             ctrl += effort
-        self.engine.ctrl[:, act] = ctrl
+        self.engine.ctrl[:, act] = ctrl.to(self.engine.ctrl.dtype)
 
     def write_gains(self, kp: torch.Tensor | None = None, kd: torch.Tensor | None = None,
                     joint_ids=None, env_ids: torch.Tensor | None = None) -> None:

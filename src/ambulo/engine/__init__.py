@@ -1,8 +1,10 @@
 """Physics engines: N worlds of one MjModel with state as torch tensors."""
 
+import os
+
 from ..utils.checks import InvalidValueError
 from .cpu import CpuEngine
-from .protocol import STATE_FIELDS, Engine
+from .protocol import STATE_FIELDS, Engine, sim_time_s
 
 ENGINES = ("auto", "mujoco", "warp")
 """``auto``: MuJoCo's batch on the CPU, MuJoCo Warp on CUDA; ``mujoco``: the CPU engine;
@@ -15,6 +17,8 @@ def engine_class(device: str, engine: str = "auto") -> type:
     ``ENGINES``), or a one-line error saying why there is none: callers check a device before
     they write anything."""
     device = str(device)
+    if engine == "auto":  # AMBULO_ENGINE=warp runs any program or test suite on MuJoCo Warp
+        engine = os.environ.get("AMBULO_ENGINE", "auto")
     if engine not in ENGINES:
         raise InvalidValueError("engine", engine, "unknown engine", f"use one of {', '.join(ENGINES)}")
     if device != "cpu" and not device.startswith("cuda"):
@@ -48,4 +52,4 @@ def make_engine(model, num_worlds: int = 1, device: str = "cpu", engine: str = "
     return cls(model, num_worlds, device=device, **kwargs)
 
 
-__all__ = ["Engine", "CpuEngine", "ENGINES", "engine_class", "make_engine", "STATE_FIELDS"]
+__all__ = ["Engine", "CpuEngine", "ENGINES", "engine_class", "make_engine", "sim_time_s", "STATE_FIELDS"]

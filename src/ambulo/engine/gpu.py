@@ -236,14 +236,20 @@ class GpuEngine:
 
     def model_field(self, name: str) -> torch.Tensor:
         """Live, writable (N, ...) per-world values of an MjModel field (shaped like the CPU
-        engine's). The first call for a field gives each world its own copy on the device."""
+        engine's). The first call for a field gives each world its own copy on the device.
+        Fields MuJoCo Warp shares between worlds (``actuator_forcelimited``, ...) are (1, ...)."""
         tensor = self._model_tensors.get(name)
         if tensor is not None:
             return tensor
         array = getattr(self.wp_model, name, None)
-        if not isinstance(array, wp.array) or name not in _batchable_fields():
-            raise ValueError(f"model field {name!r}: MuJoCo Warp cannot vary it per world "
-                             f"(per-world fields: body_mass, geom_friction, ... see mujoco_warp.Model)")
+        if not isinstance(array, wp.array):
+            raise ValueError(f"model field {name!r}: not an array of mujoco_warp.Model")
+        if name not in _batchable_fields():
+            # MuJoCo Warp shares it between worlds: a (1, ...) view whose writes reach every
+            # world, and a per-world write (N rows) fails on its shape instead of half-working
+            tensor = wp.to_torch(array).unsqueeze(0)
+            self._model_tensors[name] = tensor
+            return tensor
         if array.shape[0] != self.num_worlds:
             source = wp.to_torch(array)
             expanded = source[:1].expand(self.num_worlds, *source.shape[1:]).contiguous()

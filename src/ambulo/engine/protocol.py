@@ -22,6 +22,17 @@ STATE_FIELDS = (
 )
 
 
+def sim_time_s(engine: "Engine", world: int = 0) -> float:
+    """World ``world``'s simulated time, s. MuJoCo Warp keeps time in float32, which drifts
+    from whole multiples of the timestep (0.0020000001 after one 2 ms step); time only ever
+    advances by whole steps, so it is rounded to the nearest one there."""
+    t = float(engine.field("time")[world])
+    if engine.dtype == torch.float64:
+        return t
+    step = float(engine.model.opt.timestep)
+    return round(t / step) * step
+
+
 @runtime_checkable
 class Engine(Protocol):
     """N parallel worlds of one ``mujoco.MjModel``.

@@ -141,9 +141,10 @@ class Sensor:
             )
 
     def _due(self) -> torch.Tensor:
-        """(N,) bool: worlds whose simulated time reached the next update."""
+        """(N,) bool: worlds whose simulated time reached the next update (within half a
+        physics step: time moves in whole steps, and float32 time on a GPU is off by ulps)."""
         now = self.engine.field("time")
-        return now - self._last_update_s >= self.update_period_s - 1e-12
+        return now - self._last_update_s >= self.update_period_s - 0.5 * float(self.engine.model.opt.timestep)
 
     def _mark_updated(self, mask: torch.Tensor) -> None:
         self._last_update_s[mask] = self.engine.field("time")[mask]

@@ -32,6 +32,7 @@ graph on a GPU), so an env that resets worlds after physics observes their new s
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -186,8 +187,8 @@ class TiledCamera(Sensor):
         for name in self.data_types:
             dtype, channels = {"rgb": (torch.uint8, 3), "depth": (torch.float32, 1)}.get(name, (torch.int32, 1))
             self._buffers[name] = torch.zeros(n, h, w, channels, dtype=dtype, device=dev)
-        self._inf = torch.tensor(math.inf, device=dev)
         self._context = self._create_context()
+        self._wp_outputs = self._warp_outputs()
         self._outdated = True
 
     def update(self, dt_s: float) -> None:
@@ -217,7 +218,6 @@ class TiledCamera(Sensor):
         self._require_initialized()
         engine = self.engine
         pos, rot = self._pose_gl()
-        self._cam_xpos[:, self.cam_id] = pos
         self._cam_xmat[:, self.cam_id] = rot.reshape(-1, 9)
         self._data.pos_w.copy_(pos)
         self._data.rot_w_gl.copy_(rot)
@@ -231,21 +231,27 @@ class TiledCamera(Sensor):
         else:
             with engine.warp_scope():
                 self._launch()
-        self._unpack()
         self._data.output = dict(self._buffers)
         self._outdated = False
 
     def _launch(self) -> None:
+        """``refit_bvh``, ``render``, then one pass that unpacks the render context's buffers
+        into the (N, H, W, C) outputs (rgb bytes, +inf for misses, geom and semantic ids)."""
         import mujoco_warp as mjw  # noqa: PLC0415
+        import warp as wp  # noqa: PLC0415
 
-        m, d = self.engine.wp_model, self.engine.wp_data
-        mjw.refit_bvh(m, d, self._context)
-        mjw.render(m, d, self._context)
+        m, d, rc = self.engine.wp_model, self.engine.wp_data, self._context
+        mjw.refit_bvh(m, d, rc)
+        mjw.render(m, d, rc)
+        n, (h, w) = self.engine.num_worlds, self._data.image_shape
+        wp.launch(_unpack_kernel(), dim=(n, h * w),
+                  inputs=[rc.rgb_data, rc.depth_data, rc.seg_data, self._wp_semantic_of_geom],
+                  outputs=self._wp_outputs)
 
     def _capture(self) -> None:
-        """Capture ``refit_bvh`` + ``render`` as a CUDA graph. The graph holds the engine's
-        model arrays, so it is captured again when ``engine.model_version`` changes; the render
-        context itself holds none (MuJoCo Warp passes them at each launch) and is kept."""
+        """Capture ``_launch`` as a CUDA graph. The graph holds the engine's model arrays, so it
+        is captured again when ``engine.model_version`` changes; the render context itself holds
+        none (MuJoCo Warp passes them at each launch) and is kept."""
         import warp as wp  # noqa: PLC0415
 
         engine = self.engine
@@ -253,31 +259,27 @@ class TiledCamera(Sensor):
             self._launch()  # compiles the kernels, which a capture cannot
         torch.cuda.synchronize(engine.device)
         stream = wp.Stream(engine.wp_device)
-        with wp.ScopedDevice(engine.wp_device), wp.ScopedCapture(stream=stream) as capture:
+        # launches go to the current stream: make the capturing stream current (capturing on a
+        # stream that is not current records nothing and fails at the first allocation)
+        with wp.ScopedStream(stream), wp.ScopedCapture() as capture:
             self._launch()
         self._graph, self._graph_version, self._capture_stream = capture.graph, engine.model_version, stream
 
-    def _unpack(self) -> None:
-        """Render-context buffers -> (N, H, W, C) outputs, as tensor ops on the device."""
+    def _warp_outputs(self) -> list:
+        """Warp views of the output tensors as the unpack kernel takes them, (N, H*W[, 3]);
+        empty arrays for outputs not asked for."""
         import warp as wp  # noqa: PLC0415
 
-        rc, out = self._context, self._buffers
         n, (h, w) = self.engine.num_worlds, self._data.image_shape
-        if "rgb" in out:
-            # pixels are packed 0xAARRGGBB: little-endian bytes B, G, R, A
-            bgra = wp.to_torch(rc.rgb_data).view(torch.uint8).view(n, h, w, 4)
-            for channel in range(3):
-                out["rgb"][..., channel].copy_(bgra[..., 2 - channel])
-        if "depth" in out:
-            depth = wp.to_torch(rc.depth_data).view(n, h, w, 1)
-            torch.where(depth > 0, depth, self._inf, out=out["depth"])  # 0: nothing hit
-        if any(name in out for name in _SEGMENTATION):
-            seg = wp.to_torch(rc.seg_data).view(n, h, w, 2)  # (object id, object type), -1: none
-            geom = torch.where(seg[..., 1:] == _OBJ_GEOM, seg[..., :1], -1)
-            if "instance_segmentation" in out:
-                out["instance_segmentation"].copy_(geom)
-            if "semantic_segmentation" in out:
-                torch.take(self._semantic_of_geom, geom.long() + 1, out=out["semantic_segmentation"])
+        views = []
+        for name, dtype, shape in (("rgb", wp.uint8, (n, h * w, 3)), ("depth", wp.float32, (n, h * w)),
+                                   ("instance_segmentation", wp.int32, (n, h * w)),
+                                   ("semantic_segmentation", wp.int32, (n, h * w))):
+            buffer = self._buffers.get(name)
+            empty = wp.empty((0,) * len(shape), dtype=dtype, device=self.engine.wp_device)
+            views.append(empty if buffer is None else wp.from_torch(buffer.view(shape), dtype=dtype))
+        self._wp_semantic_of_geom = wp.from_torch(self._semantic_of_geom)
+        return views
 
     def _create_context(self):
         import mujoco_warp as mjw  # noqa: PLC0415
@@ -363,6 +365,41 @@ class TiledCamera(Sensor):
         mount_pos, mount_rot = self._mount_pose.pos_w().float(), self._mount_pose.rot_w().float()
         pos = mount_pos + (mount_rot @ self._offset_pos[..., None])[..., 0]
         return pos, mount_rot @ self._offset_rot_gl
+
+
+@functools.cache
+def _unpack_kernel():
+    """The Warp kernel that turns render-context buffers into the outputs (built on first use,
+    so that importing this module needs no Warp)."""
+    import warp as wp  # noqa: PLC0415
+
+    @wp.kernel(module="unique", enable_backward=False)
+    def unpack(rgb_in: wp.array2d(dtype=wp.uint32), depth_in: wp.array2d(dtype=wp.float32),
+               seg_in: wp.array2d(dtype=wp.vec2i), semantic_of_geom: wp.array(dtype=wp.int32),
+               rgb_out: wp.array3d(dtype=wp.uint8), depth_out: wp.array2d(dtype=wp.float32),
+               instance_out: wp.array2d(dtype=wp.int32), semantic_out: wp.array2d(dtype=wp.int32)):
+        world, pixel = wp.tid()
+        if rgb_out.shape[0] > 0:
+            packed = rgb_in[world, pixel]  # 0xAARRGGBB
+            rgb_out[world, pixel, 0] = wp.uint8((packed >> wp.uint32(16)) & wp.uint32(255))
+            rgb_out[world, pixel, 1] = wp.uint8((packed >> wp.uint32(8)) & wp.uint32(255))
+            rgb_out[world, pixel, 2] = wp.uint8(packed & wp.uint32(255))
+        if depth_out.shape[0] > 0:
+            depth = depth_in[world, pixel]
+            if depth <= 0.0:  # nothing hit within the far clip
+                depth = wp.inf
+            depth_out[world, pixel] = depth
+        if instance_out.shape[0] > 0 or semantic_out.shape[0] > 0:
+            hit = seg_in[world, pixel]  # (object id, object type); (-1, -1): nothing
+            geom = int(-1)
+            if hit[1] == wp.static(_OBJ_GEOM):
+                geom = hit[0]
+            if instance_out.shape[0] > 0:
+                instance_out[world, pixel] = geom
+            if semantic_out.shape[0] > 0:
+                semantic_out[world, pixel] = semantic_of_geom[geom + 1]
+
+    return unpack
 
 
 __all__ = ["DATA_TYPES", "TiledCamera", "TiledCameraCfg", "TiledCameraData"]

@@ -55,7 +55,7 @@ class Articulation(RigidPrim):
         self.dof_names = list(self.entity.joint_names)
         self.num_dof = self.entity.num_joints
         slide = world.model.jnt_type[self.entity._joint_ids] == mujoco.mjtJoint.mjJNT_SLIDE
-        self._dof_scale = torch.as_tensor(np.where(slide, self._units, 1.0), dtype=torch.float64,
+        self._dof_scale = torch.as_tensor(np.where(slide, self._units, 1.0), dtype=world.engine.dtype,
                                           device=self.entity.device)
         data = self.entity.data
         self._initial_joints = (data.joint_pos.clone(), data.joint_vel.clone())

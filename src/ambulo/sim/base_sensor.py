@@ -16,6 +16,7 @@ from __future__ import annotations
 import logging
 import math
 
+from ambulo.engine import sim_time_s
 from ambulo.utils.checks import check_positive
 
 from .current import current_world_or_none
@@ -127,7 +128,7 @@ class BaseSensor:
         return self.sensor.engine
 
     def _sim_time(self) -> float:
-        return float(self._require_engine().field("time")[0])
+        return sim_time_s(self._require_engine())
 
     def _physics_step(self) -> float:
         """Physics steps since the last reset, as Isaac reports it (a float)."""

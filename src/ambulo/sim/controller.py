@@ -112,7 +112,7 @@ class ArticulationController:
         self._write_ctrl()
 
     def _as_targets(self, value, count: int, what: str, allow_none: bool = False):
-        """``value`` as an (N, count) float64 tensor; with ``allow_none`` also the mask of
+        """``value`` as an (N, count) tensor in the engine's dtype; with ``allow_none`` also the mask of
         commanded entries (None inside a list leaves that joint uncommanded)."""
         commanded = None
         if allow_none and isinstance(value, (list, tuple)) and any(v is None for v in value):
@@ -128,7 +128,7 @@ class ArticulationController:
         except (TypeError, ValueError):
             raise InvalidValueError(what, value, "not an array of real numbers", fix) from None
         check_all_finite(what, torch.as_tensor(source), fix)  # CPU values only: no GPU sync
-        tensor = torch.as_tensor(source, dtype=torch.float64, device=self._entity.device)
+        tensor = torch.as_tensor(source, dtype=self._entity.engine.dtype, device=self._entity.device)
         if tensor.shape == (count,):
             tensor = tensor.expand(n, count)
         if tuple(tensor.shape) != (n, count):
@@ -167,7 +167,7 @@ class ArticulationController:
         art = self._require()
         idx = art._indices(joint_indices)
         value = torch.as_tensor(np.broadcast_to(np.asarray(values, dtype=np.float64), (len(idx),)).copy(),
-                                device=self._entity.device)
+                                dtype=self._entity.engine.dtype, device=self._entity.device)
         check_all_finite("max efforts", value, "pass finite N m > 0, one per joint (or one for all)")
         if (value <= 0).any():
             raise InvalidValueError("max efforts", values, "they must be > 0", "pass N m > 0, e.g. 10.0")

@@ -363,7 +363,7 @@ def _parent_pose(world: World, prim_path: str) -> tuple[torch.Tensor, torch.Tens
 
 def _frame_pose(world: World, frame) -> tuple[torch.Tensor, torch.Tensor]:
     """World pose of a stage frame: its chain of frames composed onto its parent body."""
-    f64 = dict(dtype=torch.float64, device=world.engine.device)
+    f64 = dict(dtype=world.engine.dtype, device=world.engine.device)
     body_name = frame.parent.name
     pos, quat = torch.zeros(3, **f64), torch.tensor([1.0, 0.0, 0.0, 0.0], **f64)
     while frame is not None:

@@ -187,7 +187,7 @@ class XFormPrimView(XFormPrim):
         self._prims[0].entity.engine.forward()
 
     def _values(self, value, rows: torch.Tensor, trailing: tuple[int, ...], what: str, scale=1.0):
-        """User values for the selected rows as a (M, *trailing) float64 tensor times ``scale``."""
+        """User values for the selected rows as a (M, *trailing) tensor (engine dtype) times ``scale``."""
         if value is None:
             return None
         want = (len(rows), *trailing)
@@ -195,7 +195,8 @@ class XFormPrimView(XFormPrim):
         check_real_dtype(what, value, fix)
         array = value if torch.is_tensor(value) else np.asarray(value, dtype=np.float64)
         check_all_finite(what, torch.as_tensor(array), fix)
-        tensor = torch.as_tensor(array, dtype=torch.float64, device=self._prims[0].entity.device)
+        entity = self._prims[0].entity
+        tensor = torch.as_tensor(array, dtype=entity.engine.dtype, device=entity.device)
         if tuple(tensor.shape) == trailing:
             tensor = tensor.expand(want)
         if tuple(tensor.shape) != want:

@@ -26,7 +26,7 @@ import torch
 
 from ..core import PhysicsCfg, Simulation, new_scene
 from ..core.physics import check_timestep
-from ..engine import Engine
+from ..engine import Engine, sim_time_s
 from ..utils.checks import (
     Described, InvalidValueError, check_all_finite, check_int, check_positive, check_real_dtype,
 )
@@ -64,6 +64,8 @@ class World(TaskHost):
         (a whole ``PhysicsCfg``) overrides them and ``physics_dt``/``substeps``' timestep.
       num_worlds: parallel copies of the scene (the single-robot API is N = 1).
       device: ``"cpu"`` (MuJoCo) or ``"cuda"`` (MuJoCo Warp).
+      engine: ``"auto"``, ``"mujoco"`` or ``"warp"`` (MuJoCo Warp on any device, see
+        ``ambulo.engine.ENGINES``).
       backend: ``"numpy"`` (Isaac's default) or ``"torch"`` for object getters.
       stage_units_in_meters: metres per stage unit of the USD stage and of positions, lengths
         and linear velocities at the prim API (Isaac's ``World(stage_units_in_meters=0.01)``
@@ -85,6 +87,7 @@ class World(TaskHost):
         backend: Literal["numpy", "torch"] = "numpy",
         stage_units_in_meters: float = 1.0,
         num_threads: int = 0,
+        engine: str = "auto",
     ):
         self.stage_units_in_meters = check_positive(
             "stage_units_in_meters", stage_units_in_meters, "pass metres per stage unit, e.g. 1.0 (m) or 0.01 (cm)")
@@ -110,7 +113,7 @@ class World(TaskHost):
         self._physics_steps_per_step = self._steps_per_render(rendering_dt)
         self.device = device
         self.backend = backend
-        self.sim = Simulation(new_scene("World"), physics, num_worlds=num_worlds, device=device,
+        self.sim = Simulation(new_scene("World"), physics, num_worlds=num_worlds, device=device, engine=engine,
                               num_threads=num_threads)
         """The core lifecycle object this World drives."""
         self.num_worlds = self.sim.num_worlds
@@ -205,7 +208,7 @@ class World(TaskHost):
         """s of simulated time since the last reset (world 0)."""
         if self.engine is None:
             return 0.0
-        return float(self.engine.time[0])
+        return sim_time_s(self.engine)
 
     @property
     def current_time_step_index(self) -> int:
@@ -413,11 +416,12 @@ class World(TaskHost):
         return value.cpu().numpy() if self.backend == "numpy" else value
 
     def _in(self, value, trailing: tuple[int, ...], what: str) -> torch.Tensor:
-        """User input as a float64 (N, *trailing) tensor, broadcasting a single value.
+        """User input as a (N, *trailing) tensor in the engine's dtype, broadcasting a single value.
 
         Text, complex numbers, NaN and inf are refused; a CUDA tensor is checked by shape and
         dtype only (reading its values would sync the GPU)."""
         device = self.engine.device if self.engine is not None else "cpu"
+        dtype = self.engine.dtype if self.engine is not None else torch.float64
         fix = f"pass finite real numbers of shape {trailing} or {(self.num_worlds, *trailing)}"
         check_real_dtype(what, value, fix)
         try:
@@ -425,7 +429,7 @@ class World(TaskHost):
         except (TypeError, ValueError):
             raise InvalidValueError(what, value, "not an array of numbers", fix) from None
         check_all_finite(what, torch.as_tensor(array), fix)
-        tensor = torch.as_tensor(array, dtype=torch.float64, device=device)
+        tensor = torch.as_tensor(array, dtype=dtype, device=device)
         want = (self.num_worlds, *trailing)
         if tensor.shape == trailing:
             tensor = tensor.expand(want)

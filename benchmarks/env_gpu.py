@@ -1,0 +1,311 @@
+"""Env-steps/s of humanoid-walk on the GPU engine vs raw MuJoCo Warp stepping (the ceiling).
+
+The env side is what a PPO rollout runs per step: the task's actor (rsl-rl-lib's ``MLPModel``
+as ``ambulo train`` builds it from the task's ``PpoCfg``, sampling actions under
+``torch.inference_mode`` as rsl-rl's runner does; a torch MLP of the same size if rsl-rl-lib
+is missing), then ``env.step``: actions, ``decimation`` physics steps, observations, rewards,
+terminations, resets, episode statistics, through ``RslRlVecEnv`` as in training.
+
+The ceiling is ``mujoco_warp.step`` alone, in the same process, on the same device model
+(``env.engine.wp_model``, with the env's per-world friction and masses), its own ``Data`` of
+the same size (``nworld``, ``nconmax``, ``njmax`` as the engine's), ``decimation`` steps per
+env step captured in one CUDA graph (``wp.ScopedCapture``). Its work is the env's: each timed
+env run records the state every physics call started from (one ``_foreach_copy_`` of the
+engine's state fields per env step), and the raw side replays exactly those (one copy back per
+env step, then the graph), so falls, pushes and resets cost the ceiling the same contacts and
+solver iterations. Both sides pay one copy of the same bytes per env step. A free-running raw
+side (no copies, its humanoids falling under the first recorded controls) is reported for
+information. Timed loops are bracketed by ``torch.cuda.synchronize``; runs alternate (env, raw,
+env, raw) and the best of each is kept.
+
+    python benchmarks/env_gpu.py [--num-envs 1024,4096,16384] [--steps 100] [--warmup 30]
+    python benchmarks/env_gpu.py --device cpu --num-envs 4 --steps 3 --warmup 2   # Warp's CPU device
+
+ratio = env physics-steps/s / raw physics-steps/s (the same as the env-steps/s ratio: both
+sides run ``decimation`` physics steps per env step). Ends with one ``RESULT {json}`` line;
+"ratio" is the smallest over the sizes, ``target`` the issue's bar (>= 0.7 at 4096 envs).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import datetime
+import gc
+import importlib.metadata
+import json
+import time
+from typing import Callable
+
+import mujoco
+import mujoco_warp as mjw
+import torch
+import warp as wp
+
+import ambulo.envs
+
+TASK = "humanoid-walk"
+TARGET = {"num_envs": 4096, "min_ratio": 0.7}
+"""The issue's bar: the env keeps at least 70 % of raw MuJoCo Warp's throughput at 4096 envs."""
+
+
+def sync(device: torch.device) -> None:
+    if device.type == "cuda":
+        torch.cuda.synchronize(device)
+
+
+def versions() -> dict[str, str]:
+    def dist(name: str) -> str:
+        try:
+            return importlib.metadata.version(name)
+        except importlib.metadata.PackageNotFoundError:
+            return "not installed"
+
+    return {"torch": torch.__version__, "torch_cuda": str(torch.version.cuda), "warp": wp.config.version,
+            "mujoco": mujoco.__version__, "mujoco_warp": dist("mujoco-warp"), "rsl_rl": dist("rsl-rl-lib")}
+
+
+def device_name(device: torch.device) -> str:
+    if device.type == "cuda":
+        return torch.cuda.get_device_name(device)
+    return f"Warp CPU device ({wp.get_device('cpu').name})"
+
+
+# -- the policy ------------------------------------------------------------------------------
+def rollout_fns(env) -> tuple[Callable, Callable, object, str]:
+    """``act(obs) -> actions``, ``step(actions) -> (obs, dones)``, the first observations and a
+    description: rsl-rl-lib's actor through ``RslRlVecEnv`` (as ``ambulo train``), else a torch
+    MLP of the task's actor size with a Gaussian head (as rsl-rl's) on the bare env."""
+    ppo = ambulo.envs.spec(TASK).ppo_cfg_fn()
+    size = f"{env.num_obs}-{'-'.join(map(str, ppo.actor_hidden_dims))}-{env.num_actions} {ppo.activation}"
+    try:
+        from tensordict import TensorDict  # noqa: F401, PLC0415
+        from rsl_rl.utils import resolve_class  # noqa: PLC0415
+
+        from ambulo.rl.vecenv import RslRlVecEnv  # noqa: PLC0415
+    except ImportError as err:
+        return (*_torch_mlp(env, ppo), f"torch MLP {size}, sampled (rsl-rl-lib missing: {err})")
+    vec = RslRlVecEnv(env)
+    train_cfg = ppo.to_rsl_rl(env.num_privileged_obs > 0)
+    actor_cls, actor_kw = resolve_class(train_cfg["actor"])
+    obs = vec.get_observations()
+    actor = actor_cls(obs, train_cfg["obs_groups"], "actor", env.num_actions, **actor_kw).to(env.device).eval()
+
+    def act(obs):
+        return actor(obs, stochastic_output=True)
+
+    def step(actions):
+        obs, _, dones, _ = vec.step(actions)
+        return obs, dones
+
+    return act, step, obs, f"rsl-rl-lib {actor_cls.__name__} {size}, sampled"
+
+
+def _torch_mlp(env, ppo) -> tuple[Callable, Callable, torch.Tensor]:
+    dims = [env.num_obs, *ppo.actor_hidden_dims]
+    layers: list[torch.nn.Module] = []
+    for a, b in zip(dims[:-1], dims[1:]):
+        layers += [torch.nn.Linear(a, b), torch.nn.ELU()]
+    mlp = torch.nn.Sequential(*layers, torch.nn.Linear(dims[-1], env.num_actions)).to(env.device).eval()
+    mean = torch.zeros(env.num_obs, device=env.device)  # observation normalizer, as rsl-rl's
+    std = torch.ones(env.num_obs, device=env.device)
+    action_std = torch.full((env.num_actions,), ppo.init_noise_std, device=env.device)
+
+    def act(obs):
+        mu = mlp((obs - mean) / (std + 1e-2))
+        return mu + action_std * torch.randn_like(mu)
+
+    def step(actions):
+        obs, _, dones, _ = env.step(actions)
+        return obs, dones
+
+    return act, step, env.get_observations()
+
+
+# -- the ceiling -----------------------------------------------------------------------------
+class RawWarp:
+    """``mujoco_warp.step`` x ``nstep`` on the engine's device model and a Data of its own."""
+
+    def __init__(self, engine, nstep: int):
+        self.device, self.nstep = engine.device, nstep
+        self.model = engine.wp_model
+        data = mujoco.MjData(engine.model)
+        mujoco.mj_forward(engine.model, data)
+        with wp.ScopedDevice(engine.wp_device):
+            self.data = mjw.put_data(engine.model, data, nworld=engine.num_worlds,
+                                     nconmax=engine.nconmax, njmax=engine.njmax)
+        self.names = list(engine.initial_state)
+        self.state = [wp.to_torch(getattr(self.data, n)).view(engine.field(n).shape) for n in self.names]
+        self.wp_device = engine.wp_device
+        self.model_version = engine.model_version
+        """The engine's model arrays this captured: a later per-world expansion replaces them."""
+        self.graph = None
+        if self.device.type == "cuda":
+            self._physics()  # load the modules first: a capture cannot
+            sync(self.device)
+            self._stream = wp.Stream(self.wp_device)
+            with wp.ScopedDevice(self.wp_device), wp.ScopedCapture(stream=self._stream) as capture:
+                for _ in range(self.nstep):
+                    mjw.step(self.model, self.data)
+            self.graph = capture.graph
+
+    def _physics(self) -> None:
+        with wp.ScopedDevice(self.wp_device):
+            for _ in range(self.nstep):
+                mjw.step(self.model, self.data)
+
+    def launch(self) -> None:
+        """``nstep`` physics steps, ordered after torch's work on its current stream."""
+        if self.graph is None:
+            self._physics()
+            return
+        stream = wp.stream_from_torch(torch.cuda.current_stream(self.device))
+        with wp.ScopedDevice(self.wp_device), wp.ScopedStream(stream, sync_enter=False):
+            wp.capture_launch(self.graph)
+
+    def time_replay(self, recorded: list[torch.Tensor], steps: int) -> float:
+        """Seconds for ``steps`` x (copy recorded state ``i`` in, ``nstep`` physics steps)."""
+        sync(self.device)
+        start = time.perf_counter()
+        for i in range(steps):
+            torch._foreach_copy_(self.state, [r[i] for r in recorded])
+            self.launch()
+        sync(self.device)
+        return time.perf_counter() - start
+
+    def replay_match(self, recorded: list[torch.Tensor], tol: float = 1e-4) -> float:
+        """Fraction of worlds whose qpos after replaying recorded step 0 is the env's at step 1
+        within ``tol`` (m, rad): the check that the ceiling redoes the env's physics (worlds the
+        env reset in between differ)."""
+        qpos = self.names.index("qpos")
+        torch._foreach_copy_(self.state, [r[0] for r in recorded])
+        self.launch()
+        error = (self.state[qpos] - recorded[qpos][1]).abs().amax(dim=1)
+        return float((error <= tol).float().mean())
+
+    def time_free(self, recorded: list[torch.Tensor], steps: int) -> float:
+        """Seconds for ``steps`` launches from recorded state 0, no copies in between."""
+        torch._foreach_copy_(self.state, [r[0] for r in recorded])
+        sync(self.device)
+        start = time.perf_counter()
+        for _ in range(steps):
+            self.launch()
+        sync(self.device)
+        return time.perf_counter() - start
+
+
+# -- the env side ----------------------------------------------------------------------------
+class Recorder:
+    """Wraps ``engine.step`` to copy the state every physics call starts from into a slot."""
+
+    def __init__(self, engine, steps: int):
+        self.engine = engine
+        self.live = [engine.field(n) for n in engine.initial_state]
+        self.slots = [torch.empty((steps, *t.shape), dtype=t.dtype, device=t.device) for t in self.live]
+        self.count = 0
+
+    def __enter__(self):
+        step = type(self.engine).step
+
+        def recording(num_substeps: int = 1, refresh: bool = False):
+            torch._foreach_copy_([s[self.count] for s in self.slots], self.live)
+            self.count += 1
+            return step(self.engine, num_substeps, refresh)
+
+        self.count = 0
+        self.engine.step = recording
+        return self
+
+    def __exit__(self, *exc):
+        del self.engine.step  # the class's method again
+
+
+def time_env(env, act, step, obs, steps: int, recorder: Recorder | None):
+    """Seconds for ``steps`` rollout steps (policy + env), the last observations, episodes ended."""
+    ended = torch.zeros((), dtype=torch.long, device=env.device)
+    with torch.inference_mode(), recorder or contextlib.nullcontext():
+        sync(env.device)
+        start = time.perf_counter()
+        for _ in range(steps):
+            obs, dones = step(act(obs))
+            ended += dones.sum()
+        sync(env.device)
+        seconds = time.perf_counter() - start
+    return seconds, obs, int(ended)
+
+
+def measure(num_envs: int, device: str, steps: int, warmup: int, repeats: int) -> dict:
+    env = ambulo.envs.make(TASK, num_envs=num_envs, device=device, engine="warp", seed=0)
+    decimation = env.cfg.decimation
+    act, step, obs, policy = rollout_fns(env)
+    _, obs, _ = time_env(env, act, step, obs, warmup, None)  # graphs captured, resets under way
+    raw = RawWarp(env.engine, decimation)
+    recorder = Recorder(env.engine, steps)
+    env_s, replay_s, free_s, ended = [], [], [], 0
+    for _ in range(repeats):
+        seconds, obs, ended_run = time_env(env, act, step, obs, steps, recorder)
+        if recorder.count != steps:
+            raise RuntimeError(f"{recorder.count} physics calls in {steps} env steps; expected one each")
+        env_s.append(seconds)
+        ended += ended_run
+        replay_s.append(raw.time_replay(recorder.slots, steps))
+        free_s.append(raw.time_free(recorder.slots, steps))
+    if env.engine.model_version != raw.model_version:
+        raise RuntimeError("the env replaced model arrays after the ceiling captured them; warm up longer")
+    match = raw.replay_match(recorder.slots) if steps > 1 else None
+    env_rate = num_envs * steps / min(env_s)
+    raw_rate = num_envs * steps / min(replay_s)
+    row = {
+        "num_envs": num_envs,
+        "env_steps_per_s": round(env_rate),
+        "physics_steps_per_s": round(env_rate * decimation),
+        "raw_physics_steps_per_s": round(raw_rate * decimation),
+        "ratio": round(env_rate / raw_rate, 3),
+        "env_ms_per_step": round(1e3 * min(env_s) / steps, 3),
+        "raw_ms_per_step": round(1e3 * min(replay_s) / steps, 3),
+        "raw_free_ms_per_step": round(1e3 * min(free_s) / steps, 3),
+        "episodes_ended_per_step": round(ended / (repeats * steps), 2),
+        "replay_match": match,
+        "nconmax": env.engine.nconmax,
+        "njmax": env.engine.njmax,
+        "policy": policy,
+    }
+    del env, raw, recorder, act, step, obs
+    gc.collect()
+    if torch.cuda.is_available():
+        torch.cuda.empty_cache()
+    return row
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--num-envs", nargs="+", default=["1024,4096,16384"],
+                        help="sizes, comma- or space-separated")
+    parser.add_argument("--device", default="cuda", help="cuda[:k], or cpu (Warp's CPU device)")
+    parser.add_argument("--steps", type=int, default=100, help="env steps per timed run")
+    parser.add_argument("--warmup", type=int, default=30, help="env steps before timing")
+    parser.add_argument("--repeats", type=int, default=2)
+    args = parser.parse_args()
+    sizes = [int(s) for arg in args.num_envs for s in arg.split(",") if s]
+    device = torch.device(args.device)
+    rows = []
+    for n in sizes:
+        rows.append(measure(n, args.device, args.steps, args.warmup, args.repeats))
+        r = rows[-1]
+        print(f"N={n:6d}: env {r['env_steps_per_s']:>9} env-steps/s ({r['env_ms_per_step']:.2f} ms)   raw "
+              f"{r['raw_ms_per_step']:.2f} ms/step (free-running {r['raw_free_ms_per_step']:.2f})   "
+              f"ratio {r['ratio']:.3f}   {r['episodes_ended_per_step']} episodes ended/step", flush=True)
+    at_target = next((r["ratio"] for r in rows if r["num_envs"] == TARGET["num_envs"]), None)
+    result = {
+        "benchmark": "env_gpu", "task": TASK, "device": device_name(device),
+        "decimation": ambulo.envs.make_cfg(TASK).decimation, "steps": args.steps, "policy": rows[0]["policy"],
+        "versions": versions(), "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "sizes": rows, "ratio": min(r["ratio"] for r in rows),
+        "target": {**TARGET, "ratio": at_target,
+                   "met": None if at_target is None else at_target >= TARGET["min_ratio"]},
+    }
+    print("RESULT " + json.dumps(result), flush=True)
+
+
+if __name__ == "__main__":
+    main()
