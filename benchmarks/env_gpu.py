@@ -43,6 +43,7 @@ import torch
 import warp as wp
 
 import ambulo.envs
+from ambulo.engine.gpu import capture_graph
 
 TASK = "humanoid-walk"
 TARGET = {"num_envs": 4096, "min_ratio": 0.7}
@@ -144,10 +145,12 @@ class RawWarp:
             self._physics()  # load the modules first: a capture cannot
             sync(self.device)
             self._stream = wp.Stream(self.wp_device)
-            with wp.ScopedDevice(self.wp_device), wp.ScopedCapture(stream=self._stream) as capture:
+
+            def steps():
                 for _ in range(self.nstep):
                     mjw.step(self.model, self.data)
-            self.graph = capture.graph
+
+            self.graph = capture_graph(self.wp_device, self._stream, steps)
 
     def _physics(self) -> None:
         with wp.ScopedDevice(self.wp_device):

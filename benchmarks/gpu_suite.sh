@@ -132,9 +132,9 @@ print("torch CUDA", torch.version.cuda, "| available:", torch.cuda.is_available(
 PY
 
 part cold_start 180 "$PY" "$WORK/start_probe.py" cold "$DEV" "$START_N"
-part warm_start 40 "$PY" "$WORK/start_probe.py" warm "$DEV" "$START_N"
-part env_gpu 100 "$PY" benchmarks/env_gpu.py --device $DEV --num-envs $SIZES --steps $STEPS --warmup $WARMUP
-part profile_gpu 50 "$PY" benchmarks/profile_gpu.py --device $DEV --num-envs $PROFILE_N \
+part warm_start 30 "$PY" "$WORK/start_probe.py" warm "$DEV" "$START_N"
+part env_gpu 120 "$PY" benchmarks/env_gpu.py --device $DEV --num-envs $SIZES --steps $STEPS --warmup $WARMUP
+part profile_gpu 45 "$PY" benchmarks/profile_gpu.py --device $DEV --num-envs $PROFILE_N \
   --steps $((STEPS < 20 ? STEPS : 20)) --warmup $WARMUP --trace "$WORK/profile_trace.json"
 [ -f "$WORK/profile_trace.json" ] && gzip -c "$WORK/profile_trace.json" >"$OUT/profile_trace.json.gz"
 if [ -f benchmarks/render_gpu.py ]; then
@@ -146,10 +146,10 @@ TESTS=()
 for p in tests/engine tests/sensors/test_tiled_camera.py; do
   [ -e "$p" ] && TESTS+=("$p")
 done
-[ ${#TESTS[@]} -gt 0 ] && part gpu_tests 90 env AMBULO_TEST_DEVICE=$DEV "$PY" -m pytest -q -p no:cacheprovider \
+[ ${#TESTS[@]} -gt 0 ] && part gpu_tests 150 env AMBULO_TEST_DEVICE=$DEV "$PY" -m pytest -q -p no:cacheprovider \
   "${TESTS[@]}" -k "gpu or warp or tiled or parity"
-part env_cpu 35 "$PY" benchmarks/env_cpu.py --num-envs $CPU_N --steps $((STEPS < 40 ? STEPS : 40)) --repeats 1
-part engine_cpu 20 "$PY" benchmarks/engine_cpu.py --num-worlds $CPU_N --steps $((STEPS < 100 ? STEPS : 100)) \
+[ "${SUITE_CPU:-0}" = 1 ] && part env_cpu 35 "$PY" benchmarks/env_cpu.py --num-envs $CPU_N --steps $((STEPS < 40 ? STEPS : 40)) --repeats 1
+[ "${SUITE_CPU:-0}" = 1 ] && part engine_cpu 20 "$PY" benchmarks/engine_cpu.py --num-worlds $CPU_N --steps $((STEPS < 100 ? STEPS : 100)) \
   --repeats 2
 
 "$PY" - "$PARTS" "$OUT/results.json" "$WORK" <<'PY' 2>&1 | tee -a "$LOG"

@@ -39,6 +39,7 @@ import warp as wp
 
 from ambulo.core import GroundCfg, PhysicsCfg, RobotCfg, Simulation, add_ground, add_robot, new_scene
 from ambulo.sensors import TiledCamera
+from ambulo.engine.gpu import capture_graph
 
 DATA_TYPES = ("rgb", "depth", "instance_segmentation", "semantic_segmentation")
 EYE, TARGET = (1.6, -1.6, 1.3), (0.0, 0.0, 0.75)
@@ -108,10 +109,9 @@ class RawRender:
         if engine.device.type == "cuda":
             self._launch()  # compiles the kernels first: a capture cannot
             sync(engine.device)
-            with wp.ScopedStream(wp.Stream(engine.wp_device)), wp.ScopedCapture() as capture:
-                mjw.refit_bvh(engine.wp_model, engine.wp_data, self.context)
-                mjw.render(engine.wp_model, engine.wp_data, self.context)
-            self.graph = capture.graph
+            self.graph = capture_graph(engine.wp_device, wp.Stream(engine.wp_device), lambda: (
+                mjw.refit_bvh(engine.wp_model, engine.wp_data, self.context),
+                mjw.render(engine.wp_model, engine.wp_data, self.context)))
 
     def _launch(self) -> None:
         with self.engine.warp_scope():

@@ -87,6 +87,17 @@ def edge_band(ids: np.ndarray) -> np.ndarray:
     return band
 
 
+def floor_depth(camera, world=0) -> np.ndarray:
+    """(H, W) depth to the image plane of the plane z = 0 seen by ``camera`` in ``world``."""
+    k = camera.data.intrinsic_matrices[world].double().cpu().numpy()
+    centre = camera.data.pos_w[world].double().cpu().numpy()
+    rot_w_cv = camera.data.rot_w_gl[world].double().cpu().numpy() @ np.diag([1.0, -1.0, -1.0])
+    h, w = camera.data.image_shape
+    u, v = np.meshgrid(np.arange(w), np.arange(h))
+    rays_c = np.stack([(u - k[0, 2]) / k[0, 0], (v - k[1, 2]) / k[1, 1], np.ones((h, w))], -1)
+    return -centre[2] / (rays_c @ rot_w_cv.T)[..., 2]  # ray parameter at z = 0 (unit z_c)
+
+
 @pytest.mark.parametrize("placement", ["view", "mounted"])
 def test_depth_segmentation_and_intrinsics_match_the_opengl_camera(pairs, placement):
     cpu, gpu = pairs[placement]
@@ -104,11 +115,16 @@ def test_depth_segmentation_and_intrinsics_match_the_opengl_camera(pairs, placem
     semantic_gpu = data.output["semantic_segmentation"][0, ..., 0].cpu().numpy()
     assert np.array_equal(semantic_gpu[~band], frame["semantic_segmentation"][~band])
     assert set(np.unique(semantic_gpu)) == {0, 1, 2}  # floor, ball, box (labels sorted)
-    # depth to the image plane within 1 mm where both hit something (measured max: 0.09 mm, the
-    # OpenGL side's z-buffer error; MuJoCo Warp is within 0.01 mm of the analytic floor)
+    # depth to the image plane: the analytic floor within 0.1 mm at every distance (measured:
+    # 0.01 mm, Warp CPU and H100 alike), and the OpenGL camera's within 1 mm where both hit
+    # something closer than 5 m (measured: 0.05 mm). Farther, OpenGL's z-buffer steps grow with
+    # depth^2 / near: llvmpipe stays within 0.09 mm out to 19 m, an NVIDIA driver's EGL is 1 mm
+    # off at 11 m and 7 mm at 19 m while the ray caster still matches the analytic floor.
+    floor = (ids_cpu == 0) & ~band
+    assert floor.mean() > 0.3 and np.abs(depth_gpu - floor_depth(gpu))[floor].max() < 1e-4
     both = np.isfinite(depth_cpu) & np.isfinite(depth_gpu) & ~band
-    assert both.mean() > 0.5  # the mounted camera sees the horizon
-    assert np.abs(depth_gpu[both] - depth_cpu[both]).max() < 1e-3
+    near = both & (depth_cpu < 5.0)
+    assert near.mean() > 0.15 and np.abs(depth_gpu[near] - depth_cpu[near]).max() < 1e-3
     assert np.array_equal(np.isfinite(depth_gpu)[~band], np.isfinite(depth_cpu)[~band])
     k_gpu = data.intrinsic_matrices.cpu().numpy()
     assert k_gpu.shape == (3, 3, 3)

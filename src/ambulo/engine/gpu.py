@@ -313,9 +313,7 @@ class GpuEngine:
         for n, t in self._state.items():
             t.copy_(saved[n])
         torch.cuda.synchronize(self.device)
-        with wp.ScopedDevice(self.wp_device), wp.ScopedCapture(stream=self._capture_stream) as capture:
-            body()
-        return capture.graph
+        return capture_graph(self.wp_device, self._capture_stream, body)
 
     def _invalidate(self) -> None:
         self.model_version += 1
@@ -482,6 +480,15 @@ class GpuEngine:
         return dist, geom
 
 
+def capture_graph(device: str, stream: "wp.Stream", body: Callable[[], None]):
+    """``body``'s Warp launches as a CUDA graph, captured on ``stream``. The capturing stream
+    must be the current one: MuJoCo Warp allocates scratch arrays inside ``step``, and an
+    allocation on any other stream during a capture fails (CUDA error 900)."""
+    with wp.ScopedDevice(device), wp.ScopedStream(stream), wp.ScopedCapture() as capture:
+        body()
+    return capture.graph
+
+
 def _batchable_fields() -> frozenset[str]:
     global _BATCHABLE
     if _BATCHABLE is None:
@@ -519,4 +526,4 @@ def contact_capacity(model: mujoco.MjModel, data: mujoco.MjData, max_contacts: i
                                  2 * data.nefc))
 
 
-__all__ = ["GpuEngine", "EngineOverflowError", "contact_capacity", "warp_device"]
+__all__ = ["GpuEngine", "EngineOverflowError", "capture_graph", "contact_capacity", "warp_device"]

@@ -4,6 +4,12 @@ Observations (9): goal position in the base frame (x, y) m, goal distance m, bas
 velocity m/s, yaw rate rad/s, wheel speeds scaled (2), last action (2). Actions (2):
 left/right wheel speed targets in units of ``max_wheel_speed_rad_s``, tracked by the
 wheels' velocity actuators. Reaching the goal ends the episode as a success.
+
+jetbot-goal-vision: the same task seen through the robot's camera (a ``TiledCamera``, so MuJoCo
+Warp: ``engine="warp"``, on CUDA or Warp's CPU device). The policy gets the 64 x 64 rgb image
+average-pooled to 16 x 16 x 3 in place of the goal position and distance, which only the critic
+sees; the goal is a red post the camera can see (jetbot-goal's 2 mm disc is under a pixel tall
+at 1.5 m).
 """
 
 from __future__ import annotations
@@ -13,9 +19,11 @@ from dataclasses import dataclass
 
 import mujoco
 import torch
+import torch.nn.functional as F
 
 from ambulo.core import GroundCfg, PhysicsCfg, RobotCfg
 from ambulo.core.rows import fill_rows, put_rows, take_rows
+from ambulo.sensors import TiledCamera, TiledCameraCfg
 
 from . import observations as obs_terms
 from . import rewards
@@ -135,4 +143,65 @@ register(TaskSpec(
     description="differential-drive Jetbot drives to a random goal 0.5-1.5 m away (wheel speed actions)",
     success_terminations=("goal_reached",),
     criteria=(Criterion("reaches", min_values={"success_rate": 0.9}),),
+))
+
+
+@dataclass(kw_only=True)
+class JetbotGoalVisionCfg(JetbotGoalCfg):
+    """jetbot-goal-vision settings: the policy sees the goal through the robot's camera."""
+
+    image_size_px: int = 64
+    """Camera image width and height, px."""
+    image_pool_px: int = 4
+    """The policy gets the rgb image average-pooled over squares of this side (64 / 4: 16 x 16 x 3)."""
+    camera_fovy_deg: float = 90.0
+    """Vertical field of view, deg (the Jetbot's wide-angle camera sees ~160 deg diagonally)."""
+    camera_pitch_deg: float = 20.0
+    """Camera tilt below the horizon, deg: the floor from ~5 cm ahead of the robot to the horizon."""
+    goal_post_height_m: float = 0.15
+    """Height of the goal post (radius ``goal_radius_m``): ~6 px tall at 1.5 m."""
+
+
+def jetbot_goal_vision_cfg() -> JetbotGoalVisionCfg:
+    """jetbot-goal's settings on MuJoCo Warp (what renders the camera)."""
+    return JetbotGoalVisionCfg(**{**vars(jetbot_goal_cfg()), "engine": "warp"})
+
+
+class JetbotGoalVisionEnv(JetbotGoalEnv):
+    """jetbot-goal with camera observations; see the module docstring."""
+
+    cfg: JetbotGoalVisionCfg
+
+    def _design_scene(self, spec) -> None:
+        cfg = self.cfg
+        goal = spec.worldbody.add_body(name="/World/goal", mocap=True, pos=[1.0, 0.0, 0.0])
+        half = cfg.goal_post_height_m / 2
+        goal.add_geom(type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[cfg.goal_radius_m, half, 0], pos=[0, 0, half],
+                      rgba=[0.9, 0.2, 0.2, 1.0], contype=0, conaffinity=0)
+        pitch = math.radians(cfg.camera_pitch_deg)
+        self.camera = self.sim.add(TiledCamera(TiledCameraCfg(
+            prim_path="/World/jetbot/camera_mount/camera", width=cfg.image_size_px, height=cfg.image_size_px,
+            fovy_deg=cfg.camera_fovy_deg, offset_quat=(math.cos(pitch / 2), 0.0, math.sin(pitch / 2), 0.0),
+            data_types=("rgb",))))
+
+    def _policy_terms(self) -> dict[str, torch.Tensor]:
+        terms = super()._policy_terms()
+        # the goal's position moves to the critic (``_privileged_terms`` runs right after this)
+        self._goal_terms = {name: terms.pop(name) for name in ("goal_pos_b", "goal_distance")}
+        rgb = self.camera.data.output["rgb"].permute(0, 3, 1, 2).float()  # (N, 3, H, W)
+        image = F.avg_pool2d(rgb, self.cfg.image_pool_px).flatten(1) / 255.0 - 0.5
+        return {"image": image, **terms}
+
+    def _privileged_terms(self) -> dict[str, torch.Tensor]:
+        return self._goal_terms
+
+
+register(TaskSpec(
+    name="jetbot-goal-vision",
+    env_cls=JetbotGoalVisionEnv,
+    cfg_fn=jetbot_goal_vision_cfg,
+    ppo_cfg_fn=jetbot_goal_ppo,
+    description="jetbot-goal seen through the robot's 64x64 camera (TiledCamera on MuJoCo Warp); the critic "
+                "alone gets the goal position",
+    success_terminations=("goal_reached",),
 ))

@@ -110,7 +110,8 @@ class TiledCameraData:
     """What a ``TiledCamera`` read last (all tensors on the engine's device)."""
 
     output: dict[str, torch.Tensor]
-    """Images by name, each (N, H, W, C); see the module docstring."""
+    """Images by name, each (N, H, W, C); see the module docstring. The tensors are the sensor's
+    buffers, overwritten by the next render: clone what must outlive it."""
     intrinsic_matrices: torch.Tensor
     """(N, 3, 3) float32 K (OpenCV: pixel centres at integer coordinates), the same per world."""
     pos_w: torch.Tensor
@@ -218,6 +219,7 @@ class TiledCamera(Sensor):
         self._require_initialized()
         engine = self.engine
         pos, rot = self._pose_gl()
+        self._cam_xpos[:, self.cam_id] = pos
         self._cam_xmat[:, self.cam_id] = rot.reshape(-1, 9)
         self._data.pos_w.copy_(pos)
         self._data.rot_w_gl.copy_(rot)
@@ -254,16 +256,15 @@ class TiledCamera(Sensor):
         none (MuJoCo Warp passes them at each launch) and is kept."""
         import warp as wp  # noqa: PLC0415
 
+        from ambulo.engine.gpu import capture_graph  # noqa: PLC0415 - needs the warp engine's packages
+
         engine = self.engine
         with engine.warp_scope():
             self._launch()  # compiles the kernels, which a capture cannot
         torch.cuda.synchronize(engine.device)
-        stream = wp.Stream(engine.wp_device)
-        # launches go to the current stream: make the capturing stream current (capturing on a
-        # stream that is not current records nothing and fails at the first allocation)
-        with wp.ScopedStream(stream), wp.ScopedCapture() as capture:
-            self._launch()
-        self._graph, self._graph_version, self._capture_stream = capture.graph, engine.model_version, stream
+        self._capture_stream = wp.Stream(engine.wp_device)
+        self._graph = capture_graph(engine.wp_device, self._capture_stream, self._launch)
+        self._graph_version = engine.model_version
 
     def _warp_outputs(self) -> list:
         """Warp views of the output tensors as the unpack kernel takes them, (N, H*W[, 3]);
