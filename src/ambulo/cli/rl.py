@@ -269,7 +269,7 @@ def play(args: argparse.Namespace) -> int:
 
     with _rl_errors("--out"):
         run_play(args.run, checkpoint=args.checkpoint, seconds=args.seconds, out=args.out,
-                 width=args.width, height=args.height, log_root=args.log_root)
+                 width=args.width, height=args.height, log_root=args.log_root, device=args.device)
     return 0
 
 
@@ -291,7 +291,7 @@ def evaluate(args: argparse.Namespace) -> int:
     with _rl_errors("the run folder (eval.json goes there)"):
         result = run_eval(args.run, checkpoint=args.checkpoint, num_episodes=args.episodes,
                           episode_length_s=args.episode_length_s, seed=args.seed,
-                          log_root=args.log_root)
+                          log_root=args.log_root, device=args.device)
     if not args.require_criteria:
         return 0
     failed = [name for name in result.get("criteria", []) if not result[name]]
@@ -339,6 +339,7 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--out", help="MP4 path (default: <run>/videos/play.mp4)")
     p.add_argument("--width", type=whole_above_zero("--width 640"), default=640)
     p.add_argument("--height", type=whole_above_zero("--height 480"), default=480)
+    p.add_argument("--device", help="cpu or cuda[:N] (default: the run's)")
     p.add_argument("--log-root", default="runs")
     p.set_defaults(func=play)
 
@@ -357,6 +358,8 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
                    default=None,
                    help="seconds per episode (default: the task's training episode length)")
     p.add_argument("--seed", type=int, default=12345)
+    p.add_argument("--device", help="cpu or cuda[:N] (default: the run's); cpu after GPU training "
+                   "is a sim-to-sim check")
     p.add_argument("--log-root", default="runs")
     p.add_argument("--require-criteria", "--require-walk", dest="require_criteria", action="store_true",
                    help="exit 1 unless every success criterion of the task holds (humanoid-walk's "

@@ -209,7 +209,8 @@ class GpuEngine:
         self._diverged_total = torch.zeros((), dtype=torch.long, device=self.device)
         self._steps_since_check = 0
         self.compile_time_s: float | None = None
-        """Seconds the first step took (kernel compile or cache load), once stepped."""
+        """Seconds the first runs of step and forward took (kernel compile or cache load)."""
+        self._warmed: set[tuple] = set()
 
     # -- fields ---------------------------------------------------------------
     def field(self, name: str) -> torch.Tensor:
@@ -292,7 +293,17 @@ class GpuEngine:
             yield
 
     def _run(self, key: tuple, body: Callable[[], None]) -> None:
-        """Run ``body`` (Warp launches) as a CUDA graph captured once per ``key``."""
+        """Run ``body`` (Warp launches) as a CUDA graph captured once per ``key``. The first run
+        of a key compiles (or loads from Warp's cache) its kernels: timed, with progress lines."""
+        if key not in self._warmed:
+            self._warmed.add(key)
+            with _Ticker("compiling MuJoCo Warp kernels") as ticker:
+                self._run(key, body)
+                if self.device.type == "cuda":
+                    torch.cuda.synchronize(self.device)
+            self.compile_time_s = (self.compile_time_s or 0.0) + ticker.elapsed_s
+            log.info("GpuEngine: first %s (kernel compile or cache load) took %.1f s", key[0], ticker.elapsed_s)
+            return
         if not self.use_graphs:
             with self.warp_scope():
                 body()
@@ -317,6 +328,7 @@ class GpuEngine:
 
     def _invalidate(self) -> None:
         self.model_version += 1
+        self._warmed.clear()
         self._graphs.clear()
 
     def step(self, num_substeps: int = 1, refresh: bool = False) -> torch.Tensor:
@@ -335,15 +347,7 @@ class GpuEngine:
                 mjw.com_vel(m, d)
 
         before = self._dump_before() if self.divergence_dump_dir is not None else None
-        if self.compile_time_s is None:
-            with _Ticker("compiling MuJoCo Warp kernels") as ticker:
-                self._run(("step", num_substeps, refresh), body)
-                if self.device.type == "cuda":
-                    torch.cuda.synchronize(self.device)
-            self.compile_time_s = ticker.elapsed_s
-            log.info("GpuEngine: first step (kernel compile or cache load) took %.1f s", self.compile_time_s)
-        else:
-            self._run(("step", num_substeps, refresh), body)
+        self._run(("step", num_substeps, refresh), body)
         diverged = self._diverged()
         self._diverged_total += diverged.sum()
         self._reset_mask(diverged)

@@ -24,15 +24,16 @@ from . import runs
 
 def evaluate(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = None,
              num_episodes: int = 100, episode_length_s: float | None = None, seed: int = 12345,
-             log_root: str | os.PathLike = "runs", quiet: bool = False) -> dict:
+             log_root: str | os.PathLike = "runs", quiet: bool = False, device: str | None = None) -> dict:
     """Evaluate ``run`` and return (and print) a dict of metrics; also written to
-    ``<run>/eval.json``."""
+    ``<run>/eval.json``. ``device`` (default: the run's) evaluates on another engine: a policy
+    trained on a GPU, evaluated with ``device="cpu"``, is a sim-to-sim check."""
     run_dir, ckpt = runs.resolve_policy(run, checkpoint, log_root)
     info = runs.read_run_info(run_dir)
     task = envs.spec(info["task"])
     if episode_length_s is None:  # the play variant has no time-out: use the training length
         episode_length_s = task.cfg_fn().episode_length_s
-    env = runs.make_env_for_run(info, num_envs=num_episodes, seed=seed, play=True,
+    env = runs.make_env_for_run(info, num_envs=num_episodes, seed=seed, play=True, device=device,
                                 episode_length_s=episode_length_s)
     runner = runs.load_runner(run_dir, env, ckpt)
     policy = runner.get_inference_policy(device=str(env.device))

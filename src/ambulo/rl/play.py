@@ -36,11 +36,12 @@ def _camera(env, distance_m: float = 3.0) -> mujoco.MjvCamera:
 def play(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = None,
          seconds: float = 10.0, out: str | os.PathLike | None = None, width: int = 640,
          height: int = 480, seed: int = 1, num_envs: int = 1,
-         log_root: str | os.PathLike = "runs") -> Path:
+         log_root: str | os.PathLike = "runs", device: str | None = None) -> Path:
     """Run the policy of ``run`` for ``seconds`` and write ``<run>/videos/play.mp4`` (or ``out``).
 
     The task's play variant runs (no pushes, no observation noise, no time-out); env 0 is
-    filmed, and a fall resets it, so falls and restarts are visible.
+    filmed, and a fall resets it, so falls and restarts are visible. ``device`` defaults to
+    the run's.
     Returns the video's path.
     """
     run_dir, ckpt = runs.resolve_policy(run, checkpoint, log_root)
@@ -48,7 +49,7 @@ def play(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = None,
     path.parent.mkdir(parents=True, exist_ok=True)  # an unwritable place fails before rendering
     previous = path.stat().st_mtime_ns if path.is_file() else None
     info = runs.read_run_info(run_dir)
-    env = runs.make_env_for_run(info, num_envs=num_envs, seed=seed, play=True)
+    env = runs.make_env_for_run(info, num_envs=num_envs, seed=seed, play=True, device=device)
     runner = runs.load_runner(run_dir, env, ckpt)
     policy = runner.get_inference_policy(device=str(env.device))
     renderer = OffscreenRenderer(env.model, width, height)
