@@ -32,7 +32,6 @@ import argparse
 import contextlib
 import datetime
 import gc
-import importlib.metadata
 import json
 import time
 from typing import Callable
@@ -43,27 +42,13 @@ import torch
 import warp as wp
 
 import ambulo.envs
-from ambulo.engine.gpu import capture_graph
+from ambulo.engine.gpu import capture_graph, stack_versions
+from ambulo.engine.gpu import synchronize as sync
 
 TASK = "humanoid-walk"
 TARGET = {"num_envs": 4096, "min_ratio": 0.7}
 """The issue's bar: the env keeps at least 70 % of raw MuJoCo Warp's throughput at 4096 envs."""
 
-
-def sync(device: torch.device) -> None:
-    if device.type == "cuda":
-        torch.cuda.synchronize(device)
-
-
-def versions() -> dict[str, str]:
-    def dist(name: str) -> str:
-        try:
-            return importlib.metadata.version(name)
-        except importlib.metadata.PackageNotFoundError:
-            return "not installed"
-
-    return {"torch": torch.__version__, "torch_cuda": str(torch.version.cuda), "warp": wp.config.version,
-            "mujoco": mujoco.__version__, "mujoco_warp": dist("mujoco-warp"), "rsl_rl": dist("rsl-rl-lib")}
 
 
 def device_name(device: torch.device) -> str:
@@ -302,7 +287,7 @@ def main() -> None:
     result = {
         "benchmark": "env_gpu", "task": TASK, "device": device_name(device),
         "decimation": ambulo.envs.make_cfg(TASK).decimation, "steps": args.steps, "policy": rows[0]["policy"],
-        "versions": versions(), "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "versions": stack_versions(), "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "sizes": rows, "ratio": min(r["ratio"] for r in rows),
         "target": {**TARGET, "ratio": at_target,
                    "met": None if at_target is None else at_target >= TARGET["min_ratio"]},

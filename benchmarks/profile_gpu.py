@@ -34,11 +34,12 @@ import warnings
 import mujoco_warp as mjw
 import torch
 import warp as wp
-from env_gpu import TASK, device_name, rollout_fns, sync, versions
+from env_gpu import TASK, device_name, rollout_fns, sync
 from torch.autograd import DeviceType
 from torch.profiler import ProfilerActivity, profile, record_function
 
 import ambulo.envs
+from ambulo.engine.gpu import stack_versions
 
 # CUDA runtime and driver calls that block the host until the device is done
 SYNC_CALLS = ("cudaStreamSynchronize", "cudaDeviceSynchronize", "cudaEventSynchronize", "cudaMemcpy",
@@ -194,7 +195,7 @@ def main() -> None:
     device_ms = (parts["device_ms_per_step"] or {}).get("total")
     result = {
         "benchmark": "profile_gpu", "task": TASK, "num_envs": args.num_envs, "steps": args.steps,
-        "device": device_name(device), "policy": policy, "versions": versions(),
+        "device": device_name(device), "policy": policy, "versions": stack_versions(),
         "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "wall_ms_per_step": round(wall_ms, 3), **parts,
         "device_busy_fraction": None if device_ms is None else round(device_ms / wall_ms, 3),

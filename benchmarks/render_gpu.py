@@ -27,39 +27,23 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import datetime
-import importlib.metadata
 import json
 import math
 import time
 
-import mujoco
 import mujoco_warp as mjw
 import torch
 import warp as wp
 
 from ambulo.core import GroundCfg, PhysicsCfg, RobotCfg, Simulation, add_ground, add_robot, new_scene
 from ambulo.sensors import TiledCamera
-from ambulo.engine.gpu import capture_graph
+from ambulo.engine.gpu import capture_graph, stack_versions
+from ambulo.engine.gpu import synchronize as sync
 
 DATA_TYPES = ("rgb", "depth", "instance_segmentation", "semantic_segmentation")
 EYE, TARGET = (1.6, -1.6, 1.3), (0.0, 0.0, 0.75)
 JOINT_NOISE_RAD = 0.3
 
-
-def sync(device: torch.device) -> None:
-    if device.type == "cuda":
-        torch.cuda.synchronize(device)
-
-
-def versions() -> dict[str, str]:
-    def dist(name: str) -> str:
-        try:
-            return importlib.metadata.version(name)
-        except importlib.metadata.PackageNotFoundError:
-            return "not installed"
-
-    return {"torch": torch.__version__, "torch_cuda": str(torch.version.cuda), "warp": wp.config.version,
-            "mujoco": mujoco.__version__, "mujoco_warp": dist("mujoco-warp")}
 
 
 def device_name(device: torch.device) -> str:
@@ -215,7 +199,7 @@ def main(argv: list[str] | None = None) -> dict:
           + (f", {row['render_context_device_mib']} MiB of device memory" if row["render_context_device_mib"] else ""),
           flush=True)
     result = {"benchmark": "render_gpu", "device": device_name(torch.device(args.device)),
-              "versions": versions(), "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+              "versions": stack_versions(), "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
               **row}
     print("RESULT " + json.dumps(result), flush=True)
     return result

@@ -68,6 +68,24 @@ class EngineOverflowError(RuntimeError):
     """A contact or constraint buffer of the GPU engine overflowed."""
 
 
+def _init_warp() -> None:
+    """Initialize Warp once. Without a CUDA driver (a laptop, CI) Warp's native code prints a
+    warning on stderr at init that says nothing to a user who asked for Warp's CPU device, so
+    stderr is muted for that call only."""
+    if torch.cuda.is_available():
+        wp.init()
+        return
+    sys.stderr.flush()
+    saved = os.dup(2)
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 2)
+            wp.init()
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
 def warp_device(device: str | torch.device) -> str:
     """The Warp device for a torch device string: ``"cpu"`` or ``"cuda:k"``."""
     dev = torch.device(device)
@@ -191,6 +209,7 @@ class GpuEngine:
                                                     max_constraints_per_world)
         if "AMBULO_WARP_LOG" not in os.environ:  # our progress line replaces one line per module
             wp.config.log_level = wp.LOG_WARNING
+        _init_warp()
         with wp.ScopedDevice(self.wp_device):
             self.wp_model = mjw.put_model(self.model)
             self.wp_model.opt.warn_overflow = 0  # checked by check_overflow, not printed per kernel
@@ -493,6 +512,26 @@ def capture_graph(device: str, stream: "wp.Stream", body: Callable[[], None]):
     return capture.graph
 
 
+def synchronize(device: torch.device) -> None:
+    """Wait for ``device`` (CUDA); nothing on the CPU. For timing loops, never on a step path."""
+    if torch.device(device).type == "cuda":
+        torch.cuda.synchronize(device)
+
+
+def stack_versions() -> dict[str, str]:
+    """Versions of the GPU stack, for benchmark results and bug reports."""
+    import importlib.metadata  # noqa: PLC0415
+
+    def dist(name: str) -> str:
+        try:
+            return importlib.metadata.version(name)
+        except importlib.metadata.PackageNotFoundError:
+            return "not installed"
+
+    return {"torch": torch.__version__, "torch_cuda": str(torch.version.cuda), "warp": wp.config.version,
+            "mujoco": mujoco.__version__, "mujoco_warp": dist("mujoco-warp"), "rsl_rl": dist("rsl-rl-lib")}
+
+
 def _batchable_fields() -> frozenset[str]:
     global _BATCHABLE
     if _BATCHABLE is None:
@@ -530,4 +569,5 @@ def contact_capacity(model: mujoco.MjModel, data: mujoco.MjData, max_contacts: i
                                  2 * data.nefc))
 
 
-__all__ = ["GpuEngine", "EngineOverflowError", "capture_graph", "contact_capacity", "warp_device"]
+__all__ = ["GpuEngine", "EngineOverflowError", "capture_graph", "contact_capacity", "stack_versions", "synchronize",
+           "warp_device"]

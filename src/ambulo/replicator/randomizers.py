@@ -264,7 +264,7 @@ class JointRandomizer(Randomizer):
         return {"qpos": rng.uniform(self._low, self._high).tolist()}
 
     def apply(self, params, ctx):
-        ctx.engine.qpos[ctx.world, torch.as_tensor(self._adr)] = torch.tensor(params["qpos"], dtype=torch.float64)
+        ctx.engine.qpos[ctx.world, torch.as_tensor(self._adr)] = torch.tensor(params["qpos"], dtype=ctx.engine.dtype)
 
 
 def quat_yaw(yaw: float) -> list[float]:

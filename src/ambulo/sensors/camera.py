@@ -37,8 +37,9 @@ _NEEDS_DEPTH = {"depth", "distance_to_camera", "normals"}
 
 
 @dataclass(kw_only=True)
-class CameraCfg:
-    """A pinhole camera on a body or site."""
+class PinholeCfg:
+    """Where a pinhole camera sits and what it sees: shared by ``CameraCfg`` (the CPU renderer)
+    and ``TiledCameraCfg`` (MuJoCo Warp), so both give the same intrinsics for the same fields."""
 
     prim_path: str
     """The camera's prim path; its mount is the longest prefix naming a body or site."""
@@ -58,11 +59,6 @@ class CameraCfg:
     """'world' (x forward, z up), 'opengl' (MuJoCo: looks along -z) or 'opencv'/'ros'."""
     clipping_range_m: tuple[float, float] = (0.05, 100.0)
     """Near and far clip distances (m); depth resolution is best with a far-away near plane."""
-    frequency_hz: float | None = None
-    """Update rate (Hz) in simulated time; None renders on every request."""
-    annotators: tuple[str, ...] = ("rgb", "depth")
-    """Outputs of ``get_current_frame``; see ``ANNOTATORS``."""
-    render: RenderSettings = field(default_factory=fast_render_settings)
 
     def __post_init__(self):
         """Refuse sizes, angles and ranges no camera can have (one line: the field, why, the fix)."""
@@ -80,10 +76,24 @@ class CameraCfg:
         if self.clipping_range_m[0] <= 0:
             raise InvalidValueError("clipping_range_m", self.clipping_range_m, "the near plane must be > 0",
                                     "pass (near, far) m with 0 < near < far, e.g. (0.05, 100.0)")
-        if self.frequency_hz is not None:
-            check_positive("frequency_hz", self.frequency_hz, "pass Hz > 0, or None to render on every request")
         check_vector("offset_pos", self.offset_pos, 3, "pass (x, y, z) m in the mount frame")
         check_quat("offset_quat", self.offset_quat)
+
+
+@dataclass(kw_only=True)
+class CameraCfg(PinholeCfg):
+    """A pinhole camera on a body or site."""
+
+    frequency_hz: float | None = None
+    """Update rate (Hz) in simulated time; None renders on every request."""
+    annotators: tuple[str, ...] = ("rgb", "depth")
+    """Outputs of ``get_current_frame``; see ``ANNOTATORS``."""
+    render: RenderSettings = field(default_factory=fast_render_settings)
+
+    def __post_init__(self):
+        super().__post_init__()
+        if self.frequency_hz is not None:
+            check_positive("frequency_hz", self.frequency_hz, "pass Hz > 0, or None to render on every request")
 
 
 def _resolution(what: str, value) -> tuple[int, int]:

@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import functools
 import math
+import dataclasses
 from dataclasses import dataclass
 
 import mujoco
@@ -49,7 +50,7 @@ from ambulo.utils.rotations import mat_to_quat, quat_to_mat
 
 from . import annotators as ann
 from .base import MountPose, Sensor, spec_body
-from .camera import CameraCfg
+from .camera import CameraCfg, PinholeCfg
 from .frames import check_convention, look_at_gl
 
 DATA_TYPES = ("rgb", "depth", "instance_segmentation", "semantic_segmentation")
@@ -60,34 +61,21 @@ _OBJ_GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)
 
 
 @dataclass(kw_only=True)
-class TiledCameraCfg:
-    """A pinhole camera on a body or site, rendered in all worlds at once."""
+class TiledCameraCfg(PinholeCfg):
+    """A pinhole camera on a body or site, rendered in all worlds at once. The far clip applies;
+    the near one does not (rays start at the camera)."""
 
-    prim_path: str
-    """The camera's prim path; its mount is the longest prefix naming a body or site."""
     width: int = 128
     """Image width (px)."""
     height: int = 128
     """Image height (px)."""
-    fovy_deg: float = 60.0
-    """Vertical field of view (deg); ignored when ``focal_length_px`` is set."""
-    focal_length_px: float | None = None
-    """Focal length (px, square pixels); sets the field of view from ``height``."""
-    offset_pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    """Position (m) in the mount frame."""
-    offset_quat: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
-    """Orientation (w, x, y, z) in the mount frame, in ``offset_convention`` axes."""
-    offset_convention: str = "world"
-    """'world' (x forward, z up), 'opengl' (MuJoCo: looks along -z) or 'opencv'/'ros'."""
-    clipping_range_m: tuple[float, float] = (0.05, 100.0)
-    """Near and far clip distances (m); only the far one applies (rays start at the camera)."""
     data_types: tuple[str, ...] = ("rgb",)
     """Outputs of ``data.output``, a subset of ``DATA_TYPES``."""
 
     def __post_init__(self):
-        """Refuse what no camera can have: the pinhole fields by ``CameraCfg``'s rules (same
-        one-line errors), then the outputs and the axis convention."""
-        pinhole_cfg(self)
+        """The pinhole fields by ``PinholeCfg``'s rules (the CPU camera's one-line errors), then
+        the outputs and the axis convention."""
+        super().__post_init__()
         if isinstance(self.data_types, str) or not self.data_types:
             raise InvalidValueError("data_types", self.data_types, "expected a non-empty tuple of names",
                                     f"pass a subset of {DATA_TYPES}, e.g. ('rgb', 'depth')")
@@ -101,12 +89,9 @@ class TiledCameraCfg:
 
 
 def pinhole_cfg(cfg: TiledCameraCfg) -> CameraCfg:
-    """The CPU ``CameraCfg`` with the same pinhole and pose (checked by it): both cameras share
-    intrinsics and placement."""
-    return CameraCfg(prim_path=cfg.prim_path, width=cfg.width, height=cfg.height, fovy_deg=cfg.fovy_deg,
-                     focal_length_px=cfg.focal_length_px, offset_pos=cfg.offset_pos,
-                     offset_quat=cfg.offset_quat, offset_convention=cfg.offset_convention,
-                     clipping_range_m=cfg.clipping_range_m, annotators=())
+    """The CPU ``CameraCfg`` with the same pinhole and pose: both cameras share intrinsics and
+    placement."""
+    return CameraCfg(**{f.name: getattr(cfg, f.name) for f in dataclasses.fields(PinholeCfg)}, annotators=())
 
 
 @dataclass(kw_only=True)

@@ -71,7 +71,7 @@ class IMUSensor(BaseSensor):
 
     def _sample(self) -> None:
         data = self.sensor.get_current_frame()  # period 0: a fresh (noise-free) sample
-        self._last_sample_s = float(data.time_s[0])
+        self._last_sample_s = self._sim_time()  # rounded to whole steps (float32 time on a GPU)
         self._history["lin_acc"].append(data.lin_acc_b[0].clone())
         self._history["ang_vel"].append(data.ang_vel_b[0].clone())
         self._history["orientation"].append(data.quat_w[0].clone())
