@@ -109,7 +109,9 @@ def split(events, steps: int) -> dict:
     torch_ms = sum(e.cpu_time_total for e in top_aten) / 1e3 / steps
     device = collections.Counter()
     for e in events:
-        if e.device_type != DeviceType.CUDA:
+        # our record_function ranges also appear as CUDA events spanning their kernels: skip
+        # them, or every kernel would count twice (and the device look busier than the wall)
+        if e.device_type != DeviceType.CUDA or e.name in RANGES:
             continue
         kind = ("memcpy_memset" if e.name.startswith(("Memcpy", "Memset"))
                 else "warp_kernels" if "_cuda_kernel_" in e.name else "torch_kernels")
