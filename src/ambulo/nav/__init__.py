@@ -1,0 +1,36 @@
+"""Navigation for legged robots: grid maps, the footstep planner, balance (ZMP, capture point,
+centre of pressure) and the preview-control walking pattern generator."""
+
+from .balance import (
+    CaptureRegion, CenterOfPressure, FootShape, PressureCenter, capture_point, capture_region, cart_table_zmp,
+    foot_polygon, lipm_omega, polygon_signed_distance, support_polygon, zmp_in_support,
+)
+from .footstep_plot import plot_plan
+from .footsteps import (
+    FootstepPlan,
+    FootstepPlanner,
+    FootstepPlannerCfg,
+    PlanStatus,
+    humanoid_footstep_cfg,
+    plan_footsteps,
+)
+from .grid_map import GridMap
+from .preview import (
+    PreviewControlCfg, PreviewController, WalkPattern, WalkPatternCfg, WalkPatternGenerator, kajita2003_preview_cfg,
+    preview_gains, walk_pattern_cfg,
+)
+
+__all__ = [
+    "CaptureRegion", "CenterOfPressure", "FootShape", "PressureCenter", "capture_point", "capture_region",
+    "cart_table_zmp", "foot_polygon", "lipm_omega", "polygon_signed_distance", "support_polygon", "zmp_in_support",
+    "PreviewControlCfg", "PreviewController", "WalkPattern", "WalkPatternCfg", "WalkPatternGenerator",
+    "kajita2003_preview_cfg", "preview_gains", "walk_pattern_cfg",
+    "FootstepPlan",
+    "FootstepPlanner",
+    "FootstepPlannerCfg",
+    "GridMap",
+    "PlanStatus",
+    "humanoid_footstep_cfg",
+    "plan_footsteps",
+    "plot_plan",
+]

@@ -1,0 +1,244 @@
+"""The footstep lattice: the discrete successor set, its reach constants, the points that stand
+for a step in the collision test, the progress bound of the heuristic, and the straight walk.
+Built once per (config, map resolution) and cached.
+
+Frames: a foot's frame has x forward (heel to toe) and y to the robot's left, origin at the
+centre of the sole rectangle. A step places the swing foot at ``(dx, dy, dyaw)`` in the stance
+foot's frame: ``dx`` is the step length, ``|dy|`` the step width, ``dyaw`` the yaw change.
+Sides are +1 (left) and -1 (right); the swing foot is always on the other side of the stance
+foot, so from a left stance ``dy < 0`` and from a right stance ``dy > 0``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+LEFT = 1
+RIGHT = -1
+SEGMENT_SPACING_CELLS = 1.5
+"""Largest gap between test points on a leg segment, in cells. A point of the segment is then
+within 0.75 cell of a point that is at least one cell from every occupied cell, so the whole
+segment keeps >= 0.25 cell of clearance (any clearance > 0 keeps it off the obstacles)."""
+
+
+def wrap_angle(angle_rad):
+    """Angle(s) wrapped to [-pi, pi)."""
+    return (np.asarray(angle_rad) + np.pi) % (2 * np.pi) - np.pi
+
+
+def compose(pose_xyyaw, rel_xyyaw) -> np.ndarray:
+    """(..., 3) world pose of ``rel_xyyaw`` given in the frame ``pose_xyyaw`` (x m, y m, yaw rad)."""
+    pose, rel = np.asarray(pose_xyyaw, float), np.asarray(rel_xyyaw, float)
+    c, s = np.cos(pose[..., 2]), np.sin(pose[..., 2])
+    return np.stack([pose[..., 0] + c * rel[..., 0] - s * rel[..., 1],
+                     pose[..., 1] + s * rel[..., 0] + c * rel[..., 1],
+                     wrap_angle(pose[..., 2] + rel[..., 2])], axis=-1)
+
+
+def relative(pose_xyyaw, other_xyyaw) -> np.ndarray:
+    """(..., 3) ``other_xyyaw`` expressed in the frame ``pose_xyyaw``; ``compose``'s inverse."""
+    pose, other = np.asarray(pose_xyyaw, float), np.asarray(other_xyyaw, float)
+    c, s = np.cos(pose[..., 2]), np.sin(pose[..., 2])
+    dx, dy = other[..., 0] - pose[..., 0], other[..., 1] - pose[..., 1]
+    return np.stack([c * dx + s * dy, -s * dx + c * dy, wrap_angle(other[..., 2] - pose[..., 2])], axis=-1)
+
+
+def footprint_samples(foot_size_m: tuple[float, float], spacing_m: float) -> np.ndarray:
+    """(M, 2) points on a regular grid over the sole rectangle, edges and corners included, at most
+    ``spacing_m`` apart along x and y, in the foot frame, m. Every point of the sole is then within
+    ``spacing_m / sqrt(2)`` of a sample."""
+    length, width = foot_size_m
+    xs = np.linspace(-length / 2, length / 2, math.ceil(length / spacing_m - 1e-9) + 1)
+    ys = np.linspace(-width / 2, width / 2, math.ceil(width / spacing_m - 1e-9) + 1)
+    return np.stack(np.meshgrid(xs, ys, indexing="ij"), axis=-1).reshape(-1, 2)
+
+
+def rectangles_overlap(rel_xyyaw: np.ndarray, foot_size_m: tuple[float, float], gap_m: float) -> np.ndarray:
+    """(K,) bool: does a sole at ``rel_xyyaw`` (K, 3), in the frame of a sole at the origin, come
+    closer than ``gap_m`` to it? Separating-axis test on the two rectangles grown by ``gap_m / 2``."""
+    half = np.array(foot_size_m) / 2 + gap_m / 2
+    c, s = np.cos(rel_xyyaw[:, 2]), np.sin(rel_xyyaw[:, 2])
+    d = rel_xyyaw[:, :2]
+    # axes of the origin sole (x, y), then of the moved sole (u, v)
+    sep_x = np.abs(d[:, 0]) > half[0] + half[0] * np.abs(c) + half[1] * np.abs(s)
+    sep_y = np.abs(d[:, 1]) > half[1] + half[0] * np.abs(s) + half[1] * np.abs(c)
+    sep_u = np.abs(d[:, 0] * c + d[:, 1] * s) > half[0] + half[0] * np.abs(c) + half[1] * np.abs(s)
+    sep_v = np.abs(-d[:, 0] * s + d[:, 1] * c) > half[1] + half[0] * np.abs(s) + half[1] * np.abs(c)
+    return ~(sep_x | sep_y | sep_u | sep_v)
+
+
+def step_costs(rel_xyyaw: np.ndarray, cfg) -> np.ndarray:
+    """(K,) cost of steps ``rel_xyyaw`` (K, 3) (swing foot in the stance frame): 1 per step, plus
+    penalties for turning, for a width away from the nominal one and for stepping backwards."""
+    return (1.0 + cfg.yaw_cost_per_rad * np.abs(rel_xyyaw[:, 2])
+            + cfg.width_cost_per_m * np.abs(np.abs(rel_xyyaw[:, 1]) - cfg.start_width_m)
+            + cfg.backward_step_cost * (rel_xyyaw[:, 0] < 0))
+
+
+def steps_within_limits(rel_xyyaw: np.ndarray, stance_sides: np.ndarray, cfg) -> np.ndarray:
+    """(K,) bool: are steps ``rel_xyyaw`` (K, 3) from stance feet of ``stance_sides`` (K,) within the
+    length, width and yaw limits, with the swing foot on the far side and clear of the stance sole?"""
+    eps = 1e-9
+    width = -stance_sides * rel_xyyaw[:, 1]  # > 0 when the swing foot is on the correct side
+    return ((rel_xyyaw[:, 0] >= cfg.step_length_range_m[0] - eps) & (rel_xyyaw[:, 0] <= cfg.step_length_range_m[1] + eps)
+            & (width >= cfg.step_width_range_m[0] - eps) & (width <= cfg.step_width_range_m[1] + eps)
+            & (np.abs(rel_xyyaw[:, 2]) <= cfg.max_step_yaw_rad + eps)
+            & ~rectangles_overlap(rel_xyyaw, cfg.foot_size_m, cfg.min_foot_gap_m))
+
+
+@dataclass(frozen=True, eq=False)
+class Lattice:
+    """Successor tables for each stance side, the check points and the reach constants."""
+
+    actions: dict[int, np.ndarray]
+    """stance side -> (K, 3) swing-foot pose (dx m, dy m, dyaw rad) in the stance foot's frame."""
+    costs: np.ndarray
+    """(K,) cost of each action (``step_costs``; >= 1), the same on both sides (mirror images)."""
+    sole_points_m: np.ndarray
+    """(M, 2) sole samples in the foot frame, at most one cell apart (``footprint_samples``)."""
+    between_fractions: np.ndarray
+    """(B,) interior points of the segment from the stance foot's centre to the swing foot's (the
+    legs straddle no obstacle), as fractions of its length."""
+    swing_fractions: np.ndarray
+    """(J,) interior points of the swing segment (old to new position of the swing foot, which
+    must pass over no obstacle) as fractions of its length. Both fraction sets are at most
+    ``SEGMENT_SPACING_CELLS`` apart on segments up to ``max_step_reach_m`` / ``max_swing_m``."""
+    max_step_reach_m: float
+    """D_pair: max distance between the centres of consecutive footsteps (stance to swing)."""
+    max_swing_m: float
+    """D_swing: max distance one foot moves in one swing (footstep k-1 to k+1); the feet's
+    midpoint moves half as far per step."""
+    progress_m: np.ndarray
+    """(HEADING_BINS + 1, HEADING_BINS + 1, TABLE_STEPS + 1) float: entry [j0, jf, n] bounds how
+    far a chain of n footsteps (footstep k to k + n) can advance along a fixed direction when
+    footstep k's heading starts j0 pi / HEADING_BINS away from it and footstep k + n must end
+    jf pi / HEADING_BINS away (``progress_table``), m."""
+
+
+def build_lattice(cfg, resolution_m: float) -> Lattice:
+    """The lattice of ``cfg`` (a ``FootstepPlannerCfg``) for a map of ``resolution_m`` cells,
+    built once per distinct (config, resolution) in a process (it takes a few hundred ms)."""
+    key = (dataclasses.astuple(cfg), float(resolution_m))
+    if key not in _LATTICES:
+        if len(_LATTICES) >= 8:
+            _LATTICES.pop(next(iter(_LATTICES)))
+        _LATTICES[key] = _build_lattice(cfg, resolution_m)
+    return _LATTICES[key]
+
+
+_LATTICES: dict[tuple, Lattice] = {}
+
+
+def _build_lattice(cfg, resolution_m: float) -> Lattice:
+    combos = np.array(list(itertools.product(cfg.step_lengths_m, cfg.step_widths_m, cfg.step_yaws_rad)), float)
+    # side +1 (left stance): swing foot to the right (dy = -width); mirrored for a right stance
+    left = np.stack([combos[:, 0], -combos[:, 1], combos[:, 2]], axis=1)
+    left = left[steps_within_limits(left, np.full(len(left), LEFT), cfg)]
+    right = left * np.array([1.0, -1.0, -1.0])
+
+    # the start stance (feet start_width_m apart, parallel) acts as one more "previous step"
+    start_rel = np.array([[0.0, -cfg.start_width_m, 0.0]])
+    reach = float(np.hypot(*np.concatenate([left, start_rel])[:, :2].T).max())
+    # one swing moves a foot from footstep k-1 to k+1 past the stance foot k. With a left stance k,
+    # footstep k-1 is the right foot that k was placed from (k = (k-1) + a, a a right-stance action,
+    # so k-1 sits at -R(-yaw_a) t_a in k's frame) or the right start foot at (0, -start_width).
+    prev_in_k = np.concatenate([-_rotate(right[:, :2], -right[:, 2]), start_rel[:, :2]])
+    swing = float(np.hypot(*(left[:, None, :2] - prev_in_k[None, :, :]).reshape(-1, 2).T).max())
+
+    progress = progress_table(left, cfg.max_step_yaw_rad)
+    spacing_m = SEGMENT_SPACING_CELLS * resolution_m
+    num_between = max(0, math.ceil(reach / spacing_m - 1e-9) - 1)
+    num_swing = max(0, math.ceil(swing / spacing_m - 1e-9) - 1)
+    return Lattice(actions={LEFT: left, RIGHT: right}, costs=step_costs(left, cfg),
+                   sole_points_m=footprint_samples(cfg.foot_size_m, resolution_m),
+                   between_fractions=np.arange(1, num_between + 1) / (num_between + 1),
+                   swing_fractions=np.arange(1, num_swing + 1) / (num_swing + 1),
+                   max_step_reach_m=reach, max_swing_m=swing, progress_m=progress)
+
+
+HEADING_BINS = 64
+TABLE_STEPS = 48
+"""Steps in ``Lattice.progress_m``; beyond them every step adds at most the full rate."""
+
+
+def progress_table(left_actions: np.ndarray, max_step_yaw_rad: float) -> np.ndarray:
+    """The ``Lattice.progress_m`` table from the actions of a left stance (K, 3) and their mirror images.
+
+    Consecutive steps alternate sides, so a pair of them (left-stance action then right-stance
+    action, or the reverse) moves a footstep to the one two later by t1 + R(yaw1) t2: forward up
+    to two step lengths, sideways only the difference of two widths. Along a direction at angle b
+    from the first footstep's heading that advances at most S2(b), the support function of all
+    pair displacements (on 256 angles, plus the most it can change between two of them);
+    U2(x) = max over |b| >= x of S2(b) does not increase with x. Per step we count u = U2 / 2:
+    for a pair starting at b, u(b) + u(b - dyaw_max) >= U2(b), so a chain of footsteps advances at
+    most the sum of u over its steps, plus ``c1`` = max (S1 - u) for an odd step out (S1: one
+    action). Footstep k's heading is at least max(b0 - k dyaw, bf - (n - k) dyaw, 0) away from
+    the direction when the chain starts b0 away and its footstep n must end bf away; angles are
+    rounded down to the table's grid (which only raises u).
+
+    Returns (HEADING_BINS + 1, HEADING_BINS + 1, TABLE_STEPS + 1): [j0, jf, n] for b0 = j0 pi / HEADING_BINS,
+    bf = jf pi / HEADING_BINS, n steps."""
+    right_actions = left_actions * np.array([1.0, -1.0, -1.0])
+    singles = np.concatenate([left_actions[:, :2], right_actions[:, :2]])
+    pairs = np.concatenate([
+        (first[:, None, :2] + _rotate(second[None, :, :2], first[:, None, 2])).reshape(-1, 2)
+        for first, second in ((left_actions, right_actions), (right_actions, left_actions))])
+    angles = np.linspace(-np.pi, np.pi, 257)
+    e = np.stack([np.cos(angles), np.sin(angles)])
+    grid = np.linspace(0.0, np.pi, HEADING_BINS + 1)
+
+    def envelope(points):  # U on the grid
+        support = (points @ e).max(axis=0) + np.hypot(*points.T).max() * (angles[1] - angles[0]) / 2
+        return np.array([support[np.abs(angles) >= x - 1e-12].max() for x in grid])
+
+    per_step = envelope(pairs) / 2
+    odd_step_out = max(float((envelope(singles) - per_step).max()), 0.0)
+    step = np.pi / HEADING_BINS
+    table = np.zeros((HEADING_BINS + 1, HEADING_BINS + 1, TABLE_STEPS + 1))
+    x0, xf = grid[:, None, None], grid[None, :, None]
+    for n in range(1, TABLE_STEPS + 1):
+        k = np.arange(n)[None, None, :]
+        heading = np.maximum(np.maximum(x0 - max_step_yaw_rad * k, xf - max_step_yaw_rad * (n - k)), 0.0)
+        table[:, :, n] = per_step[np.floor(heading / step + 1e-9).astype(int)].sum(axis=2) + odd_step_out
+    return table
+
+
+def walk_to(stance_xyyaw: np.ndarray, stance_side: int, target_xy, cfg, *, final_yaw: float | None = None
+            ) -> np.ndarray:
+    """(n, 3) footsteps that turn in place to face ``target_xy``, walk straight to it and, given
+    ``final_yaw``, turn in place to that yaw and bring the feet together (ending in the nominal
+    stance at the target). They start from the stance foot ``stance_xyyaw`` of ``stance_side``
+    (the other foot moves first) and follow a body pose placed as if that foot stood in the
+    nominal stance. Nothing is checked here: the planner checks these steps like any other.
+    This is Hybrid A*'s "analytic expansion" (Dolgov et al. 2008) for a legged robot."""
+    half = cfg.start_width_m / 2
+    body = compose(stance_xyyaw, np.array([0.0, -stance_side * half, 0.0]))
+    distance = math.hypot(target_xy[0] - body[0], target_xy[1] - body[1])
+    walks = distance > 0.25 * cfg.goal_tolerance_m
+    heading = math.atan2(target_xy[1] - body[1], target_xy[0] - body[0]) if walks else body[2]
+    turn_step, walk_step = 0.95 * cfg.max_step_yaw_rad, 0.95 * cfg.step_length_range_m[1]
+    turn1 = float(wrap_angle(heading - body[2]))
+    turn2 = 0.0 if final_yaw is None else float(wrap_angle(final_yaw - heading))
+    n1, n3 = math.ceil(abs(turn1) / turn_step - 1e-9), math.ceil(abs(turn2) / turn_step - 1e-9)
+    n2 = math.ceil(distance / walk_step - 1e-9) if walks else 0
+    # the body pose after each step
+    yaws = np.concatenate([body[2] + turn1 * np.arange(1, n1 + 1) / max(n1, 1), np.full(n2, heading),
+                           heading + turn2 * np.arange(1, n3 + 1) / max(n3, 1)])
+    along = np.concatenate([np.zeros(n1), distance * np.arange(1, n2 + 1) / max(n2, 1), np.full(n3, distance)])
+    if final_yaw is not None:  # one more step with the same body pose: the feet side by side
+        yaws = np.append(yaws, yaws[-1] if len(yaws) else body[2])
+        along = np.append(along, along[-1] if len(along) else 0.0)
+    xy = body[:2] + along[:, None] * np.array([math.cos(heading), math.sin(heading)])
+    sides = -stance_side * (-1) ** np.arange(len(yaws))  # the other foot first, then alternating
+    c, s = np.cos(yaws), np.sin(yaws)
+    return np.stack([xy[:, 0] - s * sides * half, xy[:, 1] + c * sides * half, wrap_angle(yaws)], axis=1)
+
+
+def _rotate(xy: np.ndarray, yaw_rad) -> np.ndarray:
+    c, s = np.cos(yaw_rad), np.sin(yaw_rad)
+    return np.stack([c * xy[..., 0] - s * xy[..., 1], s * xy[..., 0] + c * xy[..., 1]], axis=-1)

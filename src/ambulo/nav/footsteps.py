@@ -1,0 +1,425 @@
+"""Footstep planner: weighted A* over a footstep lattice on a ``GridMap``, with alternating feet,
+the module's reach limits, sole-shaped collision checks, step up/down limits, an admissible
+heuristic, goal tolerances, a time budget that returns the best partial plan, and an explicit
+failure reason (``PlanStatus``).
+
+Search. A node is a footstep (x, y, yaw, side) with its exact continuous pose, so every step of a
+plan is exactly one lattice action (``footstep_lattice``) or one step of a straight walk, and
+the limits hold exactly. Duplicates are pruned per cell of ``state_resolution_m`` x
+2 pi / ``state_yaw_bins`` and side, in a dense array. Each expansion generates, transforms and
+tests all K successors with array operations (``FootstepChecks.steps``: sole samples, leg
+segments and the body's crossed cells, each gathered from the map at once) and pushes them into
+the open list as one f-sorted batch (one heap entry per batch, re-inserted with its next element
+when its head is popped), so no Python code runs per successor. f = g + w h with the admissible
+h of ``footstep_heuristic``; w = ``heuristic_weight``.
+
+Straight walks (Hybrid A*'s analytic expansion, Dolgov et al. 2008, for feet). When a node comes
+closer to the goal than any before, the planner tries ``walk_to`` the goal (turn in place, walk
+straight, turn to the goal yaw, feet together) and ends there if every step passes the same
+tests. Otherwise it walks straight to the farthest point of the body path that the body can
+reach in a straight line (``GoalHeuristic.waypoint``), opens that footstep as a node, and
+repeats from it up to ``MAX_WALKS`` times. On maps where the body path exists and the feet fit
+wherever the body does, this finds a plan in a few walks; the lattice search covers the rest
+(tight spots, steps in the height map).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import heapq
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..utils.checks import InvalidValueError, check_int, check_positive, check_range, check_vector
+from .footstep_checks import FootstepChecks
+from .footstep_heuristic import GoalHeuristic
+from .footstep_lattice import LEFT, RIGHT, build_lattice, compose, relative, step_costs, steps_within_limits, walk_to
+from .grid_map import GridMap
+
+MAX_WALKS = 8
+"""Straight walks chained along the body path from one node before the search resumes."""
+
+
+@dataclass(kw_only=True)
+class FootstepPlannerCfg:
+    """Footstep planner settings. Limits are the module's (issue 14); lengths in m, angles in rad."""
+
+    foot_size_m: tuple[float, float] = (0.22, 0.10)
+    """Sole rectangle (length along the foot's x, width along its y), centred on the foot frame."""
+    step_lengths_m: tuple[float, ...]
+    """Lattice values of the step length: swing foot x in the stance foot's frame."""
+    step_widths_m: tuple[float, ...]
+    """Lattice values of the step width: |swing foot y| in the stance foot's frame."""
+    step_yaws_rad: tuple[float, ...]
+    """Lattice values of the yaw change (swing foot yaw - stance foot yaw), mirrored for a right stance."""
+    step_length_range_m: tuple[float, float] = (-0.10, 0.35)
+    """Limits of the step length, m (any step of a plan, lattice or straight walk)."""
+    step_width_range_m: tuple[float, float] = (0.12, 0.30)
+    """Limits of the step width, m; the swing foot lands on its own side of the stance foot."""
+    max_step_yaw_rad: float = 0.3
+    """Limit of |yaw change| per step, rad."""
+    min_foot_gap_m: float = 0.01
+    """Consecutive soles keep at least this distance (the swing foot never lands on the stance foot)."""
+    body_clearance_m: float = 0.25
+    """The feet's midpoint (the body's ground track) keeps this distance from obstacles: about half
+    a humanoid's shoulder width, so it does not squeeze through gaps only its feet fit in (with
+    5 cm cells, gaps under about 2 x (0.25 + 0.035) m = 0.57 m are closed)."""
+    start_width_m: float = 0.20
+    """Distance between the two parallel feet of the start and goal stances (the nominal width)."""
+    max_step_up_m: float = 0.15
+    """Largest rise from the stance foot's terrain height to the new foot's, m (height maps)."""
+    max_step_down_m: float = 0.15
+    max_foothold_spread_m: float = 0.02
+    """A foothold is flat enough when the height map varies by at most this much under the sole."""
+    goal_tolerance_m: float = 0.10
+    """The goal is reached when the midpoint of the last two feet is this close to it."""
+    goal_tolerance_yaw_rad: float = 0.20
+    """... and their mean yaw this close to the goal yaw."""
+    time_budget_s: float = 0.10
+    """Wall time of one query, s; then the best partial plan comes back (``BUDGET_EXHAUSTED``)."""
+    max_expansions: int | None = None
+    """Stop after this many expansions as well (deterministic budgets for tests); None: time only."""
+    heuristic_weight: float = 3.0
+    """w in f = g + w h (weighted A*; 1 is A*). Over lattice steps, a plan costs at most w times
+    the best plan the pruning leaves. humanoid_navigation's ARA* starts at 8
+    (``planning_params.yaml``). Lattice steps only, 1 s, 40 rooms of ``benchmarks/footsteps.py``:
+    w = 2 plans 50 %, w = 3 95 % (median 28 steps), w = 5 97.5 % (median 32 steps)."""
+    state_resolution_m: float = 0.05
+    """Footsteps within one such cell (and yaw bin, same side) count as one state, m."""
+    state_yaw_bins: int = 64
+    yaw_cost_per_rad: float = 0.3
+    """Step cost per rad of yaw change (on top of 1 per step)."""
+    width_cost_per_m: float = 1.0
+    """Cost per m of step width away from ``start_width_m``."""
+    backward_step_cost: float = 0.5
+    """Extra cost of a step with a negative length."""
+    walk_along_body_path: bool = True
+    """From every node that comes closer to the goal than any before, try straight walks: to the
+    goal, else along the body path (module docstring). False: lattice steps only."""
+
+
+def humanoid_footstep_cfg(**overrides) -> FootstepPlannerCfg:
+    """The module's limits (length -0.10..0.35 m, width 0.12..0.30 m, |yaw change| <= 0.3 rad) on a
+    lattice of 8 lengths x 4 widths x 5 yaw changes: 144 successors once the 16 whose sole would
+    come within ``min_foot_gap_m`` of the stance sole are removed."""
+    values = dict(step_lengths_m=(-0.10, 0.0, 0.05, 0.10, 0.15, 0.20, 0.275, 0.35),
+                  step_widths_m=(0.12, 0.18, 0.24, 0.30),
+                  step_yaws_rad=(-0.30, -0.15, 0.0, 0.15, 0.30))
+    values.update(overrides)
+    return FootstepPlannerCfg(**values)
+
+
+def check_footstep_cfg(cfg: FootstepPlannerCfg) -> None:
+    """Raise ``InvalidValueError`` naming the first setting that is out of range."""
+    size = check_vector("foot_size_m", cfg.foot_size_m, 2, "pass (length, width) of the sole in m")
+    if min(size) <= 0:
+        raise InvalidValueError("foot_size_m", cfg.foot_size_m, "both sides must be > 0", "e.g. (0.22, 0.10)")
+    lo_len, hi_len = check_range("step_length_range_m", cfg.step_length_range_m, "e.g. (-0.10, 0.35)",
+                                 minimum=-math.inf)
+    lo_w, hi_w = check_range("step_width_range_m", cfg.step_width_range_m, "e.g. (0.12, 0.30)")
+    max_yaw = check_positive("max_step_yaw_rad", cfg.max_step_yaw_rad, "e.g. 0.3")
+    for name, values, lo, hi in (("step_lengths_m", cfg.step_lengths_m, lo_len, hi_len),
+                                 ("step_widths_m", cfg.step_widths_m, lo_w, hi_w),
+                                 ("step_yaws_rad", cfg.step_yaws_rad, -max_yaw, max_yaw)):
+        if len(values) == 0 or any(not (lo - 1e-12 <= v <= hi + 1e-12) for v in values):
+            raise InvalidValueError(name, values, f"every value must lie in [{lo:g}, {hi:g}]",
+                                    "sample the lattice inside the step limits")
+    if not lo_w <= cfg.start_width_m <= hi_w:
+        raise InvalidValueError("start_width_m", cfg.start_width_m, f"it must lie in [{lo_w:g}, {hi_w:g}]",
+                                "start and goal stances must be reachable stances")
+    for name in ("goal_tolerance_m", "goal_tolerance_yaw_rad", "time_budget_s", "state_resolution_m",
+                 "max_step_up_m", "max_step_down_m", "max_foothold_spread_m"):
+        check_positive(name, getattr(cfg, name), "pass a positive number")
+    if not cfg.heuristic_weight >= 1.0:
+        raise InvalidValueError("heuristic_weight", cfg.heuristic_weight, "it must be >= 1",
+                                "1 is A*; larger values trade plan cost for speed")
+    check_int("state_yaw_bins", cfg.state_yaw_bins, "e.g. 64", minimum=1)
+    if cfg.max_expansions is not None:
+        check_int("max_expansions", cfg.max_expansions, "pass None or a positive count", minimum=1)
+
+
+class PlanStatus(enum.Enum):
+    """How a planning query ended."""
+
+    SUCCESS = "success"
+    START_IN_COLLISION = "start_in_collision"
+    """A start sole touches an obstacle or leaves the map, or the body lacks its clearance there."""
+    GOAL_IN_COLLISION = "goal_in_collision"
+    """The same for the nominal stance at the goal."""
+    GOAL_UNREACHABLE = "goal_unreachable"
+    """No path of body cells joins start and goal (found before searching), or every reachable
+    footstep was expanded; the plan is the best partial one."""
+    BUDGET_EXHAUSTED = "budget_exhausted"
+    """Time (or expansion) budget spent; the plan is the best partial one: it ends at the expanded
+    footstep with the smallest heuristic."""
+
+
+@dataclass(frozen=True, eq=False)
+class FootstepPlan:
+    """A plan: the two start feet, then one footstep per step, alternating sides."""
+
+    status: PlanStatus
+    footsteps_xyyaw_w: np.ndarray
+    """(num_steps + 2, 3) float64 foot poses in the world frame (x m, y m, yaw rad). Rows 0 and 1
+    are the start feet (row 1 is the first stance foot, row 0 the first to move); row i >= 2 is
+    step i - 1, placed from the stance foot at row i - 1."""
+    foot_sides: np.ndarray
+    """(num_steps + 2,) int8: +1 for a left foot, -1 for a right foot."""
+    foot_z_m: np.ndarray
+    """(num_steps + 2,) float64 terrain height under each foot (0 without a height map), m."""
+    cost: float
+    """Sum of the step costs (1 per step plus the penalties of ``step_costs``)."""
+    expansions: int
+    planning_time_s: float
+    """From the ``plan`` call to its return, s."""
+    detail: str = ""
+    """One line on why the plan ended (empty on success)."""
+
+    @property
+    def num_steps(self) -> int:
+        return len(self.footsteps_xyyaw_w) - 2
+
+
+class FootstepPlanner:
+    """Plans footsteps on one map; build it once per map and reuse it for many queries."""
+
+    def __init__(self, grid: GridMap, cfg: FootstepPlannerCfg | None = None):
+        self.cfg = cfg = humanoid_footstep_cfg() if cfg is None else cfg
+        check_footstep_cfg(cfg)
+        if not isinstance(grid, GridMap):
+            raise InvalidValueError("grid", type(grid).__name__, "expected a GridMap",
+                                    "build one with GridMap.from_array(occupied, resolution_m=...)")
+        self.grid = grid
+        self.lattice = build_lattice(cfg, grid.resolution_m)
+        self.checks = FootstepChecks(grid, cfg, self.lattice)
+        num_y, num_x = grid.shape
+        self._key_shape = (2, math.ceil(num_y * grid.resolution_m / cfg.state_resolution_m),
+                           math.ceil(num_x * grid.resolution_m / cfg.state_resolution_m), cfg.state_yaw_bins)
+        # per pruning cell: 0 unseen, g + 1 while open, -(g + 1) once expanded. np.zeros maps pages
+        # lazily, so only what a search touches costs memory; touched cells are reset after it.
+        self._state = np.zeros(int(np.prod(self._key_shape)))
+        self._pool = _Pool()
+        self.heuristic: GoalHeuristic | None = None
+        """The heuristic of the last query (its distance fields and ``steps_left``)."""
+
+    def stance_feet(self, body_xyyaw_w) -> np.ndarray:
+        """(2, 3) left and right foot poses of the nominal stance at a body pose (x, y, yaw), world frame."""
+        w = self.cfg.start_width_m / 2
+        return compose(np.asarray(body_xyyaw_w, float), np.array([[0.0, w, 0.0], [0.0, -w, 0.0]]))
+
+    def plan(self, start_xyyaw_w, goal_xyyaw_w, *, time_budget_s: float | None = None) -> FootstepPlan:
+        """Plan from the nominal stance at the start body pose to the goal body pose (within the
+        tolerances); both (x m, y m, yaw rad) in the world frame, body = midpoint of the feet."""
+        t0 = time.perf_counter()
+        cfg, checks = self.cfg, self.checks
+        start = np.array(check_vector("start_xyyaw_w", start_xyyaw_w, 3, "pass (x m, y m, yaw rad)"))
+        goal = np.array(check_vector("goal_xyyaw_w", goal_xyyaw_w, 3, "pass (x m, y m, yaw rad)"))
+        budget_s = cfg.time_budget_s if time_budget_s is None else check_positive(
+            "time_budget_s", time_budget_s, "pass seconds, e.g. 0.1")
+        start_feet = self.stance_feet(start)
+        self._pool = pool = _Pool()
+        # nodes 0-1: right foot moves first, left foot stands; nodes 2-3: the mirror image
+        for stance, other in ((0, 1), (1, 0)):
+            pool.add(start_feet[[other, stance]], np.array([checks.sole_height(start_feet[i]) for i in (other, stance)]),
+                     np.array([(LEFT, RIGHT)[other], (LEFT, RIGHT)[stance]], np.int8), np.array([-1, pool.size]),
+                     np.zeros(2), np.zeros(2), np.zeros(2), np.full(2, -1), np.zeros(2, bool))
+
+        def result(status, node=1, detail="", expansions=0):
+            poses, sides, z = pool.path(node)
+            return FootstepPlan(status=status, footsteps_xyyaw_w=poses, foot_sides=sides, foot_z_m=z,
+                                cost=float(pool.g[node]), expansions=expansions,
+                                planning_time_s=time.perf_counter() - t0, detail=detail)
+
+        if checks.stance_blocked(start_feet):
+            return result(PlanStatus.START_IN_COLLISION, detail=f"the stance at {start} touches an obstacle")
+        if checks.stance_blocked(self.stance_feet(goal)):
+            return result(PlanStatus.GOAL_IN_COLLISION, detail=f"the stance at the goal {goal} touches an obstacle")
+        self.heuristic = heuristic = GoalHeuristic(checks, goal)
+        if not heuristic.reachable(start[0], start[1]):
+            return result(PlanStatus.GOAL_UNREACHABLE, detail="no path of body cells joins the start and the goal")
+        if heuristic.is_goal(start_feet[[0]], start_feet[1])[0]:
+            return result(PlanStatus.SUCCESS)
+        open_list: list = []
+        for root in (1, 3):
+            if self._open_node(root):
+                heapq.heappush(open_list, (pool.f[root], 0.0, root, root + 1))
+        best = (math.inf, math.inf, 1)  # (h, g, node) of the expanded footstep closest to the goal
+        expansions, max_expansions, state = 0, cfg.max_expansions or math.inf, self._state
+        try:
+            while open_list:
+                _, _, pos, end = heapq.heappop(open_list)
+                if pos + 1 < end:
+                    heapq.heappush(open_list, (pool.f[pos + 1], -pool.g[pos + 1], pos + 1, end))
+                key, g = pool.key[pos], pool.g[pos]
+                if state[key] < 0 or g + 1.0 > state[key]:
+                    continue  # expanded already, or reached again more cheaply since
+                state[key] = -(g + 1.0)
+                if pool.goal[pos]:
+                    return result(PlanStatus.SUCCESS, pos, expansions=expansions)
+                if (pool.h[pos], g) < best[:2]:
+                    best = (pool.h[pos], g, pos)
+                    walk_end = self._walk_along_body_path(pos, open_list) if cfg.walk_along_body_path else None
+                    if walk_end is not None:
+                        return result(PlanStatus.SUCCESS, walk_end, expansions=expansions)
+                if expansions >= max_expansions or time.perf_counter() - t0 > budget_s:
+                    return result(PlanStatus.BUDGET_EXHAUSTED, best[2], expansions=expansions,
+                                  detail=f"budget spent after {expansions} expansions; best partial plan")
+                expansions += 1
+                batch = self._expand(pos)
+                if batch is not None:
+                    heapq.heappush(open_list, (pool.f[batch[0]], -pool.g[batch[0]], *batch))
+            return result(PlanStatus.GOAL_UNREACHABLE, best[2], expansions=expansions,
+                          detail="every reachable footstep was expanded; best partial plan")
+        finally:
+            touched = pool.key[:pool.size]
+            state[touched[touched >= 0]] = 0.0
+
+    # -- search internals -------------------------------------------------------------------
+    def _keys(self, poses: np.ndarray, sides: np.ndarray) -> np.ndarray:
+        """(K,) flat index of the pruning cell of footsteps (K, 3) with sides (K,)."""
+        _, num_ky, num_kx, bins = self._key_shape
+        ox, oy = self.grid.origin_xy_m
+        res = self.cfg.state_resolution_m
+        kx = np.clip(((poses[:, 0] - ox) / res).astype(np.intp), 0, num_kx - 1)
+        ky = np.clip(((poses[:, 1] - oy) / res).astype(np.intp), 0, num_ky - 1)
+        kyaw = ((poses[:, 2] + np.pi) * (bins / (2 * np.pi))).astype(np.intp) % bins
+        return (((sides > 0) * num_ky + ky) * num_kx + kx) * bins + kyaw
+
+    def _expand(self, i: int) -> tuple[int, int] | None:
+        """Generate, test and store every successor of footstep ``i``; returns the pool range
+        [start, end) of those kept, sorted by f (then larger g), or None if none was kept."""
+        pool, lat, cfg = self._pool, self.lattice, self.cfg
+        stance, side = pool.pose[i], int(pool.side[i])
+        new = compose(stance, lat.actions[side])  # (K, 3)
+        g = pool.g[i] + lat.costs
+        sides = np.full(len(new), -side, np.int8)
+        keys = self._keys(new, sides)
+        record = self._state[keys]
+        keep = np.flatnonzero((record == 0) | (g + 1.0 < record))  # new cells, or reached more cheaply
+        free, new_z = self.checks.steps(pool.pose[pool.parent[i], :2], stance, new[keep])
+        if self.checks.height is not None:
+            free &= self.checks.rise_ok(new_z - pool.z[i])
+        keep, new_z = keep[free], new_z[free]
+        h = self.heuristic.steps_left(new[keep], stance)
+        finite = np.isfinite(h)
+        keep, new_z, h = keep[finite], new_z[finite], h[finite]
+        if keep.size == 0:
+            return None
+        new, g, sides, keys = new[keep], g[keep], sides[keep], keys[keep]
+        self._state[keys] = g + 1.0
+        f = g + cfg.heuristic_weight * h
+        order = np.lexsort((-g, f))
+        order = order[self._state[keys[order]] == g[order] + 1.0]  # of two in one pruning cell, the one written
+        start = pool.add(new[order], new_z[order], sides[order], np.full(len(order), i), g[order], f[order],
+                         h[order], keys[order], self.heuristic.is_goal(new[order], stance))
+        return start, start + len(order)
+
+    def _open_node(self, i: int) -> bool:
+        """Give footstep ``i`` (a root or the end of a walk) its pruning key, h and f, and record
+        it as open; False if its cell is expanded already, reached more cheaply, or dead."""
+        pool = self._pool
+        key = self._keys(pool.pose[[i]], pool.side[[i]])[0]
+        record = self._state[key]
+        if record < 0 or (record > 0 and pool.g[i] + 1.0 >= record):
+            return False
+        pool.key[i] = key
+        pool.h[i] = self.heuristic.steps_left(pool.pose[[i]], pool.pose[pool.parent[i]])[0]
+        pool.f[i] = pool.g[i] + self.cfg.heuristic_weight * pool.h[i]
+        self._state[key] = pool.g[i] + 1.0
+        return bool(np.isfinite(pool.h[i]))
+
+    def _walk(self, i: int, target_xy, final_yaw: float | None = None) -> int | None:
+        """If the straight walk (``walk_to``) from footstep ``i`` to ``target_xy`` (then turning to
+        ``final_yaw``, feet together: the goal) passes every test, store its footsteps and return
+        the last one's node; else None."""
+        pool, cfg, lat, checks = self._pool, self.cfg, self.lattice, self.checks
+        stance, side = pool.pose[i], int(pool.side[i])
+        walk = walk_to(stance, side, target_xy, cfg, final_yaw=final_yaw)
+        if len(walk) == 0:
+            return None
+        chain = np.concatenate([pool.pose[[pool.parent[i], i]], walk])
+        sides = np.int8(side) * (-1) ** np.arange(len(chain) + 1, dtype=np.int8)[1:]
+        rel = relative(chain[1:-1], chain[2:])
+        # the segment checks are spaced for the lattice's longest moves: longer walks are refused
+        if (not steps_within_limits(rel, sides[1:-1], cfg).all()
+                or np.hypot(*rel[:, :2].T).max() > lat.max_step_reach_m
+                or np.hypot(*(chain[2:, :2] - chain[:-2, :2]).T).max() > lat.max_swing_m):
+            return None
+        free, z = checks.steps(chain[:-2, :2], chain[1:-1], chain[2:])
+        if checks.height is not None:
+            free &= checks.rise_ok(z - np.concatenate([[pool.z[i]], z[:-1]]))
+        if not free.all():
+            return None
+        g = pool.g[i] + np.cumsum(step_costs(rel, cfg))
+        n = len(walk)
+        at_goal = np.zeros(n, bool)
+        at_goal[-1] = final_yaw is not None
+        start = pool.add(walk, z, sides[2:], np.concatenate([[i], pool.size + np.arange(n - 1)]), g, g,
+                         np.zeros(n), np.full(n, -1), at_goal)
+        return start + n - 1
+
+    def _walk_along_body_path(self, i: int, open_list: list) -> int | None:
+        """From footstep ``i``: walk straight to the goal if that passes (returns the last node);
+        else walk straight to ``GoalHeuristic.waypoint``, open that node and repeat from it, up to
+        ``MAX_WALKS`` times (returns None)."""
+        pool, goal = self._pool, self.heuristic.goal
+        for _ in range(MAX_WALKS):
+            walk_end = self._walk(i, goal[:2], goal[2])
+            if walk_end is not None:
+                return walk_end
+            waypoint = self.heuristic.waypoint(0.5 * (pool.pose[i, :2] + pool.pose[pool.parent[i], :2]))
+            walk_end = None if waypoint is None else self._walk(i, waypoint)
+            if walk_end is None or not self._open_node(walk_end):
+                return None
+            heapq.heappush(open_list, (pool.f[walk_end], -pool.g[walk_end], walk_end, walk_end + 1))
+            i = walk_end
+        return None
+
+
+class _Pool:
+    """Every generated footstep, in growable arrays (row = node id)."""
+
+    def __init__(self, capacity: int = 1 << 14):
+        self.size = 0
+        self.pose = np.empty((capacity, 3))
+        self.z, self.g, self.f, self.h = (np.empty(capacity) for _ in range(4))
+        self.side = np.empty(capacity, np.int8)
+        self.parent = np.empty(capacity, np.intp)
+        self.key = np.empty(capacity, np.intp)
+        self.goal = np.empty(capacity, bool)
+
+    def add(self, pose, z, side, parent, g, f, h, key, goal) -> int:
+        """Append n nodes (arrays of length n); returns the id of the first."""
+        start, n = self.size, len(pose)
+        if start + n > len(self.g):
+            for name in ("pose", "z", "g", "f", "h", "side", "parent", "key", "goal"):
+                old = getattr(self, name)
+                grown = np.empty((max(2 * len(old), start + n), *old.shape[1:]), old.dtype)
+                grown[:start] = old[:start]
+                setattr(self, name, grown)
+        rows = slice(start, start + n)
+        self.pose[rows], self.z[rows], self.side[rows], self.parent[rows] = pose, z, side, parent
+        self.g[rows], self.f[rows], self.h[rows], self.key[rows], self.goal[rows] = g, f, h, key, goal
+        self.size = start + n
+        return start
+
+    def path(self, node: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Poses (n, 3), sides (n,) and heights (n,) from the root to ``node``."""
+        chain = []
+        while node >= 0:
+            chain.append(node)
+            node = int(self.parent[node])
+        chain = np.array(chain[::-1])
+        return self.pose[chain].copy(), self.side[chain].copy(), self.z[chain].copy()
+
+
+def plan_footsteps(grid: GridMap, start_xyyaw_w, goal_xyyaw_w, cfg: FootstepPlannerCfg | None = None
+                   ) -> FootstepPlan:
+    """One query on a fresh ``FootstepPlanner``; ``planning_time_s`` includes the map preprocessing."""
+    t0 = time.perf_counter()
+    plan = FootstepPlanner(grid, cfg).plan(start_xyyaw_w, goal_xyyaw_w)
+    return dataclasses.replace(plan, planning_time_s=time.perf_counter() - t0)

@@ -1,0 +1,26 @@
+"""The navigation examples run headless and produce what they say."""
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+NAV_EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "nav"
+
+
+def run_nav_example(file_name: str, *argv: str) -> dict:
+    spec = importlib.util.spec_from_file_location(f"nav_example_{Path(file_name).stem}", NAV_EXAMPLES / file_name)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.main(list(argv))
+
+
+def test_preview_walk_pattern_draws_a_balanced_walk(tmp_path):
+    pytest.importorskip("matplotlib")
+    png = tmp_path / "walk.png"
+    out = run_nav_example("preview_walk_pattern.py", "--steps", "4", "--png", str(png))
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 20_000
+    # 4 steps of 0.2 m, the last one closing the stance: the CoM comes to rest over x = 0.6 m
+    assert out["com_travel_m"] == pytest.approx(0.6, abs=2e-3)
+    assert out["max_zmp_error_m"] < 5e-3
+    assert out["min_zmp_margin_m"] > 0.02

@@ -1,0 +1,363 @@
+"""Footstep planner: hand-checkable plans, failure reasons, the heuristic's bound, the grid-map
+geometry against brute force, and the benchmark's independent shapely checker (also run on a
+few benchmark maps)."""
+
+import heapq
+import importlib.util
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+shapely = pytest.importorskip("shapely")
+from shapely.geometry import LineString, box  # noqa: E402
+
+from ambulo.nav import FootstepPlanner, GridMap, PlanStatus, humanoid_footstep_cfg, plan_footsteps  # noqa: E402
+from ambulo.nav.footstep_checks import FootstepChecks  # noqa: E402
+from ambulo.nav.footstep_heuristic import GoalHeuristic  # noqa: E402
+from ambulo.nav.footstep_lattice import LEFT, RIGHT, build_lattice, compose, relative, steps_within_limits  # noqa: E402
+from ambulo.nav.grid_map import chamfer_distance_m, crossed_cells, near_occupied  # noqa: E402
+from ambulo.utils.checks import InvalidValueError  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def load_benchmark():
+    spec = importlib.util.spec_from_file_location("footsteps_benchmark", ROOT / "benchmarks" / "footsteps.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+BENCH = load_benchmark()
+
+
+def corridor(length_m=6.0, width_m=2.0) -> GridMap:
+    """A free strip with walls (one cell thick) along its long sides and ends."""
+    grid = GridMap.empty((length_m, width_m), resolution_m=0.05)
+    grid.occupied[[0, -1], :] = True
+    grid.occupied[:, [0, -1]] = True
+    return grid
+
+
+def obstacles_of(grid: GridMap):
+    """Occupied cells as shapely boxes, for the independent checker."""
+    iy, ix = np.nonzero(grid.occupied)
+    r = grid.resolution_m
+    return [box(x * r, y * r, (x + 1) * r, (y + 1) * r) for y, x in zip(iy, ix)]
+
+
+def assert_valid(plan, grid, goal=None, body_clearance_m=0.25):
+    """Every step passes the benchmark's shapely checker (which shares no planner code)."""
+    # the checker's room is the benchmark's 10 m square; these maps lie inside it
+    problems = BENCH.check_plan(plan.footsteps_xyyaw_w, plan.foot_sides, obstacles_of(grid), goal,
+                                body_clearance_m=body_clearance_m)
+    assert problems == [], problems[:5]
+
+
+# -- hand-checkable plans ----------------------------------------------------------------------
+def test_straight_corridor_walk_has_the_expected_steps():
+    grid = corridor()
+    plan = plan_footsteps(grid, (0.5, 1.0, 0.0), (4.0, 1.0, 0.0))
+    assert plan.status is PlanStatus.SUCCESS
+    # the straight walk: 3.5 m in 11 steps of 3.5 / 11 = 0.318 m (<= 0.95 x 0.35), then the
+    # trailing foot steps beside the leading one
+    assert plan.num_steps == 12
+    rel = relative(plan.footsteps_xyyaw_w[1:-1], plan.footsteps_xyyaw_w[2:])
+    np.testing.assert_allclose(rel[:-1, 0], 3.5 / 11, atol=1e-9)
+    np.testing.assert_allclose(np.abs(rel[:, 1]), 0.20, atol=1e-9)
+    assert rel[-1, 0] == pytest.approx(0.0, abs=1e-9)
+    assert_valid(plan, grid, goal=np.array([4.0, 1.0, 0.0]))
+
+
+@pytest.fixture(scope="module")
+def optimal_corridor_plan():
+    """A* (w = 1) on lattice steps in a 4 m x 1.2 m corridor: (planner, plan)."""
+    grid = corridor(length_m=4.0, width_m=1.2)
+    planner = FootstepPlanner(grid, humanoid_footstep_cfg(walk_along_body_path=False, heuristic_weight=1.0,
+                                                          time_budget_s=10.0))
+    return planner, planner.plan((0.6, 0.6, 0.0), (2.7, 0.6, 0.0))
+
+
+def test_lattice_search_finds_the_fewest_steps(optimal_corridor_plan):
+    # A* (w = 1) on lattice steps without turns: the midpoint starts 2.1 m short; after k steps of
+    # 0.35 m it has advanced 0.35 k - 0.175 and must end within 0.1 m: ceil(2.175 / 0.35) = 7 steps
+    grid = corridor(length_m=4.0, width_m=1.2)
+    cfg = humanoid_footstep_cfg(walk_along_body_path=False, heuristic_weight=1.0, time_budget_s=10.0,
+                                step_yaws_rad=(0.0,))
+    plan = FootstepPlanner(grid, cfg).plan((0.6, 0.6, 0.0), (2.7, 0.6, 0.0))
+    assert plan.status is PlanStatus.SUCCESS
+    assert plan.num_steps == 7
+    assert_valid(plan, grid, goal=np.array([2.7, 0.6, 0.0]))
+    # with turns of up to 0.3 rad the lattice may zigzag: a 0.35 m step with a 0.3 m width, from a
+    # stance foot turned by 0.3 rad, advances 0.35 cos 0.3 + 0.3 sin 0.3 = 0.423 m along x
+    _, turning = optimal_corridor_plan
+    assert turning.status is PlanStatus.SUCCESS and turning.num_steps == 6
+    assert_valid(turning, grid, goal=np.array([2.7, 0.6, 0.0]))
+
+
+def test_heuristic_never_exceeds_the_steps_left_on_an_optimal_plan(optimal_corridor_plan):
+    planner, plan = optimal_corridor_plan
+    feet = plan.footsteps_xyyaw_w
+    # rows i (newest) and i - 1 (moves next): plan.num_steps + 1 - i steps remain
+    h = np.array([planner.heuristic.steps_left(feet[[i]], feet[i - 1])[0] for i in range(1, len(feet))])
+    remaining = plan.num_steps + 1 - np.arange(1, len(feet))
+    assert np.all(h <= remaining + 1e-9), (h, remaining)
+    assert h[0] > 0.5 * remaining[0]  # and it is informative
+
+
+def test_wall_forces_a_detour_through_its_gap():
+    grid = GridMap.empty((6.0, 4.0), resolution_m=0.05)
+    grid.add_box((3.0, 1.6), (0.2, 3.2))  # a wall from y = 0 to 3.2: the gap is y in (3.2, 4.0)
+    start, goal = (1.0, 1.0, 0.0), (5.0, 1.0, 0.0)
+    for walks in (True, False):
+        cfg = humanoid_footstep_cfg(walk_along_body_path=walks, time_budget_s=5.0)
+        plan = FootstepPlanner(grid, cfg).plan(start, goal)
+        assert plan.status is PlanStatus.SUCCESS, (walks, plan.detail)
+        feet = plan.footsteps_xyyaw_w
+        mids = (feet[1:, :2] + feet[:-1, :2]) / 2
+        at_wall = mids[np.abs(mids[:, 0] - 3.0) < 0.3]
+        assert len(at_wall) and np.all(at_wall[:, 1] > 3.2)  # the body passes the wall in the gap
+        assert plan.num_steps > 12  # more than the straight 4 m walk would take
+        assert_valid(plan, grid, goal=np.array(goal))
+
+
+def test_a_step_too_high_is_walked_around():
+    grid = GridMap.empty((5.0, 3.0), resolution_m=0.05, with_height=True)
+    grid.add_box((2.5, 1.0), (1.0, 2.0), height_m=0.3)  # a 0.3 m block, 2 m of the 3 m width
+    plan = plan_footsteps(grid, (0.7, 1.0, 0.0), (4.3, 1.0, 0.0))
+    assert plan.status is PlanStatus.SUCCESS
+    assert np.all(plan.foot_z_m == 0.0)
+    grid.height_m[grid.height_m > 0] = 0.1  # low enough to step on (max_step_up_m = 0.15)
+    plan = plan_footsteps(grid, (0.7, 1.0, 0.0), (4.3, 1.0, 0.0))
+    assert plan.status is PlanStatus.SUCCESS
+    assert set(np.round(plan.foot_z_m, 6)) == {0.0, 0.1}
+    assert np.all(np.abs(np.diff(plan.foot_z_m)) <= 0.15)
+
+
+def test_small_obstacles_at_the_feet_are_stepped_around():
+    # poles (one cell each) where the straight walk would put a sole, a heel and a swing: with
+    # little body clearance only the foot and swing tests keep the feet off them
+    grid = corridor()
+    for x, y in ((1.773, 1.1), (2.62, 0.9), (2.727, 1.1)):
+        grid.occupied[int(y / 0.05), int(x / 0.05)] = True
+    goal = (4.0, 1.0, 0.0)
+    for walks in (True, False):
+        cfg = humanoid_footstep_cfg(body_clearance_m=0.02, walk_along_body_path=walks, time_budget_s=5.0)
+        plan = FootstepPlanner(grid, cfg).plan((0.5, 1.0, 0.0), goal)
+        assert plan.status is PlanStatus.SUCCESS, (walks, plan.detail)
+        assert_valid(plan, grid, goal=np.array(goal), body_clearance_m=0.02)
+
+
+def test_step_checks_are_conservative():
+    # random steps near random clutter: whatever the vectorized test passes, shapely finds clear
+    rng = np.random.default_rng(5)
+    grid = GridMap.empty((4.0, 4.0), resolution_m=0.05)
+    for _ in range(12):
+        grid.add_box(rng.uniform(0.5, 3.5, 2), rng.uniform(0.03, 0.3, 2), rng.uniform(0, np.pi))
+    cfg = humanoid_footstep_cfg(body_clearance_m=0.1)
+    checks = FootstepChecks(grid, cfg, build_lattice(cfg, grid.resolution_m))
+    n = 3000
+    stance = np.column_stack([rng.uniform(0.5, 3.5, (n, 2)), rng.uniform(-np.pi, np.pi, n)])
+    sides = rng.choice([LEFT, RIGHT], n)
+    new = compose(stance, np.column_stack([rng.uniform(-0.1, 0.35, n), -sides * rng.uniform(0.12, 0.3, n),
+                                           rng.uniform(-0.3, 0.3, n)]))
+    prev = compose(stance, np.column_stack([rng.uniform(-0.35, 0.1, n), -sides * rng.uniform(0.12, 0.3, n),
+                                            np.zeros(n)]))
+    free, _ = checks.steps(prev[:, :2], stance, new)
+    assert 0.2 < free.mean() < 0.9
+    union = shapely.union_all(obstacles_of(grid))
+    for k in np.flatnonzero(free):
+        assert not BENCH.sole_polygon(*new[k]).intersects(union)
+        assert not LineString([stance[k, :2], new[k, :2]]).intersects(union)
+        assert not LineString([prev[k, :2], new[k, :2]]).intersects(union)
+        body = LineString([(prev[k, :2] + stance[k, :2]) / 2, (new[k, :2] + stance[k, :2]) / 2])
+        assert body.distance(union) >= 0.1 - 1e-9
+
+
+def test_step_limits_are_the_modules():
+    cfg = humanoid_footstep_cfg()
+    steps = np.array([[0.35, -0.2, 0.0], [0.36, -0.2, 0.0], [-0.10, -0.2, 0.0], [-0.11, -0.2, 0.0],
+                      [0.2, -0.12, 0.0], [0.2, -0.11, 0.0], [0.2, -0.30, 0.0], [0.2, -0.31, 0.0],
+                      [0.2, -0.2, 0.3], [0.2, -0.2, -0.31], [0.2, 0.2, 0.0], [0.0, -0.12, 0.3]])
+    ok = steps_within_limits(steps, np.full(len(steps), LEFT), cfg)
+    # the last: a 0.3 rad inward turn at the narrowest width puts the toe on the stance sole
+    assert ok.tolist() == [True, False, True, False, True, False, True, False, True, False, False, False]
+    mirrored = steps * np.array([1.0, -1.0, -1.0])
+    assert steps_within_limits(mirrored, np.full(len(steps), RIGHT), cfg).tolist() == ok.tolist()
+
+
+def test_goal_test_uses_the_mean_yaw_of_the_last_two_feet():
+    grid = corridor()
+    cfg = humanoid_footstep_cfg()
+    checks = FootstepChecks(grid, cfg, build_lattice(cfg, grid.resolution_m))
+    stance, new = np.array([2.0, 1.1, 0.0]), np.array([[2.05, 0.9, 0.3]])  # midpoint (2.025, 1.0), mean yaw 0.15
+    assert GoalHeuristic(checks, np.array([2.0, 1.0, 0.15])).is_goal(new, stance)[0]
+    assert GoalHeuristic(checks, np.array([2.0, 1.0, 0.34])).is_goal(new, stance)[0]
+    assert not GoalHeuristic(checks, np.array([2.0, 1.0, -0.1])).is_goal(new, stance)[0]
+    assert not GoalHeuristic(checks, np.array([2.0, 1.12, 0.15])).is_goal(new, stance)[0]
+    across_pi = GoalHeuristic(checks, np.array([2.0, 1.0, np.pi]))
+    assert across_pi.is_goal(np.array([[2.0, 0.9, -3.1]]), np.array([2.0, 1.1, 3.1]))[0]
+
+
+def test_the_lattice_never_takes_a_step_too_high():
+    # a 0.2 m step across the whole corridor (max_step_up_m = 0.15): no plan, and no partial plan
+    # climbs it
+    grid = GridMap.empty((4.0, 1.5), resolution_m=0.05, with_height=True)
+    grid.add_box((3.0, 0.75), (2.0, 1.5), height_m=0.2)
+    cfg = humanoid_footstep_cfg(walk_along_body_path=False, max_expansions=300)
+    plan = FootstepPlanner(grid, cfg).plan((0.6, 0.75, 0.0), (3.0, 0.75, 0.0))
+    assert plan.status is not PlanStatus.SUCCESS
+    assert np.all(np.abs(np.diff(plan.foot_z_m)) <= 0.15)
+
+
+# -- failures ------------------------------------------------------------------------------------
+def test_failure_reasons():
+    grid = GridMap.empty((6.0, 4.0), resolution_m=0.05)
+    grid.add_box((1.0, 1.0), (0.3, 0.3))
+    grid.add_box((5.0, 3.0), (0.3, 0.3))
+    planner = FootstepPlanner(grid)
+    assert planner.plan((1.0, 1.0, 0.0), (3.0, 2.0, 0.0)).status is PlanStatus.START_IN_COLLISION
+    assert planner.plan((3.0, 2.0, 0.0), (5.0, 3.0, 0.0)).status is PlanStatus.GOAL_IN_COLLISION
+    assert planner.plan((3.0, 2.0, 0.0), (9.0, 2.0, 0.0)).status is PlanStatus.GOAL_IN_COLLISION  # off the map
+    # a goal inside a closed 1 m x 1 m room (x 2-3 m, y 2.5-3.5 m): known before any search
+    grid.occupied[50:70, 40:42] = grid.occupied[50:70, 58:60] = True
+    grid.occupied[50:52, 40:60] = grid.occupied[68:70, 40:60] = True
+    plan = FootstepPlanner(grid).plan((1.0, 3.0, 0.0), (2.5, 3.0, 0.0))
+    assert plan.status is PlanStatus.GOAL_UNREACHABLE and plan.expansions == 0 and "no path" in plan.detail
+    assert plan.num_steps == 0
+
+
+def test_budget_exhaustion_returns_a_partial_plan_closer_to_the_goal():
+    grid = corridor(length_m=9.0, width_m=1.5)
+    start, goal = np.array([0.6, 0.75, 0.0]), np.array([8.4, 0.75, 0.0])
+    cfg = humanoid_footstep_cfg(walk_along_body_path=False, max_expansions=15)
+    plan = FootstepPlanner(grid, cfg).plan(start, goal)
+    assert plan.status is PlanStatus.BUDGET_EXHAUSTED and plan.expansions == 15
+    assert plan.num_steps >= 3
+    end_mid = plan.footsteps_xyyaw_w[-2:, :2].mean(axis=0)
+    assert np.linalg.norm(end_mid - goal[:2]) < np.linalg.norm(start[:2] - goal[:2]) - 0.5
+    assert_valid(plan, grid)
+    timed = FootstepPlanner(grid, humanoid_footstep_cfg(walk_along_body_path=False)).plan(start, goal,
+                                                                                         time_budget_s=0.02)
+    assert timed.status is PlanStatus.BUDGET_EXHAUSTED and timed.planning_time_s < 0.2
+
+
+def test_bad_settings_name_the_problem():
+    with pytest.raises(InvalidValueError, match="step_lengths_m"):
+        FootstepPlanner(corridor(), humanoid_footstep_cfg(step_lengths_m=(0.0, 0.5)))
+    with pytest.raises(InvalidValueError, match="heuristic_weight"):
+        FootstepPlanner(corridor(), humanoid_footstep_cfg(heuristic_weight=0.5))
+    with pytest.raises(InvalidValueError, match="start_xyyaw_w"):
+        FootstepPlanner(corridor()).plan((0.5, float("nan"), 0.0), (4.0, 1.0, 0.0))
+
+
+# -- grid-map geometry against brute force ------------------------------------------------------
+def test_chamfer_distance_matches_dijkstra():
+    rng = np.random.default_rng(3)
+    free = rng.random((25, 30)) > 0.25
+    seeds = np.zeros_like(free)
+    seeds[12, 15] = seeds[3, 4] = True
+    got = chamfer_distance_m(free, seeds, 0.1)
+    ref = np.full(free.shape, np.inf)
+    heap = [(0.0, (i, j)) for i, j in zip(*np.nonzero(seeds & free))]
+    for _, (i, j) in heap:
+        ref[i, j] = 0.0
+    while heap:
+        d, (i, j) = heapq.heappop(heap)
+        if d > ref[i, j]:
+            continue
+        for di in (-1, 0, 1):
+            for dj in (-1, 0, 1):
+                a, b = i + di, j + dj
+                if (di or dj) and 0 <= a < 25 and 0 <= b < 30 and free[a, b]:
+                    nd = d + 0.1 * (1.4 if di and dj else 1.0)
+                    if nd < ref[a, b] - 1e-12:
+                        ref[a, b] = nd
+                        heapq.heappush(heap, (nd, (a, b)))
+    np.testing.assert_allclose(got, ref, atol=1e-9)
+
+
+def test_crossed_cells_are_exactly_the_cells_a_segment_crosses():
+    rng = np.random.default_rng(4)
+    a = rng.uniform(0, 20, (60, 2))
+    b = a + rng.normal(size=(60, 2)) * 3
+    u, v = crossed_cells(a[:, 0], a[:, 1], b[:, 0], b[:, 1], 12)
+    for k in range(60):
+        got = set(zip(np.floor(u[k]).astype(int), np.floor(v[k]).astype(int)))
+        segment = LineString([a[k], b[k]])
+        lo, hi = np.floor(np.minimum(a[k], b[k])).astype(int) - 1, np.floor(np.maximum(a[k], b[k])).astype(int) + 1
+        ref = {(i, j) for i in range(lo[0], hi[0] + 1) for j in range(lo[1], hi[1] + 1)
+               if segment.intersection(box(i, j, i + 1, j + 1)).length > 1e-9}
+        assert got == ref
+
+
+def test_near_occupied_and_box_cells_are_conservative_and_exact():
+    occupied = np.zeros((21, 21), bool)
+    occupied[10, 10] = True
+    r = 0.1
+    for radius, centers in ((0.25, True), (0.25, False), (0.32, True)):
+        got = near_occupied(occupied, r, radius, from_cell_centers=centers)
+        cell = box(1.0, 1.0, 1.1, 1.1)
+        for i in range(21):
+            for j in range(21):
+                probe = (box(j * r, i * r, (j + 1) * r, (i + 1) * r) if not centers
+                         else box((j + 0.5) * r, (i + 0.5) * r, (j + 0.5) * r, (i + 0.5) * r))
+                assert got[i, j] == (probe.distance(cell) < radius or (i, j) == (10, 10))
+    grid = GridMap.empty((3.0, 3.0), resolution_m=0.1)
+    cells = grid.box_cells((1.43, 1.61), (1.1, 0.37), yaw_rad=0.6)
+    from shapely import affinity
+
+    rect = affinity.translate(affinity.rotate(box(-0.55, -0.185, 0.55, 0.185), 0.6, use_radians=True), 1.43, 1.61)
+    for i in range(30):
+        for j in range(30):
+            assert cells[i, j] == rect.intersects(box(j * 0.1, i * 0.1, (j + 1) * 0.1, (i + 1) * 0.1))
+
+
+# -- the independent checker and the benchmark ---------------------------------------------------
+def test_checker_catches_bad_steps():
+    grid = corridor()
+    goal = np.array([4.0, 1.0, 0.0])
+    plan = plan_footsteps(grid, (0.5, 1.0, 0.0), goal)
+    feet, sides = plan.footsteps_xyyaw_w.copy(), plan.foot_sides
+    obstacles = obstacles_of(grid)
+    assert BENCH.check_plan(feet, sides, obstacles, goal) == []
+    long_step = feet.copy()
+    long_step[5:, 0] += 0.1  # step 5 becomes 0.42 m long
+    assert any("length" in p for p in BENCH.check_plan(long_step, sides, obstacles, goal))
+    into_wall = feet.copy()
+    into_wall[6, 1] = 0.1  # a sole on the wall along y = 0
+    problems = BENCH.check_plan(into_wall, sides, obstacles + [box(5.0, 0.0, 5.2, 2.0)], goal)
+    assert any("touches" in p for p in problems) and any("width" in p for p in problems)
+    assert any("alternate" in p for p in BENCH.check_plan(feet, np.ones_like(sides), obstacles, goal))
+    assert any("misses the goal" in p for p in BENCH.check_plan(feet[:-3], sides[:-3], obstacles, goal))
+
+
+def test_benchmark_runs_and_every_step_passes_the_checker(capsys):
+    result = BENCH.main(["--maps", "5", "--seed", "7"])
+    assert result["maps"] == 5 and result["plans_with_violations"] == 0
+    assert result["success_rate"] == 1.0
+    assert result["footsteps_checked"] >= 5 * 10
+    assert 0 < result["ratio"] < 5
+    assert "RESULT {" in capsys.readouterr().out
+
+
+def test_plot_plan_writes_a_png(tmp_path):
+    pytest.importorskip("matplotlib")
+    from ambulo.nav import plot_plan
+
+    grid = corridor()
+    plan = plan_footsteps(grid, (0.5, 1.0, 0.0), (4.0, 1.0, 0.0))
+    plot_plan(grid, plan, tmp_path / "plan.png", goal_xyyaw_w=(4.0, 1.0, 0.0))
+    assert (tmp_path / "plan.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_planner_reuses_its_buffers_between_queries():
+    grid = corridor()
+    planner = FootstepPlanner(grid, humanoid_footstep_cfg(walk_along_body_path=False))
+    first = planner.plan((0.6, 1.0, 0.0), (2.5, 1.0, 0.0))
+    assert not planner._state.any()  # the pruning record is cleared after each query
+    second = planner.plan((0.6, 1.0, 0.0), (2.5, 1.0, 0.0))
+    np.testing.assert_array_equal(first.footsteps_xyyaw_w, second.footsteps_xyyaw_w)
+    assert math.isclose(first.cost, second.cost)
