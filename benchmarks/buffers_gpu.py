@@ -28,7 +28,7 @@ import torch
 import warp as wp
 
 import ambulo.envs
-from ambulo.engine.gpu import capture_graph
+from env_gpu import RawWarp, sync
 
 
 def peak_usage(env, steps: int, generator: torch.Generator) -> tuple[int, int]:
@@ -51,31 +51,17 @@ def peak_usage(env, steps: int, generator: torch.Generator) -> tuple[int, int]:
 
 
 def raw_rate(engine, nconmax: int, njmax: int, nstep: int, launches: int) -> float:
-    """Physics steps/s of raw ``mujoco_warp.step`` at these buffer sizes (CUDA graph)."""
-    data = mujoco.MjData(engine.model)
-    mujoco.mj_forward(engine.model, data)
-    with wp.ScopedDevice(engine.wp_device):
-        d = mjw.put_data(engine.model, data, nworld=engine.num_worlds, nconmax=nconmax, njmax=njmax)
-    for name in ("qpos", "qvel", "ctrl", "qacc_warmstart"):
-        wp.to_torch(getattr(d, name)).copy_(engine.field(name))
-    m = engine.wp_model
-
-    def steps():
-        for _ in range(nstep):
-            mjw.step(m, d)
-
-    with wp.ScopedDevice(engine.wp_device):
-        steps()  # compile before the capture
-    torch.cuda.synchronize()
-    graph = capture_graph(engine.wp_device, wp.Stream(engine.wp_device), steps)
+    """Physics steps/s of raw ``mujoco_warp.step`` at these buffer sizes (env_gpu's ceiling: a
+    CUDA graph of ``nstep`` steps), from the engine's current state; best of 3."""
+    raw = RawWarp(engine, nstep, nconmax=nconmax, njmax=njmax)
     best = float("inf")
     for _ in range(3):
-        torch.cuda.synchronize()
+        torch._foreach_copy_(raw.state, [engine.field(n) for n in raw.names])
+        sync(engine.device)
         start = time.perf_counter()
-        with wp.ScopedDevice(engine.wp_device):
-            for _ in range(launches):
-                wp.capture_launch(graph)
-        torch.cuda.synchronize()
+        for _ in range(launches):
+            raw.launch()
+        sync(engine.device)
         best = min(best, time.perf_counter() - start)
     return engine.num_worlds * nstep * launches / best
 

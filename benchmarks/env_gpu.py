@@ -112,14 +112,15 @@ def _torch_mlp(env, ppo) -> tuple[Callable, Callable, torch.Tensor]:
 class RawWarp:
     """``mujoco_warp.step`` x ``nstep`` on the engine's device model and a Data of its own."""
 
-    def __init__(self, engine, nstep: int):
+    def __init__(self, engine, nstep: int, nconmax: int | None = None, njmax: int | None = None):
+        """``nconmax``/``njmax``: buffer sizes per world (default: the engine's)."""
         self.device, self.nstep = engine.device, nstep
         self.model = engine.wp_model
         data = mujoco.MjData(engine.model)
         mujoco.mj_forward(engine.model, data)
         with wp.ScopedDevice(engine.wp_device):
             self.data = mjw.put_data(engine.model, data, nworld=engine.num_worlds,
-                                     nconmax=engine.nconmax, njmax=engine.njmax)
+                                     nconmax=nconmax or engine.nconmax, njmax=njmax or engine.njmax)
         self.names = list(engine.initial_state)
         self.state = [wp.to_torch(getattr(self.data, n)).view(engine.field(n).shape) for n in self.names]
         self.wp_device = engine.wp_device

@@ -59,6 +59,8 @@ _CAPACITY = {
     mjw.OverflowType.CCD: ("convex-collision contacts", "max_contacts_per_world"),
 }
 
+_CAPACITY_BITS = sum(int(bit) for bit in _CAPACITY)
+
 # Every MjData field that is per world state, restored by reset; the protocol's
 # STATE_FIELDS plus the solver warm start (part of MuJoCo's integration state).
 _RESET_FIELDS = STATE_FIELDS + ("qacc_warmstart", "act_dot", "eq_active", "userdata")
@@ -152,8 +154,6 @@ class _Ticker:
 
 
 class GpuEngine:
-    dtype = torch.float32
-
     """N worlds of ``model`` stepped by MuJoCo Warp on ``device``.
 
     Args:
@@ -170,6 +170,8 @@ class GpuEngine:
       num_threads, divergence_dump_dir: accepted for the CpuEngine signature; the first is
         unused, the second dumps diverged worlds (costs a host sync per step).
     """
+
+    dtype = torch.float32
 
     def __init__(
         self,
@@ -394,10 +396,7 @@ class GpuEngine:
         since the last check (one host sync)."""
         self._steps_since_check = 0
         flags = self.field("overflow")
-        capacity = 0
-        for bit in _CAPACITY:
-            capacity |= int(bit)
-        hit = flags & capacity
+        hit = flags & _CAPACITY_BITS
         if not bool(hit.any()):
             return
         world = int(torch.nonzero(hit)[0, 0])

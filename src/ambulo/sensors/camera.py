@@ -79,6 +79,17 @@ class PinholeCfg:
         check_vector("offset_pos", self.offset_pos, 3, "pass (x, y, z) m in the mount frame")
         check_quat("offset_quat", self.offset_quat)
 
+    def image_fovy_deg(self) -> float:
+        """The image's vertical field of view (deg): from ``focal_length_px`` when set."""
+        if self.focal_length_px:
+            return math.degrees(2 * math.atan(self.height / 2 / self.focal_length_px))
+        return float(self.fovy_deg)
+
+    def intrinsics_matrix(self) -> np.ndarray:
+        """(3, 3) float64 K (OpenCV: pixel centres at integer coordinates, square pixels)."""
+        f = self.height / 2 / math.tan(math.radians(self.image_fovy_deg()) / 2)
+        return np.array([[f, 0, self.width / 2 - 0.5], [0, f, self.height / 2 - 0.5], [0, 0, 1]])
+
 
 @dataclass(kw_only=True)
 class CameraCfg(PinholeCfg):
@@ -198,14 +209,11 @@ class Camera(Sensor):
 
     @property
     def fovy_deg(self) -> float:
-        if self.cfg.focal_length_px:
-            return math.degrees(2 * math.atan(self.cfg.height / 2 / self.cfg.focal_length_px))
-        return float(self.cfg.fovy_deg)
+        return self.cfg.image_fovy_deg()
 
     def get_intrinsics_matrix(self) -> np.ndarray:
         """(3, 3) float64 K (OpenCV: pixel centres at integer coordinates, square pixels)."""
-        f = self.cfg.height / 2 / math.tan(math.radians(self.fovy_deg) / 2)
-        return np.array([[f, 0, self.cfg.width / 2 - 0.5], [0, f, self.cfg.height / 2 - 0.5], [0, 0, 1]])
+        return self.cfg.intrinsics_matrix()
 
     def get_world_pose(self, convention: str = "world") -> tuple[torch.Tensor, torch.Tensor]:
         """Camera position (N, 3) m and orientation (N, 4) wxyz in the world, in ``convention`` axes."""

@@ -37,8 +37,6 @@ state. On an H100, 1024 worlds at 128 x 128 with all four outputs render at 0.93
 from __future__ import annotations
 
 import functools
-import math
-import dataclasses
 from dataclasses import dataclass
 
 import mujoco
@@ -50,7 +48,7 @@ from ambulo.utils.rotations import mat_to_quat, quat_to_mat
 
 from . import annotators as ann
 from .base import MountPose, Sensor, spec_body
-from .camera import CameraCfg, PinholeCfg
+from .camera import PinholeCfg
 from .frames import check_convention, look_at_gl
 
 DATA_TYPES = ("rgb", "depth", "instance_segmentation", "semantic_segmentation")
@@ -88,12 +86,6 @@ class TiledCameraCfg(PinholeCfg):
                                     "use 'world', 'opengl', 'opencv' or 'ros'")
 
 
-def pinhole_cfg(cfg: TiledCameraCfg) -> CameraCfg:
-    """The CPU ``CameraCfg`` with the same pinhole and pose: both cameras share intrinsics and
-    placement."""
-    return CameraCfg(**{f.name: getattr(cfg, f.name) for f in dataclasses.fields(PinholeCfg)}, annotators=())
-
-
 @dataclass(kw_only=True)
 class TiledCameraData:
     """What a ``TiledCamera`` read last (all tensors on the engine's device)."""
@@ -123,7 +115,6 @@ class TiledCamera(Sensor):
         self.cfg = cfg
         self.data_types = tuple(dict.fromkeys(_ALIASES.get(n, n) for n in cfg.data_types))
         super().__init__(cfg.prim_path)
-        self._pinhole = pinhole_cfg(cfg)
         self._context = None
         self._graph = None
         self._graph_version = -1
@@ -293,14 +284,11 @@ class TiledCamera(Sensor):
 
     @property
     def fovy_deg(self) -> float:
-        if self.cfg.focal_length_px:
-            return math.degrees(2 * math.atan(self.cfg.height / 2 / self.cfg.focal_length_px))
-        return float(self.cfg.fovy_deg)
+        return self.cfg.image_fovy_deg()
 
     def get_intrinsics_matrix(self) -> np.ndarray:
         """(3, 3) float64 K (OpenCV: pixel centres at integer coordinates, square pixels)."""
-        f = self.cfg.height / 2 / math.tan(math.radians(self.fovy_deg) / 2)
-        return np.array([[f, 0, self.cfg.width / 2 - 0.5], [0, f, self.cfg.height / 2 - 0.5], [0, 0, 1]])
+        return self.cfg.intrinsics_matrix()
 
     def set_local_pose(self, pos=None, quat=None, convention: str = "world", world_ids=None) -> None:
         """Set the offset from the mount (m, wxyz in ``convention`` axes) for ``world_ids``
