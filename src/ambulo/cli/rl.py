@@ -16,12 +16,17 @@ import math
 import os
 import re
 import sys
+import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 from .errors import CliError
 from ..utils.overrides import OverrideError, parse_overrides
+
+STARTED_S = time.monotonic()
+"""When the command started (this module is imported as ``ambulo`` starts): ``--eval-every``
+times the first success from here, so imports, env build and kernel compile count."""
 
 # ---------------------------------------------------------------------------------------------
 # where the CLI gets tasks and their configs
@@ -246,6 +251,8 @@ def train(args: argparse.Namespace) -> int:
                 sizes[key] = ppo_overrides.pop(key)
     _check_positive(argparse.Namespace(**sizes), *sizes)
     _check_writable(args.log_root, "--log-root", folder=True)
+    if args.stop_at_criterion and not args.eval_every:
+        raise CliError("--stop-at-criterion needs --eval-every", "add e.g. --eval-every 50")
 
     from ambulo.rl import TrainingInterrupted  # noqa: PLC0415
     from ambulo.rl import train as run_train  # noqa: PLC0415
@@ -255,7 +262,8 @@ def train(args: argparse.Namespace) -> int:
             run_train(args.task, num_envs=sizes["num_envs"], max_iterations=sizes["max_iterations"],
                       seed=args.seed, device=args.device, resume=resume, log_root=args.log_root,
                       env_overrides=env_overrides, ppo_overrides=ppo_overrides,
-                      verbose=args.verbose)
+                      verbose=args.verbose, eval_every=args.eval_every,
+                      stop_at_criterion=args.stop_at_criterion, started_s=STARTED_S)
     except TrainingInterrupted as stopped:  # SIGINT/SIGTERM: says what was saved, how to resume
         print(f"ambulo train: {stopped}", file=sys.stderr)
         return stopped.exit_status
@@ -330,6 +338,11 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--ppo-cfg", action="append", metavar="KEY=VALUE",
                    help="set a PPO setting (PpoCfg), e.g. learning_rate=3e-4 (repeatable)")
     p.add_argument("--verbose", action="store_true", help="rsl-rl's full report per iteration")
+    p.add_argument("--eval-every", type=whole_above_zero("--eval-every 50"), metavar="K",
+                   help="every K iterations evaluate the policy as `ambulo eval` does (evals.csv) "
+                        "and print the time from start to the first that meets the task's criteria")
+    p.add_argument("--stop-at-criterion", action="store_true",
+                   help="with --eval-every: end training at the first evaluation that meets them")
     p.set_defaults(func=train)
 
     p = subparsers.add_parser("play", help="roll a trained policy out headless to an MP4")

@@ -16,6 +16,8 @@ root pose of a jointed or fixed root) come from kinematics that, after
 
 from __future__ import annotations
 
+import re
+
 import mujoco
 import numpy as np
 import torch
@@ -133,7 +135,8 @@ class Entity:
 
     # -- joints by name -------------------------------------------------------------------
     def find_joints(self, names) -> list[int]:
-        """Indices (into ``joint_*``) of joints by name; a helpful KeyError for unknown names."""
+        """Indices (into ``joint_*``) of joints by name or full-match regex (``".*_knee"``), in
+        the order given; a helpful KeyError for a name that matches nothing."""
         return self._find(names, self.joint_names, "joint", "joints")
 
     def find_bodies(self, names) -> list[int]:
@@ -143,9 +146,16 @@ class Entity:
     def _find(self, names, pool: list[str], kind: str, kinds: str) -> list[int]:
         out = []
         for name in [names] if isinstance(names, str) else names:
-            if name not in pool:
+            if name in pool:
+                out.append(pool.index(name))
+                continue
+            try:
+                matched = [i for i, have in enumerate(pool) if re.fullmatch(name, have)]
+            except re.error:
+                matched = []
+            if not matched:
                 raise KeyError(f"unknown {kind} {name!r} of {self.prim_path}; {kinds}: {pool}")
-            out.append(pool.index(name))
+            out.extend(i for i in matched if i not in out)
         return out
 
     # -- writes -----------------------------------------------------------------------------

@@ -55,6 +55,9 @@ class VelocityCommand:
         self.is_heading = torch.zeros(num_envs, dtype=torch.bool, device=device)
         self.is_standing = torch.zeros_like(self.is_heading)
         self.time_left_s = torch.zeros(num_envs, **f32)
+        self.range_scale = torch.ones((), **f32)
+        """() share of the velocity and yaw-rate ranges drawn from, in (0, 1]: a curriculum
+        lowers it at the start of training (a device scalar, so changing it never syncs)."""
         c = cfg
         # ranges of the seven quantities one resample draws: vx, vy, yaw rate, heading, the two
         # share draws (heading-controlled, standing) and the resampling time
@@ -69,7 +72,7 @@ class VelocityCommand:
         # one draw for all seven quantities of the selected rows
         u = torch.rand(n, 7, generator=self.gen, device=self.device)
         v = torch.addcmul(self._low, self._span, u)
-        put_rows(self.command, slice(None), v[:, :3], rows)
+        put_rows(self.command, slice(None), v[:, :3] * self.range_scale, rows)
         put_rows(self.heading_target[:, None], slice(None), v[:, 3:4], rows)
         put_rows(self.is_heading[:, None], slice(None), v[:, 4:5] < c.heading_fraction, rows)
         put_rows(self.is_standing[:, None], slice(None), v[:, 5:6] < c.standing_fraction, rows)
@@ -85,7 +88,8 @@ class VelocityCommand:
         if rows is not None:
             self.resample(rows)
         low, high = self.cfg.yaw_rate_rad_s
-        steer = (self.cfg.heading_stiffness * wrap_to_pi(self.heading_target - heading_w.float())).clamp(low, high)
+        steer = self.cfg.heading_stiffness * wrap_to_pi(self.heading_target - heading_w.float())
+        steer = torch.minimum(torch.maximum(steer, low * self.range_scale), high * self.range_scale)
         self.command[:, 2] = torch.where(self.is_heading, steer, self.command[:, 2])
         self.command.masked_fill_(self.is_standing[:, None], 0.0)
 

@@ -59,6 +59,18 @@ class HumanoidWalkCfg(EnvCfg):
     obs_scale_joint_vel: float = 0.05
     obs_scale_ang_vel: float = 0.25
     obs_scale_command: tuple[float, float, float] = (2.0, 2.0, 0.25)
+    deviation_joints: tuple[str, ...] = (".*_hip_yaw", ".*_hip_roll", "torso_.*", ".*_shoulder_.*",
+                                          ".*_elbow")
+    """Joints whose distance from the default pose ``joint_deviation`` penalizes (name patterns):
+    the ones walking does not need to move far, so the gait stays human-like."""
+    curriculum_start_scale: float | None = None
+    """Command curriculum: training starts drawing commands from this share of every range and
+    widens it while the policy tracks well (None: full ranges from the start). Evaluation
+    always uses the full ranges."""
+    curriculum_threshold: float = 0.7
+    """The range widens while the running mean of the linear tracking kernel is above this."""
+    curriculum_rate_per_s: float = 0.02
+    """How fast the range share grows while tracking is good, per second of simulated time."""
 
 
 def humanoid_walk_cfg() -> HumanoidWalkCfg:
@@ -79,15 +91,19 @@ def humanoid_walk_cfg() -> HumanoidWalkCfg:
         episode_length_s=20.0,
         reward_weights=dict(
             track_lin_vel_xy_exp=1.0,
-            track_ang_vel_z_exp=0.5,
+            track_ang_vel_z_exp=1.0,
             upright=0.5,
+            flat_orientation_l2=-1.0,
             terminated=-200.0,
             ang_vel_xy_l2=-0.05,
             torques_l2=-1.0e-5,
             action_rate_l2=-0.01,
             joint_pos_limits=-1.0,
             feet_air_time=1.0,
+            feet_slide=-0.25,
+            joint_deviation=-0.1,
         ),
+        curriculum_start_scale=0.4,
         observation_noise=dict(projected_gravity=0.05, joint_pos_rel=0.01, joint_vel=1.5 * 0.05,
                                base_ang_vel=0.2 * 0.25),
     )
@@ -102,6 +118,7 @@ def humanoid_walk_play_cfg() -> HumanoidWalkCfg:
     cfg.friction_range = None
     cfg.added_base_mass_kg = None
     cfg.episode_length_s = 1.0e9
+    cfg.curriculum_start_scale = None
     return cfg
 
 
@@ -142,6 +159,12 @@ class HumanoidWalkEnv(RLEnv):
         # set by _get_terminations each step and reused by the rewards
         self._gravity_b = torch.zeros(n, 3, dtype=self.engine.dtype, device=dev)
         self._fell = torch.zeros(n, dtype=torch.bool, device=dev)
+        self.feet_body_ids = torch.tensor(self.robot.find_bodies(list(cfg.feet_bodies)), device=dev)
+        self.deviation_joint_ids = torch.tensor(self.robot.find_joints(list(cfg.deviation_joints)), device=dev)
+        # running mean of the linear tracking kernel over all envs: a device scalar, no sync
+        self._tracking_mean = torch.zeros((), dtype=torch.float32, device=dev)
+        if cfg.curriculum_start_scale is not None:
+            self.commands.range_scale.fill_(cfg.curriculum_start_scale)
         self._randomize_physics()
 
     def _randomize_physics(self) -> None:
@@ -226,8 +249,11 @@ class HumanoidWalkEnv(RLEnv):
         vel_yaw, yaw_rate_w = self._planar_velocity(self._gravity_b)
         ang_vel_b = data.root_ang_vel_b
         feet = self.feet.data  # read once per step by the sensor's update
+        track_lin = rewards.track_lin_vel_xy_exp(cmd[:, :2], vel_yaw, cfg.tracking_std)
+        if cfg.curriculum_start_scale is not None:
+            self._advance_curriculum(track_lin)
         return {
-            "track_lin_vel_xy_exp": rewards.track_lin_vel_xy_exp(cmd[:, :2], vel_yaw, cfg.tracking_std),
+            "track_lin_vel_xy_exp": track_lin,
             "track_ang_vel_z_exp": rewards.track_ang_vel_z_exp(cmd[:, 2], yaw_rate_w, cfg.tracking_std),
             "upright": rewards.upright(self._gravity_b),
             "terminated": self._fell.float(),
@@ -238,7 +264,19 @@ class HumanoidWalkEnv(RLEnv):
                 data.joint_pos, robot.soft_joint_pos_limits[:, 0], robot.soft_joint_pos_limits[:, 1]),
             "feet_air_time": rewards.feet_air_time(
                 feet.last_air_time_s, feet.first_contact, cfg.air_time_threshold_s, cmd[:, :2]),
+            "feet_slide": rewards.feet_slide(data.body_lin_vel_w[:, self.feet_body_ids], feet.in_contact),
+            "joint_deviation": rewards.joint_deviation_l1(data.joint_pos_rel[:, self.deviation_joint_ids]),
+            "flat_orientation_l2": rewards.flat_orientation_l2(self._gravity_b),
         }
+
+    def _advance_curriculum(self, track_lin: torch.Tensor) -> None:
+        """Widen the command ranges while the envs track well (a mean over all envs, kept on
+        the device: the curriculum never reads a value back to the host)."""
+        cfg = self.cfg
+        alpha = min(1.0, self.step_dt_s / 2.0)  # a 2 s running mean
+        self._tracking_mean.lerp_(track_lin.float().mean(), alpha)
+        grow = (self._tracking_mean > cfg.curriculum_threshold).float() * cfg.curriculum_rate_per_s * self.step_dt_s
+        self.commands.range_scale.add_(grow).clamp_(max=1.0)
 
     def _reset_idx(self, rows: torch.Tensor) -> None:
         cfg, n, robot = self.cfg, self._num_rows(rows), self.robot

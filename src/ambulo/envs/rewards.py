@@ -67,8 +67,27 @@ def feet_air_time(air_time_s: torch.Tensor, first_contact: torch.Tensor, thresho
     return reward * moving
 
 
+def feet_slide(foot_vel_w: torch.Tensor, in_contact: torch.Tensor) -> torch.Tensor:
+    """Planar speed of feet that touch the ground, summed: (N, F, 3) m/s, (N, F) bool -> (N,) m/s."""
+    speed = torch.linalg.vector_norm(foot_vel_w[..., :2], dim=-1)
+    return torch.sum(speed * in_contact, dim=-1)
+
+
+def joint_deviation_l1(joint_pos_rel: torch.Tensor) -> torch.Tensor:
+    """Sum of |q - q_default| over the given joints, (N, K) rad -> (N,) rad."""
+    return torch.sum(torch.abs(joint_pos_rel), dim=-1)
+
+
+def flat_orientation_l2(projected_gravity_b: torch.Tensor) -> torch.Tensor:
+    """gx^2 + gy^2 of gravity in the base frame, (N, 3) -> (N,): 0 level, sin^2(tilt)."""
+    return torch.sum(torch.square(projected_gravity_b[..., :2]), dim=-1)
+
+
 __all__ = [
     "action_rate_l2",
+    "feet_slide",
+    "flat_orientation_l2",
+    "joint_deviation_l1",
     "feet_air_time",
     "joint_pos_limits",
     "l2",

@@ -6,13 +6,15 @@ mean). An episode *fails* when it ends by a termination that is not a success (t
 ``success_terminations``; for humanoid-walk every termination is a fall). The task's
 ``step_metrics`` (for humanoid-walk the planar velocity and yaw-rate errors) are averaged
 over every policy step of every episode until it ends, and each of its ``criteria`` is
-reported as a bool.
+reported as a bool. ``run_episodes`` is the measurement itself: ``evaluate`` applies it to a
+saved checkpoint, ``ambulo.rl.periodic_eval`` to the policy under training.
 """
 
 from __future__ import annotations
 
 import json
 import os
+from typing import Callable
 
 import torch
 from tqdm import tqdm
@@ -22,21 +24,12 @@ from ambulo.utils.atomic import atomic_write_json
 
 from . import runs
 
-def evaluate(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = None,
-             num_episodes: int = 100, episode_length_s: float | None = None, seed: int = 12345,
-             log_root: str | os.PathLike = "runs", quiet: bool = False, device: str | None = None) -> dict:
-    """Evaluate ``run`` and return (and print) a dict of metrics; also written to
-    ``<run>/eval.json``. ``device`` (default: the run's) evaluates on another engine: a policy
-    trained on a GPU, evaluated with ``device="cpu"``, is a sim-to-sim check."""
-    run_dir, ckpt = runs.resolve_policy(run, checkpoint, log_root)
-    info = runs.read_run_info(run_dir)
-    task = envs.spec(info["task"])
-    if episode_length_s is None:  # the play variant has no time-out: use the training length
-        episode_length_s = task.cfg_fn().episode_length_s
-    env = runs.make_env_for_run(info, num_envs=num_episodes, seed=seed, play=True, device=device,
-                                episode_length_s=episode_length_s)
-    runner = runs.load_runner(run_dir, env, ckpt)
-    policy = runner.get_inference_policy(device=str(env.device))
+
+def run_episodes(env: envs.RLEnv, vec_env, policy: Callable, task: envs.TaskSpec, *,
+                 desc: str = "eval", quiet: bool = True) -> dict:
+    """Run one episode in each env of ``env`` (wrapped by ``vec_env``, an ``RslRlVecEnv``)
+    with ``policy`` (TensorDict observations -> (N, num_actions) actions) from a full reset;
+    return the metrics and criteria (see the module docstring)."""
     n, dev = env.num_envs, env.device
     running = torch.ones(n, dtype=torch.bool, device=dev)
     failed = torch.zeros(n, dtype=torch.bool, device=dev)
@@ -44,16 +37,17 @@ def evaluate(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = N
     returns = torch.zeros(n, dtype=torch.float64, device=dev)
     lengths = torch.zeros(n, dtype=torch.float64, device=dev)
     metric_sums: dict[str, torch.Tensor] = {}
-    obs = runner.env.reset()
-    for _ in tqdm(range(env.max_episode_length), desc=f"eval {info['task']}", unit="step",
-                  disable=quiet):
+    obs = vec_env.reset()
+    # the loop never reads a device value back: an early end when every episode is over would
+    # cost a host sync per step, more than the few steps it saves
+    for _ in tqdm(range(env.max_episode_length), desc=desc, unit="step", disable=quiet):
         with torch.inference_mode():
             actions = policy(obs)
         if task.step_metrics is not None:  # of the state the policy acted on, for running envs
             for name, value in task.step_metrics(env).items():
                 total = value.double() * running
                 metric_sums[name] = metric_sums[name] + total if name in metric_sums else total
-        obs, rewards, dones, extras = runner.env.step(actions)
+        obs, rewards, dones, extras = vec_env.step(actions)
         returns += rewards.double() * running
         lengths += running.double()
         ended = running & dones.bool()
@@ -62,14 +56,10 @@ def evaluate(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = N
             target |= ended & mask
         failed |= ended & extras["terminated"] & ~succeeded
         running &= ~dones.bool()
-        if not running.any():
-            break
 
     steps = lengths.clamp(min=1.0)
     result = {
-        "task": info["task"],
-        "run": str(run_dir),
-        "checkpoint": ckpt.name,
+        "task": task.name,
         "episodes": n,
         "episode_length_s": env.max_episode_length * env.step_dt_s,
         "fall_rate": float(failed.double().mean()),
@@ -82,6 +72,30 @@ def evaluate(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = N
     result["criteria"] = [c.name for c in task.criteria]
     for criterion in task.criteria:
         result[criterion.name] = criterion.holds(result)
+    return result
+
+
+def eval_episode_length_s(task: envs.TaskSpec, episode_length_s: float | None) -> float:
+    """The play variant has no time-out: episodes last the training episode length."""
+    return task.cfg_fn().episode_length_s if episode_length_s is None else episode_length_s
+
+
+def evaluate(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = None,
+             num_episodes: int = 100, episode_length_s: float | None = None, seed: int = 12345,
+             log_root: str | os.PathLike = "runs", quiet: bool = False, device: str | None = None) -> dict:
+    """Evaluate ``run`` and return (and print) a dict of metrics; also written to
+    ``<run>/eval.json``. ``device`` (default: the run's) evaluates on another engine: a policy
+    trained on a GPU, evaluated with ``device="cpu"``, is a sim-to-sim check."""
+    run_dir, ckpt = runs.resolve_policy(run, checkpoint, log_root)
+    info = runs.read_run_info(run_dir)
+    task = envs.spec(info["task"])
+    env = runs.make_env_for_run(info, num_envs=num_episodes, seed=seed, play=True, device=device,
+                                episode_length_s=eval_episode_length_s(task, episode_length_s))
+    runner = runs.load_runner(run_dir, env, ckpt)
+    policy = runner.get_inference_policy(device=str(env.device))
+    measured = run_episodes(env, runner.env, policy, task, desc=f"eval {info['task']}", quiet=quiet)
+    result = {"task": info["task"], "run": str(run_dir), "checkpoint": ckpt.name,
+              "device": str(env.device), **measured}
     atomic_write_json(run_dir / "eval.json", result, indent=2, sort_keys=False, fsync=True)
     if not quiet:
         print(json.dumps(result, indent=2))

@@ -8,6 +8,7 @@ import io
 import os
 import statistics
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +24,7 @@ from ambulo.utils.atomic import remove_partial_files
 from . import interrupt, runs
 from .config import ppo_cfg
 from .metrics import MetricsCsv
+from .periodic_eval import PeriodicEval, summary
 from .vecenv import RslRlVecEnv
 
 
@@ -50,20 +52,26 @@ class AmbuloRunner(OnPolicyRunner):
         """Load weights, optimizer and RNG states; return the next iteration to run."""
         infos = self.load(str(path), map_location=str(self.device)) or {}
         if "env_rng" in infos:
-            self.env.env.generator.set_state(infos["env_rng"])
+            self.env.env.generator.set_state(infos["env_rng"].cpu())
         if "torch_rng" in infos:
-            torch.set_rng_state(infos["torch_rng"])
+            torch.set_rng_state(infos["torch_rng"].cpu())
         self.logger.rewbuffer.extend(infos.get("episode_returns", []))
         self.logger.lenbuffer.extend(infos.get("episode_lengths", []))
         self.current_learning_iteration += 1  # the checkpoint's iteration is complete
         return self.current_learning_iteration
 
 
+class CriterionReached(Exception):
+    """Raised from the iteration hook to end training once the task's criteria hold."""
+
+
 def _install_progress(runner: AmbuloRunner, run_dir: Path, start: int, total: int,
-                      verbose: bool, step_dt_s: float, stop: interrupt.StopRequest) -> tqdm:
+                      verbose: bool, step_dt_s: float, stop: interrupt.StopRequest,
+                      periodic: PeriodicEval | None = None, stop_at_criterion: bool = False) -> tqdm:
     """Replace rsl-rl's per-iteration console report by a progress bar (unless ``verbose``),
     append each iteration's headline numbers to ``metrics.csv`` (from ``start``: rows of a
-    killed run's later iterations are dropped) and end training there if ``stop`` was asked."""
+    killed run's later iterations are dropped), evaluate when ``periodic`` is due, and end
+    training there if ``stop`` was asked or (``stop_at_criterion``) the criteria hold."""
     bar = tqdm(total=total, initial=start, desc=f"train {run_dir.parent.name}", unit="it",
                disable=verbose)
     report = runner.logger.log
@@ -84,6 +92,11 @@ def _install_progress(runner: AmbuloRunner, run_dir: Path, start: int, total: in
         bar.update(1)
         bar.set_postfix(reward=row[2] or "-", ep_len_s=row[3] or "-", fps=row[4])
         stop.check()
+        if periodic is not None and periodic.due(kwargs["it"]):
+            result = periodic(runner, kwargs["it"])
+            bar.write(summary(result, kwargs["it"], time.monotonic() - periodic.started_s))
+            if stop_at_criterion and periodic.reached is not None:
+                raise CriterionReached
 
     runner.logger.log = log
     return bar
@@ -115,11 +128,23 @@ def _resume_point(task: str | None, resume: str | os.PathLike | bool,
                                    ) from None
 
 
+def _report_time_to_criterion(periodic: PeriodicEval) -> None:
+    reached = periodic.reached
+    names = " and ".join(c.name for c in periodic.task.criteria)
+    if reached is None:
+        print(f"{names} not reached (evaluations in {periodic.run_dir / 'evals.csv'})")
+        return
+    print(f"{names} reached at iteration {reached['iteration']} after {reached['wall_s'] / 60:.2f} min "
+          f"({reached['env_steps']:,} env steps, {reached['checkpoint']}; "
+          f"{periodic.run_dir / 'time_to_criterion.json'})")
+
+
 def train(task: str | None = None, *, num_envs: int | None = None,
           max_iterations: int | None = None, seed: int | None = None, device: str | None = None,
           resume: str | os.PathLike | bool | None = None, log_root: str | os.PathLike = "runs",
           env_overrides: dict[str, Any] | None = None, ppo_overrides: dict[str, Any] | None = None,
-          verbose: bool = False) -> Path:
+          verbose: bool = False, eval_every: int | None = None, stop_at_criterion: bool = False,
+          started_s: float | None = None) -> Path:
     """Train ``task`` with PPO; return the run directory.
 
     Args:
@@ -135,10 +160,18 @@ def train(task: str | None = None, *, num_envs: int | None = None,
       env_overrides: task config fields to change, dotted keys reach nested ones
         (e.g. ``{"episode_length_s": 10.0, "physics.solver_iterations": 20}``); saved in run.json.
       verbose: print rsl-rl's full report each iteration instead of a progress bar.
+      eval_every: evaluate the policy every this many iterations as ``ambulo eval`` does and
+        time the first evaluation that meets the task's criteria (``ambulo.rl.periodic_eval``).
+      stop_at_criterion: with ``eval_every``, end training at that first success.
+      started_s: ``time.monotonic()`` the timing counts from (default: now; the CLI passes
+        the time it started).
 
     SIGINT and SIGTERM during training save the iteration under way and raise
     ``interrupt.TrainingInterrupted`` (see ``ambulo.rl.interrupt``).
     """
+    started_s = time.monotonic() if started_s is None else started_s
+    if stop_at_criterion and not eval_every:
+        raise ValueError("stopping at the criterion needs periodic evaluation; give eval_every too")
     if resume:
         run_dir, checkpoint = _resume_point(task, resume, log_root)
         info = runs.read_run_info(run_dir)
@@ -180,14 +213,24 @@ def train(task: str | None = None, *, num_envs: int | None = None,
         env.close()
         return run_dir
     stop = interrupt.StopRequest()
+    periodic = None
+    if eval_every:
+        periodic = PeriodicEval(info, run_dir, every=eval_every, started_s=started_s,
+                                steps_per_iteration=ppo.num_steps_per_env * ppo.num_envs)
     bar = _install_progress(runner, run_dir, start, ppo.max_iterations, verbose, env.step_dt_s,
-                            stop)
+                            stop, periodic, stop_at_criterion)
     try:
         with contextlib.redirect_stdout(io.StringIO()) if not verbose else contextlib.nullcontext():
             interrupt.learn(runner, stop, run_dir, remaining,
                             init_at_random_ep_len=ppo.init_at_random_ep_len and not resume)
+    except CriterionReached:
+        pass
     finally:
         bar.close()
         env.close()
+        if periodic is not None:
+            periodic.close()
+    if periodic is not None:
+        _report_time_to_criterion(periodic)
     print(f"checkpoints and TensorBoard logs in {run_dir} (tensorboard --logdir {run_dir})")
     return run_dir

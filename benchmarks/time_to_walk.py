@@ -1,0 +1,175 @@
+"""Time to walk: minutes from `ambulo train` starting to the first checkpoint that walks.
+
+For each seed, runs
+
+    python -m ambulo.cli train TASK --device DEV --seed S --eval-every K --stop-at-criterion
+
+in its own process (``--parallel`` at a time: several on one GPU share it, which the result
+says), and reads the run's ``time_to_criterion.json``: wall-clock from the process start
+(imports, env build, kernel compile and every evaluation included) to the evaluation that met
+the task's criterion (humanoid-walk's ``walks``: fall rate <= 5 %, mean velocity error <= 0.2
+m/s over 100 episodes of 20 s), with that evaluation's output. A run that has not walked by
+``--max-minutes`` is stopped with SIGINT (it saves) and counts as not reached.
+
+The ceiling is the physics alone: raw ``mujoco_warp.step`` of the task's model at the same
+number of worlds, free running in a CUDA graph (``benchmarks/env_gpu.py``'s ``RawWarp``), in
+env-steps/s (physics steps / decimation); ``ratio`` = training env-steps/s (collection and PPO
+update, from metrics.csv) / that ceiling: the share of the GPU's physics speed that reaches
+learning.
+
+    python benchmarks/time_to_walk.py --task humanoid-walk --seeds 0,1,2 --device cuda \
+        --parallel 3 --max-minutes 9 --out /tmp/ttw
+    python benchmarks/time_to_walk.py --task cartpole --seeds 0 --device cpu --num-envs 256 \
+        --eval-every 10 --max-minutes 2 --no-ceiling   # a smoke run on the CPU
+
+Ends with one ``RESULT {json}`` line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import datetime
+import json
+import os
+import signal
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+
+def launch(args, seed: int, out: Path) -> tuple[subprocess.Popen, Path]:
+    root = out / f"seed{seed}"
+    root.mkdir(parents=True, exist_ok=True)
+    cmd = [sys.executable, "-m", "ambulo.cli", "train", args.task, "--device", args.device,
+           "--seed", str(seed), "--eval-every", str(args.eval_every),
+           *([] if args.keep_training else ["--stop-at-criterion"]), "--max-iterations", str(args.max_iterations), "--log-root", str(root)]
+    if args.num_envs:
+        cmd += ["--num-envs", str(args.num_envs)]
+    for pair in args.env_cfg or []:
+        cmd += ["--env-cfg", pair]
+    for pair in args.ppo_cfg or []:
+        cmd += ["--ppo-cfg", pair]
+    log = open(root / "train.log", "w")
+    proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT)
+    return proc, root
+
+
+def run_summary(root: Path) -> dict:
+    """What one seed's run folder says: time to the criterion and training throughput."""
+    runs = sorted(root.glob("*/*/run.json"))
+    if not runs:
+        return {"reached": False, "error": (root / "train.log").read_text()[-2000:]}
+    run = runs[-1].parent
+    out: dict = {"run": str(run), "reached": False}
+    reached = run / "time_to_criterion.json"
+    if reached.is_file():
+        info = json.loads(reached.read_text())
+        out.update(reached=True, minutes=round(info["wall_s"] / 60, 2), iteration=info["iteration"],
+                   env_steps=info["env_steps"], eval=info["eval"], eval_s_included=info["eval_s_included"])
+    rows = list(csv.DictReader(open(run / "metrics.csv"))) if (run / "metrics.csv").is_file() else []
+    if rows:
+        spans = [float(r["collect_s"]) + float(r["learn_s"]) for r in rows[1:]] or [1e-9]
+        steps = int(rows[-1]["env_steps"]) - int(rows[0]["env_steps"])
+        out["iterations"] = len(rows)
+        out["train_env_steps_per_s"] = round(steps / max(sum(spans), 1e-9))
+        out["collect_s_per_it"] = round(statistics.median(float(r["collect_s"]) for r in rows), 3)
+        out["learn_s_per_it"] = round(statistics.median(float(r["learn_s"]) for r in rows), 3)
+    evals = run / "evals.csv"
+    if evals.is_file():
+        out["evals"] = [dict(r) for r in csv.DictReader(open(evals))]
+    return out
+
+
+def ceiling(task: str, num_envs: int, device: str, seconds: float = 5.0) -> dict:
+    """Raw MuJoCo Warp env-steps/s of ``task``'s model at ``num_envs`` worlds (see the docstring)."""
+    sys.path.insert(0, str(Path(__file__).parent))
+    import ambulo.envs  # noqa: PLC0415
+    from env_gpu import RawWarp  # noqa: PLC0415
+
+    from ambulo.engine.gpu import synchronize  # noqa: PLC0415
+
+    env = ambulo.envs.make(task, num_envs=num_envs, device=device, seed=0)
+    raw = RawWarp(env.engine, env.cfg.decimation)
+    for _ in range(10):
+        raw.launch()
+    synchronize(raw.device)
+    launches, start = 0, time.perf_counter()
+    while time.perf_counter() - start < seconds:
+        for _ in range(20):
+            raw.launch()
+        synchronize(raw.device)
+        launches += 20
+    rate = launches * num_envs / (time.perf_counter() - start)
+    return {"raw_env_steps_per_s": round(rate), "num_envs": num_envs}
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--task", default="humanoid-walk")
+    p.add_argument("--seeds", default="0,1,2")
+    p.add_argument("--device", default="cuda")
+    p.add_argument("--num-envs", type=int)
+    p.add_argument("--eval-every", type=int, default=25)
+    p.add_argument("--max-iterations", type=int, default=100000)
+    p.add_argument("--max-minutes", type=float, default=9.0)
+    p.add_argument("--parallel", type=int, default=1, help="runs at once (on one device)")
+    p.add_argument("--env-cfg", action="append")
+    p.add_argument("--ppo-cfg", action="append")
+    p.add_argument("--out", default="/tmp/ambulo-time-to-walk")
+    p.add_argument("--no-ceiling", action="store_true")
+    p.add_argument("--keep-training", action="store_true",
+                   help="train on to --max-minutes after the criterion (for the best policy); the "
+                        "time to the criterion is recorded all the same")
+    args = p.parse_args()
+    out = Path(args.out)
+    seeds = [int(s) for s in args.seeds.split(",")]
+    pending, running, done = list(seeds), {}, {}
+    while pending or running:
+        while pending and len(running) < args.parallel:
+            seed = pending.pop(0)
+            running[seed] = (*launch(args, seed, out), time.monotonic())
+        time.sleep(2.0)
+        for seed, (proc, root, began) in list(running.items()):
+            if proc.poll() is None and time.monotonic() - began > args.max_minutes * 60:
+                proc.send_signal(signal.SIGINT)  # it saves the iteration under way
+                try:
+                    proc.wait(timeout=60)
+                except subprocess.TimeoutExpired:
+                    proc.kill()
+            if proc.poll() is not None:
+                done[seed] = run_summary(root)
+                del running[seed]
+                s = done[seed]
+                print(f"seed {seed}: " + (f"meets the criterion after {s['minutes']} min (iteration {s['iteration']})"
+                                          if s["reached"] else "did not reach the criterion"), flush=True)
+    reached = [done[s]["minutes"] for s in seeds if done[s]["reached"]]
+    rates = [done[s]["train_env_steps_per_s"] for s in seeds if "train_env_steps_per_s" in done[s]]
+    result = {
+        "benchmark": "time_to_walk", "task": args.task, "device": args.device,
+        "date": datetime.date.today().isoformat(), "seeds": seeds, "parallel_runs_per_device": args.parallel,
+        "reached": f"{len(reached)}/{len(seeds)}",
+        "minutes_median": statistics.median(reached) if reached else None,
+        "minutes_min": min(reached) if reached else None,
+        "minutes_max": max(reached) if reached else None,
+        "train_env_steps_per_s_median": statistics.median(rates) if rates else None,
+        "runs": {str(s): {k: v for k, v in done[s].items() if k != "evals"} for s in seeds},
+    }
+    if args.device.startswith("cuda"):
+        import torch  # noqa: PLC0415
+
+        result["gpu"] = torch.cuda.get_device_name(0)
+    if not args.no_ceiling:
+        num_envs = args.num_envs or json.loads(next(out.glob("seed*/*/*/run.json")).read_text())["ppo"]["num_envs"]
+        result["ceiling"] = ceiling(args.task, num_envs, args.device)
+        if rates:
+            result["ratio"] = round(statistics.median(rates) / result["ceiling"]["raw_env_steps_per_s"], 3)
+    (out / "evals.json").write_text(json.dumps({str(s): done[s].get("evals", []) for s in seeds}, indent=1))
+    print("RESULT " + json.dumps(result))
+
+
+if __name__ == "__main__":
+    os.environ.setdefault("PYTHONUNBUFFERED", "1")
+    main()

@@ -1,0 +1,103 @@
+"""Evaluate the policy under training every K iterations and time the first success.
+
+``ambulo train --eval-every K`` measures, at every K-th iteration, the policy being trained
+exactly as ``ambulo eval`` measures a checkpoint (``run_episodes``: 100 full episodes of the
+task's play variant, deterministic actions, the same seed each time so evaluations compare),
+on a second env on the training device. Each evaluation saves the checkpoint it judged, adds
+a row to ``<run>/evals.csv`` and ``eval/*`` scalars to TensorBoard, and the first one that
+meets every criterion of the task writes ``<run>/time_to_criterion.json``: the wall-clock
+time from the start of ``train`` (env build and kernel compile included) to that moment, so
+"time to walk" is a measurement, not an estimate.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import time
+from pathlib import Path
+from typing import Any
+
+from ambulo import envs
+from ambulo.utils.atomic import atomic_write_json, atomic_write_text
+
+from . import runs
+from .evaluate import eval_episode_length_s, run_episodes
+from .vecenv import RslRlVecEnv
+
+EVAL_COLUMNS = ("iteration", "wall_s", "env_steps", "fall_rate", "mean_episode_length_s",
+                "mean_return", "metrics", "criteria_met")
+TIME_FILE = "time_to_criterion.json"
+
+
+class PeriodicEval:
+    """Owns the evaluation env; ``__call__(runner, iteration)`` measures the runner's policy."""
+
+    def __init__(self, info: dict[str, Any], run_dir: Path, *, every: int, started_s: float,
+                 steps_per_iteration: int, num_episodes: int = 100, seed: int = 12345,
+                 device: str | None = None):
+        self.task = envs.spec(info["task"])
+        if not self.task.criteria:
+            raise ValueError(f"--eval-every: task {info['task']!r} declares no success criterion to "
+                             "time; drop --eval-every")
+        self.every, self.started_s, self.seed = every, started_s, seed
+        self.run_dir, self.steps_per_iteration = Path(run_dir), steps_per_iteration
+        self.env = runs.make_env_for_run(info, num_envs=num_episodes, seed=seed, play=True,
+                                         device=device,
+                                         episode_length_s=eval_episode_length_s(self.task, None))
+        self.vec_env = RslRlVecEnv(self.env)
+        self.reached: dict[str, Any] | None = None
+        self.eval_s = 0.0
+        """Seconds spent evaluating, inside the timed total (reported, not subtracted)."""
+        self._csv = self.run_dir / "evals.csv"
+        if not self._csv.is_file():
+            atomic_write_text(self._csv, ",".join(EVAL_COLUMNS) + "\n", fsync=True)
+
+    def due(self, iteration: int) -> bool:
+        return (iteration + 1) % self.every == 0
+
+    def __call__(self, runner, iteration: int) -> dict[str, Any]:
+        """Save ``model_<iteration>.pt``, evaluate it, log it; return the eval result."""
+        checkpoint = self.run_dir / f"model_{iteration}.pt"
+        runner.save(str(checkpoint))
+        began = time.monotonic()
+        self.env.generator.manual_seed(self.seed)  # the same commands and resets every time
+        policy = runner.get_inference_policy(device=str(self.env.device))
+        try:
+            result = run_episodes(self.env, self.vec_env, policy, self.task)
+        finally:
+            runner.alg.train_mode()  # get_inference_policy switched it to eval mode
+        self.eval_s += time.monotonic() - began
+        wall_s = time.monotonic() - self.started_s
+        met = all(result[c.name] for c in self.task.criteria)
+        metrics = {k: round(v, 4) for k, v in result.items() if k.startswith("mean_abs")}
+        row = [iteration, f"{wall_s:.1f}", (iteration + 1) * self.steps_per_iteration,
+               f"{result['fall_rate']:.3f}", f"{result['mean_episode_length_s']:.2f}",
+               f"{result['mean_return']:.2f}", " ".join(f"{k}={v}" for k, v in metrics.items()), met]
+        line = io.StringIO()
+        csv.writer(line).writerow(row)
+        with open(self._csv, "a") as f:
+            f.write(line.getvalue())
+        writer = getattr(runner.logger, "writer", None)
+        if writer is not None:
+            for key in ("fall_rate", "mean_episode_length_s", *metrics):
+                writer.add_scalar(f"eval/{key}", result[key], iteration)
+            writer.add_scalar("eval/criteria_met", float(met), iteration)
+        if met and self.reached is None:
+            self.reached = {"criteria": [c.name for c in self.task.criteria], "iteration": iteration,
+                            "checkpoint": checkpoint.name, "wall_s": round(wall_s, 1),
+                            "env_steps": (iteration + 1) * self.steps_per_iteration,
+                            "eval_s_included": round(self.eval_s, 1), "eval": result}
+            atomic_write_json(self.run_dir / TIME_FILE, self.reached, indent=2, fsync=True)
+        return result
+
+    def close(self) -> None:
+        self.env.close()
+
+
+def summary(result: dict[str, Any], iteration: int, wall_s: float) -> str:
+    """One line on an evaluation, for the console."""
+    metrics = ", ".join(f"{k[len('mean_'):]} {v:.3f}" for k, v in result.items() if k.startswith("mean_abs"))
+    met = [c for c in result["criteria"] if result[c]]
+    return (f"eval @ it {iteration} ({wall_s / 60:.1f} min): fall rate {result['fall_rate']:.2f}, "
+            f"{metrics}; {'meets ' + ', '.join(met) if met else 'criteria not met'}")
