@@ -293,17 +293,36 @@ def export(args: argparse.Namespace) -> int:
 
 
 def evaluate(args: argparse.Namespace) -> int:
-    _check_run(args.run)
-    from ambulo.rl import evaluate as run_eval  # noqa: PLC0415
+    if args.shipped:
+        result = _evaluate_shipped(args)
+    else:
+        _check_run(args.run)
+        from ambulo.rl import evaluate as run_eval  # noqa: PLC0415
 
-    with _rl_errors("the run folder (eval.json goes there)"):
-        result = run_eval(args.run, checkpoint=args.checkpoint, num_episodes=args.episodes,
-                          episode_length_s=args.episode_length_s, seed=args.seed,
-                          log_root=args.log_root, device=args.device)
+        with _rl_errors("the run folder (eval.json goes there)"):
+            result = run_eval(args.run, checkpoint=args.checkpoint, num_episodes=args.episodes,
+                              episode_length_s=args.episode_length_s, seed=args.seed,
+                              log_root=args.log_root, device=args.device)
     if not args.require_criteria:
         return 0
     failed = [name for name in result.get("criteria", []) if not result[name]]
     return 1 if failed else 0
+
+
+def _evaluate_shipped(args: argparse.Namespace) -> dict:
+    """``ambulo eval TASK --shipped``: the policy in ambulo's assets, no run folder."""
+    from ambulo.assets.policies import shipped_tasks  # noqa: PLC0415
+
+    shipped = shipped_tasks()
+    if args.run not in shipped:
+        raise CliError(f"no shipped policy for {args.run!r}",
+                       f"--shipped takes a task with one: {', '.join(shipped) or 'none'}")
+    if args.checkpoint:
+        raise CliError("--checkpoint does not apply to --shipped", "drop one of them")
+    from ambulo.rl.evaluate import evaluate_shipped  # noqa: PLC0415
+
+    return evaluate_shipped(args.run, num_episodes=args.episodes, episode_length_s=args.episode_length_s,
+                            seed=args.seed, device=args.device or "cpu")
 
 
 def add_commands(subparsers: argparse._SubParsersAction) -> None:
@@ -364,7 +383,10 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=export)
 
     p = subparsers.add_parser("eval", help="fall rate and velocity error over many episodes")
-    p.add_argument("run", help=run_help)
+    p.add_argument("run", help=run_help + "; with --shipped, a task with a policy in ambulo's assets")
+    p.add_argument("--shipped", action="store_true",
+                   help="evaluate the policy that ships with ambulo for the task RUN names "
+                        "(e.g. `ambulo eval humanoid-walk --shipped --device cpu`)")
     p.add_argument("--checkpoint", help=checkpoint_help)
     p.add_argument("--episodes", type=whole_above_zero("--episodes 100"), default=100)
     p.add_argument("--episode-length-s", type=seconds_above_zero("--episode-length-s 20"),

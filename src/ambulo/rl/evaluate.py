@@ -101,3 +101,25 @@ def evaluate(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = N
         print(json.dumps(result, indent=2))
     env.close()
     return result
+
+
+def evaluate_shipped(task: str, *, num_episodes: int = 100, episode_length_s: float | None = None,
+                     seed: int = 12345, device: str = "cpu", quiet: bool = False) -> dict:
+    """Evaluate the policy that ships with ambulo for ``task`` (``ambulo.assets.policies``) as
+    ``evaluate`` measures a run: the same episodes, metrics and criteria; no run folder needed."""
+    from ambulo.assets.policies import load_policy  # noqa: PLC0415
+
+    from .vecenv import RslRlVecEnv  # noqa: PLC0415
+
+    shipped = load_policy(task)
+    spec = envs.spec(task)
+    env = envs.make(task, num_envs=num_episodes, device=device, seed=seed, play=True,
+                    episode_length_s=eval_episode_length_s(spec, episode_length_s))
+    measured = run_episodes(env, RslRlVecEnv(env), lambda obs: shipped(obs["policy"]), spec,
+                            desc=f"eval shipped {task}", quiet=quiet)
+    result = {"task": task, "policy": str(shipped.folder), "checkpoint": shipped.contract["trained"]["checkpoint"],
+              "device": str(env.device), **measured}
+    if not quiet:
+        print(json.dumps(result, indent=2))
+    env.close()
+    return result
