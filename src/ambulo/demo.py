@@ -1,4 +1,5 @@
-"""The main demo: a Jetbot circling a standing humanoid, run headless, recorded to MP4."""
+"""The main demo: a Jetbot circling a humanoid that walks a small circle of its own (driven by
+the walking policy that ships with ambulo), run headless, recorded to MP4."""
 
 from __future__ import annotations
 
@@ -9,9 +10,12 @@ import numpy as np
 
 from . import assets
 from .sim import (
-    ArticulationAction, DifferentialController, DynamicCuboid, Robot, WheeledRobot, World,
-    set_camera_view,
+    ArticulationAction, DifferentialController, DynamicCuboid, HumanoidWalkingPolicy, Robot, WheeledRobot,
+    World, set_camera_view,
 )
+
+HUMANOID_COMMAND = (0.25, 0.0, 0.6)
+"""(vx m/s, vy m/s, yaw rate rad/s): a circle of radius v / w = 0.42 m, inside the Jetbot's."""
 
 
 def build_demo_world(num_worlds: int = 1) -> tuple[World, WheeledRobot, Robot]:
@@ -41,6 +45,7 @@ class DemoReport:
     jetbot_path_m: float
     jetbot_radius_m: float
     humanoid_min_pelvis_height_m: float
+    humanoid_path_m: float
     humanoid_stood: bool
     video: str | None
     frames: int
@@ -51,8 +56,10 @@ class DemoReport:
             f"({self.simulated_s / max(self.wall_s, 1e-9):.1f}x real time)",
             f"jetbot drove {self.jetbot_path_m:.2f} m around a circle of radius {self.jetbot_radius_m:.2f} m "
             f"(commanded 0.25 m/s, 0.25 rad/s -> 1.00 m)",
-            f"humanoid {'stood' if self.humanoid_stood else 'FELL'} under PD hold; "
-            f"lowest pelvis height {self.humanoid_min_pelvis_height_m:.3f} m",
+            f"humanoid walked {self.humanoid_path_m:.2f} m with the shipped walking policy "
+            f"(commanded {HUMANOID_COMMAND[0]} m/s, {HUMANOID_COMMAND[2]} rad/s) and "
+            f"{'stayed up' if self.humanoid_stood else 'FELL'}; lowest pelvis height "
+            f"{self.humanoid_min_pelvis_height_m:.3f} m",
             f"video: {self.video} ({self.frames} frames)" if self.video else "video: not recorded",
         ]
 
@@ -62,6 +69,9 @@ def run_demo(seconds: float = 8.0, video: str | None = "out/demo.mp4", progress:
 
     world, jetbot, humanoid = build_demo_world()
     world.reset()
+    walker = HumanoidWalkingPolicy(humanoid)
+    walker.initialize()
+    world.add_physics_callback("humanoid_walk", lambda dt: walker.forward(dt, HUMANOID_COMMAND))
     controller = DifferentialController(wheel_radius=0.03, wheel_base=0.1125)
     # a 1 m circle: v = w r
     wheel_command = controller.forward([0.25, 0.25])
@@ -74,6 +84,7 @@ def run_demo(seconds: float = 8.0, video: str | None = "out/demo.mp4", progress:
     path_m, last = 0.0, jetbot.get_world_pose()[0]
     pelvis_start = float(humanoid.get_world_pose()[0][2])
     pelvis_min = pelvis_start
+    walked_m, humanoid_last = 0.0, humanoid.get_world_pose()[0]
     steps = int(round(seconds / world.get_rendering_dt()))
     for _ in tqdm(range(steps), desc="demo", unit="step", disable=not progress):
         jetbot.apply_wheel_actions(ArticulationAction(joint_velocities=wheel_command.joint_velocities))
@@ -81,7 +92,10 @@ def run_demo(seconds: float = 8.0, video: str | None = "out/demo.mp4", progress:
         pos = jetbot.get_world_pose()[0]
         path_m += float(np.linalg.norm(pos[:2] - last[:2]))
         last = pos
-        pelvis_min = min(pelvis_min, float(humanoid.get_world_pose()[0][2]))
+        humanoid_pos = humanoid.get_world_pose()[0]
+        walked_m += float(np.linalg.norm(humanoid_pos[:2] - humanoid_last[:2]))
+        humanoid_last = humanoid_pos
+        pelvis_min = min(pelvis_min, float(humanoid_pos[2]))
         if recorder:
             recorder.capture()
     wall = time.perf_counter() - start
@@ -89,6 +103,6 @@ def run_demo(seconds: float = 8.0, video: str | None = "out/demo.mp4", progress:
     return DemoReport(
         simulated_s=world.current_time, wall_s=wall, jetbot_path_m=path_m,
         jetbot_radius_m=float(np.linalg.norm(last[:2])), humanoid_min_pelvis_height_m=pelvis_min,
-        humanoid_stood=pelvis_min > 0.9 * pelvis_start, video=out,
+        humanoid_path_m=walked_m, humanoid_stood=pelvis_min > 0.8 * pelvis_start, video=out,
         frames=recorder.num_frames if recorder else 0,
     )

@@ -392,7 +392,7 @@ def test_demo_prints_what_happened_and_writes_an_mp4(tmp_path, capsys):
     video = tmp_path / "demo.mp4"
     assert main(["demo", "--seconds", "2", "--video", str(video), "--quiet"]) == 0
     out = capsys.readouterr().out
-    assert "humanoid stood" in out and "jetbot drove" in out
+    assert "humanoid walked" in out and "stayed up" in out and "jetbot drove" in out
     assert video.stat().st_size > 10_000
     assert not (tmp_path / "demo.part.mp4").exists()
 

@@ -2,6 +2,7 @@
 
 import math
 
+import pytest
 import torch
 
 from ambulo.envs.commands import VelocityCommand, VelocityCommandCfg
@@ -52,3 +53,25 @@ def test_commands_are_redrawn_when_their_time_runs_out_and_only_then():
                        * ~cmd.is_standing[~due, None])
     assert changed[due & ~heading_or_standing].all()
     assert (cmd.time_left_s > 0).all()
+
+
+def test_curriculum_widens_the_ranges_only_while_tracking_is_good():
+    """humanoid-walk's command curriculum: the range share grows by rate * dt per step while
+    the running tracking mean is above the threshold, never past 1, and not otherwise."""
+    from ambulo import envs  # noqa: PLC0415
+
+    env = envs.make("humanoid-walk", num_envs=2, device="cpu", seed=0, curriculum_start_scale=0.4,
+                    curriculum_rate_per_s=0.5)
+    scale = env.commands.range_scale
+    assert float(scale) == pytest.approx(0.4)
+    for _ in range(10):  # tracking kernel 0: the running mean stays low, the range does not grow
+        env._advance_curriculum(torch.zeros(2))
+    assert float(scale) == pytest.approx(0.4)
+    env._tracking_mean.fill_(1.0)
+    env._advance_curriculum(torch.ones(2))
+    assert float(scale) == pytest.approx(0.4 + 0.5 * env.step_dt_s)
+    for _ in range(200):
+        env._advance_curriculum(torch.ones(2))
+    assert float(scale) == 1.0
+    env.commands.resample(None)  # draws within the full ranges now; play variants never scale
+    assert envs.make_cfg("humanoid-walk", play=True).curriculum_start_scale is None

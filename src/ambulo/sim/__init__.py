@@ -18,6 +18,7 @@ from .prims import RigidPrim, XFormPrim
 from .scene import Scene
 from .stage import add_reference_to_stage, get_current_stage
 from .viewport import set_camera_view
+from .walking_policy import HumanoidWalkingPolicy
 from .wheeled import DifferentialController, WheeledRobot
 from .world import World
 
@@ -35,5 +36,5 @@ __all__ = [
     "set_semantic_label", "semantic_labels", "AssetError", "PrimNotFoundError",
     "DynamicCuboid", "FixedCuboid", "VisualCuboid", "DynamicSphere", "FixedSphere", "VisualSphere",
     "DynamicCylinder", "FixedCylinder", "VisualCylinder", "DynamicCapsule", "FixedCapsule",
-    "VisualCapsule",
+    "VisualCapsule", "HumanoidWalkingPolicy",
 ]

@@ -1,0 +1,76 @@
+"""The walking policy that ships with ambulo drives the bundled humanoid on the CPU, no training."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from ambulo import assets
+from ambulo.assets.policies import load_policy, policy_dir
+from ambulo.rl.export import _run_torchscript_in_fresh_process
+from ambulo.sim import HumanoidWalkingPolicy, Robot, World, add_reference_to_stage
+
+pytest.importorskip("onnxruntime")
+
+
+def walk(command, seconds: float, physics_dt: float = 0.005):
+    world = World(physics_dt=physics_dt, rendering_dt=0.02)
+    world.scene.add_default_ground_plane()
+    add_reference_to_stage(usd_path=assets.path("humanoid"), prim_path="/World/Humanoid")
+    robot = world.scene.add(Robot(prim_path="/World/Humanoid", name="humanoid"))
+    world.reset()
+    walker = HumanoidWalkingPolicy(robot)
+    walker.initialize()
+    world.add_physics_callback("walk", lambda dt: walker.forward(dt, command))
+    start = robot.get_world_pose()[0].copy()
+    lowest = math.inf
+    for _ in range(int(round(seconds / 0.02))):
+        world.step(render=False)
+        lowest = min(lowest, float(robot.get_world_pose()[0][2]))
+    return robot.get_world_pose()[0] - start, walker.heading_rad, lowest
+
+
+def test_forward_command_walks_forward_without_falling():
+    moved, heading, lowest = walk((0.5, 0.0, 0.0), 4.0)
+    # 0.5 m/s for 4 s less the first step or two: the shipped policy tracks within ~0.1 m/s
+    assert 1.6 < moved[0] < 2.2
+    assert abs(moved[1]) < 0.4 and abs(heading) < 0.3
+    assert lowest > 0.8  # the pelvis stands at 0.9 m: no fall, no crouch-walk
+
+
+def test_yaw_command_turns_in_place():
+    moved, heading, lowest = walk((0.0, 0.0, 0.8), 3.0)
+    assert 1.7 < heading < 2.9  # 0.8 rad/s for 3 s = 2.4 rad
+    assert np.linalg.norm(moved[:2]) < 0.5 and lowest > 0.8
+
+
+def test_standing_command_stays_put():
+    moved, heading, lowest = walk((0.0, 0.0, 0.0), 3.0)
+    assert np.linalg.norm(moved[:2]) < 0.25 and abs(heading) < 0.2 and lowest > 0.8
+
+
+def test_a_world_at_another_physics_rate_is_one_clear_error():
+    with pytest.raises(ValueError, match="physics_dt=0.005"):
+        walk((0.3, 0.0, 0.0), 0.1, physics_dt=1 / 60)
+
+
+def test_out_of_range_commands_are_clipped_with_a_warning():
+    with pytest.warns(UserWarning, match="outside the trained ranges"):
+        moved, _, lowest = walk((3.0, 0.0, 0.0), 2.0)
+    assert moved[0] < 2.4 and lowest > 0.8  # at most the trained 1 m/s
+
+
+def test_contract_matches_the_exported_networks():
+    """contract.json's sizes are the networks'; both exports give the same actions."""
+    contract = json.loads((policy_dir("humanoid-walk") / "contract.json").read_text())
+    assert sum(t["size"] for t in contract["observation_terms"]) == contract["num_obs"] == 72
+    assert len(contract["joint_names"]) == len(contract["default_joint_pos"]) == contract["num_actions"] == 21
+    assert contract["eval_cpu"]["walks"] is True and contract["trained"]["commit"]
+    obs = torch.randn(5, 72, generator=torch.Generator().manual_seed(0))
+    onnx_actions = load_policy("humanoid-walk")(obs)
+    # TorchScript in a fresh process, as a deployment loads it (torch.jit.load aborts in a
+    # process that imported mujoco.usd: see ambulo.rl.export)
+    jit_actions = _run_torchscript_in_fresh_process(policy_dir("humanoid-walk") / "policy.pt", obs.numpy())
+    assert np.allclose(onnx_actions.numpy(), jit_actions, atol=1e-4)
