@@ -21,7 +21,7 @@ from ambulo import envs
 from ambulo.engine import engine_class
 from ambulo.utils.atomic import remove_partial_files
 
-from . import interrupt, runs
+from . import distributed, interrupt, runs
 from .config import ppo_cfg
 from .metrics import MetricsCsv
 from .periodic_eval import PeriodicEval, summary
@@ -35,7 +35,21 @@ class AmbuloRunner(OnPolicyRunner):
 
     env: RslRlVecEnv
 
+    def _configure_multi_gpu(self) -> None:
+        """rsl-rl-lib's set-up on GPUs (NCCL); gloo for CPU ranks (``ambulo.rl.distributed``)."""
+        rank = distributed.current()
+        if not (rank.distributed and str(self.device) == "cpu"):
+            super()._configure_multi_gpu()
+            return
+        self.gpu_world_size, self.is_distributed = rank.world_size, True
+        self.gpu_local_rank, self.gpu_global_rank = rank.local_rank, rank.rank
+        self.cfg["multi_gpu"] = {"global_rank": rank.rank, "local_rank": rank.local_rank,
+                                 "world_size": rank.world_size}
+        distributed.init_cpu_group(rank)
+
     def save(self, path: str, infos: dict | None = None) -> None:
+        if not distributed.current().is_main:
+            return  # rank 0 writes the run folder
         saved = self.alg.save()
         saved["iter"] = self.current_learning_iteration
         saved["infos"] = {
@@ -67,18 +81,26 @@ class CriterionReached(Exception):
 
 def _install_progress(runner: AmbuloRunner, run_dir: Path, start: int, total: int,
                       verbose: bool, step_dt_s: float, stop: interrupt.StopRequest,
-                      periodic: PeriodicEval | None = None, stop_at_criterion: bool = False) -> tqdm:
+                      periodic: PeriodicEval | None = None, stop_at_criterion: bool = False,
+                      eval_every: int | None = None, rank: distributed.Rank = distributed.Rank()) -> tqdm:
     """Replace rsl-rl's per-iteration console report by a progress bar (unless ``verbose``),
     append each iteration's headline numbers to ``metrics.csv`` (from ``start``: rows of a
     killed run's later iterations are dropped), evaluate when ``periodic`` is due, and end
     training there if ``stop`` was asked or (``stop_at_criterion``) the criteria hold."""
     bar = tqdm(total=total, initial=start, desc=f"train {run_dir.parent.name}", unit="it",
-               disable=verbose)
+               disable=verbose or not rank.is_main)
     report = runner.logger.log
-    metrics = MetricsCsv(run_dir / "metrics.csv", start)
-    steps_per_it = runner.cfg["num_steps_per_env"] * runner.env.num_envs
+    metrics = MetricsCsv(run_dir / "metrics.csv", start) if rank.is_main else None
+    # env steps of all ranks: each collects its own num_envs x rollout
+    steps_per_it = runner.cfg["num_steps_per_env"] * runner.env.num_envs * rank.world_size
 
     def log(**kwargs: Any) -> None:
+        if not rank.is_main:  # only the iteration bookkeeping every rank must share
+            stop.check()
+            if eval_every and (kwargs["it"] + 1) % eval_every == 0:
+                if distributed.agree(False, rank, str(runner.device)) and stop_at_criterion:
+                    raise CriterionReached
+            return
         if verbose:
             report(**kwargs)
         else:
@@ -95,7 +117,8 @@ def _install_progress(runner: AmbuloRunner, run_dir: Path, start: int, total: in
         if periodic is not None and periodic.due(kwargs["it"]):
             result = periodic(runner, kwargs["it"])
             bar.write(summary(result, kwargs["it"], time.monotonic() - periodic.started_s))
-            if stop_at_criterion and periodic.reached is not None:
+            reached = distributed.agree(periodic.reached is not None, rank, str(runner.device))
+            if stop_at_criterion and reached:
                 raise CriterionReached
 
     runner.logger.log = log
@@ -172,11 +195,13 @@ def train(task: str | None = None, *, num_envs: int | None = None,
     started_s = time.monotonic() if started_s is None else started_s
     if stop_at_criterion and not eval_every:
         raise ValueError("stopping at the criterion needs periodic evaluation; give eval_every too")
+    rank = distributed.current()
     if resume:
         run_dir, checkpoint = _resume_point(task, resume, log_root)
         info = runs.read_run_info(run_dir)
-        _note_kept_settings(info, num_envs=num_envs, seed=seed, device=device)
-        if remove_partial_files(run_dir):
+        if rank.is_main:
+            _note_kept_settings(info, num_envs=num_envs, seed=seed, device=device)
+        if rank.is_main and remove_partial_files(run_dir):
             print(f"removed the partial files a killed run left in {run_dir}", file=sys.stderr)
         if max_iterations is not None:
             info["ppo"]["max_iterations"] = max_iterations
@@ -189,24 +214,28 @@ def train(task: str | None = None, *, num_envs: int | None = None,
         engine_class(device or "cpu")
         ppo = ppo_cfg(task, num_envs=num_envs, max_iterations=max_iterations,
                       **(ppo_overrides or {}))
-        run_dir = runs.new_run_dir(task, log_root)
         info = {"task": task, "seed": 0 if seed is None else seed, "device": device or "cpu",
                 "env_overrides": dict(env_overrides or {}), "ppo": dataclasses.asdict(ppo),
-                "ambulo_version": ambulo.__version__}
-        runs.write_run_info(run_dir, info)
+                "ambulo_version": ambulo.__version__, "world_size": rank.world_size}
+        # rank 0 owns the run folder; the other ranks write nothing
+        run_dir = runs.new_run_dir(task, log_root) if rank.is_main else Path(log_root) / task / f"rank{rank.rank}"
+        if rank.is_main:
+            runs.write_run_info(run_dir, info)
 
-    torch.manual_seed(info["seed"])
-    env = runs.make_env_for_run(info, num_envs=ppo.num_envs)
+    torch.manual_seed(info["seed"] + rank.rank)  # each rank collects its own experience
+    env = runs.make_env_for_run(info, num_envs=ppo.num_envs, seed=info["seed"] + rank.rank,
+                                device=distributed.rank_device(info["device"], rank))
     with contextlib.redirect_stdout(io.StringIO()) if not verbose else contextlib.nullcontext():
         runner = AmbuloRunner(RslRlVecEnv(env), ppo.to_rsl_rl(env.num_privileged_obs > 0),
-                              log_dir=str(run_dir), device=str(env.device))
+                              log_dir=str(run_dir) if rank.is_main else None, device=str(env.device))
     runner.add_git_repo_to_log(ambulo.__file__)
     start = 0
     if resume:
         start = runner.load_for_resume(checkpoint)
         print(f"resuming {run_dir} from {checkpoint.name} at iteration {start}")
-    else:
-        print(f"training {info['task']} with {ppo.num_envs} envs -> {run_dir}")
+    elif rank.is_main:
+        ranks = f" x {rank.world_size} ranks" if rank.distributed else ""
+        print(f"training {info['task']} with {ppo.num_envs} envs{ranks} -> {run_dir}")
     remaining = ppo.max_iterations - start
     if remaining <= 0:
         print(f"{run_dir} already ran {start} of {ppo.max_iterations} iterations")
@@ -214,11 +243,12 @@ def train(task: str | None = None, *, num_envs: int | None = None,
         return run_dir
     stop = interrupt.StopRequest()
     periodic = None
-    if eval_every:
+    if eval_every and rank.is_main:
         periodic = PeriodicEval(info, run_dir, every=eval_every, started_s=started_s,
-                                steps_per_iteration=ppo.num_steps_per_env * ppo.num_envs)
+                                steps_per_iteration=ppo.num_steps_per_env * ppo.num_envs * rank.world_size,
+                                device=str(env.device))
     bar = _install_progress(runner, run_dir, start, ppo.max_iterations, verbose, env.step_dt_s,
-                            stop, periodic, stop_at_criterion)
+                            stop, periodic, stop_at_criterion, eval_every, rank)
     try:
         with contextlib.redirect_stdout(io.StringIO()) if not verbose else contextlib.nullcontext():
             interrupt.learn(runner, stop, run_dir, remaining,
@@ -232,5 +262,7 @@ def train(task: str | None = None, *, num_envs: int | None = None,
             periodic.close()
     if periodic is not None:
         _report_time_to_criterion(periodic)
+    if not rank.is_main:
+        return run_dir
     print(f"checkpoints and TensorBoard logs in {run_dir} (tensorboard --logdir {run_dir})")
     return run_dir
