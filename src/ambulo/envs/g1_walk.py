@@ -33,9 +33,9 @@ import torch
 from ambulo.core import RobotCfg
 from ambulo.core.packages import package_search_path
 
-from .humanoid_walk import (HumanoidWalkCfg, HumanoidWalkEnv, humanoid_walk_cfg, humanoid_walk_metrics,
+from .humanoid_walk import (WALKS, HumanoidWalkCfg, HumanoidWalkEnv, humanoid_walk_cfg, humanoid_walk_metrics,
                             humanoid_walk_ppo)
-from .registry import Criterion, TaskSpec, register
+from .registry import TaskSpec, register
 
 G1_URDF = "example-robot-data/robots/g1_description/urdf/g1_29dof_rev_1_0.urdf"
 
@@ -172,19 +172,15 @@ class G1WalkEnv(HumanoidWalkEnv):
                           kd=torch.as_tensor(kd, dtype=dt, device=self.device).expand(self.num_envs, -1))
 
 
-def g1_walk_ppo():
-    return humanoid_walk_ppo()
-
-
 register(TaskSpec(
     name="g1-walk",
     env_cls=G1WalkEnv,
     cfg_fn=g1_walk_cfg,
     play_cfg_fn=g1_walk_play_cfg,
-    ppo_cfg_fn=g1_walk_ppo,
+    ppo_cfg_fn=humanoid_walk_ppo,
     description="Unitree G1 (29 DoF URDF, robots extra) tracks (vx, vy, yaw rate); URDF-derived gains",
     step_metrics=humanoid_walk_metrics,
-    criteria=(Criterion("walks", max_values={"fall_rate": 0.05, "mean_abs_vel_error_m_s": 0.2}),),
+    criteria=(WALKS,),
 ))
 
 __all__ = ["G1WalkCfg", "G1WalkEnv", "g1_drive_gains", "g1_urdf_path", "g1_walk_cfg", "urdf_joint_limits"]

@@ -288,6 +288,10 @@ class HumanoidWalkEnv(RLEnv):
         self.commands.resample(rows)
 
 
+WALKS = Criterion("walks", max_values={"fall_rate": 0.05, "mean_abs_vel_error_m_s": 0.2})
+"""What walking means for every velocity-tracking humanoid task (``ambulo eval``)."""
+
+
 def humanoid_walk_metrics(env: HumanoidWalkEnv) -> dict[str, torch.Tensor]:
     lin_err, yaw_err = env.velocity_tracking_error()
     return {"abs_vel_error_m_s": lin_err, "abs_yaw_rate_error_rad_s": yaw_err}
@@ -301,5 +305,5 @@ register(TaskSpec(
     ppo_cfg_fn=humanoid_walk_ppo,
     description="21-DoF humanoid tracks commanded (vx, vy, yaw rate) through joint PD targets",
     step_metrics=humanoid_walk_metrics,
-    criteria=(Criterion("walks", max_values={"fall_rate": 0.05, "mean_abs_vel_error_m_s": 0.2}),),
+    criteria=(WALKS,),
 ))

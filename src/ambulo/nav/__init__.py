@@ -1,5 +1,7 @@
 """Navigation for legged robots: grid maps, the footstep planner, balance (ZMP, capture point,
-centre of pressure) and the preview-control walking pattern generator."""
+centre of pressure), the preview-control walking pattern generator, and the whole-body
+controller that walks the bundled humanoid along a pattern in MuJoCo (``walk_controller``,
+``walk_sim``; pictures in ``walk_plot``)."""
 
 from .balance import (
     CaptureRegion, CenterOfPressure, FootShape, PressureCenter, capture_point, capture_region, cart_table_zmp,
@@ -15,6 +17,8 @@ from .footsteps import (
     plan_footsteps,
 )
 from .grid_map import GridMap
+from .walk_controller import HUMANOID_FOOT, StabilizerCfg, WalkController, WalkIK, build_reference, walk_model
+from .walk_sim import WalkResult, WalkSimCfg, WalkSimulation, acceptance_walk, plan_walk, walk_pattern
 from .preview import (
     PreviewControlCfg, PreviewController, WalkPattern, WalkPatternCfg, WalkPatternGenerator, kajita2003_preview_cfg,
     preview_gains, walk_pattern_cfg,
@@ -33,4 +37,6 @@ __all__ = [
     "humanoid_footstep_cfg",
     "plan_footsteps",
     "plot_plan",
+    "HUMANOID_FOOT", "StabilizerCfg", "WalkController", "WalkIK", "build_reference", "walk_model",
+    "WalkResult", "WalkSimCfg", "WalkSimulation", "acceptance_walk", "plan_walk", "walk_pattern",
 ]

@@ -1,0 +1,198 @@
+"""The humanoid walks planned footsteps in MuJoCo (issue 14, part 4): the whole-body IK, the
+inverse-dynamics feed-forward and the simulated walk's balance."""
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from ambulo.nav.balance import polygon_signed_distance
+from ambulo.nav.walk_controller import HUMANOID_FOOT, StabilizerCfg, WalkIK, build_reference, walk_model
+from ambulo.nav.walk_sim import WalkSimCfg, WalkSimulation, acceptance_walk, walk_pattern
+
+GRAVITY = 9.81
+
+
+@pytest.fixture(scope="module")
+def model():
+    return walk_model()
+
+
+@pytest.fixture(scope="module")
+def acceptance():
+    """The acceptance walk: 3 m straight, then a 90 deg turn on the spot (planned on an empty map)."""
+    return acceptance_walk()
+
+
+def short_plan(num_steps=4, length=0.2):
+    half = 0.09
+    plan = [{"x": 0.03, "y": half, "yaw": 0.0, "side": "left"}, {"x": 0.03, "y": -half, "yaw": 0.0, "side": "right"}]
+    for i in range(num_steps):
+        side = "left" if i % 2 == 0 else "right"
+        plan.append({"x": 0.03 + length * min(i + 1, num_steps - 1), "y": half if side == "left" else -half,
+                     "yaw": 0.0, "side": side})
+    return plan
+
+
+def test_ik_puts_com_and_soles_where_asked(model):
+    ik = WalkIK(model)
+    q0 = model.key_qpos[model.key("home").id].copy()
+    com = np.array([0.05, 0.03, 0.80])
+    feet = np.array([[0.15, 0.10, 0.05, 0.2], [-0.02, -0.09, 0.0, -0.1]])  # left swings up and ahead
+    q, err = ik.solve(q0, com, pelvis_yaw=0.05, feet_xyzyaw=feet)
+    assert err < 1e-6
+    data = mujoco.MjData(model)  # checked with a fresh forward pass, not the IK's own data
+    data.qpos[:] = q
+    mujoco.mj_forward(model, data)
+    np.testing.assert_allclose(data.subtree_com[1], com, atol=1e-6)
+    for site, foot in zip(("left_sole", "right_sole"), feet):
+        np.testing.assert_allclose(data.site_xpos[model.site(site).id], foot[:3], atol=1e-6)
+        mat = data.site_xmat[model.site(site).id].reshape(3, 3)
+        assert math.atan2(mat[1, 0], mat[0, 0]) == pytest.approx(foot[3], abs=1e-6)
+        assert mat[2, 2] == pytest.approx(1.0, abs=1e-9)  # sole flat
+    pelvis = data.xmat[model.body("pelvis").id].reshape(3, 3)
+    assert pelvis[2, 2] == pytest.approx(1.0, abs=1e-9)
+    for j in range(model.njnt):  # a reachable pose within the joint ranges
+        if model.jnt_limited[j]:
+            lo, hi = model.jnt_range[j]
+            assert lo - 1e-9 <= q[model.jnt_qposadr[j]] <= hi + 1e-9
+
+
+def test_feed_forward_carries_the_weight_and_its_zmp_stays_on_the_soles(model):
+    pattern = walk_pattern(short_plan())
+    ref = build_reference(model, pattern)
+    weight = float(model.body_subtreemass[1]) * GRAVITY
+    # the contact forces of the reference motion carry the robot: m (g + z_ddot), z constant
+    np.testing.assert_allclose(ref.contact_wrench[:, :, 2].sum(axis=1), weight, rtol=0.01)
+    # standing still, the multi-body ZMP is the cart-table ZMP (the CoM's ground projection)
+    np.testing.assert_allclose(ref.zmp_multibody[:100], pattern.zmp_xy[:100], atol=1e-3)
+    # while walking it departs from the cart-table ZMP by the swing leg's dynamics, but stays on the soles
+    margins = np.array([polygon_signed_distance(ref.zmp_multibody[k], pattern.support_polygon(k))
+                        for k in range(len(pattern.time_s))])
+    assert margins.min() > 0.02
+    assert np.abs(ref.zmp_multibody - pattern.zmp_xy).max() < 0.06
+    assert ref.ik_error.max() < 1e-6
+
+
+def check_acceptance(summary, result):
+    assert not summary["fell"], summary["fall_reason"]
+    assert summary["zmp_inside_single_support"] >= 0.95
+    assert summary["single_support_samples"] > 2000
+    assert summary["touchdowns"] == 20 and np.all(result.capture_margin_m > 0.0)
+    assert summary["capture_in_stance_sole_at_liftoff"] == summary["liftoffs"]
+    assert summary["distance_m"] == pytest.approx(3.0, abs=0.1)
+    assert summary["turn_deg"] == pytest.approx(90.0, abs=5.0)
+
+
+def test_humanoid_walks_3_m_and_turns_90_deg_with_the_zmp_on_its_soles(acceptance):
+    plan, sim = acceptance
+    assert plan.status.value == "success"
+    result = sim.run(seed=0)
+    summary = result.summary()
+    check_acceptance(summary, result)
+    # the walk is balanced with room to spare: the measured ZMP stays 5 mm inside in nearly all of single support
+    assert np.percentile(result.single_support_margins_m, 5) > 0.005
+    # the CoM ends over the last stance, at the pattern's height
+    assert result.com_w[-1, 2] == pytest.approx(sim.pattern.com_pos_w[-1, 2], abs=0.02)
+
+
+def test_without_the_stabilizer_the_same_walk_falls(acceptance):
+    _, sim = acceptance
+    open_loop = WalkSimulation(sim.pattern, WalkSimCfg(stabilizer=StabilizerCfg(enabled=False)))
+    result = open_loop.run(seed=None)
+    assert result.fell
+
+
+@pytest.mark.slow
+def test_ten_seeded_walks_never_fall(acceptance):
+    _, sim = acceptance
+    for seed in range(10):
+        result = sim.run(seed=seed)
+        check_acceptance(result.summary(), result)
+
+
+def test_seeds_perturb_the_start_reproducibly(acceptance):
+    _, sim = acceptance
+    a, b, c = (mujoco.MjData(sim.model) for _ in range(3))
+    sim._initial_state(a, 3)
+    sim._initial_state(b, 3)
+    sim._initial_state(c, 4)
+    np.testing.assert_array_equal(a.qpos, b.qpos)
+    assert np.abs(a.qpos[7:] - c.qpos[7:]).max() > 1e-3
+    assert np.abs(a.qpos[7:] - sim.reference.qpos[0][7:]).max() <= sim.cfg.joint_noise_rad + 1e-12
+    assert 0 < np.linalg.norm(a.qvel[:2]) <= sim.cfg.base_speed_noise_mps
+    # the soles start on the floor, not in it
+    feet = [g for g in range(sim.model.ngeom) if sim.model.geom(g).name in ("left_foot", "right_foot")]
+    lowest = min(a.geom_xpos[g][2] - np.abs(a.geom_xmat[g].reshape(3, 3)[2]) @ sim.model.geom_size[g] for g in feet)
+    assert lowest == pytest.approx(0.0, abs=1e-9)
+
+
+def test_foot_shape_is_the_humanoids_sole(model):
+    size = model.geom_size[model.geom("left_foot").id]
+    assert (HUMANOID_FOOT.length_m, HUMANOID_FOOT.width_m) == pytest.approx((2 * size[0], 2 * size[1]))
+    # the sole site sits at the centre of the sole box's bottom face
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    geom, site = model.geom("left_foot").id, model.site("left_sole").id
+    np.testing.assert_allclose(data.site_xpos[site][:2], data.geom_xpos[geom][:2], atol=1e-9)
+    assert data.site_xpos[site][2] == pytest.approx(data.geom_xpos[geom][2] - size[2], abs=1e-9)
+
+
+def test_map_obstacles_become_boxes_covering_exactly_the_occupied_cells():
+    from ambulo.nav import GridMap
+    from ambulo.nav.walk_sim import grid_obstacles
+
+    occupied = np.zeros((30, 40), bool)
+    occupied[5:12, 3:9] = True  # a block
+    occupied[20:22, 10:35] = True  # a wall
+    occupied[12:20, 30:33] = True  # an L with the wall
+    grid = GridMap.from_array(occupied, resolution_m=0.1, origin_xy_m=(-1.0, 2.0))
+    boxes = grid_obstacles(grid, 0.4)
+    covered = np.zeros_like(occupied, dtype=int)
+    centers = grid.cell_centers_xy_m()  # (num_y, num_x, 2)
+    for cx, cy, sx, sy, h in boxes:
+        assert h == 0.4
+        inside = (np.abs(centers[..., 0] - cx) < sx / 2) & (np.abs(centers[..., 1] - cy) < sy / 2)
+        covered += inside
+    np.testing.assert_array_equal(covered, occupied.astype(int))  # every occupied cell once, no free cell
+    assert len(boxes) <= 4
+    model = walk_model(obstacles=boxes)
+    assert sum(model.geom(i).name.startswith("obstacle") for i in range(model.ngeom)) == len(boxes)
+
+
+def test_ik_agrees_with_mink(model):
+    """The same targets solved by mink (MuJoCo-based differential IK with a QP, an independent
+    implementation) give the same configuration: the task set is square, so the solution is unique."""
+    mink = pytest.importorskip("mink")
+    from ambulo.nav.walk_controller import LEG_JOINTS
+
+    q0 = model.key_qpos[model.key("home").id].copy()
+    com, pelvis_yaw = np.array([0.05, 0.03, 0.80]), 0.05
+    feet = np.array([[0.15, 0.10, 0.05, 0.2], [-0.02, -0.09, 0.0, -0.1]])
+    q_ours, err = WalkIK(model).solve(q0, com, pelvis_yaw, feet)
+    assert err < 1e-6
+
+    def se3(pos, yaw):
+        return mink.SE3.from_rotation_and_translation(mink.SO3.from_z_radians(yaw), np.asarray(pos, float))
+
+    tasks = []
+    for name, foot in zip(("left_sole", "right_sole"), feet):
+        task = mink.FrameTask(name, "site", position_cost=1.0, orientation_cost=1.0)
+        task.set_target(se3(foot[:3], foot[3]))
+        tasks.append(task)
+    pelvis = mink.FrameTask("pelvis", "body", position_cost=0.0, orientation_cost=1.0)
+    pelvis.set_target(se3([0.0, 0.0, 0.0], pelvis_yaw))
+    com_task = mink.ComTask(cost=1.0)
+    com_task.set_target(com)
+    cost = np.full(model.nv, 10.0)  # torso and arms held at home, as in WalkIK
+    cost[:6] = 0.0
+    cost[[model.jnt_dofadr[model.joint(f"{s}_{j}").id] for s in ("left", "right") for j in LEG_JOINTS]] = 0.0
+    posture = mink.PostureTask(model, cost=cost)
+    posture.set_target(q0)
+    configuration = mink.Configuration(model, q0)
+    for _ in range(300):
+        velocity = mink.solve_ik(configuration, [*tasks, pelvis, com_task, posture], 0.05, solver="daqp", damping=1e-6)
+        configuration.integrate_inplace(velocity, 0.05)
+    np.testing.assert_allclose(configuration.q[:3], q_ours[:3], atol=1e-6)
+    np.testing.assert_allclose(configuration.q[7:], q_ours[7:], atol=1e-5)
