@@ -1,0 +1,28 @@
+"""benchmarks/time_to_walk.py runs end to end on the CPU (cartpole) and reports what it measured."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_time_to_walk_reports_each_seed_from_its_run_folder(tmp_path):
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT / "src"), os.environ.get("PYTHONPATH", "")]),
+           "OMP_NUM_THREADS": "1"}
+    run = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "time_to_walk.py"), "--task", "cartpole",
+                          "--device", "cpu", "--seeds", "0", "--num-envs", "256", "--eval-every", "10",
+                          "--max-minutes", "3", "--no-ceiling", "--out", str(tmp_path)],
+                         cwd=ROOT, env=env, capture_output=True, text=True, timeout=240)
+    assert run.returncode == 0, run.stderr[-3000:]
+    (line,) = [x for x in run.stdout.splitlines() if x.startswith("RESULT ")]
+    result = json.loads(line[len("RESULT "):])
+    assert result["reached"] == "1/1"
+    seed = result["runs"]["0"]
+    reached = json.loads(next(tmp_path.glob("seed0/cartpole/*/time_to_criterion.json")).read_text())
+    # the reported minutes are the run's own measurement, not a separate clock
+    assert seed["minutes"] == round(reached["wall_s"] / 60, 2) == result["minutes_median"]
+    assert seed["iteration"] == reached["iteration"] and seed["eval"]["balances"] is True
+    assert seed["train_env_steps_per_s"] > 0 and seed["iterations"] == reached["iteration"] + 1
