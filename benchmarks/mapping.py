@@ -1,0 +1,112 @@
+"""TSDF mapping speed and accuracy, side by side with Open3D's VoxelBlockGrid on the same frames.
+
+    python benchmarks/mapping.py [--frames 60] [--voxel 0.05] [--device cpu|cuda] [--width 640 --height 480]
+
+Frames: the seeded indoor scene's static geometry (``ambulo.perception.scenes``) ray-cast exactly by
+Open3D's ``RaycastingScene`` from a camera circling the room's island (f = 525 px at 640x480, depth
+up to 5 m) with the noise model of research/anchors-perception-nav.md 1.3 (sigma = 0.002 z^2), the
+world shifted by a few millimetres so no plane sits on voxel centres. Both mappers get identical
+frames: 5 cm voxels, 8^3 blocks, truncation 4 voxels. Open3D runs on the CPU (open3d-cpu).
+
+Reported: per-frame integration time (ours on ``--device``; Open3D CPU, block allocation included
+for both), the ESDF of the whole map, full mesh extraction, and mesh-to-truth distance (mean, p95;
+meshes from voxels seen at least twice, Open3D's ``weight_threshold=1``). ``ratio`` = our median
+integration ms / Open3D's median ms measured in the same run (<= 1: as fast or faster).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+
+import numpy as np
+import torch
+
+from ambulo.perception.esdf import esdf_from_grid
+from ambulo.perception.mesh import extract_mesh
+from ambulo.perception.reference import TruthScene, open3d_tsdf, orbit_poses, truth_frames
+from ambulo.perception.scenes import IndoorSceneCfg, build_indoor_scene
+from ambulo.perception.tsdf import TsdfCfg, TsdfMap
+
+OFFSET = np.array([0.013, 0.021, 0.017])
+
+
+def _sync(device: str) -> None:
+    if device.startswith("cuda"):
+        torch.cuda.synchronize()
+
+
+def _stats(ms) -> dict:
+    ms = np.asarray(ms)
+    return {"median": round(float(np.median(ms)), 3), "p90": round(float(np.percentile(ms, 90)), 3)}
+
+
+def main(argv=None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--frames", type=int, default=60)
+    parser.add_argument("--voxel", type=float, default=0.05)
+    parser.add_argument("--width", type=int, default=640)
+    parser.add_argument("--height", type=int, default=480)
+    parser.add_argument("--device", default="cpu")
+    parser.add_argument("--threads", type=int, default=os.cpu_count())
+    args = parser.parse_args(argv)
+    torch.set_num_threads(args.threads)
+    scene = build_indoor_scene(IndoorSceneCfg(with_robot=False, num_moving_boxes=0))
+    truth = TruthScene(scene.solids)
+    f = 525.0 * args.width / 640
+    k = np.array([[f, 0, args.width / 2 - 0.5], [0, f, args.height / 2 - 0.5], [0, 0, 1.0]])
+    frames = truth_frames(truth, orbit_poses((0, 0, 0.5), 2.2, 1.0, args.frames), k, args.width, args.height, noise_seed=0)
+    for frame in frames:
+        frame.pose_wc[:3, 3] += torch.from_numpy(OFFSET)
+
+    tsdf = TsdfMap(TsdfCfg(voxel_size_m=args.voxel, truncation_voxels=4.0, depth_max_m=5.0), device=args.device)
+    on_device = [type(fr)(fr.depth_m.to(args.device), fr.rgb.to(args.device), fr.intrinsics, fr.pose_wc, fr.time_s)
+                 for fr in frames]
+    tsdf.integrate(on_device[0])  # warm-up (allocations, kernels); integrated again below like Open3D's first
+    tsdf = TsdfMap(tsdf.cfg, device=args.device)
+    ours_ms = []
+    for frame in on_device:
+        _sync(args.device)
+        t0 = time.perf_counter()
+        tsdf.integrate(frame)
+        _sync(args.device)
+        ours_ms.append((time.perf_counter() - t0) * 1e3)
+    grid = tsdf.dense()
+    _sync(args.device)
+    t0 = time.perf_counter()
+    esdf_from_grid(grid, max_distance_m=2.0)
+    _sync(args.device)
+    esdf_ms = (time.perf_counter() - t0) * 1e3
+    t0 = time.perf_counter()
+    mesh = extract_mesh(tsdf.dense(), min_weight=2.0)
+    mesh_ms = (time.perf_counter() - t0) * 1e3
+    ref = open3d_tsdf(frames, args.voxel, 4.0, 5.0, weight_threshold=1.0)
+
+    d_ours = truth.distance(mesh.vertices - OFFSET)
+    d_o3d = truth.distance(ref.vertices - OFFSET)
+    device_name = torch.cuda.get_device_name() if args.device.startswith("cuda") else f"CPU, {args.threads} threads"
+    result = {
+        "frames": args.frames, "resolution": [args.width, args.height], "voxel_m": args.voxel, "device": device_name,
+        "ours": {"integrate_ms": _stats(ours_ms), "esdf_ms": round(esdf_ms, 2), "mesh_ms": round(mesh_ms, 1),
+                 "mesh_mean_mm": round(float(d_ours.mean() * 1e3), 3),
+                 "mesh_p95_mm": round(float(np.percentile(d_ours, 95) * 1e3), 3), "vertices": len(d_ours),
+                 "blocks": tsdf.num_blocks, "grid_voxels": int(grid.tsdf.numel())},
+        "open3d_cpu": {"integrate_ms": _stats(ref.integrate_ms), "mesh_ms": round(ref.mesh_ms, 1),
+                       "mesh_mean_mm": round(float(d_o3d.mean() * 1e3), 3),
+                       "mesh_p95_mm": round(float(np.percentile(d_o3d, 95) * 1e3), 3), "vertices": len(d_o3d)},
+    }
+    result["ratio"] = round(result["ours"]["integrate_ms"]["median"] / result["open3d_cpu"]["integrate_ms"]["median"], 3)
+    o, r = result["ours"], result["open3d_cpu"]
+    print(f"TSDF integrate ms/frame (median, p90): ours {o['integrate_ms']} on {device_name}; Open3D CPU {r['integrate_ms']}")
+    print(f"ESDF (whole map, {o['grid_voxels']} voxels, 2 m): {o['esdf_ms']} ms; full mesh: ours {o['mesh_ms']} ms, "
+          f"Open3D {r['mesh_ms']} ms")
+    print(f"mesh to truth mean / p95 mm: ours {o['mesh_mean_mm']} / {o['mesh_p95_mm']} ({o['vertices']} vertices); "
+          f"Open3D {r['mesh_mean_mm']} / {r['mesh_p95_mm']} ({r['vertices']} vertices)")
+    print("RESULT " + json.dumps(result))
+    return result
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,130 @@
+"""2-D maps cut from the 3-D map: an occupancy slice and a distance slice over a height band
+(what nvblox hands Nav2), and a height / steppability map for a humanoid's feet.
+
+Layout follows ``ambulo.nav.grid_map``: arrays are indexed [row = y, column = x]; cell [iy, ix]
+is centred at ``origin_xy_m + (ix, iy) * resolution_m`` (the centre of voxel column (ix, iy)),
+so ``origin_xy_m`` here names the *centre* of cell [0, 0] and its lower-left corner is half a
+cell lower; ``Slice2D.corner_xy_m`` gives the corner (``GridMap``'s and ROS's origin).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+
+from .esdf import Esdf
+from .tsdf import DenseGrid
+
+UNKNOWN, FREE, OCCUPIED = -1, 0, 1
+
+
+@dataclass
+class Slice2D:
+    """A 2-D map in the world x-y plane."""
+
+    data: torch.Tensor
+    """(H, W) map values, rows = y, columns = x; dtype and meaning depend on the map."""
+    origin_xy_m: tuple[float, float]
+    """World (x, y) of the centre of cell [0, 0], m."""
+    resolution_m: float
+
+    @property
+    def corner_xy_m(self) -> tuple[float, float]:
+        """World (x, y) of the lower-left corner of cell [0, 0] (ROS ``OccupancyGrid.info.origin``), m."""
+        half = 0.5 * self.resolution_m
+        return (self.origin_xy_m[0] - half, self.origin_xy_m[1] - half)
+
+    def cell_of(self, xy_m) -> tuple[int, int]:
+        """(row, column) of the cell holding world point (x, y)."""
+        ix = int(round((xy_m[0] - self.origin_xy_m[0]) / self.resolution_m))
+        iy = int(round((xy_m[1] - self.origin_xy_m[1]) / self.resolution_m))
+        return iy, ix
+
+
+def _band(grid_z0_index: int, voxel_size_m: float, nz: int, z_min_m: float, z_max_m: float,
+          device) -> torch.Tensor:
+    z = (torch.arange(nz, device=device) + grid_z0_index) * voxel_size_m
+    return (z >= z_min_m) & (z <= z_max_m)
+
+
+def _origin(grid_origin_index: torch.Tensor, voxel_size_m: float) -> tuple[float, float]:
+    return (float(grid_origin_index[0]) * voxel_size_m, float(grid_origin_index[1]) * voxel_size_m)
+
+
+def occupancy_slice(grid: DenseGrid, z_min_m: float, z_max_m: float, min_weight: float = 1.0) -> Slice2D:
+    """(H, W) int8: OCCUPIED where a voxel centred in [z_min_m, z_max_m] is behind a surface, FREE
+    where the band was observed and holds no surface, UNKNOWN where none of it was seen."""
+    band = _band(int(grid.origin_index[2]), grid.voxel_size_m, grid.tsdf.shape[2], z_min_m, z_max_m,
+                 grid.tsdf.device)
+    occupied = grid.occupied(min_weight)[:, :, band].any(-1)
+    observed = grid.observed(min_weight)[:, :, band].any(-1)
+    data = torch.full(occupied.shape, UNKNOWN, dtype=torch.int8, device=occupied.device)
+    data[observed] = FREE
+    data[occupied] = OCCUPIED
+    return Slice2D(data.T.contiguous(), _origin(grid.origin_index, grid.voxel_size_m), grid.voxel_size_m)
+
+
+def distance_slice(esdf: Esdf, z_min_m: float, z_max_m: float) -> Slice2D:
+    """(H, W) float32: the smallest ESDF value over the band's observed voxels (nvblox's 2-D
+    distance map), m; ``nan`` where the band was never observed."""
+    band = _band(int(esdf.origin_index[2]), esdf.voxel_size_m, esdf.distance_m.shape[2], z_min_m, z_max_m,
+                 esdf.distance_m.device)
+    dist = esdf.distance_m[:, :, band]
+    seen = esdf.observed[:, :, band]
+    value = torch.where(seen, dist, torch.full_like(dist, float("inf"))).amin(-1)
+    value = torch.where(seen.any(-1), value, torch.full_like(value, float("nan")))
+    return Slice2D(value.T.contiguous(), _origin(esdf.origin_index, esdf.voxel_size_m), esdf.voxel_size_m)
+
+
+@dataclass
+class HeightMap:
+    """Where a foot can stand: the top surface under each column and whether it is steppable."""
+
+    height_m: Slice2D
+    """(H, W) float32 world z of the highest surface at most ``max_height_m`` high; nan if unseen."""
+    steppable: Slice2D
+    """(H, W) bool: a surface is known, flat enough over a foot and free above up to the body."""
+
+
+def height_map(grid: DenseGrid, *, max_height_m: float = 0.5, foot_half_cells: int = 2,
+               max_roughness_m: float = 0.03, clearance_m: float = 1.6, min_weight: float = 1.0) -> HeightMap:
+    """Height and steppability (elevation_mapping_cupy's use case for legged robots).
+
+    The surface of a column is the zero crossing above its highest occupied voxel centred at or
+    below ``max_height_m`` (interpolated from the TSDF, so sub-voxel). A cell is steppable when
+    every cell within ``foot_half_cells`` has a known surface within ``max_roughness_m`` of its
+    own (a step or an edge under the foot is not), and no occupied voxel lies between the
+    surface + ``max_roughness_m`` and the surface + ``clearance_m`` (nothing to hit the body on).
+    """
+    vs = grid.voxel_size_m
+    nx, ny, nz = grid.tsdf.shape
+    z = (torch.arange(nz, device=grid.tsdf.device) + int(grid.origin_index[2])) * vs
+    occupied = grid.occupied(min_weight)
+    low = occupied & (z <= max_height_m)
+    idx = torch.arange(nz, device=z.device).expand(nx, ny, nz)
+    top = torch.where(low, idx, torch.full_like(idx, -1)).amax(-1)  # (X, Y) highest occupied index
+    have = top >= 0
+    t0 = grid.tsdf.gather(2, top.clamp(min=0)[..., None])[..., 0]
+    above = (top + 1).clamp(max=nz - 1)
+    t1 = grid.tsdf.gather(2, above[..., None])[..., 0]
+    seen_above = grid.weight.gather(2, above[..., None])[..., 0] >= min_weight
+    frac = torch.where(seen_above & (t1 > 0), t0 / (t0 - t1), torch.full_like(t0, 0.5)).clamp(0, 1)
+    height = torch.where(have, z[top.clamp(min=0)] + frac * vs, torch.full_like(t0, float("nan")))
+    # roughness over the foot window (nan neighbours count as unknown -> not steppable)
+    pad = foot_half_cells
+    hp = torch.nn.functional.pad(height[None, None], (pad, pad, pad, pad), value=float("nan"))[0, 0]
+    known = torch.isfinite(hp)
+    big = torch.tensor(1e9, device=z.device)
+    hmax = torch.where(known, hp, -big).unfold(0, 2 * pad + 1, 1).unfold(1, 2 * pad + 1, 1).amax((-1, -2))
+    hmin = torch.where(known, hp, big).unfold(0, 2 * pad + 1, 1).unfold(1, 2 * pad + 1, 1).amin((-1, -2))
+    all_known = known.unfold(0, 2 * pad + 1, 1).unfold(1, 2 * pad + 1, 1).all(-1).all(-1)
+    flat = all_known & (hmax - hmin <= max_roughness_m)
+    rel = z[None, None, :] - height[..., None]
+    blocked = (occupied & (rel > max_roughness_m + 0.5 * vs) & (rel < clearance_m)).any(-1)
+    steppable = have & flat & ~blocked
+    origin = _origin(grid.origin_index, vs)
+    return HeightMap(Slice2D(height.T.contiguous(), origin, vs), Slice2D(steppable.T.contiguous(), origin, vs))
+
+
+__all__ = ["FREE", "OCCUPIED", "UNKNOWN", "HeightMap", "Slice2D", "distance_slice", "height_map", "occupancy_slice"]

@@ -1,0 +1,79 @@
+"""Run visual odometry on the humanoid's head-camera walk and score it: TUM files for evo, ATE /
+RPE, and how fast tracking comes back after an injected blackout (a covered lens: black colour,
+no depth)."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .trajectory import TrajectoryScore, score_tum, write_tum
+from .vo import RgbdOdometry, TrackState, VoCfg
+from .walk import HeadCameraWalk, PolicyHeadCameraWalk
+
+
+@dataclass
+class VoRun:
+    times_s: np.ndarray
+    estimate_wc: np.ndarray
+    """(N, 4, 4) estimated poses."""
+    truth_wc: np.ndarray
+    """(N, 4, 4) ground-truth poses of the head camera."""
+    states: list[TrackState]
+    vo_ms: list[float]
+    """Per-frame odometry time (features, matching, PnP, refinement), ms."""
+    blackout: tuple[int, int] | None
+    """[start, end) frames that were blacked out."""
+
+    def recovery_frames(self, tolerance_m: float = 0.05) -> int | None:
+        """Frames after the blackout until the state is tracking/recovered again with a position
+        error below ``tolerance_m``; None without a blackout or if it never recovers."""
+        if self.blackout is None:
+            return None
+        end = self.blackout[1]
+        for i in range(end, len(self.states)):
+            ok = self.states[i] in (TrackState.TRACKING, TrackState.RECOVERED)
+            if ok and np.linalg.norm(self.estimate_wc[i, :3, 3] - self.truth_wc[i, :3, 3]) < tolerance_m:
+                return i - end
+        return None
+
+    def write(self, folder: str | Path) -> tuple[Path, Path]:
+        """``groundtruth.tum`` and ``estimate.tum`` in ``folder``."""
+        folder = Path(folder)
+        return (write_tum(folder / "groundtruth.tum", self.times_s, self.truth_wc),
+                write_tum(folder / "estimate.tum", self.times_s, self.estimate_wc))
+
+    def score(self, folder: str | Path) -> TrajectoryScore:
+        gt, est = self.write(folder)
+        return score_tum(gt, est)
+
+
+def run_walk_vo(walk: HeadCameraWalk | PolicyHeadCameraWalk, num_frames: int, cfg: VoCfg | None = None,
+                blackout: tuple[int, int] | None = None, progress=None) -> VoRun:
+    """Render ``num_frames`` of ``walk`` and track them; frames in ``blackout`` [start, end) are
+    black with no depth. The estimate starts at the true first pose (the simulator's world)."""
+    times, est, truth, states, vo_ms = [], [], [], [], []
+    vo = None
+    for i in range(num_frames):
+        frame = walk.frame(i)
+        rgb, depth = frame.rgb.numpy(), frame.depth_m.numpy()
+        if blackout is not None and blackout[0] <= i < blackout[1]:
+            rgb, depth = np.zeros_like(rgb), np.zeros_like(depth)
+        if vo is None:
+            vo = RgbdOdometry(frame.intrinsics.numpy(), cfg, initial_pose_wc=frame.pose_wc.numpy())
+        t0 = time.perf_counter()
+        result = vo.track(rgb, depth)
+        vo_ms.append((time.perf_counter() - t0) * 1e3)
+        times.append(frame.time_s)
+        est.append(result.pose_wc)
+        truth.append(frame.pose_wc.numpy())
+        states.append(result.state)
+        if progress is not None:
+            progress(i)
+    return VoRun(np.array(times), np.array(est), np.array(truth), states, vo_ms, blackout)
+
+
+__all__ = ["VoRun", "run_walk_vo"]
