@@ -9,17 +9,29 @@ PYTHON=${PYTHON:-python3}
 
 # Headless GL: EGL (Mesa's llvmpipe without a GPU) is what MuJoCo's renderer uses;
 # OSMesa is the fallback (MUJOCO_GL=osmesa).
+# libusb-1.0: Open3D's wheel (the perception extra) links it even without a camera attached.
 need_apt=()
-for lib in libEGL.so.1 libGL.so.1 libOSMesa.so.8; do
+for lib in libEGL.so.1 libGL.so.1 libOSMesa.so.8 libusb-1.0.so.0; do
   ldconfig -p 2>/dev/null | grep -q "$lib" || need_apt+=("$lib")
 done
 if [ ${#need_apt[@]} -gt 0 ]; then
   if command -v apt-get >/dev/null && [ "$(id -u)" = 0 ]; then
     echo "installing headless GL libraries (missing: ${need_apt[*]})"
     apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libegl1 libgl1 libgles2 libosmesa6 libglx-mesa0 >/dev/null
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libegl1 libgl1 libgles2 libosmesa6 libglx-mesa0 libusb-1.0-0 >/dev/null
   else
     echo "warning: missing ${need_apt[*]}; install libegl1 libgl1 libosmesa6 (Debian/Ubuntu) for headless rendering" >&2
+  fi
+fi
+
+# The ROS 2 tests run in a loopback-only network namespace: `unshare -n` (util-linux) + `ip` (iproute2).
+if ! command -v ip >/dev/null || ! command -v unshare >/dev/null; then
+  if command -v apt-get >/dev/null && [ "$(id -u)" = 0 ]; then
+    echo "installing iproute2 and util-linux (loopback-only network namespaces for the ROS 2 tests)"
+    apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq iproute2 util-linux >/dev/null
+  else
+    echo "warning: no 'ip'/'unshare'; the ROS 2 tests fall back to localhost-only discovery" >&2
   fi
 fi
 
@@ -31,7 +43,7 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
   "$VENV/bin/python" -m pip install -q --upgrade pip
   # the CPU build of torch first, pinned, so nothing pulls a multi-GB CUDA build
   "$VENV/bin/python" -m pip install -q "torch==${TORCH_VERSION:-2.13.0}"
-  "$VENV/bin/python" -m pip install -q -e ".[data,rl,dev,robots,gpu]"
+  "$VENV/bin/python" -m pip install -q -e ".[data,rl,dev,robots,gpu,ros2,perception]"
   touch "$stamp"
 fi
 echo "ambulo is set up in $VENV"

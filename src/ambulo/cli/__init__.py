@@ -1,7 +1,9 @@
-"""The ``ambulo`` command line: demo, view, generate, the RL commands (train, play, export, eval) and
-``run`` (an Isaac Sim script, unchanged).
+"""The ``ambulo`` command line: demo, view, generate, the RL commands (train, play, export, eval),
+``run`` (an Isaac Sim script, unchanged), ``plan`` (footsteps on a map, optionally walked in
+simulation), ``bridge`` (a ROS 2 node) and ``map`` (visual odometry and a TSDF map).
 
-Each command lives in its own module (``demo``, ``view``, ``data``, ``rl``, ``run``) with an
+Each command lives in its own module (``demo``, ``view``, ``data``, ``rl``, ``run``, ``plan``,
+``bridge``, ``perception``) with an
 ``add_commands(subparsers)`` and imports what it runs only when it runs. Bad input (an
 unknown task, a missing or unwritable file, a bad value, a bad ``--env-cfg``) ends the command
 with one line ``ambulo <command>: error: <problem>; <fix>`` on stderr and exit status 2; Ctrl-C
@@ -14,11 +16,11 @@ from __future__ import annotations
 import argparse
 import sys
 
-from . import data, demo, rl, run, view
+from . import bridge, data, demo, perception, plan, rl, run, view
 from .errors import EXIT_INTERRUPTED, ArgumentParser, CliError, expected_error, report
 from ..utils.overrides import OverrideError, apply_overrides
 
-_COMMAND_MODULES = (demo, view, data, rl, run)
+_COMMAND_MODULES = (demo, view, data, rl, run, plan, bridge, perception)
 _DEBUG_HELP = "show the full traceback of any error (for bug reports)"
 
 

@@ -25,6 +25,7 @@ EXTRAS = {
     "onnxscript": "rl", "gymnasium": "rl", "pycocotools": "data", "ray": "data", "PIL": "data",
     "isal": "data", "cloudpickle": "data",
     "mujoco_warp": "gpu", "warp": "gpu", "example_robot_data": "robots",
+    "cv2": "perception", "open3d": "perception", "evo": "perception", "skimage": "perception",
 }
 """Optional top-level packages -> the ``ambulo[extra]`` that installs them."""
 

@@ -1,0 +1,172 @@
+"""``ambulo bridge``: a scene as a real ROS 2 node (``ambulo.ros2``), optionally recorded to a rosbag2."""
+
+from __future__ import annotations
+
+import argparse
+import difflib
+import os
+import signal
+import time
+from pathlib import Path
+
+from .errors import CliError, check_seconds
+
+_KINDS = (".xml", ".urdf", ".usd", ".usda", ".usdc", ".usdz")
+
+
+def _bag_folder(record: str) -> Path:
+    """``out.mcap`` or ``out`` -> the rosbag2 folder ``out/`` (holding ``out.mcap`` and metadata.yaml)."""
+    path = Path(record).expanduser()
+    folder = path.with_suffix("") if path.suffix == ".mcap" else path
+    if folder.exists():
+        raise CliError(f"--record {record!r}: {str(folder)!r} exists already",
+                       "choose a new name (a rosbag2 is a new folder), or remove the old one")
+    if not os.access(folder.parent if str(folder.parent) else ".", os.W_OK):
+        raise CliError(f"--record {record!r}: cannot write in {str(folder.parent)!r}", "choose a folder you may write to")
+    return folder
+
+
+def _world(target: str, args: argparse.Namespace):
+    from ambulo.core.scene import resolve_file  # noqa: PLC0415
+    from ambulo.ros2 import SCENES, SceneCfg, file_world  # noqa: PLC0415
+
+    cfg = SceneCfg(physics_dt_s=None if args.rate is None else 1.0 / args.rate, camera=not args.no_camera,
+                   lidar=args.lidar)
+    task_robot = _task_robot(target)
+    if task_robot is not None:  # an RL task: its robot, with our sensors when it is a bundled scene
+        target = task_robot if task_robot in SCENES else resolve_file(task_robot)
+    return SCENES[target](cfg) if target in SCENES else file_world(target, cfg)
+
+
+def _task_robot(target: str) -> str | None:
+    """The robot file (or bundled name) of the RL task named ``target``, else None."""
+    if os.path.exists(target) or os.sep in target:
+        return None
+    from ambulo import envs  # noqa: PLC0415
+
+    return str(envs.make_cfg(target).robot.file) if target in envs.names() else None
+
+
+def _check_target(target: str) -> None:
+    """A bundled scene or a robot file, else ``CliError`` (before anything slow is imported)."""
+    from ambulo.ros2.scenes import SCENES  # noqa: PLC0415
+
+    if target in SCENES or (os.path.isfile(target) and os.path.splitext(target)[1].lower() in _KINDS):
+        return
+    if _task_robot(target) is not None:
+        return
+    if os.path.exists(target):
+        raise CliError(f"{target!r} is not a robot file", f"give an MJCF, URDF or USD file ({', '.join(_KINDS)})")
+    from ambulo import envs  # noqa: PLC0415
+
+    close = difflib.get_close_matches(target, list(SCENES) + envs.names(), n=2)
+    fix = f"did you mean {' or '.join(map(repr, close))}?" if close else (
+        f"give a bundled scene ({', '.join(SCENES)}), an RL task ({', '.join(envs.names())}) or a robot file "
+        f"({', '.join(_KINDS)})")
+    raise CliError(f"no scene or robot file named {target!r}", fix)
+
+
+def _require(module: str, package: str, flag: str) -> None:
+    """``CliError`` naming what to install when ``flag`` needs ``module`` and it is missing."""
+    import importlib.util  # noqa: PLC0415
+
+    if importlib.util.find_spec(module) is None:
+        raise CliError(f"{flag} needs the package {package!r}, which is not installed", "pip install 'ambulo[ros2]'")
+
+
+def _interrupt(_signum, _frame) -> None:
+    raise KeyboardInterrupt
+
+
+def _recover(bag: str) -> int:
+    from ambulo.ros2.bag import recover  # noqa: PLC0415
+
+    kept = recover(bag)
+    print(f"{bag}: complete already, nothing to recover" if kept < 0 else f"{bag}: recovered {kept} messages")
+    return 0
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.recover:
+        _require("rosbags", "rosbags", "--recover")
+        _require("mcap", "mcap", "--recover")
+        return _recover(args.recover)
+    if args.target is None:
+        raise CliError("no scene given", "e.g. `ambulo bridge jetbot` or `ambulo bridge humanoid`")
+    if args.rate is not None and (not args.rate > 0 or args.rate == float("inf")):
+        raise CliError(f"--rate {args.rate} is not a positive rate", "give Hz of simulated time, e.g. --rate 100")
+    if args.seconds is not None:
+        check_seconds(args.seconds)
+    _check_target(args.target)
+    bag = _bag_folder(args.record) if args.record else None
+    if bag:
+        _require("rosbags", "rosbags", "--record")
+    if args.foxglove:
+        _require("foxglove", "foxglove-sdk", "--foxglove")
+    from ambulo.ros2.runtime import Ros2Unavailable, import_rclpy  # noqa: PLC0415
+
+    try:
+        import_rclpy()
+    except Ros2Unavailable as err:
+        raise CliError(str(err).split("; ")[0], str(err).split("; ", 1)[-1]) from None
+    from ambulo.ros2 import BridgeCfg, Ros2Bridge  # noqa: PLC0415
+
+    world = _world(args.target, args)
+    cfg = BridgeCfg(namespace=args.namespace, frame_prefix=args.frame_prefix, camera_qos=args.camera_qos,
+                    camera_rate_hz=args.camera_rate, record=str(bag) if bag else None,
+                    foxglove_port=args.foxglove_port if args.foxglove else None)
+    signal.signal(signal.SIGTERM, _interrupt)  # `kill` ends like Ctrl-C: the bag is finished
+    bridge = Ros2Bridge(world, cfg)
+    print(f"ambulo bridge: node {bridge.node_name} on ROS_DOMAIN_ID="
+          f"{os.environ.get('ROS_DOMAIN_ID', '0')}, publishing {', '.join(bridge.topics)}"
+          + (f"; Foxglove: ws://127.0.0.1:{bridge.foxglove.port}" if bridge.foxglove else ""), flush=True)
+    if bridge.robot is not None and bridge.cmd_vel_problem:
+        print(f"ambulo bridge: {bridge.cfg.cmd_vel_topic} is refused: {bridge.cmd_vel_problem}", flush=True)
+    dt, start = world.get_physics_dt(), time.perf_counter()
+    steps = None if args.seconds is None else int(round(args.seconds / dt))
+    done = 0
+    try:
+        while steps is None or done < steps:
+            world.step(render=False)
+            done += 1
+            if args.real_time:
+                ahead = done * dt - (time.perf_counter() - start)
+                if ahead > 0:
+                    time.sleep(ahead)
+    finally:
+        bridge.close()
+        wall = time.perf_counter() - start
+        print(f"simulated {done * dt:.2f} s in {wall:.2f} s wall; published "
+              + ", ".join(f"{t} {n}" for t, n in sorted(bridge.published.items()))
+              + (f"; {len(bridge.rejected)} commands rejected" if bridge.rejected else "")
+              + (f"; bag: {bag}" if bag else ""), flush=True)
+    return 0
+
+
+def add_commands(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``bridge`` to the ``ambulo`` parser."""
+    p = subparsers.add_parser("bridge", help="run a scene as a ROS 2 node (topics, tf, commands, rosbag2)",
+                              description="Serve a scene over ROS 2 with real rclpy: /clock, /joint_states, "
+                              "/imu/data, /tf, /tf_static, /odom, camera and lidar topics; /cmd_vel and joint "
+                              "commands in. Needs pip install 'ambulo[ros2]' or a sourced ROS 2.")
+    p.add_argument("target", nargs="?", help="'jetbot', 'humanoid', an RL task's robot (e.g. cartpole, "
+                   "humanoid-walk) or a robot file (MJCF, URDF, USD)")
+    p.add_argument("--rate", type=float, default=None,
+                   help="physics steps per simulated second; state topics publish at this rate (default 100; "
+                   "200 for the humanoid, the rate its walking policy needs to follow /cmd_vel)")
+    p.add_argument("--real-time", action="store_true", help="pace the simulation to the wall clock "
+                   "(default: as fast as it runs)")
+    p.add_argument("--seconds", type=float, help="simulated seconds to run (default: until Ctrl-C)")
+    p.add_argument("--record", metavar="OUT.mcap", help="record everything published to this rosbag2 (MCAP)")
+    p.add_argument("--foxglove", action="store_true", help="also serve the topics to Foxglove/Lichtblick over "
+                   "WebSocket (ws://127.0.0.1:8765, needs foxglove-sdk)")
+    p.add_argument("--foxglove-port", type=int, default=8765, help=argparse.SUPPRESS)
+    p.add_argument("--recover", metavar="BAG", help="rebuild a bag whose recording was killed, then exit")
+    p.add_argument("--namespace", default="", help="ROS namespace of the node and its topics")
+    p.add_argument("--frame-prefix", default="", help="put before every frame id, e.g. robot1/")
+    p.add_argument("--camera-rate", type=float, default=10.0, help="camera Hz of simulated time (default 10)")
+    p.add_argument("--camera-qos", choices=("default", "sensor_data"), default="default",
+                   help="QoS of camera topics: reliable (default) or best-effort sensor data")
+    p.add_argument("--no-camera", action="store_true", help="no camera on the robot")
+    p.add_argument("--lidar", action="store_true", help="add a planar lidar (/scan) to the Jetbot")
+    p.set_defaults(func=run)
