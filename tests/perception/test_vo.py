@@ -7,7 +7,8 @@ import pytest
 from ambulo.perception.scenes import build_indoor_scene
 from ambulo.perception.vo import TrackState, VoCfg, refine_pose
 from ambulo.perception.vo_eval import run_walk_vo
-from ambulo.perception.walk import HeadCameraWalk, WalkCfg, loop_point, make_walk, root_pose
+from ambulo.perception.walk import (HeadCameraWalk, PolicyHeadCameraWalk, WalkCfg, loop_point, make_walk,
+                                   root_pose)
 
 pytest.importorskip("cv2", reason="the perception extra is not installed")
 pytest.importorskip("evo", reason="the perception extra is not installed")
@@ -56,8 +57,9 @@ def test_head_camera_vo_meets_ate_and_rpe_on_300_frames(scene, tmp_path):
     assert all(s == TrackState.TRACKING for s in run.states[1:])
 
 
-def test_tracking_resumes_within_1s_after_a_covered_lens(scene):
-    walk = HeadCameraWalk(scene, width=320, height=240)
+@pytest.mark.parametrize("walk_cls", [HeadCameraWalk, PolicyHeadCameraWalk], ids=["kinematic", "policy"])
+def test_tracking_resumes_within_1s_after_a_covered_lens(scene, walk_cls):
+    walk = walk_cls(scene, width=320, height=240)
     run = run_walk_vo(walk, 130, blackout=(60, 90))  # 1 s of black frames without depth
     walk.close()
     assert all(s == TrackState.LOST for s in run.states[60:90])

@@ -51,16 +51,6 @@ def test_policy_walk_head_camera_vo_meets_ate_and_rpe_on_240_frames(scene, tmp_p
     assert all(s == TrackState.TRACKING for s in run.states[1:])
 
 
-def test_policy_walk_tracking_resumes_within_1s_after_a_covered_lens(scene):
-    walk = PolicyHeadCameraWalk(scene, width=320, height=240)
-    run = run_walk_vo(walk, 130, blackout=(60, 90))  # 1 s of black frames without depth
-    walk.close()
-    assert all(s == TrackState.LOST for s in run.states[60:90])
-    frames = run.recovery_frames(tolerance_m=0.05)
-    assert frames is not None and frames <= 30
-    assert run.states[90 + frames] == TrackState.RECOVERED
-
-
 def test_loop_follower_steers_back_onto_the_loop():
     cfg = WalkCfg()
     follower = LoopFollower(cfg)

@@ -26,7 +26,7 @@ import torch
 from ambulo.utils.checks import check_positive
 
 from .esdf import edt
-from .slices import OCCUPIED, UNKNOWN, Slice2D
+from .slices import OCCUPIED, UNKNOWN, Slice2D, cell_corner_xy_m
 
 FREE_SPACE, INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE, NO_INFORMATION = 0, 253, 254, 255
 """Nav2's cost values (``nav2_costmap_2d/cost_values.hpp``)."""
@@ -83,8 +83,8 @@ class Costmap:
 
     @property
     def corner_xy_m(self) -> tuple[float, float]:
-        half = 0.5 * self.resolution_m
-        return (self.origin_xy_m[0] - half, self.origin_xy_m[1] - half)
+        """World (x, y) of the lower-left corner of cell [0, 0] (``OccupancyGrid.info.origin``), m."""
+        return cell_corner_xy_m(self.origin_xy_m, self.resolution_m)
 
     def occupancy_grid_data(self) -> np.ndarray:
         """(H * W,) int8 row-major ``nav_msgs/OccupancyGrid.data`` with Nav2's translation

@@ -19,6 +19,11 @@ from .tsdf import DenseGrid
 UNKNOWN, FREE, OCCUPIED = -1, 0, 1
 
 
+def cell_corner_xy_m(origin_xy_m: tuple[float, float], resolution_m: float) -> tuple[float, float]:
+    """Lower-left corner of the cell centred at ``origin_xy_m``, m."""
+    return (origin_xy_m[0] - 0.5 * resolution_m, origin_xy_m[1] - 0.5 * resolution_m)
+
+
 @dataclass
 class Slice2D:
     """A 2-D map in the world x-y plane."""
@@ -32,8 +37,7 @@ class Slice2D:
     @property
     def corner_xy_m(self) -> tuple[float, float]:
         """World (x, y) of the lower-left corner of cell [0, 0] (ROS ``OccupancyGrid.info.origin``), m."""
-        half = 0.5 * self.resolution_m
-        return (self.origin_xy_m[0] - half, self.origin_xy_m[1] - half)
+        return cell_corner_xy_m(self.origin_xy_m, self.resolution_m)
 
     def cell_of(self, xy_m) -> tuple[int, int]:
         """(row, column) of the cell holding world point (x, y)."""
