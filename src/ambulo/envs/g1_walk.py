@@ -33,8 +33,8 @@ import torch
 from ambulo.core import RobotCfg
 from ambulo.core.packages import package_search_path
 
-from .humanoid_walk import (WALKS, HumanoidWalkCfg, HumanoidWalkEnv, humanoid_walk_cfg, humanoid_walk_metrics,
-                            humanoid_walk_ppo)
+from .humanoid_walk import (WALKS, HumanoidWalkCfg, HumanoidWalkEnv, as_play, humanoid_walk_cfg,
+                            humanoid_walk_metrics, humanoid_walk_ppo)
 from .registry import TaskSpec, register
 
 G1_URDF = "example-robot-data/robots/g1_description/urdf/g1_29dof_rev_1_0.urdf"
@@ -127,11 +127,7 @@ def g1_walk_cfg() -> G1WalkCfg:
 
 
 def g1_walk_play_cfg() -> G1WalkCfg:
-    cfg = g1_walk_cfg()
-    cfg.push_interval_s, cfg.observation_noise = None, {}
-    cfg.friction_range, cfg.added_base_mass_kg = None, None
-    cfg.episode_length_s, cfg.curriculum_start_scale = 1.0e9, None
-    return cfg
+    return as_play(g1_walk_cfg())
 
 
 class G1WalkEnv(HumanoidWalkEnv):

@@ -109,10 +109,10 @@ def humanoid_walk_cfg() -> HumanoidWalkCfg:
     )
 
 
-def humanoid_walk_play_cfg() -> HumanoidWalkCfg:
-    """For play and evaluation: no pushes, no observation noise, nominal friction and mass,
-    no time-out (falls still end an episode)."""
-    cfg = humanoid_walk_cfg()
+def as_play(cfg: HumanoidWalkCfg) -> HumanoidWalkCfg:
+    """``cfg`` for play and evaluation (every walking task's play variant): no pushes, no
+    observation noise, nominal friction and mass, the full command ranges, no time-out (falls
+    still end an episode)."""
     cfg.push_interval_s = None
     cfg.observation_noise = {}
     cfg.friction_range = None
@@ -120,6 +120,10 @@ def humanoid_walk_play_cfg() -> HumanoidWalkCfg:
     cfg.episode_length_s = 1.0e9
     cfg.curriculum_start_scale = None
     return cfg
+
+
+def humanoid_walk_play_cfg() -> HumanoidWalkCfg:
+    return as_play(humanoid_walk_cfg())
 
 
 def humanoid_walk_ppo() -> PpoCfg:

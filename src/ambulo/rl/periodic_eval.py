@@ -30,6 +30,11 @@ EVAL_COLUMNS = ("iteration", "wall_s", "env_steps", "fall_rate", "mean_episode_l
 TIME_FILE = "time_to_criterion.json"
 
 
+def eval_due(iteration: int, every: int | None) -> bool:
+    """Whether iteration ``iteration`` (from 0) ends with an evaluation: every ``every``-th."""
+    return bool(every) and (iteration + 1) % every == 0
+
+
 class PeriodicEval:
     """Owns the evaluation env; ``__call__(runner, iteration)`` measures the runner's policy."""
 
@@ -54,7 +59,7 @@ class PeriodicEval:
             atomic_write_text(self._csv, ",".join(EVAL_COLUMNS) + "\n", fsync=True)
 
     def due(self, iteration: int) -> bool:
-        return (iteration + 1) % self.every == 0
+        return eval_due(iteration, self.every)
 
     def __call__(self, runner, iteration: int) -> dict[str, Any]:
         """Save ``model_<iteration>.pt``, evaluate it, log it; return the eval result."""

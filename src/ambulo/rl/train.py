@@ -24,7 +24,7 @@ from ambulo.utils.atomic import remove_partial_files
 from . import distributed, interrupt, runs
 from .config import ppo_cfg
 from .metrics import MetricsCsv
-from .periodic_eval import PeriodicEval, summary
+from .periodic_eval import PeriodicEval, eval_due, summary
 from .vecenv import RslRlVecEnv
 
 
@@ -97,7 +97,7 @@ def _install_progress(runner: AmbuloRunner, run_dir: Path, start: int, total: in
     def log(**kwargs: Any) -> None:
         if not rank.is_main:  # only the iteration bookkeeping every rank must share
             stop.check()
-            if eval_every and (kwargs["it"] + 1) % eval_every == 0:
+            if eval_due(kwargs["it"], eval_every):
                 if distributed.agree(False, rank, str(runner.device)) and stop_at_criterion:
                     raise CriterionReached
             return
