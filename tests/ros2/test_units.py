@@ -253,3 +253,32 @@ def test_tf_bytes_decode_with_mcap_ros2():
         "odom", "base_link", 2, 500_000_000)
     assert (a.transform.translation.x, a.transform.translation.z, a.transform.rotation.w) == (1, 3, 1)
     assert (b.transform.rotation.y, b.transform.rotation.w) == (0.8, 0.6)
+
+
+def test_frame_ring_passes_images_in_order_and_refuses_when_full():
+    """What the physics thread writes into a slot is what the publisher process takes, byte for byte,
+    oldest first; a full ring refuses (the bridge then waits or drops) and a taken slot is reused."""
+    import os  # noqa: PLC0415
+
+    from ambulo.ros2 import cdr  # noqa: PLC0415
+    from ambulo.ros2.frame_ring import FrameRing, slot_bytes_for  # noqa: PLC0415
+
+    width, height = 8, 4
+    writer, fd = FrameRing.create(2, slot_bytes_for(width, height, "cam"))
+    reader = FrameRing(fd, 2, writer.slot_bytes)  # the publisher process's mapping of the same memory
+    os.close(fd)
+    rng = np.random.default_rng(0)
+    frames = [rng.integers(0, 255, (height, width, 3), dtype=np.uint8) for _ in range(3)]
+    prefixes = [cdr.image_prefix(i, "cam", height, width, "rgb8", 3 * width, frames[i].nbytes) for i in range(3)]
+    sizes = [writer.put(prefixes[i], frames[i]) for i in range(2)]
+    assert writer.put(prefixes[2], frames[2]) is None  # both slots wait for the reader
+    assert reader.take(sizes[0]) == cdr.image(0, "cam", height, width, "rgb8", 3 * width, frames[0].tobytes())
+    size = writer.put(prefixes[2], frames[2])  # the freed slot takes the next frame
+    assert reader.take(sizes[1]) == cdr.image(1, "cam", height, width, "rgb8", 3 * width, frames[1].tobytes())
+    assert reader.take(size) == cdr.image(2, "cam", height, width, "rgb8", 3 * width, frames[2].tobytes())
+    depth = np.ones((height, width), "<f4")
+    with pytest.raises(ValueError, match="restart the bridge"):
+        writer.put(b"", np.ones((64, 64), "<f8"))  # a frame larger than the slots (4 KiB)
+    assert writer.put(cdr.image_prefix(3, "cam", height, width, "32FC1", 4 * width, depth.nbytes), depth) is not None
+    writer.close()
+    reader.close()

@@ -41,12 +41,15 @@ from . import cdr
 from . import messages as m
 from .commands import CmdVelHandler, default_cmd_vel_handler, names_problem, targets_problem, twist_problem
 from .config import BridgeCfg
+from .frame_ring import FrameRing, slot_bytes_for
 from .frames import OPTICAL_FROM_GL, leaf, robot_frames, static_from_world, xyzw
 from .publisher import _FENCE, CLOCK, HEADER_BYTES, IMU0, JOINT_STATES, ODOM, READ, TF, WAITING, WRITTEN, Layout, Ring
 from .runtime import import_rclpy, use_fastdds_profile
 
 log = logging.getLogger("ambulo.ros2")
 _INF = float("inf")
+FRAME_SLOTS = 4
+"""Serialized images that may wait for the publisher process (rgb and depth of two frames)."""
 
 
 class Ros2Bridge:
@@ -94,6 +97,11 @@ class Ros2Bridge:
         self.walking = self._every_step
         self.dropped = 0
         """Snapshots skipped because the publisher process was behind (``BridgeCfg.drop_when_behind``)."""
+        self.dropped_frames = 0
+        """Camera images skipped for the same reason."""
+        self.subscribers: dict[str, tuple[int, float]] = {}
+        """topic -> (matched subscriptions, ``time.time()`` when that count last changed), as the
+        publisher's DDS writer saw it: a message published after that time reaches every one of them."""
         self._links = [link for r in self.robots for link in r.dynamic]
         self._base_frame = next((r.dynamic[0].child for r in self.robots if r.robot is self.robot), "")
         self._start_publisher()
@@ -275,16 +283,25 @@ class Ros2Bridge:
 
         memfd = os.memfd_create("ambulo-ros2-ring")  # anonymous: nothing is left behind, whatever happens
         os.ftruncate(memfd, layout.nbytes)
+        self._frames, frames_fd = None, -1
+        if self.cameras:  # images go through shared memory too (frame_ring.py says why)
+            slot_bytes = max(slot_bytes_for(*c.resolution, self._sensor_frame[id(c)])
+                             for c in self.cameras)
+            self._frames, frames_fd = FrameRing.create(FRAME_SLOTS, slot_bytes)
+            spec["frames"] = (frames_fd, FRAME_SLOTS, slot_bytes)
         mine, theirs = socket.socketpair()
         wake_r, self._wake_w = os.pipe()
         os.set_blocking(self._wake_w, False)
+        fds = (memfd, theirs.fileno(), wake_r) + ((frames_fd,) if frames_fd >= 0 else ())
         try:
             self._proc = subprocess.Popen(
                 [sys.executable, "-m", "ambulo.ros2.publisher", str(memfd), str(theirs.fileno()), str(wake_r)],
-                pass_fds=(memfd, theirs.fileno(), wake_r), stdin=subprocess.DEVNULL)
+                pass_fds=fds, stdin=subprocess.DEVNULL)
         finally:
             theirs.close()
             os.close(wake_r)
+            if frames_fd >= 0:
+                os.close(frames_fd)
         self._ring = Ring(memfd, layout)
         os.close(memfd)
         self._conn = Connection(mine.detach())
@@ -303,6 +320,8 @@ class Ros2Bridge:
         self._header = memoryview(self._ring.map).cast("q")
         """The whole ring as int64 (plain indexing is cheaper than NumPy's for one value)."""
         self._slots = layout.slots
+        self._read_seen = 0
+        """The publisher's ``READ`` counter as last loaded (it only grows, so a stale value is safe)."""
         self._schedule = [[bit, key, 0.0 if rate is None else 1.0 / rate, -_INF, -_INF]
                           for bit, key, rate in self._state_topics]
         self._schedule += [[0, f"camera{i}", 1.0 / self.cfg.camera_rate_hz, -_INF, -_INF] for i in range(len(self.cameras))]
@@ -340,6 +359,8 @@ class Ros2Bridge:
                     self._on_joint_array(msg[1])
                 elif msg[0] == "joint_state":
                     self._on_joint_state(msg[1], msg[2])
+                elif msg[0] == "matched":  # (matched, topic, subscriptions now, wall time s)
+                    self.subscribers[msg[1]] = (msg[2], msg[3])
                 elif msg[0] == "closed":
                     self._closed_counts = msg[1]
                     self.failed.update(msg[2])
@@ -493,7 +514,9 @@ class Ros2Bridge:
         physics thread: a few NumPy copies)."""
         header, slots = self._header, self._slots
         written = header[WRITTEN]
-        if written - header[READ] >= slots:
+        if written - self._read_seen >= slots:  # READ is the other core's line: loaded only when the
+            self._read_seen = header[READ]  # ring looked full at the last value seen
+        if written - self._read_seen >= slots:
             if self.cfg.drop_when_behind:
                 self.dropped += 1
                 return
@@ -501,6 +524,7 @@ class Ros2Bridge:
                 if self._proc.poll() is not None:
                     raise RuntimeError("the ROS 2 publisher process has exited")
                 os.sched_yield()  # (time.sleep would oversleep by the timer slack, 50 us)
+            self._read_seen = header[READ]
         start, joints, bodies, sensordata, odom, imus = self._slot_views[written % slots]
         header[start], header[start + 1] = ns, flags
         if self._staged:
@@ -549,6 +573,24 @@ class Ros2Bridge:
             self.on_publish(self._topic[key], stamp_ns)
         self._send(("raw", key, data, stamp_ns, self._header[WRITTEN]))
 
+    def _publish_frame(self, key: str, ns: int, frame_id: str, encoding: str, pixels: np.ndarray) -> None:
+        """An Image through the shared-memory frame ring: written once, the slot number sent after the
+        snapshots taken before it. A full ring waits (lossless) or skips the frame (``drop_when_behind``)."""
+        height, width = pixels.shape[:2]
+        prefix = cdr.image_prefix(ns, frame_id, height, width, encoding, pixels.nbytes // height, pixels.nbytes)
+        nbytes = self._frames.put(prefix, pixels)
+        while nbytes is None:
+            if self.cfg.drop_when_behind:
+                self.dropped_frames += 1
+                return
+            if self._proc.poll() is not None:
+                raise RuntimeError("the ROS 2 publisher process has exited")
+            time.sleep(0.0002)  # a frame takes the publisher ~1 ms: no point spinning
+            nbytes = self._frames.put(prefix, pixels)
+        if self.on_publish is not None:
+            self.on_publish(self._topic[key], ns)
+        self._send(("frame", key, nbytes, ns, self._header[WRITTEN]))
+
     def _imu_values(self, imu) -> np.ndarray:
         """The 37 Imu values of a noisy IMU (or one with gravity removed): its noise model runs here."""
         noise = imu.cfg.noise
@@ -570,10 +612,9 @@ class Ros2Bridge:
         frame = self._sensor_frame[id(camera)]
         rgb = np.ascontiguousarray(out["rgb"][..., :3])
         height, width = rgb.shape[:2]
-        self._publish(f"rgb{i}", cdr.image(ns, frame, height, width, "rgb8", 3 * width, rgb.tobytes()), ns)
+        self._publish_frame(f"rgb{i}", ns, frame, "rgb8", rgb)
         if self.cfg.publish_depth:  # REP 118: 32FC1, metres along the optical axis
-            depth = np.ascontiguousarray(out["depth"], "<f4")
-            self._publish(f"depth{i}", cdr.image(ns, frame, height, width, "32FC1", 4 * width, depth.tobytes()), ns)
+            self._publish_frame(f"depth{i}", ns, frame, "32FC1", np.ascontiguousarray(out["depth"], "<f4"))
         cam = out["camera"]
         self._publish(f"info{i}", self._serialize(m.camera_info(now, frame, cam["width"], cam["height"],
                                                                 cam["intrinsics"])), ns)
@@ -613,6 +654,8 @@ class Ros2Bridge:
         self._slot_views = []
         self._header.release()
         self._ring.close()
+        if self._frames is not None:
+            self._frames.close()
 
     def __enter__(self) -> Ros2Bridge:
         return self

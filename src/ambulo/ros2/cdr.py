@@ -173,8 +173,10 @@ def tf_message(stamp_ns: int, parents: list[str], children: list[str], pos, quat
     return bytes(w)
 
 
-def image(stamp_ns: int, frame_id: str, height: int, width: int, encoding: str, step: int, data: bytes) -> bytes:
-    """sensor_msgs/msg/Image (little-endian pixels)."""
+def image_prefix(stamp_ns: int, frame_id: str, height: int, width: int, encoding: str, step: int,
+                 nbytes: int) -> bytes:
+    """sensor_msgs/msg/Image up to its pixels: the message is this followed by ``nbytes`` of pixels
+    (the bridge writes the two straight into shared memory)."""
     w = CdrWriter()
     w.header(*split_ns(stamp_ns), frame_id)
     w.u32(height)
@@ -182,9 +184,14 @@ def image(stamp_ns: int, frame_id: str, height: int, width: int, encoding: str, 
     w.string(encoding)
     w.u8(0)
     w.u32(step)
-    w.byte_seq(data)
+    w.u32(nbytes)  # the byte sequence's length; its bytes need no alignment
     return bytes(w)
 
 
-__all__ = ["CdrWriter", "Template", "clock", "image", "imu_template", "joint_state_template", "odometry_template",
+def image(stamp_ns: int, frame_id: str, height: int, width: int, encoding: str, step: int, data: bytes) -> bytes:
+    """sensor_msgs/msg/Image (little-endian pixels)."""
+    return image_prefix(stamp_ns, frame_id, height, width, encoding, step, len(data)) + bytes(data)
+
+
+__all__ = ["CdrWriter", "Template", "clock", "image", "image_prefix", "imu_template", "joint_state_template", "odometry_template",
            "split_ns", "tf_message", "tf_template"]
