@@ -25,7 +25,7 @@ from pathlib import Path
 
 import rclpy
 from geometry_msgs.msg import Twist
-from nav_msgs.msg import Odometry
+from nav_msgs.msg import OccupancyGrid, Odometry
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo, Image, Imu, JointState
@@ -64,7 +64,7 @@ class Oracle:
         self.node = rclpy.create_node("oracle")
         self.expect = expect
         self.got: dict[str, list] = {k: [] for k in ("joint_states", "imu", "clock", "odom", "image", "depth", "info",
-                                                      "tf", "tf_static", "robot_description")}
+                                                      "tf", "tf_static", "robot_description", "costmap")}
         self.lock = threading.Lock()
         decode = tf_decoder()
         TF = tf_class()
@@ -93,6 +93,9 @@ class Oracle:
         sub(TF, "/tf", lambda raw: self.add("tf", transforms(raw)), reliable, raw=True)
         sub(TF, "/tf_static", lambda raw: self.add("tf_static", transforms(raw)), static, raw=True)
         sub(String, "/robot_description", lambda m: self.add("robot_description", m.data), static)
+        sub(OccupancyGrid, "/costmap", lambda m: self.add("costmap", [
+            t(m.header.stamp), m.header.frame_id, m.info.resolution, m.info.width, m.info.height,
+            m.info.origin.position.x, m.info.origin.position.y, list(m.data)]), static)
         self.pubs = {}
 
     @staticmethod

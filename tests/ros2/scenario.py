@@ -106,11 +106,27 @@ def jetbot(out: Path) -> None:
     truth["rejected"] = list(bridge.rejected)
     truth["cmd_vel_after_rejects"] = list(bridge.cmd_vel)
     truth["end_time_ns"] = int(round(world.current_time * 1e9))
+    costmap = sample_costmap()  # every Nav2 cost class, on an odd-sized grid with a negative origin
+    bridge.publish_costmap(costmap)
+    truth["costmap"] = {"stamp_ns": int(round(world.current_time * 1e9)), "data": costmap.occupancy_grid_data().tolist(),
+                        "info": costmap.occupancy_grid_info()}
+    step_until(world, lambda: bridge.subscribers.get("/costmap", (0, 0.0))[0] > 0)  # the oracle's reader matched
+    end = time.monotonic() + 0.5  # and got the transient-local grid
+    step_until(world, lambda: time.monotonic() > end)
     peer.send(do="dump", path=str(out / "oracle.json"))
     peer.wait("dumped", world)
     bridge.close()
     truth["published"] = dict(bridge.published)
     (out / "truth.json").write_text(json.dumps(truth))
+
+
+def sample_costmap():
+    import torch  # noqa: PLC0415
+
+    from ambulo.perception.costmap import Costmap  # noqa: PLC0415
+
+    cost = torch.tensor([[0, 1, 100, 252], [253, 254, 255, 0], [7, 0, 0, 254]], dtype=torch.uint8)
+    return Costmap(cost=cost, origin_xy_m=(-1.025, 2.475), resolution_m=0.05)
 
 
 def humanoid(out: Path) -> None:

@@ -155,6 +155,21 @@ def test_robot_description_is_a_urdf_of_the_tf_frames(jetbot_run):
     assert urdf.count('<cylinder radius="0.03" length="0.02"/>') == 2
 
 
+def test_a_costmap_reaches_ros_as_an_occupancy_grid_with_nav2_values(jetbot_run):
+    oracle, truth, _ = jetbot_run
+    got = oracle["got"]["costmap"]
+    assert len(got) == 1, "the transient-local grid arrives once"
+    stamp_ns, frame, resolution, width, height, x, y, data = got[0]
+    want = truth["costmap"]
+    assert (stamp_ns, frame, width, height) == (want["stamp_ns"], "odom", 4, 3)
+    assert resolution == pytest.approx(0.05)  # float32 on the wire
+    assert (x, y) == pytest.approx((-1.05, 2.45))  # the corner of cell [0, 0], half a cell off its centre
+    assert data == want["data"] == [0, 1, 39, 98, 99, 100, -1, 0, 3, 0, 0, 100]
+    topics = oracle["graph"]["topics"]["/costmap"]
+    assert topics["types"] == ["nav_msgs/msg/OccupancyGrid"]
+    assert topics["publishers"][0]["durability"] == "TRANSIENT_LOCAL"
+
+
 def test_every_recorded_message_decodes_with_mcap_ros2_and_rosbags(jetbot_run):
     from mcap_ros2.reader import read_ros2_messages
     from rosbags.highlevel import AnyReader

@@ -573,6 +573,18 @@ class Ros2Bridge:
             self.on_publish(self._topic[key], stamp_ns)
         self._send(("raw", key, data, stamp_ns, self._header[WRITTEN]))
 
+    def publish_costmap(self, costmap, topic: str = "costmap", frame_id: str | None = None) -> None:
+        """Publish an ``ambulo.perception.Costmap`` as ``nav_msgs/OccupancyGrid`` on ``topic`` (reliable,
+        transient-local, keep-last 1: Nav2's map QoS, so a late rviz2 or planner still gets the latest),
+        stamped with the simulated time, in ``frame_id`` (default: the fixed frame, ``odom``)."""
+        key = f"grid:{topic}"
+        if key not in self._topic:
+            self._send(("advertise", key, "nav_msgs/msg/OccupancyGrid", topic, "static"))
+            self._topic[key] = topic if topic.startswith("/") else f"{self.cfg.namespace.rstrip('/')}/{topic}"
+        now = self.world.current_time
+        frame = frame_id if frame_id is not None else self.cfg.frame_prefix + self.cfg.odom_frame
+        self._publish(key, self._serialize(m.occupancy_grid(now, frame, costmap)), round(now * 1e9))
+
     def _publish_frame(self, key: str, ns: int, frame_id: str, encoding: str, pixels: np.ndarray) -> None:
         """An Image through the shared-memory frame ring: written once, the slot number sent after the
         snapshots taken before it. A full ring waits (lossless) or skips the frame (``drop_when_behind``)."""

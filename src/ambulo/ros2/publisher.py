@@ -149,14 +149,13 @@ class Publisher:
 
     def _make_publishers(self) -> None:
         from geometry_msgs.msg import Twist  # noqa: PLC0415
-        from nav_msgs.msg import Odometry  # noqa: PLC0415
+        from nav_msgs.msg import OccupancyGrid, Odometry  # noqa: PLC0415
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data  # noqa: PLC0415
         from rosgraph_msgs.msg import Clock  # noqa: PLC0415
         from sensor_msgs.msg import CameraInfo, Image, Imu, JointState, LaserScan, PointCloud2  # noqa: PLC0415
         from std_msgs.msg import Float64MultiArray, String  # noqa: PLC0415
 
-        from .bag import bag_qos  # noqa: PLC0415
-        from .raw_types import clear_rcutils_error, raw_message_class  # noqa: PLC0415
+        from .raw_types import raw_message_class  # noqa: PLC0415
 
         cfg = self.cfg
         data = QoSProfile(depth=cfg.data_qos_depth, reliability=ReliabilityPolicy.RELIABLE,
@@ -168,26 +167,36 @@ class Publisher:
                                     durability=DurabilityPolicy.TRANSIENT_LOCAL),
                "camera": qos_profile_sensor_data if cfg.camera_qos == "sensor_data" else data}
         types = {"rosgraph_msgs/msg/Clock": Clock, "std_msgs/msg/String": String, "nav_msgs/msg/Odometry": Odometry,
+                 "nav_msgs/msg/OccupancyGrid": OccupancyGrid,
                  "sensor_msgs/msg/JointState": JointState, "sensor_msgs/msg/Imu": Imu, "sensor_msgs/msg/Image": Image,
                  "sensor_msgs/msg/CameraInfo": CameraInfo, "sensor_msgs/msg/LaserScan": LaserScan,
                  "sensor_msgs/msg/PointCloud2": PointCloud2,
                  "tf2_msgs/msg/TFMessage": raw_message_class("tf2_msgs/msg/TFMessage")}
-        from rclpy.event_handler import PublisherEventCallbacks  # noqa: PLC0415
-
+        self._types, self._qos = types, qos
         self._pubs: dict[str, tuple] = {}
         for key, typename, topic, kind in self.spec["publishers"]:
-            profile = qos[kind]
-            matched = PublisherEventCallbacks(matched=lambda info, key=key: self._on_matched(key, info))
-            pub = self.node.create_publisher(types[typename], topic, profile, event_callbacks=matched)
-            clear_rcutils_error()
-            offered = bag_qos(reliable=profile.reliability == ReliabilityPolicy.RELIABLE,
-                              transient_local=profile.durability == DurabilityPolicy.TRANSIENT_LOCAL,
-                              depth=profile.depth)
-            self._pubs[key] = (pub, typename, offered, pub.topic_name)
+            self.advertise(key, typename, topic, kind)
         if self.spec["subscribe"]:
             self.node.create_subscription(Twist, cfg.cmd_vel_topic, self._on_twist, 10)
             self.node.create_subscription(Float64MultiArray, cfg.joint_command_topic, self._on_joint_array, 10)
             self.node.create_subscription(JointState, cfg.joint_state_command_topic, self._on_joint_state, 10)
+
+    def advertise(self, key: str, typename: str, topic: str, kind: str) -> str:
+        """Create the writer ``key`` (QoS ``kind``: data, tf, static, camera); returns its full topic name."""
+        from rclpy.event_handler import PublisherEventCallbacks  # noqa: PLC0415
+        from rclpy.qos import DurabilityPolicy, ReliabilityPolicy  # noqa: PLC0415
+
+        from .bag import bag_qos  # noqa: PLC0415
+        from .raw_types import clear_rcutils_error  # noqa: PLC0415
+
+        profile = self._qos[kind]
+        matched = PublisherEventCallbacks(matched=lambda info, key=key: self._on_matched(key, info))
+        pub = self.node.create_publisher(self._types[typename], topic, profile, event_callbacks=matched)
+        clear_rcutils_error()
+        offered = bag_qos(reliable=profile.reliability == ReliabilityPolicy.RELIABLE,
+                          transient_local=profile.durability == DurabilityPolicy.TRANSIENT_LOCAL, depth=profile.depth)
+        self._pubs[key] = (pub, typename, offered, pub.topic_name)
+        return pub.topic_name
 
     def _on_matched(self, key: str, info) -> None:
         """A subscription matched (or left) one of our writers: the bridge keeps the count and the wall
@@ -380,6 +389,9 @@ def serve(memfd: int, sockfd: int, wakefd: int) -> int:
             elif kind == "frame":  # (frame, key, bytes in the frame ring's oldest slot, stamp ns, ring position)
                 publisher.drain(msg[4])
                 publisher.publish(msg[1], frames.take(msg[2]), msg[3])
+            elif kind == "advertise":  # (advertise, key, type name, topic, QoS kind): a topic added later
+                if msg[1] not in publisher._pubs:
+                    publisher.advertise(*msg[1:5])
             elif kind == "warn":
                 publisher.node.get_logger().warning(msg[1])  # to the console and /rosout
             elif kind == "close":
