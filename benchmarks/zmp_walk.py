@@ -34,7 +34,7 @@ class Snapshots:
     """Renders the robot at a few moments of the walk (a fixed camera from the side and above)
     and saves them side by side."""
 
-    def __init__(self, model, pattern, times_s=None, size=(360, 480)):
+    def __init__(self, model, pattern, track_body: int, times_s=None, size=(360, 480)):
         import mujoco
 
         from ambulo.render import OffscreenRenderer
@@ -46,7 +46,7 @@ class Snapshots:
         self.model, self.images = model, []
         self.camera = mujoco.MjvCamera()
         self.camera.type = mujoco.mjtCamera.mjCAMERA_TRACKING
-        self.camera.trackbodyid = model.body("pelvis").id
+        self.camera.trackbodyid = track_body
         self.camera.distance, self.camera.elevation, self.camera.azimuth = 2.6, -15.0, 100.0
 
     def __call__(self, k, data):
@@ -85,7 +85,7 @@ def main(argv=None) -> dict:
     runs, margins, results = [], [], []
     for seed in range(args.seeds):
         t1 = time.perf_counter()
-        snapshots = Snapshots(sim.model, sim.pattern) if seed == 0 and args.frames else None
+        snapshots = Snapshots(sim.model, sim.pattern, sim.pelvis) if seed == 0 and args.frames else None
         result = sim.run(seed, video=args.video if seed == 0 else None, on_step=snapshots)
         if snapshots is not None:
             snapshots.save(args.frames)

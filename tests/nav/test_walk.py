@@ -8,7 +8,10 @@ import numpy as np
 import pytest
 
 from ambulo.nav.balance import polygon_signed_distance
-from ambulo.nav.walk_controller import HUMANOID_FOOT, StabilizerCfg, WalkIK, build_reference, walk_model
+from ambulo.nav.walk_controller import (
+    GROUND_GEOM, HUMANOID_FOOT, ROBOT_PRIM_PATH, StabilizerCfg, WalkIK, build_reference, walk_model, walk_physics,
+    walk_robot,
+)
 from ambulo.nav.walk_sim import WalkSimCfg, WalkSimulation, acceptance_walk, walk_pattern
 
 GRAVITY = 9.81
@@ -42,16 +45,17 @@ def test_ik_puts_com_and_soles_where_asked(model):
     feet = np.array([[0.15, 0.10, 0.05, 0.2], [-0.02, -0.09, 0.0, -0.1]])  # left swings up and ahead
     q, err = ik.solve(q0, com, pelvis_yaw=0.05, feet_xyzyaw=feet)
     assert err < 1e-6
+    robot = walk_robot(model)
     data = mujoco.MjData(model)  # checked with a fresh forward pass, not the IK's own data
     data.qpos[:] = q
     mujoco.mj_forward(model, data)
-    np.testing.assert_allclose(data.subtree_com[1], com, atol=1e-6)
+    np.testing.assert_allclose(data.subtree_com[robot.root_body_id], com, atol=1e-6)
     for site, foot in zip(("left_sole", "right_sole"), feet):
-        np.testing.assert_allclose(data.site_xpos[model.site(site).id], foot[:3], atol=1e-6)
-        mat = data.site_xmat[model.site(site).id].reshape(3, 3)
+        np.testing.assert_allclose(data.site_xpos[robot.site_id(site)], foot[:3], atol=1e-6)
+        mat = data.site_xmat[robot.site_id(site)].reshape(3, 3)
         assert math.atan2(mat[1, 0], mat[0, 0]) == pytest.approx(foot[3], abs=1e-6)
         assert mat[2, 2] == pytest.approx(1.0, abs=1e-9)  # sole flat
-    pelvis = data.xmat[model.body("pelvis").id].reshape(3, 3)
+    pelvis = data.xmat[robot.body_id("pelvis")].reshape(3, 3)
     assert pelvis[2, 2] == pytest.approx(1.0, abs=1e-9)
     for j in range(model.njnt):  # a reachable pose within the joint ranges
         if model.jnt_limited[j]:
@@ -62,7 +66,7 @@ def test_ik_puts_com_and_soles_where_asked(model):
 def test_feed_forward_carries_the_weight_and_its_zmp_stays_on_the_soles(model):
     pattern = walk_pattern(short_plan())
     ref = build_reference(model, pattern)
-    weight = float(model.body_subtreemass[1]) * GRAVITY
+    weight = float(model.body_subtreemass[walk_robot(model).root_body_id]) * GRAVITY
     # the contact forces of the reference motion carry the robot: m (g + z_ddot), z constant
     np.testing.assert_allclose(ref.contact_wrench[:, :, 2].sum(axis=1), weight, rtol=0.01)
     # standing still, the multi-body ZMP is the cart-table ZMP (the CoM's ground projection)
@@ -118,23 +122,25 @@ def test_seeds_perturb_the_start_reproducibly(acceptance):
     sim._initial_state(a, 3)
     sim._initial_state(b, 3)
     sim._initial_state(c, 4)
+    joints, base = sim.joint_qpos, sim.base_dofs
     np.testing.assert_array_equal(a.qpos, b.qpos)
-    assert np.abs(a.qpos[7:] - c.qpos[7:]).max() > 1e-3
-    assert np.abs(a.qpos[7:] - sim.reference.qpos[0][7:]).max() <= sim.cfg.joint_noise_rad + 1e-12
-    assert 0 < np.linalg.norm(a.qvel[:2]) <= sim.cfg.base_speed_noise_mps
+    assert np.abs(a.qpos[joints] - c.qpos[joints]).max() > 1e-3
+    assert np.abs(a.qpos[joints] - sim.reference.qpos[0][joints]).max() <= sim.cfg.joint_noise_rad + 1e-12
+    assert 0 < np.linalg.norm(a.qvel[base[:2]]) <= sim.cfg.base_speed_noise_mps
     # the soles start on the floor, not in it
-    feet = [g for g in range(sim.model.ngeom) if sim.model.geom(g).name in ("left_foot", "right_foot")]
+    feet = [sim.robot.geom_id(name) for name in ("left_foot", "right_foot")]
     lowest = min(a.geom_xpos[g][2] - np.abs(a.geom_xmat[g].reshape(3, 3)[2]) @ sim.model.geom_size[g] for g in feet)
     assert lowest == pytest.approx(0.0, abs=1e-9)
 
 
 def test_foot_shape_is_the_humanoids_sole(model):
-    size = model.geom_size[model.geom("left_foot").id]
+    robot = walk_robot(model)
+    size = model.geom_size[robot.geom_id("left_foot")]
     assert (HUMANOID_FOOT.length_m, HUMANOID_FOOT.width_m) == pytest.approx((2 * size[0], 2 * size[1]))
     # the sole site sits at the centre of the sole box's bottom face
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
-    geom, site = model.geom("left_foot").id, model.site("left_sole").id
+    geom, site = robot.geom_id("left_foot"), robot.site_id("left_sole")
     np.testing.assert_allclose(data.site_xpos[site][:2], data.geom_xpos[geom][:2], atol=1e-9)
     assert data.site_xpos[site][2] == pytest.approx(data.geom_xpos[geom][2] - size[2], abs=1e-9)
 
@@ -158,7 +164,7 @@ def test_map_obstacles_become_boxes_covering_exactly_the_occupied_cells():
     np.testing.assert_array_equal(covered, occupied.astype(int))  # every occupied cell once, no free cell
     assert len(boxes) <= 4
     model = walk_model(obstacles=boxes)
-    assert sum(model.geom(i).name.startswith("obstacle") for i in range(model.ngeom)) == len(boxes)
+    assert sum(model.geom(i).name.startswith("/World/obstacles/obstacle") for i in range(model.ngeom)) == len(boxes)
 
 
 def test_ik_agrees_with_mink(model):
@@ -177,17 +183,20 @@ def test_ik_agrees_with_mink(model):
         return mink.SE3.from_rotation_and_translation(mink.SO3.from_z_radians(yaw), np.asarray(pos, float))
 
     tasks = []
+    # mink's CoM task is the subtree of body 1: walk_model's humanoid is attached first
+    assert walk_robot(model).root_body_id == 1
     for name, foot in zip(("left_sole", "right_sole"), feet):
-        task = mink.FrameTask(name, "site", position_cost=1.0, orientation_cost=1.0)
+        task = mink.FrameTask(f"{ROBOT_PRIM_PATH}/{name}", "site", position_cost=1.0, orientation_cost=1.0)
         task.set_target(se3(foot[:3], foot[3]))
         tasks.append(task)
-    pelvis = mink.FrameTask("pelvis", "body", position_cost=0.0, orientation_cost=1.0)
+    pelvis = mink.FrameTask(f"{ROBOT_PRIM_PATH}/pelvis", "body", position_cost=0.0, orientation_cost=1.0)
     pelvis.set_target(se3([0.0, 0.0, 0.0], pelvis_yaw))
     com_task = mink.ComTask(cost=1.0)
     com_task.set_target(com)
     cost = np.full(model.nv, 10.0)  # torso and arms held at home, as in WalkIK
     cost[:6] = 0.0
-    cost[[model.jnt_dofadr[model.joint(f"{s}_{j}").id] for s in ("left", "right") for j in LEG_JOINTS]] = 0.0
+    legs = walk_robot(model).joint_model_ids([f"{s}_{j}" for s in ("left", "right") for j in LEG_JOINTS])
+    cost[model.jnt_dofadr[legs]] = 0.0
     posture = mink.PostureTask(model, cost=cost)
     posture.set_target(q0)
     configuration = mink.Configuration(model, q0)
@@ -196,3 +205,59 @@ def test_ik_agrees_with_mink(model):
         configuration.integrate_inplace(velocity, 0.05)
     np.testing.assert_allclose(configuration.q[:3], q_ours[:3], atol=1e-6)
     np.testing.assert_allclose(configuration.q[7:], q_ours[7:], atol=1e-5)
+
+
+def test_walk_model_is_built_by_the_core_scene_builder():
+    """The humanoid sits at its prim path on the core's ground plane with the physics of one
+    ``PhysicsCfg``; the file's ``home`` keyframe survives the attach."""
+    from ambulo.core import GroundCfg, PhysicsCfg, RobotCfg, add_ground, add_robot, compile_scene, new_scene
+
+    model = walk_model(friction=0.7, timestep_s=0.004)
+    robot = walk_robot(model)
+    assert model.body(robot.root_body_id).name == f"{ROBOT_PRIM_PATH}/pelvis"
+    assert len(robot.joint_names) == 21 and "left_knee" in robot.joint_names
+    floor = model.geom(GROUND_GEOM)
+    assert floor.type[0] == mujoco.mjtGeom.mjGEOM_PLANE
+    np.testing.assert_allclose(model.geom_friction[:, 0], 0.7)
+    # the options are those apply_physics writes for walk_physics, not the robot file's
+    spec = new_scene()
+    add_robot(spec, RobotCfg(file="humanoid"))
+    add_ground(spec, GroundCfg())
+    ref = compile_scene(spec, walk_physics(0.004))
+    assert isinstance(walk_physics(), PhysicsCfg)
+    for name in ("timestep", "integrator", "solver", "iterations", "ls_iterations", "cone", "tolerance"):
+        assert getattr(model.opt, name) == getattr(ref.opt, name), name
+    home = model.key_qpos[model.key("home").id]
+    knee = model.jnt_qposadr[robot.joint_model_ids("left_knee")[0]]
+    assert home[knee] > 0.1  # the crouched ready pose, not qpos0 (straight knees)
+
+
+def test_the_controller_finds_the_robot_by_name_not_by_body_index():
+    """A humanoid that is not body 1 and not at walk_model's prim path (a box and another prim
+    come first) gets the same IK solution, relative to its root: nothing assumes index or name."""
+    from ambulo.core import GroundCfg, RobotCfg, add_ground, add_robot, compile_scene, new_scene
+
+    spec = new_scene()
+    add_ground(spec, GroundCfg())
+    box = spec.worldbody.add_body(name="/World/crate", pos=[3.0, 3.0, 0.2])
+    box.add_freejoint()
+    box.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.2, 0.2, 0.2], mass=5.0)
+    add_robot(spec, RobotCfg(file="humanoid", prim_path="/World/Fancy_Humanoid"))
+    model = compile_scene(spec, walk_physics())
+    robot = walk_robot(model, "/World/Fancy_Humanoid")
+    assert robot.root_body_id > 1 and robot.free_qpos_adr == 7
+    com = np.array([0.05, 0.03, 0.80])
+    feet = np.array([[0.15, 0.10, 0.05, 0.2], [-0.02, -0.09, 0.0, -0.1]])
+    q0 = model.qpos0.copy()
+    home = walk_model()  # its humanoid's qpos (28: free joint, 21 hinges) in the home pose, as the start
+    q0[7:] = home.key_qpos[home.key("home").id]
+    q, err = WalkIK(model, "/World/Fancy_Humanoid").solve(q0, com, 0.05, feet)
+    assert err < 1e-6
+    np.testing.assert_array_equal(q[:7], q0[:7])  # the crate did not move
+    data = mujoco.MjData(model)
+    data.qpos[:] = q
+    mujoco.mj_forward(model, data)
+    np.testing.assert_allclose(data.subtree_com[robot.root_body_id], com, atol=1e-6)
+    np.testing.assert_allclose(data.site_xpos[robot.site_id("left_sole")], feet[0, :3], atol=1e-6)
+    with pytest.raises(KeyError, match="no site 'nose'"):
+        robot.site_id("nose")

@@ -74,3 +74,49 @@ def test_contract_matches_the_exported_networks():
     # process that imported mujoco.usd: see ambulo.rl.export)
     jit_actions = _run_torchscript_in_fresh_process(policy_dir("humanoid-walk") / "policy.pt", obs.numpy())
     assert np.allclose(onnx_actions.numpy(), jit_actions, atol=1e-4)
+
+
+def test_runner_observation_is_the_training_envs_for_the_same_state():
+    """HumanoidWalkingPolicy feeds the shipped network exactly what humanoid-walk trained it on:
+    the env, stepped into an arbitrary state, and a World humanoid put into that state give the
+    same 72 numbers (state, command and last action copied over)."""
+    from ambulo import envs
+
+    env = envs.make("humanoid-walk", play=True, num_envs=2, seed=3)
+    gen = torch.Generator().manual_seed(0)
+    for _ in range(6):  # off the default pose: joints and base moving, a non-zero last action
+        env.step(0.5 * torch.randn(2, env.num_actions, generator=gen))
+    env.commands.command[:] = torch.tensor([[0.4, -0.1, 0.3], [0.0, 0.2, -0.5]])
+    expected = env._compute_observations()
+    src = env.robot.data
+
+    world = World(physics_dt=0.005, rendering_dt=0.02)
+    world.scene.add_default_ground_plane()
+    add_reference_to_stage(usd_path=assets.path("humanoid"), prim_path="/World/Humanoid")
+    robot = world.scene.add(Robot(prim_path="/World/Humanoid", name="humanoid"))
+    world.reset()
+    walker = HumanoidWalkingPolicy(robot)
+    walker.initialize()
+    assert list(robot.entity.joint_names) == list(env.robot.joint_names)
+    for row in range(2):
+        entity = robot.entity
+        entity.write_root_pose(pos_w=src.root_pos_w[row:row + 1], quat_w=src.root_quat_w[row:row + 1])
+        entity.write_joint_state(pos=src.joint_pos[row:row + 1], vel=src.joint_vel[row:row + 1])
+        entity.write_root_velocity(lin_vel_w=src.root_lin_vel_w[row:row + 1], ang_vel_w=src.root_ang_vel_w[row:row + 1])
+        entity.engine.forward()
+        walker.actions = env.actions[row:row + 1].cpu().clone()
+        got = walker.observation(env.commands.command[row].cpu())
+        assert got.shape == (1, walker.contract["num_obs"]) == (1, env.num_obs)
+        torch.testing.assert_close(got, expected[row:row + 1].cpu(), atol=1e-6, rtol=1e-6)
+    env.close()
+
+
+def test_a_contract_with_other_observation_terms_is_refused():
+    """The runner builds the task's observation terms; a policy exported with others (an older
+    or changed env) is one clear error, not a robot fed the wrong numbers."""
+    policy = load_policy("humanoid-walk")
+    policy.contract = json.loads(json.dumps(policy.contract))
+    terms = policy.contract["observation_terms"]
+    terms[3], terms[4] = terms[4], terms[3]  # joint_vel and base_ang_vel swapped
+    with pytest.raises(ValueError, match="observation terms"):
+        HumanoidWalkingPolicy(robot=None, policy=policy)

@@ -16,19 +16,14 @@ root pose of a jointed or fixed root) come from kinematics that, after
 
 from __future__ import annotations
 
-import re
-
 import mujoco
 import numpy as np
 import torch
 
 from ..utils.math import projected_gravity, quat_rotate, quat_rotate_inverse, yaw_from_quat
 from .drives import is_drive
-from .paths import resolve_body, subtree_body_ids
+from .names import EntityNames
 from .rows import put_rows, take_rows
-
-_FREE = int(mujoco.mjtJoint.mjJNT_FREE)
-_DOF_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
 
 
 def _index(idx: np.ndarray, device: torch.device) -> slice | torch.Tensor:
@@ -58,27 +53,24 @@ class Entity:
         self.prim_path = prim_path.rstrip("/")
         self.device = torch.device(engine.device)
         self.num_worlds = engine.num_worlds
-        prefix = self.prim_path + "/"
-        self.root_body_id = resolve_body(model, self.prim_path)
-        bodies = subtree_body_ids(model, self.prim_path) or [self.root_body_id]
-        self.body_names = [model.body(b).name.removeprefix(prefix) for b in bodies]
+        self.names = names = EntityNames(model, self.prim_path)
+        """The model-only name lookup (``core.names``) this view resolves elements with."""
+        self.root_body_id = names.root_body_id
+        self.body_names = names.body_names
         """Names of the entity's bodies relative to the prim path, in ``body_*`` order."""
-        self._body_ids_np = np.asarray(bodies)
+        self._body_ids_np = names.body_ids
         self._roots_np = model.body_rootid[self._body_ids_np]
 
-        jnt = model.body_jntadr[self.root_body_id]
-        self.is_floating = bool(model.body_jntnum[self.root_body_id] >= 1 and model.jnt_type[jnt] == _FREE)
+        self.is_floating = names.is_floating
         """Whether the root body has a free joint (else it is fixed or jointed to a parent)."""
-        self._free_qpos = int(model.jnt_qposadr[jnt]) if self.is_floating else None
-        self._free_dof = int(model.jnt_dofadr[jnt]) if self.is_floating else None
+        self._free_qpos = names.free_qpos_adr
+        self._free_dof = names.free_dof_adr
         self._root_static = (not self.is_floating
                              and int(model.body_parentid[self.root_body_id]) == 0
                              and int(model.body_jntnum[self.root_body_id]) == 0)
 
-        body_set = set(bodies)
-        joints = [j for j in range(model.njnt)
-                  if int(model.jnt_bodyid[j]) in body_set and int(model.jnt_type[j]) in _DOF_JOINTS]
-        self.joint_names = [model.joint(j).name.removeprefix(prefix) for j in joints]
+        joints = names.joint_ids.tolist()
+        self.joint_names = names.joint_names
         """Hinge/slide joint names relative to the prim path, in ``joint_*`` order."""
         self.num_joints = len(joints)
         self._joint_ids = np.asarray(joints, dtype=np.int64)
@@ -137,26 +129,11 @@ class Entity:
     def find_joints(self, names) -> list[int]:
         """Indices (into ``joint_*``) of joints by name or full-match regex (``".*_knee"``), in
         the order given; a helpful KeyError for a name that matches nothing."""
-        return self._find(names, self.joint_names, "joint", "joints")
+        return self.names.find_joints(names)
 
     def find_bodies(self, names) -> list[int]:
         """Indices (into ``body_*``) of bodies by name."""
-        return self._find(names, self.body_names, "body", "bodies")
-
-    def _find(self, names, pool: list[str], kind: str, kinds: str) -> list[int]:
-        out = []
-        for name in [names] if isinstance(names, str) else names:
-            if name in pool:
-                out.append(pool.index(name))
-                continue
-            try:
-                matched = [i for i, have in enumerate(pool) if re.fullmatch(name, have)]
-            except re.error:
-                matched = []
-            if not matched:
-                raise KeyError(f"unknown {kind} {name!r} of {self.prim_path}; {kinds}: {pool}")
-            out.extend(i for i in matched if i not in out)
-        return out
+        return self.names.find_bodies(names)
 
     # -- writes -----------------------------------------------------------------------------
     def write_root_pose(self, pos_w: torch.Tensor | None = None, quat_w: torch.Tensor | None = None,

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import torch
 
 from ambulo.core import GroundCfg, PhysicsCfg, RobotCfg
+from ambulo.core.observations import velocity_policy_terms
 from ambulo.core.rows import put_rows, select_rows, take_rows
 from ambulo.sensors import ContactSensor, ContactSensorCfg
 
@@ -221,15 +222,10 @@ class HumanoidWalkEnv(RLEnv):
                  rows)
 
     def _policy_terms(self) -> dict[str, torch.Tensor]:
-        cfg, data = self.cfg, self.robot.data
-        return {
-            "projected_gravity": data.projected_gravity_b,
-            "velocity_commands": self.commands.command * self.command_scale,
-            "joint_pos_rel": data.joint_pos_rel,
-            "joint_vel": data.joint_vel * cfg.obs_scale_joint_vel,
-            "base_ang_vel": data.root_ang_vel_b * cfg.obs_scale_ang_vel,
-            "actions": self.actions,
-        }
+        # shared with the shipped-policy runner (sim.HumanoidWalkingPolicy): one definition
+        return velocity_policy_terms(self.robot.data, self.commands.command, self.actions,
+                                     command_scale=self.command_scale, joint_vel_scale=self.cfg.obs_scale_joint_vel,
+                                     ang_vel_scale=self.cfg.obs_scale_ang_vel)
 
     def _privileged_terms(self) -> dict[str, torch.Tensor]:
         data = self.robot.data

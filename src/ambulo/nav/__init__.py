@@ -17,7 +17,8 @@ from .footsteps import (
     plan_footsteps,
 )
 from .grid_map import GridMap
-from .walk_controller import HUMANOID_FOOT, StabilizerCfg, WalkController, WalkIK, build_reference, walk_model
+from .walk_controller import (HUMANOID_FOOT, StabilizerCfg, WalkController, WalkIK, build_reference, walk_model,
+                              walk_robot)
 from .walk_sim import WalkResult, WalkSimCfg, WalkSimulation, acceptance_walk, plan_walk, walk_pattern
 from .preview import (
     PreviewControlCfg, PreviewController, WalkPattern, WalkPatternCfg, WalkPatternGenerator, kajita2003_preview_cfg,
@@ -37,6 +38,6 @@ __all__ = [
     "humanoid_footstep_cfg",
     "plan_footsteps",
     "plot_plan",
-    "HUMANOID_FOOT", "StabilizerCfg", "WalkController", "WalkIK", "build_reference", "walk_model",
+    "HUMANOID_FOOT", "StabilizerCfg", "WalkController", "WalkIK", "build_reference", "walk_model", "walk_robot",
     "WalkResult", "WalkSimCfg", "WalkSimulation", "acceptance_walk", "plan_walk", "walk_pattern",
 ]

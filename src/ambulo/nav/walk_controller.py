@@ -41,7 +41,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from .. import assets
+from ..core import EntityNames, GroundCfg, PhysicsCfg, RobotCfg, add_ground, add_robot, compile_scene, new_scene
 from .balance import FootShape, lipm_omega, support_polygon
 from .preview import WalkPattern
 
@@ -54,27 +54,55 @@ SOLE_SITES = ("left_sole", "right_sole")
 FOOT_BODIES = ("left_foot", "right_foot")
 
 
+ROBOT_PRIM_PATH = "/World/robot"
+"""Where ``walk_model`` places the humanoid: its elements are named ``/World/robot/<name>``."""
+GROUND_GEOM = "/World/defaultGroundPlane/geom"
+"""The floor geom of ``walk_model`` (``core.GroundCfg``'s plane)."""
+OBSTACLES_PRIM_PATH = "/World/obstacles"
+"""``walk_model``'s obstacle boxes are the geoms ``/World/obstacles/obstacle<i>``."""
+
+
+def walk_physics(timestep_s: float = 0.005) -> PhysicsCfg:
+    """The physics the walking controller was tuned with: the humanoid file's own options
+    (implicitfast) and MuJoCo's solver defaults (Newton, 100 iterations, 50 line-search steps)."""
+    return PhysicsCfg(timestep_s=timestep_s, integrator="implicitfast", solver="newton", solver_iterations=100,
+                      ls_iterations=50)
+
+
+def walk_robot(model: mujoco.MjModel, prim_path: str = ROBOT_PRIM_PATH) -> EntityNames:
+    """The humanoid's elements in ``model`` by name (``core.EntityNames``)."""
+    robot = EntityNames(model, prim_path)
+    if not robot.is_floating:
+        raise ValueError(f"the walking controller needs the humanoid on a free joint; {prim_path} has none "
+                         "(build the scene with walk_model())")
+    return robot
+
+
 def walk_model(*, friction: float = 1.0, timestep_s: float = 0.005, obstacles=()) -> mujoco.MjModel:
-    """The bundled humanoid on a flat floor (plane at z = 0; every geom's sliding friction set to
-    ``friction``), with a light, a sky and a checker floor for videos. ``obstacles``: boxes
-    ``(center_x, center_y, size_x, size_y, height)`` in m standing on the floor (static geoms). The robot is body 1 (its whole-body CoM is
-    ``subtree_com[1]``)."""
-    spec = mujoco.MjSpec.from_file(assets.path("humanoid"))
-    spec.option.timestep = timestep_s
-    spec.add_texture(name="sky", type=mujoco.mjtTexture.mjTEXTURE_SKYBOX, builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT,
-                     width=512, height=3072, rgb1=[0.55, 0.68, 0.82], rgb2=[0.12, 0.14, 0.18])
-    tex = spec.add_texture(name="grid", type=mujoco.mjtTexture.mjTEXTURE_2D,
-                           builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER, width=512, height=512,
-                           rgb1=[0.32, 0.36, 0.40], rgb2=[0.24, 0.27, 0.30])
-    mat = spec.add_material(name="grid", texrepeat=[1, 1], reflectance=0.0)
-    mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = tex.name
-    spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05],
-                            friction=[friction, 0.005, 0.0001], material="grid")
+    """The bundled humanoid at ``ROBOT_PRIM_PATH`` on the core's ground plane (z = 0, geom
+    ``GROUND_GEOM``, with its sky and sun; every geom's sliding friction set to ``friction``),
+    built by the core scene builder with ``walk_physics(timestep_s)``. ``obstacles``: boxes
+    ``(center_x, center_y, size_x, size_y, height)`` in m standing on the floor (static geoms
+    ``/World/obstacles/obstacle<i>``). The humanoid's ``home`` keyframe is kept as the model's
+    ``home`` key. Look its elements up with ``walk_robot(model)``."""
+    spec = new_scene("walk")
+    robot = add_robot(spec, RobotCfg(file="humanoid", prim_path=ROBOT_PRIM_PATH))
+    add_ground(spec, GroundCfg(static_friction=friction, dynamic_friction=friction, color=(0.32, 0.36, 0.40)))
     for i, (cx, cy, sx, sy, height) in enumerate(obstacles):
-        spec.worldbody.add_geom(name=f"obstacle{i}", type=mujoco.mjtGeom.mjGEOM_BOX, pos=[cx, cy, height / 2],
-                                size=[sx / 2, sy / 2, height / 2], rgba=[0.55, 0.42, 0.30, 1.0])
-    spec.worldbody.add_light(name="sun", pos=[0, 0, 4], dir=[0, 0, -1], type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL)
-    model = spec.compile()
+        spec.worldbody.add_geom(name=f"{OBSTACLES_PRIM_PATH}/obstacle{i}", type=mujoco.mjtGeom.mjGEOM_BOX,
+                                pos=[cx, cy, height / 2], size=[sx / 2, sy / 2, height / 2],
+                                rgba=[0.55, 0.42, 0.30, 1.0])
+    physics = walk_physics(timestep_s)
+    model = compile_scene(spec, physics)
+    # attaching drops the file's keyframes (core.add_robot returns them): put "home" back by name
+    home, names = robot.keyframes["home"], walk_robot(model)
+    qpos = model.qpos0.copy()
+    a = names.free_qpos_adr
+    qpos[a:a + 3], qpos[a + 3:a + 7] = home.root_pos_m, home.root_quat
+    for joint, value in home.joint_pos.items():
+        qpos[model.jnt_qposadr[names.joint_model_ids(joint)[0]]] = value
+    spec.add_key(name="home", qpos=qpos.tolist())
+    model = compile_scene(spec, physics)
     model.geom_friction[:, 0] = friction  # MuJoCo takes the larger of two geoms' frictions: set all
     return model
 
@@ -102,15 +130,20 @@ class WalkIK:
     """Whole-body IK of the humanoid for walking: CoM (3), pelvis orientation (3) and both sole
     poses (6 + 6) from the floating base (6) and the leg joints (12); see the module docstring."""
 
-    def __init__(self, model: mujoco.MjModel):
+    def __init__(self, model: mujoco.MjModel, prim_path: str = ROBOT_PRIM_PATH):
         self.model = model
         self.data = mujoco.MjData(model)
-        if model.body(1).name != "pelvis" or model.jnt_type[0] != mujoco.mjtJoint.mjJNT_FREE:
-            raise ValueError("WalkIK needs the humanoid as the first body, on a free joint (walk_model())")
-        self.pelvis = model.body("pelvis").id
-        self.sites = [model.site(name).id for name in SOLE_SITES]
-        legs = [model.joint(f"{side}_{j}").id for side in ("left", "right") for j in LEG_JOINTS]
-        self.dofs = np.concatenate([np.arange(6), model.jnt_dofadr[legs]])  # base + legs
+        self.robot = robot = walk_robot(model, prim_path)
+        self.root = robot.root_body_id
+        """Model id of the humanoid's root body: its whole-body CoM is ``subtree_com[root]``."""
+        self.pelvis = robot.body_id("pelvis")
+        self.sites = [robot.site_id(name) for name in SOLE_SITES]
+        legs = robot.joint_model_ids([f"{side}_{j}" for side in ("left", "right") for j in LEG_JOINTS])
+        self.base_dofs = robot.free_dof_adr + np.arange(6)
+        """The free joint's 6 velocity addresses (linear, angular)."""
+        self.base_qpos = robot.free_qpos_adr + np.arange(7)
+        """The free joint's 7 position addresses (position, wxyz quaternion)."""
+        self.dofs = np.concatenate([self.base_dofs, model.jnt_dofadr[legs]])  # base + legs
         self._jac = np.zeros((18, model.nv))
         self._jp, self._jr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
         self.last_jacobian = np.zeros((18, 18))
@@ -129,7 +162,7 @@ class WalkIK:
     def _error(self, com_w, pelvis_yaw, feet_xyzyaw) -> np.ndarray:
         d = self.data
         err = np.empty(18)
-        err[0:3] = com_w - d.subtree_com[1]
+        err[0:3] = com_w - d.subtree_com[self.root]
         err[3:6] = _rot_error(_yaw_mat(pelvis_yaw), d.xmat[self.pelvis].reshape(3, 3))
         for i, site in enumerate(self.sites):
             foot = feet_xyzyaw[i]
@@ -139,7 +172,7 @@ class WalkIK:
 
     def _jacobian(self) -> np.ndarray:
         m, d, jac = self.model, self.data, self._jac
-        mujoco.mj_jacSubtreeCom(m, d, jac[0:3], 1)
+        mujoco.mj_jacSubtreeCom(m, d, jac[0:3], self.root)
         mujoco.mj_jacBody(m, d, self._jp, jac[3:6], self.pelvis)
         for i, site in enumerate(self.sites):
             mujoco.mj_jacSite(m, d, jac[6 + 6 * i: 9 + 6 * i], jac[9 + 6 * i: 12 + 6 * i], site)
@@ -194,17 +227,18 @@ def _home_qpos(model: mujoco.MjModel) -> np.ndarray:
     return model.key_qpos[key].copy()
 
 
-def build_reference(model: mujoco.MjModel, pattern: WalkPattern, *, ik_iterations: int = 20) -> WalkReference:
+def build_reference(model: mujoco.MjModel, pattern: WalkPattern, *, ik_iterations: int = 20,
+                    prim_path: str = ROBOT_PRIM_PATH) -> WalkReference:
     """IK of every pattern sample, finite-difference velocities and accelerations, and the
-    inverse-dynamics feed-forward (module docstring, steps 1-2)."""
-    ik = WalkIK(model)
+    inverse-dynamics feed-forward (module docstring, steps 1-2) of the humanoid at ``prim_path``."""
+    ik = WalkIK(model, prim_path)
     num = len(pattern.time_s)
     qpos = np.empty((num, model.nq))
     com_to_q = np.empty((num, 18, 3))
     ik_err = np.empty(num)
     q = _home_qpos(model)
-    q[0:2] = pattern.com_pos_w[0, :2]
-    q[3:7] = _yaw_quat(float(pattern.foot_pose_w[0, :, 3].mean()))
+    q[ik.base_qpos[0:2]] = pattern.com_pos_w[0, :2]
+    q[ik.base_qpos[3:7]] = _yaw_quat(float(pattern.foot_pose_w[0, :, 3].mean()))
     for k in range(num):
         feet = pattern.foot_pose_w[k]
         q, ik_err[k] = ik.solve(q, pattern.com_pos_w[k], float(feet[:, 3].mean()), feet,
@@ -223,7 +257,7 @@ def build_reference(model: mujoco.MjModel, pattern: WalkPattern, *, ik_iteration
     qacc[1:-1] = (vel_mid[1:-1] - vel_mid[:-2]) / dt
 
     data = mujoco.MjData(model)
-    sites = [model.site(name).id for name in SOLE_SITES]
+    sites = ik.sites
     act_dof = model.jnt_dofadr[model.actuator_trnid[:, 0]]
     tau_ff = np.zeros((num, model.nu))
     wrench = np.zeros((num, 2, 6))
@@ -242,9 +276,9 @@ def build_reference(model: mujoco.MjModel, pattern: WalkPattern, *, ik_iteration
             jacs.append(np.vstack([jp, jr]).copy())
             weights.append(_load_share(pattern, k, i) if len(feet) == 2 else 1.0)
         jc = np.vstack(jacs)  # (6 n, nv)
-        a = jc[:, :6].T  # base rows of J^T: (6, 6 n)
+        a = jc[:, ik.base_dofs].T  # base rows of J^T: (6, 6 n)
         w_inv = np.repeat(np.maximum(np.asarray(weights), 1e-3), 6)
-        f = w_inv * (a.T @ np.linalg.solve((a * w_inv) @ a.T, rne[:6]))
+        f = w_inv * (a.T @ np.linalg.solve((a * w_inv) @ a.T, rne[ik.base_dofs]))
         tau = rne - jc.T @ f
         tau_ff[k] = tau[act_dof]
         for j, i in enumerate(feet):
@@ -316,8 +350,12 @@ class WalkController:
     """
 
     def __init__(self, model: mujoco.MjModel, pattern: WalkPattern, reference: WalkReference,
-                 stabilizer: StabilizerCfg | None = None):
+                 stabilizer: StabilizerCfg | None = None, prim_path: str = ROBOT_PRIM_PATH):
         self.model, self.pattern, self.ref = model, pattern, reference
+        self.robot = robot = walk_robot(model, prim_path)
+        self.root = robot.root_body_id
+        self.base_qpos = robot.free_qpos_adr + np.arange(7)
+        self.base_dofs = robot.free_dof_adr + np.arange(6)
         self.cfg = stabilizer or StabilizerCfg()
         self.omega = lipm_omega(float(pattern.com_pos_w[0, 2] - pattern.foot_pose_w[0, :, 2].mean()))
         self.kp = -model.actuator_biasprm[:, 1].copy()
@@ -326,13 +364,14 @@ class WalkController:
         self.act_dof = model.jnt_dofadr[model.actuator_trnid[:, 0]]
         self.dof_act = np.full(model.nv, -1)
         self.dof_act[self.act_dof] = np.arange(model.nu)
-        self.sites = [model.site(name).id for name in SOLE_SITES]
-        self.pelvis = model.body("pelvis").id
+        self.sites = [robot.site_id(name) for name in SOLE_SITES]
+        self.pelvis = robot.body_id("pelvis")
         sides = ("left", "right")
-        self.ankle_joints = [[model.joint(f"{s}_ankle_{a}").id for a in ("pitch", "roll")] for s in sides]
-        self.hip_joints = [[model.joint(f"{s}_hip_{a}").id for a in ("roll", "pitch")] for s in sides]
+        self.ankle_joints = [robot.joint_model_ids([f"{s}_ankle_{a}" for a in ("pitch", "roll")]).tolist()
+                             for s in sides]
+        self.hip_joints = [robot.joint_model_ids([f"{s}_hip_{a}" for a in ("roll", "pitch")]).tolist() for s in sides]
         self.joint_act = {int(j): i for i, j in enumerate(model.actuator_trnid[:, 0])}
-        self.leg_dofs = [model.jnt_dofadr[[model.joint(f"{s}_{j}").id for j in LEG_JOINTS]] for s in sides]
+        self.leg_dofs = [model.jnt_dofadr[robot.joint_model_ids([f"{s}_{j}" for j in LEG_JOINTS])] for s in sides]
         self._jp, self._jr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
         self.cop_cmd = np.zeros(2)
         self.cop_shift = np.zeros(2)
@@ -367,8 +406,8 @@ class WalkController:
         """(2,) measured minus reference capture point (reference re-anchored), m (needs
         ``mj_subtreeVel`` on ``data``)."""
         p = self.pattern
-        e_c = data.subtree_com[1, :2] - self.to_measured(p.com_pos_w[k, :2])
-        e_v = data.subtree_linvel[1, :2] - self._anchor_rot() @ p.com_vel_w[k, :2]
+        e_c = data.subtree_com[self.root, :2] - self.to_measured(p.com_pos_w[k, :2])
+        e_v = data.subtree_linvel[self.root, :2] - self._anchor_rot() @ p.com_vel_w[k, :2]
         return e_c + e_v / self.omega
 
     def control(self, data: mujoco.MjData, k: int) -> np.ndarray:
@@ -394,11 +433,11 @@ class WalkController:
         share = ref.contact_wrench[k, feet, 2] / max(f_z, 1e-9)
         # pelvis attitude error (world frame rotation vector) and angular velocity
         rot_ref = np.empty(9)
-        mujoco.mju_quat2Mat(rot_ref, ref.qpos[k][3:7])
+        mujoco.mju_quat2Mat(rot_ref, ref.qpos[k][self.base_qpos[3:7]])
         rot_ref = (_yaw_mat(float(self.anchor[0])) @ rot_ref.reshape(3, 3)).ravel()
         att_err = _rot_error(rot_ref.reshape(3, 3), data.xmat[self.pelvis].reshape(3, 3))
-        omega_w = data.xmat[self.pelvis].reshape(3, 3) @ data.qvel[3:6]
-        omega_ref_w = rot_ref.reshape(3, 3) @ ref.qvel[k][3:6]
+        omega_w = data.xmat[self.pelvis].reshape(3, 3) @ data.qvel[self.base_dofs[3:6]]
+        omega_ref_w = rot_ref.reshape(3, 3) @ ref.qvel[k][self.base_dofs[3:6]]
         moment_pelvis = cfg.attitude_kp * att_err + cfg.attitude_kd * (omega_ref_w - omega_w)
         moment_pelvis[2] = 0.0  # yaw stays with the hip-yaw PD
         if len(feet) == 2 and cfg.load_transfer:
@@ -449,5 +488,6 @@ def _clip_into(point: np.ndarray, polygon: np.ndarray, margin_m: float) -> np.nd
     return center + lo * (point - center)
 
 
-__all__ = ["HUMANOID_FOOT", "walk_model", "WalkIK", "WalkReference", "build_reference", "StabilizerCfg",
+__all__ = ["GROUND_GEOM", "HUMANOID_FOOT", "OBSTACLES_PRIM_PATH", "ROBOT_PRIM_PATH", "walk_model", "walk_physics",
+           "walk_robot", "WalkIK", "WalkReference", "build_reference", "StabilizerCfg",
            "WalkController"]

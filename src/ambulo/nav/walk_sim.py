@@ -33,7 +33,8 @@ from .footsteps import FootstepPlan, FootstepPlanner, humanoid_footstep_cfg
 from .grid_map import GridMap
 from .preview import WalkPattern, WalkPatternGenerator, walk_pattern_cfg
 from .walk_controller import (
-    FOOT_BODIES, HUMANOID_FOOT, SOLE_SITES, StabilizerCfg, WalkController, build_reference, walk_model,
+    FOOT_BODIES, GROUND_GEOM, HUMANOID_FOOT, SOLE_SITES, StabilizerCfg, WalkController, build_reference, walk_model,
+    walk_robot,
 )
 
 STANCE_WIDTH_M = 0.18
@@ -176,10 +177,17 @@ class WalkSimulation:
         self.model = walk_model(friction=cfg.friction, timestep_s=pattern.dt_s, obstacles=obstacles)
         self.reference = build_reference(self.model, pattern)
         m = self.model
-        self.sites = [m.site(name).id for name in SOLE_SITES]
-        self.foot_geoms = [set(np.flatnonzero(m.geom_bodyid == m.body(b).id).tolist()) for b in FOOT_BODIES]
-        self.floor = m.geom("floor").id
-        self.pelvis = m.body("pelvis").id
+        self.robot = robot = walk_robot(m)
+        """The humanoid's elements by name (``core.EntityNames``)."""
+        self.root = robot.root_body_id
+        self.base_qpos = robot.free_qpos_adr + np.arange(7)
+        self.base_dofs = robot.free_dof_adr + np.arange(6)
+        self.joint_qpos = m.jnt_qposadr[robot.joint_ids]
+        self.sites = [robot.site_id(name) for name in SOLE_SITES]
+        self.foot_bodies = [robot.body_id(b) for b in FOOT_BODIES]
+        self.foot_geoms = [set(robot.geom_ids(b).tolist()) for b in FOOT_BODIES]
+        self.floor = m.geom(GROUND_GEOM).id
+        self.pelvis = robot.body_id("pelvis")
         self.omega = lipm_omega(float(pattern.com_pos_w[0, 2]))
 
     def _initial_state(self, data: mujoco.MjData, seed: int | None) -> None:
@@ -188,14 +196,14 @@ class WalkSimulation:
         data.qvel[:] = 0.0
         if seed is not None:
             rng = np.random.default_rng(seed)
-            data.qpos[7:] += rng.uniform(-cfg.joint_noise_rad, cfg.joint_noise_rad, m.nq - 7)
+            data.qpos[self.joint_qpos] += rng.uniform(-cfg.joint_noise_rad, cfg.joint_noise_rad, len(self.joint_qpos))
             angle, speed = rng.uniform(0, 2 * math.pi), cfg.base_speed_noise_mps * math.sqrt(rng.uniform())
-            data.qvel[0:2] = speed * math.cos(angle), speed * math.sin(angle)
+            data.qvel[self.base_dofs[0:2]] = speed * math.cos(angle), speed * math.sin(angle)
             mujoco.mj_kinematics(m, data)
             # put the lowest sole corner on the floor
             lowest = min(float((data.geom_xpos[g][2] - np.abs(data.geom_xmat[g].reshape(3, 3)[2])
                                 @ m.geom_size[g])) for feet in self.foot_geoms for g in feet)
-            data.qpos[2] -= lowest
+            data.qpos[self.base_qpos[2]] -= lowest
         mujoco.mj_forward(m, data)
 
     def run(self, seed: int | None = None, *, video: str | os.PathLike | None = None, width: int = 640,
@@ -207,7 +215,7 @@ class WalkSimulation:
         data = mujoco.MjData(m)
         self._initial_state(data, seed)
         ctl = WalkController(m, pat, self.reference, cfg.stabilizer)
-        cop = CenterOfPressure(m, list(FOOT_BODIES), ground_geoms=["floor"])
+        cop = CenterOfPressure(m, self.foot_bodies, ground_geoms=[self.floor])
         num_pat = len(pat.time_s)
         num = num_pat + int(round(cfg.settle_s / pat.dt_s))
         com = np.full((num, 3), np.nan)
@@ -227,7 +235,7 @@ class WalkSimulation:
         cap_lift = np.full(max(len(pat.touchdown_index) - 1, 0), np.nan)
         start = self._body_pose(data)
         fell, fall_time, reason = False, None, ""
-        writer = _VideoWriter(m, video, width, height, fps, pat.dt_s) if video else None
+        writer = _VideoWriter(m, video, width, height, fps, pat.dt_s, self.pelvis) if video else None
         steps_done = 0
         try:
             for k in range(num):
@@ -235,7 +243,7 @@ class WalkSimulation:
                 data.ctrl[:] = ctl.control(data, k)  # runs mj_forward: data is current below
                 mujoco.mj_subtreeVel(m, data)
                 steps_done = k + 1
-                com[k] = data.subtree_com[1]
+                com[k] = data.subtree_com[self.root]
                 single[k] = k < num_pat and int(pat.foot_contact[kk].sum()) == 1
                 touching = self._feet_touching(data)
                 if touching.any():
@@ -247,14 +255,14 @@ class WalkSimulation:
                         margin[k] = polygon_signed_distance(pc.cop_w[:2], poly)
                 if k in touch:
                     i = touch[k]
-                    xi = data.subtree_com[1, :2] + data.subtree_linvel[1, :2] / self.omega
+                    xi = data.subtree_com[self.root, :2] + data.subtree_linvel[self.root, :2] / self.omega
                     feet = [_sole_pose(data, s) for s in self.sites]
                     cap[i] = polygon_signed_distance(xi, support_polygon(feet, pat.foot))
                     new = int((1 - pat.step_sides[i]) // 2)
                     cap_new[i] = polygon_signed_distance(xi, support_polygon(feet[new], pat.foot))
                 if k in liftoff:
                     i = liftoff[k]
-                    xi = data.subtree_com[1, :2] + data.subtree_linvel[1, :2] / self.omega
+                    xi = data.subtree_com[self.root, :2] + data.subtree_linvel[self.root, :2] / self.omega
                     stance = int((1 - pat.step_sides[i - 1]) // 2)
                     cap_lift[i - 1] = polygon_signed_distance(
                         xi, support_polygon(_sole_pose(data, self.sites[stance]), pat.foot))
@@ -295,8 +303,9 @@ class WalkSimulation:
 
     def _fallen(self, data: mujoco.MjData) -> str:
         cfg = self.cfg
-        if data.qpos[2] < cfg.fall_height_m:
-            return f"pelvis at {data.qpos[2]:.2f} m"
+        height = data.qpos[self.base_qpos[2]]
+        if height < cfg.fall_height_m:
+            return f"pelvis at {height:.2f} m"
         up = data.xmat[self.pelvis][8]
         if up < math.cos(cfg.fall_tilt_rad):
             return f"pelvis tilted {math.degrees(math.acos(min(1.0, up))):.0f} deg"
@@ -313,7 +322,7 @@ class WalkSimulation:
 class _VideoWriter:
     """MP4 of the walk: a camera following the pelvis from the side and behind."""
 
-    def __init__(self, model, path, width, height, fps, dt_s):
+    def __init__(self, model, path, width, height, fps, dt_s, track_body: int):
         import imageio.v2 as imageio
 
         from ..render import OffscreenRenderer
@@ -323,7 +332,7 @@ class _VideoWriter:
         self.renderer = OffscreenRenderer(model, width, height)
         self.camera = mujoco.MjvCamera()
         self.camera.type = mujoco.mjtCamera.mjCAMERA_TRACKING
-        self.camera.trackbodyid = model.body("pelvis").id
+        self.camera.trackbodyid = track_body
         self.camera.distance, self.camera.elevation, self.camera.azimuth = 3.5, -28.0, 120.0
         self.model = model
         self.every = max(1, round(1.0 / (fps * dt_s)))

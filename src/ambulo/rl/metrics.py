@@ -31,35 +31,45 @@ def _number(value: float | None, digits: int) -> str:
     return f"{value:.{digits}f}"
 
 
+def rows_before(path: Path, start: int) -> list[dict[str, str]]:
+    """The complete rows of the CSV at ``path`` whose ``iteration`` is below ``start`` (a line a
+    kill cut short, or one without an iteration number, is dropped)."""
+    kept = []
+    with open(path, newline="") as f:
+        for row in csv.DictReader(f):
+            try:
+                iteration = int(row.get("iteration") or "")
+            except ValueError:  # a line cut short by a kill
+                continue
+            if iteration < start and None not in row.values():
+                kept.append(row)
+    return kept
+
+
+def write_rows(path: Path, columns: tuple[str, ...], rows: list[dict[str, str]]) -> None:
+    """Replace the CSV at ``path`` by ``columns``' header and ``rows``, atomically (a temporary
+    in the same folder, fsynced, then ``os.replace``: a kill leaves the old file or the new)."""
+    out = io.StringIO()
+    writer = csv.DictWriter(out, columns, extrasaction="ignore", restval="")
+    writer.writeheader()
+    writer.writerows(rows)
+    atomic_write_text(path, out.getvalue(), fsync=True)
+
+
+def truncate_csv(path: Path, columns: tuple[str, ...], start: int) -> None:
+    """A resume from iteration ``start``: keep only the rows of iterations ``< start`` of the
+    per-iteration CSV at ``path`` (a new file with just the header if there is none)."""
+    path = Path(path)
+    write_rows(path, columns, rows_before(path, start) if start > 0 and path.is_file() else [])
+
+
 class MetricsCsv:
     """Appends rows to ``<run>/metrics.csv``; ``start`` > 0 (a resume) first drops the rows of
     iterations ``>= start``."""
 
     def __init__(self, path: Path, start: int = 0):
         self.path = Path(path)
-        if start > 0 and self.path.is_file():
-            self._truncate(start)
-        else:
-            self._rewrite([])
-
-    def _truncate(self, start: int) -> None:
-        kept = []
-        with open(self.path, newline="") as f:
-            for row in csv.DictReader(f):
-                try:
-                    iteration = int(row.get("iteration") or "")
-                except ValueError:  # a line cut short by a kill
-                    continue
-                if iteration < start and None not in row.values():
-                    kept.append(row)
-        self._rewrite(kept)
-
-    def _rewrite(self, rows: list[dict[str, str]]) -> None:
-        out = io.StringIO()
-        writer = csv.DictWriter(out, COLUMNS, extrasaction="ignore", restval="")
-        writer.writeheader()
-        writer.writerows(rows)
-        atomic_write_text(self.path, out.getvalue(), fsync=True)
+        truncate_csv(self.path, COLUMNS, start)
 
     def append(self, iteration: int, steps_per_it: int, mean_reward: float | None,
                mean_episode_length_s: float | None, collect_s: float, learn_s: float,

@@ -8,12 +8,17 @@ a row to ``<run>/evals.csv`` and ``eval/*`` scalars to TensorBoard, and the firs
 meets every criterion of the task writes ``<run>/time_to_criterion.json``: the wall-clock
 time from the start of ``train`` (env build and kernel compile included) to that moment, so
 "time to walk" is a measurement, not an estimate.
+
+A resume from ``model_N.pt`` runs iterations N+1, N+2, ... again, so ``resume_evals`` first
+drops the rows of iterations > N from ``evals.csv`` (rewritten atomically, as ``metrics.csv``),
+and keeps ``time_to_criterion.json`` only if its iteration is <= N (see there).
 """
 
 from __future__ import annotations
 
 import csv
 import io
+import json
 import time
 from pathlib import Path
 from typing import Any
@@ -23,11 +28,46 @@ from ambulo.utils.atomic import atomic_write_json, atomic_write_text
 
 from . import runs
 from .evaluate import eval_episode_length_s, run_episodes
+from .metrics import truncate_csv
 from .vecenv import RslRlVecEnv
 
 EVAL_COLUMNS = ("iteration", "wall_s", "env_steps", "fall_rate", "mean_episode_length_s",
                 "mean_return", "metrics", "criteria_met")
 TIME_FILE = "time_to_criterion.json"
+
+
+def resume_evals(run_dir: Path, start: int) -> dict[str, Any] | None:
+    """Make the evaluation records of ``run_dir`` those of a run resuming at iteration ``start``
+    (its checkpoint's iteration + 1); return the kept ``time_to_criterion.json``, or None.
+
+    ``evals.csv`` keeps the rows of iterations < ``start``: the later ones describe policies
+    the crashed run trained after its checkpoint, which the resumed run trains again (and
+    re-evaluates), so they would appear twice and out of order.
+
+    ``time_to_criterion.json`` records the *first* evaluation that met the criteria. One from
+    an iteration < ``start`` stays true after the resume: that evaluation is part of the resumed
+    run's history (its checkpoint is kept, the iterations before it are not re-run), so it is
+    kept and returned, and the resumed run must not overwrite it with a later success. One from
+    an iteration >= ``start`` is removed: the policy it judged is discarded and retrained (its
+    ``model_<it>.pt`` will be overwritten), so it would name a checkpoint and a time that no
+    longer belong to the run; if the criteria hold again, the resumed run writes it anew. An
+    unreadable one (not written by ambulo, whose writes are atomic) is removed as well.
+    """
+    run_dir = Path(run_dir)
+    if (run_dir / "evals.csv").is_file():
+        truncate_csv(run_dir / "evals.csv", EVAL_COLUMNS, start)
+    path = run_dir / TIME_FILE
+    if not path.is_file():
+        return None
+    try:
+        reached = json.loads(path.read_text())
+        iteration = reached["iteration"]
+    except (OSError, ValueError, KeyError, TypeError):
+        iteration = None
+    if isinstance(iteration, int) and iteration < start:
+        return reached
+    path.unlink()
+    return None
 
 
 def eval_due(iteration: int, every: int | None) -> bool:
@@ -40,7 +80,8 @@ class PeriodicEval:
 
     def __init__(self, info: dict[str, Any], run_dir: Path, *, every: int, started_s: float,
                  steps_per_iteration: int, num_episodes: int = 100, seed: int = 12345,
-                 device: str | None = None):
+                 device: str | None = None, start: int = 0):
+        """``start`` > 0: the run resumes at that iteration (``resume_evals``)."""
         self.task = envs.spec(info["task"])
         if not self.task.criteria:
             raise ValueError(f"--eval-every: task {info['task']!r} declares no success criterion to "
@@ -51,10 +92,13 @@ class PeriodicEval:
                                          device=device,
                                          episode_length_s=eval_episode_length_s(self.task, None))
         self.vec_env = RslRlVecEnv(self.env)
-        self.reached: dict[str, Any] | None = None
         self.eval_s = 0.0
         """Seconds spent evaluating, inside the timed total (reported, not subtracted)."""
         self._csv = self.run_dir / "evals.csv"
+        self.reached: dict[str, Any] | None = None
+        """The first evaluation that met the criteria (``time_to_criterion.json``), if any yet."""
+        if start > 0:
+            self.reached = resume_evals(self.run_dir, start)
         if not self._csv.is_file():
             atomic_write_text(self._csv, ",".join(EVAL_COLUMNS) + "\n", fsync=True)
 

@@ -24,7 +24,7 @@ from ambulo.utils.atomic import remove_partial_files
 from . import distributed, interrupt, runs
 from .config import ppo_cfg
 from .metrics import MetricsCsv
-from .periodic_eval import PeriodicEval, eval_due, summary
+from .periodic_eval import PeriodicEval, eval_due, resume_evals, summary
 from .vecenv import RslRlVecEnv
 
 
@@ -246,7 +246,9 @@ def train(task: str | None = None, *, num_envs: int | None = None,
     if eval_every and rank.is_main:
         periodic = PeriodicEval(info, run_dir, every=eval_every, started_s=started_s,
                                 steps_per_iteration=ppo.num_steps_per_env * ppo.num_envs * rank.world_size,
-                                device=str(env.device))
+                                device=str(env.device), start=start)
+    elif resume and rank.is_main:  # evaluations of a crashed run's later iterations go, with or without --eval-every
+        resume_evals(run_dir, start)
     bar = _install_progress(runner, run_dir, start, ppo.max_iterations, verbose, env.step_dt_s,
                             stop, periodic, stop_at_criterion, eval_every, rank)
     try:

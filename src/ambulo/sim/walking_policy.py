@@ -5,7 +5,8 @@ call ``initialize()`` after ``world.reset()`` to put the robot in the policy's d
 call ``forward(step_size, command)`` from a physics callback every physics step. Every
 ``control_dt_s / physics_dt`` calls it builds the observation the policy was trained on
 (``contract.json``: projected gravity, scaled command, joint positions relative to the default
-pose, scaled joint and base angular velocities, the last action) and sets the joint position
+pose, scaled joint and base angular velocities, the last action) with the humanoid-walk task's
+own function (``core.observations.velocity_policy_terms``) and sets the joint position
 targets ``default + action_scale * action``; the robot's own PD drives track them.
 
 ``command`` is ``(vx, vy, yaw_rate)``: m/s forward and leftward in the robot's heading frame,
@@ -20,6 +21,7 @@ import warnings
 import torch
 
 from ..assets.policies import ShippedPolicy, load_policy
+from ..core.observations import VELOCITY_POLICY_TERMS, velocity_policy_terms
 
 
 class HumanoidWalkingPolicy:
@@ -33,6 +35,11 @@ class HumanoidWalkingPolicy:
         self._decimation: int | None = None
         self._count = 0
         self._warned = False
+        terms = [t["name"] for t in c["observation_terms"]]
+        if tuple(terms) != VELOCITY_POLICY_TERMS:
+            raise ValueError(f"the {self.policy.task} policy's contract lists observation terms {terms}; "
+                             f"HumanoidWalkingPolicy builds {list(VELOCITY_POLICY_TERMS)} (the humanoid-walk "
+                             "task's): re-export the policy from a humanoid-walk run")
         names = {t["name"]: t for t in c["observation_terms"]}
         self._cmd_scale = torch.tensor(names["velocity_commands"]["scale"], dtype=torch.float32)
         self._joint_vel_scale = float(names["joint_vel"]["scale"])
@@ -92,12 +99,10 @@ class HumanoidWalkingPolicy:
 
     def observation(self, command) -> torch.Tensor:
         """(N, num_obs) float32 observations in the contract's order."""
-        data = self.robot.entity.data
-        cmd = self.command_tensor(command)
-        terms = [data.projected_gravity_b, cmd * self._cmd_scale,
-                 data.joint_pos - self.default_joint_pos, data.joint_vel * self._joint_vel_scale,
-                 data.root_ang_vel_b * self._ang_vel_scale, self.actions]
-        return torch.cat([t.float().cpu() for t in terms], dim=1)
+        terms = velocity_policy_terms(self.robot.entity.data, self.command_tensor(command), self.actions,
+                                      command_scale=self._cmd_scale, joint_vel_scale=self._joint_vel_scale,
+                                      ang_vel_scale=self._ang_vel_scale, default_joint_pos=self.default_joint_pos)
+        return torch.cat([t.float().cpu() for t in terms.values()], dim=1)
 
     def forward(self, step_size: float, command) -> None:
         """Call every physics step (``step_size`` s): runs the policy every control period."""
