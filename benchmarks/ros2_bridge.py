@@ -38,6 +38,8 @@ import time
 import numpy as np
 
 TOPICS = {"/joint_states": "JointState", "/imu/data": "Imu", "/camera/image_raw": "Image"}
+BRIDGE = {}
+"""BridgeCfg fields every bridge here gets (``--publisher-cpus``)."""
 
 
 def subscriber() -> int:
@@ -100,7 +102,8 @@ def state_world(camera: bool = False):
 def attach(world, camera: bool):
     from ambulo.ros2 import BridgeCfg, Ros2Bridge  # noqa: PLC0415
 
-    cfg = BridgeCfg(imu_rate_hz=400.0, tf_rate_hz=100.0, odom_rate_hz=100.0, camera_rate_hz=60.0, publish_depth=False)
+    cfg = BridgeCfg(imu_rate_hz=400.0, tf_rate_hz=100.0, odom_rate_hz=100.0, camera_rate_hz=60.0, publish_depth=False,
+                    **BRIDGE)
     bridge = Ros2Bridge(world, cfg)
     sent: dict[str, list] = {topic: [] for topic in TOPICS}
 
@@ -222,7 +225,7 @@ def slowdown(steps: int, rounds: int = 7) -> dict:
         out[name] = {}
         for label, rates in RATES.items():
             for mode, drop in (("drop", True), ("lossless", False)):
-                bridge = Ros2Bridge(world, BridgeCfg(**rates, drop_when_behind=drop))
+                bridge = Ros2Bridge(world, BridgeCfg(**rates, drop_when_behind=drop, **BRIDGE))
                 run(1000)
                 entry = {}
                 for sub in ("no_subscriber", "subscriber"):
@@ -270,7 +273,7 @@ def realtime_slowdown(seconds: float, block_steps: int = 500) -> dict:
     from ambulo.ros2 import BridgeCfg, Ros2Bridge, SceneCfg, humanoid_world  # noqa: PLC0415
 
     world = humanoid_world(SceneCfg(physics_dt_s=0.001, camera=False))
-    bridge = Ros2Bridge(world, BridgeCfg(**RATES["issue"]))
+    bridge = Ros2Bridge(world, BridgeCfg(**RATES["issue"], **BRIDGE))
     proc = subscriber_process()
     proc.stdout.readline()
     dt = world.get_physics_dt()
@@ -319,6 +322,10 @@ def main() -> int:
     parser.add_argument("--image-seconds", type=float, default=2.0, help="simulated seconds of the 60 Hz image run")
     parser.add_argument("--steps", type=int, default=1000, help="steps per timing of the flat-out slow-down runs")
     parser.add_argument("--realtime-seconds", type=float, default=8.0, help="wall seconds of the real-time slow-down run")
+    parser.add_argument("--publisher-cpus", choices=("auto", "none"), default="auto",
+                        help="BridgeCfg.publisher_cpus: auto (the default) or none (no affinity)")
+    parser.add_argument("--only", choices=("latency", "realtime", "flat-out"), action="append",
+                        help="run only these parts (repeatable; default all)")
     parser.add_argument("--subscriber", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.subscriber:
@@ -330,34 +337,42 @@ def main() -> int:
         env["AMBULO_ROS2_BENCH_ISOLATED"] = "1"
         return subprocess.call(isolated([sys.executable, __file__, *sys.argv[1:]]), env=env)
 
-    world = state_world()
-    bridge, sent = attach(world, camera=False)
-    state = measure(world, bridge, sent, args.seconds, real_time=True)
-    bridge.close()
-    world = state_world(camera=True)
-    bridge, sent = attach(world, camera=True)
-    images = measure(world, bridge, sent, args.image_seconds, real_time=True)
-    bridge.close()
-    realtime = realtime_slowdown(args.realtime_seconds)
-    slow = slowdown(args.steps)
+    BRIDGE["publisher_cpus"] = None if args.publisher_cpus == "none" else "auto"
+    parts = set(args.only or ("latency", "realtime", "flat-out"))
+    state = images = realtime = {}
+    slow = {"humanoid": {k: {"subscriber": {}, "no_subscriber": {}} for k in ("issue_drop", "issue_lossless",
+                                                                             "state_100hz_drop")}}
+    if "latency" in parts:
+        world = state_world()
+        bridge, sent = attach(world, camera=False)
+        state = measure(world, bridge, sent, args.seconds, real_time=True)
+        bridge.close()
+        world = state_world(camera=True)
+        bridge, sent = attach(world, camera=True)
+        images = measure(world, bridge, sent, args.image_seconds, real_time=True)
+        bridge.close()
+    if "realtime" in parts:
+        realtime = realtime_slowdown(args.realtime_seconds)
+    if "flat-out" in parts:
+        slow = slowdown(args.steps)
     js, imu, img = state.get("/joint_states", {}), state.get("/imu/data", {}), images.get("/camera/image_raw", {})
     ratios = {"joint_states_delivery": js.get("delivery"), "imu_delivery": imu.get("delivery"),
               "image_delivery": img.get("delivery"),
               "joint_states_p99_over_1ms": js.get("latency_ms_p99", float("nan")) / 1.0,
                             "image_p99_over_10ms": img.get("latency_ms_p99", float("nan")) / 10.0,
-              "humanoid_realtime_slowdown_over_10pct": realtime["slowdown"] / 0.10,
-              "humanoid_realtime_slowdown_cpu_over_10pct": realtime["slowdown_cpu"] / 0.10,
-              "humanoid_flat_out_slowdown_over_10pct": slow["humanoid"]["issue_drop"]["subscriber"]["slowdown"] / 0.10,
-              "humanoid_flat_out_slowdown_cpu_over_10pct": slow["humanoid"]["issue_drop"]["subscriber"]["slowdown_cpu"] / 0.10,
+              "humanoid_realtime_slowdown_over_10pct": realtime.get("slowdown", float("nan")) / 0.10,
+              "humanoid_realtime_slowdown_cpu_over_10pct": realtime.get("slowdown_cpu", float("nan")) / 0.10,
+              "humanoid_flat_out_slowdown_over_10pct": slow["humanoid"]["issue_drop"]["subscriber"].get("slowdown", float("nan")) / 0.10,
+              "humanoid_flat_out_slowdown_cpu_over_10pct": slow["humanoid"]["issue_drop"]["subscriber"].get("slowdown_cpu", float("nan")) / 0.10,
               "humanoid_slowdown_no_subscriber_over_10pct":
-                  slow["humanoid"]["issue_drop"]["no_subscriber"]["slowdown"] / 0.10,
-              "humanoid_lossless_slowdown_over_10pct": slow["humanoid"]["issue_lossless"]["subscriber"]["slowdown"] / 0.10,
+                  slow["humanoid"]["issue_drop"]["no_subscriber"].get("slowdown", float("nan")) / 0.10,
+              "humanoid_lossless_slowdown_over_10pct": slow["humanoid"]["issue_lossless"]["subscriber"].get("slowdown", float("nan")) / 0.10,
               "humanoid_state_100hz_slowdown_over_10pct":
-                  slow["humanoid"]["state_100hz_drop"]["subscriber"]["slowdown"] / 0.10}
+                  slow["humanoid"]["state_100hz_drop"]["subscriber"].get("slowdown", float("nan")) / 0.10}
     for name, value in ratios.items():
         print(f"{name:44s} {value}")
     result = {"benchmark": "ros2_bridge", "ratio": ratios, "state_1khz": state, "images_640x480_60hz": images,
-              "realtime_1khz": realtime, "slowdown": slow, "domain": os.environ.get("ROS_DOMAIN_ID")}
+              "realtime_1khz": realtime, "slowdown": slow, "publisher_cpus": BRIDGE["publisher_cpus"], "domain": os.environ.get("ROS_DOMAIN_ID")}
     print("RESULT " + json.dumps(result))
     return 0
 

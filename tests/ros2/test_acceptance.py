@@ -25,7 +25,7 @@ EXPECTED_TYPES = {
     "/imu/data": "sensor_msgs/msg/Imu", "/odom": "nav_msgs/msg/Odometry", "/tf": "tf2_msgs/msg/TFMessage",
     "/tf_static": "tf2_msgs/msg/TFMessage", "/camera/image_raw": "sensor_msgs/msg/Image",
     "/camera/depth": "sensor_msgs/msg/Image", "/camera/camera_info": "sensor_msgs/msg/CameraInfo",
-    "/robot_description": "std_msgs/msg/String",
+    "/robot_description": "std_msgs/msg/String", "/costmap": "nav_msgs/msg/OccupancyGrid",
 }
 
 
@@ -40,7 +40,7 @@ def test_the_oracle_sees_the_node_and_its_topics_with_ros_types_and_qos(jetbot_r
         assert info["types"] == [typename], topic
         (pub,) = [p for p in info["publishers"] if p["node"] == "ambulo_bridge"]
         assert pub["reliability"] == "RELIABLE"
-        latched = topic in ("/tf_static", "/robot_description")
+        latched = topic in ("/tf_static", "/robot_description", "/costmap")
         assert pub["durability"] == ("TRANSIENT_LOCAL" if latched else "VOLATILE")
         assert hash_of(typename) in pub["hash"], topic  # a valid RIHS01 hash, as rosbags computes it
     for topic in ("/cmd_vel", "/joint_group_position_controller/command", "/joint_command"):

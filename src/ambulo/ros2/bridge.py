@@ -302,6 +302,7 @@ class Ros2Bridge:
             os.close(wake_r)
             if frames_fd >= 0:
                 os.close(frames_fd)
+        _set_publisher_cpus(self._proc.pid, cfg.publisher_cpus)
         self._ring = Ring(memfd, layout)
         os.close(memfd)
         self._conn = Connection(mine.detach())
@@ -680,6 +681,28 @@ def _close_at_exit(ref) -> None:
     bridge = ref()
     if bridge is not None:
         bridge.close()
+
+
+def _set_publisher_cpus(pid: int, cpus) -> None:
+    """Apply ``BridgeCfg.publisher_cpus`` to the publisher process (before it starts its threads, which
+    inherit the mask). A mask the system refuses (CPUs offline, a container's cpuset) is left alone."""
+    if cpus is None or not hasattr(os, "sched_setaffinity"):
+        return
+    if cpus == "auto":
+        allowed = os.sched_getaffinity(0)
+        try:
+            import ctypes  # noqa: PLC0415
+
+            here = ctypes.CDLL(None).sched_getcpu()
+        except (OSError, AttributeError):
+            return
+        cpus = allowed - {here}
+        if len(allowed) < 2 or not cpus:
+            return
+    try:
+        os.sched_setaffinity(pid, set(cpus))
+    except OSError as err:
+        log.warning("BridgeCfg.publisher_cpus=%s not applied: %s", cpus, err)
 
 
 def _numpy_source(get) -> tuple[np.ndarray, object]:

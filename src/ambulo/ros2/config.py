@@ -78,6 +78,11 @@ class BridgeCfg:
     """Niceness added to the publisher process (``os.nice``; 0: none). When every core is busy (other
     programs, or a subscriber on the same cores) the physics loop gets the CPU first (about 3:1 at 5),
     and messages, discovery and commands wait instead; with a core to spare it changes nothing."""
+    publisher_cpus: Literal["auto"] | list[int] | None = "auto"
+    """CPUs the publisher process may run on (``os.sched_setaffinity``). ``auto``: every CPU this process
+    may use except the one the bridge was created on (the physics thread's), when there are at least
+    two, so publishing never evicts the physics loop's caches on its core nor preempts it there;
+    the physics thread itself is not pinned. None: no restriction."""
     drop_when_behind: bool = False
     """When the ring is full (the simulation outruns the publisher process, e.g. stepping flat out with
     topics every step): False waits for a free slot, so every message goes out and the bag is complete;
