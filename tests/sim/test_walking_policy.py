@@ -15,7 +15,8 @@ from ambulo.sim import HumanoidWalkingPolicy, Robot, World, add_reference_to_sta
 pytest.importorskip("onnxruntime")
 
 
-def walk(command, seconds: float, physics_dt: float = 0.005):
+def humanoid_with_policy(physics_dt: float = 0.005):
+    """A World with the bundled humanoid on a ground plane and the shipped policy's runner."""
     world = World(physics_dt=physics_dt, rendering_dt=0.02)
     world.scene.add_default_ground_plane()
     add_reference_to_stage(usd_path=assets.path("humanoid"), prim_path="/World/Humanoid")
@@ -23,6 +24,11 @@ def walk(command, seconds: float, physics_dt: float = 0.005):
     world.reset()
     walker = HumanoidWalkingPolicy(robot)
     walker.initialize()
+    return world, robot, walker
+
+
+def walk(command, seconds: float, physics_dt: float = 0.005):
+    world, robot, walker = humanoid_with_policy(physics_dt)
     world.add_physics_callback("walk", lambda dt: walker.forward(dt, command))
     start = robot.get_world_pose()[0].copy()
     lowest = math.inf
@@ -90,13 +96,7 @@ def test_runner_observation_is_the_training_envs_for_the_same_state():
     expected = env._compute_observations()
     src = env.robot.data
 
-    world = World(physics_dt=0.005, rendering_dt=0.02)
-    world.scene.add_default_ground_plane()
-    add_reference_to_stage(usd_path=assets.path("humanoid"), prim_path="/World/Humanoid")
-    robot = world.scene.add(Robot(prim_path="/World/Humanoid", name="humanoid"))
-    world.reset()
-    walker = HumanoidWalkingPolicy(robot)
-    walker.initialize()
+    world, robot, walker = humanoid_with_policy()
     assert list(robot.entity.joint_names) == list(env.robot.joint_names)
     for row in range(2):
         entity = robot.entity
