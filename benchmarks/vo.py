@@ -13,7 +13,11 @@ renders every 1/30 s of simulated time; two boxes slide across the room. The est
 the true first pose. ATE = evo APE RMSE after SE(3) alignment; RPE = evo RPE RMSE over all pairs
 1 m of travel apart, in % of that metre. The second run (the same walk again: the simulation is
 deterministic) blacks out 1 s (30 frames: black colour, no depth) at ``--blackout-at`` and reports
-how many frames after the lens clears tracking is back (position error < 5 cm).
+how many frames after the lens clears tracking is back (position error < 5 cm); the third puts a
+textureless wall (uniform grey, depth 0.5 m) before the lens for the same second. Then two fast
+head turns on the kinematic walk at the same moment (``WalkCfg.look_away``): 90 deg away and back in
+1 s (peak 283 deg/s) and 180 deg in 0.4 s (peak 1400 deg/s): frames lost, frames to recover after
+the turn, largest position error.
 
 ``ratio`` = ATE / 2 cm (the acceptance's limit; <= 1 meets it). Odometry runs on the CPU
 (OpenCV ORB and PnP); the reported fps is the odometry alone, rendering and physics excluded.
@@ -23,11 +27,13 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from pathlib import Path
 
 import numpy as np
 
 from ambulo.perception.scenes import build_indoor_scene
+from ambulo.perception.vo import TrackState
 from ambulo.perception.vo_eval import run_walk_vo
 from ambulo.perception.walk import WALK_MODES, PolicyHeadCameraWalk, WalkCfg, make_walk
 
@@ -43,7 +49,7 @@ def main(argv=None) -> dict:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", type=Path, default=Path("out/vo"))
     args = parser.parse_args(argv)
-    from ambulo.perception.scenes import IndoorSceneCfg
+    from ambulo.perception.scenes import IndoorSceneCfg  # noqa: PLC0415
 
     walk = make_walk(build_indoor_scene(IndoorSceneCfg(seed=args.seed)), WalkCfg(speed_mps=args.speed),
                      mode=args.walk, width=args.width, height=args.height)
@@ -58,8 +64,23 @@ def main(argv=None) -> dict:
                 "min_clearance_m": round(min(walk.clearance_m), 3)}
     blackout = (args.blackout_at, args.blackout_at + 30)
     dark = run_walk_vo(walk, args.frames, blackout=blackout)
-    walk.close()
     recovery = dark.recovery_frames(tolerance_m=0.05)
+    wall = run_walk_vo(walk, args.frames, blackout=blackout, loss="textureless_wall").recovery_frames(0.05)
+    walk.close()
+    turns = {}
+    for name, (duration_s, angle_rad) in {"turn_90deg_in_1s": (1.0, math.pi / 2),
+                                          "turn_180deg_in_0.4s": (0.4, math.pi)}.items():
+        start_s = args.blackout_at / 30.0
+        turning = make_walk(build_indoor_scene(IndoorSceneCfg(seed=args.seed)),
+                            WalkCfg(speed_mps=args.speed, look_away=(start_s, duration_s, angle_rad)),
+                            mode="kinematic", width=args.width, height=args.height)
+        window = (args.blackout_at, args.blackout_at + int(round(duration_s * 30)))
+        spun = run_walk_vo(turning, window[1] + 60, blackout=window, loss="motion")
+        turning.close()
+        err = np.linalg.norm(spun.estimate_wc[:, :3, 3] - spun.truth_wc[:, :3, 3], axis=1)
+        turns[name] = {"peak_deg_per_s": round(math.degrees(math.pi * angle_rad / duration_s)),
+                       "lost_frames": sum(s == TrackState.LOST for s in spun.states),
+                       "recovery_frames": spun.recovery_frames(0.05), "max_error_cm": round(float(err.max()) * 100, 2)}
     result = {
         "walk": args.walk, "speed_mps": args.speed, "gait": gait,
         "frames": args.frames, "resolution": [args.width, args.height], "path_m": round(score.path_length_m, 2),
@@ -69,6 +90,7 @@ def main(argv=None) -> dict:
         "vo_fps": round(1e3 / float(np.median(run.vo_ms)), 1), "device": "CPU (OpenCV)",
         "blackout_frames": list(blackout), "recovery_frames": recovery,
         "recovery_s": None if recovery is None else round(recovery / 30.0, 3),
+        "textureless_wall_recovery_frames": wall, "fast_turns_kinematic_walk": turns,
         "files": [str(args.out / "groundtruth.tum"), str(args.out / "estimate.tum")],
     }
     result["ratio"] = round(score.ate_rmse_m / 0.02, 3)
@@ -80,7 +102,11 @@ def main(argv=None) -> dict:
           f"ATE {result['ate_rmse_cm']} cm, "
           f"RPE {result['rpe_percent']} % ({result['rpe_deg_per_m']} deg/m); {result['vo_fps']} fps (median "
           f"{result['vo_ms']['median']} ms)")
-    print(f"1 s blackout at frame {blackout[0]}: tracking back {recovery} frames after the lens cleared")
+    print(f"1 s blackout at frame {blackout[0]}: tracking back {recovery} frames after the lens cleared; "
+          f"1 s of a textureless wall: back {wall} frames after it")
+    for name, turn in turns.items():
+        print(f"{name} (peak {turn['peak_deg_per_s']} deg/s): {turn['lost_frames']} frames lost, back "
+              f"{turn['recovery_frames']} frames after it, max error {turn['max_error_cm']} cm")
     print(f"reproduce: evo_ape tum {args.out}/groundtruth.tum {args.out}/estimate.tum --align; "
           f"evo_rpe tum {args.out}/groundtruth.tum {args.out}/estimate.tum --align --delta 1 --delta_unit m --all_pairs")
     print("RESULT " + json.dumps(result))

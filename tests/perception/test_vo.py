@@ -1,5 +1,8 @@
 """Visual odometry on the humanoid's head camera (bob, sway, moving boxes), scored by evo against
-the simulator's camera poses; recovery after a covered lens; the pose refinement's math."""
+the simulator's camera poses; recovery after a covered lens, a textureless wall and a fast head
+turn; the pose refinement's math."""
+
+import math
 
 import numpy as np
 import pytest
@@ -7,8 +10,8 @@ import pytest
 from ambulo.perception.scenes import build_indoor_scene
 from ambulo.perception.vo import TrackState, VoCfg, refine_pose
 from ambulo.perception.vo_eval import run_walk_vo
-from ambulo.perception.walk import (HeadCameraWalk, PolicyHeadCameraWalk, WalkCfg, loop_point, make_walk,
-                                   root_pose)
+from ambulo.perception.walk import (HeadCameraWalk, PolicyHeadCameraWalk, WalkCfg, look_away_yaw, loop_point,
+                                   make_walk, root_pose)
 
 pytest.importorskip("cv2", reason="the perception extra is not installed")
 pytest.importorskip("evo", reason="the perception extra is not installed")
@@ -66,6 +69,38 @@ def test_tracking_resumes_within_1s_after_a_covered_lens(scene, walk_cls):
     frames = run.recovery_frames(tolerance_m=0.05)
     assert frames is not None and frames <= 30
     assert run.states[90 + frames] == TrackState.RECOVERED
+
+
+def test_tracking_resumes_within_1s_after_a_textureless_wall(scene):
+    """1 s of a plain wall filling the view at 0.5 m: depth everywhere, not one feature."""
+    walk = HeadCameraWalk(scene, width=320, height=240)
+    run = run_walk_vo(walk, 130, blackout=(60, 90), loss="textureless_wall")
+    walk.close()
+    assert all(s == TrackState.LOST for s in run.states[60:90])
+    frames = run.recovery_frames(tolerance_m=0.05)
+    assert frames is not None and frames <= 30
+
+
+def test_a_fast_head_turn_is_tracked_through():
+    """A 90 deg look away and back in 1 s (peak 283 deg/s, 9 deg between frames at 30 Hz)."""
+    walk = HeadCameraWalk(build_indoor_scene(), WalkCfg(look_away=(2.0, 1.0, math.pi / 2)), width=320, height=240)
+    run = run_walk_vo(walk, 120, blackout=(60, 90), loss="motion")
+    walk.close()
+    turned = [abs(look_away_yaw(walk.walk, t)) for t in run.times_s]
+    assert max(turned) == pytest.approx(math.pi / 2, abs=0.01)
+    assert all(s == TrackState.TRACKING for s in run.states[1:])
+    assert np.linalg.norm(run.estimate_wc[:, :3, 3] - run.truth_wc[:, :3, 3], axis=1).max() < 0.05
+
+
+def test_tracking_resumes_within_1s_after_a_turn_too_fast_to_track():
+    """180 deg away and back in 0.4 s (peak 1400 deg/s, up to 47 deg between frames: consecutive
+    views barely overlap): tracking is lost during the turn and back within 1 s of its end."""
+    walk = HeadCameraWalk(build_indoor_scene(), WalkCfg(look_away=(2.0, 0.4, math.pi)), width=320, height=240)
+    run = run_walk_vo(walk, 102, blackout=(60, 72), loss="motion")
+    walk.close()
+    assert TrackState.LOST in run.states[60:72]
+    frames = run.recovery_frames(tolerance_m=0.05)
+    assert frames is not None and frames <= 30
 
 
 @pytest.mark.slow

@@ -55,8 +55,13 @@ class TruthScene:
         the model of research/anchors-perception-nav.md 1.3)."""
         o3d = _o3d()
         extrinsic = np.linalg.inv(pose_wc)
-        rays = self.scene.create_rays_pinhole(o3d.core.Tensor(np.asarray(intrinsics, np.float64)),
-                                              o3d.core.Tensor(extrinsic), width, height)
+        # Open3D casts pixel (u, v)'s ray through (u + 0.5, v + 0.5); K here (OpenCV, as the mappers
+        # use it: cx = W / 2 - 0.5) puts pixel centres at whole coordinates, so shift the principal point
+        # half a pixel: without it every frame was rendered half a pixel off the intrinsics it came with
+        k = np.asarray(intrinsics, np.float64).copy()
+        k[0, 2] += 0.5
+        k[1, 2] += 0.5
+        rays = self.scene.create_rays_pinhole(o3d.core.Tensor(k), o3d.core.Tensor(extrinsic), width, height)
         t_hit = self.scene.cast_rays(rays)["t_hit"].numpy()
         dirs = rays.numpy()[..., 3:]
         # t_hit is along the (unnormalised) ray direction; z-depth is t * (direction . optical axis)

@@ -1,6 +1,7 @@
 """Run visual odometry on the humanoid's head-camera walk and score it: TUM files for evo, ATE /
-RPE, and how fast tracking comes back after an injected blackout (a covered lens: black colour,
-no depth)."""
+RPE, and how fast tracking comes back after an injected loss: a covered lens (black colour, no
+depth), a textureless wall in front of the lens (uniform grey, depth 0.5 m everywhere: depth but no
+feature) or a fast head turn (``WalkCfg.look_away``, rendered by the walk itself)."""
 
 from __future__ import annotations
 
@@ -26,11 +27,12 @@ class VoRun:
     vo_ms: list[float]
     """Per-frame odometry time (features, matching, PnP, refinement), ms."""
     blackout: tuple[int, int] | None
-    """[start, end) frames that were blacked out."""
+    """[start, end) frames during which tracking could not work (covered lens, textureless wall, a
+    fast turn away from everything mapped)."""
 
     def recovery_frames(self, tolerance_m: float = 0.05) -> int | None:
-        """Frames after the blackout until the state is tracking/recovered again with a position
-        error below ``tolerance_m``; None without a blackout or if it never recovers."""
+        """Frames after the loss until the state is tracking/recovered again with a position
+        error below ``tolerance_m``; None without a loss or if it never recovers."""
         if self.blackout is None:
             return None
         end = self.blackout[1]
@@ -51,17 +53,29 @@ class VoRun:
         return score_tum(gt, est)
 
 
+LOSSES = ("covered_lens", "textureless_wall", "motion")
+"""Losses in ``run_walk_vo``'s window: the first two are injected into the frames; ``motion`` injects
+nothing (the walk itself loses the view, e.g. a fast turn, ``WalkCfg.look_away``): the window only
+says from which frame on recovery is counted."""
+
+
 def run_walk_vo(walk: HeadCameraWalk | PolicyHeadCameraWalk, num_frames: int, cfg: VoCfg | None = None,
-                blackout: tuple[int, int] | None = None, progress=None) -> VoRun:
+                blackout: tuple[int, int] | None = None, progress=None, loss: str = "covered_lens") -> VoRun:
     """Render ``num_frames`` of ``walk`` and track them; frames in ``blackout`` [start, end) are
-    black with no depth. The estimate starts at the true first pose (the simulator's world)."""
+    replaced by the ``loss`` (``LOSSES``). The estimate starts at the true first pose (the
+    simulator's world)."""
+    if loss not in LOSSES:
+        raise ValueError(f"loss={loss!r} is not one of {LOSSES}")
     times, est, truth, states, vo_ms = [], [], [], [], []
     vo = None
     for i in range(num_frames):
         frame = walk.frame(i)
         rgb, depth = frame.rgb.numpy(), frame.depth_m.numpy()
         if blackout is not None and blackout[0] <= i < blackout[1]:
-            rgb, depth = np.zeros_like(rgb), np.zeros_like(depth)
+            if loss == "covered_lens":
+                rgb, depth = np.zeros_like(rgb), np.zeros_like(depth)
+            elif loss == "textureless_wall":  # a plain wall filling the view half a metre away
+                rgb, depth = np.full_like(rgb, 128), np.full_like(depth, 0.5)
         if vo is None:
             vo = RgbdOdometry(frame.intrinsics.numpy(), cfg, initial_pose_wc=frame.pose_wc.numpy())
         t0 = time.perf_counter()
@@ -76,4 +90,4 @@ def run_walk_vo(walk: HeadCameraWalk | PolicyHeadCameraWalk, num_frames: int, cf
     return VoRun(np.array(times), np.array(est), np.array(truth), states, vo_ms, blackout)
 
 
-__all__ = ["VoRun", "run_walk_vo"]
+__all__ = ["LOSSES", "VoRun", "run_walk_vo"]

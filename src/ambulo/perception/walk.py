@@ -64,6 +64,20 @@ class WalkCfg:
     """Policy mode: the path follower steers to the loop point this far ahead of the nearest one."""
     fall_height_m: float = 0.6
     """Policy mode: a pelvis below this height counts as a fall, m."""
+    look_away: tuple[float, float, float] | None = None
+    """Kinematic mode: a fast head turn (start s, duration s, angle rad): the heading gains
+    ``angle * sin(pi * (t - start) / duration)`` over the duration (away and back), so the peak yaw
+    rate is ``pi * angle / duration``; e.g. (3, 1, 1.57) turns 90 deg away and back at up to 280 deg/s."""
+
+
+def look_away_yaw(cfg: WalkCfg, t_s: float) -> float:
+    """The fast head turn's yaw offset at ``t_s`` (0 outside it), rad."""
+    if cfg.look_away is None:
+        return 0.0
+    start, duration, angle = cfg.look_away
+    if not start <= t_s <= start + duration:
+        return 0.0
+    return angle * math.sin(math.pi * (t_s - start) / duration)
 
 
 def loop_point(cfg: WalkCfg, s_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -104,7 +118,7 @@ def root_pose(cfg: WalkCfg, t_s: float) -> tuple[np.ndarray, np.ndarray]:
     left = np.array([-math.sin(yaw[0]), math.cos(yaw[0])])
     pos = np.array([*(xy[0] + cfg.sway_m * math.sin(stride) * left),
                     PELVIS_HEIGHT_M - 0.02 + cfg.bob_m * math.cos(2 * stride)])
-    yaw_t = yaw[0] + cfg.yaw_sway_rad * math.sin(stride + 0.5)
+    yaw_t = yaw[0] + cfg.yaw_sway_rad * math.sin(stride + 0.5) + look_away_yaw(cfg, t_s)
     roll = cfg.roll_sway_rad * math.sin(stride)
     pitch = cfg.pitch_bob_rad * math.sin(2 * stride)
     cy, sy, cr, sr, cp, sp = (math.cos(yaw_t), math.sin(yaw_t), math.cos(roll), math.sin(roll),
