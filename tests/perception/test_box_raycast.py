@@ -4,7 +4,6 @@ import math
 
 import numpy as np
 import pytest
-import torch
 
 from ambulo.perception.box_raycast import box_depth
 from ambulo.perception.reference import orbit_poses
@@ -44,14 +43,3 @@ def test_depth_equals_open3d_raycasting_on_the_indoor_scene():
         # edge, where the two may hit different faces
         assert np.median(err) < 1e-5 and np.mean(err < 1e-3) > 0.998, (np.median(err), np.mean(err < 1e-3))
         assert math.isfinite(float(ours.max()))
-
-
-def test_cuda_depth_equals_cpu_depth():
-    if not torch.cuda.is_available():
-        pytest.skip("no CUDA device")
-    scene = build_indoor_scene(IndoorSceneCfg(with_robot=False, num_moving_boxes=0))
-    k = pinhole(160, 120, 131.25)
-    pose = orbit_poses((0, 0, 0.5), 2.2, 1.0, 1)[0]
-    cpu = box_depth(scene.solids, k, pose, 160, 120)
-    gpu = box_depth(scene.solids, k, pose, 160, 120, device="cuda").cpu()
-    torch.testing.assert_close(gpu, cpu, atol=1e-5, rtol=0)
