@@ -199,10 +199,12 @@ def _integrate_both(frames, cfg):
 
 
 @pytest.mark.parametrize("cfg", [TsdfCfg(), TsdfCfg(weight_ref_depth_m=1.5, max_weight=3.0, truncation_voxels=3.0),
-                                 TsdfCfg(clear_free_space=False, depth_min_m=0.5, depth_max_m=3.0)],
-                         ids=["default", "weighted-saturating", "no-clearing-short-range"])
+                                 TsdfCfg(clear_free_space=False, depth_min_m=0.5, depth_max_m=3.0),
+                                 TsdfCfg(depth_max_m=60.0)],
+                         ids=["default", "weighted-saturating", "no-clearing-short-range", "sorted-allocation"])
 def test_warp_kernels_give_the_torch_reference_result(truth, room, cfg):
-    """Block allocation and the per-voxel update (projection, bilinear-unless-edge depth, truncation,
+    """Block allocation (the kernel's hash lookup and keys; at 60 m the sort-based fallback), the blocks
+    selected for clearing, and the per-voxel update (projection, bilinear-unless-edge depth, truncation,
     free-space clearing, running averages, saturation, colour) of the Warp path equal the torch path's
     to float32 rounding: noisy frames with holes and random colour, then a box that appears and goes."""
     pytest.importorskip("warp", reason="warp-lang is not installed")

@@ -19,6 +19,11 @@ MAX_BLOCK_INDEX = _OFFSET - 1
 """Largest |block coordinate| a key holds (2^19 blocks of 0.4 m: 200 km either way)."""
 
 
+def raise_out_of_range() -> None:
+    raise ValueError(f"block coordinates beyond +-{MAX_BLOCK_INDEX}: the map would span more than "
+                     "the key range; check the poses and depth units (metres)")
+
+
 def encode(coords: torch.Tensor) -> torch.Tensor:
     """(N, 3) int64 block coordinates -> (N,) int64 keys (20 bits per axis, offset to be >= 0)."""
     c = coords.to(torch.int64) + _OFFSET
@@ -45,6 +50,16 @@ class BlockHash:
     def __len__(self) -> int:
         return int(self._keys.numel())
 
+    @property
+    def keys(self) -> torch.Tensor:
+        """(n,) int64 sorted keys of the allocated blocks (read only: a kernel's binary search)."""
+        return self._keys
+
+    @property
+    def key_slots(self) -> torch.Tensor:
+        """(n,) int64 slot of ``keys[i]``."""
+        return self._slots
+
     def find(self, coords: torch.Tensor) -> torch.Tensor:
         """(N,) int64 slots of the (N, 3) block coordinates; -1 where a block is not allocated."""
         keys = encode(coords)
@@ -57,21 +72,22 @@ class BlockHash:
     def insert(self, coords: torch.Tensor) -> torch.Tensor:
         """Allocate the blocks of (N, 3) coordinates not yet in the table; return all N slots."""
         if (coords.abs() > MAX_BLOCK_INDEX).any():
-            raise ValueError(f"block coordinates beyond +-{MAX_BLOCK_INDEX}: the map would span more than "
-                             "the key range; check the poses and depth units (metres)")
+            raise_out_of_range()
         slots = self.find(coords)
         missing = slots < 0
         if missing.any():
-            new_keys = torch.unique(encode(coords[missing]))
-            start = len(self)
-            new_slots = torch.arange(start, start + new_keys.numel(), device=self.device)
-            keys = torch.cat([self._keys, new_keys])
-            order = torch.argsort(keys)
-            self._keys = keys[order]
-            self._slots = torch.cat([self._slots, new_slots])[order]
-            self.slot_coords = torch.cat([self.slot_coords, decode(new_keys)])
+            self.append(torch.unique(encode(coords[missing])))
             slots = self.find(coords)
         return slots
 
+    def append(self, new_keys: torch.Tensor) -> None:
+        """Allocate the blocks of (m,) sorted, distinct keys none of which is in the table: slots
+        len(self), ..., len(self) + m - 1 in key order (what ``insert`` hands out for them)."""
+        start = len(self)
+        new_slots = torch.arange(start, start + new_keys.numel(), device=self.device)
+        self._keys, order = torch.sort(torch.cat([self._keys, new_keys]))
+        self._slots = torch.cat([self._slots, new_slots])[order]
+        self.slot_coords = torch.cat([self.slot_coords, decode(new_keys)])
 
-__all__ = ["MAX_BLOCK_INDEX", "BlockHash", "decode", "encode"]
+
+__all__ = ["MAX_BLOCK_INDEX", "BlockHash", "decode", "encode", "raise_out_of_range"]

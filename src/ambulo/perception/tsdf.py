@@ -19,12 +19,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
 import torch
 
 from ambulo.utils.checks import check_int, check_positive
 
 from . import tsdf_kernels
-from .block_hash import BlockHash, decode, encode
+from .block_hash import BlockHash, decode, encode, raise_out_of_range
 from .frames import RgbdFrame, pixel_rays
 
 
@@ -105,28 +106,47 @@ class _FrameBuffers:
     """Per-image-size working buffers of ``TsdfMap.integrate`` (kept between frames)."""
 
     shape: tuple[int, int]
-    k: torch.Tensor
+    k: np.ndarray
+    """(3, 3) float32 intrinsics the buffers were built for."""
     rays: torch.Tensor
-    """(H/s, W/s, 3) float32 rays of the allocation pixels."""
+    """(H/s, W/s, 3) float32 camera rays (z = 1) of the allocation pixels."""
     depth: torch.Tensor
     """(H + 2, W + 2) float32 depth (non-finite readings as 0), _NO_DEPTH on the 1-pixel border."""
     rgb: torch.Tensor
     """(H + 2, W + 2, 3) uint8 colour, same padding."""
     band: torch.Tensor
-    """(3, 1, 1, 1) float32 offsets -trunc, 0, trunc along a ray, m (a view of ``band_m``)."""
-    band_m: torch.Tensor
-    """(3,) float32 the same offsets."""
+    """(3, 1, 1, 1) float32 offsets -trunc, 0, trunc along a ray, m."""
     r_blocks: int
     volume: torch.Tensor | None
     """(side^3 + 1,) bool dense block cells around the camera (torch path), None where too big."""
     strides: torch.Tensor
     volume_stamp: torch.Tensor | None = None
     """(side^3,) int32 frame stamp of each cell (Warp path: the volume is never cleared)."""
-    cells: torch.Tensor | None = None
-    """(side^3,) int32 the cells hit this frame, first ``count`` of them (Warp path)."""
-    count: torch.Tensor | None = None
-    """(1,) int32 number of cells hit (Warp path)."""
-    stamp: int = 0
+    new_keys: torch.Tensor | None = None
+    """(side^3,) int64 keys of this frame's new blocks, the first ``counts[0]`` of them (Warp path)."""
+
+
+@dataclass
+class _FrameGeometry:
+    """A frame's small per-frame matrices, computed on the host (numpy float32, as the kernels take
+    them by value) and shared by both backends, so that both do the same float32 arithmetic."""
+
+    k: np.ndarray
+    """(3, 3) float32 intrinsics."""
+    rot_cw: np.ndarray
+    """(3, 3) float32 world-to-camera rotation; t_cw: (3,) its translation, m."""
+    t_cw: np.ndarray
+    kr: np.ndarray
+    """(3, 3) float32 K' R_cw, K' = K with the principal point shifted by the 1-pixel pad; kt = K' t_cw."""
+    kt: np.ndarray
+    local_px: np.ndarray
+    """(3, B^3) float32 K' R_cw of each local voxel offset."""
+    rot_blocks: np.ndarray
+    """(3, 3) float32 R_wc^T / block size: ray @ rot_blocks is a ray's world direction in blocks / m."""
+    start_blocks: np.ndarray
+    """(3,) float32 camera position in blocks + 0.5 / B."""
+    position_blocks: np.ndarray
+    """(3,) float32 camera position in blocks."""
 
 
 class TsdfMap:
@@ -137,8 +157,8 @@ class TsdfMap:
     within a block, voxels are stored flat as ``(lx * B + ly) * B + lz``.
 
     ``backend`` picks the allocation and per-voxel update: "warp" (fused Warp kernels, ``tsdf_kernels``;
-    CPU and CUDA, same result), "torch" (eager torch ops, the reference) or "auto" (Warp on CUDA when
-    importable, torch on the CPU, where the Warp path measured no faster on a shared 2-core machine).
+    CPU and CUDA, same result), "torch" (eager torch ops, the reference) or "auto" (Warp when
+    importable, on the CPU too, where it measured faster than torch: see ``tsdf_kernels``).
     """
 
     def __init__(self, cfg: TsdfCfg | None = None, device: torch.device | str = "cpu", capacity: int = 1024,
@@ -149,8 +169,8 @@ class TsdfMap:
             raise ValueError(f"backend={backend!r}: pass 'auto', 'warp' or 'torch'")
         if backend == "warp" and not tsdf_kernels.available():
             raise ImportError("backend='warp' needs warp-lang: pip install 'ambulo[perception]'")
-        if backend == "auto":  # Warp on CUDA; on the CPU it is not yet faster than torch here (see tsdf_kernels)
-            backend = "warp" if self.device.type == "cuda" and tsdf_kernels.available() else "torch"
+        if backend == "auto":
+            backend = "warp" if tsdf_kernels.available() else "torch"
         self.backend = backend
         """The per-voxel update in use: "warp" or "torch"."""
         self._warp_views: dict = {}
@@ -173,9 +193,20 @@ class TsdfMap:
         """(B^3, 3) int64 local voxel index of each flat voxel."""
         self._local_index = idx
         """(B^3,) int64 flat local voxel index."""
-        self._local_m = (self._local.to(torch.float32) * self.cfg.voxel_size_m).T.contiguous()
-        """(3, B^3) float32 local voxel offsets from the block origin, m."""
+        self._local_m = (self._local.cpu().numpy().astype(np.float32) * np.float32(self.cfg.voxel_size_m)).T.copy()
+        """(3, B^3) float32 (host) local voxel offsets from the block origin, m."""
         self._buf: _FrameBuffers | None = None
+        self._stamp = 0
+        """Frame counter of the Warp path's stamps (a cell / slot holding this frame's stamp is marked)."""
+        if self.backend == "warp":
+            self._slot_stamp = torch.zeros(capacity, dtype=torch.int32, device=self.device)
+            """(capacity,) int32 stamp of the frame whose allocation band last touched each slot."""
+            self._selected = torch.zeros(capacity, dtype=torch.int64, device=self.device)
+            """(capacity,) int64 slots this frame updates, the first ``_counts[1]`` of them."""
+            self._counts = torch.zeros(3, dtype=torch.int32, device=self.device)
+            """(3,) int32 new blocks, selected blocks, out-of-range blocks of this frame."""
+            self._no_keys = torch.zeros(1, dtype=torch.int64, device=self.device)
+            """(1,) int64 stand-in for the keys of an empty hash."""
 
     @property
     def num_blocks(self) -> int:
@@ -201,90 +232,102 @@ class TsdfMap:
         self.color = torch.cat([self.color, self.color.new_zeros((extra, *self.color.shape[1:]))])
         self.updated = torch.cat([self.updated, self.updated.new_zeros(extra)])
         self.has_surface = torch.cat([self.has_surface, self.has_surface.new_zeros(extra)])
+        if self.backend == "warp":
+            self._slot_stamp = torch.cat([self._slot_stamp, self._slot_stamp.new_zeros(extra)])
+            self._selected = self._selected.new_zeros(new)
 
-    def _frame_buffers(self, h: int, w: int, k: torch.Tensor) -> _FrameBuffers:
+    def _geometry(self, frame: RgbdFrame) -> _FrameGeometry:
+        """The frame's small matrices on the host: no device op, no upload (the kernels take them by value)."""
+        pose = frame.pose_wc.detach().cpu().numpy().astype(np.float64)
+        pose_cw = np.linalg.inv(pose).astype(np.float32)
+        pose_wc = pose.astype(np.float32)
+        k = frame.intrinsics.detach().cpu().numpy().astype(np.float32)
+        kp = k.copy()
+        kp[:2, 2] += np.float32(1.0)
+        kr = kp @ pose_cw[:3, :3]
+        inv = np.float32(1.0 / self.cfg.block_size_m)
+        position = pose_wc[:3, 3] * inv
+        return _FrameGeometry(k=k, rot_cw=pose_cw[:3, :3].copy(), t_cw=pose_cw[:3, 3].copy(), kr=kr,
+                              kt=kp @ pose_cw[:3, 3], local_px=kr @ self._local_m, rot_blocks=pose_wc[:3, :3].T * inv,
+                              start_blocks=position + np.float32(0.5 / self.cfg.block_voxels),
+                              position_blocks=position)
+
+    def _frame_buffers(self, h: int, w: int, k: np.ndarray) -> _FrameBuffers:
         """Per-image-size buffers, built once: padded depth / colour images and the rays of the
         allocation pixels (rebuilt when the image size or the intrinsics change)."""
         buf = self._buf
-        if buf is None or buf.shape != (h, w) or not torch.equal(buf.k, k):
+        if buf is None or buf.shape != (h, w) or not np.array_equal(buf.k, k):
             s = self.cfg.allocation_stride
-            rays = pixel_rays(k, h, w, self.device)[::s, ::s].contiguous()
+            rays = pixel_rays(torch.from_numpy(k), h, w, self.device)[::s, ::s].contiguous()
             r_blocks = int(math.ceil((self.cfg.depth_max_m + self.cfg.truncation_m) * float(rays.norm(dim=-1).max())
                                      / self.cfg.block_size_m)) + 2
             side = 2 * r_blocks + 1
             band_m = torch.tensor([-self.cfg.truncation_m, 0.0, self.cfg.truncation_m], device=self.device)
             buf = self._buf = _FrameBuffers(
-                shape=(h, w), k=k.clone(), rays=rays,
+                shape=(h, w), k=k.copy(), rays=rays,
                 depth=torch.full((h + 2, w + 2), _NO_DEPTH, dtype=torch.float32, device=self.device),
                 rgb=torch.zeros((h + 2, w + 2, 3), dtype=torch.uint8, device=self.device),
-                band=band_m.view(3, 1, 1, 1), band_m=band_m,
-                r_blocks=r_blocks,
+                band=band_m.view(3, 1, 1, 1), r_blocks=r_blocks,
                 volume=torch.zeros(side ** 3 + 1, dtype=torch.bool, device=self.device)
                 if side ** 3 <= _MAX_DENSE_CELLS else None,
                 strides=torch.tensor([side * side, side, 1], dtype=torch.float32, device=self.device))
             if self.backend == "warp" and buf.volume is not None:
                 buf.volume_stamp = torch.zeros(side ** 3, dtype=torch.int32, device=self.device)
-                buf.cells = torch.zeros(side ** 3, dtype=torch.int32, device=self.device)
-                buf.count = torch.zeros(1, dtype=torch.int32, device=self.device)
+                buf.new_keys = torch.zeros(side ** 3, dtype=torch.int64, device=self.device)
         return buf
 
-    def _allocate(self, depth: torch.Tensor, buf: _FrameBuffers, pose: torch.Tensor) -> torch.Tensor:
+    def _corner_blocks(self, buf: _FrameBuffers, g: _FrameGeometry) -> np.ndarray:
+        """(3,) float32 block coordinate of cell 0 of the dense volume around the camera."""
+        return np.floor(g.position_blocks) - np.float32(buf.r_blocks)
+
+    def _allocate(self, depth: torch.Tensor, buf: _FrameBuffers, g: _FrameGeometry) -> torch.Tensor:
         """Allocate the blocks that the truncation band of every ``allocation_stride``-th valid pixel
         touches; return their slots. Deduplicated sort-free, through a dense volume of block cells
         around the camera (``torch.unique`` only when the depth range makes that volume too big)."""
-        s, b = self.cfg.allocation_stride, self.cfg.block_voxels
-        inv = 1.0 / self.cfg.block_size_m
+        s = self.cfg.allocation_stride
         # the band [d - trunc, d + trunc] along each ray: a block (>= 2 trunc here) is hit by one of 3
-        # samples; block = floor(round(p / voxel) / B) = floor(p / block + 0.5 / B), in block units
-        rays_w = buf.rays @ (pose[:3, :3].T * inv)
-        start = pose[:3, 3] * inv + 0.5 / b
+        # samples; block = floor(round(p / voxel) / B) = floor(p / block + 0.5 / B), in block units. Products
+        # and sums one op each (no fused multiply-add), as the Warp kernel computes them
+        m = torch.from_numpy(g.rot_blocks).to(self.device)
+        rays_w = buf.rays[..., 0:1] * m[0] + buf.rays[..., 1:2] * m[1] + buf.rays[..., 2:3] * m[2]
+        start = torch.from_numpy(g.start_blocks).to(self.device)
+        d = depth[::s, ::s]
+        valid = (d >= self.cfg.depth_min_m) & (d <= self.cfg.depth_max_m)  # False for NaN and inf too
+        samples = torch.mul(rays_w, d[..., None] + buf.band).add_(start).floor_()
         if buf.volume is not None:
             side = 2 * buf.r_blocks + 1
-            corner = torch.floor(pose[:3, 3] * inv) - buf.r_blocks
-            if self.backend == "warp":
-                buf.stamp += 1
-                buf.count.zero_()
-                tsdf_kernels.launch_mark_band_blocks(
-                    depth_m=depth, stride_px=s, rays_blocks=rays_w, start_blocks=start, band_m=buf.band_m,
-                    corner_blocks=corner, side=side, depth_min_m=self.cfg.depth_min_m,
-                    depth_max_m=self.cfg.depth_max_m, stamp=buf.stamp, volume_stamp=buf.volume_stamp, cells=buf.cells,
-                    count=buf.count, views=self._warp_views)
-                flat = buf.cells[: int(buf.count.item())].to(torch.int64)
-            else:
-                d = depth[::s, ::s]
-                m = (d >= self.cfg.depth_min_m) & (d <= self.cfg.depth_max_m)  # False for NaN and inf too
-                samples = torch.addcmul(start, rays_w, d[..., None] + buf.band).floor_()
-                cell = (samples - corner).clamp_(0, side - 1) @ buf.strides
-                cell = torch.where(m.expand(3, -1, -1), cell, side ** 3).to(torch.int64).reshape(-1)
-                vol = buf.volume
-                vol.zero_()
-                vol.index_fill_(0, cell, True)
-                vol[-1] = False
-                flat = torch.nonzero(vol, as_tuple=True)[0]
+            corner = torch.from_numpy(self._corner_blocks(buf, g)).to(self.device)
+            cell = (samples - corner).clamp_(0, side - 1) @ buf.strides
+            cell = torch.where(valid.expand(3, -1, -1), cell, side ** 3).to(torch.int64).reshape(-1)
+            vol = buf.volume
+            vol.zero_()
+            vol.index_fill_(0, cell, True)
+            vol[-1] = False
+            flat = torch.nonzero(vol, as_tuple=True)[0]
             coords = torch.stack([flat // (side * side), (flat // side) % side, flat % side], -1) + corner.to(torch.int64)
         else:
-            d = depth[::s, ::s]
-            m = (d >= self.cfg.depth_min_m) & (d <= self.cfg.depth_max_m)
-            samples = torch.addcmul(start, rays_w, d[..., None] + buf.band).floor_()
-            coords = decode(torch.unique(encode(samples[m.expand(3, -1, -1)].to(torch.int64))))
+            coords = decode(torch.unique(encode(samples[valid.expand(3, -1, -1)].to(torch.int64))))
         slots = self.hash.insert(coords)
         self._grow(len(self.hash))
         return slots
 
-    def _blocks_in_view(self, depth: torch.Tensor, k: torch.Tensor, pose_cw: torch.Tensor) -> torch.Tensor:
+    def _blocks_in_view(self, depth: torch.Tensor, g: _FrameGeometry) -> torch.Tensor:
         """Slots of allocated blocks holding a surface that intersect the view and are not wholly
-        behind the measured depth: the blocks where a moved obstacle may have to be cleared."""
+        behind the measured depth: the blocks where a moved obstacle may have to be cleared (the Warp
+        path's ``select_blocks``, the same float32 operations)."""
         size = self.cfg.block_size_m
         cand = torch.nonzero(self.has_surface[: self.num_blocks], as_tuple=True)[0]
         centres = (self.hash.slot_coords[cand].to(torch.float32) + 0.5) * size - 0.5 * self.cfg.voxel_size_m
-        pc = centres @ pose_cw[:3, :3].T + pose_cw[:3, 3]
-        radius = 0.87 * size  # half the block diagonal
-        z = pc[:, 2]
+        rot, t = torch.from_numpy(g.rot_cw).to(self.device), torch.from_numpy(g.t_cw).to(self.device)
+        cx, cy, cz = centres.unbind(1)
+        x, y, z = (cx * rot[a, 0] + cy * rot[a, 1] + cz * rot[a, 2] + t[a] for a in range(3))
+        radius, radius_px = self._block_radius(g)
         h, w = depth.shape
         zc = z.clamp(min=1e-3)
-        u = torch.round(pc[:, 0] / zc * k[0, 0] + k[0, 2]).long()
-        v = torch.round(pc[:, 1] / zc * k[1, 1] + k[1, 2]).long()
-        margin_px = (radius / zc * k[0, 0]).long()
+        k = g.k
+        u = torch.round(x / zc * float(k[0, 0]) + float(k[0, 2])).long()
+        v = torch.round(y / zc * float(k[1, 1]) + float(k[1, 2])).long()
+        margin_px = zc.reciprocal().mul_(radius_px).long()
         near = (z + radius > self.cfg.depth_min_m) & (z - radius < self.cfg.depth_max_m)
         inside = (u + margin_px >= 0) & (u - margin_px < w) & (v + margin_px >= 0) & (v - margin_px < h)
         # keep blocks in front of (or in the band of) the surface seen near their centre; a block whose
@@ -294,66 +337,105 @@ class TsdfMap:
         keep = near & inside & (z > 0) & (~valid | (z - radius < d + self.cfg.truncation_m))
         return cand[keep]
 
+    def _block_radius(self, g: _FrameGeometry) -> tuple[float, float]:
+        """Half a block's diagonal, m, and that times fx (float32 values, so torch and Warp agree)."""
+        radius = np.float32(0.87 * self.cfg.block_size_m)
+        return float(radius), float(radius * g.k[0, 0])
+
     def integrate(self, frame: RgbdFrame) -> None:
         """Fuse one frame (depth, optional colour, ``pose_wc``) into the map."""
         if frame.pose_wc is None:
             raise ValueError("TsdfMap.integrate needs frame.pose_wc (camera-to-world, OpenCV axes)")
         depth = frame.depth_m.to(self.device, torch.float32)
         h, w = depth.shape
-        k = frame.intrinsics.to(self.device, torch.float32)
-        pose = frame.pose_wc.to(self.device, torch.float64)
-        pose_cw = torch.linalg.inv(pose).to(torch.float32)
-        pose = pose.to(torch.float32)
-        buf = self._frame_buffers(h, w, k)
+        g = self._geometry(frame)
+        buf = self._frame_buffers(h, w, g.k)
         rgb = None if frame.rgb is None else frame.rgb.to(self.device)
-        if self.backend == "torch":
-            # padded copy with a 1-pixel _NO_DEPTH border, so a voxel projecting off the image reads a
-            # depth far in front of it: no separate in-image test. Depth validity is checked per voxel, on
-            # the few that are looked up, not on every pixel (the Warp kernel reads the frame as if padded)
-            torch.nan_to_num(depth, nan=0.0, posinf=0.0, neginf=0.0, out=buf.depth[1:h + 1, 1:w + 1])
-            if rgb is not None:
-                buf.rgb[1:h + 1, 1:w + 1] = rgb
-        new_slots = self._allocate(depth, buf, pose)
+        if self.backend == "warp":
+            self._integrate_warp(depth, rgb, buf, g)
+            return
+        # padded copy with a 1-pixel _NO_DEPTH border, so a voxel projecting off the image reads a
+        # depth far in front of it: no separate in-image test. Depth validity is checked per voxel, on
+        # the few that are looked up, not on every pixel
+        torch.nan_to_num(depth, nan=0.0, posinf=0.0, neginf=0.0, out=buf.depth[1:h + 1, 1:w + 1])
+        if rgb is not None:
+            buf.rgb[1:h + 1, 1:w + 1] = rgb
+        new_slots = self._allocate(depth, buf, g)
         mask = torch.zeros(self.num_blocks, dtype=torch.bool, device=self.device)
         mask[new_slots] = True
-        mask[self._blocks_in_view(depth, k, pose_cw)] = True
+        mask[self._blocks_in_view(depth, g)] = True
         slots = torch.nonzero(mask, as_tuple=True)[0]
-        if self.backend == "warp":
-            self._update_voxels_warp(slots, depth, rgb, k, pose_cw)
-        else:
-            self._update_voxels_torch(slots, buf, k, pose_cw, frame.rgb is not None)
+        self._update_voxels_torch(slots, buf, g, rgb is not None)
 
-    def _project(self, slots: torch.Tensor, k: torch.Tensor, pose_cw: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """Homogeneous padded-pixel coordinates (K' [R | t] p, K' = K shifted by the 1-pixel pad) of
-        every voxel centre as block origin + local offset: (3, n) of the blocks' origins and (3, B^3)
-        of the local offsets, summed per voxel (one add instead of a product per voxel)."""
-        kp = k.clone()
-        kp[:2, 2] += 1.0
-        kr = kp @ pose_cw[:3, :3]
-        origin = (self.hash.slot_coords[slots] * self.cfg.block_voxels).to(torch.float32) * self.cfg.voxel_size_m
-        return kr @ origin.T + (kp @ pose_cw[:3, 3])[:, None], kr @ self._local_m
-
-    def _update_voxels_warp(self, slots: torch.Tensor, depth: torch.Tensor, rgb: torch.Tensor | None,
-                            k: torch.Tensor, pose_cw: torch.Tensor) -> None:
-        """The per-voxel update as one fused kernel (``tsdf_kernels.integrate_voxels``) on the frame's
-        (H, W) depth and (H, W, 3) colour: the result of ``_update_voxels_torch`` to float32 rounding."""
-        cfg = self.cfg
-        origin_px, local_px = self._project(slots, k, pose_cw)
-        self.has_surface[slots] = False  # set again by the kernel from each block's voxels
+    def _integrate_warp(self, depth: torch.Tensor, rgb: torch.Tensor | None, buf: _FrameBuffers,
+                        g: _FrameGeometry) -> None:
+        """``integrate`` in Warp kernels: pad the frame, mark the band's blocks (looking them up in the
+        hash), allocate the new ones, select the blocks to update, update their voxels. Two host reads of
+        counters (new blocks; selected blocks) and ~15 small torch ops (~25 when blocks are added); the
+        per-frame matrices go to the kernels by value."""
+        cfg, views = self.cfg, self._warp_views
+        self._stamp += 1
+        stamp, num_old = self._stamp, self.num_blocks
+        counts = self._counts
+        counts.zero_()
+        # the padded depth copy in one torch op (0.05-0.08 ms; a Warp kernel took ~1 ms: Warp's CPU code does
+        # not vectorise). Scoping it to one torch thread measured no faster under load, so it is not
+        h, w = depth.shape
+        torch.nan_to_num(depth, nan=0.0, posinf=0.0, neginf=0.0, out=buf.depth[1:h + 1, 1:w + 1])
+        if buf.volume is not None:
+            side = 2 * buf.r_blocks + 1
+            corner = self._corner_blocks(buf, g)
+            tsdf_kernels.launch_mark_band_blocks(
+                depth_m=depth, stride_px=cfg.allocation_stride, rays=buf.rays, rot_blocks=g.rot_blocks,
+                start_blocks=g.start_blocks, band_m=(-cfg.truncation_m, 0.0, cfg.truncation_m), corner_blocks=corner,
+                corner_index=corner.astype(np.int64), side=side, depth_min_m=cfg.depth_min_m,
+                depth_max_m=cfg.depth_max_m, stamp=stamp, volume_stamp=buf.volume_stamp,
+                keys=self.hash.keys if num_old else self._no_keys, key_slots=self.hash.key_slots if num_old else self._no_keys,
+                num_keys=num_old, slot_stamp=self._slot_stamp, new_keys=buf.new_keys, counts=counts, views=views)
+            n_new, _, out_of_range = counts.tolist()  # host read 1
+            if out_of_range:
+                raise_out_of_range()
+            if n_new:
+                self.hash.append(torch.sort(buf.new_keys[:n_new]).values)
+                self._grow(self.num_blocks)
+        else:  # the depth range is too deep for a dense volume: the torch path's sort-based allocation
+            slots = self._allocate(depth, buf, g)  # may grow the storage, _slot_stamp included
+            self._slot_stamp[slots] = stamp
+        radius, radius_px = self._block_radius(g)
+        k = g.k
+        tsdf_kernels.launch_select_blocks(
+            num_blocks=self.num_blocks, num_old=num_old, stamp=stamp, slot_stamp=self._slot_stamp,
+            slot_coords=self.hash.slot_coords, rot_cw=g.rot_cw, t_cw=g.t_cw, k4=(k[0, 0], k[1, 1], k[0, 2], k[1, 2]),
+            centre_scale=(0.5, cfg.block_size_m, 0.5 * cfg.voxel_size_m), radius_m=radius, radius_px_m=radius_px,
+            truncation_m=cfg.truncation_m, depth_min_m=cfg.depth_min_m, depth_max_m=cfg.depth_max_m, depth_m=depth,
+            has_surface=self.has_surface, selected=self._selected, counts=counts, views=views)
+        n_selected = int(counts[1].item())  # host read 2: the launch size
         tsdf_kernels.launch_voxel_update(
-            slots=slots, origin_px=origin_px, local_px=local_px, depth_m=depth, rgb=rgb,
-            truncation_m=cfg.truncation_m, depth_min_m=cfg.depth_min_m, depth_max_m=cfg.depth_max_m,
-            max_weight=cfg.max_weight, weight_ref_depth_m=cfg.weight_ref_depth_m,
-            clear_free_space=cfg.clear_free_space, tsdf=self.tsdf, weight=self.weight, color=self.color,
-            updated=self.updated, has_surface=self.has_surface, views=self._warp_views)
+            slots=self._selected[:n_selected], slot_coords=self.hash.slot_coords, block_voxels=cfg.block_voxels,
+            voxel_size_m=cfg.voxel_size_m, kr=g.kr, kt=g.kt, local_px=torch.from_numpy(g.local_px).to(self.device),
+            depth_pad_m=buf.depth, rgb=rgb, truncation_m=cfg.truncation_m,
+            depth_min_m=cfg.depth_min_m, depth_max_m=cfg.depth_max_m, max_weight=cfg.max_weight,
+            weight_ref_depth_m=cfg.weight_ref_depth_m, clear_free_space=cfg.clear_free_space, tsdf=self.tsdf,
+            weight=self.weight, color=self.color, updated=self.updated, has_surface=self.has_surface, views=views)
 
-    def _update_voxels_torch(self, slots: torch.Tensor, buf: _FrameBuffers, k: torch.Tensor, pose_cw: torch.Tensor,
+    def _project(self, slots: torch.Tensor, g: _FrameGeometry) -> tuple[torch.Tensor, torch.Tensor]:
+        """Homogeneous padded-pixel coordinates (K' [R | t] p) of every voxel centre as block origin +
+        local offset: (3, n) of the blocks' origins and (3, B^3) of the local offsets, summed per voxel
+        (one add instead of a product per voxel). The origins' products and sums one op each, as the
+        Warp kernel computes them."""
+        kr, kt = torch.from_numpy(g.kr).to(self.device), torch.from_numpy(g.kt).to(self.device)
+        origin = (self.hash.slot_coords[slots] * self.cfg.block_voxels).to(torch.float32) * self.cfg.voxel_size_m
+        ox, oy, oz = origin.unbind(1)
+        origin_px = torch.stack([ox * kr[a, 0] + oy * kr[a, 1] + oz * kr[a, 2] + kt[a] for a in range(3)])
+        return origin_px, torch.from_numpy(g.local_px).to(self.device)
+
+    def _update_voxels_torch(self, slots: torch.Tensor, buf: _FrameBuffers, g: _FrameGeometry,
                              with_color: bool) -> None:
-        """The per-voxel update in eager torch ops (the reference of the Warp kernel; used without Warp)."""
+        """The per-voxel update in eager torch ops (the reference of the Warp kernel ``integrate_voxels``)."""
         cfg = self.cfg
         h, w = buf.shape
         wp = w + 2
-        origin_px, local_px = self._project(slots, k, pose_cw)
+        origin_px, local_px = self._project(slots, g)
         p = origin_px[:, :, None] + local_px[:, None, :]
         x, y, z = p.view(3, -1)
         zc = z.clamp(min=1e-6)
