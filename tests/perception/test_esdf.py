@@ -1,11 +1,13 @@
-"""The windowed exact EDT against scipy, and the map's ESDF against the exact EDT of the truth."""
+"""The EDT (Warp kernels and the windowed torch reference) against scipy, and the map's ESDF against
+the exact EDT of the truth."""
 
 import numpy as np
 import pytest
 import torch
 from scipy import ndimage
 
-from ambulo.perception.esdf import edt, esdf_from_grid
+from ambulo.perception import esdf_kernels
+from ambulo.perception.esdf import edt, edt_torch, esdf_from_grid
 
 from .conftest import OFFSET, pinhole, shifted
 
@@ -75,3 +77,74 @@ def test_edt_is_exact_at_the_window_edge_and_infinite_beyond():
     assert d[15, 5].item() == 10 and d[5, 15].item() == 10  # exactly max_cells along an axis
     assert d[11, 13].item() == 10  # (6, 8): a 6-8-10 triangle
     assert torch.isinf(d[15, 6]) and torch.isinf(d[16, 5])  # sqrt(101) and 11 cells: beyond
+
+
+needs_warp = pytest.mark.skipif(not esdf_kernels.available(), reason="warp-lang is not installed")
+
+KERNEL_CASES = [  # shape, site density, max_cells: non-cubic, size-1 axes, no / all sites, windows in and
+    # beyond the grid, a non-integer limit
+    ((64, 48), 0.01, 100), ((64, 48), 0.002, 7), ((1, 57), 0.05, 10), ((33, 1), 0.1, 3),
+    ((40, 30, 20), 0.003, 12), ((23, 17, 41), 0.01, 6.5), ((29, 1, 13), 0.02, 9), ((1, 1, 50), 0.04, 5),
+    ((19, 11, 7), 0.05, 1), ((12, 9, 15), 0.0, 8), ((12, 9, 15), 1.0, 8), ((7, 5, 3), 0.2, 1000), ((30,), 0.1, 4),
+]
+
+
+def _scipy_edt(sites: np.ndarray, max_cells: float) -> np.ndarray:
+    """The exact EDT as ``edt`` returns it: float32, inf beyond max_cells or without sites."""
+    if not sites.any():
+        return np.full(sites.shape, np.inf, np.float32)
+    exact = ndimage.distance_transform_edt(~sites).astype(np.float32)
+    return np.where(exact <= np.float32(max_cells), exact, np.float32(np.inf))
+
+
+@needs_warp
+@pytest.mark.parametrize("shape,density,max_cells", KERNEL_CASES)
+def test_kernel_edt_is_scipys_exact_edt_and_the_torch_reference(shape, density, max_cells):
+    sites = np.random.default_rng(sum(shape) + int(density * 1e4)).random(shape) < density
+    ours = esdf_kernels.exact_edt(torch.from_numpy(sites), max_cells)
+    assert ours.dtype == torch.float32 and ours.shape == shape
+    # bit for bit: squared distances are integers and sqrt is correctly rounded in both
+    np.testing.assert_array_equal(ours.numpy(), _scipy_edt(sites, max_cells))
+    np.testing.assert_array_equal(ours.numpy(), edt_torch(torch.from_numpy(sites), max_cells).numpy())
+
+
+@needs_warp
+@pytest.mark.parametrize("shape,density,max_cells", [KERNEL_CASES[i] for i in (0, 3, 5, 6, 9, 12)])
+def test_kernel_edt_in_the_cuda_layout_is_exact(shape, density, max_cells):
+    """CUDA's launch layout (a thread per line, the scratch k-major), run on the CPU."""
+    sites = np.random.default_rng(sum(shape) + int(density * 1e4)).random(shape) < density
+    ours = esdf_kernels.exact_edt(torch.from_numpy(sites), max_cells, thread_per_line=True)
+    np.testing.assert_array_equal(ours.numpy(), _scipy_edt(sites, max_cells))
+
+
+@needs_warp
+def test_kernel_edt_is_the_same_split_over_threads():
+    """CPU launches split the lines into one range per torch thread; uneven ranges change nothing."""
+    sites = torch.from_numpy(np.random.default_rng(3).random((37, 29, 23)) < 0.01)
+    threads = torch.get_num_threads()
+    try:
+        torch.set_num_threads(1)
+        one = esdf_kernels.exact_edt(sites, 10)
+        torch.set_num_threads(3)
+        three = esdf_kernels.exact_edt(sites, 10)
+    finally:
+        torch.set_num_threads(threads)
+    assert torch.equal(one, three)
+    np.testing.assert_array_equal(one.numpy(), _scipy_edt(sites.numpy(), 10))
+
+
+@needs_warp
+def test_edt_runs_the_kernels_when_warp_is_there(monkeypatch):
+    calls = []
+    monkeypatch.setattr(esdf_kernels, "exact_edt", lambda sites, max_cells: calls.append(sites.shape) or "kernel")
+    assert edt(torch.zeros(4, 5, dtype=torch.bool), 3) == "kernel" and calls == [(4, 5)]
+    assert torch.isinf(edt(torch.zeros(2, 2, 2, 2, dtype=torch.bool), 3)).all()  # 4-D: the torch path
+
+
+@needs_warp
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs CUDA")
+def test_kernel_edt_on_cuda_is_exact():
+    sites = torch.from_numpy(np.random.default_rng(4).random((45, 38, 27)) < 0.01)
+    for max_cells in (5, 40):
+        np.testing.assert_array_equal(esdf_kernels.exact_edt(sites.cuda(), max_cells).cpu().numpy(),
+                                      _scipy_edt(sites.numpy(), max_cells))

@@ -1,7 +1,11 @@
 """Euclidean signed distance fields from a TSDF map, exact up to a maximum distance.
 
 ``edt`` is the separable exact squared EDT (Saito & Toriwaki 1994; the method behind
-``scipy.ndimage.distance_transform_edt``), windowed: along each axis in turn
+``scipy.ndimage.distance_transform_edt``). Where Warp is importable it runs as kernels
+(``esdf_kernels``: one O(n) sweep per grid line and axis, Felzenszwalb & Huttenlocher's lower
+envelope of parabolas; ~5x faster than the torch path on 2 CPU cores: 33 vs 175 ms for
+``esdf_from_grid`` on 1.5 M voxels, K = 40). ``edt_torch``, the reference and the fallback, is the
+same transform windowed: along each axis in turn
 ``g'(i) = min_{|k| <= K} g(i + k) + k^2``. Any site within Euclidean distance K of a voxel has
 every coordinate offset <= K, so the result is *exact* for distances <= K voxels, and each pass
 is 2K + 1 whole-array minima: the same torch code on the CPU and the GPU, no per-voxel loop.
@@ -14,12 +18,24 @@ from dataclasses import dataclass
 
 import torch
 
+from . import esdf_kernels
 from .tsdf import DenseGrid
 
 
 def edt(sites: torch.Tensor, max_cells: int) -> torch.Tensor:
     """Distance (in cells, float32) from every cell of an N-d bool grid to the nearest True cell;
-    exact up to ``max_cells``, ``inf`` beyond it (and everywhere if there is no site)."""
+    exact up to ``max_cells``, ``inf`` beyond it (and everywhere if there is no site).
+
+    1- to 3-D grids go to the exact Warp transform (``esdf_kernels``: one O(n) sweep per line and
+    axis, on the grid's device) when Warp is importable; it returns ``edt_torch``'s result."""
+    if esdf_kernels.available() and 1 <= sites.ndim <= 3:
+        return esdf_kernels.exact_edt(sites, max_cells)
+    return edt_torch(sites, max_cells)
+
+
+def edt_torch(sites: torch.Tensor, max_cells: int) -> torch.Tensor:
+    """``edt`` in eager torch, the windowed transform of the module docstring: the reference the
+    Warp path is tested against, and the fallback without Warp."""
     inf = torch.tensor(float("inf"), device=sites.device)
     sq = torch.where(sites, torch.zeros((), device=sites.device), inf).to(torch.float32)
     for axis in range(sites.ndim):
@@ -61,12 +77,13 @@ def esdf_from_grid(grid: DenseGrid, max_distance_m: float = 2.0, signed: bool = 
     max_cells = max(1, int(round(max_distance_m / grid.voxel_size_m)))
     occupied = grid.occupied(min_weight)
     observed = grid.observed(min_weight)
-    dist = edt(occupied, max_cells).clamp(max=max_cells)
+    # in place: edt's result is ours, and a fresh grid-sized tensor costs page faults on the CPU
+    dist = edt(occupied, max_cells).clamp_(max=max_cells)
     if signed:
         inside = edt(observed & ~occupied, max_cells).clamp(max=max_cells)
         dist = torch.where(occupied, -inside, dist)
-    return Esdf(distance_m=dist * grid.voxel_size_m, observed=observed, origin_index=grid.origin_index,
+    return Esdf(distance_m=dist.mul_(grid.voxel_size_m), observed=observed, origin_index=grid.origin_index,
                 voxel_size_m=grid.voxel_size_m, max_distance_m=max_cells * grid.voxel_size_m)
 
 
-__all__ = ["Esdf", "edt", "esdf_from_grid"]
+__all__ = ["Esdf", "edt", "edt_torch", "esdf_from_grid"]
