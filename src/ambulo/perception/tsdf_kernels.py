@@ -441,6 +441,7 @@ def launch_voxel_update(*, slots: torch.Tensor, slot_coords: torch.Tensor, block
     if parts == 1:
         wp.launch(integrate_voxels, dim=n_blocks, inputs=[0, 1, n_vox, *common], device=device)
         return
+    wp.load_module(integrate_voxels.module, device=device)  # once, before threads race to compile it
     chunks = 2 * parts
     bounds = [n_blocks * c // chunks for c in range(chunks + 1)]
     state = {"next": 0, "running": 0, "error": None}
