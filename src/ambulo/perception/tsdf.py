@@ -17,6 +17,7 @@ update: a box that moved away is gone from the map in the first frame that sees 
 from __future__ import annotations
 
 import math
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -99,6 +100,20 @@ _MAX_STEP = tsdf_kernels.MAX_STEP
 """Relative depth spread of a 2x2 pixel cell up to which the depth lookup interpolates."""
 _MAX_DENSE_CELLS = 1 << 21
 """Largest dense block volume (cells) used to deduplicate a frame's blocks without a sort."""
+
+
+@contextmanager
+def _one_torch_thread(device: torch.device):
+    """Run the enclosed CPU torch ops on the calling thread only (no-op on other devices)."""
+    if device.type != "cpu":
+        yield
+        return
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(threads)
 
 
 @dataclass
@@ -378,10 +393,12 @@ class TsdfMap:
         stamp, num_old = self._stamp, self.num_blocks
         counts = self._counts
         counts.zero_()
-        # the padded depth copy in one torch op (0.05-0.08 ms; a Warp kernel took ~1 ms: Warp's CPU code does
-        # not vectorise). Scoping it to one torch thread measured no faster under load, so it is not
+        # the padded depth copy in one torch op (0.03 ms; a Warp kernel took ~1 ms: Warp's CPU code does not
+        # vectorise), on one torch thread: a parallel region leaves torch's OpenMP threads spinning for ms
+        # on the cores the voxel launches then need (on 2 cores the update took 2.8 ms instead of 2.0)
         h, w = depth.shape
-        torch.nan_to_num(depth, nan=0.0, posinf=0.0, neginf=0.0, out=buf.depth[1:h + 1, 1:w + 1])
+        with _one_torch_thread(depth.device):
+            torch.nan_to_num(depth, nan=0.0, posinf=0.0, neginf=0.0, out=buf.depth[1:h + 1, 1:w + 1])
         if buf.volume is not None:
             side = 2 * buf.r_blocks + 1
             corner = self._corner_blocks(buf, g)
