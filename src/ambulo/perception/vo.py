@@ -66,6 +66,11 @@ class VoCfg:
     """Recent keyframes whose points every frame is matched against."""
     relocalize_keyframes: int = 12
     """Recent keyframes tried, newest first, after tracking is lost."""
+    max_rotation_per_frame_deg: float = 30.0
+    """A tracked pose that turned more than this since the previous frame is refused (the frame is
+    lost, then relocalised): consecutive views then share under half a 60 deg field of view, and PnP
+    on a sweep past mapped points was seen to accept a pose 12 cm off and keep it (a 1400 deg/s turn
+    at 640x480). 30 deg a frame is 900 deg/s at 30 Hz, about twice a human head's fastest turn."""
     depth_range_m: tuple[float, float] = (0.2, 6.0)
     pixel_sigma: float = 1.0
     """Keypoint position noise, px (ORB keypoints sit on the pixel grid of their pyramid level)."""
@@ -321,9 +326,8 @@ class RgbdOdometry:
     def _needs_keyframe(self, inliers: int) -> bool:
         last = self.keyframes[-1].pose_wc
         rel = np.linalg.inv(last) @ self.pose_wc
-        angle = np.degrees(np.arccos(np.clip((np.trace(rel[:3, :3]) - 1) / 2, -1, 1)))
         return (inliers < self.cfg.keyframe_min_inliers or np.linalg.norm(rel[:3, 3]) > self.cfg.keyframe_max_translation_m
-                or angle > self.cfg.keyframe_max_rotation_deg)
+                or _angle_deg(rel[:3, :3]) > self.cfg.keyframe_max_rotation_deg)
 
     def track(self, rgb, depth) -> VoResult:
         """Estimate the pose of the next frame: ``rgb`` (H, W, 3) uint8, ``depth`` (H, W) metres."""
@@ -346,6 +350,9 @@ class RgbdOdometry:
             else:
                 found = self._track_local_map(pix, des, points_c, valid, np.linalg.inv(predicted_wc)) if len(des) else None
                 state = TrackState.TRACKING
+                if found is not None and _angle_deg(prev_wc[:3, :3].T @ np.linalg.inv(found[0])[:3, :3]) > \
+                        self.cfg.max_rotation_per_frame_deg:
+                    found = None
             if found is None:
                 self.state = TrackState.LOST
                 self.pose_wc = predicted_wc
@@ -363,6 +370,11 @@ class RgbdOdometry:
                     self._add_keyframe(des, points_c, valid)
         self.history.append(self.state)
         return VoResult(self.pose_wc.copy(), self.state, inliers, len(self.keyframes))
+
+
+def _angle_deg(rotation: np.ndarray) -> float:
+    """The rotation angle of a (3, 3) rotation matrix, degrees."""
+    return float(np.degrees(np.arccos(np.clip((np.trace(rotation) - 1) / 2, -1, 1))))
 
 
 def _interpolate_identity(motion: np.ndarray, factor: float) -> np.ndarray:
