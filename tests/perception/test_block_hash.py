@@ -10,6 +10,7 @@ from ambulo.perception.block_hash import MAX_BLOCK_INDEX, BlockHash, decode, enc
 def test_keys_round_trip_including_negative_and_extreme_coordinates():
     coords = torch.tensor([[0, 0, 0], [-1, 2, -3], [MAX_BLOCK_INDEX, -MAX_BLOCK_INDEX, 7], [123, -456, 789]])
     assert torch.equal(decode(encode(coords)), coords)
+    assert torch.equal(decode(encode(coords), BlockHash()._shifts), coords)  # the hash's 3-op form
     assert len(set(encode(coords).tolist())) == len(coords)
 
 

@@ -208,6 +208,26 @@ def test_warp_kernels_give_the_torch_reference_result(truth, room, cfg):
     free-space clearing, running averages, saturation, colour) of the Warp path equal the torch path's
     to float32 rounding: noisy frames with holes and random colour, then a box that appears and goes."""
     pytest.importorskip("warp", reason="warp-lang is not installed")
+    _assert_warp_equals_torch(truth, room, cfg)
+
+
+def test_block_marking_split_over_two_threads_gives_the_torch_reference_result(truth, room, monkeypatch):
+    """The CPU's race-free split of ``mark_band_blocks`` (row ranges on 2 threads, each with its own
+    stamp volume, key list and counters; blocks new to both ranges merged): the same map as torch."""
+    pytest.importorskip("warp", reason="warp-lang is not installed")
+    from ambulo.perception import tsdf_kernels
+
+    monkeypatch.setattr(tsdf_kernels, "PARTS", 2)
+    threads = torch.get_num_threads()
+    torch.set_num_threads(2)
+    try:
+        ours = _assert_warp_equals_torch(truth, room, TsdfCfg())
+    finally:
+        torch.set_num_threads(threads)
+    assert ours._launches.parts == 2
+
+
+def _assert_warp_equals_torch(truth, room, cfg):
     from ambulo.perception.reference import TruthScene, orbit_poses, truth_frames
     from ambulo.perception.scenes import SolidBox
 
@@ -231,3 +251,4 @@ def test_warp_kernels_give_the_torch_reference_result(truth, room, cfg):
     torch.testing.assert_close(ours.tsdf[:n], ref.tsdf[:n], atol=1e-5, rtol=0)
     assert (ours.color[:n].int() - ref.color[:n].int()).abs().max() <= 1
     assert torch.equal(ours.updated, ref.updated) and torch.equal(ours.has_surface, ref.has_surface)
+    return ours

@@ -102,6 +102,11 @@ _MAX_DENSE_CELLS = 1 << 21
 """Largest dense block volume (cells) used to deduplicate a frame's blocks without a sort."""
 
 
+def _host(t: torch.Tensor) -> np.ndarray:
+    """A host tensor's values as numpy without a torch op where it is already a plain CPU tensor."""
+    return t.numpy() if t.device.type == "cpu" and not t.requires_grad else t.detach().cpu().numpy()
+
+
 @contextmanager
 def _one_torch_thread(device: torch.device):
     """Run the enclosed CPU torch ops on the calling thread only (no-op on other devices)."""
@@ -126,7 +131,10 @@ class _FrameBuffers:
     rays: torch.Tensor
     """(H/s, W/s, 3) float32 camera rays (z = 1) of the allocation pixels."""
     depth: torch.Tensor
-    """(H + 2, W + 2) float32 depth (non-finite readings as 0), _NO_DEPTH on the 1-pixel border."""
+    """(H + 2, W + 2) float32 depth (non-finite readings as _NO_DEPTH, which fails every depth range
+    test as they do), _NO_DEPTH on the 1-pixel border."""
+    depth_inner: torch.Tensor
+    """(H, W) view of ``depth`` without its border (the frame's depth is copied in here)."""
     rgb: torch.Tensor
     """(H + 2, W + 2, 3) uint8 colour, same padding."""
     band: torch.Tensor
@@ -136,9 +144,10 @@ class _FrameBuffers:
     """(side^3 + 1,) bool dense block cells around the camera (torch path), None where too big."""
     strides: torch.Tensor
     volume_stamp: torch.Tensor | None = None
-    """(side^3,) int32 frame stamp of each cell (Warp path: the volume is never cleared)."""
+    """(parts, side^3) int32 frame stamp of each cell, per part of ``mark_band_blocks`` (Warp path: the
+    volume is never cleared)."""
     new_keys: torch.Tensor | None = None
-    """(side^3,) int64 keys of this frame's new blocks, the first ``counts[0]`` of them (Warp path)."""
+    """(parts, side^3) int64 keys of this frame's new blocks, per part (Warp path)."""
 
 
 @dataclass
@@ -188,8 +197,6 @@ class TsdfMap:
             backend = "warp" if tsdf_kernels.available() else "torch"
         self.backend = backend
         """The per-voxel update in use: "warp" or "torch"."""
-        self._warp_views: dict = {}
-        """Warp views of the long-lived tensors (storage, image buffers), reused across frames."""
         self.hash = BlockHash(self.device)
         b = self.cfg.block_voxels
         n = b ** 3
@@ -214,12 +221,13 @@ class TsdfMap:
         self._stamp = 0
         """Frame counter of the Warp path's stamps (a cell / slot holding this frame's stamp is marked)."""
         if self.backend == "warp":
-            self._slot_stamp = torch.zeros(capacity, dtype=torch.int32, device=self.device)
-            """(capacity,) int32 stamp of the frame whose allocation band last touched each slot."""
+            self._launches = tsdf_kernels.IntegrateLaunches(self.device, b)
+            """The recorded Warp launches and their shared counters."""
+            self._slot_stamp = torch.zeros((capacity, self._launches.parts), dtype=torch.int32, device=self.device)
+            """(capacity, parts) int32 stamp of the frame whose allocation band last touched each slot, per
+            part of ``mark_band_blocks``."""
             self._selected = torch.zeros(capacity, dtype=torch.int64, device=self.device)
-            """(capacity,) int64 slots this frame updates, the first ``_counts[1]`` of them."""
-            self._counts = torch.zeros(3, dtype=torch.int32, device=self.device)
-            """(3,) int32 new blocks, selected blocks, out-of-range blocks of this frame."""
+            """(capacity,) int64 old slots this frame updates, the first ``counts[0]`` of them."""
             self._no_keys = torch.zeros(1, dtype=torch.int64, device=self.device)
             """(1,) int64 stand-in for the keys of an empty hash."""
 
@@ -248,15 +256,17 @@ class TsdfMap:
         self.updated = torch.cat([self.updated, self.updated.new_zeros(extra)])
         self.has_surface = torch.cat([self.has_surface, self.has_surface.new_zeros(extra)])
         if self.backend == "warp":
-            self._slot_stamp = torch.cat([self._slot_stamp, self._slot_stamp.new_zeros(extra)])
-            self._selected = self._selected.new_zeros(new)
+            # both are grown between select_blocks and the voxel update: keep the selected slots
+            stamps = self._slot_stamp
+            self._slot_stamp = torch.cat([stamps, stamps.new_zeros((extra, stamps.shape[1]))])
+            self._selected = torch.cat([self._selected, self._selected.new_zeros(extra)])
 
     def _geometry(self, frame: RgbdFrame) -> _FrameGeometry:
         """The frame's small matrices on the host: no device op, no upload (the kernels take them by value)."""
-        pose = frame.pose_wc.detach().cpu().numpy().astype(np.float64)
+        pose = _host(frame.pose_wc).astype(np.float64)
         pose_cw = np.linalg.inv(pose).astype(np.float32)
         pose_wc = pose.astype(np.float32)
-        k = frame.intrinsics.detach().cpu().numpy().astype(np.float32)
+        k = _host(frame.intrinsics).astype(np.float32)
         kp = k.copy()
         kp[:2, 2] += np.float32(1.0)
         kr = kp @ pose_cw[:3, :3]
@@ -278,17 +288,18 @@ class TsdfMap:
                                      / self.cfg.block_size_m)) + 2
             side = 2 * r_blocks + 1
             band_m = torch.tensor([-self.cfg.truncation_m, 0.0, self.cfg.truncation_m], device=self.device)
+            depth_pad = torch.full((h + 2, w + 2), _NO_DEPTH, dtype=torch.float32, device=self.device)
             buf = self._buf = _FrameBuffers(
-                shape=(h, w), k=k.copy(), rays=rays,
-                depth=torch.full((h + 2, w + 2), _NO_DEPTH, dtype=torch.float32, device=self.device),
+                shape=(h, w), k=k.copy(), rays=rays, depth=depth_pad, depth_inner=depth_pad[1:h + 1, 1:w + 1],
                 rgb=torch.zeros((h + 2, w + 2, 3), dtype=torch.uint8, device=self.device),
                 band=band_m.view(3, 1, 1, 1), r_blocks=r_blocks,
                 volume=torch.zeros(side ** 3 + 1, dtype=torch.bool, device=self.device)
                 if side ** 3 <= _MAX_DENSE_CELLS else None,
                 strides=torch.tensor([side * side, side, 1], dtype=torch.float32, device=self.device))
             if self.backend == "warp" and buf.volume is not None:
-                buf.volume_stamp = torch.zeros(side ** 3, dtype=torch.int32, device=self.device)
-                buf.new_keys = torch.zeros(side ** 3, dtype=torch.int64, device=self.device)
+                parts = self._launches.parts
+                buf.volume_stamp = torch.zeros((parts, side ** 3), dtype=torch.int32, device=self.device)
+                buf.new_keys = torch.zeros((parts, side ** 3), dtype=torch.int64, device=self.device)
         return buf
 
     def _corner_blocks(self, buf: _FrameBuffers, g: _FrameGeometry) -> np.ndarray:
@@ -372,7 +383,7 @@ class TsdfMap:
         # padded copy with a 1-pixel _NO_DEPTH border, so a voxel projecting off the image reads a
         # depth far in front of it: no separate in-image test. Depth validity is checked per voxel, on
         # the few that are looked up, not on every pixel
-        torch.nan_to_num(depth, nan=0.0, posinf=0.0, neginf=0.0, out=buf.depth[1:h + 1, 1:w + 1])
+        torch.nan_to_num(depth, nan=_NO_DEPTH, posinf=_NO_DEPTH, neginf=_NO_DEPTH, out=buf.depth_inner)
         if rgb is not None:
             buf.rgb[1:h + 1, 1:w + 1] = rgb
         new_slots = self._allocate(depth, buf, g)
@@ -384,56 +395,62 @@ class TsdfMap:
 
     def _integrate_warp(self, depth: torch.Tensor, rgb: torch.Tensor | None, buf: _FrameBuffers,
                         g: _FrameGeometry) -> None:
-        """``integrate`` in Warp kernels: pad the frame, mark the band's blocks (looking them up in the
-        hash), allocate the new ones, select the blocks to update, update their voxels. Two host reads of
-        counters (new blocks; selected blocks) and ~15 small torch ops (~25 when blocks are added); the
-        per-frame matrices go to the kernels by value."""
-        cfg, views = self.cfg, self._warp_views
+        """``integrate`` in recorded Warp launches: pad the frame, mark the band's blocks (looking them up
+        in the hash), select the old blocks to update, then one host read of the counters (new keys,
+        selected blocks) to allocate the new blocks, and update the voxels of the selected and the new
+        blocks. Torch ops per frame: the padded depth copy, on CUDA the counters' reset and read and the
+        local offsets' upload (none of those three on the CPU: numpy views), and ~10 small ones when
+        blocks are added; the per-frame matrices go to the kernels by value."""
+        cfg, launches = self.cfg, self._launches
         self._stamp += 1
         stamp, num_old = self._stamp, self.num_blocks
-        counts = self._counts
-        counts.zero_()
+        launches.reset_counts()
         # the padded depth copy in one torch op (0.03 ms; a Warp kernel took ~1 ms: Warp's CPU code does not
         # vectorise), on one torch thread: a parallel region leaves torch's OpenMP threads spinning for ms
-        # on the cores the voxel launches then need (on 2 cores the update took 2.8 ms instead of 2.0)
-        h, w = depth.shape
+        # on the cores the voxel launches then need (on 2 cores the update took 2.8 ms instead of 2.0).
+        # The kernels read only this copy, so the frame's depth tensor is never handed to Warp
         with _one_torch_thread(depth.device):
-            torch.nan_to_num(depth, nan=0.0, posinf=0.0, neginf=0.0, out=buf.depth[1:h + 1, 1:w + 1])
+            torch.nan_to_num(depth, nan=_NO_DEPTH, posinf=_NO_DEPTH, neginf=_NO_DEPTH, out=buf.depth_inner)
         if buf.volume is not None:
-            side = 2 * buf.r_blocks + 1
             corner = self._corner_blocks(buf, g)
-            tsdf_kernels.launch_mark_band_blocks(
-                depth_m=depth, stride_px=cfg.allocation_stride, rays=buf.rays, rot_blocks=g.rot_blocks,
-                start_blocks=g.start_blocks, band_m=(-cfg.truncation_m, 0.0, cfg.truncation_m), corner_blocks=corner,
-                corner_index=corner.astype(np.int64), side=side, depth_min_m=cfg.depth_min_m,
-                depth_max_m=cfg.depth_max_m, stamp=stamp, volume_stamp=buf.volume_stamp,
-                keys=self.hash.keys if num_old else self._no_keys, key_slots=self.hash.key_slots if num_old else self._no_keys,
-                num_keys=num_old, slot_stamp=self._slot_stamp, new_keys=buf.new_keys, counts=counts, views=views)
-            n_new, _, out_of_range = counts.tolist()  # host read 1
-            if out_of_range:
-                raise_out_of_range()
-            if n_new:
-                self.hash.append(torch.sort(buf.new_keys[:n_new]).values)
-                self._grow(self.num_blocks)
+            launches.mark(
+                depth_pad_m=buf.depth, stride_px=cfg.allocation_stride, rays=buf.rays, rot_blocks=g.rot_blocks,
+                start_blocks=g.start_blocks, band_m=(-cfg.truncation_m, 0.0, cfg.truncation_m),
+                corner_blocks=corner, corner_index=corner.astype(np.int64), side=2 * buf.r_blocks + 1,
+                depth_min_m=cfg.depth_min_m, depth_max_m=cfg.depth_max_m, stamp=stamp,
+                volume_stamp=buf.volume_stamp, keys=self.hash.keys if num_old else self._no_keys,
+                key_slots=self.hash.key_slots if num_old else self._no_keys, num_keys=num_old,
+                slot_stamp=self._slot_stamp, new_keys=buf.new_keys)
         else:  # the depth range is too deep for a dense volume: the torch path's sort-based allocation
             slots = self._allocate(depth, buf, g)  # may grow the storage, _slot_stamp included
-            self._slot_stamp[slots] = stamp
+            self._slot_stamp[slots, 0] = stamp
         radius, radius_px = self._block_radius(g)
         k = g.k
-        tsdf_kernels.launch_select_blocks(
-            num_blocks=self.num_blocks, num_old=num_old, stamp=stamp, slot_stamp=self._slot_stamp,
-            slot_coords=self.hash.slot_coords, rot_cw=g.rot_cw, t_cw=g.t_cw, k4=(k[0, 0], k[1, 1], k[0, 2], k[1, 2]),
+        launches.select(
+            num_old=num_old, stamp=stamp, slot_stamp=self._slot_stamp, slot_coords=self.hash.slot_coords,
+            rot_cw=g.rot_cw, t_cw=g.t_cw, k4=(k[0, 0], k[1, 1], k[0, 2], k[1, 2]),
             centre_scale=(0.5, cfg.block_size_m, 0.5 * cfg.voxel_size_m), radius_m=radius, radius_px_m=radius_px,
-            truncation_m=cfg.truncation_m, depth_min_m=cfg.depth_min_m, depth_max_m=cfg.depth_max_m, depth_m=depth,
-            has_surface=self.has_surface, selected=self._selected, counts=counts, views=views)
-        n_selected = int(counts[1].item())  # host read 2: the launch size
-        tsdf_kernels.launch_voxel_update(
-            slots=self._selected[:n_selected], slot_coords=self.hash.slot_coords, block_voxels=cfg.block_voxels,
-            voxel_size_m=cfg.voxel_size_m, kr=g.kr, kt=g.kt, local_px=torch.from_numpy(g.local_px).to(self.device),
-            depth_pad_m=buf.depth, rgb=rgb, truncation_m=cfg.truncation_m,
-            depth_min_m=cfg.depth_min_m, depth_max_m=cfg.depth_max_m, max_weight=cfg.max_weight,
-            weight_ref_depth_m=cfg.weight_ref_depth_m, clear_free_space=cfg.clear_free_space, tsdf=self.tsdf,
-            weight=self.weight, color=self.color, updated=self.updated, has_surface=self.has_surface, views=views)
+            truncation_m=cfg.truncation_m, depth_min_m=cfg.depth_min_m, depth_max_m=cfg.depth_max_m,
+            depth_pad_m=buf.depth, has_surface=self.has_surface, selected=self._selected)
+        launches.set_local_px(g.local_px)
+        counts = launches.read_counts()  # the one host read (on CUDA it waits for the kernels so far)
+        n_selected = counts[0]
+        if buf.volume is not None:
+            if any(counts[2::2]):
+                raise_out_of_range()
+            new = [buf.new_keys[p, :n] for p, n in enumerate(counts[1::2]) if n]
+            if new:
+                # each part's keys are distinct; a block new to two parts is in both lists
+                keys = torch.sort(new[0]).values if len(new) == 1 else torch.unique(torch.cat(new))
+                self.hash.append(keys)  # slots num_old, num_old + 1, ...
+                self._grow(self.num_blocks)
+        launches.update_voxels(
+            num_blocks=n_selected + self.num_blocks - num_old, selected=self._selected, num_selected=n_selected,
+            first_new_slot=num_old, slot_coords=self.hash.slot_coords, block_voxels=cfg.block_voxels,
+            voxel_size_m=cfg.voxel_size_m, kr=g.kr, kt=g.kt, depth_pad_m=buf.depth, rgb=rgb,
+            truncation_m=cfg.truncation_m, depth_min_m=cfg.depth_min_m, depth_max_m=cfg.depth_max_m,
+            max_weight=cfg.max_weight, weight_ref_depth_m=cfg.weight_ref_depth_m, clear_free_space=cfg.clear_free_space,
+            tsdf=self.tsdf, weight=self.weight, color=self.color, updated=self.updated, has_surface=self.has_surface)
 
     def _project(self, slots: torch.Tensor, g: _FrameGeometry) -> tuple[torch.Tensor, torch.Tensor]:
         """Homogeneous padded-pixel coordinates (K' [R | t] p) of every voxel centre as block origin +

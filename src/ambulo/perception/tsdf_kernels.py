@@ -12,18 +12,30 @@ The arithmetic is the torch path's (``TsdfMap._allocate``, ``TsdfMap._update_vox
 operation by operation, so the two agree to float32 rounding: same projections (computed in torch
 and passed in), same depth rule (nearest-pixel pre-filter, then bilinear unless the 2x2 cell spans a
 depth edge), same free-space clearing, running average, weight saturation, round-half-to-even colour.
-The voxel kernel reads the torch path's padded depth copy (a 1-pixel border of -1e9, non-finite as 0;
-one torch op, 0.05-0.08 ms, where a Warp copy kernel took ~1 ms and bounds checks in the voxel kernel
-~0.9 ms more) and the frame's own colour. The small per-frame matrices are computed once on the host
-and passed by value, so ``integrate`` needs no upload and two host reads of counters.
+All three kernels read the torch path's padded depth copy (a 1-pixel border of -1e9, non-finite
+readings as -1e9 too, which fails every depth range test as they do; one torch op, 0.05-0.08 ms,
+where a Warp copy kernel took ~1 ms and bounds checks in the voxel kernel ~0.9 ms more) and the
+voxel kernel the frame's own colour. The small per-frame matrices are computed once on the host and
+passed by value, the voxels' (3, B^3) local offsets uploaded asynchronously (CUDA), so ``integrate``
+waits for the device once per frame: one read of the counters, after ``select_blocks``, which tells
+the host both the new blocks to allocate and the launch size of the voxel update (the new blocks'
+slots follow the selected ones: no second selection pass).
+
+Host overhead: each launch is recorded once (``wp.Launch``, ``IntegrateLaunches``) and replayed with
+only the changed arguments set, instead of a ``wp.launch`` packing ~25 arguments (~80 us of Python on
+the CPU). Torch ops per frame: the padded depth copy, and on CUDA also the counters' reset and read
+and the offsets' upload (~10 more in frames that allocate blocks: sort, hash merge, storage growth).
 
 CPU: a Warp CPU launch runs on one thread, and each Warp thread reloads every kernel argument (a
 uint8 or bool store may alias them), so on the CPU a thread does a whole block (or image row) in a
-loop, and ``launch_voxel_update`` splits the blocks into one range per ``torch.get_num_threads()``
-thread (the native call releases the GIL; ranges write disjoint voxels, the per-block flags are only
-ever set True). Apart from the padded depth copy, no torch op in ``integrate``'s Warp path touches
-more than a few thousand elements (a larger one wakes torch's OpenMP pool, whose threads may spin on
-the cores these launches run on; scoping that copy to one thread measured no better).
+loop, and ``IntegrateLaunches.update_voxels`` splits the blocks into ranges that up to
+``torch.get_num_threads()`` threads take in turn (the native call releases the GIL; ranges write
+disjoint voxels, the per-block flags are only ever set True). Warp's CPU atomics (``atomic_cas``
+included) are plain read-modify-writes, so ``mark_band_blocks`` can only be split race-free by giving
+each range its own outputs (``PARTS``; off by default, measured no faster on 2 cores). Apart from the
+padded depth copy, no torch op in ``integrate``'s Warp path touches more than a few thousand elements
+(a larger one wakes torch's OpenMP pool, whose threads may spin on the cores these launches run on;
+scoping that copy to one thread measured no better).
 
 Compilation happens once per device on the first launch (seconds on the CPU, longer for CUDA) and
 is cached on disk (Warp's kernel cache, ``WARP_CACHE_PATH``); time a benchmark after a warm-up frame.
@@ -34,6 +46,7 @@ from __future__ import annotations
 import threading
 from concurrent.futures import ThreadPoolExecutor
 
+import numpy as np
 import torch
 
 try:
@@ -50,6 +63,11 @@ updated (as tsdf.py's padded buffer)."""
 KEY_OFFSET = 1 << 19
 """A block key holds block coordinates offset by this, 20 bits per axis (``block_hash.encode``; the
 Warp-vs-torch test would see other keys as other blocks)."""
+PARTS = 1
+"""Row ranges of ``mark_band_blocks`` run concurrently on the CPU (read when a map is made), each with its
+own stamp volume, key list, counters and ``slot_stamp`` column; CUDA uses one. 1: on 2 cores, 2 parts
+measured no faster (2.93-2.99 vs 2.98-3.07 ms/frame at 640x480): the hand-off to a second thread and
+back (~0.1 ms) costs what it saves of the ~0.3 ms kernel."""
 
 if wp is not None:
 
@@ -78,8 +96,10 @@ if wp is not None:
 
     @wp.kernel(enable_backward=False)
     def mark_band_blocks(
+        first_row: wp.int32,
+        part: wp.int32,
         columns_per_run: wp.int32,
-        depth_m: wp.array2d(dtype=wp.float32),
+        depth_pad_m: wp.array2d(dtype=wp.float32),
         stride_px: wp.int32,
         rays: wp.array3d(dtype=wp.float32),
         rot_blocks: wp.mat33,
@@ -91,36 +111,43 @@ if wp is not None:
         depth_min_m: wp.float32,
         depth_max_m: wp.float32,
         stamp: wp.int32,
-        volume_stamp: wp.array(dtype=wp.int32),
+        volume_stamp: wp.array2d(dtype=wp.int32),
         keys: wp.array(dtype=wp.int64),
         key_slots: wp.array(dtype=wp.int64),
         num_keys: wp.int32,
-        slot_stamp: wp.array(dtype=wp.int32),
-        new_keys: wp.array(dtype=wp.int64),
+        slot_stamp: wp.array2d(dtype=wp.int32),
+        new_keys: wp.array2d(dtype=wp.int64),
         count: wp.array(dtype=wp.int32),
     ):
         """Block allocation: for every allocation pixel (r, c) = pixel (r s, c s), the volume cells of
         the blocks that the band [d - trunc, d + trunc] of its ray touches (3 samples; a block spans
         >= 2 trunc), with the float32 operations of ``TsdfMap._allocate``'s torch path. A cell is looked
-        at once per frame: the first sample to stamp it (``volume_stamp[cell]`` = ``stamp``, so the volume
-        is never cleared) looks its block up in the hash: an allocated block gets ``slot_stamp[slot] =
-        stamp``, a new one's key is appended to ``new_keys`` at ``count[0]``. Thread (r, j) does columns
-        [j n, (j + 1) n) of row r, n = ``columns_per_run``: 1 on CUDA, a whole row on the CPU (one
-        launch there, whose threads run one after the other: Warp's CPU atomics are not atomic).
+        at once per frame and ``part``: the first sample to stamp it (``volume_stamp[part, cell]`` =
+        ``stamp``, so the volume is never cleared) looks its block up in the hash: an allocated block gets
+        ``slot_stamp[slot, part] = stamp``, a new one's key is appended to ``new_keys[part]`` at
+        ``count[1 + 2 part]``. Thread (r, j) does columns [j n, (j + 1) n) of row ``first_row`` + r, n =
+        ``columns_per_run``: 1 on CUDA (one launch, part 0: real atomics), a whole row on the CPU, where
+        a launch's threads run one after the other on one OS thread and Warp's CPU atomics are plain
+        read-modify-writes (``atomic_cas`` too): there the rows may be split into ``PARTS`` launches run
+        concurrently, each with its own part of every output, so no two OS threads write the same element
+        (a block new to two parts is in both key lists; the caller merges them).
 
-        depth_m: (H, W) float32 raw depth (non-finite fails the range test). rays: (H/s, W/s, 3) camera
+        depth_pad_m: (H + 2, W + 2) float32 the padded depth (non-finite as NO_DEPTH, which fails the
+        range test as the raw reading does); pixel (y, x) is at [y + 1, x + 1]. rays: (H/s, W/s, 3) camera
         rays (z = 1) of the allocation pixels. rot_blocks: R_wc^T / block size, so a ray's world
         direction in blocks per metre is component a = sum_i ray_i rot_blocks[i, a]. start_blocks: camera
         position in blocks + 0.5 / B (block = floor(round(p / voxel) / B) = floor(p / block + 0.5 / B)).
         band_m: -trunc, 0, trunc. corner_blocks / corner_index: block coordinate of cell 0 of the dense
         side^3 volume of cells around the camera, x-major; samples outside are clamped in.
         keys, key_slots: the hash's (num_keys,) sorted keys and their slots (length >= 1).
-        slot_stamp: (capacity,) int32. new_keys: (side^3,) int64 out; count: (3,) int32, zero before
-        (count[2]: cells beyond the key range, ``BlockHash.insert``'s error)."""
-        r, run = wp.tid()
+        volume_stamp: (parts, side^3) int32. slot_stamp: (capacity, parts) int32. new_keys: (parts, side^3)
+        int64 out; count: (1 + 2 parts,) int32, zero before: count[1 + 2 p] new keys of part p, count[2 + 2 p]
+        its cells beyond the key range (``BlockHash.insert``'s error)."""
+        row, run = wp.tid()
+        r = first_row + row
         c_first = run * columns_per_run
         for c in range(c_first, wp.min(c_first + columns_per_run, rays.shape[1])):
-            d = depth_m[r * stride_px, c * stride_px]
+            d = depth_pad_m[r * stride_px + 1, c * stride_px + 1]
             if d >= depth_min_m and d <= depth_max_m:
                 rx = rays[r, c, 0]
                 ry = rays[r, c, 1]
@@ -133,28 +160,27 @@ if wp is not None:
                         sample = wp.floor(start_blocks[a] + ray_a * dd)
                         k = wp.clamp(sample - corner_blocks[a], 0.0, float(side - 1))
                         cell = cell * side + int(k)
-                    if volume_stamp[cell] != stamp:
-                        if wp.atomic_exch(volume_stamp, cell, stamp) != stamp:
+                    if volume_stamp[part, cell] != stamp:
+                        if wp.atomic_exch(volume_stamp, part, cell, stamp) != stamp:
                             bx = corner_index[0] + cell // (side * side)
                             by = corner_index[1] + (cell // side) % side
                             bz = corner_index[2] + cell % side
                             if wp.max(wp.max(wp.abs(bx), wp.abs(by)), wp.abs(bz)) >= KEY_OFFSET:
-                                wp.atomic_add(count, 2, 1)  # beyond the key range: integrate raises
+                                wp.atomic_add(count, 2 + 2 * part, 1)  # beyond the key range: integrate raises
                             else:
                                 key = block_key(bx, by, bz)
                                 slot = find_slot(keys, key_slots, num_keys, key)
                                 if slot >= 0:
-                                    slot_stamp[slot] = stamp
+                                    slot_stamp[slot, part] = stamp
                                 else:
-                                    new_keys[wp.atomic_add(count, 0, 1)] = key
+                                    new_keys[part, wp.atomic_add(count, 1 + 2 * part, 1)] = key
 
     @wp.kernel(enable_backward=False)
     def select_blocks(
         slots_per_run: wp.int32,
-        num_blocks: wp.int32,
         num_old: wp.int32,
         stamp: wp.int32,
-        slot_stamp: wp.array(dtype=wp.int32),
+        slot_stamp: wp.array2d(dtype=wp.int32),
         slot_coords: wp.array2d(dtype=wp.int64),
         rot_cw: wp.mat33,
         t_cw: wp.vec3,
@@ -165,25 +191,30 @@ if wp is not None:
         truncation_m: wp.float32,
         depth_min_m: wp.float32,
         depth_max_m: wp.float32,
-        depth_m: wp.array2d(dtype=wp.float32),
+        depth_pad_m: wp.array2d(dtype=wp.float32),
         has_surface: wp.array(dtype=wp.bool),
         selected: wp.array(dtype=wp.int64),
         count: wp.array(dtype=wp.int32),
     ):
-        """The blocks this frame updates, appended to ``selected`` at ``count[1]`` (ascending on the CPU):
-        new blocks (slot >= ``num_old``), blocks stamped by ``mark_band_blocks``, and blocks holding a
-        surface that the view may clear (``TsdfMap._blocks_in_view``, the same float32 operations).
+        """The blocks allocated before this frame (slots < ``num_old``) that it updates, appended to
+        ``selected`` at ``count[0]`` (ascending on the CPU): blocks stamped by ``mark_band_blocks`` (in
+        any part) and blocks holding a surface that the view may clear (``TsdfMap._blocks_in_view``, the
+        same float32 operations); the frame's new blocks are updated too, but need no selecting.
         ``has_surface`` of a selected block is cleared (the voxel update sets it again). Thread ``tid``
         does slots [tid n, (tid + 1) n), n = ``slots_per_run`` (1 on CUDA, all on the CPU).
 
         slot_coords: (capacity, 3) int64 block coordinates. rot_cw, t_cw: world-to-camera. k: fx, fy, cx,
         cy. centre_scale: (0.5, block size, half a voxel): a block's centre is (b + 0.5) size - half voxel.
-        radius_m: half a block's diagonal, radius_px_m = radius_m fx. depth_m: (H, W) float32 raw depth."""
+        radius_m: half a block's diagonal, radius_px_m = radius_m fx. slot_stamp: (capacity, parts) int32.
+        depth_pad_m: (H + 2, W + 2) float32 padded depth, as ``mark_band_blocks`` reads it."""
         first = wp.tid() * slots_per_run
-        h = depth_m.shape[0]
-        w = depth_m.shape[1]
-        for i in range(first, wp.min(first + slots_per_run, num_blocks)):
-            keep = i >= num_old or slot_stamp[i] == stamp
+        h = depth_pad_m.shape[0] - 2
+        w = depth_pad_m.shape[1] - 2
+        for i in range(first, wp.min(first + slots_per_run, num_old)):
+            keep = bool(False)
+            for p in range(slot_stamp.shape[1]):
+                if slot_stamp[i, p] == stamp:
+                    keep = True
             if not keep and has_surface[i]:
                 bx = (float(slot_coords[i, 0]) + centre_scale[0]) * centre_scale[1] - centre_scale[2]
                 by = (float(slot_coords[i, 1]) + centre_scale[0]) * centre_scale[1] - centre_scale[2]
@@ -198,11 +229,11 @@ if wp is not None:
                 near = z + radius_m > depth_min_m and z - radius_m < depth_max_m
                 inside = u + margin >= 0 and u - margin < w and v + margin >= 0 and v - margin < h
                 if near and inside and z > 0.0:
-                    d = depth_m[wp.clamp(v, 0, h - 1), wp.clamp(u, 0, w - 1)]
+                    d = depth_pad_m[wp.clamp(v, 0, h - 1) + 1, wp.clamp(u, 0, w - 1) + 1]
                     valid = d >= depth_min_m and d <= depth_max_m
                     keep = not valid or z - radius_m < d + truncation_m
             if keep:
-                selected[wp.atomic_add(count, 1, 1)] = wp.int64(i)
+                selected[wp.atomic_add(count, 0, 1)] = wp.int64(i)
                 has_surface[i] = False
 
     @wp.kernel(enable_backward=False)
@@ -210,7 +241,9 @@ if wp is not None:
         first_run: wp.int32,
         runs_per_block: wp.int32,
         voxels_per_run: wp.int32,
-        slots: wp.array(dtype=wp.int64),
+        selected: wp.array(dtype=wp.int64),
+        num_selected: wp.int32,
+        first_new_slot: wp.int32,
         slot_coords: wp.array2d(dtype=wp.int64),
         block_voxels: wp.int32,
         voxel_size_m: wp.float32,
@@ -237,11 +270,12 @@ if wp is not None:
         block i = run // ``runs_per_block`` (runs_per_block * voxels_per_run = V = B^3 voxels per block):
         one voxel per thread on CUDA, one block per thread on the CPU.
 
-        slots: (n,) int64 storage slot of block i; slot_coords: (capacity, 3) int64 block coordinates.
+        Block i is slot ``selected[i]`` for i < ``num_selected`` (``select_blocks``' output), else the new
+        slot ``first_new_slot`` + i - ``num_selected`` (the frame's new blocks). slot_coords: (capacity, 3) int64 block coordinates.
         kr, kt: K' R_cw and K' t_cw (K' = K with the principal point shifted by the 1-pixel pad), so the
         homogeneous padded-pixel coordinates of block i's origin o = coords B voxel are kr o + kt (summed
         as ``TsdfMap._project``), and a voxel's are that plus local_px: (3, V) float32 K' R of each local
-        offset. depth_pad_m: (H + 2, W + 2) float32 the frame's depth (non-finite as 0) inside a 1-pixel
+        offset. depth_pad_m: (H + 2, W + 2) float32 the frame's depth (non-finite as NO_DEPTH) inside a 1-pixel
         NO_DEPTH border, read without bounds checks; rgb: (H, W, 3) uint8 the frame's colour (read only
         when ``with_color``; it needs no padded copy: only updated voxels read it, and their nearest pixel
         is inside the image, as the border fails the depth range test). tsdf, weight: (capacity, V) float32 and color:
@@ -250,7 +284,9 @@ if wp is not None:
         run = first_run + wp.tid()
         i = run // runs_per_block
         lv_first = (run - i * runs_per_block) * voxels_per_run
-        slot = slots[i]
+        slot = wp.int64(first_new_slot + i - num_selected)
+        if i < num_selected:
+            slot = selected[i]
         x0 = float(slot_coords[slot, 0] * wp.int64(block_voxels)) * voxel_size_m
         y0 = float(slot_coords[slot, 1] * wp.int64(block_voxels)) * voxel_size_m
         z0 = float(slot_coords[slot, 2] * wp.int64(block_voxels)) * voxel_size_m
@@ -335,115 +371,81 @@ _pool: ThreadPoolExecutor | None = None
 """Worker threads of split CPU launches (created on first use)."""
 
 
-def _view(t: torch.Tensor, views: dict | None = None, name: str = ""):
-    """A zero-copy Warp array over a torch tensor. ``views`` caches it by ``name`` for as long as the
-    same tensor object is passed (the map's storage lives across frames; a replaced tensor replaces
-    its cached view, so nothing stale is kept)."""
-    if views is not None:
-        hit = views.get(name)
-        if hit is not None and hit[0] is t:
-            return hit[1]
+def _view(t: torch.Tensor):
+    """A zero-copy Warp array over a torch tensor."""
     if t.device.type == "cpu":  # the bare constructor: half the time of wp.from_torch (~15 us)
-        a = wp.array(ptr=t.data_ptr(), dtype=wp.dtype_from_torch(t.dtype), shape=tuple(t.shape),
-                     strides=tuple(st * t.element_size() for st in t.stride()), device="cpu", copy=False)
-    else:
-        a = wp.from_torch(t)
-    if views is not None:
-        views[name] = (t, a)
-    return a
-
-
-def _device(t: torch.Tensor):
-    wp.init()  # no-op once initialised
-    device = wp.device_from_torch(t.device)
-    return device, (wp.stream_from_torch(t.device) if device.is_cuda else None)
+        return wp.array(ptr=t.data_ptr(), dtype=wp.dtype_from_torch(t.dtype), shape=tuple(t.shape),
+                        strides=tuple(st * t.element_size() for st in t.stride()), device="cpu", copy=False)
+    return wp.from_torch(t)
 
 
 def _mat33(m) -> "wp.mat33":
-    """A (3, 3) float32 array as a launch argument, passed by value (no upload, no torch op)."""
-    return wp.mat33(*(float(x) for x in m.reshape(-1)))
+    """A (3, 3) float32 array as a launch argument, passed by value (no upload, no torch op); a raw
+    copy of its row-major bytes (0.2 us, where building it from 9 floats took 3-10 us)."""
+    return wp.mat33.from_buffer_copy(np.ascontiguousarray(m, dtype=np.float32))
 
 
 def _vec3(v) -> "wp.vec3":
-    return wp.vec3(*(float(x) for x in v))
+    return wp.vec3.from_buffer_copy(np.ascontiguousarray(v, dtype=np.float32))
 
 
-def launch_mark_band_blocks(*, depth_m: torch.Tensor, stride_px: int, rays: torch.Tensor, rot_blocks, start_blocks,
-                            band_m, corner_blocks, corner_index, side: int, depth_min_m: float, depth_max_m: float,
-                            stamp: int, volume_stamp: torch.Tensor, keys: torch.Tensor, key_slots: torch.Tensor,
-                            num_keys: int, slot_stamp: torch.Tensor, new_keys: torch.Tensor, counts: torch.Tensor,
-                            views: dict | None = None) -> None:
-    """Run ``mark_band_blocks`` (shapes as documented there; the small per-frame constants as (3, 3) /
-    (3,) host arrays, passed by value) on the tensors' device (torch's stream on CUDA)."""
-    device, stream = _device(volume_stamp)
-    rows, columns = rays.shape[:2]
-    per_run = 1 if device.is_cuda else columns
-    wp.launch(mark_band_blocks, dim=(rows, (columns + per_run - 1) // per_run), device=device, stream=stream, inputs=[
-        per_run, _view(depth_m), int(stride_px), _view(rays, views, "rays"), _mat33(rot_blocks), _vec3(start_blocks),
-        _vec3(band_m), _vec3(corner_blocks), wp.vec3i(*(int(c) for c in corner_index)), int(side), float(depth_min_m),
-        float(depth_max_m), int(stamp), _view(volume_stamp, views, "volume_stamp"), _view(keys, views, "keys"),
-        _view(key_slots, views, "key_slots"), int(num_keys), _view(slot_stamp, views, "slot_stamp"),
-        _view(new_keys, views, "new_keys"), _view(counts, views, "counts")])
+class _Recorded:
+    """One kernel launch recorded once (``wp.launch(..., record_cmd=True)``) and replayed with
+    ``wp.Launch.launch``: per frame only what changed is set (~1 us each) instead of packing all ~25
+    arguments (a ``wp.launch`` took ~80 us of Python on the CPU). A tensor argument is re-viewed only
+    when another tensor object is passed (the storage after it grew, the hash after new blocks), a
+    scalar only when its value changed; the bound tensor is kept, so its memory is not reused while
+    bound. Vector / matrix values are always set (they change every frame)."""
+
+    def __init__(self, kernel, device, dim, values: dict):
+        labels = [a.label for a in kernel.adj.args]
+        self._index = {name: i for i, name in enumerate(labels)}
+        self._bound = {name: v for name, v in values.items() if isinstance(v, (torch.Tensor, int, float))}
+        self.launch = wp.launch(kernel, dim=dim, device=device, record_cmd=True, inputs=[
+            _view(v) if isinstance(v, torch.Tensor) else v for v in (values[name] for name in labels)])
+        self._dim = dim
+
+    def set(self, dim, values: dict) -> "wp.Launch":
+        """Set the launch size and the given arguments (by name); returns the launch."""
+        if dim != self._dim:
+            self.launch.set_dim(dim)
+            self._dim = dim
+        bound, launch, index = self._bound, self.launch, self._index
+        for name, v in values.items():
+            old = bound.get(name, bound)
+            if old is v:
+                continue
+            if isinstance(v, torch.Tensor):
+                bound[name] = v
+                v = _view(v)
+            elif isinstance(v, (int, float)):
+                if old == v:
+                    continue
+                bound[name] = v
+            launch.set_param_at_index(index[name], v)
+        return launch
+
+    def follow(self, leader: "_Recorded", dim, own: dict) -> "wp.Launch":
+        """CPU only: take all of ``leader``'s arguments, then set ``own`` (this range's first row / run
+        and size): a copy of the list of packed arguments instead of setting each (a CPU launch reads
+        them when it runs; ``set_param_at_index`` replaces an entry, never changes it in place)."""
+        launch = self.launch
+        launch.params[1:] = leader.launch.params[1:]
+        if dim != self._dim:
+            launch.set_dim(dim)
+            self._dim = dim
+        for name, v in own.items():
+            launch.set_param_at_index(self._index[name], v)
+        return launch
 
 
-def launch_select_blocks(*, num_blocks: int, num_old: int, stamp: int, slot_stamp: torch.Tensor,
-                         slot_coords: torch.Tensor, rot_cw, t_cw, k4, centre_scale, radius_m: float, radius_px_m: float,
-                         truncation_m: float, depth_min_m: float, depth_max_m: float, depth_m: torch.Tensor,
-                         has_surface: torch.Tensor, selected: torch.Tensor, counts: torch.Tensor,
-                         views: dict | None = None) -> None:
-    """Run ``select_blocks`` over slots [0, num_blocks) (shapes as documented there)."""
-    if num_blocks == 0:
+def _run_concurrently(launches: list) -> None:
+    """Run CPU ``wp.Launch``es on up to len(launches) threads (the caller's and pool workers'; Warp's
+    native call releases the GIL), taken in turn: a thread the OS does not schedule soon does not hold
+    the others up (the caller waits only for launches already taken)."""
+    if len(launches) == 1:
+        launches[0].launch()
         return
-    device, stream = _device(slot_stamp)
-    per_run = 1 if device.is_cuda else num_blocks
-    wp.launch(select_blocks, dim=(num_blocks + per_run - 1) // per_run, device=device, stream=stream, inputs=[
-        per_run, int(num_blocks), int(num_old), int(stamp), _view(slot_stamp, views, "slot_stamp"),
-        _view(slot_coords, views, "slot_coords"), _mat33(rot_cw), _vec3(t_cw), wp.vec4(*(float(x) for x in k4)),
-        _vec3(centre_scale), float(radius_m), float(radius_px_m), float(truncation_m), float(depth_min_m),
-        float(depth_max_m), _view(depth_m), _view(has_surface, views, "has_surface"),
-        _view(selected, views, "selected"), _view(counts, views, "counts")])
-
-
-def launch_voxel_update(*, slots: torch.Tensor, slot_coords: torch.Tensor, block_voxels: int, voxel_size_m: float,
-                        kr, kt, local_px: torch.Tensor, depth_pad_m: torch.Tensor, rgb: torch.Tensor | None, truncation_m: float, depth_min_m: float, depth_max_m: float,
-                        max_weight: float, weight_ref_depth_m: float | None, clear_free_space: bool,
-                        tsdf: torch.Tensor, weight: torch.Tensor, color: torch.Tensor, updated: torch.Tensor,
-                        has_surface: torch.Tensor, views: dict | None = None) -> None:
-    """Run ``integrate_voxels`` over every voxel of ``slots`` (shapes as documented there; kr (3, 3) and
-    kt (3,) host float32 arrays; ``rgb`` None: no colour) on the tensors' device: on CUDA in torch's current stream, on the CPU
-    split over ``torch.get_num_threads()`` threads. ``views``: a dict the caller keeps, caching the Warp
-    views of its long-lived tensors."""
-    n_vox = local_px.shape[1]
-    n_blocks = slots.numel()
-    if n_blocks == 0:
-        return
-    device, stream = _device(tsdf)
-    with_color = rgb is not None
-    if rgb is None:
-        rgb = views.setdefault("no_rgb", torch.zeros((1, 1, 3), dtype=torch.uint8, device=tsdf.device)) \
-            if views is not None else torch.zeros((1, 1, 3), dtype=torch.uint8, device=tsdf.device)
-    common = [
-        _view(slots), _view(slot_coords, views, "slot_coords"), int(block_voxels), float(voxel_size_m), _mat33(kr),
-        _vec3(kt), _view(local_px), _view(depth_pad_m, views, "depth_pad"), _view(rgb),
-        float(truncation_m), float(1.0 / truncation_m), float(depth_min_m), float(depth_max_m), float(max_weight),
-        float(weight_ref_depth_m or 0.0), int(clear_free_space), int(with_color),
-        _view(tsdf, views, "tsdf"), _view(weight, views, "weight"), _view(color, views, "color"),
-        _view(updated, views, "updated"), _view(has_surface, views, "has_surface"),
-    ]
-    if device.is_cuda:  # a thread per voxel, in torch's stream so it is ordered with the torch ops around it
-        wp.launch(integrate_voxels, dim=n_blocks * n_vox, inputs=[0, n_vox, 1, *common], device=device,
-                  stream=stream)
-        return
-    # CPU: a thread per block, the blocks in contiguous chunks that torch.get_num_threads() threads take
-    # in turn (dynamic, so a thread the OS does not schedule soon does not hold the others up: the caller
-    # waits only for chunks already taken); one launch when too few blocks to pay for the hand-off
-    parts = max(1, min(torch.get_num_threads(), n_blocks // 32))
-    if parts == 1:
-        wp.launch(integrate_voxels, dim=n_blocks, inputs=[0, 1, n_vox, *common], device=device)
-        return
-    wp.load_module(integrate_voxels.module, device=device)  # once, before threads race to compile it
-    chunks = 2 * parts
-    bounds = [n_blocks * c // chunks for c in range(chunks + 1)]
     state = {"next": 0, "running": 0, "error": None}
     done = threading.Condition()
 
@@ -451,13 +453,12 @@ def launch_voxel_update(*, slots: torch.Tensor, slot_coords: torch.Tensor, block
         while True:
             with done:
                 c = state["next"]
-                if c >= chunks:
+                if c >= len(launches):
                     return
                 state["next"] += 1
                 state["running"] += 1
             try:
-                wp.launch(integrate_voxels, dim=bounds[c + 1] - bounds[c], inputs=[bounds[c], 1, n_vox, *common],
-                          device=device)
+                launches[c].launch()
             except BaseException as e:  # re-raised by the calling thread
                 state["error"] = e
                 raise
@@ -467,9 +468,10 @@ def launch_voxel_update(*, slots: torch.Tensor, slot_coords: torch.Tensor, block
                     done.notify_all()
 
     global _pool
-    if _pool is None or _pool._max_workers < parts - 1:
-        _pool = ThreadPoolExecutor(max_workers=parts - 1, thread_name_prefix="ambulo-tsdf")
-    for _ in range(parts - 1):
+    workers = min(torch.get_num_threads(), len(launches)) - 1
+    if workers > 0 and (_pool is None or _pool._max_workers < workers):
+        _pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="ambulo-tsdf")
+    for _ in range(workers):
         _pool.submit(work)
     work()
     with done:
@@ -478,5 +480,140 @@ def launch_voxel_update(*, slots: torch.Tensor, slot_coords: torch.Tensor, block
         raise state["error"]
 
 
-__all__ = ["KEY_OFFSET", "MAX_STEP", "NO_DEPTH", "available", "launch_mark_band_blocks", "launch_select_blocks",
-           "launch_voxel_update"]
+class IntegrateLaunches:
+    """The Warp launches of one ``TsdfMap``'s ``integrate`` on its device, recorded on first use, and
+    the small device buffers they share: ``counts`` and ``local_px``.
+
+    Launches go to torch's current stream on CUDA (ordered with the torch ops around them). On the CPU
+    ``mark_band_blocks`` runs as ``parts`` concurrent row ranges and ``integrate_voxels`` as up to
+    2 ``torch.get_num_threads()`` block ranges taken in turn by that many threads (ranges write disjoint
+    voxels; the per-block flags are only ever set True)."""
+
+    def __init__(self, device: torch.device, block_voxels: int):
+        wp.init()  # no-op once initialised
+        device = torch.empty(0, device=device).device  # with its index ("cuda" -> "cuda:0"), as Warp needs
+        self.wp_device = wp.device_from_torch(device)
+        self.is_cuda = self.wp_device.is_cuda
+        self.parts = 1 if self.is_cuda else PARTS
+        """Parts of ``mark_band_blocks`` (the rows of its outputs ``volume_stamp``, ``new_keys``, the
+        columns of ``slot_stamp``)."""
+        self.counts = torch.zeros(1 + 2 * self.parts, dtype=torch.int32, device=device)
+        """(1 + 2 parts,) int32: selected blocks, then per part its new keys and out-of-range cells."""
+        self._counts_host = None if self.is_cuda else self.counts.numpy()
+        """The CPU counts as a numpy view: reset and read without a torch op."""
+        self.local_px = torch.zeros((3, block_voxels ** 3), dtype=torch.float32, device=device)
+        """(3, B^3) float32 the frame's K' R of each local voxel offset (``integrate_voxels``)."""
+        self._local_px_staging = (torch.empty_like(self.local_px, device="cpu", pin_memory=True) if self.is_cuda
+                                  else self.local_px)
+        """Host memory of the offsets: on CUDA a pinned staging copy uploaded asynchronously (a pageable
+        ``copy_`` waits for the stream: a host sync), on the CPU ``local_px`` itself."""
+        self._local_px_host = self._local_px_staging.numpy()
+        self._no_rgb = torch.zeros((1, 1, 3), dtype=torch.uint8, device=device)
+        self._streams: dict = {}
+        self._mark: dict = {}
+        self._select: dict = {}
+        self._voxels: dict = {}
+
+    def _stream(self):
+        """Warp's handle of torch's current stream (cached by the stream's handle; None on the CPU)."""
+        if not self.is_cuda:
+            return None
+        ts = torch.cuda.current_stream(self.wp_device.ordinal)
+        stream = self._streams.get(ts.cuda_stream)
+        if stream is None:
+            stream = self._streams[ts.cuda_stream] = wp.stream_from_torch(ts)
+        return stream
+
+    def reset_counts(self) -> None:
+        if self.is_cuda:
+            self.counts.zero_()
+        else:
+            self._counts_host.fill(0)
+
+    def read_counts(self) -> list[int]:
+        """The counts on the host: on CUDA a device-to-host copy, which waits for the launches so far."""
+        return self.counts.tolist() if self.is_cuda else self._counts_host.tolist()
+
+    def set_local_px(self, local_px) -> None:
+        """Upload the frame's (3, B^3) float32 host array (on the CPU a copy into shared memory). On CUDA
+        the staging memory is rewritten by the next call, so ``read_counts`` (which waits for the
+        stream) must come between two calls: ``TsdfMap._integrate_warp`` reads the counts right after."""
+        self._local_px_host[...] = local_px
+        if self.is_cuda:
+            self.local_px.copy_(self._local_px_staging, non_blocking=True)
+
+    def mark(self, *, rot_blocks, start_blocks, band_m, corner_blocks, corner_index, **values) -> None:
+        """Run ``mark_band_blocks`` (``values``: its other arguments by name, tensors included; the
+        (3, 3) / (3,) host arrays passed by value)."""
+        rows, columns = values["rays"].shape[:2]
+        values.update(rot_blocks=_mat33(rot_blocks), start_blocks=_vec3(start_blocks), band_m=_vec3(band_m),
+                      corner_blocks=_vec3(corner_blocks), count=self.counts,
+                      corner_index=wp.vec3i.from_buffer_copy(np.ascontiguousarray(corner_index, dtype=np.int32)))
+        stream = self._stream()
+        if self.is_cuda:
+            self._recorded(self._mark, 0, mark_band_blocks, (rows, columns), values, first_row=0, part=0,
+                           columns_per_run=1).launch(stream=stream)
+            return
+        parts = min(self.parts, torch.get_num_threads(), rows)
+        bounds = [rows * p // parts for p in range(parts + 1)]
+        _run_concurrently(self._split(self._mark, mark_band_blocks, values, [
+            ((bounds[p + 1] - bounds[p], 1), {"first_row": bounds[p], "part": p, "columns_per_run": columns})
+            for p in range(parts)]))
+
+    def select(self, *, num_old: int, rot_cw, t_cw, k4, centre_scale, **values) -> None:
+        """Run ``select_blocks`` over slots [0, num_old)."""
+        if num_old == 0:
+            return
+        values.update(num_old=num_old, rot_cw=_mat33(rot_cw), t_cw=_vec3(t_cw), centre_scale=_vec3(centre_scale),
+                      k=wp.vec4.from_buffer_copy(np.asarray(k4, dtype=np.float32)), count=self.counts)
+        per_run = 1 if self.is_cuda else num_old  # CPU: one thread does all (ascending output)
+        self._recorded(self._select, 0, select_blocks, num_old // per_run, values,
+                       slots_per_run=per_run).launch(stream=self._stream())
+
+    def update_voxels(self, *, num_blocks: int, kr, kt, rgb: torch.Tensor | None, weight_ref_depth_m: float | None,
+                      clear_free_space: bool, truncation_m: float, **values) -> None:
+        """Run ``integrate_voxels`` over ``num_blocks`` blocks (the selected ones, then the new ones).
+        ``rgb`` None: no colour."""
+        if num_blocks == 0:
+            return
+        n_vox = self.local_px.shape[1]
+        values.update(kr=_mat33(kr), kt=_vec3(kt), rgb=self._no_rgb if rgb is None else rgb,
+                      with_color=int(rgb is not None), weight_ref_depth_m=float(weight_ref_depth_m or 0.0),
+                      clear_free_space=int(clear_free_space), truncation_m=float(truncation_m),
+                      inv_truncation=float(1.0 / truncation_m), local_px=self.local_px)
+        if self.is_cuda:  # a thread per voxel
+            self._recorded(self._voxels, 0, integrate_voxels, num_blocks * n_vox, values, first_run=0,
+                           runs_per_block=n_vox, voxels_per_run=1).launch(stream=self._stream())
+            return
+        # CPU: a thread per block, the blocks in 2 parts contiguous ranges that ``parts`` threads take in turn
+        # (a thread the OS schedules late holds no one up); one launch when too few blocks to pay for the hand-off
+        parts = max(1, min(torch.get_num_threads(), num_blocks // 32))
+        chunks = 1 if parts == 1 else 2 * parts
+        bounds = [num_blocks * c // chunks for c in range(chunks + 1)]
+        _run_concurrently(self._split(self._voxels, integrate_voxels, values, [
+            (bounds[c + 1] - bounds[c], {"first_run": bounds[c], "runs_per_block": 1, "voxels_per_run": n_vox})
+            for c in range(chunks)]))
+
+    def _recorded(self, cache: dict, key, kernel, dim, values: dict, **more) -> "wp.Launch":
+        """The recorded launch ``cache[key]`` of ``kernel`` with these arguments (recorded on first use)."""
+        values.update(more)
+        rec = cache.get(key)
+        if rec is None:
+            rec = cache[key] = _Recorded(kernel, self.wp_device, dim, values)
+        return rec.set(dim, values)
+
+    def _split(self, cache: dict, kernel, values: dict, ranges: list) -> list:
+        """CPU launches of ``kernel`` over ranges (dim, own arguments): the first takes ``values``, the
+        others copy its packed arguments (``_Recorded.follow``)."""
+        (dim, own), *rest = ranges
+        launches = [self._recorded(cache, 0, kernel, dim, values, **own)]
+        leader = cache[0]
+        for i, (dim, own) in enumerate(rest, 1):
+            rec = cache.get(i)
+            if rec is None:
+                rec = cache[i] = _Recorded(kernel, self.wp_device, dim, dict(values, **own))
+            launches.append(rec.follow(leader, dim, own))
+        return launches
+
+
+__all__ = ["KEY_OFFSET", "MAX_STEP", "NO_DEPTH", "PARTS", "IntegrateLaunches", "available"]
