@@ -53,15 +53,19 @@ def _touch_blocks_ms(tsdf: TsdfMap, last_frame, device: str, frames: int = 20) -
     tsdf.clear_updated()
     tsdf.integrate(last_frame)  # the blocks one frame changes
     index = torch.nonzero(tsdf.updated[: tsdf.num_blocks], as_tuple=True)[0]
-    times = []
-    for _ in range(frames):
-        _sync(device)
-        t0 = time.perf_counter()
+    def touch() -> None:
         for field in (tsdf.tsdf, tsdf.weight, tsdf.color):
             field.index_copy_(0, index, field.index_select(0, index))
-        _sync(device)
-        times.append((time.perf_counter() - t0) * 1e3)
-    return float(np.median(times))
+    return float(np.median([_timed_ms(touch, device=device) for _ in range(frames)]))
+
+
+def _timed_ms(fn, *args, device: str) -> float:
+    """Wall time of ``fn(*args)``, ms, with the device idle before and after (CUDA synchronized)."""
+    _sync(device)
+    t0 = time.perf_counter()
+    fn(*args)
+    _sync(device)
+    return (time.perf_counter() - t0) * 1e3
 
 
 def main(argv=None) -> dict:
@@ -100,34 +104,16 @@ def main(argv=None) -> dict:
     _sync(args.device)
     warmup_ms = (time.perf_counter() - t0) * 1e3
     tsdf = TsdfMap(tsdf.cfg, device=args.device, backend=tsdf.backend)
-    ours_ms = []
-    for frame in on_device:
-        _sync(args.device)
-        t0 = time.perf_counter()
-        tsdf.integrate(frame)
-        _sync(args.device)
-        ours_ms.append((time.perf_counter() - t0) * 1e3)
+    ours_ms = [_timed_ms(tsdf.integrate, frame, device=args.device) for frame in on_device]
     touched_ms = _touch_blocks_ms(tsdf, on_device[-1], args.device)
     grid = tsdf.dense()
     esdf_from_grid(grid, max_distance_m=2.0)  # warm-up (kernel compile / load)
-    esdf_runs = []
-    for _ in range(5):
-        _sync(args.device)
-        t0 = time.perf_counter()
-        esdf_from_grid(grid, max_distance_m=2.0)
-        _sync(args.device)
-        esdf_runs.append((time.perf_counter() - t0) * 1e3)
-    esdf_ms = float(np.median(esdf_runs))
+    esdf_ms = float(np.median([_timed_ms(esdf_from_grid, grid, 2.0, device=args.device) for _ in range(5)]))
     t0 = time.perf_counter()
     mesh = extract_mesh(tsdf.dense(), min_weight=2.0)
     mesh_ms = (time.perf_counter() - t0) * 1e3
-    revisit_ms = []  # the same frames again: every block exists, so no hash growth (a robot in mapped space)
-    for frame in on_device:
-        _sync(args.device)
-        t0 = time.perf_counter()
-        tsdf.integrate(frame)
-        _sync(args.device)
-        revisit_ms.append((time.perf_counter() - t0) * 1e3)
+    # the same frames again: every block exists, so no hash growth (a robot in mapped space)
+    revisit_ms = [_timed_ms(tsdf.integrate, frame, device=args.device) for frame in on_device]
     device_name = torch.cuda.get_device_name() if args.device.startswith("cuda") else f"CPU, {args.threads} threads"
     result = {
         "frames": args.frames, "resolution": [args.width, args.height], "voxel_m": args.voxel, "device": device_name,
