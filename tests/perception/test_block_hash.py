@@ -50,3 +50,42 @@ def test_a_50m_floor_fits_in_sparse_blocks():
     dense_bytes = (50 / 0.05) ** 2 * (3.0 / 0.05) * (4 + 4 + 3)  # 3 m tall room, same per-voxel storage
     assert tsdf.num_blocks == 2 * n * n
     assert tsdf.memory_bytes() < min(0.3 * dense_bytes, 256 * 2**20)
+
+
+@pytest.mark.parametrize("on_host", [True, False], ids=["numpy-merge", "torch-merge"])
+def test_many_growths_keep_the_table_sorted_and_its_buffers_in_place(on_host):
+    """Inserts that outgrow the capacity again and again (both merges: the CPU's numpy one and the
+    devices' torch one, run here on the CPU): keys stay sorted, every block keeps its slot, and the
+    buffers a kernel binds are replaced only when the capacity doubles."""
+    rng = np.random.default_rng(1)
+    table, reference = BlockHash(capacity=4), {}
+    table._on_host = on_host
+    bound, replaced = (table.key_buffer, table.key_slot_buffer, table.slot_coord_buffer), 0
+    for step in range(80):
+        coords = torch.from_numpy(rng.integers(-25, 25, (int(rng.integers(1, 40)), 3)))
+        capacity = table.capacity
+        if step % 3:
+            slots = table.insert(coords)
+        else:  # unsorted new keys, sorted by the table
+            new = torch.unique(encode(coords))
+            new = new[table.find(decode(new)) < 0]
+            table.append(new[torch.from_numpy(rng.permutation(len(new)))], presorted=False)
+            slots = table.find(coords)
+        for c, s in zip(coords.tolist(), slots.tolist()):
+            assert reference.setdefault(tuple(c), s) == s
+        now = (table.key_buffer, table.key_slot_buffer, table.slot_coord_buffer)
+        if table.capacity == capacity:
+            assert all(a is b for a, b in zip(now, bound))  # updated in place
+        else:
+            assert table.capacity >= 2 * capacity and all(a is not b for a, b in zip(now, bound))
+            replaced += 1
+        bound = now
+        keys = table.keys
+        assert len(keys) == len(reference) and bool((keys[1:] > keys[:-1]).all())
+    assert 5 <= replaced <= 10 and table.capacity < 2 * len(table)  # 4 -> 8 -> ... geometric, not per insert
+    assert sorted(table.key_slots.tolist()) == list(range(len(table)))
+    assert torch.equal(table.key_slots, table.find(decode(table.keys)))
+    expected = torch.tensor(sorted(reference, key=reference.get))
+    assert torch.equal(table.slot_coords, expected)  # coordinates by slot
+    probe = torch.from_numpy(rng.integers(-30, 30, (500, 3)))
+    assert table.find(probe).tolist() == [reference.get(tuple(c), -1) for c in probe.tolist()]

@@ -252,3 +252,33 @@ def _assert_warp_equals_torch(truth, room, cfg):
     assert (ours.color[:n].int() - ref.color[:n].int()).abs().max() <= 1
     assert torch.equal(ours.updated, ref.updated) and torch.equal(ours.has_surface, ref.has_surface)
     return ours
+
+
+def test_frames_that_add_blocks_keep_the_recorded_launches_views(truth, monkeypatch):
+    """The hash and the storage are capacity buffers updated in place: once the launches are recorded,
+    a frame that adds blocks re-views (``wp.from_torch``) no tensor unless a capacity grew."""
+    pytest.importorskip("warp", reason="warp-lang is not installed")
+    from ambulo.perception import tsdf_kernels
+    from ambulo.perception.reference import orbit_poses, truth_frames
+
+    frames = shifted(truth_frames(truth, orbit_poses((0, 0, 0.5), 2.2, 1.0, 12), pinhole(80, 60, 65.6), 80, 60,
+                                  noise_seed=3))
+    for frame in frames:
+        frame.rgb = None  # a frame's own colour tensor is another object each frame
+    tsdf = TsdfMap(TsdfCfg(), capacity=1 << 14, backend="warp")
+    for _ in range(2):  # records the launches (the selection from the second frame on: none before)
+        tsdf.integrate(frames[0])
+    views = []
+    view = tsdf_kernels._view
+    monkeypatch.setattr(tsdf_kernels, "_view", lambda t: views.append(t) or view(t))
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)  # one voxel launch (more threads record a launch per block range as blocks come)
+    try:
+        added = 0
+        for frame in frames[1:]:
+            before = tsdf.num_blocks
+            tsdf.integrate(frame)
+            added += tsdf.num_blocks > before
+    finally:
+        torch.set_num_threads(threads)
+    assert added >= 5 and tsdf.hash.capacity == 1 << 14 and views == []

@@ -197,7 +197,7 @@ class TsdfMap:
             backend = "warp" if tsdf_kernels.available() else "torch"
         self.backend = backend
         """The per-voxel update in use: "warp" or "torch"."""
-        self.hash = BlockHash(self.device)
+        self.hash = BlockHash(self.device, capacity)
         b = self.cfg.block_voxels
         n = b ** 3
         self.tsdf = torch.ones((capacity, n), dtype=torch.float32, device=self.device)
@@ -228,8 +228,6 @@ class TsdfMap:
             part of ``mark_band_blocks``."""
             self._selected = torch.zeros(capacity, dtype=torch.int64, device=self.device)
             """(capacity,) int64 old slots this frame updates, the first ``counts[0]`` of them."""
-            self._no_keys = torch.zeros(1, dtype=torch.int64, device=self.device)
-            """(1,) int64 stand-in for the keys of an empty hash."""
 
     @property
     def num_blocks(self) -> int:
@@ -399,8 +397,9 @@ class TsdfMap:
         in the hash), select the old blocks to update, then one host read of the counters (new keys,
         selected blocks) to allocate the new blocks, and update the voxels of the selected and the new
         blocks. Torch ops per frame: the padded depth copy, on CUDA the counters' reset and read and the
-        local offsets' upload (none of those three on the CPU: numpy views), and ~10 small ones when
-        blocks are added; the per-frame matrices go to the kernels by value."""
+        local offsets' upload (none of those three on the CPU: numpy views), and when blocks are added
+        none more on the CPU, 8 small ones on CUDA (the hash's in-place merge: its buffers stay the tensors
+        the launches bind); the per-frame matrices go to the kernels by value."""
         cfg, launches = self.cfg, self._launches
         self._stamp += 1
         stamp, num_old = self._stamp, self.num_blocks
@@ -418,16 +417,15 @@ class TsdfMap:
                 start_blocks=g.start_blocks, band_m=(-cfg.truncation_m, 0.0, cfg.truncation_m),
                 corner_blocks=corner, corner_index=corner.astype(np.int64), side=2 * buf.r_blocks + 1,
                 depth_min_m=cfg.depth_min_m, depth_max_m=cfg.depth_max_m, stamp=stamp,
-                volume_stamp=buf.volume_stamp, keys=self.hash.keys if num_old else self._no_keys,
-                key_slots=self.hash.key_slots if num_old else self._no_keys, num_keys=num_old,
-                slot_stamp=self._slot_stamp, new_keys=buf.new_keys)
+                volume_stamp=buf.volume_stamp, keys=self.hash.key_buffer, key_slots=self.hash.key_slot_buffer,
+                num_keys=num_old, slot_stamp=self._slot_stamp, new_keys=buf.new_keys)
         else:  # the depth range is too deep for a dense volume: the torch path's sort-based allocation
             slots = self._allocate(depth, buf, g)  # may grow the storage, _slot_stamp included
             self._slot_stamp[slots, 0] = stamp
         radius, radius_px = self._block_radius(g)
         k = g.k
         launches.select(
-            num_old=num_old, stamp=stamp, slot_stamp=self._slot_stamp, slot_coords=self.hash.slot_coords,
+            num_old=num_old, stamp=stamp, slot_stamp=self._slot_stamp, slot_coords=self.hash.slot_coord_buffer,
             rot_cw=g.rot_cw, t_cw=g.t_cw, k4=(k[0, 0], k[1, 1], k[0, 2], k[1, 2]),
             centre_scale=(0.5, cfg.block_size_m, 0.5 * cfg.voxel_size_m), radius_m=radius, radius_px_m=radius_px,
             truncation_m=cfg.truncation_m, depth_min_m=cfg.depth_min_m, depth_max_m=cfg.depth_max_m,
@@ -441,12 +439,14 @@ class TsdfMap:
             new = [buf.new_keys[p, :n] for p, n in enumerate(counts[1::2]) if n]
             if new:
                 # each part's keys are distinct; a block new to two parts is in both lists
-                keys = torch.sort(new[0]).values if len(new) == 1 else torch.unique(torch.cat(new))
-                self.hash.append(keys)  # slots num_old, num_old + 1, ...
+                if len(new) == 1:
+                    self.hash.append(new[0], presorted=False)  # slots num_old, num_old + 1, ... in key order
+                else:
+                    self.hash.append(torch.unique(torch.cat(new)))
                 self._grow(self.num_blocks)
         launches.update_voxels(
             num_blocks=n_selected + self.num_blocks - num_old, selected=self._selected, num_selected=n_selected,
-            first_new_slot=num_old, slot_coords=self.hash.slot_coords, block_voxels=cfg.block_voxels,
+            first_new_slot=num_old, slot_coords=self.hash.slot_coord_buffer, block_voxels=cfg.block_voxels,
             voxel_size_m=cfg.voxel_size_m, kr=g.kr, kt=g.kt, depth_pad_m=buf.depth, rgb=rgb,
             truncation_m=cfg.truncation_m, depth_min_m=cfg.depth_min_m, depth_max_m=cfg.depth_max_m,
             max_weight=cfg.max_weight, weight_ref_depth_m=cfg.weight_ref_depth_m, clear_free_space=cfg.clear_free_space,

@@ -24,7 +24,8 @@ slots follow the selected ones: no second selection pass).
 Host overhead: each launch is recorded once (``wp.Launch``, ``IntegrateLaunches``) and replayed with
 only the changed arguments set, instead of a ``wp.launch`` packing ~25 arguments (~80 us of Python on
 the CPU). Torch ops per frame: the padded depth copy, and on CUDA also the counters' reset and read
-and the offsets' upload (~10 more in frames that allocate blocks: sort, hash merge, storage growth).
+and the offsets' upload; in frames that allocate blocks on the CPU none more (the hash merges in numpy on its
+buffers), on CUDA 8 (``BlockHash._merge_torch``), and the storage's growth when its capacity doubles.
 
 CPU: a Warp CPU launch runs on one thread, and each Warp thread reloads every kernel argument (a
 uint8 or bool store may alias them), so on the CPU a thread does a whole block (or image row) in a
@@ -139,7 +140,7 @@ if wp is not None:
         position in blocks + 0.5 / B (block = floor(round(p / voxel) / B) = floor(p / block + 0.5 / B)).
         band_m: -trunc, 0, trunc. corner_blocks / corner_index: block coordinate of cell 0 of the dense
         side^3 volume of cells around the camera, x-major; samples outside are clamped in.
-        keys, key_slots: the hash's (num_keys,) sorted keys and their slots (length >= 1).
+        keys, key_slots: the hash's (capacity,) buffers, the first num_keys its sorted keys and their slots.
         volume_stamp: (parts, side^3) int32. slot_stamp: (capacity, parts) int32. new_keys: (parts, side^3)
         int64 out; count: (1 + 2 parts,) int32, zero before: count[1 + 2 p] new keys of part p, count[2 + 2 p]
         its cells beyond the key range (``BlockHash.insert``'s error)."""
@@ -393,7 +394,7 @@ class _Recorded:
     """One kernel launch recorded once (``wp.launch(..., record_cmd=True)``) and replayed with
     ``wp.Launch.launch``: per frame only what changed is set (~1 us each) instead of packing all ~25
     arguments (a ``wp.launch`` took ~80 us of Python on the CPU). A tensor argument is re-viewed only
-    when another tensor object is passed (the storage after it grew, the hash after new blocks), a
+    when another tensor object is passed (the storage's or the hash's buffers after their capacity grew), a
     scalar only when its value changed; the bound tensor is kept, so its memory is not reused while
     bound. Vector / matrix values are always set (they change every frame)."""
 
