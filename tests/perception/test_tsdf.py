@@ -215,9 +215,9 @@ def test_block_marking_split_over_two_threads_gives_the_torch_reference_result(t
     """The CPU's race-free split of ``mark_band_blocks`` (row ranges on 2 threads, each with its own
     stamp volume, key list and counters; blocks new to both ranges merged): the same map as torch."""
     pytest.importorskip("warp", reason="warp-lang is not installed")
-    from ambulo.perception import tsdf_kernels
+    from ambulo.perception import tsdf_launches
 
-    monkeypatch.setattr(tsdf_kernels, "PARTS", 2)
+    monkeypatch.setattr(tsdf_launches, "PARTS", 2)
     threads = torch.get_num_threads()
     torch.set_num_threads(2)
     try:
@@ -258,7 +258,7 @@ def test_frames_that_add_blocks_keep_the_recorded_launches_views(truth, monkeypa
     """The hash and the storage are capacity buffers updated in place: once the launches are recorded,
     a frame that adds blocks re-views (``wp.from_torch``) no tensor unless a capacity grew."""
     pytest.importorskip("warp", reason="warp-lang is not installed")
-    from ambulo.perception import tsdf_kernels
+    from ambulo.perception import tsdf_launches
     from ambulo.perception.reference import orbit_poses, truth_frames
 
     frames = shifted(truth_frames(truth, orbit_poses((0, 0, 0.5), 2.2, 1.0, 12), pinhole(80, 60, 65.6), 80, 60,
@@ -269,8 +269,8 @@ def test_frames_that_add_blocks_keep_the_recorded_launches_views(truth, monkeypa
     for _ in range(2):  # records the launches (the selection from the second frame on: none before)
         tsdf.integrate(frames[0])
     views = []
-    view = tsdf_kernels._view
-    monkeypatch.setattr(tsdf_kernels, "_view", lambda t: views.append(t) or view(t))
+    view = tsdf_launches._view
+    monkeypatch.setattr(tsdf_launches, "_view", lambda t: views.append(t) or view(t))
     threads = torch.get_num_threads()
     torch.set_num_threads(1)  # one voxel launch (more threads record a launch per block range as blocks come)
     try:

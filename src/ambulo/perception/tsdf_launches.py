@@ -1,0 +1,290 @@
+"""The recorded Warp launches of ``TsdfMap.integrate`` (``IntegrateLaunches``) and how they are split
+over threads on the CPU; the kernels themselves are ``tsdf_kernels``.
+
+Separate from the kernels because this is host-side Python (argument packing, thread hand-off) that
+changes for launch overhead, while the kernels change for the arithmetic they share with the torch path.
+
+Host overhead: each launch is recorded once (``wp.Launch``, ``IntegrateLaunches``) and replayed with
+only the changed arguments set, instead of a ``wp.launch`` packing ~25 arguments (~80 us of Python on
+the CPU). Torch ops per frame: the padded depth copy, and on CUDA also the counters' reset and read
+and the offsets' upload; in frames that allocate blocks on the CPU none more (the hash merges in numpy on its
+buffers), on CUDA 8 (``BlockHash._merge_torch``), and the storage's growth when its capacity doubles.
+
+CPU: a Warp CPU launch runs its threads one after the other on one OS thread (so a kernel thread does a
+whole block or image row: ``tsdf_kernels``), and ``IntegrateLaunches.update_voxels`` splits the blocks into
+ranges that up to ``torch.get_num_threads()`` threads take in turn (the native call releases the GIL; ranges
+write disjoint voxels, the per-block flags are only ever set True). ``mark_band_blocks`` can be split only by
+giving each range its own outputs (``PARTS``; off by default, measured no faster on 2 cores). Apart from the
+padded depth copy, no torch op in ``integrate``'s Warp path touches more than a few thousand elements
+(a larger one wakes torch's OpenMP pool, whose threads may spin on the cores these launches run on;
+scoping that copy to one thread measured no better).
+"""
+
+from __future__ import annotations
+
+import threading
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+import torch
+
+from .tsdf_kernels import wp
+
+if wp is not None:  # without Warp, TsdfMap takes its torch path and never makes these launches
+    from .tsdf_kernels import integrate_voxels, mark_band_blocks, select_blocks
+
+PARTS = 1
+"""Row ranges of ``mark_band_blocks`` run concurrently on the CPU (read when a map is made), each with its
+own stamp volume, key list, counters and ``slot_stamp`` column; CUDA uses one. 1: on 2 cores, 2 parts
+measured no faster (2.93-2.99 vs 2.98-3.07 ms/frame at 640x480): the hand-off to a second thread and
+back (~0.1 ms) costs what it saves of the ~0.3 ms kernel."""
+
+_pool: ThreadPoolExecutor | None = None
+"""Worker threads of split CPU launches (created on first use)."""
+
+
+def _view(t: torch.Tensor):
+    """A zero-copy Warp array over a torch tensor."""
+    if t.device.type == "cpu":  # the bare constructor: half the time of wp.from_torch (~15 us)
+        return wp.array(ptr=t.data_ptr(), dtype=wp.dtype_from_torch(t.dtype), shape=tuple(t.shape),
+                        strides=tuple(st * t.element_size() for st in t.stride()), device="cpu", copy=False)
+    return wp.from_torch(t)
+
+
+def _mat33(m) -> "wp.mat33":
+    """A (3, 3) float32 array as a launch argument, passed by value (no upload, no torch op); a raw
+    copy of its row-major bytes (0.2 us, where building it from 9 floats took 3-10 us)."""
+    return wp.mat33.from_buffer_copy(np.ascontiguousarray(m, dtype=np.float32))
+
+
+def _vec3(v) -> "wp.vec3":
+    return wp.vec3.from_buffer_copy(np.ascontiguousarray(v, dtype=np.float32))
+
+
+class _Recorded:
+    """One kernel launch recorded once (``wp.launch(..., record_cmd=True)``) and replayed with
+    ``wp.Launch.launch``: per frame only what changed is set (~1 us each) instead of packing all ~25
+    arguments (a ``wp.launch`` took ~80 us of Python on the CPU). A tensor argument is re-viewed only
+    when another tensor object is passed (the storage's or the hash's buffers after their capacity grew), a
+    scalar only when its value changed; the bound tensor is kept, so its memory is not reused while
+    bound. Vector / matrix values are always set (they change every frame)."""
+
+    def __init__(self, kernel, device, dim, values: dict):
+        labels = [a.label for a in kernel.adj.args]
+        self._index = {name: i for i, name in enumerate(labels)}
+        self._bound = {name: v for name, v in values.items() if isinstance(v, (torch.Tensor, int, float))}
+        self.launch = wp.launch(kernel, dim=dim, device=device, record_cmd=True, inputs=[
+            _view(v) if isinstance(v, torch.Tensor) else v for v in (values[name] for name in labels)])
+        self._dim = dim
+
+    def set(self, dim, values: dict) -> "wp.Launch":
+        """Set the launch size and the given arguments (by name); returns the launch."""
+        if dim != self._dim:
+            self.launch.set_dim(dim)
+            self._dim = dim
+        bound, launch, index = self._bound, self.launch, self._index
+        for name, v in values.items():
+            old = bound.get(name, bound)
+            if old is v:
+                continue
+            if isinstance(v, torch.Tensor):
+                bound[name] = v
+                v = _view(v)
+            elif isinstance(v, (int, float)):
+                if old == v:
+                    continue
+                bound[name] = v
+            launch.set_param_at_index(index[name], v)
+        return launch
+
+    def follow(self, leader: "_Recorded", dim, own: dict) -> "wp.Launch":
+        """CPU only: take all of ``leader``'s arguments, then set ``own`` (this range's first row / run
+        and size): a copy of the list of packed arguments instead of setting each (a CPU launch reads
+        them when it runs; ``set_param_at_index`` replaces an entry, never changes it in place)."""
+        launch = self.launch
+        launch.params[1:] = leader.launch.params[1:]
+        if dim != self._dim:
+            launch.set_dim(dim)
+            self._dim = dim
+        for name, v in own.items():
+            launch.set_param_at_index(self._index[name], v)
+        return launch
+
+
+def _run_concurrently(launches: list) -> None:
+    """Run CPU ``wp.Launch``es on up to len(launches) threads (the caller's and pool workers'; Warp's
+    native call releases the GIL), taken in turn: a thread the OS does not schedule soon does not hold
+    the others up (the caller waits only for launches already taken)."""
+    if len(launches) == 1:
+        launches[0].launch()
+        return
+    state = {"next": 0, "running": 0, "error": None}
+    done = threading.Condition()
+
+    def work() -> None:
+        while True:
+            with done:
+                c = state["next"]
+                if c >= len(launches):
+                    return
+                state["next"] += 1
+                state["running"] += 1
+            try:
+                launches[c].launch()
+            except BaseException as e:  # re-raised by the calling thread
+                state["error"] = e
+                raise
+            finally:
+                with done:
+                    state["running"] -= 1
+                    done.notify_all()
+
+    global _pool
+    workers = min(torch.get_num_threads(), len(launches)) - 1
+    if workers > 0 and (_pool is None or _pool._max_workers < workers):
+        _pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="ambulo-tsdf")
+    for _ in range(workers):
+        _pool.submit(work)
+    work()
+    with done:
+        done.wait_for(lambda: state["running"] == 0)
+    if state["error"] is not None:
+        raise state["error"]
+
+
+class IntegrateLaunches:
+    """The Warp launches of one ``TsdfMap``'s ``integrate`` on its device, recorded on first use, and
+    the small device buffers they share: ``counts`` and ``local_px``.
+
+    Launches go to torch's current stream on CUDA (ordered with the torch ops around them). On the CPU
+    ``mark_band_blocks`` runs as ``parts`` concurrent row ranges and ``integrate_voxels`` as up to
+    2 ``torch.get_num_threads()`` block ranges taken in turn by that many threads (ranges write disjoint
+    voxels; the per-block flags are only ever set True)."""
+
+    def __init__(self, device: torch.device, block_voxels: int):
+        wp.init()  # no-op once initialised
+        device = torch.empty(0, device=device).device  # with its index ("cuda" -> "cuda:0"), as Warp needs
+        self.wp_device = wp.device_from_torch(device)
+        self.is_cuda = self.wp_device.is_cuda
+        self.parts = 1 if self.is_cuda else PARTS
+        """Parts of ``mark_band_blocks`` (the rows of its outputs ``volume_stamp``, ``new_keys``, the
+        columns of ``slot_stamp``)."""
+        self.counts = torch.zeros(1 + 2 * self.parts, dtype=torch.int32, device=device)
+        """(1 + 2 parts,) int32: selected blocks, then per part its new keys and out-of-range cells."""
+        self._counts_host = None if self.is_cuda else self.counts.numpy()
+        """The CPU counts as a numpy view: reset and read without a torch op."""
+        self.local_px = torch.zeros((3, block_voxels ** 3), dtype=torch.float32, device=device)
+        """(3, B^3) float32 the frame's K' R of each local voxel offset (``integrate_voxels``)."""
+        self._local_px_staging = (torch.empty_like(self.local_px, device="cpu", pin_memory=True) if self.is_cuda
+                                  else self.local_px)
+        """Host memory of the offsets: on CUDA a pinned staging copy uploaded asynchronously (a pageable
+        ``copy_`` waits for the stream: a host sync), on the CPU ``local_px`` itself."""
+        self._local_px_host = self._local_px_staging.numpy()
+        self._no_rgb = torch.zeros((1, 1, 3), dtype=torch.uint8, device=device)
+        self._streams: dict = {}
+        self._mark: dict = {}
+        self._select: dict = {}
+        self._voxels: dict = {}
+
+    def _stream(self):
+        """Warp's handle of torch's current stream (cached by the stream's handle; None on the CPU)."""
+        if not self.is_cuda:
+            return None
+        ts = torch.cuda.current_stream(self.wp_device.ordinal)
+        stream = self._streams.get(ts.cuda_stream)
+        if stream is None:
+            stream = self._streams[ts.cuda_stream] = wp.stream_from_torch(ts)
+        return stream
+
+    def reset_counts(self) -> None:
+        if self.is_cuda:
+            self.counts.zero_()
+        else:
+            self._counts_host.fill(0)
+
+    def read_counts(self) -> list[int]:
+        """The counts on the host: on CUDA a device-to-host copy, which waits for the launches so far."""
+        return self.counts.tolist() if self.is_cuda else self._counts_host.tolist()
+
+    def set_local_px(self, local_px) -> None:
+        """Upload the frame's (3, B^3) float32 host array (on the CPU a copy into shared memory). On CUDA
+        the staging memory is rewritten by the next call, so ``read_counts`` (which waits for the
+        stream) must come between two calls: ``TsdfMap._integrate_warp`` reads the counts right after."""
+        self._local_px_host[...] = local_px
+        if self.is_cuda:
+            self.local_px.copy_(self._local_px_staging, non_blocking=True)
+
+    def mark(self, *, rot_blocks, start_blocks, band_m, corner_blocks, corner_index, **values) -> None:
+        """Run ``mark_band_blocks`` (``values``: its other arguments by name, tensors included; the
+        (3, 3) / (3,) host arrays passed by value)."""
+        rows, columns = values["rays"].shape[:2]
+        values.update(rot_blocks=_mat33(rot_blocks), start_blocks=_vec3(start_blocks), band_m=_vec3(band_m),
+                      corner_blocks=_vec3(corner_blocks), count=self.counts,
+                      corner_index=wp.vec3i.from_buffer_copy(np.ascontiguousarray(corner_index, dtype=np.int32)))
+        stream = self._stream()
+        if self.is_cuda:
+            self._recorded(self._mark, 0, mark_band_blocks, (rows, columns), values, first_row=0, part=0,
+                           columns_per_run=1).launch(stream=stream)
+            return
+        parts = min(self.parts, torch.get_num_threads(), rows)
+        bounds = [rows * p // parts for p in range(parts + 1)]
+        _run_concurrently(self._split(self._mark, mark_band_blocks, values, [
+            ((bounds[p + 1] - bounds[p], 1), {"first_row": bounds[p], "part": p, "columns_per_run": columns})
+            for p in range(parts)]))
+
+    def select(self, *, num_old: int, rot_cw, t_cw, k4, centre_scale, **values) -> None:
+        """Run ``select_blocks`` over slots [0, num_old)."""
+        if num_old == 0:
+            return
+        values.update(num_old=num_old, rot_cw=_mat33(rot_cw), t_cw=_vec3(t_cw), centre_scale=_vec3(centre_scale),
+                      k=wp.vec4.from_buffer_copy(np.asarray(k4, dtype=np.float32)), count=self.counts)
+        per_run = 1 if self.is_cuda else num_old  # CPU: one thread does all (ascending output)
+        self._recorded(self._select, 0, select_blocks, num_old // per_run, values,
+                       slots_per_run=per_run).launch(stream=self._stream())
+
+    def update_voxels(self, *, num_blocks: int, kr, kt, rgb: torch.Tensor | None, weight_ref_depth_m: float | None,
+                      clear_free_space: bool, truncation_m: float, **values) -> None:
+        """Run ``integrate_voxels`` over ``num_blocks`` blocks (the selected ones, then the new ones).
+        ``rgb`` None: no colour."""
+        if num_blocks == 0:
+            return
+        n_vox = self.local_px.shape[1]
+        values.update(kr=_mat33(kr), kt=_vec3(kt), rgb=self._no_rgb if rgb is None else rgb,
+                      with_color=int(rgb is not None), weight_ref_depth_m=float(weight_ref_depth_m or 0.0),
+                      clear_free_space=int(clear_free_space), truncation_m=float(truncation_m),
+                      inv_truncation=float(1.0 / truncation_m), local_px=self.local_px)
+        if self.is_cuda:  # a thread per voxel
+            self._recorded(self._voxels, 0, integrate_voxels, num_blocks * n_vox, values, first_run=0,
+                           runs_per_block=n_vox, voxels_per_run=1).launch(stream=self._stream())
+            return
+        # CPU: a thread per block, the blocks in 2 parts contiguous ranges that ``parts`` threads take in turn
+        # (a thread the OS schedules late holds no one up); one launch when too few blocks to pay for the hand-off
+        parts = max(1, min(torch.get_num_threads(), num_blocks // 32))
+        chunks = 1 if parts == 1 else 2 * parts
+        bounds = [num_blocks * c // chunks for c in range(chunks + 1)]
+        _run_concurrently(self._split(self._voxels, integrate_voxels, values, [
+            (bounds[c + 1] - bounds[c], {"first_run": bounds[c], "runs_per_block": 1, "voxels_per_run": n_vox})
+            for c in range(chunks)]))
+
+    def _recorded(self, cache: dict, key, kernel, dim, values: dict, **more) -> "wp.Launch":
+        """The recorded launch ``cache[key]`` of ``kernel`` with these arguments (recorded on first use)."""
+        values.update(more)
+        rec = cache.get(key)
+        if rec is None:
+            rec = cache[key] = _Recorded(kernel, self.wp_device, dim, values)
+        return rec.set(dim, values)
+
+    def _split(self, cache: dict, kernel, values: dict, ranges: list) -> list:
+        """CPU launches of ``kernel`` over ranges (dim, own arguments): the first takes ``values``, the
+        others copy its packed arguments (``_Recorded.follow``)."""
+        (dim, own), *rest = ranges
+        launches = [self._recorded(cache, 0, kernel, dim, values, **own)]
+        leader = cache[0]
+        for i, (dim, own) in enumerate(rest, 1):
+            rec = cache.get(i)
+            if rec is None:
+                rec = cache[i] = _Recorded(kernel, self.wp_device, dim, dict(values, **own))
+            launches.append(rec.follow(leader, dim, own))
+        return launches
+
+__all__ = ["PARTS", "IntegrateLaunches"]
