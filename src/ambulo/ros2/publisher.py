@@ -9,14 +9,11 @@ the bridge, which checks and applies them at the next physics step. It dies with
 (``PR_SET_PDEATHSIG``), like the in-process node did: a ``kill -9`` leaves the bag unfinished, but this
 process still leaves the ROS graph cleanly.
 
-Ring (``Ring``): a header of int64 counters (``WRITTEN``, ``READ``, ``WAITING``) then ``slots`` rows of
-float64; a row starts with the stamp (int64 ns) and the bit set of due topics, then the blocks that
-``Layout`` names.
+The ring they share is ``ring.py``.
 """
 
 from __future__ import annotations
 
-import mmap
 import os
 import select
 import signal
@@ -24,14 +21,11 @@ import sys
 import threading
 import time
 from collections import Counter
-from dataclasses import dataclass, field
 
 import numpy as np
 
-WRITTEN, READ, WAITING = 0, 8, 16
-"""int64 indices of the ring's counters, each on its own 64-byte cache line: ``WRITTEN`` is written by
-the physics thread, ``READ`` by the publisher process and ``WAITING`` rarely, so no core's stores
-evict a line the other core polls (false sharing cost the step path ~1 us)."""
+from .ring import CLOCK, IMU0, JOINT_STATES, ODOM, READ, TF, WAITING, WRITTEN, Ring, fence
+
 SPIN_S = 100e-6
 """How long the publisher process spins on the ring for the next snapshot before it naps (flat out,
 snapshots come every few tens of us)."""
@@ -41,56 +35,6 @@ NAP_FOR_S = 0.05
 A wake-up is a write(2) on the physics thread that wakes another CPU: 10-20 us in a virtual machine,
 as much as the step itself; napping, the publisher finds a snapshot at most ``NAP_S`` late and the
 physics thread never pays for it while topics flow (at 1 kHz, or 20 Hz and up)."""
-HEADER_BYTES = 192
-CLOCK, JOINT_STATES, TF, ODOM, IMU0 = 1, 2, 4, 8, 16
-"""Bits of a slot's due topics; IMU i is ``IMU0 << i``."""
-
-
-@dataclass
-class Layout:
-    """Where each block sits in a slot row (column offset, length)."""
-
-    slots: int
-    width: int = 2
-    blocks: dict[str, tuple[int, int]] = field(default_factory=dict)
-
-    def add(self, name: str, count: int) -> None:
-        self.blocks[name] = (self.width, count)
-        self.width += count
-
-    @property
-    def nbytes(self) -> int:
-        return HEADER_BYTES + 8 * self.slots * self.width
-
-
-class Ring:
-    """The shared-memory ring over ``fd`` (both processes map the same ``memfd``)."""
-
-    def __init__(self, fd: int, layout: Layout):
-        self.map = mmap.mmap(fd, layout.nbytes)
-        self.header = np.ndarray((HEADER_BYTES // 8,), np.int64, self.map, 0)
-        self.rows = np.ndarray((layout.slots, layout.width), np.float64, self.map, HEADER_BYTES)
-        self.irows = self.rows.view(np.int64)
-        self.layout = layout
-
-    def block(self, slot: int, name: str) -> np.ndarray:
-        start, count = self.layout.blocks[name]
-        return self.rows[slot, start:start + count]
-
-    def close(self) -> None:
-        del self.header, self.rows, self.irows
-        self.map.close()
-
-
-_FENCE = threading.Lock()
-
-
-def fence() -> None:
-    """A full memory barrier (taking a lock is an atomic read-modify-write): x86 may otherwise let a
-    load pass an earlier store, and the ring's wake-up protocol (the bridge: store ``WRITTEN``, load
-    ``WAITING``; the publisher: store ``WAITING``, load ``WRITTEN``) needs both to see one of them."""
-    _FENCE.acquire()
-    _FENCE.release()
 
 
 def quat_rotate_inverse(q_wxyz: np.ndarray, vec: np.ndarray) -> np.ndarray:
@@ -207,7 +151,11 @@ class Publisher:
     def _on_matched(self, key: str, info) -> None:
         """A subscription matched (or left) one of our writers: the bridge keeps the count and the wall
         time of the change (``Ros2Bridge.subscribers``), e.g. to know from when a subscriber gets everything."""
-        self.send(("matched", self._pubs[key][3] if key in self._pubs else key, int(info.current_count), time.time()))
+        at = time.time()
+        end = time.monotonic() + 1.0
+        while key not in self._pubs and time.monotonic() < end:  # the event can come (in the executor
+            time.sleep(0.001)  # thread) before create_publisher has returned in ``advertise``
+        self.send(("matched", self._pubs[key][3] if key in self._pubs else key, int(info.current_count), at))
 
     # -- commands: forwarded as they are; the bridge checks and applies them ------------------------
     def send(self, msg) -> None:

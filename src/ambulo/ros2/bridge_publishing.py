@@ -1,0 +1,208 @@
+"""``PhysicsPublishing``: a ``Ros2Bridge``'s publishing on the physics thread (part of ``Ros2Bridge``, a mixin).
+
+Before each physics step (``_on_physics_step``) the rate schedule says which topics are due at the
+simulated time; the state topics' arrays are copied into the next free slot of the shared-memory ring
+(``_snapshot``: the only publishing work on the physics thread for them), and the cameras' images
+(through the frame ring) and the lidars' messages are handed to the publisher process. These methods
+live on the bridge itself, not behind a delegate: the step path is timed in microseconds.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+
+import numpy as np
+
+from . import cdr
+from . import messages as m
+from .frames import xyzw
+from .ring import _FENCE, HEADER_BYTES, IMU0, JOINT_STATES, ODOM, READ, TF, WAITING, WRITTEN
+
+_INF = float("inf")
+
+
+class PhysicsPublishing:
+    """``Ros2Bridge``'s physics-thread side: the schedule (``_schedule``, ``_last``), ``publish_now``,
+    the ring snapshots and the camera, lidar and other messages sent to the publisher process."""
+
+    # -- the step path: the rate schedule, then a snapshot into the ring --------------------------
+    def _on_physics_step(self, _dt: float) -> None:
+        if self._pending or self.cmd_vel is not None or self.walking:
+            self._apply_commands()
+        now = self._now()
+        if not self._previous_s <= now < self._next_due_s:  # else nothing is due (most steps at high
+            self.publish_now(now)  # physics rates)
+
+    def publish_now(self, now: float | None = None) -> None:
+        """Snapshot every state topic that is due at the current simulated time (``now``, s) for the
+        publisher process; render and send the cameras and lidars that are due."""
+        if now is None:
+            now = self._now()
+        if self._previous_s <= now < self._next_due_s:  # the common case at high physics rates
+            return
+        flags, others, soonest = 0, None, _INF
+        # ambulo.sim.base_sensor.due() per topic, inlined, with each topic's next due time cached:
+        # [bit (0: a camera or lidar), key, period s, last s, next due s]
+        for entry in self._schedule:
+            last = entry[3]
+            if now >= entry[4] or now < last:
+                period = entry[2]
+                if now != last if period <= 0.0 else (now < last or last == -_INF or math.floor(
+                        now / period + 1e-9) != math.floor(last / period + 1e-9)):
+                    entry[3] = last = now
+                    if entry[0]:
+                        flags |= entry[0]
+                    else:
+                        others = [*(others or ()), entry[1]]
+                entry[4] = math.nextafter(last, _INF) if period <= 0.0 else \
+                    (math.floor(last / period + 1e-9) + 1 - 1e-9) * period
+            if entry[4] < soonest:
+                soonest = entry[4]
+        self._previous_s, self._next_due_s = now, soonest
+        ns = round(now * 1e9)
+        if flags:
+            self._snapshot(flags, ns)
+        if others:
+            for key in others:
+                i = int(key[6:]) if key.startswith("camera") else int(key[5:])
+                if key.startswith("camera"):
+                    self._publish_camera(i, self.cameras[i], now, ns)
+                else:
+                    self._publish(key, self._serialize(self._lidar_msg(self.lidars[i], now)), ns)
+
+    def _snapshot(self, flags: int, ns: int) -> None:
+        """Copy what the due topics need into the next free slot (the only publishing work on the
+        physics thread: a few NumPy copies)."""
+        header, slots = self._header, self._slots
+        written = header[WRITTEN]
+        if written - self._read_seen >= slots:  # READ is the other core's line: loaded only when the
+            self._read_seen = header[READ]  # ring looked full at the last value seen
+        if written - self._read_seen >= slots:
+            if self.cfg.drop_when_behind:
+                self.dropped += 1
+                return
+            while written - header[READ] >= slots:  # the publisher is behind: wait for a free slot
+                if self._proc.poll() is not None:
+                    raise RuntimeError("the ROS 2 publisher process has exited")
+                os.sched_yield()  # (time.sleep would oversleep by the timer slack, 50 us)
+            self._read_seen = header[READ]
+        start, joints, bodies, sensordata, odom, imus = self._slot_views[written % slots]
+        header[start], header[start + 1] = ns, flags
+        if self._staged:
+            for stage, get in self._staged:
+                np.copyto(stage, get())
+        if flags & (JOINT_STATES | ODOM):
+            for dst, src in joints:
+                np.copyto(dst, src)
+        if flags & TF:
+            for dst, src in bodies:
+                np.copyto(dst, src)
+        if flags >= ODOM:
+            self._snapshot_rest(flags, sensordata, odom, imus)
+        header[WRITTEN] = written + 1
+        _FENCE.acquire()  # a full barrier (fence()): the store above before the load below (the
+        _FENCE.release()  # publisher process does the converse)
+        if header[WAITING]:  # the publisher process sleeps or is about to: wake it (once: clearing the
+            header[WAITING] = 0  # flag before the write cannot hide a later sleep, which the byte ends)
+            try:
+                os.write(self._wake_w, b"\0")
+            except BlockingIOError:  # the pipe is full of wake-ups already
+                pass
+        if self.on_publish is not None:
+            for bit, key, *_ in self._schedule:
+                if flags & bit:
+                    self.on_publish(self._topic[key], ns)
+
+    def _snapshot_rest(self, flags: int, sensordata, odom, imus) -> None:
+        if flags & ODOM and odom is not None:
+            d = self.robot.entity.data
+            odom[:] = np.concatenate([d.root_pos_w[0].cpu().numpy(), xyzw(d.root_quat_w[0].cpu().numpy()), np.zeros(36),
+                                      d.root_lin_vel_b[0].cpu().numpy(), d.root_ang_vel_b[0].cpu().numpy(),
+                                      np.zeros(36)])
+        if flags >= IMU0:
+            for i, imu in enumerate(self.imus):
+                if flags & (IMU0 << i):
+                    if self._imu_fast[i]:
+                        np.copyto(sensordata, self._sources["sensordata"])
+                    else:
+                        imus[i][:] = self._imu_values(imu)
+
+    def _publish(self, key: str, data: bytes, stamp_ns: int) -> None:
+        """Send one message built here (images, camera info, lidar) to the publisher process, which
+        publishes it after the snapshots taken before it."""
+        if self.on_publish is not None:
+            self.on_publish(self._topic[key], stamp_ns)
+        self._send(("raw", key, data, stamp_ns, self._header[WRITTEN]))
+
+    # -- cameras, IMUs and lidars ----------------------------------------------------------------
+    def _publish_frame(self, key: str, ns: int, frame_id: str, encoding: str, pixels: np.ndarray) -> None:
+        """An Image through the shared-memory frame ring: written once, the slot number sent after the
+        snapshots taken before it. A full ring waits (lossless) or skips the frame (``drop_when_behind``)."""
+        height, width = pixels.shape[:2]
+        prefix = cdr.image_prefix(ns, frame_id, height, width, encoding, pixels.nbytes // height, pixels.nbytes)
+        nbytes = self._frames.put(prefix, pixels)
+        while nbytes is None:
+            if self.cfg.drop_when_behind:
+                self.dropped_frames += 1
+                return
+            if self._proc.poll() is not None:
+                raise RuntimeError("the ROS 2 publisher process has exited")
+            time.sleep(0.0002)  # a frame takes the publisher ~1 ms: no point spinning
+            nbytes = self._frames.put(prefix, pixels)
+        if self.on_publish is not None:
+            self.on_publish(self._topic[key], ns)
+        self._send(("frame", key, nbytes, ns, self._header[WRITTEN]))
+
+    def _imu_values(self, imu) -> np.ndarray:
+        """The 37 Imu values of a noisy IMU (or one with gravity removed): its noise model runs here."""
+        noise = imu.cfg.noise
+        if any((noise.gyro_noise_density, noise.accel_noise_density, noise.gyro_random_walk, noise.accel_random_walk,
+                noise.gyro_turn_on_bias_std, noise.accel_turn_on_bias_std)):
+            data = imu.get_current_frame()
+            acc, gyro, quat = data.lin_acc_b, data.ang_vel_b, data.quat_w
+        else:  # noiseless: the engine's reading as it is (no noise model to advance)
+            acc, gyro, quat = imu.clean_reading()
+        rate = 1.0 / (imu.update_period_s or self.world.get_physics_dt())
+        # white noise of density sigma_c (unit/sqrt(Hz)) sampled at rate f has variance sigma_c^2 f
+        gyro_var, acc_var = noise.gyro_noise_density ** 2 * rate, noise.accel_noise_density ** 2 * rate
+        return np.concatenate([xyzw(quat[0].cpu().numpy()), np.zeros(9), gyro[0].cpu().numpy(),
+                               np.diag([gyro_var] * 3).ravel(), acc[0].cpu().numpy(), np.diag([acc_var] * 3).ravel()])
+
+    def _publish_camera(self, i: int, camera, now: float, ns: int) -> None:
+        wanted = ("rgb", "depth") if self.cfg.publish_depth else ("rgb",)
+        out = camera.capture(0, annotators=wanted)
+        frame = self._sensor_frame[id(camera)]
+        rgb = np.ascontiguousarray(out["rgb"][..., :3])
+        height, width = rgb.shape[:2]
+        self._publish_frame(f"rgb{i}", ns, frame, "rgb8", rgb)
+        if self.cfg.publish_depth:  # REP 118: 32FC1, metres along the optical axis
+            self._publish_frame(f"depth{i}", ns, frame, "32FC1", np.ascontiguousarray(out["depth"], "<f4"))
+        cam = out["camera"]
+        self._publish(f"info{i}", self._serialize(m.camera_info(now, frame, cam["width"], cam["height"],
+                                                                cam["intrinsics"])), ns)
+
+    def _lidar_msg(self, lidar, now: float):
+        data, frame = lidar.get_current_frame(), self._sensor_frame[id(lidar)]
+        if lidar.shape[0] == 1:
+            return m.laser_scan(now, frame, lidar.azimuths_rad, data.ranges[0, 0].cpu().numpy(), lidar.cfg.min_range_m,
+                                lidar.cfg.max_range_m, lidar.update_period_s or 1.0 / self.cfg.lidar_rate_hz)
+        points = data.points_s[0][data.hit[0].reshape(-1)].cpu().numpy()
+        return m.point_cloud(now, frame, points)
+
+    # -- the ring views and the schedule (made by ``_start_publisher``) --------------------------
+    def _views_of_slot(self, slot: int) -> tuple:
+        """(index of the slot's first int64 in ``_header``, the copies to make: (destination, source)...)."""
+        ring = self._ring
+        return (HEADER_BYTES // 8 + slot * ring.layout.width,
+                [(ring.block(slot, n), src) for n, src in self._sources.items() if n in ("qpos", "qvel", "qfrc")],
+                [(ring.block(slot, n), src) for n, src in self._sources.items() if n in ("xpos", "xquat")],
+                ring.block(slot, "sensordata") if "sensordata" in self._sources else None,
+                ring.block(slot, "odom") if "odom" in ring.layout.blocks else None,
+                {i: ring.block(slot, f"imu{i}") for i in range(len(self.imus)) if f"imu{i}" in ring.layout.blocks})
+
+    @property
+    def _last(self) -> dict[str, float]:
+        """key (``clock``, ``imu0``, ``camera0``, ``lidar0``, ...) -> simulated time it was last due."""
+        return {entry[1]: entry[3] for entry in self._schedule if entry[3] != -_INF}
