@@ -144,7 +144,10 @@ class Publisher:
         from .raw_types import clear_rcutils_error  # noqa: PLC0415
 
         profile = self._qos[kind]
-        matched = PublisherEventCallbacks(matched=lambda info, key=key: self._on_matched(key, info))
+        # the full name before the writer exists: its matched event may fire (in the executor thread)
+        # before create_publisher returns
+        name = self.node.resolve_topic_name(topic)
+        matched = PublisherEventCallbacks(matched=lambda info: self._on_matched(name, info))
         pub = self.node.create_publisher(self._types[typename], topic, profile, event_callbacks=matched)
         clear_rcutils_error()
         offered = bag_qos(reliable=profile.reliability == ReliabilityPolicy.RELIABLE,
@@ -152,14 +155,10 @@ class Publisher:
         self._pubs[key] = (pub, typename, offered, pub.topic_name)
         return pub.topic_name
 
-    def _on_matched(self, key: str, info) -> None:
-        """A subscription matched (or left) one of our writers: the bridge keeps the count and the wall
+    def _on_matched(self, topic: str, info) -> None:
+        """A subscription matched (or left) our writer on ``topic``: the bridge keeps the count and the wall
         time of the change (``Ros2Bridge.subscribers``), e.g. to know from when a subscriber gets everything."""
-        at = time.time()
-        end = time.monotonic() + 1.0
-        while key not in self._pubs and time.monotonic() < end:  # the event can come (in the executor
-            time.sleep(0.001)  # thread) before create_publisher has returned in ``advertise``
-        self.send(("matched", self._pubs[key][3] if key in self._pubs else key, int(info.current_count), at))
+        self.send(("matched", topic, int(info.current_count), time.time()))
 
     # -- commands: forwarded as they are; the bridge checks and applies them ------------------------
     def send(self, msg) -> None:
