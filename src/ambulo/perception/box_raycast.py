@@ -12,14 +12,7 @@ import numpy as np
 import torch
 
 from .frames import RgbdFrame
-from .scenes import SolidBox
-
-
-def _boxes(solids: list[SolidBox], floor_half_m: float | None) -> list[SolidBox]:
-    boxes = list(solids)
-    if floor_half_m is not None:  # the same floor slab as reference.box_meshes: top face at z = 0
-        boxes.append(SolidBox("floor", (0.0, 0.0, -0.05), (floor_half_m, floor_half_m, 0.05)))
-    return boxes
+from .scenes import SolidBox, with_floor
 
 
 def box_depth(solids: list[SolidBox], intrinsics, pose_wc, width: int, height: int, *,
@@ -37,7 +30,7 @@ def box_depth(solids: list[SolidBox], intrinsics, pose_wc, width: int, height: i
     dirs_w = rays_c @ pose[:3, :3].T  # (N, 3), camera z component 1
     origin_w = pose[:3, 3]
     nearest = torch.full((dirs_w.shape[0],), torch.inf, dtype=torch.float64, device=device)
-    for box in _boxes(solids, floor_half_m):
+    for box in with_floor(solids, floor_half_m):
         rot = torch.as_tensor(box.rotation(), device=device)
         half = torch.as_tensor(box.half_m, dtype=torch.float64, device=device)
         origin_b = (origin_w - torch.as_tensor(box.center_m, dtype=torch.float64, device=device)) @ rot  # (3,)

@@ -15,7 +15,7 @@ import numpy as np
 import torch
 
 from .frames import RgbdFrame
-from .scenes import SolidBox
+from .scenes import SolidBox, with_floor
 
 
 def _o3d():
@@ -27,10 +27,7 @@ def box_meshes(solids: list[SolidBox], floor_half_m: float | None = 6.0):
     """Open3D legacy triangle meshes of the boxes (and a floor slab top at z = 0 if asked)."""
     o3d = _o3d()
     meshes = []
-    boxes = list(solids)
-    if floor_half_m is not None:
-        boxes.append(SolidBox("floor", (0.0, 0.0, -0.05), (floor_half_m, floor_half_m, 0.05)))
-    for box in boxes:
+    for box in with_floor(solids, floor_half_m):
         half = np.asarray(box.half_m, float)
         mesh = o3d.geometry.TriangleMesh.create_box(*(2 * half))
         mesh.translate(-half)

@@ -45,6 +45,14 @@ class SolidBox:
         return np.all(np.abs(local) <= self.half_m, axis=-1)
 
 
+def with_floor(solids: list[SolidBox], floor_half_m: float | None) -> list[SolidBox]:
+    """``solids`` plus, unless ``floor_half_m`` is None, a floor slab 10 cm thick whose top face is z = 0
+    (what the ground truth of a scene is built from: meshes for Open3D, boxes for the ray caster)."""
+    if floor_half_m is None:
+        return list(solids)
+    return [*solids, SolidBox("floor", (0.0, 0.0, -0.05), (floor_half_m, floor_half_m, 0.05))]
+
+
 @dataclass(kw_only=True)
 class IndoorSceneCfg:
     """Size, clutter and seed of the indoor scene."""
@@ -211,5 +219,5 @@ def scene_names() -> list[str]:
     return ["indoor"]
 
 
-__all__ = ["HEAD_CAMERA_PRIM", "ROBOT_PRIM", "IndoorScene", "IndoorSceneCfg", "SolidBox", "build_indoor_scene",
+__all__ = ["HEAD_CAMERA_PRIM", "ROBOT_PRIM", "IndoorScene", "IndoorSceneCfg", "SolidBox", "build_indoor_scene", "with_floor",
            "noise_texture", "scene_names"]
