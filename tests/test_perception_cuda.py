@@ -28,11 +28,17 @@ def _frames(count: int, width: int = 160, height: int = 120):
     return frames
 
 
-def test_cuda_tsdf_equals_the_cpu_reference():
+@pytest.mark.parametrize("capacity,cfg", [(1024, {}), (8, {}), (1024, {"depth_max_m": 60.0})],
+                         ids=["graph", "graph-growing", "eager-sorted-allocation"])
+def test_cuda_tsdf_equals_the_cpu_reference(capacity, cfg):
+    """The CUDA frame as one captured graph (capacity 8: early frames overflow, are skipped whole, the
+    storage grows and they are replayed), and the eager launches where the depth range is too deep for
+    the dense volume, against the CPU torch reference."""
     pytest.importorskip("warp")
     from ambulo.perception.tsdf import TsdfCfg, TsdfMap
 
-    cpu, gpu = TsdfMap(TsdfCfg(), backend="torch"), TsdfMap(TsdfCfg(), device="cuda")
+    cpu = TsdfMap(TsdfCfg(**cfg), backend="torch")
+    gpu = TsdfMap(TsdfCfg(**cfg), device="cuda", capacity=capacity)
     for frame in _frames(8):
         cpu.integrate(frame)
         gpu.integrate(type(frame)(frame.depth_m.cuda(), frame.rgb.cuda(), frame.intrinsics, frame.pose_wc,
@@ -43,6 +49,7 @@ def test_cuda_tsdf_equals_the_cpu_reference():
     torch.testing.assert_close(b.weight.cpu(), a.weight, atol=1e-4, rtol=0)
     torch.testing.assert_close(b.tsdf.cpu(), a.tsdf, atol=1e-4, rtol=0)
     assert (b.color.cpu().int() - a.color.int()).abs().max() <= 1
+    assert cpu.num_blocks == gpu.num_blocks and torch.equal(cpu.block_coords(), gpu.block_coords().cpu())
 
 
 def test_cuda_esdf_equals_the_cpu_esdf():
@@ -50,8 +57,12 @@ def test_cuda_esdf_equals_the_cpu_esdf():
 
     gen = torch.Generator().manual_seed(0)
     sites = torch.rand((70, 45, 23), generator=gen) < 0.01
+    from ambulo.perception.esdf_kernels import exact_edt
+
     for max_cells in (3, 12, 40):
-        torch.testing.assert_close(edt(sites.cuda(), max_cells).cpu(), edt(sites, max_cells), atol=1e-5, rtol=0)
+        cpu = edt(sites, max_cells)
+        assert torch.equal(edt(sites.cuda(), max_cells).cpu(), cpu)  # the window layout
+        assert torch.equal(exact_edt(sites.cuda(), max_cells, window=False).cpu(), cpu)  # a thread per line
 
 
 def test_cuda_box_raycast_equals_the_cpu_one():

@@ -118,6 +118,15 @@ def test_kernel_edt_in_the_cuda_layout_is_exact(shape, density, max_cells):
 
 
 @needs_warp
+@pytest.mark.parametrize("shape,density,max_cells", KERNEL_CASES)
+def test_kernel_edt_in_the_window_layout_is_exact(shape, density, max_cells):
+    """CUDA's default layout (a thread per cell searching its window along each axis), run on the CPU."""
+    sites = np.random.default_rng(sum(shape) + int(density * 1e4)).random(shape) < density
+    ours = esdf_kernels.exact_edt(torch.from_numpy(sites), max_cells, window=True)
+    np.testing.assert_array_equal(ours.numpy(), _scipy_edt(sites, max_cells))
+
+
+@needs_warp
 def test_kernel_edt_is_the_same_split_over_threads():
     """CPU launches split the lines into one range per torch thread; uneven ranges change nothing."""
     sites = torch.from_numpy(np.random.default_rng(3).random((37, 29, 23)) < 0.01)

@@ -124,6 +124,16 @@ class BlockHash:
         it grows)."""
         return self._coord_buf
 
+    def reserve(self, capacity: int) -> None:
+        """Grow the buffers to at least ``capacity`` entries (new tensor objects)."""
+        if capacity > self.capacity:
+            self._alloc(capacity)
+
+    def set_length(self, n: int) -> None:
+        """``n`` entries are valid: the buffers were merged on the device (``tsdf_graph``), which keeps the
+        invariants ``append`` keeps (sorted keys, slot entries from n on their own index)."""
+        self._n = n
+
     def find(self, coords: torch.Tensor) -> torch.Tensor:
         """(N,) int64 slots of the (N, 3) block coordinates; -1 where a block is not allocated."""
         keys = encode(coords)

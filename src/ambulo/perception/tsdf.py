@@ -30,8 +30,9 @@ import torch
 
 from ambulo.utils.checks import check_int, check_positive
 
-from . import tsdf_kernels, tsdf_launches
+from . import tsdf_graph, tsdf_kernels, tsdf_launches
 from .block_hash import BlockHash, raise_out_of_range
+from .tsdf_kernels import S_NUM_BLOCKS, S_PARTS, S_SELECTED, S_STAMP
 from .frames import RgbdFrame, pixel_rays
 from .tsdf_frame import _NO_DEPTH, _FrameBuffers, _FrameGeometry
 from .tsdf_reference import _TorchIntegration, sample_depth
@@ -108,11 +109,13 @@ class TsdfMap(_TorchIntegration):
 
     ``backend`` picks the allocation and per-voxel update: "warp" (fused Warp kernels, ``tsdf_kernels``;
     CPU and CUDA, same result), "torch" (eager torch ops, the reference: ``tsdf_reference``) or "auto" (Warp when
-    importable, on the CPU too, where it measured faster than torch: see ``tsdf_kernels``).
+    importable, on the CPU too, where it measured faster than torch: see ``tsdf_kernels``). With Warp on
+    CUDA a frame is one captured graph (``tsdf_graph``); ``graph=True`` does that on the CPU too (a replay
+    there runs on one thread: for tests, slower than the default).
     """
 
     def __init__(self, cfg: TsdfCfg | None = None, device: torch.device | str = "cpu", capacity: int = 1024,
-                 backend: str = "auto"):
+                 backend: str = "auto", graph: bool = False):
         self.cfg = cfg or TsdfCfg()
         self.device = torch.device(device)
         if backend not in ("auto", "warp", "torch"):
@@ -153,7 +156,11 @@ class TsdfMap(_TorchIntegration):
             """(capacity, parts) int32 stamp of the frame whose allocation band last touched each slot, per
             part of ``mark_band_blocks``."""
             self._selected = torch.zeros(capacity, dtype=torch.int64, device=self.device)
-            """(capacity,) int64 old slots this frame updates, the first ``counts[0]`` of them."""
+            """(capacity,) int64 old slots this frame updates, the first ``state[S_SELECTED]`` of them."""
+            self._graph = tsdf_graph.IntegrateGraph(self._launches) if self._launches.is_cuda or graph else None
+            """The frame as one captured graph (CUDA; on the CPU only when asked: ``graph``), else None."""
+            self._state_synced = False
+            """Whether ``state[S_NUM_BLOCKS]`` holds the block count (the graph keeps it; the eager path not)."""
 
     @property
     def num_blocks(self) -> int:
@@ -230,10 +237,22 @@ class TsdfMap(_TorchIntegration):
         """(3,) float32 block coordinate of cell 0 of the dense volume around the camera."""
         return np.floor(g.position_blocks) - np.float32(buf.r_blocks)
 
+    @property
+    def block_radius_m(self) -> float:
+        """Half a block's diagonal (rounded up a little), m, a float32 value (torch and Warp agree)."""
+        return float(np.float32(0.87 * self.cfg.block_size_m))
+
     def _block_radius(self, g: _FrameGeometry) -> tuple[float, float]:
-        """Half a block's diagonal, m, and that times fx (float32 values, so torch and Warp agree)."""
-        radius = np.float32(0.87 * self.cfg.block_size_m)
+        """``block_radius_m`` and that times fx (float32 values, so torch and Warp agree)."""
+        radius = np.float32(self.block_radius_m)
         return float(radius), float(radius * g.k[0, 0])
+
+    def _reserve(self, blocks: int) -> None:
+        """Storage and hash capacity for ``blocks`` blocks (doubling), the storage at least the hash's (the
+        graph path checks its new blocks against the hash's capacity)."""
+        if blocks > self.hash.capacity:
+            self.hash.reserve(max(blocks, 2 * self.hash.capacity))
+        self._grow(self.hash.capacity)
 
     def integrate(self, frame: RgbdFrame) -> None:
         """Fuse one frame (depth, optional colour, ``pose_wc``) into the map."""
@@ -251,50 +270,78 @@ class TsdfMap(_TorchIntegration):
 
     def _integrate_warp(self, depth: torch.Tensor, rgb: torch.Tensor | None, buf: _FrameBuffers,
                         g: _FrameGeometry) -> None:
-        """``integrate`` in recorded Warp launches: pad the frame, mark the band's blocks (looking them up
-        in the hash), select the old blocks to update, then one host read of the counters (new keys,
-        selected blocks) to allocate the new blocks, and update the voxels of the selected and the new
-        blocks. Torch ops per frame: the padded depth copy, on CUDA the counters' reset and read and the
-        local offsets' upload (none of those three on the CPU: numpy views), and when blocks are added
-        none more on the CPU, 8 small ones on CUDA (the hash's in-place merge: its buffers stay the tensors
-        the launches bind); the per-frame matrices go to the kernels by value."""
-        cfg, launches = self.cfg, self._launches
-        self._stamp += 1
-        stamp, num_old = self._stamp, self.num_blocks
-        launches.reset_counts()
+        """``integrate`` with the Warp kernels: as one captured graph (``_integrate_graph``) on CUDA, else
+        in recorded launches (``_integrate_eager``)."""
+        corner = self._corner_blocks(buf, g) if buf.volume is not None else np.zeros(3, np.float32)
+        _, radius_px = self._block_radius(g)
+        self._launches.set_frame(g, corner, radius_px, rgb is not None)
         # the padded depth copy in one torch op (0.03 ms; a Warp kernel took ~1 ms: Warp's CPU code does not
         # vectorise), on one torch thread: a parallel region leaves torch's OpenMP threads spinning for ms
         # on the cores the voxel launches then need (on 2 cores the update took 2.8 ms instead of 2.0).
         # The kernels read only this copy, so the frame's depth tensor is never handed to Warp
         with _one_torch_thread(depth.device):
             torch.nan_to_num(depth, nan=_NO_DEPTH, posinf=_NO_DEPTH, neginf=_NO_DEPTH, out=buf.depth_inner)
+        if self._graph is not None and buf.volume is not None:
+            self._integrate_graph(rgb, buf)
+        else:
+            self._integrate_eager(rgb, buf, g)
+
+    def _integrate_graph(self, rgb: torch.Tensor | None, buf: _FrameBuffers) -> None:
+        """The frame as one graph replay (``tsdf_graph``): upload the params, copy the colour in, replay,
+        read the state once. A frame whose new blocks did not fit changed nothing: grow, replay it."""
+        launches, graph = self._launches, self._graph
+        if not self._state_synced:  # after an eager frame (or none yet): the graph keeps the count from here
+            launches.state[S_NUM_BLOCKS] = self.num_blocks
+            launches.state[S_STAMP] = self._stamp
+            self._state_synced = True
+        self._reserve(self.num_blocks)
+        launches.upload()
+        while True:
+            graph.bind(self, buf, self.cfg)
+            if rgb is not None:
+                graph.rgb.copy_(rgb)
+            graph.launch()
+            st = launches.read_state()  # the one host read (waits for the frame)
+            if tsdf_graph.check_state(st) != tsdf_graph.SKIP_FULL:  # raises for a block beyond the key range
+                break
+            self._reserve(st[S_NUM_BLOCKS] + st[S_PARTS])
+        self.hash.set_length(st[S_NUM_BLOCKS])
+        self._stamp = st[S_STAMP]
+
+    def _integrate_eager(self, rgb: torch.Tensor | None, buf: _FrameBuffers, g: _FrameGeometry) -> None:
+        """``integrate`` in recorded Warp launches: mark the band's blocks (looking them up in the hash),
+        select the old blocks to update, allocate the new blocks on the host and update the voxels of the
+        selected and the new blocks. On the CPU the state is host memory (no reads); on CUDA it is read
+        once, after the selection."""
+        cfg, launches = self.cfg, self._launches
+        self._stamp += 1
+        stamp, num_old = self._stamp, self.num_blocks
+        self._state_synced = False
+        launches.begin_host_frame(stamp, num_old)
+        launches.upload()
         if buf.volume is not None:
-            corner = self._corner_blocks(buf, g)
             launches.mark(
-                depth_pad_m=buf.depth, stride_px=cfg.allocation_stride, rays=buf.rays, rot_blocks=g.rot_blocks,
-                start_blocks=g.start_blocks, band_m=(-cfg.truncation_m, 0.0, cfg.truncation_m),
-                corner_blocks=corner, corner_index=corner.astype(np.int64), side=2 * buf.r_blocks + 1,
-                depth_min_m=cfg.depth_min_m, depth_max_m=cfg.depth_max_m, stamp=stamp,
-                volume_stamp=buf.volume_stamp, keys=self.hash.key_buffer, key_slots=self.hash.key_slot_buffer,
-                num_keys=num_old, slot_stamp=self._slot_stamp, new_keys=buf.new_keys)
+                depth_pad_m=buf.depth, stride_px=cfg.allocation_stride, rays=buf.rays,
+                band_m=(-cfg.truncation_m, 0.0, cfg.truncation_m), side=2 * buf.r_blocks + 1,
+                depth_min_m=cfg.depth_min_m, depth_max_m=cfg.depth_max_m, volume_stamp=buf.volume_stamp,
+                keys=self.hash.key_buffer, key_slots=self.hash.key_slot_buffer, slot_stamp=self._slot_stamp,
+                new_keys=buf.new_keys)
+            if not launches.is_cuda and any(launches.part_counts(launches.read_state())[1]):
+                raise_out_of_range()  # before the selection: the map is unchanged
         else:  # the depth range is too deep for a dense volume: the torch path's sort-based allocation
-            slots = self._allocate(depth, buf, g)  # may grow the storage, _slot_stamp included
+            slots = self._allocate(buf.depth_inner, buf, g)  # may grow the storage, _slot_stamp included
             self._slot_stamp[slots, 0] = stamp
-        radius, radius_px = self._block_radius(g)
-        k = g.k
         launches.select(
-            num_old=num_old, stamp=stamp, slot_stamp=self._slot_stamp, slot_coords=self.hash.slot_coord_buffer,
-            rot_cw=g.rot_cw, t_cw=g.t_cw, k4=(k[0, 0], k[1, 1], k[0, 2], k[1, 2]),
-            centre_scale=(0.5, cfg.block_size_m, 0.5 * cfg.voxel_size_m), radius_m=radius, radius_px_m=radius_px,
+            num_old=num_old, slot_stamp=self._slot_stamp, slot_coords=self.hash.slot_coord_buffer,
+            centre_scale=(0.5, cfg.block_size_m, 0.5 * cfg.voxel_size_m), radius_m=self.block_radius_m,
             truncation_m=cfg.truncation_m, depth_min_m=cfg.depth_min_m, depth_max_m=cfg.depth_max_m,
             depth_pad_m=buf.depth, has_surface=self.has_surface, selected=self._selected)
-        launches.set_local_px(g.local_px)
-        counts = launches.read_counts()  # the one host read (on CUDA it waits for the kernels so far)
-        n_selected = counts[0]
+        st = launches.read_state()  # on CUDA the one host read (it waits for the kernels so far)
+        new_counts, out_of_range = launches.part_counts(st)
         if buf.volume is not None:
-            if any(counts[2::2]):
+            if any(out_of_range):
                 raise_out_of_range()
-            new = [buf.new_keys[p, :n] for p, n in enumerate(counts[1::2]) if n]
+            new = [buf.new_keys[p, :n] for p, n in enumerate(new_counts) if n]
             if new:
                 # each part's keys are distinct; a block new to two parts is in both lists
                 if len(new) == 1:
@@ -302,13 +349,14 @@ class TsdfMap(_TorchIntegration):
                 else:
                     self.hash.append(torch.unique(torch.cat(new)))
                 self._grow(self.num_blocks)
+        launches.set_new_blocks(self.num_blocks - num_old)
         launches.update_voxels(
-            num_blocks=n_selected + self.num_blocks - num_old, selected=self._selected, num_selected=n_selected,
-            first_new_slot=num_old, slot_coords=self.hash.slot_coord_buffer, block_voxels=cfg.block_voxels,
-            voxel_size_m=cfg.voxel_size_m, kr=g.kr, kt=g.kt, depth_pad_m=buf.depth, rgb=rgb,
-            truncation_m=cfg.truncation_m, depth_min_m=cfg.depth_min_m, depth_max_m=cfg.depth_max_m,
-            max_weight=cfg.max_weight, weight_ref_depth_m=cfg.weight_ref_depth_m, clear_free_space=cfg.clear_free_space,
-            tsdf=self.tsdf, weight=self.weight, color=self.color, updated=self.updated, has_surface=self.has_surface)
+            num_blocks=st[S_SELECTED] + self.num_blocks - num_old, selected=self._selected,
+            slot_coords=self.hash.slot_coord_buffer, block_voxels=cfg.block_voxels, voxel_size_m=cfg.voxel_size_m,
+            depth_pad_m=buf.depth, rgb=rgb, truncation_m=cfg.truncation_m, depth_min_m=cfg.depth_min_m,
+            depth_max_m=cfg.depth_max_m, max_weight=cfg.max_weight, weight_ref_depth_m=cfg.weight_ref_depth_m,
+            clear_free_space=cfg.clear_free_space, tsdf=self.tsdf, weight=self.weight, color=self.color,
+            updated=self.updated, has_surface=self.has_surface)
 
     def clear_updated(self) -> torch.Tensor:
         """Slots of the blocks changed since the last call (and forget them)."""

@@ -16,10 +16,10 @@ All three kernels read the torch path's padded depth copy (a 1-pixel border of -
 readings as -1e9 too, which fails every depth range test as they do; one torch op, 0.05-0.08 ms,
 where a Warp copy kernel took ~1 ms and bounds checks in the voxel kernel ~0.9 ms more) and the
 voxel kernel the frame's own colour. The small per-frame matrices are computed once on the host and
-passed by value, the voxels' (3, B^3) local offsets uploaded asynchronously (CUDA), so ``integrate``
-waits for the device once per frame: one read of the counters, after ``select_blocks``, which tells
-the host both the new blocks to allocate and the launch size of the voxel update (the new blocks'
-slots follow the selected ones: no second selection pass).
+read from a one-element ``FrameParams`` array and the frame's counters and stamp from an int32
+``state`` array (``S_*``), so a launch's arguments need not change from frame to frame: on CUDA the
+whole frame is one captured graph (``tsdf_graph``), on the CPU recorded launches (``tsdf_launches``).
+The new blocks' slots follow the selected ones: no second selection pass.
 
 On the CPU a Warp launch runs on one thread, and each Warp thread reloads every kernel argument (a
 uint8 or bool store may alias them), so there a kernel thread does a whole block (or image row) in a
@@ -49,7 +49,55 @@ KEY_OFFSET = 1 << 19
 """A block key holds block coordinates offset by this, 20 bits per axis (``block_hash.encode``; the
 Warp-vs-torch test would see other keys as other blocks)."""
 
+S_SELECTED = 0
+"""``state`` entries (an int32 array the kernels share with the host): old blocks the frame updates ..."""
+S_STAMP = 1
+"""... the frame's stamp (a volume cell / slot holding it was marked this frame) ..."""
+S_NUM_BLOCKS = 2
+"""... blocks allocated before this frame (the new ones take slots from here on) ..."""
+S_NEW_BLOCKS = 3
+"""... new blocks the voxel update covers ..."""
+S_SKIP = 4
+"""... non-zero when the frame changes nothing: SKIP_FULL or SKIP_OUT_OF_RANGE ..."""
+S_PARTS = 5
+"""... then per part p of ``mark_band_blocks`` its new keys at S_PARTS + 2 p and its cells beyond the
+key range at S_PARTS + 2 p + 1."""
+SKIP_FULL = 1
+"""The new blocks do not fit the storage (the host grows it and integrates the frame again)."""
+SKIP_OUT_OF_RANGE = 2
+"""A block beyond the key range (the host raises)."""
+
+
+def state_size(parts: int) -> int:
+    return S_PARTS + 2 * parts
+
+
 if wp is not None:
+
+    @wp.struct
+    class FrameParams:
+        """A frame's small matrices, read by the kernels from a one-element array (host memory on the
+        CPU, device memory on CUDA, where a captured graph replays with whatever it holds)."""
+
+        rot_blocks: wp.mat33
+        """R_wc^T / block size: a ray's world direction in blocks per metre is ray @ rot_blocks."""
+        start_blocks: wp.vec3
+        """Camera position in blocks + 0.5 / B."""
+        corner_blocks: wp.vec3
+        """Block coordinate of cell 0 of the dense volume around the camera (float)..."""
+        corner_index: wp.vec3i
+        """... and as integers."""
+        rot_cw: wp.mat33
+        """World-to-camera rotation; t_cw its translation, m."""
+        t_cw: wp.vec3
+        k: wp.vec4
+        """fx, fy, cx, cy, px."""
+        radius_px_m: wp.float32
+        """Half a block's diagonal times fx."""
+        kr: wp.mat33
+        """K' R_cw, K' = K with the principal point shifted by the 1-pixel pad; kt = K' t_cw."""
+        kt: wp.vec3
+        with_color: wp.int32
 
     @wp.func
     def block_key(x: int, y: int, z: int):
@@ -82,50 +130,47 @@ if wp is not None:
         depth_pad_m: wp.array2d(dtype=wp.float32),
         stride_px: wp.int32,
         rays: wp.array3d(dtype=wp.float32),
-        rot_blocks: wp.mat33,
-        start_blocks: wp.vec3,
+        params: wp.array(dtype=FrameParams),
         band_m: wp.vec3,
-        corner_blocks: wp.vec3,
-        corner_index: wp.vec3i,
         side: wp.int32,
         depth_min_m: wp.float32,
         depth_max_m: wp.float32,
-        stamp: wp.int32,
         volume_stamp: wp.array2d(dtype=wp.int32),
         keys: wp.array(dtype=wp.int64),
         key_slots: wp.array(dtype=wp.int64),
-        num_keys: wp.int32,
         slot_stamp: wp.array2d(dtype=wp.int32),
         new_keys: wp.array2d(dtype=wp.int64),
-        count: wp.array(dtype=wp.int32),
+        state: wp.array(dtype=wp.int32),
     ):
         """Block allocation: for every allocation pixel (r, c) = pixel (r s, c s), the volume cells of
         the blocks that the band [d - trunc, d + trunc] of its ray touches (3 samples; a block spans
         >= 2 trunc), with the float32 operations of ``TsdfMap._allocate``'s torch path. A cell is looked
-        at once per frame and ``part``: the first sample to stamp it (``volume_stamp[part, cell]`` =
-        ``stamp``, so the volume is never cleared) looks its block up in the hash: an allocated block gets
-        ``slot_stamp[slot, part] = stamp``, a new one's key is appended to ``new_keys[part]`` at
-        ``count[1 + 2 part]``. Thread (r, j) does columns [j n, (j + 1) n) of row ``first_row`` + r, n =
-        ``columns_per_run``: 1 on CUDA (one launch, part 0: real atomics), a whole row on the CPU, where
-        a launch's threads run one after the other on one OS thread and Warp's CPU atomics are plain
-        read-modify-writes (``atomic_cas`` too): there the rows may be split into ``PARTS`` launches run
-        concurrently, each with its own part of every output, so no two OS threads write the same element
-        (a block new to two parts is in both key lists; the caller merges them).
+        at once per frame and ``part``: the first sample to stamp it (``volume_stamp[part, cell]`` = the
+        frame's stamp, so the volume is never cleared) looks its block up in the hash (its first
+        ``state[S_NUM_BLOCKS]`` sorted keys): an allocated block gets ``slot_stamp[slot, part] = stamp``,
+        a new one's key is appended to ``new_keys[part]`` at ``state[S_PARTS + 2 part]``. Thread (r, j)
+        does columns [j n, (j + 1) n) of row ``first_row`` + r, n = ``columns_per_run``: 1 on CUDA (one
+        launch, part 0: real atomics), a whole row on the CPU, where a launch's threads run one after the
+        other on one OS thread and Warp's CPU atomics are plain read-modify-writes (``atomic_cas`` too):
+        there the rows may be split into ``PARTS`` launches run concurrently, each with its own part of
+        every output, so no two OS threads write the same element (a block new to two parts is in both
+        key lists; the caller merges them).
 
         depth_pad_m: (H + 2, W + 2) float32 the padded depth (non-finite as NO_DEPTH, which fails the
         range test as the raw reading does); pixel (y, x) is at [y + 1, x + 1]. rays: (H/s, W/s, 3) camera
-        rays (z = 1) of the allocation pixels. rot_blocks: R_wc^T / block size, so a ray's world
-        direction in blocks per metre is component a = sum_i ray_i rot_blocks[i, a]. start_blocks: camera
-        position in blocks + 0.5 / B (block = floor(round(p / voxel) / B) = floor(p / block + 0.5 / B)).
-        band_m: -trunc, 0, trunc. corner_blocks / corner_index: block coordinate of cell 0 of the dense
-        side^3 volume of cells around the camera, x-major; samples outside are clamped in.
-        keys, key_slots: the hash's (capacity,) buffers, the first num_keys its sorted keys and their slots.
-        volume_stamp: (parts, side^3) int32. slot_stamp: (capacity, parts) int32. new_keys: (parts, side^3)
-        int64 out; count: (1 + 2 parts,) int32, zero before: count[1 + 2 p] new keys of part p, count[2 + 2 p]
-        its cells beyond the key range (``BlockHash.insert``'s error)."""
+        rays (z = 1) of the allocation pixels. params: the frame's ``rot_blocks``, ``start_blocks``
+        (block = floor(round(p / voxel) / B) = floor(p / block + 0.5 / B)) and the dense side^3 volume's
+        corner (cells x-major; samples outside are clamped in). band_m: -trunc, 0, trunc.
+        keys, key_slots: the hash's (capacity,) buffers. volume_stamp: (parts, side^3) int32. slot_stamp:
+        (capacity, parts) int32. new_keys: (parts, >= side^3) int64 out; ``state``'s part counters zero
+        before; cells beyond the key range are counted at S_PARTS + 2 part + 1 (``BlockHash.insert``'s
+        error)."""
         row, run = wp.tid()
         r = first_row + row
         c_first = run * columns_per_run
+        prm = params[0]
+        stamp = state[S_STAMP]
+        num_keys = state[S_NUM_BLOCKS]
         for c in range(c_first, wp.min(c_first + columns_per_run, rays.shape[1])):
             d = depth_pad_m[r * stride_px + 1, c * stride_px + 1]
             if d >= depth_min_m and d <= depth_max_m:
@@ -136,61 +181,63 @@ if wp is not None:
                     dd = d + band_m[j]
                     cell = int(0)
                     for a in range(3):
-                        ray_a = rx * rot_blocks[0, a] + ry * rot_blocks[1, a] + rz * rot_blocks[2, a]
-                        sample = wp.floor(start_blocks[a] + ray_a * dd)
-                        k = wp.clamp(sample - corner_blocks[a], 0.0, float(side - 1))
+                        ray_a = rx * prm.rot_blocks[0, a] + ry * prm.rot_blocks[1, a] + rz * prm.rot_blocks[2, a]
+                        sample = wp.floor(prm.start_blocks[a] + ray_a * dd)
+                        k = wp.clamp(sample - prm.corner_blocks[a], 0.0, float(side - 1))
                         cell = cell * side + int(k)
                     if volume_stamp[part, cell] != stamp:
                         if wp.atomic_exch(volume_stamp, part, cell, stamp) != stamp:
-                            bx = corner_index[0] + cell // (side * side)
-                            by = corner_index[1] + (cell // side) % side
-                            bz = corner_index[2] + cell % side
+                            bx = prm.corner_index[0] + cell // (side * side)
+                            by = prm.corner_index[1] + (cell // side) % side
+                            bz = prm.corner_index[2] + cell % side
                             if wp.max(wp.max(wp.abs(bx), wp.abs(by)), wp.abs(bz)) >= KEY_OFFSET:
-                                wp.atomic_add(count, 2 + 2 * part, 1)  # beyond the key range: integrate raises
+                                wp.atomic_add(state, S_PARTS + 2 * part + 1, 1)  # beyond the key range
                             else:
                                 key = block_key(bx, by, bz)
                                 slot = find_slot(keys, key_slots, num_keys, key)
                                 if slot >= 0:
                                     slot_stamp[slot, part] = stamp
                                 else:
-                                    new_keys[part, wp.atomic_add(count, 1 + 2 * part, 1)] = key
+                                    new_keys[part, wp.atomic_add(state, S_PARTS + 2 * part, 1)] = key
 
     @wp.kernel(enable_backward=False)
     def select_blocks(
         slots_per_run: wp.int32,
-        num_old: wp.int32,
-        stamp: wp.int32,
         slot_stamp: wp.array2d(dtype=wp.int32),
         slot_coords: wp.array2d(dtype=wp.int64),
-        rot_cw: wp.mat33,
-        t_cw: wp.vec3,
-        k: wp.vec4,
+        params: wp.array(dtype=FrameParams),
         centre_scale: wp.vec3,
         radius_m: wp.float32,
-        radius_px_m: wp.float32,
         truncation_m: wp.float32,
         depth_min_m: wp.float32,
         depth_max_m: wp.float32,
         depth_pad_m: wp.array2d(dtype=wp.float32),
         has_surface: wp.array(dtype=wp.bool),
         selected: wp.array(dtype=wp.int64),
-        count: wp.array(dtype=wp.int32),
+        state: wp.array(dtype=wp.int32),
     ):
-        """The blocks allocated before this frame (slots < ``num_old``) that it updates, appended to
-        ``selected`` at ``count[0]`` (ascending on the CPU): blocks stamped by ``mark_band_blocks`` (in
-        any part) and blocks holding a surface that the view may clear (``TsdfMap._blocks_in_view``, the
-        same float32 operations); the frame's new blocks are updated too, but need no selecting.
-        ``has_surface`` of a selected block is cleared (the voxel update sets it again). Thread ``tid``
-        does slots [tid n, (tid + 1) n), n = ``slots_per_run`` (1 on CUDA, all on the CPU).
+        """The blocks allocated before this frame (slots < ``state[S_NUM_BLOCKS]``) that it updates,
+        appended to ``selected`` at ``state[S_SELECTED]`` (ascending on the CPU): blocks stamped by
+        ``mark_band_blocks`` (in any part) and blocks holding a surface that the view may clear
+        (``TsdfMap._blocks_in_view``, the same float32 operations); the frame's new blocks are updated
+        too, but need no selecting. ``has_surface`` of a selected block is cleared (the voxel update sets
+        it again). Nothing when ``state[S_SKIP]`` is set. Thread ``tid`` does slots [tid n, (tid + 1) n),
+        n = ``slots_per_run`` (1 on CUDA, the capacity on the CPU).
 
-        slot_coords: (capacity, 3) int64 block coordinates. rot_cw, t_cw: world-to-camera. k: fx, fy, cx,
-        cy. centre_scale: (0.5, block size, half a voxel): a block's centre is (b + 0.5) size - half voxel.
-        radius_m: half a block's diagonal, radius_px_m = radius_m fx. slot_stamp: (capacity, parts) int32.
-        depth_pad_m: (H + 2, W + 2) float32 padded depth, as ``mark_band_blocks`` reads it."""
+        slot_coords: (capacity, 3) int64 block coordinates. params: the frame's world-to-camera
+        ``rot_cw``, ``t_cw``, intrinsics ``k`` and ``radius_px_m``. centre_scale: (0.5, block size, half a
+        voxel): a block's centre is (b + 0.5) size - half voxel. radius_m: half a block's diagonal.
+        slot_stamp: (capacity, parts) int32. depth_pad_m: (H + 2, W + 2) float32 padded depth, as
+        ``mark_band_blocks`` reads it."""
+        if state[S_SKIP] != 0:
+            return
         first = wp.tid() * slots_per_run
         h = depth_pad_m.shape[0] - 2
         w = depth_pad_m.shape[1] - 2
-        for i in range(first, wp.min(first + slots_per_run, num_old)):
+        stamp = state[S_STAMP]
+        prm = params[0]
+        rot_cw = prm.rot_cw
+        for i in range(first, wp.min(first + slots_per_run, state[S_NUM_BLOCKS])):
             keep = bool(False)
             for p in range(slot_stamp.shape[1]):
                 if slot_stamp[i, p] == stamp:
@@ -199,13 +246,13 @@ if wp is not None:
                 bx = (float(slot_coords[i, 0]) + centre_scale[0]) * centre_scale[1] - centre_scale[2]
                 by = (float(slot_coords[i, 1]) + centre_scale[0]) * centre_scale[1] - centre_scale[2]
                 bz = (float(slot_coords[i, 2]) + centre_scale[0]) * centre_scale[1] - centre_scale[2]
-                px = bx * rot_cw[0, 0] + by * rot_cw[0, 1] + bz * rot_cw[0, 2] + t_cw[0]
-                py = bx * rot_cw[1, 0] + by * rot_cw[1, 1] + bz * rot_cw[1, 2] + t_cw[1]
-                z = bx * rot_cw[2, 0] + by * rot_cw[2, 1] + bz * rot_cw[2, 2] + t_cw[2]
+                px = bx * rot_cw[0, 0] + by * rot_cw[0, 1] + bz * rot_cw[0, 2] + prm.t_cw[0]
+                py = bx * rot_cw[1, 0] + by * rot_cw[1, 1] + bz * rot_cw[1, 2] + prm.t_cw[1]
+                z = bx * rot_cw[2, 0] + by * rot_cw[2, 1] + bz * rot_cw[2, 2] + prm.t_cw[2]
                 zc = wp.max(z, 1.0e-3)
-                u = int(wp.rint(px / zc * k[0] + k[2]))
-                v = int(wp.rint(py / zc * k[1] + k[3]))
-                margin = int((1.0 / zc) * radius_px_m)
+                u = int(wp.rint(px / zc * prm.k[0] + prm.k[2]))
+                v = int(wp.rint(py / zc * prm.k[1] + prm.k[3]))
+                margin = int((1.0 / zc) * prm.radius_px_m)
                 near = z + radius_m > depth_min_m and z - radius_m < depth_max_m
                 inside = u + margin >= 0 and u - margin < w and v + margin >= 0 and v - margin < h
                 if near and inside and z > 0.0:
@@ -213,17 +260,17 @@ if wp is not None:
                     valid = d >= depth_min_m and d <= depth_max_m
                     keep = not valid or z - radius_m < d + truncation_m
             if keep:
-                selected[wp.atomic_add(count, 0, 1)] = wp.int64(i)
+                selected[wp.atomic_add(state, S_SELECTED, 1)] = wp.int64(i)
                 has_surface[i] = False
 
-    @wp.kernel(enable_backward=False)
-    def integrate_voxels(
-        first_run: wp.int32,
+    @wp.func
+    def update_run(
+        run: int,
         runs_per_block: wp.int32,
         voxels_per_run: wp.int32,
         selected: wp.array(dtype=wp.int64),
-        num_selected: wp.int32,
-        first_new_slot: wp.int32,
+        num_selected: int,
+        first_new_slot: int,
         slot_coords: wp.array2d(dtype=wp.int64),
         block_voxels: wp.int32,
         voxel_size_m: wp.float32,
@@ -246,22 +293,8 @@ if wp is not None:
         updated: wp.array(dtype=wp.bool),
         has_surface: wp.array(dtype=wp.bool),
     ):
-        """Thread ``tid`` updates run ``first_run + tid``: ``voxels_per_run`` consecutive voxels of
-        block i = run // ``runs_per_block`` (runs_per_block * voxels_per_run = V = B^3 voxels per block):
-        one voxel per thread on CUDA, one block per thread on the CPU.
-
-        Block i is slot ``selected[i]`` for i < ``num_selected`` (``select_blocks``' output), else the new
-        slot ``first_new_slot`` + i - ``num_selected`` (the frame's new blocks). slot_coords: (capacity, 3) int64 block coordinates.
-        kr, kt: K' R_cw and K' t_cw (K' = K with the principal point shifted by the 1-pixel pad), so the
-        homogeneous padded-pixel coordinates of block i's origin o = coords B voxel are kr o + kt (summed
-        as ``TsdfMap._project``), and a voxel's are that plus local_px: (3, V) float32 K' R of each local
-        offset. depth_pad_m: (H + 2, W + 2) float32 the frame's depth (non-finite as NO_DEPTH) inside a 1-pixel
-        NO_DEPTH border, read without bounds checks; rgb: (H, W, 3) uint8 the frame's colour (read only
-        when ``with_color``; it needs no padded copy: only updated voxels read it, and their nearest pixel
-        is inside the image, as the border fails the depth range test). tsdf, weight: (capacity, V) float32 and color:
-        (capacity, V, 3) uint8, updated in place. updated, has_surface: (capacity,) bool set True where a
-        voxel of the block was updated / holds tsdf < 0 (``select_blocks`` cleared ``has_surface``)."""
-        run = first_run + wp.tid()
+        """``integrate_voxels``' work for one run: ``voxels_per_run`` consecutive voxels of block
+        i = run // ``runs_per_block``."""
         i = run // runs_per_block
         lv_first = (run - i * runs_per_block) * voxels_per_run
         slot = wp.int64(first_new_slot + i - num_selected)
@@ -340,6 +373,66 @@ if wp is not None:
             updated[slot] = True
         if any_surface != 0:
             has_surface[slot] = True
+
+    @wp.kernel(enable_backward=False)
+    def integrate_voxels(
+        first_run: wp.int32,
+        max_runs: wp.int32,
+        stride: wp.int32,
+        runs_per_block: wp.int32,
+        voxels_per_run: wp.int32,
+        selected: wp.array(dtype=wp.int64),
+        slot_coords: wp.array2d(dtype=wp.int64),
+        block_voxels: wp.int32,
+        voxel_size_m: wp.float32,
+        params: wp.array(dtype=FrameParams),
+        local_px: wp.array2d(dtype=wp.float32),
+        depth_pad_m: wp.array2d(dtype=wp.float32),
+        rgb: wp.array3d(dtype=wp.uint8),
+        truncation_m: wp.float32,
+        inv_truncation: wp.float32,
+        depth_min_m: wp.float32,
+        depth_max_m: wp.float32,
+        max_weight: wp.float32,
+        weight_ref_depth_m: wp.float32,
+        clear_free_space: wp.int32,
+        tsdf: wp.array2d(dtype=wp.float32),
+        weight: wp.array2d(dtype=wp.float32),
+        color: wp.array3d(dtype=wp.uint8),
+        updated: wp.array(dtype=wp.bool),
+        has_surface: wp.array(dtype=wp.bool),
+        state: wp.array(dtype=wp.int32),
+    ):
+        """The voxel update of the frame's blocks: runs [first_run, first_run + max_runs) of the
+        (``state[S_SELECTED]`` + ``state[S_NEW_BLOCKS]``) * ``runs_per_block`` runs, a grid-stride loop
+        (thread ``tid`` does runs first_run + tid, + stride, ...; stride = the launch size), so a launch of fixed size (a captured
+        graph on CUDA) covers however many blocks the frame has. A run is ``voxels_per_run`` consecutive
+        voxels (runs_per_block * voxels_per_run = V = B^3 voxels per block): one voxel on CUDA, a whole
+        block on the CPU.
+
+        Block i is slot ``selected[i]`` for i < ``state[S_SELECTED]`` (``select_blocks``' output), else
+        the new slot ``state[S_NUM_BLOCKS]`` + i - ``state[S_SELECTED]`` (the frame's new blocks).
+        slot_coords: (capacity, 3) int64 block coordinates. params: ``kr``, ``kt`` (the homogeneous
+        padded-pixel coordinates of block i's origin o = coords B voxel are kr o + kt, summed as
+        ``TsdfMap._project``, and a voxel's are that plus local_px: (3, V) float32 K' R of each local
+        offset) and ``with_color``. depth_pad_m: (H + 2, W + 2) float32 the frame's depth (non-finite as
+        NO_DEPTH) inside a 1-pixel NO_DEPTH border, read without bounds checks; rgb: (H, W, 3) uint8 the
+        frame's colour (read only with colour; it needs no padded copy: only updated voxels read it, and
+        their nearest pixel is inside the image, as the border fails the depth range test). tsdf,
+        weight: (capacity, V) float32 and color: (capacity, V, 3) uint8, updated in place. updated,
+        has_surface: (capacity,) bool set True where a voxel of the block was updated / holds tsdf < 0
+        (``select_blocks`` cleared ``has_surface``)."""
+        num_selected = state[S_SELECTED]
+        total = (num_selected + state[S_NEW_BLOCKS]) * runs_per_block
+        end = wp.min(first_run + max_runs, total)
+        run = first_run + wp.tid()
+        prm = params[0]
+        while run < end:
+            update_run(run, runs_per_block, voxels_per_run, selected, num_selected, state[S_NUM_BLOCKS],
+                       slot_coords, block_voxels, voxel_size_m, prm.kr, prm.kt, local_px, depth_pad_m, rgb,
+                       truncation_m, inv_truncation, depth_min_m, depth_max_m, max_weight, weight_ref_depth_m,
+                       clear_free_space, prm.with_color, tsdf, weight, color, updated, has_surface)
+            run += stride
 
 
 def available() -> bool:

@@ -30,8 +30,10 @@ import torch
 
 from .tsdf_kernels import wp
 
+from .tsdf_kernels import S_NEW_BLOCKS, S_NUM_BLOCKS, S_PARTS, S_STAMP, state_size
+
 if wp is not None:  # without Warp, TsdfMap takes its torch path and never makes these launches
-    from .tsdf_kernels import integrate_voxels, mark_band_blocks, select_blocks
+    from .tsdf_kernels import FrameParams, integrate_voxels, mark_band_blocks, select_blocks
 
 PARTS = 1
 """Row ranges of ``mark_band_blocks`` run concurrently on the CPU (read when a map is made), each with its
@@ -51,12 +53,6 @@ def _view(t: torch.Tensor):
     return wp.from_torch(t)
 
 
-def _mat33(m) -> "wp.mat33":
-    """A (3, 3) float32 array as a launch argument, passed by value (no upload, no torch op); a raw
-    copy of its row-major bytes (0.2 us, where building it from 9 floats took 3-10 us)."""
-    return wp.mat33.from_buffer_copy(np.ascontiguousarray(m, dtype=np.float32))
-
-
 def _vec3(v) -> "wp.vec3":
     return wp.vec3.from_buffer_copy(np.ascontiguousarray(v, dtype=np.float32))
 
@@ -72,7 +68,7 @@ class _Recorded:
     def __init__(self, kernel, device, dim, values: dict):
         labels = [a.label for a in kernel.adj.args]
         self._index = {name: i for i, name in enumerate(labels)}
-        self._bound = {name: v for name, v in values.items() if isinstance(v, (torch.Tensor, int, float))}
+        self._bound = {name: v for name, v in values.items() if isinstance(v, (torch.Tensor, int, float, wp.array))}
         self.launch = wp.launch(kernel, dim=dim, device=device, record_cmd=True, inputs=[
             _view(v) if isinstance(v, torch.Tensor) else v for v in (values[name] for name in labels)])
         self._dim = dim
@@ -90,6 +86,8 @@ class _Recorded:
             if isinstance(v, torch.Tensor):
                 bound[name] = v
                 v = _view(v)
+            elif isinstance(v, wp.array):
+                bound[name] = v
             elif isinstance(v, (int, float)):
                 if old == v:
                     continue
@@ -154,12 +152,14 @@ def _run_concurrently(launches: list) -> None:
 
 class IntegrateLaunches:
     """The Warp launches of one ``TsdfMap``'s ``integrate`` on its device, recorded on first use, and
-    the small device buffers they share: ``counts`` and ``local_px``.
+    the small buffers they share: ``state`` (counters, stamp, block counts: ``tsdf_kernels.S_*``),
+    ``params`` (the frame's matrices) and ``local_px``.
 
     Launches go to torch's current stream on CUDA (ordered with the torch ops around them). On the CPU
     ``mark_band_blocks`` runs as ``parts`` concurrent row ranges and ``integrate_voxels`` as up to
     2 ``torch.get_num_threads()`` block ranges taken in turn by that many threads (ranges write disjoint
-    voxels; the per-block flags are only ever set True)."""
+    voxels; the per-block flags are only ever set True). On CUDA ``TsdfMap`` replays these kernels as one
+    captured graph (``tsdf_graph``) and uses the launches here only where its dense volume is too big."""
 
     def __init__(self, device: torch.device, block_voxels: int):
         wp.init()  # no-op once initialised
@@ -169,10 +169,17 @@ class IntegrateLaunches:
         self.parts = 1 if self.is_cuda else PARTS
         """Parts of ``mark_band_blocks`` (the rows of its outputs ``volume_stamp``, ``new_keys``, the
         columns of ``slot_stamp``)."""
-        self.counts = torch.zeros(1 + 2 * self.parts, dtype=torch.int32, device=device)
-        """(1 + 2 parts,) int32: selected blocks, then per part its new keys and out-of-range cells."""
-        self._counts_host = None if self.is_cuda else self.counts.numpy()
-        """The CPU counts as a numpy view: reset and read without a torch op."""
+        self.state = torch.zeros(state_size(self.parts), dtype=torch.int32, device=device)
+        """(S_PARTS + 2 parts,) int32 the kernels' counters and the frame's stamp and block counts."""
+        self._state_host = None if self.is_cuda else self.state.numpy()
+        """The CPU state as a numpy view: set and read without a torch op."""
+        self.params = wp.zeros(1, dtype=FrameParams, device=self.wp_device)
+        """The frame's ``FrameParams`` (one element), read by every kernel."""
+        self._params_staging = wp.zeros(1, dtype=FrameParams, device="cpu", pinned=self.is_cuda) if self.is_cuda \
+            else self.params
+        self.params_host = self._params_staging.numpy()
+        """The params' host memory as a numpy structured array (on CUDA a pinned copy, uploaded by
+        ``upload``)."""
         self.local_px = torch.zeros((3, block_voxels ** 3), dtype=torch.float32, device=device)
         """(3, B^3) float32 the frame's K' R of each local voxel offset (``integrate_voxels``)."""
         self._local_px_staging = (torch.empty_like(self.local_px, device="cpu", pin_memory=True) if self.is_cuda
@@ -180,13 +187,13 @@ class IntegrateLaunches:
         """Host memory of the offsets: on CUDA a pinned staging copy uploaded asynchronously (a pageable
         ``copy_`` waits for the stream: a host sync), on the CPU ``local_px`` itself."""
         self._local_px_host = self._local_px_staging.numpy()
-        self._no_rgb = torch.zeros((1, 1, 3), dtype=torch.uint8, device=device)
+        self.no_rgb = torch.zeros((1, 1, 3), dtype=torch.uint8, device=device)
         self._streams: dict = {}
         self._mark: dict = {}
         self._select: dict = {}
         self._voxels: dict = {}
 
-    def _stream(self):
+    def stream(self):
         """Warp's handle of torch's current stream (cached by the stream's handle; None on the CPU)."""
         if not self.is_cuda:
             return None
@@ -196,32 +203,61 @@ class IntegrateLaunches:
             stream = self._streams[ts.cuda_stream] = wp.stream_from_torch(ts)
         return stream
 
-    def reset_counts(self) -> None:
-        if self.is_cuda:
-            self.counts.zero_()
-        else:
-            self._counts_host.fill(0)
+    def set_frame(self, g, corner_blocks: np.ndarray, radius_px_m: float, with_color: bool) -> None:
+        """Write the frame's ``FrameParams`` and local offsets (``tsdf_frame._FrameGeometry`` ``g``) to host
+        memory; on CUDA ``upload`` sends them. On CUDA the staging memory is rewritten by the next call,
+        so the stream must be waited for in between (``TsdfMap`` reads the state at the end of a frame)."""
+        p = self.params_host
+        p["rot_blocks"][0] = g.rot_blocks
+        p["start_blocks"][0] = g.start_blocks
+        p["corner_blocks"][0] = corner_blocks
+        p["corner_index"][0] = corner_blocks
+        p["rot_cw"][0] = g.rot_cw
+        p["t_cw"][0] = g.t_cw
+        p["k"][0] = (g.k[0, 0], g.k[1, 1], g.k[0, 2], g.k[1, 2])
+        p["radius_px_m"][0] = radius_px_m
+        p["kr"][0] = g.kr
+        p["kt"][0] = g.kt
+        p["with_color"][0] = int(with_color)
+        self._local_px_host[...] = g.local_px
 
-    def read_counts(self) -> list[int]:
-        """The counts on the host: on CUDA a device-to-host copy, which waits for the launches so far."""
-        return self.counts.tolist() if self.is_cuda else self._counts_host.tolist()
-
-    def set_local_px(self, local_px) -> None:
-        """Upload the frame's (3, B^3) float32 host array (on the CPU a copy into shared memory). On CUDA
-        the staging memory is rewritten by the next call, so ``read_counts`` (which waits for the
-        stream) must come between two calls: ``TsdfMap._integrate_warp`` reads the counts right after."""
-        self._local_px_host[...] = local_px
+    def upload(self) -> None:
+        """CUDA: copy the frame's params and offsets from pinned memory on the current stream (async)."""
         if self.is_cuda:
+            wp.copy(self.params, self._params_staging, stream=self.stream())
             self.local_px.copy_(self._local_px_staging, non_blocking=True)
 
-    def mark(self, *, rot_blocks, start_blocks, band_m, corner_blocks, corner_index, **values) -> None:
-        """Run ``mark_band_blocks`` (``values``: its other arguments by name, tensors included; the
-        (3, 3) / (3,) host arrays passed by value)."""
+    def begin_host_frame(self, stamp: int, num_blocks: int) -> None:
+        """Eager path: zero the counters, set the stamp and the blocks allocated so far."""
+        if self.is_cuda:
+            values = torch.zeros(self.state.shape[0], dtype=torch.int32)
+            values[S_STAMP], values[S_NUM_BLOCKS] = stamp, num_blocks
+            self.state.copy_(values)
+            return
+        st = self._state_host
+        st.fill(0)
+        st[S_STAMP], st[S_NUM_BLOCKS] = stamp, num_blocks
+
+    def read_state(self) -> list[int]:
+        """The state on the host: on CUDA a device-to-host copy, which waits for the launches so far."""
+        return self.state.tolist() if self.is_cuda else self._state_host.tolist()
+
+    def set_new_blocks(self, count: int) -> None:
+        """Eager path: the new blocks the voxel update covers (after the host allocated them)."""
+        if self.is_cuda:
+            self.state[S_NEW_BLOCKS] = count
+        else:
+            self._state_host[S_NEW_BLOCKS] = count
+
+    def part_counts(self, st: list[int]) -> tuple[list[int], list[int]]:
+        """From a read ``state``: each part's new keys and cells beyond the key range."""
+        return st[S_PARTS::2], st[S_PARTS + 1::2]
+
+    def mark(self, *, band_m, **values) -> None:
+        """Run ``mark_band_blocks`` (``values``: its other arguments by name, tensors included)."""
         rows, columns = values["rays"].shape[:2]
-        values.update(rot_blocks=_mat33(rot_blocks), start_blocks=_vec3(start_blocks), band_m=_vec3(band_m),
-                      corner_blocks=_vec3(corner_blocks), count=self.counts,
-                      corner_index=wp.vec3i.from_buffer_copy(np.ascontiguousarray(corner_index, dtype=np.int32)))
-        stream = self._stream()
+        values.update(band_m=_vec3(band_m), params=self.params, state=self.state)
+        stream = self.stream()
         if self.is_cuda:
             self._recorded(self._mark, 0, mark_band_blocks, (rows, columns), values, first_row=0, part=0,
                            columns_per_run=1).launch(stream=stream)
@@ -232,30 +268,26 @@ class IntegrateLaunches:
             ((bounds[p + 1] - bounds[p], 1), {"first_row": bounds[p], "part": p, "columns_per_run": columns})
             for p in range(parts)]))
 
-    def select(self, *, num_old: int, rot_cw, t_cw, k4, centre_scale, **values) -> None:
+    def select(self, *, num_old: int, centre_scale, **values) -> None:
         """Run ``select_blocks`` over slots [0, num_old)."""
         if num_old == 0:
             return
-        values.update(num_old=num_old, rot_cw=_mat33(rot_cw), t_cw=_vec3(t_cw), centre_scale=_vec3(centre_scale),
-                      k=wp.vec4.from_buffer_copy(np.asarray(k4, dtype=np.float32)), count=self.counts)
-        per_run = 1 if self.is_cuda else num_old  # CPU: one thread does all (ascending output)
-        self._recorded(self._select, 0, select_blocks, num_old // per_run, values,
-                       slots_per_run=per_run).launch(stream=self._stream())
+        values.update(centre_scale=_vec3(centre_scale), params=self.params, state=self.state)
+        capacity = values["has_surface"].shape[0]
+        dim, per_run = (num_old, 1) if self.is_cuda else (1, capacity)  # CPU: one thread does all (ascending output)
+        self._recorded(self._select, 0, select_blocks, dim, values, slots_per_run=per_run).launch(stream=self.stream())
 
-    def update_voxels(self, *, num_blocks: int, kr, kt, rgb: torch.Tensor | None, weight_ref_depth_m: float | None,
-                      clear_free_space: bool, truncation_m: float, **values) -> None:
+    def update_voxels(self, *, num_blocks: int, rgb: torch.Tensor | None, **values) -> None:
         """Run ``integrate_voxels`` over ``num_blocks`` blocks (the selected ones, then the new ones).
         ``rgb`` None: no colour."""
         if num_blocks == 0:
             return
         n_vox = self.local_px.shape[1]
-        values.update(kr=_mat33(kr), kt=_vec3(kt), rgb=self._no_rgb if rgb is None else rgb,
-                      with_color=int(rgb is not None), weight_ref_depth_m=float(weight_ref_depth_m or 0.0),
-                      clear_free_space=int(clear_free_space), truncation_m=float(truncation_m),
-                      inv_truncation=float(1.0 / truncation_m), local_px=self.local_px)
+        values = voxel_values(self, rgb, **values)
         if self.is_cuda:  # a thread per voxel
-            self._recorded(self._voxels, 0, integrate_voxels, num_blocks * n_vox, values, first_run=0,
-                           runs_per_block=n_vox, voxels_per_run=1).launch(stream=self._stream())
+            dim = num_blocks * n_vox
+            self._recorded(self._voxels, 0, integrate_voxels, dim, values, first_run=0, max_runs=dim, stride=dim,
+                           runs_per_block=n_vox, voxels_per_run=1).launch(stream=self.stream())
             return
         # CPU: a thread per block, the blocks in 2 parts contiguous ranges that ``parts`` threads take in turn
         # (a thread the OS schedules late holds no one up); one launch when too few blocks to pay for the hand-off
@@ -263,7 +295,9 @@ class IntegrateLaunches:
         chunks = 1 if parts == 1 else 2 * parts
         bounds = [num_blocks * c // chunks for c in range(chunks + 1)]
         _run_concurrently(self._split(self._voxels, integrate_voxels, values, [
-            (bounds[c + 1] - bounds[c], {"first_run": bounds[c], "runs_per_block": 1, "voxels_per_run": n_vox})
+            (bounds[c + 1] - bounds[c], {"first_run": bounds[c], "max_runs": bounds[c + 1] - bounds[c],
+                                         "stride": bounds[c + 1] - bounds[c], "runs_per_block": 1,
+                                         "voxels_per_run": n_vox})
             for c in range(chunks)]))
 
     def _recorded(self, cache: dict, key, kernel, dim, values: dict, **more) -> "wp.Launch":
@@ -287,4 +321,15 @@ class IntegrateLaunches:
             launches.append(rec.follow(leader, dim, own))
         return launches
 
-__all__ = ["PARTS", "IntegrateLaunches"]
+
+def voxel_values(launches: IntegrateLaunches, rgb: torch.Tensor | None, *, weight_ref_depth_m: float | None,
+                 clear_free_space: bool, truncation_m: float, **values) -> dict:
+    """``integrate_voxels``' arguments from ``TsdfMap``'s settings and buffers (shared with ``tsdf_graph``)."""
+    values.update(rgb=launches.no_rgb if rgb is None else rgb, weight_ref_depth_m=float(weight_ref_depth_m or 0.0),
+                  clear_free_space=int(clear_free_space), truncation_m=float(truncation_m),
+                  inv_truncation=float(1.0 / truncation_m), local_px=launches.local_px, params=launches.params,
+                  state=launches.state)
+    return values
+
+
+__all__ = ["PARTS", "IntegrateLaunches", "voxel_values"]
