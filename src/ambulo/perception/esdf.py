@@ -75,6 +75,12 @@ def esdf_from_grid(grid: DenseGrid, max_distance_m: float = 2.0, signed: bool = 
     """The ESDF of a TSDF grid: sites are observed voxels behind a surface (``grid.occupied``);
     unobserved voxels are neither sites nor (when signed) free space."""
     max_cells = max(1, int(round(max_distance_m / grid.voxel_size_m)))
+    if (not signed and grid.tsdf.is_cuda and grid.tsdf.ndim == 3 and esdf_kernels.available()
+            and grid.tsdf.is_contiguous() and grid.weight.is_contiguous()):
+        # the same values in 4 launches (masks, then the window EDT clamping and scaling in its last pass)
+        dist, observed = esdf_kernels.occupancy_esdf(grid.tsdf, grid.weight, min_weight, max_cells, grid.voxel_size_m)
+        return Esdf(distance_m=dist, observed=observed, origin_index=grid.origin_index,
+                    voxel_size_m=grid.voxel_size_m, max_distance_m=max_cells * grid.voxel_size_m)
     occupied = grid.occupied(min_weight)
     observed = grid.observed(min_weight)
     # in place: edt's result is ours, and a fresh grid-sized tensor costs page faults on the CPU

@@ -209,10 +209,12 @@ if wp is not None:
 
     @wp.kernel(enable_backward=False)
     def window_pass(f: wp.array3d(dtype=wp.float32), k_max: wp.int32, cap_sq: wp.float64, finish: wp.int32,
-                    out: wp.array3d(dtype=wp.float32)):
+                    clamp_cells: wp.float32, scale: wp.float32, out: wp.array3d(dtype=wp.float32)):
         """A further axis, a thread per cell: min over |k| <= k_max of f[i + k] + k^2 (a nearer minimum
         ends the search: k^2 only grows), the exact 1-D transform for every value <= cap_sq (a parabola
-        from further than k_max adds more than the cap). f, out: (n, P, Q) views (distinct arrays)."""
+        from further than k_max adds more than the cap). f, out: (n, P, Q) views (distinct arrays). The
+        last axis (``finish``) writes min(distance, clamp_cells) * scale (``esdf_from_grid``'s clamp and
+        unit in the same float32 operations; inf and 1 for the bare distance)."""
         i, p, q = wp.tid()
         n = f.shape[0]
         best = wp.float64(f[i, p, q])
@@ -225,6 +227,17 @@ if wp is not None:
                 best = wp.min(best, wp.float64(f[i + k, p, q]) + kk)
             k += 1
         _store(out, i, p, q, best, cap_sq, finish)
+        if finish != 0:
+            out[i, p, q] = wp.min(out[i, p, q], clamp_cells) * scale
+
+    @wp.kernel(enable_backward=False)
+    def classify_voxels(tsdf: wp.array(dtype=wp.float32), weight: wp.array(dtype=wp.float32), min_weight: wp.float32,
+                        occupied: wp.array(dtype=wp.bool), observed: wp.array(dtype=wp.bool)):
+        """``DenseGrid.occupied`` and ``observed`` in one pass (flat views)."""
+        i = wp.tid()
+        seen = weight[i] >= min_weight
+        observed[i] = seen
+        occupied[i] = seen and tsdf[i] < 0.0
 
 
 def available() -> bool:
@@ -363,9 +376,11 @@ def exact_edt(sites: torch.Tensor, max_cells: float, thread_per_line: bool | Non
     return out
 
 
-def _window_edt(sites: torch.Tensor, max_cells: float, out: torch.Tensor, device, stream) -> torch.Tensor:
+def _window_edt(sites: torch.Tensor, max_cells: float, out: torch.Tensor, device, stream,
+                clamp_cells: float = float("inf"), scale: float = 1.0) -> torch.Tensor:
     """``exact_edt``'s thread-per-cell layout: the axes last to first, ping-ponging between ``out`` and a
-    scratch grid so that the last pass writes ``out``."""
+    scratch grid so that the last pass writes ``out`` (min(distance, clamp_cells) * scale; a 1-D grid,
+    whose only pass is the sites scan, is not clamped or scaled)."""
     cap_sq = cap_squared(max_cells, tuple(sites.shape))
     k_max = int(np.floor(np.sqrt(max(cap_sq, 0)))) if cap_sq >= 0 else -1
     axes = list(range(sites.ndim - 1, -1, -1))
@@ -377,13 +392,32 @@ def _window_edt(sites: torch.Tensor, max_cells: float, out: torch.Tensor, device
         dst = _line_view(order[j], axis)
         finish = int(j == len(axes) - 1)
         if j == 0:
-            kernel, first = window_sites, _line_view(sites, axis)
+            kernel, inputs = window_sites, [_view(_line_view(sites, axis), device), k_max, float(cap_sq), finish]
         else:
-            kernel, first = window_pass, _line_view(src, axis)
-        wp.launch(kernel, dim=tuple(dst.shape), inputs=[_view(first, device), k_max, float(cap_sq), finish,
-                                                       _view(dst, device)], device=device, stream=stream)
+            kernel, inputs = window_pass, [_view(_line_view(src, axis), device), k_max, float(cap_sq), finish,
+                                           float(clamp_cells), float(scale)]
+        wp.launch(kernel, dim=tuple(dst.shape), inputs=[*inputs, _view(dst, device)], device=device, stream=stream)
         src = order[j]
     return out
 
 
-__all__ = ["available", "cap_squared", "exact_edt"]
+def occupancy_esdf(tsdf: torch.Tensor, weight: torch.Tensor, min_weight: float, max_cells: int,
+                   voxel_size_m: float) -> tuple[torch.Tensor, torch.Tensor]:
+    """``esdf.esdf_from_grid``'s unsigned field on CUDA in 4 launches: the occupied and observed masks
+    in one pass, then the window EDT whose last pass clamps to max_cells and scales to metres. Returns
+    (distance_m, observed), both (X, Y, Z), the same values as the general path."""
+    wp.init()
+    device = wp.device_from_torch(tsdf.device)
+    stream = wp.stream_from_torch(tsdf.device)
+    occupied = torch.empty(tsdf.shape, dtype=torch.bool, device=tsdf.device)
+    observed = torch.empty_like(occupied)
+    wp.launch(classify_voxels, dim=tsdf.numel(), device=device, stream=stream, inputs=[
+        _view(tsdf.reshape(-1), device), _view(weight.reshape(-1), device), float(min_weight),
+        _view(occupied.view(-1), device), _view(observed.view(-1), device)])
+    out = torch.empty(tsdf.shape, dtype=torch.float32, device=tsdf.device)
+    _window_edt(occupied, max_cells, out, device, stream, clamp_cells=float(np.float32(max_cells)),
+                scale=float(np.float32(voxel_size_m)))
+    return out, observed
+
+
+__all__ = ["available", "cap_squared", "exact_edt", "occupancy_esdf"]

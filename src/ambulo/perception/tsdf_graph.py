@@ -207,7 +207,9 @@ class IntegrateGraph:
         rows, columns = buf.rays.shape[:2]
         n_vox = cfg.block_voxels ** 3
         radius = m.block_radius_m
-        stream = launches.stream()
+        # a capture needs a stream of its own (torch's default stream is the legacy one, which can not
+        # capture); the graph is replayed on torch's current stream
+        stream = wp.Stream(device) if launches.is_cuda else None
         with wp.ScopedCapture(device=device, stream=stream) as capture:
             def launch(kernel, dim, inputs):
                 wp.launch(kernel, dim=dim, inputs=inputs, device=device, stream=stream)
