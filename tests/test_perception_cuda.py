@@ -4,6 +4,8 @@ caster agree across devices. Skipped without a CUDA device (the lead runs them o
 this file sits outside tests/perception because that folder needs Open3D, which the GPU machine
 lacks)."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 import torch
@@ -57,7 +59,8 @@ def test_cuda_tsdf_equals_the_cpu_reference(capacity, cfg):
     # the fused CUDA ESDF of the map: the same values as the CPU's general path
     from ambulo.perception.esdf import esdf_from_grid
 
-    e_cpu, e_gpu = esdf_from_grid(a, 1.0), esdf_from_grid(b, 1.0)
+    on_gpu = dataclasses.replace(a, tsdf=a.tsdf.cuda(), weight=a.weight.cuda(), color=a.color.cuda())
+    e_cpu, e_gpu = esdf_from_grid(a, 1.0), esdf_from_grid(on_gpu, 1.0)
     assert torch.equal(e_gpu.observed.cpu(), e_cpu.observed) and (e_cpu.distance_m < 1.0).sum() > 1000
     assert torch.equal(e_gpu.distance_m.cpu(), e_cpu.distance_m)
 
