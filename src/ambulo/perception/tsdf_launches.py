@@ -6,9 +6,11 @@ changes for launch overhead, while the kernels change for the arithmetic they sh
 
 Host overhead: each launch is recorded once (``wp.Launch``, ``IntegrateLaunches``) and replayed with
 only the changed arguments set, instead of a ``wp.launch`` packing ~25 arguments (~80 us of Python on
-the CPU). Torch ops per frame: the padded depth copy, and on CUDA also the counters' reset and read
-and the offsets' upload; in frames that allocate blocks on the CPU none more (the hash merges in numpy on its
-buffers), on CUDA 8 (``BlockHash._merge_torch``), and the storage's growth when its capacity doubles.
+the CPU); the frame's matrices and counters live in the ``params`` / ``state`` arrays the kernels read,
+written on the CPU through numpy views (no torch op). Torch ops per frame: the padded depth copy; in
+frames that allocate blocks none more on the CPU (the hash merges in numpy on its buffers), and the
+storage's growth when its capacity doubles. On CUDA these launches serve only frames too deep for the
+dense volume: ``TsdfMap`` replays a captured graph of the same kernels instead (``tsdf_graph``).
 
 CPU: a Warp CPU launch runs its threads one after the other on one OS thread (so a kernel thread does a
 whole block or image row: ``tsdf_kernels``), and ``IntegrateLaunches.update_voxels`` splits the blocks into
