@@ -33,6 +33,7 @@ from ambulo.utils.checks import check_int, check_positive
 from . import tsdf_graph, tsdf_kernels, tsdf_launches
 from .block_hash import BlockHash, raise_out_of_range
 from .tsdf_kernels import S_NUM_BLOCKS, S_PARTS, S_SELECTED, S_STAMP
+from .tsdf_launches import voxel_values
 from .frames import RgbdFrame, pixel_rays
 from .tsdf_frame import _NO_DEPTH, _FrameBuffers, _FrameGeometry
 from .tsdf_reference import _TorchIntegration, sample_depth
@@ -157,6 +158,9 @@ class TsdfMap(_TorchIntegration):
             part of ``mark_band_blocks``."""
             self._selected = torch.zeros(capacity, dtype=torch.int64, device=self.device)
             """(capacity,) int64 old slots this frame updates, the first ``state[S_SELECTED]`` of them."""
+            self._view_stamp = torch.zeros(capacity, dtype=torch.int32, device=self.device)
+            """(capacity,) int32 stamp of the frame that selected each slot as a surface block in view
+            (the CPU's overlapped frame: ``tsdf_launches.IntegrateLaunches.overlapped``)."""
             self._graph = tsdf_graph.IntegrateGraph(self._launches) if self._launches.is_cuda or graph else None
             """The frame as one captured graph (CUDA; on the CPU only when asked: ``graph``), else None."""
             self._state_synced = False
@@ -191,6 +195,7 @@ class TsdfMap(_TorchIntegration):
             stamps = self._slot_stamp
             self._slot_stamp = torch.cat([stamps, stamps.new_zeros((extra, stamps.shape[1]))])
             self._selected = torch.cat([self._selected, self._selected.new_zeros(extra)])
+            self._view_stamp = torch.cat([self._view_stamp, self._view_stamp.new_zeros(extra)])
 
     def _geometry(self, frame: RgbdFrame) -> _FrameGeometry:
         """The frame's small matrices on the host: no device op, no upload (the kernels take them by value)."""
@@ -311,52 +316,82 @@ class TsdfMap(_TorchIntegration):
     def _integrate_eager(self, rgb: torch.Tensor | None, buf: _FrameBuffers, g: _FrameGeometry) -> None:
         """``integrate`` in recorded Warp launches: mark the band's blocks (looking them up in the hash),
         select the old blocks to update, allocate the new blocks on the host and update the voxels of the
-        selected and the new blocks. On the CPU the state is host memory (no reads); on CUDA it is read
-        once, after the selection."""
+        selected and the new blocks. On the CPU the state is host memory (no reads), and with 2+ threads
+        the marking overlaps the update of the surface blocks in view (``IntegrateLaunches.overlapped``);
+        on CUDA the state is read once, after the selection."""
         cfg, launches = self.cfg, self._launches
         self._stamp += 1
         stamp, num_old = self._stamp, self.num_blocks
         self._state_synced = False
         launches.begin_host_frame(stamp, num_old)
         launches.upload()
+        mark = None
         if buf.volume is not None:
-            launches.mark(
-                depth_pad_m=buf.depth, stride_px=cfg.allocation_stride, rays=buf.rays,
-                band_m=(-cfg.truncation_m, 0.0, cfg.truncation_m), side=2 * buf.r_blocks + 1,
-                depth_min_m=cfg.depth_min_m, depth_max_m=cfg.depth_max_m, volume_stamp=buf.volume_stamp,
-                keys=self.hash.key_buffer, key_slots=self.hash.key_slot_buffer, slot_stamp=self._slot_stamp,
-                new_keys=buf.new_keys)
+            mark = dict(depth_pad_m=buf.depth, stride_px=cfg.allocation_stride, rays=buf.rays,
+                        band_m=(-cfg.truncation_m, 0.0, cfg.truncation_m), side=2 * buf.r_blocks + 1,
+                        depth_min_m=cfg.depth_min_m, depth_max_m=cfg.depth_max_m, volume_stamp=buf.volume_stamp,
+                        keys=self.hash.key_buffer, key_slots=self.hash.key_slot_buffer, slot_stamp=self._slot_stamp,
+                        new_keys=buf.new_keys)
+        def select() -> dict:  # read when launched (the fallback's allocation may grow the storage)
+            return dict(slot_stamp=self._slot_stamp, slot_coords=self.hash.slot_coord_buffer,
+                        centre_scale=(0.5, cfg.block_size_m, 0.5 * cfg.voxel_size_m), radius_m=self.block_radius_m,
+                        truncation_m=cfg.truncation_m, depth_min_m=cfg.depth_min_m, depth_max_m=cfg.depth_max_m,
+                        depth_pad_m=buf.depth, has_surface=self.has_surface, selected=self._selected,
+                        view_stamp=self._view_stamp)
+
+        def update() -> dict:  # read when launched: the storage may have grown
+            return dict(selected=self._selected, slot_coords=self.hash.slot_coord_buffer, block_voxels=cfg.block_voxels,
+                        voxel_size_m=cfg.voxel_size_m, depth_pad_m=buf.depth, rgb=rgb, truncation_m=cfg.truncation_m,
+                        depth_min_m=cfg.depth_min_m, depth_max_m=cfg.depth_max_m, max_weight=cfg.max_weight,
+                        weight_ref_depth_m=cfg.weight_ref_depth_m, clear_free_space=cfg.clear_free_space,
+                        tsdf=self.tsdf, weight=self.weight, color=self.color, updated=self.updated,
+                        has_surface=self.has_surface)
+
+        if mark is not None and self._can_overlap(buf, num_old):
+            launches.overlapped(num_old=num_old, mark=mark, select=select(), update=lambda: voxel_values(
+                launches, **update()), allocate=lambda st, drain: self._allocate_marked(st, buf, num_old, drain))
+            return
+        if mark is not None:
+            launches.mark(**mark)
             if not launches.is_cuda and any(launches.part_counts(launches.read_state())[1]):
                 raise_out_of_range()  # before the selection: the map is unchanged
         else:  # the depth range is too deep for a dense volume: the torch path's sort-based allocation
             slots = self._allocate(buf.depth_inner, buf, g)  # may grow the storage, _slot_stamp included
             self._slot_stamp[slots, 0] = stamp
-        launches.select(
-            num_old=num_old, slot_stamp=self._slot_stamp, slot_coords=self.hash.slot_coord_buffer,
-            centre_scale=(0.5, cfg.block_size_m, 0.5 * cfg.voxel_size_m), radius_m=self.block_radius_m,
-            truncation_m=cfg.truncation_m, depth_min_m=cfg.depth_min_m, depth_max_m=cfg.depth_max_m,
-            depth_pad_m=buf.depth, has_surface=self.has_surface, selected=self._selected)
+        launches.select(num_old=num_old, **select())
         st = launches.read_state()  # on CUDA the one host read (it waits for the kernels so far)
-        new_counts, out_of_range = launches.part_counts(st)
-        if buf.volume is not None:
-            if any(out_of_range):
-                raise_out_of_range()
-            new = [buf.new_keys[p, :n] for p, n in enumerate(new_counts) if n]
-            if new:
-                # each part's keys are distinct; a block new to two parts is in both lists
-                if len(new) == 1:
-                    self.hash.append(new[0], presorted=False)  # slots num_old, num_old + 1, ... in key order
-                else:
-                    self.hash.append(torch.unique(torch.cat(new)))
-                self._grow(self.num_blocks)
-        launches.set_new_blocks(self.num_blocks - num_old)
-        launches.update_voxels(
-            num_blocks=st[S_SELECTED] + self.num_blocks - num_old, selected=self._selected,
-            slot_coords=self.hash.slot_coord_buffer, block_voxels=cfg.block_voxels, voxel_size_m=cfg.voxel_size_m,
-            depth_pad_m=buf.depth, rgb=rgb, truncation_m=cfg.truncation_m, depth_min_m=cfg.depth_min_m,
-            depth_max_m=cfg.depth_max_m, max_weight=cfg.max_weight, weight_ref_depth_m=cfg.weight_ref_depth_m,
-            clear_free_space=cfg.clear_free_space, tsdf=self.tsdf, weight=self.weight, color=self.color,
-            updated=self.updated, has_surface=self.has_surface)
+        new = self._allocate_marked(st, buf, num_old) if mark is not None else self.num_blocks - num_old
+        launches.set_new_blocks(new)
+        launches.update_voxels(num_blocks=st[S_SELECTED] + new, **update())
+
+    def _can_overlap(self, buf: _FrameBuffers, num_old: int) -> bool:
+        """Whether the CPU frame may overlap its marking (``IntegrateLaunches.overlapped``): 2+ threads,
+        blocks to update, and the dense volume (where marked cells are clamped) within the key range."""
+        if self._launches.is_cuda or torch.get_num_threads() < 2 or num_old == 0:
+            return False
+        corner = self._launches.params_host["corner_index"][0]
+        side = 2 * buf.r_blocks + 1
+        return bool(np.all(np.abs(corner) < tsdf_kernels.KEY_OFFSET)
+                    and np.all(np.abs(corner + side - 1) < tsdf_kernels.KEY_OFFSET))
+
+    def _allocate_marked(self, st: list[int], buf: _FrameBuffers, num_old: int, drain=None) -> int:
+        """Allocate the blocks the marking found new (from the read ``state``); the number of them.
+        ``drain``: called before the storage or the hash grows (the overlapped frame's queued updates
+        use the current tensors)."""
+        new_counts, out_of_range = self._launches.part_counts(st)
+        if any(out_of_range):
+            raise_out_of_range()
+        new = [buf.new_keys[p, :n] for p, n in enumerate(new_counts) if n]
+        if new:
+            if drain is not None and num_old + sum(new_counts) > min(self.hash.capacity, self.tsdf.shape[0]):
+                drain()
+            # each part's keys are distinct; a block new to two parts is in both lists
+            if len(new) == 1:
+                self.hash.append(new[0], presorted=False)  # slots num_old, num_old + 1, ... in key order
+            else:
+                self.hash.append(torch.unique(torch.cat(new)))
+            self._grow(self.num_blocks)
+        return self.num_blocks - num_old
 
     def clear_updated(self) -> torch.Tensor:
         """Slots of the blocks changed since the last call (and forget them)."""

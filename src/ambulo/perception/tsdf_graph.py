@@ -223,7 +223,8 @@ class IntegrateGraph:
             launch(select_blocks, capacity, [
                 1, view(m._slot_stamp), coords, params,
                 wp.vec3(0.5, cfg.block_size_m, 0.5 * cfg.voxel_size_m), radius, cfg.truncation_m,
-                cfg.depth_min_m, cfg.depth_max_m, depth, view(m.has_surface), view(m._selected), state])
+                cfg.depth_min_m, cfg.depth_max_m, depth, view(m.has_surface), view(m._selected), state,
+                tsdf_kernels.SELECT_BOTH, view(m._view_stamp)])
             launch(rank_new_keys, max_new, [new_keys, state, sorted_new])
             launch(merge_keys, capacity + max_new, [keys, slots, sorted_new, state, merged_keys, merged_slots,
                                                     coords])

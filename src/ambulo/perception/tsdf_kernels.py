@@ -68,6 +68,14 @@ SKIP_OUT_OF_RANGE = 2
 """A block beyond the key range (the host raises)."""
 
 
+SELECT_BOTH = 0
+"""``select_blocks``: the band's blocks and the surface blocks in view ..."""
+SELECT_VIEW = 1
+"""... only the surface blocks in view ..."""
+SELECT_BAND = 2
+"""... only the band's blocks that SELECT_VIEW did not select."""
+
+
 def state_size(parts: int) -> int:
     return S_PARTS + 2 * parts
 
@@ -215,6 +223,8 @@ if wp is not None:
         has_surface: wp.array(dtype=wp.bool),
         selected: wp.array(dtype=wp.int64),
         state: wp.array(dtype=wp.int32),
+        mode: wp.int32,
+        view_stamp: wp.array(dtype=wp.int32),
     ):
         """The blocks allocated before this frame (slots < ``state[S_NUM_BLOCKS]``) that it updates,
         appended to ``selected`` at ``state[S_SELECTED]`` (ascending on the CPU): blocks stamped by
@@ -223,6 +233,11 @@ if wp is not None:
         too, but need no selecting. ``has_surface`` of a selected block is cleared (the voxel update sets
         it again). Nothing when ``state[S_SKIP]`` is set. Thread ``tid`` does slots [tid n, (tid + 1) n),
         n = ``slots_per_run`` (1 on CUDA, the capacity on the CPU).
+
+        ``mode`` splits the two tests (SELECT_BOTH, else the CPU's overlapped frame, ``tsdf_launches``):
+        SELECT_VIEW keeps only the surface blocks in view and stamps them in ``view_stamp`` (it runs
+        while ``mark_band_blocks`` runs, so it must not read the band's stamps); SELECT_BAND, after the
+        marking, keeps the band's blocks that SELECT_VIEW did not. ``view_stamp``: (capacity,) int32.
 
         slot_coords: (capacity, 3) int64 block coordinates. params: the frame's world-to-camera
         ``rot_cw``, ``t_cw``, intrinsics ``k`` and ``radius_px_m``. centre_scale: (0.5, block size, half a
@@ -239,10 +254,13 @@ if wp is not None:
         rot_cw = prm.rot_cw
         for i in range(first, wp.min(first + slots_per_run, state[S_NUM_BLOCKS])):
             keep = bool(False)
-            for p in range(slot_stamp.shape[1]):
-                if slot_stamp[i, p] == stamp:
-                    keep = True
-            if not keep and has_surface[i]:
+            if mode != SELECT_VIEW:
+                for p in range(slot_stamp.shape[1]):
+                    if slot_stamp[i, p] == stamp:
+                        keep = True
+                if mode == SELECT_BAND and view_stamp[i] == stamp:
+                    keep = False  # updated with the view's blocks
+            if not keep and has_surface[i] and mode != SELECT_BAND:
                 bx = (float(slot_coords[i, 0]) + centre_scale[0]) * centre_scale[1] - centre_scale[2]
                 by = (float(slot_coords[i, 1]) + centre_scale[0]) * centre_scale[1] - centre_scale[2]
                 bz = (float(slot_coords[i, 2]) + centre_scale[0]) * centre_scale[1] - centre_scale[2]
@@ -262,6 +280,8 @@ if wp is not None:
             if keep:
                 selected[wp.atomic_add(state, S_SELECTED, 1)] = wp.int64(i)
                 has_surface[i] = False
+                if mode == SELECT_VIEW:
+                    view_stamp[i] = stamp
 
     @wp.func
     def update_run(

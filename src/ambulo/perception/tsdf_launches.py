@@ -25,6 +25,7 @@ scoping that copy to one thread measured no better).
 from __future__ import annotations
 
 import threading
+from collections import deque
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -32,7 +33,17 @@ import torch
 
 from .tsdf_kernels import wp
 
-from .tsdf_kernels import S_NEW_BLOCKS, S_NUM_BLOCKS, S_PARTS, S_STAMP, state_size
+from .tsdf_kernels import (
+    S_NEW_BLOCKS,
+    S_NUM_BLOCKS,
+    S_PARTS,
+    S_SELECTED,
+    S_STAMP,
+    SELECT_BAND,
+    SELECT_BOTH,
+    SELECT_VIEW,
+    state_size,
+)
 
 if wp is not None:  # without Warp, TsdfMap takes its torch path and never makes these launches
     from .tsdf_kernels import FrameParams, integrate_voxels, mark_band_blocks, select_blocks
@@ -139,17 +150,81 @@ def _run_concurrently(launches: list) -> None:
                     state["running"] -= 1
                     done.notify_all()
 
-    global _pool
     workers = min(torch.get_num_threads(), len(launches)) - 1
-    if workers > 0 and (_pool is None or _pool._max_workers < workers):
-        _pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="ambulo-tsdf")
     for _ in range(workers):
-        _pool.submit(work)
+        _pool_for(workers).submit(work)
     work()
     with done:
         done.wait_for(lambda: state["running"] == 0)
     if state["error"] is not None:
         raise state["error"]
+
+
+def _pool_for(workers: int) -> ThreadPoolExecutor:
+    global _pool
+    if _pool is None or _pool._max_workers < workers:
+        _pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="ambulo-tsdf")
+    return _pool
+
+
+class _WorkQueue:
+    """CPU launches that threads take in turn while more are being added (``IntegrateLaunches.overlapped``)."""
+
+    def __init__(self):
+        self._cv = threading.Condition()
+        self._tasks: deque = deque()
+        self._closed = False
+        self._busy = 0
+        self.error: BaseException | None = None
+        self.view_selected = threading.Event()
+        """Set once the pool thread selected the surface blocks in view (or failed)."""
+
+    def push(self, launches: list) -> None:
+        with self._cv:
+            self._tasks.extend(launches)
+            self._cv.notify_all()
+
+    def close(self) -> None:
+        """No more launches come: ``work`` returns once the queue is empty."""
+        with self._cv:
+            self._closed = True
+            self._cv.notify_all()
+
+    def _run(self, task) -> None:
+        try:
+            task.launch()
+        except BaseException as e:  # re-raised by the calling thread (``overlapped``)
+            self.error = e
+        finally:
+            with self._cv:
+                self._busy -= 1
+                self._cv.notify_all()
+
+    def work(self) -> None:
+        """Take launches until the queue is closed and empty (a pool thread)."""
+        while True:
+            with self._cv:
+                while not self._tasks and not self._closed:
+                    self._cv.wait()
+                if not self._tasks:
+                    return
+                task = self._tasks.popleft()
+                self._busy += 1
+            self._run(task)
+
+    def drain(self) -> None:
+        """Take launches until none is queued or running (the calling thread helps)."""
+        while True:
+            with self._cv:
+                if self._tasks:
+                    task = self._tasks.popleft()
+                    self._busy += 1
+                elif self._busy == 0:
+                    return
+                else:
+                    self._cv.wait()
+                    continue
+            self._run(task)
 
 
 class IntegrateLaunches:
@@ -193,7 +268,9 @@ class IntegrateLaunches:
         self._streams: dict = {}
         self._mark: dict = {}
         self._select: dict = {}
+        self._select_view: dict = {}
         self._voxels: dict = {}
+        self._voxels_view: dict = {}
 
     def stream(self):
         """Warp's handle of torch's current stream (cached by the stream's handle; None on the CPU)."""
@@ -270,14 +347,74 @@ class IntegrateLaunches:
             ((bounds[p + 1] - bounds[p], 1), {"first_row": bounds[p], "part": p, "columns_per_run": columns})
             for p in range(parts)]))
 
-    def select(self, *, num_old: int, centre_scale, **values) -> None:
-        """Run ``select_blocks`` over slots [0, num_old)."""
+    def select(self, *, num_old: int, centre_scale, mode: int = SELECT_BOTH, cache: dict | None = None,
+               **values) -> None:
+        """Run ``select_blocks`` over slots [0, num_old) (``mode``: which of its tests)."""
         if num_old == 0:
             return
-        values.update(centre_scale=_vec3(centre_scale), params=self.params, state=self.state)
+        values.update(centre_scale=_vec3(centre_scale), params=self.params, state=self.state, mode=mode)
         capacity = values["has_surface"].shape[0]
         dim, per_run = (num_old, 1) if self.is_cuda else (1, capacity)  # CPU: one thread does all (ascending output)
-        self._recorded(self._select, 0, select_blocks, dim, values, slots_per_run=per_run).launch(stream=self.stream())
+        self._recorded(self._select if cache is None else cache, 0, select_blocks, dim, values,
+                       slots_per_run=per_run).launch(stream=self.stream())
+
+    def overlapped(self, *, num_old: int, mark: dict, select: dict, allocate, update) -> None:
+        """The CPU frame with the band's marking overlapped: a pool thread selects the surface blocks in
+        view (``SELECT_VIEW``, which reads no band stamp) and starts updating them while this thread marks
+        the band (``mark_band_blocks``, single-threaded: ~0.3 ms of a ~2.8 ms frame at 640x480, during which
+        the second core used to idle); this thread then selects the band's other blocks (``SELECT_BAND``),
+        allocates the new ones (``allocate(state, drain)``: the host merge; ``drain`` waits for the queued
+        updates, needed before the storage grows) and queues their updates, which both threads take in
+        turn. The same blocks are updated as by ``SELECT_BOTH``, each once. ``update()`` gives
+        ``integrate_voxels``' arguments (``voxel_values``), read again after ``allocate``.
+
+        Only when no marked cell can fall beyond the key range (the caller checks the dense volume's
+        corners): the view's blocks are updated before the marking ends, so a frame the marking would
+        refuse must not start."""
+        queue = _WorkQueue()
+        n_vox = self.local_px.shape[1]
+
+        def view_blocks() -> None:  # on a pool thread
+            try:
+                self.select(num_old=num_old, mode=SELECT_VIEW, cache=self._select_view, **dict(select))
+                n_view = int(self._state_host[S_SELECTED])
+                if n_view:
+                    queue.push(self._chunks(self._voxels_view, update(), 0, n_view, n_vox))
+            except BaseException as e:  # re-raised by the calling thread
+                queue.error = e
+                queue.close()
+            finally:
+                queue.view_selected.set()
+            queue.work()
+
+        _pool_for(1).submit(view_blocks)
+        try:
+            self.mark(**mark)
+            queue.view_selected.wait()
+            if queue.error is None:
+                n_view = int(self._state_host[S_SELECTED])
+                self.select(num_old=num_old, mode=SELECT_BAND, **dict(select))
+                new = allocate(self.read_state(), queue.drain)
+                self.set_new_blocks(new)
+                total = int(self._state_host[S_SELECTED]) + new
+                if total > n_view:
+                    queue.push(self._chunks(self._voxels, update(), n_view, total, n_vox))
+        finally:
+            queue.close()
+            queue.drain()
+        if queue.error is not None:
+            raise queue.error
+
+    def _chunks(self, cache: dict, values: dict, first: int, end: int, n_vox: int) -> list:
+        """CPU ``integrate_voxels`` launches over blocks [first, end): 2 per torch thread (one when few)."""
+        blocks = end - first
+        chunks = 1 if blocks < 64 else 2 * max(1, torch.get_num_threads())
+        bounds = [first + blocks * c // chunks for c in range(chunks + 1)]
+        return self._split(cache, integrate_voxels, values, [
+            (bounds[c + 1] - bounds[c], {"first_run": bounds[c], "max_runs": bounds[c + 1] - bounds[c],
+                                         "stride": bounds[c + 1] - bounds[c], "runs_per_block": 1,
+                                         "voxels_per_run": n_vox})
+            for c in range(chunks) if bounds[c + 1] > bounds[c]])
 
     def update_voxels(self, *, num_blocks: int, rgb: torch.Tensor | None, **values) -> None:
         """Run ``integrate_voxels`` over ``num_blocks`` blocks (the selected ones, then the new ones).
