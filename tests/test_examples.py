@@ -2,21 +2,18 @@
 
 import ast
 import functools
-import importlib.util
 import math
 from pathlib import Path
 
 import numpy as np
 import pytest
+from script_loader import run_main
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 
 def run_example(name: str, *argv: str) -> dict:
-    spec = importlib.util.spec_from_file_location(f"example_{name}", EXAMPLES / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.main(list(argv))
+    return run_main(EXAMPLES / f"{name}.py", *argv)
 
 
 @functools.cache

@@ -5,19 +5,15 @@ One case per file (69, ~45 s on 2 cores with a warm cache). Converted meshes go 
 user's cache, so only the first run pays for the conversions (~20 s more).
 """
 
-import importlib.util
-import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import pytest
+from script_loader import load_script
 
 pytest.importorskip("trimesh")
 _SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "robot_survey.py"
-_spec = importlib.util.spec_from_file_location("robot_survey", _SCRIPT)
-survey = importlib.util.module_from_spec(_spec)
-sys.modules.setdefault("robot_survey", survey)  # dataclasses look their module up
-_spec.loader.exec_module(survey)
+survey = load_script(_SCRIPT, "robot_survey", register=True)  # dataclasses look their module up
 
 ROOT = survey.robots_dir()
 pytestmark = pytest.mark.skipif(ROOT is None, reason="example-robot-data is not installed (pip install 'ambulo[robots]')")

@@ -1,24 +1,21 @@
 """The Isaac API coverage table: every `*` member present, and the committed doc up to date."""
 
-import importlib.util
 import sys
 from pathlib import Path
 
 import pytest
+from script_loader import load_script
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
 def coverage_script():
-    spec = importlib.util.spec_from_file_location("isaac_coverage", ROOT / "scripts" / "isaac_coverage.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up there
+    module = load_script(ROOT / "scripts" / "isaac_coverage.py", "isaac_coverage", register=True)
     try:
-        spec.loader.exec_module(module)
         yield module
     finally:
-        sys.modules.pop(spec.name, None)
+        sys.modules.pop(module.__name__, None)
 
 
 @pytest.fixture(scope="module")

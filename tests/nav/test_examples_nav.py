@@ -1,18 +1,15 @@
 """The navigation examples run headless and produce what they say."""
 
-import importlib.util
 from pathlib import Path
 
 import pytest
+from script_loader import run_main
 
 NAV_EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "nav"
 
 
 def run_nav_example(file_name: str, *argv: str) -> dict:
-    spec = importlib.util.spec_from_file_location(f"nav_example_{Path(file_name).stem}", NAV_EXAMPLES / file_name)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.main(list(argv))
+    return run_main(NAV_EXAMPLES / file_name, *argv)
 
 
 def test_preview_walk_pattern_draws_a_balanced_walk(tmp_path):

@@ -3,7 +3,6 @@ geometry against brute force, and the benchmark's independent shapely checker (a
 few benchmark maps)."""
 
 import heapq
-import importlib.util
 import math
 from pathlib import Path
 
@@ -19,15 +18,13 @@ from ambulo.nav.footstep_heuristic import GoalHeuristic  # noqa: E402
 from ambulo.nav.footstep_lattice import LEFT, RIGHT, build_lattice, compose, relative, steps_within_limits  # noqa: E402
 from ambulo.nav.grid_map import chamfer_distance_m, crossed_cells, near_occupied  # noqa: E402
 from ambulo.utils.checks import InvalidValueError  # noqa: E402
+from script_loader import load_script  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
 def load_benchmark():
-    spec = importlib.util.spec_from_file_location("footsteps_benchmark", ROOT / "benchmarks" / "footsteps.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script(ROOT / "benchmarks" / "footsteps.py")
 
 
 BENCH = load_benchmark()

@@ -1,16 +1,14 @@
 """The perception examples run headless and produce what they say."""
 
-import importlib.util
 from pathlib import Path
+
+from script_loader import run_main
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "perception"
 
 
 def run_perception_example(file_name: str, *argv: str) -> dict:
-    spec = importlib.util.spec_from_file_location(f"perception_example_{Path(file_name).stem}", EXAMPLES / file_name)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.main(list(argv))
+    return run_main(EXAMPLES / file_name, *argv)
 
 
 def test_rgbd_mapping_tracks_maps_and_draws_a_costmap(tmp_path):

@@ -4,7 +4,6 @@ Runs on Warp's CPU device by default; ``AMBULO_TEST_DEVICE=cuda`` runs the same 
 (rendering through CUDA graphs there).
 """
 
-import importlib.util
 import math
 import os
 from pathlib import Path
@@ -18,6 +17,7 @@ from ambulo.core.semantics import set_semantic_label
 from ambulo.engine import CpuEngine, make_engine
 from ambulo.sensors import Camera, TiledCamera, TiledCameraCfg
 from ambulo.utils.checks import InvalidValueError
+from script_loader import load_script
 
 pytest.importorskip("mujoco_warp")
 
@@ -237,9 +237,7 @@ def test_cpu_engine_and_bad_configs_give_one_line_errors():
 @pytest.mark.skipif(DEVICE != "cpu", reason="a CPU smoke test: on a GPU machine render_gpu.py itself runs")
 def test_render_benchmark_runs_on_the_cpu_with_tiny_sizes(capsys):
     path = Path(__file__).parents[2] / "benchmarks" / "render_gpu.py"
-    spec = importlib.util.spec_from_file_location("render_gpu", path)
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_script(path)
     result = bench.main(["--device", "cpu", "--num-worlds", "2", "--width", "24", "--height", "16",
                          "--steps", "2", "--repeats", "1"])
     assert "RESULT {" in capsys.readouterr().out
