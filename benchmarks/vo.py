@@ -2,7 +2,8 @@
 recovery after a covered lens.
 
     python benchmarks/vo.py [--walk policy|kinematic] [--frames 600] [--speed 0.5] [--width 640 --height 480]
-                            [--blackout-at 300] [--out out/vo]
+                            [--blackout-at 300] [--features orb|kornia] [--device cpu|cuda] [--pnp opencv|torch]
+                            [--out out/vo]
 
 The bundled humanoid walks the seeded indoor scene's loop around the island at 0.5 m/s (``--speed``)
 (``ambulo.perception.walk``). ``--walk policy`` (the default): it walks under the shipped walking
@@ -19,21 +20,28 @@ head turns on the kinematic walk at the same moment (``WalkCfg.look_away``): 90 
 1 s (peak 283 deg/s) and 180 deg in 0.4 s (peak 1400 deg/s): frames lost, frames to recover after
 the turn, largest position error.
 
-``ratio`` = ATE / 2 cm (the acceptance's limit; <= 1 meets it). Odometry runs on the CPU
-(OpenCV ORB and PnP); the reported fps is the odometry alone, rendering and physics excluded.
+``ratio`` = ATE / 2 cm (the acceptance's limit; <= 1 meets it). The odometry's front end is
+``--features``: ``orb`` (the default: OpenCV ORB and ``solvePnPRansac`` on the CPU) or ``kornia``
+(``ambulo.perception.vo.kornia_vo_cfg``: kornia corners + RootSIFT, matching and RANSAC in torch on
+``--device``); ``--pnp`` overrides the RANSAC (``opencv`` with kornia features: features and
+matching on the device, PnP on the host). The reported fps is the odometry alone (median of the
+first run's frames), rendering and physics excluded; frames are rendered on the CPU, so on CUDA it
+includes copying each frame to the GPU.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 from pathlib import Path
 
 import numpy as np
+import torch
 
 from ambulo.perception.scenes import build_indoor_scene
-from ambulo.perception.vo import TrackState
+from ambulo.perception.vo import TrackState, VoCfg, kornia_vo_cfg
 from ambulo.perception.vo_eval import run_walk_vo
 from ambulo.perception.walk import WALK_MODES, PolicyHeadCameraWalk, WalkCfg, make_walk
 
@@ -47,13 +55,20 @@ def main(argv=None) -> dict:
     parser.add_argument("--height", type=int, default=480)
     parser.add_argument("--blackout-at", type=int, default=300)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--features", choices=("orb", "kornia"), default="orb")
+    parser.add_argument("--device", default="cpu", help="torch device of the kornia front end: cpu, cuda, cuda:1")
+    parser.add_argument("--pnp", choices=("opencv", "torch"), default=None,
+                        help="RANSAC (default: opencv for orb, torch for kornia)")
     parser.add_argument("--out", type=Path, default=Path("out/vo"))
     args = parser.parse_args(argv)
     from ambulo.perception.scenes import IndoorSceneCfg  # noqa: PLC0415
 
+    cfg = VoCfg(device=args.device) if args.features == "orb" else kornia_vo_cfg(args.device)
+    if args.pnp is not None:
+        cfg = dataclasses.replace(cfg, pnp=args.pnp)
     walk = make_walk(build_indoor_scene(IndoorSceneCfg(seed=args.seed)), WalkCfg(speed_mps=args.speed),
                      mode=args.walk, width=args.width, height=args.height)
-    run = run_walk_vo(walk, args.frames)
+    run = run_walk_vo(walk, args.frames, cfg)
     score = run.score(args.out)
     gait = None
     if isinstance(walk, PolicyHeadCameraWalk):
@@ -63,9 +78,9 @@ def main(argv=None) -> dict:
                 "min_pelvis_height_m": round(min(walk.pelvis_height_m), 3),
                 "min_clearance_m": round(min(walk.clearance_m), 3)}
     blackout = (args.blackout_at, args.blackout_at + 30)
-    dark = run_walk_vo(walk, args.frames, blackout=blackout)
+    dark = run_walk_vo(walk, args.frames, cfg, blackout=blackout)
     recovery = dark.recovery_frames(tolerance_m=0.05)
-    wall = run_walk_vo(walk, args.frames, blackout=blackout, loss="textureless_wall").recovery_frames(0.05)
+    wall = run_walk_vo(walk, args.frames, cfg, blackout=blackout, loss="textureless_wall").recovery_frames(0.05)
     walk.close()
     turns = {}
     for name, (duration_s, angle_rad) in {"turn_90deg_in_1s": (1.0, math.pi / 2),
@@ -75,7 +90,7 @@ def main(argv=None) -> dict:
                             WalkCfg(speed_mps=args.speed, look_away=(start_s, duration_s, angle_rad)),
                             mode="kinematic", width=args.width, height=args.height)
         window = (args.blackout_at, args.blackout_at + int(round(duration_s * 30)))
-        spun = run_walk_vo(turning, window[1] + 60, blackout=window, loss="motion")
+        spun = run_walk_vo(turning, window[1] + 60, cfg, blackout=window, loss="motion")
         turning.close()
         err = np.linalg.norm(spun.estimate_wc[:, :3, 3] - spun.truth_wc[:, :3, 3], axis=1)
         turns[name] = {"peak_deg_per_s": round(math.degrees(math.pi * angle_rad / duration_s)),
@@ -87,7 +102,8 @@ def main(argv=None) -> dict:
         "ate_rmse_cm": round(score.ate_rmse_m * 100, 3), "rpe_percent": round(score.rpe_percent, 3),
         "rpe_deg_per_m": round(score.rpe_deg_per_m, 4),
         "vo_ms": {"median": round(float(np.median(run.vo_ms)), 2), "p90": round(float(np.percentile(run.vo_ms, 90)), 2)},
-        "vo_fps": round(1e3 / float(np.median(run.vo_ms)), 1), "device": "CPU (OpenCV)",
+        "vo_fps": round(1e3 / float(np.median(run.vo_ms)), 1), "features": cfg.features, "pnp": cfg.pnp,
+        "device": _describe_device(cfg),
         "blackout_frames": list(blackout), "recovery_frames": recovery,
         "recovery_s": None if recovery is None else round(recovery / 30.0, 3),
         "textureless_wall_recovery_frames": wall, "fast_turns_kinematic_walk": turns,
@@ -98,7 +114,7 @@ def main(argv=None) -> dict:
         print(f"policy walk: {gait['root_path_m']} m, {'FELL' if gait['fell'] else 'no fall'}, path error <= "
               f"{gait['max_cross_track_m']} m, pelvis >= {gait['min_pelvis_height_m']} m, clearance to walls, "
               f"furniture and boxes >= {gait['min_clearance_m']} m")
-    print(f"VO ({args.walk} walk) {args.frames} frames {args.width}x{args.height}, {score.path_length_m:.1f} m: "
+    print(f"VO ({args.walk} walk, {cfg.features} features, {cfg.pnp} RANSAC, {result['device']}) {args.frames} frames {args.width}x{args.height}, {score.path_length_m:.1f} m: "
           f"ATE {result['ate_rmse_cm']} cm, "
           f"RPE {result['rpe_percent']} % ({result['rpe_deg_per_m']} deg/m); {result['vo_fps']} fps (median "
           f"{result['vo_ms']['median']} ms)")
@@ -111,6 +127,13 @@ def main(argv=None) -> dict:
           f"evo_rpe tum {args.out}/groundtruth.tum {args.out}/estimate.tum --align --delta 1 --delta_unit m --all_pairs")
     print("RESULT " + json.dumps(result))
     return result
+
+
+def _describe_device(cfg: VoCfg) -> str:
+    device = torch.device(cfg.device)
+    if device.type == "cuda":
+        return f"{cfg.device} ({torch.cuda.get_device_name(device)})"
+    return "cpu (OpenCV)" if cfg.features == "orb" else f"cpu ({torch.get_num_threads()} torch threads)"
 
 
 if __name__ == "__main__":

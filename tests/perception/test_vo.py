@@ -124,7 +124,9 @@ def test_rigidity_check_flags_points_on_a_moving_object_whatever_the_pose():
     """70 % of the matches are static (seen from a moved camera), 30 % lie on a box that slid 12 cm
     (a box pushed at 0.4 m/s, 9 frames after the keyframe that mapped it):
     the check compares distances, so it needs no pose estimate to tell them apart."""
-    from ambulo.perception.vo import RgbdOdometry
+    import torch
+
+    from ambulo.perception.vo import moved_by_rigidity
 
     rng = np.random.default_rng(3)
     points_w = rng.uniform([-2, -1, 1], [2, 1, 4], (300, 3))
@@ -133,6 +135,6 @@ def test_rigidity_check_flags_points_on_a_moving_object_whatever_the_pose():
     angle = 0.3
     rot_cw = np.array([[np.cos(angle), 0, np.sin(angle)], [0, 1, 0], [-np.sin(angle), 0, np.cos(angle)]])
     points_c = seen_w @ rot_cw.T + [0.2, -0.1, 0.4]
-    vo = RgbdOdometry(np.array([[525.0, 0, 319.5], [0, 525.0, 239.5], [0, 0, 1]]))
-    flagged = vo._moved(points_w, points_c, np.ones(300, bool))
+    flagged = moved_by_rigidity(torch.from_numpy(points_w), torch.from_numpy(points_c), torch.ones(300, dtype=torch.bool),
+                                VoCfg(), seed=0).numpy()
     assert flagged[moving].mean() > 0.9 and not flagged[~moving].any()

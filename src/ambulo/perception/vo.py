@@ -1,17 +1,27 @@
-"""RGB-D visual odometry: OpenCV ORB features (Rublee et al. 2011), matching against a local map
-of recent keyframes, PnP with RANSAC, then a joint reprojection + depth refinement, keyframes,
-and relocalisation after tracking loss.
+"""RGB-D visual odometry: features, matching against a local map of recent keyframes, RANSAC for
+the pose, then a joint reprojection + depth refinement, keyframes, and relocalisation after
+tracking loss.
 
-Per frame: ORB keypoints and descriptors; Hamming matches (Lowe's ratio test) to the 3-D points
-of the last ``local_map_keyframes`` keyframes (world frame, from their depth); ``solvePnPRansac``
-seeded with a constant-velocity prediction; then Gauss-Newton on SE(3) over the inliers with two
-residuals each: the reprojection error (px / ``pixel_sigma``) and, where the current depth is
-valid, the 3-D difference to the back-projected current point (m / ``depth_sigma(z)``), Huber
-weighted. Depth pins translation far better than pixels alone on short baselines.
+Per frame: keypoints and descriptors (``VoCfg.features``: OpenCV ORB on the host, or kornia
+Shi-Tomasi + RootSIFT on any torch device, ``vo_features``); matches (Lowe's ratio test) to the 3-D
+points of the last ``local_map_keyframes`` keyframes (world frame, from their depth); RANSAC
+(``VoCfg.pnp``: OpenCV's minimal-set ``solvePnPRansac``, AP3P, on the host, or 3-point RGB-D
+hypotheses batched in torch, ``vo_pnp_torch``), never seeded with the motion prior; then
+Gauss-Newton on SE(3) over the inliers with two residuals each: the reprojection error (px /
+``pixel_sigma``) and, where the current depth is valid, the 3-D difference to the back-projected
+current point (m / ``depth_sigma(z)``), robustly weighted (``vo_refine``). Depth pins translation
+far better than pixels alone on short baselines.
+
+Where the data lives: keypoints, descriptors, the keyframes' descriptors and 3-D points, matching,
+the rigidity check, RANSAC (``pnp="torch"``) and the refinement are torch tensors on
+``VoCfg.device``; poses, the motion model and the keyframe policy are 4x4 numpy matrices on the
+host. A frame reads the device a handful of times (counts for the decisions, the final pose), never
+per feature. With ``pnp="opencv"`` the matched points (a few hundred) go to the host for
+``solvePnPRansac`` and the refinement runs on the device again.
 
 Tracking is *lost* when too few inliers remain (covered lens, textureless wall, a turn faster
 than the keyframes overlap). The pose then coasts on the constant-velocity model (decaying), and
-every frame tries to relocalise: PnP RANSAC without a prior against each of the last
+every frame tries to relocalise: RANSAC without a prior against each of the last
 ``relocalize_keyframes`` keyframes, newest first; keyframes are in world coordinates, so the
 first success gives the absolute pose back and tracking resumes on the next frame.
 """
@@ -19,11 +29,17 @@ first success gives the absolute pose back and tracking resumes on the next fram
 from __future__ import annotations
 
 import enum
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
+import torch
 
-from ambulo.utils.checks import check_int, check_positive
+from ambulo.utils.checks import InvalidValueError, check_int, check_positive
+
+from .vo_features import FrameFeatures, KorniaFeaturesCfg, make_features
+from .vo_pnp_torch import ransac_pose_rgbd, reprojection_error_px
+from .vo_refine import refine_pose, refine_pose_torch
 
 
 class TrackState(enum.Enum):
@@ -35,15 +51,27 @@ class TrackState(enum.Enum):
 
 @dataclass(kw_only=True)
 class VoCfg:
-    """Features, matching, RANSAC and keyframe policy of ``RgbdOdometry``."""
+    """Features, matching, RANSAC and keyframe policy of ``RgbdOdometry`` (``kornia_vo_cfg`` gives
+    the all-torch variant)."""
 
+    features: Literal["orb", "kornia"] = "orb"
+    """``"orb"``: OpenCV ORB on the host; ``"kornia"``: kornia corners + RootSIFT on ``device``."""
+    pnp: Literal["opencv", "torch"] = "opencv"
+    """RANSAC: OpenCV's ``solvePnPRansac`` (AP3P) on the host, or 3-point RGB-D hypotheses batched
+    in torch on ``device`` (``vo_pnp_torch``)."""
+    device: str = "cpu"
+    """Torch device of the features, the map, matching and the refinement (``"cuda"`` needs
+    ``features="kornia"``: ORB runs in OpenCV on the host)."""
+    kornia: KorniaFeaturesCfg = field(default_factory=KorniaFeaturesCfg)
+    """Detector and descriptor of ``features="kornia"``."""
     num_features: int = 1500
-    """ORB features per frame (ORB-SLAM uses 1000-2000 at 640x480)."""
+    """Features per frame (ORB-SLAM uses 1000-2000 ORB features at 640x480)."""
     fast_threshold: int = 12
-    """FAST corner threshold (OpenCV's default 20 misses low-contrast texture)."""
+    """ORB's FAST corner threshold (OpenCV's default 20 misses low-contrast texture)."""
     ratio_test: float = 0.8
-    """Lowe's ratio: best Hamming distance < ratio * second best."""
+    """Lowe's ratio: best descriptor distance < ratio * second best."""
     max_hamming: int = 64
+    """ORB only: matches further apart than this many bits (of 256) are dropped."""
     ransac_reprojection_px: float = 2.0
     ransac_iterations: int = 200
     min_inliers: int = 25
@@ -73,13 +101,13 @@ class VoCfg:
     at 640x480). 30 deg a frame is 900 deg/s at 30 Hz, about twice a human head's fastest turn."""
     depth_range_m: tuple[float, float] = (0.2, 6.0)
     pixel_sigma: float = 1.0
-    """Keypoint position noise, px (ORB keypoints sit on the pixel grid of their pyramid level)."""
+    """Keypoint position noise, px (ORB keypoints and kornia corners sit on a pixel grid)."""
     depth_sigma_coeff: float = 0.002
     """Depth noise sigma = coeff * z^2 (m) in the refinement (Kinect-like; simulated depth is better)."""
     depth_sigma_min_m: float = 0.002
     refine_iterations: int = 6
     dynamic_threshold_m: float = 0.01
-    """Rigidity tolerance (see ``RgbdOdometry._moved``): a match whose distances to the others changed
+    """Rigidity tolerance (see ``moved_by_rigidity``): a match whose distances to the others changed
     by more is on a moving object; its map point is never matched again and its keypoint stays out
     of new keyframes."""
     dynamic_threshold_coeff: float = 0.001
@@ -92,6 +120,24 @@ class VoCfg:
         check_int("num_features", self.num_features, "pass a count > 0, e.g. 1500", minimum=1)
         check_int("min_inliers", self.min_inliers, "pass a count >= 6 (PnP needs 4+)", minimum=6)
         check_positive("ransac_reprojection_px", self.ransac_reprojection_px, "pass pixels > 0, e.g. 2")
+        if self.features not in ("orb", "kornia"):
+            raise InvalidValueError("VoCfg.features", self.features, "unknown front end", "pass 'orb' or 'kornia'")
+        if self.pnp not in ("opencv", "torch"):
+            raise InvalidValueError("VoCfg.pnp", self.pnp, "unknown RANSAC", "pass 'opencv' or 'torch'")
+        if self.features == "orb" and torch.device(self.device).type != "cpu":
+            raise InvalidValueError("VoCfg.device", self.device, "ORB runs in OpenCV on the host",
+                                    "pass device='cpu', or features='kornia' (kornia_vo_cfg) for a GPU")
+
+
+def kornia_vo_cfg(device: str = "cpu") -> VoCfg:
+    """The all-torch odometry on ``device``: kornia features, torch RANSAC and refinement.
+
+    1000 corners: the seeded room shows ~500-800 Shi-Tomasi corners above ``quality`` in a 640x480
+    view, so more would only add weak ones. Ratio 0.8 is Lowe's (2004) for SIFT distances. Four
+    refinement iterations, not six: the 4th step is already under 3 um (``vo_refine``), and on a
+    GPU each iteration is ~50 kernel launches, the largest share of a frame's."""
+    return VoCfg(features="kornia", pnp="torch", device=device, num_features=1000, ratio_test=0.8,
+                 refine_iterations=4)
 
 
 @dataclass
@@ -99,11 +145,11 @@ class Keyframe:
     index: int
     pose_wc: np.ndarray
     """(4, 4) camera-to-world pose when the keyframe was made."""
-    descriptors: np.ndarray
-    """(N, 32) uint8 ORB descriptors of the keypoints with valid depth."""
-    points_w: np.ndarray
-    """(N, 3) float64 their 3-D points in the world, m."""
-    dynamic: np.ndarray
+    descriptors: torch.Tensor
+    """(N, D) descriptors (``FrameFeatures.descriptors``) of the keypoints with valid depth, on the device."""
+    points_w: torch.Tensor
+    """(N, 3) float64 their 3-D points in the world, m, on the device."""
+    dynamic: torch.Tensor
     """(N,) bool: points seen to move (no longer matched)."""
 
 
@@ -116,57 +162,31 @@ class VoResult:
     num_keyframes: int
 
 
-def _so3_exp(w: np.ndarray) -> np.ndarray:
-    theta = np.linalg.norm(w)
-    k = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
-    if theta < 1e-12:
-        return np.eye(3) + k
-    return np.eye(3) + np.sin(theta) / theta * k + (1 - np.cos(theta)) / theta**2 * k @ k
+def moved_by_rigidity(points_w: torch.Tensor, points_c: torch.Tensor, valid: torch.Tensor, cfg: VoCfg,
+                      seed: int) -> torch.Tensor:
+    """(M,) bool: matches whose 3-D point moved, by rigidity, independent of any pose estimate.
 
-
-def _skew_batch(p: np.ndarray) -> np.ndarray:
-    z = np.zeros(len(p))
-    return np.stack([np.stack([z, -p[:, 2], p[:, 1]], -1), np.stack([p[:, 2], z, -p[:, 0]], -1),
-                     np.stack([-p[:, 1], p[:, 0], z], -1)], -2)
-
-
-def _robust_weight(r: np.ndarray, loss: str) -> np.ndarray:
-    """IRLS weights of normalised residual norms: Huber (k = 1.345) or Tukey's biweight (c = 4.685),
-    the 95 %-efficiency constants for Gaussian noise."""
-    a = np.abs(r)
-    if loss == "huber":
-        return np.where(a <= 1.345, 1.0, 1.345 / np.maximum(a, 1e-12))
-    return np.where(a < 4.685, (1 - (a / 4.685) ** 2) ** 2, 0.0)
-
-
-def refine_pose(rot_cw: np.ndarray, t_cw: np.ndarray, points_w: np.ndarray, pixels: np.ndarray,
-                points_c: np.ndarray, has_depth: np.ndarray, k: np.ndarray, cfg: VoCfg) -> tuple[np.ndarray, np.ndarray]:
-    """Gauss-Newton on the world-to-camera pose over reprojection and 3-D (depth) residuals."""
-    fx, fy, cx, cy = k[0, 0], k[1, 1], k[0, 2], k[1, 2]
-    for _ in range(cfg.refine_iterations):
-        pc = points_w @ rot_cw.T + t_cw
-        z = np.maximum(pc[:, 2], 1e-6)
-        proj = np.stack([fx * pc[:, 0] / z + cx, fy * pc[:, 1] / z + cy], -1)
-        r_px = (proj - pixels) / cfg.pixel_sigma  # (N, 2)
-        jp = np.zeros((len(pc), 2, 3))
-        jp[:, 0, 0], jp[:, 0, 2] = fx / z, -fx * pc[:, 0] / z**2
-        jp[:, 1, 1], jp[:, 1, 2] = fy / z, -fy * pc[:, 1] / z**2
-        d_pc = np.concatenate([-_skew_batch(pc), np.broadcast_to(np.eye(3), (len(pc), 3, 3))], -1)  # (N, 3, 6)
-        j_px = jp @ d_pc / cfg.pixel_sigma
-        sigma = np.maximum(cfg.depth_sigma_coeff * z**2, cfg.depth_sigma_min_m)[:, None]
-        r_3d = (pc - points_c) / sigma
-        j_3d = d_pc / sigma[..., None]
-        w_px = _robust_weight(np.linalg.norm(r_px, axis=1), cfg.robust_loss)[:, None]
-        w_3d = (_robust_weight(np.linalg.norm(r_3d, axis=1), cfg.robust_loss) * has_depth
-                * cfg.use_depth_residual)[:, None]
-        h = np.einsum("nij,nik->jk", j_px * w_px[..., None], j_px) + np.einsum("nij,nik->jk", j_3d * w_3d[..., None], j_3d)
-        g = np.einsum("nij,ni->j", j_px * w_px[..., None], r_px) + np.einsum("nij,ni->j", j_3d * w_3d[..., None], r_3d)
-        delta = -np.linalg.solve(h + 1e-9 * np.eye(6), g)
-        dr = _so3_exp(delta[:3])
-        rot_cw, t_cw = dr @ rot_cw, dr @ t_cw + delta[3:]
-        if np.linalg.norm(delta) < 1e-9:
-            break
-    return rot_cw, t_cw
+    ``points_w`` (M, 3) map points (world, m), ``points_c`` (M, 3) the matched keypoints' points in
+    the current camera frame (m), ``valid`` (M,) bool where they have depth. A rigid motion keeps
+    distances: for static points |p_i - p_j| (map) equals |q_i - q_j| (current camera frame). Each
+    match is compared with up to 256 anchor matches (drawn with ``seed`` on the host, the same on
+    every device); one whose distances disagree (beyond ``dynamic_threshold_m`` +
+    ``dynamic_threshold_coeff`` (z_i^2 + z_j^2)) with most anchors has moved: the static scene is the
+    majority of what is seen."""
+    idx = torch.nonzero(valid)[:, 0]
+    out = torch.zeros(len(points_w), dtype=torch.bool, device=points_w.device)
+    if len(idx) < 12:
+        return out
+    anchors = idx
+    if len(idx) > 256:
+        anchors = idx[torch.from_numpy(np.random.default_rng(seed).choice(len(idx), 256, replace=False)).to(idx.device)]
+    d_map = (points_w[idx, None] - points_w[None, anchors]).norm(dim=-1)
+    d_cur = (points_c[idx, None] - points_c[None, anchors]).norm(dim=-1)
+    z = points_c[:, 2]
+    tol = cfg.dynamic_threshold_m + cfg.dynamic_threshold_coeff * (z[idx, None] ** 2 + z[None, anchors] ** 2)
+    agree = ((d_map - d_cur).abs() < tol).double().mean(dim=1)
+    out[idx] = agree < 0.5
+    return out
 
 
 class RgbdOdometry:
@@ -177,13 +197,13 @@ class RgbdOdometry:
     """
 
     def __init__(self, intrinsics, cfg: VoCfg | None = None, initial_pose_wc=None):
-        import cv2  # noqa: PLC0415 - perception extra
-
-        self.cv2 = cv2
         self.cfg = cfg or VoCfg()
+        self.device = torch.device(self.cfg.device)
         self.k = np.asarray(intrinsics, np.float64)
-        self.orb = cv2.ORB_create(nfeatures=self.cfg.num_features, fastThreshold=self.cfg.fast_threshold)
-        self.matcher = cv2.BFMatcher(cv2.NORM_HAMMING)
+        self.k_t = torch.as_tensor(self.k, device=self.device)
+        self.features = make_features(self.cfg, self.k_t, self.device)
+        self.rng = np.random.default_rng(0)
+        """Draws the torch RANSAC's samples (host integers: identical on every device)."""
         self.keyframes: list[Keyframe] = []
         self.pose_wc = np.eye(4) if initial_pose_wc is None else np.asarray(initial_pose_wc, np.float64).copy()
         self.velocity = np.eye(4)
@@ -192,136 +212,92 @@ class RgbdOdometry:
         self.frame_index = -1
         self.history: list[TrackState] = []
 
-    # -- features ---------------------------------------------------------------
-    def _features(self, rgb: np.ndarray, depth: np.ndarray):
-        gray = self.cv2.cvtColor(np.ascontiguousarray(rgb), self.cv2.COLOR_RGB2GRAY)
-        kps, des = self.orb.detectAndCompute(gray, None)
-        if des is None or len(kps) == 0:
-            return np.zeros((0, 2)), np.zeros((0, 32), np.uint8), np.zeros((0, 3)), np.zeros(0, bool)
-        pix = np.array([kp.pt for kp in kps], np.float64)
-        points_c, valid = self._lift(pix, depth)
-        return pix, des, points_c, valid
-
-    def _lift(self, pix: np.ndarray, depth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Camera-frame 3-D points at keypoints (depth at the nearest pixel, rejected across depth
-        edges: the 3x3 neighbourhood must agree within 2 %)."""
-        h, w = depth.shape
-        u = np.clip(np.round(pix[:, 0]).astype(int), 1, w - 2)
-        v = np.clip(np.round(pix[:, 1]).astype(int), 1, h - 2)
-        patch = np.stack([depth[v + dv, u + du] for dv in (-1, 0, 1) for du in (-1, 0, 1)], -1)
-        z = depth[v, u]
-        lo, hi = self.cfg.depth_range_m
-        valid = (patch.min(-1) > 0) & (patch.max(-1) - patch.min(-1) < 0.02 * z) & (z > lo) & (z < hi)
-        x = (pix[:, 0] - self.k[0, 2]) / self.k[0, 0] * z
-        y = (pix[:, 1] - self.k[1, 2]) / self.k[1, 1] * z
-        return np.stack([x, y, z], -1), valid
-
-    def _match(self, des: np.ndarray, kf_des: np.ndarray) -> np.ndarray:
-        """(M, 2) index pairs (query, train) passing the ratio test."""
-        if len(des) < 2 or len(kf_des) < 2:
-            return np.zeros((0, 2), int)
-        pairs = []
-        for m in self.matcher.knnMatch(des, kf_des, k=2):
-            if len(m) == 2 and m[0].distance < self.cfg.ratio_test * m[1].distance and m[0].distance <= self.cfg.max_hamming:
-                pairs.append((m[0].queryIdx, m[0].trainIdx))
-        return np.array(pairs, int).reshape(-1, 2)
-
     # -- pose -------------------------------------------------------------------
-    def _solve(self, points_w, pix, points_c, valid, prior_cw: np.ndarray | None, min_inliers: int):
-        cv2 = self.cv2
-        if len(points_w) < max(6, min_inliers):
-            return None
-        kwargs = dict(iterationsCount=self.cfg.ransac_iterations, reprojectionError=self.cfg.ransac_reprojection_px,
-                      confidence=0.999)
+    def _ransac(self, points_w, pix, points_c, valid):
+        """``(rot_cw, t_cw, inliers (M,) bool)`` of the best hypothesis on the device, or None."""
+        if self.cfg.pnp == "torch":
+            return ransac_pose_rgbd(points_w, pix, points_c, valid, self.k_t, self.cfg.ransac_iterations,
+                                    self.cfg.ransac_reprojection_px, self.rng)
+        import cv2  # noqa: PLC0415 - perception extra
+
         # minimal-set RANSAC (AP3P), never seeded with the motion prior: a seeded iterative solver
         # follows a slowly moving object's points together with its own prediction and drifts
-        ok, rvec, tvec, inl = cv2.solvePnPRansac(points_w, pix, self.k, None, flags=cv2.SOLVEPNP_AP3P, **kwargs)
-        if not ok or inl is None or len(inl) < min_inliers:
+        ok, rvec, tvec, inl = cv2.solvePnPRansac(points_w.cpu().numpy(), pix.cpu().numpy(), self.k, None,
+                                                 flags=cv2.SOLVEPNP_AP3P, iterationsCount=self.cfg.ransac_iterations,
+                                                 reprojectionError=self.cfg.ransac_reprojection_px, confidence=0.999)
+        if not ok or inl is None:
             return None
-        inl = inl[:, 0]
-        rot, _ = cv2.Rodrigues(rvec)
-        rot, t = refine_pose(rot, tvec[:, 0], points_w[inl], pix[inl], points_c[inl], valid[inl], self.k, self.cfg)
-        # re-select inliers with the refined pose, refine once more on them
-        pc = points_w @ rot.T + t
-        z = np.maximum(pc[:, 2], 1e-6)
-        err = np.linalg.norm(np.stack([self.k[0, 0] * pc[:, 0] / z + self.k[0, 2],
-                                       self.k[1, 1] * pc[:, 1] / z + self.k[1, 2]], -1) - pix, axis=1)
-        inl = np.flatnonzero((err < self.cfg.ransac_reprojection_px) & (pc[:, 2] > 0))
-        if len(inl) < min_inliers:
-            return None
-        rot, t = refine_pose(rot, t, points_w[inl], pix[inl], points_c[inl], valid[inl], self.k, self.cfg)
-        pose_cw = np.eye(4)
-        pose_cw[:3, :3], pose_cw[:3, 3] = rot, t
-        return pose_cw, len(inl)
+        inliers = torch.zeros(len(points_w), dtype=torch.bool)
+        inliers[torch.from_numpy(inl[:, 0])] = True
+        rot = torch.from_numpy(cv2.Rodrigues(rvec)[0]).to(self.device)
+        return rot, torch.from_numpy(tvec[:, 0]).to(self.device), inliers.to(self.device)
 
-    def _track_local_map(self, pix, des, points_c, valid, prior_cw):
+    def _solve(self, points_w, pix, points_c, valid, min_inliers: int):
+        """RANSAC, refinement on its inliers, inliers re-selected with the refined pose, refinement
+        again: ``(pose_cw (4, 4) numpy, inlier count)`` or None."""
+        if len(points_w) < max(6, min_inliers):
+            return None
+        found = self._ransac(points_w, pix, points_c, valid)
+        if found is None or int(found[2].sum()) < min_inliers:
+            return None
+        rot, t, inliers = found
+        rot, t = refine_pose_torch(rot, t, points_w, pix, points_c, valid, inliers, self.k_t, self.cfg)
+        err, z = reprojection_error_px(rot, t, points_w, pix, self.k_t)
+        inliers = (err < self.cfg.ransac_reprojection_px) & (z > 0)
+        count = int(inliers.sum())
+        if count < min_inliers:
+            return None
+        rot, t = refine_pose_torch(rot, t, points_w, pix, points_c, valid, inliers, self.k_t, self.cfg)
+        pose_cw = np.eye(4)
+        pose_cw[:3, :3], pose_cw[:3, 3] = rot.cpu().numpy(), t.cpu().numpy()
+        return pose_cw, count
+
+    def _track_local_map(self, f: FrameFeatures, prior_cw: np.ndarray):
         kfs = self.keyframes[-self.cfg.local_map_keyframes:]
-        owner = np.concatenate([np.full(len(kf.points_w), i) for i, kf in enumerate(kfs)])
-        local = np.concatenate([np.arange(len(kf.points_w)) for kf in kfs])
-        dynamic = np.concatenate([kf.dynamic for kf in kfs])
-        map_des = np.concatenate([kf.descriptors for kf in kfs])
-        map_pts = np.concatenate([kf.points_w for kf in kfs])
-        pairs = self._match(des, map_des)
+        map_pts = torch.cat([kf.points_w for kf in kfs])
+        dynamic = torch.cat([kf.dynamic for kf in kfs])
+        pairs = self.features.match(f.descriptors, torch.cat([kf.descriptors for kf in kfs]))
         if len(pairs) == 0:
             return None
         q, m = pairs[:, 0], pairs[:, 1]
-        moved = self._moved(map_pts[m], points_c[q], valid[q]) | dynamic[m]
-        for i in np.flatnonzero(moved):
-            kfs[owner[m[i]]].dynamic[local[m[i]]] = True
-        self._moving_keypoints = q[moved]  # matched a moving point: left out of new keyframes too
-        keep = np.flatnonzero(~moved)
-        pts, px, pc, ok = map_pts[m[keep]], pix[q[keep]], points_c[q[keep]], valid[q[keep]]
-        found = self._solve(pts, px, pc, ok, prior_cw, self.cfg.min_inliers)
-        if found is None or prior_cw is None:
-            return found
+        moved = moved_by_rigidity(map_pts[m], f.points_c[q], f.valid[q], self.cfg, max(self.frame_index, 0)) | dynamic[m]
+        hits = torch.zeros(len(map_pts), dtype=torch.long, device=self.device).index_add_(0, m, moved.long())
+        for kf, part in zip(kfs, (dynamic | (hits > 0)).split([len(kf.points_w) for kf in kfs]), strict=True):
+            kf.dynamic = part
+        self._moving[q] = moved  # matched a moving point: left out of new keyframes too
+        q, m = q[~moved], m[~moved]
+        pts, px, pc, ok = map_pts[m], f.pixels[q], f.points_c[q], f.valid[q]
+        found = self._solve(pts, px, pc, ok, self.cfg.min_inliers)
+        if found is None:
+            return None
         if np.linalg.norm(np.linalg.inv(found[0])[:3, 3] - np.linalg.inv(prior_cw)[:3, 3]) <= self.cfg.prior_gate_m:
             return found
-        cam = pts @ prior_cw[:3, :3].T + prior_cw[:3, 3]
-        z = np.maximum(cam[:, 2], 1e-6)
-        err = np.linalg.norm(cam[:, :2] / z[:, None] * self.k[[0, 1], [0, 1]] + self.k[:2, 2] - px, axis=1)
-        agree = np.flatnonzero((err < self.cfg.prior_gate_px) & (cam[:, 2] > 0))
-        again = self._solve(pts[agree], px[agree], pc[agree], ok[agree], prior_cw, self.cfg.min_inliers)
+        prior = torch.as_tensor(prior_cw, device=self.device)
+        err, z = reprojection_error_px(prior[:3, :3], prior[:3, 3], pts, px, self.k_t)
+        agree = (err < self.cfg.prior_gate_px) & (z > 0)
+        again = self._solve(pts[agree], px[agree], pc[agree], ok[agree], self.cfg.min_inliers)
         return found if again is None else again
 
-    def _moved(self, points_w: np.ndarray, points_c: np.ndarray, valid: np.ndarray) -> np.ndarray:
-        """(M,) bool: matches whose 3-D point moved, by rigidity, independent of any pose estimate.
-
-        A rigid motion keeps distances: for static points |p_i - p_j| (map) equals |q_i - q_j|
-        (current camera frame). Each match is compared with up to 256 anchor matches; one whose
-        distances disagree (beyond ``dynamic_threshold_m`` + ``dynamic_threshold_coeff`` (z_i^2 +
-        z_j^2)) with most anchors has moved: the static scene is the majority of what is seen."""
-        idx = np.flatnonzero(valid)
-        out = np.zeros(len(points_w), bool)
-        if len(idx) < 12:
-            return out
-        rng = np.random.default_rng(max(self.frame_index, 0))  # anchors: deterministic per frame
-        anchors = idx if len(idx) <= 256 else rng.choice(idx, 256, replace=False)
-        d_map = np.linalg.norm(points_w[idx, None] - points_w[None, anchors], axis=-1)
-        d_cur = np.linalg.norm(points_c[idx, None] - points_c[None, anchors], axis=-1)
-        z = points_c[:, 2]
-        tol = self.cfg.dynamic_threshold_m + self.cfg.dynamic_threshold_coeff * (z[idx, None] ** 2 + z[None, anchors] ** 2)
-        agree = (np.abs(d_map - d_cur) < tol).mean(axis=1)
-        out[idx] = agree < 0.5
-        return out
-
-    def _relocalize(self, pix, des, points_c, valid):
+    def _relocalize(self, f: FrameFeatures):
         for kf in reversed(self.keyframes[-self.cfg.relocalize_keyframes:]):
-            static = np.flatnonzero(~kf.dynamic)
-            pairs = self._match(des, kf.descriptors[static])
+            static = ~kf.dynamic
+            points_w = kf.points_w[static]
+            pairs = self.features.match(f.descriptors, kf.descriptors[static])
             if len(pairs) < self.cfg.relocalize_min_inliers:
                 continue
-            found = self._solve(kf.points_w[static[pairs[:, 1]]], pix[pairs[:, 0]], points_c[pairs[:, 0]],
-                                valid[pairs[:, 0]], None, self.cfg.relocalize_min_inliers)
+            q = pairs[:, 0]
+            found = self._solve(points_w[pairs[:, 1]], f.pixels[q], f.points_c[q], f.valid[q],
+                                self.cfg.relocalize_min_inliers)
             if found is not None:
                 return found
         return None
 
-    def _add_keyframe(self, des, points_c, valid) -> None:
-        keep = valid.copy()
-        keep[self._moving_keypoints] = False
-        pts_w = points_c[keep] @ self.pose_wc[:3, :3].T + self.pose_wc[:3, 3]
-        self.keyframes.append(Keyframe(self.frame_index, self.pose_wc.copy(), des[keep].copy(), pts_w,
-                                       np.zeros(len(pts_w), bool)))
+    def _add_keyframe(self, f: FrameFeatures) -> None:
+        keep = f.valid & ~self._moving
+        pose = torch.as_tensor(self.pose_wc, device=self.device)
+        pts_w = f.points_c[keep] @ pose[:3, :3].T + pose[:3, 3]
+        self.keyframes.append(Keyframe(self.frame_index, self.pose_wc.copy(), f.descriptors[keep], pts_w,
+                                       torch.zeros(len(pts_w), dtype=torch.bool, device=self.device)))
 
     def _needs_keyframe(self, inliers: int) -> bool:
         last = self.keyframes[-1].pose_wc
@@ -330,25 +306,24 @@ class RgbdOdometry:
                 or _angle_deg(rel[:3, :3]) > self.cfg.keyframe_max_rotation_deg)
 
     def track(self, rgb, depth) -> VoResult:
-        """Estimate the pose of the next frame: ``rgb`` (H, W, 3) uint8, ``depth`` (H, W) metres."""
+        """Estimate the pose of the next frame: ``rgb`` (H, W, 3) uint8, ``depth`` (H, W) metres,
+        numpy arrays or torch tensors (on any device)."""
         self.frame_index += 1
-        self._moving_keypoints = np.zeros(0, int)
-        rgb = np.asarray(rgb.cpu() if hasattr(rgb, "cpu") else rgb)
-        depth = np.asarray(depth.cpu() if hasattr(depth, "cpu") else depth, np.float32)
-        pix, des, points_c, valid = self._features(rgb, depth)
+        f = self.features.detect(rgb, depth)
+        self._moving = torch.zeros(len(f.pixels), dtype=torch.bool, device=self.device)
         inliers = 0
         if not self.keyframes:
-            if valid.sum() >= self.cfg.relocalize_min_inliers:
-                self._add_keyframe(des, points_c, valid)
+            if int(f.valid.sum()) >= self.cfg.relocalize_min_inliers:
+                self._add_keyframe(f)
                 self.state = TrackState.INITIALIZED
         else:
             prev_wc = self.pose_wc
             predicted_wc = prev_wc @ self.velocity
             if self.state == TrackState.LOST:
-                found = self._relocalize(pix, des, points_c, valid) if len(des) else None
+                found = self._relocalize(f) if len(f.pixels) else None
                 state = TrackState.RECOVERED
             else:
-                found = self._track_local_map(pix, des, points_c, valid, np.linalg.inv(predicted_wc)) if len(des) else None
+                found = self._track_local_map(f, np.linalg.inv(predicted_wc)) if len(f.pixels) else None
                 state = TrackState.TRACKING
                 if found is not None and _angle_deg(prev_wc[:3, :3].T @ np.linalg.inv(found[0])[:3, :3]) > \
                         self.cfg.max_rotation_per_frame_deg:
@@ -367,7 +342,7 @@ class RgbdOdometry:
                     self.velocity = np.eye(4)
                 self.state = state
                 if state == TrackState.RECOVERED or self._needs_keyframe(inliers):
-                    self._add_keyframe(des, points_c, valid)
+                    self._add_keyframe(f)
         self.history.append(self.state)
         return VoResult(self.pose_wc.copy(), self.state, inliers, len(self.keyframes))
 
@@ -388,4 +363,5 @@ def _interpolate_identity(motion: np.ndarray, factor: float) -> np.ndarray:
     return out
 
 
-__all__ = ["Keyframe", "RgbdOdometry", "TrackState", "VoCfg", "VoResult", "refine_pose"]
+__all__ = ["Keyframe", "RgbdOdometry", "TrackState", "VoCfg", "VoResult", "kornia_vo_cfg", "moved_by_rigidity",
+           "refine_pose"]
