@@ -107,6 +107,7 @@ def test_kornia_vo_on_cuda_tracks_the_walk_like_the_cpu(scene, tmp_path):
 
 def test_kornia_features_with_opencv_pnp_on_cuda(scene, tmp_path):
     """The split path: features and matching on the GPU, ``solvePnPRansac`` on the host."""
+    pytest.importorskip("cv2", reason="OpenCV (the perception extra) is not installed")
     walk = HeadCameraWalk(scene, width=640, height=480)
     run = run_walk_vo(walk, 150, dataclasses.replace(kornia_vo_cfg(DEVICE), pnp="opencv"))
     walk.close()
