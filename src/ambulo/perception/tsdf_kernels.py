@@ -185,12 +185,15 @@ if wp is not None:
                 rx = rays[r, c, 0]
                 ry = rays[r, c, 1]
                 rz = rays[r, c, 2]
+                # the ray's world direction in blocks per metre, once for its 3 samples
+                ray_w = wp.vec3(rx * prm.rot_blocks[0, 0] + ry * prm.rot_blocks[1, 0] + rz * prm.rot_blocks[2, 0],
+                                rx * prm.rot_blocks[0, 1] + ry * prm.rot_blocks[1, 1] + rz * prm.rot_blocks[2, 1],
+                                rx * prm.rot_blocks[0, 2] + ry * prm.rot_blocks[1, 2] + rz * prm.rot_blocks[2, 2])
                 for j in range(3):
                     dd = d + band_m[j]
                     cell = int(0)
                     for a in range(3):
-                        ray_a = rx * prm.rot_blocks[0, a] + ry * prm.rot_blocks[1, a] + rz * prm.rot_blocks[2, a]
-                        sample = wp.floor(prm.start_blocks[a] + ray_a * dd)
+                        sample = wp.floor(prm.start_blocks[a] + ray_w[a] * dd)
                         k = wp.clamp(sample - prm.corner_blocks[a], 0.0, float(side - 1))
                         cell = cell * side + int(k)
                     if volume_stamp[part, cell] != stamp:
@@ -338,9 +341,11 @@ if wp is not None:
             z = oz + local_px[2, lv]
             zc = wp.max(z, 1.0e-6)
             # sub-pixel position in the padded image, clamped so the 2x2 cell stays inside it; anything
-            # off the image lands on the NO_DEPTH border
-            u = wp.clamp(x / zc, 0.0, width_px + 0.75)
-            v = wp.clamp(y / zc, 0.0, height_px + 0.75)
+            # off the image lands on the NO_DEPTH border. One reciprocal and two products instead of two
+            # divisions (the torch path does the same, so both round alike)
+            inv_z = 1.0 / zc
+            u = wp.clamp(x * inv_z, 0.0, width_px + 0.75)
+            v = wp.clamp(y * inv_z, 0.0, height_px + 0.75)
             # 1. the nearest pixel bounds the interpolated depth within MAX_STEP: skip voxels that can
             # not be updated (most of a block lies behind the truncation band) without the 2x2 lookup
             d_near = depth_pad_m[int(wp.rint(v)), int(wp.rint(u))]

@@ -152,8 +152,9 @@ class _TorchIntegration:
         trunc = cfg.truncation_m
         # sub-pixel position in the padded image (written over x, y), clamped so the 2x2 cell stays
         # inside it; anything off the image lands on the _NO_DEPTH border
-        u = x.div_(zc).clamp_(0.0, w + 0.75)
-        v = y.div_(zc).clamp_(0.0, h + 0.75)
+        inv_z = zc.reciprocal()
+        u = x.mul_(inv_z).clamp_(0.0, w + 0.75)
+        v = y.mul_(inv_z).clamp_(0.0, h + 0.75)
         flat = buf.depth.view(-1)
         # 1. the nearest pixel's depth bounds the interpolated one: the 4 pixels are interpolated only
         # when within _MAX_STEP of each other (then |bilinear - nearest| <= _MAX_STEP * nearest), so a
