@@ -44,7 +44,7 @@ from .tsdf_kernels import (
 from .tsdf_launches import IntegrateLaunches, voxel_values
 
 if wp is not None:
-    from .tsdf_kernels import integrate_voxels, mark_band_blocks, select_blocks
+    from .tsdf_kernels import count_below, integrate_voxels, mark_band_blocks, select_blocks
 
     @wp.kernel(enable_backward=False)
     def begin_frame(state: wp.array(dtype=wp.int32)):
@@ -65,19 +65,6 @@ if wp is not None:
             state[S_SKIP] = SKIP_FULL
         else:
             state[S_NEW_BLOCKS] = new
-
-    @wp.func
-    def count_below(keys: wp.array(dtype=wp.int64), n: int, key: wp.int64):
-        """Entries of the sorted ``keys[:n]`` below ``key`` (a binary search)."""
-        lo = int(0)
-        hi = n
-        while lo < hi:
-            mid = (lo + hi) // 2
-            if keys[mid] < key:
-                lo = mid + 1
-            else:
-                hi = mid
-        return lo
 
     @wp.kernel(enable_backward=False)
     def rank_new_keys(new_keys: wp.array2d(dtype=wp.int64), state: wp.array(dtype=wp.int32),

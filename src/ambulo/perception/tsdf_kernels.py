@@ -114,16 +114,22 @@ if wp is not None:
                 | wp.int64(z + KEY_OFFSET))
 
     @wp.func
-    def find_slot(keys: wp.array(dtype=wp.int64), key_slots: wp.array(dtype=wp.int64), num_keys: int, key: wp.int64):
-        """Slot of ``key`` in the hash's sorted ``keys`` (binary search, as ``BlockHash.find``); -1 if absent."""
+    def count_below(keys: wp.array(dtype=wp.int64), n: int, key: wp.int64):
+        """Entries of the sorted ``keys[:n]`` below ``key`` (a binary search)."""
         lo = int(0)
-        hi = num_keys
+        hi = n
         while lo < hi:
             mid = (lo + hi) // 2
             if keys[mid] < key:
                 lo = mid + 1
             else:
                 hi = mid
+        return lo
+
+    @wp.func
+    def find_slot(keys: wp.array(dtype=wp.int64), key_slots: wp.array(dtype=wp.int64), num_keys: int, key: wp.int64):
+        """Slot of ``key`` in the hash's sorted ``keys`` (as ``BlockHash.find``); -1 if absent."""
+        lo = count_below(keys, num_keys, key)
         slot = int(-1)
         if lo < num_keys:
             if keys[lo] == key:
@@ -286,119 +292,6 @@ if wp is not None:
                 if mode == SELECT_VIEW:
                     view_stamp[i] = stamp
 
-    @wp.func
-    def update_run(
-        run: int,
-        runs_per_block: wp.int32,
-        voxels_per_run: wp.int32,
-        selected: wp.array(dtype=wp.int64),
-        num_selected: int,
-        first_new_slot: int,
-        slot_coords: wp.array2d(dtype=wp.int64),
-        block_voxels: wp.int32,
-        voxel_size_m: wp.float32,
-        kr: wp.mat33,
-        kt: wp.vec3,
-        local_px: wp.array2d(dtype=wp.float32),
-        depth_pad_m: wp.array2d(dtype=wp.float32),
-        rgb: wp.array3d(dtype=wp.uint8),
-        truncation_m: wp.float32,
-        inv_truncation: wp.float32,
-        depth_min_m: wp.float32,
-        depth_max_m: wp.float32,
-        max_weight: wp.float32,
-        weight_ref_depth_m: wp.float32,
-        clear_free_space: wp.int32,
-        with_color: wp.int32,
-        tsdf: wp.array2d(dtype=wp.float32),
-        weight: wp.array2d(dtype=wp.float32),
-        color: wp.array3d(dtype=wp.uint8),
-        updated: wp.array(dtype=wp.bool),
-        has_surface: wp.array(dtype=wp.bool),
-    ):
-        """``integrate_voxels``' work for one run: ``voxels_per_run`` consecutive voxels of block
-        i = run // ``runs_per_block``."""
-        i = run // runs_per_block
-        lv_first = (run - i * runs_per_block) * voxels_per_run
-        slot = wp.int64(first_new_slot + i - num_selected)
-        if i < num_selected:
-            slot = selected[i]
-        x0 = float(slot_coords[slot, 0] * wp.int64(block_voxels)) * voxel_size_m
-        y0 = float(slot_coords[slot, 1] * wp.int64(block_voxels)) * voxel_size_m
-        z0 = float(slot_coords[slot, 2] * wp.int64(block_voxels)) * voxel_size_m
-        ox = kr[0, 0] * x0 + kr[0, 1] * y0 + kr[0, 2] * z0 + kt[0]
-        oy = kr[1, 0] * x0 + kr[1, 1] * y0 + kr[1, 2] * z0 + kt[1]
-        oz = kr[2, 0] * x0 + kr[2, 1] * y0 + kr[2, 2] * z0 + kt[2]
-        width_px = float(depth_pad_m.shape[1] - 2)
-        height_px = float(depth_pad_m.shape[0] - 2)
-        any_updated = int(0)
-        any_surface = int(0)
-        for lv in range(lv_first, lv_first + voxels_per_run):
-            old_t = tsdf[slot, lv]
-            new_t = old_t
-            x = ox + local_px[0, lv]
-            y = oy + local_px[1, lv]
-            z = oz + local_px[2, lv]
-            zc = wp.max(z, 1.0e-6)
-            # sub-pixel position in the padded image, clamped so the 2x2 cell stays inside it; anything
-            # off the image lands on the NO_DEPTH border. One reciprocal and two products instead of two
-            # divisions (the torch path does the same, so both round alike)
-            inv_z = 1.0 / zc
-            u = wp.clamp(x * inv_z, 0.0, width_px + 0.75)
-            v = wp.clamp(y * inv_z, 0.0, height_px + 0.75)
-            # 1. the nearest pixel bounds the interpolated depth within MAX_STEP: skip voxels that can
-            # not be updated (most of a block lies behind the truncation band) without the 2x2 lookup
-            d_near = depth_pad_m[int(wp.rint(v)), int(wp.rint(u))]
-            if d_near * (1.0 + MAX_STEP) >= z - truncation_m:
-                # 2. bilinear where the 2x2 cell is valid and smooth, else the nearest pixel (no
-                # blending across depth edges)
-                u0 = wp.floor(u)
-                v0 = wp.floor(v)
-                fu = u - u0
-                fv = v - v0
-                r = int(v0)
-                c = int(u0)
-                d00 = depth_pad_m[r, c]
-                d01 = depth_pad_m[r, c + 1]
-                d10 = depth_pad_m[r + 1, c]
-                d11 = depth_pad_m[r + 1, c + 1]
-                lo = wp.min(wp.min(d00, d01), wp.min(d10, d11))
-                hi = wp.max(wp.max(d00, d01), wp.max(d10, d11))
-                rn = r + int(wp.rint(fv))
-                cn = c + int(wp.rint(fu))
-                d = depth_pad_m[rn, cn]
-                if hi <= lo * (1.0 + MAX_STEP) and lo >= depth_min_m and hi <= depth_max_m:
-                    top = d00 + fu * (d01 - d00)
-                    d = top + fv * ((d10 + fu * (d11 - d10)) - top)
-                sdf = d - z
-                if sdf >= -truncation_m and d >= depth_min_m and d <= depth_max_m and z > 0.0:
-                    # 3. free-space clearing, weighted running average, saturation
-                    tsdf_obs = wp.min(sdf * inv_truncation, 1.0)
-                    old_w = weight[slot, lv]
-                    if clear_free_space != 0 and sdf >= truncation_m and old_t < 0.0:
-                        old_w = 0.0
-                    w_obs = 1.0
-                    if weight_ref_depth_m > 0.0:
-                        q = weight_ref_depth_m / zc
-                        w_obs = wp.min(q * q, 1.0)
-                    total = old_w + w_obs
-                    blend = w_obs / (total + 1.0e-12)
-                    new_t = old_t + blend * (tsdf_obs - old_t)
-                    tsdf[slot, lv] = new_t
-                    weight[slot, lv] = wp.min(total, max_weight)
-                    if with_color != 0:
-                        for ch in range(3):
-                            old_c = float(color[slot, lv, ch])
-                            obs_c = float(rgb[rn - 1, cn - 1, ch])  # (rn, cn) is inside the image
-                            color[slot, lv, ch] = wp.uint8(int(wp.rint(old_c + blend * (obs_c - old_c))))
-                    any_updated = 1
-            if new_t < 0.0:
-                any_surface = 1
-        if any_updated != 0:
-            updated[slot] = True
-        if any_surface != 0:
-            has_surface[slot] = True
-
     @wp.kernel(enable_backward=False)
     def integrate_voxels(
         first_run: wp.int32,
@@ -448,15 +341,95 @@ if wp is not None:
         has_surface: (capacity,) bool set True where a voxel of the block was updated / holds tsdf < 0
         (``select_blocks`` cleared ``has_surface``)."""
         num_selected = state[S_SELECTED]
-        total = (num_selected + state[S_NEW_BLOCKS]) * runs_per_block
-        end = wp.min(first_run + max_runs, total)
+        first_new_slot = state[S_NUM_BLOCKS]
+        total_runs = (num_selected + state[S_NEW_BLOCKS]) * runs_per_block
+        end = wp.min(first_run + max_runs, total_runs)
         run = first_run + wp.tid()
         prm = params[0]
+        kr = prm.kr
+        kt = prm.kt
+        with_color = prm.with_color
         while run < end:
-            update_run(run, runs_per_block, voxels_per_run, selected, num_selected, state[S_NUM_BLOCKS],
-                       slot_coords, block_voxels, voxel_size_m, prm.kr, prm.kt, local_px, depth_pad_m, rgb,
-                       truncation_m, inv_truncation, depth_min_m, depth_max_m, max_weight, weight_ref_depth_m,
-                       clear_free_space, prm.with_color, tsdf, weight, color, updated, has_surface)
+            i = run // runs_per_block
+            lv_first = (run - i * runs_per_block) * voxels_per_run
+            slot = wp.int64(first_new_slot + i - num_selected)
+            if i < num_selected:
+                slot = selected[i]
+            x0 = float(slot_coords[slot, 0] * wp.int64(block_voxels)) * voxel_size_m
+            y0 = float(slot_coords[slot, 1] * wp.int64(block_voxels)) * voxel_size_m
+            z0 = float(slot_coords[slot, 2] * wp.int64(block_voxels)) * voxel_size_m
+            ox = kr[0, 0] * x0 + kr[0, 1] * y0 + kr[0, 2] * z0 + kt[0]
+            oy = kr[1, 0] * x0 + kr[1, 1] * y0 + kr[1, 2] * z0 + kt[1]
+            oz = kr[2, 0] * x0 + kr[2, 1] * y0 + kr[2, 2] * z0 + kt[2]
+            width_px = float(depth_pad_m.shape[1] - 2)
+            height_px = float(depth_pad_m.shape[0] - 2)
+            any_updated = int(0)
+            any_surface = int(0)
+            for lv in range(lv_first, lv_first + voxels_per_run):
+                old_t = tsdf[slot, lv]
+                new_t = old_t
+                x = ox + local_px[0, lv]
+                y = oy + local_px[1, lv]
+                z = oz + local_px[2, lv]
+                zc = wp.max(z, 1.0e-6)
+                # sub-pixel position in the padded image, clamped so the 2x2 cell stays inside it; anything
+                # off the image lands on the NO_DEPTH border. One reciprocal and two products instead of two
+                # divisions (the torch path does the same, so both round alike)
+                inv_z = 1.0 / zc
+                u = wp.clamp(x * inv_z, 0.0, width_px + 0.75)
+                v = wp.clamp(y * inv_z, 0.0, height_px + 0.75)
+                # 1. the nearest pixel bounds the interpolated depth within MAX_STEP: skip voxels that can
+                # not be updated (most of a block lies behind the truncation band) without the 2x2 lookup
+                d_near = depth_pad_m[int(wp.rint(v)), int(wp.rint(u))]
+                if d_near * (1.0 + MAX_STEP) >= z - truncation_m:
+                    # 2. bilinear where the 2x2 cell is valid and smooth, else the nearest pixel (no
+                    # blending across depth edges)
+                    u0 = wp.floor(u)
+                    v0 = wp.floor(v)
+                    fu = u - u0
+                    fv = v - v0
+                    r = int(v0)
+                    c = int(u0)
+                    d00 = depth_pad_m[r, c]
+                    d01 = depth_pad_m[r, c + 1]
+                    d10 = depth_pad_m[r + 1, c]
+                    d11 = depth_pad_m[r + 1, c + 1]
+                    lo = wp.min(wp.min(d00, d01), wp.min(d10, d11))
+                    hi = wp.max(wp.max(d00, d01), wp.max(d10, d11))
+                    rn = r + int(wp.rint(fv))
+                    cn = c + int(wp.rint(fu))
+                    d = depth_pad_m[rn, cn]
+                    if hi <= lo * (1.0 + MAX_STEP) and lo >= depth_min_m and hi <= depth_max_m:
+                        top = d00 + fu * (d01 - d00)
+                        d = top + fv * ((d10 + fu * (d11 - d10)) - top)
+                    sdf = d - z
+                    if sdf >= -truncation_m and d >= depth_min_m and d <= depth_max_m and z > 0.0:
+                        # 3. free-space clearing, weighted running average, saturation
+                        tsdf_obs = wp.min(sdf * inv_truncation, 1.0)
+                        old_w = weight[slot, lv]
+                        if clear_free_space != 0 and sdf >= truncation_m and old_t < 0.0:
+                            old_w = 0.0
+                        w_obs = 1.0
+                        if weight_ref_depth_m > 0.0:
+                            q = weight_ref_depth_m / zc
+                            w_obs = wp.min(q * q, 1.0)
+                        total = old_w + w_obs
+                        blend = w_obs / (total + 1.0e-12)
+                        new_t = old_t + blend * (tsdf_obs - old_t)
+                        tsdf[slot, lv] = new_t
+                        weight[slot, lv] = wp.min(total, max_weight)
+                        if with_color != 0:
+                            for ch in range(3):
+                                old_c = float(color[slot, lv, ch])
+                                obs_c = float(rgb[rn - 1, cn - 1, ch])  # (rn, cn) is inside the image
+                                color[slot, lv, ch] = wp.uint8(int(wp.rint(old_c + blend * (obs_c - old_c))))
+                        any_updated = 1
+                if new_t < 0.0:
+                    any_surface = 1
+            if any_updated != 0:
+                updated[slot] = True
+            if any_surface != 0:
+                has_surface[slot] = True
             run += stride
 
 
