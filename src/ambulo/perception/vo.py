@@ -135,7 +135,7 @@ def kornia_vo_cfg(device: str = "cpu") -> VoCfg:
     1000 corners: the seeded room shows ~500-800 Shi-Tomasi corners above ``quality`` in a 640x480
     view, so more would only add weak ones. Ratio 0.8 is Lowe's (2004) for SIFT distances. Four
     refinement iterations, not six: the 4th step is already under 3 um (``vo_refine``), and on a
-    GPU each iteration is ~50 kernel launches, the largest share of a frame's."""
+    GPU each iteration is ~35 kernel launches, the largest share of a frame's."""
     return VoCfg(features="kornia", pnp="torch", device=device, num_features=1000, ratio_test=0.8,
                  refine_iterations=4)
 

@@ -43,7 +43,7 @@ def reprojection_error_px(rot_cw: torch.Tensor, t_cw: torch.Tensor, points_w: to
     (..., 3, 3), ``t_cw`` (..., 3) against ``pixels`` (N, 2); ``k`` (3, 3)."""
     pc = points_w @ rot_cw.transpose(-1, -2) + t_cw[..., None, :]
     z = pc[..., 2]
-    uv = pc[..., :2] / z.clamp_min(1e-6)[..., None] * k[[0, 1], [0, 1]] + k[:2, 2]
+    uv = pc[..., :2] / z.clamp_min(1e-6)[..., None] * k.diagonal()[:2] + k[:2, 2]
     return (uv - pixels).norm(dim=-1), z
 
 
