@@ -157,3 +157,14 @@ def test_kernel_edt_on_cuda_is_exact():
     for max_cells in (5, 40):
         np.testing.assert_array_equal(esdf_kernels.exact_edt(sites.cuda(), max_cells).cpu().numpy(),
                                       _scipy_edt(sites.numpy(), max_cells))
+
+
+@needs_warp
+def test_the_fused_cuda_esdf_gives_the_general_paths_values(mapped):
+    """``esdf_kernels.occupancy_esdf`` (CUDA's fused path: masks in one pass, clamp and unit in the last
+    window pass), run on the CPU: bit-equal to ``esdf_from_grid``'s general path."""
+    general = esdf_from_grid(mapped, max_distance_m=1.0)
+    max_cells = int(round(1.0 / mapped.voxel_size_m))
+    dist, observed = esdf_kernels.occupancy_esdf(mapped.tsdf, mapped.weight, 1.0, max_cells, mapped.voxel_size_m)
+    assert torch.equal(observed, general.observed)
+    assert torch.equal(dist, general.distance_m) and (dist < 1.0).sum() > 1000

@@ -43,15 +43,20 @@ except ImportError:  # esdf.edt falls back to its torch path
 if wp is not None:
 
     @wp.func
-    def _store(out: wp.array3d(dtype=wp.float32), i: int, p: int, q: int, d_sq: wp.float64, cap_sq: wp.float64,
-               finish: int):
-        """Write a squared distance, inf beyond the cap; as a distance (sqrt) on the last axis."""
+    def _stored_value(d_sq: wp.float64, cap_sq: wp.float64, finish: int):
+        """A squared distance as stored: inf beyond the cap; as a distance (sqrt) on the last axis."""
         value = wp.float32(wp.inf)
         if d_sq <= cap_sq:
             value = wp.float32(d_sq)
             if finish != 0:
                 value = wp.sqrt(value)
-        out[i, p, q] = value
+        return value
+
+    @wp.func
+    def _store(out: wp.array3d(dtype=wp.float32), i: int, p: int, q: int, d_sq: wp.float64, cap_sq: wp.float64,
+               finish: int):
+        """Write ``_stored_value``."""
+        out[i, p, q] = _stored_value(d_sq, cap_sq, finish)
 
     @wp.kernel(enable_backward=False)
     def sites_scan(
@@ -226,9 +231,10 @@ if wp is not None:
             if i + k < n:
                 best = wp.min(best, wp.float64(f[i + k, p, q]) + kk)
             k += 1
-        _store(out, i, p, q, best, cap_sq, finish)
+        value = _stored_value(best, cap_sq, finish)
         if finish != 0:
-            out[i, p, q] = wp.min(out[i, p, q], clamp_cells) * scale
+            value = wp.min(value, clamp_cells) * scale
+        out[i, p, q] = value
 
     @wp.kernel(enable_backward=False)
     def classify_voxels(tsdf: wp.array(dtype=wp.float32), weight: wp.array(dtype=wp.float32), min_weight: wp.float32,
@@ -405,10 +411,11 @@ def occupancy_esdf(tsdf: torch.Tensor, weight: torch.Tensor, min_weight: float, 
                    voxel_size_m: float) -> tuple[torch.Tensor, torch.Tensor]:
     """``esdf.esdf_from_grid``'s unsigned field on CUDA in 4 launches: the occupied and observed masks
     in one pass, then the window EDT whose last pass clamps to max_cells and scales to metres. Returns
-    (distance_m, observed), both (X, Y, Z), the same values as the general path."""
+    (distance_m, observed), both (X, Y, Z), the same values as the general path. It runs on the CPU
+    too (one thread per launch: slower than the general path there), so CI tests it."""
     wp.init()
     device = wp.device_from_torch(tsdf.device)
-    stream = wp.stream_from_torch(tsdf.device)
+    stream = wp.stream_from_torch(tsdf.device) if device.is_cuda else None
     occupied = torch.empty(tsdf.shape, dtype=torch.bool, device=tsdf.device)
     observed = torch.empty_like(occupied)
     wp.launch(classify_voxels, dim=tsdf.numel(), device=device, stream=stream, inputs=[
