@@ -198,7 +198,8 @@ class TsdfMap(_TorchIntegration):
             self._view_stamp = torch.cat([self._view_stamp, self._view_stamp.new_zeros(extra)])
 
     def _geometry(self, frame: RgbdFrame) -> _FrameGeometry:
-        """The frame's small matrices on the host: no device op, no upload (the kernels take them by value)."""
+        """The frame's small matrices on the host, no device op (the Warp path writes them to its
+        ``FrameParams``; the torch path uploads the few it uses)."""
         pose = _host(frame.pose_wc).astype(np.float64)
         pose_cw = np.linalg.inv(pose).astype(np.float32)
         pose_wc = pose.astype(np.float32)

@@ -50,8 +50,9 @@ class _FrameBuffers:
 
 @dataclass
 class _FrameGeometry:
-    """A frame's small per-frame matrices, computed on the host (numpy float32, as the kernels take
-    them by value) and shared by both backends, so that both do the same float32 arithmetic."""
+    """A frame's small per-frame matrices, computed on the host (numpy float32; the Warp kernels read
+    them from a ``FrameParams`` array) and shared by both backends, so that both do the same float32
+    arithmetic."""
 
     k: np.ndarray
     """(3, 3) float32 intrinsics."""

@@ -34,7 +34,6 @@ from .tsdf_kernels import (
     S_NEW_BLOCKS,
     S_NUM_BLOCKS,
     S_PARTS,
-    S_SELECTED,
     S_SKIP,
     S_STAMP,
     SKIP_FULL,
@@ -242,4 +241,4 @@ def check_state(st: list[int]) -> int:
     return st[S_SKIP]
 
 
-__all__ = ["SKIP_FULL", "UPDATE_THREADS", "IntegrateGraph", "check_state", "S_SELECTED"]
+__all__ = ["SKIP_FULL", "UPDATE_THREADS", "IntegrateGraph", "check_state"]
