@@ -203,3 +203,17 @@ def test_stereo_frame_gives_the_mapper_depth():
     seen = frame.depth_m[:, 10:] > 0
     assert seen.float().mean() > 0.95
     np.testing.assert_allclose(frame.depth_m[:, 10:][seen].median(), 400.0 * 0.05 / 5, rtol=0.02)
+
+
+@pytest.mark.parametrize("field,value,named", [
+    ("num_disparities", 0, "num_disparities"), ("paths", 5, "pass 4 or 8"), ("p1", -1, "p1"),
+    ("p2", 3, "p2"), ("uniqueness_ratio", float("nan"), "uniqueness_ratio"), ("max_lr_diff_px", -2, "max_lr_diff_px"),
+    ("median_size", 4, "odd"), ("num_disparities", 16.5, "whole number")])
+def test_a_bad_sgm_setting_is_refused_in_one_line_naming_it_and_the_fix(field, value, named):
+    from ambulo.perception.stereo_torch import SgmCfg
+    from ambulo.utils.checks import InvalidValueError
+
+    with pytest.raises(InvalidValueError) as err:
+        SgmCfg(**{field: value})
+    message = str(err.value)
+    assert "\n" not in message and f"SgmCfg.{field}" in message and named in message and "pass" in message

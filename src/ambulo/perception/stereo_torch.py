@@ -15,6 +15,8 @@ from dataclasses import dataclass
 import torch
 import torch.nn.functional as F
 
+from ambulo.utils.checks import InvalidValueError, check_int, check_positive
+
 from .frames import RgbdFrame
 
 
@@ -41,7 +43,22 @@ class SgmCfg:
     max_lr_diff_px: int = 1
     """Reject a pixel whose right-image disparity differs by more than this (occlusions, mismatches)."""
     median_size: int = 3
-    """Median filter on the disparity (0: off), px."""
+    """Median filter on the disparity (0 or 1: off; else odd), px."""
+
+    def __post_init__(self):
+        check_int("SgmCfg.num_disparities", self.num_disparities, "pass a search range of 2 px or more, e.g. 64",
+                  minimum=2)
+        if self.paths not in (4, 8):
+            raise InvalidValueError("SgmCfg.paths", self.paths, "SGM scans 4 or 8 directions", "pass 4 or 8")
+        check_int("SgmCfg.p1", self.p1, "pass a census-cost penalty >= 0, e.g. 7", minimum=0)
+        check_int("SgmCfg.p2", self.p2, f"pass a penalty >= p1 ({self.p1}), e.g. 86", minimum=self.p1)
+        check_positive("SgmCfg.uniqueness_ratio", self.uniqueness_ratio, "pass a ratio >= 0, e.g. 0.05",
+                       allow_zero=True)
+        check_int("SgmCfg.max_lr_diff_px", self.max_lr_diff_px, "pass a tolerance >= 0 px, e.g. 1", minimum=0)
+        size = check_int("SgmCfg.median_size", self.median_size, "pass 0 (off) or an odd size, e.g. 3", minimum=0)
+        if size > 1 and size % 2 == 0:
+            raise InvalidValueError("SgmCfg.median_size", size, "a median window needs an odd side",
+                                    "pass 0 (off) or an odd size, e.g. 3")
 
 
 def grey_levels(image: torch.Tensor) -> torch.Tensor:
