@@ -17,6 +17,7 @@ import mujoco
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
+PEERS: list[Peer] = []  # closed when the scenario ends, however it ends
 
 
 class Peer:
@@ -25,6 +26,18 @@ class Peer:
     def __init__(self, expect: list[str]):
         self.proc = subprocess.Popen([sys.executable, str(HERE / "oracle.py"), json.dumps(expect)],
                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, bufsize=1)
+        PEERS.append(self)
+
+    def close(self, timeout_s: float = 15.0) -> None:
+        """End the oracle: it exits after ``dump``; killed if it has not within ``timeout_s``, so it
+        never outlives the scenario holding the test's output pipes."""
+        if self.proc.poll() is None:
+            try:
+                self.proc.stdin.close()
+                self.proc.wait(timeout=timeout_s)
+            except (OSError, subprocess.TimeoutExpired):
+                self.proc.kill()
+                self.proc.wait()
 
     def send(self, **cmd) -> None:
         self.proc.stdin.write(json.dumps(cmd) + "\n")
@@ -324,5 +337,9 @@ def foxglove(out: Path) -> None:
 if __name__ == "__main__":
     target = Path(sys.argv[2])
     target.mkdir(parents=True, exist_ok=True)
-    {"jetbot": jetbot, "humanoid": humanoid, "humanoid_walk": humanoid_walk, "lidar3d": lidar3d,
-     "foxglove": foxglove}[sys.argv[1]](target)
+    try:
+        {"jetbot": jetbot, "humanoid": humanoid, "humanoid_walk": humanoid_walk, "lidar3d": lidar3d,
+         "foxglove": foxglove}[sys.argv[1]](target)
+    finally:
+        for peer in PEERS:
+            peer.close()
