@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 import torch
 
+from .vo_imu import GyroSamples
+
 
 @dataclass
 class RgbdFrame:
@@ -26,6 +28,9 @@ class RgbdFrame:
     """(4, 4) float64 camera-to-world transform (OpenCV axes): ground truth or an estimate."""
     time_s: float = 0.0
     """Timestamp, s."""
+    gyro: GyroSamples | None = None
+    """The IMU's angular rates from the previous frame's time to this one's, when the stream has an
+    IMU (the head-camera walks do); ``RgbdOdometry.track`` takes them."""
 
 
 def pixel_rays(intrinsics: torch.Tensor, height: int, width: int, device=None) -> torch.Tensor:

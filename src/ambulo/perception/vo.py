@@ -23,11 +23,18 @@ Tracking is *lost* when too few inliers remain (covered lens, textureless wall, 
 than the keyframes overlap). The pose then coasts on the constant-velocity model (decaying), and
 every frame tries to relocalise: RANSAC without a prior against each of the last
 ``relocalize_keyframes`` keyframes, newest first; keyframes are in world coordinates, so the
-first success gives the absolute pose back and tracking resumes on the next frame.
+first success gives the absolute pose back and tracking resumes on the next frame. When the
+camera moved on while blind and relocalisation keeps failing on textured frames, a new map starts
+at the coasted pose (``VoCfg.reinit_after_lost_frames``).
+
+With an IMU (``track(..., gyro=...)``, ``vo_imu``) the gyro turns the prediction and the coasting
+pose, gates solved rotations (``VoCfg.gyro_gate_deg``), and its bias is estimated while tracking;
+lost, the IMU moves on at its mean velocity of the last stride with the camera rigid on it.
 """
 
 from __future__ import annotations
 
+import collections
 import enum
 from dataclasses import dataclass, field
 from typing import Literal
@@ -38,6 +45,7 @@ import torch
 from ambulo.utils.checks import InvalidValueError, check_int, check_positive
 
 from .vo_features import FrameFeatures, KorniaFeaturesCfg, make_features
+from .vo_imu import GyroAid, GyroSamples
 from .vo_pnp_torch import ransac_pose_rgbd, reprojection_error_px
 from .vo_refine import refine_pose, refine_pose_torch
 
@@ -47,6 +55,9 @@ class TrackState(enum.Enum):
     TRACKING = "tracking"
     LOST = "lost"
     RECOVERED = "recovered"
+    """Relocalised against the keyframes: the absolute pose is back."""
+    REINITIALIZED = "reinitialized"
+    """Relocalisation failed for ``VoCfg.reinit_after_lost_frames``: a new map started at the coasted pose."""
 
 
 @dataclass(kw_only=True)
@@ -115,11 +126,34 @@ class VoCfg:
     """Add the 3-D (depth) residual to the refinement; False refines on reprojection alone."""
     robust_loss: str = "tukey"
     """'tukey' (redescending: points on a moving object drop out) or 'huber'."""
+    reinit_after_lost_frames: int = 15
+    """Lost this many frames in a row, and the frame has texture (``relocalize_min_inliers`` points
+    with depth) but relocalises against no keyframe: the camera moved on while blind (1 s of covered
+    lens while walking round a corner), so start a new map at the coasted pose rather than stay
+    lost. 15 frames: half a second of trying to relocalise at 30 Hz."""
+    coast_window_frames: int = 33
+    """With a gyro, lost frames move the IMU on at its mean velocity over this many tracked frames
+    (one stride of a human walk, 1.1 s at 30 Hz: the head's bob and sway average out)."""
+    gyro_gate_deg: float = 3.0
+    """With a gyro (``track(..., gyro=...)``): a solved pose whose rotation since the previous frame
+    differs from the gyro's by more than this is refused (replaces ``max_rotation_per_frame_deg``).
+    The bias-corrected gyro drifts ~0.01 deg over a frame, the odometry's rotation errs ~0.05 deg; a
+    wrong consensus is off by degrees."""
+    gyro_bias_gain: float = 0.02
+    """Weight of each tracked frame in the gyro bias estimate (exponential average: ~50 frames,
+    under 2 s at 30 Hz, to converge; see ``vo_imu``)."""
 
     def __post_init__(self):
         check_int("num_features", self.num_features, "pass a count > 0, e.g. 1500", minimum=1)
         check_int("min_inliers", self.min_inliers, "pass a count >= 6 (PnP needs 4+)", minimum=6)
         check_positive("ransac_reprojection_px", self.ransac_reprojection_px, "pass pixels > 0, e.g. 2")
+        check_int("reinit_after_lost_frames", self.reinit_after_lost_frames, "pass a count of frames >= 1, e.g. 15",
+                  minimum=1)
+        check_int("coast_window_frames", self.coast_window_frames, "pass a count of frames >= 1, e.g. 33", minimum=1)
+        check_positive("gyro_gate_deg", self.gyro_gate_deg, "pass degrees > 0, e.g. 3")
+        if not 0.0 <= self.gyro_bias_gain < 1.0:
+            raise InvalidValueError("VoCfg.gyro_bias_gain", self.gyro_bias_gain, "must be in [0, 1)",
+                                    "pass e.g. 0.02 (0 keeps the bias at zero)")
         if self.features not in ("orb", "kornia"):
             raise InvalidValueError("VoCfg.features", self.features, "unknown front end", "pass 'orb' or 'kornia'")
         if self.pnp not in ("opencv", "torch"):
@@ -193,10 +227,12 @@ class RgbdOdometry:
     """Visual odometry on a stream of RGB-D frames; ``track`` returns each frame's pose.
 
     ``intrinsics``: (3, 3) K; ``initial_pose_wc``: the first frame's pose (identity by default,
-    or the ground truth to express the estimate in the simulator's world).
+    or the ground truth to express the estimate in the simulator's world); ``pose_cam_imu``: the IMU's
+    (4, 4) pose (or (3, 3) rotation) in the camera frame, needed to pass gyro samples to ``track``
+    (``vo_imu.GyroAid``).
     """
 
-    def __init__(self, intrinsics, cfg: VoCfg | None = None, initial_pose_wc=None):
+    def __init__(self, intrinsics, cfg: VoCfg | None = None, initial_pose_wc=None, pose_cam_imu=None):
         self.cfg = cfg or VoCfg()
         self.device = torch.device(self.cfg.device)
         self.k = np.asarray(intrinsics, np.float64)
@@ -208,9 +244,19 @@ class RgbdOdometry:
         self.pose_wc = np.eye(4) if initial_pose_wc is None else np.asarray(initial_pose_wc, np.float64).copy()
         self.velocity = np.eye(4)
         """(4, 4) last frame-to-frame motion T_prev_cur (camera frame), for prediction."""
+        self._lost_frames = 0
+        self._imu_trail: collections.deque[np.ndarray] = collections.deque(maxlen=self.cfg.coast_window_frames + 1)
+        """IMU positions (world, m) of the last tracked frames, for the coast velocity."""
+        self.step_w_m = np.zeros(3)
+        """(3,) the IMU's last frame-to-frame translation in the world, m: with a gyro the prediction
+        moves the IMU on along it while the gyro turns it, and carries the camera rigidly (a head
+        turning while the body walks on; in the camera frame the step would turn with the head, and
+        the camera's lever arm would be lost)."""
         self.state = TrackState.INITIALIZED
         self.frame_index = -1
         self.history: list[TrackState] = []
+        self.gyro = None if pose_cam_imu is None else GyroAid(pose_cam_imu, self.cfg.gyro_bias_gain)
+        """The gyro aid (its ``bias_rad_s`` is the current bias estimate), or None without an IMU."""
 
     # -- pose -------------------------------------------------------------------
     def _ransac(self, points_w, pix, points_c, valid):
@@ -299,15 +345,97 @@ class RgbdOdometry:
         self.keyframes.append(Keyframe(self.frame_index, self.pose_wc.copy(), f.descriptors[keep], pts_w,
                                        torch.zeros(len(pts_w), dtype=torch.bool, device=self.device)))
 
+    def _track_next(self, f: FrameFeatures, gyro: GyroSamples | None) -> int:
+        """Pose of a frame after the first (sets ``pose_wc``, ``state``); returns the inlier count."""
+        prev_wc, was_lost = self.pose_wc, self.state == TrackState.LOST
+        gyro_rot = None if gyro is None else self.gyro.camera_rotation(gyro)  # (3, 3) R_prev_cur, camera
+        predicted_wc = prev_wc @ self.velocity if gyro_rot is None else self._imu_coast(prev_wc, gyro_rot)
+        if was_lost:
+            found = self._relocalize(f) if len(f.pixels) else None
+            state = TrackState.RECOVERED
+        else:
+            found = self._track_local_map(f, np.linalg.inv(predicted_wc)) if len(f.pixels) else None
+            state = TrackState.TRACKING
+            if found is not None and not self._turn_plausible(prev_wc, np.linalg.inv(found[0]), gyro_rot):
+                found = None
+        if found is None:
+            self.pose_wc = predicted_wc
+            self._lost_frames = self._lost_frames + 1 if was_lost else 1
+            if not was_lost:  # the IMU walks on at its mean velocity over the last stride
+                trail = self._imu_trail
+                self.step_w_m = (trail[-1] - trail[0]) / (len(trail) - 1) if len(trail) > 1 else np.zeros(3)
+            if gyro_rot is None:
+                # no gyro: coast on a decaying velocity (a covered lens usually means the robot slows
+                # down or stops, and the turn is a guess)
+                self.velocity = _interpolate_identity(self.velocity, 0.9)
+            if self._lost_frames >= self.cfg.reinit_after_lost_frames and \
+                    int(f.valid.sum()) >= self.cfg.relocalize_min_inliers:
+                self._start_new_map(f)
+            else:
+                self.state = TrackState.LOST
+            return 0
+        pose_cw, inliers = found
+        self.pose_wc = np.linalg.inv(pose_cw)
+        if state == TrackState.TRACKING:
+            self.velocity = np.linalg.inv(prev_wc) @ self.pose_wc
+            self.step_w_m = self._imu_position(self.pose_wc) - self._imu_position(prev_wc)
+            if gyro is not None:
+                self.gyro.update_bias(gyro, self.velocity[:3, :3])
+        else:
+            self.velocity, self.step_w_m = np.eye(4), np.zeros(3)
+            self._imu_trail.clear()
+        self._imu_trail.append(self._imu_position(self.pose_wc))
+        self.state = state
+        if state == TrackState.RECOVERED or self._needs_keyframe(inliers):
+            self._add_keyframe(f)
+        return inliers
+
+    def _start_new_map(self, f: FrameFeatures) -> None:
+        """Relocalisation kept failing on a frame with texture: the camera has left what the map
+        holds. Go on from the coasted pose with a keyframe of this frame, so tracking goes on
+        instead of staying lost; the old keyframes stay for relocalising later. The absolute pose
+        keeps the error it coasted into (small in rotation with a gyro)."""
+        self.state = TrackState.REINITIALIZED
+        self._imu_trail.clear()
+        self._imu_trail.append(self._imu_position(self.pose_wc))
+        self.velocity = np.eye(4)
+        self._add_keyframe(f)
+
+    def _imu_position(self, pose_wc: np.ndarray) -> np.ndarray:
+        """(3,) where the IMU is in the world when the camera is at ``pose_wc``, m."""
+        ext = self.gyro.pose_cam_imu if self.gyro is not None else np.eye(4)
+        return pose_wc[:3, :3] @ ext[:3, 3] + pose_wc[:3, 3]
+
+    def _imu_coast(self, prev_wc: np.ndarray, gyro_rot: np.ndarray) -> np.ndarray:
+        """(4, 4) the camera pose predicted from ``prev_wc``: turned by the gyro's ``gyro_rot``
+        (camera frame), with the IMU moved on by ``step_w_m`` and the camera rigid on it."""
+        out = np.eye(4)
+        out[:3, :3] = prev_wc[:3, :3] @ gyro_rot
+        imu_w = self._imu_position(prev_wc) + self.step_w_m
+        out[:3, 3] = imu_w - out[:3, :3] @ self.gyro.pose_cam_imu[:3, 3]
+        return out
+
+    def _turn_plausible(self, prev_wc: np.ndarray, found_wc: np.ndarray, gyro_rot: np.ndarray | None) -> bool:
+        """Whether the solved pose's rotation since the previous frame is believable: it agrees with
+        the gyro's (``VoCfg.gyro_gate_deg``), or without a gyro stays under
+        ``VoCfg.max_rotation_per_frame_deg``."""
+        turned = prev_wc[:3, :3].T @ found_wc[:3, :3]
+        if gyro_rot is None:
+            return _angle_deg(turned) <= self.cfg.max_rotation_per_frame_deg
+        return _angle_deg(gyro_rot.T @ turned) <= self.cfg.gyro_gate_deg
+
     def _needs_keyframe(self, inliers: int) -> bool:
         last = self.keyframes[-1].pose_wc
         rel = np.linalg.inv(last) @ self.pose_wc
         return (inliers < self.cfg.keyframe_min_inliers or np.linalg.norm(rel[:3, 3]) > self.cfg.keyframe_max_translation_m
                 or _angle_deg(rel[:3, :3]) > self.cfg.keyframe_max_rotation_deg)
 
-    def track(self, rgb, depth) -> VoResult:
+    def track(self, rgb, depth, gyro: GyroSamples | None = None) -> VoResult:
         """Estimate the pose of the next frame: ``rgb`` (H, W, 3) uint8, ``depth`` (H, W) metres,
-        numpy arrays or torch tensors (on any device)."""
+        numpy arrays or torch tensors (on any device); ``gyro``: the IMU's rates from the previous
+        frame to this one (needs ``pose_cam_imu``; ignored on the first frame)."""
+        if gyro is not None and self.gyro is None:
+            raise ValueError("track(gyro=...) needs the IMU's extrinsic: pass pose_cam_imu to RgbdOdometry")
         self.frame_index += 1
         f = self.features.detect(rgb, depth)
         self._moving = torch.zeros(len(f.pixels), dtype=torch.bool, device=self.device)
@@ -315,34 +443,10 @@ class RgbdOdometry:
         if not self.keyframes:
             if int(f.valid.sum()) >= self.cfg.relocalize_min_inliers:
                 self._add_keyframe(f)
+                self._imu_trail.append(self._imu_position(self.pose_wc))
                 self.state = TrackState.INITIALIZED
         else:
-            prev_wc = self.pose_wc
-            predicted_wc = prev_wc @ self.velocity
-            if self.state == TrackState.LOST:
-                found = self._relocalize(f) if len(f.pixels) else None
-                state = TrackState.RECOVERED
-            else:
-                found = self._track_local_map(f, np.linalg.inv(predicted_wc)) if len(f.pixels) else None
-                state = TrackState.TRACKING
-                if found is not None and _angle_deg(prev_wc[:3, :3].T @ np.linalg.inv(found[0])[:3, :3]) > \
-                        self.cfg.max_rotation_per_frame_deg:
-                    found = None
-            if found is None:
-                self.state = TrackState.LOST
-                self.pose_wc = predicted_wc
-                # coast on a decaying velocity: a covered lens usually means the robot slows down or stops
-                self.velocity = _interpolate_identity(self.velocity, 0.9)
-            else:
-                pose_cw, inliers = found
-                self.pose_wc = np.linalg.inv(pose_cw)
-                if state == TrackState.TRACKING:
-                    self.velocity = np.linalg.inv(prev_wc) @ self.pose_wc
-                else:
-                    self.velocity = np.eye(4)
-                self.state = state
-                if state == TrackState.RECOVERED or self._needs_keyframe(inliers):
-                    self._add_keyframe(f)
+            inliers = self._track_next(f, gyro)
         self.history.append(self.state)
         return VoResult(self.pose_wc.copy(), self.state, inliers, len(self.keyframes))
 
@@ -363,5 +467,5 @@ def _interpolate_identity(motion: np.ndarray, factor: float) -> np.ndarray:
     return out
 
 
-__all__ = ["Keyframe", "RgbdOdometry", "TrackState", "VoCfg", "VoResult", "kornia_vo_cfg", "moved_by_rigidity",
-           "refine_pose"]
+__all__ = ["GyroSamples", "Keyframe", "RgbdOdometry", "TrackState", "VoCfg", "VoResult", "kornia_vo_cfg",
+           "moved_by_rigidity", "refine_pose"]

@@ -60,10 +60,11 @@ says from which frame on recovery is counted."""
 
 
 def run_walk_vo(walk: HeadCameraWalk | PolicyHeadCameraWalk, num_frames: int, cfg: VoCfg | None = None,
-                blackout: tuple[int, int] | None = None, progress=None, loss: str = "covered_lens") -> VoRun:
+                blackout: tuple[int, int] | None = None, progress=None, loss: str = "covered_lens",
+                imu: bool = False) -> VoRun:
     """Render ``num_frames`` of ``walk`` and track them; frames in ``blackout`` [start, end) are
-    replaced by the ``loss`` (``LOSSES``). The estimate starts at the true first pose (the
-    simulator's world)."""
+    replaced by the ``loss`` (``LOSSES``; the gyro is not affected). The estimate starts at the true
+    first pose (the simulator's world). ``imu``: pass the walk's gyro readings to the odometry."""
     if loss not in LOSSES:
         raise ValueError(f"loss={loss!r} is not one of {LOSSES}")
     times, est, truth, states, vo_ms = [], [], [], [], []
@@ -77,9 +78,10 @@ def run_walk_vo(walk: HeadCameraWalk | PolicyHeadCameraWalk, num_frames: int, cf
             elif loss == "textureless_wall":  # a plain wall filling the view half a metre away
                 rgb, depth = np.full_like(rgb, 128), np.full_like(depth, 0.5)
         if vo is None:
-            vo = RgbdOdometry(frame.intrinsics.numpy(), cfg, initial_pose_wc=frame.pose_wc.numpy())
+            vo = RgbdOdometry(frame.intrinsics.numpy(), cfg, initial_pose_wc=frame.pose_wc.numpy(),
+                              pose_cam_imu=walk.pose_cam_imu if imu else None)
         t0 = time.perf_counter()
-        result = vo.track(rgb, depth)
+        result = vo.track(rgb, depth, gyro=frame.gyro if imu else None)
         vo_ms.append((time.perf_counter() - t0) * 1e3)
         times.append(frame.time_s)
         est.append(result.pose_wc)

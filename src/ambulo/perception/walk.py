@@ -19,18 +19,20 @@ ground-truth poses rendered from it, in one of two modes (``WALK_MODES``):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
 import torch
 
 from ambulo.core import PhysicsCfg, Simulation
-from ambulo.sensors import Camera, CameraCfg
-from ambulo.utils.rotations import mat_to_quat
+from ambulo.sensors import Camera, CameraCfg, Imu, ImuCfg
+from ambulo.sensors.imu_noise import ImuNoiseCfg, euroc_adis16448
+from ambulo.utils.rotations import mat_to_quat, quat_to_mat
 
 from .frames import RgbdFrame
 from .scenes import HEAD_CAMERA_PRIM, ROBOT_PRIM, IndoorScene, build_indoor_scene
+from .walk_imu import GyroStream, mean_body_rates_rad_s
 
 PELVIS_HEIGHT_M = 0.92
 """The bundled humanoid's standing pelvis height (humanoid.xml: soles on z = 0)."""
@@ -64,6 +66,11 @@ class WalkCfg:
     """Policy mode: the path follower steers to the loop point this far ahead of the nearest one."""
     fall_height_m: float = 0.6
     """Policy mode: a pelvis below this height counts as a fall, m."""
+    imu_noise: ImuNoiseCfg = field(default_factory=euroc_adis16448)
+    """Noise of the gyro that rides with the camera (``walk_imu``; ``noiseless()`` for clean rates)."""
+    imu_rate_hz: float = 200.0
+    """Kinematic mode: gyro sample rate, Hz (policy mode samples every 5 ms physics step: 200 Hz)."""
+    imu_seed: int = 0
     look_away: tuple[float, float, float] | None = None
     """Kinematic mode: a fast head turn (start s, duration s, angle rad): the heading gains
     ``angle * sin(pi * (t - start) / duration)`` over the duration (away and back), so the peak yaw
@@ -130,7 +137,9 @@ def root_pose(cfg: WalkCfg, t_s: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 class HeadCameraWalk:
-    """Renders the walk: ``frame(i)`` is RGB-D frame ``i`` (at ``i / fps`` s) with its true pose.
+    """Renders the walk: ``frame(i)`` is RGB-D frame ``i`` (at ``i / fps`` s) with its true pose
+    and the gyro readings since frame ``i - 1`` (an IMU on the pelvis, ``walk.imu_rate_hz``;
+    ``pose_cam_imu`` is its extrinsic once a frame was rendered).
 
     ``focal_length_px`` defaults to TUM RGB-D's 525 px at 640x480, scaled with the width.
     """
@@ -147,6 +156,10 @@ class HeadCameraWalk:
         model = self.engine.model
         self._hip_pitch = [int(model.joint(f"{ROBOT_PRIM}/{side}_hip_pitch").qposadr[0])
                            for side in ("left", "right")]
+        self.gyro = GyroStream(self.walk.imu_noise, self.walk.imu_seed)
+        self._gyro_frame = -1
+        self.pose_cam_imu: np.ndarray | None = None
+        """(4, 4) the pelvis IMU's pose in the camera frame (constant: the head is rigid on the pelvis)."""
 
     def pose_at(self, t_s: float) -> None:
         """Put the humanoid (and the moving boxes) where they are at time ``t_s``."""
@@ -160,10 +173,39 @@ class HeadCameraWalk:
             self._mocap[0, :, :] = torch.from_numpy(self.scene.box_positions(t_s))
 
     def frame(self, index: int) -> RgbdFrame:
-        """Render frame ``index``: RGB, metric depth and the true camera-to-world pose (OpenCV axes)."""
+        """Render frame ``index``: RGB, metric depth, the true camera-to-world pose (OpenCV axes), gyro."""
         t_s = index / self.walk.fps
+        gyro = self._gyro_until(index)
         self.pose_at(t_s)
-        return capture_frame(self.camera, t_s)
+        out = capture_frame(self.camera, t_s)
+        out.gyro = gyro
+        if self.pose_cam_imu is None:
+            pos, quat = root_pose(self.walk, t_s)
+            self.pose_cam_imu = np.linalg.inv(out.pose_wc.numpy()) @ _pose(quat_to_mat(quat), pos)
+        return out
+
+    def _gyro_until(self, index: int):
+        """The gyro readings from frame ``index - 1`` to ``index`` (replayed from the start when frames
+        are asked out of order, so the noise is the same whatever the order)."""
+        if index != self._gyro_frame + 1:
+            self.gyro.reset()
+            for k in range(index):
+                self._gyro_add(k)
+                self.gyro.take()
+        self._gyro_add(index)
+        self._gyro_frame = index
+        return self.gyro.take()
+
+    def _gyro_add(self, index: int) -> None:
+        fps, rate = self.walk.fps, self.walk.imu_rate_hz
+        if index == 0:
+            times, dt = np.zeros(1), 1.0 / rate
+        else:
+            n = math.ceil(rate / fps - 1e-9)
+            times = np.linspace((index - 1) / fps, index / fps, n + 1)[1:]
+            dt = 1.0 / (fps * n)
+        rates = mean_body_rates_rad_s(lambda t: quat_to_mat(root_pose(self.walk, t)[1]), times, dt)
+        self.gyro.add(times, rates, dt)
 
     def close(self) -> None:
         self.camera.close()
@@ -267,6 +309,11 @@ class PolicyHeadCameraWalk:
             prim_path=ROBOT_PRIM, name="humanoid", position=[float(xy[0, 0]), float(xy[0, 1]), 0.0],
             orientation=[math.cos(yaw[0] / 2), 0.0, 0.0, math.sin(yaw[0] / 2)]))
         self.camera = self.world.scene.add(head_camera(self.walk, width, height, focal_length_px))
+        self.imu = self.world.scene.add(Imu(ImuCfg(prim_path=HEAD_CAMERA_PRIM.rsplit("/", 1)[0])))
+        """Clean gyro at the camera's mount site; the walk adds ``walk.imu_noise`` (``walk_imu``)."""
+        self.gyro = GyroStream(self.walk.imu_noise, self.walk.imu_seed)
+        self.pose_cam_imu: np.ndarray | None = None
+        """(4, 4) the IMU's pose in the camera frame, known after the first frame."""
         self.world.reset()
         self.walker = HumanoidWalkingPolicy(self.robot)
         self.walker_enabled = walker
@@ -297,8 +344,17 @@ class PolicyHeadCameraWalk:
         moving box (MuJoCo's ``mj_geomDistance``, capped at 1 m), m."""
         self.fell = False
         self._next = 0
+        self.gyro.reset()
+
+    def _sample_gyro(self) -> None:
+        """The gyro now, once per simulated instant (before each physics step, and at a frame)."""
+        now = self.world.current_time
+        if now > self.gyro.last_time_s + 1e-9:
+            rates = self.imu.clean_reading()[1][:1].cpu().numpy()
+            self.gyro.add(np.array([now]), rates, PHYSICS_DT_S)
 
     def _on_physics_step(self, dt_s: float) -> None:
+        self._sample_gyro()
         if not self.walker_enabled:
             return
         if self._steps % self._decimation == 0:  # a new command at the policy's control rate
@@ -330,14 +386,30 @@ class PolicyHeadCameraWalk:
             if self._mocap is not None:  # the boxes do not collide: placed where they are now
                 self._mocap[0, :, :] = torch.from_numpy(self.scene.box_positions(self.world.current_time))
             self._record()
+            self._sample_gyro()
+            gyro = self.gyro.take()
             self._next += 1
-        return capture_frame(self.camera, self.world.current_time)
+        out = capture_frame(self.camera, self.world.current_time)
+        out.gyro = gyro
+        if self.pose_cam_imu is None:
+            engine = self.world.engine
+            site = engine.model.site(self.imu.site_name).id
+            pose_wi = _pose(engine.field("site_xmat")[0, site].reshape(3, 3).cpu().numpy(),
+                            engine.field("site_xpos")[0, site].cpu().numpy())
+            self.pose_cam_imu = np.linalg.inv(out.pose_wc.numpy()) @ pose_wi
+        return out
 
     def close(self) -> None:
         self.world.clear_physics_callbacks()
         self.camera.close()
         if type(self.world).instance() is self.world:
             type(self.world).clear_instance()
+
+
+def _pose(rot: np.ndarray, pos: np.ndarray) -> np.ndarray:
+    out = np.eye(4)
+    out[:3, :3], out[:3, 3] = rot, pos
+    return out
 
 
 def make_walk(scene: IndoorScene, walk: WalkCfg | None = None, *, mode: str, width: int = 320,
