@@ -3,7 +3,7 @@ recovery after a covered lens.
 
     python benchmarks/vo.py [--walk policy|kinematic] [--frames 600] [--speed 0.5] [--width 640 --height 480]
                             [--blackout-at 300] [--features orb|kornia] [--device cpu|cuda] [--pnp opencv|torch]
-                            [--out out/vo]
+                            [--imu] [--no-cuda-graphs] [--out out/vo]
 
 The bundled humanoid walks the seeded indoor scene's loop around the island at 0.5 m/s (``--speed``)
 (``ambulo.perception.walk``). ``--walk policy`` (the default): it walks under the shipped walking
@@ -24,7 +24,9 @@ the turn, largest position error.
 ``--features``: ``orb`` (the default: OpenCV ORB and ``solvePnPRansac`` on the CPU) or ``kornia``
 (``ambulo.perception.vo.kornia_vo_cfg``: kornia corners + RootSIFT, matching and RANSAC in torch on
 ``--device``); ``--pnp`` overrides the RANSAC (``opencv`` with kornia features: features and
-matching on the device, PnP on the host). The reported fps is the odometry alone (median of the
+matching on the device, PnP on the host). ``--imu`` gives the odometry the walk's gyro (EuRoC's
+ADIS16448 noise, ``ambulo.perception.vo_imu``); losses then also report the heading error while
+blind. The reported fps is the odometry alone (median of the
 first run's frames), rendering and physics excluded; frames are rendered on the CPU, so on CUDA it
 includes copying each frame to the GPU.
 """
@@ -59,6 +61,8 @@ def main(argv=None) -> dict:
     parser.add_argument("--device", default="cpu", help="torch device of the kornia front end: cpu, cuda, cuda:1")
     parser.add_argument("--pnp", choices=("opencv", "torch"), default=None,
                         help="RANSAC (default: opencv for orb, torch for kornia)")
+    parser.add_argument("--imu", action="store_true", help="fuse the head's gyro (loosely coupled)")
+    parser.add_argument("--no-cuda-graphs", action="store_true", help="CUDA: refine eagerly, not from captured graphs")
     parser.add_argument("--out", type=Path, default=Path("out/vo"))
     args = parser.parse_args(argv)
     from ambulo.perception.scenes import IndoorSceneCfg  # noqa: PLC0415
@@ -66,9 +70,10 @@ def main(argv=None) -> dict:
     cfg = VoCfg(device=args.device) if args.features == "orb" else kornia_vo_cfg(args.device)
     if args.pnp is not None:
         cfg = dataclasses.replace(cfg, pnp=args.pnp)
+    cfg = dataclasses.replace(cfg, cuda_graphs=not args.no_cuda_graphs)
     walk = make_walk(build_indoor_scene(IndoorSceneCfg(seed=args.seed)), WalkCfg(speed_mps=args.speed),
                      mode=args.walk, width=args.width, height=args.height)
-    run = run_walk_vo(walk, args.frames, cfg)
+    run = run_walk_vo(walk, args.frames, cfg, imu=args.imu)
     score = run.score(args.out)
     gait = None
     if isinstance(walk, PolicyHeadCameraWalk):
@@ -78,9 +83,10 @@ def main(argv=None) -> dict:
                 "min_pelvis_height_m": round(min(walk.pelvis_height_m), 3),
                 "min_clearance_m": round(min(walk.clearance_m), 3)}
     blackout = (args.blackout_at, args.blackout_at + 30)
-    dark = run_walk_vo(walk, args.frames, cfg, blackout=blackout)
+    dark = run_walk_vo(walk, args.frames, cfg, blackout=blackout, imu=args.imu)
     recovery = dark.recovery_frames(tolerance_m=0.05)
-    wall = run_walk_vo(walk, args.frames, cfg, blackout=blackout, loss="textureless_wall").recovery_frames(0.05)
+    wall = run_walk_vo(walk, args.frames, cfg, blackout=blackout, loss="textureless_wall",
+                       imu=args.imu).recovery_frames(0.05)
     walk.close()
     turns = {}
     for name, (duration_s, angle_rad) in {"turn_90deg_in_1s": (1.0, math.pi / 2),
@@ -90,12 +96,13 @@ def main(argv=None) -> dict:
                             WalkCfg(speed_mps=args.speed, look_away=(start_s, duration_s, angle_rad)),
                             mode="kinematic", width=args.width, height=args.height)
         window = (args.blackout_at, args.blackout_at + int(round(duration_s * 30)))
-        spun = run_walk_vo(turning, window[1] + 60, cfg, blackout=window, loss="motion")
+        spun = run_walk_vo(turning, window[1] + 60, cfg, blackout=window, loss="motion", imu=args.imu)
         turning.close()
         err = np.linalg.norm(spun.estimate_wc[:, :3, 3] - spun.truth_wc[:, :3, 3], axis=1)
         turns[name] = {"peak_deg_per_s": round(math.degrees(math.pi * angle_rad / duration_s)),
                        "lost_frames": sum(s == TrackState.LOST for s in spun.states),
-                       "recovery_frames": spun.recovery_frames(0.05), "max_error_cm": round(float(err.max()) * 100, 2)}
+                       "recovery_frames": spun.recovery_frames(0.05), "max_error_cm": round(float(err.max()) * 100, 2),
+                       "max_heading_error_deg": round(float(spun.rotation_error_deg().max()), 2)}
     result = {
         "walk": args.walk, "speed_mps": args.speed, "gait": gait,
         "frames": args.frames, "resolution": [args.width, args.height], "path_m": round(score.path_length_m, 2),
@@ -103,8 +110,11 @@ def main(argv=None) -> dict:
         "rpe_deg_per_m": round(score.rpe_deg_per_m, 4),
         "vo_ms": {"median": round(float(np.median(run.vo_ms)), 2), "p90": round(float(np.percentile(run.vo_ms, 90)), 2)},
         "vo_fps": round(1e3 / float(np.median(run.vo_ms)), 1), "features": cfg.features, "pnp": cfg.pnp,
+        "cuda_graphs": cfg.cuda_graphs and torch.device(cfg.device).type == "cuda",
         "device": _describe_device(cfg),
-        "blackout_frames": list(blackout), "recovery_frames": recovery,
+        "imu": args.imu, "blackout_frames": list(blackout), "recovery_frames": recovery,
+        "blackout_max_error_cm": round(float(dark.position_error_m()[slice(*blackout)].max()) * 100, 2),
+        "blackout_max_heading_error_deg": round(float(dark.rotation_error_deg()[slice(*blackout)].max()), 2),
         "recovery_s": None if recovery is None else round(recovery / 30.0, 3),
         "textureless_wall_recovery_frames": wall, "fast_turns_kinematic_walk": turns,
         "files": [str(args.out / "groundtruth.tum"), str(args.out / "estimate.tum")],
@@ -118,11 +128,13 @@ def main(argv=None) -> dict:
           f"ATE {result['ate_rmse_cm']} cm, "
           f"RPE {result['rpe_percent']} % ({result['rpe_deg_per_m']} deg/m); {result['vo_fps']} fps (median "
           f"{result['vo_ms']['median']} ms)")
-    print(f"1 s blackout at frame {blackout[0]}: tracking back {recovery} frames after the lens cleared; "
+    print(f"1 s blackout at frame {blackout[0]}: tracking back {recovery} frames after the lens cleared (blind: "
+          f"<= {result['blackout_max_error_cm']} cm, <= {result['blackout_max_heading_error_deg']} deg off); "
           f"1 s of a textureless wall: back {wall} frames after it")
     for name, turn in turns.items():
         print(f"{name} (peak {turn['peak_deg_per_s']} deg/s): {turn['lost_frames']} frames lost, back "
-              f"{turn['recovery_frames']} frames after it, max error {turn['max_error_cm']} cm")
+              f"{turn['recovery_frames']} frames after it, max error {turn['max_error_cm']} cm, "
+              f"{turn['max_heading_error_deg']} deg")
     print(f"reproduce: evo_ape tum {args.out}/groundtruth.tum {args.out}/estimate.tum --align; "
           f"evo_rpe tum {args.out}/groundtruth.tum {args.out}/estimate.tum --align --delta 1 --delta_unit m --all_pairs")
     print("RESULT " + json.dumps(result))

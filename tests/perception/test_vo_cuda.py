@@ -92,6 +92,50 @@ def test_ransac_and_refinement_give_the_same_pose():
     assert (poses[1][1] - t).norm() < 5e-3  # found the pose, not the 150 flipped matches (3 mm depth noise)
 
 
+def test_refinement_graphs_give_the_eager_pose_at_every_size():
+    """The captured refinement (``vo_refine_graph``) against the eager one, on problems of 5 to 900
+    correspondences in an order that reuses each padded graph with fewer rows than last time (stale
+    rows must not count), with outliers and points without depth."""
+    from ambulo.perception.vo_refine_graph import GraphRefiner
+
+    cfg = kornia_vo_cfg(DEVICE)
+    refiner = GraphRefiner(cfg, torch.device(DEVICE))
+    gen = torch.Generator().manual_seed(1)
+    k = torch.tensor([[525.0, 0, 319.5], [0, 525.0, 239.5], [0, 0, 1]], dtype=torch.float64, device=DEVICE)
+    truth_rot = so3_exp(torch.tensor([0.02, -0.1, 0.01], dtype=torch.float64)).to(DEVICE)
+    truth_t = torch.tensor([0.05, -0.02, 0.03], dtype=torch.float64, device=DEVICE)
+    for n in (700, 5, 64, 65, 900, 600, 33):
+        points_w = (torch.rand(n, 3, generator=gen, dtype=torch.float64) * 2 + torch.tensor([-1.0, -1.0, 1.5])).to(DEVICE)
+        points_c = points_w @ truth_rot.T + truth_t
+        pixels = points_c[:, :2] / points_c[:, 2:] * 525.0 + k[:2, 2]
+        pixels[: n // 5] += 30.0  # outliers: the robust loss drops them
+        has_depth = (torch.rand(n, generator=gen) > 0.2).to(DEVICE)
+        use = (torch.rand(n, generator=gen) > 0.1).to(DEVICE)
+        start = (so3_exp(torch.tensor([0.001, 0.0, -0.001], dtype=torch.float64, device=DEVICE)) @ truth_rot,
+                 truth_t + 0.002)  # RANSAC's pose is this close
+        args = (*start, points_w, pixels, points_c, has_depth, use, k)
+        eager = refine_pose_torch(*args, cfg)
+        graph = refiner(*args, cfg)
+        torch.testing.assert_close(graph, eager, atol=1e-12, rtol=0)
+        if n >= 64:
+            assert (graph[1] - truth_t).norm() < 1e-6
+    assert sorted(refiner.graphs) == [64, 128, 1024]
+
+
+def test_gyro_aid_on_cuda_keeps_the_heading_through_a_turn_too_fast_for_the_images():
+    """The CUDA odometry with the walk's gyro: 180 deg in 0.4 s (the CPU test: test_vo_imu)."""
+    import math
+
+    from ambulo.perception.walk import WalkCfg
+
+    walk = HeadCameraWalk(build_indoor_scene(), WalkCfg(look_away=(2.0, 0.4, math.pi)), width=320, height=240)
+    run = run_walk_vo(walk, 102, kornia_vo_cfg(DEVICE), blackout=(60, 72), loss="motion", imu=True)
+    walk.close()
+    assert run.rotation_error_deg().max() < 2.0 and run.position_error_m().max() < 0.08
+    frames = run.recovery_frames(tolerance_m=0.05)
+    assert frames is not None and frames <= 30
+
+
 def test_kornia_vo_on_cuda_tracks_the_walk_like_the_cpu(scene, tmp_path):
     """300 frames at 640x480 (10 s, 5.4 m) of the kinematic walk: the acceptance's ATE <= 2 cm and
     RPE <= 1 %, every frame tracked, and every pose within 5 mm of the CPU run's (the two differ only

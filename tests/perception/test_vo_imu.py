@@ -105,11 +105,6 @@ def test_the_walks_gyro_matches_the_camera_rotation(walk_cls):
     assert worst < (1e-6 if walk_cls is HeadCameraWalk else 0.01)
 
 
-def rotation_error_deg(run) -> np.ndarray:
-    rel = np.transpose(run.estimate_wc[:, :3, :3], (0, 2, 1)) @ run.truth_wc[:, :3, :3]
-    return np.degrees(np.linalg.norm(Rotation.from_matrix(rel).as_rotvec(), axis=1))
-
-
 def test_through_a_turn_too_fast_for_the_images_the_gyro_keeps_the_pose():
     """180 deg away and back in 0.4 s (peak 1400 deg/s): the images lose track either way; with the
     walk's noisy gyro (EuRoC's ADIS16448, 0.5 deg/s turn-on bias) the coasted heading stays within
@@ -123,8 +118,7 @@ def test_through_a_turn_too_fast_for_the_images_the_gyro_keeps_the_pose():
         assert TrackState.LOST in run.states[60:72]
         frames = run.recovery_frames(tolerance_m=0.05)
         assert frames is not None and frames <= 30
-        errors[imu] = (rotation_error_deg(run)[60:72].max(),
-                       np.linalg.norm(run.estimate_wc[:, :3, 3] - run.truth_wc[:, :3, 3], axis=1).max())
+        errors[imu] = (run.rotation_error_deg()[60:72].max(), run.position_error_m().max())
     assert errors[False][0] > 90 and errors[True][0] < 1
     assert errors[True][1] < 0.08 and errors[True][1] < 0.6 * errors[False][1]
 
@@ -144,8 +138,8 @@ def test_after_a_blackout_round_a_corner_a_new_map_keeps_tracking():
         back = states.index(TrackState.REINITIALIZED)
         assert back <= VoCfg().reinit_after_lost_frames
         assert all(s == TrackState.TRACKING for s in states[back + 1:])
-        err = np.linalg.norm(run.estimate_wc[:, :3, 3] - run.truth_wc[:, :3, 3], axis=1)
+        err = run.position_error_m()
         assert err[-1] - err[130 + back] < 0.04  # tracking again: 2.3 s of walk add little
         if imu:
-            assert rotation_error_deg(run)[130 + back] < 1.0
+            assert run.rotation_error_deg()[130 + back] < 1.0
     walk.close()

@@ -24,6 +24,8 @@ def add_commands(subparsers) -> None:
     p.add_argument("--walk", choices=("kinematic", "policy"), default="kinematic",
                    help="how the humanoid moves: kinematic (a scripted walk, default) or policy (it walks "
                         "under the shipped walking policy, simulated at 5 ms steps)")
+    p.add_argument("--no-gyro", action="store_true", help="visual odometry from the images alone (by default it "
+                   "also reads the head's gyro)")
     p.add_argument("--device", default="cpu", help="torch device of the map (cpu, cuda)")
     p.set_defaults(func=run)
 
@@ -47,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
 
     cfg = MapRunCfg(scene=IndoorSceneCfg(seed=args.seed), tsdf=TsdfCfg(voxel_size_m=args.voxel),
                     num_frames=args.frames, width=args.width, height=args.height,
-                    use_true_poses=args.true_poses, device=args.device, walk_mode=args.walk)
+                    use_true_poses=args.true_poses, device=args.device, walk_mode=args.walk, vo_gyro=not args.no_gyro)
     with tqdm(total=args.frames, desc="ambulo map", unit="frame", disable=None) as bar:
         summary = run_mapping(cfg, args.out, progress=lambda i: bar.update(1))
     t = summary["trajectory"]

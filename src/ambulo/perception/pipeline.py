@@ -36,6 +36,8 @@ class MapRunCfg:
     shipped walking policy in a World; ``"kinematic"`` plays a scripted walk."""
     tsdf: TsdfCfg = field(default_factory=TsdfCfg)
     vo: VoCfg = field(default_factory=VoCfg)
+    vo_gyro: bool = True
+    """Give the odometry the head's gyro (``walk.imu_noise``): it keeps the heading through a loss."""
     inflation: InflationCfg = field(default_factory=InflationCfg)
     num_frames: int = 600
     width: int = 640
@@ -65,9 +67,10 @@ def run_mapping(cfg: MapRunCfg, out_dir: str | Path, progress=None) -> dict:
         for i in range(cfg.num_frames):
             frame = walk.frame(i)
             if vo is None:
-                vo = RgbdOdometry(frame.intrinsics.numpy(), cfg.vo, initial_pose_wc=frame.pose_wc.numpy())
+                vo = RgbdOdometry(frame.intrinsics.numpy(), cfg.vo, initial_pose_wc=frame.pose_wc.numpy(),
+                                  pose_cam_imu=walk.pose_cam_imu if cfg.vo_gyro else None)
             t0 = time.perf_counter()
-            result = vo.track(frame.rgb.numpy(), frame.depth_m.numpy())
+            result = vo.track(frame.rgb.numpy(), frame.depth_m.numpy(), gyro=frame.gyro if cfg.vo_gyro else None)
             vo_ms.append((time.perf_counter() - t0) * 1e3)
             pose = frame.pose_wc if cfg.use_true_poses else torch.from_numpy(result.pose_wc)
             t0 = time.perf_counter()
@@ -102,6 +105,7 @@ def run_mapping(cfg: MapRunCfg, out_dir: str | Path, progress=None) -> dict:
     _save_costmap(out / "costmap.npz", costmap)
     summary = {
         "frames": cfg.num_frames, "resolution": [cfg.width, cfg.height], "poses": "true" if cfg.use_true_poses else "vo",
+        "vo_gyro": cfg.vo_gyro,
         "walk": cfg.walk_mode,
         "trajectory": score.as_dict(),
         "evo_commands": [f"evo_ape tum {gt_file.name} {est_file.name} --align",

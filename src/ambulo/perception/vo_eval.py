@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from .trajectory import TrajectoryScore, score_tum, write_tum
 from .vo import RgbdOdometry, TrackState, VoCfg
@@ -41,6 +42,15 @@ class VoRun:
             if ok and np.linalg.norm(self.estimate_wc[i, :3, 3] - self.truth_wc[i, :3, 3]) < tolerance_m:
                 return i - end
         return None
+
+    def position_error_m(self) -> np.ndarray:
+        """(N,) distance between the estimated and the true camera positions, m."""
+        return np.linalg.norm(self.estimate_wc[:, :3, 3] - self.truth_wc[:, :3, 3], axis=1)
+
+    def rotation_error_deg(self) -> np.ndarray:
+        """(N,) angle of the rotation between the estimated and the true camera orientations, deg."""
+        rel = np.transpose(self.estimate_wc[:, :3, :3], (0, 2, 1)) @ self.truth_wc[:, :3, :3]
+        return np.degrees(np.linalg.norm(Rotation.from_matrix(rel).as_rotvec(), axis=1))
 
     def write(self, folder: str | Path) -> tuple[Path, Path]:
         """``groundtruth.tum`` and ``estimate.tum`` in ``folder``."""

@@ -132,7 +132,7 @@ def refine_pose_torch(rot_cw: torch.Tensor, t_cw: torch.Tensor, points_w: torch.
     ones = torch.ones(n, 1, dtype=dtype, device=points_w.device)
     # minus the reprojection residual's constant part, (u - c) / pixel_sigma, in columns 6 and 13
     bias = torch.zeros(n, 35, dtype=dtype, device=points_w.device)
-    bias[:, [6, 13]] = (pixels - k[:2, 2]) / cfg.pixel_sigma
+    bias[:, 6:14:7] = (pixels - k[:2, 2]) / cfg.pixel_sigma  # a strided view: no index tensor (CUDA graphs)
     points_c1 = torch.cat([points_c, ones], 1)
     # (N, 2): which residuals count; a keypoint without depth has points_c = 0, its 3-D rows weigh 0
     mask = torch.stack([use, use & has_depth & cfg.use_depth_residual], 1).to(dtype)
