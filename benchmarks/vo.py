@@ -113,8 +113,8 @@ def main(argv=None) -> dict:
         "cuda_graphs": cfg.cuda_graphs and torch.device(cfg.device).type == "cuda",
         "device": _describe_device(cfg),
         "imu": args.imu, "blackout_frames": list(blackout), "recovery_frames": recovery,
-        "blackout_max_error_cm": round(float(dark.position_error_m()[slice(*blackout)].max()) * 100, 2),
-        "blackout_max_heading_error_deg": round(float(dark.rotation_error_deg()[slice(*blackout)].max()), 2),
+        "blackout_max_error_cm": _max_over(dark.position_error_m()[slice(*blackout)], 100.0),
+        "blackout_max_heading_error_deg": _max_over(dark.rotation_error_deg()[slice(*blackout)], 1.0),
         "recovery_s": None if recovery is None else round(recovery / 30.0, 3),
         "textureless_wall_recovery_frames": wall, "fast_turns_kinematic_walk": turns,
         "files": [str(args.out / "groundtruth.tum"), str(args.out / "estimate.tum")],
@@ -139,6 +139,11 @@ def main(argv=None) -> dict:
           f"evo_rpe tum {args.out}/groundtruth.tum {args.out}/estimate.tum --align --delta 1 --delta_unit m --all_pairs")
     print("RESULT " + json.dumps(result))
     return result
+
+
+def _max_over(values: np.ndarray, scale: float) -> float | None:
+    """``max(values) * scale`` rounded, or None when the window holds no frame (a blackout past the run)."""
+    return round(float(values.max()) * scale, 2) if len(values) else None
 
 
 def _describe_device(cfg: VoCfg) -> str:
