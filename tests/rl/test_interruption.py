@@ -172,6 +172,9 @@ def test_a_second_signal_during_the_save_stops_at_once_and_corrupts_nothing(
 
     monkeypatch.setattr(RslRlVecEnv, "step", step)
     monkeypatch.setattr(runs, "atomic_torch_save", save_cut_short)
+    # what the handler was: Python's default_int_handler, or SIG_IGN when pytest was started in the
+    # background by a non-interactive shell (which ignores SIGINT for its background jobs)
+    handler_before = signal.getsignal(signal.SIGINT)
     with pytest.raises(TrainingInterrupted) as stopped:
         train(resume=run_dir, max_iterations=50)
     monkeypatch.undo()
@@ -180,7 +183,7 @@ def test_a_second_signal_during_the_save_stops_at_once_and_corrupts_nothing(
     assert "the newest checkpoint is model_4.pt" in str(stopped.value)
     assert assert_checkpoints_load(run_dir) == [0, 1, 2, 3, 4]  # model_5.pt never appeared
     assert iterations(run_dir) == [0, 1, 2, 3, 4, 5]
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # handlers restored
+    assert signal.getsignal(signal.SIGINT) is handler_before  # handlers restored
 
 
 # --- metrics.csv ----------------------------------------------------------------------------
