@@ -3,6 +3,7 @@
 (500x741, true disparities 7-60 px), all with the same 64-disparity search range.
 
     python benchmarks/stereo.py [--device cpu|cuda] [--repeats 5] [--paths 8] [--threads N]
+                                [--aggregation both|auto|torch|warp]
     python benchmarks/stereo.py --save-pair out/motorcycle.npz   # for a machine without scikit-image
     python benchmarks/stereo.py --pair out/motorcycle.npz --device cuda
 
@@ -12,6 +13,13 @@ Time: median ms per pair over ``--repeats`` after one warm-up, grey conversion i
 takes and returns tensors on ``--device`` (transfers excluded). On CUDA the matcher is also timed
 replayed as a CUDA graph (``CudaGraphSgm``). ``ratio_to_fastest``: ms / the fastest method's ms.
 OpenCV is skipped where it is not installed.
+
+Aggregation (``SgmCfg.aggregation``): ``--aggregation`` sets the matcher's, reported under
+``ours_sgm_<device>`` / ``ours_sgm_cuda_graph`` (and ``ratio``); ``both`` (the default) sets "auto"
+there and times the matcher with the other one too, as ``ours_sgm_<device>_<torch|warp>_aggregation``
+and ``ours_sgm_cuda_graph_<...>_aggregation``. ``aggregation_ms`` times the aggregation step alone on
+the pair's cost volume (median ms per aggregation; ``aggregation_identical``: whether they agree to
+the bit). Warp compiles its kernels on the first call (cached on disk): the warm-up run absorbs it.
 """
 
 from __future__ import annotations
@@ -26,7 +34,26 @@ import numpy as np
 import torch
 
 from ambulo.perception.stereo import SgbmCfg, sgbm_disparity
-from ambulo.perception.stereo_torch import CudaGraphSgm, SgmCfg, sgm_disparity
+from ambulo.perception.stereo_torch import (
+    CudaGraphSgm,
+    SgmCfg,
+    aggregate_with,
+    census,
+    census_cost,
+    grey_levels,
+    resolve_aggregation,
+    sgm_disparity,
+)
+
+
+def warp_version() -> str | None:
+    """warp-lang's version, None where it is not installed (the matcher then aggregates in torch)."""
+    try:
+        import warp  # noqa: PLC0415
+
+        return warp.config.version
+    except ImportError:
+        return None
 
 
 def load_pair(path: Path | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -77,6 +104,45 @@ def opencv_bm(left: np.ndarray, right: np.ndarray, num_disparities: int) -> np.n
     return disparity
 
 
+def time_aggregations(left: torch.Tensor, right: torch.Tensor, cfg: SgmCfg, aggregations: list[str], repeats: int,
+                      sync) -> tuple[dict, bool | None]:
+    """Median ms of the aggregation step alone for each of ``aggregations`` on the pair's (D, H, W)
+    cost volume, and whether they all gave the same volume (None for one)."""
+    signatures = [census(grey_levels(img), cfg.census_rows, cfg.census_cols) for img in (left, right)]
+    cost = census_cost(*signatures, cfg.num_disparities)
+    times, volumes = {}, []
+    for aggregation in aggregations:
+        agg_cfg = SgmCfg(num_disparities=cfg.num_disparities, paths=cfg.paths, aggregation=aggregation)
+        ms, volume = median_ms(lambda c=agg_cfg: aggregate_with(cost, c), repeats, sync)
+        times[aggregation] = round(ms, 2)
+        volumes.append(volume)
+    identical = all(torch.equal(volumes[0], v) for v in volumes[1:]) if len(volumes) > 1 else None
+    return times, identical
+
+
+def time_matcher(l_dev: torch.Tensor, r_dev: torch.Tensor, truth: np.ndarray, cfg: SgmCfg, repeats: int, sync,
+                 suffix: str = "") -> tuple[dict, str | None]:
+    """``methods`` entries of the matcher with ``cfg``, eager and, on CUDA, replayed as a CUDA graph
+    (keys ``ours_sgm_<device><suffix>``, ``ours_sgm_cuda_graph<suffix>``), and the graph's error if
+    its capture failed."""
+    device = l_dev.device
+    aggregation = resolve_aggregation(cfg.aggregation, device)
+    methods = {}
+    ms, disparity = median_ms(lambda: sgm_disparity(l_dev, r_dev, cfg), repeats, sync)
+    methods[f"ours_sgm_{device.type}{suffix}"] = {"ms": round(ms, 2), **scores(disparity.cpu().numpy(), truth),
+                                                  "aggregation": aggregation}
+    graph_error = None
+    if device.type == "cuda":
+        try:
+            graphed = CudaGraphSgm(l_dev.shape, cfg, device)
+            ms, disparity = median_ms(lambda: graphed(l_dev, r_dev), repeats, sync)
+            methods[f"ours_sgm_cuda_graph{suffix}"] = {"ms": round(ms, 2), **scores(disparity.cpu().numpy(), truth),
+                                                       "aggregation": aggregation}
+        except RuntimeError as error:  # a capture that fails still leaves the eager figures
+            graph_error = str(error)[:500]
+    return methods, graph_error
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--device", default="cpu")
@@ -84,6 +150,8 @@ def main(argv=None) -> dict:
     parser.add_argument("--num-disparities", type=int, default=64)
     parser.add_argument("--paths", type=int, default=8, choices=(4, 8))
     parser.add_argument("--threads", type=int, default=None, help="torch CPU threads (default: torch's)")
+    parser.add_argument("--aggregation", default="both", choices=("both", "auto", "torch", "warp"),
+                        help="the matcher's SgmCfg.aggregation; both: auto, and time the other one too")
     parser.add_argument("--pair", type=Path, default=None, help=".npz from --save-pair instead of scikit-image")
     parser.add_argument("--save-pair", type=Path, default=None, help="write the pair as .npz and exit")
     args = parser.parse_args(argv)
@@ -108,20 +176,23 @@ def main(argv=None) -> dict:
         methods["opencv_bm_cpu"] = {"ms": round(ms, 2), **scores(disparity, truth)}
     except ImportError:
         cv_threads = None
-    cfg = SgmCfg(num_disparities=args.num_disparities, paths=args.paths)
+    main_setting = "auto" if args.aggregation == "both" else args.aggregation
+    cfg = SgmCfg(num_disparities=args.num_disparities, paths=args.paths, aggregation=main_setting)
     l_dev, r_dev = torch.from_numpy(left).to(device), torch.from_numpy(right).to(device)
-    ms, disparity = median_ms(lambda: sgm_disparity(l_dev, r_dev, cfg), args.repeats, sync)
-    ours = f"ours_sgm_{device.type}"
-    methods[ours] = {"ms": round(ms, 2), **scores(disparity.cpu().numpy(), truth)}
-    graph_error = None
-    if device.type == "cuda":
-        try:
-            graphed = CudaGraphSgm(l_dev.shape, cfg, device)
-            ms, disparity = median_ms(lambda: graphed(l_dev, r_dev), args.repeats, sync)
-            ours = "ours_sgm_cuda_graph"
-            methods[ours] = {"ms": round(ms, 2), **scores(disparity.cpu().numpy(), truth)}
-        except RuntimeError as error:  # a capture that fails still leaves the eager figures
-            graph_error = str(error)[:500]
+    aggregation = resolve_aggregation(main_setting, device)
+    ours_methods, graph_error = time_matcher(l_dev, r_dev, truth, cfg, args.repeats, sync)
+    methods.update(ours_methods)
+    ours = list(ours_methods)[-1]  # the graph on CUDA when it was captured
+    compared = [aggregation]
+    other = {"warp": "torch", "torch": "warp"}[aggregation]
+    other_error = None
+    if args.aggregation == "both" and resolve_aggregation("auto", device) == "warp":  # Warp imports
+        compared.append(other)
+        other_cfg = SgmCfg(num_disparities=args.num_disparities, paths=args.paths, aggregation=other)
+        other_methods, other_error = time_matcher(l_dev, r_dev, truth, other_cfg, args.repeats, sync,
+                                                  suffix=f"_{other}_aggregation")
+        methods.update(other_methods)
+    aggregation_ms, identical = time_aggregations(l_dev, r_dev, cfg, compared, args.repeats, sync)
     fastest = min(m["ms"] for m in methods.values())
     for m in methods.values():
         m["ratio_to_fastest"] = round(m["ms"] / fastest, 3)
@@ -131,8 +202,11 @@ def main(argv=None) -> dict:
         "device": torch.cuda.get_device_name(device) if device.type == "cuda" else "cpu",
         "torch_threads": torch.get_num_threads(), "opencv_threads": cv_threads, "repeats": args.repeats,
         "methods": methods, "ratio": methods[ours]["ratio_to_fastest"], "cuda_graph_error": graph_error,
+        "aggregation": aggregation, "aggregation_ms": aggregation_ms, "aggregation_identical": identical,
+        "other_aggregation_cuda_graph_error": other_error,
         "versions": {"torch": torch.__version__,
-                     "opencv": __import__("cv2").__version__ if cv_threads is not None else None},
+                     "opencv": __import__("cv2").__version__ if cv_threads is not None else None,
+                     "warp": warp_version()},
     }
     print("RESULT " + json.dumps(result))
     return result
