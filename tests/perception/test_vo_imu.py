@@ -73,6 +73,8 @@ def test_the_bias_estimate_converges_to_the_true_bias():
 def test_bad_gyro_input_is_refused_in_one_line():
     with pytest.raises(InvalidValueError, match="at least 2"):
         GyroSamples([0.0], [[0, 0, 0]])
+    with pytest.raises(InvalidValueError, match="not all finite"):
+        GyroSamples([0.0, 0.01], [[0, 0, 0], [0, float("nan"), 0]])
     with pytest.raises(InvalidValueError, match="times must increase"):
         GyroSamples([0.0, 0.0], [[0, 0, 0], [0, 0, 0]])
     with pytest.raises(InvalidValueError, match="pose_cam_imu"):

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ambulo.utils.checks import InvalidValueError
+from ambulo.utils.checks import Described, InvalidValueError
 
 
 @dataclass
@@ -46,6 +46,9 @@ class GyroSamples:
             raise InvalidValueError("GyroSamples", f"{len(self.time_s)} times, {len(self.ang_vel_rad_s)} rates",
                                     "needs as many times as rates, at least 2 (both ends of the frame interval)",
                                     "pass the samples from the previous frame's time to this frame's")
+        if not (np.all(np.isfinite(self.time_s)) and np.all(np.isfinite(self.ang_vel_rad_s))):
+            raise InvalidValueError("GyroSamples.time_s / ang_vel_rad_s", Described("not all finite"),
+                                    "a NaN or inf would poison the pose", "drop the IMU's invalid samples first")
         if not np.all(np.diff(self.time_s) > 0):
             raise InvalidValueError("GyroSamples.time_s", self.time_s[:4].tolist(), "times must increase",
                                     "sort the samples by time and drop duplicates")
