@@ -25,6 +25,7 @@ the bit). Warp compiles its kernels on the first call (cached on disk): the warm
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import statistics
 import time
@@ -112,7 +113,7 @@ def time_aggregations(left: torch.Tensor, right: torch.Tensor, cfg: SgmCfg, aggr
     cost = census_cost(*signatures, cfg.num_disparities)
     times, volumes = {}, []
     for aggregation in aggregations:
-        agg_cfg = SgmCfg(num_disparities=cfg.num_disparities, paths=cfg.paths, aggregation=aggregation)
+        agg_cfg = dataclasses.replace(cfg, aggregation=aggregation)
         ms, volume = median_ms(lambda c=agg_cfg: aggregate_with(cost, c), repeats, sync)
         times[aggregation] = round(ms, 2)
         volumes.append(volume)
@@ -188,7 +189,7 @@ def main(argv=None) -> dict:
     other_error = None
     if args.aggregation == "both" and resolve_aggregation("auto", device) == "warp":  # Warp imports
         compared.append(other)
-        other_cfg = SgmCfg(num_disparities=args.num_disparities, paths=args.paths, aggregation=other)
+        other_cfg = dataclasses.replace(cfg, aggregation=other)
         other_methods, other_error = time_matcher(l_dev, r_dev, truth, other_cfg, args.repeats, sync,
                                                   suffix=f"_{other}_aggregation")
         methods.update(other_methods)

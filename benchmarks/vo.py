@@ -98,11 +98,10 @@ def main(argv=None) -> dict:
         window = (args.blackout_at, args.blackout_at + int(round(duration_s * 30)))
         spun = run_walk_vo(turning, window[1] + 60, cfg, blackout=window, loss="motion", imu=args.imu)
         turning.close()
-        err = np.linalg.norm(spun.estimate_wc[:, :3, 3] - spun.truth_wc[:, :3, 3], axis=1)
         turns[name] = {"peak_deg_per_s": round(math.degrees(math.pi * angle_rad / duration_s)),
                        "lost_frames": sum(s == TrackState.LOST for s in spun.states),
-                       "recovery_frames": spun.recovery_frames(0.05), "max_error_cm": round(float(err.max()) * 100, 2),
-                       "max_heading_error_deg": round(float(spun.rotation_error_deg().max()), 2)}
+                       "recovery_frames": spun.recovery_frames(0.05), "max_error_cm": _max_over(spun.position_error_m(), 100.0),
+                       "max_heading_error_deg": _max_over(spun.rotation_error_deg(), 1.0)}
     result = {
         "walk": args.walk, "speed_mps": args.speed, "gait": gait,
         "frames": args.frames, "resolution": [args.width, args.height], "path_m": round(score.path_length_m, 2),

@@ -36,10 +36,10 @@ class VoRun:
         error below ``tolerance_m``; None without a loss or if it never recovers."""
         if self.blackout is None:
             return None
-        end = self.blackout[1]
+        end, error_m = self.blackout[1], self.position_error_m()
         for i in range(end, len(self.states)):
             ok = self.states[i] in (TrackState.TRACKING, TrackState.RECOVERED)
-            if ok and np.linalg.norm(self.estimate_wc[i, :3, 3] - self.truth_wc[i, :3, 3]) < tolerance_m:
+            if ok and error_m[i] < tolerance_m:
                 return i - end
         return None
 

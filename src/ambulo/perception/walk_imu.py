@@ -38,11 +38,6 @@ class GyroStream:
     def last_time_s(self) -> float:
         return self._times[-1] if self._times else -np.inf
 
-    @property
-    def bias_rad_s(self) -> np.ndarray:
-        """(3,) the true bias now (what an estimator should find), rad/s."""
-        return self._noise.bias[0].numpy().copy()
-
     def add(self, times_s: np.ndarray, clean_rad_s: np.ndarray, dt_s: float) -> None:
         """Readings at ``times_s`` (K,) (after ``last_time_s``, ``dt_s`` apart) of the clean rates
         ``clean_rad_s`` (K, 3)."""
