@@ -103,9 +103,26 @@ def test_kernel_edt_is_scipys_exact_edt_and_the_torch_reference(shape, density, 
     sites = np.random.default_rng(sum(shape) + int(density * 1e4)).random(shape) < density
     ours = esdf_kernels.exact_edt(torch.from_numpy(sites), max_cells)
     assert ours.dtype == torch.float32 and ours.shape == shape
-    # bit for bit: squared distances are integers and sqrt is correctly rounded in both
+    # bit for bit: squared distances are integers, and both round their square roots correctly
+    # (the kernel's float32 sqrt is IEEE; edt_torch rounds a float64 sqrt, whatever the CPU)
     np.testing.assert_array_equal(ours.numpy(), _scipy_edt(sites, max_cells))
     np.testing.assert_array_equal(ours.numpy(), edt_torch(torch.from_numpy(sites), max_cells).numpy())
+
+
+def test_edt_torch_rounds_square_roots_correctly_whatever_the_cpus_float32_sqrt(monkeypatch):
+    """Some CPUs' vectorized float32 sqrt in torch is 1 ulp off (sqrt(34): 5.8309522, not
+    5.8309517). edt_torch must not depend on it: made 1 ulp high here, the result is unchanged."""
+    sqrt = torch.Tensor.sqrt
+
+    def one_ulp_high(t: torch.Tensor) -> torch.Tensor:
+        root = sqrt(t)
+        return torch.nextafter(root, torch.full_like(root, float("inf"))) if t.dtype == torch.float32 else root
+
+    sites = np.random.default_rng(5).random((40, 30, 20)) < 0.003
+    monkeypatch.setattr(torch.Tensor, "sqrt", one_ulp_high)
+    ours = edt_torch(torch.from_numpy(sites), 12).numpy()
+    np.testing.assert_array_equal(ours, _scipy_edt(sites, 12))
+    assert ours[np.isfinite(ours)].max() > 5  # non-trivial roots were taken
 
 
 @needs_warp
