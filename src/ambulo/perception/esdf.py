@@ -50,7 +50,11 @@ def edt_torch(sites: torch.Tensor, max_cells: int) -> torch.Tensor:
             out = torch.minimum(out, padded.narrow(axis, k_max + k, n) + k2)
             out = torch.minimum(out, padded.narrow(axis, k_max - k, n) + k2)
         sq = out
-    dist = sq.sqrt()
+    # sqrt in float64, then rounded: a correctly rounded float32 square root on every CPU and GPU
+    # (torch's vectorized float32 sqrt is 1 ulp off on some CPUs, e.g. sqrt(34); double rounding
+    # is exact for sqrt since 53 >= 2 * 24 + 2 bits, Figueroa 1995), so this equals scipy's and
+    # the Warp kernels' result bit for bit. sq holds small integers, exact in float32.
+    dist = sq.double().sqrt().float()
     return torch.where(dist <= max_cells, dist, inf)
 
 
