@@ -2,7 +2,8 @@
 
 A ``sys.meta_path`` finder claims every module under ``isaacsim``, ``omni`` and ``carb``
 while ``isaac_names()`` is active. A module in the table (``names.MODULES``) becomes an
-``IsaacModule`` whose attributes resolve lazily to ambulo objects; any other module under
+``IsaacModule`` whose attributes resolve lazily to ambulo objects, and whose submodules are
+attributes too (imported on first use, as Kit has them loaded); any other module under
 those roots, or a name a table module lacks, fails at the import line with an
 ``IsaacNameError`` that says what ambulo offers instead. Leaving the context removes the
 finder and the modules it made, so the names never leak into the rest of the process.
@@ -40,12 +41,15 @@ class IsaacModule(types.ModuleType):
             setattr(self, attr, value)  # later lookups skip __getattr__
             return value
         if names.is_known(f"{module}.{attr}"):
-            # a submodule not imported yet: AttributeError lets `from pkg import sub` import it
-            raise AttributeError(attr)
+            # In Kit every extension's modules are loaded before a script runs, so `import omni`
+            # then `omni.usd.get_context()` works; here the submodule is imported on first use
+            # (the import system then sets it on this module, so later lookups skip this).
+            return importlib.import_module(f"{module}.{attr}")
         raise IsaacNameError(missing_name_message(module, attr), name=module)
 
     def __dir__(self) -> list[str]:
-        return sorted(set(super().__dir__()) | set(names.MODULES.get(self.__name__, {})))
+        return sorted(set(super().__dir__()) | set(names.MODULES.get(self.__name__, {}))
+                      | set(names.submodules(self.__name__)))
 
 
 def missing_name_message(module: str, attr: str) -> str:

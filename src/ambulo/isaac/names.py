@@ -161,4 +161,10 @@ def is_known(module: str) -> bool:
     return module in MODULES or is_package(module)
 
 
-__all__ = ["HINTS", "MODULES", "ROOTS", "is_known", "is_package"]
+def submodules(module: str) -> list[str]:
+    """The names of the table's modules (or packages on the way to them) directly under ``module``."""
+    prefix = module + "."
+    return sorted({name[len(prefix):].split(".")[0] for name in MODULES if name.startswith(prefix)})
+
+
+__all__ = ["HINTS", "MODULES", "ROOTS", "is_known", "is_package", "submodules"]
