@@ -7,8 +7,9 @@ cd "$(dirname "$0")/.."
 VENV=${VENV:-.venv}
 PYTHON=${PYTHON:-python3}
 
-# Headless GL: EGL (Mesa's llvmpipe without a GPU) is what MuJoCo's renderer uses;
-# OSMesa is the fallback (MUJOCO_GL=osmesa).
+# Headless GL: ambulo chooses at the first render (ambulo/render/gl.py): MUJOCO_GL if set, else
+# EGL (a GPU's, or Mesa's llvmpipe) if libEGL loads, else OSMesa. Without either, everything but
+# rendering still works and a render fails in one line naming these packages.
 # libusb-1.0: Open3D's wheel (the perception extra) links it even without a camera attached.
 need_apt=()
 for lib in libEGL.so.1 libGL.so.1 libOSMesa.so.8 libusb-1.0.so.0; do

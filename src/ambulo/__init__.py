@@ -1,14 +1,7 @@
 """ambulo: open robotics simulation and learning on MuJoCo."""
 
-import os as _os
-import sys as _sys
-
-# MuJoCo picks its GL backend when first imported. Without a display, default to
-# EGL (GPU or Mesa's llvmpipe) so renderers work headless; users may override.
-# ambulo.render reads the choice back from MUJOCO_GL: this is the one place it is made.
-_has_display = _os.environ.get("DISPLAY") or _os.environ.get("WAYLAND_DISPLAY")
-if _sys.platform.startswith("linux") and not _has_display and "MUJOCO_GL" not in _os.environ:
-    _os.environ["MUJOCO_GL"] = "egl"
-    _os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+# No GL backend is chosen here: MuJoCo binds MUJOCO_GL when ``mujoco`` is imported, and with
+# MUJOCO_GL=egl on a machine without libEGL that import raises (PyOpenGL's AttributeError), which
+# broke every command, training too (issue 22). ambulo.render.gl chooses at the first render.
 
 __version__ = "0.1.0"
