@@ -17,6 +17,8 @@ _CORE = {
     "WriterRegistry": f"{_REP}.basic_writer:WriterRegistry",
     "writers": f"{_REP}.basic_writer:writers",
     "BasicWriter": f"{_REP}.basic_writer:BasicWriter",
+    "AnnotatorRegistry": f"{_REP}.annotators:AnnotatorRegistry",
+    "annotators": f"{_REP}.annotators:annotators",
     "new_layer": f"{_REP}.core:new_layer",
     "set_global_seed": f"{_REP}.core:set_global_seed",
 }

@@ -23,11 +23,12 @@ from ambulo.utils.rotations import mat_to_quat, quat_to_mat
 from . import annotators as ann
 from .base import MountPose, Sensor, spec_body
 from .frames import GL_IN, check_convention, look_at_gl
+from .geom_shapes import surface_normals_w
 
 ANNOTATORS = (
     "rgb", "depth", "distance_to_camera", "semantic_segmentation", "instance_segmentation",
     "normals", "bounding_box_2d_tight", "bounding_box_2d_loose", "bounding_box_3d",
-    "visible_fraction",
+    "visible_fraction", "poses_w",
 )
 # Isaac Replicator names for the same outputs
 ALIASES = {"distance_to_image_plane": "depth", "rgba": "rgb", "occlusion": "visible_fraction"}
@@ -287,6 +288,10 @@ class Camera(Sensor):
             "quat_w_opengl": mat_to_quat(rot_gl), "width": self.cfg.width, "height": self.cfg.height}}
         if "rgb" in names:
             out["rgb"] = r.render_rgb().copy()
+        if "poses_w" in names:  # the state this frame shows: 3D boxes in a prim's frame, motion vectors
+            out["poses_w"] = {"body_pos": data.xpos.copy(), "body_rot": data.xmat.reshape(-1, 3, 3).copy(),
+                              "geom_pos": data.geom_xpos.copy(), "geom_rot": data.geom_xmat.reshape(-1, 3, 3).copy(),
+                              "geom_size": model.geom_size.copy()}
         need = set(names)
         wants_ids = bool(need & (_NEEDS_IDS | _NEEDS_DEPTH | {"bounding_box_2d_loose", "bounding_box_3d"}))
         want_depth = bool(need & _NEEDS_DEPTH)
@@ -312,9 +317,9 @@ class Camera(Sensor):
             out["depth"] = depth
         if "distance_to_camera" in names:
             out["distance_to_camera"] = ann.distance_from_depth(depth, k_matrix).astype(np.float32)
-        if "normals" in names:
-            n_c = ann.normals_from_depth(depth, k_matrix)
-            out["normals"] = (n_c @ extr[:3, :3]).astype(np.float32)  # R_cw^T: camera -> world
+        if "normals" in names:  # world frame, exact from each geom's shape (geom_shapes)
+            out["normals"] = surface_normals_w(out["geom_ids"], depth, k_matrix, extr, self._model_buf,
+                                               data.geom_xpos, data.geom_xmat.reshape(-1, 3, 3))
         if "instance_segmentation" in names:
             out["instance_segmentation"] = instances
         if "semantic_segmentation" in names:

@@ -7,8 +7,9 @@ Per frame ``NNNN`` (``frame_padding`` digits, from 0), in ``output_dir``:
   ``x_min, y_min, x_max, y_max`` (i4, inclusive pixels), ``occlusionRatio`` (f4, occluded share
   of the prim's in-image pixels); ``..._labels_NNNN.json`` ``{semanticId: {"class": label}}``;
   ``..._prim_paths_NNNN.json``, one prim path per row.
-- ``bounding_box_3d_NNNN.npy``: ``semanticId, x_min..z_max`` (box extents, m), ``transform``
-  (4x4 box-to-world, USD row-vector convention), ``occlusionRatio``; labels and prim paths.
+- ``bounding_box_3d_NNNN.npy``: the ``bounding_box_3d`` annotator's rows (``ground_truth.py``):
+  ``semanticId, x_min..z_max`` (the prim's geoms' box in its frame, m), ``transform`` (4x4
+  prim-to-world, USD row-vector convention), ``occlusionRatio``; labels and prim paths.
 - ``semantic_segmentation_NNNN.png`` (RGBA by default; ``colorize_semantic_segmentation=False``:
   uint16 ids, PNG having no 32-bit grey) + ``semantic_segmentation_labels_NNNN.json``; id 0 is
   BACKGROUND (no geometry), 1 UNLABELLED (geometry without a class), then one id per class.
@@ -34,12 +35,10 @@ from ambulo.replicator.io import encode_png
 from ambulo.utils.atomic import atomic_save_npy, atomic_write_bytes, atomic_write_json
 
 from .errors import Namespace, unsupported
+from .ground_truth import prim_boxes, replicator_bounding_box_3d
 
 BBOX_2D_DTYPE = np.dtype([("semanticId", "<u4"), ("x_min", "<i4"), ("y_min", "<i4"), ("x_max", "<i4"),
                           ("y_max", "<i4"), ("occlusionRatio", "<f4")])
-BBOX_3D_DTYPE = np.dtype([("semanticId", "<u4"), ("x_min", "<f4"), ("y_min", "<f4"), ("z_min", "<f4"),
-                          ("x_max", "<f4"), ("y_max", "<f4"), ("z_max", "<f4"), ("transform", "<f4", (4, 4)),
-                          ("occlusionRatio", "<f4")])
 BACKGROUND, UNLABELLED = 0, 1
 _UNSUPPORTED_FLAGS = {
     "instance_id_segmentation": "use instance_segmentation=True",
@@ -53,7 +52,7 @@ _UNSUPPORTED_FLAGS = {
 # annotators of ambulo's Camera each flag needs
 _NEEDS = {"rgb": ("rgb",), "bounding_box_2d_tight": ("bounding_box_2d_tight", "visible_fraction"),
           "bounding_box_2d_loose": ("bounding_box_2d_loose", "visible_fraction"),
-          "bounding_box_3d": ("bounding_box_3d", "bounding_box_2d_loose", "visible_fraction"),
+          "bounding_box_3d": ("poses_w", "bounding_box_2d_loose", "visible_fraction"),
           "semantic_segmentation": ("semantic_segmentation",), "instance_segmentation": ("instance_segmentation",),
           "distance_to_image_plane": ("depth",), "distance_to_camera": ("distance_to_camera",),
           "normals": ("normals",), "camera_params": ()}
@@ -146,9 +145,10 @@ class BasicWriter:
         return tuple(dict.fromkeys(a for flag, on in self.flags.items() if on for a in _NEEDS[flag]))
 
     # -- one frame ----------------------------------------------------------------
-    def write(self, capture: dict, table, camera: dict) -> None:
+    def write(self, capture: dict, table, camera: dict, model=None) -> None:
         """Write one frame: ``capture`` from ambulo's Camera, ``table`` its InstanceTable,
-        ``camera`` the created camera's focal_length/horizontal_aperture (mm)."""
+        ``camera`` the created camera's focal_length/horizontal_aperture (mm), ``model`` the
+        compiled scene (its geoms bound the 3D boxes)."""
         self.output_dir.mkdir(parents=True, exist_ok=True)
         n = f"{self.frame_id:0{self.frame_padding}d}"
         f = self.flags
@@ -161,7 +161,7 @@ class BasicWriter:
             if f[f"bounding_box_{kind}"]:
                 self._boxes_2d(kind, n, capture[f"bounding_box_{kind}"], table, occluded)
         if f["bounding_box_3d"]:
-            self._boxes_3d(n, capture, table, occluded)
+            self._boxes_3d(n, capture, table, model, occluded)
         if f["semantic_segmentation"]:
             self._semantic(n, capture, table)
         if f["instance_segmentation"]:
@@ -196,21 +196,10 @@ class BasicWriter:
         rows["occlusionRatio"] = 0.0 if occluded is None else occluded[ids - 1]
         self._box_files(f"bounding_box_{kind}", n, rows, ids, table)
 
-    def _boxes_3d(self, n, capture, table, occluded) -> None:
-        b = capture["bounding_box_3d"]
-        ids = np.asarray(capture["bounding_box_2d_loose"]["instance_id"], np.int64)  # in view, as Replicator
-        rows = np.zeros(len(ids), BBOX_3D_DTYPE)
-        k = ids - 1
-        rows["semanticId"] = b["semantic_id"][k] - 1
-        half = b["half_extent"][k]
-        for axis, name in enumerate("xyz"):
-            rows[f"{name}_min"], rows[f"{name}_max"] = -half[:, axis], half[:, axis]
-        transform = np.zeros((len(ids), 4, 4))
-        transform[:, :3, :3] = np.swapaxes(b["rot_w"][k], 1, 2)  # row vectors: p_w = p_box @ M
-        transform[:, 3, :3], transform[:, 3, 3] = b["center_w"][k], 1.0
-        rows["transform"] = transform
-        rows["occlusionRatio"] = 0.0 if occluded is None else occluded[k]
-        self._box_files("bounding_box_3d", n, rows, ids, table)
+    def _boxes_3d(self, n, capture, table, model, occluded) -> None:
+        ids = capture["bounding_box_2d_loose"]["instance_id"]  # in view, as Replicator
+        boxes = replicator_bounding_box_3d(ids, table, prim_boxes(table, model, capture["poses_w"]), occluded)
+        self._box_files("bounding_box_3d", n, boxes["data"], np.asarray(ids, np.int64), table)
 
     def _box_files(self, stem, n, rows, ids, table) -> None:
         self._npy(f"{stem}_{n}.npy", rows)

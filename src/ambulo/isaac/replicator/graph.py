@@ -92,6 +92,8 @@ class Graph:
     triggers: list[Trigger] = field(default_factory=list)
     render_products: list = field(default_factory=list)
     writers: list = field(default_factory=list)
+    annotators: list = field(default_factory=list)
+    """``rep.AnnotatorRegistry`` annotators attached to a render product (``annotators.py``)."""
     materials: list = field(default_factory=list)
     registered: dict = field(default_factory=dict)
     """Functions of ``rep.randomizer.register``, by name."""

@@ -44,15 +44,23 @@ class Session:
                               "create one rep.create.render_product per run")
         self.product = graph.render_products[0]
         self.writers = [w for w in graph.writers if self.product in w.render_products]
-        annotators = ["rgb"] + [a for w in self.writers for a in w.annotators]
-        self.producer = FrameProducer(dataset_config(graph, self.product, dict.fromkeys(annotators)))
+        self.annotators = [a for a in graph.annotators if self.product in a.render_products]
+        for annotator in self.annotators:
+            annotator.reset()
+        needs = ["rgb"] + [a for w in self.writers for a in w.annotators] + [n for a in self.annotators for n in a.needs]
+        self.camera_annotators = tuple(dict.fromkeys(needs))
+        """What every frame renders: the writers' and the attached annotators' needs."""
+        self.producer = FrameProducer(dataset_config(graph, self.product, self.camera_annotators))
         self.camera = graph.prim(self.product.camera).extra
         self.seed = graph.seed
 
     def render(self, indices: list[int]) -> None:
+        table, model = self.producer.table, self.producer.model
         for _index, _log, capture in self.producer.frames(self.seed, indices):
             for writer in self.writers:
-                writer.write(capture, self.producer.table, self.camera)
+                writer.write(capture, table, self.camera, model)
+            for annotator in self.annotators:
+                annotator.update(capture, table, model, self.camera)
 
     def close(self) -> None:
         self.producer.close()

@@ -6,39 +6,58 @@ viewport camera at the viewport's resolution and returns Isaac's sensor outputs:
 float32 m, inf where nothing is hit; ``semanticSegmentation`` (H, W) uint32 semantic ids (0 =
 none); ``instanceSegmentation`` (ids, mapping); ``boundingBox2DTight``/``Loose`` (Isaac's
 structured rows, inclusive pixels); ``camera`` (pose, fov, intrinsics); ``pose`` (labelled prims'
-world transforms). Labels are the World's (``add_update_semantics``).
+world transforms); ``boundingBox3D`` (each labelled prim's box in its own frame, its transform
+and world corners), ``normals`` (H, W, 3) float32 world frame and ``motion-vector`` (H, W, 4)
+float32 pixels since the previous rendered frame, in ``ground_truth``'s layouts (Isaac 2022's
+helper names). Labels are the World's (``add_update_semantics``).
 """
 
 from __future__ import annotations
 
 import math
+from collections import deque
 
 import numpy as np
 
 from ambulo.render import OffscreenRenderer
 from ambulo.sensors import annotators as ann
+from ambulo.sensors.geom_shapes import surface_normals_w
+from ambulo.sim.camera_frame import motion_vectors
 from ambulo.sim.current import current_world
 
 from ambulo.isaac.hook import IsaacNameError
 
+from .ground_truth import legacy_bounding_box_3d, prim_boxes, row_transform
 from .viewport import ViewportAPI, get_active_viewport
 
 SENSORS = ("rgb", "depth", "depthLinear", "instanceSegmentation", "semanticSegmentation", "boundingBox2DTight",
-           "boundingBox2DLoose", "camera", "pose")
-BBOX_DTYPE = np.dtype([("uniqueId", "<i4"), ("name", "O"), ("semanticLabel", "O"), ("instanceIds", "O"),
-                       ("semanticId", "<u4"), ("metadata", "O"), ("x_min", "<i4"), ("y_min", "<i4"),
+           "boundingBox2DLoose", "boundingBox3D", "normals", "motion-vector", "camera", "pose")
+BBOX_DTYPE = np.dtype([("uniqueId", "<i4"), ("name", "O"), ("semanticLabel", "O"), ("metadata", "O"),
+                       ("instanceIds", "O"), ("semanticId", "<u4"), ("x_min", "<i4"), ("y_min", "<i4"),
                        ("x_max", "<i4"), ("y_max", "<i4")])
+"""omni.syntheticdata's reduce_bboxes_2d rows (inclusive pixels)."""
 MAPPING_DTYPE = np.dtype([("uniqueId", "<i4"), ("name", "O"), ("semanticId", "<u4"), ("semanticLabel", "O"),
                           ("instanceIds", "O"), ("metadata", "O")])
 KIT_APERTURE_MM = 20.955
 """Horizontal aperture of Kit's viewport camera (mm); with the field of view it gives a focal length."""
 
 
-def _row_transform(rot: np.ndarray, pos: np.ndarray) -> np.ndarray:
-    """4x4 local-to-world in USD's row-vector convention (p_w = p_local @ M)."""
-    m = np.eye(4)
-    m[:3, :3], m[3, :3] = rot.T, pos
-    return m
+def free_camera_pose(cam) -> tuple[np.ndarray, np.ndarray]:
+    """Position (3,) m and OpenGL axes (3, 3) of MuJoCo's free camera ``cam`` (lookat, distance,
+    azimuth, elevation in deg), as ``mjv_updateCamera`` places it: what the viewport showed."""
+    az, el = np.radians(cam.azimuth), np.radians(cam.elevation)
+    forward = np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+    up = np.array([-np.sin(el) * np.cos(az), -np.sin(el) * np.sin(az), np.cos(el)])
+    pos = np.asarray(cam.lookat, float) - cam.distance * forward
+    return pos, np.stack([np.cross(forward, up), up, -forward], axis=1)
+
+
+def _extrinsics_cw(pos: np.ndarray, rot_gl: np.ndarray) -> np.ndarray:
+    """(4, 4) world -> OpenCV camera of a camera at ``pos`` with OpenGL axes ``rot_gl``."""
+    rot_cv = rot_gl @ np.diag([1.0, -1.0, -1.0])
+    extr = np.eye(4)
+    extr[:3, :3], extr[:3, 3] = rot_cv.T, -rot_cv.T @ pos
+    return extr
 
 
 class SyntheticDataHelper:
@@ -47,15 +66,23 @@ class SyntheticDataHelper:
     def __init__(self):
         self._renderer: OffscreenRenderer | None = None
         self._key = None
+        self._watched = None
+        self._rendered: deque = deque(maxlen=2)
+        """(body xpos, xmat, camera pos, OpenGL axes) at the World's last two renders."""
 
     def initialize(self, sensor_names, viewport_api: ViewportAPI | None = None, viewport=None) -> None:
-        """Check the sensor names; rendering starts at the first ``get_groundtruth``."""
+        """Check the sensor names; rendering starts at the first ``get_groundtruth``. With
+        ``motion-vector``, start recording the World's renders (Kit's frames) to compare with."""
         _check(sensor_names)
+        if "motion-vector" in sensor_names:
+            self._watch_renders()
 
     def get_groundtruth(self, sensor_names, viewport_api: ViewportAPI | None = None, verify_sensor_init: bool = True,
                         wait_for_sensor_data: float = 0.1, viewport=None) -> dict:
         """Render the World now and return each sensor's output (no wait: ambulo renders on request)."""
         _check(sensor_names)
+        if "motion-vector" in sensor_names:
+            self._watch_renders()
         view = viewport_api or viewport or get_active_viewport()
         frame = self._render(view)
         gt = {name: frame[name] if name in frame else self._derived(name, frame) for name in sensor_names}
@@ -83,6 +110,33 @@ class SyntheticDataHelper:
                 out[data == sid] = user_semantic_label_map[label]
         return out.tolist()
 
+    # -- the frames motion vectors compare ------------------------------------------
+    def _watch_renders(self) -> None:
+        world = current_world("recording frames for motion vectors")
+        name = f"ambulo_synthetic_data_helper_{id(self)}"
+        if self._watched is not world or not world.render_callback_exists(name):
+            world.add_render_callback(name, self._on_render)
+            self._watched = world
+            self._rendered.clear()
+
+    def _on_render(self, event) -> None:
+        engine = event["world"].engine
+        pos, rot = free_camera_pose(event["world"].viewport_camera)
+        self._rendered.append((engine.field("xpos")[0].cpu().numpy().astype(float),
+                               engine.field("xmat")[0].reshape(-1, 3, 3).cpu().numpy().astype(float), pos, rot))
+
+    def _motion_vectors(self, f: dict) -> np.ndarray:
+        """Where each pixel's point was at the World's previous render, as Kit's frame before."""
+        data = f["data"]
+        capture = {"depth": f["depth"], "geom_ids": f["geom_ids"],
+                   "camera": {"intrinsics": f["k"], "extrinsics_cw": _extrinsics_cw(f["pos"], f["rot_gl"])}}
+        previous = None
+        if len(self._rendered) == 2:
+            xpos, xmat, pos, rot = self._rendered[0]
+            previous = ((xpos, xmat), {"intrinsics": f["k"], "extrinsics_cw": _extrinsics_cw(pos, rot)})
+        bodies = (np.asarray(data.xpos, float), np.asarray(data.xmat, float).reshape(-1, 3, 3))
+        return motion_vectors(capture, f["model"].geom_bodyid, bodies, previous)
+
     # -- rendering -------------------------------------------------------------------
     def _table(self):
         world = current_world("reading semantic labels")
@@ -109,7 +163,7 @@ class SyntheticDataHelper:
         instances = ann.instance_map(geom_ids, table)
         k, pos, rot_gl = self._camera(width, height)
         return {"rgb": np.dstack([rgb, np.full((height, width), 255, np.uint8)]), "depth": depth,
-                "instances": instances, "table": table, "k": k, "pos": pos, "rot_gl": rot_gl, "data": data,
+                "geom_ids": geom_ids, "instances": instances, "table": table, "k": k, "pos": pos, "rot_gl": rot_gl, "data": data,
                 "model": world.model, "width": width, "height": height}
 
     def _camera(self, width: int, height: int):
@@ -136,25 +190,31 @@ class SyntheticDataHelper:
         if name == "boundingBox2DTight":
             boxes, pixels = ann.tight_boxes(instances, table.num_instances)
             return self._bbox_rows(table, [(k, boxes[k]) for k in np.flatnonzero(pixels > 0)])
+        data, extr = f["data"], _extrinsics_cw(f["pos"], f["rot_gl"])
+        if name == "boundingBox3D":
+            poses = {"body_pos": data.xpos, "body_rot": data.xmat.reshape(-1, 3, 3), "geom_pos": data.geom_xpos,
+                     "geom_rot": data.geom_xmat.reshape(-1, 3, 3)}
+            return legacy_bounding_box_3d(table, prim_boxes(table, f["model"], poses))
+        if name == "normals":
+            return surface_normals_w(f["geom_ids"], f["depth"], f["k"], extr, f["model"], data.geom_xpos,
+                                     data.geom_xmat.reshape(-1, 3, 3))
+        if name == "motion-vector":
+            return self._motion_vectors(f)
         if name == "boundingBox2DLoose":
-            rot_cv = f["rot_gl"] @ np.diag([1.0, -1.0, -1.0])
-            extr = np.eye(4)
-            extr[:3, :3], extr[:3, 3] = rot_cv.T, -rot_cv.T @ f["pos"]
             loose = ann.loose_boxes(table, f["model"], f["data"].geom_xpos, f["data"].geom_xmat.reshape(-1, 3, 3),
                                     extr, f["k"], f["width"], f["height"], self._renderer.near_far()[0])
             return self._bbox_rows(table, [(k, np.rint(b)) for k, b in enumerate(loose) if b is not None])
         if name == "camera":
             return self._camera_params(f)
         if name == "pose":
-            data = f["data"]
             return [(table.names[k], int(table.semantic_ids[k + 1]), table.labels[k],
-                     _row_transform(data.xmat[b].reshape(3, 3), data.xpos[b]))
+                     row_transform(data.xmat[b].reshape(3, 3), data.xpos[b]))
                     for k, b in enumerate(table.body_ids)]
         return f[name]
 
     @staticmethod
     def _bbox_rows(table, boxes) -> np.ndarray:
-        rows = [(k + 1, table.names[k], table.labels[k], [k + 1], table.semantic_ids[k + 1], None, *map(int, box))
+        rows = [(k + 1, table.names[k], table.labels[k], None, [k + 1], table.semantic_ids[k + 1], *map(int, box))
                 for k, box in boxes]
         return np.array(rows, BBOX_DTYPE)
 
@@ -162,7 +222,7 @@ class SyntheticDataHelper:
         width, height, k = f["width"], f["height"], f["k"]
         near, far = self._renderer.near_far()
         hfov = 2 * math.atan(width / (2 * k[0, 0]))
-        return {"pose": _row_transform(f["rot_gl"], f["pos"]), "fov": hfov,
+        return {"pose": row_transform(f["rot_gl"], f["pos"]), "fov": hfov,
                 "focal_length": k[0, 0] * KIT_APERTURE_MM / width, "horizontal_aperture": KIT_APERTURE_MM,
                 "intrinsics": k, "resolution": {"width": width, "height": height}, "clipping_range": (near, far)}
 
