@@ -158,6 +158,49 @@ def test_motion_vectors_of_a_camera_moving_over_a_plane_at_known_depth(tmp_path)
     assert np.abs(out["motion"][..., 1:]).max() < 1e-3
 
 
+OCCLUSION = """
+import sys
+import numpy as np
+from isaacsim import SimulationApp
+app = SimulationApp({"headless": True})
+from omni.isaac.core import World
+from omni.isaac.core.objects import VisualCuboid
+from omni.isaac.core.utils.semantics import add_update_semantics
+from omni.isaac.core.utils.viewports import set_camera_view
+from omni.isaac.synthetic_utils import SyntheticDataHelper
+from omni.kit.viewport.utility import get_active_viewport
+world = World()
+world.scene.add(VisualCuboid(prim_path="/World/tile", name="tile", position=np.array([0.0, 0.0, -0.01]),
+                             scale=np.array([1.0, 1.0, 0.02])))
+world.scene.add(VisualCuboid(prim_path="/World/box", name="box", position=np.array([0.0, 0.0, 0.25]),
+                             scale=np.array([0.5, 0.5, 0.5])))
+add_update_semantics("/World/tile", "tile")
+add_update_semantics("/World/box", "box")
+world.reset()
+viewport = get_active_viewport()
+viewport.set_texture_resolution((320, 240))
+set_camera_view(eye=np.array([0.0, 0.0, 2.0]), target=np.array([0.0, 0.0, 0.0]))
+world.step(render=True)
+helper = SyntheticDataHelper()
+rows = helper.get_groundtruth(["occlusion"], viewport)["occlusion"]
+np.save(sys.argv[1], rows)
+app.close()
+"""
+
+
+def test_helper_occlusion_of_a_tile_under_a_box_seen_from_above(tmp_path):
+    script = tmp_path / "occlusion.py"
+    script.write_text(OCCLUSION)
+    run_script(script, [str(tmp_path / "rows.npy")])
+    rows = np.load(tmp_path / "rows.npy")
+    assert rows.dtype.names == ("instanceId", "semanticId", "occlusionRatio")
+    ratio = dict(zip(rows["instanceId"].tolist(), rows["occlusionRatio"].tolist()))
+    # straight down from 2 m: the 0.5 m box top (1.5 m away) hides a square of the 1 m tile (2 m away)
+    # whose side in the image is f 0.5 / 1.5 against the tile's f 1 / 2: 0.25 (2 / 1.5)^2 = 0.444
+    assert ratio[2] == pytest.approx(0.0, abs=1e-6)  # the box (instance 2: bodies in order)
+    assert ratio[1] == pytest.approx(0.25 * (2.0 / 1.5) ** 2, abs=0.01)
+
+
 @pytest.fixture(scope="module")
 def replicator(tmp_path_factory):
     out = tmp_path_factory.mktemp("annotators")

@@ -8,8 +8,8 @@ none); ``instanceSegmentation`` (ids, mapping); ``boundingBox2DTight``/``Loose``
 structured rows, inclusive pixels); ``camera`` (pose, fov, intrinsics); ``pose`` (labelled prims'
 world transforms); ``boundingBox3D`` (each labelled prim's box in its own frame, its transform
 and world corners), ``normals`` (H, W, 3) float32 world frame and ``motion-vector`` (H, W, 4)
-float32 pixels since the previous rendered frame, in ``ground_truth``'s layouts (Isaac 2022's
-helper names). Labels are the World's (``add_update_semantics``).
+float32 pixels since the previous rendered frame, in ``ground_truth``'s layouts; ``occlusion``
+(instanceId, semanticId, occlusionRatio) rows of the prims in view (Isaac 2022's helper names). Labels are the World's (``add_update_semantics``).
 """
 
 from __future__ import annotations
@@ -31,11 +31,13 @@ from .ground_truth import legacy_bounding_box_3d, prim_boxes, row_transform
 from .viewport import ViewportAPI, get_active_viewport
 
 SENSORS = ("rgb", "depth", "depthLinear", "instanceSegmentation", "semanticSegmentation", "boundingBox2DTight",
-           "boundingBox2DLoose", "boundingBox3D", "normals", "motion-vector", "camera", "pose")
+           "boundingBox2DLoose", "boundingBox3D", "normals", "motion-vector", "occlusion", "camera", "pose")
 BBOX_DTYPE = np.dtype([("uniqueId", "<i4"), ("name", "O"), ("semanticLabel", "O"), ("metadata", "O"),
                        ("instanceIds", "O"), ("semanticId", "<u4"), ("x_min", "<i4"), ("y_min", "<i4"),
                        ("x_max", "<i4"), ("y_max", "<i4")])
 """omni.syntheticdata's reduce_bboxes_2d rows (inclusive pixels)."""
+OCCLUSION_DTYPE = np.dtype([("instanceId", "<u4"), ("semanticId", "<u4"), ("occlusionRatio", "<f4")])
+"""omni.syntheticdata's get_occlusion rows: 0 fully visible .. 1 fully hidden."""
 MAPPING_DTYPE = np.dtype([("uniqueId", "<i4"), ("name", "O"), ("semanticId", "<u4"), ("semanticLabel", "O"),
                           ("instanceIds", "O"), ("metadata", "O")])
 KIT_APERTURE_MM = 20.955
@@ -163,8 +165,8 @@ class SyntheticDataHelper:
         instances = ann.instance_map(geom_ids, table)
         k, pos, rot_gl = self._camera(width, height)
         return {"rgb": np.dstack([rgb, np.full((height, width), 255, np.uint8)]), "depth": depth,
-                "geom_ids": geom_ids, "instances": instances, "table": table, "k": k, "pos": pos, "rot_gl": rot_gl, "data": data,
-                "model": world.model, "width": width, "height": height}
+                "geom_ids": geom_ids, "instances": instances, "table": table, "k": k, "pos": pos, "rot_gl": rot_gl,
+                "data": data, "model": world.model, "width": width, "height": height}
 
     def _camera(self, width: int, height: int):
         """Intrinsics from the frustum MuJoCo used, and the camera's position and OpenGL axes."""
@@ -200,6 +202,8 @@ class SyntheticDataHelper:
                                      data.geom_xmat.reshape(-1, 3, 3))
         if name == "motion-vector":
             return self._motion_vectors(f)
+        if name == "occlusion":
+            return self._occlusion(table, instances)
         if name == "boundingBox2DLoose":
             loose = ann.loose_boxes(table, f["model"], f["data"].geom_xpos, f["data"].geom_xmat.reshape(-1, 3, 3),
                                     extr, f["k"], f["width"], f["height"], self._renderer.near_far()[0])
@@ -211,6 +215,17 @@ class SyntheticDataHelper:
                      row_transform(data.xmat[b].reshape(3, 3), data.xpos[b]))
                     for k, b in enumerate(table.body_ids)]
         return f[name]
+
+    def _occlusion(self, table, instances: np.ndarray) -> np.ndarray:
+        """A row per labelled prim in view: 1 - its visible pixels / the pixels it covers alone."""
+        _boxes, visible = ann.tight_boxes(instances, table.num_instances)
+        rows = []
+        for k in range(table.num_instances):
+            alone = self._renderer.render_ids_isolated(table.geoms_of(k + 1))  # the prim with no occluder
+            total = int(np.count_nonzero(table.geom_instance[alone + 1] == k + 1))
+            if total:
+                rows.append((k + 1, table.semantic_ids[k + 1], 1.0 - min(1.0, visible[k] / total)))
+        return np.array(rows, OCCLUSION_DTYPE)
 
     @staticmethod
     def _bbox_rows(table, boxes) -> np.ndarray:
