@@ -6,7 +6,8 @@ default prim falls back to its only root prim (with a warning); with several roo
 a default prim naming nothing, it is an error naming the fix. MuJoCo's importer drops joints
 it cannot express (spherical, distance and D6 joints; joints without a rigid body1, with a
 body0 that is not a rigid body, or excluded from the articulation): one warning lists them
-with the reason. DriveAPI gains, which the importer skips, become ambulo drives.
+with the reason. DriveAPI gains, which the importer skips, become ambulo drives, and PhysX's
+``physx*:`` attributes are honoured where MuJoCo has a meaning (``usd_physx``).
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ import mujoco
 
 from .asset_errors import AssetError
 from .drives import add_drive
+from .usd_physx import apply_physx
 
 _PER_RAD = 180.0 / math.pi
 """UsdPhysics states angular drive gains and limits per degree; ambulo's are per radian."""
@@ -40,7 +42,7 @@ def load_usd(file: Path) -> mujoco.MjSpec:
     _check_limits(stage, file)
     try:
         spec = mujoco.MjSpec.from_file(str(file))
-        spec.compile()
+        model = spec.compile()
     except (ValueError, mujoco.FatalError) as err:
         text = "; ".join(line.strip() for line in str(err).splitlines() if line.strip())
         raise AssetError(f"{file}: cannot be loaded: {text}") from None
@@ -52,6 +54,7 @@ def load_usd(file: Path) -> mujoco.MjSpec:
         element.name = relative(element.name)
     _warn_dropped_joints(stage, spec, relative, file)
     _add_drives(stage, spec, relative)
+    apply_physx(stage, spec, model, relative, file.name)
     return spec
 
 

@@ -5,8 +5,9 @@ while ``isaac_names()`` is active. A module in the table (``names.MODULES``) bec
 ``IsaacModule`` whose attributes resolve lazily to ambulo objects, and whose submodules are
 attributes too (imported on first use, as Kit has them loaded); any other module under
 those roots, or a name a table module lacks, fails at the import line with an
-``IsaacNameError`` that says what ambulo offers instead. Leaving the context removes the
-finder and the modules it made, so the names never leak into the rest of the process.
+``IsaacNameError`` that says what ambulo offers instead. It also answers the modules Isaac
+adds to other packages (``names.INJECTED``: ``pxr.PhysxSchema``). Leaving the context removes
+the finder and the modules it made, so the names never leak into the rest of the process.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import difflib
 import importlib
 import importlib.abc
 import importlib.machinery
+import os
 import sys
 import types
 from collections.abc import Iterator
@@ -74,6 +76,11 @@ def missing_module_message(module: str) -> str:
 
 class _Finder(importlib.abc.MetaPathFinder, importlib.abc.Loader):
     def find_spec(self, fullname: str, path=None, target=None):
+        if fullname in names.INJECTED:
+            leaf = fullname.rsplit(".", 1)[1]
+            if any(os.path.exists(os.path.join(folder, leaf)) for folder in path or ()):
+                return None  # the package has its own (a USD build with PhysX's schemas)
+            return importlib.machinery.ModuleSpec(fullname, self)
         if fullname.split(".")[0] not in names.ROOTS:
             return None
         if not names.is_known(fullname):
@@ -81,10 +88,13 @@ class _Finder(importlib.abc.MetaPathFinder, importlib.abc.Loader):
         return importlib.machinery.ModuleSpec(fullname, self, is_package=names.is_package(fullname))
 
     def create_module(self, spec):
+        if spec.name in names.INJECTED:
+            return importlib.import_module(names.INJECTED[spec.name]).as_module(spec.name)
         return IsaacModule(spec.name)
 
     def exec_module(self, module) -> None:
-        module.__all__ = sorted(names.MODULES.get(module.__name__, {}))
+        if module.__name__ not in names.INJECTED:
+            module.__all__ = sorted(names.MODULES.get(module.__name__, {}))
 
 
 @contextlib.contextmanager
@@ -102,6 +112,14 @@ def isaac_names() -> Iterator[None]:
         sys.meta_path.remove(finder)
         for name in [m for m in sys.modules if m.split(".")[0] in names.ROOTS]:
             del sys.modules[name]
+        for name, ours in names.INJECTED.items():
+            if isinstance(sys.modules.get(name), types.ModuleType) and not hasattr(sys.modules[name], "__file__"):
+                del sys.modules[name]
+                parent, _, leaf = name.rpartition(".")
+                if parent in sys.modules and hasattr(sys.modules[parent], leaf):
+                    delattr(sys.modules[parent], leaf)
+            if ours in sys.modules:
+                sys.modules[ours].restore()
 
 
 __all__ = ["IsaacModule", "IsaacNameError", "isaac_names", "missing_module_message", "missing_name_message"]

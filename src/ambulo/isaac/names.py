@@ -137,6 +137,10 @@ MODULES: dict[str, dict[str, str]] = {
 """Isaac module name -> {name it provides: "ambulo.module:attribute"}."""
 MODULES.update(REPLICATOR_MODULES)
 
+INJECTED: dict[str, str] = {"pxr.PhysxSchema": "ambulo.isaac.physx_schema"}
+"""Modules Isaac Sim adds to other packages (usd-core's ``pxr`` has no PhysxSchema) -> the ambulo
+module whose ``as_module(name)`` answers them during a run (and ``restore()`` cleans up after)."""
+
 ROOTS = ("isaacsim", "omni", "carb")
 """Top-level names the hook answers for: every module under them is Isaac's, found or not."""
 
@@ -167,4 +171,4 @@ def submodules(module: str) -> list[str]:
     return sorted({name[len(prefix):].split(".")[0] for name in MODULES if name.startswith(prefix)})
 
 
-__all__ = ["HINTS", "MODULES", "ROOTS", "is_known", "is_package", "submodules"]
+__all__ = ["HINTS", "INJECTED", "MODULES", "ROOTS", "is_known", "is_package", "submodules"]

@@ -14,12 +14,14 @@ World keeps both:
 
 What of UsdPhysics is honoured (MuJoCo's importer plus ambulo): rigid bodies
 (``RigidBodyAPI``), colliders (``CollisionAPI`` on Cube, Sphere, Capsule, Cylinder, Mesh),
-``MassAPI`` mass, revolute/prismatic/spherical/fixed joints with limits, ``DriveAPI`` gains
+``MassAPI`` mass, revolute/prismatic/spherical/fixed joints with limits (``jointEnabled =
+false`` ones left out, their bodies then unconnected by them), ``DriveAPI`` gains
 and max force, the ``PhysicsScene`` gravity, and PhysX's ``physxScene:solverType``-free
 iteration counts (``physxRigidBody:solverPositionIterationCount``, the largest one sets the
-solver iterations). Not honoured: materials' friction combine modes, articulation roots'
-self-collision flags, ``physxScene:timeStepsPerSecond`` (the World's ``physics_dt`` rules),
-and edits made with pxr to mirrored prims (move those through the ambulo API).
+solver iterations), ``physxScene:timeStepsPerSecond`` (the World's ``physics_dt``), and the
+other PhysX attributes with a MuJoCo meaning (``ambulo.core.usd_physx``). Not honoured:
+materials' friction combine modes other than max, and edits made with pxr to mirrored prims
+(move those through the ambulo API).
 """
 
 from __future__ import annotations
@@ -56,6 +58,7 @@ class UsdStage:
         root = UsdGeom.Xform.Define(self.stage, ROOT).GetPrim()
         root.SetCustomDataByKey(MIRRORED, True)
         self.stage.SetDefaultPrim(root)
+        self._time_steps_per_second: int | None = None
 
     @property
     def meters_per_unit(self) -> float:
@@ -130,15 +133,42 @@ class UsdStage:
         return None
 
     def solver_iterations(self) -> int | None:
-        """The largest PhysX position-iteration count authored on a body or articulation, if any."""
-        counts = []
+        """The largest PhysX position-iteration count authored on a body or articulation, within
+        the PhysicsScene's ``physxScene:min/maxPositionIterationCount``; None if none is authored.
+
+        PhysX iterates each island of bodies as often as its most demanding body asks; MuJoCo
+        has one ``opt.iterations`` (the most its solver may take per step) for the whole model,
+        so the largest count over the stage is the one that keeps every body's request."""
+        counts, bounds = [], {}
         for prim in self.stage.Traverse():
             for name in ("physxRigidBody:solverPositionIterationCount",
-                         "physxArticulation:solverPositionIterationCount"):
+                         "physxArticulation:solverPositionIterationCount",
+                         "physxScene:minPositionIterationCount", "physxScene:maxPositionIterationCount"):
                 attr = prim.GetAttribute(name)
                 if attr and attr.HasAuthoredValue():
-                    counts.append(int(attr.Get()))
-        return max(counts) if counts else None
+                    if name.startswith("physxScene"):
+                        bounds[name.split(":")[1][:3]] = int(attr.Get())
+                    else:
+                        counts.append(int(attr.Get()))
+        if not counts:
+            return None
+        return min(max(max(counts), bounds.get("min", 1)), bounds.get("max", max(counts)))
+
+    def changed_time_steps_per_second(self) -> int | None:
+        """The PhysicsScene's ``physxScene:timeStepsPerSecond`` when it was authored or changed
+        since the last call (the World then steps 1/that), else None: a later
+        ``set_simulation_dt`` wins until the stage's value changes again, as in Isaac, where
+        both write the same attribute."""
+        _, _, _, _, UsdPhysics = _pxr()
+        value = None
+        for prim in self.stage.Traverse():
+            attr = prim.GetAttribute("physxScene:timeStepsPerSecond") if prim.IsA(UsdPhysics.Scene) else None
+            if attr and attr.HasAuthoredValue():
+                value = int(attr.Get())
+        if value is None or value == self._time_steps_per_second:
+            return None
+        self._time_steps_per_second = value
+        return value
 
     def physics_spec(self, drives=None) -> mujoco.MjSpec | None:
         """The authored prims as an ``MjSpec`` named relative to ``/World``, or None if there are none.

@@ -245,6 +245,9 @@ class World(TaskHost):
         iterations = self.usd.solver_iterations()
         if iterations is not None:
             self.physics.solver_iterations = iterations
+        steps_per_second = self.usd.changed_time_steps_per_second()
+        if steps_per_second is not None:  # PhysX's physics step, which Isaac's physics_dt also sets
+            self.set_simulation_dt(physics_dt=1.0 / steps_per_second)
         authored = self.usd.physics_spec()
         self.sim.start(spec=None if authored is None else self._with_authored(authored))
         self._compiled_signature = self._stage_signature()
