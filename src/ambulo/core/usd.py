@@ -7,13 +7,16 @@ a default prim naming nothing, it is an error naming the fix. MuJoCo's importer 
 it cannot express (spherical, distance and D6 joints; joints without a rigid body1, with a
 body0 that is not a rigid body, or excluded from the articulation): one warning lists them
 with the reason. DriveAPI gains, which the importer skips, become ambulo drives, and PhysX's
-``physx*:`` attributes are honoured where MuJoCo has a meaning (``usd_physx``).
+``physx*:`` attributes are honoured where MuJoCo has a meaning (``usd_physx``). Joints with
+``physics:jointEnabled = false`` are left out: as in PhysX, their bodies are not connected by
+them.
 """
 
 from __future__ import annotations
 
 import math
 import re
+import tempfile
 import warnings
 from pathlib import Path
 
@@ -41,8 +44,9 @@ def load_usd(file: Path) -> mujoco.MjSpec:
     root = _default_prim_path(stage, file)
     _check_limits(stage, file)
     try:
-        spec = mujoco.MjSpec.from_file(str(file))
-        model = spec.compile()
+        with tempfile.TemporaryDirectory(prefix="ambulo-usd-") as folder:
+            spec = mujoco.MjSpec.from_file(_without_disabled_joints(stage, file, Path(folder)))
+            model = spec.compile()
     except (ValueError, mujoco.FatalError) as err:
         text = "; ".join(line.strip() for line in str(err).splitlines() if line.strip())
         raise AssetError(f"{file}: cannot be loaded: {text}") from None
@@ -56,6 +60,35 @@ def load_usd(file: Path) -> mujoco.MjSpec:
     _add_drives(stage, spec, relative)
     apply_physx(stage, spec, model, relative, file.name)
     return spec
+
+
+def _disabled(prim) -> bool:
+    from pxr import UsdPhysics  # noqa: PLC0415
+
+    return prim.IsA(UsdPhysics.Joint) and UsdPhysics.Joint(prim).GetJointEnabledAttr().Get() is False
+
+
+def _without_disabled_joints(stage, file: Path, folder: Path) -> str:
+    """The file MuJoCo's importer should read: ``file`` itself, or, when joints have
+    ``physics:jointEnabled = false`` (which the importer does not read), a layer over it that
+    deactivates them. As in PhysX, a disabled joint does not connect its bodies: a body it
+    held becomes a free body, carrying the links jointed below it."""
+    from pxr import Sdf  # noqa: PLC0415
+
+    disabled = [prim.GetPath() for prim in stage.Traverse() if _disabled(prim)]
+    if not disabled:
+        return str(file)
+    source = stage.GetRootLayer()
+    layer = Sdf.Layer.CreateAnonymous(".usda")
+    for key in source.pseudoRoot.ListInfoKeys():  # defaultPrim, upAxis, metersPerUnit: not inherited
+        if key not in ("subLayers", "subLayerOffsets"):
+            layer.pseudoRoot.SetInfo(key, source.pseudoRoot.GetInfo(key))
+    layer.subLayerPaths.append(str(file.resolve()))
+    for path in disabled:
+        Sdf.CreatePrimInLayer(layer, path).active = False
+    over = folder / f"{file.stem}.joints_enabled.usda"
+    layer.Export(str(over))
+    return str(over)
 
 
 def _pxr_problem(message: str, file: Path) -> str:
@@ -112,8 +145,8 @@ def _drop_reason(prim, stage) -> str | None:
     """Why MuJoCo's USD importer dropped joint ``prim``; None for a fixed joint (welded)."""
     from pxr import UsdPhysics  # noqa: PLC0415
 
-    if prim.IsA(UsdPhysics.FixedJoint):
-        return None
+    if prim.IsA(UsdPhysics.FixedJoint) or _disabled(prim):
+        return None  # welded, or left out on purpose (jointEnabled = false)
     if not (prim.IsA(UsdPhysics.RevoluteJoint) or prim.IsA(UsdPhysics.PrismaticJoint)):
         kind = str(prim.GetTypeName()).removeprefix("Physics")
         return f"{'generic (D6) Joint' if kind in ('Joint', '') else kind} joints are not supported"
