@@ -122,3 +122,23 @@ def test_extents_are_tight_for_shapes_turned_in_their_body():
     assert np.allclose((hi + lo)[:5] / 2, 0, atol=1e-9)
     # the tetrahedron's own vertices, wherever MuJoCo put its frame: (1, 0, 0) .. (2, 1, 1)
     assert np.allclose(lo[5], [1, 0, 0], atol=1e-6) and np.allclose(hi[5], [2, 1, 1], atol=1e-6)  # float32 verts
+
+
+def test_mesh_normals_come_from_depth_differences_on_the_same_mesh():
+    spec = mujoco.MjSpec()
+    spec.worldbody.add_light(pos=[0, 0, 6], dir=[0, 0, -1])
+    spec.worldbody.add_geom(type=G.mjGEOM_PLANE, size=[5, 5, 0.1])
+    cube = [[x, y, z] for x in (-0.3, 0.3) for y in (-0.3, 0.3) for z in (0.0, 0.6)]
+    spec.add_mesh(name="cube", uservert=np.ravel(cube).tolist())
+    spec.worldbody.add_body(name="m", quat=mat_to_quat(rot(2, 25))).add_geom(type=G.mjGEOM_MESH, meshname="cube")
+    camera = Camera(prim_path="/World/camera", annotators=("depth", "normals"), width=320, height=240)
+    camera.build(spec)
+    model = spec.compile()
+    camera.initialize(CpuEngine(model, 1, num_threads=1))
+    camera.set_camera_view(eye=[0.5, -3.0, 2.0], target=[0.0, 0.0, 0.3])
+    frame = camera.capture(0)
+    on = frame["geom_ids"] == 1
+    faces = np.vstack([np.eye(3), -np.eye(3)]) @ rot(2, 25).T  # the cube's six face normals in the world
+    nearest = np.abs(frame["normals"][on][:, None] - faces[None]).max(-1).min(1)
+    assert on.sum() > 2000 and np.mean(nearest < 1e-2) > 0.9  # 94%: pixels on a crease mix its two faces
+    assert np.allclose(np.linalg.norm(frame["normals"][on], axis=1), 1, atol=1e-5)
