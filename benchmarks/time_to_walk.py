@@ -8,7 +8,9 @@ in its own process (``--parallel`` at a time: several on one GPU share it, which
 says), and reads the run's ``time_to_criterion.json``: wall-clock from the process start
 (imports, env build, kernel compile and every evaluation included) to the evaluation that met
 the task's criterion (humanoid-walk's ``walks``: fall rate <= 5 %, mean velocity error <= 0.2
-m/s over 100 episodes of 20 s), with that evaluation's output. A run that has not walked by
+m/s over 100 episodes of 20 s) on the training device and then, for the same checkpoint, on the
+CPU engine (``ambulo.rl.periodic_eval``: a success on the GPU engine alone does not stop the run),
+with both evaluations' output. A run that has not walked by
 ``--max-minutes`` is stopped with SIGINT (it saves) and counts as not reached.
 
 The ceiling is the physics alone: raw ``mujoco_warp.step`` of the task's model at the same
@@ -68,7 +70,8 @@ def run_summary(root: Path) -> dict:
     if reached.is_file():
         info = json.loads(reached.read_text())
         out.update(reached=True, minutes=round(info["wall_s"] / 60, 2), iteration=info["iteration"],
-                   env_steps=info["env_steps"], eval=info["eval"], eval_s_included=info["eval_s_included"])
+                   env_steps=info["env_steps"], eval=info["eval"], eval_cpu_engine=info.get("eval_cpu_engine"),
+                   eval_s_included=info["eval_s_included"])
     rows = list(csv.DictReader(open(run / "metrics.csv"))) if (run / "metrics.csv").is_file() else []
     if rows:
         spans = [float(r["collect_s"]) + float(r["learn_s"]) for r in rows[1:]] or [1e-9]

@@ -361,7 +361,8 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
                    help="every K iterations evaluate the policy as `ambulo eval` does (evals.csv) "
                         "and print the time from start to the first that meets the task's criteria")
     p.add_argument("--stop-at-criterion", action="store_true",
-                   help="with --eval-every: end training at the first evaluation that meets them")
+                   help="with --eval-every: end training at the first evaluation that meets them "
+                        "(on a GPU: that also meets them on the CPU engine, evaluated then)")
     p.set_defaults(func=train)
 
     p = subparsers.add_parser("play", help="roll a trained policy out headless to an MP4")

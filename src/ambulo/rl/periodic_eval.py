@@ -9,6 +9,18 @@ meets every criterion of the task writes ``<run>/time_to_criterion.json``: the w
 time from the start of ``train`` (env build and kernel compile included) to that moment, so
 "time to walk" is a measurement, not an estimate.
 
+A criterion met only on the engine the policy trained on is not met: when the evaluation env
+is not the CPU engine (MuJoCo C: a GPU run, or MuJoCo Warp on the CPU), an evaluation that meets
+the criteria is repeated for the same policy on the CPU engine (100 episodes, same seed: the
+numbers ``ambulo eval RUN --checkpoint model_<it>.pt --device cpu`` prints), and only when both
+hold is the criterion reached (``time_to_criterion.json``, ``--stop-at-criterion``). Both
+results go to ``evals.csv`` and ``time_to_criterion.json``, and the time counted includes the
+CPU-engine evaluation. Why: policies at the bar passed on the GPU engine and missed on the CPU
+engine (issue 22). The two evaluations differ in physics (float32 MuJoCo Warp, float64 MuJoCo;
+``benchmarks/sim_to_sim.py`` measures it) and in the episodes they judge (a GPU env draws its
+commands and resets from torch's CUDA generator, another sample than the CPU's); ``ambulo eval
+--device cpu`` is the reference a user runs.
+
 A resume from ``model_N.pt`` runs iterations N+1, N+2, ... again, so ``resume_evals`` first
 drops the rows of iterations > N from ``evals.csv`` (rewritten atomically, as ``metrics.csv``),
 and keeps ``time_to_criterion.json`` only if its iteration is <= N (see there).
@@ -23,7 +35,10 @@ import time
 from pathlib import Path
 from typing import Any
 
+import torch
+
 from ambulo import envs
+from ambulo.engine import CpuEngine
 from ambulo.utils.atomic import atomic_write_json, atomic_write_text
 
 from . import runs
@@ -32,7 +47,10 @@ from .metrics import truncate_csv
 from .vecenv import RslRlVecEnv
 
 EVAL_COLUMNS = ("iteration", "wall_s", "env_steps", "fall_rate", "mean_episode_length_s",
-                "mean_return", "metrics", "criteria_met")
+                "mean_return", "metrics", "criteria_met", "cpu_engine_metrics", "cpu_engine_criteria_met")
+"""``criteria_met``: on the evaluation env's engine (the training device's); ``cpu_engine_*``: the
+same policy on the CPU engine, empty when not run (the evaluation env is the CPU engine, or its
+evaluation did not meet the criteria)."""
 TIME_FILE = "time_to_criterion.json"
 
 
@@ -70,6 +88,11 @@ def resume_evals(run_dir: Path, start: int) -> dict[str, Any] | None:
     return None
 
 
+def is_cpu_engine(env: envs.RLEnv) -> bool:
+    """Whether ``env`` runs on the CPU engine (MuJoCo C), whose evaluation is the reference."""
+    return isinstance(env.engine, CpuEngine)
+
+
 def eval_due(iteration: int, every: int | None) -> bool:
     """Whether iteration ``iteration`` (from 0) ends with an evaluation: every ``every``-th."""
     return bool(every) and (iteration + 1) % every == 0
@@ -80,18 +103,27 @@ class PeriodicEval:
 
     def __init__(self, info: dict[str, Any], run_dir: Path, *, every: int, started_s: float,
                  steps_per_iteration: int, num_episodes: int = 100, seed: int = 12345,
-                 device: str | None = None, start: int = 0):
-        """``start`` > 0: the run resumes at that iteration (``resume_evals``)."""
+                 device: str | None = None, start: int = 0, confirm_on_cpu_engine: bool = True):
+        """``start`` > 0: the run resumes at that iteration (``resume_evals``).
+        ``confirm_on_cpu_engine``: a success on another engine counts only once the CPU engine
+        confirms it (see the module docstring)."""
         self.task = envs.spec(info["task"])
         if not self.task.criteria:
             raise ValueError(f"--eval-every: task {info['task']!r} declares no success criterion to "
                              "time; drop --eval-every")
+        self.info, self.num_episodes = info, num_episodes
         self.every, self.started_s, self.seed = every, started_s, seed
         self.run_dir, self.steps_per_iteration = Path(run_dir), steps_per_iteration
+        self.episode_length_s = eval_episode_length_s(self.task, None)
         self.env = runs.make_env_for_run(info, num_envs=num_episodes, seed=seed, play=True,
-                                         device=device,
-                                         episode_length_s=eval_episode_length_s(self.task, None))
+                                         device=device, episode_length_s=self.episode_length_s)
         self.vec_env = RslRlVecEnv(self.env)
+        # each evaluation starts the env's generator where a fresh env's stands, so it draws the
+        # episodes `ambulo eval` draws for this seed and device
+        self._rng_state = self.env.generator.get_state()
+        self.confirm = confirm_on_cpu_engine and not is_cpu_engine(self.env)
+        self.cpu_env: envs.RLEnv | None = None
+        """The CPU-engine evaluation env, built at the first success to confirm."""
         self.eval_s = 0.0
         """Seconds spent evaluating, inside the timed total (reported, not subtracted)."""
         self._csv = self.run_dir / "evals.csv"
@@ -106,47 +138,102 @@ class PeriodicEval:
         return eval_due(iteration, self.every)
 
     def __call__(self, runner, iteration: int) -> dict[str, Any]:
-        """Save ``model_<iteration>.pt``, evaluate it, log it; return the eval result."""
+        """Save ``model_<iteration>.pt``, evaluate it (and confirm a success on the CPU engine),
+        log it; return the eval result (``result["cpu_engine"]``: the confirmation, if run)."""
         checkpoint = self.run_dir / f"model_{iteration}.pt"
         runner.save(str(checkpoint))
         began = time.monotonic()
-        self.env.generator.manual_seed(self.seed)  # the same commands and resets every time
+        self.env.generator.set_state(self._rng_state)  # the same commands and resets every time
         policy = runner.get_inference_policy(device=str(self.env.device))
         try:
             result = run_episodes(self.env, self.vec_env, policy, self.task)
+            met = self._met(result)
+            cpu = self._cpu_engine_eval(policy) if met and self.confirm else None
         finally:
             runner.alg.train_mode()  # get_inference_policy switched it to eval mode
         self.eval_s += time.monotonic() - began
         wall_s = time.monotonic() - self.started_s
-        met = all(result[c.name] for c in self.task.criteria)
-        metrics = {k: round(v, 4) for k, v in result.items() if k.startswith("mean_abs")}
         row = [iteration, f"{wall_s:.1f}", (iteration + 1) * self.steps_per_iteration,
                f"{result['fall_rate']:.3f}", f"{result['mean_episode_length_s']:.2f}",
-               f"{result['mean_return']:.2f}", " ".join(f"{k}={v}" for k, v in metrics.items()), met]
+               f"{result['mean_return']:.2f}", _metrics_text(result), met,
+               "" if cpu is None else f"fall_rate={cpu['fall_rate']:.3f} {_metrics_text(cpu)}",
+               "" if cpu is None else self._met(cpu)]
         line = io.StringIO()
         csv.writer(line).writerow(row)
         with open(self._csv, "a") as f:
             f.write(line.getvalue())
         writer = getattr(runner.logger, "writer", None)
         if writer is not None:
-            for key in ("fall_rate", "mean_episode_length_s", *metrics):
+            for key in ("fall_rate", "mean_episode_length_s", *_metrics(result)):
                 writer.add_scalar(f"eval/{key}", result[key], iteration)
             writer.add_scalar("eval/criteria_met", float(met), iteration)
-        if met and self.reached is None:
+            if cpu is not None:
+                for key in ("fall_rate", *_metrics(cpu)):
+                    writer.add_scalar(f"eval_cpu_engine/{key}", cpu[key], iteration)
+        confirmed = met and (not self.confirm or self._met(cpu))
+        if confirmed and self.reached is None:
             self.reached = {"criteria": [c.name for c in self.task.criteria], "iteration": iteration,
                             "checkpoint": checkpoint.name, "wall_s": round(wall_s, 1),
                             "env_steps": (iteration + 1) * self.steps_per_iteration,
-                            "eval_s_included": round(self.eval_s, 1), "eval": result}
+                            "eval_s_included": round(self.eval_s, 1), "eval": result,
+                            "eval_device": str(self.env.device),
+                            "eval_cpu_engine": cpu if cpu is not None else result if is_cpu_engine(self.env) else None}
             atomic_write_json(self.run_dir / TIME_FILE, self.reached, indent=2, fsync=True)
+        if cpu is not None:
+            result = {**result, "cpu_engine": cpu}
         return result
+
+    def _met(self, result: dict[str, Any]) -> bool:
+        return all(result[c.name] for c in self.task.criteria)
+
+    def _cpu_engine_eval(self, policy) -> dict[str, Any]:
+        """``policy`` (a copy, on the CPU) over the same episodes on the CPU engine."""
+        if self.cpu_env is None:
+            self.cpu_env = runs.make_env_for_run(self.info, num_envs=self.num_episodes, seed=self.seed, play=True,
+                                                 device="cpu", engine="mujoco",
+                                                 episode_length_s=self.episode_length_s)
+            self._cpu_vec_env = RslRlVecEnv(self.cpu_env)
+            self._cpu_rng_state = self.cpu_env.generator.get_state()
+        self.cpu_env.generator.set_state(self._cpu_rng_state)
+        return run_episodes(self.cpu_env, self._cpu_vec_env, CpuPolicy(policy), self.task)
 
     def close(self) -> None:
         self.env.close()
+        if self.cpu_env is not None:
+            self.cpu_env.close()
+
+
+class CpuPolicy(torch.nn.Module):
+    """A copy on the CPU of rsl-rl's ``MLPModel`` ``policy``, acting as ``get_inference_policy``'s
+    (the mean action) on the same TensorDict observations. A copy, because ``Module.to`` moves in
+    place: the training policy stays on its device."""
+
+    def __init__(self, policy):
+        super().__init__()
+        self.net = policy.as_jit().to("cpu").eval()  # rsl-rl's export copy: normalizer, MLP, mean
+        self.groups = list(policy.obs_groups)
+
+    def forward(self, obs) -> torch.Tensor:
+        return self.net(torch.cat([obs[g].to("cpu") for g in self.groups], dim=-1))
+
+
+def _metrics(result: dict[str, Any]) -> dict[str, float]:
+    return {k: round(v, 4) for k, v in result.items() if k.startswith("mean_abs")}
+
+
+def _metrics_text(result: dict[str, Any]) -> str:
+    return " ".join(f"{k}={v}" for k, v in _metrics(result).items())
 
 
 def summary(result: dict[str, Any], iteration: int, wall_s: float) -> str:
-    """One line on an evaluation, for the console."""
-    metrics = ", ".join(f"{k[len('mean_'):]} {v:.3f}" for k, v in result.items() if k.startswith("mean_abs"))
-    met = [c for c in result["criteria"] if result[c]]
-    return (f"eval @ it {iteration} ({wall_s / 60:.1f} min): fall rate {result['fall_rate']:.2f}, "
-            f"{metrics}; {'meets ' + ', '.join(met) if met else 'criteria not met'}")
+    """One line on an evaluation (and its CPU-engine confirmation), for the console."""
+    def one(res: dict[str, Any]) -> str:
+        metrics = ", ".join(f"{k[len('mean_'):]} {v:.3f}" for k, v in res.items() if k.startswith("mean_abs"))
+        met = [c for c in res["criteria"] if res[c]]
+        return (f"fall rate {res['fall_rate']:.2f}, {metrics}; "
+                f"{'meets ' + ', '.join(met) if met else 'criteria not met'}")
+
+    line = f"eval @ it {iteration} ({wall_s / 60:.1f} min): {one(result)}"
+    if "cpu_engine" in result:
+        line += f"; on the CPU engine: {one(result['cpu_engine'])}"
+    return line

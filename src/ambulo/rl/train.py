@@ -157,7 +157,8 @@ def _report_time_to_criterion(periodic: PeriodicEval) -> None:
     if reached is None:
         print(f"{names} not reached (evaluations in {periodic.run_dir / 'evals.csv'})")
         return
-    print(f"{names} reached at iteration {reached['iteration']} after {reached['wall_s'] / 60:.2f} min "
+    confirmed = " (confirmed on the CPU engine)" if periodic.confirm else ""
+    print(f"{names} reached{confirmed} at iteration {reached['iteration']} after {reached['wall_s'] / 60:.2f} min "
           f"({reached['env_steps']:,} env steps, {reached['checkpoint']}; "
           f"{periodic.run_dir / 'time_to_criterion.json'})")
 
@@ -185,7 +186,9 @@ def train(task: str | None = None, *, num_envs: int | None = None,
       verbose: print rsl-rl's full report each iteration instead of a progress bar.
       eval_every: evaluate the policy every this many iterations as ``ambulo eval`` does and
         time the first evaluation that meets the task's criteria (``ambulo.rl.periodic_eval``).
-      stop_at_criterion: with ``eval_every``, end training at that first success.
+      stop_at_criterion: with ``eval_every``, end training at that first success. A success on
+        an engine other than the CPU engine (a GPU's) counts only once the same policy meets the
+        criteria on the CPU engine too (``ambulo.rl.periodic_eval``).
       started_s: ``time.monotonic()`` the timing counts from (default: now; the CLI passes
         the time it started).
 
