@@ -66,7 +66,7 @@ def test_occupancy_grid_data_uses_nav2s_translation_table():
     from ambulo.perception.costmap import Costmap
 
     cost = torch.tensor([[0, 1, 100, 252, 253, 254, 255]], dtype=torch.uint8)
-    grid = Costmap(cost, (0.5, 0.5), 0.1)
+    grid = Costmap(cost, (0.45, 0.45), 0.1)  # origin_xy_m is the lower-left corner of cell [0, 0], as ROS's
     assert grid.occupancy_grid_data().tolist() == [0, 1, 1 + 97 * 99 // 251, 1 + 97 * 251 // 251, 99, 100, -1]
     info = grid.occupancy_grid_info()
     assert info["origin"]["position"]["x"] == pytest.approx(0.45) and (info["width"], info["height"]) == (7, 1)

@@ -27,10 +27,14 @@ def _pose(text: str, flag: str) -> tuple[float, float, float]:
 
 
 def load_map(name: str, resolution_m: float, origin: tuple[float, float] | None):
-    """A ``GridMap``: a built-in name (``MAPS``), or a ``.npy`` (2-D array, non-zero = occupied,
-    row i at y = origin_y + i * resolution) or image file (dark pixels occupied, top row = far y)."""
+    """A ``GridMap`` with unknown cells blocked: a built-in name (``MAPS``); a map file that says
+    where it lies (``ambulo map``'s ``.npz``, a ROS map_server ``.yaml``); or a bare ``.npy``
+    (2-D array, non-zero = occupied, row i at y = origin_y + i * resolution) or image (read as
+    map_server reads one: dark occupied, light free, grey unknown; the top row is the far y), placed
+    by ``resolution_m`` and ``origin`` (lower-left corner, m)."""
     import numpy as np
 
+    from ..maps import load_map_image, load_map_yaml, load_npz
     from ..nav import GridMap
 
     if not resolution_m > 0 or not math.isfinite(resolution_m):
@@ -44,27 +48,22 @@ def load_map(name: str, resolution_m: float, origin: tuple[float, float] | None)
     path = Path(name)
     if not path.is_file():
         raise CliError(f"--map {name!r} is neither a file nor a built-in map",
-                       f"give a .npy or image occupancy file, or one of {', '.join(MAPS)}")
-    if path.suffix.lower() == ".npy":
-        try:
-            occupied = np.load(path, allow_pickle=False)
-        except ValueError as err:
-            raise CliError(f"--map {name!r} is not a readable .npy array ({err})", "save it with numpy.save") from None
-        occupied = occupied != 0
-    else:
-        import imageio.v2 as imageio
-
-        try:
-            image = np.asarray(imageio.imread(path), dtype=np.float64)
-        except Exception as err:  # noqa: BLE001 - any decoder failure is bad input here
-            raise CliError(f"--map {name!r} is not a readable image ({type(err).__name__})",
-                           "give a PNG with dark obstacles on a light floor, or a .npy array") from None
-        if image.ndim == 3:
-            image = image[..., :3].mean(axis=-1)
-        occupied = image[::-1] < 0.5 * float(image.max() or 1.0)
+                       f"give a .npz, map_server .yaml, .npy or image map, or one of {', '.join(MAPS)}")
+    suffix = path.suffix.lower()
+    if suffix in (".npz", ".yaml", ".yml"):
+        if origin is not None:
+            raise CliError(f"--origin is set, but {path.name} carries its own origin",
+                           "drop --origin (it places .npy and image maps)")
+        return GridMap.from_map(load_npz(path) if suffix == ".npz" else load_map_yaml(path))
+    if suffix != ".npy":
+        return GridMap.from_map(load_map_image(path, resolution_m=resolution_m, origin_xy_m=origin or (0.0, 0.0)))
+    try:
+        occupied = np.load(path, allow_pickle=False)
+    except ValueError as err:
+        raise CliError(f"--map {name!r} is not a readable .npy array ({err})", "save it with numpy.save") from None
     if occupied.ndim != 2:
         raise CliError(f"--map {name!r} has shape {occupied.shape}", "give a 2-D occupancy grid")
-    return GridMap.from_array(occupied, resolution_m=resolution_m, origin_xy_m=origin or (0.0, 0.0))
+    return GridMap.from_array(occupied != 0, resolution_m=resolution_m, origin_xy_m=origin or (0.0, 0.0))
 
 
 def run(args: argparse.Namespace) -> int:
@@ -116,10 +115,12 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
                     "humanoid walks the plan in MuJoCo and an MP4 is written. Exit status 1 when the plan "
                     "does not reach the goal or the humanoid falls.")
     p.add_argument("--map", default="empty",
-                   help=f"built-in map ({', '.join(MAPS)}) or an occupancy file: .npy (non-zero = occupied) or "
-                        "an image (dark = occupied); default empty")
-    p.add_argument("--resolution", type=float, default=0.05, help="cell size of the map, m (default 0.05)")
-    p.add_argument("--origin", help="x,y of the map's lower-left corner, m (files default 0,0)")
+                   help=f"built-in map ({', '.join(MAPS)}) or a map file: costmap.npz from 'ambulo map', a ROS "
+                        "map_server .yaml, a .npy (non-zero = occupied) or an image (dark = occupied, grey = unknown); "
+                        "unknown cells are blocked; default empty")
+    p.add_argument("--resolution", type=float, default=0.05,
+                   help="cell size of a built-in, .npy or image map, m (default 0.05)")
+    p.add_argument("--origin", help="x,y of a .npy or image map's lower-left corner, m (default 0,0)")
     p.add_argument("--start", default="0.03,0,0", help="start body pose x,y[,yaw]: m, m, degrees (default 0.03,0,0)")
     p.add_argument("--goal", default="3.03,0,90", help="goal body pose x,y[,yaw] (default 3.03,0,90)")
     p.add_argument("--budget-ms", type=float, default=1000.0, help="planning time budget, ms (default 1000)")

@@ -3,10 +3,12 @@ builds on: a geodesic distance field (``chamfer_distance_m``), a dilation by a d
 (``near_occupied``) and the exact cells a segment crosses (``crossed_cells``). All are array
 operations, with no Python loop per cell.
 
-Cell ``[iy, ix]`` covers world ``x`` in ``[ox + ix r, ox + (ix + 1) r)`` and ``y`` in
-``[oy + iy r, oy + (iy + 1) r)``, where ``(ox, oy) = origin_xy_m`` is the map's lower-left
-corner and ``r = resolution_m``. Arrays are indexed row = y, column = x (image layout with
-the y axis up). The planner treats everything outside the map as occupied.
+Cells follow ``ambulo.maps`` (``CellGeometry``, ROS's convention): cell ``[iy, ix]`` covers world
+``x`` in ``[ox + ix r, ox + (ix + 1) r)`` and ``y`` in ``[oy + iy r, oy + (iy + 1) r)``, where
+``(ox, oy) = origin_xy_m`` is the map's lower-left corner and ``r = resolution_m``; arrays are
+indexed row = y, column = x (y up). A ``maps.Grid2D`` (a map file) becomes a ``GridMap`` with
+``GridMap.from_map``, its unknown cells blocked. The planner treats everything outside the map as
+occupied.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from ..maps import OCCUPIED, CellGeometry, Grid2D
 from ..utils.checks import InvalidValueError, check_positive, check_vector
 
 CHAMFER_AXIAL = 5
@@ -30,7 +33,7 @@ at direction (1, 2/5): maximize (5 + 2t) / (5 sqrt(1 + t^2)) over t in [0, 1].""
 
 
 @dataclass(frozen=True, eq=False)
-class GridMap:
+class GridMap(CellGeometry):
     """Occupancy (and optionally terrain height) on a regular grid in the world x-y plane."""
 
     occupied: np.ndarray
@@ -74,6 +77,14 @@ class GridMap:
                    resolution_m=float(resolution_m), height_m=heights)
 
     @classmethod
+    def from_map(cls, grid: Grid2D, *, min_percent: int = OCCUPIED) -> GridMap:
+        """The footstep planner's view of a map file's ``Grid2D``: a cell is occupied where the map
+        says occupied (occupancy >= ``min_percent``) or unknown, since a foot must not land on, or
+        swing over, ground nobody has seen."""
+        return cls(occupied=grid.blocked(min_percent), origin_xy_m=tuple(float(v) for v in grid.origin_xy_m),
+                   resolution_m=float(grid.resolution_m))
+
+    @classmethod
     def empty(cls, size_xy_m, *, resolution_m: float, origin_xy_m=(0.0, 0.0), with_height: bool = False) -> GridMap:
         """A free map covering ``size_xy_m`` (x, y) m from ``origin_xy_m``; flat heights (0 m) if asked."""
         size = check_vector("size_xy_m", size_xy_m, 2, "pass the map's (x, y) extent in m")
@@ -87,14 +98,6 @@ class GridMap:
     def shape(self) -> tuple[int, int]:
         """(num_y, num_x)."""
         return self.occupied.shape
-
-    def cell_centers_xy_m(self) -> np.ndarray:
-        """(num_y, num_x, 2) world (x, y) of every cell centre, m."""
-        num_y, num_x = self.shape
-        ox, oy = self.origin_xy_m
-        xs = ox + (np.arange(num_x) + 0.5) * self.resolution_m
-        ys = oy + (np.arange(num_y) + 0.5) * self.resolution_m
-        return np.stack(np.meshgrid(xs, ys, indexing="xy"), axis=-1)
 
     def box_cells(self, center_xy_m, size_xy_m, yaw_rad: float = 0.0) -> np.ndarray:
         """(num_y, num_x) bool: the cells whose closed square touches the rotated box (exact

@@ -23,13 +23,12 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from ambulo.maps import FREE_SPACE, INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE, NO_INFORMATION
+from ambulo.maps.occupancy_grid import cost_to_occupancy, grid_info
 from ambulo.utils.checks import check_positive
 
 from .esdf import edt
-from .slices import OCCUPIED, UNKNOWN, Slice2D, cell_corner_xy_m
-
-FREE_SPACE, INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE, NO_INFORMATION = 0, 253, 254, 255
-"""Nav2's cost values (``nav2_costmap_2d/cost_values.hpp``)."""
+from .slices import OCCUPIED, UNKNOWN, Slice2D
 
 HUMANOID_FOOTPRINT_XY_M = ((0.11, 0.24), (0.11, -0.24), (-0.11, -0.24), (-0.11, 0.24))
 """The bundled humanoid standing, seen from above (humanoid.xml): feet 0.22 m long; upper arms at
@@ -70,40 +69,27 @@ def nav2_cost(distance_cells: torch.Tensor, resolution_m: float, cfg: InflationC
     return torch.where(distance_cells <= cell_radius, cost, torch.zeros_like(cost)).to(torch.uint8)
 
 
-@dataclass
-class Costmap:
-    """Nav2-style costs on a grid: what a planner or ``nav_msgs/OccupancyGrid`` takes."""
+class Costmap(Slice2D):
+    """Nav2-style costs on a grid (a ``Slice2D`` whose data are the costs): what a planner or
+    ``nav_msgs/OccupancyGrid`` takes; ``slices.to_grid2d`` files it with its occupancy slice."""
 
-    cost: torch.Tensor
-    """(H, W) uint8 Nav2 costs (0 free .. 252 decaying, 253 inscribed, 254 lethal, 255 unknown);
-    rows = y, columns = x."""
-    origin_xy_m: tuple[float, float]
-    """World (x, y) of the centre of cell [0, 0], m."""
-    resolution_m: float
+    def __init__(self, cost: torch.Tensor, origin_xy_m: tuple[float, float], resolution_m: float):
+        super().__init__(cost, origin_xy_m, resolution_m)
 
     @property
-    def corner_xy_m(self) -> tuple[float, float]:
-        """World (x, y) of the lower-left corner of cell [0, 0] (``OccupancyGrid.info.origin``), m."""
-        return cell_corner_xy_m(self.origin_xy_m, self.resolution_m)
+    def cost(self) -> torch.Tensor:
+        """(H, W) uint8 Nav2 costs (0 free .. 252 decaying, 253 inscribed, 254 lethal, 255 unknown);
+        rows = y, columns = x."""
+        return self.data
 
     def occupancy_grid_data(self) -> np.ndarray:
         """(H * W,) int8 row-major ``nav_msgs/OccupancyGrid.data`` with Nav2's translation
-        (``Costmap2DPublisher``): 0 -> 0, 253 -> 99, 254 -> 100, 255 -> -1, else 1 + 97 (c - 1) / 251."""
-        c = self.cost.to(torch.int64).cpu().numpy().reshape(-1)
-        out = 1 + (97 * (c - 1)) // 251
-        out = np.where(c == 0, 0, out)
-        out = np.where(c == INSCRIBED_INFLATED_OBSTACLE, 99, out)
-        out = np.where(c == LETHAL_OBSTACLE, 100, out)
-        out = np.where(c == NO_INFORMATION, -1, out)
-        return out.astype(np.int8)
+        (``maps.cost_to_occupancy``)."""
+        return cost_to_occupancy(self.cost.cpu().numpy()).reshape(-1)
 
     def occupancy_grid_info(self) -> dict:
         """``nav_msgs/MapMetaData`` fields: resolution, width, height, origin (corner, metres)."""
-        h, w = self.cost.shape
-        x, y = self.corner_xy_m
-        return {"resolution": self.resolution_m, "width": w, "height": h,
-                "origin": {"position": {"x": x, "y": y, "z": 0.0},
-                           "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}}}
+        return grid_info(self.origin_xy_m, self.resolution_m, self.shape)
 
 
 def inflate(occupancy: Slice2D, cfg: InflationCfg | None = None) -> Costmap:

@@ -40,11 +40,10 @@ def costmap_rgb(costmap: Costmap) -> np.ndarray:
     return rgb
 
 
-def draw_path(rgb: np.ndarray, grid: Slice2D | Costmap, xy_m: np.ndarray, color=(30, 90, 230)) -> np.ndarray:
+def draw_path(rgb: np.ndarray, grid: Slice2D, xy_m: np.ndarray, color=(30, 90, 230)) -> np.ndarray:
     """``rgb`` with world points (N, 2) drawn as 2x2-pixel dots."""
     out = rgb.copy()
-    ix = np.round((xy_m[:, 0] - grid.origin_xy_m[0]) / grid.resolution_m).astype(int)
-    iy = np.round((xy_m[:, 1] - grid.origin_xy_m[1]) / grid.resolution_m).astype(int)
+    iy, ix = grid.cells_of(xy_m)
     for dy in (0, 1):
         for dx in (0, 1):
             ok = (iy + dy >= 0) & (iy + dy < out.shape[0]) & (ix + dx >= 0) & (ix + dx < out.shape[1])

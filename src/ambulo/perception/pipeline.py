@@ -12,13 +12,14 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from .costmap import Costmap, InflationCfg, inflate
+from ..maps import save_npz
+from .costmap import InflationCfg, inflate
 from .esdf import esdf_from_grid
 from .frames import RgbdFrame
 from .images import costmap_rgb, draw_path, occupancy_rgb, write_png
 from .mesh import IncrementalMesher, write_ply
 from .scenes import IndoorSceneCfg, build_indoor_scene
-from .slices import distance_slice, height_map, occupancy_slice
+from .slices import distance_slice, height_map, occupancy_slice, to_grid2d
 from .trajectory import score_tum, write_tum
 from .tsdf import TsdfCfg, TsdfMap
 from .vo import RgbdOdometry, VoCfg
@@ -53,8 +54,8 @@ class MapRunCfg:
 
 def run_mapping(cfg: MapRunCfg, out_dir: str | Path, progress=None) -> dict:
     """Walk, track, map; write ``estimate.tum``, ``groundtruth.tum``, ``mesh.ply``,
-    ``occupancy.png``, ``costmap.png``, ``steppable.png`` and ``summary.json`` into ``out_dir``;
-    return the summary."""
+    ``occupancy.png``, ``costmap.png``, ``steppable.png``, ``costmap.npz`` (the occupancy and
+    costmap as one ``maps.Grid2D``) and ``summary.json`` into ``out_dir``; return the summary."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     scene = build_indoor_scene(cfg.scene)
@@ -102,7 +103,7 @@ def run_mapping(cfg: MapRunCfg, out_dir: str | Path, progress=None) -> dict:
     step = heights.steppable.data.cpu().numpy()
     step_rgb = np.where(step[..., None], np.array([60, 170, 80], np.uint8), np.array([200, 200, 205], np.uint8))
     write_png(out / "steppable.png", step_rgb.astype(np.uint8))
-    _save_costmap(out / "costmap.npz", costmap)
+    save_npz(out / "costmap.npz", to_grid2d(occupancy, costmap))  # the one map file: ambulo plan --map reads it
     summary = {
         "frames": cfg.num_frames, "resolution": [cfg.width, cfg.height], "poses": "true" if cfg.use_true_poses else "vo",
         "vo_gyro": cfg.vo_gyro,
@@ -119,11 +120,6 @@ def run_mapping(cfg: MapRunCfg, out_dir: str | Path, progress=None) -> dict:
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     return summary
-
-
-def _save_costmap(path: Path, costmap: Costmap) -> None:
-    np.savez_compressed(path, cost=costmap.cost.cpu().numpy(), origin_xy_m=np.array(costmap.origin_xy_m),
-                        resolution_m=costmap.resolution_m)
 
 
 def _min_distance_on_path(distance, path_xy: np.ndarray) -> float:

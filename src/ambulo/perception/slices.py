@@ -1,10 +1,11 @@
 """2-D maps cut from the 3-D map: an occupancy slice and a distance slice over a height band
 (what nvblox hands Nav2), and a height / steppability map for a humanoid's feet.
 
-Layout follows ``ambulo.nav.grid_map``: arrays are indexed [row = y, column = x]; cell [iy, ix]
-is centred at ``origin_xy_m + (ix, iy) * resolution_m`` (the centre of voxel column (ix, iy)),
-so ``origin_xy_m`` here names the *centre* of cell [0, 0] and its lower-left corner is half a
-cell lower; ``Slice2D.corner_xy_m`` gives the corner (``GridMap``'s and ROS's origin).
+``Slice2D`` is a torch view on the one cell convention of ``ambulo.maps`` (``CellGeometry``):
+arrays are indexed [row = y, column = x] and ``origin_xy_m`` is the lower-left *corner* of cell
+[0, 0], as in ROS. Cell [iy, ix] is the column of TSDF voxels (ix, iy) of the dense grid, whose
+voxel centres lie at ``index * voxel_size``, so the corner is half a voxel below the first centre.
+``to_grid2d`` turns an occupancy slice (and its costmap) into the ``maps.Grid2D`` files are made of.
 """
 
 from __future__ import annotations
@@ -13,37 +14,41 @@ from dataclasses import dataclass
 
 import torch
 
+from ..maps import CellGeometry, Grid2D
+from ..utils.checks import Described, InvalidValueError
 from .esdf import Esdf
 from .tsdf import DenseGrid
 
 UNKNOWN, FREE, OCCUPIED = -1, 0, 1
-
-
-def cell_corner_xy_m(origin_xy_m: tuple[float, float], resolution_m: float) -> tuple[float, float]:
-    """Lower-left corner of the cell centred at ``origin_xy_m``, m."""
-    return (origin_xy_m[0] - 0.5 * resolution_m, origin_xy_m[1] - 0.5 * resolution_m)
+"""An occupancy slice's int8 codes (``maps.Grid2D`` stores ROS's -1 / 0 / 100; ``to_grid2d`` converts)."""
 
 
 @dataclass
-class Slice2D:
-    """A 2-D map in the world x-y plane."""
+class Slice2D(CellGeometry):
+    """A 2-D map in the world x-y plane (torch, on the map's device)."""
 
     data: torch.Tensor
     """(H, W) map values, rows = y, columns = x; dtype and meaning depend on the map."""
     origin_xy_m: tuple[float, float]
-    """World (x, y) of the centre of cell [0, 0], m."""
+    """World (x, y) of the lower-left corner of cell [0, 0] (``OccupancyGrid.info.origin``), m."""
     resolution_m: float
 
     @property
-    def corner_xy_m(self) -> tuple[float, float]:
-        """World (x, y) of the lower-left corner of cell [0, 0] (ROS ``OccupancyGrid.info.origin``), m."""
-        return cell_corner_xy_m(self.origin_xy_m, self.resolution_m)
+    def shape(self) -> tuple[int, int]:
+        """(H, W)."""
+        return tuple(self.data.shape)
 
-    def cell_of(self, xy_m) -> tuple[int, int]:
-        """(row, column) of the cell holding world point (x, y)."""
-        ix = int(round((xy_m[0] - self.origin_xy_m[0]) / self.resolution_m))
-        iy = int(round((xy_m[1] - self.origin_xy_m[1]) / self.resolution_m))
-        return iy, ix
+
+def to_grid2d(occupancy: Slice2D, cost: Slice2D | None = None) -> Grid2D:
+    """The ``maps.Grid2D`` of an occupancy slice (``occupancy_slice``), with ``cost`` (a ``Costmap``
+    of the same cells) as its cost layer: what ``ambulo map`` writes and ``ambulo plan`` reads."""
+    if cost is not None and (cost.shape != occupancy.shape or tuple(cost.origin_xy_m) != tuple(occupancy.origin_xy_m)
+                             or cost.resolution_m != occupancy.resolution_m):
+        raise InvalidValueError("to_grid2d cost", Described("a costmap of other cells"),
+                                "it must cover the occupancy slice's cells", "pass inflate(occupancy)")
+    data = occupancy.data
+    return Grid2D.from_masks(data == OCCUPIED, unknown=data == UNKNOWN, origin_xy_m=occupancy.origin_xy_m,
+                             resolution_m=occupancy.resolution_m, cost=None if cost is None else cost.data)
 
 
 def _band(grid_z0_index: int, voxel_size_m: float, nz: int, z_min_m: float, z_max_m: float,
@@ -53,7 +58,8 @@ def _band(grid_z0_index: int, voxel_size_m: float, nz: int, z_min_m: float, z_ma
 
 
 def _origin(grid_origin_index: torch.Tensor, voxel_size_m: float) -> tuple[float, float]:
-    return (float(grid_origin_index[0]) * voxel_size_m, float(grid_origin_index[1]) * voxel_size_m)
+    """Lower-left corner of the cell over voxel column [0, 0], m: half a voxel below its centre."""
+    return ((float(grid_origin_index[0]) - 0.5) * voxel_size_m, (float(grid_origin_index[1]) - 0.5) * voxel_size_m)
 
 
 def occupancy_slice(grid: DenseGrid, z_min_m: float, z_max_m: float, min_weight: float = 1.0) -> Slice2D:
@@ -131,4 +137,5 @@ def height_map(grid: DenseGrid, *, max_height_m: float = 0.5, foot_half_cells: i
     return HeightMap(Slice2D(height.T.contiguous(), origin, vs), Slice2D(steppable.T.contiguous(), origin, vs))
 
 
-__all__ = ["FREE", "OCCUPIED", "UNKNOWN", "HeightMap", "Slice2D", "distance_slice", "height_map", "occupancy_slice"]
+__all__ = ["FREE", "OCCUPIED", "UNKNOWN", "HeightMap", "Slice2D", "distance_slice", "height_map", "occupancy_slice",
+           "to_grid2d"]

@@ -62,15 +62,9 @@ __all__ = ["camera_info", "header", "laser_scan", "point_cloud", "stamp"]
 
 def occupancy_grid(time_s: float, frame_id: str, costmap):
     """A ``nav_msgs/OccupancyGrid`` of an ``ambulo.perception.Costmap`` (Nav2's cost translation: see
-    ``Costmap.occupancy_grid_data``); the map's origin is the lower-left corner of cell [0, 0]."""
-    from geometry_msgs.msg import Point, Pose, Quaternion  # noqa: PLC0415
-    from nav_msgs.msg import MapMetaData, OccupancyGrid  # noqa: PLC0415
+    ``Costmap.occupancy_grid_data``); the map's origin is the lower-left corner of cell [0, 0]
+    (``ambulo.maps.to_msg`` builds it)."""
+    from ..maps import to_msg  # noqa: PLC0415
 
-    info = costmap.occupancy_grid_info()
-    origin = info["origin"]["position"]
-    meta = MapMetaData(map_load_time=stamp(time_s), resolution=float(info["resolution"]), width=int(info["width"]),
-                       height=int(info["height"]),
-                       origin=Pose(position=Point(x=float(origin["x"]), y=float(origin["y"]), z=0.0),
-                                   orientation=Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)))
-    return OccupancyGrid(header=header(time_s, frame_id), info=meta,
-                         data=array.array("b", costmap.occupancy_grid_data().tobytes()))
+    return to_msg({"header": {"frame_id": frame_id}, "info": costmap.occupancy_grid_info(),
+                   "data": costmap.occupancy_grid_data()}, stamp=stamp(time_s))
