@@ -210,6 +210,21 @@ def test_python_m_ambulo_bad_value_through_the_library():
     assert "physics.gravity_m_s2" in result.stderr and "e.g. (0, 0, -9.81)" in result.stderr
 
 
+@pytest.mark.parametrize("pair, shown", [("episode_length_s=-5", "-5.0"), ("episode_length_s=inf", "inf"),
+                                         ("episode_length_s=0", "0.0")])
+def test_python_m_ambulo_refuses_a_meaningless_episode_length_before_training(tmp_path, pair, shown):
+    # -5 made every env done every step; inf failed later, in the run
+    result = _ambulo("train", "cartpole", "--env-cfg", pair, "--max-iterations", "1",
+                     "--log-root", str(tmp_path / "runs"))
+    assert result.returncode == 2, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in result.stderr, result.stderr
+    assert lines[0].startswith(f"ambulo train: error: --env-cfg bad value {shown} for episode_length_s: a duration "
+                               "must be "), lines[0]
+    assert "pass seconds, e.g. episode_length_s=" in lines[0]
+    assert not (tmp_path / "runs").exists()  # refused before any run started
+
+
 def test_a_device_without_an_engine_is_one_line_and_makes_no_run_folder(tmp_path, capsys):
     from ambulo.cli import main
 

@@ -21,6 +21,7 @@ from ambulo.core.physics import MAX_TIMESTEP_S, fastest_drive, timestep_warning
 from ambulo.sensors.camera import Camera, CameraCfg
 from ambulo.sensors.lidar import LidarCfg
 from ambulo.sim import ArticulationAction, Robot, World, add_reference_to_stage
+from ambulo.sim.world import MAX_PHYSICS_DT_S, MAX_RENDERING_DT_S
 from ambulo.utils.checks import InvalidValueError, check_all_finite
 from ambulo.utils.overrides import OverrideError, apply_overrides
 
@@ -68,6 +69,34 @@ def test_physics_dt_above_the_ceiling_is_refused_with_the_reason():
             "rendering_dt")
     _raises(lambda: world.set_simulation_dt(physics_dt=-1.0), "physics_dt is -1.0", "must be > 0")
     assert world.get_physics_dt() == pytest.approx(1 / 60)  # a refused change leaves the World as it was
+
+
+@pytest.mark.parametrize("make", [lambda: World(physics_dt=10), lambda: World().set_simulation_dt(physics_dt=10),
+                                  lambda: World().set_simulation_dt(10, 10),
+                                  lambda: World(physics=PhysicsCfg(timestep_s=0.005), substeps=2000)])
+def test_a_physics_step_longer_than_any_control_loop_is_refused(make):
+    # 10 s passed MuJoCo's step check (2000 substeps of 5 ms) and ran physics callbacks every 10 s
+    _raises(make, "physics_dt", "is 10.0", f"the limit is {MAX_PHYSICS_DT_S} s", "pass seconds, e.g. physics_dt=1/60")
+    assert World(physics_dt=MAX_PHYSICS_DT_S).get_physics_dt() == MAX_PHYSICS_DT_S  # the bound itself is fine
+
+
+@pytest.mark.parametrize("make", [lambda: World(rendering_dt=10), lambda: World().set_simulation_dt(rendering_dt=10)])
+def test_a_rendering_step_longer_than_a_second_is_refused(make):
+    _raises(make, "rendering_dt is 10", f"the limit is {MAX_RENDERING_DT_S} s", "pass seconds, e.g. rendering_dt=1/60")
+    world = World(physics_dt=0.01)
+    _raises(lambda: world.set_simulation_dt(rendering_dt=10.0), "rendering_dt is 10")
+    assert world.get_rendering_dt() == 0.01  # a refused change leaves the World as it was
+
+
+def test_isaac_physics_context_and_step_async_step_sizes_are_checked():
+    import asyncio
+
+    from ambulo.isaac.physics_context import PhysicsContext
+
+    world = World()
+    _raises(lambda: PhysicsContext(physics_dt=10.0), "physics_dt is 10.0", "pass seconds")
+    _raises(lambda: asyncio.run(world.step_async(10.0)), "step_size is 10.0", "the limit is")
+    _raises(lambda: asyncio.run(world.step_async(0.01)), "step_size is 0.01", "set_simulation_dt")
 
 
 def test_a_config_edited_after_construction_is_checked_at_compile():

@@ -1,9 +1,11 @@
 """Contract every registered task must meet: shapes, dtypes, finiteness, determinism, resets."""
 
+import numpy as np
 import pytest
 import torch
 
 import ambulo.envs as envs
+from ambulo.utils.checks import InvalidValueError
 
 NUM_ENVS = 8
 
@@ -118,6 +120,32 @@ def test_bad_actions_are_rejected_with_the_fix():
     bad[2, 0] = float("nan")
     with pytest.raises(ValueError, match="NaN or Inf in 1 envs \\(first: env 2\\)"):
         env.step(bad)
+
+
+@pytest.mark.parametrize("actions, shown", [
+    (torch.zeros(NUM_ENVS, 1, dtype=torch.complex64), "a torch.complex64 tensor"),
+    (np.full((NUM_ENVS, 1), 0.5 + 0.5j), "a complex128 array"),
+    ([[0.5 + 0.5j]] * NUM_ENVS, "a torch.complex64 tensor"),
+    (torch.zeros(NUM_ENVS, 1, dtype=torch.bool), "a torch.bool tensor"),
+    (np.zeros((NUM_ENVS, 1), dtype=bool), "a bool array"),
+    (np.full((NUM_ENVS, 1), "0.5"), "a <U3 array"),
+])
+def test_complex_bool_or_text_actions_are_refused_not_cast(actions, shown):
+    # a cast to float32 would drop the imaginary part (torch only warns) or read a mask as 0/1
+    env = make("cartpole")
+    with pytest.raises(InvalidValueError) as info:
+        env.step(actions)
+    message = str(info.value)
+    assert "\n" not in message and f"actions is {shown}: expected real numbers" in message
+    assert "pass real numbers of shape (8, 1) (num_envs, num_actions)" in message
+    env.step(np.zeros((NUM_ENVS, 1), dtype=np.int64))  # whole numbers are real numbers
+
+
+def test_a_config_edited_after_it_was_built_is_checked_by_the_env():
+    cfg = envs.make_cfg("cartpole", num_envs=2)
+    cfg.episode_length_s = -5.0
+    with pytest.raises(InvalidValueError, match=r"CartpoleCfg.episode_length_s is -5.0: a duration must be > 0"):
+        envs.spec("cartpole").env_cls(cfg)
 
 
 def test_unknown_reward_term_is_named():

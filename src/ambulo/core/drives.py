@@ -18,6 +18,8 @@ from dataclasses import dataclass
 
 import mujoco
 
+from ..utils.validate import Checked
+
 _JOINT = mujoco.mjtTrn.mjTRN_JOINT
 _AFFINE = mujoco.mjtBias.mjBIAS_AFFINE
 _NO_BIAS = mujoco.mjtBias.mjBIAS_NONE
@@ -26,7 +28,7 @@ _DRIVEN = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
 
 
 @dataclass(kw_only=True)
-class DriveDefaults:
+class DriveDefaults(Checked):
     """Gains given to joints that arrive without a drive (URDF, USD, bare MJCF)."""
 
     stiffness: float = 100.0

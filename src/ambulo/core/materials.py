@@ -7,12 +7,14 @@ from dataclasses import dataclass
 
 import mujoco
 
+from ..utils.validate import Checked
+
 # MuJoCo's default contact time constant, s (mjOption/geom solref[0] default).
 _TIMECONST_S = 0.02
 
 
 @dataclass(kw_only=True)
-class PhysicsMaterial:
+class PhysicsMaterial(Checked):
     """Friction and restitution of a surface.
 
     MuJoCo has one sliding friction coefficient per geom (pairs take the max), so
@@ -28,6 +30,7 @@ class PhysicsMaterial:
     restitution: float = 0.0
 
     def __post_init__(self):
+        super().__post_init__()  # first: the checks below would let NaN through
         for name in ("static_friction", "dynamic_friction"):
             if getattr(self, name) < 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")

@@ -15,6 +15,7 @@ from typing import Literal
 import mujoco
 
 from ..utils.checks import InvalidValueError, check_int, check_positive, check_vector
+from ..utils.validate import Checked
 
 INTEGRATORS = {
     "euler": mujoco.mjtIntegrator.mjINT_EULER,
@@ -28,7 +29,7 @@ _SOLVERS = {"newton": mujoco.mjtSolver.mjSOL_NEWTON, "cg": mujoco.mjtSolver.mjSO
 
 
 @dataclass(kw_only=True)
-class PhysicsCfg:
+class PhysicsCfg(Checked):
     """MuJoCo solver and integrator settings (``mjOption``), the same for every world."""
 
     timestep_s: float = 0.005
@@ -56,6 +57,7 @@ class PhysicsCfg:
 
     def __post_init__(self):
         self.check()
+        super().__post_init__()
 
     def check(self) -> None:
         """Raise ``InvalidValueError`` (one line: the field, why, the fix) on a bad setting;

@@ -17,6 +17,7 @@ import numpy as np
 
 from .. import assets
 from ..assets.isaac import is_isaac_path, resolve_isaac_path
+from ..utils.validate import Checked
 from .drives import DriveDefaults
 from .importers import load_spec
 from .materials import PhysicsMaterial
@@ -34,7 +35,7 @@ def new_scene(name: str = "World") -> mujoco.MjSpec:
 
 
 @dataclass(kw_only=True)
-class GroundCfg:
+class GroundCfg(Checked):
     """A static plane with a checker texture, optionally with a sky and a sun light."""
 
     prim_path: str = "/World/defaultGroundPlane"
@@ -112,7 +113,7 @@ def add_light(spec: mujoco.MjSpec, prim_path: str, *, kind: str = "distant",
 
 
 @dataclass(kw_only=True)
-class RobotCfg:
+class RobotCfg(Checked):
     """A robot (or any articulated/rigid asset) file placed at a prim path."""
 
     file: str

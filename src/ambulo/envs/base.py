@@ -27,13 +27,14 @@ import torch
 
 from ambulo.core import Entity, GroundCfg, PhysicsCfg, RobotCfg, Simulation, add_ground, add_robot, new_scene
 from ambulo.core.rows import fill_rows, num_rows, select_rows
-from ambulo.utils.checks import check_int
+from ambulo.utils.checks import check_int, check_real_dtype
+from ambulo.utils.validate import Checked, check_fields, rule
 
 from .episode_stats import EpisodeStats
 
 
 @dataclass(kw_only=True)
-class EnvCfg:
+class EnvCfg(Checked):
     """Settings every task has. Tasks extend it with their own fields."""
 
     num_envs: int = 64
@@ -52,11 +53,11 @@ class EnvCfg:
     core, and torch's pool competing for them cost a third of a humanoid step (issue #7)."""
     physics: PhysicsCfg = field(default_factory=PhysicsCfg)
     """Solver and integrator settings (``timestep_s`` is the physics step)."""
-    decimation: int = 4
+    decimation: int = field(default=4, metadata=rule(minimum=1))
     """Physics steps per policy step: policy dt = physics.timestep_s * decimation."""
     episode_length_s: float = 20.0
     """Episode time limit, s; reaching it is a time-out, not a termination."""
-    action_clip: float = 100.0
+    action_clip: float = field(default=100.0, metadata=rule(minimum=0.0, strict=True))
     """Actions are clipped to [-action_clip, action_clip] before use."""
     reward_weights: dict[str, float] = field(default_factory=dict)
     """Weight per reward term, per second of simulated time."""
@@ -73,7 +74,7 @@ class EnvCfg:
     observation_noise: dict[str, float] = field(default_factory=dict)
     """Uniform noise half-width per policy observation term (actor only; the critic sees
     clean values), in the term's units after scaling."""
-    stats_interval_steps: int = 24
+    stats_interval_steps: int = field(default=24, metadata=rule(minimum=1))
     """Episode statistics (``extras["episode"]``) cover the episodes that ended in windows of
     this many policy steps, so the step path needs no host sync to find ended episodes."""
 
@@ -97,8 +98,7 @@ class RLEnv:
     def __init__(self, cfg: EnvCfg):
         check_int("num_envs", cfg.num_envs, "pass a whole number of parallel envs, e.g. num_envs=64",
                   minimum=1)
-        if cfg.decimation < 1:
-            raise ValueError(f"decimation must be >= 1, got {cfg.decimation}")
+        check_fields(cfg)  # again: a config edited after it was built (cfg.episode_length_s = -5)
         self.cfg = cfg
         spec = new_scene(type(self).__name__)
         if cfg.ground is not None:
@@ -298,8 +298,12 @@ class RLEnv:
         return _TorchThreads(self.cfg.torch_threads)
 
     def _validate_actions(self, actions: torch.Tensor) -> torch.Tensor:
+        # by dtype only (free, no sync): a cast to float32 would drop an imaginary part silently
+        # and turn a bool mask into 0/1 actions; text would fail deep in torch
+        fix = f"pass real numbers of shape ({self.num_envs}, {self.num_actions}) (num_envs, num_actions)"
+        check_real_dtype("actions", actions, fix, allow_bool=False)
         if not isinstance(actions, torch.Tensor):
-            actions = torch.as_tensor(actions)
+            actions = check_real_dtype("actions", torch.as_tensor(actions), fix, allow_bool=False)
         expected = (self.num_envs, self.num_actions)
         if tuple(actions.shape) != expected:
             raise ValueError(

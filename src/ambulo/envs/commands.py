@@ -11,22 +11,23 @@ stand (zero command). Everything is (N,) tensors updated with masks.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import torch
 
 from ambulo.core.rows import num_rows, put_rows, select_rows
+from ambulo.utils.validate import Checked, rule
 
 
 @dataclass(kw_only=True)
-class VelocityCommandCfg:
-    lin_vel_x_m_s: tuple[float, float] = (-1.0, 1.0)
+class VelocityCommandCfg(Checked):
+    lin_vel_x_m_s: tuple[float, float] = field(default=(-1.0, 1.0), metadata=rule(pair=True))
     """Forward velocity range, heading frame."""
-    lin_vel_y_m_s: tuple[float, float] = (-0.5, 0.5)
+    lin_vel_y_m_s: tuple[float, float] = field(default=(-0.5, 0.5), metadata=rule(pair=True))
     """Leftward velocity range, heading frame."""
-    yaw_rate_rad_s: tuple[float, float] = (-1.0, 1.0)
+    yaw_rate_rad_s: tuple[float, float] = field(default=(-1.0, 1.0), metadata=rule(pair=True))
     """Yaw-rate range; heading-controlled envs are clipped to it too."""
-    heading_rad: tuple[float, float] = (-math.pi, math.pi)
+    heading_rad: tuple[float, float] = field(default=(-math.pi, math.pi), metadata=rule(pair=True))
     """Target heading range for heading-controlled envs."""
     heading_fraction: float = 0.5
     """Share of envs that track a target heading instead of a yaw rate."""
@@ -34,7 +35,7 @@ class VelocityCommandCfg:
     """Yaw rate per rad of heading error, 1/s."""
     standing_fraction: float = 0.1
     """Share of envs commanded to stand still."""
-    resampling_time_s: tuple[float, float] = (4.0, 8.0)
+    resampling_time_s: tuple[float, float] = field(default=(4.0, 8.0), metadata=rule(pair=True))
     """A new command is drawn after a time uniform in this range."""
 
 

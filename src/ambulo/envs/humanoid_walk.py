@@ -22,6 +22,7 @@ from ambulo.core import GroundCfg, PhysicsCfg, RobotCfg
 from ambulo.core.observations import velocity_policy_terms
 from ambulo.core.rows import put_rows, select_rows, take_rows
 from ambulo.sensors import ContactSensor, ContactSensorCfg
+from ambulo.utils.validate import rule
 
 from ..utils.math import quat_from_yaw
 from . import observations as obs_terms
@@ -45,14 +46,14 @@ class HumanoidWalkCfg(EnvCfg):
     commands: VelocityCommandCfg = field(default_factory=VelocityCommandCfg)
     min_base_height_m: float = 0.5
     max_tilt_rad: float = math.radians(60.0)
-    tracking_std: float = 0.5
+    tracking_std: float = field(default=0.5, metadata=rule(minimum=0.0, strict=True))
     """Width of the velocity tracking kernels, m/s and rad/s."""
-    air_time_threshold_s: float = 0.4
+    air_time_threshold_s: float = field(default=0.4, metadata=rule(minimum=0.0))
     friction_range: tuple[float, float] | None = (0.4, 1.2)
     """Per-env friction of every geom, drawn at start; None keeps the model's."""
-    added_base_mass_kg: tuple[float, float] | None = (-2.0, 3.0)
+    added_base_mass_kg: tuple[float, float] | None = field(default=(-2.0, 3.0), metadata=rule(pair=True))
     """Per-env mass added to the base at start; None adds none."""
-    push_interval_s: tuple[float, float] | None = (5.0, 10.0)
+    push_interval_s: tuple[float, float] | None = field(default=(5.0, 10.0), metadata=rule(pair=True))
     """Each env is pushed after a time uniform in this range, then again; None: no pushes."""
     push_velocity_m_s: float = 0.5
     """Pushes add a planar base velocity uniform in +-this, m/s."""

@@ -15,7 +15,7 @@ at 1.5 m).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import mujoco
 import torch
@@ -24,6 +24,7 @@ import torch.nn.functional as F
 from ambulo.core import GroundCfg, PhysicsCfg, RobotCfg
 from ambulo.core.rows import fill_rows, put_rows, take_rows
 from ambulo.sensors import TiledCamera, TiledCameraCfg
+from ambulo.utils.validate import rule
 
 from . import observations as obs_terms
 from . import rewards
@@ -39,7 +40,7 @@ class JetbotGoalCfg(EnvCfg):
 
     max_wheel_speed_rad_s: float = 20.0
     """Wheel speed for an action of 1: 20 rad/s x 0.03 m radius = 0.6 m/s."""
-    goal_distance_m: tuple[float, float] = (0.5, 1.5)
+    goal_distance_m: tuple[float, float] = field(default=(0.5, 1.5), metadata=rule(pair=True))
     goal_radius_m: float = 0.1
     """The goal counts as reached within this distance of the chassis origin, m."""
     obs_scale_wheel_vel: float = 0.05

@@ -8,9 +8,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Literal
 
+from ..utils.validate import Checked
+
 
 @dataclass(kw_only=True)
-class PpoCfg:
+class PpoCfg(Checked):
     """PPO with an MLP actor-critic (rsl-rl-lib's ``OnPolicyRunner``)."""
 
     num_envs: int = 4096

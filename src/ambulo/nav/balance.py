@@ -29,6 +29,8 @@ from typing import Sequence
 import mujoco
 import numpy as np
 
+from ..utils.validate import Checked
+
 try:
     import torch
 except ImportError:  # torch is a core dependency; keep numpy-only use possible
@@ -99,7 +101,7 @@ def capture_point(com_pos_xy, com_vel_xy, com_height_m: float, gravity_mps2: flo
 
 # --------------------------------------------------------------------------- polygons
 @dataclass(kw_only=True)
-class FootShape:
+class FootShape(Checked):
     """A rectangular sole in its foot frame (x forward, y left, origin at the foot pose)."""
 
     length_m: float

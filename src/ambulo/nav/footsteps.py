@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..utils.checks import InvalidValueError, check_int, check_positive, check_range, check_vector
+from ..utils.validate import Checked
 from .footstep_checks import FootstepChecks
 from .footstep_heuristic import GoalHeuristic
 from .footstep_lattice import LEFT, RIGHT, build_lattice, compose, relative, step_costs, steps_within_limits, walk_to
@@ -45,7 +46,7 @@ MAX_WALKS = 8
 
 
 @dataclass(kw_only=True)
-class FootstepPlannerCfg:
+class FootstepPlannerCfg(Checked):
     """Footstep planner settings. Limits are the module's (issue 14); lengths in m, angles in rad."""
 
     foot_size_m: tuple[float, float] = (0.22, 0.10)

@@ -30,12 +30,13 @@ from typing import Any, Sequence
 import numpy as np
 import scipy.linalg
 
+from ..utils.validate import Checked
 from .balance import GRAVITY_MPS2, FootShape, support_polygon
 
 
 # --------------------------------------------------------------------------- configs
 @dataclass(kw_only=True)
-class PreviewControlCfg:
+class PreviewControlCfg(Checked):
     """ZMP preview controller of a cart-table model."""
 
     com_height_m: float
@@ -56,7 +57,7 @@ class PreviewControlCfg:
 
 
 @dataclass(kw_only=True)
-class WalkPatternCfg:
+class WalkPatternCfg(Checked):
     """Step timing and swing shape of a walking pattern, with its preview controller."""
 
     preview: PreviewControlCfg

@@ -36,12 +36,13 @@ forces, no state resets.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
 
 from ..core import EntityNames, GroundCfg, PhysicsCfg, RobotCfg, add_ground, add_robot, compile_scene, new_scene
+from ..utils.validate import Checked, rule
 from .balance import FootShape, lipm_omega, support_polygon
 from .preview import WalkPattern
 
@@ -305,7 +306,7 @@ def _load_share(pattern: WalkPattern, k: int, foot: int) -> float:
 
 
 @dataclass(kw_only=True)
-class StabilizerCfg:
+class StabilizerCfg(Checked):
     """Capture-point (DCM) feedback through the stance feet's moments (module docstring, step 3)."""
 
     zmp_gain: float = 2.0
@@ -323,7 +324,7 @@ class StabilizerCfg:
     """... leaving each sole at least this much of its reference load, N."""
     reanchor: bool = True
     """Express the reference in the frame of the measured stance foot (see ``WalkController``)."""
-    reanchor_time_s: float = 0.05
+    reanchor_time_s: float = field(default=0.05, metadata=rule(minimum=0.0))
     """Time constant with which the reference frame follows the stance foot, s."""
     enabled: bool = True
 

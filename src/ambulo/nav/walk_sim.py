@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
+from ..utils.validate import Checked, rule
 from .balance import CenterOfPressure, FootShape, lipm_omega, polygon_signed_distance, support_polygon
 from .footsteps import FootstepPlan, FootstepPlanner, humanoid_footstep_cfg
 from .grid_map import GridMap
@@ -72,12 +73,12 @@ def walk_pattern(plan, *, com_height_m: float = 0.80, step_time_s: float = 0.8,
 
 
 @dataclass(kw_only=True)
-class WalkSimCfg:
+class WalkSimCfg(Checked):
     """A simulated walk."""
 
     friction: float = 1.0
     """Sliding friction of the floor and the robot's geoms."""
-    settle_s: float = 1.0
+    settle_s: float = field(default=1.0, metadata=rule(minimum=0.0))
     """Simulated time after the pattern ends (standing still), s."""
     joint_noise_rad: float = 0.02
     """Seeded runs: every joint starts off its reference by up to this much, rad."""

@@ -26,6 +26,7 @@ import torch
 from ambulo.maps import FREE_SPACE, INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE, NO_INFORMATION
 from ambulo.maps.occupancy_grid import cost_to_occupancy, grid_info
 from ambulo.utils.checks import check_positive
+from ambulo.utils.validate import Checked
 
 from .esdf import edt
 from .slices import OCCUPIED, UNKNOWN, Slice2D
@@ -42,7 +43,7 @@ HUMANOID_CIRCUMSCRIBED_RADIUS_M = 0.265
 
 
 @dataclass(kw_only=True)
-class InflationCfg:
+class InflationCfg(Checked):
     """Nav2's inflation layer parameters, with the humanoid's radii as defaults."""
 
     inflation_radius_m: float = 0.55
@@ -56,6 +57,7 @@ class InflationCfg:
         check_positive("inflation_radius_m", self.inflation_radius_m, "pass metres > 0, e.g. 0.55")
         check_positive("cost_scaling_factor", self.cost_scaling_factor, "pass 1/m > 0, e.g. 10", allow_zero=True)
         check_positive("inscribed_radius_m", self.inscribed_radius_m, "pass metres >= 0", allow_zero=True)
+        super().__post_init__()
 
 
 def nav2_cost(distance_cells: torch.Tensor, resolution_m: float, cfg: InflationCfg) -> torch.Tensor:

@@ -13,6 +13,7 @@ import numpy as np
 import torch
 
 from ..maps import save_npz
+from ..utils.validate import Checked
 from .costmap import InflationCfg, inflate
 from .esdf import esdf_from_grid
 from .frames import RgbdFrame
@@ -27,7 +28,7 @@ from .walk import WalkCfg, make_walk
 
 
 @dataclass(kw_only=True)
-class MapRunCfg:
+class MapRunCfg(Checked):
     """What ``run_mapping`` does."""
 
     scene: IndoorSceneCfg = field(default_factory=IndoorSceneCfg)

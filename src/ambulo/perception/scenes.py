@@ -16,6 +16,7 @@ import mujoco
 import numpy as np
 
 from ambulo.core import GroundCfg, RobotCfg, add_ground, add_light, add_robot, new_scene
+from ambulo.utils.validate import Checked
 
 ROBOT_PRIM = "/World/robot"
 HEAD_CAMERA_PRIM = ROBOT_PRIM + "/head_camera_mount/camera"
@@ -54,7 +55,7 @@ def with_floor(solids: list[SolidBox], floor_half_m: float | None) -> list[Solid
 
 
 @dataclass(kw_only=True)
-class IndoorSceneCfg:
+class IndoorSceneCfg(Checked):
     """Size, clutter and seed of the indoor scene."""
 
     seed: int = 0

@@ -7,9 +7,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..utils.validate import Checked
+
 
 @dataclass(kw_only=True)
-class SgbmCfg:
+class SgbmCfg(Checked):
     """SGBM settings; the smoothness penalties follow OpenCV's documented choice
     P1 = 8 * channels * block^2, P2 = 32 * channels * block^2."""
 

@@ -19,6 +19,7 @@ import torch
 import torch.nn.functional as F
 
 from ambulo.utils.checks import InvalidValueError, check_int, check_positive
+from ambulo.utils.validate import Checked
 
 from .frames import RgbdFrame
 
@@ -27,7 +28,7 @@ AGGREGATIONS = ("auto", "torch", "warp")
 
 
 @dataclass(kw_only=True)
-class SgmCfg:
+class SgmCfg(Checked):
     """Semi-global matching settings. The penalties are the usual ones for a 9x7 census, not fitted
     to one pair: on the Middlebury Motorcycle pair that scikit-image ships (500x741, disparities
     7-60 px) bad 2.0 stays within 4.8-5.3 % for p1 5-10, p2 60-120 (``benchmarks/stereo.py``)."""
@@ -77,6 +78,7 @@ class SgmCfg:
             raise InvalidValueError("SgmCfg.aggregation", self.aggregation,
                                     "the path costs are summed by Warp kernels or torch ops",
                                     "pass 'auto', 'torch' or 'warp'")
+        super().__post_init__()
 
 
 def grey_levels(image: torch.Tensor) -> torch.Tensor:

@@ -29,6 +29,7 @@ import numpy as np
 import torch
 
 from ambulo.utils.checks import check_int, check_positive
+from ambulo.utils.validate import Checked
 
 from . import tsdf_graph, tsdf_kernels, tsdf_launches
 from .block_hash import BlockHash, raise_out_of_range
@@ -40,7 +41,7 @@ from .tsdf_reference import _TorchIntegration, sample_depth
 
 
 @dataclass(kw_only=True)
-class TsdfCfg:
+class TsdfCfg(Checked):
     """Resolution, truncation and limits of a ``TsdfMap``."""
 
     voxel_size_m: float = 0.05
@@ -68,6 +69,7 @@ class TsdfCfg:
         check_int("block_voxels", self.block_voxels, "pass a whole number of voxels, e.g. 8", minimum=2)
         check_positive("truncation_voxels", self.truncation_voxels, "pass voxels > 0, e.g. 4")
         check_int("allocation_stride", self.allocation_stride, "pass a pixel stride >= 1", minimum=1)
+        super().__post_init__()
 
     @property
     def truncation_m(self) -> float:

@@ -43,6 +43,7 @@ import numpy as np
 import torch
 
 from ambulo.utils.checks import InvalidValueError, check_int, check_positive
+from ambulo.utils.validate import Checked
 
 from .vo_features import FrameFeatures, KorniaFeaturesCfg, make_features
 from .vo_imu import GyroAid, GyroSamples
@@ -62,7 +63,7 @@ class TrackState(enum.Enum):
 
 
 @dataclass(kw_only=True)
-class VoCfg:
+class VoCfg(Checked):
     """Features, matching, RANSAC and keyframe policy of ``RgbdOdometry`` (``kornia_vo_cfg`` gives
     the all-torch variant)."""
 
@@ -165,6 +166,7 @@ class VoCfg:
         if self.features == "orb" and torch.device(self.device).type != "cpu":
             raise InvalidValueError("VoCfg.device", self.device, "ORB runs in OpenCV on the host",
                                     "pass device='cpu', or features='kornia' (kornia_vo_cfg) for a GPU")
+        super().__post_init__()
 
 
 def kornia_vo_cfg(device: str = "cpu") -> VoCfg:

@@ -19,12 +19,14 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 import torch
 
+from ..utils.validate import Checked
+
 if TYPE_CHECKING:
     from .vo import VoCfg
 
 
 @dataclass(kw_only=True)
-class KorniaFeaturesCfg:
+class KorniaFeaturesCfg(Checked):
     """The kornia front end. The defaults were chosen on the seeded head-camera walk (300 frames,
     640x480, CPU; benchmarks/results/cpu-2026-11-24-vo.md): every Shi-Tomasi variant tried (NMS
     window, quality, corner count, ratio, oriented or 32 px patches) tracked within 0.11-0.20 cm

@@ -29,6 +29,7 @@ from ambulo.core import PhysicsCfg, Simulation
 from ambulo.sensors import Camera, CameraCfg, Imu, ImuCfg
 from ambulo.sensors.imu_noise import ImuNoiseCfg, euroc_adis16448
 from ambulo.utils.rotations import mat_to_quat, quat_to_mat
+from ambulo.utils.validate import Checked
 
 from .frames import RgbdFrame
 from .scenes import HEAD_CAMERA_PRIM, ROBOT_PRIM, IndoorScene, build_indoor_scene
@@ -39,7 +40,7 @@ PELVIS_HEIGHT_M = 0.92
 
 
 @dataclass(kw_only=True)
-class WalkCfg:
+class WalkCfg(Checked):
     """A walk along a rounded rectangle around the origin (the scene's island), through the free
     space between the island and the furniture along the walls. ``step_hz`` to ``pitch_bob_rad``
     script the kinematic mode's head motion; in policy mode the gait makes its own."""

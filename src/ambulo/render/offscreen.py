@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from ..utils.validate import Checked
 from .gl import create_gl_context, gl_renderer_string
 
 # Geom categories we draw: no decorations (contact points, frames, labels).
@@ -24,7 +25,7 @@ _GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)
 
 
 @dataclass(kw_only=True)
-class RenderSettings:
+class RenderSettings(Checked):
     """How the rasterizer draws; defaults are the fast headless ones.
 
     On a software rasterizer (llvmpipe) shadow maps cost 10-20x the rgb time and

@@ -9,6 +9,7 @@ import mujoco
 
 from ambulo.core import PhysicsCfg
 from ambulo.sensors import CameraCfg
+from ambulo.utils.validate import Checked
 
 from .randomizers import Randomizer
 from .writers import WriterCfg, default_writer_cfg
@@ -19,7 +20,7 @@ DATASET_ANNOTATORS = ("rgb", "depth", "instance_segmentation", "semantic_segment
 
 
 @dataclass(kw_only=True)
-class DatasetConfig:
+class DatasetConfig(Checked):
     name: str = "ambulo_dataset"
     build_scene: Callable[[], mujoco.MjSpec]
     """Returns the scene's spec (built with ``ambulo.core.scene``) with semantic labels

@@ -17,6 +17,7 @@ import torch
 
 from ambulo.core import match_names
 from ambulo.utils.rotations import mat_to_quat, rot_about_axes
+from ambulo.utils.validate import Checked
 
 from .distributions import Distribution, as_distribution, normal, uniform
 
@@ -59,7 +60,7 @@ def to_json(value):
 
 
 @dataclass(kw_only=True)
-class Randomizer:
+class Randomizer(Checked):
     """Base: a name for the frame log and how often new values are drawn.
 
     A lifecycle component (``ambulo.core.Component``): ``build(spec)`` adds what it needs to

@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from ambulo.utils.atomic import atomic_save_npy, atomic_write_bytes, atomic_write_json, fsync_dir
+from ambulo.utils.validate import Checked
 
 from .coco import frame_annotations
 from .io import depth_to_mm_u16, encode_png
@@ -40,7 +41,7 @@ WRITERS = ("coco", "depth", "masks", "kitti", "raw")
 
 
 @dataclass(kw_only=True)
-class WriterCfg:
+class WriterCfg(Checked):
     outputs: tuple[str, ...] = ("coco", "depth", "masks")
     """Any of ``WRITERS``; 'coco' (rgb PNG + records + annotations.json) is always on."""
     depth_format: str = "png16"

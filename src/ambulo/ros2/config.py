@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal
+
+from ..utils.validate import Checked, rule
 
 QosName = Literal["default", "sensor_data"]
 """``default``: reliable, volatile, keep-last 10 (rclpy's default and Isaac Sim's); ``sensor_data``:
@@ -11,7 +13,7 @@ best-effort, keep-last 5 (``rclpy.qos.qos_profile_sensor_data``) for cameras on 
 
 
 @dataclass(kw_only=True)
-class BridgeCfg:
+class BridgeCfg(Checked):
     """The ROS 2 face of a World. Rates are Hz of *simulated* time (``None``: every physics step);
     topic names are relative to ``namespace`` unless they start with ``/``."""
 
@@ -74,7 +76,7 @@ class BridgeCfg:
     """Also serve every topic over Foxglove's WebSocket protocol on 127.0.0.1:port (``foxglove-sdk``)."""
     snapshot_slots: int = 256
     """Snapshots of the physics state that may wait for the publisher process (a ring in shared memory)."""
-    publisher_nice: int = 5
+    publisher_nice: int = field(default=5, metadata=rule(signed=True))
     """Niceness added to the publisher process (``os.nice``; 0: none). When every core is busy (other
     programs, or a subscriber on the same cores) the physics loop gets the CPU first (about 3:1 at 5),
     and messages, discovery and commands wait instead; with a core to spare it changes nothing."""

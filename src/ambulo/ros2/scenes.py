@@ -10,9 +10,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..utils.validate import Checked
+
 
 @dataclass(kw_only=True)
-class SceneCfg:
+class SceneCfg(Checked):
     physics_dt_s: float | None = None
     """s per physics step: joint states, /tf, /odom, /clock and the IMU publish at 1 / physics_dt_s.
     None: the scene's own (the humanoid 0.005, as its walking policy needs; the others 0.01)."""

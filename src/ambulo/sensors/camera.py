@@ -19,6 +19,7 @@ from ambulo.utils.checks import (
     InvalidValueError, check_int, check_positive, check_quat, check_range, check_vector,
 )
 from ambulo.utils.rotations import mat_to_quat, quat_to_mat
+from ambulo.utils.validate import Checked
 
 from . import annotators as ann
 from .base import MountPose, Sensor, spec_body
@@ -38,7 +39,7 @@ _NEEDS_DEPTH = {"depth", "distance_to_camera", "normals"}
 
 
 @dataclass(kw_only=True)
-class PinholeCfg:
+class PinholeCfg(Checked):
     """Where a pinhole camera sits and what it sees: shared by ``CameraCfg`` (the CPU renderer)
     and ``TiledCameraCfg`` (MuJoCo Warp), so both give the same intrinsics for the same fields."""
 
@@ -79,6 +80,7 @@ class PinholeCfg:
                                     "pass (near, far) m with 0 < near < far, e.g. (0.05, 100.0)")
         check_vector("offset_pos", self.offset_pos, 3, "pass (x, y, z) m in the mount frame")
         check_quat("offset_quat", self.offset_quat)
+        super().__post_init__()
 
     def image_fovy_deg(self) -> float:
         """The image's vertical field of view (deg): from ``focal_length_px`` when set."""
@@ -103,9 +105,9 @@ class CameraCfg(PinholeCfg):
     render: RenderSettings = field(default_factory=fast_render_settings)
 
     def __post_init__(self):
-        super().__post_init__()
         if self.frequency_hz is not None:
             check_positive("frequency_hz", self.frequency_hz, "pass Hz > 0, or None to render on every request")
+        super().__post_init__()
 
 
 def _resolution(what: str, value) -> tuple[int, int]:

@@ -14,6 +14,7 @@ import mujoco
 import torch
 
 from ambulo.core import match_names
+from ambulo.utils.validate import Checked
 
 from ..core.rows import fill_rows
 from .base import Mount, Sensor
@@ -23,7 +24,7 @@ _NETFORCE = 3          # mjtSensor contact reduce: none, mindist, maxforce, netf
 
 
 @dataclass(kw_only=True)
-class ContactSensorCfg:
+class ContactSensorCfg(Checked):
     prim_paths: tuple[str, ...]
     """Bodies to watch: names or glob patterns, on the whole name or its last path component
     (e.g. '/World/robot/*_foot' or '*_foot'); see ``ambulo.core.match_names``."""

@@ -14,13 +14,14 @@ import mujoco
 import torch
 
 from ambulo.utils.rotations import mat_to_quat, quat_to_mat
+from ambulo.utils.validate import Checked
 
 from .base import Sensor, spec_body
 from .imu_noise import ImuNoiseCfg, KalibrNoise, noiseless
 
 
 @dataclass(kw_only=True)
-class ImuCfg:
+class ImuCfg(Checked):
     prim_path: str
     """A site (used as is) or a body (a site is added at the offset); e.g. '/World/robot/pelvis/imu'."""
     offset_pos: tuple[float, float, float] = (0.0, 0.0, 0.0)

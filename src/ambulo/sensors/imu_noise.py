@@ -14,9 +14,11 @@ from dataclasses import dataclass
 
 import torch
 
+from ..utils.validate import Checked
+
 
 @dataclass(kw_only=True)
-class ImuNoiseCfg:
+class ImuNoiseCfg(Checked):
     """Kalibr ``imu.yaml`` parameters, per axis (continuous-time densities)."""
 
     gyro_noise_density: float = 0.0

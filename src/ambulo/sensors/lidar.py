@@ -15,13 +15,14 @@ import torch
 from ambulo.utils.checks import (
     InvalidValueError, check_int, check_positive, check_quat, check_range, check_vector,
 )
+from ambulo.utils.validate import Checked
 from ambulo.utils.rotations import quat_to_mat
 
 from .base import MountPose, Sensor
 
 
 @dataclass(kw_only=True)
-class LidarCfg:
+class LidarCfg(Checked):
     prim_path: str
     """Mount body or site (the lidar's own path below it also works)."""
     offset_pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -69,6 +70,7 @@ class LidarCfg:
         check_vector("offset_pos", self.offset_pos, 3, "pass (x, y, z) m in the mount frame")
         check_quat("offset_quat", self.offset_quat)
         check_int("seed", self.seed, "pass a whole number")
+        super().__post_init__()
 
 
 def lidar_2d(prim_path: str, **kwargs) -> LidarCfg:

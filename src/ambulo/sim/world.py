@@ -44,6 +44,30 @@ MAX_SUBSTEP_S = 0.005
 needs dt < ~0.014 s (``ambulo.core.physics.timestep_warning``) and contacts stay crisp at 5 ms."""
 
 
+MAX_PHYSICS_DT_S = 0.1
+"""s, the longest ``physics_dt`` a World accepts. It is the period of the physics callbacks, an
+Isaac script's control loop, whose commands hold for the whole step; robots are controlled at
+10 Hz or faster (Isaac Sim's default is 60 Hz, ros2_control's 100 Hz and more), so a longer step
+is open-loop motion no script means, and ``physics_dt=10`` is almost always milliseconds passed as
+seconds. (The World splits the step into MuJoCo substeps of at most ``MAX_SUBSTEP_S``: this bound
+is about control; ``check_timestep`` bounds the integration step.)"""
+
+MAX_RENDERING_DT_S = 1.0
+"""s, the longest ``rendering_dt`` (simulated time of one ``World.step``, one rendered frame). A
+frame per simulated second is already a slide show for a viewer or a camera, and a larger value
+is almost always milliseconds passed as seconds; to advance longer, call ``step`` again."""
+
+
+def check_physics_dt(value, what: str = "physics_dt") -> float:
+    """``value`` as a physics step in (0, ``MAX_PHYSICS_DT_S``] s; ``InvalidValueError`` if not."""
+    value = check_positive(what, value, "pass seconds, e.g. physics_dt=1/60")
+    if value > MAX_PHYSICS_DT_S:
+        raise InvalidValueError(
+            what, value, f"a physics step holds every command for {value:g} s, slower than any control loop "
+            f"(the limit is {MAX_PHYSICS_DT_S} s, 10 Hz)", "pass seconds, e.g. physics_dt=1/60 (10 ms is 0.01)")
+    return value
+
+
 def default_substeps(physics_dt: float) -> int:
     """MuJoCo steps per physics step so that each is at most ``MAX_SUBSTEP_S``."""
     return max(1, math.ceil(physics_dt / MAX_SUBSTEP_S - 1e-9))
@@ -95,7 +119,7 @@ class World(TaskHost):
         if backend not in ("numpy", "torch"):
             raise InvalidValueError("backend", backend, "not a backend", "pass 'numpy' or 'torch'")
         if physics is None:
-            physics_dt = check_positive("physics_dt", physics_dt, "pass seconds, e.g. physics_dt=1/60")
+            physics_dt = check_physics_dt(physics_dt)
             substeps = default_substeps(physics_dt) if substeps is None else substeps
             substeps = check_int("substeps", substeps, "pass a whole number of MuJoCo steps per physics step, e.g. 1",
                                  minimum=1)
@@ -106,7 +130,7 @@ class World(TaskHost):
             substeps = check_int("substeps", 1 if substeps is None else substeps,
                                  "pass a whole number of MuJoCo steps per physics step, e.g. 1", minimum=1)
             self._auto_substeps = False
-            physics_dt = physics.timestep_s * substeps
+            physics_dt = check_physics_dt(physics.timestep_s * substeps, "physics.timestep_s * substeps")
         self.physics_dt = float(physics_dt)
         self.rendering_dt = rendering_dt
         self.substeps = int(substeps)
@@ -142,6 +166,11 @@ class World(TaskHost):
         """Physics steps per ``World.step`` (a fraction when the ratio is not whole)."""
         if rendering_dt is not None:
             rendering_dt = check_positive("rendering_dt", rendering_dt, "pass seconds, or None for physics_dt")
+            if rendering_dt > MAX_RENDERING_DT_S:
+                raise InvalidValueError(
+                    "rendering_dt", rendering_dt, f"one World.step would advance {rendering_dt:g} s, a frame per "
+                    f"{rendering_dt:g} s of simulated time (the limit is {MAX_RENDERING_DT_S} s)",
+                    "pass seconds, e.g. rendering_dt=1/60 (10 ms is 0.01), or None for physics_dt")
         steps = (rendering_dt or self.physics_dt) / self.physics_dt
         if steps < 1 - 1e-9:
             raise InvalidValueError(
@@ -187,6 +216,7 @@ class World(TaskHost):
             physics_dt = check_positive("physics_dt", physics_dt, "pass seconds, e.g. physics_dt=0.005")
             substeps = default_substeps(physics_dt) if self._auto_substeps else self.substeps
             check_timestep("physics_dt / substeps", physics_dt / substeps)
+            check_physics_dt(physics_dt)
         old_physics_dt, old_rendering_dt = self.physics_dt, self.rendering_dt
         if physics_dt is not None:
             self.physics_dt = physics_dt
@@ -370,6 +400,13 @@ class World(TaskHost):
         self.stop()
 
     async def step_async(self, step_size: float | None = None) -> None:
+        """``step(render=False)``; ``step_size`` (Isaac's argument) must be the World's physics_dt,
+        not another step silently ignored."""
+        if step_size is not None:
+            step_size = check_physics_dt(step_size, "step_size")
+            if not math.isclose(step_size, self.physics_dt, rel_tol=1e-6):
+                raise InvalidValueError("step_size", step_size, f"the World steps physics_dt ({self.physics_dt:g} s)",
+                                        "call set_simulation_dt(physics_dt=...) first, or pass no step_size")
         self.step(render=False)
 
     async def render_async(self) -> None:

@@ -112,23 +112,24 @@ def check_range(what: str, value, fix: str, *, minimum: float = 0.0) -> tuple[fl
     return low, high
 
 
-def check_real_dtype(what: str, value, fix: str):
-    """Refuse text and complex arrays/tensors by their dtype alone (no value is read, so a CUDA
-    tensor is not synced); returns ``value`` unchanged."""
+def check_real_dtype(what: str, value, fix: str, *, allow_bool: bool = True):
+    """Refuse text and complex arrays/tensors (and bools unless ``allow_bool``) by their dtype
+    alone (no value is read, so a CUDA tensor is not synced); returns ``value`` unchanged."""
+    bad_scalars = (str, bytes, complex, np.complexfloating) + (() if allow_bool else (bool, np.bool_))
     if isinstance(value, (str, bytes)):
         raise InvalidValueError(what, value, "expected numbers, got text", fix)
     if isinstance(value, torch.Tensor):
-        if value.is_complex():
+        if value.is_complex() or (not allow_bool and value.dtype == torch.bool):
             raise InvalidValueError(what, Described(f"a {value.dtype} tensor"), "expected real numbers", fix)
         return value
     if isinstance(value, (list, tuple)):
-        bad = next((v for v in value if isinstance(v, (str, bytes, complex))), None)
+        bad = next((v for v in value if isinstance(v, bad_scalars)), None)
         if bad is not None:
             raise InvalidValueError(what, value, f"expected real numbers, got {type(bad).__name__} {bad!r}", fix)
         return value
-    if isinstance(value, (str, bytes, complex)):
+    if isinstance(value, bad_scalars):
         raise InvalidValueError(what, value, f"expected real numbers, got {type(value).__name__}", fix)
-    if isinstance(value, np.ndarray) and value.dtype.kind not in "biuf":
+    if isinstance(value, np.ndarray) and value.dtype.kind not in ("biuf" if allow_bool else "iuf"):
         raise InvalidValueError(what, Described(f"a {value.dtype} array"), "expected real numbers", fix)
     return value
 
