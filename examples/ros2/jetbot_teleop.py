@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import time
 
 from ambulo import assets
 from ambulo.ros2 import BridgeCfg, Ros2Bridge
@@ -56,12 +57,18 @@ def main(argv=None) -> dict:
     rclpy.init()  # the teleop node's own ROS context (the bridge has another)
     node, pub, command, odom = teleop_node(args.speed)
     try:
-        for _ in range(2000):  # until discovery has matched and the bridge holds the command
-            if bridge.cmd_vel is not None:
-                break
+        # Until discovery has matched both ways: the bridge holds the command AND an /odom came
+        # back. Each direction is discovered on its own; on a busy machine /odom can match seconds
+        # after /cmd_vel, and what is published before that is gone (volatile, keep-last 10).
+        deadline = time.monotonic() + 120.0
+        while bridge.cmd_vel is None or not odom:
+            if time.monotonic() > deadline:
+                raise SystemExit("teleop: no ROS 2 discovery between the bridge and this node in 120 s; "
+                                 "check ROS_DOMAIN_ID and that multicast works on loopback")
             pub.publish(command)
             rclpy.spin_once(node, timeout_sec=0.01)
             world.step(render=False)
+        odom.clear()  # count only what the driving below publishes
         start = jetbot.get_world_pose()[0]
         for _ in range(int(round(args.seconds / world.get_physics_dt()))):
             world.step(render=False)
