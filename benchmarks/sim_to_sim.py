@@ -228,11 +228,11 @@ def engine_options(model, warp_engine) -> dict:
         v = getattr(opt, name, None)
         if v is None:
             return None
-        v = v.numpy().ravel()[0] if hasattr(v, "numpy") else v
-        return float(v) if isinstance(v, (float, np.floating)) else int(v)
+        return float(v.numpy().ravel()[0] if hasattr(v, "numpy") else v)
 
-    return {name: {"mujoco": float(getattr(model.opt, name)) if isinstance(getattr(model.opt, name), float)
-                   else int(getattr(model.opt, name)), "warp": warp_value(name)} for name in OPTIONS}
+    out = {name: {"mujoco": float(getattr(model.opt, name)), "warp": warp_value(name)} for name in OPTIONS}
+    out["impratio"]["warp"] = warp_value("impratio_invsqrt") ** -2
+    return out
 
 
 def closed_loop(args, policy_args) -> dict:

@@ -59,3 +59,20 @@ def test_render_gpu_runs_on_the_cpu():
     result = run_benchmark("render_gpu.py", "--num-worlds", "2", "--width", "16", "--height", "12",
                            "--steps", "2", "--repeats", "1")
     assert result["ratio"] > 0
+
+
+def test_sim_to_sim_finds_the_engines_agreeing_from_walking_states():
+    """From states of the shipped policy walking: the same contacts per foot, forces and one-step
+    states within float32 noise; the options differ only in MuJoCo Warp's float32 tolerance."""
+    result = run_benchmark("sim_to_sim.py", "--worlds", "2", "--warmup", "10", "--record", "4",
+                           "--stride", "2", "--horizon", "4")
+    assert result["samples"] >= 2
+    differ = {k for k, v in result["options"].items() if v["warp"] is not None
+              and abs(v["mujoco"] - v["warp"]) > 1e-6 * max(abs(v["mujoco"]), 1e-12)}
+    assert differ == {"tolerance"}
+    at = result["at_state"]
+    assert at["feet_with_different_contact_count"] == 0.0
+    assert at["contacts_per_foot_mean"]["mujoco"] > 0
+    assert at["normal_force_rel_diff_p90"] < 1e-3
+    step = result["divergence_from_mujoco"]["warp"]["step_4"]
+    assert step["qpos_max_abs_p90"] < 1e-5 and step["qvel_max_abs_p90"] < 1e-3

@@ -208,3 +208,14 @@ def test_bad_device_and_engine_names_are_one_line_errors():
         make_engine(_box_model(), 1, engine="physx")
     with pytest.raises(InvalidValueError, match="runs on the CPU"):
         make_engine(_box_model(), 1, device="cuda", engine="mujoco")
+
+
+@pytest.mark.parametrize("task", ["humanoid-walk", "jetbot-goal"])
+def test_the_gpu_engine_runs_the_cpu_engines_options_but_a_float32_tolerance(task):
+    """MuJoCo Warp may override options silently (put_model); the only override for our models is
+    the solver tolerance, raised to 1e-6 for float32 (harmless: benchmarks/sim_to_sim.py)."""
+    model, _ = _task_model(task)
+    differ = make_engine(model, 1, device=DEVICE, engine="warp").option_differences()
+    assert set(differ) == {"tolerance"}, differ
+    assert differ["tolerance"][0] == model.opt.tolerance == 1e-8
+    assert differ["tolerance"][1] == pytest.approx(1e-6)

@@ -61,6 +61,11 @@ _CAPACITY = {
 
 _CAPACITY_BITS = sum(int(bit) for bit in _CAPACITY)
 
+# mjOption fields MuJoCo Warp's Option also holds (impratio as impratio_invsqrt: not compared)
+_OPTIONS = ("timestep", "integrator", "solver", "iterations", "ls_iterations", "tolerance", "ls_tolerance",
+            "cone", "noslip_iterations", "noslip_tolerance", "ccd_iterations", "ccd_tolerance",
+            "disableflags", "enableflags")
+
 # Every MjData field that is per world state, restored by reset; the protocol's
 # STATE_FIELDS plus the solver warm start (part of MuJoCo's integration state).
 _RESET_FIELDS = STATE_FIELDS + ("qacc_warmstart", "act_dot", "eq_active", "userdata")
@@ -232,6 +237,21 @@ class GpuEngine:
         self.compile_time_s: float | None = None
         """Seconds the first runs of step and forward took (kernel compile or cache load)."""
         self._warmed: set[tuple] = set()
+
+    def option_differences(self) -> dict[str, tuple[float, float]]:
+        """``{name: (MjModel's value, MuJoCo Warp's)}`` of the solver and integrator options that
+        MuJoCo Warp runs with another value than the CPU engine would. ``put_model`` raises
+        ``tolerance`` to at least 1e-6 (float32 cannot resolve less): ambulo's 1e-8 runs as 1e-6
+        here; Newton converges in ~2 iterations on contact-rich states, so this changes nothing
+        measurable (``benchmarks/sim_to_sim.py``). Any other entry is a new override to look at."""
+        def value(name):
+            v = getattr(self.wp_model.opt, name)
+            return float(v.numpy().ravel()[0] if isinstance(v, wp.array) else v)
+
+        pairs = {name: (float(getattr(self.model.opt, name)), value(name)) for name in _OPTIONS}
+        pairs["impratio"] = (float(self.model.opt.impratio), value("impratio_invsqrt") ** -2)
+        # float32 storage of float64 values is no difference
+        return {k: v for k, v in pairs.items() if not math.isclose(*v, rel_tol=1e-6)}
 
     # -- fields ---------------------------------------------------------------
     def field(self, name: str) -> torch.Tensor:
