@@ -105,8 +105,9 @@ def main(argv=None) -> dict:
     result = {
         "walk": args.walk, "speed_mps": args.speed, "gait": gait,
         "frames": args.frames, "resolution": [args.width, args.height], "path_m": round(score.path_length_m, 2),
-        "ate_rmse_cm": round(score.ate_rmse_m * 100, 3), "rpe_percent": round(score.rpe_percent, 3),
-        "rpe_deg_per_m": round(score.rpe_deg_per_m, 4),
+        "ate_rmse_cm": _scaled(score.ate_rmse_m, 100, 3), "rpe_percent": _scaled(score.rpe_percent, 1, 3),
+        "rpe_deg_per_m": _scaled(score.rpe_deg_per_m, 1, 4),
+        "ate_unavailable": score.ate_unavailable, "rpe_unavailable": score.rpe_unavailable,
         "vo_ms": {"median": round(float(np.median(run.vo_ms)), 2), "p90": round(float(np.percentile(run.vo_ms, 90)), 2)},
         "vo_fps": round(1e3 / float(np.median(run.vo_ms)), 1), "features": cfg.features, "pnp": cfg.pnp,
         "cuda_graphs": cfg.cuda_graphs and torch.device(cfg.device).type == "cuda",
@@ -118,7 +119,7 @@ def main(argv=None) -> dict:
         "textureless_wall_recovery_frames": wall, "fast_turns_kinematic_walk": turns,
         "files": [str(args.out / "groundtruth.tum"), str(args.out / "estimate.tum")],
     }
-    result["ratio"] = round(score.ate_rmse_m / 0.02, 3)
+    result["ratio"] = _scaled(score.ate_rmse_m, 1 / 0.02, 3)
     if gait is not None:
         print(f"policy walk: {gait['root_path_m']} m, {'FELL' if gait['fell'] else 'no fall'}, path error <= "
               f"{gait['max_cross_track_m']} m, pelvis >= {gait['min_pelvis_height_m']} m, clearance to walls, "
@@ -138,6 +139,11 @@ def main(argv=None) -> dict:
           f"evo_rpe tum {args.out}/groundtruth.tum {args.out}/estimate.tum --align --delta 1 --delta_unit m --all_pairs")
     print("RESULT " + json.dumps(result))
     return result
+
+
+def _scaled(value: float | None, scale: float, digits: int) -> float | None:
+    """``value * scale`` rounded, or None for a score the run cannot give (too short or too still)."""
+    return None if value is None else round(value * scale, digits)
 
 
 def _max_over(values: np.ndarray, scale: float) -> float | None:

@@ -28,9 +28,32 @@ def test_map_writes_trajectory_mesh_and_pictures(tmp_path, capsys):
 @pytest.mark.parametrize("argv,message", [
     (["map", "kitchen"], "no scene named 'kitchen'"),
     (["map", "indoor", "--frames", "1"], "--frames 1 is too small"),
+    (["map", "indoor", "--frames", "0"], "--frames 0 is too small; give --frames of at least 2"),
+    (["map", "indoor", "--frames", "-3"], "--frames -3 is too small; give --frames of at least 2"),
     (["map", "indoor", "--voxel", "5"], "--voxel 5.0 m is outside"),
 ])
 def test_bad_input_is_one_line(argv, message, capsys):
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and message in err and err.startswith("ambulo map: error:")
+
+
+@pytest.mark.parametrize("size,frames,reason", [
+    (("160", "120"), 2, "2 poses: the alignment needs at least 3 poses not on one line"),
+    # too few features at 64x48: the odometry never starts and its estimate stays at the first pose
+    (("64", "48"), 3, "the estimated camera did not move over the 3 poses"),
+])
+def test_a_run_too_short_or_still_to_score_still_maps(tmp_path, capsys, size, frames, reason):
+    """evo's Umeyama alignment raised on these (a degenerate covariance): the map is still written and
+    the score says why it is missing."""
+    out = tmp_path / "map"
+    argv = ["map", "indoor", "--frames", str(frames), "--width", size[0], "--height", size[1], "--out", str(out)]
+    assert main(argv) == 0
+    for name in ("estimate.tum", "groundtruth.tum", "mesh.ply", "costmap.png", "costmap.npz", "summary.json"):
+        assert (out / name).stat().st_size > 0, name
+    t = json.loads((out / "summary.json").read_text())["trajectory"]
+    assert t["num_poses"] == frames and t["ate_rmse_m"] is None and reason in t["ate_unavailable"]
+    assert t["rpe_percent"] is None and "no pose pairs 1 m apart" in t["rpe_unavailable"]
+    printed = capsys.readouterr().out
+    assert "trajectory: ATE n/a, RPE n/a" in printed and f"ATE not available: {reason}" in printed
+    assert ("visual odometry never started" in printed) == (size == ("64", "48"))

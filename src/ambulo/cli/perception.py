@@ -53,9 +53,19 @@ def run(args: argparse.Namespace) -> int:
     with tqdm(total=args.frames, desc="ambulo map", unit="frame", disable=None) as bar:
         summary = run_mapping(cfg, args.out, progress=lambda i: bar.update(1))
     t = summary["trajectory"]
-    print(f"trajectory: ATE {t['ate_rmse_m'] * 100:.2f} cm, RPE {t['rpe_percent']:.2f} % over "
-          f"{t['path_length_m']:.1f} m ({summary['poses']} poses, {args.walk} walk); map {summary['blocks']} blocks, "
-          f"mesh {summary['mesh']['vertices']} vertices")
+    ate = "n/a" if t["ate_rmse_m"] is None else f"{t['ate_rmse_m'] * 100:.2f} cm"
+    rpe = "n/a" if t["rpe_percent"] is None else f"{t['rpe_percent']:.2f} %"
+    print(f"trajectory: ATE {ate}, RPE {rpe} over {t['path_length_m']:.1f} m ({summary['poses']} poses, "
+          f"{args.walk} walk); map {summary['blocks']} blocks, mesh {summary['mesh']['vertices']} vertices")
+    for name, key in (("ATE", "ate_unavailable"), ("RPE", "rpe_unavailable")):
+        if t[key]:
+            print(f"  {name} not available: {t[key]}")
+    if not summary["vo_started"]:
+        fix = ("the map used the true poses; for a VO score give larger --width/--height" if args.true_poses else
+               "the map was fused at the start pose; give larger --width/--height (e.g. the default 640x480) "
+               "or --true-poses")
+        print(f"  visual odometry never started (too few features with depth in {args.width}x{args.height} images): "
+              f"{fix}")
     print(f"wrote {args.out}/: estimate.tum groundtruth.tum mesh.ply occupancy.png costmap.png steppable.png "
           "costmap.npz summary.json")
     return 0

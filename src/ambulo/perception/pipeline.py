@@ -56,7 +56,12 @@ class MapRunCfg(Checked):
 def run_mapping(cfg: MapRunCfg, out_dir: str | Path, progress=None) -> dict:
     """Walk, track, map; write ``estimate.tum``, ``groundtruth.tum``, ``mesh.ply``,
     ``occupancy.png``, ``costmap.png``, ``steppable.png``, ``costmap.npz`` (the occupancy and
-    costmap as one ``maps.Grid2D``) and ``summary.json`` into ``out_dir``; return the summary."""
+    costmap as one ``maps.Grid2D``) and ``summary.json`` into ``out_dir``; return the summary. A run
+    too short or too still to score has ``summary["trajectory"]`` metrics of None with their reasons
+    (``trajectory.score_tum``); its map is written all the same."""
+    if cfg.num_frames < 1:
+        raise ValueError(f"MapRunCfg.num_frames is {cfg.num_frames}: a map needs at least 1 frame; pass e.g. "
+                         "num_frames=600")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     scene = build_indoor_scene(cfg.scene)
@@ -109,6 +114,7 @@ def run_mapping(cfg: MapRunCfg, out_dir: str | Path, progress=None) -> dict:
         "frames": cfg.num_frames, "resolution": [cfg.width, cfg.height], "poses": "true" if cfg.use_true_poses else "vo",
         "vo_gyro": cfg.vo_gyro,
         "walk": cfg.walk_mode,
+        "vo_started": result.num_keyframes > 0,
         "trajectory": score.as_dict(),
         "evo_commands": [f"evo_ape tum {gt_file.name} {est_file.name} --align",
                          f"evo_rpe tum {gt_file.name} {est_file.name} --align --delta 1 --delta_unit m --all_pairs"],

@@ -59,6 +59,8 @@ class VoRun:
                 write_tum(folder / "estimate.tum", self.times_s, self.estimate_wc))
 
     def score(self, folder: str | Path) -> TrajectoryScore:
+        """Write both trajectories into ``folder`` and score them (``trajectory.score_tum``: a run too
+        short or too still to align or to span the RPE's metre gets None with the reason)."""
         gt, est = self.write(folder)
         return score_tum(gt, est)
 
@@ -77,6 +79,8 @@ def run_walk_vo(walk: HeadCameraWalk | PolicyHeadCameraWalk, num_frames: int, cf
     first pose (the simulator's world). ``imu``: pass the walk's gyro readings to the odometry."""
     if loss not in LOSSES:
         raise ValueError(f"loss={loss!r} is not one of {LOSSES}")
+    if num_frames < 1:
+        raise ValueError(f"num_frames is {num_frames}: a run needs at least 1 frame; pass e.g. num_frames=300")
     times, est, truth, states, vo_ms = [], [], [], [], []
     vo = None
     for i in range(num_frames):
