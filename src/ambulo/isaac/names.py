@@ -54,6 +54,14 @@ _ROTATIONS = _from("ambulo.isaac.rotations", "euler_angles_to_quat", "quat_to_eu
 _WHEELED = _from(_SIM, "WheeledRobot")
 _DIFFERENTIAL = _from(_SIM, "DifferentialController")
 _SAMPLE = _from("ambulo.isaac.sample", "BaseSample")
+_KIT_COMMANDS = "ambulo.isaac.kit_commands"
+"""Named, not imported, here: it imports the hook, which imports this table."""
+_URDF = {**_from("ambulo.isaac.urdf_types", "ImportConfig", "UrdfJoint", "UrdfJointDrive", "UrdfJointDriveType",
+                 "UrdfJointDynamics", "UrdfJointLimit", "UrdfJointTargetType", "UrdfJointType", "UrdfLink",
+                 "UrdfNormalSubdivisionScheme", "UrdfRobot"),
+         **_from("ambulo.isaac.urdf_importer", "Urdf", "acquire_urdf_interface", "release_urdf_interface")}
+_URDF_COMMANDS = _from("ambulo.isaac.urdf_importer", "URDFCreateImportConfig", "URDFImportRobot",
+                       "URDFParseAndImportFile", "URDFParseFile", "URDFParseText")
 _CARB = _from("ambulo.isaac.carb", "settings", "log_info", "log_warn", "log_error", "log_verbose",
               "Float3", "Float4")
 
@@ -133,6 +141,20 @@ MODULES: dict[str, dict[str, str]] = {
     "omni.usd": _all_of("ambulo.isaac.omni_usd"),
     "omni.kit.app": _all_of("ambulo.isaac.kit_app"),
     "omni.physx.scripts.physicsUtils": _all_of("ambulo.isaac.physics_utils"),
+    # Kit commands (omni.kit.commands.execute("CreatePrim", ...)) and their undo stack
+    "omni.kit.commands": _from(_KIT_COMMANDS, "Command", "create", "execute", "get_command_class", "get_command_doc",
+                               "get_command_parameters", "get_commands", "get_commands_list", "register",
+                               "register_all_commands_in_module", "set_logging_enabled", "unregister",
+                               "unregister_module_commands"),
+    "omni.kit.undo": _from(_KIT_COMMANDS, "can_redo", "can_undo", "clear_history", "clear_stack", "get_redo_stack",
+                           "get_undo_stack", "group", "redo", "undo"),
+    # the URDF importer: Isaac Sim 4.x, 2023.1 and 2022 names
+    "isaacsim.asset.importer.urdf": _URDF_COMMANDS,
+    "isaacsim.asset.importer.urdf._urdf": _URDF,
+    "omni.importer.urdf": _URDF_COMMANDS,
+    "omni.importer.urdf._urdf": _URDF,
+    "omni.isaac.urdf": _URDF_COMMANDS,
+    "omni.isaac.urdf._urdf": _URDF,
 }
 """Isaac module name -> {name it provides: "ambulo.module:attribute"}."""
 MODULES.update(REPLICATOR_MODULES)

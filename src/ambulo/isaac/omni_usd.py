@@ -35,9 +35,12 @@ def get_context(name: str = "") -> UsdContext:
 
 
 def get_stage_next_free_path(stage, path: str, prepend_default_prim: bool = True) -> str:
-    """``path``, or ``path_01``, ``path_02``, ... whichever is free on ``stage``."""
-    if prepend_default_prim and not path.startswith("/"):
-        path = f"{stage.GetDefaultPrim().GetPath()}/{path}"
+    """``path``, or ``path_01``, ``path_02``, ... whichever is free on ``stage``; with
+    ``prepend_default_prim``, under the default prim (``/Cube`` -> ``/World/Cube``) as Kit does."""
+    path = str(path)
+    root = str(stage.GetDefaultPrim().GetPath()) if stage.GetDefaultPrim() else ""
+    if prepend_default_prim and root and path != root and not path.startswith(root + "/"):
+        path = f"{root}/{path.lstrip('/')}"
     candidate, n = path, 0
     while stage.GetPrimAtPath(candidate).IsValid():
         n += 1

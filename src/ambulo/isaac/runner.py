@@ -8,10 +8,12 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from ambulo.sim.current import current_world_or_none, set_current_world
+from ambulo.sim.current import current_world_or_none
+from ambulo.sim.usd_stage import forget_stages
 
 from .app import run_budget
 from .hook import isaac_names
+from .kit_commands import clear_stack
 
 
 class ScriptPathError(FileNotFoundError):
@@ -45,7 +47,8 @@ def run_script(path: str | os.PathLike, argv: list[str] | tuple[str, ...] = (), 
     from .sample import BaseSample, run_sample  # noqa: PLC0415 - imports the World
 
     saved_argv, saved_path = sys.argv, list(sys.path)
-    set_current_world(None)
+    forget_stages()  # no World and an empty stage, as Kit starts a script (nothing left from a previous run)
+    clear_stack()  # no undo history either
     try:
         with isaac_names(), run_budget(seconds):
             sys.argv = [str(script), *argv]

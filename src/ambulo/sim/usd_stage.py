@@ -59,6 +59,9 @@ class UsdStage:
         root.SetCustomDataByKey(MIRRORED, True)
         self.stage.SetDefaultPrim(root)
         self._time_steps_per_second: int | None = None
+        self.on_adopt: list = []
+        """Callables ``f(world)`` run when a World adopts this stage (made before any World): what a
+        script put on the stage that belongs in the World's model (a URDF imported with Kit's command)."""
 
     @property
     def meters_per_unit(self) -> float:
@@ -269,4 +272,15 @@ def new_usd_stage() -> UsdStage:
     return _pending
 
 
-__all__ = ["MIRRORED", "ROOT", "UsdStage", "current_usd_stage", "new_usd_stage", "stage_for_new_world"]
+def forget_stages() -> None:
+    """No current World and no stage waiting for one (a new script run starts empty): the next
+    ``current_usd_stage()`` or ``World()`` makes a new stage. Needs no pxr."""
+    from .current import set_current_world  # noqa: PLC0415
+
+    global _pending
+    set_current_world(None)
+    _pending = None
+
+
+__all__ = ["MIRRORED", "ROOT", "UsdStage", "current_usd_stage", "forget_stages", "new_usd_stage",
+           "stage_for_new_world"]

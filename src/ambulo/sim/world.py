@@ -156,6 +156,9 @@ class World(TaskHost):
         self.viewport_camera.distance, self.viewport_camera.azimuth = 3.0, 135.0
         self.viewport_camera.elevation = -25.0
         set_current_world(self)
+        adopted, self.usd.on_adopt = self.usd.on_adopt, []
+        for attach in adopted:  # what a script imported onto the stage before this World existed
+            attach(self)
 
     @classmethod
     def instance(cls) -> World | None:
