@@ -57,3 +57,17 @@ def test_writes_return_their_size_in_bytes(tmp_path):
     assert atomic_write_text(tmp_path / "a.txt", "héllo") == (tmp_path / "a.txt").stat().st_size == 6
     size = atomic_save_npy(tmp_path / "a.npy", np.zeros((3, 5), np.float32))
     assert size == (tmp_path / "a.npy").stat().st_size
+
+
+def test_write_bytes_takes_any_buffer_and_a_failed_one_leaves_no_temporary(tmp_path):
+    from ambulo.utils.atomic import atomic_write_bytes
+
+    path = tmp_path / "a.bin"
+    array = np.arange(7, dtype=np.uint16)
+    assert atomic_write_bytes(path, array.data, fsync=True) == 14 == path.stat().st_size
+    assert path.read_bytes() == array.tobytes()
+    assert atomic_write_bytes(str(path), b"new") == 3 and path.read_bytes() == b"new"
+    with pytest.raises(TypeError):
+        atomic_write_bytes(path, object())  # not a buffer: fails after the temporary was made
+    assert path.read_bytes() == b"new"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.bin"]

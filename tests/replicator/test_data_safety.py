@@ -160,10 +160,15 @@ def test_truncated_images_and_empty_records_are_made_again_byte_identical(tmp_pa
     assert gen.file_tree(out) == gen.file_tree(clean)
 
 
-def test_frame_files_reach_the_disk_before_their_record(tmp_path, monkeypatch):
-    """Every data file is flushed before its rename, its folder after it, and only then the record is written."""
+@pytest.mark.parametrize("flush", ["syncfs", "fsync"])
+def test_frame_files_reach_the_disk_before_their_record(tmp_path, monkeypatch, flush):
+    """Every data file is flushed to disk before its record is written: with ``syncfs`` (Linux) one
+    flush of the file system after the batch's renames; else each file before its rename and its
+    folder after it."""
+    from ambulo.utils import atomic
+
     events = []
-    fsync, replace = os.fsync, os.replace
+    fsync, replace, syncfs = os.fsync, os.replace, atomic._syncfs
 
     def logged_fsync(fd):
         events.append(("fsync", os.readlink(f"/proc/self/fd/{fd}")))
@@ -173,10 +178,17 @@ def test_frame_files_reach_the_disk_before_their_record(tmp_path, monkeypatch):
         events.append(("replace", str(dst)))
         replace(src, dst)
 
+    def logged_syncfs(fd):
+        events.append(("syncfs", os.readlink(f"/proc/self/fd/{fd}")))
+        return syncfs(fd)
+
     if not sys.platform.startswith("linux"):
         pytest.skip("reads /proc/self/fd")
+    if flush == "syncfs" and syncfs is None:
+        pytest.skip("no syncfs in this C library")
     monkeypatch.setattr(os, "fsync", logged_fsync)
     monkeypatch.setattr(os, "replace", logged_replace)
+    monkeypatch.setattr(atomic, "_syncfs", logged_syncfs if flush == "syncfs" else None)
     out = make(config(), tmp_path / "d", 2).resolve()
     import json
 
@@ -187,6 +199,10 @@ def test_frame_files_reach_the_disk_before_their_record(tmp_path, monkeypatch):
         for relpath in files:
             path = out / relpath
             renamed = events.index(("replace", str(path)))
+            if flush == "syncfs":  # the whole file system, after the rename and before the record
+                assert any(renamed < i < record_at for i, (kind, p) in enumerate(events)
+                           if kind == "syncfs" and out.is_relative_to(p)), relpath
+                continue
             flushed = [i for i, (kind, p) in enumerate(events) if kind == "fsync" and Path(p).name.startswith(
                 f".{path.name}{TMP_MARK}") and Path(p).parent == path.parent]
             folder = [i for i, e in enumerate(events) if e == ("fsync", str(path.parent))]

@@ -1,6 +1,7 @@
 """The PNG encoder (ISA-L or zlib deflate) and the run-based COCO RLEs agree with the reference readers/encoders."""
 
 import io
+import os
 
 import imageio.v3 as iio
 import numpy as np
@@ -12,19 +13,28 @@ from ambulo.replicator import io as rio
 from ambulo.replicator.coco import instance_rles
 
 
-@pytest.fixture(params=["isal", "zlib"])
+@pytest.fixture(params=["zlib-ng", "zlib", "isal"])
 def deflate_kind(request, monkeypatch):
-    """Each deflate: zlib (the default) and ISA-L (AMBULO_PNG_DEFLATE=isal)."""
-    if request.param == "zlib":
-        monkeypatch.setattr(rio, "_isal_zlib", None)
-    else:
-        isal_zlib = pytest.importorskip("isal.isal_zlib")
-        monkeypatch.setattr(rio, "_isal_zlib", isal_zlib)
+    """Each deflate: zlib-ng (the default when installed), zlib and ISA-L (AMBULO_PNG_DEFLATE=isal)."""
+    pytest.importorskip({"zlib-ng": "zlib_ng", "zlib": "zlib", "isal": "isal"}[request.param])
+    name, compress, level = rio._pick_deflate(request.param)
+    assert name.startswith(request.param + " ")
+    monkeypatch.setattr(rio, "_compress", compress)
+    monkeypatch.setattr(rio, "_level", level)
     return request.param
 
 
-def test_zlib_is_the_default_deflate():
-    assert rio.PNG_DEFLATE.startswith("zlib") or __import__("os").environ.get("AMBULO_PNG_DEFLATE") == "isal"
+def test_zlib_ng_is_the_default_deflate_when_installed():
+    pytest.importorskip("zlib_ng")
+    assert rio._pick_deflate("")[0].startswith("zlib-ng ")
+    assert rio._pick_deflate("zlib")[0].startswith("zlib ")
+    if not os.environ.get("AMBULO_PNG_DEFLATE"):
+        assert rio.PNG_DEFLATE.startswith("zlib-ng ")
+
+
+def test_an_unknown_deflate_is_refused():
+    with pytest.raises(ValueError, match="AMBULO_PNG_DEFLATE"):
+        rio._pick_deflate("zstd")
 
 
 def test_png_round_trips_through_pillow_and_imageio_at_every_level(deflate_kind):
@@ -40,7 +50,7 @@ def test_png_round_trips_through_pillow_and_imageio_at_every_level(deflate_kind)
                 assert decoded.dtype == image.dtype and np.array_equal(decoded, image), (deflate_kind, level)
 
 
-def test_isal_deflate_is_about_the_same_size(deflate_kind):
+def test_every_deflate_is_about_the_same_size(deflate_kind):
     data = np.cumsum(np.random.default_rng(0).integers(0, 4, 200_000)).astype(np.uint16).tobytes()
     assert len(rio.deflate(data, 1)) < 1.3 * len(__import__("zlib").compress(data, 1))
 

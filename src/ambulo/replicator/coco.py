@@ -30,19 +30,26 @@ def frame_annotations(capture: dict, semantic_ids: np.ndarray, instance_names: l
     if len(ids) == 0:
         return []
     rles = instance_rles(capture["instance_segmentation"], ids)
-    boxes = mask_utils.toBbox(rles)
-    areas = mask_utils.area(rles)
-    loose = dict(zip(capture.get("bounding_box_2d_loose", {}).get("instance_id", []),
-                     capture.get("bounding_box_2d_loose", {}).get("box", [])))
+    # every array to Python numbers once (not one small conversion per annotation and field)
+    boxes = mask_utils.toBbox(rles).tolist()
+    areas = mask_utils.area(rles).tolist()
+    categories = np.asarray(semantic_ids).tolist()
+    loose_boxes = capture.get("bounding_box_2d_loose", {})
+    loose = dict(zip(np.asarray(loose_boxes.get("instance_id", [])).tolist(),
+                     np.asarray(loose_boxes.get("box", [])).tolist()))
     b3 = capture.get("bounding_box_3d")
+    if b3 is not None:
+        b3 = {key: b3[key].tolist() for key in ("center_w", "rot_w", "half_extent", "center_c", "rot_c")}
     fraction = capture.get("visible_fraction")
+    fraction = None if fraction is None else np.asarray(fraction, np.float64).tolist()
     out = []
     for k, iid in enumerate(ids.tolist()):
+        rle = rles[k]
         ann = {
-            "category_id": int(semantic_ids[iid]),
-            "bbox": [float(v) for v in boxes[k]],
+            "category_id": int(categories[iid]),
+            "bbox": boxes[k],
             "area": int(areas[k]),
-            "segmentation": {"size": [int(s) for s in rles[k]["size"]], "counts": rles[k]["counts"].decode()},
+            "segmentation": {"size": [int(s) for s in rle["size"]], "counts": rle["counts"].decode()},
             "iscrowd": 0,
             "instance_id": iid,
             "prim_path": instance_names[iid - 1],
@@ -52,39 +59,49 @@ def frame_annotations(capture: dict, semantic_ids: np.ndarray, instance_names: l
             ann["bbox_loose"] = [x0 + 0.5, y0 + 0.5, x1 - x0, y1 - y0]  # COCO: pixel edges, not centres
         if b3 is not None:
             i = iid - 1
-            ann["bbox_3d"] = {"center_w": b3["center_w"][i].tolist(), "rot_w": b3["rot_w"][i].tolist(),
-                              "half_extent": b3["half_extent"][i].tolist(),
-                              "center_c": b3["center_c"][i].tolist(), "rot_c": b3["rot_c"][i].tolist()}
+            ann["bbox_3d"] = {key: values[i] for key, values in b3.items()}
         if fraction is not None:
-            ann["visible_fraction"] = float(fraction[iid - 1])
+            ann["visible_fraction"] = fraction[iid - 1]
         out.append(ann)
     return out
 
 
 def instance_rles(instances: np.ndarray, ids: np.ndarray) -> list[dict]:
-    """Compressed COCO RLEs of the masks ``instances == id``, one per id of ``ids``.
+    """Compressed COCO RLEs of the masks ``instances == id``, one per id of ``ids`` (each id once).
 
-    The same bytes as ``mask_utils.encode`` of the K binary masks, ~5x faster:
+    The same bytes as ``mask_utils.encode`` of the K binary masks, ~10x faster:
     one pass finds the runs of equal ids in column-major order (COCO's), and
-    each instance's RLE counts are the gaps between its runs.
+    each instance's RLE counts are the gaps between its runs, all instances at once.
     """
     h, w = instances.shape
+    ids = np.asarray(ids)
+    if len(ids) == 0:
+        return []
     flat = instances.T.ravel()
-    starts = np.flatnonzero(flat[1:] != flat[:-1]) + 1
-    starts = np.concatenate(([0], starts))
-    ends = np.append(starts[1:], flat.size)
+    change = np.flatnonzero(flat[1:] != flat[:-1]) + 1
+    starts = np.concatenate(([0], change))
+    ends = np.concatenate((change, [flat.size]))
     order = np.argsort(flat[starts], kind="stable")  # runs grouped by id, in image order within an id
     values = flat[starts][order]
     first, last = np.searchsorted(values, ids, "left"), np.searchsorted(values, ids, "right")
+    runs = last - first
+    # id j's edges: 0, start, end, start, end, ..., H*W (2 n_j + 2 of them) at offset[j] of one array
+    size = 2 * runs + 2
+    offset = np.concatenate(([0], np.cumsum(size)[:-1]))
+    edges = np.empty(int(size.sum()), np.int64)
+    edges[offset], edges[offset + size - 1] = 0, flat.size
+    # the runs of every id in order, and each one's place in its id's list
+    owner = np.repeat(np.arange(len(ids)), runs)
+    place = np.arange(len(owner)) - np.repeat(np.cumsum(runs) - runs, runs)
+    picked = order[np.repeat(first, runs) + place]
+    edges[offset[owner] + 1 + 2 * place] = starts[picked]
+    edges[offset[owner] + 2 + 2 * place] = ends[picked]
+    gaps = np.diff(edges)  # zeros, ones, zeros, ... per id; the diff from one id's H*W to the next's 0 is dropped
     objs = []
-    for lo, hi in zip(first.tolist(), last.tolist()):
-        runs = order[lo:hi]
-        edges = np.empty(2 * len(runs) + 2, np.int64)  # 0, start, end, start, end, ..., H*W
-        edges[0], edges[-1] = 0, flat.size
-        edges[1:-1:2], edges[2:-1:2] = starts[runs], ends[runs]
-        counts = np.diff(edges)  # zeros, ones, zeros, ...: pycocotools drops an empty last run
-        objs.append({"counts": counts[:-1] if counts[-1] == 0 else counts, "size": [h, w]})
-    return mask_utils.frPyObjects(objs, h, w) if objs else []
+    for lo, n in zip(offset.tolist(), (size - 1).tolist()):
+        counts = gaps[lo:lo + n]
+        objs.append({"counts": counts[:-1] if counts[-1] == 0 else counts, "size": [h, w]})  # pycocotools drops
+    return mask_utils.frPyObjects(objs, h, w)                                                # an empty last run
 
 
 def coco_categories(categories: list[str]) -> list[dict]:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -24,8 +25,13 @@ class Uniform(Distribution):
     low: Any
     high: Any
 
+    @cached_property
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """``low`` and ``high`` as float arrays (made once)."""
+        return np.asarray(self.low, float), np.asarray(self.high, float)
+
     def sample(self, rng, size=None):
-        low, high = np.asarray(self.low, float), np.asarray(self.high, float)
+        low, high = self.bounds
         shape = low.shape if size is None else (size, *low.shape)
         return rng.uniform(low, high, shape)
 
@@ -89,6 +95,19 @@ def choice(options: Sequence[Any]) -> Choice:
 
 def constant(value) -> Constant:
     return Constant(value)
+
+
+def draw_rows(rng: np.random.Generator, distributions: Sequence, rows: int) -> list[list[float]]:
+    """``rows`` rows of one number from each of ``distributions`` (scalar ones; numbers are constants):
+    the numbers ``float(d.sample(rng))`` for each distribution in turn, row after row, would give.
+    When all are scalar ``Uniform``s they are drawn in one call: a uniform draw is ``low + (high - low)
+    * u`` for the generator's next ``u`` whether drawn alone or in an array, in C order."""
+    dists = [as_distribution(d) for d in distributions]
+    if dists and all(isinstance(d, Uniform) and d.bounds[0].ndim == d.bounds[1].ndim == 0 for d in dists):
+        low = np.array([d.bounds[0] for d in dists])
+        high = np.array([d.bounds[1] for d in dists])
+        return rng.uniform(low, high, (rows, len(dists))).tolist()
+    return [[float(d.sample(rng)) for d in dists] for _ in range(rows)]
 
 
 def as_distribution(value) -> Distribution:

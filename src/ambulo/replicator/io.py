@@ -1,10 +1,13 @@
 """A small, fast, deterministic PNG encoder and depth-image encoding.
 
-PNG deflate is ``zlib`` by default. ISA-L (the ``isal`` package, ~4x faster at the same
-size) is used when ``AMBULO_PNG_DEFLATE=isal`` is set and it is installed: once in ~60,000
-encodes it produced different bytes for the same pixels (issue #7's measurement), and
-ambulo promises byte-identical datasets for a seed, so speed is opt-in. Both release the
-GIL, so a writer thread overlaps with rendering. Files are written with
+PNG deflate is zlib-ng's (the ``zlib-ng`` package, in the ``data`` extra) when it is installed,
+else the standard library's ``zlib``: at level 1 zlib-ng takes a third of zlib's time for files
+~30% larger (``benchmarks/results/cpu-2026-11-25-replicator.md``), and like zlib it gives the
+same bytes for the same pixels every time. ``AMBULO_PNG_DEFLATE`` picks one: ``zlib-ng``,
+``zlib``, or ``isal`` (ISA-L, faster still, but once in ~60,000 encodes it produced different
+bytes for the same pixels (issue #7's measurement), and ambulo promises byte-identical datasets
+for a seed, so it is opt-in). The one in use is ``PNG_DEFLATE``, recorded in each dataset. All
+release the GIL, so a writer thread overlaps with rendering. Files are written with
 ``ambulo.utils.atomic``.
 """
 
@@ -16,27 +19,46 @@ import zlib
 
 import numpy as np
 
-_isal_zlib = None
-if os.environ.get("AMBULO_PNG_DEFLATE", "zlib").lower() == "isal":
-    try:
-        from isal import __version__ as _isal_version
-        from isal import isal_zlib as _isal_zlib
-    except ImportError:
-        pass
-
-# Recorded in metadata: the same frames give other (equally valid) PNG bytes with the other deflate.
-PNG_DEFLATE = f"isal {_isal_version}" if _isal_zlib is not None else f"zlib {zlib.ZLIB_RUNTIME_VERSION}"
+DEFLATES = ("zlib-ng", "zlib", "isal")
 
 
-def deflate(data: bytes, zlib_level: int) -> bytes:
-    """zlib-format stream of ``data``; ``zlib_level`` 0-9 as in ``zlib.compress``.
+def _pick_deflate(wanted: str):
+    """(name and version, compress function, zlib-level mapping) of the deflate ``wanted``
+    ('' = zlib-ng when installed, else zlib); an unavailable one falls back to zlib."""
+    wanted = wanted.lower()
+    if wanted not in ("", *DEFLATES):
+        raise ValueError(f"AMBULO_PNG_DEFLATE must be one of {DEFLATES}, got {wanted!r}")
+    if wanted in ("", "zlib-ng"):
+        try:
+            from zlib_ng import zlib_ng
+        except ImportError:
+            pass
+        else:
+            return f"zlib-ng {zlib_ng.ZLIBNG_VERSION}", zlib_ng.compress, lambda level: level
+    if wanted == "isal":
+        try:
+            from isal import __version__ as isal_version
+            from isal import isal_zlib
+        except ImportError:
+            pass
+        else:
+            # ISA-L has levels 0-3: zlib's 1-3, 4-6 and 7-9 map to 1, 2 and 3
+            return f"isal {isal_version}", isal_zlib.compress, lambda level: min(3, (level + 2) // 3)
+    return f"zlib {zlib.ZLIB_RUNTIME_VERSION}", zlib.compress, lambda level: level
 
-    ISA-L has levels 0-3: zlib's 1-3, 4-6 and 7-9 map to 1, 2 and 3. Level 0
-    (store) stays zlib's, since ISA-L's level 0 still compresses.
+
+# Recorded in metadata: the same frames give other (equally valid) PNG bytes with another deflate.
+PNG_DEFLATE, _compress, _level = _pick_deflate(os.environ.get("AMBULO_PNG_DEFLATE", ""))
+
+
+def deflate(data, zlib_level: int) -> bytes:
+    """zlib-format stream of ``data`` (bytes or a buffer); ``zlib_level`` 0-9 as in ``zlib.compress``.
+
+    Level 0 (store) is always zlib's: the others' level 0 may still compress.
     """
-    if _isal_zlib is None or zlib_level == 0:
-        return zlib.compress(data, zlib_level)
-    return _isal_zlib.compress(data, min(3, (zlib_level + 2) // 3))
+    if zlib_level == 0:
+        return zlib.compress(data, 0)
+    return _compress(data, _level(zlib_level))
 
 
 def _chunk(kind: bytes, data: bytes) -> bytes:
@@ -72,6 +94,7 @@ def encode_png(image: np.ndarray, compress_level: int = 1) -> bytes:
 
 def depth_to_mm_u16(depth_m: np.ndarray) -> np.ndarray:
     """Depth (m) as uint16 millimetres; 0 marks no return or beyond 65.535 m (the usual convention)."""
-    mm = np.rint(np.where(np.isfinite(depth_m), depth_m, 0.0) * 1000.0)
-    mm[(mm > 65535) | (mm < 0)] = 0
+    mm = np.multiply(depth_m, 1000.0)  # in the input's precision, as numbers times a Python float are
+    np.rint(mm, out=mm)
+    mm[~((mm >= 0) & (mm <= 65535))] = 0  # also NaN and +-inf (no return)
     return mm.astype(np.uint16)

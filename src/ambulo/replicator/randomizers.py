@@ -19,7 +19,7 @@ from ambulo.core import match_names
 from ambulo.utils.rotations import mat_to_quat, rot_about_axes
 from ambulo.utils.validate import Checked
 
-from .distributions import Distribution, as_distribution, normal, uniform
+from .distributions import Distribution, as_distribution, draw_rows, normal, uniform
 
 
 @dataclass
@@ -57,6 +57,26 @@ def to_json(value):
     if isinstance(value, (list, tuple)):
         return [to_json(v) for v in value]
     return value
+
+
+def _geoms_by_body(ngeom: int, geoms_per_body: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Every geom of the bodies' subtrees once, and the body whose value it takes: the last
+    body listing it, as a loop writing body after body would leave it."""
+    owner = np.full(ngeom, -1, np.int64)
+    for k, geoms in enumerate(geoms_per_body):
+        owner[geoms] = k
+    targets = np.flatnonzero(owner >= 0)
+    return targets, owner[targets]
+
+
+def _put(field: torch.Tensor, world: int, index, values) -> None:
+    """``field[world, index] = values`` in one write: through a NumPy view for host tensors
+    (a tenth of torch's cost per call), else on the field's device."""
+    if field.device.type == "cpu":
+        field.numpy()[world, index] = values
+        return
+    field[world, torch.as_tensor(np.asarray(index), device=field.device)] = torch.as_tensor(
+        np.asarray(values), dtype=field.dtype, device=field.device)
 
 
 @dataclass(kw_only=True)
@@ -120,12 +140,12 @@ class LightRandomizer(Randomizer):
         return to_json({"lights": out})
 
     def apply(self, params, ctx):
-        w = ctx.world
-        diffuse, ambient, direction = (ctx.engine.model_field(f) for f in ("light_diffuse", "light_ambient", "light_dir"))
-        for lid, p in zip(self._ids, params["lights"]):
-            diffuse[w, lid] = torch.tensor(p["diffuse"], dtype=diffuse.dtype)
-            ambient[w, lid] = p["ambient"]
-            direction[w, lid] = torch.tensor(p["dir"], dtype=direction.dtype)
+        lights = params["lights"][:len(self._ids)]
+        ids = self._ids[:len(lights)]
+        _put(ctx.engine.model_field("light_diffuse"), ctx.world, ids, [p["diffuse"] for p in lights])
+        # one number for the light's three ambient components
+        _put(ctx.engine.model_field("light_ambient"), ctx.world, ids, [[p["ambient"]] for p in lights])
+        _put(ctx.engine.model_field("light_dir"), ctx.world, ids, [p["dir"] for p in lights])
 
 
 @dataclass(kw_only=True)
@@ -142,15 +162,17 @@ class ColorRandomizer(Randomizer):
         if not self._bodies:
             raise ValueError(f"{self.name}: no body matches {self.prims!r}")
         self._geoms = [subtree_geoms(engine.model, b) for b in self._bodies]
+        self._targets, self._body_of = _geoms_by_body(engine.model.ngeom, self._geoms)
 
     def sample(self, rng, ctx):
-        colors = []
-        for _ in self._bodies:
-            h, s, v = (float(as_distribution(d).sample(rng)) for d in (self.hue, self.saturation, self.value))
-            colors.append(_hsv_to_rgb(h, s, v) + [1.0])
-        return {"rgba": colors}
+        hsv = draw_rows(rng, (self.hue, self.saturation, self.value), len(self._bodies))
+        return {"rgba": [_hsv_to_rgb(h, s, v) + [1.0] for h, s, v in hsv]}
 
     def apply(self, params, ctx):
+        colors = np.asarray(params["rgba"], np.float64).reshape(-1, 4)
+        if len(colors) == len(self._geoms):  # one write for every geom (what the per-body loop wrote)
+            _put(ctx.engine.model_field("geom_rgba"), ctx.world, self._targets, colors[self._body_of])
+            return
         rgba = ctx.engine.model_field("geom_rgba")
         for geoms, color in zip(self._geoms, params["rgba"]):
             rgba[ctx.world, geoms] = torch.tensor(color, dtype=rgba.dtype)
@@ -199,6 +221,7 @@ class MaterialRandomizer(Randomizer):
         self._geoms = [subtree_geoms(engine.model, b) for b in self._bodies]
         self._mat_ids = [engine.model.material(n).id for n in self._names]
         self._base = engine.model.geom_matid.copy()
+        self._targets, self._body_of = _geoms_by_body(engine.model.ngeom, self._geoms)
 
     def sample(self, rng, ctx):
         picks = []
@@ -208,6 +231,12 @@ class MaterialRandomizer(Randomizer):
         return {"palette_index": picks}
 
     def apply(self, params, ctx):
+        picks = np.asarray(params["palette_index"], np.int64)
+        if len(picks) == len(self._geoms):  # one write for every geom (what the per-body loop wrote)
+            pick = picks[self._body_of]
+            value = np.where(pick < 0, self._base[self._targets], np.asarray(self._mat_ids)[np.maximum(pick, 0)])
+            _put(ctx.engine.model_field("geom_matid"), ctx.world, self._targets, value)
+            return
         matid = ctx.engine.model_field("geom_matid")
         for geoms, pick in zip(self._geoms, params["palette_index"]):
             value = self._base[geoms] if pick < 0 else np.full(len(geoms), self._mat_ids[pick])
@@ -265,7 +294,7 @@ class JointRandomizer(Randomizer):
         return {"qpos": rng.uniform(self._low, self._high).tolist()}
 
     def apply(self, params, ctx):
-        ctx.engine.qpos[ctx.world, torch.as_tensor(self._adr)] = torch.tensor(params["qpos"], dtype=ctx.engine.dtype)
+        _put(ctx.engine.qpos, ctx.world, self._adr, params["qpos"])
 
 
 def quat_yaw(yaw: float) -> list[float]:

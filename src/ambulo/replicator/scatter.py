@@ -18,7 +18,7 @@ import torch
 from ambulo.core import match_names
 from ambulo.utils.rotations import quat_to_mat
 
-from .distributions import Distribution, as_distribution, uniform, uniform_int
+from .distributions import Distribution, as_distribution, draw_rows, uniform, uniform_int
 from .randomizers import Randomizer, match_bodies, quat_yaw, subtree_geoms
 
 
@@ -92,6 +92,9 @@ class Scatter2D(Randomizer):
             raise ValueError(f"{self.name}: no geom matches surface {self.surface!r}")
         self._checker = CollisionChecker(m, surface) if self.check_collisions else None
         self._bottom = [self._bottom_offset(m, b, g) for b, g in zip(self._bodies, self._geoms)]
+        # every body parked: one write of all their free-joint coordinates
+        self._park_index = np.concatenate([np.arange(adr, adr + 7) for adr in self._qadr])
+        self._park_values = np.concatenate([[0.0, 0.0, park_z(b), 1, 0, 0, 0] for b in self._bodies])
 
     @staticmethod
     def _bottom_offset(m, body, geoms) -> float:
@@ -117,11 +120,11 @@ class Scatter2D(Randomizer):
         qpos = ctx.engine.qpos[ctx.world].numpy().copy()
         self._park_all(qpos)
         todo = list(active)
+        place = (uniform(x0, x1), uniform(y0, y1), self.yaw_rad)  # x, y, yaw of each object in turn
         for _ in range(self.max_tries):
-            for i in todo:
-                poses[i] = [float(rng.uniform(x0, x1)), float(rng.uniform(y0, y1)),
-                            float(as_distribution(self.yaw_rad).sample(rng))]
-                self._write(qpos, i, poses[i])
+            for i, pose in zip(todo, draw_rows(rng, place, len(todo))):
+                poses[i] = pose
+                self._write(qpos, i, pose)
             if self._checker is None:
                 todo = []
                 break
@@ -151,8 +154,7 @@ class Scatter2D(Randomizer):
         qpos[adr + 3:adr + 7] = quat_yaw(yaw)
 
     def _park_all(self, qpos: np.ndarray) -> None:
-        for i, adr in enumerate(self._qadr):
-            qpos[adr:adr + 7] = [0.0, 0.0, park_z(self._bodies[i]), 1, 0, 0, 0]
+        qpos[self._park_index] = self._park_values
 
 
 def _geom_rot_in_root(m, geom: int, root: int) -> np.ndarray:

@@ -325,7 +325,7 @@ class Camera(Sensor):
         if "instance_segmentation" in names:
             out["instance_segmentation"] = instances
         if "semantic_segmentation" in names:
-            out["semantic_segmentation"] = table.semantic_ids[instances]
+            out["semantic_segmentation"] = np.take(table.semantic_ids, instances)  # faster than fancy indexing
         boxes, pixels = ann.tight_boxes(instances, table.num_instances)
         visible = np.flatnonzero(pixels > 0)
         if "bounding_box_2d_tight" in names:
@@ -434,6 +434,11 @@ class Camera(Sensor):
         if self._site_local is not None:
             site_pos, site_rot = self._site_local
             pos, rot = site_pos + pos @ site_rot.T, site_rot @ rot
+        quat = mat_to_quat(rot[0])[None] if len(rot) == 1 else mat_to_quat(rot)  # one: MuJoCo's C routine
+        if cam_pos.device.type == "cpu":  # NumPy views of the host tensors: ~10x cheaper per call
+            cam_pos.numpy()[ids, self.cam_id] = pos
+            cam_quat.numpy()[ids, self.cam_id] = quat
+            return
         ids_t = torch.as_tensor(ids, device=cam_pos.device)
         cam_pos[ids_t, self.cam_id] = torch.from_numpy(np.ascontiguousarray(pos)).to(cam_pos)
-        cam_quat[ids_t, self.cam_id] = torch.from_numpy(mat_to_quat(rot)).to(cam_quat)
+        cam_quat[ids_t, self.cam_id] = torch.from_numpy(quat).to(cam_quat)

@@ -14,6 +14,13 @@ def quat_to_mat(quat_wxyz: np.ndarray) -> np.ndarray:
     """(..., 4) unit quaternions -> (..., 3, 3) rotation matrices."""
     q = np.asarray(quat_wxyz, np.float64)
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    if q.ndim == 1:  # one quaternion: the same arithmetic on Python floats, ~10x faster than stacking
+        w, x, y, z = q.tolist()
+        return np.array([
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ])
     w, x, y, z = np.moveaxis(q, -1, 0)
     return np.stack([
         np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
