@@ -22,19 +22,9 @@ from ambulo.sensors.camera import Camera, CameraCfg
 from ambulo.sensors.lidar import LidarCfg
 from ambulo.sim import ArticulationAction, Robot, World, add_reference_to_stage
 from ambulo.sim.world import MAX_PHYSICS_DT_S, MAX_RENDERING_DT_S
-from ambulo.utils.checks import InvalidValueError, check_all_finite
+from ambulo.utils.checks import check_all_finite
 from ambulo.utils.overrides import OverrideError, apply_overrides
-
-
-def _raises(call, *parts: str, kind: type[Exception] = InvalidValueError) -> str:
-    """Run ``call``; it must raise ``kind`` with a one-line message holding every part."""
-    with pytest.raises(kind) as info:
-        call()
-    message = str(info.value)
-    assert "\n" not in message, message
-    for part in parts:
-        assert part in message, f"{part!r} not in {message!r}"
-    return message
+from one_line import raises_one_line
 
 
 @pytest.fixture(scope="module")
@@ -54,20 +44,20 @@ def jetbot():
                                      (math.nan, "must be finite"), (math.inf, "must be finite"),
                                      ("0.005", "expected a real number, got str")])
 def test_physics_dt_must_be_a_positive_finite_number(dt, why):
-    _raises(lambda: PhysicsCfg(timestep_s=dt), "timestep_s is", why, "pass seconds, e.g. 0.005")
-    _raises(lambda: World(physics_dt=dt), "physics_dt is", why, "pass seconds")
+    raises_one_line(lambda: PhysicsCfg(timestep_s=dt), "timestep_s is", why, "pass seconds, e.g. 0.005")
+    raises_one_line(lambda: World(physics_dt=dt), "physics_dt is", why, "pass seconds")
 
 
 def test_physics_dt_above_the_ceiling_is_refused_with_the_reason():
     too_large = 2 * MAX_TIMESTEP_S
-    _raises(lambda: PhysicsCfg(timestep_s=too_large), f"timestep_s is {too_large}",
+    raises_one_line(lambda: PhysicsCfg(timestep_s=too_large), f"timestep_s is {too_large}",
             "make contacts soft", f"pass a step <= {MAX_TIMESTEP_S} s")
     # the World divides physics_dt into substeps: 0.1 s in 4 substeps is a 0.025 s MuJoCo step
     assert World(physics_dt=too_large, substeps=4).physics.timestep_s == pytest.approx(too_large / 4)
     world = World(substeps=1)  # a fixed substep count: 0.5 s would be one 0.5 s MuJoCo step
-    _raises(lambda: world.set_simulation_dt(physics_dt=0.5), "physics_dt / substeps is 0.5",
+    raises_one_line(lambda: world.set_simulation_dt(physics_dt=0.5), "physics_dt / substeps is 0.5",
             "rendering_dt")
-    _raises(lambda: world.set_simulation_dt(physics_dt=-1.0), "physics_dt is -1.0", "must be > 0")
+    raises_one_line(lambda: world.set_simulation_dt(physics_dt=-1.0), "physics_dt is -1.0", "must be > 0")
     assert world.get_physics_dt() == pytest.approx(1 / 60)  # a refused change leaves the World as it was
 
 
@@ -76,15 +66,15 @@ def test_physics_dt_above_the_ceiling_is_refused_with_the_reason():
                                   lambda: World(physics=PhysicsCfg(timestep_s=0.005), substeps=2000)])
 def test_a_physics_step_longer_than_any_control_loop_is_refused(make):
     # 10 s passed MuJoCo's step check (2000 substeps of 5 ms) and ran physics callbacks every 10 s
-    _raises(make, "physics_dt", "is 10.0", f"the limit is {MAX_PHYSICS_DT_S} s", "pass seconds, e.g. physics_dt=1/60")
+    raises_one_line(make, "physics_dt", "is 10.0", f"the limit is {MAX_PHYSICS_DT_S} s", "pass seconds, e.g. physics_dt=1/60")
     assert World(physics_dt=MAX_PHYSICS_DT_S).get_physics_dt() == MAX_PHYSICS_DT_S  # the bound itself is fine
 
 
 @pytest.mark.parametrize("make", [lambda: World(rendering_dt=10), lambda: World().set_simulation_dt(rendering_dt=10)])
 def test_a_rendering_step_longer_than_a_second_is_refused(make):
-    _raises(make, "rendering_dt is 10", f"the limit is {MAX_RENDERING_DT_S} s", "pass seconds, e.g. rendering_dt=1/60")
+    raises_one_line(make, "rendering_dt is 10", f"the limit is {MAX_RENDERING_DT_S} s", "pass seconds, e.g. rendering_dt=1/60")
     world = World(physics_dt=0.01)
-    _raises(lambda: world.set_simulation_dt(rendering_dt=10.0), "rendering_dt is 10")
+    raises_one_line(lambda: world.set_simulation_dt(rendering_dt=10.0), "rendering_dt is 10")
     assert world.get_rendering_dt() == 0.01  # a refused change leaves the World as it was
 
 
@@ -94,15 +84,15 @@ def test_isaac_physics_context_and_step_async_step_sizes_are_checked():
     from ambulo.isaac.physics_context import PhysicsContext
 
     world = World()
-    _raises(lambda: PhysicsContext(physics_dt=10.0), "physics_dt is 10.0", "pass seconds")
-    _raises(lambda: asyncio.run(world.step_async(10.0)), "step_size is 10.0", "the limit is")
-    _raises(lambda: asyncio.run(world.step_async(0.01)), "step_size is 0.01", "set_simulation_dt")
+    raises_one_line(lambda: PhysicsContext(physics_dt=10.0), "physics_dt is 10.0", "pass seconds")
+    raises_one_line(lambda: asyncio.run(world.step_async(10.0)), "step_size is 10.0", "the limit is")
+    raises_one_line(lambda: asyncio.run(world.step_async(0.01)), "step_size is 0.01", "set_simulation_dt")
 
 
 def test_a_config_edited_after_construction_is_checked_at_compile():
     cfg = PhysicsCfg()
     cfg.timestep_s = -1.0
-    _raises(lambda: Simulation(new_scene(), cfg).start(), "timestep_s is -1.0", "pass seconds")
+    raises_one_line(lambda: Simulation(new_scene(), cfg).start(), "timestep_s is -1.0", "pass seconds")
 
 
 def test_timestep_too_large_for_the_stiffest_drive_warns():
@@ -123,16 +113,16 @@ def test_timestep_too_large_for_the_stiffest_drive_warns():
                                              ("50", "expected a whole number, got str"),
                                              (True, "expected a whole number, got bool")])
 def test_solver_iterations_must_be_a_whole_number(iterations, why):
-    _raises(lambda: PhysicsCfg(solver_iterations=iterations), "solver_iterations is", why,
+    raises_one_line(lambda: PhysicsCfg(solver_iterations=iterations), "solver_iterations is", why,
             "pass a whole number >= 1")
-    _raises(lambda: World(solver_iterations=iterations), "solver_iterations is", why)
+    raises_one_line(lambda: World(solver_iterations=iterations), "solver_iterations is", why)
 
 
 @pytest.mark.parametrize("gravity, why", [((0.0, -9.81), "expected 3 numbers, got 2"),
                                           ((0.0, 0.0, math.inf), "finite real number, not inf"),
                                           ("down", "expected 3 numbers, got str")])
 def test_gravity_is_three_finite_numbers(gravity, why):
-    _raises(lambda: World(gravity=gravity), "gravity_m_s2 is", why, "e.g. (0, 0, -9.81)")
+    raises_one_line(lambda: World(gravity=gravity), "gravity_m_s2 is", why, "e.g. (0, 0, -9.81)")
 
 
 # --- sizes -----------------------------------------------------------------------------------
@@ -141,8 +131,8 @@ def test_gravity_is_three_finite_numbers(gravity, why):
 @pytest.mark.parametrize("count, why", [(0, "must be >= 1"), (2.5, "got float"), ("4", "got str"),
                                         (np.float64(2.0), "got float")])
 def test_num_worlds_is_a_whole_number_of_at_least_one(count, why):
-    _raises(lambda: World(num_worlds=count), "num_worlds is", why, "e.g. num_worlds=64")
-    _raises(lambda: Simulation(new_scene(), PhysicsCfg(), num_worlds=count), "num_worlds is", why)
+    raises_one_line(lambda: World(num_worlds=count), "num_worlds is", why, "e.g. num_worlds=64")
+    raises_one_line(lambda: Simulation(new_scene(), PhysicsCfg(), num_worlds=count), "num_worlds is", why)
 
 
 def test_numpy_integers_are_whole_numbers():
@@ -150,10 +140,10 @@ def test_numpy_integers_are_whole_numbers():
 
 
 def test_num_envs_is_checked_by_make():
-    _raises(lambda: envs.make("cartpole", num_envs=0), "num_envs is 0", "e.g. num_envs=64")
-    _raises(lambda: envs.make_cfg("cartpole", num_envs="4"), "bad value '4' for num_envs: expected int",
+    raises_one_line(lambda: envs.make("cartpole", num_envs=0), "num_envs is 0", "e.g. num_envs=64")
+    raises_one_line(lambda: envs.make_cfg("cartpole", num_envs="4"), "bad value '4' for num_envs: expected int",
             "pass a value of that type", kind=OverrideError)
-    _raises(lambda: envs.make_cfg("cartpole", num_envs=2.5), "bad value 2.5 for num_envs",
+    raises_one_line(lambda: envs.make_cfg("cartpole", num_envs=2.5), "bad value 2.5 for num_envs",
             kind=OverrideError)
 
 
@@ -166,13 +156,13 @@ def test_num_envs_is_checked_by_make():
                                           (["left_wheel_joint"], "not all whole numbers")])
 def test_joint_indices_are_distinct_whole_numbers(jetbot, indices, why):
     _, robot = jetbot
-    _raises(lambda: robot.get_joint_positions(joint_indices=indices), "joint_indices is", why,
+    raises_one_line(lambda: robot.get_joint_positions(joint_indices=indices), "joint_indices is", why,
             "get_dof_index(name)")
 
 
 def test_joint_index_out_of_range_is_still_an_index_error(jetbot):
     _, robot = jetbot
-    _raises(lambda: robot.get_joint_positions(joint_indices=[2]), "index 2 is out of range for 2 joints",
+    raises_one_line(lambda: robot.get_joint_positions(joint_indices=[2]), "index 2 is out of range for 2 joints",
             "0..1", kind=IndexError)
 
 
@@ -185,7 +175,7 @@ def test_joint_index_out_of_range_is_still_an_index_error(jetbot):
 def test_actions_must_be_finite_real_numbers(jetbot, efforts, why):
     _, robot = jetbot
     before = robot.get_applied_action().joint_efforts.copy()
-    _raises(lambda: robot.apply_action(ArticulationAction(joint_efforts=efforts)), "joint_efforts is", why,
+    raises_one_line(lambda: robot.apply_action(ArticulationAction(joint_efforts=efforts)), "joint_efforts is", why,
             "pass finite real numbers of shape (2,)")
     np.testing.assert_array_equal(robot.get_applied_action().joint_efforts, before)
 
@@ -211,7 +201,7 @@ def test_value_checks_do_not_read_tensors_off_the_cpu():
     # reading a CUDA tensor's values syncs the GPU; "meta" tensors have no values to read at all
     on_device = torch.empty(3, device="meta")
     assert check_all_finite("x", on_device, "fix") is on_device
-    _raises(lambda: check_all_finite("x", torch.tensor([0.0, math.nan]), "pass finite x"),
+    raises_one_line(lambda: check_all_finite("x", torch.tensor([0.0, math.nan]), "pass finite x"),
             "x is NaN at some entries", "pass finite x")
 
 
@@ -221,13 +211,13 @@ def test_value_checks_do_not_read_tensors_off_the_cpu():
 def test_poses_refuse_inf_and_zero_quaternions(jetbot):
     _, robot = jetbot
     pos, quat = robot.get_world_pose()
-    _raises(lambda: robot.set_world_pose(position=[0.0, math.inf, 0.0]), "position is inf at some entries",
+    raises_one_line(lambda: robot.set_world_pose(position=[0.0, math.inf, 0.0]), "position is inf at some entries",
             "pass finite real numbers of shape (3,)")
-    _raises(lambda: robot.set_world_pose(orientation=[0.0, 0.0, 0.0, 0.0]), "orientation is a zero quaternion",
+    raises_one_line(lambda: robot.set_world_pose(orientation=[0.0, 0.0, 0.0, 0.0]), "orientation is a zero quaternion",
             "pass a (w, x, y, z) quaternion such as (1, 0, 0, 0)")
-    _raises(lambda: robot.set_default_state(orientation=[0.0, 0.0, 0.0, 0.0]), "zero quaternion")
-    _raises(lambda: robot.set_world_pose(position=[0.0, 0.0]), "position is of shape (2,)", "expected shape (3,)")
-    _raises(lambda: robot.set_world_pose(position=torch.tensor([1j, 0, 0])), "position is a torch.complex64 tensor",
+    raises_one_line(lambda: robot.set_default_state(orientation=[0.0, 0.0, 0.0, 0.0]), "zero quaternion")
+    raises_one_line(lambda: robot.set_world_pose(position=[0.0, 0.0]), "position is of shape (2,)", "expected shape (3,)")
+    raises_one_line(lambda: robot.set_world_pose(position=torch.tensor([1j, 0, 0])), "position is a torch.complex64 tensor",
             "expected real numbers", "pass finite real numbers")
     new_pos, new_quat = robot.get_world_pose()
     np.testing.assert_array_equal(new_pos, pos)
@@ -237,9 +227,9 @@ def test_poses_refuse_inf_and_zero_quaternions(jetbot):
 def test_prim_constructor_pose_is_checked():
     World()
     add_reference_to_stage(usd_path=assets.path("jetbot"), prim_path="/World/Jetbot")
-    _raises(lambda: Robot(prim_path="/World/Jetbot", orientation=[0, 0, 0, 0]), "orientation is",
+    raises_one_line(lambda: Robot(prim_path="/World/Jetbot", orientation=[0, 0, 0, 0]), "orientation is",
             "a zero quaternion is no rotation", "such as (1, 0, 0, 0)")
-    _raises(lambda: Robot(prim_path="/World/Jetbot", position=[0, 0, math.nan]), "position is",
+    raises_one_line(lambda: Robot(prim_path="/World/Jetbot", position=[0, 0, math.nan]), "position is",
             "finite real number, not nan", "pass (x, y, z) in m")
 
 
@@ -260,7 +250,7 @@ def test_prim_constructor_pose_is_checked():
     ({"offset_quat": (0, 0, 0, 0)}, ("offset_quat is", "zero quaternion", "(1, 0, 0, 0)")),
 ])
 def test_camera_parameters(kwargs, parts):
-    _raises(lambda: Camera(prim_path="/World/cam", **kwargs), *parts)
+    raises_one_line(lambda: Camera(prim_path="/World/cam", **kwargs), *parts)
 
 
 @pytest.mark.parametrize("kwargs, parts", [
@@ -274,7 +264,7 @@ def test_camera_parameters(kwargs, parts):
     ({"range_noise_std_m": -0.1}, ("range_noise_std_m is -0.1", "must be >= 0", "0: no noise")),
 ])
 def test_lidar_parameters(kwargs, parts):
-    _raises(lambda: LidarCfg(prim_path="/World/post/lidar", **kwargs), *parts)
+    raises_one_line(lambda: LidarCfg(prim_path="/World/post/lidar", **kwargs), *parts)
 
 
 def test_valid_sensor_configs_still_build():
@@ -297,4 +287,4 @@ def test_valid_sensor_configs_still_build():
 ])
 def test_env_cfg_overrides_are_checked_against_the_config(pair, parts):
     cfg = envs.spec("cartpole").cfg_fn()
-    _raises(lambda: apply_overrides(cfg, [pair]), *parts, kind=OverrideError)
+    raises_one_line(lambda: apply_overrides(cfg, [pair]), *parts, kind=OverrideError)

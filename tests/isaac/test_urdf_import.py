@@ -15,6 +15,7 @@ from ambulo import assets  # noqa: E402
 from ambulo.core import AssetError  # noqa: E402
 from ambulo.isaac import isaac_names, run_script  # noqa: E402
 from ambulo.sim.usd_stage import forget_stages  # noqa: E402
+from ambulo.utils.checks import InvalidValueError
 
 ISAAC_EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "isaac"
 POLE_GRAVITY_NM = 0.1 * 9.81 * 0.5
@@ -184,6 +185,13 @@ def test_bad_settings_and_files_fail_in_one_line(tmp_path):
                                             "type='ball'><parent link='a'/><child link='b'/></joint></robot>")
         with pytest.raises(AssetError, match='<joint name="j" type="ball"> needs a type of revolute'):
             _urdf.acquire_urdf_interface().parse_urdf(str(tmp_path), "ball.urdf", config)
+        config.set_density(-1000.0)  # set after it was built: refused when importing, in one line
+        with pytest.raises(InvalidValueError, match="density") as info:
+            omni.kit.commands.execute("URDFParseAndImportFile", urdf_path=assets.path("cartpole"),
+                                      import_config=config)
+        assert "\n" not in str(info.value)
+        with pytest.raises(InvalidValueError, match="distance_scale"):
+            _urdf.ImportConfig(distance_scale=0.0)
 
 
 def test_a_robot_placed_before_the_world_exists_is_simulated_where_it_was_placed():

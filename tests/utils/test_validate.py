@@ -21,18 +21,9 @@ import pytest
 
 from ambulo.utils.checks import InvalidValueError
 from ambulo.utils.validate import UNCHECKED, Checked, check_fields, rule
+from one_line import raises_one_line
 
 SRC = Path(__file__).resolve().parents[2] / "src" / "ambulo"
-
-
-def _refused(call, *parts: str) -> str:
-    with pytest.raises(InvalidValueError) as info:
-        call()
-    message = str(info.value)
-    assert "\n" not in message, message
-    for part in parts:
-        assert part in message, f"{part!r} not in {message!r}"
-    return message
 
 
 @dataclass(kw_only=True)
@@ -114,21 +105,21 @@ def test_a_bad_field_is_refused_in_one_line_naming_it_and_the_fix(kwargs, parts)
     if not parts:  # a valid nested config
         _Cfg(**kwargs)
         return
-    _refused(lambda: _Cfg(**kwargs), *parts)
+    raises_one_line(lambda: _Cfg(**kwargs), *parts)
 
 
 def test_nested_configs_are_checked_when_built_and_again_by_check_fields():
-    _refused(lambda: _Inner(timestep_s=-1.0), "_Inner.timestep_s is -1.0")
+    raises_one_line(lambda: _Inner(timestep_s=-1.0), "_Inner.timestep_s is -1.0")
     cfg = _Cfg()
     cfg.inner.timestep_s = -1.0  # edited after it was built
-    _refused(lambda: check_fields(cfg), "_Inner.timestep_s is -1.0", "pass seconds")
+    raises_one_line(lambda: check_fields(cfg), "_Inner.timestep_s is -1.0", "pass seconds")
     cfg = _Cfg()
     cfg.episode_length_s = -5.0
-    _refused(lambda: check_fields(cfg), "_Cfg.episode_length_s is -5.0")
+    raises_one_line(lambda: check_fields(cfg), "_Cfg.episode_length_s is -5.0")
 
 
 def test_dataclasses_replace_checks_too():
-    _refused(lambda: dataclasses.replace(_Cfg(), episode_length_s=-5.0), "episode_length_s is -5.0")
+    raises_one_line(lambda: dataclasses.replace(_Cfg(), episode_length_s=-5.0), "episode_length_s is -5.0")
 
 
 # --- the package's configs --------------------------------------------------------------------

@@ -33,6 +33,7 @@ from ambulo.core import DriveDefaults, RobotCfg, add_robot, is_drive
 from ambulo.core.usd_physx import _exclude_self_collisions
 from ambulo.sim.current import current_world_or_none
 from ambulo.sim.usd_stage import current_usd_stage
+from ambulo.utils.validate import check_fields
 
 from .kit_commands import Command, execute
 from .omni_usd import get_stage_next_free_path
@@ -151,6 +152,7 @@ def _physics_scene(stage, config: ImportConfig) -> None:
 
 def import_urdf(robot: UrdfRobot, config: ImportConfig, dest: str = "") -> str:
     """Place ``robot`` on the stage as Kit's importer does; returns its prim path."""
+    check_fields(config)  # set one by one (set_density(-1)) after it was built
     file = os.path.join(robot.asset_root, robot.urdf_path)
     usd = current_usd_stage()
     stage = usd.stage

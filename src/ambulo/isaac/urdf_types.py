@@ -15,6 +15,7 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field, fields
 
 from ambulo.core.asset_errors import AssetError, AssetNotFoundError
+from ambulo.utils.validate import Checked, rule
 
 
 class UrdfJointTargetType(enum.IntEnum):
@@ -45,8 +46,9 @@ class UrdfNormalSubdivisionScheme(enum.IntEnum):
 
 
 @dataclass
-class ImportConfig:
-    """Isaac's URDF import settings, with Isaac Sim 4.x's defaults (``set_<name>(value)`` works too)."""
+class ImportConfig(Checked):
+    """Isaac's URDF import settings, with Isaac Sim 4.x's defaults (``set_<name>(value)`` works too).
+    Checked when built and again by ``import_urdf``, since scripts set them one by one."""
 
     merge_fixed_joints: bool = True
     replace_cylinders_with_capsules: bool = False
@@ -54,12 +56,12 @@ class ImportConfig:
     import_inertia_tensor: bool = True
     fix_base: bool = True
     self_collision: bool = False
-    density: float = 0.0
+    density: float = field(default=0.0, metadata=rule(minimum=0))
     """kg/m^3 of links without an <inertial>; 0: MuJoCo's (and PhysX's) 1000."""
     default_drive_type: UrdfJointTargetType = UrdfJointTargetType.JOINT_DRIVE_POSITION
-    default_drive_strength: float = 1e3
-    default_position_drive_damping: float = 1e2
-    distance_scale: float = 1.0
+    default_drive_strength: float = field(default=1e3, metadata=rule(minimum=0))
+    default_position_drive_damping: float = field(default=1e2, metadata=rule(minimum=0))
+    distance_scale: float = field(default=1.0, metadata=rule(minimum=0, strict=True))
     up_vector: tuple = (0.0, 0.0, 1.0)
     create_physics_scene: bool = False
     make_default_prim: bool = False
