@@ -9,10 +9,11 @@ import pytest
 
 from ambulo.nav.balance import polygon_signed_distance
 from ambulo.nav.walk_controller import (
-    GROUND_GEOM, HUMANOID_FOOT, ROBOT_PRIM_PATH, StabilizerCfg, WalkIK, build_reference, walk_model, walk_physics,
-    walk_robot,
+    GROUND_GEOM, HUMANOID_FOOT, StabilizerCfg, WalkIK, build_reference, walk_model, walk_physics, walk_robot,
 )
 from ambulo.nav.walk_sim import WalkSimCfg, WalkSimulation, acceptance_walk, walk_pattern
+from ambulo.robots.humanoid import LEG_JOINTS, SOLE_SITES
+from ambulo.robots.humanoid import PRIM_PATH as ROBOT_PRIM_PATH
 
 GRAVITY = 9.81
 
@@ -171,7 +172,6 @@ def test_ik_agrees_with_mink(model):
     """The same targets solved by mink (MuJoCo-based differential IK with a QP, an independent
     implementation) give the same configuration: the task set is square, so the solution is unique."""
     mink = pytest.importorskip("mink")
-    from ambulo.nav.walk_controller import LEG_JOINTS
 
     q0 = model.key_qpos[model.key("home").id].copy()
     com, pelvis_yaw = np.array([0.05, 0.03, 0.80]), 0.05
@@ -185,7 +185,7 @@ def test_ik_agrees_with_mink(model):
     tasks = []
     # mink's CoM task is the subtree of body 1: walk_model's humanoid is attached first
     assert walk_robot(model).root_body_id == 1
-    for name, foot in zip(("left_sole", "right_sole"), feet):
+    for name, foot in zip(SOLE_SITES, feet):
         task = mink.FrameTask(f"{ROBOT_PRIM_PATH}/{name}", "site", position_cost=1.0, orientation_cost=1.0)
         task.set_target(se3(foot[:3], foot[3]))
         tasks.append(task)

@@ -42,21 +42,16 @@ import mujoco
 import numpy as np
 
 from ..core import EntityNames, GroundCfg, PhysicsCfg, RobotCfg, add_ground, add_robot, compile_scene, new_scene
+from ..robots import humanoid
+from ..robots.humanoid import BASE_BODY, LEG_JOINTS, PRIM_PATH, SOLE_SITES
 from ..utils.validate import Checked, rule
 from .balance import FootShape, lipm_omega, support_polygon
 from .preview import WalkPattern
 
-HUMANOID_FOOT = FootShape(length_m=0.22, width_m=0.09)
+HUMANOID_FOOT = FootShape(length_m=humanoid.SOLE_LENGTH_M, width_m=humanoid.SOLE_WIDTH_M)
 """The bundled humanoid's sole (0.22 x 0.09 m box) in the frame of its ``*_sole`` site (the sole
 centre on the ground): the foot frame of walking patterns for it."""
 
-LEG_JOINTS = ("hip_roll", "hip_yaw", "hip_pitch", "knee", "ankle_pitch", "ankle_roll")
-SOLE_SITES = ("left_sole", "right_sole")
-FOOT_BODIES = ("left_foot", "right_foot")
-
-
-ROBOT_PRIM_PATH = "/World/robot"
-"""Where ``walk_model`` places the humanoid: its elements are named ``/World/robot/<name>``."""
 GROUND_GEOM = "/World/defaultGroundPlane/geom"
 """The floor geom of ``walk_model`` (``core.GroundCfg``'s plane)."""
 OBSTACLES_PRIM_PATH = "/World/obstacles"
@@ -70,7 +65,7 @@ def walk_physics(timestep_s: float = 0.005) -> PhysicsCfg:
                       ls_iterations=50)
 
 
-def walk_robot(model: mujoco.MjModel, prim_path: str = ROBOT_PRIM_PATH) -> EntityNames:
+def walk_robot(model: mujoco.MjModel, prim_path: str = PRIM_PATH) -> EntityNames:
     """The humanoid's elements in ``model`` by name (``core.EntityNames``)."""
     robot = EntityNames(model, prim_path)
     if not robot.is_floating:
@@ -80,14 +75,14 @@ def walk_robot(model: mujoco.MjModel, prim_path: str = ROBOT_PRIM_PATH) -> Entit
 
 
 def walk_model(*, friction: float = 1.0, timestep_s: float = 0.005, obstacles=()) -> mujoco.MjModel:
-    """The bundled humanoid at ``ROBOT_PRIM_PATH`` on the core's ground plane (z = 0, geom
+    """The bundled humanoid at ``robots.humanoid.PRIM_PATH`` on the core's ground plane (z = 0, geom
     ``GROUND_GEOM``, with its sky and sun; every geom's sliding friction set to ``friction``),
     built by the core scene builder with ``walk_physics(timestep_s)``. ``obstacles``: boxes
     ``(center_x, center_y, size_x, size_y, height)`` in m standing on the floor (static geoms
     ``/World/obstacles/obstacle<i>``). The humanoid's ``home`` keyframe is kept as the model's
     ``home`` key. Look its elements up with ``walk_robot(model)``."""
     spec = new_scene("walk")
-    robot = add_robot(spec, RobotCfg(file="humanoid", prim_path=ROBOT_PRIM_PATH))
+    robot = add_robot(spec, RobotCfg(file=humanoid.ASSET, prim_path=PRIM_PATH))
     add_ground(spec, GroundCfg(static_friction=friction, dynamic_friction=friction, color=(0.32, 0.36, 0.40)))
     for i, (cx, cy, sx, sy, height) in enumerate(obstacles):
         spec.worldbody.add_geom(name=f"{OBSTACLES_PRIM_PATH}/obstacle{i}", type=mujoco.mjtGeom.mjGEOM_BOX,
@@ -131,13 +126,13 @@ class WalkIK:
     """Whole-body IK of the humanoid for walking: CoM (3), pelvis orientation (3) and both sole
     poses (6 + 6) from the floating base (6) and the leg joints (12); see the module docstring."""
 
-    def __init__(self, model: mujoco.MjModel, prim_path: str = ROBOT_PRIM_PATH):
+    def __init__(self, model: mujoco.MjModel, prim_path: str = PRIM_PATH):
         self.model = model
         self.data = mujoco.MjData(model)
         self.robot = robot = walk_robot(model, prim_path)
         self.root = robot.root_body_id
         """Model id of the humanoid's root body: its whole-body CoM is ``subtree_com[root]``."""
-        self.pelvis = robot.body_id("pelvis")
+        self.pelvis = robot.body_id(BASE_BODY)
         self.sites = [robot.site_id(name) for name in SOLE_SITES]
         legs = robot.joint_model_ids([f"{side}_{j}" for side in ("left", "right") for j in LEG_JOINTS])
         self.base_dofs = robot.free_dof_adr + np.arange(6)
@@ -229,7 +224,7 @@ def _home_qpos(model: mujoco.MjModel) -> np.ndarray:
 
 
 def build_reference(model: mujoco.MjModel, pattern: WalkPattern, *, ik_iterations: int = 20,
-                    prim_path: str = ROBOT_PRIM_PATH) -> WalkReference:
+                    prim_path: str = PRIM_PATH) -> WalkReference:
     """IK of every pattern sample, finite-difference velocities and accelerations, and the
     inverse-dynamics feed-forward (module docstring, steps 1-2) of the humanoid at ``prim_path``."""
     ik = WalkIK(model, prim_path)
@@ -351,7 +346,7 @@ class WalkController:
     """
 
     def __init__(self, model: mujoco.MjModel, pattern: WalkPattern, reference: WalkReference,
-                 stabilizer: StabilizerCfg | None = None, prim_path: str = ROBOT_PRIM_PATH):
+                 stabilizer: StabilizerCfg | None = None, prim_path: str = PRIM_PATH):
         self.model, self.pattern, self.ref = model, pattern, reference
         self.robot = robot = walk_robot(model, prim_path)
         self.root = robot.root_body_id
@@ -366,7 +361,7 @@ class WalkController:
         self.dof_act = np.full(model.nv, -1)
         self.dof_act[self.act_dof] = np.arange(model.nu)
         self.sites = [robot.site_id(name) for name in SOLE_SITES]
-        self.pelvis = robot.body_id("pelvis")
+        self.pelvis = robot.body_id(BASE_BODY)
         sides = ("left", "right")
         self.ankle_joints = [robot.joint_model_ids([f"{s}_ankle_{a}" for a in ("pitch", "roll")]).tolist()
                              for s in sides]
@@ -489,6 +484,6 @@ def _clip_into(point: np.ndarray, polygon: np.ndarray, margin_m: float) -> np.nd
     return center + lo * (point - center)
 
 
-__all__ = ["GROUND_GEOM", "HUMANOID_FOOT", "OBSTACLES_PRIM_PATH", "ROBOT_PRIM_PATH", "walk_model", "walk_physics",
+__all__ = ["GROUND_GEOM", "HUMANOID_FOOT", "OBSTACLES_PRIM_PATH", "walk_model", "walk_physics",
            "walk_robot", "WalkIK", "WalkReference", "build_reference", "StabilizerCfg",
            "WalkController"]

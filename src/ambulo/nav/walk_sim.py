@@ -28,20 +28,15 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
+from ..robots.humanoid import BASE_BODY, FOOT_BODIES, SOLE_SITES, SOLE_X_M, STANCE_WIDTH_M
 from ..utils.validate import Checked, rule
 from .balance import CenterOfPressure, FootShape, lipm_omega, polygon_signed_distance, support_polygon
 from .footsteps import FootstepPlan, FootstepPlanner, humanoid_footstep_cfg
 from .grid_map import GridMap
 from .preview import WalkPattern, WalkPatternGenerator, walk_pattern_cfg
 from .walk_controller import (
-    FOOT_BODIES, GROUND_GEOM, HUMANOID_FOOT, SOLE_SITES, StabilizerCfg, WalkController, build_reference, walk_model,
-    walk_robot,
+    GROUND_GEOM, HUMANOID_FOOT, StabilizerCfg, WalkController, build_reference, walk_model, walk_robot,
 )
-
-STANCE_WIDTH_M = 0.18
-"""Distance between the humanoid's soles in its ``home`` pose (hips 0.18 m apart), m."""
-SOLE_X_M = 0.03
-"""The sole centres stand this far ahead of the pelvis in ``home``, m."""
 
 
 def humanoid_walk_planner_cfg(**overrides):
@@ -188,7 +183,7 @@ class WalkSimulation:
         self.foot_bodies = [robot.body_id(b) for b in FOOT_BODIES]
         self.foot_geoms = [set(robot.geom_ids(b).tolist()) for b in FOOT_BODIES]
         self.floor = m.geom(GROUND_GEOM).id
-        self.pelvis = robot.body_id("pelvis")
+        self.pelvis = robot.body_id(BASE_BODY)
         self.omega = lipm_omega(float(pattern.com_pos_w[0, 2]))
 
     def _initial_state(self, data: mujoco.MjData, seed: int | None) -> None:
@@ -236,8 +231,8 @@ class WalkSimulation:
         cap_lift = np.full(max(len(pat.touchdown_index) - 1, 0), np.nan)
         start = self._body_pose(data)
         fell, fall_time, reason = False, None, ""
-        writer = _VideoWriter(m, video, width, height, fps, pat.dt_s, self.pelvis) if video else None
-        steps_done = 0
+        writer = _WalkFilm(m, video, width, height, fps, pat.dt_s, self.pelvis) if video else None
+        steps_done, failed = 0, True
         try:
             for k in range(num):
                 kk = min(k, num_pat - 1)
@@ -276,8 +271,9 @@ class WalkSimulation:
                 if on_step is not None:
                     on_step(k, data)
                 mujoco.mj_step(m, data)
+            failed = False
         finally:
-            frames = writer.close() if writer is not None else 0
+            frames = writer.close(failed) if writer is not None else 0
         n = steps_done
         return WalkResult(seed=seed, fell=fell, fall_time_s=fall_time, fall_reason=reason,
                           time_s=np.arange(n) * pat.dt_s, com_w=com[:n], cop_xy=cop_xy[:n], zmp_margin_m=margin[:n],
@@ -320,38 +316,36 @@ class WalkSimulation:
         return ""
 
 
-class _VideoWriter:
-    """MP4 of the walk: a camera following the pelvis from the side and behind."""
+class _WalkFilm:
+    """MP4 of the walk (``render.video``): a camera following the pelvis from the side and behind."""
 
     def __init__(self, model, path, width, height, fps, dt_s, track_body: int):
-        import imageio.v2 as imageio
-
         from ..render import OffscreenRenderer
+        from ..render.video import VideoWriter
 
-        self.path = os.fspath(path)
-        os.makedirs(os.path.dirname(os.path.abspath(self.path)), exist_ok=True)
+        self.every = max(1, round(1.0 / (fps * dt_s)))
+        self.writer = VideoWriter(path, fps=round(1.0 / (self.every * dt_s)), quality=7)
         self.renderer = OffscreenRenderer(model, width, height)
         self.camera = mujoco.MjvCamera()
         self.camera.type = mujoco.mjtCamera.mjCAMERA_TRACKING
         self.camera.trackbodyid = track_body
         self.camera.distance, self.camera.elevation, self.camera.azimuth = 3.5, -28.0, 120.0
         self.model = model
-        self.every = max(1, round(1.0 / (fps * dt_s)))
-        self.writer = imageio.get_writer(self.path, format="FFMPEG", fps=round(1.0 / (self.every * dt_s)),
-                                         codec="libx264", quality=7, macro_block_size=8)
-        self.frames = 0
 
     def capture(self, data, k: int) -> None:
         if k % self.every:
             return
         self.renderer.update_view(self.model, data, self.camera)
-        self.writer.append_data(np.ascontiguousarray(self.renderer.render_rgb()))
-        self.frames += 1
+        self.writer.append(self.renderer.render_rgb())
 
-    def close(self) -> int:
-        self.writer.close()
+    def close(self, failed: bool = False) -> int:
+        """Frames written; the video is kept unless the walk ``failed`` (raised) or filmed nothing."""
         self.renderer.close()
-        return self.frames
+        if failed or not self.writer.num_frames:
+            self.writer.abort()
+        else:
+            self.writer.close()
+        return self.writer.num_frames
 
 
 def grid_obstacles(grid: GridMap, height_m: float) -> list[tuple[float, float, float, float, float]]:
@@ -397,5 +391,5 @@ def acceptance_walk(distance_m: float = 3.0, turn_rad: float = math.pi / 2, *, c
     return plan, WalkSimulation(walk_pattern(plan, **pattern_kw), cfg)
 
 
-__all__ = ["grid_obstacles", "STANCE_WIDTH_M", "SOLE_X_M", "humanoid_walk_planner_cfg", "plan_walk", "walk_pattern", "WalkSimCfg",
+__all__ = ["grid_obstacles", "humanoid_walk_planner_cfg", "plan_walk", "walk_pattern", "WalkSimCfg",
            "WalkResult", "WalkSimulation", "straight_and_turn_goal", "acceptance_walk"]

@@ -1,0 +1,73 @@
+"""The bundled 21-DoF humanoid (``assets/data/humanoid.xml``): the one home of its facts.
+
+Element names are the MJCF's own; a scene built with ``ambulo.core`` prefixes them with the
+robot's prim path (``/World/robot/left_sole``). The numbers are the model's geometry, and
+``tests/robots/test_humanoid.py`` checks every one against the compiled model. The shipped
+walking policy's physics step is read from its contract, not restated.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from .. import assets
+
+ASSET = "humanoid"
+"""The bundled asset: ``assets.path(ASSET)``, ``RobotCfg(file=ASSET)``."""
+
+PRIM_PATH = "/World/robot"
+"""Where the apps built on ``ambulo.core.scene`` (walking controller, RL task, replicator,
+perception) place the humanoid: its elements are named ``/World/robot/<name>``."""
+STAGE_PRIM_PATH = "/World/Humanoid"
+"""Where the Isaac-style apps (``ambulo.demo``, the ROS 2 bridge) reference it onto the stage."""
+
+BASE_BODY = "pelvis"
+"""The floating base (on the free joint ``root``)."""
+FOOT_BODIES = ("left_foot", "right_foot")
+SOLE_SITES = ("left_sole", "right_sole")
+"""Sole centres on the ground, x forward: the foot frames of walking patterns."""
+LEG_JOINTS = ("hip_roll", "hip_yaw", "hip_pitch", "knee", "ankle_pitch", "ankle_roll")
+"""One leg's joints, hip to ankle; the joints are ``left_<name>`` and ``right_<name>``."""
+IMU_SITE = "imu"
+"""On the pelvis."""
+
+HEAD_CAMERA_SITE = "head_camera_mount"
+"""The head's camera mount (site on the ``head`` body, 0.095 m ahead of and 0.09 m above its origin;
+x forward, z up). The camera's pose on it and its intrinsics are each app's choice (a ``CameraCfg``
+``offset_quat`` and focal length / field of view)."""
+HEAD_CAMERA_LEAF = "camera"
+"""A head camera's prim is the mount site's prim plus this leaf."""
+
+
+def head_camera_prim(prim_path: str = PRIM_PATH) -> str:
+    """The head camera's prim path on the humanoid at ``prim_path``."""
+    return f"{prim_path}/{HEAD_CAMERA_SITE}/{HEAD_CAMERA_LEAF}"
+
+
+HEAD_CAMERA_PRIM = head_camera_prim()
+"""``/World/robot/head_camera_mount/camera``: the head camera on the humanoid at ``PRIM_PATH``."""
+
+SOLE_LENGTH_M = 0.22
+SOLE_WIDTH_M = 0.09
+"""The sole box (0.22 x 0.09 m) is centred on the ``*_sole`` site."""
+STANCE_WIDTH_M = 0.18
+"""Distance between the soles in the ``home`` pose and at the initial state (hips 0.18 m apart), m."""
+SOLE_X_M = 0.03
+"""The sole centres stand this far ahead of the pelvis in ``home`` and at the initial state, m."""
+PELVIS_HEIGHT_M = 0.92
+"""The pelvis height standing straight-legged (the model's initial state, all joints 0) with the
+soles on z = 0, m. (The ``home`` keyframe crouches slightly, to 0.904 m.)"""
+
+POLICY_TASK = "humanoid-walk"
+"""The task of the shipped walking policy (``assets/data/policies/humanoid_walk``)."""
+POLICY_CONTRACT_FILE = Path(assets.get_assets_root_path()) / "policies" / "humanoid_walk" / "contract.json"
+POLICY_PHYSICS_DT_S = float(json.loads(POLICY_CONTRACT_FILE.read_text())["physics_dt_s"])
+"""The physics step the shipped walking policy was trained at, s (its contract's ``physics_dt_s``):
+a World that runs the policy steps this."""
+
+__all__ = [
+    "ASSET", "BASE_BODY", "FOOT_BODIES", "HEAD_CAMERA_LEAF", "HEAD_CAMERA_PRIM", "HEAD_CAMERA_SITE", "IMU_SITE",
+    "LEG_JOINTS", "PELVIS_HEIGHT_M", "POLICY_CONTRACT_FILE", "POLICY_PHYSICS_DT_S", "POLICY_TASK", "PRIM_PATH",
+    "SOLE_LENGTH_M", "SOLE_SITES", "SOLE_WIDTH_M", "SOLE_X_M", "STAGE_PRIM_PATH", "STANCE_WIDTH_M", "head_camera_prim",
+]
