@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import assets
+from .robots import humanoid as humanoid_facts
 from .sim import (
     ArticulationAction, DifferentialController, DynamicCuboid, HumanoidWalkingPolicy, Robot, WheeledRobot,
     World, set_camera_view,
@@ -20,7 +21,7 @@ HUMANOID_COMMAND = (0.25, 0.0, 0.6)
 
 def build_demo_world(num_worlds: int = 1) -> tuple[World, WheeledRobot, Robot]:
     """The demo stage: ground, a Jetbot at (1, 0), the 21-DoF humanoid at the origin, two crates."""
-    world = World(physics_dt=0.005, rendering_dt=0.02, num_worlds=num_worlds)
+    world = World(physics_dt=humanoid_facts.POLICY_PHYSICS_DT_S, rendering_dt=0.02, num_worlds=num_worlds)
     world.scene.add_default_ground_plane()
     jetbot = world.scene.add(WheeledRobot(
         prim_path="/World/Jetbot", name="jetbot", create_robot=True, usd_path=assets.path("jetbot"),
@@ -29,8 +30,8 @@ def build_demo_world(num_worlds: int = 1) -> tuple[World, WheeledRobot, Robot]:
     ))
     from .sim import add_reference_to_stage  # noqa: PLC0415
 
-    add_reference_to_stage(usd_path=assets.path("humanoid"), prim_path="/World/Humanoid")
-    humanoid = world.scene.add(Robot(prim_path="/World/Humanoid", name="humanoid"))
+    add_reference_to_stage(usd_path=assets.path(humanoid_facts.ASSET), prim_path=humanoid_facts.STAGE_PRIM_PATH)
+    humanoid = world.scene.add(Robot(prim_path=humanoid_facts.STAGE_PRIM_PATH, name="humanoid"))
     for i, (x, y) in enumerate(((-0.8, 0.6), (-0.6, -0.9))):
         world.scene.add(DynamicCuboid(prim_path=f"/World/Crate_{i}", position=[x, y, 0.15], size=0.3,
                                       mass=3.0, color=[0.8, 0.55, 0.2], semantic_label="crate"))

@@ -90,12 +90,12 @@ def test_humanoid_cmd_vel_gets_the_walking_policy_only_at_its_physics_dt():
     from ambulo.assets.policies import load_policy
     from ambulo.ros2 import SceneCfg, humanoid_world
     from ambulo.ros2.commands import NoWalkingPolicy, WalkingPolicyDrive, default_cmd_vel_handler
-    from ambulo.ros2.scenes import HUMANOID_PHYSICS_DT_S
+    from ambulo.robots.humanoid import POLICY_PHYSICS_DT_S
 
     contract = load_policy("humanoid-walk").contract
-    assert HUMANOID_PHYSICS_DT_S == contract["physics_dt_s"]
+    assert POLICY_PHYSICS_DT_S == contract["physics_dt_s"]
     world = humanoid_world(SceneCfg(camera=False))
-    assert world.get_physics_dt() == HUMANOID_PHYSICS_DT_S
+    assert world.get_physics_dt() == POLICY_PHYSICS_DT_S
     robot = world.scene.get_object("humanoid")
     handler = default_cmd_vel_handler(robot, world.get_physics_dt())
     assert isinstance(handler, WalkingPolicyDrive)

@@ -21,6 +21,7 @@ import torch
 from ambulo.core import GroundCfg, PhysicsCfg, RobotCfg
 from ambulo.core.observations import velocity_policy_terms
 from ambulo.core.rows import put_rows, select_rows, take_rows
+from ambulo.robots import humanoid
 from ambulo.sensors import ContactSensor, ContactSensorCfg
 from ambulo.utils.validate import rule
 
@@ -37,8 +38,8 @@ from .registry import Criterion, TaskSpec, register
 class HumanoidWalkCfg(EnvCfg):
     """humanoid-walk settings."""
 
-    base_body: str = "pelvis"
-    feet_bodies: tuple[str, ...] = ("left_foot", "right_foot")
+    base_body: str = humanoid.BASE_BODY
+    feet_bodies: tuple[str, ...] = humanoid.FOOT_BODIES
     action_scale: float = 0.25
     """Joint target offset for an action of 1, rad. legged_gym's 0.25: with 0.5, PPO's initial
     exploration noise toppled the stiff-jointed humanoid within 0.8 s and a 300-iteration CPU
@@ -84,7 +85,7 @@ def humanoid_walk_cfg() -> HumanoidWalkCfg:
     position 0.01 rad, joint velocity 1.5 rad/s), in scaled units.
     """
     return HumanoidWalkCfg(
-        robot=RobotCfg(file="humanoid", prim_path="/World/robot"),
+        robot=RobotCfg(file=humanoid.ASSET, prim_path=humanoid.PRIM_PATH),
         robot_keyframe="home",
         ground=GroundCfg(static_friction=1.0, dynamic_friction=1.0, restitution=0.0),
         physics=PhysicsCfg(timestep_s=0.005, integrator="implicitfast", solver_iterations=50,

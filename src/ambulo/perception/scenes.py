@@ -16,11 +16,8 @@ import mujoco
 import numpy as np
 
 from ambulo.core import GroundCfg, RobotCfg, add_ground, add_light, add_robot, new_scene
+from ambulo.robots import humanoid
 from ambulo.utils.validate import Checked
-
-ROBOT_PRIM = "/World/robot"
-HEAD_CAMERA_PRIM = ROBOT_PRIM + "/head_camera_mount/camera"
-"""The head camera's prim path: a leaf on the bundled humanoid's ``head_camera_mount`` site."""
 
 
 @dataclass(frozen=True)
@@ -70,7 +67,7 @@ class IndoorSceneCfg(Checked):
     texture_px: int = 512
     """Side of each procedural texture image, px."""
     with_robot: bool = True
-    """Add the bundled humanoid at ``ROBOT_PRIM`` (its head carries the camera)."""
+    """Add the bundled humanoid at ``robots.humanoid.PRIM_PATH`` (its head carries the camera)."""
 
 
 @dataclass
@@ -210,7 +207,7 @@ def build_indoor_scene(cfg: IndoorSceneCfg | None = None, *, spec: mujoco.MjSpec
         moving.append(box)
         motion.append((rng.uniform(0.4, 0.8), 0.0, rng.uniform(0.3, 0.6), rng.uniform(0, 1)))
     if cfg.with_robot:
-        add_robot(spec, RobotCfg(file="humanoid", prim_path=ROBOT_PRIM))
+        add_robot(spec, RobotCfg(file=humanoid.ASSET, prim_path=humanoid.PRIM_PATH))
     return IndoorScene(spec=spec, cfg=cfg, solids=solids, moving=moving,
                        motion=np.array(motion, float).reshape(-1, 4))
 
@@ -220,5 +217,5 @@ def scene_names() -> list[str]:
     return ["indoor"]
 
 
-__all__ = ["HEAD_CAMERA_PRIM", "ROBOT_PRIM", "IndoorScene", "IndoorSceneCfg", "SolidBox", "build_indoor_scene", "with_floor",
+__all__ = ["IndoorScene", "IndoorSceneCfg", "SolidBox", "build_indoor_scene", "with_floor",
            "noise_texture", "scene_names"]

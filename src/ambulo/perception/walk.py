@@ -26,17 +26,16 @@ import numpy as np
 import torch
 
 from ambulo.core import PhysicsCfg, Simulation
+from ambulo.robots.humanoid import HEAD_CAMERA_PRIM, PELVIS_HEIGHT_M, POLICY_PHYSICS_DT_S
+from ambulo.robots.humanoid import PRIM_PATH as ROBOT_PRIM
 from ambulo.sensors import Camera, CameraCfg, Imu, ImuCfg
 from ambulo.sensors.imu_noise import ImuNoiseCfg, euroc_adis16448
 from ambulo.utils.rotations import mat_to_quat, quat_to_mat
 from ambulo.utils.validate import Checked
 
 from .frames import RgbdFrame
-from .scenes import HEAD_CAMERA_PRIM, ROBOT_PRIM, IndoorScene, build_indoor_scene
+from .scenes import IndoorScene, build_indoor_scene
 from .walk_imu import GyroStream, mean_body_rates_rad_s
-
-PELVIS_HEIGHT_M = 0.92
-"""The bundled humanoid's standing pelvis height (humanoid.xml: soles on z = 0)."""
 
 
 @dataclass(kw_only=True)
@@ -237,10 +236,6 @@ def capture_frame(camera: Camera, t_s: float) -> RgbdFrame:
 WALK_MODES = ("policy", "kinematic")
 """How the humanoid moves: walking under the shipped policy, or played kinematically (module doc)."""
 
-PHYSICS_DT_S = 0.005
-"""The World's physics step in policy mode: the step the walking policy was trained with."""
-
-
 class LoopFollower:
     """Pure pursuit (Coulter 1992, *Implementation of the Pure Pursuit Path Tracking Algorithm*,
     CMU-RI-TR-92-01) around the walk's loop: velocity commands ``(vx, vy, yaw_rate)`` for the
@@ -283,10 +278,11 @@ class LoopFollower:
 
 class PolicyHeadCameraWalk:
     """The humanoid walking the loop under the shipped walking policy, simulated in an
-    ``ambulo.sim.World`` (physics every ``PHYSICS_DT_S``) that holds the indoor scene (built into the
-    World's stage from ``scene.cfg``: the same seed, the same scene); ``frame(i)`` is the head
-    camera's RGB-D frame after ``i`` frame periods of simulated time, with its simulated pose. The
-    World's ``rendering_dt`` is ``1 / walk.fps``: at 30 Hz a frame period is 6 or 7 physics steps
+    ``ambulo.sim.World`` (physics every ``POLICY_PHYSICS_DT_S``, the policy's step, from
+    ``robots.humanoid``) that holds the indoor scene (built into the World's stage from
+    ``scene.cfg``: the same seed, the same scene); ``frame(i)`` is the head camera's RGB-D frame
+    after ``i`` frame periods of simulated time, with its simulated pose. The World's
+    ``rendering_dt`` is ``1 / walk.fps``: at 30 Hz a frame period is 6 or 7 physics steps
     (20 steps every 3 frames), so frame ``i`` is at the last 5 ms step at or before ``i / 30`` s,
     and its ``time_s`` says exactly when.
 
@@ -301,7 +297,7 @@ class PolicyHeadCameraWalk:
         from ambulo.sim import HumanoidWalkingPolicy, Robot, World  # noqa: PLC0415 - the sim layer is heavy
 
         self.walk = walk or WalkCfg()
-        self.world = World(physics_dt=PHYSICS_DT_S, rendering_dt=1.0 / self.walk.fps)
+        self.world = World(physics_dt=POLICY_PHYSICS_DT_S, rendering_dt=1.0 / self.walk.fps)
         self.scene = build_indoor_scene(scene.cfg, spec=self.world.stage.mjspec)
         if not self.scene.cfg.with_robot:
             raise ValueError("the policy walk needs the humanoid in the scene: IndoorSceneCfg(with_robot=True)")
@@ -320,7 +316,7 @@ class PolicyHeadCameraWalk:
         self.walker_enabled = walker
         """False stands the humanoid in place with its drives holding the default pose (tests use it)."""
         self.follower = LoopFollower(self.walk)
-        self._decimation = int(round(self.walker.contract["control_dt_s"] / PHYSICS_DT_S))
+        self._decimation = int(round(self.walker.contract["control_dt_s"] / POLICY_PHYSICS_DT_S))
         self._mocap = self.world.engine.field("mocap_pos") if self.scene.moving else None
         model = self.world.engine.model
         self._robot_geoms = [g for g in range(model.ngeom) if model.geom(g).name.startswith(ROBOT_PRIM + "/")
@@ -352,7 +348,7 @@ class PolicyHeadCameraWalk:
         now = self.world.current_time
         if now > self.gyro.last_time_s + 1e-9:
             rates = self.imu.clean_reading()[1][:1].cpu().numpy()
-            self.gyro.add(np.array([now]), rates, PHYSICS_DT_S)
+            self.gyro.add(np.array([now]), rates, POLICY_PHYSICS_DT_S)
 
     def _on_physics_step(self, dt_s: float) -> None:
         self._sample_gyro()
@@ -422,5 +418,5 @@ def make_walk(scene: IndoorScene, walk: WalkCfg | None = None, *, mode: str, wid
     return cls(scene, walk, width=width, height=height, focal_length_px=focal_length_px)
 
 
-__all__ = ["HeadCameraWalk", "LoopFollower", "PELVIS_HEIGHT_M", "PHYSICS_DT_S", "PolicyHeadCameraWalk",
+__all__ = ["HeadCameraWalk", "LoopFollower", "PolicyHeadCameraWalk",
            "WALK_MODES", "WalkCfg", "capture_frame", "head_camera", "loop_point", "make_walk", "root_pose"]

@@ -13,6 +13,7 @@ import mujoco
 import numpy as np
 
 from ambulo.core import GroundCfg, RobotCfg, add_ground, add_light, add_robot, new_scene, set_semantic_label
+from ambulo.robots import humanoid
 from ambulo.sensors import CameraCfg
 
 from .config import DATASET_ANNOTATORS, DatasetConfig
@@ -22,7 +23,6 @@ from .scatter import Distractors, Scatter2D
 
 ROOM_HALF_M = 6.0
 WALL_HEIGHT_M = 3.0
-HEAD_CAMERA = "/World/robot/head_camera_mount/camera"
 # (label, geom type, size) of the scattered objects; sizes are MuJoCo half-sizes/radii (m)
 OBJECTS = [
     ("box", "box", (0.20, 0.15, 0.15)), ("box", "box", (0.25, 0.25, 0.20)), ("box", "box", (0.15, 0.10, 0.10)),
@@ -54,7 +54,7 @@ def build_warehouse_scene() -> mujoco.MjSpec:
     add_light(spec, "/World/sun", kind="distant", position=(0, 0, WALL_HEIGHT_M), direction=(0.3, 0.2, -1),
               intensity=0.7, ambient=0.2)
     add_light(spec, "/World/lamp", kind="sphere", position=(2.0, 0, WALL_HEIGHT_M - 0.2), intensity=0.3)
-    add_robot(spec, RobotCfg(file="humanoid", prim_path="/World/robot", pos_m=(-1.0, 0.0, 0.0)))
+    add_robot(spec, RobotCfg(file=humanoid.ASSET, prim_path=humanoid.PRIM_PATH, pos_m=(-1.0, 0.0, 0.0)))
     for i, (label, kind, size) in enumerate(OBJECTS):
         body = world.add_body(name=f"/World/objects/{label}_{i}", pos=[0, 0, -10.0 - 3.0 * i])
         body.add_freejoint()
@@ -79,7 +79,7 @@ def _add_shelves(world) -> None:
 def head_camera_cfg(width: int = 320, height: int = 240) -> CameraCfg:
     """Forward-looking head camera, pitched 20 deg down (world convention: +y rotation pitches down)."""
     pitch = math.radians(20.0)
-    return CameraCfg(prim_path=HEAD_CAMERA, width=width, height=height, fovy_deg=60.0,
+    return CameraCfg(prim_path=humanoid.HEAD_CAMERA_PRIM, width=width, height=height, fovy_deg=60.0,
                      offset_quat=(math.cos(pitch / 2), 0.0, math.sin(pitch / 2), 0.0),
                      annotators=DATASET_ANNOTATORS)
 
@@ -98,7 +98,7 @@ def example_config(width: int = 320, height: int = 240) -> DatasetConfig:
             ColorRandomizer(name="object_colors", prims="/World/objects/*"),
             MaterialRandomizer(name="object_materials", prims="/World/objects/*"),
             LightRandomizer(name="lights", lights="/World/*"),
-            CameraJitter(name="camera_jitter", camera=HEAD_CAMERA,
+            CameraJitter(name="camera_jitter", camera=humanoid.HEAD_CAMERA_PRIM,
                          position_m=normal((0, 0, 0), (0.01, 0.01, 0.01)), rotation_deg=uniform((-4.0, -4.0, -4.0), (4.0, 4.0, 4.0))),
         ],
     )

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..robots import humanoid
 from ..utils.validate import Checked
 
 
@@ -58,22 +59,20 @@ def jetbot_world(cfg: SceneCfg | None = None):
     return world
 
 
-HUMANOID_PHYSICS_DT_S = 0.005
-"""The physics_dt the shipped walking policy was trained at (``humanoid_walk/contract.json``)."""
-
-
 def humanoid_world(cfg: SceneCfg | None = None):
-    """The 21-DoF humanoid on a ground plane, stepping ``HUMANOID_PHYSICS_DT_S`` unless ``cfg`` says
+    """The 21-DoF humanoid on a ground plane, stepping ``robots.humanoid.POLICY_PHYSICS_DT_S`` (the
+    physics_dt its shipped walking policy was trained at, from the policy's contract) unless ``cfg`` says
     otherwise; a bridge drives its /cmd_vel through the walking policy, its joints from the joint
     command topics."""
     from .. import assets  # noqa: PLC0415
     from ..sim import Robot, add_reference_to_stage  # noqa: PLC0415
 
     cfg = cfg or SceneCfg()
-    world = _world(cfg, HUMANOID_PHYSICS_DT_S)
-    add_reference_to_stage(usd_path=assets.path("humanoid"), prim_path="/World/Humanoid")
-    world.scene.add(Robot(prim_path="/World/Humanoid", name="humanoid"))
-    _sensors(world, "/World/Humanoid/imu", "/World/Humanoid/head_camera_mount/camera", None, cfg)
+    prim = humanoid.STAGE_PRIM_PATH
+    world = _world(cfg, humanoid.POLICY_PHYSICS_DT_S)
+    add_reference_to_stage(usd_path=assets.path(humanoid.ASSET), prim_path=prim)
+    world.scene.add(Robot(prim_path=prim, name="humanoid"))
+    _sensors(world, f"{prim}/{humanoid.IMU_SITE}", humanoid.head_camera_prim(prim), None, cfg)
     world.reset()
     return world
 
@@ -93,4 +92,4 @@ def file_world(path: str, cfg: SceneCfg | None = None):
 SCENES = {"jetbot": jetbot_world, "humanoid": humanoid_world}
 """Bundled scenes ``ambulo bridge <name>`` serves."""
 
-__all__ = ["HUMANOID_PHYSICS_DT_S", "SCENES", "SceneCfg", "file_world", "humanoid_world", "jetbot_world"]
+__all__ = ["SCENES", "SceneCfg", "file_world", "humanoid_world", "jetbot_world"]
