@@ -231,8 +231,8 @@ class WalkSimulation:
         cap_lift = np.full(max(len(pat.touchdown_index) - 1, 0), np.nan)
         start = self._body_pose(data)
         fell, fall_time, reason = False, None, ""
-        writer = _VideoWriter(m, video, width, height, fps, pat.dt_s, self.pelvis) if video else None
-        steps_done = 0
+        writer = _WalkFilm(m, video, width, height, fps, pat.dt_s, self.pelvis) if video else None
+        steps_done, failed = 0, True
         try:
             for k in range(num):
                 kk = min(k, num_pat - 1)
@@ -271,8 +271,9 @@ class WalkSimulation:
                 if on_step is not None:
                     on_step(k, data)
                 mujoco.mj_step(m, data)
+            failed = False
         finally:
-            frames = writer.close() if writer is not None else 0
+            frames = writer.close(failed) if writer is not None else 0
         n = steps_done
         return WalkResult(seed=seed, fell=fell, fall_time_s=fall_time, fall_reason=reason,
                           time_s=np.arange(n) * pat.dt_s, com_w=com[:n], cop_xy=cop_xy[:n], zmp_margin_m=margin[:n],
@@ -315,38 +316,36 @@ class WalkSimulation:
         return ""
 
 
-class _VideoWriter:
-    """MP4 of the walk: a camera following the pelvis from the side and behind."""
+class _WalkFilm:
+    """MP4 of the walk (``render.video``): a camera following the pelvis from the side and behind."""
 
     def __init__(self, model, path, width, height, fps, dt_s, track_body: int):
-        import imageio.v2 as imageio
-
         from ..render import OffscreenRenderer
+        from ..render.video import VideoWriter
 
-        self.path = os.fspath(path)
-        os.makedirs(os.path.dirname(os.path.abspath(self.path)), exist_ok=True)
+        self.every = max(1, round(1.0 / (fps * dt_s)))
+        self.writer = VideoWriter(path, fps=round(1.0 / (self.every * dt_s)), quality=7)
         self.renderer = OffscreenRenderer(model, width, height)
         self.camera = mujoco.MjvCamera()
         self.camera.type = mujoco.mjtCamera.mjCAMERA_TRACKING
         self.camera.trackbodyid = track_body
         self.camera.distance, self.camera.elevation, self.camera.azimuth = 3.5, -28.0, 120.0
         self.model = model
-        self.every = max(1, round(1.0 / (fps * dt_s)))
-        self.writer = imageio.get_writer(self.path, format="FFMPEG", fps=round(1.0 / (self.every * dt_s)),
-                                         codec="libx264", quality=7, macro_block_size=8)
-        self.frames = 0
 
     def capture(self, data, k: int) -> None:
         if k % self.every:
             return
         self.renderer.update_view(self.model, data, self.camera)
-        self.writer.append_data(np.ascontiguousarray(self.renderer.render_rgb()))
-        self.frames += 1
+        self.writer.append(self.renderer.render_rgb())
 
-    def close(self) -> int:
-        self.writer.close()
+    def close(self, failed: bool = False) -> int:
+        """Frames written; the video is kept unless the walk ``failed`` (raised) or filmed nothing."""
         self.renderer.close()
-        return self.frames
+        if failed or not self.writer.num_frames:
+            self.writer.abort()
+        else:
+            self.writer.close()
+        return self.writer.num_frames
 
 
 def grid_obstacles(grid: GridMap, height_m: float) -> list[tuple[float, float, float, float, float]]:

@@ -9,12 +9,12 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-import imageio
 import mujoco
 import torch
 from tqdm import tqdm
 
 from ..render import OffscreenRenderer
+from ..render.video import VideoError, VideoWriter
 from . import runs
 
 
@@ -47,7 +47,6 @@ def play(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = None,
     run_dir, ckpt = runs.resolve_policy(run, checkpoint, log_root)
     path = Path(out) if out else run_dir / "videos" / "play.mp4"
     path.parent.mkdir(parents=True, exist_ok=True)  # an unwritable place fails before rendering
-    previous = path.stat().st_mtime_ns if path.is_file() else None
     info = runs.read_run_info(run_dir)
     env = runs.make_env_for_run(info, num_envs=num_envs, seed=seed, play=True, device=device)
     runner = runs.load_runner(run_dir, env, ckpt)
@@ -59,23 +58,22 @@ def play(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = None,
     data = mujoco.MjData(env.model)
     obs = runner.env.get_observations()
     total_reward, episodes = 0.0, 0
-    with imageio.get_writer(path, fps=fps, codec="libx264", quality=8,
-                            macro_block_size=8) as writer:
-        for _ in tqdm(range(num_steps), desc=f"play {info['task']}", unit="step"):
-            with torch.inference_mode():
-                actions = policy(obs)
-            obs, rewards, dones, _ = runner.env.step(actions)
-            total_reward += float(rewards[0])
-            episodes += int(dones[0])
-            env.engine.get_data(0, data)
-            renderer.update_view(env.model, data, camera)
-            writer.append_data(renderer.render_rgb().copy())
-    renderer.close()
-    env.close()
-    written = path.is_file() and path.stat().st_size > 0 and path.stat().st_mtime_ns != previous
-    if not written:  # ffmpeg can fail without raising; say so rather than print success
-        raise runs.RunError(f"no video was written to {path}",
-                            "check that ffmpeg runs and the folder is writable")
+    try:
+        with VideoWriter(path, fps=fps, quality=8) as writer:
+            for _ in tqdm(range(num_steps), desc=f"play {info['task']}", unit="step"):
+                with torch.inference_mode():
+                    actions = policy(obs)
+                obs, rewards, dones, _ = runner.env.step(actions)
+                total_reward += float(rewards[0])
+                episodes += int(dones[0])
+                env.engine.get_data(0, data)
+                renderer.update_view(env.model, data, camera)
+                writer.append(renderer.render_rgb())
+    except VideoError as err:  # no ffmpeg, or ffmpeg failed without raising: say so rather than print success
+        raise runs.RunError(err.problem, err.fix) from None
+    finally:
+        renderer.close()
+        env.close()
     print(f"{path}: {num_steps} frames at {fps} fps from {ckpt.name}; env 0 reward "
           f"{total_reward:.2f}, {episodes} episode end(s)")
     return path
