@@ -2,18 +2,16 @@
 
 An object made through the ambulo API carries its label in the model (``ambulo.core.semantics``);
 a prim authored with pxr carries Isaac's ``Semantics`` attributes, which the World reads when it
-imports the prim at reset (``authored_labels``).
+imports the prim at reset (``ambulo.sim.usd_stage.authored_labels``, re-exported here).
 """
 
 from __future__ import annotations
 
 from ambulo.core.semantics import set_semantic_label
 from ambulo.sim.current import current_world_or_none
+from ambulo.sim.usd_stage import SEMANTIC_DATA, SEMANTIC_TYPE, authored_labels
 
 from .stage_utils import synced_usd_stage
-
-SEMANTIC_TYPE = "semantic:Semantics:params:semanticType"
-SEMANTIC_DATA = "semantic:Semantics:params:semanticData"
 
 
 def _path(prim) -> str:
@@ -48,16 +46,6 @@ def add_labels(prim, labels: list[str], instance_name: str = "class", overwrite:
     if not labels:
         raise ValueError("labels must hold at least one label")
     add_update_semantics(prim, labels[0], instance_name)
-
-
-def authored_labels(stage) -> dict[str, str]:
-    """Prim path -> class label of prims authored with Isaac's Semantics attributes."""
-    labels = {}
-    for prim in stage.Traverse():
-        kind, data = prim.GetAttribute(SEMANTIC_TYPE), prim.GetAttribute(SEMANTIC_DATA)
-        if kind and data and kind.Get() == "class" and data.Get():
-            labels[str(prim.GetPath())] = str(data.Get())
-    return labels
 
 
 __all__ = ["SEMANTIC_DATA", "SEMANTIC_TYPE", "add_labels", "add_update_semantics", "authored_labels"]

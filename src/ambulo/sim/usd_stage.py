@@ -38,6 +38,11 @@ MIRRORED = "ambulo:mirrored"
 ROOT = "/World"
 """The default prim of every ambulo stage, as in Isaac's stages."""
 
+SEMANTIC_TYPE = "semantic:Semantics:params:semanticType"
+"""Isaac's ``Semantics`` attribute holding a label's type (``class`` reaches the annotators)."""
+SEMANTIC_DATA = "semantic:Semantics:params:semanticData"
+"""Isaac's ``Semantics`` attribute holding the label itself."""
+
 
 def _pxr():
     try:
@@ -237,6 +242,17 @@ _pending: UsdStage | None = None
 """A stage made before any World (Isaac's stage exists before its World); the next World adopts it."""
 
 
+def authored_labels(stage) -> dict[str, str]:
+    """Prim path -> class label of the prims of the ``Usd.Stage`` ``stage`` authored with Isaac's
+    Semantics attributes (``SEMANTIC_TYPE`` ``class``, ``SEMANTIC_DATA`` the label)."""
+    labels = {}
+    for prim in stage.Traverse():
+        kind, data = prim.GetAttribute(SEMANTIC_TYPE), prim.GetAttribute(SEMANTIC_DATA)
+        if kind and data and kind.Get() == "class" and data.Get():
+            labels[str(prim.GetPath())] = str(data.Get())
+    return labels
+
+
 def current_usd_stage() -> UsdStage:
     """The stage scripts author on: the current World's, else one waiting for the next World."""
     from .current import current_world_or_none  # noqa: PLC0415 - leaf module, kept lazy for pxr-less use
@@ -282,5 +298,5 @@ def forget_stages() -> None:
     _pending = None
 
 
-__all__ = ["MIRRORED", "ROOT", "UsdStage", "current_usd_stage", "forget_stages", "new_usd_stage",
-           "stage_for_new_world"]
+__all__ = ["MIRRORED", "ROOT", "SEMANTIC_DATA", "SEMANTIC_TYPE", "UsdStage", "authored_labels", "current_usd_stage",
+           "forget_stages", "new_usd_stage", "stage_for_new_world"]

@@ -35,7 +35,7 @@ from .current import current_world_or_none, set_current_world
 from .scene import Scene
 from .tasks import TaskHost
 from .stage_view import StageView
-from .usd_stage import stage_for_new_world
+from .usd_stage import authored_labels, stage_for_new_world
 
 log = logging.getLogger(__name__)
 
@@ -296,7 +296,6 @@ class World(TaskHost):
         """A copy of the stage with the USD-authored prims attached under ``/World``, labelled."""
         from ..core.physics import match_options  # noqa: PLC0415
         from ..core.semantics import set_semantic_label  # noqa: PLC0415
-        from ..isaac.semantics import authored_labels  # noqa: PLC0415
 
         spec = self.stage.copy()
         match_options(authored, spec)
