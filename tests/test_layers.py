@@ -15,6 +15,11 @@ import pytest
 SRC = Path(__file__).resolve().parents[1] / "src"
 
 FORBIDDEN = [
+    ("ambulo.assets", "ambulo.core"),  # bundled files sit below the scene builder (Isaac paths: sim/isaac_assets.py)
+    ("ambulo.assets", "ambulo.sim"),
+    ("ambulo.assets", "ambulo.isaac"),
+    ("ambulo.core", "ambulo.sim"),  # the core knows nothing of the Isaac-style API ...
+    ("ambulo.core", "ambulo.isaac"),  # ... nor of Isaac scripts
     ("ambulo.sim", "ambulo.isaac"),  # the Isaac-style API sits below the Isaac script runner
 ]
 """(lower package, higher package it must not import)."""

@@ -53,15 +53,28 @@ def test_script_argv_reaches_the_script(tmp_path, capsys):
 
 
 def test_isaac_asset_paths_resolve_to_stand_ins():
-    from ambulo.assets import get_assets_root_path
     from ambulo.core.scene import resolve_file
+    from ambulo.sim import get_assets_root_path
+    from ambulo.sim.isaac_assets import resolve_asset
 
     root = get_assets_root_path()
-    assert resolve_file(root + "/Isaac/Robots/Jetbot/jetbot.usd").endswith("jetbot.xml")
+    assert resolve_asset(root + "/Isaac/Robots/Jetbot/jetbot.usd").endswith("jetbot.xml")
     url = "https://omniverse-content-production.s3-us-west-2.amazonaws.com/Assets/Isaac/4.5"
-    assert resolve_file(url + "/Isaac/Environments/Simple_Warehouse/warehouse.usd").endswith("simple_warehouse.xml")
+    assert resolve_asset(url + "/Isaac/Environments/Simple_Warehouse/warehouse.usd").endswith("simple_warehouse.xml")
     with pytest.raises(FileNotFoundError, match="no stand-in.*Isaac/Robots/Carter.*jetbot"):
-        resolve_file(root + "/Isaac/Robots/Carter/carter_v1.usd")
+        resolve_asset(root + "/Isaac/Robots/Carter/carter_v1.usd")
+    # paths and bundled names resolve as in the core, which knows nothing of Isaac's library
+    assert resolve_asset("jetbot") == resolve_file("jetbot")
+    assert resolve_file(root + "/Isaac/Robots/Jetbot/jetbot.usd") == root + "/Isaac/Robots/Jetbot/jetbot.usd"
+
+
+def test_isaac_asset_paths_place_their_stand_ins():
+    from ambulo.sim import World, add_reference_to_stage, get_assets_root_path
+
+    world = World()
+    add_reference_to_stage(usd_path=get_assets_root_path() + "/Isaac/Robots/Jetbot/jetbot.usd", prim_path="/World/Jetbot")
+    world.reset()
+    assert world.model.body("/World/Jetbot/chassis") is not None
     assert np.isfinite(1.0)
 
 

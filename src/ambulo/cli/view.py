@@ -14,12 +14,13 @@ _KINDS = (".xml", ".urdf", ".usd", ".usda", ".usdc", ".usdz")
 
 
 def _asset_path(target: str) -> str:
-    """``target`` as a file: a path, or the file of a bundled asset; ``CliError`` if neither."""
+    """``target`` as a file: a path, the stand-in of an Isaac library path, or the file of a
+    bundled asset; ``CliError`` if none."""
     from ambulo import assets  # noqa: PLC0415
-    from ambulo.core.scene import resolve_file  # noqa: PLC0415 - the rule add_robot uses
+    from ambulo.sim.isaac_assets import resolve_asset  # noqa: PLC0415 - the rule add_reference_to_stage uses
 
     try:
-        path = resolve_file(target)
+        path = resolve_asset(target)
     except FileNotFoundError:  # not a path and no bundled asset of that name
         path = None
     if path is not None and os.path.isdir(path):

@@ -16,7 +16,6 @@ import mujoco
 import numpy as np
 
 from .. import assets
-from ..assets.isaac import is_isaac_path, resolve_isaac_path
 from ..utils.validate import Checked
 from .drives import DriveDefaults
 from .importers import load_spec
@@ -151,13 +150,11 @@ class AttachedRobot:
 
 
 def resolve_file(file: str | os.PathLike) -> str:
-    """A path as given if it exists; an Isaac library path (``<root>/Isaac/Robots/...``) as the
-    file standing in for it; a bare name as the bundled asset of that name."""
+    """A path as given if it exists; a bare name as the bundled asset of that name. (Isaac library
+    paths, ``<root>/Isaac/Robots/...``, are the Isaac layer's: ``ambulo.sim.isaac_assets``.)"""
     text = str(file)
     if os.path.exists(text):
         return text
-    if is_isaac_path(text):
-        return resolve_isaac_path(text)
     if os.sep in text or "." in os.path.basename(text):
         return text
     return assets.path(text)

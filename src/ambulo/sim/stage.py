@@ -8,6 +8,7 @@ import mujoco
 
 from ..core import DriveDefaults, RobotCfg, add_robot
 from .current import current_world
+from .isaac_assets import resolve_asset
 
 
 def get_current_stage() -> mujoco.MjSpec:
@@ -25,6 +26,10 @@ def add_reference_to_stage(
 ) -> mujoco.MjsFrame:
     """Place the file ``usd_path`` (USD, URDF or MJCF, despite the name) at ``prim_path``.
 
+    ``usd_path`` may name an asset of Isaac's library (``get_assets_root_path() +
+    "/Isaac/Robots/Jetbot/jetbot.usd"``, or the Nucleus or S3 URL): the file standing in for it
+    is placed (``isaac_assets``); a bare name is a bundled asset (``"jetbot"``).
+
     The file's default prim (MJCF/URDF: its world body; USD: the stage's
     defaultPrim) becomes ``prim_path``, so a child ``box`` lands at
     ``prim_path/box``. Joints without a drive get one with ``drive_stiffness``
@@ -34,6 +39,6 @@ def add_reference_to_stage(
 
     Returns the frame that holds the reference (its pose is the prim's pose).
     """
-    cfg = RobotCfg(file=str(usd_path), prim_path=str(prim_path), fixed_base=fixed_base,
+    cfg = RobotCfg(file=resolve_asset(usd_path), prim_path=str(prim_path), fixed_base=fixed_base,
                    drives=DriveDefaults(stiffness=drive_stiffness, damping=drive_damping))
     return add_robot(get_current_stage(), cfg).frame

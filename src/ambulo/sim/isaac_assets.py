@@ -5,13 +5,19 @@ them (and their USD needs Omniverse's materials), so each path a tutorial uses m
 bundled model or a robot shipped by a pip package (``example-robot-data``). The lookup keys
 on the part after ``/Isaac/`` and is case-insensitive, so the bundled root, an
 ``omniverse://`` URL and an ``https://`` URL all resolve the same way.
+
+The Isaac-style entry points resolve these paths (``resolve_asset``) before the core's
+``add_robot``, which knows only paths and bundled names (``ambulo.core.scene.resolve_file``).
 """
 
 from __future__ import annotations
 
+import os
 import re
 
-from . import path as bundled
+from ..assets import path as bundled
+from ..core.packages import resolve_package_uri
+from ..core.scene import resolve_file
 
 _BUNDLED = {
     "robots/jetbot/jetbot.usd": "jetbot",
@@ -56,8 +62,6 @@ def resolve_isaac_path(file: str) -> str:
     if key in _BUNDLED:
         return bundled(_BUNDLED[key])
     if key in _PACKAGED:
-        from ..core.packages import resolve_package_uri  # noqa: PLC0415 - core imports this module
-
         try:
             return resolve_package_uri(_PACKAGED[key])
         except FileNotFoundError:
@@ -72,9 +76,17 @@ def resolve_isaac_path(file: str) -> str:
 
 
 def _exists(file: str) -> bool:
-    import os  # noqa: PLC0415
-
     return os.path.exists(file)
 
 
-__all__ = ["is_isaac_path", "resolve_isaac_path"]
+def resolve_asset(file: str | os.PathLike) -> str:
+    """``file`` as the file to load: an Isaac library path (``<root>/Isaac/Robots/...``) as the file
+    standing in for it, else as ``ambulo.core.scene.resolve_file`` says (a path as given if it
+    exists, a bare name as the bundled asset of that name)."""
+    text = str(file)
+    if is_isaac_path(text):
+        return resolve_isaac_path(text)
+    return resolve_file(text)
+
+
+__all__ = ["is_isaac_path", "resolve_asset", "resolve_isaac_path"]
