@@ -224,3 +224,34 @@ def test_frame_annotations_keep_their_fields_and_values():
     assert a["bbox_3d"]["rot_c"] == (np.arange(45.0).reshape(5, 3, 3) / 3)[2].tolist()
     assert a["visible_fraction"] == 0.25 and type(a["visible_fraction"]) is float
     assert all(type(v) is float for v in a["bbox"]) and type(a["area"]) is int
+
+
+def test_collision_checker_without_surface_contacts_finds_what_filtering_them_found():
+    """The checker's model lets the support surface collide with nothing; the bodies it reports are
+    those of the full model's contacts with the surface's dropped, for random placements."""
+    import mujoco
+
+    producer = rep.FrameProducer(rep.example_config(32, 24))
+    try:
+        scatter = next(r for r in producer.config.randomizers if isinstance(r, rep.Scatter2D))
+        checker, model = scatter._checker, producer.model
+        data = mujoco.MjData(model)
+        rng = np.random.default_rng(4)
+        found_any = False
+        for trial in range(60):
+            qpos = producer.engine.qpos[0].numpy().copy()
+            scatter._park_all(qpos)
+            for i in range(len(scatter._bodies)):  # crowded: many objects touch
+                scatter._write(qpos, i, [rng.uniform(0.3, 1.2), rng.uniform(-0.5, 0.5), rng.uniform(-3, 3)])
+            data.qpos[:] = qpos
+            mujoco.mj_kinematics(model, data)
+            mujoco.mj_collision(model, data)
+            geoms = data.contact.geom[:data.ncon]
+            hit = (data.contact.dist[:data.ncon] < -1e-4) & ~checker._ignore[geoms].any(1)
+            expected = {int(b) for b in model.body_rootid[model.geom_bodyid[geoms[hit]]].ravel()}
+            assert checker.colliding_roots(qpos) == expected
+            found_any |= bool(expected)
+        assert found_any and data.ncon > 0  # the full model made surface contacts; they were dropped
+        assert not checker._ignore[checker.data.contact.geom[:checker.data.ncon]].any()
+    finally:
+        producer.close()

@@ -67,41 +67,29 @@ def frame_annotations(capture: dict, semantic_ids: np.ndarray, instance_names: l
 
 
 def instance_rles(instances: np.ndarray, ids: np.ndarray) -> list[dict]:
-    """Compressed COCO RLEs of the masks ``instances == id``, one per id of ``ids`` (each id once).
+    """Compressed COCO RLEs of the masks ``instances == id``, one per id of ``ids``.
 
-    The same bytes as ``mask_utils.encode`` of the K binary masks, ~10x faster:
+    The same bytes as ``mask_utils.encode`` of the K binary masks, ~5x faster:
     one pass finds the runs of equal ids in column-major order (COCO's), and
-    each instance's RLE counts are the gaps between its runs, all instances at once.
+    each instance's RLE counts are the gaps between its runs.
     """
     h, w = instances.shape
-    ids = np.asarray(ids)
-    if len(ids) == 0:
-        return []
     flat = instances.T.ravel()
-    change = np.flatnonzero(flat[1:] != flat[:-1]) + 1
-    starts = np.concatenate(([0], change))
-    ends = np.concatenate((change, [flat.size]))
+    starts = np.flatnonzero(flat[1:] != flat[:-1]) + 1
+    starts = np.concatenate(([0], starts))
+    ends = np.append(starts[1:], flat.size)
     order = np.argsort(flat[starts], kind="stable")  # runs grouped by id, in image order within an id
     values = flat[starts][order]
     first, last = np.searchsorted(values, ids, "left"), np.searchsorted(values, ids, "right")
-    runs = last - first
-    # id j's edges: 0, start, end, start, end, ..., H*W (2 n_j + 2 of them) at offset[j] of one array
-    size = 2 * runs + 2
-    offset = np.concatenate(([0], np.cumsum(size)[:-1]))
-    edges = np.empty(int(size.sum()), np.int64)
-    edges[offset], edges[offset + size - 1] = 0, flat.size
-    # the runs of every id in order, and each one's place in its id's list
-    owner = np.repeat(np.arange(len(ids)), runs)
-    place = np.arange(len(owner)) - np.repeat(np.cumsum(runs) - runs, runs)
-    picked = order[np.repeat(first, runs) + place]
-    edges[offset[owner] + 1 + 2 * place] = starts[picked]
-    edges[offset[owner] + 2 + 2 * place] = ends[picked]
-    gaps = np.diff(edges)  # zeros, ones, zeros, ... per id; the diff from one id's H*W to the next's 0 is dropped
     objs = []
-    for lo, n in zip(offset.tolist(), (size - 1).tolist()):
-        counts = gaps[lo:lo + n]
-        objs.append({"counts": counts[:-1] if counts[-1] == 0 else counts, "size": [h, w]})  # pycocotools drops
-    return mask_utils.frPyObjects(objs, h, w)                                                # an empty last run
+    for lo, hi in zip(first.tolist(), last.tolist()):
+        runs = order[lo:hi]
+        edges = np.empty(2 * len(runs) + 2, np.int64)  # 0, start, end, start, end, ..., H*W
+        edges[0], edges[-1] = 0, flat.size
+        edges[1:-1:2], edges[2:-1:2] = starts[runs], ends[runs]
+        counts = np.diff(edges)  # zeros, ones, zeros, ...: pycocotools drops an empty last run
+        objs.append({"counts": counts[:-1] if counts[-1] == 0 else counts, "size": [h, w]})
+    return mask_utils.frPyObjects(objs, h, w) if objs else []
 
 
 def coco_categories(categories: list[str]) -> list[dict]:

@@ -2,7 +2,7 @@
 
 PNG deflate is zlib-ng's (the ``zlib-ng`` package, in the ``data`` extra) when it is installed,
 else the standard library's ``zlib``: at level 1 zlib-ng takes a third of zlib's time for files
-~30% larger (``benchmarks/results/cpu-2026-11-25-replicator.md``), and like zlib it gives the
+~30% larger (``benchmarks/results/cpu-2026-11-28-replicator.md``), and like zlib it gives the
 same bytes for the same pixels every time. ``AMBULO_PNG_DEFLATE`` picks one: ``zlib-ng``,
 ``zlib``, or ``isal`` (ISA-L, faster still, but once in ~60,000 encodes it produced different
 bytes for the same pixels (issue #7's measurement), and ambulo promises byte-identical datasets

@@ -9,6 +9,7 @@ the floor and logged as hidden, so a crowded region degrades instead of overlapp
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field
 
 import mujoco
@@ -33,10 +34,15 @@ class CollisionChecker:
     """Which free bodies penetrate anything but the ignored geoms, for a full qpos."""
 
     def __init__(self, model: mujoco.MjModel, ignore_geoms: np.ndarray):
-        self.model = model
-        self.data = mujoco.MjData(model)
         self._ignore = np.zeros(model.ngeom, bool)
         self._ignore[np.asarray(ignore_geoms, int)] = True
+        # a private copy in which the ignored geoms collide with nothing: their contacts (the
+        # support surface with every parked body and the robot's feet) are never made, only to
+        # be dropped; every other pair collides exactly as in ``model``
+        self.model = copy.copy(model)
+        self.model.geom_contype[self._ignore] = 0
+        self.model.geom_conaffinity[self._ignore] = 0
+        self.data = mujoco.MjData(self.model)
         self._root = model.body_rootid
 
     def colliding_roots(self, qpos: np.ndarray) -> set[int]:

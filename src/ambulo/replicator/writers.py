@@ -107,7 +107,7 @@ class FrameWriter:
     one ``syncfs`` of the dataset's file system per batch (``sync_filesystem``); elsewhere
     each data file is flushed before its rename and each folder once per batch. One
     ``syncfs`` for 8 frames costs a tenth of the wait and a quarter of the CPU of 32
-    file flushes (``benchmarks/results/cpu-2026-11-25-replicator.md``). A record itself
+    file flushes (``benchmarks/results/cpu-2026-11-28-replicator.md``). A record itself
     is not flushed: one lost or torn by a crash fails ``frame_is_complete`` and its frame
     is made again. What it costs a whole ``generate`` call: ``benchmarks/generate_fsync.py``
     (the writer thread overlaps the flushes with rendering).
