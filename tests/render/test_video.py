@@ -81,3 +81,9 @@ def test_no_ffmpeg_is_one_line_naming_the_fix(tmp_path, monkeypatch):
     raises_one_line(lambda: VideoWriter(tmp_path / "clip.mp4", fps=10), "cannot write the video",
                     "no ffmpeg found", "pip install imageio-ffmpeg", kind=VideoError)
     assert not list(tmp_path.iterdir())
+
+
+def test_an_ffmpeg_path_that_does_not_exist_is_one_line(tmp_path, monkeypatch):
+    monkeypatch.setenv("IMAGEIO_FFMPEG_EXE", str(tmp_path / "no" / "ffmpeg"))
+    raises_one_line(lambda: VideoWriter(tmp_path / "clip.mp4", fps=10), "no ffmpeg found", "does not exist",
+                    "IMAGEIO_FFMPEG_EXE", kind=VideoError)

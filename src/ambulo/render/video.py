@@ -14,6 +14,7 @@ imageio-ffmpeg's warning); 640 x 480 and the other usual sizes pass unchanged.
 from __future__ import annotations
 
 import os
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -37,7 +38,9 @@ def _ffmpeg(path: Path):
     try:
         import imageio_ffmpeg  # noqa: PLC0415 - loaded only when a video is written
 
-        imageio_ffmpeg.get_ffmpeg_exe()
+        exe = imageio_ffmpeg.get_ffmpeg_exe()  # IMAGEIO_FFMPEG_EXE is returned unchecked
+        if not (os.path.isfile(exe) or shutil.which(exe)):
+            raise RuntimeError(f"{exe} does not exist")
     except (ImportError, RuntimeError) as err:
         raise VideoError(f"cannot write the video {path}: no ffmpeg found ({' '.join(str(err).split())})",
                          "pip install imageio-ffmpeg (it ships ffmpeg), or set IMAGEIO_FFMPEG_EXE "
