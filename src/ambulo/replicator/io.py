@@ -19,6 +19,8 @@ import zlib
 
 import numpy as np
 
+from ambulo.utils.checks import InvalidValueError
+
 DEFLATES = ("zlib-ng", "zlib", "isal")
 
 
@@ -27,7 +29,8 @@ def _pick_deflate(wanted: str):
     ('' = zlib-ng when installed, else zlib); an unavailable one falls back to zlib."""
     wanted = wanted.lower()
     if wanted not in ("", *DEFLATES):
-        raise ValueError(f"AMBULO_PNG_DEFLATE must be one of {DEFLATES}, got {wanted!r}")
+        raise InvalidValueError("AMBULO_PNG_DEFLATE", wanted, "not a deflate ambulo knows",
+                                f"set it to one of {', '.join(DEFLATES)}, or unset it")
     if wanted in ("", "zlib-ng"):
         try:
             from zlib_ng import zlib_ng
