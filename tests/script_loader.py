@@ -27,3 +27,9 @@ def load_script(path: Path, name: str | None = None, register: bool = False) -> 
 def run_main(path: Path, *argv: str):
     """Run a script's ``main(argv)`` and return what it returns."""
     return load_script(path).main(list(argv))
+
+
+def printed_number(out: str, before: str, after: str) -> float:
+    """The number a script printed between ``before`` and ``after`` on the first line holding ``before``."""
+    line = next(line for line in out.splitlines() if before in line)
+    return float(line.split(before, 1)[1].split(after, 1)[0])

@@ -13,6 +13,7 @@ pytest.importorskip("pxr")
 from pxr import Sdf, Usd, UsdGeom, UsdPhysics  # noqa: E402
 
 from ambulo.isaac import isaac_names, run_script  # noqa: E402
+from script_loader import printed_number
 
 ISAAC_EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "isaac"
 
@@ -66,26 +67,21 @@ def test_apply_authors_the_api_schema_and_typed_attributes_as_isaac_does():
     assert cube.GetRelationship("physxContactReport:reportPairs").GetTargets() == [Sdf.Path("/World/physicsScene")]
 
 
-def _printed(out: str, before: str, after: str) -> float:
-    line = next(line for line in out.splitlines() if before in line)
-    return float(line.split(before, 1)[1].split(after, 1)[0])
-
-
 def test_physx_schema_tutorial_runs_and_its_settings_reach_the_simulation(capsys):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         run_script(ISAAC_EXAMPLES / "physx_schema.py")
     out = capsys.readouterr().out
     # physxScene:timeStepsPerSecond = 120 is the World's physics step
-    assert _printed(out, "physics step: ", " s") == pytest.approx(1 / 120, abs=1e-6)
+    assert printed_number(out, "physics step: ", " s") == pytest.approx(1 / 120, abs=1e-6)
     # linear damping 0.5 and angular damping 1.0 for 1 s: 2 exp(-0.5) m/s and 2 pi exp(-1) rad/s
     # (stepped as PhysX does, v / (1 + c h) per step of h = 1/120 s)
-    assert _printed(out, "the ball moves at ", " m/s") == pytest.approx(2 * math.exp(-0.5), rel=3e-3)
-    assert _printed(out, "spins at ", " rad/s") == pytest.approx(2 * math.pi * math.exp(-1.0), rel=3e-3)
+    assert printed_number(out, "the ball moves at ", " m/s") == pytest.approx(2 * math.exp(-0.5), rel=3e-3)
+    assert printed_number(out, "spins at ", " rad/s") == pytest.approx(2 * math.pi * math.exp(-1.0), rel=3e-3)
     # rest offset 0.02: the 0.2 m box rests 2 cm above the ground
-    assert _printed(out, "box at rest at height ", " m") == pytest.approx(0.1 + 0.02, abs=1e-3)
+    assert printed_number(out, "box at rest at height ", " m") == pytest.approx(0.1 + 0.02, abs=1e-3)
     # self-collisions disabled: the overlapping link is not pushed off its target
-    assert abs(_printed(out, "arm joint2 at ", " degrees")) < 0.05
+    assert abs(printed_number(out, "arm joint2 at ", " degrees")) < 0.05
     from ambulo.sim import World
 
     model = World.instance().engine.model

@@ -7,6 +7,7 @@ import pytest
 
 from ambulo.cli import main
 from ambulo.isaac import run_script
+from script_loader import printed_number
 
 ISAAC_EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "isaac"
 
@@ -78,17 +79,12 @@ def test_isaac_asset_paths_place_their_stand_ins():
     assert np.isfinite(1.0)
 
 
-def _printed_number(out: str, before: str, after: str) -> float:
-    line = next(line for line in out.splitlines() if before in line)
-    return float(line.split(before, 1)[1].split(after, 1)[0])
-
-
 def test_adding_a_controller_turns_the_jetbot_a_quarter_circle(capsys):
     run_script(ISAAC_EXAMPLES / "adding_controller.py")
     out = capsys.readouterr().out
     # 0.2 m/s at pi/4 rad/s for 2 s: a quarter of a circle of radius 0.255 m, chord 0.255 * sqrt(2)
-    assert _printed_number(out, "turned ", " deg") == pytest.approx(90.0, abs=3.0)
-    assert _printed_number(out, "deg, ", " m from") == pytest.approx(0.2546 * 2 ** 0.5, abs=0.02)
+    assert printed_number(out, "turned ", " deg") == pytest.approx(90.0, abs=3.0)
+    assert printed_number(out, "deg, ", " m from") == pytest.approx(0.2546 * 2 ** 0.5, abs=0.02)
 
 
 def test_multiple_robots_through_one_view_drive_as_commanded(capsys):
@@ -96,7 +92,7 @@ def test_multiple_robots_through_one_view_drive_as_commanded(capsys):
     out = capsys.readouterr().out
     assert "3 Jetbots with joints ['left_wheel_joint', 'right_wheel_joint']" in out
     # forward, still, backward at 10 rad/s * 0.03 m = 0.3 m/s for 2 s
-    finals = [_printed_number(out, f"env_{k}/Jetbot: x +0.000 -> ", " m") for k in range(3)]
+    finals = [printed_number(out, f"env_{k}/Jetbot: x +0.000 -> ", " m") for k in range(3)]
     assert finals[0] == pytest.approx(0.6, abs=0.05) and abs(finals[1]) < 1e-3
     assert finals[2] == pytest.approx(-0.6, abs=0.05)
 
@@ -105,11 +101,11 @@ def test_usd_authored_with_pxr_is_simulated_next_to_api_objects(capsys):
     run_script(ISAAC_EXAMPLES / "usd_authoring.py")
     out = capsys.readouterr().out
     assert "the stage holds /World/api_cube: True" in out and "pendulum degrees of freedom: 1" in out
-    assert _printed_number(out, "API cube at rest at height ", " m") == pytest.approx(0.1, abs=2e-3)
+    assert printed_number(out, "API cube at rest at height ", " m") == pytest.approx(0.1, abs=2e-3)
     # 2 kg link, centre 0.3 m below the hinge, kp = 10/deg = 573 N m/rad: sag m g l sin(30) / kp
     sag_deg = 2.0 * 9.81 * 0.3 * 0.5 / (10.0 * 180 / 3.141592653589793) * 180 / 3.141592653589793
-    assert _printed_number(out, "pendulum held at ", " degrees") == pytest.approx(30.0 - sag_deg, abs=0.2)
-    slid = _printed_number(out, "(slid ", " m along x)")
+    assert printed_number(out, "pendulum held at ", " degrees") == pytest.approx(30.0 - sag_deg, abs=0.2)
+    slid = printed_number(out, "(slid ", " m along x)")
     assert 0.2 < slid < 0.5  # launched at 1 m/s: 0.3 m in flight, then friction 0.5 stops it within 0.1 m
 
 
