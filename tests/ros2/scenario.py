@@ -139,7 +139,8 @@ def sample_costmap():
     from ambulo.perception.costmap import Costmap  # noqa: PLC0415
 
     cost = torch.tensor([[0, 1, 100, 252], [253, 254, 255, 0], [7, 0, 0, 254]], dtype=torch.uint8)
-    return Costmap(cost=cost, origin_xy_m=(-1.025, 2.475), resolution_m=0.05)
+    # origin_xy_m: the lower-left corner of cell [0, 0] (maps.Grid2D; its centre is (-1.025, 2.475))
+    return Costmap(cost=cost, origin_xy_m=(-1.05, 2.45), resolution_m=0.05)
 
 
 def humanoid(out: Path) -> None:

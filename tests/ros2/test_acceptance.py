@@ -163,7 +163,7 @@ def test_a_costmap_reaches_ros_as_an_occupancy_grid_with_nav2_values(jetbot_run)
     want = truth["costmap"]
     assert (stamp_ns, frame, width, height) == (want["stamp_ns"], "odom", 4, 3)
     assert resolution == pytest.approx(0.05)  # float32 on the wire
-    assert (x, y) == pytest.approx((-1.05, 2.45))  # the corner of cell [0, 0], half a cell off its centre
+    assert (x, y) == pytest.approx((-1.05, 2.45))  # the corner of cell [0, 0], as the Costmap holds it
     assert data == want["data"] == [0, 1, 39, 98, 99, 100, -1, 0, 3, 0, 0, 100]
     topics = oracle["graph"]["topics"]["/costmap"]
     assert topics["types"] == ["nav_msgs/msg/OccupancyGrid"]
