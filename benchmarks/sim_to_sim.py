@@ -49,7 +49,7 @@ OPTIONS = ("timestep", "integrator", "solver", "iterations", "ls_iterations", "t
 def load_policy(run: str | None, checkpoint: str | None, env):
     """(obs (N, 72) on env.device) -> actions: the shipped policy, or a run's checkpoint."""
     if run is None:
-        from ambulo.assets.policies import load_policy as shipped  # noqa: PLC0415
+        from ambulo.policies.shipped import load_policy as shipped  # noqa: PLC0415
 
         return shipped(TASK), "shipped"
     from ambulo.rl import runs  # noqa: PLC0415

@@ -20,7 +20,7 @@ from pathlib import Path
 import torch
 
 from ambulo import envs
-from ambulo.assets.policies import POLICY_DIR
+from ambulo.policies.shipped import POLICY_DIR
 from ambulo.rl import evaluate, export
 from ambulo.rl import runs
 

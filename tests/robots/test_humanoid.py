@@ -77,7 +77,7 @@ def test_the_policy_dt_is_the_contracts():
                           .read_text())
     assert humanoid.POLICY_PHYSICS_DT_S == contract["physics_dt_s"]
     assert contract["robot_file"] == humanoid.ASSET
-    from ambulo.assets.policies import load_policy
+    from ambulo.policies.shipped import load_policy
 
     assert load_policy(humanoid.POLICY_TASK).contract["physics_dt_s"] == humanoid.POLICY_PHYSICS_DT_S
 

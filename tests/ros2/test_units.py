@@ -87,7 +87,7 @@ def test_walking_twist_checks(linear, angular, problem):
 
 
 def test_humanoid_cmd_vel_gets_the_walking_policy_only_at_its_physics_dt():
-    from ambulo.assets.policies import load_policy
+    from ambulo.policies.shipped import load_policy
     from ambulo.ros2 import SceneCfg, humanoid_world
     from ambulo.ros2.commands import NoWalkingPolicy, WalkingPolicyDrive, default_cmd_vel_handler
     from ambulo.robots.humanoid import POLICY_PHYSICS_DT_S

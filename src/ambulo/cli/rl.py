@@ -311,7 +311,7 @@ def evaluate(args: argparse.Namespace) -> int:
 
 def _evaluate_shipped(args: argparse.Namespace) -> dict:
     """``ambulo eval TASK --shipped``: the policy in ambulo's assets, no run folder."""
-    from ambulo.assets.policies import shipped_tasks  # noqa: PLC0415
+    from ambulo.policies.shipped import shipped_tasks  # noqa: PLC0415
 
     shipped = shipped_tasks()
     if args.run not in shipped:

@@ -5,8 +5,6 @@
   importers), ``compile_scene``: the only scene builder.
 - ``entity``: ``Entity``/``EntityData``, the batched view of a robot or body tree.
 - ``names``: ``EntityNames``, its model-only name lookup (for code on a bare ``MjModel``).
-- ``observations``: the velocity-tracking policy observation, shared by the walking tasks and
-  the shipped-policy runner.
 - ``lifecycle``: ``Component`` (the sensor/randomizer protocol) and ``Simulation``.
 - ``rows``: row selectors (indices on the CPU, masks on a GPU) for writes to some worlds.
 - ``importers``, ``drives``, ``materials``, ``paths``, ``semantics``: what the builder uses.

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import torch
 
 from ambulo.core import GroundCfg, PhysicsCfg, RobotCfg
-from ambulo.core.observations import velocity_policy_terms
+from ambulo.policies.velocity_obs import velocity_policy_terms
 from ambulo.core.rows import put_rows, select_rows, take_rows
 from ambulo.robots import humanoid
 from ambulo.sensors import ContactSensor, ContactSensorCfg

@@ -13,6 +13,8 @@ from typing import Protocol
 
 import numpy as np
 
+from ..robots.humanoid import POLICY_TASK
+
 CmdVel = tuple[float, float, float]
 """(forward m/s, left m/s, yaw rate rad/s) in the robot's base frame."""
 
@@ -165,21 +167,18 @@ class WalkingPolicyDrive:
         the command does not name hold them (the walker writes the drives directly)."""
         from ..sim import ArticulationAction  # noqa: PLC0415
 
-        w = self.walker
-        last = (w.default_joint_pos + w.contract["action_scale"] * w.actions[0].to(w.default_joint_pos)).cpu().numpy()
+        last = self.walker.joint_targets()[0].cpu().numpy()
         self.robot.apply_action(ArticulationAction(joint_positions=last))
 
 
 def walking_policy_handler(robot, physics_dt: float | None = None) -> CmdVelHandler:
     """``WalkingPolicyDrive`` when ``robot`` is the humanoid the shipped walking policy drives and
     the World steps at the policy's physics_dt; otherwise ``NoWalkingPolicy`` saying why."""
-    import json  # noqa: PLC0415
+    from ..policies.shipped import load_policy, read_contract, shipped_tasks  # noqa: PLC0415
 
-    from ..assets.policies import load_policy, policy_dir, shipped_tasks  # noqa: PLC0415
-
-    if "humanoid-walk" not in shipped_tasks():
+    if POLICY_TASK not in shipped_tasks():
         return NoWalkingPolicy()
-    contract = json.loads((policy_dir("humanoid-walk") / "contract.json").read_text())
+    contract = read_contract(POLICY_TASK)
     if list(robot.entity.joint_names) != contract["joint_names"]:
         return NoWalkingPolicy()
     wanted = float(contract["physics_dt_s"])
@@ -191,7 +190,7 @@ def walking_policy_handler(robot, physics_dt: float | None = None) -> CmdVelHand
             f"(`ambulo bridge humanoid` does, at its default --rate {1 / wanted:g})")
     from ..sim import HumanoidWalkingPolicy  # noqa: PLC0415
 
-    return WalkingPolicyDrive(robot, HumanoidWalkingPolicy(robot, policy=load_policy("humanoid-walk")), physics_dt)
+    return WalkingPolicyDrive(robot, HumanoidWalkingPolicy(robot, policy=load_policy(POLICY_TASK)), physics_dt)
 
 
 def default_cmd_vel_handler(robot, physics_dt: float | None = None) -> CmdVelHandler | None:

@@ -18,7 +18,7 @@ from .prims import RigidPrim, XFormPrim
 from .scene import Scene
 from .stage import add_reference_to_stage, get_current_stage
 from .viewport import set_camera_view
-from .walking_policy import HumanoidWalkingPolicy
+from .walking import HumanoidWalkingPolicy
 from .wheeled import DifferentialController, WheeledRobot
 from .world import World
 

@@ -1,6 +1,7 @@
 """Policies that ship with ambulo: trained networks in the package's assets, with their contract.
 
-A shipped policy lives in ``assets/data/policies/<task>/``: ``policy.onnx`` and ``policy.pt``
+A shipped policy lives in ``assets/data/policies/<task>/`` (the files are bundled assets; this module
+is their reader): ``policy.onnx`` and ``policy.pt``
 (TorchScript) map policy observations (B, num_obs) float32 to actions (B, num_actions), the
 observation normalizer folded in; ``contract.json`` says how to build those observations and
 use those actions without the training code: the observation terms in order with their sizes
@@ -22,7 +23,11 @@ from typing import Any
 import numpy as np
 import torch
 
-POLICY_DIR = Path(__file__).resolve().parent / "data" / "policies"
+from .. import assets
+from ..robots.humanoid import POLICY_TASK
+
+POLICY_DIR = Path(assets.get_assets_root_path()) / "policies"
+"""One folder per shipped policy, named after its task with '_' for '-'."""
 
 
 def shipped_tasks() -> list[str]:
@@ -33,6 +38,7 @@ def shipped_tasks() -> list[str]:
 
 
 def policy_dir(task: str) -> Path:
+    """The folder of ``task``'s shipped policy (FileNotFoundError naming the shipped ones)."""
     folder = POLICY_DIR / task.replace("-", "_")
     if not (folder / "contract.json").is_file():
         raise FileNotFoundError(f"no shipped policy for task {task!r}; shipped: {', '.join(shipped_tasks()) or 'none'}")
@@ -80,10 +86,14 @@ class ShippedPolicy:
             return self._jit(obs.detach().to("cpu", torch.float32)).to(obs.device)
 
 
-def load_policy(task: str = "humanoid-walk") -> ShippedPolicy:
+def read_contract(task: str = POLICY_TASK) -> dict[str, Any]:
+    """``task``'s ``contract.json`` as a dict, without loading the network."""
+    return json.loads((policy_dir(task) / "contract.json").read_text())
+
+
+def load_policy(task: str = POLICY_TASK) -> ShippedPolicy:
     """The shipped policy of ``task`` (FileNotFoundError naming the shipped ones)."""
-    folder = policy_dir(task)
-    return ShippedPolicy(task, json.loads((folder / "contract.json").read_text()), folder)
+    return ShippedPolicy(task, read_contract(task), policy_dir(task))
 
 
-__all__ = ["POLICY_DIR", "ShippedPolicy", "load_policy", "policy_dir", "shipped_tasks"]
+__all__ = ["POLICY_DIR", "ShippedPolicy", "load_policy", "policy_dir", "read_contract", "shipped_tasks"]

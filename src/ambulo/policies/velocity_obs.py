@@ -1,18 +1,18 @@
 """The observation of velocity-tracking locomotion policies, built in one place.
 
 The humanoid-walk task (``envs.humanoid_walk``, and g1-walk through it) trains on these terms,
-and ``sim.HumanoidWalkingPolicy`` rebuilds them to run the shipped policy; both call
+and ``policies.walking.WalkingPolicy`` rebuilds them to run the shipped policy; both call
 ``velocity_policy_terms``, so a change to the task's observation cannot silently leave the
-runner feeding the shipped network something else. (Here, below both layers: ``sim`` may not
-import the task layer.) The runner also checks the policy's ``contract.json`` lists
-``VELOCITY_POLICY_TERMS`` in this order.
+runner feeding the shipped network something else. (Here, in the content layer below both: the
+runner may not import the task layer.) The runner also checks the policy's ``contract.json``
+lists ``VELOCITY_POLICY_TERMS`` in this order.
 """
 
 from __future__ import annotations
 
 import torch
 
-from .entity import EntityData
+from ..core.entity import EntityData
 
 VELOCITY_POLICY_TERMS = ("projected_gravity", "velocity_commands", "joint_pos_rel", "joint_vel", "base_ang_vel",
                          "actions")

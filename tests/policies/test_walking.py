@@ -8,7 +8,7 @@ import pytest
 import torch
 
 from ambulo import assets
-from ambulo.assets.policies import load_policy, policy_dir
+from ambulo.policies.shipped import load_policy, policy_dir
 from ambulo.rl.export import _run_torchscript_in_fresh_process
 from ambulo.sim import HumanoidWalkingPolicy, Robot, World, add_reference_to_stage
 

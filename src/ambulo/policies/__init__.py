@@ -1,0 +1,16 @@
+"""Shipped policies and the observation recipes that feed them (content: below envs, sim and the apps).
+
+- ``shipped``: ``load_policy(task)``, the trained networks in ``assets/data/policies`` with their
+  ``contract.json``.
+- ``velocity_obs``: ``velocity_policy_terms``, the velocity-tracking observation the humanoid-walk
+  task trains on and the runner rebuilds.
+- ``walking``: ``WalkingPolicy``, the shipped walking policy driving an ``Entity``
+  (``sim.HumanoidWalkingPolicy`` is it on an Isaac-style ``Robot``).
+"""
+
+from .shipped import POLICY_DIR, ShippedPolicy, load_policy, policy_dir, read_contract, shipped_tasks
+from .velocity_obs import VELOCITY_POLICY_TERMS, velocity_policy_terms
+from .walking import WalkingPolicy
+
+__all__ = ["POLICY_DIR", "VELOCITY_POLICY_TERMS", "ShippedPolicy", "WalkingPolicy", "load_policy", "policy_dir",
+           "read_contract", "shipped_tasks", "velocity_policy_terms"]
