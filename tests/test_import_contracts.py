@@ -58,6 +58,22 @@ def test_the_tree_keeps_every_contract():
     assert "Contracts: 2 kept, 0 broken." in result.stdout, result.stdout
 
 
+def folders_without_init(package: Path) -> list[str]:
+    """Folders under ``package`` that hold Python files but no ``__init__.py``."""
+    folders = {p.parent for p in package.rglob("*.py") if "__pycache__" not in p.parts}
+    return sorted(str(f.relative_to(package.parent)) for f in folders if not (f / "__init__.py").is_file())
+
+
+def test_every_source_folder_is_a_package(tmp_path):
+    """lint-imports (grimp) sees only packages: the modules of a folder without ``__init__.py``
+    escape every contract, silently."""
+    assert folders_without_init(REPO / "src" / "ambulo") == []
+    (tmp_path / "ambulo" / "vo").mkdir(parents=True)
+    (tmp_path / "ambulo" / "__init__.py").write_text("")
+    (tmp_path / "ambulo" / "vo" / "odometry.py").write_text("")
+    assert folders_without_init(tmp_path / "ambulo") == ["ambulo/vo"]
+
+
 def test_no_type_only_import_points_upward(tmp_path):
     result = lint_imports(REPO / "src", counting_type_checking_imports(tmp_path), "--contract", "layers")
     assert result.returncode == 0, result.stdout + result.stderr
