@@ -44,7 +44,7 @@ import time
 from pathlib import Path
 
 from ambulo import replicator as rep
-from ambulo.replicator.generate import FrameProducer, run_frames
+from ambulo.replicator.producer import FrameProducer, run_frames
 from ambulo.replicator.io import PNG_DEFLATE
 from ambulo.replicator.processes import LP_THREADS_ENV, ProducerPool, usable_cpus
 from ambulo.replicator.writers import prepare_dirs

@@ -21,6 +21,8 @@ import threading
 import time
 from pathlib import Path
 
+from .producer import FrameProducer, run_frames
+
 LP_THREADS_ENV = "LP_NUM_THREADS"
 _MIN_CHUNK, _MAX_CHUNK = 4, 32  # frames per task: short for progress and balance, long enough to keep
                                 # the render/write pipeline full (it drains at the end of each task)
@@ -147,16 +149,12 @@ def _start_worker(payload: bytes, out: str, seed: int, parent_pid: int, barrier)
 
 def _producer():
     if "producer" not in _worker:
-        from .generate import FrameProducer
-
         _worker["config"] = pickle.loads(_worker["payload"])
         _worker["producer"] = FrameProducer(_worker["config"])
     return _worker["producer"]
 
 
 def _run_chunk(frames: list[int]) -> str:
-    from .generate import run_frames
-
     producer = _producer()
     return run_frames(_worker["config"], _worker["out"], _worker["seed"], frames, producer=producer)
 

@@ -11,6 +11,9 @@ import os
 import sys
 from pathlib import Path
 
+from .processes import prepare_producer_process
+from .producer import FrameProducer, run_frames
+
 CHUNK_FRAMES = 8  # small enough for a live progress bar, large enough to amortize task overhead
 
 
@@ -52,9 +55,6 @@ def run_on_ray(config, out: Path, seed: int, frames: list[int], workers: int, pr
 
 class _Shard:
     def __init__(self, config, out: str, seed: int):
-        from .generate import FrameProducer
-        from .processes import prepare_producer_process
-
         prepare_producer_process()  # one CPU per actor: llvmpipe renders inline (before the GL context)
 
         self.producer = FrameProducer(config)
@@ -63,6 +63,4 @@ class _Shard:
         self.config = config
 
     def run(self, frames: list[int]) -> str:
-        from .generate import run_frames
-
         return run_frames(self.config, self.out, self.seed, frames, producer=self.producer)

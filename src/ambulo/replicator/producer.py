@@ -1,0 +1,147 @@
+"""The frame producer: one scene built once, any frame index of a seeded dataset rendered and written.
+
+``FrameProducer`` owns a ``Simulation`` whose components are the config's
+randomizers and its camera; ``run_frames`` renders a list of frame indices with
+it and writes them through a ``FrameWriter`` on a thread. ``generate`` (one
+process), ``processes`` (N local processes) and ``ray_workers`` (Ray actors) all
+render through these two, which is why they live below all three: the workers
+import this module, never ``generate``.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from ambulo.core import Simulation
+from ambulo.sensors import Camera
+
+from .config import DatasetConfig
+from .randomizers import SceneContext
+from .writers import FrameWriter
+
+_MAX_PENDING_WRITES = 4  # frames queued for the writer thread; bounds memory
+
+
+class FrameProducer:
+    """Builds the scene once and renders any frame index of a seeded dataset."""
+
+    def __init__(self, config: DatasetConfig):
+        self.config = config
+        names = [r.name or type(r).__name__ for r in config.randomizers]
+        if len(set(names)) != len(names):
+            raise ValueError(f"randomizer names must be unique (they key the frame log): {names}")
+        annotators = tuple(config.camera.annotators)
+        if config.visible_fraction and "visible_fraction" not in annotators:
+            annotators += ("visible_fraction",)
+        # the core lifecycle: randomizers and the camera are components of one Simulation;
+        # one engine thread, since rendering (llvmpipe) already uses every core
+        self.sim = Simulation(config.build_scene(), config.physics, num_worlds=1, num_threads=1)
+        for name, r in zip(names, config.randomizers):
+            r.name = name
+            self.sim.add(r)
+        self.camera = self.sim.add(Camera(_with_annotators(config.camera, annotators)))
+        self.engine = self.sim.start()
+        self.model = self.sim.model
+        self.ctx = SceneContext(model=self.model, engine=self.engine, cameras={self.camera.name: self.camera})
+        self._names = names
+        self._cache: dict[int, tuple[int, dict]] = {}
+
+    @property
+    def table(self):
+        return self.camera.table
+
+    @property
+    def gl_renderer(self) -> str:
+        return self.camera.renderer.gl_renderer
+
+    def randomize(self, seed: int, index: int) -> dict:
+        """Reset world 0 and apply every randomizer for frame ``index``; returns the frame log.
+
+        No kinematics pass here: the camera's capture runs the only one, on the final state.
+        """
+        self.sim.reset(forward=False)
+        self.camera.reset_pose()
+        log = {}
+        for k, (name, r) in enumerate(zip(self._names, self.config.randomizers)):
+            block = index // max(1, r.every_n_frames)
+            cached = self._cache.get(k)
+            if cached is None or cached[0] != (seed, block):
+                params = r.sample(np.random.default_rng([seed, k, block]), self.ctx)
+                self._cache[k] = ((seed, block), params)
+            params = self._cache[k][1]
+            r.apply(params, self.ctx)
+            log[name] = params
+        return log
+
+    def replay(self, log: dict) -> None:
+        """Apply a logged frame's parameters (no random draws): regenerates that frame alone."""
+        self.sim.reset(forward=False)
+        self.camera.reset_pose()
+        for name, r in zip(self._names, self.config.randomizers):
+            r.apply(log[name], self.ctx)
+
+    def capture(self) -> dict:
+        return self.camera.capture(0)
+
+    def frames(self, seed: int, indices: list[int]):
+        """Yield (index, log, capture) for ``indices``, randomizing frame i+1 while frame i's id pass rasterizes."""
+        indices = list(indices)
+        if not indices:
+            return
+        log = self.randomize(seed, indices[0])
+        self.camera.begin_capture(0)
+        for k, index in enumerate(indices):
+            following = indices[k + 1] if k + 1 < len(indices) else None
+            next_log = self.randomize(seed, following) if following is not None else None
+            capture = self.camera.end_capture()
+            if following is not None:
+                self.camera.begin_capture(0)
+            yield index, log, capture
+            log = next_log
+
+    def close(self) -> None:
+        self.camera.close()
+
+
+def _with_annotators(cfg, annotators):
+    return replace(cfg, annotators=tuple(dict.fromkeys(annotators)))
+
+
+def run_frames(config: DatasetConfig, out: Path, seed: int, frames: list[int], progress=None,
+               producer: FrameProducer | None = None) -> str:
+    """Render and write ``frames`` (skipping none); returns the GL renderer string.
+
+    The writer thread encodes and writes frame i while frame i+1 renders. On any exit
+    (Ctrl-C included) the records of the frames already written are written too, so
+    an interrupted run keeps them.
+    """
+    out = Path(out)
+    owned = producer is None
+    producer = producer or FrameProducer(config)
+    writer = FrameWriter(out, config.writer)
+    pending: list[cf.Future] = []
+    try:
+        with cf.ThreadPoolExecutor(max_workers=1, thread_name_prefix="ambulo-writer") as pool:
+            try:
+                for index, log, capture in producer.frames(seed, frames):
+                    pending.append(pool.submit(writer.write, index, capture, producer.table, log))
+                    if len(pending) >= _MAX_PENDING_WRITES:
+                        pending.pop(0).result()
+                        if progress is not None:
+                            progress(1)
+                for fut in pending:
+                    fut.result()
+                    if progress is not None:
+                        progress(1)
+            except BaseException:
+                pool.submit(writer.flush)  # after the queued writes; the pool's exit waits for it
+                raise
+            pool.submit(writer.flush).result()
+        return producer.gl_renderer
+    finally:
+        if owned:
+            producer.close()
