@@ -5,3 +5,7 @@ Content, not an app: a scene module builds into a ``core.scene`` builder (and ma
 ROS 2 bridge, the navigator) places the same rooms. Modules: ``walk_arena``, ``indoor``,
 ``warehouse``, ``apartment`` (seeded procedural apartments with ground-truth occupancy).
 """
+
+from .apartment import apartment
+
+__all__ = ["apartment"]
