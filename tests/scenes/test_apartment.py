@@ -116,7 +116,8 @@ def test_occupancy_agrees_with_mujoco_ray_casts(apartments):
     """A ray straight down from above the walls at each cell centre (every 2nd cell): it stops
     above the step height exactly where the map says a solid covers that centre, and never in a
     FREE cell."""
-    apt = apartments[0]
+    apt = apartments[3]
+    assert len(apt.footprints.disc_radius_m) >= 3  # pots, round tables, lamp poles: discs as well as boxes
     model = apt.build().compile()
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
@@ -283,3 +284,40 @@ def test_bad_configs_are_refused_in_one_line():
     raises_one_line(lambda: ApartmentCfg(step_height_m=2.0), "head_height_m", "band")
     raises_one_line(lambda: apartment(0).sample_start_goal(0, 5.0, 3.0), "min_geodesic_m")
     raises_one_line(lambda: apartment(-1), "seed")
+
+
+def test_humanoid_stands_at_a_sampled_start_for_one_second_touching_nothing():
+    """The scene in an ``ambulo.sim.World`` with the humanoid at a sampled start, held standing by
+    the shipped walking policy (zero command) for 1 s: no geom of the robot but its feet touches
+    anything, no apartment solid is touched at all, and it is still upright where it started."""
+    pytest.importorskip("onnxruntime")
+    from ambulo.robots import humanoid
+    from ambulo.sim import HumanoidWalkingPolicy, Robot, World
+
+    apt = apartment(2)
+    ep = apt.sample_start_goal(0)
+    x, y, yaw = ep.start_pose
+    world = World(physics_dt=humanoid.POLICY_PHYSICS_DT_S, rendering_dt=0.02)
+    apt.build(spec=world.stage.mjspec, robot_pose=ep.start_pose)
+    robot = world.scene.add(Robot(prim_path=humanoid.PRIM_PATH, name="humanoid", position=[x, y, 0.0],
+                                  orientation=[math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)]))
+    world.reset()
+    walker = HumanoidWalkingPolicy(robot)
+    walker.initialize()
+    world.add_physics_callback("stand", lambda dt: walker.forward(dt, (0.0, 0.0, 0.0)))
+    model = world.engine.model
+    robot_body = np.array([model.body(b).name.startswith(humanoid.PRIM_PATH + "/") for b in range(model.nbody)])
+    feet = {model.body(f"{humanoid.PRIM_PATH}/{name}").id for name in humanoid.FOOT_BODIES}
+    solids = {model.geom(s.name + "/geom").id for s in apt.solids}
+    data, touches = None, []
+    for _ in range(50):
+        world.step(render=False)
+        data = world.engine.get_data(0, data)
+        for c in data.contact[:data.ncon]:
+            bodies = model.geom_bodyid[[c.geom1, c.geom2]]
+            if robot_body[bodies].any() and not robot_body[bodies].all():  # robot vs the apartment
+                if {c.geom1, c.geom2} & solids or not set(bodies.tolist()) & feet:
+                    touches.append((model.geom(c.geom1).name, model.geom(c.geom2).name))
+    assert not touches, touches[:5]
+    pos = robot.get_world_pose()[0]
+    assert np.hypot(pos[0] - x, pos[1] - y) < 0.25 and pos[2] > 0.8

@@ -65,9 +65,9 @@ class ApartmentCfg(Checked):
     wall_height_m: float = 2.5
     connecting_door_probability: float = 0.35
     """Chance of a door between two neighbouring rooms on one side of the corridor."""
-    furniture_per_room_range: tuple[int, int] = (2, 4)
+    furniture_per_room_range: tuple[int, int] = (2, 5)
     """Pieces flush against the walls: cabinets, shelves, sofas, beds, desks (tried; some may not fit)."""
-    clutter_per_room_range: tuple[int, int] = (1, 4)
+    clutter_per_room_range: tuple[int, int] = (2, 6)
     """Free pieces: tables, round tables, pots, lamps, armchairs, low boxes and piles."""
     rug_probability: float = 0.5
     passage_m: float = 0.65

@@ -224,7 +224,12 @@ def _furnish(room: Room, doors: list[Door], walls: list[Solid], cfg, rng, t: flo
         if not placed:
             return True
         centers, halves, yaws = (np.array(v, float) for v in zip(*placed))
-        return bool((rect_distances_m(center, half, yaw, centers, halves, yaws) >= cfg.passage_m).all())
+        # only pieces whose circumcircles come within a passage need the exact distance
+        near = (np.hypot(*(centers - center).T) - np.hypot(*halves.T) - math.hypot(*half)) < cfg.passage_m
+        if not near.any():
+            return True
+        return bool((rect_distances_m(center, half, yaw, centers[near], halves[near], yaws[near])
+                     >= cfg.passage_m).all())
 
     def add(kind: str, center, half, yaw, height, look):
         placed.append((center, half, yaw))
@@ -234,7 +239,7 @@ def _furnish(room: Room, doors: list[Door], walls: list[Solid], cfg, rng, t: flo
     for _ in range(int(rng.integers(cfg.furniture_per_room_range[0], cfg.furniture_per_room_range[1] + 1))):
         kind = str(rng.choice(list(_FLUSH)))
         hx_r, hy_r, h_r, look = _FLUSH[kind]
-        for _try in range(12):
+        for _try in range(20):
             half = (_u(rng, hx_r), _u(rng, hy_r))
             wall = str(rng.choice(["s", "n", "w", "e"]))
             vertical = wall in ("w", "e")
@@ -262,7 +267,7 @@ def _furnish(room: Room, doors: list[Door], walls: list[Solid], cfg, rng, t: flo
                 break
     for _ in range(int(rng.integers(cfg.clutter_per_room_range[0], cfg.clutter_per_room_range[1] + 1))):
         kind = str(rng.choice(_FREE))
-        for _try in range(12):
+        for _try in range(20):
             half, height, look = _free_size(kind, rng)
             yaw = _u(rng, (-math.pi, math.pi)) if kind not in ("pot", "lamp") else 0.0
             center = (_u(rng, (ix0, ix1)), _u(rng, (iy0, iy1)))
