@@ -8,6 +8,7 @@ import pytest
 import torch
 
 from ambulo.core import Entity, GroundCfg, PhysicsCfg, RobotCfg, Simulation, add_ground, add_robot, new_scene
+from ambulo.core.entity import InitState
 from ambulo.engine import CpuEngine
 from ambulo.sensors import ContactSensor, ContactSensorCfg
 from ambulo.utils.math import quat_from_axis_angle
@@ -85,7 +86,7 @@ def test_unknown_names_and_missing_drives_are_explained():
     with pytest.raises(KeyError, match="unknown joint 'knee'"):
         robot.find_joints("knee")
     with pytest.raises(ValueError, match="unknown joints \\['elbow'\\]"):
-        Entity(sim.engine, "/World/robot", default_joint_pos={"elbow": 0.1})
+        Entity(sim.engine, "/World/robot", init_state=InitState(joint_pos={"elbow": 0.1}))
 
 
 def test_contact_air_time_of_a_dropped_foot_matches_free_fall():

@@ -12,18 +12,62 @@ Derived fields (``body_pos_w``, ``body_quat_w``, ``body_lin_vel_w``, ``joint_eff
 root pose of a jointed or fixed root) come from kinematics that, after
 ``engine.step(refresh=False)``, describe the state one substep before the last
 (as after ``mj_step``); ``engine.step(refresh=True)`` or ``engine.forward()`` makes them current.
+
+Initial state: an ``Entity`` owns its ``InitState`` (as mjlab's ``EntityCfg.init_state``): root
+pose and joint positions, often a keyframe of the robot's file (``InitState.from_keyframe``).
+``apply_init_state`` writes it into every world and makes it what ``engine.reset`` restores: the
+one place a robot's start pose enters a simulation, with no keyframe compiled into the model.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
 import torch
 
 from ..utils.math import projected_gravity, quat_rotate, quat_rotate_inverse, yaw_from_quat
+from ..utils.validate import Checked, rule
 from .drives import is_drive
 from .names import EntityNames
 from .rows import put_rows, take_rows
+from .scene import KeyPose, RobotCfg
+
+_IDENTITY_QUAT = (1.0, 0.0, 0.0, 0.0)
+
+
+@dataclass(kw_only=True)
+class InitState(Checked):
+    """Where an entity starts, and what a reset restores (mjlab's ``EntityCfg.InitialStateCfg``).
+
+    Joints it does not name, and a root it leaves None, keep the compiled model's ``qpos0``
+    (the robot as the scene placed it). Velocities start at zero.
+    """
+
+    joint_pos: dict[str, float] = field(default_factory=dict, metadata=rule(signed=True))
+    """Joint name (relative to the prim path) -> position, rad or m; also the entity's
+    ``default_joint_pos``."""
+    root_pos_m: tuple[float, float, float] | None = field(default=None, metadata=rule(signed=True))
+    """Free root position in the world frame, m."""
+    root_quat: tuple[float, float, float, float] | None = field(default=None, metadata=rule(signed=True))
+    """Free root orientation (w, x, y, z) in the world frame."""
+
+    @classmethod
+    def from_keyframe(cls, key: KeyPose, robot: RobotCfg | None = None,
+                      joint_pos: dict[str, float] | None = None) -> InitState:
+        """A keyframe of the robot's file (``core.add_robot``'s ``AttachedRobot.keyframes``) in the
+        world: its root pose carried by the frame ``robot`` was attached at (``pos_m``, ``quat``),
+        its joint positions with ``joint_pos`` overriding some."""
+        joints = {**key.joint_pos, **(joint_pos or {})}
+        if key.root_pos_m is None or (robot is not None and robot.fixed_base):  # no free joint, no root state
+            return cls(joint_pos=joints)
+        frame_pos = np.zeros(3) if robot is None else np.asarray(robot.pos_m, dtype=np.float64)
+        frame_quat = np.asarray(_IDENTITY_QUAT if robot is None else robot.quat, dtype=np.float64)
+        pos, quat = np.empty(3), np.empty(4)
+        mujoco.mju_rotVecQuat(pos, np.asarray(key.root_pos_m, dtype=np.float64), frame_quat)
+        mujoco.mju_mulQuat(quat, frame_quat, np.asarray(key.root_quat, dtype=np.float64))
+        return cls(joint_pos=joints, root_pos_m=tuple((pos + frame_pos).tolist()), root_quat=tuple(quat.tolist()))
 
 
 def _index(idx: np.ndarray, device: torch.device) -> slice | torch.Tensor:
@@ -40,13 +84,14 @@ class Entity:
       engine: an ``ambulo.engine.Engine`` over the compiled scene.
       prim_path: the entity's prim path (``/World/robot``): a body of that name or the root
         of the subtree of bodies named ``<prim_path>/...``.
-      default_joint_pos: joint name (relative to ``prim_path``) -> default position, rad or m;
-        other joints default to the model's ``qpos0``.
+      init_state: the entity's initial state (``InitState``): its joint positions are also
+        ``default_joint_pos``; None starts it as the model's ``qpos0``. ``apply_init_state``
+        writes it into the worlds.
       soft_limit_factor: fraction of each joint's range, about its middle, that is "safe".
       require_drives: every joint must have an ambulo drive (``core.drives``).
     """
 
-    def __init__(self, engine, prim_path: str, *, default_joint_pos: dict[str, float] | None = None,
+    def __init__(self, engine, prim_path: str, *, init_state: InitState | None = None,
                  soft_limit_factor: float = 0.9, require_drives: bool = True):
         model: mujoco.MjModel = engine.model
         self.engine = engine
@@ -86,11 +131,16 @@ class Entity:
         self.has_drives = not missing
         self._act_adr = np.asarray([actuator_of.get(j, -1) for j in joints], dtype=np.int64)
 
+        self.init_state = init_state = init_state or InitState()
+        """Where the entity starts (``apply_init_state``)."""
+        if (init_state.root_pos_m is not None or init_state.root_quat is not None) and not self.is_floating:
+            raise ValueError(f"the initial state of {self.prim_path} sets a root pose, but its root has no free "
+                             "joint; place a fixed robot with RobotCfg.pos_m / quat instead")
         default = model.qpos0[self._qpos_adr].copy()
-        overrides = dict(default_joint_pos or {})
+        overrides = init_state.joint_pos
         unknown = sorted(set(overrides) - set(self.joint_names))
         if unknown:
-            raise ValueError(f"default joint positions name unknown joints {unknown}; "
+            raise ValueError(f"the initial state names unknown joints {unknown}; "
                              f"joints of {self.prim_path}: {self.joint_names}")
         for name, value in overrides.items():
             default[self.joint_names.index(name)] = value
@@ -136,6 +186,22 @@ class Entity:
         return self.names.find_bodies(names)
 
     # -- writes -----------------------------------------------------------------------------
+    def apply_init_state(self) -> None:
+        """Write ``init_state`` into every world (joints at ``default_joint_pos``, the root where
+        it says, this entity's velocities zero), recompute the kinematics, and make the engine's
+        whole state the one ``engine.reset`` restores."""
+        n, f64 = self.num_worlds, dict(dtype=self.engine.dtype, device=self.device)
+        self.write_joint_state(pos=self.default_joint_pos.expand(n, -1), vel=torch.zeros(n, self.num_joints, **f64))
+        state = self.init_state
+        if self.is_floating:
+            pos = None if state.root_pos_m is None else torch.tensor(state.root_pos_m, **f64).expand(n, 3)
+            quat = None if state.root_quat is None else torch.tensor(state.root_quat, **f64).expand(n, 4)
+            self.write_root_pose(pos_w=pos, quat_w=quat)
+            d = self._free_dof
+            self.engine.qvel[:, d:d + 6] = 0.0
+        self.engine.forward()
+        self.engine.capture_initial_state()
+
     def write_root_pose(self, pos_w: torch.Tensor | None = None, quat_w: torch.Tensor | None = None,
                         env_ids: torch.Tensor | None = None) -> None:
         """Set the root position (n, 3) m and orientation (n, 4) wxyz, world frame, of ``env_ids``.
@@ -352,4 +418,4 @@ class EntityData:
         return self._e.engine.model_field("body_mass")[:, self._e.body_ids]
 
 
-__all__ = ["Entity", "EntityData"]
+__all__ = ["Entity", "EntityData", "InitState"]

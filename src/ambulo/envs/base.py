@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import torch
 
 from ambulo.core import Entity, GroundCfg, PhysicsCfg, RobotCfg, Simulation, add_ground, add_robot, new_scene
+from ambulo.core.entity import InitState
 from ambulo.core.rows import fill_rows, num_rows, select_rows
 from ambulo.utils.checks import check_int, check_real_dtype
 from ambulo.utils.validate import Checked, check_fields, rule
@@ -154,26 +155,20 @@ class RLEnv:
         """Add task elements to ``spec`` (markers) and components to ``self.sim`` (sensors)."""
 
     def _make_robot(self) -> Entity:
-        """The robot's ``Entity`` with its default pose; the pose becomes the initial state."""
+        """The robot's ``Entity``, started in its initial state: ``cfg.robot_keyframe`` of the
+        robot's file (or the model's ``qpos0``) with ``cfg.default_joint_pos`` over it."""
         cfg = self.cfg
-        pose = {}
-        root_pos = None
-        if cfg.robot_keyframe is not None:
+        if cfg.robot_keyframe is None:
+            init = InitState(joint_pos=dict(cfg.default_joint_pos))
+        else:
             key = self.robot_asset.keyframes.get(cfg.robot_keyframe)
             if key is None:
                 raise ValueError(f"{cfg.robot.file} has no keyframe {cfg.robot_keyframe!r} "
                                  f"(has {sorted(self.robot_asset.keyframes)}); set robot_keyframe=None")
-            pose = dict(key.joint_pos)
-            root_pos = key.root_pos_m
-        pose.update(cfg.default_joint_pos)
-        robot = Entity(self.engine, cfg.robot.prim_path, default_joint_pos=pose,
+            init = InitState.from_keyframe(key, cfg.robot, joint_pos=cfg.default_joint_pos)
+        robot = Entity(self.engine, cfg.robot.prim_path, init_state=init,
                        soft_limit_factor=cfg.soft_joint_limit_factor)
-        robot.write_joint_state(pos=robot.default_joint_pos.expand(self.num_envs, -1))
-        if root_pos is not None and robot.is_floating:
-            offset = torch.as_tensor(cfg.robot.pos_m, dtype=self.engine.dtype, device=self.device)
-            robot.write_root_pose(pos_w=torch.as_tensor(root_pos, device=self.device) + offset)
-        self.engine.forward()
-        self.engine.capture_initial_state()
+        robot.apply_init_state()
         return robot
 
     def _num_actions(self) -> int:
