@@ -321,3 +321,13 @@ def test_humanoid_stands_at_a_sampled_start_for_one_second_touching_nothing():
     assert not touches, touches[:5]
     pos = robot.get_world_pose()[0]
     assert np.hypot(pos[0] - x, pos[1] - y) < 0.25 and pos[2] > 0.8
+
+
+def test_the_figure_script_draws_the_apartments(tmp_path):
+    from script_loader import ROOT, run_main
+
+    out = run_main(ROOT / "scripts" / "apartments_figure.py", "--seeds", "1", "4", "--out", str(tmp_path / "a.png"))
+    import imageio.v3 as iio
+
+    image = iio.imread(out)
+    assert image.ndim == 3 and image.shape[0] > 200 and image.shape[1] > 600
