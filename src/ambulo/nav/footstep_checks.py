@@ -8,10 +8,12 @@ It passes when, all against the occupancy grid (whose occupied cells cover the o
     (nothing between the legs) and on the swing segment previous -> new footstep (the foot passes
     over nothing) pass the same test, so both segments keep >= 0.25 cell;
   * body: every cell that the feet's midpoint crosses, moving from (previous + stance) / 2 to
-    (new + stance) / 2, is a body cell: a cell whose centre is at least ``body_clearance_m`` plus
-    half a cell diagonal from every occupied cell. Each point of that track thus keeps
-    ``body_clearance_m``; the cells are found exactly (``crossed_cells``), and the heuristic's
-    distance field runs over the same body cells;
+    (new + stance) / 2, is a body cell: a cell every point of which keeps ``body_clearance_m``
+    from every occupied cell, measured exactly between cell edges (``grid_map.clearance_m``).
+    Each point of that track thus keeps ``body_clearance_m``; the cells are found exactly
+    (``crossed_cells``), and the heuristic's distance field runs over the same body cells. A
+    0.60 m door between grid-aligned walls leaves the midpoint a channel of two cells (0.10 m)
+    for a 0.25 m clearance, as the continuous geometry does;
   * terrain (with a height map): the heights under the sole samples differ by at most
     ``max_foothold_spread_m``; the foot stands on the highest, and the caller limits the rise.
 Off the map counts as occupied.
@@ -24,14 +26,15 @@ import math
 import numpy as np
 
 from .footstep_lattice import Lattice, compose
-from .grid_map import CHAMFER_AXIAL, GridMap, crossed_cells, near_occupied
+from .grid_map import GridGraph, GridMap, clearance_m, crossed_cells, near_occupied
 
 GUIDE_MARGIN_M = 0.3
-"""The body path the planner's straight walks follow stays this much farther from obstacles than
-it must, where it can (``GUIDE_COST_CELLS``)."""
-GUIDE_COST_CELLS = 2
-"""Extra cost, in cells, of moving the body path into a cell within ``GUIDE_MARGIN_M`` of the
-closest the body may go (an inflation cost in the manner of Nav2's costmap inflation)."""
+"""The body path the planner's walks follow stays this much farther from obstacles than it must,
+where it can (``GUIDE_COST_PER_M``)."""
+GUIDE_COST_PER_M = 3.0
+"""Extra cost per metre of body path at the closest the body may go, falling linearly to 0 at
+``GUIDE_MARGIN_M`` farther (an inflation cost in the manner of Nav2's costmap inflation), so the
+path keeps to the middle of corridors and doors."""
 PAD = 2
 """Border of blocked cells around the padded arrays (off the map = blocked)."""
 
@@ -45,25 +48,24 @@ class FootstepChecks:
         num_y, num_x = grid.shape
         self.shape_p = (num_y + 2 * PAD, num_x + 2 * PAD)
         """(rows, columns) of the padded layers; cell [iy, ix] of the map is [iy + PAD, ix + PAD]."""
-        occ = np.ones(self.shape_p, bool)
-        occ[PAD:-PAD, PAD:-PAD] = grid.occupied
-        near = occ.copy()
-        for dy in (-1, 0, 1):
-            for dx in (-1, 0, 1):
-                near[1:-1, 1:-1] |= occ[1 + dy:self.shape_p[0] - 1 + dy, 1 + dx:self.shape_p[1] - 1 + dx]
+        self.clearance_m = clearance_m(grid.occupied, r)
+        """(num_y, num_x) exact distance from each cell to the nearest occupied cell (or the map's
+        edge), edge to edge, m."""
+        clear_p = np.zeros(self.shape_p)
+        clear_p[PAD:-PAD, PAD:-PAD] = self.clearance_m
+        self.clearance_flat = clear_p.ravel()
+        """Flat padded ``clearance_m`` (0 off the map)."""
+        near = np.ones(self.shape_p, bool)
+        near[PAD:-PAD, PAD:-PAD] = self.clearance_m <= 0.0
         self.near_occupied = near.ravel()
         """Flat padded bool: occupied or next to an occupied cell (sole and leg samples)."""
-        body_clearance = cfg.body_clearance_m + r / math.sqrt(2)
-        self.body_free = ~near_occupied(grid.occupied, r, body_clearance, from_cell_centers=True)
+        self.body_free = self.clearance_m >= cfg.body_clearance_m - 1e-9
         """(num_y, num_x) bool: the body cells, where the feet's midpoint may go."""
         body_blocked = np.ones(self.shape_p, bool)
         body_blocked[PAD:-PAD, PAD:-PAD] = ~self.body_free
         self.body_blocked = body_blocked.ravel()
         self.body_lines = math.floor(lattice.max_swing_m / 2 / r) + 1
         """Grid lines one body move can cross along an axis (it is at most D_swing / 2 long)."""
-        near_body = near_occupied(grid.occupied, r, body_clearance + GUIDE_MARGIN_M, from_cell_centers=True)
-        self.guide_cost = (near_body * GUIDE_COST_CELLS * CHAMFER_AXIAL).astype(np.int32)
-        """(num_y, num_x) int entry cost of the guide field (``GUIDE_COST_CELLS``)."""
         self.guide_free = self.body_free.copy()
         """(num_y, num_x) bool: where the body path may go: body cells, and no closer than the
         feet's reach to a height step too high to take (the heuristic's field ignores heights)."""
@@ -77,6 +79,17 @@ class FootstepChecks:
         guide_blocked = np.ones(self.shape_p, bool)
         guide_blocked[PAD:-PAD, PAD:-PAD] = ~self.guide_free
         self.guide_blocked = guide_blocked.ravel()
+        tight = np.clip(1.0 - (self.clearance_m - cfg.body_clearance_m) / GUIDE_MARGIN_M, 0.0, 1.0)
+        self.guide_graph = GridGraph(self.guide_free, r, cost_per_m=GUIDE_COST_PER_M * tight, corner_cutting=False)
+        """Cell graph of the body path (``GoalHeuristic.path``)."""
+        self._body_graph: GridGraph | None = None
+
+    @property
+    def body_graph(self) -> GridGraph:
+        """Cell graph of the heuristic's geodesic: the body cells, lengths only (built on first use)."""
+        if self._body_graph is None:
+            self._body_graph = GridGraph(self.body_free, self.grid.resolution_m)
+        return self._body_graph
 
     def cells(self, x_m, y_m) -> np.ndarray:
         """Flat indices into the padded layers of world points (any shape, m); points off the map
@@ -113,18 +126,22 @@ class FootstepChecks:
         ys = np.concatenate([new_y + s * sole[:, 0] + c * sole[:, 1], stance_y + (new_y - stance_y) * tb,
                              prev_y + (new_y - prev_y) * tw], axis=1)
         cells = self.cells(xs, ys)
-        (ox, oy), r = self.grid.origin_xy_m, self.grid.resolution_m
-        body_u, body_v = crossed_cells((0.5 * (prev_x + stance_x)[:, 0] - ox) / r,
-                                       (0.5 * (prev_y + stance_y)[:, 0] - oy) / r,
-                                       (0.5 * (new_x + stance_x)[:, 0] - ox) / r,
-                                       (0.5 * (new_y + stance_y)[:, 0] - oy) / r, self.body_lines)
-        free = ~(self.near_occupied[cells].any(axis=1)
-                 | self.body_blocked[self.cells(ox + body_u * r, oy + body_v * r)].any(axis=1))
+        free = ~self.near_occupied[cells].any(axis=1) & self.body_track_free(
+            0.5 * np.concatenate([prev_x + stance_x, prev_y + stance_y], axis=1),
+            0.5 * np.concatenate([new_x + stance_x, new_y + stance_y], axis=1))
         if self.height is None:
             return free, np.zeros(len(new))
         under_sole = self.height[cells[:, :len(sole)]]
         top = under_sole.max(axis=1)
         return free & (top - under_sole.min(axis=1) <= self.cfg.max_foothold_spread_m), top
+
+    def body_track_free(self, from_xy: np.ndarray, to_xy: np.ndarray) -> np.ndarray:
+        """(K,) bool: does every cell that the segments ``from_xy`` -> ``to_xy`` ((K, 2) each, m,
+        world; at most D_swing / 2 long) cross lie in the body cells?"""
+        (ox, oy), r = self.grid.origin_xy_m, self.grid.resolution_m
+        u, v = crossed_cells((from_xy[:, 0] - ox) / r, (from_xy[:, 1] - oy) / r, (to_xy[:, 0] - ox) / r,
+                             (to_xy[:, 1] - oy) / r, self.body_lines)
+        return ~self.body_blocked[self.cells(ox + u * r, oy + v * r)].any(axis=1)
 
     def rise_ok(self, rise_m) -> np.ndarray:
         """Is a change of foot height (new - stance, m) within the step up/down limits?"""

@@ -3,15 +3,15 @@
 ``steps_left`` is admissible: it never exceeds the number of steps a plan of lattice steps still
 needs, so never the cost either (each step costs >= 1). It is the largest of three lower bounds.
 
-* Geodesic. ``G`` is the 5-7 chamfer distance (``chamfer_distance_m``) through the body cells
-  (``FootstepChecks``) from the cells within ``goal_tolerance_m`` (plus half a cell diagonal) of
-  the goal, where the final midpoint lies. Per step the feet's midpoint moves along a straight
+* Geodesic. ``G`` is the length of the shortest 8-connected path (side moves r, diagonal moves
+  sqrt(2) r; ``GridGraph``) through the body cells (``FootstepChecks``) from the cells within
+  ``goal_tolerance_m`` (plus half a cell diagonal) of the goal, where the final midpoint lies. Per step the feet's midpoint moves along a straight
   segment of length <= D_swing / 2 (half the foot's swing) and every cell that segment crosses is
-  a body cell (checked exactly). Those cells hold an 8-connected path of chamfer length
-  <= 1.077 L + 2 r: ``CHAMFER_MAX_RATIO`` for the metric, 1.4 r for rounding both ends to their
-  cells, 0.6 r for one unpaired side move (in the crossed cells of a segment whose slope is
-  <= 1, side moves across rows never come two in a row, so each pairs with a column move into
-  one diagonal move). Hence steps >= G(mid) / (1.077 D_swing / 2 + 2 r).
+  a body cell (checked exactly). Those cells hold an 8-connected path of length
+  <= 1.0824 L + 2 r: ``OCTILE_MAX_RATIO`` for the metric, sqrt(2) r for rounding both ends to
+  their cells, (2 - sqrt(2)) r for one unpaired side move (in the crossed cells of a segment
+  whose slope is <= 1, side moves across rows never come two in a row, so each pairs with a
+  column move into one diagonal move). Hence steps >= G(mid) / (1.0824 D_swing / 2 + 2 r).
 * Walking and turning. The midpoint must also advance, along the fixed direction u from it to
   the goal, by the straight-line distance D minus the tolerance. After n steps it has advanced by
   half the sum of the two feet's footstep chains, each bounded by ``progress_m`` from the feet's
@@ -23,9 +23,10 @@ needs, so never the cost either (each step costs >= 1). It is the largest of thr
   half a step's turn of it: steps >= (|yaw error| - yaw tolerance - dyaw_max / 2) / dyaw_max.
 
 Cells that cannot reach the goal get G = inf; a start there is ``GOAL_UNREACHABLE`` at once.
-The body path (``waypoint``) follows a second field, over the same cells less those near height
-steps too high to take, with an entry cost near obstacles (``GUIDE_COST_CELLS``), so that the
-straight walks along it keep some room. It only guides; it bounds nothing.
+G is computed on first use: a plan that the walk along the body path finds needs none.
+The body path (``path``) follows a second field, over the same cells less those near height
+steps too high to take, with an inflation cost near obstacles (``GUIDE_COST_PER_M``), so that
+the walks along it keep to the middle of corridors. It only guides; it bounds nothing.
 """
 
 from __future__ import annotations
@@ -36,10 +37,14 @@ import numpy as np
 
 from .footstep_checks import PAD, FootstepChecks
 from .footstep_lattice import HEADING_BINS, wrap_angle
-from .grid_map import CHAMFER_MAX_RATIO, chamfer_distance_m, crossed_cells
+from .grid_map import OCTILE_MAX_RATIO, crossed_cells
 
-WAYPOINT_LOOKAHEAD_M = 3.0
-"""How far along the body path ``waypoint`` looks for a point to walk to in a straight line."""
+PULL_REACH = 80
+"""Farthest a straight piece of the body path reaches, in path cells (about 4-5 m)."""
+PULL_MARGIN_M = 0.15
+"""Room beyond the body clearance that a straightened piece of the body path keeps where the
+path it replaces did."""
+
 
 
 class GoalHeuristic:
@@ -50,28 +55,72 @@ class GoalHeuristic:
         self.goal = np.asarray(goal_xyyaw, float)
         grid, r = checks.grid, checks.grid.resolution_m
         goal_dist_m = np.hypot(*(grid.cell_centers_xy_m() - self.goal[:2]).transpose(2, 0, 1))
-        seeds = goal_dist_m <= self.cfg.goal_tolerance_m + r / math.sqrt(2)
-        dist = np.full(checks.shape_p, np.inf)
-        dist[PAD:-PAD, PAD:-PAD] = chamfer_distance_m(checks.body_free, seeds, r)
-        self.dist_m = dist.ravel()
-        """Flat padded G, m (inf where the goal cannot be reached)."""
-        self.mid_step_bound_m = CHAMFER_MAX_RATIO * self.lattice.max_swing_m / 2 + 2.0 * r
-        self._seeds = seeds
-        self._downhill: np.ndarray | None = None
+        self._seeds = goal_dist_m <= self.cfg.goal_tolerance_m + r / math.sqrt(2)
+        guide, nxt = checks.guide_graph.distances(self._seeds)
+        self.guide_cost = np.full(checks.shape_p, np.inf)
+        self.guide_cost[PAD:-PAD, PAD:-PAD] = guide
+        self.guide_cost = self.guide_cost.ravel()
+        """Flat padded cost to go along the body path (inf where it cannot reach the goal)."""
+        self._next = nxt
+        self.mid_step_bound_m = OCTILE_MAX_RATIO * self.lattice.max_swing_m / 2 + 2.0 * r
+        self._dist_m: np.ndarray | None = None
 
     @property
-    def downhill(self) -> np.ndarray:
-        """Flat padded: each cell's neighbour one move down the guide field (itself at the goal);
-        computed on first use."""
-        if self._downhill is None:
-            checks, r = self.checks, self.checks.grid.resolution_m
-            guide = np.full(checks.shape_p, np.inf)
-            guide[PAD:-PAD, PAD:-PAD] = chamfer_distance_m(checks.guide_free, self._seeds, r, checks.guide_cost)
-            self._downhill = _downhill(guide, r)
-        return self._downhill
+    def dist_m(self) -> np.ndarray:
+        """Flat padded G, m (inf where the goal cannot be reached); computed on first use."""
+        if self._dist_m is None:
+            dist = np.full(self.checks.shape_p, np.inf)
+            dist[PAD:-PAD, PAD:-PAD] = self.checks.body_graph.distances(self._seeds)[0]
+            self._dist_m = dist.ravel()
+        return self._dist_m
+
+    def path(self, mid_xy) -> np.ndarray | None:
+        """(n, 2) world points of the body path from the cell of ``mid_xy`` to the goal: the point
+        itself, the cell centres down the guide field, then the goal; None where the body path
+        cannot reach the goal from there."""
+        checks = self.checks
+        (ox, oy), r = checks.grid.origin_xy_m, checks.grid.resolution_m
+        iy, ix = math.floor((mid_xy[1] - oy) / r), math.floor((mid_xy[0] - ox) / r)
+        num_y, num_x = checks.grid.shape
+        if not (0 <= iy < num_y and 0 <= ix < num_x) or not np.isfinite(self.guide_cost[(iy + PAD) * checks.shape_p[1]
+                                                                                         + ix + PAD]):
+            return None
+        cells = [iy * num_x + ix]
+        nxt = self._next.ravel()
+        while nxt[cells[-1]] >= 0:
+            cells.append(int(nxt[cells[-1]]))
+        rows, cols = np.divmod(np.array(cells), num_x)
+        centers = np.stack([ox + (cols + 0.5) * r, oy + (rows + 0.5) * r], axis=1)
+        return self._pull_string(np.concatenate([np.asarray(mid_xy, float)[None, :2], centers[1:], self.goal[None, :2]]))
+
+    def _pull_string(self, points: np.ndarray) -> np.ndarray:
+        """The corners of ``points`` (n, 2) a taut string keeps: from each kept point, the farthest
+        later point (at most ``PULL_REACH`` on) that every point before it is seen from through
+        body-path cells (``crossed_cells``), so straight stretches of the path are straight."""
+        checks, r = self.checks, self.checks.grid.resolution_m
+        (ox, oy) = checks.grid.origin_xy_m
+        kept, k, n = [0], 0, len(points)
+        clear = checks.clearance_flat
+        while k < n - 1:
+            cand = np.arange(k + 1, min(n, k + 1 + PULL_REACH))
+            length = np.hypot(*(points[cand] - points[k]).T) / r
+            u, v = crossed_cells((points[k, 0] - ox) / r, (points[k, 1] - oy) / r, (points[cand, 0] - ox) / r,
+                                 (points[cand, 1] - oy) / r, math.ceil(length.max()) + 1)
+            # a shortcut keeps as much room as the path it replaces has (up to PULL_MARGIN_M more
+            # than the body needs), so a walk that cuts its corners a little still passes
+            room = np.minimum.accumulate(clear[checks.cells(points[cand, 0], points[cand, 1])])
+            need = np.minimum(room, self.cfg.body_clearance_m + PULL_MARGIN_M)
+            crossed = checks.cells(ox + u * r, oy + v * r)
+            seen = ~checks.guide_blocked[crossed].any(axis=1) & (clear[crossed].min(axis=1) >= need - 1e-9)
+            seen[0] = True  # the next point is always reachable along the path itself
+            k = int(cand[np.argmin(seen) - 1] if not seen.all() else cand[-1])
+            kept.append(k)
+        return points[kept]
 
     def reachable(self, x_m: float, y_m: float) -> bool:
-        return bool(np.isfinite(self.dist_m[self.checks.cells(x_m, y_m)]))
+        """Does a path of body cells join the point (x, y) (m, world) to the goal?"""
+        cell = self.checks.cells(x_m, y_m)
+        return bool(np.isfinite(self.guide_cost[cell]) or np.isfinite(self.dist_m[cell]))
 
     def is_goal(self, new_feet: np.ndarray, stance_foot: np.ndarray) -> np.ndarray:
         """(K,) bool: do ``new_feet`` (K, 3) beside ``stance_foot`` (3,) stand at the goal (midpoint
@@ -115,44 +164,3 @@ class GoalHeuristic:
                          (rows < distance_m[:, None]).sum(axis=1))
         line = distance_m / rate
         return line, np.maximum(steps - line, 0.0)
-
-    def waypoint(self, mid_xy) -> np.ndarray | None:
-        """The farthest point, at most ``WAYPOINT_LOOKAHEAD_M`` down the body path from ``mid_xy``,
-        that the midpoint can reach in a straight line through the body path's cells
-        (``FootstepChecks.guide_free``); None if none is more than two cells away."""
-        checks, r = self.checks, self.checks.grid.resolution_m
-        cell = int(checks.cells(mid_xy[0], mid_xy[1]))
-        path = [cell]
-        for _ in range(round(WAYPOINT_LOOKAHEAD_M / r)):
-            cell = int(self.downhill[cell])
-            if cell == path[-1]:
-                break
-            path.append(cell)
-        targets = checks.cell_center(np.array(path[2::3] + path[-1:]))  # candidates, the farthest last
-        lengths = np.hypot(*(targets - mid_xy).T) / r
-        if lengths.max() <= 2.0:
-            return None
-        (ox, oy) = checks.grid.origin_xy_m
-        u, v = crossed_cells(np.full(len(targets), (mid_xy[0] - ox) / r), np.full(len(targets), (mid_xy[1] - oy) / r),
-                             (targets[:, 0] - ox) / r, (targets[:, 1] - oy) / r, math.ceil(lengths.max()) + 1)
-        seen = ~checks.guide_blocked[checks.cells(ox + u * r, oy + v * r)].any(axis=1)
-        visible = np.flatnonzero(seen & (lengths > 2.0))
-        return targets[visible[-1]] if visible.size else None
-
-
-def _downhill(field: np.ndarray, resolution_m: float) -> np.ndarray:
-    """Flat index of each cell's neighbour with the least (field + move length); the cell itself
-    where the field is 0 (the goal) and on the border."""
-    num_y, num_x = field.shape
-    ids = np.arange(num_y * num_x).reshape(num_y, num_x)
-    best = np.full((num_y - 2, num_x - 2), np.inf)
-    downhill = ids.copy()
-    for di in (-1, 0, 1):
-        for dj in (-1, 0, 1):
-            if di or dj:
-                value = field[1 + di:num_y - 1 + di, 1 + dj:num_x - 1 + dj] + resolution_m * (1.4 if di and dj else 1.0)
-                better = value < best
-                best[better] = value[better]
-                downhill[1:-1, 1:-1][better] = ids[1 + di:num_y - 1 + di, 1 + dj:num_x - 1 + dj][better]
-    downhill[field == 0] = ids[field == 0]
-    return downhill.ravel()

@@ -208,35 +208,104 @@ def progress_table(left_actions: np.ndarray, max_step_yaw_rad: float) -> np.ndar
     return table
 
 
-def walk_to(stance_xyyaw: np.ndarray, stance_side: int, target_xy, cfg, *, final_yaw: float | None = None
-            ) -> np.ndarray:
-    """(n, 3) footsteps that turn in place to face ``target_xy``, walk straight to it and, given
-    ``final_yaw``, turn in place to that yaw and bring the feet together (ending in the nominal
-    stance at the target). They start from the stance foot ``stance_xyyaw`` of ``stance_side``
-    (the other foot moves first) and follow a body pose placed as if that foot stood in the
-    nominal stance. Nothing is checked here: the planner checks these steps like any other.
-    This is Hybrid A*'s "analytic expansion" (Dolgov et al. 2008) for a legged robot."""
+STEER_CANDIDATES = ((math.inf, 1.0, 1.0), (0.3, 1.0, 1.0), (0.1, 1.0, 1.0), (math.inf, 0.5, 0.5), (0.1, 1.0, 0.5),
+                    (0.1, 1.0, 0.0), (0.1, 0.5, 0.0), (0.1, 0.25, 0.0))
+"""``follow_path``'s steps to try in turn: (lookahead m, capped by the walk's; share of the turn
+towards that point; share of the step length). The first steers smoothly; the later ones keep
+closer to the path, shorten the step or turn on the spot."""
+
+
+def follow_path(stance_xyyaw: np.ndarray, stance_side: int, path_xy: np.ndarray, cfg, *, lookahead_m: float,
+                goal_xyyaw=None, body_free=None, max_steps: int = 400) -> np.ndarray:
+    """(n, 3) footsteps that walk the body along the polyline ``path_xy`` (m, world frame),
+    turning while walking, from the stance foot ``stance_xyyaw`` of ``stance_side`` (the other
+    foot moves first). Nothing is checked against the map here: the planner checks these steps
+    like any other (this is Hybrid A*'s analytic expansion, Dolgov et al. 2008, for feet).
+
+    The body pose (the feet's midpoint and heading) steers by pure pursuit: each step it turns
+    towards the point ``lookahead_m`` farther along the path by at most 0.95 ``max_step_yaw_rad``
+    and moves ahead by up to 0.95 of the longest step, times the cosine of the heading error (so
+    it turns on the spot only while the path lies behind it); each foot lands beside its body
+    pose at half ``start_width_m``, and a step that would break the step limits is retried
+    shorter and with less turn. ``body_free(x0, y0, x1, y1) -> bool`` (optional) says whether the
+    feet's midpoint may move from one point to another; a step whose body track it refuses
+    steers to a nearer point of the path instead (so the walk does not cut a corner into a wall). With ``goal_xyyaw`` the walk ends at the goal's position, turns
+    to its yaw and brings the feet side by side (the goal stance); else it ends at the path's end.
+    Returns fewer footsteps (possibly none) if it runs out of steps or of valid ones."""
     half = cfg.start_width_m / 2
-    body = compose(stance_xyyaw, np.array([0.0, -stance_side * half, 0.0]))
-    distance = math.hypot(target_xy[0] - body[0], target_xy[1] - body[1])
-    walks = distance > 0.25 * cfg.goal_tolerance_m
-    heading = math.atan2(target_xy[1] - body[1], target_xy[0] - body[0]) if walks else body[2]
-    turn_step, walk_step = 0.95 * cfg.max_step_yaw_rad, 0.95 * cfg.step_length_range_m[1]
-    turn1 = float(wrap_angle(heading - body[2]))
-    turn2 = 0.0 if final_yaw is None else float(wrap_angle(final_yaw - heading))
-    n1, n3 = math.ceil(abs(turn1) / turn_step - 1e-9), math.ceil(abs(turn2) / turn_step - 1e-9)
-    n2 = math.ceil(distance / walk_step - 1e-9) if walks else 0
-    # the body pose after each step
-    yaws = np.concatenate([body[2] + turn1 * np.arange(1, n1 + 1) / max(n1, 1), np.full(n2, heading),
-                           heading + turn2 * np.arange(1, n3 + 1) / max(n3, 1)])
-    along = np.concatenate([np.zeros(n1), distance * np.arange(1, n2 + 1) / max(n2, 1), np.full(n3, distance)])
-    if final_yaw is not None:  # one more step with the same body pose: the feet side by side
-        yaws = np.append(yaws, yaws[-1] if len(yaws) else body[2])
-        along = np.append(along, along[-1] if len(along) else 0.0)
-    xy = body[:2] + along[:, None] * np.array([math.cos(heading), math.sin(heading)])
-    sides = -stance_side * (-1) ** np.arange(len(yaws))  # the other foot first, then alternating
-    c, s = np.cos(yaws), np.sin(yaws)
-    return np.stack([xy[:, 0] - s * sides * half, xy[:, 1] + c * sides * half, wrap_angle(yaws)], axis=1)
+    path = np.asarray(path_xy, float)
+    seg = np.diff(path, axis=0)
+    seg_len = np.hypot(seg[:, 0], seg[:, 1])
+    arc = np.concatenate([[0.0], np.cumsum(seg_len)])
+    end_x, end_y = float(path[-1, 0]), float(path[-1, 1])
+    turn_max, step_max = 0.95 * cfg.max_step_yaw_rad, 0.95 * cfg.step_length_range_m[1]
+    stance = [float(v) for v in stance_xyyaw]
+    side = -stance_side  # the foot that moves next
+    # the body pose as if the stance foot stood in the nominal stance
+    bx, by, byaw = stance[0] + math.sin(stance[2]) * stance_side * half, stance[1] - math.cos(stance[2]) * stance_side * half, stance[2]
+    along = 0.0  # arc length of the body's progress along the path
+    feet: list[list[float]] = []
+
+    def point_at(s_m: float) -> tuple[float, float]:
+        k = int(np.searchsorted(arc, s_m, side="right")) - 1
+        if k >= len(seg_len) or seg_len.size == 0:
+            return end_x, end_y
+        k = max(k, 0)
+        t = 0.0 if seg_len[k] == 0 else min(max((s_m - arc[k]) / seg_len[k], 0.0), 1.0)
+        return float(path[k, 0] + t * seg[k, 0]), float(path[k, 1] + t * seg[k, 1])
+
+    mid = [bx, by]  # the feet's midpoint (the nominal one at the start)
+
+    def place(x: float, y: float, yaw: float) -> bool:
+        """Put the moving foot beside the body pose (x, y, yaw) if the step keeps the limits and
+        the body's track stays free."""
+        nonlocal stance, side, bx, by, byaw, mid
+        foot = [x - math.sin(yaw) * side * half, y + math.cos(yaw) * side * half, float(wrap_angle(yaw))]
+        new_mid = [0.5 * (stance[0] + foot[0]), 0.5 * (stance[1] + foot[1])]
+        if body_free is not None and not body_free(mid[0], mid[1], new_mid[0], new_mid[1]):
+            return False
+        if not steps_within_limits(relative(np.array(stance), np.array(foot))[None], np.array([-side]), cfg)[0]:
+            return False
+        feet.append(foot)
+        stance, side, bx, by, byaw, mid = foot, -side, x, y, yaw, new_mid
+        return True
+
+    for _ in range(max_steps):
+        dist_end = math.hypot(end_x - bx, end_y - by)
+        if dist_end <= 0.25 * cfg.goal_tolerance_m:
+            if goal_xyyaw is None:
+                break
+            # at the goal: turn on the spot to its yaw, then bring the feet together
+            err = float(wrap_angle(goal_xyyaw[2] - byaw))
+            if abs(err) <= 1e-9:
+                place(bx, by, byaw)
+                break
+            turn = min(max(err, -turn_max), turn_max)
+            if not (place(bx, by, byaw + turn) or place(bx, by, byaw + turn / 2)):
+                break
+            continue
+        # progress: the path's closest point to the body, no farther back than the last one and
+        # at most two steps ahead of it
+        ks = np.flatnonzero((arc[1:] >= along) & (arc[:-1] <= along + 2 * step_max))
+        if ks.size:
+            t = ((bx - path[ks, 0]) * seg[ks, 0] + (by - path[ks, 1]) * seg[ks, 1]) / np.maximum(seg_len[ks] ** 2, 1e-12)
+            s_m = np.clip(arc[ks] + np.clip(t, 0.0, 1.0) * seg_len[ks], along, along + 2 * step_max)
+            px, py = np.interp(s_m, arc, path[:, 0]), np.interp(s_m, arc, path[:, 1])
+            along = float(s_m[np.argmin((px - bx) ** 2 + (py - by) ** 2)])
+        for ahead_m, turn_scale, length_scale in STEER_CANDIDATES:
+            ahead_m = min(ahead_m, lookahead_m)
+            tx, ty = (end_x, end_y) if dist_end <= ahead_m else point_at(along + ahead_m)
+            heading_err = float(wrap_angle(math.atan2(ty - by, tx - bx) - byaw))
+            yaw = byaw + min(max(heading_err, -turn_max), turn_max) * turn_scale
+            length = min(step_max * max(math.cos(heading_err), 0.0) * length_scale, dist_end)
+            x, y = bx + length * math.cos(yaw), by + length * math.sin(yaw)
+            if length >= dist_end - 1e-9 and abs(heading_err) <= turn_max:
+                x, y = end_x, end_y  # the last step lands the body on the end of the path
+            if place(x, y, yaw):  # else: steer to a nearer point of the path, or step shorter
+                break
+        else:
+            break
+    return np.array(feet, float).reshape(-1, 3)
 
 
 def _rotate(xy: np.ndarray, yaw_rad) -> np.ndarray:

@@ -34,43 +34,54 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..utils.checks import InvalidValueError, check_int, check_positive, check_range, check_vector
+from ..utils.checks import Described, InvalidValueError, check_int, check_positive, check_range, check_vector
+from ..robots.humanoid import (
+    STANCE_WIDTH_M, WALK_MAX_STEP_YAW_RAD, WALK_STEP_LENGTH_RANGE_M, WALK_STEP_WIDTH_RANGE_M,
+)
 from ..utils.validate import Checked
 from .footstep_checks import FootstepChecks
 from .footstep_heuristic import GoalHeuristic
-from .footstep_lattice import LEFT, RIGHT, build_lattice, compose, relative, step_costs, steps_within_limits, walk_to
+from .footstep_lattice import (
+    LEFT, RIGHT, build_lattice, compose, follow_path, relative, step_costs, steps_within_limits, wrap_angle,
+)
 from .grid_map import GridMap
 
-MAX_WALKS = 8
-"""Straight walks chained along the body path from one node before the search resumes."""
+PATH_LOOKAHEADS_M = (0.6, 0.25)
+"""Lookaheads of the walks along the body path (``follow_path``), tried in turn: the first cuts
+corners smoothly in the open, the second keeps to the path through doors and bends."""
 
 
 @dataclass(kw_only=True)
 class FootstepPlannerCfg(Checked):
-    """Footstep planner settings. Limits are the module's (issue 14); lengths in m, angles in rad."""
+    """Footstep planner settings; lengths in m, angles in rad. The step limits default to what the
+    bundled humanoid's walk controller walks (``robots.humanoid``: ``WALK_STEP_LENGTH_RANGE_M``,
+    ``WALK_STEP_WIDTH_RANGE_M``, ``WALK_MAX_STEP_YAW_RAD``); plan for another walker with its own."""
 
     foot_size_m: tuple[float, float] = (0.22, 0.10)
-    """Sole rectangle (length along the foot's x, width along its y), centred on the foot frame."""
+    """Sole rectangle (length along the foot's x, width along its y), centred on the foot frame
+    (the humanoid's sole is 0.22 m x 0.09 m; 1 cm of margin across)."""
     step_lengths_m: tuple[float, ...]
     """Lattice values of the step length: swing foot x in the stance foot's frame."""
     step_widths_m: tuple[float, ...]
     """Lattice values of the step width: |swing foot y| in the stance foot's frame."""
     step_yaws_rad: tuple[float, ...]
     """Lattice values of the yaw change (swing foot yaw - stance foot yaw), mirrored for a right stance."""
-    step_length_range_m: tuple[float, float] = (-0.10, 0.35)
-    """Limits of the step length, m (any step of a plan, lattice or straight walk)."""
-    step_width_range_m: tuple[float, float] = (0.12, 0.30)
+    step_length_range_m: tuple[float, float] = WALK_STEP_LENGTH_RANGE_M
+    """Limits of the step length, m (any step of a plan, lattice or walk along the body path)."""
+    step_width_range_m: tuple[float, float] = WALK_STEP_WIDTH_RANGE_M
     """Limits of the step width, m; the swing foot lands on its own side of the stance foot."""
-    max_step_yaw_rad: float = 0.3
+    max_step_yaw_rad: float = WALK_MAX_STEP_YAW_RAD
     """Limit of |yaw change| per step, rad."""
     min_foot_gap_m: float = 0.01
     """Consecutive soles keep at least this distance (the swing foot never lands on the stance foot)."""
     body_clearance_m: float = 0.25
-    """The feet's midpoint (the body's ground track) keeps this distance from obstacles: about half
-    a humanoid's shoulder width, so it does not squeeze through gaps only its feet fit in (with
-    5 cm cells, gaps under about 2 x (0.25 + 0.035) m = 0.57 m are closed)."""
-    start_width_m: float = 0.20
-    """Distance between the two parallel feet of the start and goal stances (the nominal width)."""
+    """The feet's midpoint (the body's ground track) keeps this distance from obstacles, measured
+    exactly to the occupied cells' edges: about half a humanoid's shoulder width, so it does not
+    squeeze through gaps only its feet fit in. Doors of 0.55 m and wider are open; at 0.50 m
+    the midpoint would have to keep exactly to the door's centre line, and it is closed."""
+    start_width_m: float = STANCE_WIDTH_M
+    """Distance between the two parallel feet of the nominal stance (start from a body pose, the
+    goal, and the walks along the body path), m."""
     max_step_up_m: float = 0.15
     """Largest rise from the stance foot's terrain height to the new foot's, m (height maps)."""
     max_step_down_m: float = 0.15
@@ -104,10 +115,10 @@ class FootstepPlannerCfg(Checked):
 
 
 def humanoid_footstep_cfg(**overrides) -> FootstepPlannerCfg:
-    """The module's limits (length -0.10..0.35 m, width 0.12..0.30 m, |yaw change| <= 0.3 rad) on a
-    lattice of 8 lengths x 4 widths x 5 yaw changes: 144 successors once the 16 whose sole would
-    come within ``min_foot_gap_m`` of the stance sole are removed."""
-    values = dict(step_lengths_m=(-0.10, 0.0, 0.05, 0.10, 0.15, 0.20, 0.275, 0.35),
+    """The bundled humanoid's walker limits (length -0.10..0.25 m, width 0.12..0.30 m, |yaw
+    change| <= 0.3 rad, stance 0.18 m) on a lattice of 7 lengths x 4 widths x 5 yaw changes,
+    less the successors whose sole would come within ``min_foot_gap_m`` of the stance sole."""
+    values = dict(step_lengths_m=(-0.10, 0.0, 0.05, 0.10, 0.15, 0.20, 0.25),
                   step_widths_m=(0.12, 0.18, 0.24, 0.30),
                   step_yaws_rad=(-0.30, -0.15, 0.0, 0.15, 0.30))
     values.update(overrides)
@@ -119,7 +130,7 @@ def check_footstep_cfg(cfg: FootstepPlannerCfg) -> None:
     size = check_vector("foot_size_m", cfg.foot_size_m, 2, "pass (length, width) of the sole in m")
     if min(size) <= 0:
         raise InvalidValueError("foot_size_m", cfg.foot_size_m, "both sides must be > 0", "e.g. (0.22, 0.10)")
-    lo_len, hi_len = check_range("step_length_range_m", cfg.step_length_range_m, "e.g. (-0.10, 0.35)",
+    lo_len, hi_len = check_range("step_length_range_m", cfg.step_length_range_m, "e.g. (-0.10, 0.25)",
                                  minimum=-math.inf)
     lo_w, hi_w = check_range("step_width_range_m", cfg.step_width_range_m, "e.g. (0.12, 0.30)")
     max_yaw = check_positive("max_step_yaw_rad", cfg.max_step_yaw_rad, "e.g. 0.3")
@@ -212,43 +223,77 @@ class FootstepPlanner:
         w = self.cfg.start_width_m / 2
         return compose(np.asarray(body_xyyaw_w, float), np.array([[0.0, w, 0.0], [0.0, -w, 0.0]]))
 
-    def plan(self, start_xyyaw_w, goal_xyyaw_w, *, time_budget_s: float | None = None) -> FootstepPlan:
-        """Plan from the nominal stance at the start body pose to the goal body pose (within the
-        tolerances); both (x m, y m, yaw rad) in the world frame, body = midpoint of the feet."""
+    def plan(self, start_xyyaw_w=None, goal_xyyaw_w=None, *, start_feet_xyyaw_w=None, stance_side=None,
+             time_budget_s: float | None = None) -> FootstepPlan:
+        """Plan from the start feet to the goal body pose (x m, y m, yaw rad, world frame; body =
+        midpoint of the feet, within the goal tolerances).
+
+        The start feet are ``start_feet_xyyaw_w`` ((2, 3): the left sole's pose, then the right
+        sole's, exactly where they stand), or the nominal stance at the body pose
+        ``start_xyyaw_w``. ``stance_side`` is the foot that stays down first (``LEFT`` / ``RIGHT``
+        or "left" / "right"; the other foot moves first), or None to let the planner choose."""
         t0 = time.perf_counter()
         cfg, checks = self.cfg, self.checks
-        start = np.array(check_vector("start_xyyaw_w", start_xyyaw_w, 3, "pass (x m, y m, yaw rad)"))
         goal = np.array(check_vector("goal_xyyaw_w", goal_xyyaw_w, 3, "pass (x m, y m, yaw rad)"))
+        if start_feet_xyyaw_w is not None:
+            start_feet = np.asarray(start_feet_xyyaw_w, float)
+            if start_feet.shape != (2, 3) or not np.isfinite(start_feet).all():
+                raise InvalidValueError("start_feet_xyyaw_w", Described(f"shape {start_feet.shape}"),
+                                        "expected finite (2, 3): the left foot's (x, y, yaw), then the right's",
+                                        "pass [[x_l, y_l, yaw_l], [x_r, y_r, yaw_r]] in m and rad")
+            start_feet[:, 2] = wrap_angle(start_feet[:, 2])
+        elif start_xyyaw_w is not None:
+            start_feet = self.stance_feet(np.array(check_vector("start_xyyaw_w", start_xyyaw_w, 3,
+                                                                "pass (x m, y m, yaw rad)")))
+        else:
+            raise InvalidValueError("start", Described("missing"), "pass start_xyyaw_w or start_feet_xyyaw_w",
+                                    "e.g. plan((0, 0, 0), goal) or plan(goal_xyyaw_w=goal, start_feet_xyyaw_w=feet)")
+        stances = _stance_sides(stance_side)
         budget_s = cfg.time_budget_s if time_budget_s is None else check_positive(
             "time_budget_s", time_budget_s, "pass seconds, e.g. 0.1")
-        start_feet = self.stance_feet(start)
         self._pool = pool = _Pool()
-        # nodes 0-1: right foot moves first, left foot stands; nodes 2-3: the mirror image
-        for stance, other in ((0, 1), (1, 0)):
-            pool.add(start_feet[[other, stance]], np.array([checks.sole_height(start_feet[i]) for i in (other, stance)]),
-                     np.array([(LEFT, RIGHT)[other], (LEFT, RIGHT)[stance]], np.int8), np.array([-1, pool.size]),
+        # per root: node 2k moves first, node 2k + 1 (the root) is the stance foot
+        roots = []
+        for stance in stances:
+            other = 1 if stance == LEFT else 0
+            rows = [other, 1 - other]
+            pool.add(start_feet[rows], np.array([checks.sole_height(start_feet[i]) for i in rows]),
+                     np.array([-stance, stance], np.int8), np.array([-1, pool.size]),
                      np.zeros(2), np.zeros(2), np.zeros(2), np.full(2, -1), np.zeros(2, bool))
+            roots.append(pool.size - 1)
 
-        def result(status, node=1, detail="", expansions=0):
+        def result(status, node=roots[0], detail="", expansions=0):
             poses, sides, z = pool.path(node)
             return FootstepPlan(status=status, footsteps_xyyaw_w=poses, foot_sides=sides, foot_z_m=z,
                                 cost=float(pool.g[node]), expansions=expansions,
                                 planning_time_s=time.perf_counter() - t0, detail=detail)
 
+        start_mid = start_feet[:, :2].mean(axis=0)
         if checks.stance_blocked(start_feet):
-            return result(PlanStatus.START_IN_COLLISION, detail=f"the stance at {start} touches an obstacle")
+            return result(PlanStatus.START_IN_COLLISION, detail=f"the start feet {start_feet.tolist()} touch an obstacle")
         if checks.stance_blocked(self.stance_feet(goal)):
             return result(PlanStatus.GOAL_IN_COLLISION, detail=f"the stance at the goal {goal} touches an obstacle")
         self.heuristic = heuristic = GoalHeuristic(checks, goal)
-        if not heuristic.reachable(start[0], start[1]):
+        if not heuristic.reachable(start_mid[0], start_mid[1]):
             return result(PlanStatus.GOAL_UNREACHABLE, detail="no path of body cells joins the start and the goal")
-        if heuristic.is_goal(start_feet[[0]], start_feet[1])[0]:
-            return result(PlanStatus.SUCCESS)
+        for root in roots:
+            if heuristic.is_goal(pool.pose[[root - 1]], pool.pose[root])[0]:
+                return result(PlanStatus.SUCCESS, root)
         open_list: list = []
-        for root in (1, 3):
+        best_walk = None
+        if cfg.walk_along_body_path:  # first the walk along the body path from each root
+            for root in roots:
+                walk_end, prefix_end = self._follow_body_path(root)
+                if walk_end is not None and (best_walk is None or pool.g[walk_end] < pool.g[best_walk]):
+                    best_walk = walk_end
+                if prefix_end is not None and self._open_node(prefix_end):
+                    heapq.heappush(open_list, (pool.f[prefix_end], -pool.g[prefix_end], prefix_end, prefix_end + 1))
+            if best_walk is not None:
+                return result(PlanStatus.SUCCESS, best_walk)
+        for root in roots:
             if self._open_node(root):
                 heapq.heappush(open_list, (pool.f[root], 0.0, root, root + 1))
-        best = (math.inf, math.inf, 1)  # (h, g, node) of the expanded footstep closest to the goal
+        best = (math.inf, math.inf, roots[0])  # (h, g, node) of the expanded footstep closest to the goal
         expansions, max_expansions, state = 0, cfg.max_expansions or math.inf, self._state
         try:
             while open_list:
@@ -263,9 +308,13 @@ class FootstepPlanner:
                     return result(PlanStatus.SUCCESS, pos, expansions=expansions)
                 if (pool.h[pos], g) < best[:2]:
                     best = (pool.h[pos], g, pos)
-                    walk_end = self._walk_along_body_path(pos, open_list) if cfg.walk_along_body_path else None
-                    if walk_end is not None:
-                        return result(PlanStatus.SUCCESS, walk_end, expansions=expansions)
+                    if cfg.walk_along_body_path and pool.parent[pos] >= 0:
+                        walk_end, prefix_end = self._follow_body_path(pos)
+                        if walk_end is not None:
+                            return result(PlanStatus.SUCCESS, walk_end, expansions=expansions)
+                        if prefix_end is not None and self._open_node(prefix_end):
+                            heapq.heappush(open_list, (pool.f[prefix_end], -pool.g[prefix_end], prefix_end,
+                                                       prefix_end + 1))
                 if expansions >= max_expansions or time.perf_counter() - t0 > budget_s:
                     return result(PlanStatus.BUDGET_EXHAUSTED, best[2], expansions=expansions,
                                   detail=f"budget spent after {expansions} expansions; best partial plan")
@@ -333,52 +382,62 @@ class FootstepPlanner:
         self._state[key] = pool.g[i] + 1.0
         return bool(np.isfinite(pool.h[i]))
 
-    def _walk(self, i: int, target_xy, final_yaw: float | None = None) -> int | None:
-        """If the straight walk (``walk_to``) from footstep ``i`` to ``target_xy`` (then turning to
-        ``final_yaw``, feet together: the goal) passes every test, store its footsteps and return
-        the last one's node; else None."""
-        pool, cfg, lat, checks = self._pool, self.cfg, self.lattice, self.checks
-        stance, side = pool.pose[i], int(pool.side[i])
-        walk = walk_to(stance, side, target_xy, cfg, final_yaw=final_yaw)
-        if len(walk) == 0:
-            return None
-        chain = np.concatenate([pool.pose[[pool.parent[i], i]], walk])
-        sides = np.int8(side) * (-1) ** np.arange(len(chain) + 1, dtype=np.int8)[1:]
-        rel = relative(chain[1:-1], chain[2:])
-        # the segment checks are spaced for the lattice's longest moves: longer walks are refused
-        if (not steps_within_limits(rel, sides[1:-1], cfg).all()
-                or np.hypot(*rel[:, :2].T).max() > lat.max_step_reach_m
-                or np.hypot(*(chain[2:, :2] - chain[:-2, :2]).T).max() > lat.max_swing_m):
-            return None
-        free, z = checks.steps(chain[:-2, :2], chain[1:-1], chain[2:])
-        if checks.height is not None:
-            free &= checks.rise_ok(z - np.concatenate([[pool.z[i]], z[:-1]]))
-        if not free.all():
-            return None
-        g = pool.g[i] + np.cumsum(step_costs(rel, cfg))
-        n = len(walk)
-        at_goal = np.zeros(n, bool)
-        at_goal[-1] = final_yaw is not None
-        start = pool.add(walk, z, sides[2:], np.concatenate([[i], pool.size + np.arange(n - 1)]), g, g,
-                         np.zeros(n), np.full(n, -1), at_goal)
-        return start + n - 1
+    def _body_free_at(self, x0_m: float, y0_m: float, x1_m: float, y1_m: float) -> bool:
+        """Does the feet's midpoint keep to body cells moving from (x0, y0) to (x1, y1) (m, world)?"""
+        return bool(self.checks.body_track_free(np.array([[x0_m, y0_m]]), np.array([[x1_m, y1_m]]))[0])
 
-    def _walk_along_body_path(self, i: int, open_list: list) -> int | None:
-        """From footstep ``i``: walk straight to the goal if that passes (returns the last node);
-        else walk straight to ``GoalHeuristic.waypoint``, open that node and repeat from it, up to
-        ``MAX_WALKS`` times (returns None)."""
-        pool, goal = self._pool, self.heuristic.goal
-        for _ in range(MAX_WALKS):
-            walk_end = self._walk(i, goal[:2], goal[2])
-            if walk_end is not None:
-                return walk_end
-            waypoint = self.heuristic.waypoint(0.5 * (pool.pose[i, :2] + pool.pose[pool.parent[i], :2]))
-            walk_end = None if waypoint is None else self._walk(i, waypoint)
-            if walk_end is None or not self._open_node(walk_end):
-                return None
-            heapq.heappush(open_list, (pool.f[walk_end], -pool.g[walk_end], walk_end, walk_end + 1))
-            i = walk_end
-        return None
+    def _follow_body_path(self, i: int) -> tuple[int | None, int | None]:
+        """Walk from footstep ``i`` along the body path to the goal (``follow_path``), with each
+        lookahead of ``PATH_LOOKAHEADS_M`` until one passes every test. Returns (the last node of a
+        walk that reaches the goal, or None; the last node of the longest tested prefix of a walk
+        that ends short, or None), every prefix stored in the pool."""
+        pool, cfg, lat, checks, heuristic = self._pool, self.cfg, self.lattice, self.checks, self.heuristic
+        stance, side, parent = pool.pose[i], int(pool.side[i]), int(pool.parent[i])
+        path = heuristic.path(0.5 * (stance[:2] + pool.pose[parent, :2]))
+        if path is None:
+            return None, None
+        best_prefix, best_len = None, 0
+        for lookahead in PATH_LOOKAHEADS_M:
+            walk = follow_path(stance, side, path, cfg, lookahead_m=lookahead, goal_xyyaw=heuristic.goal,
+                               body_free=self._body_free_at)
+            if len(walk) == 0:
+                continue
+            chain = np.concatenate([pool.pose[[parent, i]], walk])
+            sides = np.where(np.arange(len(chain)) % 2 == 0, -side, side).astype(np.int8)  # parent, i, walk...
+            rel = relative(chain[1:-1], chain[2:])
+            ok = (steps_within_limits(rel, sides[1:-1], cfg)
+                  & (np.hypot(rel[:, 0], rel[:, 1]) <= lat.max_step_reach_m + 1e-9)
+                  & (np.hypot(*(chain[2:, :2] - chain[:-2, :2]).T) <= lat.max_swing_m + 1e-9))
+            free, z = checks.steps(chain[:-2, :2], chain[1:-1], chain[2:])
+            ok &= free
+            if checks.height is not None:
+                ok &= checks.rise_ok(z - np.concatenate([[pool.z[i]], z[:-1]]))  # rises after a failure do not matter
+            n = len(walk) if ok.all() else int(np.argmin(ok))
+            if n == 0:
+                continue
+            g = pool.g[i] + np.cumsum(step_costs(rel[:n], cfg))
+            at_goal = heuristic.is_goal(walk[n - 1:n], chain[n])  # the last stored footstep and its stance
+            goal_flags = np.zeros(n, bool)
+            goal_flags[-1] = at_goal[0]
+            start = pool.add(walk[:n], z[:n], sides[2:2 + n], np.concatenate([[i], pool.size + np.arange(n - 1)]),
+                             g, g, np.zeros(n), np.full(n, -1), goal_flags)
+            if goal_flags[-1]:
+                return start + n - 1, None
+            if n > best_len:
+                best_prefix, best_len = start + n - 1, n
+        return None, best_prefix
+
+
+def _stance_sides(stance_side) -> tuple[int, ...]:
+    """The roots to search from: (LEFT,), (RIGHT,) or both, from ``plan``'s ``stance_side``."""
+    if stance_side is None:
+        return (LEFT, RIGHT)
+    named = {"left": LEFT, "right": RIGHT}
+    value = named.get(stance_side.lower(), stance_side) if isinstance(stance_side, str) else stance_side
+    if isinstance(value, (bool, np.bool_)) or value not in (LEFT, RIGHT):
+        raise InvalidValueError("stance_side", stance_side, "expected LEFT (+1), RIGHT (-1), 'left', 'right' or None",
+                                "name the foot that stays down while the other takes the first step")
+    return (int(value),)
 
 
 class _Pool:

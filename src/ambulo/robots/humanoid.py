@@ -55,6 +55,20 @@ STANCE_WIDTH_M = 0.18
 """Distance between the soles in the ``home`` pose and at the initial state (hips 0.18 m apart), m."""
 SOLE_X_M = 0.03
 """The sole centres stand this far ahead of the pelvis in ``home`` and at the initial state, m."""
+WALK_STEP_LENGTH_RANGE_M = (-0.10, 0.25)
+"""Step lengths the walk controller (``ambulo.locomotion``: preview control at a 0.80 m CoM,
+0.8 s steps) walks, m: the swing foot's x in the stance foot's frame. Found in simulation
+(``WalkSimulation``, seed 1, either foot first): 3 m straight walks of 0.25 m steps arrive; with
+0.30 m and 0.326 m steps the feet slip and the robot ends 0.16 m short, and issue 24 saw it fall
+after about 1 m of a plan at 0.326 m (issue 14's module limit was 0.35 m). Backwards: issue 14's
+0.10 m."""
+WALK_STEP_WIDTH_RANGE_M = (0.12, 0.30)
+"""Step widths (|y| of the swing foot in the stance foot's frame), m: issue 14's module limits;
+the planner's walks along its body path keep ``STANCE_WIDTH_M``."""
+WALK_MAX_STEP_YAW_RAD = 0.30
+"""Largest yaw change per step, rad (issue 14). Found in simulation: a 90 degree arc turning
+0.3 rad a step while stepping 0.2 m or 0.25 m, between two straight 1 m stretches, is walked
+without a fall (seed 1, either foot first)."""
 PELVIS_HEIGHT_M = 0.92
 """The pelvis height standing straight-legged (the model's initial state, all joints 0) with the
 soles on z = 0, m. (The ``home`` keyframe crouches slightly, to 0.904 m.)"""
@@ -69,5 +83,6 @@ a World that runs the policy steps this."""
 __all__ = [
     "ASSET", "BASE_BODY", "FOOT_BODIES", "HEAD_CAMERA_LEAF", "HEAD_CAMERA_PRIM", "HEAD_CAMERA_SITE", "IMU_SITE",
     "LEG_JOINTS", "PELVIS_HEIGHT_M", "POLICY_CONTRACT_FILE", "POLICY_PHYSICS_DT_S", "POLICY_TASK", "PRIM_PATH",
-    "SOLE_LENGTH_M", "SOLE_SITES", "SOLE_WIDTH_M", "SOLE_X_M", "STAGE_PRIM_PATH", "STANCE_WIDTH_M", "head_camera_prim",
+    "SOLE_LENGTH_M", "SOLE_SITES", "SOLE_WIDTH_M", "SOLE_X_M", "STAGE_PRIM_PATH", "STANCE_WIDTH_M", "WALK_MAX_STEP_YAW_RAD",
+    "WALK_STEP_LENGTH_RANGE_M", "WALK_STEP_WIDTH_RANGE_M", "head_camera_prim",
 ]
