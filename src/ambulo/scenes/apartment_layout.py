@@ -150,7 +150,24 @@ def generate_layout(cfg, rng: np.random.Generator) -> Layout:
             solids += _furnish(room, doors, solids, cfg, rng, t)
         cx, cy = (room.min_xy_m[0] + room.max_xy_m[0]) / 2, (room.min_xy_m[1] + room.max_xy_m[1]) / 2
         lights.append((cx, cy, cfg.wall_height_m - 0.15))
-    return Layout(rooms, doors, solids, (0.0, 0.0, length_m, y_top), t, lights)
+    layout = Layout(rooms, doors, solids, (0.0, 0.0, length_m, y_top), t, lights)
+    return _transposed(layout) if rng.random() < 0.5 else layout  # half the corridors run along y
+
+
+def _transposed(layout: Layout) -> Layout:
+    """``layout`` mirrored about the line x = y: a box of yaw a becomes one of yaw pi/2 - a (its
+    half extents kept); an axis-aligned box (yaw 0) keeps yaw 0 with its half extents swapped."""
+    def solid(s: Solid) -> Solid:
+        (x, y, z), (hx, hy, hz) = s.center_m, s.half_m
+        if s.yaw_rad == 0.0:
+            return Solid(s.name, s.shape, (y, x, z), (hy, hx, hz), 0.0, s.look, s.collides)
+        return Solid(s.name, s.shape, (y, x, z), s.half_m, math.pi / 2 - s.yaw_rad, s.look, s.collides)
+
+    x0, y0, x1, y1 = layout.extent_xy_m
+    return Layout([Room(r.name, r.min_xy_m[::-1], r.max_xy_m[::-1], r.is_corridor) for r in layout.rooms],
+                  [Door(d.center_xy_m[::-1], d.width_m, not d.along_x, d.rooms) for d in layout.doors],
+                  [solid(s) for s in layout.solids], (y0, x0, y1, x1), layout.wall_thickness_m,
+                  [(y, x, z) for x, y, z in layout.lights_xyz_m])
 
 
 def _walls(rooms, doors, length_m, y_top, y_corr0, y_corr1, sides, height_m, t) -> list[Solid]:
