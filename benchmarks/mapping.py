@@ -2,7 +2,7 @@
 
     python benchmarks/mapping.py [--frames 60] [--voxel 0.05] [--device cpu|cuda] [--width 640 --height 480]
 
-Frames: the seeded indoor scene's static geometry (``ambulo.perception.scenes``) ray-cast exactly by
+Frames: the seeded indoor scene's static geometry (``ambulo.scenes.indoor``) ray-cast exactly by
 Open3D's ``RaycastingScene`` from a camera circling the room's island (f = 525 px at 640x480, depth
 up to 5 m) with the noise model of research/anchors-perception-nav.md 1.3 (sigma = 0.002 z^2), the
 world shifted by a few millimetres so no plane sits on voxel centres. Both mappers get identical
@@ -31,8 +31,8 @@ from ambulo.perception.box_raycast import raycast_frames
 from ambulo.perception.esdf import esdf_from_grid
 from ambulo.perception.mesh import extract_mesh
 from ambulo.perception.reference import TruthScene, open3d_tsdf, orbit_poses, truth_frames
-from ambulo.perception.scenes import IndoorSceneCfg, build_indoor_scene
 from ambulo.perception.tsdf import TsdfCfg, TsdfMap
+from ambulo.scenes.indoor import IndoorSceneCfg, build_indoor_scene
 
 OFFSET = np.array([0.013, 0.021, 0.017])
 

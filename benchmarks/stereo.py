@@ -1,5 +1,5 @@
 """Stereo disparity: OpenCV's SGBM and block matcher (CPU) against the torch semi-global matcher
-(``ambulo.perception.stereo_torch``) on the Middlebury 2014 Motorcycle pair that scikit-image ships
+(``ambulo.perception.stereo.sgm``) on the Middlebury 2014 Motorcycle pair that scikit-image ships
 (500x741, true disparities 7-60 px), all with the same 64-disparity search range.
 
     python benchmarks/stereo.py [--device cpu|cuda] [--repeats 5] [--paths 8] [--threads N]
@@ -34,8 +34,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ambulo.perception.stereo import SgbmCfg, sgbm_disparity
-from ambulo.perception.stereo_torch import (
+from ambulo.perception.stereo.sgbm_opencv import SgbmCfg, sgbm_disparity
+from ambulo.perception.stereo.sgm import (
     CudaGraphSgm,
     SgmCfg,
     aggregate_with,

@@ -6,7 +6,7 @@ recovery after a covered lens.
                             [--imu] [--no-cuda-graphs] [--out out/vo]
 
 The bundled humanoid walks the seeded indoor scene's loop around the island at 0.5 m/s (``--speed``)
-(``ambulo.perception.walk``). ``--walk policy`` (the default): it walks under the shipped walking
+(``ambulo.perception.sources``). ``--walk policy`` (the default): it walks under the shipped walking
 policy in an ``ambulo.sim.World`` (physics every 5 ms), steered along the loop by a pure-pursuit
 path follower, so the head camera carries the real gait (foot impacts, sway, heading wobble);
 ``--walk kinematic``: it is played kinematically with a scripted head bob and sway. The head camera
@@ -25,7 +25,7 @@ the turn, largest position error.
 (``ambulo.perception.vo.kornia_vo_cfg``: kornia corners + RootSIFT, matching and RANSAC in torch on
 ``--device``); ``--pnp`` overrides the RANSAC (``opencv`` with kornia features: features and
 matching on the device, PnP on the host). ``--imu`` gives the odometry the walk's gyro (EuRoC's
-ADIS16448 noise, ``ambulo.perception.vo_imu``); losses then also report the heading error while
+ADIS16448 noise, ``ambulo.perception.vo.imu``); losses then also report the heading error while
 blind. The reported fps is the odometry alone (median of the
 first run's frames), rendering and physics excluded; frames are rendered on the CPU, so on CUDA it
 includes copying each frame to the GPU.
@@ -42,10 +42,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ambulo.perception.scenes import build_indoor_scene
+from ambulo.perception.sources import WALK_MODES, PolicyHeadCameraWalk, WalkCfg, make_walk
 from ambulo.perception.vo import TrackState, VoCfg, kornia_vo_cfg
-from ambulo.perception.vo_eval import run_walk_vo
-from ambulo.perception.walk import WALK_MODES, PolicyHeadCameraWalk, WalkCfg, make_walk
+from ambulo.perception.vo.eval import run_walk_vo
+from ambulo.scenes.indoor import build_indoor_scene
 
 
 def main(argv=None) -> dict:
@@ -65,7 +65,7 @@ def main(argv=None) -> dict:
     parser.add_argument("--no-cuda-graphs", action="store_true", help="CUDA: refine eagerly, not from captured graphs")
     parser.add_argument("--out", type=Path, default=Path("out/vo"))
     args = parser.parse_args(argv)
-    from ambulo.perception.scenes import IndoorSceneCfg  # noqa: PLC0415
+    from ambulo.scenes.indoor import IndoorSceneCfg  # noqa: PLC0415
 
     cfg = VoCfg(device=args.device) if args.features == "orb" else kornia_vo_cfg(args.device)
     if args.pnp is not None:

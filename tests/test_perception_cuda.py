@@ -16,7 +16,7 @@ pytestmark = pytest.mark.skipif(not torch.cuda.is_available(), reason="no CUDA d
 def _frames(count: int, width: int = 160, height: int = 120):
     from ambulo.perception.box_raycast import raycast_frames
     from ambulo.perception.reference import orbit_poses
-    from ambulo.perception.scenes import IndoorSceneCfg, build_indoor_scene
+    from ambulo.scenes.indoor import IndoorSceneCfg, build_indoor_scene
 
     scene = build_indoor_scene(IndoorSceneCfg(with_robot=False, num_moving_boxes=0))
     f = 525.0 * width / 640
@@ -37,7 +37,7 @@ def test_cuda_tsdf_equals_the_cpu_reference(capacity, cfg):
     storage grows and they are replayed), and the eager launches where the depth range is too deep for
     the dense volume, against the CPU torch reference."""
     pytest.importorskip("warp")
-    from ambulo.perception.tsdf import TsdfCfg, TsdfMap
+    from ambulo.perception.tsdf.map import TsdfCfg, TsdfMap
 
     cpu = TsdfMap(TsdfCfg(**cfg), backend="torch")
     gpu = TsdfMap(TsdfCfg(**cfg), device="cuda", capacity=capacity)
@@ -81,7 +81,7 @@ def test_cuda_esdf_equals_the_cpu_esdf():
 def test_cuda_box_raycast_equals_the_cpu_one():
     from ambulo.perception.box_raycast import box_depth
     from ambulo.perception.reference import orbit_poses
-    from ambulo.perception.scenes import IndoorSceneCfg, build_indoor_scene
+    from ambulo.scenes.indoor import IndoorSceneCfg, build_indoor_scene
 
     scene = build_indoor_scene(IndoorSceneCfg(with_robot=False, num_moving_boxes=0))
     k = np.array([[131.25, 0, 79.5], [0, 131.25, 59.5], [0, 0, 1.0]])

@@ -17,12 +17,11 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ambulo.perception import InflationCfg, RgbdFrame, TsdfCfg, TsdfMap, inflate, occupancy_slice
+from ambulo.perception import InflationCfg, RgbdFrame, RgbdOdometry, TsdfCfg, TsdfMap, inflate, occupancy_slice
 from ambulo.perception.images import costmap_rgb, draw_path, write_png
 from ambulo.perception.mesh import extract_mesh, write_ply
-from ambulo.perception.scenes import IndoorSceneCfg, build_indoor_scene
-from ambulo.perception.vo import RgbdOdometry
-from ambulo.perception.walk import HeadCameraWalk
+from ambulo.perception.sources import HeadCameraWalk
+from ambulo.scenes.indoor import IndoorSceneCfg, build_indoor_scene
 
 
 def main(argv: list[str] | None = None) -> dict:

@@ -10,7 +10,7 @@ pytest.importorskip("open3d", reason="the perception extra (pip install 'ambulo[
 @pytest.fixture(scope="session")
 def room():
     """The seeded indoor scene's solids without the robot (static geometry only)."""
-    from ambulo.perception.scenes import IndoorSceneCfg, build_indoor_scene
+    from ambulo.scenes.indoor import IndoorSceneCfg, build_indoor_scene
 
     return build_indoor_scene(IndoorSceneCfg(with_robot=False, num_moving_boxes=0))
 

@@ -7,7 +7,7 @@ import pytest
 
 from ambulo.perception.box_raycast import box_depth
 from ambulo.perception.reference import orbit_poses
-from ambulo.perception.scenes import IndoorSceneCfg, SolidBox, build_indoor_scene
+from ambulo.scenes.indoor import IndoorSceneCfg, SolidBox, build_indoor_scene
 
 from .conftest import pinhole
 

@@ -30,7 +30,7 @@ def test_edt_without_sites_is_infinite():
 @pytest.fixture(scope="module")
 def mapped(room, truth):
     from ambulo.perception.reference import orbit_poses, truth_frames
-    from ambulo.perception.tsdf import TsdfCfg, TsdfMap
+    from ambulo.perception.tsdf.map import TsdfCfg, TsdfMap
 
     frames = truth_frames(truth, orbit_poses((0, 0, 0.5), 2.2, 1.0, 16), pinhole(160, 120, 131.25), 160, 120,
                           noise_seed=None)

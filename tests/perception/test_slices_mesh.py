@@ -7,7 +7,7 @@ import torch
 from ambulo.perception import RgbdFrame, TsdfCfg, TsdfMap, height_map, occupancy_slice
 from ambulo.perception.mesh import IncrementalMesher, extract_mesh, write_ply
 from ambulo.perception.reference import TruthScene, orbit_poses
-from ambulo.perception.scenes import SolidBox
+from ambulo.scenes.indoor import SolidBox
 
 from .conftest import pinhole
 

@@ -31,7 +31,7 @@ def add_commands(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ambulo.perception.scenes import scene_names  # noqa: PLC0415
+    from ambulo.scenes.indoor import scene_names  # noqa: PLC0415
 
     if args.scene not in scene_names():
         raise CliError(f"no scene named {args.scene!r}", f"choose one of: {', '.join(scene_names())}")
@@ -44,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm  # noqa: PLC0415
 
     from ambulo.perception.pipeline import MapRunCfg, run_mapping  # noqa: PLC0415
-    from ambulo.perception.scenes import IndoorSceneCfg  # noqa: PLC0415
+    from ambulo.scenes.indoor import IndoorSceneCfg  # noqa: PLC0415
     from ambulo.perception.tsdf import TsdfCfg  # noqa: PLC0415
 
     cfg = MapRunCfg(scene=IndoorSceneCfg(seed=args.seed), tsdf=TsdfCfg(voxel_size_m=args.voxel),

@@ -11,8 +11,9 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from ambulo.scenes.indoor import SolidBox, with_floor
+
 from .frames import RgbdFrame
-from .scenes import SolidBox, with_floor
 
 
 def box_depth(solids: list[SolidBox], intrinsics, pose_wc, width: int, height: int, *,

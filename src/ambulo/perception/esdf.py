@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import torch
 
 from . import esdf_kernels
-from .tsdf import DenseGrid
+from .tsdf.map import DenseGrid
 
 
 def edt(sites: torch.Tensor, max_cells: int) -> torch.Tensor:

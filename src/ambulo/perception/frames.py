@@ -8,10 +8,12 @@ ray casts, or a user's recorded data with its intrinsics and poses.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import torch
 
-from .vo_imu import GyroSamples
+if TYPE_CHECKING:  # named only: the mapper and stereo take frames without loading the odometry
+    from .vo.imu import GyroSamples
 
 
 @dataclass

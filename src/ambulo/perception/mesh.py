@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from .tsdf import DenseGrid, TsdfMap
+from .tsdf.map import DenseGrid, TsdfMap
 
 
 @dataclass

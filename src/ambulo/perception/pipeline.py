@@ -13,18 +13,19 @@ import numpy as np
 import torch
 
 from ..maps import save_npz
+from ..scenes.indoor import IndoorSceneCfg, build_indoor_scene
 from ..utils.validate import Checked
 from .costmap import InflationCfg, inflate
 from .esdf import esdf_from_grid
 from .frames import RgbdFrame
 from .images import costmap_rgb, draw_path, occupancy_rgb, write_png
 from .mesh import IncrementalMesher, write_ply
-from .scenes import IndoorSceneCfg, build_indoor_scene
 from .slices import distance_slice, height_map, occupancy_slice, to_grid2d
+from .sources.head_camera_walk import WalkCfg, make_walk
 from .trajectory import score_tum, write_tum
-from .tsdf import TsdfCfg, TsdfMap
-from .vo import RgbdOdometry, VoCfg
-from .walk import WalkCfg, make_walk
+from .tsdf.map import TsdfCfg, TsdfMap
+from .vo.config import VoCfg
+from .vo.odometry import RgbdOdometry
 
 
 @dataclass(kw_only=True)
@@ -34,7 +35,7 @@ class MapRunCfg(Checked):
     scene: IndoorSceneCfg = field(default_factory=IndoorSceneCfg)
     walk: WalkCfg = field(default_factory=WalkCfg)
     walk_mode: str = "kinematic"
-    """How the humanoid moves (``ambulo.perception.walk.WALK_MODES``): ``"policy"`` walks it with the
+    """How the humanoid moves (``ambulo.perception.sources.head_camera_walk.WALK_MODES``): ``"policy"`` walks it with the
     shipped walking policy in a World; ``"kinematic"`` plays a scripted walk."""
     tsdf: TsdfCfg = field(default_factory=TsdfCfg)
     vo: VoCfg = field(default_factory=VoCfg)

@@ -14,8 +14,9 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from ambulo.scenes.indoor import SolidBox, with_floor
+
 from .frames import RgbdFrame
-from .scenes import SolidBox, with_floor
 
 
 def _o3d():

@@ -17,7 +17,7 @@ import torch
 from ..maps import CellGeometry, Grid2D
 from ..utils.checks import Described, InvalidValueError
 from .esdf import Esdf
-from .tsdf import DenseGrid
+from .tsdf.map import DenseGrid
 
 UNKNOWN, FREE, OCCUPIED = -1, 0, 1
 """An occupancy slice's int8 codes (``maps.Grid2D`` stores ROS's -1 / 0 / 100; ``to_grid2d`` converts)."""
