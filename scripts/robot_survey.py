@@ -35,7 +35,7 @@ import torch
 
 from ambulo.core import PhysicsCfg
 from ambulo.core.importers import AssetError
-from ambulo.core.packages import package_search_path
+from ambulo.core.importers.packages import package_search_path
 from ambulo.core.physics import timestep_warning
 from ambulo.core.scene import GroundCfg, RobotCfg, add_ground, add_robot, compile_scene, new_scene
 from ambulo.engine.cpu import CpuEngine

@@ -9,7 +9,7 @@ import pytest
 pytest.importorskip("pxr")
 from pxr import Gf, Usd, UsdGeom, UsdPhysics  # noqa: E402
 
-from ambulo.core.usd import load_usd  # noqa: E402
+from ambulo.core.importers.usd import load_usd  # noqa: E402
 
 
 def _box(stage, path, z):

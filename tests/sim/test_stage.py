@@ -149,7 +149,7 @@ def test_unknown_prim_path_suggests_close_names():
 
 
 def _g1_urdf():
-    from ambulo.core.packages import package_search_path
+    from ambulo.core.importers.packages import package_search_path
 
     for folder in package_search_path():
         hits = glob.glob(str(folder / "example-robot-data" / "robots" / "g1_description" / "urdf" / "g1_29dof_rev_1_0.urdf"))

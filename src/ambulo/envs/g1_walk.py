@@ -31,7 +31,7 @@ import numpy as np
 import torch
 
 from ambulo.core import RobotCfg
-from ambulo.core.packages import package_search_path
+from ambulo.core.importers.packages import package_search_path
 
 from .humanoid_walk import (WALKS, HumanoidWalkCfg, HumanoidWalkEnv, as_play, humanoid_walk_cfg,
                             humanoid_walk_metrics, humanoid_walk_ppo)

@@ -14,7 +14,7 @@ import os
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field, fields
 
-from ambulo.core.asset_errors import AssetError, AssetNotFoundError
+from ambulo.core.importers.asset_errors import AssetError, AssetNotFoundError
 from ambulo.utils.validate import Checked, rule
 
 

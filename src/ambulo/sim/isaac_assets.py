@@ -16,7 +16,7 @@ import os
 import re
 
 from ..assets import path as bundled
-from ..core.packages import resolve_package_uri
+from ..core.importers.packages import resolve_package_uri
 from ..core.scene import resolve_file
 
 _BUNDLED = {

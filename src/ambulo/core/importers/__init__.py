@@ -4,9 +4,12 @@ Every importer returns a spec whose element names are relative to the file's
 "default prim" (MJCF/URDF: the world body; USD: the stage's default prim), so that
 ``add_reference_to_stage(path, "/World/Robot")`` can prefix them with the prim path.
 Every hinge/slide joint leaves with one drive actuator in ambulo's convention
-(see ``drives.py``), as Isaac's URDF importer adds joint drives. The URDF and USD
-readers live in ``urdf.py`` and ``usd.py``; meshes MuJoCo cannot decode are converted
-by ``meshes.py``.
+(``core/drives.py``), as Isaac's URDF importer adds joint drives.
+
+The package: ``load_spec`` here picks the reader by suffix; ``urdf`` and ``usd`` are the URDF and
+USD readers; ``meshes`` converts meshes MuJoCo cannot decode; ``inertia`` repairs a URDF's
+inertias; ``packages`` resolves ``package://`` URIs; ``xml_lines`` keeps source line numbers for
+error messages; ``asset_errors`` holds the one-line errors they raise.
 """
 
 from __future__ import annotations
@@ -17,8 +20,8 @@ from pathlib import Path
 
 import mujoco
 
+from ..drives import DriveDefaults, ensure_drives
 from .asset_errors import AssetError, AssetNotFoundError, MeshConversionError
-from .drives import DriveDefaults, ensure_drives
 from .urdf import load_urdf
 from .usd import load_usd
 

@@ -27,7 +27,7 @@ import struct
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
-from ..utils.atomic import atomic_write_text
+from ...utils.atomic import atomic_write_text
 from .asset_errors import MeshConversionError
 
 CONVERSION_VERSION = 1

@@ -22,9 +22,9 @@ from pathlib import Path
 
 import mujoco
 
+from ..drives import add_drive
+from ..usd_physx import apply_physx
 from .asset_errors import AssetError
-from .drives import add_drive
-from .usd_physx import apply_physx
 
 _PER_RAD = 180.0 / math.pi
 """UsdPhysics states angular drive gains and limits per degree; ambulo's are per radian."""

@@ -20,8 +20,8 @@ from pathlib import Path
 
 import mujoco
 
+from ..drives import add_drive
 from .asset_errors import AssetError, AssetNotFoundError
-from .drives import add_drive
 from .inertia import bound_massless_links, repair_inertias
 from .meshes import convert_mesh, mesh_cache_dir, needs_conversion
 from .packages import resolve_package_uri
