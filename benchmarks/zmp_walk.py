@@ -5,7 +5,8 @@
 
 The footstep planner plans ``--distance`` m straight ahead and a ``--turn-deg`` turn on the spot
 (empty floor), ZMP preview control makes the walking pattern, and the whole-body controller of
-``ambulo.nav.walk_controller`` walks it on the simulated humanoid (flat floor, friction 1). Run s
+``ambulo.locomotion.walk_controller`` walks it on the simulated humanoid (flat floor, friction 1; one
+``core.Simulation`` world of ``scenes.walk_arena``, its joint targets through the humanoid's ``Entity``). Run s
 (s = 0..seeds-1) starts from the pattern's first pose with every joint off by up to
 ``--joint-noise`` rad and the base moving at up to ``--speed-noise`` m/s (uniform, seed s).
 
@@ -27,7 +28,7 @@ import time
 
 import numpy as np
 
-from ambulo.nav.walk_sim import WalkSimCfg, acceptance_walk, straight_and_turn_goal
+from ambulo.locomotion.walk_sim import WalkSimCfg, acceptance_walk, straight_and_turn_goal
 
 
 class Snapshots:
@@ -126,7 +127,7 @@ def main(argv=None) -> dict:
     }
     if args.png:
         from ambulo.nav import GridMap
-        from ambulo.nav.walk_plot import plot_walk
+        from ambulo.locomotion.walk_plot import plot_walk
 
         size = args.distance + 3.0
         grid = GridMap.empty((size, size), resolution_m=0.05, origin_xy_m=(-1.5, -size / 2))

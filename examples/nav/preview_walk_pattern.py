@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ambulo.nav.balance import FootShape, foot_polygon, polygon_signed_distance
-from ambulo.nav.preview import WalkPatternGenerator, walk_pattern_cfg
+from ambulo.locomotion.balance import FootShape, foot_polygon, polygon_signed_distance
+from ambulo.locomotion.preview import WalkPatternGenerator, walk_pattern_cfg
 
 # the bundled humanoid (assets/data/humanoid.xml): 0.22 x 0.09 m soles whose centres (the
 # left_sole/right_sole sites) stand 0.18 m apart; its CoM is 0.90 m high in the "home" pose,

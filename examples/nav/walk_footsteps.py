@@ -17,8 +17,8 @@ import math
 from pathlib import Path
 
 from ambulo.nav import GridMap
-from ambulo.nav.walk_plot import plot_walk
-from ambulo.nav.walk_sim import acceptance_walk, straight_and_turn_goal
+from ambulo.locomotion.walk_plot import plot_walk
+from ambulo.locomotion.walk_sim import acceptance_walk, straight_and_turn_goal
 
 
 def main(argv=None) -> dict:

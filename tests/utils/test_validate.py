@@ -158,8 +158,8 @@ def test_every_config_dataclass_is_checked(module, name):
 def _required(cls) -> dict:
     """Values for the fields of ``cls`` without a default (a prim path, a robot file, ...)."""
     from ambulo.core import RobotCfg
-    from ambulo.nav.balance import FootShape
-    from ambulo.nav.preview import PreviewControlCfg
+    from ambulo.locomotion.balance import FootShape
+    from ambulo.locomotion.preview import PreviewControlCfg
     from ambulo.sensors import CameraCfg
 
     given = {

@@ -1,12 +1,8 @@
-"""Navigation for legged robots: grid maps, the footstep planner, balance (ZMP, capture point,
-centre of pressure), the preview-control walking pattern generator, and the whole-body
-controller that walks the bundled humanoid along a pattern in MuJoCo (``walk_controller``,
-``walk_sim``; pictures in ``walk_plot``)."""
+"""Footstep planning for legged robots on 2-D grid maps: the map (``grid_map``), the footstep
+lattice, its checks and heuristic, the A* planner (``footsteps``) and a picture of a plan
+(``footstep_plot``). Walking a plan (balance, preview control, the whole-body controller) is
+``ambulo.locomotion``'s."""
 
-from .balance import (
-    CaptureRegion, CenterOfPressure, FootShape, PressureCenter, capture_point, capture_region, cart_table_zmp,
-    foot_polygon, lipm_omega, polygon_signed_distance, support_polygon, zmp_in_support,
-)
 from .footstep_plot import plot_plan
 from .footsteps import (
     FootstepPlan,
@@ -17,19 +13,8 @@ from .footsteps import (
     plan_footsteps,
 )
 from .grid_map import GridMap
-from .walk_controller import (HUMANOID_FOOT, StabilizerCfg, WalkController, WalkIK, build_reference, walk_model,
-                              walk_robot)
-from .walk_sim import WalkResult, WalkSimCfg, WalkSimulation, acceptance_walk, plan_walk, walk_pattern
-from .preview import (
-    PreviewControlCfg, PreviewController, WalkPattern, WalkPatternCfg, WalkPatternGenerator, kajita2003_preview_cfg,
-    preview_gains, walk_pattern_cfg,
-)
 
 __all__ = [
-    "CaptureRegion", "CenterOfPressure", "FootShape", "PressureCenter", "capture_point", "capture_region",
-    "cart_table_zmp", "foot_polygon", "lipm_omega", "polygon_signed_distance", "support_polygon", "zmp_in_support",
-    "PreviewControlCfg", "PreviewController", "WalkPattern", "WalkPatternCfg", "WalkPatternGenerator",
-    "kajita2003_preview_cfg", "preview_gains", "walk_pattern_cfg",
     "FootstepPlan",
     "FootstepPlanner",
     "FootstepPlannerCfg",
@@ -38,6 +23,4 @@ __all__ = [
     "humanoid_footstep_cfg",
     "plan_footsteps",
     "plot_plan",
-    "HUMANOID_FOOT", "StabilizerCfg", "WalkController", "WalkIK", "build_reference", "walk_model", "walk_robot",
-    "WalkResult", "WalkSimCfg", "WalkSimulation", "acceptance_walk", "plan_walk", "walk_pattern",
 ]

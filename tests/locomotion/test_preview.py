@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from ambulo.nav.balance import FootShape, cart_table_zmp, polygon_signed_distance
-from ambulo.nav.preview import (
+from ambulo.locomotion.balance import FootShape, cart_table_zmp, polygon_signed_distance
+from ambulo.locomotion.preview import (
     PreviewControlCfg,
     PreviewController,
     WalkPatternGenerator,

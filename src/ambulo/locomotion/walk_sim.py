@@ -3,7 +3,9 @@
 ``plan_walk`` plans footsteps on a map for the humanoid, ``walk_pattern`` turns them into a
 preview-control walking pattern (``preview``), and ``WalkSimulation`` runs the whole-body
 controller (``walk_controller``) on the simulated robot: flat floor, friction 1, contacts and
-friction as MuJoCo simulates them, nothing held or pushed. Each run records:
+friction as MuJoCo simulates them, nothing held or pushed. The physics is the core's: one
+``core.Simulation`` of the walk arena (``walk_world``), whose engine steps it, with the controller's
+joint targets sent through the humanoid's ``core.Entity``. Each run records:
 
 - the measured ZMP: centre of pressure of the feet's contact forces (``CenterOfPressure``), and
   its signed distance to the support polygon of the soles that touch the floor (measured poses);
@@ -27,16 +29,17 @@ from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
+import torch
 
 from ..robots.humanoid import BASE_BODY, FOOT_BODIES, SOLE_SITES, SOLE_X_M, STANCE_WIDTH_M
 from ..utils.validate import Checked, rule
 from .balance import CenterOfPressure, FootShape, lipm_omega, polygon_signed_distance, support_polygon
-from .footsteps import FootstepPlan, FootstepPlanner, humanoid_footstep_cfg
-from .grid_map import GridMap
+from ..nav.footsteps import FootstepPlan, FootstepPlanner, humanoid_footstep_cfg
+from ..nav.grid_map import GridMap
+from ..scenes.walk_arena import GROUND_GEOM
 from .preview import WalkPattern, WalkPatternGenerator, walk_pattern_cfg
-from .walk_controller import (
-    GROUND_GEOM, HUMANOID_FOOT, StabilizerCfg, WalkController, build_reference, walk_model, walk_robot,
-)
+from .walk_controller import HUMANOID_FOOT, StabilizerCfg, WalkController, build_reference, walk_robot
+from .walk_world import start_walk_world
 
 
 def humanoid_walk_planner_cfg(**overrides):
@@ -161,8 +164,9 @@ def _sole_pose(data: mujoco.MjData, site: int) -> np.ndarray:
 
 
 class WalkSimulation:
-    """The humanoid, its controller and a pattern; ``run`` simulates one walk. The reference
-    (IK, inverse dynamics) is built once and shared by every run."""
+    """The humanoid, its controller and a pattern; ``run`` simulates one walk. The arena is
+    started once (``walk_world``: one world on the CPU engine) and the reference (IK, inverse
+    dynamics) built once; every run resets the world and starts from the pattern's first pose."""
 
     def __init__(self, pattern: WalkPattern, cfg: WalkSimCfg | None = None, grid: GridMap | None = None,
                  obstacle_height_m: float = 0.4):
@@ -170,15 +174,17 @@ class WalkSimulation:
         self.cfg = cfg = cfg or WalkSimCfg()
         self.pattern = pattern
         obstacles = [] if grid is None else grid_obstacles(grid, obstacle_height_m)
-        self.model = walk_model(friction=cfg.friction, timestep_s=pattern.dt_s, obstacles=obstacles)
-        self.reference = build_reference(self.model, pattern)
-        m = self.model
+        self.world = start_walk_world(friction=cfg.friction, timestep_s=pattern.dt_s, obstacles=obstacles)
+        """The started arena: ``world.sim`` steps the physics, ``world.robot`` is the humanoid's ``Entity``."""
+        self.model = m = self.world.model
+        self.reference = build_reference(m, pattern, self.world.home_qpos)
         self.robot = robot = walk_robot(m)
         """The humanoid's elements by name (``core.EntityNames``)."""
         self.root = robot.root_body_id
         self.base_qpos = robot.free_qpos_adr + np.arange(7)
         self.base_dofs = robot.free_dof_adr + np.arange(6)
         self.joint_qpos = m.jnt_qposadr[robot.joint_ids]
+        self.joint_dofs = m.jnt_dofadr[robot.joint_ids]
         self.sites = [robot.site_id(name) for name in SOLE_SITES]
         self.foot_bodies = [robot.body_id(b) for b in FOOT_BODIES]
         self.foot_geoms = [set(robot.geom_ids(b).tolist()) for b in FOOT_BODIES]
@@ -186,30 +192,50 @@ class WalkSimulation:
         self.pelvis = robot.body_id(BASE_BODY)
         self.omega = lipm_omega(float(pattern.com_pos_w[0, 2]))
 
-    def _initial_state(self, data: mujoco.MjData, seed: int | None) -> None:
+    def start_state(self, seed: int | None) -> tuple[np.ndarray, np.ndarray]:
+        """(qpos (nq,), qvel (nv,)) a run starts from: the pattern's first pose, perturbed by ``seed``
+        (joints, the base's horizontal velocity) and then lowered onto the floor."""
         m, cfg = self.model, self.cfg
-        data.qpos[:] = self.reference.qpos[0]
-        data.qvel[:] = 0.0
+        qpos, qvel = self.reference.qpos[0].copy(), np.zeros(m.nv)
         if seed is not None:
             rng = np.random.default_rng(seed)
-            data.qpos[self.joint_qpos] += rng.uniform(-cfg.joint_noise_rad, cfg.joint_noise_rad, len(self.joint_qpos))
+            qpos[self.joint_qpos] += rng.uniform(-cfg.joint_noise_rad, cfg.joint_noise_rad, len(self.joint_qpos))
             angle, speed = rng.uniform(0, 2 * math.pi), cfg.base_speed_noise_mps * math.sqrt(rng.uniform())
-            data.qvel[self.base_dofs[0:2]] = speed * math.cos(angle), speed * math.sin(angle)
+            qvel[self.base_dofs[0:2]] = speed * math.cos(angle), speed * math.sin(angle)
+            data = mujoco.MjData(m)  # kinematics only, to find the soles
+            data.qpos[:] = qpos
             mujoco.mj_kinematics(m, data)
             # put the lowest sole corner on the floor
             lowest = min(float((data.geom_xpos[g][2] - np.abs(data.geom_xmat[g].reshape(3, 3)[2])
                                 @ m.geom_size[g])) for feet in self.foot_geoms for g in feet)
-            data.qpos[self.base_qpos[2]] -= lowest
-        mujoco.mj_forward(m, data)
+            qpos[self.base_qpos[2]] -= lowest
+        return qpos, qvel
+
+    def _start(self, seed: int | None) -> None:
+        """Reset the world (the robot's initial state) and write the run's start through the Entity."""
+        sim, robot = self.world.sim, self.world.robot
+        qpos, qvel = self.start_state(seed)
+        sim.reset(forward=False)
+        rows = torch.as_tensor(qpos[None], dtype=sim.engine.dtype, device=robot.device)
+        vel = torch.as_tensor(qvel[None], dtype=sim.engine.dtype, device=robot.device)
+        robot.write_root_pose(pos_w=rows[:, self.base_qpos[0:3]], quat_w=rows[:, self.base_qpos[3:7]])
+        robot.write_joint_state(pos=rows[:, self.joint_qpos], vel=vel[:, self.joint_dofs])
+        robot.write_root_velocity(lin_vel_w=vel[:, self.base_dofs[0:3]])  # the reset left it not turning
+        sim.engine.forward()
 
     def run(self, seed: int | None = None, *, video: str | os.PathLike | None = None, width: int = 640,
             height: int = 480, fps: int = 30, on_step=None) -> WalkResult:
         """One walk from the pattern's first pose (perturbed by ``seed``), until the pattern ends
         plus ``settle_s`` or a fall. ``video``: an MP4 to write; ``on_step(k, data)`` is called
-        before each physics step (e.g. to render snapshots)."""
+        before each physics step (e.g. to render snapshots).
+
+        Each control step reads the world into an ``MjData`` (``engine.get_data``: the state with
+        every derived field current), asks the controller for joint targets, sends them through
+        the robot's ``Entity``, measures, and lets the engine step."""
         m, cfg, pat = self.model, self.cfg, self.pattern
-        data = mujoco.MjData(m)
-        self._initial_state(data, seed)
+        sim, robot = self.world.sim, self.world.robot
+        self._start(seed)
+        data = sim.engine.get_data(0)
         ctl = WalkController(m, pat, self.reference, cfg.stabilizer)
         cop = CenterOfPressure(m, self.foot_bodies, ground_geoms=[self.floor])
         num_pat = len(pat.time_s)
@@ -236,7 +262,10 @@ class WalkSimulation:
         try:
             for k in range(num):
                 kk = min(k, num_pat - 1)
-                data.ctrl[:] = ctl.control(data, k)  # runs mj_forward: data is current below
+                data = sim.engine.get_data(0, data)  # mj_forward at the current state: data is current below
+                pos, vel, effort = ctl.targets(data, k)
+                robot.set_joint_targets(torch.from_numpy(pos)[None], torch.from_numpy(vel)[None],
+                                        torch.from_numpy(effort)[None])
                 mujoco.mj_subtreeVel(m, data)
                 steps_done = k + 1
                 com[k] = data.subtree_com[self.root]
@@ -270,7 +299,9 @@ class WalkSimulation:
                     writer.capture(data, k)
                 if on_step is not None:
                     on_step(k, data)
-                mujoco.mj_step(m, data)
+                if bool(sim.step()[0]):  # the engine found the world diverged and reset it
+                    fell, fall_time, reason = True, (k + 1) * pat.dt_s, "the simulation diverged"
+                    break
             failed = False
         finally:
             frames = writer.close(failed) if writer is not None else 0

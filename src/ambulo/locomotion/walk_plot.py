@@ -8,13 +8,15 @@ import os
 import numpy as np
 
 from .balance import foot_polygon
-from .footsteps import FootstepPlan
-from .grid_map import GridMap
+from ..nav.footsteps import FootstepPlan
+from ..nav.grid_map import GridMap
+from ..robots import humanoid
 from .preview import WalkPattern
 
 
 def plot_walk(grid: GridMap, plan: FootstepPlan, path_png: str | os.PathLike, *, pattern: WalkPattern | None = None,
-              result=None, goal_xyyaw_w=None, foot_size_m: tuple[float, float] = (0.22, 0.09),
+              result=None, goal_xyyaw_w=None,
+              foot_size_m: tuple[float, float] = (humanoid.SOLE_LENGTH_M, humanoid.SOLE_WIDTH_M),
               title: str | None = None, margin_m: float = 0.6) -> None:
     """Write a PNG: top, the map around the walk (occupied cells grey), the soles of the plan
     (left blue, right red, start feet hatched), the reference ZMP and the cart-table CoM path of

@@ -7,20 +7,26 @@ import mujoco
 import numpy as np
 import pytest
 
-from ambulo.nav.balance import polygon_signed_distance
-from ambulo.nav.walk_controller import (
-    GROUND_GEOM, HUMANOID_FOOT, StabilizerCfg, WalkIK, build_reference, walk_model, walk_physics, walk_robot,
-)
-from ambulo.nav.walk_sim import WalkSimCfg, WalkSimulation, acceptance_walk, walk_pattern
+from ambulo.locomotion.balance import polygon_signed_distance
+from ambulo.locomotion.walk_controller import HUMANOID_FOOT, StabilizerCfg, WalkIK, build_reference, walk_robot
+from ambulo.locomotion.walk_sim import WalkSimCfg, WalkSimulation, acceptance_walk, walk_pattern
+from ambulo.locomotion.walk_world import start_walk_world
 from ambulo.robots.humanoid import LEG_JOINTS, SOLE_SITES
 from ambulo.robots.humanoid import PRIM_PATH as ROBOT_PRIM_PATH
+from ambulo.scenes.walk_arena import GROUND_GEOM, walk_model, walk_physics
 
 GRAVITY = 9.81
 
 
 @pytest.fixture(scope="module")
-def model():
-    return walk_model()
+def world():
+    """The walk arena on the core, the humanoid in its home keyframe."""
+    return start_walk_world()
+
+
+@pytest.fixture(scope="module")
+def model(world):
+    return world.model
 
 
 @pytest.fixture(scope="module")
@@ -39,9 +45,9 @@ def short_plan(num_steps=4, length=0.2):
     return plan
 
 
-def test_ik_puts_com_and_soles_where_asked(model):
+def test_ik_puts_com_and_soles_where_asked(model, world):
     ik = WalkIK(model)
-    q0 = model.key_qpos[model.key("home").id].copy()
+    q0 = world.home_qpos.copy()
     com = np.array([0.05, 0.03, 0.80])
     feet = np.array([[0.15, 0.10, 0.05, 0.2], [-0.02, -0.09, 0.0, -0.1]])  # left swings up and ahead
     q, err = ik.solve(q0, com, pelvis_yaw=0.05, feet_xyzyaw=feet)
@@ -64,9 +70,9 @@ def test_ik_puts_com_and_soles_where_asked(model):
             assert lo - 1e-9 <= q[model.jnt_qposadr[j]] <= hi + 1e-9
 
 
-def test_feed_forward_carries_the_weight_and_its_zmp_stays_on_the_soles(model):
+def test_feed_forward_carries_the_weight_and_its_zmp_stays_on_the_soles(model, world):
     pattern = walk_pattern(short_plan())
-    ref = build_reference(model, pattern)
+    ref = build_reference(model, pattern, world.home_qpos)
     weight = float(model.body_subtreemass[walk_robot(model).root_body_id]) * GRAVITY
     # the contact forces of the reference motion carry the robot: m (g + z_ddot), z constant
     np.testing.assert_allclose(ref.contact_wrench[:, :, 2].sum(axis=1), weight, rtol=0.01)
@@ -119,15 +125,19 @@ def test_ten_seeded_walks_never_fall(acceptance):
 
 def test_seeds_perturb_the_start_reproducibly(acceptance):
     _, sim = acceptance
-    a, b, c = (mujoco.MjData(sim.model) for _ in range(3))
-    sim._initial_state(a, 3)
-    sim._initial_state(b, 3)
-    sim._initial_state(c, 4)
+    states = []
+    for seed in (3, 3, 4):  # written into the engine's world through the Entity, read back from it
+        sim._start(seed)
+        states.append(sim.world.engine.get_data(0))
+    a, b, c = states
     joints, base = sim.joint_qpos, sim.base_dofs
     np.testing.assert_array_equal(a.qpos, b.qpos)
+    np.testing.assert_array_equal(a.qpos, sim.start_state(3)[0])
+    np.testing.assert_array_equal(a.qvel, sim.start_state(3)[1])
     assert np.abs(a.qpos[joints] - c.qpos[joints]).max() > 1e-3
     assert np.abs(a.qpos[joints] - sim.reference.qpos[0][joints]).max() <= sim.cfg.joint_noise_rad + 1e-12
     assert 0 < np.linalg.norm(a.qvel[base[:2]]) <= sim.cfg.base_speed_noise_mps
+    assert a.time == 0.0 and not a.ctrl.any()  # a fresh start: the reset cleared the last run's time and drives
     # the soles start on the floor, not in it
     feet = [sim.robot.geom_id(name) for name in ("left_foot", "right_foot")]
     lowest = min(a.geom_xpos[g][2] - np.abs(a.geom_xmat[g].reshape(3, 3)[2]) @ sim.model.geom_size[g] for g in feet)
@@ -148,7 +158,7 @@ def test_foot_shape_is_the_humanoids_sole(model):
 
 def test_map_obstacles_become_boxes_covering_exactly_the_occupied_cells():
     from ambulo.nav import GridMap
-    from ambulo.nav.walk_sim import grid_obstacles
+    from ambulo.locomotion.walk_sim import grid_obstacles
 
     occupied = np.zeros((30, 40), bool)
     occupied[5:12, 3:9] = True  # a block
@@ -168,12 +178,12 @@ def test_map_obstacles_become_boxes_covering_exactly_the_occupied_cells():
     assert sum(model.geom(i).name.startswith("/World/obstacles/obstacle") for i in range(model.ngeom)) == len(boxes)
 
 
-def test_ik_agrees_with_mink(model):
+def test_ik_agrees_with_mink(model, world):
     """The same targets solved by mink (MuJoCo-based differential IK with a QP, an independent
     implementation) give the same configuration: the task set is square, so the solution is unique."""
     mink = pytest.importorskip("mink")
 
-    q0 = model.key_qpos[model.key("home").id].copy()
+    q0 = world.home_qpos.copy()
     com, pelvis_yaw = np.array([0.05, 0.03, 0.80]), 0.05
     feet = np.array([[0.15, 0.10, 0.05, 0.2], [-0.02, -0.09, 0.0, -0.1]])
     q_ours, err = WalkIK(model).solve(q0, com, pelvis_yaw, feet)
@@ -209,16 +219,18 @@ def test_ik_agrees_with_mink(model):
 
 def test_walk_model_is_built_by_the_core_scene_builder():
     """The humanoid sits at its prim path on the core's ground plane with the physics of one
-    ``PhysicsCfg``; the file's ``home`` keyframe survives the attach."""
+    ``PhysicsCfg``; the file's ``home`` keyframe is the world's initial state, through the Entity,
+    not a key compiled into the model."""
     from ambulo.core import GroundCfg, PhysicsCfg, RobotCfg, add_ground, add_robot, compile_scene, new_scene
 
-    model = walk_model(friction=0.7, timestep_s=0.004)
+    world = start_walk_world(friction=0.7, timestep_s=0.004)
+    model = world.model
     robot = walk_robot(model)
     assert model.body(robot.root_body_id).name == f"{ROBOT_PRIM_PATH}/pelvis"
     assert len(robot.joint_names) == 21 and "left_knee" in robot.joint_names
     floor = model.geom(GROUND_GEOM)
     assert floor.type[0] == mujoco.mjtGeom.mjGEOM_PLANE
-    np.testing.assert_allclose(model.geom_friction[:, 0], 0.7)
+    np.testing.assert_allclose(model.geom_friction[:, 0], 0.7)  # authored so: the floor's GroundCfg, the rest alike
     # the options are those apply_physics writes for walk_physics, not the robot file's
     spec = new_scene()
     add_robot(spec, RobotCfg(file="humanoid"))
@@ -227,9 +239,14 @@ def test_walk_model_is_built_by_the_core_scene_builder():
     assert isinstance(walk_physics(), PhysicsCfg)
     for name in ("timestep", "integrator", "solver", "iterations", "ls_iterations", "cone", "tolerance"):
         assert getattr(model.opt, name) == getattr(ref.opt, name), name
-    home = model.key_qpos[model.key("home").id]
+    assert model.nkey == 0  # compiled once, with no keyframe
     knee = model.jnt_qposadr[robot.joint_model_ids("left_knee")[0]]
-    assert home[knee] > 0.1  # the crouched ready pose, not qpos0 (straight knees)
+    world.engine.qpos[:, knee] = 0.0
+    world.sim.reset()  # restores the Entity's initial state
+    home = world.engine.qpos[0].numpy()
+    assert home[knee] == pytest.approx(0.4)  # the crouched ready pose of the keyframe, not qpos0 (straight knees)
+    np.testing.assert_array_equal(home, world.home_qpos)
+    assert home[robot.free_qpos_adr + 2] == pytest.approx(0.90405326)  # soles on the floor
 
 
 def test_the_controller_finds_the_robot_by_name_not_by_body_index():
@@ -249,8 +266,7 @@ def test_the_controller_finds_the_robot_by_name_not_by_body_index():
     com = np.array([0.05, 0.03, 0.80])
     feet = np.array([[0.15, 0.10, 0.05, 0.2], [-0.02, -0.09, 0.0, -0.1]])
     q0 = model.qpos0.copy()
-    home = walk_model()  # its humanoid's qpos (28: free joint, 21 hinges) in the home pose, as the start
-    q0[7:] = home.key_qpos[home.key("home").id]
+    q0[7:] = start_walk_world().home_qpos  # its humanoid's qpos (28: free joint, 21 hinges) in the home pose
     q, err = WalkIK(model, "/World/Fancy_Humanoid").solve(q0, com, 0.05, feet)
     assert err < 1e-6
     np.testing.assert_array_equal(q[:7], q0[:7])  # the crate did not move

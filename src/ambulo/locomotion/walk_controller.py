@@ -8,7 +8,7 @@ Pipeline (per pattern sample k, dt = the pattern's sample time):
    base and the 12 leg joints so that the whole-body CoM, the pelvis orientation (upright, yaw
    = the mean of the feet's yaws) and both sole frames (the ``left_sole``/``right_sole`` sites,
    position and orientation) hit the pattern. 18 equations in 18 unknowns: exact, no weights to
-   tune. The torso and arms hold the ``home`` pose. ``q_ref, qd_ref, qdd_ref`` follow by finite
+   tune. The torso and arms hold the robot's initial (``home``) pose. ``q_ref, qd_ref, qdd_ref`` follow by finite
    differences. (Written on MuJoCo's Jacobians rather than with ``mink``: with a square task set
    a Newton solve is exact and needs no QP solver dependency, and the whole pattern is solved
    offline in ~1 s.)
@@ -26,11 +26,13 @@ Pipeline (per pattern sample k, dt = the pattern's sample time):
    the rest through the ankles (``dM = F_z (dp_y, -dp_x, 0)``). The stance hips also hold the
    pelvis upright in the world. The references are re-anchored to the measured stance foot, so
    foot placement errors and slips do not read as balance errors.
-4. Drives: ``ctrl = KP q_ref + KD qd_ref + tau_ff + tau_stabilizer`` (the humanoid's actuator convention
-   ``tau = ctrl - KP q - KD qd``, see ``assets/data/humanoid.xml``).
+4. Drives: the joint targets ``(q_ref, qd_ref, tau_ff + tau_stabilizer)`` go to the humanoid's
+   ``core.Entity.set_joint_targets``, whose implicit PD drives exert
+   ``tau = KP (q_ref - q) + KD (qd_ref - qd) + effort``.
 
-Nothing here touches the simulation except through ``data.ctrl``: no fixed base, no external
-forces, no state resets.
+Nothing here touches the simulation except through those targets: no fixed base, no external
+forces, no state resets. Arrays over the robot's joints are in its ``Entity``'s joint order
+(``EntityNames.joint_ids``).
 """
 
 from __future__ import annotations
@@ -41,7 +43,7 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from ..core import EntityNames, GroundCfg, PhysicsCfg, RobotCfg, add_ground, add_robot, compile_scene, new_scene
+from ..core import EntityNames
 from ..robots import humanoid
 from ..robots.humanoid import BASE_BODY, LEG_JOINTS, PRIM_PATH, SOLE_SITES
 from ..utils.validate import Checked, rule
@@ -52,55 +54,13 @@ HUMANOID_FOOT = FootShape(length_m=humanoid.SOLE_LENGTH_M, width_m=humanoid.SOLE
 """The bundled humanoid's sole (0.22 x 0.09 m box) in the frame of its ``*_sole`` site (the sole
 centre on the ground): the foot frame of walking patterns for it."""
 
-GROUND_GEOM = "/World/defaultGroundPlane/geom"
-"""The floor geom of ``walk_model`` (``core.GroundCfg``'s plane)."""
-OBSTACLES_PRIM_PATH = "/World/obstacles"
-"""``walk_model``'s obstacle boxes are the geoms ``/World/obstacles/obstacle<i>``."""
-
-
-def walk_physics(timestep_s: float = 0.005) -> PhysicsCfg:
-    """The physics the walking controller was tuned with: the humanoid file's own options
-    (implicitfast) and MuJoCo's solver defaults (Newton, 100 iterations, 50 line-search steps)."""
-    return PhysicsCfg(timestep_s=timestep_s, integrator="implicitfast", solver="newton", solver_iterations=100,
-                      ls_iterations=50)
-
-
 def walk_robot(model: mujoco.MjModel, prim_path: str = PRIM_PATH) -> EntityNames:
     """The humanoid's elements in ``model`` by name (``core.EntityNames``)."""
     robot = EntityNames(model, prim_path)
     if not robot.is_floating:
         raise ValueError(f"the walking controller needs the humanoid on a free joint; {prim_path} has none "
-                         "(build the scene with walk_model())")
+                         "(build the scene with scenes.walk_arena)")
     return robot
-
-
-def walk_model(*, friction: float = 1.0, timestep_s: float = 0.005, obstacles=()) -> mujoco.MjModel:
-    """The bundled humanoid at ``robots.humanoid.PRIM_PATH`` on the core's ground plane (z = 0, geom
-    ``GROUND_GEOM``, with its sky and sun; every geom's sliding friction set to ``friction``),
-    built by the core scene builder with ``walk_physics(timestep_s)``. ``obstacles``: boxes
-    ``(center_x, center_y, size_x, size_y, height)`` in m standing on the floor (static geoms
-    ``/World/obstacles/obstacle<i>``). The humanoid's ``home`` keyframe is kept as the model's
-    ``home`` key. Look its elements up with ``walk_robot(model)``."""
-    spec = new_scene("walk")
-    robot = add_robot(spec, RobotCfg(file=humanoid.ASSET, prim_path=PRIM_PATH))
-    add_ground(spec, GroundCfg(static_friction=friction, dynamic_friction=friction, color=(0.32, 0.36, 0.40)))
-    for i, (cx, cy, sx, sy, height) in enumerate(obstacles):
-        spec.worldbody.add_geom(name=f"{OBSTACLES_PRIM_PATH}/obstacle{i}", type=mujoco.mjtGeom.mjGEOM_BOX,
-                                pos=[cx, cy, height / 2], size=[sx / 2, sy / 2, height / 2],
-                                rgba=[0.55, 0.42, 0.30, 1.0])
-    physics = walk_physics(timestep_s)
-    model = compile_scene(spec, physics)
-    # attaching drops the file's keyframes (core.add_robot returns them): put "home" back by name
-    home, names = robot.keyframes["home"], walk_robot(model)
-    qpos = model.qpos0.copy()
-    a = names.free_qpos_adr
-    qpos[a:a + 3], qpos[a + 3:a + 7] = home.root_pos_m, home.root_quat
-    for joint, value in home.joint_pos.items():
-        qpos[model.jnt_qposadr[names.joint_model_ids(joint)[0]]] = value
-    spec.add_key(name="home", qpos=qpos.tolist())
-    model = compile_scene(spec, physics)
-    model.geom_friction[:, 0] = friction  # MuJoCo takes the larger of two geoms' frictions: set all
-    return model
 
 
 def _yaw_quat(yaw: float) -> np.ndarray:
@@ -207,7 +167,8 @@ class WalkReference:
     qacc: np.ndarray
     """(K, nv)."""
     tau_ff: np.ndarray
-    """(K, nu) feed-forward actuator torque (inverse dynamics minus contact wrenches), N m."""
+    """(K, J) feed-forward joint torque (inverse dynamics minus contact wrenches), N m, in the
+    robot's joint order."""
     com_to_q: np.ndarray
     """(K, 18, 3) joint change (base + legs) per unit CoM shift at each sample (IK Jacobian)."""
     ik_error: np.ndarray
@@ -218,21 +179,18 @@ class WalkReference:
     """(K, 2) ZMP of the reference motion's contact wrenches (the multi-body ZMP), m."""
 
 
-def _home_qpos(model: mujoco.MjModel) -> np.ndarray:
-    key = model.key("home").id
-    return model.key_qpos[key].copy()
-
-
-def build_reference(model: mujoco.MjModel, pattern: WalkPattern, *, ik_iterations: int = 20,
+def build_reference(model: mujoco.MjModel, pattern: WalkPattern, home_qpos: np.ndarray, *, ik_iterations: int = 20,
                     prim_path: str = PRIM_PATH) -> WalkReference:
     """IK of every pattern sample, finite-difference velocities and accelerations, and the
-    inverse-dynamics feed-forward (module docstring, steps 1-2) of the humanoid at ``prim_path``."""
+    inverse-dynamics feed-forward (module docstring, steps 1-2) of the humanoid at ``prim_path``.
+    ``home_qpos`` (nq,): the robot's initial configuration (``walk_world.WalkWorld.home_qpos``), the
+    IK's first guess and the pose the torso and arms hold."""
     ik = WalkIK(model, prim_path)
     num = len(pattern.time_s)
     qpos = np.empty((num, model.nq))
     com_to_q = np.empty((num, 18, 3))
     ik_err = np.empty(num)
-    q = _home_qpos(model)
+    q = np.array(home_qpos, dtype=np.float64)
     q[ik.base_qpos[0:2]] = pattern.com_pos_w[0, :2]
     q[ik.base_qpos[3:7]] = _yaw_quat(float(pattern.foot_pose_w[0, :, 3].mean()))
     for k in range(num):
@@ -254,8 +212,8 @@ def build_reference(model: mujoco.MjModel, pattern: WalkPattern, *, ik_iteration
 
     data = mujoco.MjData(model)
     sites = ik.sites
-    act_dof = model.jnt_dofadr[model.actuator_trnid[:, 0]]
-    tau_ff = np.zeros((num, model.nu))
+    joint_dofs = model.jnt_dofadr[ik.robot.joint_ids]
+    tau_ff = np.zeros((num, len(joint_dofs)))
     wrench = np.zeros((num, 2, 6))
     zmp = np.full((num, 2), np.nan)
     jp, jr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
@@ -276,7 +234,7 @@ def build_reference(model: mujoco.MjModel, pattern: WalkPattern, *, ik_iteration
         w_inv = np.repeat(np.maximum(np.asarray(weights), 1e-3), 6)
         f = w_inv * (a.T @ np.linalg.solve((a * w_inv) @ a.T, rne[ik.base_dofs]))
         tau = rne - jc.T @ f
-        tau_ff[k] = tau[act_dof]
+        tau_ff[k] = tau[joint_dofs]
         for j, i in enumerate(feet):
             wrench[k, i] = f[6 * j: 6 * j + 6]
         # multi-body ZMP: CoP of the contact wrenches on the ground z = 0
@@ -325,7 +283,7 @@ class StabilizerCfg(Checked):
 
 
 class WalkController:
-    """Drives the humanoid along a ``WalkReference``: ``control(data, k)`` each control step.
+    """Drives the humanoid along a ``WalkReference``: ``targets(data, k)`` each control step.
 
     The stabilizer asks for the CoP ``p_d = p_ref + k (xi - xi_ref)`` (xi measured from the
     simulated CoM state, as an ideal state estimator would give it; p_ref the reference motion's
@@ -354,19 +312,20 @@ class WalkController:
         self.base_dofs = robot.free_dof_adr + np.arange(6)
         self.cfg = stabilizer or StabilizerCfg()
         self.omega = lipm_omega(float(pattern.com_pos_w[0, 2] - pattern.foot_pose_w[0, :, 2].mean()))
-        self.kp = -model.actuator_biasprm[:, 1].copy()
-        self.kd = -model.actuator_biasprm[:, 2].copy()
-        self.act_qpos = model.jnt_qposadr[model.actuator_trnid[:, 0]]
-        self.act_dof = model.jnt_dofadr[model.actuator_trnid[:, 0]]
-        self.dof_act = np.full(model.nv, -1)
-        self.dof_act[self.act_dof] = np.arange(model.nu)
+        joints = robot.joint_ids  # the Entity's joint order: the order of every target
+        self.joint_qpos = model.jnt_qposadr[joints]
+        self.joint_dofs = model.jnt_dofadr[joints]
+        self.dof_joint = np.full(model.nv, -1)
+        """Velocity address -> index into the robot's joints (-1: not a joint of it)."""
+        self.dof_joint[self.joint_dofs] = np.arange(len(joints))
         self.sites = [robot.site_id(name) for name in SOLE_SITES]
         self.pelvis = robot.body_id(BASE_BODY)
         sides = ("left", "right")
         self.ankle_joints = [robot.joint_model_ids([f"{s}_ankle_{a}" for a in ("pitch", "roll")]).tolist()
                              for s in sides]
         self.hip_joints = [robot.joint_model_ids([f"{s}_hip_{a}" for a in ("roll", "pitch")]).tolist() for s in sides]
-        self.joint_act = {int(j): i for i, j in enumerate(model.actuator_trnid[:, 0])}
+        self.joint_index = {int(j): i for i, j in enumerate(joints)}
+        """Model joint id -> index into the robot's joints."""
         self.leg_dofs = [model.jnt_dofadr[robot.joint_model_ids([f"{s}_{j}" for j in LEG_JOINTS])] for s in sides]
         self._jp, self._jr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
         self.cop_cmd = np.zeros(2)
@@ -406,16 +365,17 @@ class WalkController:
         e_v = data.subtree_linvel[self.root, :2] - self._anchor_rot() @ p.com_vel_w[k, :2]
         return e_c + e_v / self.omega
 
-    def control(self, data: mujoco.MjData, k: int) -> np.ndarray:
-        """Actuator commands for sample ``k`` (clamped to the pattern's length). Runs
-        ``mj_forward`` on ``data`` (its derived quantities then match its state)."""
+    def targets(self, data: mujoco.MjData, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Joint targets for sample ``k`` (clamped to the pattern's length): position (rad),
+        velocity (rad/s) and effort (N m), each (J,) in the robot's joint order, for
+        ``Entity.set_joint_targets``. ``data``'s derived fields must describe its state (after
+        ``mj_forward``, as ``engine.get_data`` gives it); runs ``mj_subtreeVel`` on it."""
         k = min(k, len(self.ref.qpos) - 1)
         ref, cfg, pat = self.ref, self.cfg, self.pattern
-        ctrl = self.kp * ref.qpos[k][self.act_qpos] + self.kd * ref.qvel[k][self.act_dof] + ref.tau_ff[k]
+        pos, vel, effort = ref.qpos[k][self.joint_qpos], ref.qvel[k][self.joint_dofs], ref.tau_ff[k].copy()
         m = self.model
-        mujoco.mj_forward(m, data)
         if not cfg.enabled:
-            return ctrl
+            return pos, vel, effort
         mujoco.mj_subtreeVel(m, data)
         self._update_anchor(data, k)
         p_ref = self.to_measured(ref.zmp_multibody[k])
@@ -437,15 +397,15 @@ class WalkController:
         moment_pelvis = cfg.attitude_kp * att_err + cfg.attitude_kd * (omega_ref_w - omega_w)
         moment_pelvis[2] = 0.0  # yaw stays with the hip-yaw PD
         if len(feet) == 2 and cfg.load_transfer:
-            d_moment = self._transfer_load(data, ctrl, d_moment, ref.contact_wrench[k, :, 2])
+            d_moment = self._transfer_load(data, effort, d_moment, ref.contact_wrench[k, :, 2])
         for i, w in zip(feet, share):
             for j in self.ankle_joints[i]:  # the ankle pushes the foot against the ground: -dM on it
-                ctrl[self.joint_act[j]] -= float(data.xaxis[j] @ (w * d_moment))
+                effort[self.joint_index[j]] -= float(data.xaxis[j] @ (w * d_moment))
             for j in self.hip_joints[i]:  # the hip turns the pelvis: -tau on the parent
-                ctrl[self.joint_act[j]] -= float(data.xaxis[j] @ (w * moment_pelvis))
-        return ctrl
+                effort[self.joint_index[j]] -= float(data.xaxis[j] @ (w * moment_pelvis))
+        return pos, vel, effort
 
-    def _transfer_load(self, data: mujoco.MjData, ctrl: np.ndarray, d_moment: np.ndarray,
+    def _transfer_load(self, data: mujoco.MjData, effort: np.ndarray, d_moment: np.ndarray,
                        loads_n: np.ndarray) -> np.ndarray:
         """Double support: realize the part of ``d_moment`` about the axis across the feet by
         moving vertical load from one sole to the other (``+dF`` on the left, ``-dF`` on the right
@@ -462,7 +422,7 @@ class WalkController:
             mujoco.mj_jacSite(m, data, self._jp, self._jr, self.sites[i])
             gen = self._jp[2] * f  # generalized force of a vertical ground force f on sole i
             dofs = self.leg_dofs[i]
-            ctrl[self.dof_act[dofs]] -= gen[dofs]
+            effort[self.dof_joint[dofs]] -= gen[dofs]
         return d_moment - d_force * lever
 
 
@@ -484,6 +444,5 @@ def _clip_into(point: np.ndarray, polygon: np.ndarray, margin_m: float) -> np.nd
     return center + lo * (point - center)
 
 
-__all__ = ["GROUND_GEOM", "HUMANOID_FOOT", "OBSTACLES_PRIM_PATH", "walk_model", "walk_physics",
-           "walk_robot", "WalkIK", "WalkReference", "build_reference", "StabilizerCfg",
+__all__ = ["HUMANOID_FOOT", "walk_robot", "WalkIK", "WalkReference", "build_reference", "StabilizerCfg",
            "WalkController"]

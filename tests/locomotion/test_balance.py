@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from ambulo.engine import CpuEngine
-from ambulo.nav.balance import (
+from ambulo.locomotion.balance import (
     CenterOfPressure,
     FootShape,
     capture_point,
