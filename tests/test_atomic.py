@@ -71,3 +71,42 @@ def test_write_bytes_takes_any_buffer_and_a_failed_one_leaves_no_temporary(tmp_p
         atomic_write_bytes(path, object())  # not a buffer: fails after the temporary was made
     assert path.read_bytes() == b"new"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.bin"]
+
+
+@pytest.mark.parametrize("api", ["open", "bytes"])
+def test_fsync_sees_the_whole_content_before_the_rename(tmp_path, monkeypatch, api):
+    """Both writers flush through one primitive: the fsync'd temporary already holds every byte
+    (a file object's buffer is flushed first), and the rename comes after it."""
+    import os
+
+    from ambulo.utils import atomic
+    from ambulo.utils.atomic import atomic_write_bytes
+
+    events = []
+    real_fsync, real_replace = os.fsync, os.replace
+    monkeypatch.setattr(atomic.os, "fsync", lambda fd: events.append(("fsync", os.fstat(fd).st_size)) or real_fsync(fd))
+    monkeypatch.setattr(atomic.os, "replace", lambda a, b: events.append(("replace",)) or real_replace(a, b))
+    data = bytes(range(250)) * 4  # 1 kB: less than a file object's buffer (st_blksize), so it waits there to be flushed
+    path = tmp_path / "a.bin"
+    if api == "open":
+        with atomic_open(path, fsync=True) as f:
+            f.write(data)
+    else:
+        atomic_write_bytes(path, data, fsync=True)
+    assert events == [("fsync", len(data)), ("replace",)]
+    assert path.read_bytes() == data
+
+
+@pytest.mark.parametrize("api", ["open", "bytes"])
+def test_a_failed_rename_leaves_no_temporary(tmp_path, api):
+    from ambulo.utils.atomic import atomic_write_bytes
+
+    target = tmp_path / "taken"
+    (target / "inside").mkdir(parents=True)  # a non-empty folder: the rename onto it fails
+    with pytest.raises(OSError):
+        if api == "open":
+            with atomic_open(target) as f:
+                f.write(b"data")
+        else:
+            atomic_write_bytes(target, b"data")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["taken"]

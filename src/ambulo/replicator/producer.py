@@ -11,6 +11,8 @@ import this module, never ``generate``.
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
+import gc
 from dataclasses import replace
 from pathlib import Path
 
@@ -125,7 +127,7 @@ def run_frames(config: DatasetConfig, out: Path, seed: int, frames: list[int], p
     writer = FrameWriter(out, config.writer)
     pending: list[cf.Future] = []
     try:
-        with cf.ThreadPoolExecutor(max_workers=1, thread_name_prefix="ambulo-writer") as pool:
+        with _heap_frozen(), cf.ThreadPoolExecutor(max_workers=1, thread_name_prefix="ambulo-writer") as pool:
             try:
                 for index, log, capture in producer.frames(seed, frames):
                     pending.append(pool.submit(writer.write, index, capture, producer.table, log))
@@ -145,3 +147,25 @@ def run_frames(config: DatasetConfig, out: Path, seed: int, frames: list[int], p
     finally:
         if owned:
             producer.close()
+
+
+@contextlib.contextmanager
+def _heap_frozen():
+    """Leave the objects alive before the run out of the cyclic garbage collector's scans.
+
+    A producer process holds ~225,000 tracked objects (torch, mujoco, numpy), and every frame
+    makes thousands of small ones (records, logs), so full collections kept re-scanning the
+    whole heap: ~0.9 ms CPU a frame, ~4 % of it at 320x240 (measured with ``gc.callbacks``).
+    Frozen objects are still freed by reference counting, and the run's own objects are
+    collected as usual; on exit they are handed back (``gc.unfreeze``), unless someone else
+    had frozen the heap already, which is then left as it was.
+    """
+    if gc.get_freeze_count():
+        yield
+        return
+    gc.freeze()
+    try:
+        yield
+    finally:
+        gc.unfreeze()
+

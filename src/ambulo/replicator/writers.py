@@ -107,7 +107,13 @@ class FrameWriter:
     one ``syncfs`` of the dataset's file system per batch (``sync_filesystem``); elsewhere
     each data file is flushed before its rename and each folder once per batch. One
     ``syncfs`` for 8 frames costs a tenth of the wait and a quarter of the CPU of 32
-    file flushes (``benchmarks/results/cpu-2026-11-28-replicator.md``). A record itself
+    file flushes (``benchmarks/results/cpu-2026-11-28-replicator.md``); an fdatasync of each
+    of the batch's 40 files (and one fsync per folder) was measured again against it on ext4:
+    10x the CPU (4-14 ms a batch, up to 1.8 ms a frame) and 5-20x the wait, each file's flush
+    committing the journal on its own (``cpu-2026-11-28-replicator-producer.md``). What
+    ``syncfs`` costs instead: it also flushes other processes' dirty data on that file system,
+    so a neighbour writing gigabytes can hold this writer thread (and, four frames later,
+    rendering) until the disk catches up; ``WriterCfg.fsync=False`` avoids it. A record itself
     is not flushed: one lost or torn by a crash fails ``frame_is_complete`` and its frame
     is made again. What it costs a whole ``generate`` call: ``benchmarks/generate_fsync.py``
     (the writer thread overlaps the flushes with rendering).

@@ -41,40 +41,17 @@ def temporary_name(name: str) -> str:
 
 
 @contextlib.contextmanager
-def atomic_open(path: str | os.PathLike, *, fsync: bool = False) -> Iterator[IO[bytes]]:
-    """A binary file to write ``path``'s new content into (e.g. with ``torch.save``); it
-    replaces ``path`` when the block ends without an exception, else it is deleted."""
-    path = Path(path)
-    tmp = path.with_name(temporary_name(path.name))
-    try:
-        with open(tmp, "wb") as f:
-            yield f
-            if fsync:
-                f.flush()
-                os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-
-
-def atomic_write_bytes(path: str | os.PathLike, data: bytes, *, fsync: bool = False) -> int:
-    """Write ``data`` (bytes or any buffer); returns its size in bytes.
-
-    What ``atomic_open`` does, with plain file descriptors and string paths: a data
-    set's writer makes five files a frame, and this costs a third less than the file
-    object and ``pathlib``.
-    """
-    path = os.fspath(path)
+def _atomic_fd(path: str, fsync: bool) -> Iterator[int]:
+    """The one primitive under every atomic write: a descriptor of a fresh temporary next to
+    ``path``; when the block ends without an exception it is flushed (``fsync``), closed and
+    renamed onto ``path``, else closed and deleted. Plain descriptors and string paths: a data
+    set's writer makes five files a frame, and file objects and ``pathlib`` cost a third more."""
     folder, name = os.path.split(path)
     tmp = os.path.join(folder, temporary_name(name))
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
+    # O_BINARY: Windows would otherwise open the descriptor in text mode and rewrite newlines
+    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | getattr(os, "O_BINARY", 0), 0o666)
     try:
-        with memoryview(data) as view, view.cast("B") as octets:
-            done = 0
-            while done < len(octets):
-                done += os.write(fd, octets[done:])
-            size = len(octets)
+        yield fd
         if fsync:
             os.fsync(fd)
     except BaseException:
@@ -87,7 +64,23 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes, *, fsync: bool = Fa
     except BaseException:
         os.unlink(tmp)
         raise
-    return size
+
+
+@contextlib.contextmanager
+def atomic_open(path: str | os.PathLike, *, fsync: bool = False) -> Iterator[IO[bytes]]:
+    """A binary file to write ``path``'s new content into (e.g. with ``torch.save``); it
+    replaces ``path`` when the block ends without an exception, else it is deleted."""
+    with _atomic_fd(os.fspath(path), fsync) as fd, open(fd, "wb", closefd=False) as f:
+        yield f  # the file object is flushed as the inner block ends, before the fsync
+
+
+def atomic_write_bytes(path: str | os.PathLike, data: bytes, *, fsync: bool = False) -> int:
+    """Write ``data`` (bytes or any buffer); returns its size in bytes."""
+    with _atomic_fd(os.fspath(path), fsync) as fd, memoryview(data) as view, view.cast("B") as octets:
+        done = 0
+        while done < len(octets):
+            done += os.write(fd, octets[done:])
+        return len(octets)
 
 
 def atomic_write_text(path: str | os.PathLike, text: str, *, fsync: bool = False) -> int:

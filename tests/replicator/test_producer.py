@@ -1,0 +1,54 @@
+"""run_frames keeps the heap that existed before it out of the garbage collector's scans, and
+gives the collector back its state afterwards (its own or one the caller froze)."""
+
+from __future__ import annotations
+
+import gc
+
+import pytest
+
+from ambulo import replicator as rep
+from ambulo.replicator import producer as producer_module
+from ambulo.replicator.writers import FrameWriter, prepare_dirs
+
+
+@pytest.fixture(scope="module")
+def small_producer():
+    config = rep.example_config(32, 24)
+    producer = rep.FrameProducer(config)
+    yield producer
+    producer.close()
+
+
+def _frozen_counts_while_writing(monkeypatch, producer, out, frames) -> list[int]:
+    seen = []
+
+    def write(self, index, capture, table, log):
+        seen.append(gc.get_freeze_count())
+        return FrameWriter.write(self, index, capture, table, log)
+
+    monkeypatch.setattr(producer_module, "FrameWriter", type("Probe", (FrameWriter,), {"write": write}))
+    prepare_dirs(out, producer.config.writer)
+    rep.run_frames(producer.config, out, 0, frames, producer=producer)
+    return seen
+
+
+def test_the_heap_is_frozen_during_the_run_and_handed_back_after(tmp_path, monkeypatch, small_producer):
+    assert gc.get_freeze_count() == 0
+    before = gc.get_freeze_count()
+    alive = len(gc.get_objects())
+    seen = _frozen_counts_while_writing(monkeypatch, small_producer, tmp_path, [0, 1, 2])
+    assert len(seen) == 3 and min(seen) >= alive * 0.9  # the objects alive before the run (a few died since)
+    assert gc.get_freeze_count() == before == 0
+    assert (tmp_path / "frames" / "000002.json").is_file()
+
+
+def test_a_heap_the_caller_froze_stays_frozen(tmp_path, monkeypatch, small_producer):
+    gc.freeze()
+    try:
+        frozen = gc.get_freeze_count()
+        seen = _frozen_counts_while_writing(monkeypatch, small_producer, tmp_path, [0, 1])
+        assert len(seen) == 2 and min(seen) >= frozen * 0.9
+        assert gc.get_freeze_count() >= frozen * 0.9  # not unfrozen by the run (a few frozen objects died)
+    finally:
+        gc.unfreeze()
