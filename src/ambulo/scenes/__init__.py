@@ -7,5 +7,7 @@ ROS 2 bridge, the navigator) places the same rooms. Modules: ``walk_arena``, ``i
 """
 
 from .apartment import apartment
+from .indoor import IndoorScene, IndoorSceneCfg, SolidBox, build_indoor_scene
+from .warehouse import build_warehouse_scene
 
-__all__ = ["apartment"]
+__all__ = ["IndoorScene", "IndoorSceneCfg", "SolidBox", "apartment", "build_indoor_scene", "build_warehouse_scene"]
