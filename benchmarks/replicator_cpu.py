@@ -9,7 +9,9 @@ For each image size and worker count P, in the same run:
   loaded into the renderer, one lit rgb pass and one id pass read back as geom
   ids + depth, over and over (the randomized example scenes of frames 0-15 in
   turn, made and their kinematics computed once, outside the timing); frames/s
-  summed over the processes.
+  summed over the processes. It is no slower than what ``generate`` renders:
+  the same two passes of scenes made by the producer into its own buffers
+  cost the same CPU (results/cpu-2026-11-28-replicator-producer.md).
 - annotated: what ``ambulo generate --workers P`` does in steady state:
   randomize, render both passes, instance/semantic maps, 2D/3D boxes, COCO RLE,
   PNG rgb + 16-bit depth + instance/semantic PNGs and the frame record, all
@@ -28,7 +30,8 @@ load; the table shows every run's range. ``file_create_ms`` is the CPU cost of
 creating one file in ``--dir`` (five a frame): on an ext4 without journal it
 grows with the files deleted there in the last ~50 min. Shadows and MSAA off
 (the defaults). Ends with one line ``RESULT {json}``; "ratio" is annotated /
-floor at 320x240 for the RESULT's worker count (the most measured). Targets:
+floor at 320x240 for the RESULT's worker count (the most measured);
+"stage_cpu_ms_320x240" splits a frame's CPU by stage (``stage_cpu_ms``). Targets:
 >= 150 annotated frames/s at 320x240 on 2 cores (issue 7, item 8; ``meets_target``)
 and annotated >= 0.5 of the floor (issue 22, item 6; ``meets_ratio``).
 """
@@ -44,10 +47,10 @@ import time
 from pathlib import Path
 
 from ambulo import replicator as rep
-from ambulo.replicator.producer import FrameProducer, run_frames
 from ambulo.replicator.io import PNG_DEFLATE
 from ambulo.replicator.processes import LP_THREADS_ENV, ProducerPool, usable_cpus
-from ambulo.replicator.writers import prepare_dirs
+from ambulo.replicator.producer import FrameProducer, _heap_frozen, run_frames
+from ambulo.replicator.writers import FrameWriter, prepare_dirs
 from ambulo.utils.rotations import quat_to_mat
 
 TARGET_FPS = 150
@@ -90,6 +93,42 @@ def render_floor(producer: FrameProducer, frames: int) -> tuple[float, float]:
     return time.perf_counter() - start, time.process_time() - cpu
 
 
+STAGES = ("randomize", "capture", "write_files", "records")
+
+
+def stage_cpu_ms(producer: FrameProducer, out: str, frames: int) -> dict[str, float]:
+    """CPU ms a frame of each stage of ``run_frames``, called in line on one thread (and llvmpipe's).
+
+    randomize: ``FrameProducer.randomize``; capture: both passes, the camera's bookkeeping and the
+    annotators (``Camera.capture``); write_files: PNG/COCO/KITTI encoding and the atomic data files
+    (``write_frame_files``); records: the batch's flush (``syncfs``) and its frame records, every 8
+    frames. Fresh frame indices, into a folder of this process; the heap frozen as ``run_frames``
+    does. The stages add up to a little more than an annotated frame's CPU: in ``run_frames`` the
+    id pass rasterizes while the next frame is randomized.
+    """
+    folder = Path(out) / f"stages_{os.getpid()}"
+    prepare_dirs(folder, producer.config.writer)
+    writer = FrameWriter(folder, producer.config.writer, batch=1 << 30)  # flushed here, every 8 frames
+    totals = dict.fromkeys(STAGES, 0.0)
+    clock = time.process_time
+    with _heap_frozen():
+        for k, index in enumerate(range(10_000_000, 10_000_000 + frames)):
+            start = clock()
+            log = producer.randomize(SEED, index)
+            randomized = clock()
+            capture = producer.capture()
+            captured = clock()
+            writer.write(index, capture, producer.table, log)
+            written = clock()
+            if k % 8 == 7 or k == frames - 1:
+                writer.flush()
+            totals["randomize"] += randomized - start
+            totals["capture"] += captured - randomized
+            totals["write_files"] += written - captured
+            totals["records"] += clock() - written
+    return {stage: 1000 * seconds / frames for stage, seconds in totals.items()}
+
+
 def _warm(producer: FrameProducer) -> tuple[float, float]:
     return render_floor(producer, 1)
 
@@ -117,6 +156,9 @@ class InProcess:
         run_frames(self.config, self.out, SEED, frames, producer=self.producer)
         wall, cpu = time.perf_counter() - start, time.process_time() - cpu
         return len(frames) / wall, 1000 * cpu / len(frames)
+
+    def stages(self, out: Path, frames: int) -> dict[str, float]:
+        return stage_cpu_ms(self.producer, str(out), frames)
 
     def renderer(self) -> str:
         return self.producer.gl_renderer
@@ -148,6 +190,11 @@ class Pool:
         cpu = sum(self.pool.run_on_each(_cpu_seconds)) - cpu
         return len(frames) / wall, 1000 * cpu / len(frames)
 
+    def stages(self, out: Path, frames: int) -> dict[str, float]:
+        """Each process's stages, averaged over the processes (they ran at the same time)."""
+        runs = self.pool.run_on_each(stage_cpu_ms, str(out), frames)
+        return {stage: sum(run[stage] for run in runs) / len(runs) for stage in STAGES}
+
     def renderer(self) -> str:
         return self._renderer
 
@@ -178,12 +225,13 @@ def measure(out: Path, width: int, height: int, workers: int, frames: int, repea
             annotated.append(side.annotated(list(range(first, first + frames))))
             first += frames
         renderer = side.renderer()
+        stages = side.stages(out, max(48, frames // (2 * workers)))
     finally:
         side.close()
     return {"floor_fps": max(fps for fps, _ in floor), "floor_cpu_ms": min(cpu for _, cpu in floor),
             "annotated_fps": max(fps for fps, _ in annotated), "annotated_cpu_ms": min(cpu for _, cpu in annotated),
             "floor_runs": [fps for fps, _ in floor], "annotated_runs": [fps for fps, _ in annotated],
-            "gl_renderer": renderer}
+            "gl_renderer": renderer, "stage_cpu_ms": stages}
 
 
 def end_to_end_fps(out: Path, width: int, height: int, workers: int, frames: int) -> float:
@@ -228,6 +276,8 @@ def main() -> None:
                 print(f"{width}x{height:<4} {workers:>2} | {r['floor_fps']:6.1f} ({_span(r['floor_runs'])}) "
                       f"{r['floor_cpu_ms']:6.2f} | {r['annotated_fps']:6.1f} ({_span(r['annotated_runs'])}) "
                       f"{r['annotated_cpu_ms']:6.2f} | {r['annotated_fps'] / r['floor_fps']:.2f}", flush=True)
+                print("    CPU ms a frame by stage (one thread, in line): " + ", ".join(
+                    f"{stage} {ms:.2f}" for stage, ms in r["stage_cpu_ms"].items()), flush=True)
         workers = max(args.workers)
         e2e = end_to_end_fps(Path(tmp) / "end_to_end", 320, 240, workers, args.frames)
     print(f"ambulo generate --workers {workers} --frames {args.frames} at 320x240, end to end: {e2e:.1f} frames/s; "
@@ -244,6 +294,7 @@ def main() -> None:
         "cpu_ms_per_frame_320x240": {"annotated": round(low["annotated_cpu_ms"], 2),
                                      "floor": round(low["floor_cpu_ms"], 2)},
         "file_create_ms": round(create_ms, 3),
+        "stage_cpu_ms_320x240": {stage: round(ms, 2) for stage, ms in low["stage_cpu_ms"].items()},
         "annotated_fps_320x240_by_workers": {p: round(results[(320, p)]["annotated_fps"], 1) for p in args.workers},
         "target_annotated_fps_320x240": TARGET_FPS,
         "meets_target": low["annotated_fps"] >= TARGET_FPS,
