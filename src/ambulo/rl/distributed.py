@@ -7,15 +7,18 @@ rank>``) and engine, and its own seed (the run's seed + rank) so the ranks colle
 experience; only rank 0 writes the run folder (run.json, checkpoints, metrics, TensorBoard,
 evaluations); a decision taken on rank 0 (the periodic evaluation met the criterion) reaches every
 rank at the same iteration, so all of them stop together. On CPUs the ranks talk over gloo
-(rsl-rl-lib's own set-up is NCCL-only): several CPU processes, each with its own MuJoCo batch,
-are a way to use a many-core machine too, and how CI tests this path without GPUs. NCCL's NVLink
+(rsl-rl-lib's own set-up is NCCL-only, so ambulo opens the gloo group, builds the runner as one
+process (``single_process_view``) and hands the group to its algorithm, ``ppo.AmbuloPPO``):
+several CPU processes, each with its own MuJoCo batch, are a way to use a many-core machine too, and how CI tests this path without GPUs. NCCL's NVLink
 multicast (NVLS) is turned off unless the user set ``NCCL_NVLS_ENABLE``: it needs a fabric
 manager the lent multi-GPU machines do not run.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import torch
@@ -55,6 +58,30 @@ def init_cpu_group(rank: Rank) -> None:
         torch.distributed.init_process_group(backend="gloo", rank=rank.rank, world_size=rank.world_size)
 
 
+def cpu_group_cfg() -> dict[str, int] | None:
+    """rsl-rl-lib's ``multi_gpu_cfg`` for this process's gloo group (``init_cpu_group``), or None."""
+    if not (torch.distributed.is_available() and torch.distributed.is_initialized()
+            and torch.distributed.get_backend() == "gloo"):
+        return None
+    rank = current()
+    return {"global_rank": rank.rank, "local_rank": rank.local_rank, "world_size": rank.world_size}
+
+
+@contextlib.contextmanager
+def single_process_view() -> Iterator[None]:
+    """While entered, ``WORLD_SIZE`` reads 1: rsl-rl-lib's runner, built inside, leaves the
+    process group to ambulo (its own set-up, from ``WORLD_SIZE``, is NCCL on CUDA only)."""
+    saved = os.environ.get("WORLD_SIZE")
+    os.environ["WORLD_SIZE"] = "1"
+    try:
+        yield
+    finally:
+        if saved is None:
+            del os.environ["WORLD_SIZE"]
+        else:
+            os.environ["WORLD_SIZE"] = saved
+
+
 def agree(flag: bool, rank: Rank, device: str) -> bool:
     """Rank 0's ``flag`` on every rank (a broadcast; every rank must call it at the same point)."""
     if not rank.distributed:
@@ -64,4 +91,4 @@ def agree(flag: bool, rank: Rank, device: str) -> bool:
     return bool(value.item())
 
 
-__all__ = ["Rank", "agree", "current", "init_cpu_group", "rank_device"]
+__all__ = ["Rank", "agree", "cpu_group_cfg", "current", "init_cpu_group", "rank_device", "single_process_view"]

@@ -3,8 +3,9 @@
 The first signal only sets a flag: the iteration under way finishes (its metrics row is
 written), its checkpoint ``model_<it>.pt`` is saved, and ``TrainingInterrupted`` says how to
 resume. Stopping in the middle of an iteration would checkpoint a half-updated policy, and
-rsl-rl's loop has no stop hook, so the flag is checked by the per-iteration log call
-(``StopRequest.check``), which rsl-rl makes after the update and before its own save.
+rsl-rl's loop has no stop hook, so the flag is checked at the end of each iteration
+(``StopRequest.check``, from ``progress.TrainingProgress``): on rank 0 when rsl-rl's logger has
+handed the iteration to ambulo's log writer, after the update and before rsl-rl's own save.
 A second signal stops at once (``TrainingInterrupted`` with ``saved=False``); a save it cuts
 short leaves no file behind, because checkpoints are written atomically.
 A ``kill -9`` cannot be caught: it loses the iterations after the last periodic checkpoint.

@@ -6,7 +6,6 @@ import contextlib
 import dataclasses
 import io
 import os
-import statistics
 import sys
 import time
 from pathlib import Path
@@ -14,7 +13,6 @@ from typing import Any
 
 import torch
 from rsl_rl.runners import OnPolicyRunner
-from tqdm import tqdm
 
 import ambulo
 from ambulo import envs
@@ -23,29 +21,29 @@ from ambulo.utils.atomic import remove_partial_files
 
 from . import distributed, interrupt, runs
 from .config import ppo_cfg
-from .metrics import MetricsCsv
-from .periodic_eval import PeriodicEval, eval_due, resume_evals, summary
+from .episodes import EpisodeStats
+from .log_writer import ProgressWriter
+from .periodic_eval import PeriodicEval, resume_evals
+from .ppo import AmbuloPPO
+from .progress import CriterionReached, TrainingProgress
 from .vecenv import RslRlVecEnv
 
 
 class AmbuloRunner(OnPolicyRunner):
     """``OnPolicyRunner`` whose checkpoints are atomic and carry what resume needs: the RNG
-    states, and the episode returns and lengths of the last 100 episodes, so the running means
-    in ``metrics.csv`` and TensorBoard continue where they were instead of restarting empty."""
+    states, and the episode returns and lengths of the last 100 episodes (``episodes``), so the
+    running means in ``metrics.csv`` and TensorBoard continue where they were instead of
+    restarting empty. It overrides public methods only (``learn``, ``save``); ambulo's
+    per-iteration work comes in through the logger's writer (``log_writer.ProgressWriter``)."""
 
     env: RslRlVecEnv
+    episodes: EpisodeStats | None = None
+    """The main rank's episode statistics (set by ``train``)."""
 
-    def _configure_multi_gpu(self) -> None:
-        """rsl-rl-lib's set-up on GPUs (NCCL); gloo for CPU ranks (``ambulo.rl.distributed``)."""
-        rank = distributed.current()
-        if not (rank.distributed and str(self.device) == "cpu"):
-            super()._configure_multi_gpu()
-            return
-        self.gpu_world_size, self.is_distributed = rank.world_size, True
-        self.gpu_local_rank, self.gpu_global_rank = rank.local_rank, rank.rank
-        self.cfg["multi_gpu"] = {"global_rank": rank.rank, "local_rank": rank.local_rank,
-                                 "world_size": rank.world_size}
-        distributed.init_cpu_group(rank)
+    def learn(self, num_learning_iterations: int, init_at_random_ep_len: bool = False) -> None:
+        if self.alg.is_multi_gpu and not self.is_distributed:  # CPU ranks (ppo.AmbuloPPO): rank 0's weights
+            self.alg.broadcast_parameters()
+        super().learn(num_learning_iterations, init_at_random_ep_len)
 
     def save(self, path: str, infos: dict | None = None) -> None:
         if not distributed.current().is_main:
@@ -56,8 +54,8 @@ class AmbuloRunner(OnPolicyRunner):
             **(infos or {}),
             "env_rng": self.env.env.generator.get_state(),
             "torch_rng": torch.get_rng_state(),
-            "episode_returns": list(self.logger.rewbuffer),
-            "episode_lengths": list(self.logger.lenbuffer),
+            "episode_returns": self.episodes.returns() if self.episodes is not None else [],
+            "episode_lengths": self.episodes.lengths() if self.episodes is not None else [],
         }
         runs.atomic_torch_save(saved, Path(path))
         self.logger.save_model(path, self.current_learning_iteration)
@@ -69,60 +67,29 @@ class AmbuloRunner(OnPolicyRunner):
             self.env.env.generator.set_state(infos["env_rng"].cpu())
         if "torch_rng" in infos:
             torch.set_rng_state(infos["torch_rng"].cpu())
-        self.logger.rewbuffer.extend(infos.get("episode_returns", []))
-        self.logger.lenbuffer.extend(infos.get("episode_lengths", []))
+        if self.episodes is not None:
+            self.episodes.restore(infos.get("episode_returns", []), infos.get("episode_lengths", []))
         self.current_learning_iteration += 1  # the checkpoint's iteration is complete
         return self.current_learning_iteration
 
 
-class CriterionReached(Exception):
-    """Raised from the iteration hook to end training once the task's criteria hold."""
-
-
-def _install_progress(runner: AmbuloRunner, run_dir: Path, start: int, total: int,
-                      verbose: bool, step_dt_s: float, stop: interrupt.StopRequest,
-                      periodic: PeriodicEval | None = None, stop_at_criterion: bool = False,
-                      eval_every: int | None = None, rank: distributed.Rank = distributed.Rank()) -> tqdm:
-    """Replace rsl-rl's per-iteration console report by a progress bar (unless ``verbose``),
-    append each iteration's headline numbers to ``metrics.csv`` (from ``start``: rows of a
-    killed run's later iterations are dropped), evaluate when ``periodic`` is due, and end
-    training there if ``stop`` was asked or (``stop_at_criterion``) the criteria hold."""
-    bar = tqdm(total=total, initial=start, desc=f"train {run_dir.parent.name}", unit="it",
-               disable=verbose or not rank.is_main)
-    report = runner.logger.log
-    metrics = MetricsCsv(run_dir / "metrics.csv", start) if rank.is_main else None
-    # env steps of all ranks: each collects its own num_envs x rollout
-    steps_per_it = runner.cfg["num_steps_per_env"] * runner.env.num_envs * rank.world_size
-
-    def log(**kwargs: Any) -> None:
-        if not rank.is_main:  # only the iteration bookkeeping every rank must share
-            stop.check()
-            if eval_due(kwargs["it"], eval_every):
-                if distributed.agree(False, rank, str(runner.device)) and stop_at_criterion:
-                    raise CriterionReached
-            return
-        if verbose:
-            report(**kwargs)
-        else:
-            with contextlib.redirect_stdout(io.StringIO()):
-                report(**kwargs)
-        logger = runner.logger
-        reward = statistics.mean(logger.rewbuffer) if logger.rewbuffer else None
-        length = statistics.mean(logger.lenbuffer) * step_dt_s if logger.lenbuffer else None
-        row = metrics.append(kwargs["it"], steps_per_it, reward, length, kwargs["collect_time"],
-                             kwargs["learn_time"], float(kwargs["action_std"].detach().mean()))
-        bar.update(1)
-        bar.set_postfix(reward=row[2] or "-", ep_len_s=row[3] or "-", fps=row[4])
-        stop.check()
-        if periodic is not None and periodic.due(kwargs["it"]):
-            result = periodic(runner, kwargs["it"])
-            bar.write(summary(result, kwargs["it"], time.monotonic() - periodic.started_s))
-            reached = distributed.agree(periodic.reached is not None, rank, str(runner.device))
-            if stop_at_criterion and reached:
-                raise CriterionReached
-
-    runner.logger.log = log
-    return bar
+def _make_runner(env, ppo, run_dir: Path, rank: distributed.Rank, episodes: EpisodeStats | None,
+                 progress_box: list) -> AmbuloRunner:
+    """The runner, with ambulo's algorithm class and log writer in its config (rsl-rl's extension
+    points). ``progress_box`` receives the ``TrainingProgress`` once it exists (it needs the runner)."""
+    cfg = ppo.to_rsl_rl(env.num_privileged_obs > 0)
+    cfg["algorithm"]["class_name"] = AmbuloPPO
+    cfg["logger"] = {"class_name": ProgressWriter.factory(
+        on_iteration=lambda *args: progress_box[0].iteration_done(*args),
+        means=lambda: episodes.means())}
+    cpu_ranks = rank.distributed and str(env.device) == "cpu"
+    if cpu_ranks:
+        distributed.init_cpu_group(rank)
+    with distributed.single_process_view() if cpu_ranks else contextlib.nullcontext():
+        runner = AmbuloRunner(RslRlVecEnv(env, episodes), cfg, log_dir=str(run_dir) if rank.is_main else None,
+                              device=str(env.device))
+    runner.episodes = episodes
+    return runner
 
 
 def _note_kept_settings(info: dict[str, Any], **given: Any) -> None:
@@ -228,9 +195,10 @@ def train(task: str | None = None, *, num_envs: int | None = None,
     torch.manual_seed(info["seed"] + rank.rank)  # each rank collects its own experience
     env = runs.make_env_for_run(info, num_envs=ppo.num_envs, seed=info["seed"] + rank.rank,
                                 device=distributed.rank_device(info["device"], rank))
+    episodes = EpisodeStats(ppo.num_envs, env.device) if rank.is_main else None
+    progress_box: list[TrainingProgress] = []
     with contextlib.redirect_stdout(io.StringIO()) if not verbose else contextlib.nullcontext():
-        runner = AmbuloRunner(RslRlVecEnv(env), ppo.to_rsl_rl(env.num_privileged_obs > 0),
-                              log_dir=str(run_dir) if rank.is_main else None, device=str(env.device))
+        runner = _make_runner(env, ppo, run_dir, rank, episodes, progress_box)
     runner.add_git_repo_to_log(ambulo.__file__)
     start = 0
     if resume:
@@ -252,8 +220,15 @@ def train(task: str | None = None, *, num_envs: int | None = None,
                                 device=str(env.device), start=start)
     elif resume and rank.is_main:  # evaluations of a crashed run's later iterations go, with or without --eval-every
         resume_evals(run_dir, start)
-    bar = _install_progress(runner, run_dir, start, ppo.max_iterations, verbose, env.step_dt_s,
-                            stop, periodic, stop_at_criterion, eval_every, rank)
+    progress = TrainingProgress(runner, run_dir, episodes=episodes, start=start, total=ppo.max_iterations,
+                                verbose=verbose, step_dt_s=env.step_dt_s,
+                                # env steps of all ranks: each collects its own num_envs x rollout
+                                steps_per_iteration=ppo.num_steps_per_env * ppo.num_envs * rank.world_size,
+                                stop=stop, periodic=periodic, stop_at_criterion=stop_at_criterion,
+                                eval_every=eval_every, rank=rank)
+    progress_box.append(progress)
+    if not rank.is_main:
+        runner.alg.after_update = progress.follow
     try:
         with contextlib.redirect_stdout(io.StringIO()) if not verbose else contextlib.nullcontext():
             interrupt.learn(runner, stop, run_dir, remaining,
@@ -261,7 +236,7 @@ def train(task: str | None = None, *, num_envs: int | None = None,
     except CriterionReached:
         pass
     finally:
-        bar.close()
+        progress.close()
         env.close()
         if periodic is not None:
             periodic.close()

@@ -13,12 +13,16 @@ from tensordict import TensorDict
 
 from ambulo.envs import RLEnv
 
+from .episodes import EpisodeStats
+
 
 class RslRlVecEnv(VecEnv):
     """Wraps ``env`` for ``rsl_rl.runners.OnPolicyRunner``; ``env`` stays the source of truth."""
 
-    def __init__(self, env: RLEnv):
+    def __init__(self, env: RLEnv, episodes: EpisodeStats | None = None):
         self.env = env
+        self.episodes = episodes
+        """Fed every step's rewards and dones when given (training's metrics; see ``rl.episodes``)."""
         self.num_envs = env.num_envs
         self.num_actions = env.num_actions
         self.max_episode_length = env.max_episode_length
@@ -53,4 +57,6 @@ class RslRlVecEnv(VecEnv):
         obs, rewards, dones, extras = self.env.step(actions)
         if "observations" in extras:
             self._critic_obs = extras["observations"]["critic"]
+        if self.episodes is not None:
+            self.episodes.step(rewards, dones)
         return self._obs(obs), rewards, dones.long(), extras

@@ -1,0 +1,92 @@
+"""What ambulo does at the end of every training iteration, on each rank.
+
+Rank 0 (``TrainingProgress.iteration_done``, called by ``log_writer.ProgressWriter`` once rsl-rl
+has logged the iteration): append the headline numbers to ``metrics.csv`` (from ``start``: rows
+of a killed run's later iterations are dropped), advance the progress bar (unless ``verbose``,
+when rsl-rl's own report prints instead), evaluate when ``periodic`` is due, end training there if
+``stop`` was asked or (``stop_at_criterion``) the criteria hold.
+
+The other ranks (``TrainingProgress.follow``, called by ``ppo.AmbuloPPO`` after each update):
+only the bookkeeping every rank must share, at the same point of the iteration: the stop request,
+and rank 0's decision at an evaluation, so every rank stops at the same iteration.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+from tqdm import tqdm
+
+from . import distributed, interrupt
+from .episodes import EpisodeStats
+from .metrics import MetricsCsv
+from .periodic_eval import PeriodicEval, eval_due, summary
+
+
+class CriterionReached(Exception):
+    """Raised at the end of an iteration to end training once the task's criteria hold."""
+
+
+class TrainingProgress:
+    """The end-of-iteration work of one rank (see the module doc).
+
+    Args:
+      runner: the ``OnPolicyRunner`` (evaluations read its policy and save its checkpoint).
+      episodes: the main rank's ``EpisodeStats`` (None on the other ranks).
+      start, total: the first iteration this process runs and the run's iteration count.
+      step_dt_s: the env's policy step, s (episode lengths in the CSV are in seconds).
+      steps_per_iteration: env steps of all ranks in one iteration.
+    """
+
+    def __init__(self, runner, run_dir: Path, *, episodes: EpisodeStats | None, start: int, total: int,
+                 verbose: bool, step_dt_s: float, steps_per_iteration: int, stop: interrupt.StopRequest,
+                 periodic: PeriodicEval | None = None, stop_at_criterion: bool = False,
+                 eval_every: int | None = None, rank: distributed.Rank = distributed.Rank()):
+        self.runner, self.episodes, self.stop, self.periodic = runner, episodes, stop, periodic
+        self.step_dt_s, self.steps_per_iteration = step_dt_s, steps_per_iteration
+        self.stop_at_criterion, self.eval_every, self.rank = stop_at_criterion, eval_every, rank
+        self.bar = tqdm(total=total, initial=start, desc=f"train {run_dir.parent.name}", unit="it",
+                        disable=verbose or not rank.is_main)
+        self.metrics = MetricsCsv(run_dir / "metrics.csv", start) if rank.is_main else None
+        self._next_iteration = start
+        """The iteration ``follow`` closes next (the other ranks have no logger to say it)."""
+
+    @property
+    def device(self) -> str:
+        return str(self.runner.device)
+
+    def means(self) -> tuple[float | None, float | None]:
+        """(mean return, mean episode length s) of the last 100 episodes; None before any ended."""
+        reward, length_steps = self.episodes.means()
+        return reward, None if length_steps is None else length_steps * self.step_dt_s
+
+    def iteration_done(self, iteration: int, collect_s: float, learn_s: float, action_std: float) -> None:
+        """Rank 0, once rsl-rl logged ``iteration`` (and before its periodic checkpoint)."""
+        reward, length_s = self.means()
+        row = self.metrics.append(iteration, self.steps_per_iteration, reward, length_s, collect_s, learn_s,
+                                  action_std)
+        self.bar.update(1)
+        self.bar.set_postfix(reward=row[2] or "-", ep_len_s=row[3] or "-", fps=row[4])
+        self.stop.check()
+        if self.periodic is not None and self.periodic.due(iteration):
+            result = self.periodic(self.runner, iteration)
+            self.bar.write(summary(result, iteration, time.monotonic() - self.periodic.started_s))
+            reached = distributed.agree(self.periodic.reached is not None, self.rank, self.device)
+            if self.stop_at_criterion and reached:
+                raise CriterionReached
+
+    def follow(self) -> None:
+        """The other ranks, after each update: share rank 0's stop decision at an evaluation."""
+        iteration = self._next_iteration
+        self._next_iteration += 1
+        self.stop.check()
+        if eval_due(iteration, self.eval_every):
+            if distributed.agree(False, self.rank, self.device) and self.stop_at_criterion:
+                raise CriterionReached
+
+    def close(self) -> None:
+        self.bar.close()
+
+
+__all__ = ["CriterionReached", "TrainingProgress"]
