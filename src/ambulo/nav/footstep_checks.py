@@ -135,6 +135,15 @@ class FootstepChecks:
         top = under_sole.max(axis=1)
         return free & (top - under_sole.min(axis=1) <= self.cfg.max_foothold_spread_m), top
 
+    def clearance_at(self, x_m: float, y_m: float) -> float:
+        """``clearance_m`` of the cell holding the world point (x, y) (0 off the map), m; scalar
+        arithmetic for the walks' step-by-step steering."""
+        (ox, oy), r = self.grid.origin_xy_m, self.grid.resolution_m
+        num_y, num_x = self.shape_p
+        ix = min(max(math.floor((x_m - ox) / r) + PAD, 0), num_x - 1)
+        iy = min(max(math.floor((y_m - oy) / r) + PAD, 0), num_y - 1)
+        return float(self.clearance_flat[iy * num_x + ix])
+
     def body_track_free(self, from_xy: np.ndarray, to_xy: np.ndarray) -> np.ndarray:
         """(K,) bool: does every cell that the segments ``from_xy`` -> ``to_xy`` ((K, 2) each, m,
         world; at most D_swing / 2 long) cross lie in the body cells?"""

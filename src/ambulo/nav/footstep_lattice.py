@@ -208,11 +208,22 @@ def progress_table(left_actions: np.ndarray, max_step_yaw_rad: float) -> np.ndar
     return table
 
 
-STEER_CANDIDATES = ((math.inf, 1.0, 1.0), (0.3, 1.0, 1.0), (0.1, 1.0, 1.0), (math.inf, 0.5, 0.5), (0.1, 1.0, 0.5),
-                    (0.1, 1.0, 0.0), (0.1, 0.5, 0.0), (0.1, 0.25, 0.0))
+STEER_CANDIDATES = ((math.inf, 1.0, 1.0), (0.3, 1.0, 1.0), (0.0, 1.0, 1.0), (0.1, 1.0, 1.0), (math.inf, 0.5, 0.5),
+                    (0.0, 1.0, 0.5), (0.1, 1.0, 0.5), (0.0, 1.0, 0.0), (0.1, 1.0, 0.0), (0.1, 0.5, 0.0),
+                    (0.1, 0.25, 0.0))
 """``follow_path``'s steps to try in turn: (lookahead m, capped by the walk's; share of the turn
 towards that point; share of the step length). The first steers smoothly; the later ones keep
-closer to the path, shorten the step or turn on the spot."""
+closer to the path, shorten the step or turn on the spot. Lookahead 0 means: turn to the path's
+own direction and side-step towards it (for narrow passages, where the body's channel is a few
+cells wide and cutting in at an angle would leave it)."""
+SIDE_STEP_M = 0.05
+"""Largest sideways shift of the body per step towards the path (the step width then lies
+within ``start_width_m`` +- this)."""
+
+
+STALL_STEPS = 14
+"""``follow_path`` gives up after this many steps without progress along the path (turning
+half a circle on the spot takes 11)."""
 
 
 def follow_path(stance_xyyaw: np.ndarray, stance_side: int, path_xy: np.ndarray, cfg, *, lookahead_m: float,
@@ -270,8 +281,16 @@ def follow_path(stance_xyyaw: np.ndarray, stance_side: int, path_xy: np.ndarray,
         stance, side, bx, by, byaw, mid = foot, -side, x, y, yaw, new_mid
         return True
 
+    best_left_m, stalled = math.inf, 0
     for _ in range(max_steps):
         dist_end = math.hypot(end_x - bx, end_y - by)
+        left_m = arc[-1] - along + dist_end
+        if left_m < best_left_m - 0.01:
+            best_left_m, stalled = left_m, 0
+        elif dist_end > 0.25 * cfg.goal_tolerance_m:
+            stalled += 1
+            if stalled > STALL_STEPS:
+                break  # no progress along the path: the search takes over from here
         if dist_end <= 0.25 * cfg.goal_tolerance_m:
             if goal_xyyaw is None:
                 break
@@ -293,12 +312,23 @@ def follow_path(stance_xyyaw: np.ndarray, stance_side: int, path_xy: np.ndarray,
             px, py = np.interp(s_m, arc, path[:, 0]), np.interp(s_m, arc, path[:, 1])
             along = float(s_m[np.argmin((px - bx) ** 2 + (py - by) ** 2)])
         for ahead_m, turn_scale, length_scale in STEER_CANDIDATES:
-            ahead_m = min(ahead_m, lookahead_m)
-            tx, ty = (end_x, end_y) if dist_end <= ahead_m else point_at(along + ahead_m)
-            heading_err = float(wrap_angle(math.atan2(ty - by, tx - bx) - byaw))
+            shift = 0.0
+            if ahead_m == 0.0:  # along the path's direction, side-stepping onto it
+                (px, py), (qx, qy) = point_at(along), point_at(along + 0.1)
+                if dist_end <= 0.1 or (px, py) == (qx, qy):
+                    continue
+                direction = math.atan2(qy - py, qx - px)
+                heading_err = float(wrap_angle(direction - byaw))
+                off = -math.sin(direction) * (bx - px) + math.cos(direction) * (by - py)  # left of the path
+                shift = -min(max(off, -SIDE_STEP_M), SIDE_STEP_M)
+            else:
+                ahead_m = min(ahead_m, lookahead_m)
+                tx, ty = (end_x, end_y) if dist_end <= ahead_m else point_at(along + ahead_m)
+                heading_err = float(wrap_angle(math.atan2(ty - by, tx - bx) - byaw))
             yaw = byaw + min(max(heading_err, -turn_max), turn_max) * turn_scale
             length = min(step_max * max(math.cos(heading_err), 0.0) * length_scale, dist_end)
-            x, y = bx + length * math.cos(yaw), by + length * math.sin(yaw)
+            x = bx + length * math.cos(yaw) - shift * math.sin(yaw)
+            y = by + length * math.sin(yaw) + shift * math.cos(yaw)
             if length >= dist_end - 1e-9 and abs(heading_err) <= turn_max:
                 x, y = end_x, end_y  # the last step lands the body on the end of the path
             if place(x, y, yaw):  # else: steer to a nearer point of the path, or step shorter
