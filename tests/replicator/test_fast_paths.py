@@ -15,10 +15,10 @@ import torch
 from pycocotools import mask as mask_utils
 
 from ambulo import replicator as rep
-from ambulo.replicator import distributions as dist
+from ambulo.core import randomize as dist
+from ambulo.core.randomize.fields import geoms_by_body, write_field
 from ambulo.replicator.coco import frame_annotations, instance_rles
 from ambulo.replicator.io import depth_to_mm_u16
-from ambulo.replicator.randomizers import _geoms_by_body, _put
 from ambulo.sensors import annotators as ann
 from ambulo.utils.rotations import quat_to_mat
 
@@ -121,36 +121,44 @@ def test_depth_in_mm_equals_the_straightforward_conversion():
         assert got.dtype == np.uint16 and got.ravel()[:6].tolist() == [0, 0, 0, 0, 0, 65535]
 
 
-def test_draw_rows_gives_the_numbers_of_one_call_per_distribution():
+def test_sample_columns_gives_the_numbers_of_its_definition():
+    """All scalar uniforms: one (rows, k) draw mapped column by column; otherwise one
+    distribution's column after the other."""
     rows = 7
-    for dists in ([dist.uniform(0.0, 1.0), dist.uniform(0.2, 0.9), dist.uniform(-3, 5)],  # all at once
-                  [dist.uniform(0.0, 1.0), dist.normal(0.0, 2.0), 0.5]):  # one call each
-        a, b = np.random.default_rng(11), np.random.default_rng(11)
-        expected = [[float(dist.as_distribution(d).sample(a)) for d in dists] for _ in range(rows)]
-        assert dist.draw_rows(b, dists, rows) == expected
-        assert a.random() == b.random()  # the generators were left in the same state
-    assert dist.draw_rows(np.random.default_rng(0), [dist.uniform(0, 1)], 0) == []
+    uniforms = [dist.uniform(0.0, 1.0), dist.uniform(0.2, 0.9), dist.uniform(-3, 5)]
+    a, b = torch.Generator().manual_seed(11), torch.Generator().manual_seed(11)
+    u = torch.rand((rows, 3), generator=a, dtype=torch.float64)
+    low, high = torch.tensor([0.0, 0.2, -3.0], dtype=torch.float64), torch.tensor([1.0, 0.9, 5.0], dtype=torch.float64)
+    assert torch.equal(dist.sample_columns(b, uniforms, rows), low + (high - low) * u)
+    mixed = [dist.uniform(0.0, 1.0), dist.normal(0.0, 2.0), 0.5]
+    a, b = torch.Generator().manual_seed(11), torch.Generator().manual_seed(11)
+    expected = torch.stack([dist.as_distribution(d).sample(a, rows) for d in mixed], 1)
+    assert torch.equal(dist.sample_columns(b, mixed, rows), expected)
+    assert torch.equal(expected[:, 2], torch.full((rows,), 0.5, dtype=torch.float64))
+    assert torch.rand(1, generator=a).item() == torch.rand(1, generator=b).item()  # same state after
+    assert dist.sample_columns(torch.Generator().manual_seed(0), [dist.uniform(0, 1)], 0).shape == (0, 1)
 
 
 def test_uniform_samples_are_unchanged_by_its_cached_bounds():
     u = dist.uniform((0.8, 0.8, 0.75), (1.0, 1.0, 1.0))
-    a, b = np.random.default_rng(5), np.random.default_rng(5)
-    for size in (None, 4):
-        low, high = np.asarray(u.low, float), np.asarray(u.high, float)
-        np.testing.assert_array_equal(u.sample(a, size), b.uniform(low, high, low.shape if size is None
-                                                                     else (size, *low.shape)))
+    a, b = torch.Generator().manual_seed(5), torch.Generator().manual_seed(5)
+    for size in (None, 4, 4):  # the second draw of 4 uses the cached tensors
+        low, high = torch.tensor(u.low, dtype=torch.float64), torch.tensor(u.high, dtype=torch.float64)
+        shape = (3,) if size is None else (size, 3)
+        expected = low + (high - low) * torch.rand(shape, generator=b, dtype=torch.float64)
+        assert torch.equal(u.sample(a, size), expected)
     assert u == dist.uniform((0.8, 0.8, 0.75), (1.0, 1.0, 1.0))  # the cache is not a field
 
 
 def test_one_write_per_randomizer_equals_writing_body_after_body():
     geoms = [np.array([0, 1, 2]), np.array([], int), np.array([2, 5]), np.array([7])]  # geom 2 in two bodies
-    targets, body_of = _geoms_by_body(9, geoms)
+    targets, body_of = geoms_by_body(9, geoms)
     values = np.arange(len(geoms) * 4, dtype=np.float64).reshape(-1, 4) / 7
     loop = torch.zeros(2, 9, 4, dtype=torch.float32)
     for g, v in zip(geoms, values):
         loop[1, g] = torch.tensor(v, dtype=torch.float32)
     once = torch.zeros(2, 9, 4, dtype=torch.float32)
-    _put(once, 1, targets, values[body_of])
+    write_field(once, values[None, body_of], rows=1, index=targets)
     assert torch.equal(loop, once)
     assert targets.tolist() == [0, 1, 2, 5, 7] and body_of.tolist() == [0, 0, 2, 2, 3]
 
@@ -169,9 +177,9 @@ def test_randomizers_write_what_their_per_body_loops_wrote():
                 r.apply(r.sample(rng, ctx), ctx)
             params = {r.name: r.sample(np.random.default_rng([seed, 1]), ctx) for r in (colors, materials, lights)}
             rgba, matid = engine.model_field("geom_rgba").clone(), engine.model_field("geom_matid").clone()
-            for geoms, color in zip(colors._geoms, params["c"]["rgba"]):
+            for geoms, color in zip(colors._targets.geoms, params["c"]["rgba"]):
                 rgba[0, geoms] = torch.tensor(color, dtype=rgba.dtype)
-            for geoms, pick in zip(materials._geoms, params["m"]["palette_index"]):
+            for geoms, pick in zip(materials._targets.geoms, params["m"]["palette_index"]):
                 value = materials._base[geoms] if pick < 0 else np.full(len(geoms), materials._mat_ids[pick])
                 matid[0, geoms] = torch.as_tensor(value, dtype=matid.dtype)
             expected_lights = {f: engine.model_field(f).clone() for f in ("light_diffuse", "light_ambient",

@@ -19,12 +19,12 @@ from dataclasses import dataclass
 import mujoco
 
 from ..utils.validate import Checked
+from .names import DOF_JOINT_TYPES
 
 _JOINT = mujoco.mjtTrn.mjTRN_JOINT
 _AFFINE = mujoco.mjtBias.mjBIAS_AFFINE
 _NO_BIAS = mujoco.mjtBias.mjBIAS_NONE
 _FIXED = mujoco.mjtGain.mjGAIN_FIXED
-_DRIVEN = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
 
 
 @dataclass(kw_only=True)
@@ -68,7 +68,7 @@ def ensure_drives(spec: mujoco.MjSpec, defaults: DriveDefaults) -> None:
         _convert(act)
         driven.add(act.target)
     for joint in spec.joints:
-        if int(joint.type) in _DRIVEN and joint.name and joint.name not in driven:
+        if int(joint.type) in DOF_JOINT_TYPES and joint.name and joint.name not in driven:
             add_drive(spec, joint.name, defaults.stiffness, defaults.damping)
 
 

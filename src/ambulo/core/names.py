@@ -17,7 +17,8 @@ import numpy as np
 from .paths import resolve_body, subtree_body_ids
 
 _FREE = int(mujoco.mjtJoint.mjJNT_FREE)
-_DOF_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+DOF_JOINT_TYPES = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
+"""The joint types with one degree of freedom (hinge, slide): the joints an entity reads and drives."""
 
 
 def find_names(names, pool: list[str], kind: str, kinds: str, owner: str) -> list[int]:
@@ -62,7 +63,7 @@ class EntityNames:
         self.body_names = [model.body(b).name.removeprefix(self._prefix) for b in bodies]
         body_set = set(bodies)
         joints = [j for j in range(model.njnt)
-                  if int(model.jnt_bodyid[j]) in body_set and int(model.jnt_type[j]) in _DOF_JOINTS]
+                  if int(model.jnt_bodyid[j]) in body_set and int(model.jnt_type[j]) in DOF_JOINT_TYPES]
         self.joint_ids = np.asarray(joints, dtype=np.int64)
         self.joint_names = [model.joint(j).name.removeprefix(self._prefix) for j in joints]
         jnt = int(model.body_jntadr[self.root_body_id])

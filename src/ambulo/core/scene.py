@@ -20,9 +20,9 @@ from ..utils.validate import Checked
 from .drives import DriveDefaults
 from .importers import load_spec
 from .materials import PhysicsMaterial
+from .names import DOF_JOINT_TYPES
 from .physics import PhysicsCfg, apply_physics, match_options
 
-_DOF_JOINTS = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
 
 
 def new_scene(name: str = "World") -> mujoco.MjSpec:
@@ -194,7 +194,7 @@ def _keyframes(child: mujoco.MjSpec) -> dict[str, KeyPose]:
             adr, kind = model.jnt_qposadr[j], int(model.jnt_type[j])
             if kind == mujoco.mjtJoint.mjJNT_FREE.value and root_pos is None:
                 root_pos, root_quat = qpos[adr:adr + 3].copy(), qpos[adr + 3:adr + 7].copy()
-            elif kind in _DOF_JOINTS:
+            elif kind in DOF_JOINT_TYPES:
                 joints[model.joint(j).name] = float(qpos[adr])
         out[model.key(k).name or str(k)] = KeyPose(joints, root_pos, root_quat)
     return out

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import torch
 
-from ambulo.core import GroundCfg, PhysicsCfg, RobotCfg
+from ambulo.core import GroundCfg, PhysicsCfg, RobotCfg, randomize
 from ambulo.policies.velocity_obs import velocity_policy_terms
 from ambulo.core.rows import put_rows, select_rows, take_rows
 from ambulo.robots import humanoid
@@ -157,7 +157,6 @@ class HumanoidWalkEnv(RLEnv):
 
     def _setup(self) -> None:
         n, dev, cfg = self.num_envs, self.device, self.cfg
-        self.base_body_id = self.engine.model.body(f"{cfg.robot.prim_path}/{cfg.base_body}").id
         self.commands = VelocityCommand(cfg.commands, n, self.generator, dev)
         self.command_scale = torch.tensor(cfg.obs_scale_command, dtype=torch.float32, device=dev)
         self._push_time_left_s = torch.zeros(n, dtype=torch.float32, device=dev)
@@ -175,16 +174,18 @@ class HumanoidWalkEnv(RLEnv):
         self._randomize_physics()
 
     def _randomize_physics(self) -> None:
-        """Per-env friction and base mass, drawn once at start (Isaac Lab's "startup" events)."""
+        """Per-env friction and base mass, drawn once at start (Isaac Lab's "startup" events)
+        through ``core.randomize``, the layer the replicator's randomizers use too. Drawn in
+        float32 from the env's generator, friction first, so a seed gives the worlds it gave."""
         cfg = self.cfg
         if cfg.friction_range is not None:
-            friction = self.engine.model_field("geom_friction")
             # MuJoCo takes the larger friction of two touching geoms, so every geom gets the
             # env's sample (else the feet's own value would mask a slippery floor).
-            friction[:, :, 0] = self._uniform((self.num_envs, 1), *cfg.friction_range).to(friction)
+            randomize.geom_friction(self.engine, randomize.uniform(*cfg.friction_range), self.generator,
+                                    shared=True, dtype=torch.float32)
         if cfg.added_base_mass_kg is not None:
-            mass = self.engine.model_field("body_mass")
-            mass[:, self.base_body_id] += self._uniform((self.num_envs,), *cfg.added_base_mass_kg).to(mass)
+            randomize.body_mass(self.robot, randomize.uniform(*cfg.added_base_mass_kg), self.generator,
+                                bodies=[cfg.base_body], operation="add", dtype=torch.float32)
             self.engine.set_const()
 
     # -- metrics -----------------------------------------------------------------------

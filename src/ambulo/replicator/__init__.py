@@ -16,9 +16,10 @@ A dataset is declared as a ``DatasetConfig``::
     rep.generate(config, "out/", num_frames=100, seed=0)
 """
 
+from ambulo.core.randomize import choice, constant, normal, uniform, uniform_int
+
 from .coco import coco_categories, frame_annotations, merge_coco
 from .config import DATASET_ANNOTATORS, DatasetConfig
-from .distributions import choice, constant, normal, uniform, uniform_int
 from .generate import generate
 from .producer import FrameProducer, run_frames
 from .randomizers import (

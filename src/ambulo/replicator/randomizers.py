@@ -5,6 +5,11 @@ log); ``apply(params, ctx)`` writes them into the engine's world 0. Applying a
 logged dict reproduces the frame without drawing anything, which is how a
 single frame is regenerated. ``every_n_frames`` keeps parameters for blocks of
 frames (drawn from the block's own seed, so any frame can still start a run).
+
+The draws and writes are ``ambulo.core.randomize``'s, the layer the RL task events use too:
+``sample`` turns the ``numpy`` generator the producer hands it for (seed, randomizer, frame)
+into a ``torch.Generator`` (``as_generator``) and draws every value of a kind in one batch;
+``apply`` writes each field once (``write_field``), with world ``ctx.world`` as the row.
 """
 
 from __future__ import annotations
@@ -15,11 +20,21 @@ import mujoco
 import numpy as np
 import torch
 
-from ambulo.core import match_names
+from ambulo.core import Entity, match_names
+from ambulo.core.randomize import (
+    BodyGeoms,
+    Distribution,
+    as_distribution,
+    as_generator,
+    joint_range_box,
+    normal,
+    sample_columns,
+    uniform,
+    write_field,
+)
+from ambulo.core.randomize.fields import entity_qpos_ids
 from ambulo.utils.rotations import mat_to_quat, rot_about_axes
 from ambulo.utils.validate import Checked
-
-from .distributions import Distribution, as_distribution, draw_rows, normal, uniform
 
 
 @dataclass
@@ -32,22 +47,9 @@ class SceneContext:
     world: int = 0
 
 
-def match_bodies(model: mujoco.MjModel, pattern: str) -> list[int]:
-    """Body ids (not the world body) whose name matches glob ``pattern`` (whole name or last
-    path component)."""
-    return [b + 1 for b in match_names([model.body(b).name for b in range(1, model.nbody)], pattern)]
-
-
-def subtree_geoms(model: mujoco.MjModel, body: int) -> np.ndarray:
-    """Geoms of ``body`` and all its descendants."""
-    inside = np.zeros(model.nbody, bool)
-    inside[body] = True
-    for b in range(body + 1, model.nbody):  # parents precede children
-        inside[b] = inside[model.body_parentid[b]]
-    return np.flatnonzero(inside[model.geom_bodyid])
-
-
 def to_json(value):
+    if isinstance(value, torch.Tensor):
+        return value.tolist()
     if isinstance(value, np.ndarray):
         return value.tolist()
     if isinstance(value, (np.floating, np.integer)):
@@ -57,26 +59,6 @@ def to_json(value):
     if isinstance(value, (list, tuple)):
         return [to_json(v) for v in value]
     return value
-
-
-def _geoms_by_body(ngeom: int, geoms_per_body: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """Every geom of the bodies' subtrees once, and the body whose value it takes: the last
-    body listing it, as a loop writing body after body would leave it."""
-    owner = np.full(ngeom, -1, np.int64)
-    for k, geoms in enumerate(geoms_per_body):
-        owner[geoms] = k
-    targets = np.flatnonzero(owner >= 0)
-    return targets, owner[targets]
-
-
-def _put(field: torch.Tensor, world: int, index, values) -> None:
-    """``field[world, index] = values`` in one write: through a NumPy view for host tensors
-    (a tenth of torch's cost per call), else on the field's device."""
-    if field.device.type == "cpu":
-        field.numpy()[world, index] = values
-        return
-    field[world, torch.as_tensor(np.asarray(index), device=field.device)] = torch.as_tensor(
-        np.asarray(values), dtype=field.dtype, device=field.device)
 
 
 @dataclass(kw_only=True)
@@ -128,24 +110,26 @@ class LightRandomizer(Randomizer):
             raise ValueError(f"{self.name}: no light matches {self.lights!r}; lights: {names}")
 
     def sample(self, rng, ctx):
-        out = []
-        for _ in self._ids:
-            intensity = float(as_distribution(self.intensity).sample(rng))
-            color = as_distribution(self.color).sample(rng)
-            az, el = np.radians(as_distribution(self.azimuth_deg).sample(rng)), np.radians(
-                as_distribution(self.elevation_deg).sample(rng))
-            direction = [np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), -np.sin(el)]
-            out.append({"diffuse": intensity * np.asarray(color), "ambient": float(as_distribution(self.ambient).sample(rng)),
-                        "dir": direction})
-        return to_json({"lights": out})
+        g, n = as_generator(rng), len(self._ids)
+        # the four scalar draws of every light in one batch, then the colours
+        intensity, ambient, az_deg, el_deg = sample_columns(
+            g, (self.intensity, self.ambient, self.azimuth_deg, self.elevation_deg), n).numpy().T
+        color = np.broadcast_to(as_distribution(self.color).sample(g, n).reshape(n, -1).numpy(), (n, 3))
+        az, el = np.radians(az_deg), np.radians(el_deg)
+        direction = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), -np.sin(el)], 1)
+        diffuse = intensity[:, None] * color
+        return {"lights": [{"diffuse": d, "ambient": a, "dir": r}
+                           for d, a, r in zip(diffuse.tolist(), ambient.tolist(), direction.tolist())]}
 
     def apply(self, params, ctx):
         lights = params["lights"][:len(self._ids)]
         ids = self._ids[:len(lights)]
-        _put(ctx.engine.model_field("light_diffuse"), ctx.world, ids, [p["diffuse"] for p in lights])
+        engine = ctx.engine
+        write_field(engine.model_field("light_diffuse"), [[p["diffuse"] for p in lights]], rows=ctx.world, index=ids)
         # one number for the light's three ambient components
-        _put(ctx.engine.model_field("light_ambient"), ctx.world, ids, [[p["ambient"]] for p in lights])
-        _put(ctx.engine.model_field("light_dir"), ctx.world, ids, [p["dir"] for p in lights])
+        write_field(engine.model_field("light_ambient"), [[[p["ambient"]] for p in lights]], rows=ctx.world,
+                    index=ids)
+        write_field(engine.model_field("light_dir"), [[p["dir"] for p in lights]], rows=ctx.world, index=ids)
 
 
 @dataclass(kw_only=True)
@@ -158,27 +142,19 @@ class ColorRandomizer(Randomizer):
     value: Distribution = field(default_factory=lambda: uniform(0.35, 1.0))
 
     def initialize(self, engine):
-        self._bodies = match_bodies(engine.model, self.prims)
-        if not self._bodies:
-            raise ValueError(f"{self.name}: no body matches {self.prims!r}")
-        self._geoms = [subtree_geoms(engine.model, b) for b in self._bodies]
-        self._targets, self._body_of = _geoms_by_body(engine.model.ngeom, self._geoms)
+        self._targets = BodyGeoms.resolve(engine.model, self.prims, self.name)
 
     def sample(self, rng, ctx):
-        hsv = draw_rows(rng, (self.hue, self.saturation, self.value), len(self._bodies))
-        return {"rgba": [_hsv_to_rgb(h, s, v) + [1.0] for h, s, v in hsv]}
+        hsv = sample_columns(as_generator(rng), (self.hue, self.saturation, self.value), len(self._targets.bodies))
+        return {"rgba": [hsv_to_rgb(h, s, v) + [1.0] for h, s, v in hsv.tolist()]}
 
     def apply(self, params, ctx):
-        colors = np.asarray(params["rgba"], np.float64).reshape(-1, 4)
-        if len(colors) == len(self._geoms):  # one write for every geom (what the per-body loop wrote)
-            _put(ctx.engine.model_field("geom_rgba"), ctx.world, self._targets, colors[self._body_of])
-            return
-        rgba = ctx.engine.model_field("geom_rgba")
-        for geoms, color in zip(self._geoms, params["rgba"]):
-            rgba[ctx.world, geoms] = torch.tensor(color, dtype=rgba.dtype)
+        colors = np.asarray(params["rgba"], np.float64).reshape(1, -1, 4)
+        self._targets.write(ctx.engine.model_field("geom_rgba"), colors, rows=ctx.world)
 
 
-def _hsv_to_rgb(h: float, s: float, v: float) -> list[float]:
+def hsv_to_rgb(h: float, s: float, v: float) -> list[float]:
+    """RGB of one HSV colour, all in [0, 1] (a frame colours a few bodies: plain floats are cheapest)."""
     i = int(h * 6.0) % 6
     f = h * 6.0 - int(h * 6.0)
     p, q, t = v * (1 - s), v * (1 - s * f), v * (1 - s * (1 - f))
@@ -215,32 +191,21 @@ class MaterialRandomizer(Randomizer):
             self._names.append(name)
 
     def initialize(self, engine):
-        self._bodies = match_bodies(engine.model, self.prims)
-        if not self._bodies:
-            raise ValueError(f"{self.name}: no body matches {self.prims!r}")
-        self._geoms = [subtree_geoms(engine.model, b) for b in self._bodies]
-        self._mat_ids = [engine.model.material(n).id for n in self._names]
+        self._targets = BodyGeoms.resolve(engine.model, self.prims, self.name)
+        self._mat_ids = np.asarray([engine.model.material(n).id for n in self._names], np.int64)
         self._base = engine.model.geom_matid.copy()
-        self._targets, self._body_of = _geoms_by_body(engine.model.ngeom, self._geoms)
 
     def sample(self, rng, ctx):
-        picks = []
-        for _ in self._bodies:
-            plain = rng.uniform() < self.untextured_probability
-            picks.append(-1 if plain else int(rng.integers(len(self._mat_ids))))
-        return {"palette_index": picks}
+        g, n = as_generator(rng), len(self._targets.bodies)
+        plain = torch.rand(n, generator=g, dtype=torch.float64) < self.untextured_probability
+        pick = torch.randint(len(self._mat_ids), (n,), generator=g)
+        return {"palette_index": torch.where(plain, -1, pick).tolist()}
 
     def apply(self, params, ctx):
-        picks = np.asarray(params["palette_index"], np.int64)
-        if len(picks) == len(self._geoms):  # one write for every geom (what the per-body loop wrote)
-            pick = picks[self._body_of]
-            value = np.where(pick < 0, self._base[self._targets], np.asarray(self._mat_ids)[np.maximum(pick, 0)])
-            _put(ctx.engine.model_field("geom_matid"), ctx.world, self._targets, value)
-            return
-        matid = ctx.engine.model_field("geom_matid")
-        for geoms, pick in zip(self._geoms, params["palette_index"]):
-            value = self._base[geoms] if pick < 0 else np.full(len(geoms), self._mat_ids[pick])
-            matid[ctx.world, geoms] = torch.as_tensor(value, dtype=matid.dtype)
+        t = self._targets
+        pick = np.asarray(params["palette_index"], np.int64)[t.owner]
+        value = np.where(pick < 0, self._base[t.targets], self._mat_ids[np.maximum(pick, 0)])
+        write_field(ctx.engine.model_field("geom_matid"), value[None], rows=ctx.world, index=t.targets)
 
 
 @dataclass(kw_only=True)
@@ -257,8 +222,9 @@ class CameraJitter(Randomizer):
             raise ValueError(f"{self.name}: no camera {self.camera!r}; cameras: {cameras}")
 
     def sample(self, rng, ctx):
-        return to_json({"position_m": as_distribution(self.position_m).sample(rng),
-                        "rotation_deg": as_distribution(self.rotation_deg).sample(rng)})
+        g = as_generator(rng)
+        return to_json({"position_m": as_distribution(self.position_m).sample(g),
+                        "rotation_deg": as_distribution(self.rotation_deg).sample(g)})
 
     def apply(self, params, ctx):
         cam = ctx.cameras[self.camera]
@@ -270,32 +236,27 @@ class CameraJitter(Randomizer):
 
 @dataclass(kw_only=True)
 class JointRandomizer(Randomizer):
-    """Hinge/slide joint positions drawn uniformly from a fraction of each joint's range."""
+    """Hinge/slide joint positions of the robot at ``prim_path``, uniform in a fraction of each
+    joint's range; the joints are the robot's ``Entity`` joints whose names match ``joints``."""
 
     joints: str
+    """Glob on joint names relative to ``prim_path`` (``*shoulder*``)."""
+    prim_path: str = "/World/robot"
     range_fraction: float = 0.5
     """1 uses the whole limited range; unlimited joints use +-range_fraction * pi."""
 
     def initialize(self, engine):
-        m = engine.model
-        kinds = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE))
-        matched = set(match_names([m.joint(j).name for j in range(m.njnt)], self.joints))
-        self._joints = [j for j in range(m.njnt) if m.jnt_type[j] in kinds and j in matched]
-        if not self._joints:
-            raise ValueError(f"{self.name}: no hinge/slide joint matches {self.joints!r}")
-        self._adr = m.jnt_qposadr[self._joints]
-        lo, hi = m.jnt_range[self._joints].T
-        limited = m.jnt_limited[self._joints].astype(bool)
-        mid, half = (lo + hi) / 2, (hi - lo) / 2
-        self._low = np.where(limited, mid - self.range_fraction * half, -self.range_fraction * np.pi)
-        self._high = np.where(limited, mid + self.range_fraction * half, self.range_fraction * np.pi)
+        robot = Entity(engine, self.prim_path, require_drives=False)
+        picked = match_names(robot.joint_names, self.joints)
+        if not picked:
+            raise ValueError(f"{self.name}: no hinge/slide joint of {self.prim_path} matches {self.joints!r}; "
+                             f"joints: {robot.joint_names}")
+        self._qpos_adr = entity_qpos_ids(robot)[picked]
+        self._low, self._high = joint_range_box(robot, self.range_fraction, picked)
 
     def sample(self, rng, ctx):
-        return {"qpos": rng.uniform(self._low, self._high).tolist()}
+        u = torch.rand(len(self._qpos_adr), generator=as_generator(rng), dtype=torch.float64).numpy()
+        return {"qpos": (self._low + (self._high - self._low) * u).tolist()}
 
     def apply(self, params, ctx):
-        _put(ctx.engine.qpos, ctx.world, self._adr, params["qpos"])
-
-
-def quat_yaw(yaw: float) -> list[float]:
-    return [float(np.cos(yaw / 2)), 0.0, 0.0, float(np.sin(yaw / 2))]
+        write_field(ctx.engine.qpos, [params["qpos"]], rows=ctx.world, index=self._qpos_adr)

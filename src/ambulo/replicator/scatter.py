@@ -1,15 +1,14 @@
 """Scatter objects on a surface without overlaps, checked by MuJoCo's own collision detection.
 
-Placement is rejection sampling: draw every object's pose, run ``mj_collision``
-on a private ``MjData``, redraw only the objects in penetrating contacts (with
-each other, the robot or static scenery; the support surface is ignored), and
-repeat. Objects still colliding after ``max_tries`` rounds are parked under
+Placement is rejection sampling (``ambulo.core.randomize.place_without_overlap``): draw every
+object's pose, run ``mj_collision`` on a private ``MjData``, redraw only the objects in
+penetrating contacts (with each other, the robot or static scenery; the support surface is
+ignored), and repeat. Objects still colliding after ``max_tries`` rounds are parked under
 the floor and logged as hidden, so a crowded region degrades instead of overlapping.
 """
 
 from __future__ import annotations
 
-import copy
 from dataclasses import dataclass, field
 
 import mujoco
@@ -17,47 +16,26 @@ import numpy as np
 import torch
 
 from ambulo.core import match_names
+from ambulo.core.randomize import (
+    CollisionChecker,
+    Distribution,
+    as_distribution,
+    as_generator,
+    match_bodies,
+    park_z,
+    place_without_overlap,
+    sample_columns,
+    subtree_geoms,
+    uniform,
+    uniform_int,
+    write_field,
+)
+from ambulo.utils.math import quat_from_yaw
 from ambulo.utils.rotations import quat_to_mat
 
-from .distributions import Distribution, as_distribution, draw_rows, uniform, uniform_int
-from .randomizers import Randomizer, match_bodies, quat_yaw, subtree_geoms
+from .randomizers import Randomizer
 
-
-def park_z(body_id: int) -> float:
-    """Height (m) where an unused body waits: under the floor, 3 m apart per body, so none touch."""
-    return -10.0 - 3.0 * body_id
-
-_PENETRATION_M = 1e-4
-
-
-class CollisionChecker:
-    """Which free bodies penetrate anything but the ignored geoms, for a full qpos."""
-
-    def __init__(self, model: mujoco.MjModel, ignore_geoms: np.ndarray):
-        self._ignore = np.zeros(model.ngeom, bool)
-        self._ignore[np.asarray(ignore_geoms, int)] = True
-        # a private copy in which the ignored geoms collide with nothing: their contacts (the
-        # support surface with every parked body and the robot's feet) are never made, only to
-        # be dropped; every other pair collides exactly as in ``model``
-        self.model = copy.copy(model)
-        self.model.geom_contype[self._ignore] = 0
-        self.model.geom_conaffinity[self._ignore] = 0
-        self.data = mujoco.MjData(self.model)
-        self._root = model.body_rootid
-
-    def colliding_roots(self, qpos: np.ndarray) -> set[int]:
-        """Root bodies (of geoms) in penetrating contacts."""
-        d = self.data
-        d.qpos[:] = qpos
-        mujoco.mj_kinematics(self.model, d)
-        mujoco.mj_collision(self.model, d)
-        n = d.ncon
-        if n == 0:
-            return set()
-        geoms = d.contact.geom[:n]
-        hit = (d.contact.dist[:n] < -_PENETRATION_M) & ~self._ignore[geoms].any(1)
-        bodies = self.model.geom_bodyid[geoms[hit]]
-        return {int(b) for b in self._root[bodies].ravel()}
+__all__ = ["CollisionChecker", "Distractors", "Scatter2D", "park_z"]
 
 
 @dataclass(kw_only=True)
@@ -98,8 +76,11 @@ class Scatter2D(Randomizer):
             raise ValueError(f"{self.name}: no geom matches surface {self.surface!r}")
         self._checker = CollisionChecker(m, surface) if self.check_collisions else None
         self._bottom = [self._bottom_offset(m, b, g) for b, g in zip(self._bodies, self._geoms)]
+        # (bodies, 7) qpos addresses of each free joint, and the height (m) its origin rests at
+        self._free_index = np.asarray(self._qadr, np.int64)[:, None] + np.arange(7)
+        self._rest_z_m = self.surface_z_m + np.asarray(self._bottom)
         # every body parked: one write of all their free-joint coordinates
-        self._park_index = np.concatenate([np.arange(adr, adr + 7) for adr in self._qadr])
+        self._park_index = self._free_index.reshape(-1)
         self._park_values = np.concatenate([[0.0, 0.0, park_z(b), 1, 0, 0, 0] for b in self._bodies])
 
     @staticmethod
@@ -118,46 +99,44 @@ class Scatter2D(Randomizer):
         return -lowest
 
     def sample(self, rng, ctx):
-        n = len(self._bodies)
-        count = n if self.count is None else int(np.clip(as_distribution(self.count).sample(rng), 0, n))
-        active = sorted(rng.choice(n, size=count, replace=False).tolist()) if count < n else list(range(n))
+        g, n = as_generator(rng), len(self._bodies)
+        count = n if self.count is None else int(np.clip(int(as_distribution(self.count).sample(g)), 0, n))
+        active = sorted(torch.randperm(n, generator=g)[:count].tolist()) if count < n else list(range(n))
         (x0, y0), (x1, y1) = self.region
-        poses = {}
+        place = (uniform(x0, x1), uniform(y0, y1), self.yaw_rad)  # x, y, yaw of each object
+        poses = np.zeros((n, 3))
         qpos = ctx.engine.qpos[ctx.world].numpy().copy()
         self._park_all(qpos)
-        todo = list(active)
-        place = (uniform(x0, x1), uniform(y0, y1), self.yaw_rad)  # x, y, yaw of each object in turn
-        for _ in range(self.max_tries):
-            for i, pose in zip(todo, draw_rows(rng, place, len(todo))):
-                poses[i] = pose
-                self._write(qpos, i, pose)
-            if self._checker is None:
-                todo = []
-                break
-            hits = self._checker.colliding_roots(qpos)
-            todo = [i for i in active if self._bodies[i] in hits]
-            if not todo:
-                break
-        hidden = sorted(todo)
-        return {"active": [i for i in active if i not in hidden], "hidden": hidden,
-                "pose_xy_yaw": {str(i): poses[i] for i in active if i not in hidden}}
+
+        def draw(todo: list[int]) -> None:
+            poses[todo] = sample_columns(g, place, len(todo)).numpy()
+            self._write(qpos, todo, poses[todo])
+
+        hidden = sorted(place_without_overlap(active, self._bodies, qpos, draw, self._checker, self.max_tries))
+        placed = [i for i in active if i not in hidden]
+        return {"active": placed, "hidden": hidden, "pose_xy_yaw": {str(i): poses[i].tolist() for i in placed}}
 
     def apply(self, params, ctx):
         qpos = ctx.engine.qpos[ctx.world]
         values = qpos.numpy().copy()
         self._park_all(values)
-        for key, pose in params["pose_xy_yaw"].items():
-            self._write(values, int(key), pose)
-        qpos[:] = torch.from_numpy(values)
+        placed = [int(key) for key in params["pose_xy_yaw"]]
+        if placed:
+            self._write(values, placed, np.asarray(list(params["pose_xy_yaw"].values()), np.float64))
+        write_field(ctx.engine.qpos, values[None, self._park_index], rows=ctx.world, index=self._park_index)
         if self._checker is not None:
             # later scatterers (distractors) check against where these objects now are
             self._checker.data.qpos[:] = values
 
-    def _write(self, qpos: np.ndarray, i: int, pose) -> None:
-        adr = self._qadr[i]
-        x, y, yaw = pose
-        qpos[adr:adr + 3] = [x, y, self.surface_z_m + self._bottom[i]]
-        qpos[adr + 3:adr + 7] = quat_yaw(yaw)
+    def _write(self, qpos: np.ndarray, objects, poses) -> None:
+        """Stand ``objects`` (indices, or one index) upright at ``poses`` (k, 3) x, y (m), yaw (rad)."""
+        objects = np.atleast_1d(np.asarray(objects, np.int64))
+        poses = np.asarray(poses, np.float64).reshape(-1, 3)
+        free = np.empty((len(objects), 7))
+        free[:, :2] = poses[:, :2]
+        free[:, 2] = self._rest_z_m[objects]
+        free[:, 3:] = quat_from_yaw(poses[:, 2])
+        qpos[self._free_index[objects]] = free
 
     def _park_all(self, qpos: np.ndarray) -> None:
         qpos[self._park_index] = self._park_values

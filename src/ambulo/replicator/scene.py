@@ -13,11 +13,11 @@ import mujoco
 import numpy as np
 
 from ambulo.core import GroundCfg, RobotCfg, add_ground, add_light, add_robot, new_scene, set_semantic_label
+from ambulo.core.randomize import normal, uniform
 from ambulo.robots import humanoid
 from ambulo.sensors import CameraCfg
 
 from .config import DATASET_ANNOTATORS, DatasetConfig
-from .distributions import normal, uniform
 from .randomizers import CameraJitter, ColorRandomizer, JointRandomizer, LightRandomizer, MaterialRandomizer
 from .scatter import Distractors, Scatter2D
 

@@ -15,6 +15,8 @@ from xml.sax.saxutils import quoteattr
 import mujoco
 import numpy as np
 
+from ambulo.core.names import DOF_JOINT_TYPES
+
 from .frames import RobotFrames
 
 # plain ints: numpy integers compare equal to MuJoCo's enums, but `in (enum, ...)` does not match
@@ -22,7 +24,7 @@ _BOX, _SPHERE, _CAPSULE, _ELLIPSOID, _CYLINDER = (int(mujoco.mjtGeom.mjGEOM_BOX)
                                                   int(mujoco.mjtGeom.mjGEOM_CAPSULE),
                                                   int(mujoco.mjtGeom.mjGEOM_ELLIPSOID),
                                                   int(mujoco.mjtGeom.mjGEOM_CYLINDER))
-_HINGE, _SLIDE = int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)
+_HINGE = int(mujoco.mjtJoint.mjJNT_HINGE)
 
 
 def rpy(quat_wxyz) -> np.ndarray:
@@ -71,7 +73,7 @@ def _visuals(model: mujoco.MjModel, body: int) -> list[str]:
 def _joint(model: mujoco.MjModel, body: int, parent: str, child: str) -> str:
     count, first = int(model.body_jntnum[body]), int(model.body_jntadr[body])
     kind, extra = "fixed", ""
-    if count == 1 and int(model.jnt_type[first]) in (_HINGE, _SLIDE):
+    if count == 1 and int(model.jnt_type[first]) in DOF_JOINT_TYPES:
         hinge = int(model.jnt_type[first]) == _HINGE
         axis = " ".join(f"{v:.9g}" for v in model.jnt_axis[first])
         extra = f'<axis xyz="{axis}"/>'

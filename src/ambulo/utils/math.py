@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import torch
 
 
@@ -54,8 +55,16 @@ def quat_from_axis_angle(axis: torch.Tensor, angle: torch.Tensor) -> torch.Tenso
     return torch.cat([torch.cos(half), axis * torch.sin(half)], dim=-1)
 
 
-def quat_from_yaw(yaw: torch.Tensor) -> torch.Tensor:
-    """Unit quaternions (..., 4) of rotations by ``yaw`` (...,) rad about world z."""
+def quat_from_yaw(yaw):
+    """Unit quaternions (..., 4) of rotations by ``yaw`` (...,) rad about world z.
+
+    The one yaw-to-quaternion of the package: a tensor gives a tensor; a number or NumPy array
+    (host code such as the replicator's scatter) gives a float64 NumPy array, computed with
+    NumPy: a frame's few objects cost less than torch's per-call overhead."""
+    if not isinstance(yaw, torch.Tensor):
+        half = 0.5 * np.asarray(yaw, dtype=np.float64)
+        zero = np.zeros_like(half)
+        return np.stack([np.cos(half), zero, zero, np.sin(half)], axis=-1)
     half = 0.5 * yaw
     zero = torch.zeros_like(half)
     return torch.stack([torch.cos(half), zero, zero, torch.sin(half)], dim=-1)

@@ -1,17 +1,18 @@
-"""``rep.distribution``: the value generators Replicator nodes sample, drawn with ambulo's seeded rng.
+"""``rep.distribution``: Isaac Replicator's names over ``ambulo.core.randomize``'s distributions.
 
 A Replicator distribution is a graph node: it produces a new value each time the node that
-uses it runs, one per target prim. Here each is an object whose ``draw(rng, n)`` gives those
-``n`` values from the ``numpy`` generator ambulo hands a randomizer for (seed, node, frame),
-so frames are reproducible under ``rep.set_global_seed`` and independent of run order.
+uses it runs, one per target prim. Here ``uniform``/``normal``/``choice`` return the core's
+``Uniform``/``Normal``/``Choice`` under Replicator's parameter names (``lower``/``upper``,
+``choices``), and ``draw(rng, n)`` gives those ``n`` values as NumPy data from the generator
+ambulo hands a randomizer for (seed, node, frame) (``as_generator``), so frames are
+reproducible under ``rep.set_global_seed`` and independent of run order.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any
-
 import numpy as np
+
+from ambulo.core import randomize as core
 
 from .errors import Namespace, unsupported
 
@@ -19,42 +20,40 @@ from .errors import Namespace, unsupported
 class RepDistribution:
     """A value source: ``draw(rng, n)`` returns ``n`` samples (a NumPy array or a list)."""
 
-    def draw(self, rng: np.random.Generator, n: int):
+    def draw(self, rng, n: int):
         raise NotImplementedError
 
 
-@dataclass(frozen=True)
-class Uniform(RepDistribution):
-    lower: Any
-    upper: Any
+class Uniform(core.Uniform, RepDistribution):
+    """Uniform between ``lower`` and ``upper`` (the core's ``low``/``high``)."""
+
+    def __init__(self, lower, upper):
+        super().__init__(lower, upper)
+
+    lower = property(lambda self: self.low)
+    upper = property(lambda self: self.high)
 
     def draw(self, rng, n):
-        low, high = np.asarray(self.lower, float), np.asarray(self.upper, float)
-        return rng.uniform(low, high, (n, *np.broadcast_shapes(low.shape, high.shape)))
+        return self.sample(core.as_generator(rng), n).numpy()
 
 
-@dataclass(frozen=True)
-class Normal(RepDistribution):
-    mean: Any
-    std: Any
+class Normal(core.Normal, RepDistribution):
+    """Gaussian with ``mean`` and standard deviation ``std``."""
 
     def draw(self, rng, n):
-        mean, std = np.asarray(self.mean, float), np.asarray(self.std, float)
-        return rng.normal(mean, std, (n, *np.broadcast_shapes(mean.shape, std.shape)))
+        return self.sample(core.as_generator(rng), n).numpy()
 
 
-@dataclass(frozen=True)
-class Choice(RepDistribution):
-    choices: tuple
-    weights: tuple | None = None
+class Choice(core.Choice, RepDistribution):
+    """One of ``choices`` (any objects) per draw, with optional ``weights``."""
+
+    def __init__(self, choices, weights=None):
+        super().__init__(tuple(choices), weights)
+
+    choices = property(lambda self: self.options)
 
     def draw(self, rng, n):
-        p = None
-        if self.weights is not None:
-            p = np.asarray(self.weights, float)
-            p = p / p.sum()
-        picks = rng.choice(len(self.choices), size=n, p=p)
-        return [self.choices[int(i)] for i in picks]
+        return [self.options[int(i)] for i in self.sample_index(core.as_generator(rng), n).tolist()]
 
 
 def _one_draw_per_node(num: int, seed: int | None, what: str) -> None:
@@ -92,7 +91,7 @@ def choice(choices, weights=None, num: int = 1, seed: int | None = None, with_re
     return Choice(choices, None if weights is None else tuple(float(w) for w in weights))
 
 
-def draw(value, rng: np.random.Generator, n: int):
+def draw(value, rng, n: int):
     """``n`` values of ``value``: samples of a distribution, or the constant repeated."""
     if isinstance(value, RepDistribution):
         return value.draw(rng, n)

@@ -15,9 +15,16 @@ from typing import Any
 import numpy as np
 import torch
 
+from ambulo.core.randomize import (
+    CollisionChecker,
+    as_generator,
+    park_z,
+    place_without_overlap,
+    subtree_geoms,
+    write_field,
+)
 from ambulo.replicator import Randomizer
-from ambulo.replicator.randomizers import subtree_geoms, to_json
-from ambulo.replicator.scatter import CollisionChecker, park_z
+from ambulo.replicator.randomizers import to_json
 from ambulo.sensors.frames import look_at_gl
 from ambulo.utils.rotations import mat_to_quat, quat_to_mat
 
@@ -68,13 +75,13 @@ class PoseNode(Randomizer, _FreeBodies):
         self.resolve(engine.model, shapes + aims)
 
     def sample(self, rng, ctx):
-        n, out = len(self.targets), {}
+        g, n, out = as_generator(rng), len(self.targets), {}
         for key in ("position", "rotation", "scale"):
             value = getattr(self, key)
             if value is not None:
-                out[key] = _rows(draw(value, rng, n), n, 3)
+                out[key] = _rows(draw(value, g, n), n, 3)
         if self.look_at is not None and not isinstance(self.look_at, str):
-            out["look_at"] = _rows(draw(self.look_at, rng, n), n, 3)
+            out["look_at"] = _rows(draw(self.look_at, g, n), n, 3)
         return to_json(out)
 
     def apply(self, params, ctx):
@@ -152,11 +159,11 @@ class LightNode(Randomizer):
         self._ids = [engine.model.light(path).id for path in self.targets]
 
     def sample(self, rng, ctx):
-        n, out = len(self.targets), {}
+        g, n, out = as_generator(rng), len(self.targets), {}
         if self.intensity is not None:
-            out["intensity"] = np.asarray(draw(self.intensity, rng, n), float).reshape(n)
+            out["intensity"] = np.asarray(draw(self.intensity, g, n), float).reshape(n)
         if self.color is not None:
-            out["color"] = _rows(draw(self.color, rng, n), n, 3)
+            out["color"] = _rows(draw(self.color, g, n), n, 3)
         return to_json(out)
 
     def apply(self, params, ctx):
@@ -186,36 +193,35 @@ class ScatterNode(Randomizer, _FreeBodies):
         self._bodies = {t: m.body(t).id for t in self.targets}
 
     def sample(self, rng, ctx):
+        g = as_generator(rng)
         qpos = ctx.engine.qpos[ctx.world].numpy().copy()
         sizes = ctx.engine.model_field("geom_size")[ctx.world].numpy()
-        planes = []
-        for s in self.surfaces:
-            adr, geom = self._qadr[s], self._geoms[s][0]
-            half = sizes[geom]
-            planes.append((qpos[adr:adr + 3].copy(), quat_to_mat(qpos[adr + 3:adr + 7]), half))
-        areas = np.array([4 * h[0] * h[1] for _, _, h in planes])
-        positions: dict[str, list[float]] = {}
-        todo = list(self.targets)
-        for _ in range(_SCATTER_TRIES):
-            for path in todo:
-                pos, rot, half = planes[rng.choice(len(planes), p=areas / areas.sum())]
-                local = [rng.uniform(-half[0], half[0]), rng.uniform(-half[1], half[1]), self.offset]
-                positions[path] = (pos + rot @ np.asarray(local)).tolist()
-                adr = self._qadr[path]
-                qpos[adr:adr + 3] = positions[path]
-            if self._checker is None:
-                todo = []
-                break
-            hits = self._checker.colliding_roots(qpos)
-            todo = [t for t in self.targets if self._bodies[t] in hits]
-            if not todo:
-                break
-        for path in todo:  # still overlapping: out of view, as ambulo's Scatter2D does
-            positions[path] = [0.0, 0.0, park_z(self._bodies[path])]
-        return {"position": positions, "hidden": todo}
+        adr = np.asarray([self._qadr[p] for p in self.surfaces])
+        origins = qpos[adr[:, None] + np.arange(3)]  # (P, 3) plane centres, world frame
+        rots = quat_to_mat(qpos[adr[:, None] + np.arange(3, 7)])  # (P, 3, 3)
+        halves = sizes[[self._geoms[p][0] for p in self.surfaces], :2]  # (P, 2) half extents, m
+        areas = torch.as_tensor(4 * halves[:, 0] * halves[:, 1])
+        target_adr = np.asarray([self._qadr[t] for t in self.targets])
+        positions = np.zeros((len(self.targets), 3))
+
+        def place(todo: list[int]) -> None:
+            """A plane per prim (by area), then a uniform point of its top face, ``offset`` above it."""
+            k = len(todo)
+            plane = torch.multinomial(areas, k, replacement=True, generator=g).numpy()
+            u = torch.rand((k, 2), generator=g, dtype=torch.float64).numpy()
+            local = np.concatenate([(2 * u - 1) * halves[plane], np.full((k, 1), self.offset)], 1)
+            positions[todo] = origins[plane] + np.einsum("kij,kj->ki", rots[plane], local)
+            qpos[target_adr[todo][:, None] + np.arange(3)] = positions[todo]
+
+        roots = [self._bodies[t] for t in self.targets]
+        hidden = place_without_overlap(range(len(self.targets)), roots, qpos, place, self._checker, _SCATTER_TRIES)
+        for i in hidden:  # still overlapping: out of view, as ambulo's Scatter2D does
+            positions[i] = [0.0, 0.0, park_z(roots[i])]
+        return {"position": {t: positions[i].tolist() for i, t in enumerate(self.targets)},
+                "hidden": [self.targets[i] for i in hidden]}
 
     def apply(self, params, ctx):
-        qpos = ctx.engine.qpos[ctx.world]
-        for path, pos in params["position"].items():
-            adr = self._qadr[path]
-            qpos[adr:adr + 3] = torch.tensor(pos, dtype=qpos.dtype)
+        paths = list(params["position"])
+        index = (np.asarray([self._qadr[p] for p in paths])[:, None] + np.arange(3)).reshape(-1)
+        write_field(ctx.engine.qpos, [np.asarray([params["position"][p] for p in paths]).reshape(-1)],
+                    rows=ctx.world, index=index)

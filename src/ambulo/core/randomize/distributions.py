@@ -1,0 +1,222 @@
+"""Distributions: one hierarchy of value sources, drawn in batches from a seeded ``torch.Generator``.
+
+Why torch and not numpy: the RL task events draw one value per world on the engine's device
+(a GPU for training); a numpy draw there would need a host-to-device copy, which waits for the
+device, on every reset. A ``torch.Generator`` draws on either device, and the CPU case (the
+replicator's one world) is the N = 1 case of the same code. Callers that hold a
+``numpy.random.Generator`` (the replicator hands one per (seed, randomizer, frame)) turn it
+into a torch one with ``as_generator``, so a frame's values still depend on those alone.
+
+Every ``sample`` draws in float64 and only then casts to ``dtype``: the float32 GPU engine and
+the float64 CPU engine see the same numbers from one seed (as ``RLEnv._uniform`` does).
+Shapes: a distribution's parameters broadcast to its value shape ``S`` (``()`` for scalars,
+``(3,)`` for a colour); ``sample(g, num)`` returns ``(num, *S)``, ``sample(g)`` returns ``S``.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import torch
+
+def as_generator(rng) -> torch.Generator:
+    """A ``torch.Generator``: ``rng`` itself, one seeded with the int ``rng``, or (for a
+    ``numpy.random.Generator``) one seeded with the next 64 bits ``rng`` draws."""
+    if isinstance(rng, torch.Generator):
+        return rng
+    if isinstance(rng, np.random.Generator):
+        rng = int(rng.bit_generator.random_raw())  # the next 64 raw bits: a full-width seed
+    if isinstance(rng, (int, np.integer)):
+        return torch.Generator().manual_seed(int(rng))
+    raise TypeError(f"a random generator is a torch.Generator, a numpy Generator or an int seed; got {rng!r}")
+
+
+def _shape(num: int | None, value_shape: tuple[int, ...]) -> tuple[int, ...]:
+    return value_shape if num is None else (int(num), *value_shape)
+
+
+class Distribution:
+    """A value source: ``sample(generator, num, dtype=...)`` gives ``num`` draws, ``(num, *S)``."""
+
+    def sample(self, generator: torch.Generator, num: int | None = None, *,
+               dtype: torch.dtype = torch.float64) -> torch.Tensor:
+        raise NotImplementedError
+
+
+@dataclass(frozen=True)
+class _Pair(Distribution):
+    """Two broadcast parameters (bounds, or mean and std), as tensors cached per (device, dtype)."""
+
+    _cache: dict = field(default_factory=dict, init=False, repr=False, compare=False, hash=False)
+
+    def _params(self) -> tuple[Any, Any]:
+        raise NotImplementedError
+
+    _span = False
+    """Whether the second tensor is the difference of the two parameters (a uniform's width)."""
+
+    def _tensors(self, device: torch.device, dtype: torch.dtype):
+        """The two parameters (or, with ``_span``, the first and the difference) as Python floats
+        for scalars, else as tensors of the value shape in ``dtype``; and the value shape. The
+        arithmetic is that of ``a + (b - a) * u`` on floats or on ``dtype`` tensors."""
+        key = (device, dtype)
+        hit = self._cache.get(key)
+        if hit is None:
+            a, b = (np.asarray(p, np.float64) for p in self._params())
+            shape = np.broadcast_shapes(a.shape, b.shape)
+            if not shape:
+                first, second = float(a), float(b)
+            else:
+                first, second = (torch.as_tensor(np.broadcast_to(x, shape).copy(), dtype=dtype, device=device)
+                                 for x in (a, b))
+            hit = first, (second - first) if self._span else second, shape
+            self._cache[key] = hit
+        return hit
+
+
+@dataclass(frozen=True)
+class Uniform(_Pair):
+    """Uniform in ``[low, high)``, per component (scalars or sequences that broadcast)."""
+
+    low: Any
+    high: Any
+    _span = True
+
+    def _params(self):
+        return self.low, self.high
+
+    def sample(self, generator, num=None, *, dtype=torch.float64):
+        low, span, shape = self._tensors(generator.device, dtype)
+        u = torch.rand(_shape(num, shape), generator=generator, dtype=torch.float64, device=generator.device)
+        return u.to(dtype).mul_(span).add_(low)  # low + (high - low) * u, in place on the fresh draw
+
+
+@dataclass(frozen=True)
+class Normal(_Pair):
+    """Gaussian with ``mean`` and standard deviation ``std``, per component."""
+
+    mean: Any
+    std: Any
+
+    def _params(self):
+        return self.mean, self.std
+
+    def sample(self, generator, num=None, *, dtype=torch.float64):
+        mean, std, shape = self._tensors(generator.device, dtype)
+        z = torch.randn(_shape(num, shape), generator=generator, dtype=torch.float64, device=generator.device)
+        return z.to(dtype).mul_(std).add_(mean)
+
+
+@dataclass(frozen=True)
+class UniformInt(Distribution):
+    """Integers uniform in ``[low, high]`` (both inclusive), as int64 whatever ``dtype``."""
+
+    low: int
+    high: int
+
+    def sample(self, generator, num=None, *, dtype=torch.int64):
+        return torch.randint(int(self.low), int(self.high) + 1, _shape(num, ()), generator=generator,
+                             device=generator.device)
+
+
+@dataclass(frozen=True)
+class Choice(Distribution):
+    """One of ``options`` per draw, with optional relative ``weights``.
+
+    ``sample`` gives the picked options as a tensor (numeric options: numbers or equal-length
+    tuples); ``sample_index`` gives the indices, for options of any kind."""
+
+    options: Sequence[Any]
+    weights: Sequence[float] | None = None
+
+    def __post_init__(self):
+        if not len(self.options):
+            raise ValueError("a choice needs at least one option")
+        if self.weights is not None and len(self.weights) != len(self.options):
+            raise ValueError(f"{len(self.weights)} weights for {len(self.options)} options; "
+                             "give one weight per option")
+
+    def sample_index(self, generator: torch.Generator, num: int | None = None) -> torch.Tensor:
+        """Indices into ``options``: ``(num,)`` int64, or a 0-d tensor when ``num`` is None."""
+        count = 1 if num is None else int(num)
+        if self.weights is None:
+            index = torch.randint(len(self.options), (count,), generator=generator, device=generator.device)
+        else:
+            weights = torch.as_tensor(self.weights, dtype=torch.float64, device=generator.device)
+            index = torch.multinomial(weights, count, replacement=True, generator=generator)
+        return index[0] if num is None else index
+
+    def sample(self, generator, num=None, *, dtype=torch.float64):
+        options = torch.as_tensor(np.asarray(self.options, np.float64), dtype=dtype, device=generator.device)
+        return options[self.sample_index(generator, num)]
+
+
+@dataclass(frozen=True)
+class Constant(Distribution):
+    """Always ``value`` (draws nothing from the generator)."""
+
+    value: Any
+
+    def sample(self, generator, num=None, *, dtype=torch.float64):
+        value = torch.as_tensor(np.asarray(self.value, np.float64), dtype=dtype, device=generator.device)
+        return value if num is None else value.expand(int(num), *value.shape).clone()
+
+
+def uniform(low, high) -> Uniform:
+    return Uniform(low, high)
+
+
+def normal(mean, std) -> Normal:
+    return Normal(mean, std)
+
+
+def uniform_int(low: int, high: int) -> UniformInt:
+    return UniformInt(low, high)
+
+
+def choice(options: Sequence[Any], weights: Sequence[float] | None = None) -> Choice:
+    return Choice(tuple(options), None if weights is None else tuple(float(w) for w in weights))
+
+
+def constant(value) -> Constant:
+    return Constant(value)
+
+
+def as_distribution(value) -> Distribution:
+    """Numbers and tuples become constants, so configs can say ``intensity=0.8``."""
+    return value if isinstance(value, Distribution) else Constant(value)
+
+
+_NUMBER = (int, float, np.integer, np.floating)
+
+
+@functools.lru_cache(maxsize=256)
+def _uniform_rows(bounds: tuple[tuple[float, float], ...], device: torch.device, dtype: torch.dtype):
+    """(k,) lows and widths of scalar uniforms, made once per (bounds, device, dtype)."""
+    low = torch.tensor([lo for lo, _ in bounds], dtype=dtype, device=device)
+    return low, torch.tensor([hi for _, hi in bounds], dtype=dtype, device=device) - low
+
+
+def sample_columns(generator: torch.Generator, distributions: Sequence, num: int, *,
+                   dtype: torch.dtype = torch.float64) -> torch.Tensor:
+    """``(num, len(distributions))`` draws of scalar distributions (numbers are constants), one
+    column each. When every one is a scalar ``Uniform`` (a scatter's x, y and yaw) they are drawn
+    in one ``(num, k)`` call, row after row; otherwise one distribution after the other."""
+    dists = [as_distribution(d) for d in distributions]
+    device = generator.device
+    if dists and all(type(d) is Uniform and isinstance(d.low, _NUMBER) and isinstance(d.high, _NUMBER)
+                     for d in dists):
+        low, span = _uniform_rows(tuple((float(d.low), float(d.high)) for d in dists), device, dtype)
+        u = torch.rand((int(num), len(dists)), generator=generator, dtype=torch.float64, device=device)
+        return u.to(dtype).mul_(span).add_(low)
+    if not dists:
+        return torch.zeros(int(num), 0, dtype=dtype, device=device)
+    return torch.stack([d.sample(generator, num, dtype=dtype).reshape(int(num)) for d in dists], dim=1)
+
+
+__all__ = ["Choice", "Constant", "Distribution", "Normal", "Uniform", "UniformInt", "as_distribution",
+           "as_generator", "choice", "constant", "normal", "sample_columns", "uniform", "uniform_int"]
