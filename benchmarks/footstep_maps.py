@@ -368,8 +368,9 @@ def percentiles_ms(values_s) -> dict:
 
 
 def run(maps_per_category: int, seed: int = 0, png_dir: Path | None = None, categories=CATEGORIES,
-        verbose: bool = True) -> dict:
+        verbose: bool = True, figure: Path | None = None) -> dict:
     rows = []
+    shown = {}  # category -> (grid, plan, goal) of its first valid plan, for --figure
     load_before = os.getloadavg()
     with tempfile.TemporaryDirectory() as tmp:
         for category in categories:
@@ -393,10 +394,14 @@ def run(maps_per_category: int, seed: int = 0, png_dir: Path | None = None, cate
                                  plan_s=t2 - t0, query_s=t2 - t1, steps=plan.num_steps, expansions=plan.expansions))
                 if ok and problems and verbose:
                     print(f"{category} {index}: claimed success, checker: {problems[:3]}")
+                if ok and not problems and category not in shown:
+                    shown[category] = (grid, plan, problem["goal"])
                 if png_dir is not None and (not ok or problems):
                     png_dir.mkdir(parents=True, exist_ok=True)
                     plot_plan(grid, plan, png_dir / f"{category}_{index:03d}_{plan.status.value}.png",
                               goal_xyyaw_w=problem["goal"])
+    if figure is not None and shown:
+        draw_figure(shown, figure)
     by_category = defaultdict(list)
     for row in rows:
         by_category[row["category"]].append(row)
@@ -431,14 +436,35 @@ def run(maps_per_category: int, seed: int = 0, png_dir: Path | None = None, cate
     return result
 
 
+def draw_figure(shown: dict, path: Path) -> None:
+    """One plan per category side by side (the docs' picture)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(2, 3, figsize=(15, 9.5), dpi=110)
+    for ax, (category, (grid, plan, goal)) in zip(axes.ravel(), shown.items()):
+        plot_plan(grid, plan, None, goal_xyyaw_w=goal, ax=ax,
+                  title=f"{category}: {plan.num_steps} steps, {plan.planning_time_s * 1e3:.0f} ms")
+    for ax in axes.ravel()[len(shown):]:
+        ax.axis("off")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+    plt.close(fig)
+
+
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--maps-per-category", type=int, default=34, help="34 x 6 = 204 maps (default)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--categories", default=",".join(CATEGORIES))
     parser.add_argument("--png-dir", type=Path, default=None, help="write a picture of each failed or invalid plan")
+    parser.add_argument("--figure", type=Path, default=None, help="write one valid plan per category to this PNG")
     args = parser.parse_args(argv)
-    result = run(args.maps_per_category, args.seed, args.png_dir, tuple(args.categories.split(",")))
+    result = run(args.maps_per_category, args.seed, args.png_dir, tuple(args.categories.split(",")),
+                 figure=args.figure)
     print("RESULT " + json.dumps(result))
     return result
 

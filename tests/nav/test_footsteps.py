@@ -434,8 +434,11 @@ def test_checker_catches_bad_steps():
     assert any("stance" in p for p in BENCH.check_plan(feet, sides, blocked, extent, stance_side=-int(sides[1])))
 
 
-def test_map_benchmark_short_version_every_claimed_success_passes_the_checker():
-    result = BENCH.run(2, seed=11, verbose=False)  # 2 maps of each of the 6 categories
+def test_map_benchmark_short_version_every_claimed_success_passes_the_checker(tmp_path):
+    pytest.importorskip("matplotlib")
+    figure = tmp_path / "plans.png"
+    result = BENCH.run(2, seed=11, verbose=False, figure=figure)  # 2 maps of each of the 6 categories
+    assert figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert result["maps"] == 12
     assert result["false_successes"] == 0 and result["plans_with_violations"] == 0
     assert result["valid_pct"] >= 90.0

@@ -11,20 +11,25 @@ from .footsteps import FootstepPlan
 from .grid_map import GridMap
 
 
-def plot_plan(grid: GridMap, plan: FootstepPlan, path_png: str | os.PathLike, *,
-              foot_size_m: tuple[float, float] = (0.22, 0.10), goal_xyyaw_w=None, title: str | None = None) -> None:
+def plot_plan(grid: GridMap, plan: FootstepPlan, path_png: str | os.PathLike | None, *,
+              foot_size_m: tuple[float, float] = (0.22, 0.10), goal_xyyaw_w=None, title: str | None = None,
+              ax=None) -> None:
     """Write a PNG of the occupancy (grey), the height map (if any, shaded), the soles of the plan
-    (left blue, right red, start feet hatched), the swing-foot path and, if given, the goal pose."""
+    (left blue, right red, start feet hatched), the swing-foot path and, if given, the goal pose.
+    With ``ax`` (a matplotlib Axes) draw there instead and write nothing (``path_png`` unused)."""
     import matplotlib
 
-    matplotlib.use("Agg")
+    if ax is None:
+        matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.patches import Polygon
 
     num_y, num_x = grid.shape
     (ox, oy), r = grid.origin_xy_m, grid.resolution_m
     extent = (ox, ox + num_x * r, oy, oy + num_y * r)
-    fig, ax = plt.subplots(figsize=(7, 7 * num_y / max(num_x, 1) + 0.3), dpi=120)
+    fig = None
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(7, 7 * num_y / max(num_x, 1) + 0.3), dpi=120)
     if grid.height_m is not None and np.ptp(grid.height_m) > 0:
         ax.imshow(grid.height_m, origin="lower", extent=extent, cmap="YlGn", alpha=0.6)
     ax.imshow(np.where(grid.occupied, 0.25, np.nan), origin="lower", extent=extent, cmap="gray", vmin=0, vmax=1)
@@ -48,6 +53,7 @@ def plot_plan(grid: GridMap, plan: FootstepPlan, path_png: str | os.PathLike, *,
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.set_title(title or f"{plan.status.value}: {plan.num_steps} steps, {plan.planning_time_s * 1e3:.1f} ms")
-    fig.tight_layout()
-    fig.savefig(os.fspath(path_png))
-    plt.close(fig)
+    if fig is not None:
+        fig.tight_layout()
+        fig.savefig(os.fspath(path_png))
+        plt.close(fig)

@@ -1,10 +1,10 @@
 """Footstep planner: weighted A* over a footstep lattice on a ``GridMap``, with alternating feet,
-the module's reach limits, sole-shaped collision checks, step up/down limits, an admissible
+the walker's step limits, sole-shaped collision checks, exact body clearance, step up/down limits, an admissible
 heuristic, goal tolerances, a time budget that returns the best partial plan, and an explicit
 failure reason (``PlanStatus``).
 
 Search. A node is a footstep (x, y, yaw, side) with its exact continuous pose, so every step of a
-plan is exactly one lattice action (``footstep_lattice``) or one step of a straight walk, and
+plan is exactly one lattice action (``footstep_lattice``) or one step of a walk, and
 the limits hold exactly. Duplicates are pruned per cell of ``state_resolution_m`` x
 2 pi / ``state_yaw_bins`` and side, in a dense array. Each expansion generates, transforms and
 tests all K successors with array operations (``FootstepChecks.steps``: sole samples, leg
@@ -13,14 +13,20 @@ the open list as one f-sorted batch (one heap entry per batch, re-inserted with 
 when its head is popped), so no Python code runs per successor. f = g + w h with the admissible
 h of ``footstep_heuristic``; w = ``heuristic_weight``.
 
-Straight walks (Hybrid A*'s analytic expansion, Dolgov et al. 2008, for feet). When a node comes
-closer to the goal than any before, the planner tries ``walk_to`` the goal (turn in place, walk
-straight, turn to the goal yaw, feet together) and ends there if every step passes the same
-tests. Otherwise it walks straight to the farthest point of the body path that the body can
-reach in a straight line (``GoalHeuristic.waypoint``), opens that footstep as a node, and
-repeats from it up to ``MAX_WALKS`` times. On maps where the body path exists and the feet fit
-wherever the body does, this finds a plan in a few walks; the lattice search covers the rest
-(tight spots, steps in the height map).
+Walks along the body path (Hybrid A*'s analytic expansion, Dolgov et al. 2008, for feet). The
+body path is the shortest path of the feet's midpoint to the goal through the body cells, with an
+inflation cost that keeps it to the middle of corridors and doors (``GoalHeuristic.path``; scipy's
+Dijkstra from the goal, once per query), straightened where the straight piece keeps as much room.
+First from the start feet, then from every node that comes closer to the goal than any before,
+the planner walks that path (``follow_path``: pure pursuit that turns while walking, side-steps
+onto the path in narrow passages, and ends in the goal stance) and tests every step as above. A
+walk that passes ends the search; one that fails part way opens its last good footstep as a
+node. On most maps the first walk is the plan (no lattice expansion at all); the lattice search
+covers the rest (tight spots, clutter at the feet, steps in the height map).
+
+Start. The caller gives the exact start feet (``start_feet_xyyaw_w``: the left and right soles'
+poses) and which foot stays down first (``stance_side``), or a body pose (the nominal stance)
+and lets the planner choose the first foot.
 """
 
 from __future__ import annotations
