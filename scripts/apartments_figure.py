@@ -3,7 +3,7 @@
     python scripts/apartments_figure.py [--seeds 0 1 3 8 11 13] [--out docs/images/apartments.png]
 
 Each panel: the body-band occupancy (``Apartment.occupancy``, black), where the humanoid's centre
-may stand (clearance ``HUMANOID_RADIUS_M``, pale green), the doors (orange ticks), a start (arrow:
+may stand (clearance ``BODY_RADIUS_M``, pale green), the doors (orange ticks), a start (arrow:
 its yaw) and a goal (star) from ``Apartment.sample_start_goal(seed)`` and the geodesic path
 between them. ``tests/scenes/test_apartment.py`` runs it; the committed
 ``docs/images/apartments.png`` is its default output.
@@ -18,7 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ambulo.scenes.apartment import HUMANOID_RADIUS_M, apartment
+from ambulo.robots.humanoid import BODY_RADIUS_M
+from ambulo.scenes.apartment import apartment
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -46,7 +47,7 @@ def main(argv: list[str] | None = None) -> Path:
         grid = apt.occupancy
         x0, y0, x1, y1 = grid.extent_xy_m()
         image = np.ones(grid.shape + (3,))
-        image[apt.paths.clearance_field_m >= HUMANOID_RADIUS_M] = (0.86, 0.95, 0.86)
+        image[apt.paths.clearance_field_m >= BODY_RADIUS_M] = (0.86, 0.95, 0.86)
         image[grid.occupied()] = (0.1, 0.1, 0.12)
         ax.imshow(image, origin="lower", extent=(x0, x1, y0, y1), interpolation="nearest")
         for door in apt.doors:
@@ -56,7 +57,7 @@ def main(argv: list[str] | None = None) -> Path:
         path = ep.path_xy_m
         ax.plot(path[:, 0], path[:, 1], color="tab:blue", lw=2)
         sx, sy, yaw = ep.start_pose
-        ax.add_patch(plt.Circle((sx, sy), HUMANOID_RADIUS_M, fill=False, color="tab:green", lw=1.5))
+        ax.add_patch(plt.Circle((sx, sy), BODY_RADIUS_M, fill=False, color="tab:green", lw=1.5))
         ax.arrow(sx, sy, 0.45 * math.cos(yaw), 0.45 * math.sin(yaw), width=0.04, color="tab:green")
         ax.plot(*ep.goal_xy_m, marker="*", ms=16, color="tab:red", mec="k")
         rooms = sum(not r.is_corridor for r in apt.rooms)

@@ -17,7 +17,9 @@ from scipy.sparse.csgraph import dijkstra
 from shapely.geometry import LineString, Point, Polygon, box
 
 from ambulo.maps import OCCUPIED
-from ambulo.scenes.apartment import HUMANOID_HEAD_HEIGHT_M, HUMANOID_RADIUS_M, ApartmentCfg, apartment
+from ambulo.robots.humanoid import BODY_RADIUS_M as HUMANOID_RADIUS_M
+from ambulo.robots.humanoid import HEAD_HEIGHT_M as HUMANOID_HEAD_HEIGHT_M
+from ambulo.scenes.apartment import ApartmentCfg, apartment
 from ambulo.scenes.apartment_paths import path_length_m
 
 SEEDS = (0, 1, 2, 3)

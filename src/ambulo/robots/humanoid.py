@@ -73,6 +73,14 @@ PELVIS_HEIGHT_M = 0.92
 """The pelvis height standing straight-legged (the model's initial state, all joints 0) with the
 soles on z = 0, m. (The ``home`` keyframe crouches slightly, to 0.904 m.)"""
 
+BODY_RADIUS_M = 0.265
+"""Radius of the smallest vertical cylinder around the standing humanoid seen from above (upper
+arms at y = +-0.20 m with 0.04 m capsules, feet 0.22 m long: hypot(0.11, 0.24) m; the hands reach
+0.260 m in the ``home`` keyframe). The clearance a path or a costmap keeps for the body, m."""
+HEAD_HEIGHT_M = 1.62
+"""Top of the head standing straight with the soles on z = 0, m: the top of the body band that
+2-D occupancy maps describe."""
+
 POLICY_TASK = "humanoid-walk"
 """The task of the shipped walking policy (``assets/data/policies/humanoid_walk``)."""
 POLICY_CONTRACT_FILE = Path(assets.get_assets_root_path()) / "policies" / "humanoid_walk" / "contract.json"

@@ -33,6 +33,7 @@ import mujoco
 import numpy as np
 
 from ..maps import Grid2D
+from ..robots import humanoid
 from ..utils.checks import InvalidValueError
 from ..utils.validate import Checked, rule
 from .apartment_build import build_spec
@@ -40,12 +41,6 @@ from .apartment_geometry import Footprints, rasterize
 from .apartment_layout import Door, Layout, Room, Solid, footprints, generate_layout
 from .apartment_paths import PathFinder, StartGoal
 
-HUMANOID_RADIUS_M = 0.265
-"""The bundled humanoid standing (all joints 0 or its ``home`` keyframe), seen from above: every
-geom within this of the pelvis's vertical axis (0.245 m straight, 0.260 m in ``home``: the hands).
-The sampler's default clearance. (Its home belongs in ``robots/humanoid.py``.)"""
-HUMANOID_HEAD_HEIGHT_M = 1.62
-"""Top of the bundled humanoid's head standing straight with its soles on z = 0, m."""
 
 
 @dataclass(kw_only=True)
@@ -77,7 +72,7 @@ class ApartmentCfg(Checked):
     """Nothing stands within this of a door's opening, m (beyond half its width from its centre)."""
     step_height_m: float = field(default=0.03, metadata=rule(minimum=0.0))
     """Solids whose top is at or below this are walked over (module docstring), m."""
-    head_height_m: float = HUMANOID_HEAD_HEIGHT_M
+    head_height_m: float = humanoid.HEAD_HEIGHT_M
     """Solids whose bottom is at or above this pass over the robot, m."""
     resolution_m: float = field(default=0.05, metadata=rule(minimum=0.005))
     """Occupancy cell side, m."""
@@ -147,7 +142,7 @@ class Apartment:
         return build_spec(self.layout, rng, texture_px=self.cfg.texture_px, spec=spec, robot_pose=robot_pose)
 
     def sample_start_goal(self, rng: np.random.Generator | int, min_geodesic_m: float = 3.0,
-                          max_geodesic_m: float = 15.0, clearance_m: float = HUMANOID_RADIUS_M) -> StartGoal:
+                          max_geodesic_m: float = 15.0, clearance_m: float = humanoid.BODY_RADIUS_M) -> StartGoal:
         """A start pose (x, y, yaw) and a goal (x, y), cell centres where a disc of ``clearance_m``
         touches nothing, joined by a path with that clearance whose length (the geodesic,
         ``apartment_paths``) is in [``min_geodesic_m``, ``max_geodesic_m``]. ``rng``: a Generator
@@ -160,7 +155,7 @@ class Apartment:
         rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
         return self.paths.sample_start_goal(rng, min_geodesic_m, max_geodesic_m, clearance_m)
 
-    def geodesic_m(self, start_xy_m, goal_xy_m, clearance_m: float = HUMANOID_RADIUS_M) -> float:
+    def geodesic_m(self, start_xy_m, goal_xy_m, clearance_m: float = humanoid.BODY_RADIUS_M) -> float:
         """Length of the shortest path with ``clearance_m`` between two points, m (inf if there is
         none): the denominator of SPL."""
         return self.paths.shortest_path(start_xy_m, goal_xy_m, clearance_m)[0]
@@ -185,4 +180,4 @@ def apartment(seed: int, cfg: ApartmentCfg | None = None) -> Apartment:
     return Apartment(int(seed), cfg, layout, fp, grid)
 
 
-__all__ = ["HUMANOID_HEAD_HEIGHT_M", "HUMANOID_RADIUS_M", "Apartment", "ApartmentCfg", "StartGoal", "apartment"]
+__all__ = ["Apartment", "ApartmentCfg", "StartGoal", "apartment"]
