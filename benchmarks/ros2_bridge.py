@@ -217,7 +217,7 @@ def slowdown(steps: int, rounds: int = 7) -> dict:
             for _ in range(rounds):
                 with_bridge.append(run())
                 world.remove_physics_callback("ros2_bridge")
-                header = bridge._ring.header
+                header = bridge.process.ring.header
                 while header[READ] < header[WRITTEN]:  # let the publisher finish: an idle machine for both
                     time.sleep(0.001)
                 time.sleep(0.02)

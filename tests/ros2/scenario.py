@@ -205,7 +205,7 @@ def humanoid_walk(out: Path) -> None:
     robot = world.scene.get_object("humanoid")
     data = robot.entity.data
     bridge = Ros2Bridge(world, BridgeCfg())
-    truth = {"physics_dt": world.get_physics_dt(), "handler": type(bridge._handler).__name__, "root": {},
+    truth = {"physics_dt": world.get_physics_dt(), "handler": type(bridge.commands.handler).__name__, "root": {},
              "min_pelvis_m": float(data.root_pos_w[0, 2]), "yaw": 0.0}
     heading = [float(data.heading_w[0])]
 
@@ -272,7 +272,7 @@ def lidar3d(out: Path) -> None:
 
     def record(_dt):
         ns = int(round(world.current_time * 1e9))
-        if bridge._last.get("lidar0") == world.current_time:  # published this step
+        if bridge.publishing.last.get("lidar0") == world.current_time:  # published this step
             data = lidar.get_current_frame()
             truth[ns] = data.points_s[0][data.hit[0].reshape(-1)].tolist()
 

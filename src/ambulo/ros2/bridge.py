@@ -19,30 +19,29 @@ The bundled humanoid follows /cmd_vel through the shipped walking policy (``Walk
 attaching stands it in the policy's default pose and the policy then runs every physics step,
 walking in place until the first Twist; a joint command pauses it until the next Twist.
 
-The bridge's parts, one purpose a file, each a mixin of ``Ros2Bridge`` (so that the physics-thread
-path stays calls on the bridge itself): ``bridge_scene.py`` finds the robots, sensors and frames,
-``bridge_launch.py`` starts the publisher process, ``bridge_publishing.py`` publishes on the physics
-thread (the rate schedule and the ring snapshots) and ``bridge_commands.py`` takes commands.
+The bridge owns four parts, one purpose a file: ``scene`` (``bridge_scene.SceneDiscovery``: the robots,
+sensors and frames), ``process`` (``bridge_launch.PublisherProcess``: the node's process, started from
+the spec ``bridge_launch`` builds), ``publishing`` (``bridge_publishing.PhysicsPublisher``: the rate
+schedule and the ring snapshots, on the physics thread) and ``commands``
+(``bridge_commands.CommandIntake``: checks commands on the listener thread, applies them on the
+physics thread).
 """
 
 from __future__ import annotations
 
-import os
-import subprocess
-import threading
 from collections import Counter
 
-from . import messages as m
 from .bridge_commands import CommandIntake
-from .bridge_launch import PublisherLaunch
-from .bridge_publishing import PhysicsPublishing
+from .bridge_launch import (PublisherProcess, close_at_exit, frame_slot_bytes, publisher_spec, snapshot_sources,
+                            static_messages, time_source)
+from .bridge_publishing import PhysicsPublisher
 from .bridge_scene import SceneDiscovery
 from .commands import CmdVelHandler, default_cmd_vel_handler
 from .config import BridgeCfg
-from .runtime import import_rclpy
+from .runtime import import_rclpy, use_fastdds_profile
 
 
-class Ros2Bridge(SceneDiscovery, PublisherLaunch, PhysicsPublishing, CommandIntake):
+class Ros2Bridge:
     """Attach a ROS 2 node to ``world`` (already ``reset()``); ``close()`` (or ``with``) detaches it.
 
     Args:
@@ -50,7 +49,8 @@ class Ros2Bridge(SceneDiscovery, PublisherLaunch, PhysicsPublishing, CommandInta
       cfg: topics, frames, rates, QoS (``BridgeCfg``).
       cmd_vel_handler: what turns /cmd_vel into actions (default: differential drive for a
         ``WheeledRobot``, the shipped walking policy for the bundled humanoid when the World steps
-        at its physics_dt, 0.005 s; another free-floating robot refuses /cmd_vel saying why).
+        at its physics_dt, ``robots.humanoid.POLICY_PHYSICS_DT_S``; another free-floating robot
+        refuses /cmd_vel saying why).
     """
 
     def __init__(self, world, cfg: BridgeCfg | None = None, *, cmd_vel_handler: CmdVelHandler | None = None):
@@ -60,70 +60,115 @@ class Ros2Bridge(SceneDiscovery, PublisherLaunch, PhysicsPublishing, CommandInta
             raise ValueError(f"a ROS 2 bridge serves one world; this World has num_worlds={world.num_worlds}")
         self.world, self.cfg = world, cfg or BridgeCfg()
         self.rclpy = import_rclpy()
+        from rclpy.serialization import serialize_message  # noqa: PLC0415 - after import_rclpy finds it
+
         self.published: Counter = Counter()
         """topic -> messages published (the publisher process's counts, filled in by ``close()``)."""
-        self.failed: Counter = Counter()
+        self.closed = True  # until the publisher process runs
+        self.scene = SceneDiscovery(world, self.cfg)
+        scene = self.scene
+        self.robots, self.robot, self.joint_names = scene.robots, scene.robot, scene.joint_names
+        self.command_joints, self.imus, self.cameras, self.lidars = (scene.command_joints, scene.imus, scene.cameras,
+                                                                      scene.lidars)
+        handler = cmd_vel_handler
+        if handler is None and self.robot is not None:
+            handler = default_cmd_vel_handler(self.robot, world.get_physics_dt())
+        self.commands = CommandIntake(self.cfg, self.robot, self.command_joints, handler, self._send)
+        snapshot = snapshot_sources(world, self.cfg, scene)
+        static, self.urdf = static_messages(world, self.cfg, scene, serialize_message)
+        """``urdf``: the robot_description published (None without robots)."""
+        if self.cfg.fastdds_profile:
+            use_fastdds_profile()  # in the environment the publisher process inherits
+        self.process = PublisherProcess(publisher_spec(self.cfg, scene, snapshot, static), frame_slot_bytes(scene),
+                                        self.cfg, on_command=self.commands.receive)
+        self.node_name, self.foxglove = self.process.node_name, self.process.foxglove
+        """``node_name``: the node's fully qualified name (it lives in the publisher process)."""
+        self.failed: Counter = self.process.failed
         """topic -> messages that rclpy refused to publish (filled in by ``close()``; normally empty)."""
-        self.rejected: list[str] = []
-        """Why each refused command was refused, in arrival order."""
-        self.on_publish = None
-        """Optional ``fn(topic, stamp_ns)`` called on the physics thread when a message's state is taken (the
-        snapshot, or the image or scan handed to the publisher process); benchmarks time latency from it."""
-        self._lock = threading.Lock()
-        self._pending: dict[str, object] = {}
-        self._previous_s, self._next_due_s = float("inf"), float("inf")
-        """Simulated time of the last publishing pass, and the earliest time a topic is due again."""
-        self.cmd_vel: tuple[float, float, float] | None = None
-        """The velocity command being followed: (forward m/s, left m/s, yaw rate rad/s)."""
-        self.walking = False
-        """True while a walking policy (a handler with ``every_step``) drives the robot's joints: from
-        attaching until a joint command, and again from the next accepted Twist."""
-        self._warned_at: dict[str, float] = {}
-        self._find_scene()
-        self._handler = cmd_vel_handler
-        if self._handler is None and self.robot is not None:
-            self._handler = default_cmd_vel_handler(self.robot, world.get_physics_dt())
-        self._every_step = bool(getattr(self._handler, "every_step", False))
-        self.walking = self._every_step
-        self.dropped = 0
-        """Snapshots skipped because the publisher process was behind (``BridgeCfg.drop_when_behind``)."""
-        self.dropped_frames = 0
-        """Camera images skipped for the same reason."""
-        self.subscribers: dict[str, tuple[int, float]] = {}
+        self.subscribers: dict[str, tuple[int, float]] = self.process.subscribers
         """topic -> (matched subscriptions, ``time.time()`` when that count last changed), as the
         publisher's DDS writer saw it: a message published after that time reaches every one of them."""
-        self._links = [link for r in self.robots for link in r.dynamic]
-        self._base_frame = next((r.dynamic[0].child for r in self.robots if r.robot is self.robot), "")
-        self._start_publisher()
-        world.add_physics_callback("ros2_bridge", self._on_physics_step)
+        self.publishing = PhysicsPublisher(world, self.cfg, scene, self.process, snapshot, serialize_message,
+                                           time_source(world))
         self.closed = False
+        close_at_exit(self)  # an exception ending the program still closes the publisher process cleanly
+        world.add_physics_callback("ros2_bridge", self._on_physics_step)
 
-    # -- what it publishes, and why /cmd_vel would be refused -------------------------------------
+    # -- the physics thread ---------------------------------------------------------------------
+    def _on_physics_step(self, _dt: float) -> None:
+        commands = self.commands
+        if commands.pending or commands.cmd_vel is not None or commands.walking:
+            commands.apply()
+        self.publishing.step()
+
+    def publish_now(self, now: float | None = None) -> None:
+        """Snapshot every state topic that is due at the current simulated time (``now``, s) for the
+        publisher process; render and send the cameras and lidars that are due."""
+        self.publishing.publish_now(now)
+
+    def _send(self, msg) -> None:
+        self.process.send(msg)
+
+    # -- what it publishes, what it follows, and why /cmd_vel would be refused ----------------------
     @property
     def topics(self) -> list[str]:
         """Names of the topics this bridge publishes."""
-        return sorted(self._topic.values())
+        return sorted(self.process.topic.values())
+
+    @property
+    def cmd_vel(self) -> tuple[float, float, float] | None:
+        """The velocity command being followed: (forward m/s, left m/s, yaw rate rad/s)."""
+        return self.commands.cmd_vel
+
+    @property
+    def walking(self) -> bool:
+        """True while a walking policy (a handler with ``every_step``) drives the robot's joints: from
+        attaching until a joint command, and again from the next accepted Twist."""
+        return self.commands.walking
+
+    @property
+    def rejected(self) -> list[str]:
+        """Why each refused command was refused, in arrival order."""
+        return self.commands.rejected
+
+    def warn(self, topic: str, problem: str) -> None:
+        """Refuse a command: remember why, and log it (at most once a second per problem)."""
+        self.commands.warn(topic, problem)
+
+    @property
+    def dropped(self) -> int:
+        """Snapshots skipped because the publisher process was behind (``BridgeCfg.drop_when_behind``)."""
+        return self.publishing.dropped
+
+    @property
+    def dropped_frames(self) -> int:
+        """Camera images skipped for the same reason."""
+        return self.publishing.dropped_frames
+
+    @property
+    def on_publish(self):
+        """Optional ``fn(topic, stamp_ns)`` called on the physics thread when a message's state is taken (the
+        snapshot, or the image or scan handed to the publisher process); benchmarks time latency from it."""
+        return self.publishing.on_publish
+
+    @on_publish.setter
+    def on_publish(self, fn) -> None:
+        self.publishing.on_publish = fn
 
     @property
     def cmd_vel_problem(self) -> str | None:
         """Why every /cmd_vel is refused (no robot, no controller, no walking policy), or None."""
         if self.robot is None:
             return "the scene has no robot"
-        if self._handler is None:
+        if self.commands.handler is None:
             return f"robot {self.robot.name!r} has no velocity controller"
-        return getattr(self._handler, "problem", None)
+        return getattr(self.commands.handler, "problem", None)
 
     def publish_costmap(self, costmap, topic: str = "costmap", frame_id: str | None = None) -> None:
         """Publish an ``ambulo.perception.Costmap`` as ``nav_msgs/OccupancyGrid`` on ``topic`` (reliable,
         transient-local, keep-last 1: Nav2's map QoS, so a late rviz2 or planner still gets the latest),
         stamped with the simulated time, in ``frame_id`` (default: the fixed frame, ``odom``)."""
-        key = f"grid:{topic}"
-        if key not in self._topic:
-            self._send(("advertise", key, "nav_msgs/msg/OccupancyGrid", topic, "static"))
-            self._topic[key] = topic if topic.startswith("/") else f"{self.cfg.namespace.rstrip('/')}/{topic}"
-        now = self.world.current_time
-        frame = frame_id if frame_id is not None else self.cfg.frame_prefix + self.cfg.odom_frame
-        self._publish(key, self._serialize(m.occupancy_grid(now, frame, costmap)), round(now * 1e9))
+        self.publishing.publish_costmap(costmap, topic, frame_id)
 
     # -- teardown -------------------------------------------------------------------------------
     def close(self) -> None:
@@ -135,25 +180,10 @@ class Ros2Bridge(SceneDiscovery, PublisherLaunch, PhysicsPublishing, CommandInta
         self.closed = True
         if self.world.physics_callback_exists("ros2_bridge"):
             self.world.remove_physics_callback("ros2_bridge")
-        try:
-            self._send(("close",))
-        except OSError:
-            pass
-        self._listener.join(timeout=60.0)
-        try:
-            self._proc.wait(timeout=10.0)
-        except subprocess.TimeoutExpired:
-            self._proc.kill()
-            self._proc.wait()
-        if self._closed_counts is not None:
-            self.published.update(self._closed_counts)
-        self._conn.close()
-        os.close(self._wake_w)
-        self._slot_views = []
-        self._header.release()
-        self._ring.close()
-        if self._frames is not None:
-            self._frames.close()
+        self.publishing.release()
+        self.process.close()
+        if self.process.published is not None:
+            self.published.update(self.process.published)
 
     def __enter__(self) -> Ros2Bridge:
         return self

@@ -1,14 +1,15 @@
-"""``CommandIntake``: how a ``Ros2Bridge`` takes commands (part of ``Ros2Bridge``, a mixin).
+"""``CommandIntake``: how a ``Ros2Bridge`` takes commands.
 
 A listener thread receives what the publisher process forwards (Twists, joint commands, subscription
 counts, its final counts), checks each command (``commands.py``: a bad one is refused with a warning
 naming the problem) and leaves the latest good one pending; the physics thread applies it at the next
-step (``_apply_commands``), so the physics loop never waits on the network.
+step (``apply``), so the physics loop never waits on the network.
 """
 
 from __future__ import annotations
 
 import logging
+import threading
 import time
 
 import numpy as np
@@ -19,31 +20,42 @@ log = logging.getLogger("ambulo.ros2")
 
 
 class CommandIntake:
-    """``Ros2Bridge``'s commands: the listener thread (``_listen``, ``_on_*``), ``warn`` and
-    ``_apply_commands`` (physics thread)."""
+    """A bridge's commands: ``receive`` (listener thread), ``warn`` and ``apply`` (physics thread).
 
-    def _listen(self) -> None:
-        """Commands from the publisher process (this thread checks them, as rclpy's executor did)."""
-        while True:
-            try:
-                msg = self._conn.recv()
-            except (EOFError, OSError):
-                return
-            try:
-                if msg[0] == "twist":
-                    self._on_twist(msg[1], msg[2])
-                elif msg[0] == "joint_array":
-                    self._on_joint_array(msg[1])
-                elif msg[0] == "joint_state":
-                    self._on_joint_state(msg[1], msg[2])
-                elif msg[0] == "matched":  # (matched, topic, subscriptions now, wall time s)
-                    self.subscribers[msg[1]] = (msg[2], msg[3])
-                elif msg[0] == "closed":
-                    self._closed_counts = msg[1]
-                    self.failed.update(msg[2])
-                    return
-            except Exception as err:  # noqa: BLE001 - a command must never end the bridge
-                log.error("ROS 2 command %s failed: %s", msg[0], err)
+    Args:
+      cfg: the bridge's ``BridgeCfg`` (topics, speed limits).
+      robot: the robot that takes commands (None: every command is ignored).
+      command_joints: the joints a ``Float64MultiArray`` command names, in order.
+      handler: what turns /cmd_vel into actions (``commands.CmdVelHandler``), or None.
+      send: sends a message to the publisher process (a warning for its node to log).
+
+    Attributes: ``cmd_vel`` (the velocity command being followed, or None), ``walking`` (a walking
+    policy, a handler with ``every_step``, drives the joints: from attaching until a joint command,
+    and again from the next accepted Twist), ``rejected`` (why each refused command was refused).
+    """
+
+    def __init__(self, cfg, robot, command_joints: list[str], handler, send):
+        self.cfg, self.robot, self.command_joints, self.handler = cfg, robot, command_joints, handler
+        self._send = send
+        self._lock = threading.Lock()
+        self.pending: dict[str, object] = {}
+        """What the listener thread accepted since the last physics step (the latest of each kind)."""
+        self.cmd_vel: tuple[float, float, float] | None = None
+        self.every_step = bool(getattr(handler, "every_step", False))
+        self.walking = self.every_step
+        self.rejected: list[str] = []
+        self._warned_at: dict[str, float] = {}
+
+    def receive(self, msg: tuple) -> None:
+        """A command the publisher process forwarded: checked here, kept pending when good."""
+        if self.robot is None:
+            return
+        if msg[0] == "twist":
+            self._on_twist(msg[1], msg[2])
+        elif msg[0] == "joint_array":
+            self._on_joint_array(msg[1])
+        elif msg[0] == "joint_state":
+            self._on_joint_state(msg[1], msg[2])
 
     def warn(self, topic: str, problem: str) -> None:
         """Refuse a command: remember why, and log it (at most once a second per problem)."""
@@ -59,7 +71,7 @@ class CommandIntake:
 
     # -- commands (listener thread) --------------------------------------------------------------
     def _on_twist(self, lin, ang) -> None:
-        handler = self._handler
+        handler = self.handler
         if handler is None:
             return self.warn(self.cfg.cmd_vel_topic, f"robot {self.robot.name!r} has no velocity controller")
         check = getattr(handler, "check", None)
@@ -69,8 +81,8 @@ class CommandIntake:
         if problem:
             return self.warn(self.cfg.cmd_vel_topic, problem)
         with self._lock:
-            self._pending["cmd_vel"] = (float(lin[0]), float(lin[1]), float(ang[2]))
-            self._pending["walking"] = True  # the latest of a Twist and a joint command decides
+            self.pending["cmd_vel"] = (float(lin[0]), float(lin[1]), float(ang[2]))
+            self.pending["walking"] = True  # the latest of a Twist and a joint command decides
 
     def _on_joint_array(self, data) -> None:
         values = np.asarray(data, float)
@@ -79,8 +91,8 @@ class CommandIntake:
         if problem:
             return self.warn(self.cfg.joint_command_topic, problem)
         with self._lock:
-            self._pending["joints"] = (list(self.command_joints), values)
-            self._pending["walking"] = False
+            self.pending["joints"] = (list(self.command_joints), values)
+            self.pending["walking"] = False
 
     def _on_joint_state(self, names, positions) -> None:
         names, values = list(names), np.asarray(positions, float)
@@ -91,21 +103,21 @@ class CommandIntake:
         if problem:
             return self.warn(self.cfg.joint_state_command_topic, problem)
         with self._lock:
-            self._pending["joints"] = (names, values)
-            self._pending["walking"] = False
+            self.pending["joints"] = (names, values)
+            self.pending["walking"] = False
 
     # -- applying them (physics thread, before each step) ------------------------------------------
-    def _apply_commands(self) -> None:
+    def apply(self) -> None:
         from ..sim import ArticulationAction  # noqa: PLC0415
 
-        if not self._pending and self.cmd_vel is None and not self.walking:  # nothing new, nothing to follow
+        if not self.pending and self.cmd_vel is None and not self.walking:  # nothing new, nothing to follow
             return
         with self._lock:
-            pending, self._pending = self._pending, {}
+            pending, self.pending = self.pending, {}
             self.cmd_vel = pending.get("cmd_vel", self.cmd_vel)
-        if self._every_step and "walking" in pending:
+        if self.every_step and "walking" in pending:
             if not pending["walking"]:  # a joint command pauses the walking policy until the next Twist
-                hand_over = getattr(self._handler, "hand_over", None)
+                hand_over = getattr(self.handler, "hand_over", None)
                 if self.walking and hand_over is not None:
                     hand_over()
                 self.cmd_vel = None
@@ -114,10 +126,13 @@ class CommandIntake:
             names, values = pending["joints"]
             idx = self.robot.entity.find_joints(names)
             self.robot.apply_action(ArticulationAction(joint_positions=values, joint_indices=idx))
-        if self._handler is None or not (self.walking if self._every_step else self.cmd_vel is not None):
+        if self.handler is None or not (self.walking if self.every_step else self.cmd_vel is not None):
             return
         try:
-            self._handler(self.cmd_vel or (0.0, 0.0, 0.0))  # a walking policy walks in place before a Twist
+            self.handler(self.cmd_vel or (0.0, 0.0, 0.0))  # a walking policy walks in place before a Twist
         except ValueError as err:
             self.cmd_vel, self.walking = None, False
             self.warn(self.cfg.cmd_vel_topic, str(err))
+
+
+__all__ = ["CommandIntake"]

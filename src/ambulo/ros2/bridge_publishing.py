@@ -1,10 +1,10 @@
-"""``PhysicsPublishing``: a ``Ros2Bridge``'s publishing on the physics thread (part of ``Ros2Bridge``, a mixin).
+"""``PhysicsPublisher``: a ``Ros2Bridge``'s publishing on the physics thread.
 
-Before each physics step (``_on_physics_step``) the rate schedule says which topics are due at the
-simulated time; the state topics' arrays are copied into the next free slot of the shared-memory ring
-(``_snapshot``: the only publishing work on the physics thread for them), and the cameras' images
-(through the frame ring) and the lidars' messages are handed to the publisher process. These methods
-live on the bridge itself, not behind a delegate: the step path is timed in microseconds.
+Before each physics step (``step``) the rate schedule says which topics are due at the simulated time;
+the state topics' arrays are copied into the next free slot of the shared-memory ring (``_snapshot``:
+the only publishing work on the physics thread for them), and the cameras' images (through the frame
+ring) and the lidars' messages are handed to the publisher process. The step path is timed in
+microseconds: it is plain attribute reads and NumPy copies, no per-topic objects.
 """
 
 from __future__ import annotations
@@ -17,23 +17,50 @@ import numpy as np
 
 from . import cdr
 from . import messages as m
+from .bridge_launch import SnapshotSources, imu_is_clean, state_topics
 from .frames import xyzw
 from .ring import _FENCE, HEADER_BYTES, IMU0, JOINT_STATES, ODOM, READ, TF, WAITING, WRITTEN
 
 _INF = float("inf")
 
 
-class PhysicsPublishing:
-    """``Ros2Bridge``'s physics-thread side: the schedule (``_schedule``, ``_last``), ``publish_now``,
-    the ring snapshots and the camera, lidar and other messages sent to the publisher process."""
+class PhysicsPublisher:
+    """The physics-thread side of a bridge: the schedule, ``publish_now``, the ring snapshots and the
+    camera, lidar and other messages sent to ``process`` (a ``bridge_launch.PublisherProcess``).
+
+    Attributes: ``dropped`` and ``dropped_frames`` (snapshots and images skipped while the process was
+    behind, ``BridgeCfg.drop_when_behind``), ``on_publish`` (optional ``fn(topic, stamp_ns)`` called
+    when a message's state is taken), ``last`` (key -> simulated time it was last due).
+    """
+
+    def __init__(self, world, cfg, scene, process, snapshot: SnapshotSources, serialize, now):
+        self.world, self.cfg, self.scene, self.process = world, cfg, scene, process
+        self.robot, self.imus, self.cameras, self.lidars = scene.robot, scene.imus, scene.cameras, scene.lidars
+        self._serialize, self._now = serialize, now
+        self._header, self._ring, self._topic = process.header, process.ring, process.topic
+        self._proc, self._wake_w, self._frames = process.proc, process.wake_w, process.frames
+        self._sources, self._staged, self._imu_fast = snapshot.sources, snapshot.staged, snapshot.imu_fast
+        self._slots = snapshot.layout.slots
+        self._slot_views = [self._views_of_slot(s) for s in range(self._slots)]
+        self._read_seen = 0
+        """The publisher's ``READ`` counter as last loaded (it only grows, so a stale value is safe)."""
+        # [bit (0: a camera or lidar), key, period s, last s, next due s]
+        self._schedule = [[bit, key, 0.0 if rate is None else 1.0 / rate, -_INF, -_INF]
+                          for bit, key, rate in state_topics(scene, cfg)]
+        self._schedule += [[0, f"camera{i}", 1.0 / cfg.camera_rate_hz, -_INF, -_INF] for i in range(len(self.cameras))]
+        self._schedule += [[0, f"lidar{i}", 1.0 / cfg.lidar_rate_hz, -_INF, -_INF] for i in range(len(self.lidars))]
+        self._previous_s, self._next_due_s = _INF, _INF
+        """Simulated time of the last publishing pass, and the earliest time a topic is due again."""
+        self.dropped = 0
+        self.dropped_frames = 0
+        self.on_publish = None
 
     # -- the step path: the rate schedule, then a snapshot into the ring --------------------------
-    def _on_physics_step(self, _dt: float) -> None:
-        if self._pending or self.cmd_vel is not None or self.walking:
-            self._apply_commands()
+    def step(self) -> None:
+        """Before a physics step: publish what is due at the simulated time (most steps: nothing)."""
         now = self._now()
-        if not self._previous_s <= now < self._next_due_s:  # else nothing is due (most steps at high
-            self.publish_now(now)  # physics rates)
+        if not self._previous_s <= now < self._next_due_s:
+            self.publish_now(now)
 
     def publish_now(self, now: float | None = None) -> None:
         """Snapshot every state topic that is due at the current simulated time (``now``, s) for the
@@ -134,7 +161,7 @@ class PhysicsPublishing:
         publishes it after the snapshots taken before it."""
         if self.on_publish is not None:
             self.on_publish(self._topic[key], stamp_ns)
-        self._send(("raw", key, data, stamp_ns, self._header[WRITTEN]))
+        self.process.send(("raw", key, data, stamp_ns, self._header[WRITTEN]))
 
     # -- cameras, IMUs and lidars ----------------------------------------------------------------
     def _publish_frame(self, key: str, ns: int, frame_id: str, encoding: str, pixels: np.ndarray) -> None:
@@ -153,13 +180,12 @@ class PhysicsPublishing:
             nbytes = self._frames.put(prefix, pixels)
         if self.on_publish is not None:
             self.on_publish(self._topic[key], ns)
-        self._send(("frame", key, nbytes, ns, self._header[WRITTEN]))
+        self.process.send(("frame", key, nbytes, ns, self._header[WRITTEN]))
 
     def _imu_values(self, imu) -> np.ndarray:
         """The 37 Imu values of a noisy IMU (or one with gravity removed): its noise model runs here."""
         noise = imu.cfg.noise
-        if any((noise.gyro_noise_density, noise.accel_noise_density, noise.gyro_random_walk, noise.accel_random_walk,
-                noise.gyro_turn_on_bias_std, noise.accel_turn_on_bias_std)):
+        if not imu_is_clean(imu):
             data = imu.get_current_frame()
             acc, gyro, quat = data.lin_acc_b, data.ang_vel_b, data.quat_w
         else:  # noiseless: the engine's reading as it is (no noise model to advance)
@@ -173,7 +199,7 @@ class PhysicsPublishing:
     def _publish_camera(self, i: int, camera, now: float, ns: int) -> None:
         wanted = ("rgb", "depth") if self.cfg.publish_depth else ("rgb",)
         out = camera.capture(0, annotators=wanted)
-        frame = self._sensor_frame[id(camera)]
+        frame = self.scene.sensor_frame[id(camera)]
         rgb = np.ascontiguousarray(out["rgb"][..., :3])
         height, width = rgb.shape[:2]
         self._publish_frame(f"rgb{i}", ns, frame, "rgb8", rgb)
@@ -184,14 +210,14 @@ class PhysicsPublishing:
                                                                 cam["intrinsics"])), ns)
 
     def _lidar_msg(self, lidar, now: float):
-        data, frame = lidar.get_current_frame(), self._sensor_frame[id(lidar)]
+        data, frame = lidar.get_current_frame(), self.scene.sensor_frame[id(lidar)]
         if lidar.shape[0] == 1:
             return m.laser_scan(now, frame, lidar.azimuths_rad, data.ranges[0, 0].cpu().numpy(), lidar.cfg.min_range_m,
                                 lidar.cfg.max_range_m, lidar.update_period_s or 1.0 / self.cfg.lidar_rate_hz)
         points = data.points_s[0][data.hit[0].reshape(-1)].cpu().numpy()
         return m.point_cloud(now, frame, points)
 
-    # -- the ring views and the schedule (made by ``_start_publisher``) --------------------------
+    # -- the ring views and the schedule ---------------------------------------------------------
     def _views_of_slot(self, slot: int) -> tuple:
         """(index of the slot's first int64 in ``_header``, the copies to make: (destination, source)...)."""
         ring = self._ring
@@ -203,6 +229,23 @@ class PhysicsPublishing:
                 {i: ring.block(slot, f"imu{i}") for i in range(len(self.imus)) if f"imu{i}" in ring.layout.blocks})
 
     @property
-    def _last(self) -> dict[str, float]:
+    def last(self) -> dict[str, float]:
         """key (``clock``, ``imu0``, ``camera0``, ``lidar0``, ...) -> simulated time it was last due."""
         return {entry[1]: entry[3] for entry in self._schedule if entry[3] != -_INF}
+
+    def release(self) -> None:
+        """Drop the views into the ring, so the process can unmap it (the bridge is closing)."""
+        self._slot_views = []
+
+    def publish_costmap(self, costmap, topic: str, frame_id: str | None) -> None:
+        """``Ros2Bridge.publish_costmap``: advertise ``topic`` once (Nav2's map QoS), then publish."""
+        key = f"grid:{topic}"
+        if key not in self._topic:
+            self.process.send(("advertise", key, "nav_msgs/msg/OccupancyGrid", topic, "static"))
+            self._topic[key] = topic if topic.startswith("/") else f"{self.cfg.namespace.rstrip('/')}/{topic}"
+        now = self.world.current_time
+        frame = frame_id if frame_id is not None else self.cfg.frame_prefix + self.cfg.odom_frame
+        self._publish(key, self._serialize(m.occupancy_grid(now, frame, costmap)), round(now * 1e9))
+
+
+__all__ = ["PhysicsPublisher"]

@@ -140,8 +140,8 @@ class WalkingPolicyDrive:
     Built when the bridge attaches: the walker stands the humanoid in the policy's default pose, and
     from then on ``forward`` runs every physics step with the command being followed, (0, 0, 0)
     (walking in place) until the first Twist. A Twist outside the policy's trained ranges
-    (``contract.json``: linear.x [-1, 1], linear.y [-0.5, 0.5] m/s, angular.z [-1, 1] rad/s) is
-    refused, not clipped. A joint command (``/joint_group_position_controller/command`` or
+    (``contract.json``'s ``command_ranges`` for linear.x, linear.y and angular.z) is refused, not
+    clipped. A joint command (``/joint_group_position_controller/command`` or
     ``/joint_command``) pauses the walker, so the joints hold what was commanded (joints it does not
     name keep the walker's last targets); the next accepted Twist hands the joints back to it.
     """

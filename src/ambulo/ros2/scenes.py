@@ -2,8 +2,8 @@
 
 Each gets an IMU on its base and a camera where the robot has one (the Jetbot's ``camera_mount``,
 the humanoid's ``head_camera_mount``), so every topic of the bridge has a source. The humanoid's
-World steps 0.005 s, the physics_dt its walking policy was trained at (the bridge drives /cmd_vel
-through it); the others step 0.01 s.
+World steps the physics_dt its walking policy was trained at (``robots.humanoid.POLICY_PHYSICS_DT_S``,
+from the policy's contract; the bridge drives /cmd_vel through it); the others step 0.01 s.
 """
 
 from __future__ import annotations
@@ -18,7 +18,8 @@ from ..utils.validate import Checked
 class SceneCfg(Checked):
     physics_dt_s: float | None = None
     """s per physics step: joint states, /tf, /odom, /clock and the IMU publish at 1 / physics_dt_s.
-    None: the scene's own (the humanoid 0.005, as its walking policy needs; the others 0.01)."""
+    None: the scene's own (the humanoid its walking policy's, ``robots.humanoid.POLICY_PHYSICS_DT_S``;
+    the others 0.01)."""
     camera: bool = True
     camera_width: int = 320
     camera_height: int = 240
