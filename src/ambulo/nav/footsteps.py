@@ -106,8 +106,9 @@ class FootstepPlannerCfg(Checked):
     heuristic_weight: float = 3.0
     """w in f = g + w h (weighted A*; 1 is A*). Over lattice steps, a plan costs at most w times
     the best plan the pruning leaves. humanoid_navigation's ARA* starts at 8
-    (``planning_params.yaml``). Lattice steps only, 1 s, 40 rooms of ``benchmarks/footsteps.py``:
-    w = 2 plans 50 %, w = 3 95 % (median 28 steps), w = 5 97.5 % (median 32 steps)."""
+    (``planning_params.yaml``). Lattice steps only, 1 s, 40 cluttered rooms at issue 14's step
+    limits (the room benchmark that ``benchmarks/footstep_maps.py`` replaced): w = 2 planned 50 %,
+    w = 3 95 % (median 28 steps), w = 5 97.5 % (median 32 steps)."""
     state_resolution_m: float = 0.05
     """Footsteps within one such cell (and yaw bin, same side) count as one state, m."""
     state_yaw_bins: int = 64
