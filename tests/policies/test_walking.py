@@ -120,3 +120,13 @@ def test_a_contract_with_other_observation_terms_is_refused():
     terms[3], terms[4] = terms[4], terms[3]  # joint_vel and base_ang_vel swapped
     with pytest.raises(ValueError, match="observation terms"):
         HumanoidWalkingPolicy(robot=None, policy=policy)
+
+
+def test_initialize_before_the_world_is_reset_says_so():
+    """sim.HumanoidWalkingPolicy binds the robot's entity at initialize(); before world.reset() there
+    is none, and the error says what to call first."""
+    from types import SimpleNamespace
+
+    walker = HumanoidWalkingPolicy(SimpleNamespace(entity=None))
+    with pytest.raises(RuntimeError, match=r"world.reset\(\) before initialize\(\)"):
+        walker.initialize()
