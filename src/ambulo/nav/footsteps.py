@@ -52,6 +52,10 @@ from .footstep_lattice import (
 )
 from .grid_map import GridMap
 
+WALK_SPACING_M = 0.1
+"""The search walks the body path again only from a footstep whose feet's midpoint lies this far
+from where the last walk started, so that expansions, not repeated walks from one spot, spend
+the budget."""
 PATH_LOOKAHEADS_M = (0.6, 0.25, 0.1)
 """Lookaheads of the walks along the body path (``follow_path``), tried in turn: the first cuts
 corners smoothly in the open, the others keep closer to the path through doors and bends (on
@@ -303,6 +307,7 @@ class FootstepPlanner:
             if self._open_node(root):
                 heapq.heappush(open_list, (pool.f[root], 0.0, root, root + 1))
         best = (math.inf, math.inf, roots[0])  # (h, g, node) of the expanded footstep closest to the goal
+        last_walk_xy = start_mid  # where the last walk along the body path started (the feet's midpoint)
         expansions, max_expansions, state = 0, cfg.max_expansions or math.inf, self._state
         try:
             while open_list:
@@ -317,7 +322,10 @@ class FootstepPlanner:
                     return result(PlanStatus.SUCCESS, pos, expansions=expansions)
                 if (pool.h[pos], g) < best[:2]:
                     best = (pool.h[pos], g, pos)
-                    if cfg.walk_along_body_path and pool.parent[pos] >= 0:
+                    mid = 0.5 * (pool.pose[pos, :2] + pool.pose[pool.parent[pos], :2])
+                    if (cfg.walk_along_body_path and pool.parent[pos] >= 0
+                            and np.hypot(*(mid - last_walk_xy)) >= WALK_SPACING_M):
+                        last_walk_xy = mid
                         walk_end, prefix_end = self._follow_body_path(pos)
                         if walk_end is not None:
                             return result(PlanStatus.SUCCESS, walk_end, expansions=expansions)
