@@ -17,7 +17,8 @@ Walks along the body path (Hybrid A*'s analytic expansion, Dolgov et al. 2008, f
 body path is the shortest path of the feet's midpoint to the goal through the body cells, with an
 inflation cost that keeps it to the middle of corridors and doors (``GoalHeuristic.path``; scipy's
 Dijkstra from the goal, once per query), straightened where the straight piece keeps as much room.
-First from the start feet, then from every node that comes closer to the goal than any before,
+First from the start feet, then from every node that comes closer to the goal than any before
+(and at least ``WALK_SPACING_M`` from where the last walk started),
 the planner walks that path (``follow_path``: pure pursuit that turns while walking, side-steps
 onto the path in narrow passages, and ends in the goal stance) and tests every step as above. A
 walk that passes ends the search; one that fails part way opens its last good footstep as a
