@@ -39,6 +39,7 @@ and annotated >= 0.5 of the floor (issue 22, item 6; ``meets_ratio``).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import copy
 import json
 import os
@@ -49,9 +50,14 @@ from pathlib import Path
 from ambulo import replicator as rep
 from ambulo.replicator.io import PNG_DEFLATE
 from ambulo.replicator.processes import LP_THREADS_ENV, ProducerPool, usable_cpus
-from ambulo.replicator.producer import FrameProducer, _heap_frozen, run_frames
+from ambulo.replicator.producer import FrameProducer, run_frames
 from ambulo.replicator.writers import FrameWriter, prepare_dirs
 from ambulo.utils.rotations import quat_to_mat
+
+try:
+    from ambulo.replicator.producer import _heap_frozen  # as run_frames does
+except ImportError:  # a tree from before it (PYTHONPATH=<old tree>/src, for before/after runs)
+    _heap_frozen = contextlib.nullcontext
 
 TARGET_FPS = 150
 TARGET_RATIO = 0.5
