@@ -68,7 +68,7 @@ class Oracle:
         self.lock = threading.Lock()
         decode = tf_decoder()
         TF = tf_class()
-        reliable = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+        reliable = QoSProfile(depth=10_000, reliability=ReliabilityPolicy.RELIABLE)  # a slow callback loses nothing
         static = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         sub = self.node.create_subscription
         sub(JointState, "/joint_states", lambda m: self.add("joint_states", [t(m.header.stamp), list(m.name),
@@ -170,6 +170,12 @@ def main() -> int:
                 oracle.publish(cmd)
                 print(json.dumps({"event": "published", "topic": cmd["topic"]}), flush=True)
             elif cmd["do"] == "dump":
+                until_ns, deadline = cmd.get("until_clock_ns"), time.monotonic() + 100.0
+                while until_ns is not None and time.monotonic() < deadline:  # starved of CPU: catch up
+                    with oracle.lock:
+                        if oracle.got["clock"] and oracle.got["clock"][-1] >= until_ns:
+                            break
+                    rclpy.spin_once(oracle.node, timeout_sec=0.02)
                 end = time.monotonic() + cmd.get("linger_s", 0.5)
                 while time.monotonic() < end:  # what is still in flight
                     rclpy.spin_once(oracle.node, timeout_sec=0.02)

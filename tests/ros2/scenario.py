@@ -85,7 +85,10 @@ def jetbot(out: Path) -> None:
         truth["joints"][ns] = robot.entity.data.joint_pos[0].tolist()
         truth["root"][ns] = robot.entity.data.root_pos_w[0].tolist() + robot.entity.data.root_quat_w[0].tolist()
 
-    bridge = Ros2Bridge(world, BridgeCfg(record=str(out / "bag"), camera_rate_hz=20.0))
+    # A reliable writer keeps only its history's depth of unacknowledged samples: with the default 10,
+    # an oracle starved of CPU (a busy machine) loses messages the bridge did publish. The test is of
+    # what the bridge sends, so the history holds the whole run.
+    bridge = Ros2Bridge(world, BridgeCfg(record=str(out / "bag"), camera_rate_hz=20.0, data_qos_depth=10_000))
     world.add_physics_callback("truth", record)  # after the bridge's: the state it published
     peer = Peer(["/joint_states", "/imu/data", "/tf", "/tf_static", "/camera/depth", "/clock"])
     ready = peer.wait("ready", world)
@@ -126,8 +129,8 @@ def jetbot(out: Path) -> None:
     step_until(world, lambda: bridge.subscribers.get("/costmap", (0, 0.0))[0] > 0, timeout_s=30.0)  # oracle matched
     end = time.monotonic() + 0.5  # and got the transient-local grid
     step_until(world, lambda: time.monotonic() > end)
-    peer.send(do="dump", path=str(out / "oracle.json"))
-    peer.wait("dumped", world)
+    peer.send(do="dump", path=str(out / "oracle.json"), until_clock_ns=truth["end_time_ns"])
+    peer.wait("dumped", world, timeout_s=120.0)
     bridge.close()
     truth["published"] = dict(bridge.published)
     (out / "truth.json").write_text(json.dumps(truth))
