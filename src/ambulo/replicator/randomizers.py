@@ -14,6 +14,7 @@ into a ``torch.Generator`` (``as_generator``) and draws every value of a kind in
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import mujoco
@@ -23,12 +24,12 @@ import torch
 from ambulo.core import Entity, match_names
 from ambulo.core.randomize import (
     BodyGeoms,
+    Columns,
     Distribution,
     as_distribution,
     as_generator,
     joint_range_box,
     normal,
-    sample_columns,
     uniform,
     write_field,
 )
@@ -88,6 +89,12 @@ class Randomizer(Checked):
     def sample(self, rng: np.random.Generator, ctx: SceneContext) -> dict:
         raise NotImplementedError
 
+    def generator(self, rng: np.random.Generator) -> torch.Generator:
+        """The frame's ``torch.Generator``, seeded from ``rng`` (one generator per randomizer, reseeded)."""
+        if getattr(self, "_generator", None) is None:
+            self._generator = torch.Generator()
+        return as_generator(rng, reuse=self._generator)
+
     def apply(self, params: dict, ctx: SceneContext) -> None:
         raise NotImplementedError
 
@@ -108,18 +115,20 @@ class LightRandomizer(Randomizer):
         self._ids = match_names(names, self.lights)
         if not self._ids:
             raise ValueError(f"{self.name}: no light matches {self.lights!r}; lights: {names}")
+        self._scalars = Columns((self.intensity, self.ambient, self.azimuth_deg, self.elevation_deg))
 
     def sample(self, rng, ctx):
-        g, n = as_generator(rng), len(self._ids)
-        # the four scalar draws of every light in one batch, then the colours
-        intensity, ambient, az_deg, el_deg = sample_columns(
-            g, (self.intensity, self.ambient, self.azimuth_deg, self.elevation_deg), n).numpy().T
-        color = np.broadcast_to(as_distribution(self.color).sample(g, n).reshape(n, -1).numpy(), (n, 3))
-        az, el = np.radians(az_deg), np.radians(el_deg)
-        direction = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), -np.sin(el)], 1)
-        diffuse = intensity[:, None] * color
-        return {"lights": [{"diffuse": d, "ambient": a, "dir": r}
-                           for d, a, r in zip(diffuse.tolist(), ambient.tolist(), direction.tolist())]}
+        g, n = self.generator(rng), len(self._ids)
+        # the four scalar draws of every light in one batch, then the colours; a scene has a few
+        # lights, so the rest is plain float arithmetic
+        scalars = self._scalars.sample(g, n)
+        colors = as_distribution(self.color).sample(g, n).reshape(n, -1).expand(n, 3)
+        out = []
+        for (intensity, ambient, az_deg, el_deg), color in zip(scalars.tolist(), colors.tolist()):
+            az, el = math.radians(az_deg), math.radians(el_deg)
+            out.append({"diffuse": [intensity * c for c in color], "ambient": ambient,
+                        "dir": [math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), -math.sin(el)]})
+        return {"lights": out}
 
     def apply(self, params, ctx):
         lights = params["lights"][:len(self._ids)]
@@ -143,9 +152,10 @@ class ColorRandomizer(Randomizer):
 
     def initialize(self, engine):
         self._targets = BodyGeoms.resolve(engine.model, self.prims, self.name)
+        self._hsv = Columns((self.hue, self.saturation, self.value))
 
     def sample(self, rng, ctx):
-        hsv = sample_columns(as_generator(rng), (self.hue, self.saturation, self.value), len(self._targets.bodies))
+        hsv = self._hsv.sample(self.generator(rng), len(self._targets.bodies))
         return {"rgba": [hsv_to_rgb(h, s, v) + [1.0] for h, s, v in hsv.tolist()]}
 
     def apply(self, params, ctx):
@@ -196,10 +206,10 @@ class MaterialRandomizer(Randomizer):
         self._base = engine.model.geom_matid.copy()
 
     def sample(self, rng, ctx):
-        g, n = as_generator(rng), len(self._targets.bodies)
-        plain = torch.rand(n, generator=g, dtype=torch.float64) < self.untextured_probability
-        pick = torch.randint(len(self._mat_ids), (n,), generator=g)
-        return {"palette_index": torch.where(plain, -1, pick).tolist()}
+        # per body: untextured with the given probability, else a uniform palette entry
+        u = torch.rand((len(self._targets.bodies), 2), generator=self.generator(rng), dtype=torch.float64).numpy()
+        pick = np.minimum((u[:, 1] * len(self._mat_ids)).astype(np.int64), len(self._mat_ids) - 1)
+        return {"palette_index": np.where(u[:, 0] < self.untextured_probability, -1, pick).tolist()}
 
     def apply(self, params, ctx):
         t = self._targets
@@ -222,7 +232,7 @@ class CameraJitter(Randomizer):
             raise ValueError(f"{self.name}: no camera {self.camera!r}; cameras: {cameras}")
 
     def sample(self, rng, ctx):
-        g = as_generator(rng)
+        g = self.generator(rng)
         return to_json({"position_m": as_distribution(self.position_m).sample(g),
                         "rotation_deg": as_distribution(self.rotation_deg).sample(g)})
 
@@ -255,7 +265,7 @@ class JointRandomizer(Randomizer):
         self._low, self._high = joint_range_box(robot, self.range_fraction, picked)
 
     def sample(self, rng, ctx):
-        u = torch.rand(len(self._qpos_adr), generator=as_generator(rng), dtype=torch.float64).numpy()
+        u = torch.rand(len(self._qpos_adr), generator=self.generator(rng), dtype=torch.float64).numpy()
         return {"qpos": (self._low + (self._high - self._low) * u).tolist()}
 
     def apply(self, params, ctx):

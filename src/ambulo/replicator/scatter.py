@@ -18,13 +18,12 @@ import torch
 from ambulo.core import match_names
 from ambulo.core.randomize import (
     CollisionChecker,
+    Columns,
     Distribution,
     as_distribution,
-    as_generator,
     match_bodies,
     park_z,
     place_without_overlap,
-    sample_columns,
     subtree_geoms,
     uniform,
     uniform_int,
@@ -81,6 +80,8 @@ class Scatter2D(Randomizer):
         self._rest_z_m = self.surface_z_m + np.asarray(self._bottom)
         # every body parked: one write of all their free-joint coordinates
         self._park_index = self._free_index.reshape(-1)
+        (x0, y0), (x1, y1) = self.region
+        self._place = Columns((uniform(x0, x1), uniform(y0, y1), self.yaw_rad))  # x, y, yaw of each object
         self._park_values = np.concatenate([[0.0, 0.0, park_z(b), 1, 0, 0, 0] for b in self._bodies])
 
     @staticmethod
@@ -99,43 +100,52 @@ class Scatter2D(Randomizer):
         return -lowest
 
     def sample(self, rng, ctx):
-        g, n = as_generator(rng), len(self._bodies)
+        g, n = self.generator(rng), len(self._bodies)
         count = n if self.count is None else int(np.clip(int(as_distribution(self.count).sample(g)), 0, n))
         active = sorted(torch.randperm(n, generator=g)[:count].tolist()) if count < n else list(range(n))
-        (x0, y0), (x1, y1) = self.region
-        place = (uniform(x0, x1), uniform(y0, y1), self.yaw_rad)  # x, y, yaw of each object
+        # every round's poses drawn at once (enough for max_tries full rounds), used row after
+        # row: one draw per frame instead of one per round
+        pool = self._place.sample(g, self.max_tries * len(active)).numpy()
+        pool_quat = quat_from_yaw(pool[:, 2])
+        used = 0
         poses = np.zeros((n, 3))
         qpos = ctx.engine.qpos[ctx.world].numpy().copy()
         self._park_all(qpos)
 
         def draw(todo: list[int]) -> None:
-            poses[todo] = sample_columns(g, place, len(todo)).numpy()
-            self._write(qpos, todo, poses[todo])
+            nonlocal used
+            rows = slice(used, used + len(todo))
+            used += len(todo)
+            poses[todo] = pool[rows]
+            self._write(qpos, todo, pool[rows], pool_quat[rows])
 
         hidden = sorted(place_without_overlap(active, self._bodies, qpos, draw, self._checker, self.max_tries))
         placed = [i for i in active if i not in hidden]
         return {"active": placed, "hidden": hidden, "pose_xy_yaw": {str(i): poses[i].tolist() for i in placed}}
 
     def apply(self, params, ctx):
-        qpos = ctx.engine.qpos[ctx.world]
-        values = qpos.numpy().copy()
-        self._park_all(values)
-        placed = [int(key) for key in params["pose_xy_yaw"]]
-        if placed:
-            self._write(values, placed, np.asarray(list(params["pose_xy_yaw"].values()), np.float64))
-        write_field(ctx.engine.qpos, values[None, self._park_index], rows=ctx.world, index=self._park_index)
+        # every object's free joint in one write: parked, then the placed ones at their poses
+        free = self._park_values.reshape(-1, 7).copy()
+        if params["pose_xy_yaw"]:
+            placed = np.fromiter(map(int, params["pose_xy_yaw"]), np.int64)
+            pose = np.asarray(list(params["pose_xy_yaw"].values()), np.float64)
+            free[placed, :2] = pose[:, :2]
+            free[placed, 2] = self._rest_z_m[placed]
+            free[placed, 3:] = quat_from_yaw(pose[:, 2])
+        write_field(ctx.engine.qpos, free.reshape(1, -1), rows=ctx.world, index=self._park_index)
         if self._checker is not None:
             # later scatterers (distractors) check against where these objects now are
-            self._checker.data.qpos[:] = values
+            self._checker.data.qpos[:] = ctx.engine.qpos[ctx.world].numpy()
 
-    def _write(self, qpos: np.ndarray, objects, poses) -> None:
-        """Stand ``objects`` (indices, or one index) upright at ``poses`` (k, 3) x, y (m), yaw (rad)."""
+    def _write(self, qpos: np.ndarray, objects, poses, quat_wxyz=None) -> None:
+        """Stand ``objects`` (indices, or one index) upright at ``poses`` (k, 3) x, y (m), yaw (rad)
+        in the full configuration ``qpos``; ``quat_wxyz`` (k, 4): the yaws' quaternions, if known."""
         objects = np.atleast_1d(np.asarray(objects, np.int64))
         poses = np.asarray(poses, np.float64).reshape(-1, 3)
         free = np.empty((len(objects), 7))
         free[:, :2] = poses[:, :2]
         free[:, 2] = self._rest_z_m[objects]
-        free[:, 3:] = quat_from_yaw(poses[:, 2])
+        free[:, 3:] = quat_from_yaw(poses[:, 2]) if quat_wxyz is None else quat_wxyz
         qpos[self._free_index[objects]] = free
 
     def _park_all(self, qpos: np.ndarray) -> None:

@@ -13,6 +13,7 @@ It sits in the core layer: it imports ``core`` and ``utils`` only.
 
 from .distributions import (
     Choice,
+    Columns,
     Constant,
     Distribution,
     Normal,
@@ -42,7 +43,7 @@ from .fields import (
 )
 from .placement import CollisionChecker, park_z, place_without_overlap
 
-__all__ = ["BodyGeoms", "Choice", "CollisionChecker", "Constant", "Distribution", "Normal", "Uniform",
+__all__ = ["BodyGeoms", "Choice", "CollisionChecker", "Columns", "Constant", "Distribution", "Normal", "Uniform",
            "UniformInt", "as_distribution", "as_generator", "body_com_offset", "body_mass", "choice",
            "constant", "geom_friction", "joint_dof_field", "joint_range_box", "match_bodies", "normal",
            "park_z", "place_without_overlap", "randomize_field", "sample_columns", "subtree_geoms",

@@ -15,7 +15,6 @@ Shapes: a distribution's parameters broadcast to its value shape ``S`` (``()`` f
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -23,15 +22,16 @@ from typing import Any
 import numpy as np
 import torch
 
-def as_generator(rng) -> torch.Generator:
+def as_generator(rng, reuse: torch.Generator | None = None) -> torch.Generator:
     """A ``torch.Generator``: ``rng`` itself, one seeded with the int ``rng``, or (for a
-    ``numpy.random.Generator``) one seeded with the next 64 bits ``rng`` draws."""
+    ``numpy.random.Generator``) one seeded with the next 64 bits ``rng`` draws. ``reuse``: a
+    CPU generator to reseed instead of making one (a per-frame caller saves the allocation)."""
     if isinstance(rng, torch.Generator):
         return rng
     if isinstance(rng, np.random.Generator):
         rng = int(rng.bit_generator.random_raw())  # the next 64 raw bits: a full-width seed
     if isinstance(rng, (int, np.integer)):
-        return torch.Generator().manual_seed(int(rng))
+        return (torch.Generator() if reuse is None else reuse).manual_seed(int(rng))
     raise TypeError(f"a random generator is a torch.Generator, a numpy Generator or an int seed; got {rng!r}")
 
 
@@ -194,29 +194,45 @@ def as_distribution(value) -> Distribution:
 _NUMBER = (int, float, np.integer, np.floating)
 
 
-@functools.lru_cache(maxsize=256)
-def _uniform_rows(bounds: tuple[tuple[float, float], ...], device: torch.device, dtype: torch.dtype):
-    """(k,) lows and widths of scalar uniforms, made once per (bounds, device, dtype)."""
-    low = torch.tensor([lo for lo, _ in bounds], dtype=dtype, device=device)
-    return low, torch.tensor([hi for _, hi in bounds], dtype=dtype, device=device) - low
+class Columns:
+    """Scalar distributions drawn side by side: ``sample(g, num)`` is ``(num, k)``, one column each.
+
+    Made once (a randomizer's ``initialize``) so a frame pays only for the draw. When every one is
+    a scalar ``Uniform`` (a scatter's x, y and yaw) they are drawn in one ``(num, k)`` call, row
+    after row; otherwise one distribution after the other (numbers are constants)."""
+
+    def __init__(self, distributions: Sequence):
+        self.distributions = [as_distribution(d) for d in distributions]
+        self._uniform = bool(self.distributions) and all(
+            type(d) is Uniform and isinstance(d.low, _NUMBER) and isinstance(d.high, _NUMBER)
+            for d in self.distributions)
+        self._bounds = np.array([[float(d.low), float(d.high)] for d in self.distributions]) \
+            if self._uniform else None
+        self._tensors: dict = {}
+
+    def sample(self, generator: torch.Generator, num: int, *, dtype: torch.dtype = torch.float64) -> torch.Tensor:
+        device = generator.device
+        if self._uniform:
+            key = (device, dtype)
+            low_span = self._tensors.get(key)
+            if low_span is None:
+                low = torch.as_tensor(self._bounds[:, 0].copy(), dtype=dtype, device=device)
+                low_span = self._tensors[key] = (low, torch.as_tensor(self._bounds[:, 1].copy(), dtype=dtype,
+                                                                        device=device) - low)
+            u = torch.rand((int(num), len(self.distributions)), generator=generator, dtype=torch.float64,
+                           device=device)
+            return u.to(dtype).mul_(low_span[1]).add_(low_span[0])
+        if not self.distributions:
+            return torch.zeros(int(num), 0, dtype=dtype, device=device)
+        return torch.stack([d.sample(generator, num, dtype=dtype).reshape(int(num)) for d in self.distributions],
+                           dim=1)
 
 
 def sample_columns(generator: torch.Generator, distributions: Sequence, num: int, *,
                    dtype: torch.dtype = torch.float64) -> torch.Tensor:
-    """``(num, len(distributions))`` draws of scalar distributions (numbers are constants), one
-    column each. When every one is a scalar ``Uniform`` (a scatter's x, y and yaw) they are drawn
-    in one ``(num, k)`` call, row after row; otherwise one distribution after the other."""
-    dists = [as_distribution(d) for d in distributions]
-    device = generator.device
-    if dists and all(type(d) is Uniform and isinstance(d.low, _NUMBER) and isinstance(d.high, _NUMBER)
-                     for d in dists):
-        low, span = _uniform_rows(tuple((float(d.low), float(d.high)) for d in dists), device, dtype)
-        u = torch.rand((int(num), len(dists)), generator=generator, dtype=torch.float64, device=device)
-        return u.to(dtype).mul_(span).add_(low)
-    if not dists:
-        return torch.zeros(int(num), 0, dtype=dtype, device=device)
-    return torch.stack([d.sample(generator, num, dtype=dtype).reshape(int(num)) for d in dists], dim=1)
+    """``Columns(distributions).sample(generator, num)``, for a one-off draw."""
+    return Columns(distributions).sample(generator, num, dtype=dtype)
 
 
-__all__ = ["Choice", "Constant", "Distribution", "Normal", "Uniform", "UniformInt", "as_distribution",
+__all__ = ["Choice", "Columns", "Constant", "Distribution", "Normal", "Uniform", "UniformInt", "as_distribution",
            "as_generator", "choice", "constant", "normal", "sample_columns", "uniform", "uniform_int"]
