@@ -15,7 +15,7 @@ import mujoco
 import numpy as np
 import torch
 
-from ambulo.core import match_names
+from ambulo.core import EntityNames, match_names
 from ambulo.core.randomize import (
     CollisionChecker,
     Columns,
@@ -62,12 +62,11 @@ class Scatter2D(Randomizer):
         self._bodies = [b for b in self._bodies if m.body_parentid[b] == 0]
         if not self._bodies:
             raise ValueError(f"{self.name}: no top-level body matches {self.prims!r}")
-        self._qadr = []
-        for b in self._bodies:
-            j = m.body_jntadr[b]
-            if j < 0 or int(m.jnt_type[j]) != int(mujoco.mjtJoint.mjJNT_FREE):
+        # each object's free joint, found as an Entity finds its root's (core.names.EntityNames)
+        self._qadr = [EntityNames(m, m.body(b).name).free_qpos_adr for b in self._bodies]
+        for b, adr in zip(self._bodies, self._qadr):
+            if adr is None:
                 raise ValueError(f"{self.name}: body {m.body(b).name!r} needs a free joint to be scattered")
-            self._qadr.append(int(m.jnt_qposadr[j]))
         self._geoms = [subtree_geoms(m, b) for b in self._bodies]
         names = [m.geom(g).name for g in range(m.ngeom)]
         surface = match_names(names, self.surface)
