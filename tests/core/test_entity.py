@@ -89,6 +89,15 @@ def test_unknown_names_and_missing_drives_are_explained():
         Entity(sim.engine, "/World/robot", init_state=InitState(joint_pos={"elbow": 0.1}))
 
 
+def test_a_model_without_actuators_gives_an_entity_without_drives():
+    model = mujoco.MjModel.from_xml_string("""<mujoco><worldbody><body name="/World/arm">
+      <joint name="/World/arm/hinge" type="hinge" range="-1 1"/><geom size="0.1"/>
+    </body></worldbody></mujoco>""")
+    robot = Entity(CpuEngine(model, num_worlds=2), "/World/arm", require_drives=False)
+    assert robot.joint_names == ["hinge"] and not robot.has_drives
+    assert torch.isinf(robot.joint_effort_limits).all()  # no drive limits effort
+
+
 def test_contact_air_time_of_a_dropped_foot_matches_free_fall():
     feet = ContactSensor(ContactSensorCfg(name="feet", prim_paths=("/World/robot/left_foot",),
                                           include_subtree=True, against="/World/defaultGroundPlane/geom"))

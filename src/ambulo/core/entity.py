@@ -162,9 +162,12 @@ class Entity:
         """(J,) default joint positions, rad or m."""
         self.joint_pos_limits = torch.as_tensor(np.stack([lower, upper], -1), **f64).reshape(-1, 2)
         """(J, 2) lower/upper joint limits, rad or m; +-inf where unlimited."""
-        act = np.maximum(self._act_adr, 0)
-        force_limited = (self._act_adr >= 0) & model.actuator_forcelimited[act].astype(bool)
-        force_range = model.actuator_forcerange[act].reshape(-1, 2)
+        if model.nu:
+            act = np.maximum(self._act_adr, 0)
+            force_limited = (self._act_adr >= 0) & model.actuator_forcelimited[act].astype(bool)
+            force_range = model.actuator_forcerange[act].reshape(-1, 2)
+        else:  # a model without actuators (a scene's props, require_drives=False): nothing limits effort
+            force_limited, force_range = np.zeros(len(self._act_adr), bool), np.zeros((len(self._act_adr), 2))
         self.joint_effort_limits = torch.as_tensor(np.stack(
             [np.where(force_limited, force_range[:, 0], -np.inf),
              np.where(force_limited, force_range[:, 1], np.inf)], -1), **f64).reshape(-1, 2)
