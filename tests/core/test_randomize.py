@@ -251,3 +251,46 @@ def test_the_warp_engine_gets_the_same_writes_as_the_cpu_engine(model):
     for name in out[0]:
         assert torch.allclose(out[0][name], out[1][name], atol=1e-6, rtol=1e-6), name
     assert torch.equal(out[1]["geom_friction"][1], torch.tensor(model.geom_friction, dtype=torch.float32).double())
+
+
+def test_checker_with_movers_makes_only_their_contacts_exactly_as_before():
+    """Given the placed bodies' geoms, the checker reports a mover that penetrates anything (as
+    without ``movers``) and nothing for bodies that touch only each other."""
+    xml = """<mujoco><worldbody>
+      <geom name="floor" type="plane" size="5 5 .1"/>
+      <body name="a"><freejoint/><geom name="a" type="box" size=".1 .1 .1" contype="2" conaffinity="3"/></body>
+      <body name="b"><freejoint/><geom name="b" type="box" size=".1 .1 .1"/></body>
+      <body name="c"><freejoint/><geom name="c" type="sphere" size=".1"/></body>
+    </worldbody></mujoco>"""
+    m = mujoco.MjModel.from_xml_string(xml)
+    floor, a, b, c = (m.geom(n).id for n in ("floor", "a", "b", "c"))
+    qpos = m.qpos0.copy()
+    qpos[[0, 7, 14]] = [0.0, 0.05, 3.0]  # a and b overlap; c stands alone
+    qpos[[2, 9, 16]] = 1.0
+    bodies = {m.body(n).id for n in ("a", "b")}
+    assert dr.CollisionChecker(m, [floor]).colliding_roots(qpos) == bodies
+    assert dr.CollisionChecker(m, [floor], movers=[c]).colliding_roots(qpos) == set()  # a-b not made
+    assert dr.CollisionChecker(m, [floor], movers=[a]).colliding_roots(qpos) == bodies
+    assert dr.CollisionChecker(m, [floor], movers=[b]).colliding_roots(qpos) == bodies
+    qpos[14] = 0.1  # c into a
+    assert dr.CollisionChecker(m, [floor], movers=[c]).colliding_roots(qpos) == bodies | {m.body("c").id}
+    m.geom_conaffinity[a] = 0  # a's contype 2 meets c's conaffinity 1 nowhere: c-a is no pair now
+    m.geom_contype[c] = 0  # c-b still is (b's contype 1, c's conaffinity 1); a-b is never made
+    assert dr.CollisionChecker(m, [floor], movers=[c]).colliding_roots(qpos) == {m.body("b").id, m.body("c").id}
+
+
+def test_host_draws_are_the_torch_draws():
+    """``sample_numpy`` gives the numbers ``sample`` gives from the same generator state."""
+    cases = [dr.uniform(2.0, 5.0), dr.normal((0, 1, 2), (0.5, 1.0, 2.0)), dr.uniform((0, -1), (1, 4)),
+             dr.uniform_int(2, 6), dr.constant((1.0, 2.0))]
+    for dist in cases:
+        for num in (None, 7):
+            a = dist.sample(torch.Generator().manual_seed(3), num, dtype=torch.float64)
+            b = dist.sample_numpy(torch.Generator().manual_seed(3), num)
+            assert b.shape == tuple(a.shape) and np.array_equal(a.numpy(), b), (dist, num)
+    columns = dr.Columns((dr.uniform(0, 1), dr.uniform(-3.0, 2.0), dr.uniform(10, 11)))
+    mixed = dr.Columns((dr.uniform(0, 1), dr.normal(0.0, 2.0), 0.5))
+    for cols in (columns, mixed):
+        a = cols.sample(torch.Generator().manual_seed(5), 9)
+        b = cols.sample_numpy(torch.Generator().manual_seed(5), 9)
+        assert b.shape == (9, 3) and np.array_equal(a.numpy(), b)

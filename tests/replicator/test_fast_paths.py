@@ -235,8 +235,9 @@ def test_frame_annotations_keep_their_fields_and_values():
 
 
 def test_collision_checker_without_surface_contacts_finds_what_filtering_them_found():
-    """The checker's model lets the support surface collide with nothing; the bodies it reports are
-    those of the full model's contacts with the surface's dropped, for random placements."""
+    """The checker's model lets the support surface collide with nothing and makes only contacts
+    with the scattered objects' geoms; the bodies it reports are those of the full model's
+    contacts with a scattered object, the surface's dropped, for random placements."""
     import mujoco
 
     producer = rep.FrameProducer(rep.example_config(32, 24))
@@ -245,7 +246,9 @@ def test_collision_checker_without_surface_contacts_finds_what_filtering_them_fo
         checker, model = scatter._checker, producer.model
         data = mujoco.MjData(model)
         rng = np.random.default_rng(4)
-        found_any = False
+        movers = np.zeros(model.ngeom, bool)
+        movers[np.concatenate(scatter._geoms)] = True
+        found_any = others_touch = False
         for trial in range(60):
             qpos = producer.engine.qpos[0].numpy().copy()
             scatter._park_all(qpos)
@@ -256,10 +259,14 @@ def test_collision_checker_without_surface_contacts_finds_what_filtering_them_fo
             mujoco.mj_collision(model, data)
             geoms = data.contact.geom[:data.ncon]
             hit = (data.contact.dist[:data.ncon] < -1e-4) & ~checker._ignore[geoms].any(1)
+            hit &= movers[geoms].any(1)
             expected = {int(b) for b in model.body_rootid[model.geom_bodyid[geoms[hit]]].ravel()}
             assert checker.colliding_roots(qpos) == expected
             found_any |= bool(expected)
+            others_touch |= bool((~movers[geoms]).all(1).any())
         assert found_any and data.ncon > 0  # the full model made surface contacts; they were dropped
-        assert not checker._ignore[checker.data.contact.geom[:checker.data.ncon]].any()
+        made = checker.data.contact.geom[:checker.data.ncon]
+        assert not checker._ignore[made].any() and movers[made].any(1).all()
+        assert others_touch  # the full model made contacts without the objects; the checker did not
     finally:
         producer.close()

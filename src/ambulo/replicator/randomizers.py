@@ -112,17 +112,18 @@ class LightRandomizer(Randomizer):
 
     def initialize(self, engine):
         names = [engine.model.light(i).name for i in range(engine.model.nlight)]
-        self._ids = match_names(names, self.lights)
-        if not self._ids:
+        self._ids = np.asarray(match_names(names, self.lights), np.int64)
+        if not len(self._ids):
             raise ValueError(f"{self.name}: no light matches {self.lights!r}; lights: {names}")
         self._scalars = Columns((self.intensity, self.ambient, self.azimuth_deg, self.elevation_deg))
+        self._color = as_distribution(self.color)
 
     def sample(self, rng, ctx):
         g, n = self.generator(rng), len(self._ids)
         # the four scalar draws of every light in one batch, then the colours; a scene has a few
         # lights, so the rest is plain float arithmetic
-        scalars = self._scalars.sample(g, n)
-        colors = as_distribution(self.color).sample(g, n).reshape(n, -1).expand(n, 3)
+        scalars = self._scalars.sample_numpy(g, n)
+        colors = np.broadcast_to(self._color.sample_numpy(g, n).reshape(n, -1), (n, 3))
         out = []
         for (intensity, ambient, az_deg, el_deg), color in zip(scalars.tolist(), colors.tolist()):
             az, el = math.radians(az_deg), math.radians(el_deg)
@@ -155,7 +156,7 @@ class ColorRandomizer(Randomizer):
         self._hsv = Columns((self.hue, self.saturation, self.value))
 
     def sample(self, rng, ctx):
-        hsv = self._hsv.sample(self.generator(rng), len(self._targets.bodies))
+        hsv = self._hsv.sample_numpy(self.generator(rng), len(self._targets.bodies))
         return {"rgba": [hsv_to_rgb(h, s, v) + [1.0] for h, s, v in hsv.tolist()]}
 
     def apply(self, params, ctx):
@@ -233,8 +234,8 @@ class CameraJitter(Randomizer):
 
     def sample(self, rng, ctx):
         g = self.generator(rng)
-        return to_json({"position_m": as_distribution(self.position_m).sample(g),
-                        "rotation_deg": as_distribution(self.rotation_deg).sample(g)})
+        position_m = as_distribution(self.position_m).sample_numpy(g).tolist()
+        return {"position_m": position_m, "rotation_deg": as_distribution(self.rotation_deg).sample_numpy(g).tolist()}
 
     def apply(self, params, ctx):
         cam = ctx.cameras[self.camera]

@@ -72,7 +72,9 @@ class Scatter2D(Randomizer):
         surface = match_names(names, self.surface)
         if self.check_collisions and not surface:
             raise ValueError(f"{self.name}: no geom matches surface {self.surface!r}")
-        self._checker = CollisionChecker(m, surface) if self.check_collisions else None
+        # the checker makes only the contacts of these objects' geoms: the rest never decide a redraw
+        self._checker = CollisionChecker(m, surface, movers=np.concatenate(self._geoms)) \
+            if self.check_collisions else None
         self._bottom = [self._bottom_offset(m, b, g) for b, g in zip(self._bodies, self._geoms)]
         # (bodies, 7) qpos addresses of each free joint, and the height (m) its origin rests at
         self._free_index = np.asarray(self._qadr, np.int64)[:, None] + np.arange(7)
@@ -100,37 +102,49 @@ class Scatter2D(Randomizer):
 
     def sample(self, rng, ctx):
         g, n = self.generator(rng), len(self._bodies)
-        count = n if self.count is None else int(np.clip(int(as_distribution(self.count).sample(g)), 0, n))
+        count = n if self.count is None else min(max(int(as_distribution(self.count).sample(g)), 0), n)
         active = sorted(torch.randperm(n, generator=g)[:count].tolist()) if count < n else list(range(n))
         # every round's poses drawn at once (enough for max_tries full rounds), used row after
-        # row: one draw per frame instead of one per round
-        pool = self._place.sample(g, self.max_tries * len(active)).numpy()
-        pool_quat = quat_from_yaw(pool[:, 2])
+        # row: one draw per frame instead of one per round; each row as the object's whole free
+        # joint (x, y, z, quaternion), so a round is one copy and one write
+        pool = self._place.sample_numpy(g, self.max_tries * len(active))
+        pool_free = np.zeros((len(pool), 7))
+        pool_free[:, :2] = pool[:, :2]
+        half_yaw = 0.5 * pool[:, 2]  # the quaternion of quat_from_yaw: (cos, 0, 0, sin) of half the yaw
+        pool_free[:, 3] = np.cos(half_yaw)
+        pool_free[:, 6] = np.sin(half_yaw)
         used = 0
-        poses = np.zeros((n, 3))
+        last_row = np.zeros(n, np.int64)  # each object's latest pool row: its pose if placed
         qpos = ctx.engine.qpos[ctx.world].numpy().copy()
-        self._park_all(qpos)
+        qpos[self._park_index] = self._park_values
+        free_index, rest_z_m = self._free_index, self._rest_z_m
 
         def draw(todo: list[int]) -> None:
             nonlocal used
-            rows = slice(used, used + len(todo))
-            used += len(todo)
-            poses[todo] = pool[rows]
-            self._write(qpos, todo, pool[rows], pool_quat[rows])
+            k = len(todo)
+            free = pool_free[used:used + k]  # a copy would only be overwritten: z is set in place
+            free[:, 2] = rest_z_m[todo]
+            qpos[free_index[todo]] = free
+            last_row[todo] = np.arange(used, used + k)
+            used += k
 
         hidden = sorted(place_without_overlap(active, self._bodies, qpos, draw, self._checker, self.max_tries))
-        placed = [i for i in active if i not in hidden]
-        return {"active": placed, "hidden": hidden, "pose_xy_yaw": {str(i): poses[i].tolist() for i in placed}}
+        hidden_set = set(hidden)
+        placed = [i for i in active if i not in hidden_set]
+        poses = pool[last_row[placed]].tolist()
+        return {"active": placed, "hidden": hidden, "pose_xy_yaw": {str(i): p for i, p in zip(placed, poses)}}
 
     def apply(self, params, ctx):
         # every object's free joint in one write: parked, then the placed ones at their poses
         free = self._park_values.reshape(-1, 7).copy()
         if params["pose_xy_yaw"]:
             placed = np.fromiter(map(int, params["pose_xy_yaw"]), np.int64)
-            pose = np.asarray(list(params["pose_xy_yaw"].values()), np.float64)
+            pose = np.array(list(params["pose_xy_yaw"].values()), np.float64)
             free[placed, :2] = pose[:, :2]
             free[placed, 2] = self._rest_z_m[placed]
-            free[placed, 3:] = quat_from_yaw(pose[:, 2])
+            half_yaw = 0.5 * pose[:, 2]  # quat_from_yaw's (cos, 0, 0, sin); parked rows hold 0 there
+            free[placed, 3] = np.cos(half_yaw)
+            free[placed, 6] = np.sin(half_yaw)
         write_field(ctx.engine.qpos, free.reshape(1, -1), rows=ctx.world, index=self._park_index)
         if self._checker is not None:
             # later scatterers (distractors) check against where these objects now are

@@ -26,10 +26,10 @@ def as_generator(rng, reuse: torch.Generator | None = None) -> torch.Generator:
     """A ``torch.Generator``: ``rng`` itself, one seeded with the int ``rng``, or (for a
     ``numpy.random.Generator``) one seeded with the next 64 bits ``rng`` draws. ``reuse``: a
     CPU generator to reseed instead of making one (a per-frame caller saves the allocation)."""
-    if isinstance(rng, torch.Generator):
-        return rng
-    if isinstance(rng, np.random.Generator):
+    if isinstance(rng, np.random.Generator):  # first: the replicator's per-frame case
         rng = int(rng.bit_generator.random_raw())  # the next 64 raw bits: a full-width seed
+    elif isinstance(rng, torch.Generator):
+        return rng
     if isinstance(rng, (int, np.integer)):
         return (torch.Generator() if reuse is None else reuse).manual_seed(int(rng))
     raise TypeError(f"a random generator is a torch.Generator, a numpy Generator or an int seed; got {rng!r}")
@@ -45,6 +45,11 @@ class Distribution:
     def sample(self, generator: torch.Generator, num: int | None = None, *,
                dtype: torch.dtype = torch.float64) -> torch.Tensor:
         raise NotImplementedError
+
+    def sample_numpy(self, generator: torch.Generator, num: int | None = None) -> np.ndarray:
+        """``sample(generator, num)`` in float64 as a NumPy array, the same numbers: for host
+        callers (the replicator) that go on in NumPy or plain floats."""
+        return self.sample(generator, num, dtype=torch.float64).cpu().numpy()
 
 
 @dataclass(frozen=True)
@@ -77,6 +82,26 @@ class _Pair(Distribution):
             self._cache[key] = hit
         return hit
 
+    def sample_numpy(self, generator, num=None):
+        # the torch path's arithmetic (a + b * u, in float64) on the draw's NumPy view: on the
+        # host, two NumPy operations cost a fraction of two small in-place torch calls
+        if generator.device.type != "cpu":
+            return super().sample_numpy(generator, num)
+        first, second, shape = self._host_params()
+        u = self._draw(_shape(num, shape), generator=generator, dtype=torch.float64).numpy()
+        u *= second
+        u += first
+        return u
+
+    def _host_params(self):
+        """``_tensors`` for the host in float64, as floats or NumPy arrays."""
+        hit = self._cache.get("numpy")
+        if hit is None:
+            first, second, shape = self._tensors(torch.device("cpu"), torch.float64)
+            hit = self._cache["numpy"] = (first if not shape else first.numpy(),
+                                          second if not shape else second.numpy(), shape)
+        return hit
+
 
 @dataclass(frozen=True)
 class Uniform(_Pair):
@@ -85,6 +110,7 @@ class Uniform(_Pair):
     low: Any
     high: Any
     _span = True
+    _draw = staticmethod(torch.rand)
 
     def _params(self):
         return self.low, self.high
@@ -101,6 +127,7 @@ class Normal(_Pair):
 
     mean: Any
     std: Any
+    _draw = staticmethod(torch.randn)
 
     def _params(self):
         return self.mean, self.std
@@ -210,15 +237,18 @@ class Columns:
             if self._uniform else None
         self._tensors: dict = {}
 
+    def _low_span(self, device, dtype) -> tuple[torch.Tensor, torch.Tensor]:
+        """The (k,) lows and widths in ``dtype`` on ``device``, made once per (device, dtype)."""
+        low = torch.as_tensor(self._bounds[:, 0].copy(), dtype=dtype, device=device)
+        high = torch.as_tensor(self._bounds[:, 1].copy(), dtype=dtype, device=device)
+        low_span = self._tensors[(device, dtype)] = (low, high - low)
+        return low_span
+
     def sample(self, generator: torch.Generator, num: int, *, dtype: torch.dtype = torch.float64) -> torch.Tensor:
         device = generator.device
         if self._uniform:
             key = (device, dtype)
-            low_span = self._tensors.get(key)
-            if low_span is None:
-                low = torch.as_tensor(self._bounds[:, 0].copy(), dtype=dtype, device=device)
-                low_span = self._tensors[key] = (low, torch.as_tensor(self._bounds[:, 1].copy(), dtype=dtype,
-                                                                        device=device) - low)
+            low_span = self._tensors.get(key) or self._low_span(device, dtype)
             u = torch.rand((int(num), len(self.distributions)), generator=generator, dtype=torch.float64,
                            device=device)
             return u.to(dtype).mul_(low_span[1]).add_(low_span[0])
@@ -226,6 +256,21 @@ class Columns:
             return torch.zeros(int(num), 0, dtype=dtype, device=device)
         return torch.stack([d.sample(generator, num, dtype=dtype).reshape(int(num)) for d in self.distributions],
                            dim=1)
+
+
+    def sample_numpy(self, generator: torch.Generator, num: int) -> np.ndarray:
+        """``sample(generator, num)`` in float64 as a NumPy array, the same numbers (host callers)."""
+        if self._uniform and generator.device.type == "cpu":
+            host = self._tensors.get("numpy")
+            if host is None:
+                low, span = self._tensors.get((generator.device, torch.float64)) or \
+                    self._low_span(generator.device, torch.float64)
+                host = self._tensors["numpy"] = (low.numpy(), span.numpy())
+            u = torch.rand((int(num), len(self.distributions)), generator=generator, dtype=torch.float64).numpy()
+            u *= host[1]
+            u += host[0]
+            return u
+        return self.sample(generator, num, dtype=torch.float64).cpu().numpy()
 
 
 def sample_columns(generator: torch.Generator, distributions: Sequence, num: int, *,

@@ -55,10 +55,13 @@ def write_field(field: torch.Tensor, values, *, rows: Rows = None, index=None) -
 
     Host tensors are written through a NumPy view (a tenth of torch's cost for the small writes
     of one frame); device tensors through ``core.rows.put_rows`` (masks with ``torch.where``)."""
-    cols = slice(None) if index is None else index_array(index, field.shape[1])
+    if type(index) is np.ndarray and index.dtype == np.int64 and index.ndim == 1:
+        cols = index  # already what index_array makes (a randomizer's ids, resolved once)
+    else:
+        cols = slice(None) if index is None else index_array(index, field.shape[1])
     if field.device.type == "cpu" and not (isinstance(rows, torch.Tensor) and rows.dtype == torch.bool):
         array = field.numpy()
-        value = values.detach().cpu().numpy() if isinstance(values, torch.Tensor) else np.asarray(values)
+        value = values.detach().cpu().numpy() if isinstance(values, torch.Tensor) else values
         if rows is None:
             array[:, cols] = value
         elif isinstance(rows, (int, np.integer)):

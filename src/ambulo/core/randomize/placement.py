@@ -25,9 +25,15 @@ def park_z(body_id: int) -> float:
 
 
 class CollisionChecker:
-    """Which free bodies penetrate anything but the ignored geoms, for a full qpos."""
+    """Which free bodies penetrate anything but the ignored geoms, for a full qpos.
 
-    def __init__(self, model: mujoco.MjModel, ignore_geoms: np.ndarray):
+    ``movers`` (geom ids, optional): the geoms of the bodies being placed. Given, only contacts
+    with one of them are made at all: a scatterer asks only whether its own bodies collide, and
+    the pairs it never asks about (the robot with itself, the scenery with the robot) cost half
+    of every ``mj_collision`` in a warehouse scene. Contacts that are made are exactly those of
+    ``model``, so the bodies reported for the movers do not change."""
+
+    def __init__(self, model: mujoco.MjModel, ignore_geoms: np.ndarray, movers: np.ndarray | None = None):
         self._ignore = np.zeros(model.ngeom, bool)
         self._ignore[np.asarray(ignore_geoms, int)] = True
         # a private copy in which the ignored geoms collide with nothing: their contacts (the
@@ -36,22 +42,48 @@ class CollisionChecker:
         self.model = copy.copy(model)
         self.model.geom_contype[self._ignore] = 0
         self.model.geom_conaffinity[self._ignore] = 0
+        if movers is not None:
+            _collide_only_with(self.model, np.asarray(movers, int))
         self.data = mujoco.MjData(self.model)
+        self._qpos = self.data.qpos  # a view of the private data's buffer, looked up once
         self._root = model.body_rootid
+        self._geom_root = model.body_rootid[model.geom_bodyid]
 
     def colliding_roots(self, qpos: np.ndarray) -> set[int]:
         """Root bodies (of geoms) in penetrating contacts."""
-        d = self.data
-        d.qpos[:] = qpos
-        mujoco.mj_kinematics(self.model, d)
-        mujoco.mj_collision(self.model, d)
+        m, d = self.model, self.data
+        self._qpos[:] = qpos
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_collision(m, d)
         n = d.ncon
         if n == 0:
             return set()
-        geoms = d.contact.geom[:n]
-        hit = (d.contact.dist[:n] < -_PENETRATION_M) & ~self._ignore[geoms].any(1)
-        bodies = self.model.geom_bodyid[geoms[hit]]
-        return {int(b) for b in self._root[bodies].ravel()}
+        contact = d.contact
+        geoms = contact.geom[:n]
+        hit = contact.dist[:n] < -_PENETRATION_M
+        hit &= ~(self._ignore[geoms[:, 0]] | self._ignore[geoms[:, 1]])
+        return set(self._geom_root[geoms[hit]].ravel().tolist())
+
+
+_MASK_BITS = 16
+
+
+def _collide_only_with(model: mujoco.MjModel, movers: np.ndarray) -> None:
+    """Rewrite ``model``'s collision masks so that only pairs with a geom of ``movers`` pass the
+    contype/conaffinity test, each exactly when it passed before.
+
+    MuJoCo collides two geoms when ``contype1 & conaffinity2 or contype2 & conaffinity1``. The
+    other geoms' contype moves to the upper 16 bits, where no other geom's conaffinity reaches;
+    the movers' conaffinity is copied there too, so an other/mover pair tests the same bits as
+    before, shifted, and a mover/mover pair is untouched. Masks wider than 16 bits are left as
+    they are (every pair is then made, as without ``movers``)."""
+    contype, conaffinity = model.geom_contype, model.geom_conaffinity
+    if contype.max(initial=0) >> _MASK_BITS or conaffinity.max(initial=0) >> _MASK_BITS:
+        return
+    is_mover = np.zeros(model.ngeom, bool)
+    is_mover[movers] = True
+    contype[~is_mover] = contype[~is_mover] << _MASK_BITS
+    conaffinity[is_mover] = conaffinity[is_mover] | (conaffinity[is_mover] << _MASK_BITS)
 
 
 def place_without_overlap(candidates: Sequence[int], root_body_of: Sequence[int], qpos: np.ndarray,
