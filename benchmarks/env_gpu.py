@@ -65,10 +65,10 @@ def rollout_fns(env) -> tuple[Callable, Callable, object, str]:
     ppo = ambulo.envs.spec(TASK).ppo_cfg_fn()
     size = f"{env.num_obs}-{'-'.join(map(str, ppo.actor_hidden_dims))}-{env.num_actions} {ppo.activation}"
     try:
-        from tensordict import TensorDict  # noqa: F401, PLC0415
-        from rsl_rl.utils import resolve_class  # noqa: PLC0415
+        from tensordict import TensorDict  # noqa: F401
+        from rsl_rl.utils import resolve_class
 
-        from ambulo.rl.vecenv import RslRlVecEnv  # noqa: PLC0415
+        from ambulo.rl.vecenv import RslRlVecEnv
     except ImportError as err:
         return (*_torch_mlp(env, ppo), f"torch MLP {size}, sampled (rsl-rl-lib missing: {err})")
     vec = RslRlVecEnv(env)

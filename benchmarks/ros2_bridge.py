@@ -44,13 +44,13 @@ BRIDGE = {}
 
 def subscriber() -> int:
     """The measuring node (its own process): records (stamp ns, receive wall time) per topic."""
-    import rclpy  # noqa: PLC0415
-    from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: PLC0415
-    from sensor_msgs.msg import Image, Imu, JointState  # noqa: PLC0415
+    import rclpy
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from sensor_msgs.msg import Image, Imu, JointState
 
     rclpy.init()
     node = rclpy.create_node("bench_subscriber")
-    from rclpy.event_handler import SubscriptionEventCallbacks  # noqa: PLC0415
+    from rclpy.event_handler import SubscriptionEventCallbacks
 
     got = {topic: [] for topic in TOPICS}
     matched = {}
@@ -67,7 +67,7 @@ def subscriber() -> int:
         node.create_subscription(msg_type, topic, record, qos,
                                  event_callbacks=SubscriptionEventCallbacks(matched=on_matched))
     print("ready", flush=True)
-    import threading  # noqa: PLC0415
+    import threading
 
     stop = threading.Event()
     threading.Thread(target=lambda: (sys.stdin.readline(), stop.set()), daemon=True).start()
@@ -92,7 +92,7 @@ def subscriber_process() -> subprocess.Popen:
 
 
 def state_world(camera: bool = False):
-    from ambulo.ros2 import SceneCfg, jetbot_world  # noqa: PLC0415
+    from ambulo.ros2 import SceneCfg, jetbot_world
 
     if camera:
         return jetbot_world(SceneCfg(physics_dt_s=1 / 60, camera=True, camera_width=640, camera_height=480))
@@ -100,7 +100,7 @@ def state_world(camera: bool = False):
 
 
 def attach(world, camera: bool):
-    from ambulo.ros2 import BridgeCfg, Ros2Bridge  # noqa: PLC0415
+    from ambulo.ros2 import BridgeCfg, Ros2Bridge
 
     cfg = BridgeCfg(imu_rate_hz=400.0, tf_rate_hz=100.0, odom_rate_hz=100.0, camera_rate_hz=60.0, publish_depth=False,
                     **BRIDGE)
@@ -190,8 +190,8 @@ def slowdown(steps: int, rounds: int = 7) -> dict:
     default: the loop waits for a free slot, so flat out it runs at the publisher's pace): the minimum
     of 3 runs with the ring in its steady state (1000 steps first), against the fastest bare runs.
     """
-    from ambulo.ros2 import BridgeCfg, Ros2Bridge, SceneCfg, humanoid_world, jetbot_world  # noqa: PLC0415
-    from ambulo.ros2.publisher import READ, WRITTEN  # noqa: PLC0415
+    from ambulo.ros2 import BridgeCfg, Ros2Bridge, SceneCfg, humanoid_world, jetbot_world
+    from ambulo.ros2.publisher import READ, WRITTEN
 
     out = {}
     for name, make in (("jetbot", jetbot_world), ("humanoid", humanoid_world)):
@@ -274,7 +274,7 @@ def realtime_slowdown(seconds: float, block_steps: int = 500) -> dict:
     world, same processes, paired under the same load); per step, the wall and thread-CPU time spent in
     ``world.step`` (the sleep to the next tick excluded). Slow-down = mean with / mean without - 1: how
     much of the physics loop's time the bridge takes. Also the ticks that overran their 1 ms."""
-    from ambulo.ros2 import BridgeCfg, Ros2Bridge, SceneCfg, humanoid_world  # noqa: PLC0415
+    from ambulo.ros2 import BridgeCfg, Ros2Bridge, SceneCfg, humanoid_world
 
     world = humanoid_world(SceneCfg(physics_dt_s=0.001, camera=False))
     bridge = Ros2Bridge(world, BridgeCfg(**RATES["issue"], **BRIDGE))
@@ -335,7 +335,7 @@ def main() -> int:
     if args.subscriber:
         return subscriber()
     if os.environ.get("AMBULO_ROS2_BENCH_ISOLATED") != "1":
-        from ambulo.ros2.loopback import isolated, loopback_env  # noqa: PLC0415
+        from ambulo.ros2.loopback import isolated, loopback_env
 
         env = loopback_env()
         env["AMBULO_ROS2_BENCH_ISOLATED"] = "1"

@@ -49,10 +49,10 @@ OPTIONS = ("timestep", "integrator", "solver", "iterations", "ls_iterations", "t
 def load_policy(run: str | None, checkpoint: str | None, env):
     """(obs (N, 72) on env.device) -> actions: the shipped policy, or a run's checkpoint."""
     if run is None:
-        from ambulo.policies.shipped import load_policy as shipped  # noqa: PLC0415
+        from ambulo.policies.shipped import load_policy as shipped
 
         return shipped(TASK), "shipped"
-    from ambulo.rl import runs  # noqa: PLC0415
+    from ambulo.rl import runs
 
     run_dir, ckpt = runs.resolve_policy(run, checkpoint)
     runner = runs.load_runner(run_dir, env, ckpt)
@@ -168,7 +168,7 @@ def foot_contacts_mujoco(model, engine: CpuEngine, feet: list[int], ground: int)
 
 def foot_contacts_warp(model, engine, feet: list[int], ground: int) -> dict[str, np.ndarray]:
     """As ``foot_contacts_mujoco``, from MuJoCo Warp's contact and constraint arrays."""
-    import mujoco_warp as mjw  # noqa: PLC0415
+    import mujoco_warp as mjw
 
     engine.forward()
     d = engine.wp_data

@@ -50,7 +50,7 @@ from ambulo.perception.stereo.sgm import (
 def warp_version() -> str | None:
     """warp-lang's version, None where it is not installed (the matcher then aggregates in torch)."""
     try:
-        import warp  # noqa: PLC0415
+        import warp
 
         return warp.config.version
     except ImportError:
@@ -63,7 +63,7 @@ def load_pair(path: Path | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     if path is not None:
         with np.load(path) as pair:
             return pair["left"], pair["right"], pair["truth"]
-    from skimage.data import stereo_motorcycle  # noqa: PLC0415 - not needed with --pair
+    from skimage.data import stereo_motorcycle  # not needed with --pair
 
     return stereo_motorcycle()
 
@@ -93,7 +93,7 @@ def median_ms(run, repeats: int, sync=lambda: None) -> tuple[float, object]:
 def opencv_bm(left: np.ndarray, right: np.ndarray, num_disparities: int) -> np.ndarray:
     """OpenCV's StereoBM (SAD block matching with a prefilter, texture and uniqueness checks and
     speckle filtering; 15 px blocks) as float32 disparity, nan where it found none."""
-    import cv2  # noqa: PLC0415
+    import cv2
 
     grey = [cv2.cvtColor(img, cv2.COLOR_RGB2GRAY) for img in (left, right)]
     matcher = cv2.StereoBM_create(numDisparities=num_disparities, blockSize=15)
@@ -167,7 +167,7 @@ def main(argv=None) -> dict:
     sync = torch.cuda.synchronize if device.type == "cuda" else lambda: None
     methods = {}
     try:
-        import cv2  # noqa: PLC0415
+        import cv2
 
         cv_threads = cv2.getNumThreads()
         ms, disparity = median_ms(lambda: sgbm_disparity(left, right, SgbmCfg(num_disparities=args.num_disparities)),

@@ -89,10 +89,10 @@ def run_summary(root: Path) -> dict:
 def ceiling(task: str, num_envs: int, device: str, seconds: float = 5.0) -> dict:
     """Raw MuJoCo Warp env-steps/s of ``task``'s model at ``num_envs`` worlds (see the docstring)."""
     sys.path.insert(0, str(Path(__file__).parent))
-    import ambulo.envs  # noqa: PLC0415
-    from env_gpu import RawWarp  # noqa: PLC0415
+    import ambulo.envs
+    from env_gpu import RawWarp
 
-    from ambulo.engine.gpu import synchronize  # noqa: PLC0415
+    from ambulo.engine.gpu import synchronize
 
     env = ambulo.envs.make(task, num_envs=num_envs, device=device, seed=0)
     raw = RawWarp(env.engine, env.cfg.decimation)
@@ -161,7 +161,7 @@ def main() -> None:
         "runs": {str(s): {k: v for k, v in done[s].items() if k != "evals"} for s in seeds},
     }
     if args.device.startswith("cuda"):
-        import torch  # noqa: PLC0415
+        import torch
 
         result["gpu"] = torch.cuda.get_device_name(0)
     if not args.no_ceiling:

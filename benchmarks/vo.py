@@ -65,7 +65,7 @@ def main(argv=None) -> dict:
     parser.add_argument("--no-cuda-graphs", action="store_true", help="CUDA: refine eagerly, not from captured graphs")
     parser.add_argument("--out", type=Path, default=Path("out/vo"))
     args = parser.parse_args(argv)
-    from ambulo.scenes.indoor import IndoorSceneCfg  # noqa: PLC0415
+    from ambulo.scenes.indoor import IndoorSceneCfg
 
     cfg = VoCfg(device=args.device) if args.features == "orb" else kornia_vo_cfg(args.device)
     if args.pnp is not None:

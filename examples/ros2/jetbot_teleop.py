@@ -22,9 +22,9 @@ from ambulo.sim import WheeledRobot, World
 
 def teleop_node(speed_m_s: float):
     """An ordinary rclpy node: publishes a Twist, remembers the last /odom pose."""
-    import rclpy  # noqa: PLC0415
-    from geometry_msgs.msg import Twist  # noqa: PLC0415
-    from nav_msgs.msg import Odometry  # noqa: PLC0415
+    import rclpy
+    from geometry_msgs.msg import Twist
+    from nav_msgs.msg import Odometry
 
     node = rclpy.create_node("teleop")
     pub = node.create_publisher(Twist, "/cmd_vel", 10)
@@ -52,7 +52,7 @@ def main(argv=None) -> dict:
     world.reset()
     bridge = Ros2Bridge(world, BridgeCfg(record=args.record))
 
-    import rclpy  # noqa: PLC0415
+    import rclpy
 
     rclpy.init()  # the teleop node's own ROS context (the bridge has another)
     node, pub, command, odom = teleop_node(args.speed)

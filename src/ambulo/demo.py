@@ -28,7 +28,7 @@ def build_demo_world(num_worlds: int = 1) -> tuple[World, WheeledRobot, Robot]:
         wheel_dof_names=["left_wheel_joint", "right_wheel_joint"], position=[1.0, 0.0, 0.0],
         orientation=[np.cos(np.pi / 4), 0.0, 0.0, np.sin(np.pi / 4)],  # facing +y: circles the origin
     ))
-    from .sim import add_reference_to_stage  # noqa: PLC0415
+    from .sim import add_reference_to_stage
 
     add_reference_to_stage(usd_path=assets.path(humanoid_facts.ASSET), prim_path=humanoid_facts.STAGE_PRIM_PATH)
     humanoid = world.scene.add(Robot(prim_path=humanoid_facts.STAGE_PRIM_PATH, name="humanoid"))
@@ -66,7 +66,7 @@ class DemoReport:
 
 
 def run_demo(seconds: float = 8.0, video: str | None = "out/demo.mp4", progress: bool = True) -> DemoReport:
-    from tqdm import tqdm  # noqa: PLC0415
+    from tqdm import tqdm
 
     world, jetbot, humanoid = build_demo_world()
     world.reset()
@@ -78,7 +78,7 @@ def run_demo(seconds: float = 8.0, video: str | None = "out/demo.mp4", progress:
     wheel_command = controller.forward([0.25, 0.25])
     recorder = None
     if video:
-        from .sim.recorder import Recorder  # noqa: PLC0415
+        from .sim.recorder import Recorder
 
         recorder = Recorder(world, video, width=640, height=480, fps=25)
     start = time.perf_counter()

@@ -58,7 +58,7 @@ def test_commands_are_redrawn_when_their_time_runs_out_and_only_then():
 def test_curriculum_widens_the_ranges_only_while_tracking_is_good():
     """humanoid-walk's command curriculum: the range share grows by rate * dt per step while
     the running tracking mean is above the threshold, never past 1, and not otherwise."""
-    from ambulo import envs  # noqa: PLC0415
+    from ambulo import envs
 
     env = envs.make("humanoid-walk", num_envs=2, device="cpu", seed=0, curriculum_start_scale=0.4,
                     curriculum_rate_per_s=0.5)

@@ -28,7 +28,7 @@ def test_a_camera_above_the_floor_looking_down_sees_a_box_top_and_the_floor():
 
 def test_depth_equals_open3d_raycasting_on_the_indoor_scene():
     pytest.importorskip("open3d")
-    from ambulo.perception.reference import TruthScene  # noqa: PLC0415
+    from ambulo.perception.reference import TruthScene
 
     scene = build_indoor_scene(IndoorSceneCfg(with_robot=False, num_moving_boxes=0))
     truth = TruthScene(scene.solids)

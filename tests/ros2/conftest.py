@@ -17,8 +17,8 @@ HERE = Path(__file__).resolve().parent
 
 def needs_rclpy():
     try:
-        import rclpy  # noqa: F401, PLC0415
-        import sensor_msgs.msg  # noqa: F401, PLC0415
+        import rclpy  # noqa: F401
+        import sensor_msgs.msg  # noqa: F401
     except ImportError:
         pytest.skip("needs rclpy: pip install 'ambulo[ros2]'")
 
@@ -30,7 +30,7 @@ def run_loopback(args: list[str], timeout_s: float = 240.0) -> subprocess.Comple
     Output goes to files, not pipes: a pipe stays open while any descendant lives, so a hung
     grandchild would hold the test until the timeout even after the scenario has exited. The
     scenario runs in a session of its own, killed whole at the end."""
-    from ambulo.ros2.loopback import isolated, loopback_env  # noqa: PLC0415
+    from ambulo.ros2.loopback import isolated, loopback_env
 
     with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
         proc = subprocess.Popen(isolated([sys.executable, *args]), env=loopback_env(), stdout=out, stderr=err,

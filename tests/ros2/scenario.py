@@ -45,7 +45,7 @@ class Peer:
 
     def wait(self, event: str, world=None, timeout_s: float = 30.0) -> dict:
         """Read lines until ``event``; the World keeps stepping meanwhile if given (so topics flow)."""
-        import selectors  # noqa: PLC0415
+        import selectors
 
         sel = selectors.DefaultSelector()
         sel.register(self.proc.stdout, selectors.EVENT_READ)
@@ -74,7 +74,7 @@ def step_until(world, condition, timeout_s: float = 10.0) -> None:
 
 
 def jetbot(out: Path) -> None:
-    from ambulo.ros2 import BridgeCfg, Ros2Bridge, jetbot_world  # noqa: PLC0415
+    from ambulo.ros2 import BridgeCfg, Ros2Bridge, jetbot_world
 
     world = jetbot_world()
     robot = world.scene.get_object("jetbot")
@@ -137,9 +137,9 @@ def jetbot(out: Path) -> None:
 
 
 def sample_costmap():
-    import torch  # noqa: PLC0415
+    import torch
 
-    from ambulo.perception.costmap import Costmap  # noqa: PLC0415
+    from ambulo.perception.costmap import Costmap
 
     cost = torch.tensor([[0, 1, 100, 252], [253, 254, 255, 0], [7, 0, 0, 254]], dtype=torch.uint8)
     # origin_xy_m: the lower-left corner of cell [0, 0] (maps.Grid2D; its centre is (-1.025, 2.475))
@@ -147,7 +147,7 @@ def sample_costmap():
 
 
 def humanoid(out: Path) -> None:
-    from ambulo.ros2 import BridgeCfg, Ros2Bridge, humanoid_world  # noqa: PLC0415
+    from ambulo.ros2 import BridgeCfg, Ros2Bridge, humanoid_world
 
     world = humanoid_world()
     robot = world.scene.get_object("humanoid")
@@ -202,7 +202,7 @@ def humanoid(out: Path) -> None:
 
 def humanoid_walk(out: Path) -> None:
     """/cmd_vel to the humanoid, through the shipped walking policy: forward, turn, refusals."""
-    from ambulo.ros2 import BridgeCfg, Ros2Bridge, SceneCfg, humanoid_world  # noqa: PLC0415
+    from ambulo.ros2 import BridgeCfg, Ros2Bridge, SceneCfg, humanoid_world
 
     world = humanoid_world(SceneCfg(camera=False))
     robot = world.scene.get_object("humanoid")
@@ -257,10 +257,10 @@ def humanoid_walk(out: Path) -> None:
 
 def lidar3d(out: Path) -> None:
     """A 16-channel lidar on the Jetbot: /points recorded; the truth is the sensor's own points."""
-    from ambulo import assets  # noqa: PLC0415
-    from ambulo.ros2 import BridgeCfg, Ros2Bridge  # noqa: PLC0415
-    from ambulo.sensors import Lidar, lidar_vlp16  # noqa: PLC0415
-    from ambulo.sim import DynamicCuboid, WheeledRobot, World  # noqa: PLC0415
+    from ambulo import assets
+    from ambulo.ros2 import BridgeCfg, Ros2Bridge
+    from ambulo.sensors import Lidar, lidar_vlp16
+    from ambulo.sim import DynamicCuboid, WheeledRobot, World
 
     world = World(physics_dt=0.01)
     world.scene.add_default_ground_plane()
@@ -289,14 +289,14 @@ def lidar3d(out: Path) -> None:
 def foxglove(out: Path) -> None:
     """``--foxglove``: a plain WebSocket client (Foxglove's protocol) subscribes /joint_states and
     decodes the CDR with mcap_ros2 from the schema the server advertised."""
-    import socket  # noqa: PLC0415
-    import struct  # noqa: PLC0415
-    import threading  # noqa: PLC0415
+    import socket
+    import struct
+    import threading
 
-    from mcap_ros2._dynamic import generate_dynamic  # noqa: PLC0415
-    from websockets.sync.client import connect  # noqa: PLC0415
+    from mcap_ros2._dynamic import generate_dynamic
+    from websockets.sync.client import connect
 
-    from ambulo.ros2 import BridgeCfg, Ros2Bridge, SceneCfg, jetbot_world  # noqa: PLC0415
+    from ambulo.ros2 import BridgeCfg, Ros2Bridge, SceneCfg, jetbot_world
 
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))

@@ -258,10 +258,10 @@ def test_tf_bytes_decode_with_mcap_ros2():
 def test_frame_ring_passes_images_in_order_and_refuses_when_full():
     """What the physics thread writes into a slot is what the publisher process takes, byte for byte,
     oldest first; a full ring refuses (the bridge then waits or drops) and a taken slot is reused."""
-    import os  # noqa: PLC0415
+    import os
 
-    from ambulo.ros2 import cdr  # noqa: PLC0415
-    from ambulo.ros2.frame_ring import FrameRing, slot_bytes_for  # noqa: PLC0415
+    from ambulo.ros2 import cdr
+    from ambulo.ros2.frame_ring import FrameRing, slot_bytes_for
 
     width, height = 8, 4
     writer, fd = FrameRing.create(2, slot_bytes_for(width, height, "cam"))

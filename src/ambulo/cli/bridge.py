@@ -27,8 +27,8 @@ def _bag_folder(record: str) -> Path:
 
 
 def _world(target: str, args: argparse.Namespace):
-    from ambulo.core.scene import resolve_file  # noqa: PLC0415
-    from ambulo.ros2 import SCENES, SceneCfg, file_world  # noqa: PLC0415
+    from ambulo.core.scene import resolve_file
+    from ambulo.ros2 import SCENES, SceneCfg, file_world
 
     cfg = SceneCfg(physics_dt_s=None if args.rate is None else 1.0 / args.rate, camera=not args.no_camera,
                    lidar=args.lidar)
@@ -42,14 +42,14 @@ def _task_robot(target: str) -> str | None:
     """The robot file (or bundled name) of the RL task named ``target``, else None."""
     if os.path.exists(target) or os.sep in target:
         return None
-    from ambulo import envs  # noqa: PLC0415
+    from ambulo import envs
 
     return str(envs.make_cfg(target).robot.file) if target in envs.names() else None
 
 
 def _check_target(target: str) -> None:
     """A bundled scene or a robot file, else ``CliError`` (before anything slow is imported)."""
-    from ambulo.ros2.scenes import SCENES  # noqa: PLC0415
+    from ambulo.ros2.scenes import SCENES
 
     if target in SCENES or (os.path.isfile(target) and os.path.splitext(target)[1].lower() in _KINDS):
         return
@@ -57,7 +57,7 @@ def _check_target(target: str) -> None:
         return
     if os.path.exists(target):
         raise CliError(f"{target!r} is not a robot file", f"give an MJCF, URDF or USD file ({', '.join(_KINDS)})")
-    from ambulo import envs  # noqa: PLC0415
+    from ambulo import envs
 
     close = difflib.get_close_matches(target, list(SCENES) + envs.names(), n=2)
     fix = f"did you mean {' or '.join(map(repr, close))}?" if close else (
@@ -68,7 +68,7 @@ def _check_target(target: str) -> None:
 
 def _require(module: str, package: str, flag: str) -> None:
     """``CliError`` naming what to install when ``flag`` needs ``module`` and it is missing."""
-    import importlib.util  # noqa: PLC0415
+    import importlib.util
 
     if importlib.util.find_spec(module) is None:
         raise CliError(f"{flag} needs the package {package!r}, which is not installed", "pip install 'ambulo[ros2]'")
@@ -79,7 +79,7 @@ def _interrupt(_signum, _frame) -> None:
 
 
 def _recover(bag: str) -> int:
-    from ambulo.ros2.bag import recover  # noqa: PLC0415
+    from ambulo.ros2.bag import recover
 
     kept = recover(bag)
     print(f"{bag}: complete already, nothing to recover" if kept < 0 else f"{bag}: recovered {kept} messages")
@@ -103,13 +103,13 @@ def run(args: argparse.Namespace) -> int:
         _require("rosbags", "rosbags", "--record")
     if args.foxglove:
         _require("foxglove", "foxglove-sdk", "--foxglove")
-    from ambulo.ros2.runtime import Ros2Unavailable, import_rclpy  # noqa: PLC0415
+    from ambulo.ros2.runtime import Ros2Unavailable, import_rclpy
 
     try:
         import_rclpy()
     except Ros2Unavailable as err:
         raise CliError(str(err).split("; ")[0], str(err).split("; ", 1)[-1]) from None
-    from ambulo.ros2 import BridgeCfg, Ros2Bridge  # noqa: PLC0415
+    from ambulo.ros2 import BridgeCfg, Ros2Bridge
 
     world = _world(args.target, args)
     cfg = BridgeCfg(namespace=args.namespace, frame_prefix=args.frame_prefix, camera_qos=args.camera_qos,

@@ -34,7 +34,7 @@ _CONFIG_FIX = "give a Python file whose config() or CONFIG is an ambulo.replicat
 def load_config(path: str | None, width: int | None = None, height: int | None = None):
     """The ``DatasetConfig`` of Python file ``path`` (the example scene's for ``None``), with its
     camera resized to ``width`` x ``height`` where given. ``CliError`` on a bad file."""
-    from ambulo import replicator as rep  # noqa: PLC0415
+    from ambulo import replicator as rep
 
     if path is None:
         config = rep.example_config()
@@ -63,8 +63,8 @@ def load_config(path: str | None, width: int | None = None, height: int | None =
 
 
 def generate(args: argparse.Namespace) -> int:
-    from ambulo import replicator as rep  # noqa: PLC0415
-    from ambulo.replicator.manifest import DatasetFolderError  # noqa: PLC0415
+    from ambulo import replicator as rep
+    from ambulo.replicator.manifest import DatasetFolderError
 
     for flag in ("frames", "workers", "width", "height"):
         value = getattr(args, flag)

@@ -11,7 +11,7 @@ def run(args: argparse.Namespace) -> int:
     check_seconds(args.seconds)
     if not args.no_video:
         check_output_file(args.video, "--video")
-    from ambulo.demo import run_demo  # noqa: PLC0415
+    from ambulo.demo import run_demo
 
     report = run_demo(seconds=args.seconds, video=None if args.no_video else args.video,
                       progress=not args.quiet)

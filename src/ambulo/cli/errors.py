@@ -76,9 +76,9 @@ def expected_error(err: BaseException) -> CliError | None:
     """``err`` as the one-line ``CliError`` a user sees, if it is bad input rather than a bug:
     ambulo's own checks (``CliError``, ``InvalidValueError``, ``OverrideError``, ``AssetError``),
     no OpenGL to render with or no ffmpeg to encode with, a missing file or optional package, an unwritable path. ``None`` for anything else."""
-    from ..core.importers import AssetError  # noqa: PLC0415
-    from ..utils.checks import InvalidValueError  # noqa: PLC0415
-    from ..utils.overrides import OverrideError  # noqa: PLC0415
+    from ..core.importers import AssetError
+    from ..utils.checks import InvalidValueError
+    from ..utils.overrides import OverrideError
 
     if isinstance(err, CliError):
         return err

@@ -31,7 +31,7 @@ def add_commands(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ambulo.scenes.indoor import scene_names  # noqa: PLC0415
+    from ambulo.scenes.indoor import scene_names
 
     if args.scene not in scene_names():
         raise CliError(f"no scene named {args.scene!r}", f"choose one of: {', '.join(scene_names())}")
@@ -41,11 +41,11 @@ def run(args: argparse.Namespace) -> int:
     if not 0.005 <= args.voxel <= 1.0:
         raise CliError(f"--voxel {args.voxel} m is outside 0.005..1 m", "give e.g. --voxel 0.05")
     check_output_file(Path(args.out) / "summary.json", "--out")
-    from tqdm import tqdm  # noqa: PLC0415
+    from tqdm import tqdm
 
-    from ambulo.perception.pipeline import MapRunCfg, run_mapping  # noqa: PLC0415
-    from ambulo.scenes.indoor import IndoorSceneCfg  # noqa: PLC0415
-    from ambulo.perception.tsdf import TsdfCfg  # noqa: PLC0415
+    from ambulo.perception.pipeline import MapRunCfg, run_mapping
+    from ambulo.scenes.indoor import IndoorSceneCfg
+    from ambulo.perception.tsdf import TsdfCfg
 
     cfg = MapRunCfg(scene=IndoorSceneCfg(seed=args.seed), tsdf=TsdfCfg(voxel_size_m=args.voxel),
                     num_frames=args.frames, width=args.width, height=args.height,

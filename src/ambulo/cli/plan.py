@@ -79,8 +79,8 @@ def run(args: argparse.Namespace) -> int:
         raise CliError(f"--budget-ms {args.budget_ms} is not positive", "give milliseconds, e.g. --budget-ms 500")
     grid = load_map(args.map, args.resolution, origin)
 
-    from ..locomotion.walk_plot import plot_walk  # noqa: PLC0415 - heavy imports only when run
-    from ..locomotion.walk_sim import WalkSimulation, plan_walk, walk_pattern  # noqa: PLC0415
+    from ..locomotion.walk_plot import plot_walk  # heavy imports only when run
+    from ..locomotion.walk_sim import WalkSimulation, plan_walk, walk_pattern
 
     plan = plan_walk(grid, start, goal, time_budget_s=args.budget_ms / 1e3)
     print(f"plan: {plan.status.value}, {plan.num_steps} steps, {plan.planning_time_s * 1e3:.0f} ms"

@@ -34,21 +34,21 @@ times the first success from here, so imports, env build and kernel compile coun
 
 def task_names() -> list[str]:
     """Registered task names."""
-    from ambulo import envs  # noqa: PLC0415
+    from ambulo import envs
 
     return envs.names()
 
 
 def task_description(task: str) -> str:
     """One line on what ``task`` is."""
-    from ambulo import envs  # noqa: PLC0415
+    from ambulo import envs
 
     return envs.spec(task).description
 
 
 def default_env_cfg(task: str) -> Any:
     """A fresh default config (a dataclass) of ``task``, from the task registry."""
-    from ambulo import envs  # noqa: PLC0415
+    from ambulo import envs
 
     return envs.spec(task).cfg_fn()
 
@@ -58,7 +58,7 @@ def default_ppo_cfg(task: str) -> Any:
 
     The one place the CLI obtains them: if PpoCfg or the per-task PPO factories move, change
     only this function."""
-    from ambulo.rl.config import ppo_cfg  # noqa: PLC0415
+    from ambulo.rl.config import ppo_cfg
 
     return ppo_cfg(task)
 
@@ -177,7 +177,7 @@ _WRITE_ERRORS = {errno.EACCES, errno.EPERM, errno.EROFS, errno.ENOSPC, errno.EDQ
 def _rl_errors(out_flag: str) -> Iterator[None]:
     """``ambulo.rl``'s own errors (a missing or corrupt checkpoint, a run that cannot resume)
     and failed writes, as one-line ``CliError``s."""
-    from ambulo.rl import RunError  # noqa: PLC0415
+    from ambulo.rl import RunError
 
     try:
         yield
@@ -254,8 +254,8 @@ def train(args: argparse.Namespace) -> int:
     if args.stop_at_criterion and not args.eval_every:
         raise CliError("--stop-at-criterion needs --eval-every", "add e.g. --eval-every 50")
 
-    from ambulo.rl import TrainingInterrupted  # noqa: PLC0415
-    from ambulo.rl import train as run_train  # noqa: PLC0415
+    from ambulo.rl import TrainingInterrupted
+    from ambulo.rl import train as run_train
 
     try:
         with _rl_errors("--log-root"):
@@ -273,7 +273,7 @@ def train(args: argparse.Namespace) -> int:
 def play(args: argparse.Namespace) -> int:
     _check_run(args.run)
     _check_writable(args.out, "--out", folder=False)
-    from ambulo.rl import play as run_play  # noqa: PLC0415
+    from ambulo.rl import play as run_play
 
     with _rl_errors("--out"):
         run_play(args.run, checkpoint=args.checkpoint, seconds=args.seconds, out=args.out,
@@ -284,7 +284,7 @@ def play(args: argparse.Namespace) -> int:
 def export(args: argparse.Namespace) -> int:
     _check_run(args.run)
     _check_writable(args.out_dir, "--out-dir", folder=True)
-    from ambulo.rl import export as run_export  # noqa: PLC0415
+    from ambulo.rl import export as run_export
 
     with _rl_errors("--out-dir"):
         run_export(args.run, checkpoint=args.checkpoint, out_dir=args.out_dir,
@@ -297,7 +297,7 @@ def evaluate(args: argparse.Namespace) -> int:
         result = _evaluate_shipped(args)
     else:
         _check_run(args.run)
-        from ambulo.rl import evaluate as run_eval  # noqa: PLC0415
+        from ambulo.rl import evaluate as run_eval
 
         with _rl_errors("the run folder (eval.json goes there)"):
             result = run_eval(args.run, checkpoint=args.checkpoint, num_episodes=args.episodes,
@@ -311,7 +311,7 @@ def evaluate(args: argparse.Namespace) -> int:
 
 def _evaluate_shipped(args: argparse.Namespace) -> dict:
     """``ambulo eval TASK --shipped``: the policy in ambulo's assets, no run folder."""
-    from ambulo.policies.shipped import shipped_tasks  # noqa: PLC0415
+    from ambulo.policies.shipped import shipped_tasks
 
     shipped = shipped_tasks()
     if args.run not in shipped:
@@ -319,7 +319,7 @@ def _evaluate_shipped(args: argparse.Namespace) -> dict:
                        f"--shipped takes a task with one: {', '.join(shipped) or 'none'}")
     if args.checkpoint:
         raise CliError("--checkpoint does not apply to --shipped", "drop one of them")
-    from ambulo.rl.evaluate import evaluate_shipped  # noqa: PLC0415
+    from ambulo.rl.evaluate import evaluate_shipped
 
     return evaluate_shipped(args.run, num_episodes=args.episodes, episode_length_s=args.episode_length_s,
                             seed=args.seed, device=args.device or "cpu")

@@ -10,8 +10,8 @@ from .errors import CliError
 def run(args: argparse.Namespace) -> int:
     if args.seconds <= 0:
         raise CliError(f"--seconds {args.seconds} is not positive", "give --seconds above 0")
-    from ambulo.isaac import IsaacNameError, run_script  # noqa: PLC0415
-    from ambulo.isaac.runner import ScriptPathError  # noqa: PLC0415
+    from ambulo.isaac import IsaacNameError, run_script
+    from ambulo.isaac.runner import ScriptPathError
 
     try:
         result = run_script(args.script, args.script_args, seconds=args.seconds)

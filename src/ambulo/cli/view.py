@@ -16,8 +16,8 @@ _KINDS = (".xml", ".urdf", ".usd", ".usda", ".usdc", ".usdz")
 def _asset_path(target: str) -> str:
     """``target`` as a file: a path, the stand-in of an Isaac library path, or the file of a
     bundled asset; ``CliError`` if none."""
-    from ambulo import assets  # noqa: PLC0415
-    from ambulo.sim.isaac_assets import resolve_asset  # noqa: PLC0415 - the rule add_reference_to_stage uses
+    from ambulo import assets
+    from ambulo.sim.isaac_assets import resolve_asset  # the rule add_reference_to_stage uses
 
     try:
         path = resolve_asset(target)
@@ -48,10 +48,10 @@ def run(args: argparse.Namespace) -> int:
     if not args.video and not os.environ.get("DISPLAY") and sys.platform.startswith("linux"):
         raise CliError("no display for the interactive viewer",
                        "set DISPLAY, or record headless with --video out.mp4")
-    from ambulo.sim import World, add_reference_to_stage  # noqa: PLC0415
+    from ambulo.sim import World, add_reference_to_stage
 
     if path is None:
-        from ambulo.demo import build_demo_world  # noqa: PLC0415
+        from ambulo.demo import build_demo_world
 
         world = build_demo_world()[0]
     else:
@@ -60,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
         add_reference_to_stage(usd_path=path, prim_path="/World/Asset")
     world.reset()
     if args.video:
-        from ambulo.sim.recorder import Recorder  # noqa: PLC0415
+        from ambulo.sim.recorder import Recorder
 
         with Recorder(world, args.video) as rec:
             for _ in range(int(args.seconds / world.get_rendering_dt())):
@@ -68,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
                 rec.capture()
         print(f"wrote {args.video} ({rec.num_frames} frames)")
         return 0
-    import mujoco.viewer  # noqa: PLC0415
+    import mujoco.viewer
 
     mujoco.viewer.launch(world.model, world.engine.get_data(0))
     return 0

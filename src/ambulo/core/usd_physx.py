@@ -63,7 +63,7 @@ def authored_physx(prim) -> dict[str, object]:
 def apply_physx(stage, spec: mujoco.MjSpec, model: mujoco.MjModel, relative, file_name: str) -> list[str]:
     """Edit ``spec`` (names relative, ``model`` compiled from it with the prim paths as names) for
     the PhysX attributes on ``stage``; warn once naming the ones ignored, and return them."""
-    from pxr import UsdGeom  # noqa: PLC0415
+    from pxr import UsdGeom
 
     root = stage.GetDefaultPrim()
     scale = _uniform_scale(UsdGeom.XformCache().GetLocalToWorldTransform(root)) if root else 1.0

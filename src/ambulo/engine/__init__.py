@@ -28,12 +28,12 @@ def engine_class(device: str, engine: str = "auto") -> type:
                                 "use engine='warp' (or 'auto') on CUDA")
     if engine == "warp" or device.startswith("cuda"):
         try:
-            from .gpu import GpuEngine  # noqa: PLC0415 - optional dependency
+            from .gpu import GpuEngine  # optional dependency
         except ImportError as err:
             raise InvalidValueError("device", device, f"needs the GPU engine's packages ({err})",
                                     "pip install 'ambulo[gpu]', or use device='cpu'") from None
         if device.startswith("cuda"):
-            import torch  # noqa: PLC0415
+            import torch
 
             if not torch.cuda.is_available():
                 raise InvalidValueError("device", device, "torch sees no CUDA device (a CPU-only torch "

@@ -539,7 +539,7 @@ def synchronize(device: torch.device) -> None:
 
 def stack_versions() -> dict[str, str]:
     """Versions of the GPU stack, for benchmark results and bug reports."""
-    import importlib.metadata  # noqa: PLC0415
+    import importlib.metadata
 
     def dist(name: str) -> str:
         try:
@@ -554,9 +554,9 @@ def stack_versions() -> dict[str, str]:
 def _batchable_fields() -> frozenset[str]:
     global _BATCHABLE
     if _BATCHABLE is None:
-        import dataclasses  # noqa: PLC0415
+        import dataclasses
 
-        from mujoco_warp._src import types, warp_util  # noqa: PLC0415
+        from mujoco_warp._src import types, warp_util
         _BATCHABLE = frozenset(
             f.name for f in dataclasses.fields(types.Model)
             if warp_util.is_array_spec(f.type) and getattr(f.type, "shape", ())[:1] == ("*",))

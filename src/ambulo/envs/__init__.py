@@ -17,7 +17,7 @@ from .registry import Criterion, TaskSpec, make, make_cfg, names, register, regi
 def __getattr__(name: str):
     # gymnasium is an optional dependency (the "rl" extra): import it only when asked.
     if name == "GymVectorEnv":
-        from .gym_vector import GymVectorEnv  # noqa: PLC0415
+        from .gym_vector import GymVectorEnv
 
         return GymVectorEnv
     raise AttributeError(f"module 'ambulo.envs' has no attribute {name!r}")

@@ -90,7 +90,7 @@ SHAPES = {"Cube": _cube, "Sphere": _sphere, "Cylinder": _cylinder, "Cone": lambd
 def define_mesh(stage, path: str, prim_type: str, half_scale_cm: float | None, origin) -> object:
     """Define the ``UsdGeom.Mesh`` of ``prim_type`` at ``path``, its half size ``half_scale_cm``
     centimetres in stage units, centred at ``origin`` (stage units), with Kit's default xform ops."""
-    from pxr import Gf, Sdf, Usd, UsdGeom, Vt  # noqa: PLC0415
+    from pxr import Gf, Sdf, Usd, UsdGeom, Vt
 
     if prim_type not in SHAPES:
         raise ValueError(f"CreateMeshPrimWithDefaultXform: no mesh type {prim_type!r}; Kit's are "

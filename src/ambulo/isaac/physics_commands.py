@@ -15,7 +15,7 @@ from .usd_edit import command_stage as _stage
 
 
 def _pxr():
-    from pxr import Gf, Usd, UsdGeom, UsdPhysics  # noqa: PLC0415
+    from pxr import Gf, Usd, UsdGeom, UsdPhysics
 
     return Gf, Usd, UsdGeom, UsdPhysics
 

@@ -19,7 +19,7 @@ _log = logging.getLogger("ambulo.isaac")
 class PhysicsContext:
     def __init__(self, physics_dt: float | None = None, prim_path: str = "/physicsScene", sim_params=None,
                  set_defaults: bool = True):
-        from pxr import Gf, UsdPhysics  # noqa: PLC0415
+        from pxr import Gf, UsdPhysics
 
         stage = get_current_stage()
         path = prim_path if prim_path.startswith("/World") else "/World" + prim_path
@@ -45,7 +45,7 @@ class PhysicsContext:
 
     def set_gravity(self, value: float) -> None:
         """Gravity along the up axis in stage units/s² (Isaac passes -9.81 for Earth's)."""
-        from pxr import Gf  # noqa: PLC0415
+        from pxr import Gf
 
         self._scene.GetGravityDirectionAttr().Set(Gf.Vec3f(0.0, 0.0, -1.0 if value <= 0 else 1.0))
         self._scene.GetGravityMagnitudeAttr().Set(abs(float(value)))

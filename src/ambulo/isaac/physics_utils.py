@@ -9,7 +9,7 @@ from __future__ import annotations
 
 
 def _pxr():
-    from pxr import Gf, UsdGeom, UsdPhysics  # noqa: PLC0415
+    from pxr import Gf, UsdGeom, UsdPhysics
 
     return Gf, UsdGeom, UsdPhysics
 

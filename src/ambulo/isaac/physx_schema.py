@@ -126,7 +126,7 @@ class PhysxSchemaAPI:
 
     def _author(self, attr: PhysxAttr, value):
         """The attribute on the prim with the schema's Sdf type (created if missing), set to ``value``."""
-        from pxr import Sdf  # noqa: PLC0415
+        from pxr import Sdf
 
         variability = Sdf.VariabilityUniform if attr.uniform else Sdf.VariabilityVarying
         created = self._prim.CreateAttribute(self._property_name(attr.name),
@@ -203,7 +203,7 @@ def _is_ours(schema) -> bool:
 
 def install() -> None:
     """Teach ``Usd.Prim.HasAPI`` / ``ApplyAPI`` / ``RemoveAPI`` the PhysxSchema classes (undone by ``restore``)."""
-    from pxr import Usd  # noqa: PLC0415
+    from pxr import Usd
 
     if _patched:
         return
@@ -236,7 +236,7 @@ def restore() -> None:
     """Give ``Usd.Prim`` its own methods back (the end of an ``ambulo run``)."""
     if not _patched:
         return
-    from pxr import Usd  # noqa: PLC0415
+    from pxr import Usd
 
     for method, original in _patched.items():
         setattr(Usd.Prim, method, original)

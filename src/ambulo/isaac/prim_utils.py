@@ -54,7 +54,7 @@ def create_prim(prim_path: str, prim_type: str = "Xform", position=None, transla
         # the prims' own placement: checked, and in stage units like every other pose
         place_on_stage(prim_path, position, translation, orientation)
         return prim
-    from pxr import Gf, UsdGeom  # noqa: PLC0415
+    from pxr import Gf, UsdGeom
 
     prim = define_prim(prim_path, prim_type)
     for name, value in (attributes or {}).items():
@@ -72,7 +72,7 @@ def create_prim(prim_path: str, prim_type: str = "Xform", position=None, transla
     if scale is not None:
         xform.AddScaleOp().Set(Gf.Vec3f(*map(float, scale)))
     if semantic_label is not None:
-        from .semantics import add_update_semantics  # noqa: PLC0415
+        from .semantics import add_update_semantics
 
         add_update_semantics(prim, semantic_label, semantic_type)
     return prim

@@ -44,7 +44,7 @@ def run_script(path: str | os.PathLike, argv: list[str] | tuple[str, ...] = (), 
         raise ScriptPathError(f"{script} is a folder; give the Isaac script (.py) to run")
     if not script.is_file():
         raise ScriptPathError(f"no script {str(script)!r}; check the path")
-    from .sample import BaseSample, run_sample  # noqa: PLC0415 - imports the World
+    from .sample import BaseSample, run_sample  # imports the World
 
     saved_argv, saved_path = sys.argv, list(sys.path)
     forget_stages()  # no World and an empty stage, as Kit starts a script (nothing left from a previous run)

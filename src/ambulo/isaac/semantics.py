@@ -35,7 +35,7 @@ def add_update_semantics(prim, semantic_label: str, type_label: str = "class", s
         if type_label == "class":
             set_semantic_label(world.stage, path, semantic_label)
         return
-    from pxr import Sdf  # noqa: PLC0415
+    from pxr import Sdf
 
     usd_prim.CreateAttribute(SEMANTIC_TYPE, Sdf.ValueTypeNames.String).Set(type_label)
     usd_prim.CreateAttribute(SEMANTIC_DATA, Sdf.ValueTypeNames.String).Set(semantic_label)

@@ -59,7 +59,7 @@ def get_stage_units() -> float:
 
 
 def set_stage_units(stage_units_in_meters: float) -> None:
-    from pxr import UsdGeom  # noqa: PLC0415
+    from pxr import UsdGeom
 
     if not stage_units_in_meters > 0:
         raise ValueError(f"stage_units_in_meters must be > 0, got {stage_units_in_meters}")

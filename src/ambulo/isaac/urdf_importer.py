@@ -141,7 +141,7 @@ def _mirror(usd, spec, prim_path: str) -> None:
 
 
 def _physics_scene(stage, config: ImportConfig) -> None:
-    from pxr import Gf, UsdPhysics  # noqa: PLC0415
+    from pxr import Gf, UsdPhysics
 
     if any(prim.IsA(UsdPhysics.Scene) for prim in stage.Traverse()):
         return

@@ -28,7 +28,7 @@ from .usd_edit import (ROOT, api_made_error, authored_prim, command_stage, defau
 
 
 def _pxr():
-    from pxr import Gf, Sdf, Usd, UsdGeom  # noqa: PLC0415
+    from pxr import Gf, Sdf, Usd, UsdGeom
 
     return Gf, Sdf, Usd, UsdGeom
 

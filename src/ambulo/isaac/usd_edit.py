@@ -17,7 +17,7 @@ ROOT = "/World"
 
 
 def _pxr():
-    from pxr import Gf, Sdf, Usd, UsdGeom  # noqa: PLC0415
+    from pxr import Gf, Sdf, Usd, UsdGeom
 
     return Gf, Sdf, Usd, UsdGeom
 

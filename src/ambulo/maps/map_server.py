@@ -138,7 +138,7 @@ def save_map_yaml(path: str | Path, grid: Grid2D, *, image_format: str = "pgm", 
     if image_format == "pgm":
         write_pgm(image_path, image, comment=f"CREATOR: ambulo.maps {grid.resolution_m:.3f} m/pix")
     else:
-        import imageio.v3 as iio  # noqa: PLC0415 - only for PNG maps
+        import imageio.v3 as iio  # only for PNG maps
 
         atomic_write_bytes(image_path, iio.imwrite("<bytes>", np.ascontiguousarray(image), extension=".png"))
     (ox, oy) = grid.origin_xy_m
@@ -171,7 +171,7 @@ def read_image(path: str | Path) -> tuple[np.ndarray, float]:
     path = Path(path)
     if path.suffix.lower() in (".pgm", ".pnm"):
         return read_pgm(path)
-    import imageio.v3 as iio  # noqa: PLC0415 - PNG/BMP decoding only when asked
+    import imageio.v3 as iio  # PNG/BMP decoding only when asked
 
     try:
         pixels = iio.imread(path)

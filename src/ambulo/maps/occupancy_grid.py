@@ -89,9 +89,9 @@ def from_occupancy_grid(message) -> Grid2D:
 def to_msg(occupancy_grid: dict, *, stamp=None):
     """A ``nav_msgs.msg.OccupancyGrid`` of the dict form (needs ``pip install 'ambulo[ros2]'``);
     ``stamp`` (``builtin_interfaces/Time``) goes into the header and ``info.map_load_time``."""
-    from geometry_msgs.msg import Point, Pose, Quaternion  # noqa: PLC0415 - the ros2 extra, only when asked
-    from nav_msgs.msg import MapMetaData, OccupancyGrid  # noqa: PLC0415
-    from std_msgs.msg import Header  # noqa: PLC0415
+    from geometry_msgs.msg import Point, Pose, Quaternion  # the ros2 extra, only when asked
+    from nav_msgs.msg import MapMetaData, OccupancyGrid
+    from std_msgs.msg import Header
 
     info = occupancy_grid["info"]
     p, q = info["origin"]["position"], info["origin"]["orientation"]

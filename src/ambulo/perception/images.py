@@ -53,7 +53,7 @@ def draw_path(rgb: np.ndarray, grid: Slice2D, xy_m: np.ndarray, color=(30, 90, 2
 
 def write_png(path: str | Path, rgb: np.ndarray, scale: int = 4) -> Path:
     """Write a map picture, y up, each cell ``scale`` x ``scale`` pixels."""
-    import imageio.v3 as iio  # noqa: PLC0415
+    import imageio.v3 as iio
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

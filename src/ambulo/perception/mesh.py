@@ -52,7 +52,7 @@ def marching_cubes(tsdf: np.ndarray, weight: np.ndarray, color: np.ndarray, orig
                    voxel_size_m: float, min_weight: float = 1.0) -> Mesh:
     """Zero level set of a dense (X, Y, Z) tsdf grid whose voxel [0, 0, 0] is centred at
     ``origin_centre_m``; only cubes with 8 observed corners make triangles."""
-    from skimage.measure import marching_cubes as skimage_mc  # noqa: PLC0415 - perception extra
+    from skimage.measure import marching_cubes as skimage_mc  # perception extra
 
     mask = _corner_observed(weight, min_weight)
     if not mask.any() or tsdf[weight >= min_weight].min() >= 0 or tsdf[weight >= min_weight].max() <= 0:

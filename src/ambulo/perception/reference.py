@@ -20,7 +20,7 @@ from .frames import RgbdFrame
 
 
 def _o3d():
-    import open3d as o3d  # noqa: PLC0415 - optional (perception extra), imported when used
+    import open3d as o3d  # optional (perception extra), imported when used
     return o3d
 
 

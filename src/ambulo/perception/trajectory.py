@@ -87,9 +87,9 @@ def alignment_problem(ref_xyz, est_xyz, min_extent_m: float = MIN_EXTENT_M) -> s
 def score_tum(groundtruth: str | Path, estimate: str | Path, rpe_delta_m: float = 1.0) -> TrajectoryScore:
     """Score ``estimate`` against ``groundtruth`` (TUM files) with evo's own metrics; a metric that
     cannot be computed (``alignment_problem``, a path too short for the RPE) is None with its reason."""
-    from evo.core import filters, geometry, metrics, sync  # noqa: PLC0415 - perception extra
-    from evo.core.units import Unit  # noqa: PLC0415
-    from evo.tools import file_interface  # noqa: PLC0415
+    from evo.core import filters, geometry, metrics, sync  # perception extra
+    from evo.core.units import Unit
+    from evo.tools import file_interface
 
     if not (_has_poses(groundtruth) and _has_poses(estimate)):
         none = "no poses to score"

@@ -57,7 +57,7 @@ class ShippedPolicy:
         self._session = None
         self._jit = None
         try:
-            import onnxruntime as ort  # noqa: PLC0415
+            import onnxruntime as ort
 
             options = ort.SessionOptions()
             options.intra_op_num_threads = 1  # a 72x256 MLP: threads cost more than they give

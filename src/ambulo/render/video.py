@@ -36,7 +36,7 @@ class VideoError(RuntimeError):
 def _ffmpeg(path: Path):
     """imageio-ffmpeg, after checking that it finds an ffmpeg executable."""
     try:
-        import imageio_ffmpeg  # noqa: PLC0415 - loaded only when a video is written
+        import imageio_ffmpeg  # loaded only when a video is written
 
         exe = imageio_ffmpeg.get_ffmpeg_exe()  # IMAGEIO_FFMPEG_EXE is returned unchecked
         if not (os.path.isfile(exe) or shutil.which(exe)):

@@ -107,9 +107,9 @@ def evaluate_shipped(task: str, *, num_episodes: int = 100, episode_length_s: fl
                      seed: int = 12345, device: str = "cpu", quiet: bool = False) -> dict:
     """Evaluate the policy that ships with ambulo for ``task`` (``ambulo.policies``) as
     ``evaluate`` measures a run: the same episodes, metrics and criteria; no run folder needed."""
-    from ambulo.policies.shipped import load_policy  # noqa: PLC0415
+    from ambulo.policies.shipped import load_policy
 
-    from .vecenv import RslRlVecEnv  # noqa: PLC0415
+    from .vecenv import RslRlVecEnv
 
     shipped = load_policy(task)
     spec = envs.spec(task)

@@ -60,7 +60,7 @@ def export(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = Non
     The ONNX model is run with onnxruntime on real observations and compared with the torch
     policy; a difference above ``ONNX_TOLERANCE`` raises ``RuntimeError``.
     """
-    import onnxruntime as ort  # noqa: PLC0415
+    import onnxruntime as ort
 
     run_dir, ckpt = runs.resolve_policy(run, checkpoint, log_root)
     info = runs.read_run_info(run_dir)

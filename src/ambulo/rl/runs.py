@@ -112,9 +112,9 @@ def resolve_policy(run: str | os.PathLike, checkpoint: str | os.PathLike | None 
 def load_runner(run_dir: Path, env: envs.RLEnv, checkpoint: Path):
     """An ``OnPolicyRunner`` on ``env`` with the run's networks and the weights of
     ``checkpoint`` (from ``resolve_policy``), without logging."""
-    from rsl_rl.runners import OnPolicyRunner  # noqa: PLC0415
+    from rsl_rl.runners import OnPolicyRunner
 
-    from .vecenv import RslRlVecEnv  # noqa: PLC0415
+    from .vecenv import RslRlVecEnv
 
     info = read_run_info(run_dir)
     ppo = ppo_from_info(info)

@@ -12,7 +12,7 @@ from .scenes import SCENES, SceneCfg, file_world, humanoid_world, jetbot_world
 
 def __getattr__(name: str):
     if name in ("Ros2Bridge", "attach_bridge"):
-        from . import bridge  # noqa: PLC0415 - imports rclpy
+        from . import bridge  # imports rclpy
 
         return getattr(bridge, name)
     raise AttributeError(f"module 'ambulo.ros2' has no attribute {name!r}")

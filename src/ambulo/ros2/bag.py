@@ -74,9 +74,9 @@ def recover(path: str | Path) -> int:
     """Rebuild the bag at ``path`` whose recording was killed (no ``metadata.yaml``) from every whole
     MCAP chunk; returns the number of messages kept, or -1 for a complete bag (left alone). The
     messages are held in memory while the bag is rewritten."""
-    from mcap.exceptions import EndOfFile, McapError  # noqa: PLC0415
-    from mcap.records import Channel, Chunk, Message, Schema  # noqa: PLC0415
-    from mcap.stream_reader import StreamReader  # noqa: PLC0415
+    from mcap.exceptions import EndOfFile, McapError
+    from mcap.records import Channel, Chunk, Message, Schema
+    from mcap.stream_reader import StreamReader
 
     path = Path(path)
     if (path / "metadata.yaml").exists():

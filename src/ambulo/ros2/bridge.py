@@ -60,7 +60,7 @@ class Ros2Bridge:
             raise ValueError(f"a ROS 2 bridge serves one world; this World has num_worlds={world.num_worlds}")
         self.world, self.cfg = world, cfg or BridgeCfg()
         self.rclpy = import_rclpy()
-        from rclpy.serialization import serialize_message  # noqa: PLC0415 - after import_rclpy finds it
+        from rclpy.serialization import serialize_message  # after import_rclpy finds it
 
         self.published: Counter = Counter()
         """topic -> messages published (the publisher process's counts, filled in by ``close()``)."""

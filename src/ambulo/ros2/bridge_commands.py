@@ -108,7 +108,7 @@ class CommandIntake:
 
     # -- applying them (physics thread, before each step) ------------------------------------------
     def apply(self) -> None:
-        from ..sim import ArticulationAction  # noqa: PLC0415
+        from ..sim import ArticulationAction
 
         if not self.pending and self.cmd_vel is None and not self.walking:  # nothing new, nothing to follow
             return

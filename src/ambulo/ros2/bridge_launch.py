@@ -151,9 +151,9 @@ def static_messages(world, cfg, scene, serialize) -> tuple[list[tuple[str, bytes
     ns = int(round(world.current_time * 1e9))
     static, urdf = [], None
     if scene.robots:
-        from std_msgs.msg import String  # noqa: PLC0415
+        from std_msgs.msg import String
 
-        from .urdf import robot_description  # noqa: PLC0415
+        from .urdf import robot_description
 
         urdf = robot_description(world.model, scene.robots, cfg.frame_prefix + cfg.odom_frame)
         static.append(("robot_description", serialize(String(data=urdf)), ns))
@@ -191,7 +191,7 @@ class PublisherProcess:
     """
 
     def __init__(self, spec: dict, frame_slot_bytes: int, cfg, on_command: Callable[[tuple], None]):
-        from multiprocessing.connection import Connection  # noqa: PLC0415
+        from multiprocessing.connection import Connection
 
         layout = spec["layout"]
         self.on_command = on_command
@@ -304,7 +304,7 @@ def _set_publisher_cpus(pid: int, cpus) -> None:
     if cpus == "auto":
         allowed = os.sched_getaffinity(0)
         try:
-            import ctypes  # noqa: PLC0415
+            import ctypes
 
             here = ctypes.CDLL(None).sched_getcpu()
         except (OSError, AttributeError):

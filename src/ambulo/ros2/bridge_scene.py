@@ -22,8 +22,8 @@ class SceneDiscovery:
     """
 
     def __init__(self, world, cfg):
-        from ..sensors import Camera, Imu, Lidar  # noqa: PLC0415
-        from ..sim import Articulation  # noqa: PLC0415
+        from ..sensors import Camera, Imu, Lidar
+        from ..sim import Articulation
 
         self.world, self.cfg = world, cfg
         model = world.model

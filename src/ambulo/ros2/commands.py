@@ -93,7 +93,7 @@ class DifferentialDrive:
     holonomic = False
 
     def __init__(self, robot, controller=None):
-        from ..sim import DifferentialController  # noqa: PLC0415
+        from ..sim import DifferentialController
 
         self.robot = robot
         self.controller = controller or DifferentialController()
@@ -165,7 +165,7 @@ class WalkingPolicyDrive:
     def hand_over(self) -> None:
         """Before a joint command: the articulation's targets become the walker's last ones, so joints
         the command does not name hold them (the walker writes the drives directly)."""
-        from ..sim import ArticulationAction  # noqa: PLC0415
+        from ..sim import ArticulationAction
 
         last = self.walker.joint_targets()[0].cpu().numpy()
         self.robot.apply_action(ArticulationAction(joint_positions=last))
@@ -174,7 +174,7 @@ class WalkingPolicyDrive:
 def walking_policy_handler(robot, physics_dt: float | None = None) -> CmdVelHandler:
     """``WalkingPolicyDrive`` when ``robot`` is the humanoid the shipped walking policy drives and
     the World steps at the policy's physics_dt; otherwise ``NoWalkingPolicy`` saying why."""
-    from ..policies.shipped import load_policy, read_contract, shipped_tasks  # noqa: PLC0415
+    from ..policies.shipped import load_policy, read_contract, shipped_tasks
 
     if POLICY_TASK not in shipped_tasks():
         return NoWalkingPolicy()
@@ -188,7 +188,7 @@ def walking_policy_handler(robot, physics_dt: float | None = None) -> CmdVelHand
             f"the humanoid's walking policy was trained at physics_dt {wanted:g} s and this World steps "
             f"{stepping}, so it cannot follow /cmd_vel; create the World with physics_dt={wanted:g} "
             f"(`ambulo bridge humanoid` does, at its default --rate {1 / wanted:g})")
-    from ..sim import HumanoidWalkingPolicy  # noqa: PLC0415
+    from ..sim import HumanoidWalkingPolicy
 
     return WalkingPolicyDrive(robot, HumanoidWalkingPolicy(robot, policy=load_policy(POLICY_TASK)), physics_dt)
 
@@ -197,7 +197,7 @@ def default_cmd_vel_handler(robot, physics_dt: float | None = None) -> CmdVelHan
     """Differential drive for a ``WheeledRobot``; the shipped walking policy for the bundled humanoid
     (``walking_policy_handler``; it stands the humanoid in the policy's default pose); a refusal
     saying why for another free-floating robot; None (no /cmd_vel) for anything else."""
-    from ..sim import WheeledRobot  # noqa: PLC0415
+    from ..sim import WheeledRobot
 
     if isinstance(robot, WheeledRobot):
         return DifferentialDrive(robot)

@@ -11,7 +11,7 @@ class FoxgloveServer:
     """``log(topic, type, cdr, stamp_ns)`` to every connected Foxglove client."""
 
     def __init__(self, port: int = 8765, host: str = "127.0.0.1"):
-        import foxglove  # noqa: PLC0415
+        import foxglove
 
         self._foxglove = foxglove
         self.context = foxglove.Context()

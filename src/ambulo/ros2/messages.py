@@ -64,7 +64,7 @@ def occupancy_grid(time_s: float, frame_id: str, costmap):
     """A ``nav_msgs/OccupancyGrid`` of an ``ambulo.perception.Costmap`` (Nav2's cost translation: see
     ``Costmap.occupancy_grid_data``); the map's origin is the lower-left corner of cell [0, 0]
     (``ambulo.maps.to_msg`` builds it)."""
-    from ..maps import to_msg  # noqa: PLC0415
+    from ..maps import to_msg
 
     return to_msg({"header": {"frame_id": frame_id}, "info": costmap.occupancy_grid_info(),
                    "data": costmap.occupancy_grid_data()}, stamp=stamp(time_s))

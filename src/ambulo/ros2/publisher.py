@@ -56,8 +56,8 @@ class Publisher:
     """The node, its publishers and subscriptions, built from the bridge's ``spec`` (a dict)."""
 
     def __init__(self, spec: dict, conn, ring: Ring):
-        from . import cdr  # noqa: PLC0415
-        from .runtime import import_rclpy, use_fastdds_profile  # noqa: PLC0415
+        from . import cdr
+        from .runtime import import_rclpy, use_fastdds_profile
 
         self.spec, self.conn, self.ring, self.cdr = spec, conn, ring, cdr
         cfg = self.cfg = spec["cfg"]
@@ -66,17 +66,17 @@ class Publisher:
             use_fastdds_profile()
         self.published: Counter = Counter()
         self.failed: Counter = Counter()
-        from rclpy._rclpy_pybind11 import RCLError  # noqa: PLC0415
+        from rclpy._rclpy_pybind11 import RCLError
 
         self._rcl_error = RCLError
         self._send_lock = threading.Lock()
         self._recorder = self.foxglove = None
         if cfg.record:
-            from .bag import BagRecorder  # noqa: PLC0415
+            from .bag import BagRecorder
 
             self._recorder = BagRecorder(cfg.record)
         if cfg.foxglove_port is not None:
-            from .foxglove_server import FoxgloveServer  # noqa: PLC0415
+            from .foxglove_server import FoxgloveServer
 
             self.foxglove = FoxgloveServer(cfg.foxglove_port)
         self.context = rclpy.Context()
@@ -93,7 +93,7 @@ class Publisher:
         self._link_bodies, self._link_parents = np.asarray(spec["link_bodies"], int), np.asarray(spec["link_parents"], int)
         for key, data, ns in spec["static"]:
             self.publish(key, data, ns)
-        from rclpy.executors import SingleThreadedExecutor  # noqa: PLC0415
+        from rclpy.executors import SingleThreadedExecutor
 
         self._executor = SingleThreadedExecutor(context=self.context)
         self._executor.add_node(self.node)
@@ -102,14 +102,14 @@ class Publisher:
         self._spinner.start()
 
     def _make_publishers(self) -> None:
-        from geometry_msgs.msg import Twist  # noqa: PLC0415
-        from nav_msgs.msg import OccupancyGrid, Odometry  # noqa: PLC0415
-        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data  # noqa: PLC0415
-        from rosgraph_msgs.msg import Clock  # noqa: PLC0415
-        from sensor_msgs.msg import CameraInfo, Image, Imu, JointState, LaserScan, PointCloud2  # noqa: PLC0415
-        from std_msgs.msg import Float64MultiArray, String  # noqa: PLC0415
+        from geometry_msgs.msg import Twist
+        from nav_msgs.msg import OccupancyGrid, Odometry
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+        from rosgraph_msgs.msg import Clock
+        from sensor_msgs.msg import CameraInfo, Image, Imu, JointState, LaserScan, PointCloud2
+        from std_msgs.msg import Float64MultiArray, String
 
-        from .raw_types import raw_message_class  # noqa: PLC0415
+        from .raw_types import raw_message_class
 
         cfg = self.cfg
         data = QoSProfile(depth=cfg.data_qos_depth, reliability=ReliabilityPolicy.RELIABLE,
@@ -137,11 +137,11 @@ class Publisher:
 
     def advertise(self, key: str, typename: str, topic: str, kind: str) -> str:
         """Create the writer ``key`` (QoS ``kind``: data, tf, static, camera); returns its full topic name."""
-        from rclpy.event_handler import PublisherEventCallbacks  # noqa: PLC0415
-        from rclpy.qos import DurabilityPolicy, ReliabilityPolicy  # noqa: PLC0415
+        from rclpy.event_handler import PublisherEventCallbacks
+        from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 
-        from .bag import bag_qos  # noqa: PLC0415
-        from .raw_types import clear_rcutils_error  # noqa: PLC0415
+        from .bag import bag_qos
+        from .raw_types import clear_rcutils_error
 
         profile = self._qos[kind]
         # the full name before the writer exists: its matched event may fire (in the executor thread)
@@ -248,7 +248,7 @@ class Publisher:
                                np.diag([imu["acc_var"]] * 3).ravel()])
 
     def _tf_cdr(self, ns: int, xpos: np.ndarray, xquat: np.ndarray) -> bytes:
-        from .frames import relative  # noqa: PLC0415
+        from .frames import relative
 
         parents = self._link_parents
         pos_p = np.where(parents[:, None] < 0, 0.0, xpos[np.maximum(parents, 0)])
@@ -277,7 +277,7 @@ def _die_with_parent() -> None:
     """Get SIGTERM when the bridge's process dies (even by SIGKILL without closing the bridge):
     ``serve`` then leaves the ROS graph (so Fast DDS removes its shared memory) and exits at once,
     leaving the bag unfinished, as a node inside the killed process would have."""
-    import ctypes  # noqa: PLC0415
+    import ctypes
 
     try:
         ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
@@ -286,7 +286,7 @@ def _die_with_parent() -> None:
 
 
 def serve(memfd: int, sockfd: int, wakefd: int) -> int:
-    from multiprocessing.connection import Connection  # noqa: PLC0415
+    from multiprocessing.connection import Connection
 
     parent = os.getppid()
     _die_with_parent()
@@ -294,7 +294,7 @@ def serve(memfd: int, sockfd: int, wakefd: int) -> int:
         return 1
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the bridge's to handle: it closes us
     try:  # naps of NAP_S, not NAP_S + the default 50 us timer slack
-        import ctypes  # noqa: PLC0415
+        import ctypes
 
         ctypes.CDLL(None).prctl(29, 5000)  # PR_SET_TIMERSLACK, ns
     except (OSError, AttributeError):
@@ -306,7 +306,7 @@ def serve(memfd: int, sockfd: int, wakefd: int) -> int:
     ring = Ring(memfd, spec["layout"])
     frames = None
     if spec.get("frames") is not None:
-        from .frame_ring import FrameRing  # noqa: PLC0415
+        from .frame_ring import FrameRing
 
         frames_fd, slots, slot_bytes = spec["frames"]
         frames = FrameRing(frames_fd, slots, slot_bytes)
@@ -333,7 +333,7 @@ def serve(memfd: int, sockfd: int, wakefd: int) -> int:
     publisher.send(("ready", {key: topic for key, (_, _, _, topic) in publisher._pubs.items()},
                     publisher.node.get_fully_qualified_name(),
                     None if publisher.foxglove is None else publisher.foxglove.port))
-    import gc  # noqa: PLC0415
+    import gc
 
     gc.freeze()  # the modules' objects (rclpy, NumPy, MuJoCo, ...) need no scanning: a full collection
     # of them would hold every message back for tens of ms

@@ -172,7 +172,7 @@ class _RawMeta(type):
 def raw_message_class(typename: str) -> type:
     """A message class for ``typename`` (``pkg/msg/Name``) that rclpy publishers and raw
     subscriptions accept; its instances are never made: publish CDR ``bytes``."""
-    import rclpy  # noqa: F401, PLC0415 - puts the ROS libraries on the loader's path first
+    import rclpy  # noqa: F401 - puts the ROS libraries on the loader's path first
 
     package, _, name = typename.split("/")
     keep: list = []

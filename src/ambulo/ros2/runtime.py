@@ -21,10 +21,10 @@ class Ros2Unavailable(RuntimeError):
 def import_rclpy():
     """``rclpy``, or ``Ros2Unavailable`` naming what to install."""
     try:
-        import rclpy  # noqa: PLC0415
-        import sensor_msgs.msg  # noqa: F401, PLC0415
-        import nav_msgs.msg  # noqa: F401, PLC0415
-        import rosgraph_msgs.msg  # noqa: F401, PLC0415
+        import rclpy
+        import sensor_msgs.msg  # noqa: F401
+        import nav_msgs.msg  # noqa: F401
+        import rosgraph_msgs.msg  # noqa: F401
     except ImportError as err:
         raise Ros2Unavailable(f"the ROS 2 bridge needs {err.name or 'rclpy'!r}, which cannot be imported "
                               f"({err}); {INSTALL_HINT}") from err

@@ -27,7 +27,7 @@ class SceneCfg(Checked):
 
 
 def _world(cfg: SceneCfg, default_dt_s: float = 0.01):
-    from ..sim import World  # noqa: PLC0415
+    from ..sim import World
 
     world = World(physics_dt=default_dt_s if cfg.physics_dt_s is None else cfg.physics_dt_s)
     world.scene.add_default_ground_plane()
@@ -35,7 +35,7 @@ def _world(cfg: SceneCfg, default_dt_s: float = 0.01):
 
 
 def _sensors(world, imu_path: str, camera_path: str | None, lidar_path: str | None, cfg: SceneCfg) -> None:
-    from ..sensors import Camera, CameraCfg, Imu, ImuCfg, Lidar, lidar_2d  # noqa: PLC0415
+    from ..sensors import Camera, CameraCfg, Imu, ImuCfg, Lidar, lidar_2d
 
     world.scene.add(Imu(ImuCfg(prim_path=imu_path)))
     if cfg.camera and camera_path is not None:
@@ -47,8 +47,8 @@ def _sensors(world, imu_path: str, camera_path: str | None, lidar_path: str | No
 
 def jetbot_world(cfg: SceneCfg | None = None):
     """The Jetbot at the origin facing +x: a ``WheeledRobot`` that /cmd_vel drives."""
-    from .. import assets  # noqa: PLC0415
-    from ..sim import WheeledRobot  # noqa: PLC0415
+    from .. import assets
+    from ..sim import WheeledRobot
 
     cfg = cfg or SceneCfg()
     world = _world(cfg)
@@ -65,8 +65,8 @@ def humanoid_world(cfg: SceneCfg | None = None):
     physics_dt its shipped walking policy was trained at, from the policy's contract) unless ``cfg`` says
     otherwise; a bridge drives its /cmd_vel through the walking policy, its joints from the joint
     command topics."""
-    from .. import assets  # noqa: PLC0415
-    from ..sim import Robot, add_reference_to_stage  # noqa: PLC0415
+    from .. import assets
+    from ..sim import Robot, add_reference_to_stage
 
     cfg = cfg or SceneCfg()
     prim = humanoid.STAGE_PRIM_PATH
@@ -80,7 +80,7 @@ def humanoid_world(cfg: SceneCfg | None = None):
 
 def file_world(path: str, cfg: SceneCfg | None = None):
     """Any robot file ambulo loads (MJCF, URDF, USD) as ``/World/Robot`` on a ground plane."""
-    from ..sim import Robot, add_reference_to_stage  # noqa: PLC0415
+    from ..sim import Robot, add_reference_to_stage
 
     cfg = cfg or SceneCfg()
     world = _world(cfg)

@@ -124,7 +124,7 @@ def noise_texture(rng: np.random.Generator, size: int) -> np.ndarray:
 def _add_textures(spec: mujoco.MjSpec, rng: np.random.Generator, size: int, count: int) -> list[str]:
     """``count`` materials with noise textures: index 0 is a 2D one for the floor plane, the rest
     cube-mapped for boxes (a 2D texture on a box is projected along z and streaks on its sides)."""
-    import imageio.v3 as iio  # noqa: PLC0415
+    import imageio.v3 as iio
 
     names = []
     for k in range(count):

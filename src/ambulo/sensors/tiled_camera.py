@@ -206,7 +206,7 @@ class TiledCamera(Sensor):
         if engine.use_graphs:
             if self._graph is None or self._graph_version != engine.model_version:
                 self._capture()
-            import warp as wp  # noqa: PLC0415 - the warp engine's dependency
+            import warp as wp  # the warp engine's dependency
 
             with engine.warp_scope():
                 wp.capture_launch(self._graph)
@@ -219,8 +219,8 @@ class TiledCamera(Sensor):
     def _launch(self) -> None:
         """``refit_bvh``, ``render``, then one pass that unpacks the render context's buffers
         into the (N, H, W, C) outputs (rgb bytes, +inf for misses, geom and semantic ids)."""
-        import mujoco_warp as mjw  # noqa: PLC0415
-        import warp as wp  # noqa: PLC0415
+        import mujoco_warp as mjw
+        import warp as wp
 
         m, d, rc = self.engine.wp_model, self.engine.wp_data, self._context
         mjw.refit_bvh(m, d, rc)
@@ -234,9 +234,9 @@ class TiledCamera(Sensor):
         """Capture ``_launch`` as a CUDA graph. The graph holds the engine's model arrays, so it
         is captured again when ``engine.model_version`` changes; the render context itself holds
         none (MuJoCo Warp passes them at each launch) and is kept."""
-        import warp as wp  # noqa: PLC0415
+        import warp as wp
 
-        from ambulo.engine.gpu import capture_graph  # noqa: PLC0415 - needs the warp engine's packages
+        from ambulo.engine.gpu import capture_graph  # needs the warp engine's packages
 
         engine = self.engine
         with engine.warp_scope():
@@ -249,7 +249,7 @@ class TiledCamera(Sensor):
     def _warp_outputs(self) -> list:
         """Warp views of the output tensors as the unpack kernel takes them, (N, H*W[, 3]);
         empty arrays for outputs not asked for."""
-        import warp as wp  # noqa: PLC0415
+        import warp as wp
 
         n, (h, w) = self.engine.num_worlds, self._data.image_shape
         views = []
@@ -263,7 +263,7 @@ class TiledCamera(Sensor):
         return views
 
     def _create_context(self):
-        import mujoco_warp as mjw  # noqa: PLC0415
+        import mujoco_warp as mjw
 
         model = self.engine.model.__copy__()
         # MuJoCo Warp reads the far clip from the model's visual settings (scaled by extent)
@@ -349,7 +349,7 @@ class TiledCamera(Sensor):
 def _unpack_kernel():
     """The Warp kernel that turns render-context buffers into the outputs (built on first use,
     so that importing this module needs no Warp)."""
-    import warp as wp  # noqa: PLC0415
+    import warp as wp
 
     @wp.kernel(module="unique", enable_backward=False)
     def unpack(rgb_in: wp.array2d(dtype=wp.uint32), depth_in: wp.array2d(dtype=wp.float32),

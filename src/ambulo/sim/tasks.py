@@ -101,8 +101,8 @@ class BaseTask:
 
 def _shift_on_stage(prim_path: str, offset: np.ndarray) -> None:
     """Move a not-yet-simulated prim's stage pose by ``offset`` (stage units)."""
-    from ..core.paths import resolve_spec_prim  # noqa: PLC0415
-    from .current import current_world  # noqa: PLC0415
+    from ..core.paths import resolve_spec_prim
+    from .current import current_world
 
     world = current_world("moving task objects")
     target = resolve_spec_prim(world.stage, prim_path)

@@ -46,7 +46,7 @@ SEMANTIC_DATA = "semantic:Semantics:params:semanticData"
 
 def _pxr():
     try:
-        from pxr import Gf, Sdf, Usd, UsdGeom, UsdPhysics  # noqa: PLC0415 - USD is optional at import
+        from pxr import Gf, Sdf, Usd, UsdGeom, UsdPhysics  # USD is optional at import
     except ImportError:
         raise ImportError("the USD stage needs pxr: pip install 'mujoco[usd]'") from None
     return Gf, Sdf, Usd, UsdGeom, UsdPhysics
@@ -198,7 +198,7 @@ class UsdStage:
             scale = self.meters_per_unit
             UsdGeom.Xformable(copy.GetPrimAtPath(ROOT)).AddScaleOp(
                 UsdGeom.XformOp.PrecisionDouble, "toMetres").Set(Gf.Vec3d(scale, scale, scale))
-        from ambulo.core.importers import load_spec  # noqa: PLC0415 - core imports sim lazily
+        from ambulo.core.importers import load_spec  # core imports sim lazily
 
         with tempfile.TemporaryDirectory(prefix="ambulo-stage-") as folder:
             file = os.path.join(folder, "authored.usda")
@@ -255,7 +255,7 @@ def authored_labels(stage) -> dict[str, str]:
 
 def current_usd_stage() -> UsdStage:
     """The stage scripts author on: the current World's, else one waiting for the next World."""
-    from .current import current_world_or_none  # noqa: PLC0415 - leaf module, kept lazy for pxr-less use
+    from .current import current_world_or_none  # leaf module, kept lazy for pxr-less use
 
     global _pending
     world = current_world_or_none()
@@ -280,7 +280,7 @@ def stage_for_new_world(meters_per_unit: float) -> UsdStage:
 
 def new_usd_stage() -> UsdStage:
     """Isaac's ``create_new_stage``: an empty stage; the current World is dropped with the old one."""
-    from .current import set_current_world  # noqa: PLC0415
+    from .current import set_current_world
 
     global _pending
     set_current_world(None)
@@ -291,7 +291,7 @@ def new_usd_stage() -> UsdStage:
 def forget_stages() -> None:
     """No current World and no stage waiting for one (a new script run starts empty): the next
     ``current_usd_stage()`` or ``World()`` makes a new stage. Needs no pxr."""
-    from .current import set_current_world  # noqa: PLC0415
+    from .current import set_current_world
 
     global _pending
     set_current_world(None)

@@ -246,7 +246,7 @@ class XFormPrimView(XFormPrim):
         def write(prim, env, pv, qv):
             parent = prim._parent_pose()
             if parent is not None:
-                from ..utils.math import quat_mul, quat_rotate  # noqa: PLC0415
+                from ..utils.math import quat_mul, quat_rotate
 
                 p_pos, p_quat = parent[0][env], parent[1][env]
                 pv = None if pv is None else p_pos + quat_rotate(p_quat, pv)

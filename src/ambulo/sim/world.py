@@ -294,8 +294,8 @@ class World(TaskHost):
 
     def _with_authored(self, authored: mujoco.MjSpec) -> mujoco.MjSpec:
         """A copy of the stage with the USD-authored prims attached under ``/World``, labelled."""
-        from ..core.physics import match_options  # noqa: PLC0415
-        from ..core.semantics import set_semantic_label  # noqa: PLC0415
+        from ..core.physics import match_options
+        from ..core.semantics import set_semantic_label
 
         spec = self.stage.copy()
         match_options(authored, spec)
@@ -309,7 +309,7 @@ class World(TaskHost):
     def _write_authored_velocities(self) -> None:
         """Initial velocities authored with ``physics:velocity`` on free bodies (world frame in;
         MuJoCo's free joint takes the angular part in the body frame)."""
-        from ..utils.rotations import quat_to_mat  # noqa: PLC0415
+        from ..utils.rotations import quat_to_mat
 
         model, qvel = self.engine.model, self.engine.field("qvel")
         for name, (lin, ang) in self.usd.initial_velocities().items():

@@ -69,7 +69,7 @@ def convert_mesh(path: Path) -> tuple[Path, bool]:
 
 def _to_obj(path: Path) -> str:
     try:
-        import trimesh  # noqa: PLC0415 - only files with such meshes need it
+        import trimesh  # only files with such meshes need it
     except ImportError:
         raise MeshConversionError(
             f"{path.name}: MuJoCo cannot read {path.suffix} meshes and converting them needs "

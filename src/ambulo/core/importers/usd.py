@@ -32,7 +32,7 @@ _PER_RAD = 180.0 / math.pi
 
 def load_usd(file: Path) -> mujoco.MjSpec:
     try:
-        from pxr import Usd  # noqa: PLC0415 - only USD needs pxr
+        from pxr import Usd  # only USD needs pxr
     except ImportError:
         raise AssetError("reading USD needs pxr: pip install 'mujoco[usd]'") from None
     try:
@@ -63,7 +63,7 @@ def load_usd(file: Path) -> mujoco.MjSpec:
 
 
 def _disabled(prim) -> bool:
-    from pxr import UsdPhysics  # noqa: PLC0415
+    from pxr import UsdPhysics
 
     return prim.IsA(UsdPhysics.Joint) and UsdPhysics.Joint(prim).GetJointEnabledAttr().Get() is False
 
@@ -73,7 +73,7 @@ def _without_disabled_joints(stage, file: Path, folder: Path) -> str:
     ``physics:jointEnabled = false`` (which the importer does not read), a layer over it that
     deactivates them. As in PhysX, a disabled joint does not connect its bodies: a body it
     held becomes a free body, carrying the links jointed below it."""
-    from pxr import Sdf  # noqa: PLC0415
+    from pxr import Sdf
 
     disabled = [prim.GetPath() for prim in stage.Traverse() if _disabled(prim)]
     if not disabled:
@@ -127,7 +127,7 @@ def _default_prim_path(stage, file: Path) -> str:
 
 
 def _check_limits(stage, file: Path) -> None:
-    from pxr import UsdPhysics  # noqa: PLC0415
+    from pxr import UsdPhysics
 
     for prim in stage.Traverse():
         for cls in (UsdPhysics.RevoluteJoint, UsdPhysics.PrismaticJoint):
@@ -143,7 +143,7 @@ def _check_limits(stage, file: Path) -> None:
 
 def _drop_reason(prim, stage) -> str | None:
     """Why MuJoCo's USD importer dropped joint ``prim``; None for a fixed joint (welded)."""
-    from pxr import UsdPhysics  # noqa: PLC0415
+    from pxr import UsdPhysics
 
     if prim.IsA(UsdPhysics.FixedJoint) or _disabled(prim):
         return None  # welded, or left out on purpose (jointEnabled = false)
@@ -167,7 +167,7 @@ def _drop_reason(prim, stage) -> str | None:
 
 
 def _warn_dropped_joints(stage, spec: mujoco.MjSpec, relative, file: Path) -> None:
-    from pxr import UsdPhysics  # noqa: PLC0415
+    from pxr import UsdPhysics
 
     dropped = []
     for prim in stage.Traverse():
@@ -182,7 +182,7 @@ def _warn_dropped_joints(stage, spec: mujoco.MjSpec, relative, file: Path) -> No
 
 def _add_drives(stage, spec: mujoco.MjSpec, relative) -> None:
     """Turn UsdPhysics DriveAPI gains into ambulo drives (MuJoCo's importer skips them)."""
-    from pxr import UsdPhysics  # noqa: PLC0415
+    from pxr import UsdPhysics
 
     for prim in stage.Traverse():
         if not prim.IsA(UsdPhysics.Joint):

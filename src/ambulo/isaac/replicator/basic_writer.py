@@ -119,7 +119,7 @@ class BasicWriter:
 
     def attach(self, render_products, **_trigger_args) -> None:
         """Write the frames of ``render_products`` (one product, or a list of one)."""
-        from .graph import current_graph  # noqa: PLC0415 - the graph imports writers lazily too
+        from .graph import current_graph  # the graph imports writers lazily too
 
         if self.output_dir is None:
             raise RuntimeError("call writer.initialize(output_dir=..., ...) before writer.attach(...)")
@@ -132,7 +132,7 @@ class BasicWriter:
             graph.writers.append(self)
 
     def detach(self) -> None:
-        from .graph import current_graph  # noqa: PLC0415
+        from .graph import current_graph
 
         self.render_products = []
         graph = current_graph()

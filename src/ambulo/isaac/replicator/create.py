@@ -217,7 +217,7 @@ def material_omnipbr(diffuse=None, count: int = 1, **unsupported_args):
 def render_product(camera, resolution, force_new: bool = False, name: str | None = None):
     """What a writer is attached to: ``camera`` (an item or prim path from rep.create.camera) at
     ``resolution`` (width, height) px."""
-    from .orchestrator import RenderProduct  # noqa: PLC0415 - orchestrator imports this module
+    from .orchestrator import RenderProduct  # orchestrator imports this module
 
     graph = current_graph()
     paths = paths_of(camera) if not (isinstance(camera, str) and camera not in graph.prims) else [camera]

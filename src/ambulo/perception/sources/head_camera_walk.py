@@ -294,7 +294,7 @@ class PolicyHeadCameraWalk:
 
     def __init__(self, scene: IndoorScene, walk: WalkCfg | None = None, *, width: int = 320, height: int = 240,
                  focal_length_px: float | None = None, walker: bool = True):
-        from ambulo.sim import HumanoidWalkingPolicy, Robot, World  # noqa: PLC0415 - the sim layer is heavy
+        from ambulo.sim import HumanoidWalkingPolicy, Robot, World  # the sim layer is heavy
 
         self.walk = walk or WalkCfg()
         self.world = World(physics_dt=POLICY_PHYSICS_DT_S, rendering_dt=1.0 / self.walk.fps)

@@ -26,7 +26,7 @@ class SgbmCfg(Checked):
 def sgbm_disparity(left: np.ndarray, right: np.ndarray, cfg: SgbmCfg | None = None) -> np.ndarray:
     """(H, W) float32 disparity of the left image, px; ``nan`` where SGBM found no match.
     ``left`` / ``right``: rectified (H, W, 3) uint8 RGB or (H, W) grey."""
-    import cv2  # noqa: PLC0415 - perception extra
+    import cv2  # perception extra
 
     cfg = cfg or SgbmCfg()
     grey = [cv2.cvtColor(img, cv2.COLOR_RGB2GRAY) if img.ndim == 3 else img for img in (left, right)]

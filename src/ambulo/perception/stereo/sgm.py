@@ -209,7 +209,7 @@ def resolve_aggregation(aggregation: str, device: torch.device) -> str:
     (through ``stereo.kernels``) only when asked about it, so the torch path needs no Warp."""
     if aggregation == "torch":
         return "torch"
-    from . import kernels  # noqa: PLC0415 - Warp is optional and slow to import
+    from . import kernels  # Warp is optional and slow to import
 
     if aggregation == "warp":
         if not kernels.available():
@@ -222,7 +222,7 @@ def resolve_aggregation(aggregation: str, device: torch.device) -> str:
 def aggregate_with(cost: torch.Tensor, cfg: SgmCfg) -> torch.Tensor:
     """``aggregate(cost, cfg)`` by whoever ``cfg.aggregation`` picks on the cost's device."""
     if resolve_aggregation(cfg.aggregation, cost.device) == "warp":
-        from .kernels import aggregate_warp  # noqa: PLC0415
+        from .kernels import aggregate_warp
 
         return aggregate_warp(cost, cfg)
     return aggregate(cost, cfg)
@@ -332,7 +332,7 @@ class CudaGraphSgm:
         if self.aggregation != "warp":
             yield
             return
-        from .kernels import warp_stream, wp  # noqa: PLC0415
+        from .kernels import warp_stream, wp
 
         stream = warp_stream(device)
         # GLOBAL: the mode torch.cuda.graph opened the capture with (Warp uses it only to resume one)

@@ -235,7 +235,7 @@ def check_state(st: list[int]) -> int:
     """The skip reason in a read state (0: the frame was integrated); raises for a block beyond the
     key range."""
     if st[S_SKIP] == SKIP_OUT_OF_RANGE:
-        from .block_hash import raise_out_of_range  # noqa: PLC0415 - only on bad input
+        from .block_hash import raise_out_of_range  # only on bad input
 
         raise_out_of_range()
     return st[S_SKIP]

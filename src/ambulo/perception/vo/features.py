@@ -57,7 +57,7 @@ class OrbFeatures:
     """OpenCV ORB keypoints and a Hamming matcher with Lowe's ratio test; host (CPU) tensors."""
 
     def __init__(self, cfg: VoCfg, k: torch.Tensor):
-        import cv2  # noqa: PLC0415 - perception extra
+        import cv2  # perception extra
 
         self.cv2, self.cfg, self.k = cv2, cfg, k
         self.orb = cv2.ORB_create(nfeatures=cfg.num_features, fastThreshold=cfg.fast_threshold)
@@ -95,7 +95,7 @@ class KorniaFeatures:
     """
 
     def __init__(self, cfg: VoCfg, k: torch.Tensor, device: torch.device):
-        import kornia.feature as kf  # noqa: PLC0415 - perception extra
+        import kornia.feature as kf  # perception extra
 
         self.kf, self.cfg, self.kcfg, self.k, self.device = kf, cfg, cfg.kornia, k, device
         self.sift = kf.SIFTDescriptor(self.kcfg.descriptor_patch_px, 8, 4, rootsift=True).to(device)
@@ -109,8 +109,8 @@ class KorniaFeatures:
 
     def detect(self, rgb, depth_m) -> FrameFeatures:
         """``rgb`` (H, W, 3) uint8 and ``depth_m`` (H, W) metres, numpy or torch (any device)."""
-        from kornia.color import rgb_to_grayscale  # noqa: PLC0415
-        from kornia.geometry.subpix import nms2d  # noqa: PLC0415
+        from kornia.color import rgb_to_grayscale
+        from kornia.geometry.subpix import nms2d
 
         c = self.kcfg
         rgb = torch.as_tensor(rgb).to(self.device)
@@ -164,7 +164,7 @@ class KorniaFeatures:
         """(1, 1, H, W) corner response. Shi-Tomasi is kornia's ``gftt_response`` with the three
         structure-tensor products blurred in one ``gaussian_blur2d`` call (one kernel and one pass
         instead of three; per channel the same arithmetic, bit for bit); Harris is kornia's."""
-        from kornia.filters import gaussian_blur2d, spatial_gradient  # noqa: PLC0415
+        from kornia.filters import gaussian_blur2d, spatial_gradient
 
         if self.kcfg.response == "harris":
             return self.kf.harris_response(gray)
@@ -191,7 +191,7 @@ class KorniaFeatures:
         only that level is built (kornia builds all of them), into an atlas of kornia's width so that
         the sampling coordinates round exactly as kornia's; the parts of the grid that do not depend
         on the keypoint are made once per image size (``_patch_grid``)."""
-        from kornia.geometry.transform import pyrdown  # noqa: PLC0415
+        from kornia.geometry.transform import pyrdown
 
         h, w = gray.shape[-2:]
         g = self._patch_grid(h, w)
@@ -217,7 +217,7 @@ class KorniaFeatures:
         atlas (a one-level pyramid, or an atlas over its 128 MiB budget): ``detect`` then calls kornia."""
         if (h, w) in self._grids:
             return self._grids[(h, w)]
-        import torch.nn.functional as F  # noqa: PLC0415, N812
+        import torch.nn.functional as F  # noqa: N812
 
         c, p, dev = self.kcfg, self.kcfg.descriptor_patch_px, self.device
         heights, widths = [h], [w]  # kornia's pyramid sizes (extract_patches_from_pyramid)
@@ -267,7 +267,7 @@ class KorniaFeatures:
         if self._sift_parts is None:
             return s(patches)
         magnitude_orientation, l2_normalize, rootsift = self._sift_parts
-        from kornia.filters import spatial_gradient  # noqa: PLC0415
+        from kornia.filters import spatial_gradient
 
         grads = spatial_gradient(patches, "diff")
         mag, ori = magnitude_orientation(grads[:, :, 0], grads[:, :, 1], s.eps)
@@ -301,7 +301,7 @@ def _kornia_sift_parts():
     """kornia's private SIFT steps ``(_gradient_magnitude_orientation, _l2_normalize, _rootsift)``,
     or None where this kornia lacks them (``KorniaFeatures._sift`` then calls the module)."""
     try:
-        from kornia.feature.siftdesc import _gradient_magnitude_orientation, _l2_normalize, _rootsift  # noqa: PLC0415
+        from kornia.feature.siftdesc import _gradient_magnitude_orientation, _l2_normalize, _rootsift
     except ImportError:
         return None
     return _gradient_magnitude_orientation, _l2_normalize, _rootsift
@@ -314,8 +314,8 @@ def _kornia_blur_parts(device: torch.device):
     ``get_gaussian_kernel1d`` and ``taps`` its 7 weights as (1, 1, 1, 1) tensors. None where this
     kornia lacks the private CPU test."""
     try:
-        from kornia.filters import filter2d_separable, get_gaussian_kernel1d  # noqa: PLC0415
-        from kornia.filters.gaussian import _gaussian_blur2d_cpu_eligible  # noqa: PLC0415
+        from kornia.filters import filter2d_separable, get_gaussian_kernel1d
+        from kornia.filters.gaussian import _gaussian_blur2d_cpu_eligible
     except ImportError:
         return None
     sigma = torch.tensor([[1.0, 1.0]], device=device)

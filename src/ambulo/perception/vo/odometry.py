@@ -142,7 +142,7 @@ class RgbdOdometry:
         if self.cfg.pnp == "torch":
             return ransac_pose_rgbd(points_w, pix, points_c, valid, self.k_t, self.cfg.ransac_iterations,
                                     self.cfg.ransac_reprojection_px, self.rng)
-        import cv2  # noqa: PLC0415 - perception extra
+        import cv2  # perception extra
 
         # minimal-set RANSAC (AP3P), never seeded with the motion prior: a seeded iterative solver
         # follows a slowly moving object's points together with its own prediction and drifts
@@ -336,7 +336,7 @@ def _angle_deg(rotation: np.ndarray) -> float:
 
 def _interpolate_identity(motion: np.ndarray, factor: float) -> np.ndarray:
     """``motion`` scaled toward identity: translation times ``factor``, rotation angle times ``factor``."""
-    import cv2  # noqa: PLC0415
+    import cv2
 
     rvec, _ = cv2.Rodrigues(motion[:3, :3])
     rot, _ = cv2.Rodrigues(rvec * factor)
