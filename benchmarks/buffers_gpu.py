@@ -26,9 +26,9 @@ import mujoco
 import mujoco_warp as mjw
 import torch
 import warp as wp
+from env_gpu import RawWarp, sync
 
 import ambulo.envs
-from env_gpu import RawWarp, sync
 
 
 def peak_usage(env, steps: int, generator: torch.Generator) -> tuple[int, int]:

@@ -34,7 +34,7 @@ import datetime
 import gc
 import json
 import time
-from typing import Callable
+from collections.abc import Callable
 
 import mujoco
 import mujoco_warp as mjw
@@ -65,8 +65,8 @@ def rollout_fns(env) -> tuple[Callable, Callable, object, str]:
     ppo = ambulo.envs.spec(TASK).ppo_cfg_fn()
     size = f"{env.num_obs}-{'-'.join(map(str, ppo.actor_hidden_dims))}-{env.num_actions} {ppo.activation}"
     try:
-        from tensordict import TensorDict  # noqa: F401
         from rsl_rl.utils import resolve_class
+        from tensordict import TensorDict  # noqa: F401
 
         from ambulo.rl.vecenv import RslRlVecEnv
     except ImportError as err:

@@ -36,9 +36,9 @@ import torch
 import warp as wp
 
 from ambulo.core import GroundCfg, PhysicsCfg, RobotCfg, Simulation, add_ground, add_robot, new_scene
-from ambulo.sensors import TiledCamera
 from ambulo.engine.gpu import capture_graph, stack_versions
 from ambulo.engine.gpu import synchronize as sync
+from ambulo.sensors import TiledCamera
 
 DATA_TYPES = ("rgb", "depth", "instance_segmentation", "semantic_segmentation")
 EYE, TARGET = (1.6, -1.6, 1.3), (0.0, 0.0, 0.75)

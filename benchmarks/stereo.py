@@ -198,7 +198,7 @@ def main(argv=None) -> dict:
     for m in methods.values():
         m["ratio_to_fastest"] = round(m["ms"] / fastest, 3)
     result = {
-        "benchmark": "stereo", "pair": "middlebury2014-motorcycle (scikit-image, %dx%d)" % left.shape[:2],
+        "benchmark": "stereo", "pair": f"middlebury2014-motorcycle (scikit-image, {left.shape[0]}x{left.shape[1]})",
         "num_disparities": args.num_disparities, "paths": args.paths,
         "device": torch.cuda.get_device_name(device) if device.type == "cuda" else "cpu",
         "torch_threads": torch.get_num_threads(), "opencv_threads": cv_threads, "repeats": args.repeats,

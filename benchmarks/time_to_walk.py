@@ -89,9 +89,9 @@ def run_summary(root: Path) -> dict:
 def ceiling(task: str, num_envs: int, device: str, seconds: float = 5.0) -> dict:
     """Raw MuJoCo Warp env-steps/s of ``task``'s model at ``num_envs`` worlds (see the docstring)."""
     sys.path.insert(0, str(Path(__file__).parent))
-    import ambulo.envs
     from env_gpu import RawWarp
 
+    import ambulo.envs
     from ambulo.engine.gpu import synchronize
 
     env = ambulo.envs.make(task, num_envs=num_envs, device=device, seed=0)

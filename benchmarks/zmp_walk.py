@@ -126,8 +126,8 @@ def main(argv=None) -> dict:
         "setup_s": round(setup_s, 2), "wall_s": round(time.perf_counter() - t0, 2),
     }
     if args.png:
-        from ambulo.nav import GridMap
         from ambulo.locomotion.walk_plot import plot_walk
+        from ambulo.nav import GridMap
 
         size = args.distance + 3.0
         grid = GridMap.empty((size, size), resolution_m=0.05, origin_xy_m=(-1.5, -size / 2))

@@ -11,7 +11,11 @@ import argparse
 import numpy as np
 
 from ambulo.sim import (
-    Articulation, ArticulationAction, WheeledRobot, World, add_reference_to_stage,
+    Articulation,
+    ArticulationAction,
+    WheeledRobot,
+    World,
+    add_reference_to_stage,
     get_assets_root_path,
 )
 

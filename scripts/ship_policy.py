@@ -21,8 +21,7 @@ import torch
 
 from ambulo import envs
 from ambulo.policies.shipped import POLICY_DIR
-from ambulo.rl import evaluate, export
-from ambulo.rl import runs
+from ambulo.rl import evaluate, export, runs
 
 
 def contract_for(run_dir: Path, checkpoint: str, info: dict, cpu_eval: dict) -> dict:

@@ -6,8 +6,14 @@ import numpy as np
 import pytest
 
 from ambulo.utils.atomic import (
-    TMP_MARK, atomic_open, atomic_save_npy, atomic_write_json, atomic_write_text, is_partial_file,
-    remove_partial_files, temporary_name,
+    TMP_MARK,
+    atomic_open,
+    atomic_save_npy,
+    atomic_write_json,
+    atomic_write_text,
+    is_partial_file,
+    remove_partial_files,
+    temporary_name,
 )
 
 

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from script_loader import run_main
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"

@@ -12,14 +12,14 @@ from isaacsim import SimulationApp
 
 simulation_app = SimulationApp({"headless": True})
 
-import math  # noqa: E402 - Isaac modules can be imported only after the app starts
+import math  # Isaac modules can be imported only after the app starts
 
-import numpy as np  # noqa: E402
-from isaacsim.core.api import World  # noqa: E402
-from isaacsim.core.api.controllers import BaseController  # noqa: E402
-from isaacsim.core.utils.nucleus import get_assets_root_path  # noqa: E402
-from isaacsim.core.utils.types import ArticulationAction  # noqa: E402
-from isaacsim.robot.wheeled_robots.robots import WheeledRobot  # noqa: E402
+import numpy as np
+from isaacsim.core.api import World
+from isaacsim.core.api.controllers import BaseController
+from isaacsim.core.utils.nucleus import get_assets_root_path
+from isaacsim.core.utils.types import ArticulationAction
+from isaacsim.robot.wheeled_robots.robots import WheeledRobot
 
 
 class OpenLoopUnicycle(BaseController):

@@ -11,10 +11,10 @@ import isaacsim
 
 simulation_app = isaacsim.SimulationApp({"headless": True})
 
-import carb  # noqa: E402 - Isaac modules can be imported only after the app starts
-import numpy as np  # noqa: E402
-import omni  # noqa: E402
-import omni.isaac.core  # noqa: E402
+import carb  # Isaac modules can be imported only after the app starts
+import numpy as np
+import omni
+import omni.isaac.core
 
 carb.log_info("building the scene through attribute access only")
 stage = omni.usd.get_context().get_stage()

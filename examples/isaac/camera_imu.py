@@ -10,12 +10,12 @@ from isaacsim import SimulationApp
 
 simulation_app = SimulationApp({"headless": True})
 
-import numpy as np  # noqa: E402 - Isaac modules can be imported only after the app starts
-from isaacsim.core.api import World  # noqa: E402
-from isaacsim.core.api.objects import DynamicCuboid  # noqa: E402
-from isaacsim.core.utils.rotations import euler_angles_to_quat  # noqa: E402
-from isaacsim.sensors.camera import Camera  # noqa: E402
-from isaacsim.sensors.physics import IMUSensor  # noqa: E402
+import numpy as np  # Isaac modules can be imported only after the app starts
+from isaacsim.core.api import World
+from isaacsim.core.api.objects import DynamicCuboid
+from isaacsim.core.utils.rotations import euler_angles_to_quat
+from isaacsim.sensors.camera import Camera
+from isaacsim.sensors.physics import IMUSensor
 
 world = World(stage_units_in_meters=1.0)
 world.scene.add_default_ground_plane()

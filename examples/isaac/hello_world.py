@@ -8,9 +8,9 @@ from isaacsim import SimulationApp
 
 simulation_app = SimulationApp({"headless": True})
 
-import numpy as np  # noqa: E402 - Isaac modules can be imported only after the app starts
-from isaacsim.core.api import World  # noqa: E402
-from isaacsim.core.api.objects import DynamicCuboid  # noqa: E402
+import numpy as np  # Isaac modules can be imported only after the app starts
+from isaacsim.core.api import World
+from isaacsim.core.api.objects import DynamicCuboid
 
 world = World(stage_units_in_meters=1.0)
 world.scene.add_default_ground_plane()

@@ -13,16 +13,16 @@ from isaacsim import SimulationApp
 
 simulation_app = SimulationApp({"headless": True})
 
-import os  # noqa: E402 - Isaac modules can be imported only after the app starts
-import sys  # noqa: E402
+import os  # Isaac modules can be imported only after the app starts
+import sys
 
-import numpy as np  # noqa: E402
-import omni.kit.commands  # noqa: E402
-import omni.usd  # noqa: E402
-from isaacsim.asset.importer.urdf import _urdf  # noqa: E402
-from isaacsim.core.api import World  # noqa: E402
-from isaacsim.core.prims import SingleArticulation  # noqa: E402
-from isaacsim.core.utils.types import ArticulationAction  # noqa: E402
+import numpy as np
+import omni.kit.commands
+import omni.usd
+from isaacsim.asset.importer.urdf import _urdf
+from isaacsim.core.api import World
+from isaacsim.core.prims import SingleArticulation
+from isaacsim.core.utils.types import ArticulationAction
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 urdf_path = sys.argv[1] if len(sys.argv) > 1 else os.path.join(HERE, "..", "..", "src", "ambulo", "assets", "data",

@@ -13,12 +13,12 @@ from omni.isaac.kit import SimulationApp
 
 simulation_app = SimulationApp({"headless": True})
 
-import os  # noqa: E402 - Isaac modules can be imported only after the app starts
+import os  # Isaac modules can be imported only after the app starts
 
-import numpy as np  # noqa: E402
-from omni.importer.urdf import _urdf  # noqa: E402
-from omni.isaac.core import World  # noqa: E402
-from omni.isaac.core.articulations import ArticulationView  # noqa: E402
+import numpy as np
+from omni.importer.urdf import _urdf
+from omni.isaac.core import World
+from omni.isaac.core.articulations import ArticulationView
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 root_path = os.path.join(HERE, "..", "..", "src", "ambulo", "assets", "data")

@@ -11,12 +11,12 @@ from isaacsim import SimulationApp
 
 simulation_app = SimulationApp({"headless": True})
 
-import numpy as np  # noqa: E402 - Isaac modules can be imported only after the app starts
-import omni.usd  # noqa: E402
-from isaacsim.core.api import World  # noqa: E402
-from isaacsim.core.prims import SingleRigidPrim  # noqa: E402
-from omni.physx.scripts import physicsUtils  # noqa: E402
-from pxr import Gf, UsdPhysics  # noqa: E402
+import numpy as np  # Isaac modules can be imported only after the app starts
+import omni.usd
+from isaacsim.core.api import World
+from isaacsim.core.prims import SingleRigidPrim
+from omni.physx.scripts import physicsUtils
+from pxr import Gf, UsdPhysics
 
 stage = omni.usd.get_context().get_stage()
 UsdPhysics.Scene.Define(stage, "/World/physicsScene")

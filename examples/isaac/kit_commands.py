@@ -13,12 +13,12 @@ from isaacsim import SimulationApp
 
 simulation_app = SimulationApp({"headless": True})
 
-import omni.kit.commands  # noqa: E402 - Isaac modules can be imported only after the app starts
-import omni.kit.undo  # noqa: E402
-import omni.usd  # noqa: E402
-from isaacsim.core.api import World  # noqa: E402
-from isaacsim.core.prims import SingleRigidPrim  # noqa: E402
-from pxr import Gf, UsdPhysics  # noqa: E402
+import omni.kit.commands  # Isaac modules can be imported only after the app starts
+import omni.kit.undo
+import omni.usd
+from isaacsim.core.api import World
+from isaacsim.core.prims import SingleRigidPrim
+from pxr import Gf, UsdPhysics
 
 world = World()
 stage = omni.usd.get_context().get_stage()

@@ -11,11 +11,11 @@ from isaacsim import SimulationApp
 
 simulation_app = SimulationApp({"headless": True})
 
-import numpy as np  # noqa: E402 - Isaac modules can be imported only after the app starts
-from isaacsim.core.api import World  # noqa: E402
-from isaacsim.core.prims import Articulation  # noqa: E402
-from isaacsim.core.utils.nucleus import get_assets_root_path  # noqa: E402
-from isaacsim.core.utils.stage import add_reference_to_stage  # noqa: E402
+import numpy as np  # Isaac modules can be imported only after the app starts
+from isaacsim.core.api import World
+from isaacsim.core.prims import Articulation
+from isaacsim.core.utils.nucleus import get_assets_root_path
+from isaacsim.core.utils.stage import add_reference_to_stage
 
 NUM_ROBOTS = 3
 WHEEL_SPEEDS = np.array([[10.0, 10.0], [0.0, 0.0], [-10.0, -10.0]])  # rad/s, (left, right) per robot
@@ -35,7 +35,7 @@ world.reset()
 print(f"{jetbots.count} Jetbots with joints {jetbots.dof_names}")
 start, _ = jetbots.get_world_poses()
 
-for i in range(120):  # 2 s at Isaac's 60 Hz
+for _ in range(120):  # 2 s at Isaac's 60 Hz
     jetbots.set_joint_velocity_targets(WHEEL_SPEEDS)
     world.step(render=True)
 positions, _ = jetbots.get_world_poses()

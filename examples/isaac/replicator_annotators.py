@@ -14,8 +14,8 @@ from isaacsim import SimulationApp
 
 simulation_app = SimulationApp({"headless": True})
 
-import numpy as np  # noqa: E402 - Isaac modules can be imported only after the app starts
-import omni.replicator.core as rep  # noqa: E402
+import numpy as np  # Isaac modules can be imported only after the app starts
+import omni.replicator.core as rep
 
 parser = argparse.ArgumentParser()
 parser.add_argument("--num_frames", type=int, default=4)

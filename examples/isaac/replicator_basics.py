@@ -19,7 +19,7 @@ args, _ = parser.parse_known_args()
 
 simulation_app = SimulationApp({"headless": True})
 
-import omni.replicator.core as rep  # noqa: E402 - Replicator can be imported only after the app starts
+import omni.replicator.core as rep  # Replicator can be imported only after the app starts
 
 rep.set_global_seed(args.seed)
 

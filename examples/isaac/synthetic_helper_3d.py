@@ -14,14 +14,14 @@ from isaacsim import SimulationApp
 
 simulation_app = SimulationApp({"headless": True})
 
-import numpy as np  # noqa: E402 - Isaac modules can be imported only after the app starts
-from omni.isaac.core import World  # noqa: E402
-from omni.isaac.core.objects import VisualCuboid  # noqa: E402
-from omni.isaac.core.utils.rotations import euler_angles_to_quat  # noqa: E402
-from omni.isaac.core.utils.semantics import add_update_semantics  # noqa: E402
-from omni.isaac.core.utils.viewports import set_camera_view  # noqa: E402
-from omni.isaac.synthetic_utils import SyntheticDataHelper  # noqa: E402
-from omni.kit.viewport.utility import get_active_viewport  # noqa: E402
+import numpy as np  # Isaac modules can be imported only after the app starts
+from omni.isaac.core import World
+from omni.isaac.core.objects import VisualCuboid
+from omni.isaac.core.utils.rotations import euler_angles_to_quat
+from omni.isaac.core.utils.semantics import add_update_semantics
+from omni.isaac.core.utils.viewports import set_camera_view
+from omni.isaac.synthetic_utils import SyntheticDataHelper
+from omni.kit.viewport.utility import get_active_viewport
 
 parser = argparse.ArgumentParser()
 parser.add_argument("--output_dir", default=None, help="save each frame's ground truth as frame_N.npz")

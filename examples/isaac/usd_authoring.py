@@ -11,16 +11,16 @@ from isaacsim import SimulationApp
 
 simulation_app = SimulationApp({"headless": True})
 
-import math  # noqa: E402 - Isaac modules can be imported only after the app starts
+import math  # Isaac modules can be imported only after the app starts
 
-import numpy as np  # noqa: E402
-import omni.usd  # noqa: E402
-from isaacsim.core.api import World  # noqa: E402
-from isaacsim.core.api.objects import DynamicCuboid  # noqa: E402
-from isaacsim.core.prims import SingleArticulation, SingleRigidPrim  # noqa: E402
-from isaacsim.core.utils.types import ArticulationAction  # noqa: E402
-from omni.physx.scripts import physicsUtils  # noqa: E402
-from pxr import Gf, Sdf, UsdGeom, UsdPhysics  # noqa: E402
+import numpy as np
+import omni.usd
+from isaacsim.core.api import World
+from isaacsim.core.api.objects import DynamicCuboid
+from isaacsim.core.prims import SingleArticulation, SingleRigidPrim
+from isaacsim.core.utils.types import ArticulationAction
+from omni.physx.scripts import physicsUtils
+from pxr import Gf, Sdf, UsdGeom, UsdPhysics
 
 stage = omni.usd.get_context().get_stage()
 UsdPhysics.Scene.Define(stage, "/World/physicsScene")

@@ -16,9 +16,9 @@ import argparse
 import math
 from pathlib import Path
 
-from ambulo.nav import GridMap
 from ambulo.locomotion.walk_plot import plot_walk
 from ambulo.locomotion.walk_sim import acceptance_walk, straight_and_turn_goal
+from ambulo.nav import GridMap
 
 
 def main(argv=None) -> dict:

@@ -11,8 +11,14 @@ import numpy as np
 from . import assets
 from .robots import humanoid as humanoid_facts
 from .sim import (
-    ArticulationAction, DifferentialController, DynamicCuboid, HumanoidWalkingPolicy, Robot, WheeledRobot,
-    World, set_camera_view,
+    ArticulationAction,
+    DifferentialController,
+    DynamicCuboid,
+    HumanoidWalkingPolicy,
+    Robot,
+    WheeledRobot,
+    World,
+    set_camera_view,
 )
 
 HUMANOID_COMMAND = (0.25, 0.0, 0.6)

@@ -6,12 +6,11 @@ import enum
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal, Optional
+from typing import Literal
 
 import pytest
 
-from ambulo.utils.overrides import (OverrideError, apply_overrides, parse_overrides, replace_dotted,
-                                  type_name)
+from ambulo.utils.overrides import OverrideError, apply_overrides, parse_overrides, replace_dotted, type_name
 
 
 class Mode(enum.Enum):
@@ -45,7 +44,7 @@ class Cfg:
     gains: list[float] = field(default_factory=lambda: [1.0, 2.0])
     weights: dict[str, float] = field(default_factory=lambda: {"alive": 1.0, "torque": -1e-4})
     robot_file: str | None = None
-    keyframe: Optional[str] = "home"
+    keyframe: str | None = "home"
     max_steps: int | None = 100
     mode: Mode = Mode.FAST
     out: Path = Path("runs")
@@ -302,7 +301,7 @@ def test_inf_is_a_float_but_nan_is_refused():
 
 
 if False:  # a name only type checkers see, as under ``if TYPE_CHECKING:``
-    from collections import OrderedDict  # noqa: F401
+    from collections import OrderedDict
 
 
 @dataclass

@@ -7,7 +7,7 @@ import torch
 
 import ambulo.envs as envs
 from ambulo import assets
-from ambulo.core import PhysicsCfg, Simulation, add_ground, compile_scene, new_scene, GroundCfg
+from ambulo.core import GroundCfg, PhysicsCfg, Simulation, add_ground, compile_scene, new_scene
 from ambulo.engine import Engine
 from ambulo.sim import World, add_reference_to_stage
 

@@ -9,6 +9,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import pytest
+
 from script_loader import load_script
 
 pytest.importorskip("trimesh")

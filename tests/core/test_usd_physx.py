@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 pytest.importorskip("pxr")
-from pxr import Gf, UsdGeom, UsdPhysics  # noqa: E402
+from pxr import Gf, UsdGeom, UsdPhysics
 
-from ambulo.isaac.physx_schema import SCHEMAS  # noqa: E402 - the pxr.PhysxSchema classes
-from ambulo.sim.usd_stage import UsdStage  # noqa: E402
+from ambulo.isaac.physx_schema import SCHEMAS  # the pxr.PhysxSchema classes
+from ambulo.sim.usd_stage import UsdStage
 
 
 def _sphere(stage, path, radius=0.1, position=(0.0, 0.0, 1.0), mass=1.0):

@@ -81,7 +81,7 @@ def test_reset_restores_only_the_given_worlds():
     engine = CpuEngine(model, 4, num_threads=1)
     fields = ("time", "qpos", "qvel", "act")
     initial = {f: engine.field(f).clone() for f in fields}
-    engine.xpos  # bind the output now: from here on only the engine's own calls refresh it
+    _ = engine.xpos  # bind the output now: from here on only the engine's own calls refresh it
     # what a fresh forward of the initial state computes, from plain MuJoCo
     fresh = mujoco.MjData(model)
     mujoco.mj_forward(model, fresh)

@@ -15,9 +15,9 @@ import torch
 
 pytest.importorskip("mujoco_warp")
 
-import ambulo.envs as envs  # noqa: E402
-from ambulo.engine import CpuEngine, make_engine  # noqa: E402
-from ambulo.engine.gpu import EngineOverflowError, GpuEngine  # noqa: E402
+import ambulo.envs as envs
+from ambulo.engine import CpuEngine, make_engine
+from ambulo.engine.gpu import EngineOverflowError, GpuEngine
 
 DEVICE = os.environ.get("AMBULO_TEST_DEVICE", "cpu")
 
@@ -142,7 +142,7 @@ def test_masked_reset_restores_only_those_worlds_and_their_derived_fields():
     model = _box_model(n_boxes=2)
     engine = _gpu(model, 4)
     initial = engine.qpos.clone()
-    engine.xpos  # bound: forward on a subset must leave the other worlds' values alone
+    _ = engine.xpos  # bound: forward on a subset must leave the other worlds' values alone
     engine.qvel[:, 0] = torch.tensor([1.0, 2.0, 3.0, 4.0], device=engine.device)
     engine.step(20)
     before_q, before_x = engine.qpos.clone(), engine.xpos.clone()

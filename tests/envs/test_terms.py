@@ -8,8 +8,14 @@ import torch
 import ambulo.envs as envs
 from ambulo.envs import observations as obs_terms
 from ambulo.envs import rewards
-from ambulo.utils.math import (projected_gravity, quat_from_axis_angle, quat_from_yaw, quat_mul, quat_rotate,
-                               quat_rotate_inverse)
+from ambulo.utils.math import (
+    projected_gravity,
+    quat_from_axis_angle,
+    quat_from_yaw,
+    quat_mul,
+    quat_rotate,
+    quat_rotate_inverse,
+)
 
 X, Z = torch.tensor([[1.0, 0.0, 0.0]], dtype=torch.float64), torch.tensor([[0.0, 0.0, 1.0]],
                                                                        dtype=torch.float64)

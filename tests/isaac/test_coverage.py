@@ -4,6 +4,7 @@ import sys
 from pathlib import Path
 
 import pytest
+
 from script_loader import load_script
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -8,10 +8,10 @@ import pytest
 
 pytest.importorskip("pxr")
 
-from ambulo import assets  # noqa: E402
-from ambulo.cli import main  # noqa: E402
-from ambulo.isaac import isaac_names, run_script  # noqa: E402
-from ambulo.sim.usd_stage import forget_stages  # noqa: E402
+from ambulo import assets
+from ambulo.cli import main
+from ambulo.isaac import isaac_names, run_script
+from ambulo.sim.usd_stage import forget_stages
 
 ISAAC_EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "isaac"
 SUBSTEP_S = 1.0 / 240.0

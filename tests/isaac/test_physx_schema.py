@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 pytest.importorskip("pxr")
-from pxr import Sdf, Usd, UsdGeom, UsdPhysics  # noqa: E402
+from pxr import Sdf, Usd, UsdGeom, UsdPhysics
 
-from ambulo.isaac import isaac_names, run_script  # noqa: E402
+from ambulo.isaac import isaac_names, run_script
 from script_loader import printed_number
 
 ISAAC_EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "isaac"
@@ -21,11 +21,10 @@ ISAAC_EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "isaac"
 def test_physx_schema_exists_only_under_ambulo_run():
     has_api = Usd.Prim.HasAPI
     with pytest.raises(ImportError):
-        from pxr import PhysxSchema  # noqa: F401
+        from pxr import PhysxSchema
     with isaac_names():
-        from pxr import Gf, PhysxSchema, UsdPhysics  # noqa: F401 - Isaac's import line
-
         import pxr
+        from pxr import Gf, PhysxSchema, UsdPhysics  # noqa: F401 - Isaac's import line
 
         assert pxr.PhysxSchema is PhysxSchema and sys.modules["pxr.PhysxSchema"] is PhysxSchema
     assert "pxr.PhysxSchema" not in sys.modules and not hasattr(sys.modules["pxr"], "PhysxSchema")

@@ -11,10 +11,10 @@ import pytest
 
 pytest.importorskip("pxr")
 
-from ambulo import assets  # noqa: E402
-from ambulo.core import AssetError  # noqa: E402
-from ambulo.isaac import isaac_names, run_script  # noqa: E402
-from ambulo.sim.usd_stage import forget_stages  # noqa: E402
+from ambulo import assets
+from ambulo.core import AssetError
+from ambulo.isaac import isaac_names, run_script
+from ambulo.sim.usd_stage import forget_stages
 from ambulo.utils.checks import InvalidValueError
 
 ISAAC_EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "isaac"

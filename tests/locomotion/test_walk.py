@@ -157,8 +157,8 @@ def test_foot_shape_is_the_humanoids_sole(model):
 
 
 def test_map_obstacles_become_boxes_covering_exactly_the_occupied_cells():
-    from ambulo.nav import GridMap
     from ambulo.locomotion.walk_sim import grid_obstacles
+    from ambulo.nav import GridMap
 
     occupied = np.zeros((30, 40), bool)
     occupied[5:12, 3:9] = True  # a block

@@ -7,7 +7,14 @@ import pytest
 import torch
 
 from ambulo.maps import (
-    OCCUPIED, Grid2D, from_occupancy_grid, load_map_yaml, load_npz, save_map_yaml, save_npz, to_msg,
+    OCCUPIED,
+    Grid2D,
+    from_occupancy_grid,
+    load_map_yaml,
+    load_npz,
+    save_map_yaml,
+    save_npz,
+    to_msg,
     to_occupancy_grid,
 )
 from ambulo.nav import GridMap

@@ -3,6 +3,7 @@
 from pathlib import Path
 
 import pytest
+
 from script_loader import run_main
 
 NAV_EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "nav"

@@ -11,16 +11,16 @@ import numpy as np
 import pytest
 
 shapely = pytest.importorskip("shapely")
-from shapely.geometry import LineString, box  # noqa: E402
+from shapely.geometry import LineString, box
 
-from ambulo.maps import Grid2D  # noqa: E402
-from ambulo.nav import FootstepPlanner, GridMap, PlanStatus, humanoid_footstep_cfg, plan_footsteps  # noqa: E402
-from ambulo.nav.footstep_checks import FootstepChecks  # noqa: E402
-from ambulo.nav.footstep_heuristic import GoalHeuristic  # noqa: E402
-from ambulo.nav.footstep_lattice import LEFT, RIGHT, build_lattice, compose, relative, steps_within_limits  # noqa: E402
-from ambulo.nav.grid_map import GridGraph, clearance_m, crossed_cells, near_occupied  # noqa: E402
-from ambulo.utils.checks import InvalidValueError  # noqa: E402
-from script_loader import load_script  # noqa: E402
+from ambulo.maps import Grid2D
+from ambulo.nav import FootstepPlanner, GridMap, PlanStatus, humanoid_footstep_cfg, plan_footsteps
+from ambulo.nav.footstep_checks import FootstepChecks
+from ambulo.nav.footstep_heuristic import GoalHeuristic
+from ambulo.nav.footstep_lattice import LEFT, RIGHT, build_lattice, compose, relative, steps_within_limits
+from ambulo.nav.grid_map import GridGraph, clearance_m, crossed_cells, near_occupied
+from ambulo.utils.checks import InvalidValueError
+from script_loader import load_script
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -6,8 +6,8 @@ import pytest
 
 pytest.importorskip("evo", reason="the perception extra is not installed")
 
-from ambulo.perception.trajectory import alignment_problem, score_tum, write_tum  # noqa: E402
-from ambulo.perception.vo.eval import VoRun, run_walk_vo  # noqa: E402
+from ambulo.perception.trajectory import alignment_problem, score_tum, write_tum
+from ambulo.perception.vo.eval import VoRun, run_walk_vo
 
 
 def poses(xyz) -> np.ndarray:

@@ -5,6 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from PIL import Image
+
 from script_loader import load_script
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "replicator_dataset.py"

@@ -249,7 +249,7 @@ def test_collision_checker_without_surface_contacts_finds_what_filtering_them_fo
         movers = np.zeros(model.ngeom, bool)
         movers[np.concatenate(scatter._geoms)] = True
         found_any = others_touch = False
-        for trial in range(60):
+        for _ in range(60):
             qpos = producer.engine.qpos[0].numpy().copy()
             scatter._park_all(qpos)
             for i in range(len(scatter._bodies)):  # crowded: many objects touch

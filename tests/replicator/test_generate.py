@@ -12,6 +12,7 @@ import pytest
 from ambulo import replicator as rep
 from ambulo.utils.atomic import TMP_MARK
 
+
 def test_same_seed_gives_identical_files_and_another_seed_does_not(tmp_path, small_config, gen):
     config = small_config()
     for name, seed in (("a", 1), ("b", 1), ("c", 2)):

@@ -11,8 +11,9 @@ from pathlib import Path
 import pytest
 
 from ambulo import replicator as rep
-from ambulo.utils.atomic import TMP_MARK
 from ambulo.replicator.processes import _chunks, default_workers
+from ambulo.utils.atomic import TMP_MARK
+
 
 def test_one_and_two_worker_processes_write_identical_files(tmp_path, small_config, gen):
     config = small_config()

@@ -43,7 +43,7 @@ def test_scatter_places_objects_on_the_floor_in_the_region_without_overlap(produ
         placed = log["objects"]["pose_xy_yaw"]
         assert len(placed) + len(log["objects"]["hidden"]) == len(objects)
         data = producer.engine.get_data(0)
-        for key, (x, y, yaw) in placed.items():
+        for key, (x, y, _yaw) in placed.items():
             body = objects[int(key)]
             assert 0.3 <= x <= 3.5 and -1.6 <= y <= 1.6
             assert np.allclose(data.xpos[body][:2], [x, y])

@@ -12,8 +12,8 @@ import pytest
 
 pytest.importorskip("rosbags")
 
-from ambulo.ros2.commands import names_problem, range_problem, targets_problem, twist_problem  # noqa: E402
-from ambulo.ros2.raw_types import hash_of, type_description, typestore  # noqa: E402
+from ambulo.ros2.commands import names_problem, range_problem, targets_problem, twist_problem
+from ambulo.ros2.raw_types import hash_of, type_description, typestore
 
 TYPES = ["tf2_msgs/msg/TFMessage", "sensor_msgs/msg/JointState", "sensor_msgs/msg/Imu", "sensor_msgs/msg/Image",
          "sensor_msgs/msg/CameraInfo", "sensor_msgs/msg/LaserScan", "sensor_msgs/msg/PointCloud2",
@@ -88,9 +88,9 @@ def test_walking_twist_checks(linear, angular, problem):
 
 def test_humanoid_cmd_vel_gets_the_walking_policy_only_at_its_physics_dt():
     from ambulo.policies.shipped import load_policy
+    from ambulo.robots.humanoid import POLICY_PHYSICS_DT_S
     from ambulo.ros2 import SceneCfg, humanoid_world
     from ambulo.ros2.commands import NoWalkingPolicy, WalkingPolicyDrive, default_cmd_vel_handler
-    from ambulo.robots.humanoid import POLICY_PHYSICS_DT_S
 
     contract = load_policy("humanoid-walk").contract
     assert POLICY_PHYSICS_DT_S == contract["physics_dt_s"]

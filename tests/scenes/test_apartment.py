@@ -11,7 +11,6 @@ import mujoco
 import numpy as np
 import pytest
 import shapely
-from one_line import raises_one_line
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 from shapely.geometry import LineString, Point, Polygon, box
@@ -21,6 +20,7 @@ from ambulo.robots.humanoid import BODY_RADIUS_M as HUMANOID_RADIUS_M
 from ambulo.robots.humanoid import HEAD_HEIGHT_M as HUMANOID_HEAD_HEIGHT_M
 from ambulo.scenes.apartment import ApartmentCfg, apartment
 from ambulo.scenes.apartment_paths import path_length_m
+from one_line import raises_one_line
 
 SEEDS = (0, 1, 2, 3)
 

@@ -4,9 +4,9 @@ import mujoco
 import numpy as np
 import pytest
 
+from ambulo.core.semantics import set_semantic_label
 from ambulo.engine import CpuEngine
 from ambulo.sensors import Camera
-from ambulo.core.semantics import set_semantic_label
 
 BOX = mujoco.mjtGeom.mjGEOM_BOX
 ALL = ("rgb", "depth", "distance_to_camera", "semantic_segmentation", "instance_segmentation",

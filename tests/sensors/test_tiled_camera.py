@@ -224,7 +224,7 @@ def test_cpu_engine_and_bad_configs_give_one_line_errors():
     with pytest.raises(RuntimeError, match="needs the warp engine.*use ambulo.sensors.Camera"):
         camera.initialize(CpuEngine(model, 1, num_threads=1))
     with pytest.raises(RuntimeError, match="not initialized"):
-        TiledCamera(prim_path="/World/cam").data
+        _ = TiledCamera(prim_path="/World/cam").data
     bad = [dict(width=0), dict(height=2.5), dict(fovy_deg=190.0), dict(focal_length_px=-1.0),
            dict(clipping_range_m=(1.0, 0.5)), dict(data_types=("rgb", "normals")), dict(data_types=()),
            dict(offset_quat=(0, 0, 0, 0)), dict(offset_convention="ned")]

@@ -5,7 +5,13 @@ import pytest
 
 from ambulo import assets
 from ambulo.sim import (
-    ArticulationAction, DynamicCuboid, Robot, WheeledRobot, World, XFormPrim, add_reference_to_stage,
+    ArticulationAction,
+    DynamicCuboid,
+    Robot,
+    WheeledRobot,
+    World,
+    XFormPrim,
+    add_reference_to_stage,
 )
 from ambulo.sim.actions import ArticulationActions
 from ambulo.sim.views import ArticulationView, RigidPrimView, match_prim_paths

@@ -9,8 +9,8 @@ import pytest
 
 from ambulo.isaac import run_script
 from ambulo.sim import DynamicCuboid, FixedCuboid, World
-from ambulo.sim.camera import Camera
 from ambulo.sim.base_sensor import due
+from ambulo.sim.camera import Camera
 from ambulo.sim.camera_axes import quat_from_usd, quat_to_usd
 from ambulo.sim.contact_sensor import ContactSensor
 from ambulo.sim.current import set_current_world

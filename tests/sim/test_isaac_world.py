@@ -7,14 +7,19 @@ import numpy as np
 import pytest
 
 pytest.importorskip("pxr")
-from pxr import Gf, Sdf, UsdGeom, UsdPhysics  # noqa: E402
+from pxr import Gf, Sdf, UsdGeom, UsdPhysics
 
-from ambulo import assets  # noqa: E402
-from ambulo.isaac import physics_utils  # noqa: E402
-from ambulo.isaac.semantics import add_update_semantics  # noqa: E402
-from ambulo.isaac.stage_utils import get_current_stage  # noqa: E402
-from ambulo.sim import (  # noqa: E402
-    Articulation, DynamicCuboid, RigidPrim, Robot, World, add_reference_to_stage,
+from ambulo import assets
+from ambulo.isaac import physics_utils
+from ambulo.isaac.semantics import add_update_semantics
+from ambulo.isaac.stage_utils import get_current_stage
+from ambulo.sim import (
+    Articulation,
+    DynamicCuboid,
+    RigidPrim,
+    Robot,
+    World,
+    add_reference_to_stage,
 )
 
 

@@ -7,7 +7,13 @@ import pytest
 
 from ambulo import assets
 from ambulo.sim import (
-    ArticulationAction, DifferentialController, DynamicCuboid, RigidPrim, Robot, WheeledRobot, World,
+    ArticulationAction,
+    DifferentialController,
+    DynamicCuboid,
+    RigidPrim,
+    Robot,
+    WheeledRobot,
+    World,
     add_reference_to_stage,
 )
 from ambulo.utils.rotations import quat_to_mat
@@ -108,8 +114,8 @@ def _held_arm(kp):
     """A 1 kg point mass on a 0.5 m arm held horizontal by the drive against gravity."""
     world = World(physics_dt=0.002)
     xml = PENDULUM_MJCF.format(L=0.5).replace('axis="0 1 0"', 'axis="0 1 0" ref="0"')
-    from pathlib import Path
     import tempfile
+    from pathlib import Path
 
     file = Path(tempfile.mkdtemp()) / "arm.xml"
     file.write_text(xml)

@@ -7,7 +7,13 @@ import pytest
 
 from ambulo import assets
 from ambulo.sim import (
-    AssetError, PrimNotFoundError, RigidPrim, Robot, World, XFormPrim, add_reference_to_stage,
+    AssetError,
+    PrimNotFoundError,
+    RigidPrim,
+    Robot,
+    World,
+    XFormPrim,
+    add_reference_to_stage,
 )
 
 pxr = pytest.importorskip("pxr")

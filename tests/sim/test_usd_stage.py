@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 pxr = pytest.importorskip("pxr")
-from pxr import Gf, Sdf, UsdGeom, UsdPhysics  # noqa: E402
+from pxr import Gf, Sdf, UsdGeom, UsdPhysics
 
-from ambulo.sim.usd_stage import UsdStage  # noqa: E402
+from ambulo.sim.usd_stage import UsdStage
 
 
 def _rigid_cube(stage, path, size, z):

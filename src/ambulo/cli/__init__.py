@@ -16,9 +16,9 @@ from __future__ import annotations
 import argparse
 import sys
 
+from ..utils.overrides import OverrideError, apply_overrides
 from . import bridge, data, demo, perception, plan, rl, run, view
 from .errors import EXIT_INTERRUPTED, ArgumentParser, CliError, expected_error, report
-from ..utils.overrides import OverrideError, apply_overrides
 
 _COMMAND_MODULES = (demo, view, data, rl, run, plan, bridge, perception)
 _DEBUG_HELP = "show the full traceback of any error (for bug reports)"

@@ -143,7 +143,7 @@ class ArgumentParser(argparse.ArgumentParser):
 
     lazy_epilog = None
 
-    def error(self, message: str):  # noqa: D102 - argparse's hook
+    def error(self, message: str):  # argparse's hook
         self.exit(EXIT_USAGE, f"{self.prog}: error: {message}; see `{self.prog} --help`\n")
 
     def format_help(self) -> str:

@@ -44,8 +44,8 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from ambulo.perception.pipeline import MapRunCfg, run_mapping
-    from ambulo.scenes.indoor import IndoorSceneCfg
     from ambulo.perception.tsdf import TsdfCfg
+    from ambulo.scenes.indoor import IndoorSceneCfg
 
     cfg = MapRunCfg(scene=IndoorSceneCfg(seed=args.seed), tsdf=TsdfCfg(voxel_size_m=args.voxel),
                     num_frames=args.frames, width=args.width, height=args.height,

@@ -92,7 +92,8 @@ def run(args: argparse.Namespace) -> int:
         sim = WalkSimulation(pattern, grid=grid)
         result = sim.run(args.seed, video=args.video)
         s = result.summary()
-        print(f"walk: {'FELL at %.2f s (%s)' % (s['fall_time_s'], s['fall_reason']) if s['fell'] else 'no fall'}; "
+        fall = f"FELL at {s['fall_time_s']:.2f} s ({s['fall_reason']})" if s['fell'] else "no fall"
+        print(f"walk: {fall}; "
               f"{s['distance_m']:.2f} m, turned {s['turn_deg']:.0f} deg; measured ZMP inside the support polygon "
               f"in {100 * s['zmp_inside_single_support']:.1f} % of single-support samples "
               f"(margin min {s['zmp_margin_single_support_mm']['min']:.1f} mm); capture point inside the support "

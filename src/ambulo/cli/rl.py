@@ -21,8 +21,8 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
-from .errors import CliError
 from ..utils.overrides import OverrideError, parse_overrides
+from .errors import CliError
 
 STARTED_S = time.monotonic()
 """When the command started (this module is imported as ``ambulo`` starts): ``--eval-every``

@@ -18,8 +18,17 @@ from .materials import PhysicsMaterial
 from .names import EntityNames
 from .paths import PrimNotFoundError, match_names
 from .physics import PhysicsCfg, apply_physics
-from .scene import (AttachedRobot, GroundCfg, KeyPose, RobotCfg, add_ground, add_light, add_robot,
-                    compile_scene, new_scene)
+from .scene import (
+                    AttachedRobot,
+                    GroundCfg,
+                    KeyPose,
+                    RobotCfg,
+                    add_ground,
+                    add_light,
+                    add_robot,
+                    compile_scene,
+                    new_scene,
+)
 from .semantics import semantic_labels, set_semantic_label
 
 __all__ = [

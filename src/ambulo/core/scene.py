@@ -24,7 +24,6 @@ from .names import DOF_JOINT_TYPES
 from .physics import PhysicsCfg, apply_physics, match_options
 
 
-
 def new_scene(name: str = "World") -> mujoco.MjSpec:
     """An empty scene whose offscreen buffer fits cameras up to 1280x960."""
     spec = mujoco.MjSpec()

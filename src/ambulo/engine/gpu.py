@@ -31,14 +31,14 @@ import os
 import sys
 import threading
 import time
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Callable, Sequence
 
 import mujoco
+import mujoco_warp as mjw
 import numpy as np
 import torch
 import warp as wp
-import mujoco_warp as mjw
 
 from .protocol import STATE_FIELDS
 
@@ -522,7 +522,7 @@ class GpuEngine:
         return dist, geom
 
 
-def capture_graph(device: str, stream: "wp.Stream", body: Callable[[], None]):
+def capture_graph(device: str, stream: wp.Stream, body: Callable[[], None]):
     """``body``'s Warp launches as a CUDA graph, captured on ``stream``. The capturing stream
     must be the current one: MuJoCo Warp allocates scratch arrays inside ``step``, and an
     allocation on any other stream during a capture fails (CUDA error 900)."""

@@ -10,7 +10,8 @@ protocol and runs on the CPU engine and on a GPU engine alike.
 
 from __future__ import annotations
 
-from typing import Protocol, Sequence, runtime_checkable
+from collections.abc import Sequence
+from typing import Protocol, runtime_checkable
 
 import mujoco
 import torch
@@ -22,7 +23,7 @@ STATE_FIELDS = (
 )
 
 
-def sim_time_s(engine: "Engine", world: int = 0) -> float:
+def sim_time_s(engine: Engine, world: int = 0) -> float:
     """World ``world``'s simulated time, s. MuJoCo Warp keeps time in float32, which drifts
     from whole multiples of the timestep (0.0020000001 after one 2 ms step); time only ever
     advances by whole steps, so it is rounded to the nearest one there."""

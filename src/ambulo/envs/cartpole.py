@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import torch
 
-from ambulo.core import GroundCfg, DriveDefaults, PhysicsCfg, RobotCfg
+from ambulo.core import DriveDefaults, GroundCfg, PhysicsCfg, RobotCfg
 
 from . import rewards
 from .base import EnvCfg, RLEnv

@@ -33,8 +33,15 @@ import torch
 from ambulo.core import RobotCfg
 from ambulo.core.importers.packages import package_search_path
 
-from .humanoid_walk import (WALKS, HumanoidWalkCfg, HumanoidWalkEnv, as_play, humanoid_walk_cfg,
-                            humanoid_walk_metrics, humanoid_walk_ppo)
+from .humanoid_walk import (
+    WALKS,
+    HumanoidWalkCfg,
+    HumanoidWalkEnv,
+    as_play,
+    humanoid_walk_cfg,
+    humanoid_walk_metrics,
+    humanoid_walk_ppo,
+)
 from .registry import TaskSpec, register
 
 G1_URDF = "example-robot-data/robots/g1_description/urdf/g1_29dof_rev_1_0.urdf"

@@ -19,8 +19,8 @@ from dataclasses import dataclass, field
 import torch
 
 from ambulo.core import GroundCfg, PhysicsCfg, RobotCfg, randomize
-from ambulo.policies.velocity_obs import velocity_policy_terms
 from ambulo.core.rows import put_rows, select_rows, take_rows
+from ambulo.policies.velocity_obs import velocity_policy_terms
 from ambulo.robots import humanoid
 from ambulo.sensors import ContactSensor, ContactSensorCfg
 from ambulo.utils.validate import rule

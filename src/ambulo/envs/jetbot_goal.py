@@ -26,10 +26,10 @@ from ambulo.core.rows import fill_rows, put_rows, take_rows
 from ambulo.sensors import TiledCamera, TiledCameraCfg
 from ambulo.utils.validate import rule
 
+from ..utils.math import quat_from_yaw
 from . import observations as obs_terms
 from . import rewards
 from .base import EnvCfg, RLEnv
-from ..utils.math import quat_from_yaw
 from .ppo import PpoCfg
 from .registry import Criterion, TaskSpec, register
 

@@ -9,8 +9,9 @@ CLI, the docs and the contract test read it; nothing asks an env what it can do.
 from __future__ import annotations
 
 import difflib
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 import torch
 

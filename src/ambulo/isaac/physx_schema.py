@@ -39,22 +39,22 @@ class SchemaAttribute:
     def __init__(self, schema: PhysxSchemaAPI, attr: PhysxAttr):
         self._schema, self._attr = schema, attr
 
-    def Get(self, time=None):  # noqa: N802 - pxr's names
+    def Get(self, time=None):  # pxr's names
         authored = self._schema.GetPrim().GetAttribute(self.GetName())
         value = authored.Get() if authored else None
         return self._attr.fallback if value is None else value
 
-    def Set(self, value, time=None) -> bool:  # noqa: N802
+    def Set(self, value, time=None) -> bool:
         return self._schema._author(self._attr, None).Set(value)
 
-    def GetName(self) -> str:  # noqa: N802
+    def GetName(self) -> str:
         return self._schema._property_name(self._attr.name)
 
-    def HasAuthoredValue(self) -> bool:  # noqa: N802
+    def HasAuthoredValue(self) -> bool:
         authored = self._schema.GetPrim().GetAttribute(self.GetName())
         return bool(authored) and authored.HasAuthoredValue()
 
-    def IsValid(self) -> bool:  # noqa: N802
+    def IsValid(self) -> bool:
         return bool(self._schema)
 
     __bool__ = IsValid
@@ -72,13 +72,13 @@ class PhysxSchemaAPI:
         self._prim = prim.GetPrim() if hasattr(prim, "GetPrim") else prim
         self._instance = name
 
-    def GetPrim(self):  # noqa: N802
+    def GetPrim(self):
         return self._prim
 
-    def GetPath(self):  # noqa: N802
+    def GetPath(self):
         return self._prim.GetPath()
 
-    def GetName(self) -> str | None:  # noqa: N802
+    def GetName(self) -> str | None:
         """The instance name of a multiple-apply API (``PhysxLimitAPI(prim, "rotX")``)."""
         return self._instance
 
@@ -95,7 +95,7 @@ class PhysxSchemaAPI:
         return f"{cls._api.name}:{name}" if cls._api.multiple_apply else cls._api.name
 
     @classmethod
-    def Apply(cls, prim, name: str | None = None):  # noqa: N802
+    def Apply(cls, prim, name: str | None = None):
         """Add the API to the prim's ``apiSchemas`` (as ``UsdPrim::ApplyAPI`` does) and return it."""
         if cls._api.multiple_apply and not name:
             raise ValueError(f"{cls._api.name} is a multiple-apply API: pass an instance name, "
@@ -110,15 +110,15 @@ class PhysxSchemaAPI:
         return cls(prim, name)
 
     @classmethod
-    def CanApply(cls, prim, whyNot=None) -> bool:  # noqa: N802, N803
+    def CanApply(cls, prim, whyNot=None) -> bool:
         return prim is not None and prim.IsValid()
 
     @classmethod
-    def Get(cls, stage, path, name: str | None = None):  # noqa: N802
+    def Get(cls, stage, path, name: str | None = None):
         return cls(stage.GetPrimAtPath(path), name)
 
     @classmethod
-    def GetSchemaAttributeNames(cls, includeInherited: bool = True, instanceName: str | None = None):  # noqa: N802, N803
+    def GetSchemaAttributeNames(cls, includeInherited: bool = True, instanceName: str | None = None):
         return [cls._api.property_name(a.name, instanceName or "__INSTANCE_NAME__") for a in cls._api.attributes]
 
     def _property_name(self, name: str) -> str:
@@ -138,7 +138,7 @@ class PhysxSchemaAPI:
 
 
 def _create_attr(attr: PhysxAttr):
-    def create(self, defaultValue=None, writeSparsely: bool = False):  # noqa: N803
+    def create(self, defaultValue=None, writeSparsely: bool = False):
         if writeSparsely and defaultValue == attr.fallback and not SchemaAttribute(self, attr).HasAuthoredValue():
             return SchemaAttribute(self, attr)
         return self._author(attr, defaultValue)

@@ -37,9 +37,17 @@ from ambulo.utils.validate import check_fields
 
 from .kit_commands import Command, execute
 from .omni_usd import get_stage_next_free_path
+from .urdf_types import (
+    IGNORED,
+    ImportConfig,
+    UrdfJointDrive,
+    UrdfJointTargetType,
+    UrdfJointType,
+    UrdfRobot,
+    initial_drive,
+    parse_urdf_file,
+)
 from .usd_edit import place_model_frame
-from .urdf_types import (IGNORED, ImportConfig, UrdfJointDrive, UrdfJointTargetType, UrdfJointType, UrdfRobot,
-                         initial_drive, parse_urdf_file)
 
 
 def _valid_identifier(name: str) -> str:

@@ -23,8 +23,17 @@ from .kit_commands import Command
 from .mesh_prims import define_mesh
 from .omni_usd import get_stage_next_free_path
 from .stage_utils import add_reference_to_stage, synced_usd_stage
-from .usd_edit import (ROOT, api_made_error, authored_prim, command_stage, default_xform_ops, is_inside, plain,
-                       set_local_matrix, write_srt)
+from .usd_edit import (
+    ROOT,
+    api_made_error,
+    authored_prim,
+    command_stage,
+    default_xform_ops,
+    is_inside,
+    plain,
+    set_local_matrix,
+    write_srt,
+)
 
 
 def _pxr():

@@ -16,12 +16,28 @@ The footstep planner it walks is ``ambulo.nav``'s; the arena it walks in is
 """
 
 from .balance import (
-    CaptureRegion, CenterOfPressure, FootShape, PressureCenter, capture_point, capture_region, cart_table_zmp,
-    foot_polygon, lipm_omega, polygon_signed_distance, support_polygon, zmp_in_support,
+    CaptureRegion,
+    CenterOfPressure,
+    FootShape,
+    PressureCenter,
+    capture_point,
+    capture_region,
+    cart_table_zmp,
+    foot_polygon,
+    lipm_omega,
+    polygon_signed_distance,
+    support_polygon,
+    zmp_in_support,
 )
 from .preview import (
-    PreviewControlCfg, PreviewController, WalkPattern, WalkPatternCfg, WalkPatternGenerator, kajita2003_preview_cfg,
-    preview_gains, walk_pattern_cfg,
+    PreviewControlCfg,
+    PreviewController,
+    WalkPattern,
+    WalkPatternCfg,
+    WalkPatternGenerator,
+    kajita2003_preview_cfg,
+    preview_gains,
+    walk_pattern_cfg,
 )
 from .walk_controller import HUMANOID_FOOT, StabilizerCfg, WalkController, WalkIK, build_reference, walk_robot
 from .walk_sim import WalkResult, WalkSimCfg, WalkSimulation, acceptance_walk, plan_walk, walk_pattern

@@ -24,8 +24,9 @@ Frames and units: world frame (z up), m, s, rad. The CoM height z_c is constant.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 import scipy.linalg

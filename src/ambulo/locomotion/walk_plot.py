@@ -7,10 +7,10 @@ import os
 
 import numpy as np
 
-from .balance import foot_polygon
 from ..nav.footsteps import FootstepPlan
 from ..nav.grid_map import GridMap
 from ..robots import humanoid
+from .balance import foot_polygon
 from .preview import WalkPattern
 
 

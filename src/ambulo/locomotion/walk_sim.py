@@ -31,12 +31,12 @@ import mujoco
 import numpy as np
 import torch
 
-from ..robots.humanoid import BASE_BODY, FOOT_BODIES, SOLE_SITES, SOLE_X_M, STANCE_WIDTH_M
-from ..utils.validate import Checked, rule
-from .balance import CenterOfPressure, FootShape, lipm_omega, polygon_signed_distance, support_polygon
 from ..nav.footsteps import FootstepPlan, FootstepPlanner, humanoid_footstep_cfg
 from ..nav.grid_map import GridMap
+from ..robots.humanoid import BASE_BODY, FOOT_BODIES, SOLE_SITES, SOLE_X_M, STANCE_WIDTH_M
 from ..scenes.walk_arena import GROUND_GEOM
+from ..utils.validate import Checked, rule
+from .balance import CenterOfPressure, FootShape, lipm_omega, polygon_signed_distance, support_polygon
 from .preview import WalkPattern, WalkPatternGenerator, walk_pattern_cfg
 from .walk_controller import HUMANOID_FOOT, StabilizerCfg, WalkController, build_reference, walk_robot
 from .walk_world import start_walk_world
@@ -206,8 +206,8 @@ class WalkSimulation:
             data.qpos[:] = qpos
             mujoco.mj_kinematics(m, data)
             # put the lowest sole corner on the floor
-            lowest = min(float((data.geom_xpos[g][2] - np.abs(data.geom_xmat[g].reshape(3, 3)[2])
-                                @ m.geom_size[g])) for feet in self.foot_geoms for g in feet)
+            lowest = min(float(data.geom_xpos[g][2] - np.abs(data.geom_xmat[g].reshape(3, 3)[2])
+                                @ m.geom_size[g]) for feet in self.foot_geoms for g in feet)
             qpos[self.base_qpos[2]] -= lowest
         return qpos, qvel
 

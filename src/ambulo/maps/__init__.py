@@ -6,7 +6,14 @@ Content, not an app: this package imports numpy, torch and ``ambulo.utils`` only
 (which writes maps), the footstep planner (which reads them) and the ROS 2 bridge share it."""
 
 from .grid import (
-    FREE, FREE_SPACE, INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE, NO_INFORMATION, OCCUPIED, UNKNOWN, CellGeometry,
+    FREE,
+    FREE_SPACE,
+    INSCRIBED_INFLATED_OBSTACLE,
+    LETHAL_OBSTACLE,
+    NO_INFORMATION,
+    OCCUPIED,
+    UNKNOWN,
+    CellGeometry,
     Grid2D,
 )
 from .map_server import load_map_image, load_map_yaml, save_map_yaml

@@ -175,7 +175,7 @@ def read_image(path: str | Path) -> tuple[np.ndarray, float]:
 
     try:
         pixels = iio.imread(path)
-    except Exception as err:  # noqa: BLE001 - any decoder failure is bad input here
+    except Exception as err:  # any decoder failure is bad input here
         raise InvalidValueError(f"map image {str(path)!r}", Described("unreadable"), f"{type(err).__name__}: {err}",
                                 "give a PGM or PNG occupancy image") from None
     if pixels.dtype == bool:

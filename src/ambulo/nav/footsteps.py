@@ -41,15 +41,26 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..utils.checks import Described, InvalidValueError, check_int, check_positive, check_range, check_vector
 from ..robots.humanoid import (
-    STANCE_WIDTH_M, WALK_MAX_STEP_YAW_RAD, WALK_STEP_LENGTH_RANGE_M, WALK_STEP_WIDTH_RANGE_M,
+    STANCE_WIDTH_M,
+    WALK_MAX_STEP_YAW_RAD,
+    WALK_STEP_LENGTH_RANGE_M,
+    WALK_STEP_WIDTH_RANGE_M,
 )
+from ..utils.checks import Described, InvalidValueError, check_int, check_positive, check_range, check_vector
 from ..utils.validate import Checked
 from .footstep_checks import FootstepChecks
 from .footstep_heuristic import GoalHeuristic
 from .footstep_lattice import (
-    LEFT, RIGHT, build_lattice, compose, follow_path, relative, step_costs, steps_within_limits, wrap_angle,
+    LEFT,
+    RIGHT,
+    build_lattice,
+    compose,
+    follow_path,
+    relative,
+    step_costs,
+    steps_within_limits,
+    wrap_angle,
 )
 from .grid_map import GridMap
 

@@ -33,7 +33,12 @@ from pathlib import Path
 import numpy as np
 
 from ambulo.utils.atomic import (
-    atomic_save_npy, atomic_write_bytes, atomic_write_json, can_sync_filesystem, fsync_dir, sync_filesystem,
+    atomic_save_npy,
+    atomic_write_bytes,
+    atomic_write_json,
+    can_sync_filesystem,
+    fsync_dir,
+    sync_filesystem,
 )
 from ambulo.utils.validate import Checked
 

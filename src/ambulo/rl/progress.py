@@ -42,9 +42,10 @@ class TrainingProgress:
     def __init__(self, runner, run_dir: Path, *, episodes: EpisodeStats | None, start: int, total: int,
                  verbose: bool, step_dt_s: float, steps_per_iteration: int, stop: interrupt.StopRequest,
                  periodic: PeriodicEval | None = None, stop_at_criterion: bool = False,
-                 eval_every: int | None = None, rank: distributed.Rank = distributed.Rank()):
+                 eval_every: int | None = None, rank: distributed.Rank | None = None):
         self.runner, self.episodes, self.stop, self.periodic = runner, episodes, stop, periodic
         self.step_dt_s, self.steps_per_iteration = step_dt_s, steps_per_iteration
+        rank = rank if rank is not None else distributed.Rank()  # one process: the main rank
         self.stop_at_criterion, self.eval_every, self.rank = stop_at_criterion, eval_every, rank
         self.bar = tqdm(total=total, initial=start, desc=f"train {run_dir.parent.name}", unit="it",
                         disable=verbose or not rank.is_main)

@@ -18,13 +18,19 @@ from pathlib import Path
 from typing import Any
 
 from ambulo import envs
-
 from ambulo.utils.atomic import atomic_write_json
 from ambulo.utils.overrides import replace_dotted
 
-from .checkpoints import (CheckpointError, RunError, atomic_torch_save, checkpoints,
-                          find_checkpoint, is_checkpoint_name, latest_checkpoint,
-                          latest_valid_checkpoint)
+from .checkpoints import (
+    CheckpointError,
+    RunError,
+    atomic_torch_save,
+    checkpoints,
+    find_checkpoint,
+    is_checkpoint_name,
+    latest_checkpoint,
+    latest_valid_checkpoint,
+)
 from .config import PpoCfg
 
 RUN_FILE = "run.json"

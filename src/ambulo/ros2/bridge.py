@@ -32,8 +32,15 @@ from __future__ import annotations
 from collections import Counter
 
 from .bridge_commands import CommandIntake
-from .bridge_launch import (PublisherProcess, close_at_exit, frame_slot_bytes, publisher_spec, snapshot_sources,
-                            static_messages, time_source)
+from .bridge_launch import (
+    PublisherProcess,
+    close_at_exit,
+    frame_slot_bytes,
+    publisher_spec,
+    snapshot_sources,
+    static_messages,
+    time_source,
+)
 from .bridge_publishing import PhysicsPublisher
 from .bridge_scene import SceneDiscovery
 from .commands import CmdVelHandler, default_cmd_vel_handler

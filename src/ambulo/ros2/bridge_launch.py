@@ -256,7 +256,7 @@ class PublisherProcess:
                     return
                 else:
                     self.on_command(msg)
-            except Exception as err:  # noqa: BLE001 - a command must never end the bridge
+            except Exception as err:  # a command must never end the bridge
                 log.error("ROS 2 command %s failed: %s", msg[0], err)
 
     def close(self) -> None:

@@ -178,7 +178,7 @@ class Publisher:
         while not self._stop.is_set() and self.context.ok():
             try:
                 self._executor.spin_once(timeout_sec=0.05)
-            except Exception as err:  # noqa: BLE001 - shutting down under the executor
+            except Exception as err:  # shutting down under the executor
                 if not self._stop.is_set():
                     print(f"ambulo.ros2 publisher: executor stopped: {err}", file=sys.stderr)
                 return
@@ -314,7 +314,7 @@ def serve(memfd: int, sockfd: int, wakefd: int) -> int:
     os.set_blocking(wakefd, False)
     try:
         publisher = Publisher(spec, conn, ring)
-    except Exception as err:  # noqa: BLE001 - reported to the bridge, which raises it
+    except Exception as err:  # reported to the bridge, which raises it
         conn.send(("failed", f"{type(err).__name__}: {err}"))
         return 1
 
@@ -324,7 +324,7 @@ def serve(memfd: int, sockfd: int, wakefd: int) -> int:
         try:
             publisher._recorder = None  # the bag stays as the crash left it (``--recover`` reads it)
             publisher.close()
-        except Exception:  # noqa: BLE001, S110 - best effort: exiting anyway
+        except Exception:  # best effort: exiting anyway
             pass
         finally:
             os._exit(143)

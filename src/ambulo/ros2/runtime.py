@@ -21,10 +21,12 @@ class Ros2Unavailable(RuntimeError):
 def import_rclpy():
     """``rclpy``, or ``Ros2Unavailable`` naming what to install."""
     try:
-        import rclpy
-        import sensor_msgs.msg  # noqa: F401
         import nav_msgs.msg  # noqa: F401
+        import rclpy  # first: the message packages need its type support loaded
         import rosgraph_msgs.msg  # noqa: F401
+
+        # isort: split
+        import sensor_msgs.msg  # noqa: F401
     except ImportError as err:
         raise Ros2Unavailable(f"the ROS 2 bridge needs {err.name or 'rclpy'!r}, which cannot be imported "
                               f"({err}); {INSTALL_HINT}") from err

@@ -42,7 +42,6 @@ from .apartment_layout import Door, Layout, Room, Solid, footprints, generate_la
 from .apartment_paths import PathFinder, StartGoal
 
 
-
 @dataclass(kw_only=True)
 class ApartmentCfg(Checked):
     """How apartments are drawn; the seed is ``apartment``'s argument."""

@@ -26,6 +26,7 @@ from scipy.sparse.csgraph import dijkstra
 from .apartment_geometry import Footprints, point_clearance_m
 from .apartment_tangents import TangentGraph
 
+
 @dataclass(frozen=True)
 class StartGoal:
     """A navigation episode's ends and the geodesic between them."""

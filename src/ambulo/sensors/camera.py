@@ -16,7 +16,12 @@ import torch
 
 from ambulo.render import OffscreenRenderer, RenderSettings, fast_render_settings
 from ambulo.utils.checks import (
-    InvalidValueError, check_int, check_positive, check_quat, check_range, check_vector,
+    InvalidValueError,
+    check_int,
+    check_positive,
+    check_quat,
+    check_range,
+    check_vector,
 )
 from ambulo.utils.rotations import mat_to_quat, quat_to_mat
 from ambulo.utils.validate import Checked

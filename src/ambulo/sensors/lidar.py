@@ -13,10 +13,15 @@ import numpy as np
 import torch
 
 from ambulo.utils.checks import (
-    InvalidValueError, check_int, check_positive, check_quat, check_range, check_vector,
+    InvalidValueError,
+    check_int,
+    check_positive,
+    check_quat,
+    check_range,
+    check_vector,
 )
-from ambulo.utils.validate import Checked
 from ambulo.utils.rotations import quat_to_mat
+from ambulo.utils.validate import Checked
 
 from .base import MountPose, Sensor
 

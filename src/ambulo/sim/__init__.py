@@ -4,14 +4,32 @@ A tutorial written for Isaac Sim ports by changing its imports to ``ambulo.sim``
 """
 
 from ..assets import get_assets_root_path
-from ..core import (AssetError, DriveDefaults, PhysicsCfg, PhysicsMaterial, PrimNotFoundError, add_light,
-                    semantic_labels, set_semantic_label)
+from ..core import (
+    AssetError,
+    DriveDefaults,
+    PhysicsCfg,
+    PhysicsMaterial,
+    PrimNotFoundError,
+    add_light,
+    semantic_labels,
+    set_semantic_label,
+)
 from .actions import ArticulationAction
 from .articulation import Articulation, Robot
 from .controller import ArticulationController
 from .objects import (
-    DynamicCapsule, DynamicCuboid, DynamicCylinder, DynamicSphere, FixedCapsule, FixedCuboid,
-    FixedCylinder, FixedSphere, GroundPlane, VisualCapsule, VisualCuboid, VisualCylinder,
+    DynamicCapsule,
+    DynamicCuboid,
+    DynamicCylinder,
+    DynamicSphere,
+    FixedCapsule,
+    FixedCuboid,
+    FixedCylinder,
+    FixedSphere,
+    GroundPlane,
+    VisualCapsule,
+    VisualCuboid,
+    VisualCylinder,
     VisualSphere,
 )
 from .prims import RigidPrim, XFormPrim

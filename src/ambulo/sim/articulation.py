@@ -85,7 +85,7 @@ class Articulation(RigidPrim):
 
     # -- names -------------------------------------------------------------------
     def get_dof_index(self, dof_name: str) -> int:
-        self._data  # raises if not initialized
+        self._require_initialized()
         return self.entity.find_joints(dof_name)[0]
 
     def _indices(self, joint_indices) -> torch.Tensor:
@@ -94,7 +94,7 @@ class Articulation(RigidPrim):
         Floats, bools and text are refused (a float index would be truncated silently), and so
         are duplicates (which of two values would win is undefined). Values of a CUDA tensor are
         not read (a GPU->CPU sync): only its dtype is checked."""
-        self._data  # raises if not initialized
+        self._require_initialized()
         if joint_indices is None:
             return torch.arange(self.num_dof, device=self.entity.device)
         fix = (f"pass whole-number indices into dof_names (0..{self.num_dof - 1}), each once; "
@@ -179,7 +179,7 @@ class Articulation(RigidPrim):
     def get_joints_default_state(self) -> JointsState:
         """The joint state ``world.reset()`` restores: set by ``set_joints_default_state``, else
         the state at initialization (``efforts`` None, as in Isaac)."""
-        self._data
+        self._require_initialized()
         idx = self._indices(None)
         start_pos, start_vel = self._initial_joints
         pos = self._default_joints.get("positions", start_pos)
@@ -188,7 +188,7 @@ class Articulation(RigidPrim):
 
     def set_joints_default_state(self, positions=None, velocities=None, efforts=None) -> None:
         """Joint positions, velocities and feed-forward efforts restored by every ``world.reset()``."""
-        self._data
+        self._require_initialized()
         idx = self._indices(None)
         if positions is not None:
             self._default_joints["positions"] = self._joint_in(positions, idx, "default joint positions").clone()
@@ -199,7 +199,7 @@ class Articulation(RigidPrim):
 
     def get_dof_limits(self):
         """(num_dof, 2) lower/upper joint limits (rad; prismatic stage units); +-inf where unlimited."""
-        self._data  # raises if not initialized
+        self._require_initialized()
         limits = self.entity.joint_pos_limits / self._dof_scale.unsqueeze(-1)
         return limits.cpu().numpy() if self._world.backend == "numpy" else limits
 
@@ -219,7 +219,7 @@ class Articulation(RigidPrim):
         return None if self.entity is None else list(self.entity.body_names)
 
     def get_articulation_body_count(self) -> int:
-        self._data
+        self._require_initialized()
         return self.num_bodies
 
     def get_world_velocity(self):
@@ -231,19 +231,19 @@ class Articulation(RigidPrim):
     def set_world_velocity(self, velocity) -> None:
         """Set the root's (.., 6) linear (stage units/s) and angular (rad/s) velocity, world frame."""
         value = self._world._in(velocity, (6,), "velocity")
-        self._data
+        self._require_initialized()
         self.entity.write_root_velocity(lin_vel_w=value[:, :3] * self._units, ang_vel_w=value[:, 3:])
         self.entity.engine.forward()
 
     def disable_gravity(self) -> None:
         """Keep gravity from affecting the robot's bodies (until ``enable_gravity``, across resets):
         each body gets an external force of -m g at its centre of mass (``xfrc_applied``)."""
-        self._data
+        self._require_initialized()
         self._gravity_disabled = True
         self._write_gravity_compensation(True)
 
     def enable_gravity(self) -> None:
-        self._data
+        self._require_initialized()
         self._gravity_disabled = False
         self._write_gravity_compensation(False)
 

@@ -11,8 +11,8 @@ is unitless, ``mass`` kg, ``density`` kg/m^3.
 
 from __future__ import annotations
 
-import numpy as np
 import mujoco
+import numpy as np
 
 from ..core import GroundCfg, PhysicsMaterial, add_ground, set_semantic_label
 from ..utils.checks import InvalidValueError, check_positive, check_quat, check_vector

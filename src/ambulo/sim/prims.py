@@ -128,11 +128,15 @@ class XFormPrim:
 
     @property
     def _data(self):
+        self._require_initialized()
+        return self.entity.data
+
+    def _require_initialized(self) -> None:
+        """Raise one line naming the prim and the fix while it has no entity (before ``world.reset()``)."""
         if self.entity is None:
             raise RuntimeError(
                 f"{self.prim_path} is not initialized: add it to world.scene and call world.reset()"
             )
-        return self.entity.data
 
     # -- stage units -------------------------------------------------------------
     @property
@@ -192,7 +196,7 @@ class XFormPrim:
     def get_default_state(self) -> XFormPrimState:
         """The pose ``world.reset()`` restores: set by ``set_default_state``, else the pose at
         initialization (stage units; w x y z)."""
-        self._data
+        self._require_initialized()
         position, orientation = self._default_pose
         start_pos, start_quat = self._initial_pose
         return XFormPrimState(
@@ -216,7 +220,7 @@ class XFormPrim:
         return pos, quat
 
     def _write_pose(self, pos: torch.Tensor | None, quat: torch.Tensor | None) -> None:
-        self._data
+        self._require_initialized()
         if quat is not None:
             quat = quat / quat.norm(dim=-1, keepdim=True)
         self.entity.write_root_pose(pos, quat)
@@ -277,12 +281,12 @@ class RigidPrim(XFormPrim):
         return self.get_linear_velocity(), self.get_angular_velocity()
 
     def set_linear_velocity(self, velocity) -> None:
-        self._data
+        self._require_initialized()
         self.entity.write_root_velocity(lin_vel_w=self._in_len(velocity, (3,), "velocity"))
         self.entity.engine.forward()
 
     def set_angular_velocity(self, velocity) -> None:
-        self._data
+        self._require_initialized()
         self.entity.write_root_velocity(ang_vel_w=self._world._in(velocity, (3,), "angular velocity"))
         self.entity.engine.forward()
 
@@ -322,7 +326,7 @@ class RigidPrim(XFormPrim):
         value = self._world._in(mass, (), "mass")
         if (value <= 0).any():
             raise InvalidValueError("mass", mass, "it must be > 0", "pass kg, e.g. 1.0")
-        self._data
+        self._require_initialized()
         engine, body = self.entity.engine, self.entity.root_body_id
         masses = engine.model_field("body_mass")
         ratio = value / masses[:, body].clamp_min(1e-12)

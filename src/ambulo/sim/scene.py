@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import difflib
-from typing import TYPE_CHECKING, Iterator
+from collections.abc import Iterator
+from typing import TYPE_CHECKING
 
 from ..core import GroundCfg
+from ..core.paths import resolve_spec_prim
 from .objects import GroundPlane
 from .prims import XFormPrim
-from ..core.paths import resolve_spec_prim
 
 if TYPE_CHECKING:
     from .world import World

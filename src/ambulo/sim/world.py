@@ -18,7 +18,8 @@ from __future__ import annotations
 import asyncio
 import logging
 import math
-from typing import Callable, Literal
+from collections.abc import Callable
+from typing import Literal
 
 import mujoco
 import numpy as np
@@ -28,13 +29,18 @@ from ..core import PhysicsCfg, Simulation, new_scene
 from ..core.physics import check_timestep
 from ..engine import Engine, sim_time_s
 from ..utils.checks import (
-    Described, InvalidValueError, check_all_finite, check_int, check_positive, check_real_dtype,
+    Described,
+    InvalidValueError,
+    check_all_finite,
+    check_int,
+    check_positive,
+    check_real_dtype,
 )
 from .callbacks import NamedCallbacks
 from .current import current_world_or_none, set_current_world
 from .scene import Scene
-from .tasks import TaskHost
 from .stage_view import StageView
+from .tasks import TaskHost
 from .usd_stage import authored_labels, stage_for_new_world
 
 log = logging.getLogger(__name__)

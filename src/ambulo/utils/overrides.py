@@ -194,7 +194,7 @@ def _field_names(obj: Any) -> list[str]:
     return list(_settable_fields(obj))
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _hints(cls: type) -> dict[str, Any]:
     try:
         return typing.get_type_hints(cls)
@@ -214,7 +214,7 @@ def _field_type(obj: Any, name: str) -> Any:
         if name in vars(klass).get("__annotations__", {}):
             module = sys.modules.get(klass.__module__)
             try:
-                return eval(declared, vars(module) if module else {}, dict(vars(klass)))  # noqa: S307
+                return eval(declared, vars(module) if module else {}, dict(vars(klass)))
             except Exception:
                 break
     return _UNTYPED

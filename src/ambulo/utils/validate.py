@@ -310,7 +310,7 @@ def _type_words(tp) -> str:
     return "a sequence of values"
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _hints(cls: type) -> dict[str, Any]:
     """Resolved field annotations of ``cls``; a field whose annotation names what is not
     importable at run time resolves to ``Any`` (judged by its value)."""
@@ -324,7 +324,7 @@ def _hints(cls: type) -> dict[str, Any]:
         for name, annotation in vars(klass).get("__annotations__", {}).items():
             try:
                 hints[name] = eval(annotation, module, dict(vars(klass))) if isinstance(annotation, str) \
-                    else annotation  # noqa: S307
+                    else annotation
             except Exception:
                 hints[name] = Any
     return hints

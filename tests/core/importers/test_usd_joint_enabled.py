@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 pytest.importorskip("pxr")
-from pxr import Gf, Usd, UsdGeom, UsdPhysics  # noqa: E402
+from pxr import Gf, Usd, UsdGeom, UsdPhysics
 
-from ambulo.core.importers.usd import load_usd  # noqa: E402
+from ambulo.core.importers.usd import load_usd
 
 
 def _box(stage, path, z):

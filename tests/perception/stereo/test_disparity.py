@@ -189,7 +189,8 @@ def test_census_hamming_cost_counts_differing_bits():
 
 
 def test_stereo_frame_gives_the_mapper_depth():
-    from ambulo.perception.stereo.sgm import disparity_to_depth as depth_of, stereo_frame
+    from ambulo.perception.stereo.sgm import disparity_to_depth as depth_of
+    from ambulo.perception.stereo.sgm import stereo_frame
 
     disparity = torch.tensor([[10.0, float("nan"), 40.0, -1.0]])
     np.testing.assert_allclose(depth_of(disparity, 500.0, 0.1).numpy(),

@@ -268,8 +268,8 @@ def test_frames_that_add_blocks_keep_the_recorded_launches_views(truth, monkeypa
     """The hash and the storage are capacity buffers updated in place: once the launches are recorded,
     a frame that adds blocks re-views (``wp.from_torch``) no tensor unless a capacity grew."""
     pytest.importorskip("warp", reason="warp-lang is not installed")
-    from ambulo.perception.tsdf import launches
     from ambulo.perception.reference import orbit_poses, truth_frames
+    from ambulo.perception.tsdf import launches
 
     frames = shifted(truth_frames(truth, orbit_poses((0, 0, 0.5), 2.2, 1.0, 12), pinhole(80, 60, 65.6), 80, 60,
                                   noise_seed=3))

@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 import torch
 
-from ambulo.scenes.indoor import build_indoor_scene
+from ambulo.perception.sources.head_camera_walk import HeadCameraWalk
 from ambulo.perception.vo.config import TrackState, VoCfg, kornia_vo_cfg
 from ambulo.perception.vo.eval import run_walk_vo
 from ambulo.perception.vo.features import KorniaFeatures
 from ambulo.perception.vo.pnp_torch import ransac_pose_rgbd
 from ambulo.perception.vo.refine import refine_pose_torch, so3_exp
-from ambulo.perception.sources.head_camera_walk import HeadCameraWalk
+from ambulo.scenes.indoor import build_indoor_scene
 
 pytest.importorskip("kornia", reason="the perception extra is not installed")
 pytest.importorskip("evo", reason="the perception extra is not installed")

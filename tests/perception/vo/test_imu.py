@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from ambulo.scenes.indoor import build_indoor_scene
+from ambulo.perception.sources.head_camera_walk import HeadCameraWalk, PolicyHeadCameraWalk, WalkCfg
 from ambulo.perception.vo.config import TrackState, VoCfg
-from ambulo.perception.vo.odometry import RgbdOdometry
 from ambulo.perception.vo.eval import run_walk_vo
 from ambulo.perception.vo.imu import GyroAid, GyroSamples, integrate_gyro
-from ambulo.perception.sources.head_camera_walk import HeadCameraWalk, PolicyHeadCameraWalk, WalkCfg
+from ambulo.perception.vo.odometry import RgbdOdometry
+from ambulo.scenes.indoor import build_indoor_scene
 from ambulo.sensors.imu_noise import noiseless
 from ambulo.utils.checks import InvalidValueError
 

@@ -7,12 +7,19 @@ import math
 import numpy as np
 import pytest
 
-from ambulo.scenes.indoor import build_indoor_scene
+from ambulo.perception.sources.head_camera_walk import (
+    HeadCameraWalk,
+    PolicyHeadCameraWalk,
+    WalkCfg,
+    look_away_yaw,
+    loop_point,
+    make_walk,
+    root_pose,
+)
 from ambulo.perception.vo.config import TrackState, VoCfg, kornia_vo_cfg
-from ambulo.perception.vo.refine import refine_pose
 from ambulo.perception.vo.eval import run_walk_vo
-from ambulo.perception.sources.head_camera_walk import (HeadCameraWalk, PolicyHeadCameraWalk, WalkCfg, look_away_yaw, loop_point,
-                                   make_walk, root_pose)
+from ambulo.perception.vo.refine import refine_pose
+from ambulo.scenes.indoor import build_indoor_scene
 
 pytest.importorskip("cv2", reason="the perception extra is not installed")
 pytest.importorskip("evo", reason="the perception extra is not installed")

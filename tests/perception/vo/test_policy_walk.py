@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from ambulo.cli import main
-from ambulo.scenes.indoor import build_indoor_scene
+from ambulo.perception.sources.head_camera_walk import LoopFollower, PolicyHeadCameraWalk, WalkCfg, loop_point
 from ambulo.perception.vo.config import TrackState
 from ambulo.perception.vo.eval import run_walk_vo
-from ambulo.perception.sources.head_camera_walk import LoopFollower, PolicyHeadCameraWalk, WalkCfg, loop_point
+from ambulo.scenes.indoor import build_indoor_scene
 
 pytest.importorskip("cv2", reason="the perception extra is not installed")
 pytest.importorskip("evo", reason="the perception extra is not installed")

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 import torch
 
+
 def as_generator(rng, reuse: torch.Generator | None = None) -> torch.Generator:
     """A ``torch.Generator``: ``rng`` itself, one seeded with the int ``rng``, or (for a
     ``numpy.random.Generator``) one seeded with the next 64 bits ``rng`` draws. ``reuse``: a

@@ -24,8 +24,8 @@ from ambulo.sim import camera_frame as frame_fmt
 
 from .basic_writer import camera_params
 from .errors import Namespace, unsupported
-from .ground_truth import normals_rgba, prim_boxes, replicator_bounding_box_3d
 from .graph import current_graph
+from .ground_truth import normals_rgba, prim_boxes, replicator_bounding_box_3d
 
 _CANONICAL = {"LdrColor": "rgb", "MotionVectors": "motion_vectors", "CameraParams": "camera_params"}
 NEEDS: dict[str, tuple[str, ...]] = {

@@ -19,13 +19,12 @@ from collections import deque
 
 import numpy as np
 
+from ambulo.isaac.hook import IsaacNameError
 from ambulo.render import OffscreenRenderer
 from ambulo.sensors import annotators as ann
 from ambulo.sensors.geom_shapes import surface_normals_w
 from ambulo.sim.camera_frame import motion_vectors
 from ambulo.sim.current import current_world
-
-from ambulo.isaac.hook import IsaacNameError
 
 from .ground_truth import legacy_bounding_box_3d, prim_boxes, row_transform
 from .viewport import ViewportAPI, get_active_viewport

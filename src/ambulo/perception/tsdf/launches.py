@@ -31,8 +31,6 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import torch
 
-from .kernels import wp
-
 from .kernels import (
     S_NEW_BLOCKS,
     S_NUM_BLOCKS,
@@ -43,6 +41,7 @@ from .kernels import (
     SELECT_BOTH,
     SELECT_VIEW,
     state_size,
+    wp,
 )
 
 if wp is not None:  # without Warp, TsdfMap takes its torch path and never makes these launches
@@ -66,7 +65,7 @@ def _view(t: torch.Tensor):
     return wp.from_torch(t)
 
 
-def _vec3(v) -> "wp.vec3":
+def _vec3(v) -> wp.vec3:
     return wp.vec3.from_buffer_copy(np.ascontiguousarray(v, dtype=np.float32))
 
 
@@ -86,7 +85,7 @@ class _Recorded:
             _view(v) if isinstance(v, torch.Tensor) else v for v in (values[name] for name in labels)])
         self._dim = dim
 
-    def set(self, dim, values: dict) -> "wp.Launch":
+    def set(self, dim, values: dict) -> wp.Launch:
         """Set the launch size and the given arguments (by name); returns the launch."""
         if dim != self._dim:
             self.launch.set_dim(dim)
@@ -108,7 +107,7 @@ class _Recorded:
             launch.set_param_at_index(index[name], v)
         return launch
 
-    def follow(self, leader: "_Recorded", dim, own: dict) -> "wp.Launch":
+    def follow(self, leader: _Recorded, dim, own: dict) -> wp.Launch:
         """CPU only: take all of ``leader``'s arguments, then set ``own`` (this range's first row / run
         and size): a copy of the list of packed arguments instead of setting each (a CPU launch reads
         them when it runs; ``set_param_at_index`` replaces an entry, never changes it in place)."""
@@ -439,7 +438,7 @@ class IntegrateLaunches:
                                          "voxels_per_run": n_vox})
             for c in range(chunks)]))
 
-    def _recorded(self, cache: dict, key, kernel, dim, values: dict, **more) -> "wp.Launch":
+    def _recorded(self, cache: dict, key, kernel, dim, values: dict, **more) -> wp.Launch:
         """The recorded launch ``cache[key]`` of ``kernel`` with these arguments (recorded on first use)."""
         values.update(more)
         rec = cache.get(key)

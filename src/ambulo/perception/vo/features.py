@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 from dataclasses import dataclass
+
 import numpy as np
 import torch
 
@@ -217,7 +218,7 @@ class KorniaFeatures:
         atlas (a one-level pyramid, or an atlas over its 128 MiB budget): ``detect`` then calls kornia."""
         if (h, w) in self._grids:
             return self._grids[(h, w)]
-        import torch.nn.functional as F  # noqa: N812
+        import torch.nn.functional as F
 
         c, p, dev = self.kcfg, self.kcfg.descriptor_patch_px, self.device
         heights, widths = [h], [w]  # kornia's pyramid sizes (extract_patches_from_pyramid)

@@ -40,7 +40,6 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-
 from .config import TrackState, VoCfg
 from .features import FrameFeatures, make_features
 from .imu import GyroAid, GyroSamples

@@ -14,6 +14,7 @@ on the head-camera walk: the 4th moves the pose by < 3 um, the 6th by < 0.01 um)
 from __future__ import annotations
 
 import functools
+
 import numpy as np
 import torch
 

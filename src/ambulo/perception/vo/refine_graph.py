@@ -13,9 +13,8 @@ from __future__ import annotations
 
 import torch
 
-from .refine import refine_pose_torch
-
 from .config import VoCfg
+from .refine import refine_pose_torch
 
 MIN_CAPACITY = 64
 
