@@ -11,7 +11,7 @@ demo: setup
 	$(PY) -m ambulo.cli demo
 
 test: setup
-	$(PY) -m pytest -q -p no:cacheprovider
+	$(PY) -m pytest -q -p no:cacheprovider --durations=30
 
 # ruff, then the import contracts of pyproject.toml [tool.importlinter] (the layers of DESIGN.md,
 # no import cycles); --no-cache: the graph of ~250 modules takes under a second to build

@@ -34,6 +34,7 @@ from ambulo.core.randomize import (
     write_field,
 )
 from ambulo.core.randomize.fields import entity_qpos_ids
+from ambulo.robots import humanoid
 from ambulo.utils.rotations import mat_to_quat, rot_about_axes
 from ambulo.utils.validate import Checked
 
@@ -252,7 +253,7 @@ class JointRandomizer(Randomizer):
 
     joints: str
     """Glob on joint names relative to ``prim_path`` (``*shoulder*``)."""
-    prim_path: str = "/World/robot"
+    prim_path: str = humanoid.PRIM_PATH  # the bundled humanoid, where the scenes place it
     range_fraction: float = 0.5
     """1 uses the whole limited range; unlimited joints use +-range_fraction * pi."""
 
