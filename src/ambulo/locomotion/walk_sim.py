@@ -33,7 +33,7 @@ import torch
 
 from ..nav.footsteps import FootstepPlan, FootstepPlanner, humanoid_footstep_cfg
 from ..nav.grid_map import GridMap
-from ..robots.humanoid import BASE_BODY, FOOT_BODIES, SOLE_SITES, SOLE_X_M, STANCE_WIDTH_M
+from ..robots.humanoid import BASE_BODY, FOOT_BODIES, SOLE_SITES, SOLE_X_M
 from ..scenes.walk_arena import GROUND_GEOM
 from ..utils.validate import Checked, rule
 from .balance import CenterOfPressure, FootShape, lipm_omega, polygon_signed_distance, support_polygon
@@ -42,21 +42,11 @@ from .walk_controller import HUMANOID_FOOT, StabilizerCfg, WalkController, build
 from .walk_world import start_walk_world
 
 
-def humanoid_walk_planner_cfg(**overrides):
-    """Footstep limits for the simulated humanoid: the module's (``humanoid_footstep_cfg``) with
-    steps of at most 0.25 m forward (0.2375 m on straight walks) and the robot's 0.18 m stance
-    width. Longer steps need a lower CoM than the 0.80 m of ``walk_pattern``."""
-    values = dict(step_lengths_m=(-0.10, 0.0, 0.05, 0.10, 0.15, 0.20, 0.25), step_length_range_m=(-0.10, 0.25),
-                  start_width_m=STANCE_WIDTH_M, foot_size_m=(0.22, 0.10))
-    values.update(overrides)
-    return humanoid_footstep_cfg(**values)
-
-
 def plan_walk(grid: GridMap, start_xyyaw_w, goal_xyyaw_w, cfg=None, *, time_budget_s: float | None = None
               ) -> FootstepPlan:
     """Footsteps for the humanoid from a body pose to another (x m, y m, yaw rad; the body is the
     midpoint of the soles, ``SOLE_X_M`` ahead of the pelvis)."""
-    planner = FootstepPlanner(grid, cfg or humanoid_walk_planner_cfg())
+    planner = FootstepPlanner(grid, cfg or humanoid_footstep_cfg())
     return planner.plan(start_xyyaw_w, goal_xyyaw_w, time_budget_s=time_budget_s)
 
 
@@ -417,10 +407,10 @@ def acceptance_walk(distance_m: float = 3.0, turn_rad: float = math.pi / 2, *, c
     start, goal = straight_and_turn_goal(distance_m, turn_rad)
     size = distance_m + 3.0
     grid = GridMap.empty((size, size), resolution_m=0.05, origin_xy_m=(-1.5, -size / 2))
-    plan = plan_walk(grid, start, goal, humanoid_walk_planner_cfg(goal_tolerance_m=0.05, goal_tolerance_yaw_rad=0.05),
+    plan = plan_walk(grid, start, goal, humanoid_footstep_cfg(goal_tolerance_m=0.05, goal_tolerance_yaw_rad=0.05),
                      time_budget_s=1.0)
     return plan, WalkSimulation(walk_pattern(plan, **pattern_kw), cfg)
 
 
-__all__ = ["grid_obstacles", "humanoid_walk_planner_cfg", "plan_walk", "walk_pattern", "WalkSimCfg",
+__all__ = ["grid_obstacles", "plan_walk", "walk_pattern", "WalkSimCfg",
            "WalkResult", "WalkSimulation", "straight_and_turn_goal", "acceptance_walk"]

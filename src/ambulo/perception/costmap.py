@@ -25,6 +25,7 @@ import torch
 
 from ambulo.maps import FREE_SPACE, INSCRIBED_INFLATED_OBSTACLE, LETHAL_OBSTACLE, NO_INFORMATION
 from ambulo.maps.occupancy_grid import cost_to_occupancy, grid_info
+from ambulo.robots import humanoid
 from ambulo.utils.checks import check_positive
 from ambulo.utils.validate import Checked
 
@@ -38,8 +39,8 @@ y = +-0.20 m with 0.04 m capsules, so 0.48 m across the shoulders."""
 HUMANOID_INSCRIBED_RADIUS_M = 0.11
 """Largest circle inside ``HUMANOID_FOOTPRINT_XY_M`` (half its 0.22 m depth): Nav2's inscribed radius."""
 
-HUMANOID_CIRCUMSCRIBED_RADIUS_M = 0.265
-"""Smallest circle around the footprint: hypot(0.11, 0.24) m."""
+HUMANOID_CIRCUMSCRIBED_RADIUS_M = humanoid.BODY_RADIUS_M
+"""Circle around the footprint (hypot(0.11, 0.24) m, rounded up): the body radius of ``robots.humanoid``."""
 
 
 @dataclass(kw_only=True)
