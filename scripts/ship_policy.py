@@ -20,7 +20,7 @@ from pathlib import Path
 import torch
 
 from ambulo import envs
-from ambulo.policies.shipped import POLICY_DIR
+from ambulo.assets import policy_folder
 from ambulo.rl import evaluate, export, runs
 
 
@@ -88,7 +88,7 @@ def main() -> None:
     args = p.parse_args()
     run_dir, ckpt = runs.resolve_policy(args.run, args.checkpoint)
     info = runs.read_run_info(run_dir)
-    out = POLICY_DIR / info["task"].replace("-", "_")
+    out = policy_folder(info["task"])
     tmp = out.with_name(out.name + ".new")
     shutil.rmtree(tmp, ignore_errors=True)
     exported = export(run_dir, checkpoint=ckpt, out_dir=tmp)

@@ -17,6 +17,16 @@ def get_assets_root_path() -> str:
     return str(_DATA)
 
 
+POLICIES_DIR = _DATA / "policies"
+"""One folder per shipped policy, named after its task with '_' for '-' (``policy_folder``)."""
+
+
+def policy_folder(task: str) -> Path:
+    """Where the shipped policy of ``task`` lives (whether or not one ships): the one statement of
+    the folder convention, for ``policies.shipped`` and ``robots`` (which sits below ``policies``)."""
+    return POLICIES_DIR / task.replace("-", "_")
+
+
 _SUFFIXES = (".xml", ".urdf")
 
 
@@ -37,4 +47,4 @@ def path(name: str) -> str:
     return str(file)
 
 
-__all__ = ["get_assets_root_path", "names", "path"]
+__all__ = ["POLICIES_DIR", "get_assets_root_path", "names", "path", "policy_folder"]

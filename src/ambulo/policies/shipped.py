@@ -26,7 +26,7 @@ import torch
 from .. import assets
 from ..robots.humanoid import POLICY_TASK
 
-POLICY_DIR = Path(assets.get_assets_root_path()) / "policies"
+POLICY_DIR = assets.POLICIES_DIR
 """One folder per shipped policy, named after its task with '_' for '-'."""
 
 
@@ -39,7 +39,7 @@ def shipped_tasks() -> list[str]:
 
 def policy_dir(task: str) -> Path:
     """The folder of ``task``'s shipped policy (FileNotFoundError naming the shipped ones)."""
-    folder = POLICY_DIR / task.replace("-", "_")
+    folder = assets.policy_folder(task)
     if not (folder / "contract.json").is_file():
         raise FileNotFoundError(f"no shipped policy for task {task!r}; shipped: {', '.join(shipped_tasks()) or 'none'}")
     return folder

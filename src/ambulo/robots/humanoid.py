@@ -9,7 +9,6 @@ walking policy's physics step is read from its contract, not restated.
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 from .. import assets
 
@@ -83,7 +82,7 @@ HEAD_HEIGHT_M = 1.62
 
 POLICY_TASK = "humanoid-walk"
 """The task of the shipped walking policy (``assets/data/policies/humanoid_walk``)."""
-POLICY_CONTRACT_FILE = Path(assets.get_assets_root_path()) / "policies" / "humanoid_walk" / "contract.json"
+POLICY_CONTRACT_FILE = assets.policy_folder(POLICY_TASK) / "contract.json"
 POLICY_PHYSICS_DT_S = float(json.loads(POLICY_CONTRACT_FILE.read_text())["physics_dt_s"])
 """The physics step the shipped walking policy was trained at, s (its contract's ``physics_dt_s``):
 a World that runs the policy steps this."""
