@@ -20,7 +20,10 @@ head turns on the kinematic walk at the same moment (``WalkCfg.look_away``): 90 
 1 s (peak 283 deg/s) and 180 deg in 0.4 s (peak 1400 deg/s): frames lost, frames to recover after
 the turn, largest position error.
 
-``ratio`` = ATE / 2 cm (the acceptance's limit; <= 1 meets it). The odometry's front end is
+``ratio`` = ATE / 2 cm (the acceptance's limit; <= 1 meets it). ATE and RPE score the tracked poses only
+(``VoResult.tracked``; ``scored`` and ``untracked_frames`` say how many), so a loss shows in the
+blackout figures, not in the ATE. The odometry runs its torch ops on one thread
+(``ambulo.perception.torch_threads``); ``vo_ms`` is its median / p90 time a frame. The odometry's front end is
 ``--features``: ``orb`` (the default: OpenCV ORB and ``solvePnPRansac`` on the CPU) or ``kornia``
 (``ambulo.perception.vo.kornia_vo_cfg``: kornia corners + RootSIFT, matching and RANSAC in torch on
 ``--device``); ``--pnp`` overrides the RANSAC (``opencv`` with kornia features: features and
@@ -108,6 +111,9 @@ def main(argv=None) -> dict:
         "ate_rmse_cm": _scaled(score.ate_rmse_m, 100, 3), "rpe_percent": _scaled(score.rpe_percent, 1, 3),
         "rpe_deg_per_m": _scaled(score.rpe_deg_per_m, 1, 4),
         "ate_unavailable": score.ate_unavailable, "rpe_unavailable": score.rpe_unavailable,
+        "scored": f"tracked poses only ({len(run.times_s) - run.untracked_frames} of {len(run.times_s)})",
+        "untracked_frames": run.untracked_frames, "blackout_untracked_frames": dark.untracked_frames,
+        "torch_threads": torch.get_num_threads(),
         "vo_ms": {"median": round(float(np.median(run.vo_ms)), 2), "p90": round(float(np.percentile(run.vo_ms, 90)), 2)},
         "vo_fps": round(1e3 / float(np.median(run.vo_ms)), 1), "features": cfg.features, "pnp": cfg.pnp,
         "cuda_graphs": cfg.cuda_graphs and torch.device(cfg.device).type == "cuda",

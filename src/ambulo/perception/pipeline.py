@@ -1,6 +1,13 @@
 """The whole perception stack on one scene: the humanoid walks, visual odometry tracks its head
 camera, the TSDF fuses depth at the tracked poses, and the results are written as files a person
-can open (what ``ambulo map <scene>`` runs)."""
+can open (what ``ambulo map <scene>`` runs).
+
+An untracked frame (``VoResult.tracked`` False: tracking lost, the pose coasted) is never fused:
+its depth at a guessed pose would put walls where they are not. The trajectory is scored on the
+tracked poses only (``estimate.tum``); all poses, coasted ones included, are in
+``estimate_all.tum``, and the summary counts the untracked frames and their largest position error.
+With ``use_true_poses`` every frame is fused at its true pose (the odometry still runs and is
+scored the same way)."""
 
 from __future__ import annotations
 
@@ -14,6 +21,7 @@ import torch
 
 from ..maps import save_npz
 from ..scenes.indoor import IndoorSceneCfg, build_indoor_scene
+from ..utils.checks import Described, InvalidValueError
 from ..utils.validate import Checked
 from .costmap import InflationCfg, inflate
 from .esdf import esdf_from_grid
@@ -70,7 +78,7 @@ def run_mapping(cfg: MapRunCfg, out_dir: str | Path, progress=None) -> dict:
     tsdf = TsdfMap(cfg.tsdf, device=cfg.device)
     mesher = IncrementalMesher(tsdf)
     vo = None
-    times, est, truth, vo_ms, tsdf_ms = [], [], [], [], []
+    times, est, truth, tracked, vo_ms, tsdf_ms = [], [], [], [], [], []
     try:
         for i in range(cfg.num_frames):
             frame = walk.frame(i)
@@ -80,15 +88,17 @@ def run_mapping(cfg: MapRunCfg, out_dir: str | Path, progress=None) -> dict:
             t0 = time.perf_counter()
             result = vo.track(frame.rgb.numpy(), frame.depth_m.numpy(), gyro=frame.gyro if cfg.vo_gyro else None)
             vo_ms.append((time.perf_counter() - t0) * 1e3)
-            pose = frame.pose_wc if cfg.use_true_poses else torch.from_numpy(result.pose_wc)
-            t0 = time.perf_counter()
-            tsdf.integrate(RgbdFrame(frame.depth_m, frame.rgb, frame.intrinsics, pose, frame.time_s))
-            tsdf_ms.append((time.perf_counter() - t0) * 1e3)
+            if cfg.use_true_poses or result.tracked:  # never fuse at a coasted pose
+                pose = frame.pose_wc if cfg.use_true_poses else torch.from_numpy(result.pose_wc)
+                t0 = time.perf_counter()
+                tsdf.integrate(RgbdFrame(frame.depth_m, frame.rgb, frame.intrinsics, pose, frame.time_s))
+                tsdf_ms.append((time.perf_counter() - t0) * 1e3)
             if (i + 1) % cfg.mesh_every == 0:
                 mesher.update()
             times.append(frame.time_s)
             est.append(result.pose_wc)
             truth.append(frame.pose_wc.numpy())
+            tracked.append(result.tracked)
             if progress is not None:
                 progress(i)
     finally:
@@ -96,8 +106,15 @@ def run_mapping(cfg: MapRunCfg, out_dir: str | Path, progress=None) -> dict:
     mesh = mesher.update()
     write_ply(out / "mesh.ply", mesh)
     gt_file = write_tum(out / "groundtruth.tum", times, truth)
-    est_file = write_tum(out / "estimate.tum", times, est)
+    keep = np.array(tracked, bool)
+    est_file = write_tum(out / "estimate.tum", np.asarray(times)[keep], np.asarray(est)[keep])
+    write_tum(out / "estimate_all.tum", times, est)
     score = score_tum(gt_file, est_file)
+    if not tsdf.num_blocks:
+        raise InvalidValueError("the image size", Described(f"{cfg.width}x{cfg.height}"),
+                                f"the odometry tracked none of the {cfg.num_frames} frames (too few features with "
+                                "depth), so none was fused and the map is empty",
+                                "give a larger --width/--height (e.g. the default 640x480) or --true-poses")
     grid = tsdf.dense()
     occupancy = occupancy_slice(grid, *cfg.band_m)
     costmap = inflate(occupancy, cfg.inflation)
@@ -117,9 +134,13 @@ def run_mapping(cfg: MapRunCfg, out_dir: str | Path, progress=None) -> dict:
         "walk": cfg.walk_mode,
         "vo_started": result.num_keyframes > 0,
         "trajectory": score.as_dict(),
+        "trajectory_scored": f"tracked poses only ({int(keep.sum())} of {len(keep)})",
+        "untracked_frames": int((~keep).sum()),
+        "fused_frames": len(tsdf_ms),
+        "untracked_max_position_error_m": _max_error_m(np.asarray(est)[~keep], np.asarray(truth)[~keep]),
         "evo_commands": [f"evo_ape tum {gt_file.name} {est_file.name} --align",
                          f"evo_rpe tum {gt_file.name} {est_file.name} --align --delta 1 --delta_unit m --all_pairs"],
-        "vo_ms_median": float(np.median(vo_ms)), "tsdf_ms_median": float(np.median(tsdf_ms)),
+        "vo_ms_median": float(np.median(vo_ms)), "tsdf_ms_median": float(np.median(tsdf_ms)) if tsdf_ms else None,
         "blocks": tsdf.num_blocks, "map_mb": tsdf.memory_bytes() / 2**20,
         "mesh": {"vertices": len(mesh.vertices), "faces": len(mesh.faces)},
         "occupancy_cells": {k: int((occupancy.data == v).sum()) for k, v in (("unknown", -1), ("free", 0), ("occupied", 1))},
@@ -128,6 +149,13 @@ def run_mapping(cfg: MapRunCfg, out_dir: str | Path, progress=None) -> dict:
     }
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     return summary
+
+
+def _max_error_m(est_wc: np.ndarray, truth_wc: np.ndarray) -> float | None:
+    """Largest distance between estimated and true camera positions (unaligned), m; None for no poses."""
+    if len(est_wc) == 0:
+        return None
+    return float(np.linalg.norm(est_wc[:, :3, 3] - truth_wc[:, :3, 3], axis=1).max())
 
 
 def _min_distance_on_path(distance, path_xy: np.ndarray) -> float:

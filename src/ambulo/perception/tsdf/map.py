@@ -22,7 +22,6 @@ path) and ``DenseGrid``; ``tsdf.reference`` the eager-torch path (a base class o
 from __future__ import annotations
 
 import math
-from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,6 +31,7 @@ from ambulo.utils.checks import check_int, check_positive
 from ambulo.utils.validate import Checked
 
 from ..frames import RgbdFrame, pixel_rays
+from ..torch_threads import one_torch_thread
 from . import kernels
 from .block_hash import BlockHash, raise_out_of_range
 from .frame import _NO_DEPTH, _FrameBuffers, _FrameGeometry
@@ -88,20 +88,6 @@ _MAX_DENSE_CELLS = 1 << 21
 def _host(t: torch.Tensor) -> np.ndarray:
     """A host tensor's values as numpy without a torch op where it is already a plain CPU tensor."""
     return t.numpy() if t.device.type == "cpu" and not t.requires_grad else t.detach().cpu().numpy()
-
-
-@contextmanager
-def _one_torch_thread(device: torch.device):
-    """Run the enclosed CPU torch ops on the calling thread only (no-op on other devices)."""
-    if device.type != "cpu":
-        yield
-        return
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(threads)
 
 
 class TsdfMap(_TorchIntegration):
@@ -288,7 +274,7 @@ class TsdfMap(_TorchIntegration):
         # vectorise), on one torch thread: a parallel region leaves torch's OpenMP threads spinning for ms
         # on the cores the voxel launches then need (on 2 cores the update took 2.8 ms instead of 2.0).
         # The kernels read only this copy, so the frame's depth tensor is never handed to Warp
-        with _one_torch_thread(depth.device):
+        with one_torch_thread(depth.device):
             torch.nan_to_num(depth, nan=_NO_DEPTH, posinf=_NO_DEPTH, neginf=_NO_DEPTH, out=buf.depth_inner)
         if self._graph is not None and buf.volume is not None:
             self._integrate_graph(rgb, buf)

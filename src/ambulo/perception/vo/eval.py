@@ -34,6 +34,13 @@ class VoRun:
     blackout: tuple[int, int] | None
     """[start, end) frames during which tracking could not work (covered lens, textureless wall, a
     fast turn away from everything mapped)."""
+    tracked: np.ndarray | None = None
+    """(N,) bool ``VoResult.tracked`` of each frame (None: every pose counts as tracked)."""
+
+    @property
+    def untracked_frames(self) -> int:
+        """Frames whose pose was coasted, not measured (left out of ``score``)."""
+        return 0 if self.tracked is None else int((~self.tracked).sum())
 
     def recovery_frames(self, tolerance_m: float = 0.05) -> int | None:
         """Frames after the loss until the state is tracking/recovered again with a position
@@ -57,14 +64,18 @@ class VoRun:
         return np.degrees(np.linalg.norm(Rotation.from_matrix(rel).as_rotvec(), axis=1))
 
     def write(self, folder: str | Path) -> tuple[Path, Path]:
-        """``groundtruth.tum`` and ``estimate.tum`` in ``folder``."""
+        """``groundtruth.tum`` (every frame), ``estimate.tum`` (the tracked frames' poses) and
+        ``estimate_all.tum`` (every frame's, coasted ones included) in ``folder``; returns the first two."""
         folder = Path(folder)
+        keep = np.ones(len(self.times_s), bool) if self.tracked is None else self.tracked
+        write_tum(folder / "estimate_all.tum", self.times_s, self.estimate_wc)
         return (write_tum(folder / "groundtruth.tum", self.times_s, self.truth_wc),
-                write_tum(folder / "estimate.tum", self.times_s, self.estimate_wc))
+                write_tum(folder / "estimate.tum", self.times_s[keep], self.estimate_wc[keep]))
 
     def score(self, folder: str | Path) -> TrajectoryScore:
-        """Write both trajectories into ``folder`` and score them (``trajectory.score_tum``: a run too
-        short or too still to align or to span the RPE's metre gets None with the reason)."""
+        """Write the trajectories into ``folder`` and score the tracked poses (``trajectory.score_tum``:
+        a run too short or too still to align or to span the RPE's metre gets None with the reason); the
+        untracked ones are ``untracked_frames``, their errors ``position_error_m``."""
         gt, est = self.write(folder)
         return score_tum(gt, est)
 
@@ -85,7 +96,7 @@ def run_walk_vo(walk: HeadCameraWalk | PolicyHeadCameraWalk, num_frames: int, cf
         raise ValueError(f"loss={loss!r} is not one of {LOSSES}")
     if num_frames < 1:
         raise ValueError(f"num_frames is {num_frames}: a run needs at least 1 frame; pass e.g. num_frames=300")
-    times, est, truth, states, vo_ms = [], [], [], [], []
+    times, est, truth, states, vo_ms, tracked = [], [], [], [], [], []
     vo = None
     for i in range(num_frames):
         frame = walk.frame(i)
@@ -105,9 +116,10 @@ def run_walk_vo(walk: HeadCameraWalk | PolicyHeadCameraWalk, num_frames: int, cf
         est.append(result.pose_wc)
         truth.append(frame.pose_wc.numpy())
         states.append(result.state)
+        tracked.append(result.tracked)
         if progress is not None:
             progress(i)
-    return VoRun(np.array(times), np.array(est), np.array(truth), states, vo_ms, blackout)
+    return VoRun(np.array(times), np.array(est), np.array(truth), states, vo_ms, blackout, np.array(tracked, bool))
 
 
 __all__ = ["LOSSES", "VoRun", "run_walk_vo"]

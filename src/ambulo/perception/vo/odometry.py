@@ -40,6 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from ..torch_threads import one_torch_thread
 from .config import TrackState, VoCfg
 from .features import FrameFeatures, make_features
 from .imu import GyroAid, GyroSamples
@@ -63,11 +64,22 @@ class Keyframe:
 
 @dataclass
 class VoResult:
+    """One frame's odometry output. Only a ``tracked`` pose may be acted on (fused into a map,
+    steered on, scored): an untracked one is a guess."""
+
     pose_wc: np.ndarray
-    """(4, 4) float64 estimated camera-to-world pose (OpenCV axes)."""
+    """(4, 4) float64 estimated camera-to-world pose (OpenCV axes); while not ``tracked`` the coasted
+    prediction (constant velocity or the gyro), which drifts (33.6 cm after a 1 s covered lens)."""
     state: TrackState
+    """Why the pose is what it is (``TrackState``); ``tracked`` says whether to use it."""
     inliers: int
     num_keyframes: int
+    tracked: bool
+    """True when this frame's pose was measured from the image: ``state`` TRACKING or RECOVERED, or
+    INITIALIZED on the frame that made the first keyframe (the pose given to the odometry). False
+    while LOST (coasted), on a REINITIALIZED frame (a new map started at the coasted pose: tracking
+    goes on from the next frame, relative to that pose, which keeps the error coasted into) and
+    before the odometry starts (too few features with depth: the pose is still the initial one)."""
 
 
 def moved_by_rigidity(points_w: torch.Tensor, points_c: torch.Tensor, valid: torch.Tensor, cfg: VoCfg,
@@ -313,6 +325,12 @@ class RgbdOdometry:
         frame to this one (needs ``pose_cam_imu``; ignored on the first frame)."""
         if gyro is not None and self.gyro is None:
             raise ValueError("track(gyro=...) needs the IMU's extrinsic: pass pose_cam_imu to RgbdOdometry")
+        # the frame's CPU torch ops on this thread only (``torch_threads``: 59 -> 222 ms a frame with 2
+        # torch threads on a busy 2-core machine)
+        with one_torch_thread(self.device):
+            return self._track(rgb, depth, gyro)
+
+    def _track(self, rgb, depth, gyro: GyroSamples | None) -> VoResult:
         self.frame_index += 1
         f = self.features.detect(rgb, depth)
         self._moving = torch.zeros(len(f.pixels), dtype=torch.bool, device=self.device)
@@ -325,7 +343,18 @@ class RgbdOdometry:
         else:
             inliers = self._track_next(f, gyro)
         self.history.append(self.state)
-        return VoResult(self.pose_wc.copy(), self.state, inliers, len(self.keyframes))
+        return VoResult(self.pose_wc.copy(), self.state, inliers, len(self.keyframes), tracked=self.tracked)
+
+    @property
+    def tracked(self) -> bool:
+        """Whether the last frame's pose was measured (``VoResult.tracked``)."""
+        if self.state == TrackState.INITIALIZED:
+            return bool(self.keyframes)
+        return self.state in _TRACKED
+
+
+_TRACKED = (TrackState.TRACKING, TrackState.RECOVERED)
+"""States whose pose was measured from the image (INITIALIZED too once the first keyframe is made)."""
 
 
 def _angle_deg(rotation: np.ndarray) -> float:
