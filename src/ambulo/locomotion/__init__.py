@@ -10,6 +10,8 @@ whole-body controller that walks a footstep plan in simulation.
   in its ``home`` keyframe.
 - ``walk_sim``: a footstep plan walked there (the engine steps the physics), with the balance
   measured as it goes; ``walk_plot`` draws it.
+- ``step_walker``: the same pattern and controller online in any simulation (``ZmpStepWalker``):
+  a receding preview window over the queued footsteps, new plans taken at the next touchdown.
 
 The footstep planner it walks is ``ambulo.nav``'s; the arena it walks in is
 ``ambulo.scenes.walk_arena``; the robot's facts are ``ambulo.robots.humanoid``'s.
@@ -39,6 +41,7 @@ from .preview import (
     preview_gains,
     walk_pattern_cfg,
 )
+from .step_walker import StepWalkerCfg, WalkerBalance, ZmpStepWalker, step_walker_cfg
 from .walk_controller import HUMANOID_FOOT, StabilizerCfg, WalkController, WalkIK, build_reference, walk_robot
 from .walk_sim import WalkResult, WalkSimCfg, WalkSimulation, acceptance_walk, plan_walk, walk_pattern
 from .walk_world import WalkWorld, start_walk_world
@@ -51,4 +54,5 @@ __all__ = [
     "HUMANOID_FOOT", "StabilizerCfg", "WalkController", "WalkIK", "build_reference", "walk_robot",
     "WalkResult", "WalkSimCfg", "WalkSimulation", "acceptance_walk", "plan_walk", "walk_pattern",
     "WalkWorld", "start_walk_world",
+    "StepWalkerCfg", "WalkerBalance", "ZmpStepWalker", "step_walker_cfg",
 ]
