@@ -1,0 +1,176 @@
+"""Mappers: the 2-D occupancy of the body band the navigator plans on (``maps.Grid2D``: -1 unknown,
+0 free, 100 occupied), with a ``version`` that changes when its contents do.
+
+- ``OracleMapper``: the world's ground-truth occupancy; never changes.
+- ``OnlineMapper``: a TSDF (``perception.tsdf.TsdfMap``) fused from tracked frames at their
+  estimated poses; every ``1 / update_hz`` s of simulated time its occupancy slice of the body band
+  (``perception.slices.occupancy_slice``) is cut and written into a fixed map covering the world
+  (cells aligned with the TSDF's voxel columns, so the slice lands cell for cell). Cells the robot's
+  body stood on (a disc of ``body_free_radius_m`` around each estimated pose) are free when the
+  slice has not seen them: the robot was there. The slice covers every allocated block; its cost
+  is measured and kept in ``refresh_wall_s``.
+
+``costmap()`` gives the humanoid's Nav2-style costmap of the current map (``perception.costmap``),
+for displays and the ROS node; the planners use exact clearances (``planning``).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+
+from ..maps import FREE, OCCUPIED, UNKNOWN, Grid2D
+from ..perception.costmap import Costmap, InflationCfg, inflate
+from ..perception.frames import RgbdFrame
+from ..perception.slices import OCCUPIED as SLICE_OCCUPIED
+from ..perception.slices import UNKNOWN as SLICE_UNKNOWN
+from ..perception.slices import Slice2D, occupancy_slice
+from ..perception.tsdf.map import TsdfCfg, TsdfMap
+from ..robots import humanoid
+from ..utils.validate import Checked
+
+
+def costmap_of(grid: Grid2D, cfg: InflationCfg | None = None) -> Costmap:
+    """The humanoid costmap (Nav2 inflation) of a ``Grid2D``."""
+    occ = grid.occupancy
+    data = np.where(occ >= OCCUPIED, SLICE_OCCUPIED, np.where(occ == UNKNOWN, SLICE_UNKNOWN, 0)).astype(np.int8)
+    return inflate(Slice2D(torch.from_numpy(data), tuple(grid.origin_xy_m), grid.resolution_m), cfg)
+
+
+class OracleMapper:
+    """The ground truth (module docstring)."""
+
+    name = "oracle"
+    needs_images = False
+    optimistic = True
+    """No unknown cells: footsteps may use every free cell."""
+
+    def reset(self, world) -> None:
+        self.grid = world.occupancy
+        self.version = 0
+        self.frames_fused = 0
+
+    def fuse(self, frame: RgbdFrame, pose_wc: np.ndarray) -> None:
+        self.frames_fused += 1
+
+    def mark_body(self, xy) -> None:
+        pass
+
+    def refresh(self, time_s: float) -> bool:
+        return False
+
+    def costmap(self) -> Costmap:
+        return costmap_of(self.grid)
+
+
+@dataclass(kw_only=True)
+class OnlineMapperCfg(Checked):
+    tsdf: TsdfCfg = field(default_factory=lambda: TsdfCfg(depth_max_m=4.0))
+    """5 cm voxels; depth beyond 4 m is left out (the head camera's far floor is noisy and its
+    rays graze it)."""
+    band_m: tuple[float, float] = (0.1, humanoid.HEAD_HEIGHT_M)
+    """Height band of the occupancy slice, m: from the first voxel centre clear of the floor's
+    surface voxels to the head."""
+    update_hz: float = 2.0
+    """Slices per second of simulated time."""
+    body_free_radius_m: float = 0.2
+    """Cells within this of a pose the robot stood at are free unless seen otherwise, m."""
+    margin_m: float = 1.0
+    """The map covers the world's ground-truth extent grown by this, m."""
+
+
+class OnlineMapper:
+    """TSDF -> occupancy slice -> the navigator's map (module docstring)."""
+
+    name = "online"
+    needs_images = True
+    optimistic = False
+
+    def __init__(self, cfg: OnlineMapperCfg | None = None, device: str = "cpu"):
+        self.cfg = cfg or OnlineMapperCfg()
+        self.device = device
+
+    def reset(self, world) -> None:
+        c = self.cfg
+        vs = c.tsdf.voxel_size_m
+        x0, y0, x1, y1 = world.occupancy.extent_xy_m()
+        # cell corners at (k - 1/2) voxels: cell k is voxel column k (perception.slices)
+        self._k0 = (int(math.floor((x0 - c.margin_m) / vs)), int(math.floor((y0 - c.margin_m) / vs)))
+        nx = int(math.ceil((x1 + c.margin_m) / vs)) - self._k0[0] + 1
+        ny = int(math.ceil((y1 + c.margin_m) / vs)) - self._k0[1] + 1
+        origin = ((self._k0[0] - 0.5) * vs, (self._k0[1] - 0.5) * vs)
+        self._occ = np.full((ny, nx), UNKNOWN, np.int8)
+        self._body_free = np.zeros((ny, nx), bool)
+        self.grid = Grid2D(occupancy=self._occ.copy(), origin_xy_m=origin, resolution_m=vs)
+        self.tsdf = TsdfMap(c.tsdf, device=self.device)
+        self.version = 0
+        self.frames_fused = 0
+        self._last_refresh_s = -math.inf
+        self._dirty = False
+        self.refresh_wall_s: list[float] = []
+        """Wall time of each slice (dense grid + slice + paste), s."""
+        self.fuse_wall_s: list[float] = []
+
+    def fuse(self, frame: RgbdFrame, pose_wc: np.ndarray) -> None:
+        """Integrate ``frame`` at the camera pose ``pose_wc`` (4, 4): call only with tracked poses."""
+        t0 = time.perf_counter()
+        self.tsdf.integrate(RgbdFrame(frame.depth_m, frame.rgb, frame.intrinsics,
+                                      torch.as_tensor(pose_wc, dtype=torch.float64), frame.time_s))
+        self.fuse_wall_s.append(time.perf_counter() - t0)
+        self.frames_fused += 1
+        self._dirty = True
+
+    def mark_body(self, xy) -> None:
+        """The robot stands at ``xy`` (estimated): its body's cells are free unless seen occupied."""
+        g = self.grid
+        r = self.cfg.body_free_radius_m
+        iy, ix = g.cell_of(xy)
+        k = int(math.ceil(r / g.resolution_m))
+        ny, nx = g.shape
+        ys, xs = np.mgrid[max(0, iy - k):min(ny, iy + k + 1), max(0, ix - k):min(nx, ix + k + 1)]
+        cx, cy = g.cell_center_xy_m(ys, xs)
+        inside = np.hypot(cx - xy[0], cy - xy[1]) <= r
+        if inside.any() and not self._body_free[ys[inside], xs[inside]].all():
+            self._body_free[ys[inside], xs[inside]] = True
+            self._dirty = True
+
+    def refresh(self, time_s: float) -> bool:
+        """Cut a new slice if one is due and anything changed; True when the map changed."""
+        if not self._dirty or time_s - self._last_refresh_s < 1.0 / self.cfg.update_hz:
+            return False
+        t0 = time.perf_counter()
+        self._last_refresh_s = time_s
+        self._dirty = False
+        occ = np.full_like(self._occ, UNKNOWN)
+        if self.tsdf.num_blocks:
+            sl = occupancy_slice(self.tsdf.dense(), *self.cfg.band_m)
+            data = sl.data.cpu().numpy()
+            vs = self.grid.resolution_m
+            sx, sy = (int(round(sl.origin_xy_m[0] / vs + 0.5)), int(round(sl.origin_xy_m[1] / vs + 0.5)))
+            ox, oy = sx - self._k0[0], sy - self._k0[1]
+            ny, nx = occ.shape
+            y0, x0 = max(0, oy), max(0, ox)
+            y1, x1 = min(ny, oy + data.shape[0]), min(nx, ox + data.shape[1])
+            if y1 > y0 and x1 > x0:
+                part = data[y0 - oy:y1 - oy, x0 - ox:x1 - ox]
+                occ[y0:y1, x0:x1] = np.where(part == SLICE_OCCUPIED, OCCUPIED,
+                                             np.where(part == SLICE_UNKNOWN, UNKNOWN, FREE))
+        occ[(occ == UNKNOWN) & self._body_free] = FREE
+        changed = not np.array_equal(occ, self._occ)
+        if changed:
+            self._occ = occ
+            self.grid = Grid2D(occupancy=occ.copy(), origin_xy_m=self.grid.origin_xy_m,
+                               resolution_m=self.grid.resolution_m)
+            self.version += 1
+        self.refresh_wall_s.append(time.perf_counter() - t0)
+        return changed
+
+    def costmap(self) -> Costmap:
+        return costmap_of(self.grid)
+
+
+__all__ = ["OnlineMapper", "OnlineMapperCfg", "OracleMapper", "costmap_of"]

@@ -1,0 +1,367 @@
+"""``Navigator``: the closed loop in a ``NavWorld``.
+
+    world = NavWorld.from_apartment(3, start_pose=(x, y, yaw))
+    nav = Navigator(world, NavigatorCfg(mode="full"))
+    nav.set_goal((4.0, 2.5))
+    nav.run()                       # until arrived, fallen, lost, stuck or out of time
+    nav.status, nav.walked_path_xy_m, nav.replans
+
+Every physics step (5 ms) the walker steps on the pose estimate. Every ``1 / camera_hz`` s a frame
+is taken (rendered only when the localizer, the mapper or an observer needs images): the
+localizer updates, and a tracked pose is fused into the map; an untracked one makes the robot
+stand and wait for relocalisation (``lost_timeout_s``), never fused, never steered on. Every
+control period (20 ms) the map is refreshed (at its own rate), the episode's end is checked, and
+the plan is renewed when:
+
+- there is none, or ``replan_period_s`` passed since the last;
+- the robot is more than ``drift_replan_m`` from the plan's body path;
+- a partial plan's end (the subgoal) is near (``subgoal_renew_m`` of path left);
+- the map changed and the remaining body path now runs through cells without clearance.
+
+Modes: ``oracle`` (true pose, true map), ``mapping`` (true pose, online map), ``full`` (VO pose,
+online map). Observers (``add_observer``) get a ``NavSnapshot`` per frame.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from ..maps import Grid2D
+from ..nav import FootstepPlan, PlanStatus
+from ..perception.costmap import Costmap
+from ..perception.frames import RgbdFrame
+from ..utils.checks import InvalidValueError, check_vector
+from ..utils.validate import Checked
+from .localization import OracleLocalizer, PoseEstimate, VoLocalizer, VoLocalizerCfg
+from .mapping import OnlineMapper, OnlineMapperCfg, OracleMapper
+from .planning import (
+    FootstepStage,
+    PlanningCfg,
+    ReplanRecord,
+    Route,
+    RoutePlanner,
+    choose_subgoal,
+    footstep_clearance,
+    route_heading,
+)
+from .walkers import BalanceReport, PolicyWalker, Walker, body_path
+from .world import NavWorld
+
+MODES = ("oracle", "mapping", "full")
+
+
+@dataclass(kw_only=True)
+class NavigatorCfg(Checked):
+    mode: Literal["oracle", "mapping", "full"] = "oracle"
+    camera_hz: float = 10.0
+    """Frames per second of simulated time (VO, mapping, observers)."""
+    replan_period_s: float = 1.0
+    drift_replan_m: float = 0.25
+    subgoal_renew_m: float = 0.8
+    """A partial plan is renewed when this much of its body path is left, m."""
+    blocked_clearance_m: float = 0.18
+    """After a map change, a remaining body path point with less clearance than this forces a replan, m."""
+    goal_tolerance_m: float = 0.3
+    """Success radius, m (the benchmarks' 0.3 m)."""
+    settle_s: float = 0.6
+    """Standing still this long at the goal ends the episode, s."""
+    standing_speed_m_s: float = 0.15
+    """Below this pelvis speed the robot counts as standing, m/s."""
+    lost_timeout_s: float = 5.0
+    """Untracked this long ends the episode ("lost"), s."""
+    stuck_window_s: float = 20.0
+    stuck_progress_m: float = 0.5
+    """Moving less than this in ``stuck_window_s`` ends the episode ("stuck"), m."""
+    time_limit_s: float = 120.0
+    planning: PlanningCfg = field(default_factory=PlanningCfg)
+    mapper: OnlineMapperCfg = field(default_factory=OnlineMapperCfg)
+    vo: VoLocalizerCfg = field(default_factory=VoLocalizerCfg)
+    path_log_period_s: float = 0.1
+    """The walked paths are logged this often, s."""
+
+
+@dataclass
+class NavSnapshot:
+    """What an observer sees at a frame (arrays are the navigator's: copy what you keep)."""
+
+    time_s: float
+    true_pose: np.ndarray
+    """(3,) x m, y m, yaw rad."""
+    estimate: PoseEstimate
+    frame: RgbdFrame | None
+    """The camera frame (None when nothing needed images)."""
+    goal_xy_m: np.ndarray | None
+    route_xy_m: np.ndarray | None
+    footsteps: FootstepPlan | None
+    occupancy: Grid2D
+    walked_xy_m: np.ndarray
+    """(K, 2) true positions so far."""
+    command: tuple[float, float, float] | None
+    status: str
+
+
+class Navigator:
+    """The navigator (module docstring). ``walker``, ``localizer`` and ``mapper`` default to the
+    mode's; pass your own to swap a part (a walker must follow ``walkers.Walker``)."""
+
+    def __init__(self, world: NavWorld, cfg: NavigatorCfg | None = None, *, walker: Walker | None = None,
+                 localizer=None, mapper=None):
+        self.cfg = cfg = cfg or NavigatorCfg()
+        if cfg.mode not in MODES:
+            raise InvalidValueError("NavigatorCfg.mode", cfg.mode, "unknown mode", f"use one of {MODES}")
+        self.world = world
+        self.localizer = localizer or (VoLocalizer(cfg.vo) if cfg.mode == "full" else OracleLocalizer())
+        self.mapper = mapper or (OracleMapper() if cfg.mode == "oracle" else OnlineMapper(cfg.mapper))
+        self.walker = walker or PolicyWalker()
+        self.routes = RoutePlanner(cfg.planning)
+        self.footsteps_stage = FootstepStage(cfg.planning)
+        self._observers: list[tuple[Callable[[NavSnapshot], None], bool]] = []
+        self.walker.bind(world)
+        self.reset()
+
+    # -- public API ---------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Stand the robot at the world's start; forget goal, map and plans."""
+        w = self.world
+        self.walker.reset()
+        w.engine.forward()
+        w.reset_monitors()
+        self.localizer.reset(w)
+        self.mapper.reset(w)
+        self.goal_xy_m: np.ndarray | None = None
+        self.goal_yaw_rad: float | None = None
+        self.estimate = PoseEstimate(w.true_pose(), True, w.time_s)
+        self.route: Route | None = None
+        self.plan: FootstepPlan | None = None
+        self.plan_final = False
+        self.replans: list[ReplanRecord] = []
+        self.status = "idle"
+        """idle | walking | lost (waiting) | arrived | fell | lost_timeout | stuck | timeout | no_route"""
+        self.done = False
+        self._steps = 0
+        self._frame_every = max(1, round(1.0 / (self.cfg.camera_hz * w.dt_s)))
+        self._decimation = max(1, round(0.02 / w.dt_s))
+        self._path_every = max(1, round(self.cfg.path_log_period_s / w.dt_s))
+        self._last_plan_s = -math.inf
+        self._replan_reason: str | None = None
+        self._lost_since: float | None = None
+        self._settled_since: float | None = None
+        self._start_time_s = w.time_s
+        self.times_s: list[float] = []
+        self.walked_path_xy_m: list[np.ndarray] = []
+        """True base positions every ``path_log_period_s``."""
+        self.estimated_path_xy_m: list[np.ndarray] = []
+        self.frame_errors_m: list[float] = []
+        """Per tracked frame: |estimated - true| base position, m (the ATE's samples)."""
+        self.frames = 0
+        self.untracked_frames = 0
+        self.fused_while_untracked = 0
+        """Frames fused into the map while untracked: 0 by construction (checked by the tests)."""
+        self.frame_wall_s: list[float] = []
+        self._mark_body()
+
+    def set_goal(self, goal_xy_m, yaw_rad: float | None = None) -> None:
+        """Navigate to ``goal_xy_m`` (x m, y m), arriving with ``yaw_rad`` if given."""
+        self.goal_xy_m = np.array(check_vector("goal_xy_m", goal_xy_m, 2, "pass (x m, y m)"), float)
+        self.goal_yaw_rad = None if yaw_rad is None else float(yaw_rad)
+        self.done = False
+        self.status = "walking"
+        self._replan_reason = "new goal"
+        self._start_time_s = self.world.time_s
+        self._progress_mark = (self.world.time_s, self.world.true_pose()[:2])
+
+    def add_observer(self, fn: Callable[[NavSnapshot], None], *, images: bool = True) -> None:
+        """Call ``fn(snapshot)`` at every frame; ``images``: render the camera for it."""
+        self._observers.append((fn, images))
+
+    @property
+    def occupancy(self) -> Grid2D:
+        """The map the navigator plans on (``maps.Grid2D``)."""
+        return self.mapper.grid
+
+    def costmap(self) -> Costmap:
+        """The humanoid costmap of ``occupancy`` (computed on request)."""
+        return self.mapper.costmap()
+
+    @property
+    def tracked(self) -> bool:
+        return self.estimate.tracked
+
+    def true_pose(self) -> np.ndarray:
+        return self.world.true_pose()
+
+    def balance(self) -> BalanceReport:
+        return self.walker.balance()
+
+    def run(self, until: Callable[[Navigator], bool] | None = None, max_time_s: float | None = None) -> str:
+        """Step until the episode ends (or ``until(self)`` holds, or ``max_time_s`` of simulated
+        time passed); returns ``status``."""
+        t_end = math.inf if max_time_s is None else self.world.time_s + max_time_s
+        while not self.done and self.world.time_s < t_end and not (until is not None and until(self)):
+            self.step()
+        return self.status
+
+    def step(self) -> None:
+        """One physics step of the loop (module docstring)."""
+        if self._steps % self._frame_every == 0:
+            self._on_frame()
+        if self._steps % self._decimation == 0 and not self.done:
+            self._control_tick()
+        if self._steps % self._path_every == 0:
+            self.times_s.append(self.world.time_s)
+            self.walked_path_xy_m.append(self.world.true_pose()[:2])
+            self.estimated_path_xy_m.append(self.estimate.xyyaw[:2].copy())
+        self.walker.step(self.world.dt_s, self.estimate.xyyaw)
+        self.world.step()
+        self._steps += 1
+
+    # -- the loop -----------------------------------------------------------------------------
+    def _needs_images(self) -> bool:
+        return (self.localizer.needs_images or self.mapper.needs_images
+                or any(images for _, images in self._observers))
+
+    def _on_frame(self) -> None:
+        t0 = time.perf_counter()
+        w = self.world
+        frame = w.capture() if self._needs_images() else None
+        if self.localizer.needs_images:
+            est = self.localizer.on_frame(frame)
+        else:
+            est = PoseEstimate(self.localizer.pose(), True, w.time_s, None if frame is None else frame.pose_wc.numpy())
+        self.frames += 1
+        if est.tracked:
+            self.estimate = est
+            self.frame_errors_m.append(float(np.linalg.norm(est.xyyaw[:2] - w.true_pose()[:2])))
+            if frame is not None and self.mapper.needs_images and est.pose_wc is not None:
+                self.mapper.fuse(frame, est.pose_wc)
+            if self._lost_since is not None:
+                self._lost_since = None
+                if self.status == "lost":
+                    self.status = "walking"
+                self._replan_reason = "relocalised"
+        else:
+            self.untracked_frames += 1
+            self.estimate = PoseEstimate(self.estimate.xyyaw, False, w.time_s, None, est.state)
+            if self._lost_since is None:
+                self._lost_since = w.time_s
+            self.walker.stand()
+            if not self.done and self.status == "walking":
+                self.status = "lost"
+        self.frame_wall_s.append(time.perf_counter() - t0)
+        if self._observers:
+            snap = NavSnapshot(w.time_s, w.true_pose(), self.estimate, frame, self.goal_xy_m,
+                               None if self.route is None else self.route.path_xy_m, self.plan, self.occupancy,
+                               np.array(self.walked_path_xy_m).reshape(-1, 2), getattr(self.walker, "command", None),
+                               self.status)
+            for fn, _ in self._observers:
+                fn(snap)
+
+    def _mark_body(self) -> None:
+        self.mapper.mark_body(self.estimate.xyyaw[:2])
+
+    def _finish(self, status: str) -> None:
+        self.status, self.done = status, True
+        self.walker.stand()
+
+    def _control_tick(self) -> None:
+        w, c = self.world, self.cfg
+        now = w.time_s
+        if not self.localizer.needs_images:  # the oracle pose is there every step
+            self.estimate = PoseEstimate(self.localizer.pose(), True, now)
+        if self.estimate.tracked:
+            self._mark_body()
+        map_changed = self.mapper.refresh(now)
+        if w.fell:
+            return self._finish("fell")
+        if self.goal_xy_m is None:
+            return
+        if now - self._start_time_s > c.time_limit_s:
+            return self._finish("timeout")
+        t_mark, xy_mark = self._progress_mark
+        if np.linalg.norm(w.true_pose()[:2] - xy_mark) >= c.stuck_progress_m:
+            self._progress_mark = (now, w.true_pose()[:2])
+        elif now - t_mark > c.stuck_window_s:
+            return self._finish("stuck")
+        if not self.estimate.tracked:
+            if now - self._lost_since > c.lost_timeout_s:
+                return self._finish("lost_timeout")
+            return
+        est = self.estimate.xyyaw
+        if self.walker.arrived and self.plan_final:
+            if w.base_speed_m_s() < c.standing_speed_m_s:
+                self._settled_since = now if self._settled_since is None else self._settled_since
+                if now - self._settled_since >= c.settle_s:
+                    return self._finish("arrived")
+            else:
+                self._settled_since = None
+            return
+        self._settled_since = None
+        reason = self._replan_reason or self._replan_trigger(now, est, map_changed)
+        if reason is not None:
+            self._replan(now, est, reason)
+
+    def _replan_trigger(self, now: float, est: np.ndarray, map_changed: bool) -> str | None:
+        c = self.cfg
+        if self.plan is None:
+            return "no plan" if now - self._last_plan_s >= 0.25 else None
+        if now - self._last_plan_s >= c.replan_period_s:
+            return "period"
+        tracker = getattr(self.walker, "tracker", None)
+        if tracker is not None and tracker.path is not None and tracker.cross_track_m > c.drift_replan_m:
+            return "drift"
+        if not self.plan_final and self.walker.remaining_m < c.subgoal_renew_m:
+            return "subgoal"
+        if map_changed and self._plan_blocked():
+            return "map changed"
+        return None
+
+    def _plan_blocked(self) -> bool:
+        grid = self.mapper.grid
+        path = body_path(self.plan)
+        iy, ix = grid.cells_of(path)
+        ny, nx = grid.shape
+        inside = (iy >= 0) & (iy < ny) & (ix >= 0) & (ix < nx)
+        clr = footstep_clearance(grid, optimistic=True)
+        return bool((clr[iy[inside], ix[inside]] < self.cfg.blocked_clearance_m).any())
+
+    def _replan(self, now: float, est: np.ndarray, reason: str) -> None:
+        t0 = time.perf_counter()
+        self._replan_reason = None
+        self._last_plan_s = now
+        grid, version, optimistic = self.mapper.grid, self.mapper.version, self.mapper.optimistic
+        route = self.routes.route(grid, version, est[:2], self.goal_xy_m)
+        status, steps, final, refused = "no_route", 0, False, None
+        if route.found:
+            self.route = route
+            clearance = footstep_clearance(grid, optimistic)
+            k, final = choose_subgoal(route, clearance, grid, self.cfg.planning)
+            path = route.path_xy_m
+            if final:
+                goal_xy = self.goal_xy_m
+                yaw = self.goal_yaw_rad if self.goal_yaw_rad is not None else route_heading(path, k)
+            else:
+                goal_xy, yaw = path[k], route_heading(path, k)
+            if np.linalg.norm(goal_xy - est[:2]) < 0.05 and not final:
+                status = "subgoal_at_robot"
+            else:
+                plan = self.footsteps_stage.plan(grid, version, optimistic, est, (goal_xy[0], goal_xy[1], yaw))
+                status, steps = plan.status.value, plan.num_steps
+                usable = plan.status == PlanStatus.SUCCESS or (plan.num_steps >= 2 and plan.status in (
+                    PlanStatus.BUDGET_EXHAUSTED, PlanStatus.GOAL_UNREACHABLE))
+                final = final and plan.status == PlanStatus.SUCCESS
+                if usable:
+                    refused = self.walker.refuse(plan)
+                    if refused is None:
+                        self.plan, self.plan_final = plan, final
+                        self.walker.set_plan(plan, final=final)
+        self.replans.append(ReplanRecord(now, time.perf_counter() - t0, reason, route.found, status, steps, final,
+                                         refused))
+
+
+__all__ = ["MODES", "NavSnapshot", "Navigator", "NavigatorCfg"]

@@ -1,0 +1,229 @@
+"""Planning on a map that grows: a route to the goal with unknown space optimistic, then footsteps
+on observed free cells only, up to a subgoal on the route.
+
+1. **Route** (``RoutePlanner``): Dijkstra from the goal over the 8-connected cells whose clearance
+   (exact distance to the nearest occupied cell, ``nav.grid_map.clearance_m``) is at least
+   ``route_clearance_m``, unknown cells counted free (optimistic: the unseen may be a door). A move
+   costs its length times ``1 + inflation_gain * exp(-(clearance - r) / inflation_decay_m)``
+   (Nav2's inflation in spirit): routes keep to the middle of doors and corridors. The distance
+   field is cached per map version and goal, so a replan on an unchanged map costs one walk down it.
+2. **Subgoal** (``choose_subgoal``): the farthest route point within ``horizon_m`` of path length
+   whose every route point before it lies in observed free space with the footstep clearance
+   (unknown = blocked); the route's own end when that holds all the way (a final plan).
+3. **Footsteps**: ``nav.FootstepPlanner`` on the map with unknown cells blocked, cropped to the
+   window around the robot and the subgoal, from the robot's pose to the subgoal, its yaw the
+   route's direction there.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..maps import Grid2D
+from ..nav import FootstepPlan, FootstepPlanner, GridMap, humanoid_footstep_cfg
+from ..nav.grid_map import GridGraph, clearance_m
+from ..utils.validate import Checked
+
+
+@dataclass(kw_only=True)
+class PlanningCfg(Checked):
+    route_clearance_m: float = 0.25
+    """The route's cells keep this exact clearance from occupied cells (the footstep planner's
+    ``body_clearance_m``; the humanoid's radius is 0.265 m, its shoulders' half width 0.24 m), m."""
+    inflation_gain: float = 3.0
+    inflation_decay_m: float = 0.15
+    horizon_m: float = 3.0
+    """Footsteps are planned this far along the route at most, m."""
+    window_margin_m: float = 1.2
+    """The footstep planner's map is the box around the robot and the subgoal grown by this, m."""
+    footstep_budget_s: float = 0.3
+    """Wall time of one footstep query, s."""
+    goal_snap_m: float = 0.4
+    """A goal (or start) cell without the route clearance moves to the nearest cell with it within this, m."""
+
+
+@dataclass
+class Route:
+    """A route on the map, robot to goal."""
+
+    path_xy_m: np.ndarray
+    """(K, 2) cell centres from the robot's cell to the goal's, m."""
+    length_m: float
+    found: bool
+
+
+class RoutePlanner:
+    """Routes on one map version at a time (module docstring, step 1)."""
+
+    def __init__(self, cfg: PlanningCfg):
+        self.cfg = cfg
+        self._key = None
+        self._dist = self._next = self._free = None
+
+    def _prepare(self, grid: Grid2D, version: int, goal_xy) -> None:
+        key = (id(grid), version, tuple(np.round(goal_xy, 4)))
+        if key == self._key:
+            return
+        c = self.cfg
+        occupied = grid.occupied()
+        clr = clearance_m(occupied, grid.resolution_m)
+        free = clr >= c.route_clearance_m
+        cost = c.inflation_gain * np.exp(-(clr - c.route_clearance_m) / c.inflation_decay_m)
+        graph = GridGraph(free, grid.resolution_m, cost_per_m=np.where(free, cost, 0.0))
+        seeds = np.zeros(grid.shape, bool)
+        cell = _snap(grid, free, goal_xy, c.goal_snap_m)
+        if cell is not None:
+            seeds[cell] = True
+        self._dist, self._next = graph.distances(seeds)
+        self._free, self._key, self._grid = free, key, grid
+
+    def route(self, grid: Grid2D, version: int, start_xy, goal_xy) -> Route:
+        """The route from ``start_xy`` to ``goal_xy`` on ``grid`` (whose contents are ``version``)."""
+        self._prepare(grid, version, goal_xy)
+        start = _snap(grid, self._free, start_xy, self.cfg.goal_snap_m, dist=self._dist)
+        if start is None or not np.isfinite(self._dist[start]):
+            return Route(np.zeros((0, 2)), math.inf, False)
+        cells = [np.ravel_multi_index(start, grid.shape)]
+        nxt = self._next.ravel()
+        for _ in range(grid.shape[0] * grid.shape[1]):
+            n = nxt[cells[-1]]
+            if n < 0:
+                break
+            cells.append(int(n))
+        iy, ix = np.unravel_index(np.array(cells), grid.shape)
+        xs, ys = grid.cell_center_xy_m(iy, ix)
+        path = np.stack([xs, ys], -1)
+        path = np.concatenate([np.asarray(start_xy, float)[None, :2], path[1:] if len(path) > 1 else path,
+                               np.asarray(goal_xy, float)[None, :2]])
+        length = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
+        return Route(path, length, True)
+
+
+def _snap(grid: Grid2D, free: np.ndarray, xy, radius_m: float, dist: np.ndarray | None = None):
+    """The cell of ``xy`` if free (and reachable when ``dist`` is given), else the nearest such
+    cell within ``radius_m``, else None."""
+    iy, ix = grid.cell_of(xy)
+    ok = free if dist is None else free & np.isfinite(dist)
+    ny, nx = grid.shape
+    if 0 <= iy < ny and 0 <= ix < nx and ok[iy, ix]:
+        return iy, ix
+    k = int(math.ceil(radius_m / grid.resolution_m))
+    y0, y1, x0, x1 = max(0, iy - k), min(ny, iy + k + 1), max(0, ix - k), min(nx, ix + k + 1)
+    if y0 >= y1 or x0 >= x1:
+        return None
+    sub = ok[y0:y1, x0:x1]
+    if not sub.any():
+        return None
+    yy, xx = np.nonzero(sub)
+    d = (yy + y0 - iy) ** 2 + (xx + x0 - ix) ** 2
+    j = int(np.argmin(d))
+    if math.sqrt(d[j]) * grid.resolution_m > radius_m:
+        return None
+    return int(yy[j] + y0), int(xx[j] + x0)
+
+
+def footstep_clearance(grid: Grid2D, optimistic: bool) -> np.ndarray:
+    """(num_y, num_x) exact clearance of each cell for footsteps, m: unknown cells are blocked
+    unless ``optimistic`` (a map with no unknown cells, e.g. the ground truth)."""
+    blocked = grid.occupied() if optimistic else grid.blocked()
+    return clearance_m(blocked, grid.resolution_m)
+
+
+def choose_subgoal(route: Route, clearance: np.ndarray, grid: Grid2D, cfg: PlanningCfg,
+                   skip_m: float = 0.35) -> tuple[int, bool]:
+    """(index into ``route.path_xy_m``, final): the farthest route point within the horizon whose
+    route so far lies in observed free space with the footstep clearance (the first ``skip_m`` of
+    the route, under the robot, is not tested); final when it is the route's end."""
+    path = route.path_xy_m
+    seg = np.linalg.norm(np.diff(path, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    iy, ix = grid.cells_of(path)
+    ny, nx = grid.shape
+    inside = (iy >= 0) & (iy < ny) & (ix >= 0) & (ix < nx)
+    ok = np.zeros(len(path), bool)
+    ok[inside] = clearance[iy[inside], ix[inside]] >= cfg.route_clearance_m
+    ok |= s < skip_m
+    bad = np.flatnonzero(~ok)
+    last_ok = (bad[0] - 1) if bad.size else len(path) - 1
+    within = int(np.searchsorted(s, cfg.horizon_m, side="right") - 1)
+    k = max(0, min(last_ok, within))
+    return k, k == len(path) - 1
+
+
+def route_heading(path: np.ndarray, k: int, back_m: float = 0.4) -> float:
+    """Direction of the route arriving at point ``k``, averaged over the last ``back_m``, rad."""
+    if k == 0:
+        d = path[min(1, len(path) - 1)] - path[0]
+    else:
+        j = k
+        while j > 0 and np.linalg.norm(path[k] - path[j - 1]) < back_m:
+            j -= 1
+        j = max(0, j - 1) if np.linalg.norm(path[k] - path[j]) < 1e-6 else j
+        d = path[k] - path[j]
+    return float(math.atan2(d[1], d[0])) if np.linalg.norm(d) > 1e-9 else 0.0
+
+
+class FootstepStage:
+    """Footsteps to a subgoal on the map with unknown cells blocked (module docstring, step 3)."""
+
+    def __init__(self, cfg: PlanningCfg):
+        self.cfg = cfg
+        self.footstep_cfg = humanoid_footstep_cfg(time_budget_s=cfg.footstep_budget_s)
+        self._full: tuple | None = None
+
+    def plan(self, grid: Grid2D, version: int, optimistic: bool, start_xyyaw, goal_xyyaw) -> FootstepPlan:
+        """A plan from the nominal stance at ``start_xyyaw`` to ``goal_xyyaw`` (x m, y m, yaw rad)."""
+        blocked = grid.occupied() if optimistic else grid.blocked()
+        if optimistic:  # a map that never changes (the ground truth): one planner for the whole map
+            key = (id(grid), version)
+            if self._full is None or self._full[0] != key:
+                gm = GridMap(occupied=blocked, origin_xy_m=tuple(grid.origin_xy_m), resolution_m=grid.resolution_m)
+                self._full = (key, FootstepPlanner(gm, self.footstep_cfg))
+            planner = self._full[1]
+        else:
+            planner = FootstepPlanner(self._window(grid, blocked, start_xyyaw, goal_xyyaw), self.footstep_cfg)
+        return planner.plan(np.asarray(start_xyyaw, float), np.asarray(goal_xyyaw, float),
+                            time_budget_s=self.cfg.footstep_budget_s)
+
+    def _window(self, grid: Grid2D, blocked: np.ndarray, a, b) -> GridMap:
+        m = self.cfg.window_margin_m
+        lo = np.minimum(a[:2], b[:2]) - m
+        hi = np.maximum(a[:2], b[:2]) + m
+        iy0, ix0 = grid.cell_of(lo)
+        iy1, ix1 = grid.cell_of(hi)
+        ny, nx = grid.shape
+        iy0, ix0, iy1, ix1 = max(0, iy0), max(0, ix0), min(ny - 1, iy1), min(nx - 1, ix1)
+        ox, oy, _, _ = grid.cell_rect_xy_m(iy0, ix0)
+        return GridMap(occupied=np.ascontiguousarray(blocked[iy0:iy1 + 1, ix0:ix1 + 1]), origin_xy_m=(ox, oy),
+                       resolution_m=grid.resolution_m)
+
+
+@dataclass
+class ReplanRecord:
+    """One replan: when, why, how long it took and how it ended."""
+
+    time_s: float
+    """Simulated time, s."""
+    wall_s: float
+    """Wall time of route + subgoal + footsteps, s."""
+    reason: str
+    route_found: bool
+    footstep_status: str
+    num_steps: int
+    final: bool
+    refused: str | None = None
+    """The walker's reason for refusing the plan, if it did."""
+
+
+def timed(fn, *args):
+    t0 = time.perf_counter()
+    out = fn(*args)
+    return out, time.perf_counter() - t0
+
+
+__all__ = ["FootstepStage", "PlanningCfg", "ReplanRecord", "Route", "RoutePlanner", "choose_subgoal",
+           "footstep_clearance", "route_heading"]

@@ -1,0 +1,232 @@
+"""Walkers: what turns a footstep plan into joint targets, behind one interface (``Walker``).
+
+A walker is bound to a ``NavWorld``'s humanoid, takes a ``FootstepPlan`` (``set_plan``), is
+stepped every physics step with the navigator's pose estimate (``step``), can be told to stand
+(``stand``), reports its balance (``balance``: capture point and ZMP against the support polygon,
+from ``locomotion.balance``) and refuses, *before* it is taken, a plan it cannot walk
+(``refuse(plan)`` -> a one-line reason, or None).
+
+``PolicyWalker`` (the default): the shipped walking policy (``policies.WalkingPolicy``) follows the
+plan's body path, the midpoints of consecutive footsteps, with ``tracker.PathTracker``. It places
+its own feet (the policy knows no footholds), so the plan gives the path and the footholds'
+clearance, not exact steps.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Protocol, runtime_checkable
+
+import mujoco
+import numpy as np
+
+from ..locomotion.balance import (
+    CenterOfPressure,
+    FootShape,
+    capture_point,
+    polygon_signed_distance,
+    support_polygon,
+)
+from ..nav import FootstepPlan, PlanStatus
+from ..policies.walking import WalkingPolicy
+from ..robots import humanoid
+from ..utils.validate import Checked
+from .tracker import PathTracker, TrackerCfg
+from .world import NavWorld
+
+
+def body_path(plan: FootstepPlan) -> np.ndarray:
+    """(num_steps + 1, 2) the plan's body path: the midpoint of each pair of consecutive feet, m."""
+    feet = plan.footsteps_xyyaw_w[:, :2]
+    return 0.5 * (feet[:-1] + feet[1:])
+
+
+@dataclass
+class BalanceReport:
+    """The robot's balance now (world frame, m)."""
+
+    time_s: float
+    com_xyz_m: np.ndarray
+    """(3,) centre of mass."""
+    capture_point_xy_m: np.ndarray
+    """(2,) instantaneous capture point (LIPM, the CoM's height)."""
+    zmp_xy_m: np.ndarray
+    """(2,) measured ZMP (centre of pressure of the feet's ground contacts); NaN in flight."""
+    feet_in_contact: tuple[bool, bool]
+    """(left, right) sole touching the ground."""
+    support_polygon_xy_m: np.ndarray | None
+    """(M, 2) counter-clockwise hull of the soles in contact; None with no foot down."""
+    capture_margin_m: float
+    """Signed distance of the capture point to the support polygon's edge (> 0 inside), m."""
+    zmp_margin_m: float
+    """The same for the ZMP, m (NaN without contact)."""
+
+
+class BalanceMonitor:
+    """Capture point and ZMP of the humanoid in a ``NavWorld`` (on request: one ``get_data``)."""
+
+    def __init__(self, world: NavWorld):
+        self.world = world
+        model = world.model
+        prefix = humanoid.PRIM_PATH + "/"
+        self._root = model.body(prefix + humanoid.BASE_BODY).id
+        self._soles = [model.site(prefix + s).id for s in humanoid.SOLE_SITES]
+        self._foot_geoms = [np.flatnonzero(model.geom_bodyid == model.body(prefix + f).id) for f in humanoid.FOOT_BODIES]
+        planes = np.flatnonzero(model.geom_type == mujoco.mjtGeom.mjGEOM_PLANE)
+        self.cop = CenterOfPressure(model, [prefix + f for f in humanoid.FOOT_BODIES],
+                                    ground_geoms=[int(g) for g in planes] or None, ground_height_m=0.0)
+        self.foot = FootShape(length_m=humanoid.SOLE_LENGTH_M, width_m=humanoid.SOLE_WIDTH_M)
+        self._data: mujoco.MjData | None = None
+
+    def report(self) -> BalanceReport:
+        w = self.world
+        data = self._data = w.engine.get_data(0, self._data)
+        mujoco.mj_subtreeVel(w.model, data)
+        com = data.subtree_com[self._root].copy()
+        vel = data.subtree_linvel[self._root].copy()
+        cp = capture_point(com, vel, max(float(com[2]), 0.3))
+        pressure = self.cop(data)
+        geom = np.asarray(data.contact.geom)[:data.ncon]
+        down = []
+        for ids in self._foot_geoms:
+            down.append(bool(np.isin(geom, ids).any()) if data.ncon else False)
+        poses = []
+        for site, is_down in zip(self._soles, down, strict=True):
+            if is_down:
+                m = data.site_xmat[site].reshape(3, 3)
+                poses.append([data.site_xpos[site, 0], data.site_xpos[site, 1], math.atan2(m[1, 0], m[0, 0])])
+        poly = support_polygon(np.array(poses), self.foot) if poses else None
+        zmp = pressure.cop_w[:2].copy()
+        cp_margin = float(polygon_signed_distance(cp, poly)) if poly is not None else -math.inf
+        zmp_margin = float(polygon_signed_distance(zmp, poly)) if poly is not None and np.isfinite(zmp).all() else math.nan
+        return BalanceReport(time_s=w.time_s, com_xyz_m=com, capture_point_xy_m=np.asarray(cp), zmp_xy_m=zmp,
+                             feet_in_contact=(down[0], down[1]), support_polygon_xy_m=poly,
+                             capture_margin_m=cp_margin, zmp_margin_m=zmp_margin)
+
+
+@runtime_checkable
+class Walker(Protocol):
+    """The interface every walker implements (module docstring)."""
+
+    name: str
+
+    def bind(self, world: NavWorld) -> None:
+        """Drive ``world``'s humanoid from now on."""
+
+    def reset(self) -> None:
+        """Stand the robot in its default pose; forget any plan."""
+
+    def refuse(self, plan: FootstepPlan) -> str | None:
+        """Why this walker cannot walk ``plan`` from where it stands (one line), or None."""
+
+    def set_plan(self, plan: FootstepPlan | None, *, final: bool) -> None:
+        """Walk ``plan`` from now on (None: stand); ``final``: it ends at the goal (stop there)."""
+
+    def stand(self) -> None:
+        """Stop walking and stand still where the robot is (e.g. while localization is lost)."""
+
+    def step(self, dt_s: float, pose_xyyaw: np.ndarray) -> None:
+        """Every physics step: ``pose_xyyaw`` is the navigator's estimate of the base pose."""
+
+    def balance(self) -> BalanceReport:
+        """Capture point, ZMP and support margins now."""
+
+    @property
+    def arrived(self) -> bool:
+        """At the end of a final plan, standing."""
+
+    @property
+    def remaining_m(self) -> float:
+        """Length of the plan's body path still ahead, m."""
+
+
+@dataclass(kw_only=True)
+class PolicyWalkerCfg(Checked):
+    tracker: TrackerCfg = field(default_factory=TrackerCfg)
+    max_start_offset_m: float = 0.45
+    """A plan whose start stance is farther than this from the robot is refused (it was planned
+    from somewhere else), m."""
+    max_backward_m: float = 0.5
+    """A plan whose body path runs backwards (against the start heading) more than this is refused:
+    the policy walks backwards at most 1 m/s but stumbles over long backward stretches, m."""
+
+
+class PolicyWalker:
+    """The shipped walking policy following the plan's body path (module docstring)."""
+
+    name = "policy"
+
+    def __init__(self, cfg: PolicyWalkerCfg | None = None):
+        self.cfg = cfg or PolicyWalkerCfg()
+        self.policy = WalkingPolicy()
+        self.tracker = PathTracker(self.cfg.tracker)
+        self.world: NavWorld | None = None
+        self.command = (0.0, 0.0, 0.0)
+        """The last velocity command (vx m/s, vy m/s, yaw rate rad/s)."""
+
+    def bind(self, world: NavWorld) -> None:
+        self.world = world
+        self.policy.bind(world.robot)
+        self.monitor = BalanceMonitor(world)
+        self._decimation = round(self.policy.contract["control_dt_s"] / world.dt_s)
+        self._pose = np.array(world.start_pose, float)
+
+    def reset(self) -> None:
+        self.policy.reset()
+        self.tracker.set_path(None, final=False)
+        self._standing = True
+        self._count = 0
+        self.command = (0.0, 0.0, 0.0)
+
+    def refuse(self, plan: FootstepPlan) -> str | None:
+        if plan.status in (PlanStatus.START_IN_COLLISION, PlanStatus.GOAL_IN_COLLISION):
+            return f"the plan failed ({plan.status.value}): {plan.detail}"
+        if plan.num_steps < 1:
+            return "the plan has no step"
+        path = body_path(plan)
+        offset = float(np.linalg.norm(path[0] - self._pose[:2]))
+        if offset > self.cfg.max_start_offset_m:
+            return f"the plan starts {offset:.2f} m from the robot (more than {self.cfg.max_start_offset_m} m)"
+        heading = np.array([math.cos(self._pose[2]), math.sin(self._pose[2])])
+        back = float(-min(0.0, ((path - path[0]) @ heading).min()))
+        if back > self.cfg.max_backward_m and np.linalg.norm(path[-1] - path[0]) < back:
+            return f"the plan walks {back:.2f} m backwards"
+        return None
+
+    def set_plan(self, plan: FootstepPlan | None, *, final: bool) -> None:
+        if plan is None:
+            self.tracker.set_path(None, final=False)
+            self._standing = True
+            return
+        self.tracker.set_path(body_path(plan), final=final)
+        self._standing = False
+
+    def stand(self) -> None:
+        self._standing = True
+        self.command = (0.0, 0.0, 0.0)
+
+    def resume(self) -> None:
+        """Walk the current plan again after ``stand``."""
+        self._standing = self.tracker.path is None
+
+    def step(self, dt_s: float, pose_xyyaw: np.ndarray) -> None:
+        self._pose = pose_xyyaw
+        if self._count % self._decimation == 0:
+            self.command = (0.0, 0.0, 0.0) if self._standing else self.tracker.command(pose_xyyaw)
+        self.policy.forward(dt_s, self.command)
+        self._count += 1
+
+    def balance(self) -> BalanceReport:
+        return self.monitor.report()
+
+    @property
+    def arrived(self) -> bool:
+        return self.tracker.arrived
+
+    @property
+    def remaining_m(self) -> float:
+        return self.tracker.remaining_m if self.tracker.path is not None else 0.0
+
+
+__all__ = ["BalanceMonitor", "BalanceReport", "PolicyWalker", "PolicyWalkerCfg", "Walker", "body_path"]
