@@ -1,9 +1,10 @@
 """The ``ambulo`` command line: demo, view, generate, the RL commands (train, play, export, eval),
 ``run`` (an Isaac Sim script, unchanged), ``plan`` (footsteps on a map, optionally walked in
-simulation), ``bridge`` (a ROS 2 node) and ``map`` (visual odometry and a TSDF map).
+simulation), ``bridge`` (a ROS 2 node), ``map`` (visual odometry and a TSDF map) and ``navigate``
+(the autonomous navigator).
 
 Each command lives in its own module (``demo``, ``view``, ``data``, ``rl``, ``run``, ``plan``,
-``bridge``, ``perception``) with an
+``bridge``, ``perception``, ``navigate``) with an
 ``add_commands(subparsers)`` and imports what it runs only when it runs. Bad input (an
 unknown task, a missing or unwritable file, a bad value, a bad ``--env-cfg``) ends the command
 with one line ``ambulo <command>: error: <problem>; <fix>`` on stderr and exit status 2; Ctrl-C
@@ -17,10 +18,10 @@ import argparse
 import sys
 
 from ..utils.overrides import OverrideError, apply_overrides
-from . import bridge, data, demo, perception, plan, rl, run, view
+from . import bridge, data, demo, navigate, perception, plan, rl, run, view
 from .errors import EXIT_INTERRUPTED, ArgumentParser, CliError, expected_error, report
 
-_COMMAND_MODULES = (demo, view, data, rl, run, plan, bridge, perception)
+_COMMAND_MODULES = (demo, view, data, rl, run, plan, bridge, perception, navigate)
 _DEBUG_HELP = "show the full traceback of any error (for bug reports)"
 
 
