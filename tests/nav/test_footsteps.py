@@ -463,3 +463,95 @@ def test_planner_reuses_its_buffers_between_queries():
     second = planner.plan((0.6, 1.0, 0.0), (2.5, 1.0, 0.0))
     np.testing.assert_array_equal(first.footsteps_xyyaw_w, second.footsteps_xyyaw_w)
     assert math.isclose(first.cost, second.cost)
+
+
+# -- the fast paths agree with the exact ones -----------------------------------------------------
+def test_grid_graph_without_corner_cutting_and_with_costs_matches_dijkstra():
+    # the guide graph's kind: diagonal moves only between two free side cells, each move's length
+    # times 1 + the mean cost of its two cells
+    rng = np.random.default_rng(5)
+    free = rng.random((20, 24)) > 0.2
+    cost = rng.uniform(0.0, 2.0, free.shape)
+    seeds = np.zeros_like(free)
+    seeds[10, 12] = seeds[2, 3] = True
+    got, _ = GridGraph(free, 0.1, cost_per_m=cost, corner_cutting=False).distances(seeds)
+    ref = np.full(free.shape, np.inf)
+    heap = [(0.0, (i, j)) for i, j in zip(*np.nonzero(seeds & free))]
+    for _, (i, j) in heap:
+        ref[i, j] = 0.0
+    while heap:
+        d, (i, j) = heapq.heappop(heap)
+        if d > ref[i, j]:
+            continue
+        for di in (-1, 0, 1):
+            for dj in (-1, 0, 1):
+                a, b = i + di, j + dj
+                if not ((di or dj) and 0 <= a < 20 and 0 <= b < 24 and free[a, b]):
+                    continue
+                if di and dj and not (free[a, j] and free[i, b]):
+                    continue
+                nd = d + 0.1 * (math.sqrt(2.0) if di and dj else 1.0) * (1.0 + 0.5 * (cost[i, j] + cost[a, b]))
+                if nd < ref[a, b] - 1e-12:
+                    ref[a, b] = nd
+                    heapq.heappush(heap, (nd, (a, b)))
+    np.testing.assert_allclose(got, ref, atol=1e-9)
+
+
+def test_the_walks_scalar_step_test_agrees_with_the_vectorized_one():
+    # follow_path tests one step at a time in plain Python; it must accept exactly the steps the
+    # lattice's array test accepts (limits, far side, soles apart)
+    from ambulo.nav.footstep_lattice import step_within_limits
+
+    cfg = humanoid_footstep_cfg()
+    rng = np.random.default_rng(6)
+    stance = np.column_stack([rng.uniform(-2, 2, (4000, 2)), rng.uniform(-np.pi, np.pi, 4000)])
+    rel = np.column_stack([rng.uniform(-0.2, 0.35, 4000), rng.uniform(-0.4, 0.4, 4000), rng.uniform(-0.4, 0.4, 4000)])
+    sides = rng.choice([LEFT, RIGHT], 4000)
+    new = compose(stance, rel)
+    want = steps_within_limits(relative(stance, new), sides, cfg)
+    got = np.array([step_within_limits(a, b, int(s), cfg) for a, b, s in zip(stance, new, sides)])
+    assert 200 < want.sum() < 3800  # both outcomes well represented
+    np.testing.assert_array_equal(got, want)
+
+
+def test_the_walks_body_track_test_is_exactly_the_crossed_cells():
+    # a random map's body cells; segments of any length: blocked iff one crossed cell is not a body cell
+    rng = np.random.default_rng(7)
+    grid = GridMap.empty((3.0, 2.5), resolution_m=0.05, origin_xy_m=(-1.0, 0.5))
+    for _ in range(6):
+        grid.add_box(rng.uniform([-1, 0.5], [2, 3]), rng.uniform(0.05, 0.3, 2), rng.uniform(0, np.pi))
+    cfg = humanoid_footstep_cfg()
+    checks = FootstepChecks(grid, cfg, build_lattice(cfg, 0.05))
+    assert 0.2 < checks.body_free.mean() < 0.9
+    body = checks.body_free
+    outcomes = []
+    for _ in range(300):
+        a = rng.uniform([-1.0, 0.5], [2.0, 3.0])
+        b = a + rng.normal(size=2) * 0.4
+        segment = LineString([a, b])
+        (ox, oy), r = grid.origin_xy_m, grid.resolution_m
+        lo = np.floor((np.minimum(a, b) - (ox, oy)) / r).astype(int) - 1
+        hi = np.floor((np.maximum(a, b) - (ox, oy)) / r).astype(int) + 1
+        blocked = any(segment.intersection(box(ox + j * r, oy + i * r, ox + (j + 1) * r, oy + (i + 1) * r)).length > 1e-9
+                      and not (0 <= i < body.shape[0] and 0 <= j < body.shape[1] and body[i, j])
+                      for i in range(lo[1], hi[1] + 1) for j in range(lo[0], hi[0] + 1))
+        got = checks.body_segment_free(*a, *b)
+        assert got == (not blocked), (a, b)
+        outcomes.append(got)
+    assert 30 < sum(outcomes) < 270
+
+
+def test_a_bent_corridor_is_planned_with_few_expansions():
+    # a benchmark corridor with two right-angle bends 0.65 m wide (the body's channel is 3 cells),
+    # the robot facing away: the walk along the body path stalls in the bend and the lattice search
+    # takes over; a heuristic weight of 8 gets through in tens of expansions where 3 spread over
+    # every turn near the start (hundreds; a deterministic budget, not a timing)
+    rng = np.random.default_rng([0, BENCH.CATEGORIES.index("narrow_passages")])
+    problem = [BENCH.make_problem("narrow_passages", index, rng) for index in range(3)][2]
+    grid = GridMap.from_array(problem["occupied"], origin_xy_m=problem["origin_xy_m"], resolution_m=0.05)
+    plan = FootstepPlanner(grid, humanoid_footstep_cfg(max_expansions=150, time_budget_s=60.0)).plan(
+        goal_xyyaw_w=problem["goal"], start_feet_xyyaw_w=problem["start_feet"], stance_side=problem["stance_side"])
+    assert plan.status is PlanStatus.SUCCESS, plan.detail
+    assert 0 < plan.expansions <= 150
+    assert_valid(plan, grid, goal=problem["goal"], start_feet=problem["start_feet"],
+                 stance_side=problem["stance_side"])

@@ -152,6 +152,28 @@ class FootstepChecks:
                              (to_xy[:, 1] - oy) / r, self.body_lines)
         return ~self.body_blocked[self.cells(ox + u * r, oy + v * r)].any(axis=1)
 
+    def body_segment_free(self, x0_m: float, y0_m: float, x1_m: float, y1_m: float) -> bool:
+        """``body_track_free`` for one segment (x0, y0) -> (x1, y1) (m, world; any length) in
+        plain Python, for the walks' one-step-at-a-time tests: the same cells, one point inside
+        each piece between the segment's crossings with the grid lines, and its end."""
+        (ox, oy), r = self.grid.origin_xy_m, self.grid.resolution_m
+        u0, v0, u1, v1 = (x0_m - ox) / r, (y0_m - oy) / r, (x1_m - ox) / r, (y1_m - oy) / r
+        du, dv = u1 - u0, v1 - v0
+        ts = [0.0, 1.0]
+        if du != 0.0:
+            ts += [(line - u0) / du for line in range(math.floor(min(u0, u1)) + 1, math.floor(max(u0, u1)) + 1)]
+        if dv != 0.0:
+            ts += [(line - v0) / dv for line in range(math.floor(min(v0, v1)) + 1, math.floor(max(v0, v1)) + 1)]
+        ts.sort()
+        num_y, num_x = self.shape_p
+        blocked = self.body_blocked
+        for t in [0.5 * (a + b) for a, b in zip(ts, ts[1:])] + [1.0]:
+            ix = min(max(math.floor(u0 + du * t) + PAD, 0), num_x - 1)
+            iy = min(max(math.floor(v0 + dv * t) + PAD, 0), num_y - 1)
+            if blocked[iy * num_x + ix]:
+                return False
+        return True
+
     def rise_ok(self, rise_m) -> np.ndarray:
         """Is a change of foot height (new - stance, m) within the step up/down limits?"""
         return (rise_m <= self.cfg.max_step_up_m) & (-rise_m <= self.cfg.max_step_down_m)

@@ -11,6 +11,7 @@ foot, so from a left stance ``dy < 0`` and from a right stance ``dy > 0``.
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
 import itertools
 import math
@@ -29,6 +30,11 @@ segment keeps >= 0.25 cell of clearance (any clearance > 0 keeps it off the obst
 def wrap_angle(angle_rad):
     """Angle(s) wrapped to [-pi, pi)."""
     return (np.asarray(angle_rad) + np.pi) % (2 * np.pi) - np.pi
+
+
+def wrap_angle_scalar(angle_rad: float) -> float:
+    """``wrap_angle`` of one float, in plain Python (the walks' per-step arithmetic)."""
+    return (angle_rad + math.pi) % (2 * math.pi) - math.pi
 
 
 def compose(pose_xyyaw, rel_xyyaw) -> np.ndarray:
@@ -91,6 +97,28 @@ def steps_within_limits(rel_xyyaw: np.ndarray, stance_sides: np.ndarray, cfg) ->
             & ~rectangles_overlap(rel_xyyaw, cfg.foot_size_m, cfg.min_foot_gap_m))
 
 
+def step_within_limits(stance_xyyaw, new_xyyaw, stance_side: int, cfg) -> bool:
+    """``steps_within_limits`` for one step from the stance foot ``stance_xyyaw`` (3,) of
+    ``stance_side`` to ``new_xyyaw`` (3,), in plain Python: the walks test one step at a time,
+    where numpy's per-call overhead would be most of the cost."""
+    c, s = math.cos(stance_xyyaw[2]), math.sin(stance_xyyaw[2])
+    dx, dy = new_xyyaw[0] - stance_xyyaw[0], new_xyyaw[1] - stance_xyyaw[1]
+    rx, ry, ryaw = c * dx + s * dy, -s * dx + c * dy, wrap_angle_scalar(new_xyyaw[2] - stance_xyyaw[2])
+    eps = 1e-9
+    width = -stance_side * ry
+    if not (cfg.step_length_range_m[0] - eps <= rx <= cfg.step_length_range_m[1] + eps
+            and cfg.step_width_range_m[0] - eps <= width <= cfg.step_width_range_m[1] + eps
+            and abs(ryaw) <= cfg.max_step_yaw_rad + eps):
+        return False
+    # the separating-axis test of ``rectangles_overlap``
+    hx, hy = cfg.foot_size_m[0] / 2 + cfg.min_foot_gap_m / 2, cfg.foot_size_m[1] / 2 + cfg.min_foot_gap_m / 2
+    cr, sr = math.cos(ryaw), math.sin(ryaw)
+    reach_x = hx + hx * abs(cr) + hy * abs(sr)
+    reach_y = hy + hx * abs(sr) + hy * abs(cr)
+    return (abs(rx) > reach_x or abs(ry) > reach_y or abs(rx * cr + ry * sr) > reach_x
+            or abs(-rx * sr + ry * cr) > reach_y)
+
+
 @dataclass(frozen=True, eq=False)
 class Lattice:
     """Successor tables for each stance side, the check points and the reach constants."""
@@ -123,7 +151,8 @@ class Lattice:
 def build_lattice(cfg, resolution_m: float) -> Lattice:
     """The lattice of ``cfg`` (a ``FootstepPlannerCfg``) for a map of ``resolution_m`` cells,
     built once per distinct (config, resolution) in a process (it takes a few hundred ms)."""
-    key = (dataclasses.astuple(cfg), float(resolution_m))
+    # the fields' values are numbers, tuples and bools (dataclasses.astuple deep-copies: ms a call)
+    key = (tuple(getattr(cfg, f.name) for f in dataclasses.fields(cfg)), float(resolution_m))
     if key not in _LATTICES:
         if len(_LATTICES) >= 8:
             _LATTICES.pop(next(iter(_LATTICES)))
@@ -244,11 +273,18 @@ def follow_path(stance_xyyaw: np.ndarray, stance_side: int, path_xy: np.ndarray,
     to its yaw and brings the feet side by side (the goal stance); else it ends at the path's end.
     Returns fewer footsteps (possibly none) if it runs out of steps or of valid ones."""
     half = cfg.start_width_m / 2
+    # plain Python lists and math: a walk takes one step at a time, where numpy's per-call
+    # overhead (microseconds) would be most of the cost
     path = np.asarray(path_xy, float)
-    seg = np.diff(path, axis=0)
-    seg_len = np.hypot(seg[:, 0], seg[:, 1])
-    arc = np.concatenate([[0.0], np.cumsum(seg_len)])
-    end_x, end_y = float(path[-1, 0]), float(path[-1, 1])
+    px_list, py_list = path[:, 0].tolist(), path[:, 1].tolist()
+    seg_x = [b - a for a, b in zip(px_list, px_list[1:])]
+    seg_y = [b - a for a, b in zip(py_list, py_list[1:])]
+    seg_len = [math.hypot(a, b) for a, b in zip(seg_x, seg_y)]
+    arc = [0.0]
+    for length in seg_len:
+        arc.append(arc[-1] + length)
+    num_seg = len(seg_len)
+    end_x, end_y = px_list[-1], py_list[-1]
     turn_max, step_max = 0.95 * cfg.max_step_yaw_rad, 0.95 * cfg.step_length_range_m[1]
     stance = [float(v) for v in stance_xyyaw]
     side = -stance_side  # the foot that moves next
@@ -258,12 +294,12 @@ def follow_path(stance_xyyaw: np.ndarray, stance_side: int, path_xy: np.ndarray,
     feet: list[list[float]] = []
 
     def point_at(s_m: float) -> tuple[float, float]:
-        k = int(np.searchsorted(arc, s_m, side="right")) - 1
-        if k >= len(seg_len) or seg_len.size == 0:
+        k = bisect.bisect_right(arc, s_m) - 1
+        if k >= num_seg or num_seg == 0:
             return end_x, end_y
         k = max(k, 0)
         t = 0.0 if seg_len[k] == 0 else min(max((s_m - arc[k]) / seg_len[k], 0.0), 1.0)
-        return float(path[k, 0] + t * seg[k, 0]), float(path[k, 1] + t * seg[k, 1])
+        return px_list[k] + t * seg_x[k], py_list[k] + t * seg_y[k]
 
     mid = [bx, by]  # the feet's midpoint (the nominal one at the start)
 
@@ -271,11 +307,11 @@ def follow_path(stance_xyyaw: np.ndarray, stance_side: int, path_xy: np.ndarray,
         """Put the moving foot beside the body pose (x, y, yaw) if the step keeps the limits and
         the body's track stays free."""
         nonlocal stance, side, bx, by, byaw, mid
-        foot = [x - math.sin(yaw) * side * half, y + math.cos(yaw) * side * half, float(wrap_angle(yaw))]
+        foot = [x - math.sin(yaw) * side * half, y + math.cos(yaw) * side * half, wrap_angle_scalar(yaw)]
         new_mid = [0.5 * (stance[0] + foot[0]), 0.5 * (stance[1] + foot[1])]
-        if body_free is not None and not body_free(mid[0], mid[1], new_mid[0], new_mid[1]):
+        if not step_within_limits(stance, foot, -side, cfg):
             return False
-        if not steps_within_limits(relative(np.array(stance), np.array(foot))[None], np.array([-side]), cfg)[0]:
+        if body_free is not None and not body_free(mid[0], mid[1], new_mid[0], new_mid[1]):
             return False
         feet.append(foot)
         stance, side, bx, by, byaw, mid = foot, -side, x, y, yaw, new_mid
@@ -295,7 +331,7 @@ def follow_path(stance_xyyaw: np.ndarray, stance_side: int, path_xy: np.ndarray,
             if goal_xyyaw is None:
                 break
             # at the goal: turn on the spot to its yaw, then bring the feet together
-            err = float(wrap_angle(goal_xyyaw[2] - byaw))
+            err = wrap_angle_scalar(float(goal_xyyaw[2]) - byaw)
             if abs(err) <= 1e-9:
                 place(bx, by, byaw)
                 break
@@ -305,12 +341,19 @@ def follow_path(stance_xyyaw: np.ndarray, stance_side: int, path_xy: np.ndarray,
             continue
         # progress: the path's closest point to the body, no farther back than the last one and
         # at most two steps ahead of it
-        ks = np.flatnonzero((arc[1:] >= along) & (arc[:-1] <= along + 2 * step_max))
-        if ks.size:
-            t = ((bx - path[ks, 0]) * seg[ks, 0] + (by - path[ks, 1]) * seg[ks, 1]) / np.maximum(seg_len[ks] ** 2, 1e-12)
-            s_m = np.clip(arc[ks] + np.clip(t, 0.0, 1.0) * seg_len[ks], along, along + 2 * step_max)
-            px, py = np.interp(s_m, arc, path[:, 0]), np.interp(s_m, arc, path[:, 1])
-            along = float(s_m[np.argmin((px - bx) ** 2 + (py - by) ** 2)])
+        best_d2, best_s = math.inf, along
+        for k in range(max(bisect.bisect_left(arc, along) - 1, 0), num_seg):
+            if arc[k] > along + 2 * step_max:
+                break
+            if arc[k + 1] < along:
+                continue
+            t = ((bx - px_list[k]) * seg_x[k] + (by - py_list[k]) * seg_y[k]) / max(seg_len[k] ** 2, 1e-12)
+            s_m = min(max(arc[k] + min(max(t, 0.0), 1.0) * seg_len[k], along), along + 2 * step_max)
+            qx, qy = point_at(s_m)
+            d2 = (qx - bx) ** 2 + (qy - by) ** 2
+            if d2 < best_d2:
+                best_d2, best_s = d2, s_m
+        along = best_s
         for ahead_m, turn_scale, length_scale in STEER_CANDIDATES:
             shift = 0.0
             if ahead_m == 0.0:  # along the path's direction, side-stepping onto it
@@ -318,13 +361,13 @@ def follow_path(stance_xyyaw: np.ndarray, stance_side: int, path_xy: np.ndarray,
                 if dist_end <= 0.1 or (px, py) == (qx, qy):
                     continue
                 direction = math.atan2(qy - py, qx - px)
-                heading_err = float(wrap_angle(direction - byaw))
+                heading_err = wrap_angle_scalar(direction - byaw)
                 off = -math.sin(direction) * (bx - px) + math.cos(direction) * (by - py)  # left of the path
                 shift = -min(max(off, -SIDE_STEP_M), SIDE_STEP_M)
             else:
                 ahead_m = min(ahead_m, lookahead_m)
                 tx, ty = (end_x, end_y) if dist_end <= ahead_m else point_at(along + ahead_m)
-                heading_err = float(wrap_angle(math.atan2(ty - by, tx - bx) - byaw))
+                heading_err = wrap_angle_scalar(math.atan2(ty - by, tx - bx) - byaw)
             yaw = byaw + min(max(heading_err, -turn_max), turn_max) * turn_scale
             length = min(step_max * max(math.cos(heading_err), 0.0) * length_scale, dist_end)
             x = bx + length * math.cos(yaw) - shift * math.sin(yaw)

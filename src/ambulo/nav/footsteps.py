@@ -32,6 +32,7 @@ and lets the planner choose the first foot.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import enum
 import heapq
@@ -119,12 +120,17 @@ class FootstepPlannerCfg(Checked):
     Most plans take a small part of it (``benchmarks/footstep_maps.py``)."""
     max_expansions: int | None = None
     """Stop after this many expansions as well (deterministic budgets for tests); None: time only."""
-    heuristic_weight: float = 3.0
+    heuristic_weight: float = 8.0
     """w in f = g + w h (weighted A*; 1 is A*). Over lattice steps, a plan costs at most w times
     the best plan the pruning leaves. humanoid_navigation's ARA* starts at 8
-    (``planning_params.yaml``). Lattice steps only, 1 s, 40 cluttered rooms at issue 14's step
-    limits (the room benchmark that ``benchmarks/footstep_maps.py`` replaced): w = 2 planned 50 %,
-    w = 3 95 % (median 28 steps), w = 5 97.5 % (median 32 steps)."""
+    (``planning_params.yaml``). The admissible h (``footstep_heuristic``) counts about a third of
+    the steps a walk needs (it allows the longest swing and any turn), so with w = 3 f stays flat
+    while g grows and the search spreads over every turn near the start. On
+    ``benchmarks/footstep_maps.py`` (204 maps; the search runs where the walks along the body
+    path stall: doors at an angle, bent corridors): w = 3 planned 98.0-98.5 % in the 1 s budget,
+    w = 5 99.0 % on doors, corridors and clutter, w = 8 100 % (at most 80 expansions).
+    Earlier, lattice steps only, 40 cluttered rooms at issue 14's step limits: w = 2 planned 50 %,
+    w = 3 95 %, w = 5 97.5 %."""
     state_resolution_m: float = 0.05
     """Footsteps within one such cell (and yaw bin, same side) count as one state, m."""
     state_yaw_bins: int = 64
@@ -148,6 +154,18 @@ def humanoid_footstep_cfg(**overrides) -> FootstepPlannerCfg:
                   step_yaws_rad=(-0.30, -0.15, 0.0, 0.15, 0.30))
     values.update(overrides)
     return FootstepPlannerCfg(**values)
+
+
+_DEFAULT_CFG: FootstepPlannerCfg | None = None
+
+
+def _default_cfg() -> FootstepPlannerCfg:
+    """A copy of ``humanoid_footstep_cfg()``, validated once per process (validation takes ms,
+    and a navigator builds a planner per map update)."""
+    global _DEFAULT_CFG
+    if _DEFAULT_CFG is None:
+        _DEFAULT_CFG = humanoid_footstep_cfg()
+    return copy.copy(_DEFAULT_CFG)
 
 
 def check_footstep_cfg(cfg: FootstepPlannerCfg) -> None:
@@ -225,7 +243,7 @@ class FootstepPlanner:
     """Plans footsteps on one map; build it once per map and reuse it for many queries."""
 
     def __init__(self, grid: GridMap, cfg: FootstepPlannerCfg | None = None):
-        self.cfg = cfg = humanoid_footstep_cfg() if cfg is None else cfg
+        self.cfg = cfg = _default_cfg() if cfg is None else cfg
         check_footstep_cfg(cfg)
         if not isinstance(grid, GridMap):
             raise InvalidValueError("grid", type(grid).__name__, "expected a GridMap",
@@ -236,12 +254,20 @@ class FootstepPlanner:
         num_y, num_x = grid.shape
         self._key_shape = (2, math.ceil(num_y * grid.resolution_m / cfg.state_resolution_m),
                            math.ceil(num_x * grid.resolution_m / cfg.state_resolution_m), cfg.state_yaw_bins)
-        # per pruning cell: 0 unseen, g + 1 while open, -(g + 1) once expanded. np.zeros maps pages
-        # lazily, so only what a search touches costs memory; touched cells are reset after it.
-        self._state = np.zeros(int(np.prod(self._key_shape)))
+        self._state_array: np.ndarray | None = None
         self._pool = _Pool()
         self.heuristic: GoalHeuristic | None = None
         """The heuristic of the last query (its distance fields and ``steps_left``)."""
+
+    @property
+    def _state(self) -> np.ndarray:
+        """Per pruning cell: 0 unseen, g + 1 while open, -(g + 1) once expanded; touched cells are
+        reset after each query. Allocated on first use: most queries end in a walk and never
+        touch it, and an array of tens of MB that malloc serves from its heap (not fresh,
+        lazily mapped pages) is zeroed in full, several ms."""
+        if self._state_array is None:
+            self._state_array = np.zeros(int(np.prod(self._key_shape)))
+        return self._state_array
 
     def stance_feet(self, body_xyyaw_w) -> np.ndarray:
         """(2, 3) left and right foot poses of the nominal stance at a body pose (x, y, yaw), world frame."""
@@ -420,7 +446,7 @@ class FootstepPlanner:
         reach_m = math.hypot(x1_m - x0_m, y1_m - y0_m) + checks.grid.resolution_m * math.sqrt(2.0)
         if checks.clearance_at(x0_m, y0_m) >= self.cfg.body_clearance_m + reach_m:
             return True
-        return bool(checks.body_track_free(np.array([[x0_m, y0_m]]), np.array([[x1_m, y1_m]]))[0])
+        return checks.body_segment_free(x0_m, y0_m, x1_m, y1_m)
 
     def _follow_body_path(self, i: int) -> tuple[int | None, int | None]:
         """Walk from footstep ``i`` along the body path to the goal (``follow_path``), with each
