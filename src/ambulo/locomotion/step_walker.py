@@ -75,6 +75,11 @@ class StepWalkerCfg(Checked):
     start_transfer_s: float = field(default=1.0, metadata=rule(minimum=0.1))
     """Double support of the first step from standing, s: the CoM starts moving only when a plan
     arrives, so the ZMP moves to the first stance sole slowly instead of in one double support."""
+    start_delay_s: float = field(default=0.8, metadata=rule(minimum=0.0))
+    """... and only after this long: the preview controller reacts to a change of the reference
+    ZMP ahead of it in proportion to its gains there, which decay as exp(-omega t) (0.29 s at
+    0.80 m). Starting the transfer at once kicks the CoM with a jerk that makes the feet slide
+    (1 cm measured); 0.8 s leaves 6 % of it."""
     stand_chunk_s: float = field(default=0.2, metadata=rule(minimum=0.01))
     """Standing is walked in chunks this long: the most a new plan waits while standing, s."""
     settle_s: float = field(default=1.0, metadata=rule(minimum=0.0))
@@ -96,6 +101,8 @@ class StepWalkerCfg(Checked):
     """``falling`` when the capture point is this far outside the support polygon, m."""
     fall_height_m: float = 0.55
     """The pelvis below this height is a fall, m."""
+    monitor_every_samples: int = field(default=5, metadata=rule(minimum=1))
+    """``step`` checks ``balance().falling`` (for ``fell``) every this many samples."""
     stabilizer: StabilizerCfg = field(default_factory=StabilizerCfg)
 
 
@@ -196,7 +203,7 @@ class ZmpStepWalker:
         self.last_refusal: str | None = None
         """Why the last plan given to ``set_plan`` (or its splice onto the feet) was refused."""
         self.steps_taken = 0
-        self.replans = 0
+        self.plans_taken = 0
 
     # ------------------------------------------------------------------ binding and reset
     def bind(self, sim_or_engine, robot: Entity) -> ZmpStepWalker:
@@ -285,9 +292,10 @@ class ZmpStepWalker:
         self._anchor = np.zeros(3)
         self._standing = True
         self.steps_taken = 0
-        self.replans = 0
+        self.plans_taken = 0
         self.last_refusal = None
         self._fell = False
+        self._since_check = 0
         self._chunk = self._make_chunk()
 
     def _write_state(self, q_ref: np.ndarray) -> None:
@@ -386,7 +394,7 @@ class ZmpStepWalker:
                 self.last_refusal = f"spliced onto the feet as they are, the first step is refused: {reason}"
                 return
         self._queue = steps
-        self.replans += 1
+        self.plans_taken += 1
 
     def _matches(self, pose: np.ndarray, side: int) -> bool:
         foot = self._feet[(1 - side) // 2]
@@ -419,10 +427,18 @@ class ZmpStepWalker:
             kind = "step"
             goal, side = self._queue.pop(0)
             idx = (1 - side) // 2
-            first_ds = cfg.start_transfer_s if self._standing else ds
+            first_ds = cfg.start_delay_s + cfg.start_transfer_s if self._standing else ds
             goal = goal.copy()
             goal[3] = feet[idx, 3] + float(_wrap(goal[3] - feet[idx, 3]))  # yaw continuous, the short way
             stance = self._sole_center(feet[1 - idx])
+            if self._standing:
+                # from rest the CoM has seen no preview of this transfer: a minimum-jerk ZMP ramp
+                # (zero slope at its start) instead of a linear one, whose slope at t = 0 the CoM
+                # could only meet by a jerk that slides the feet
+                u = np.linspace(0.0, 1.0, 21)[1:-1]
+                delay = cfg.start_delay_s
+                knots_t += [delay] + (delay + u * (first_ds - delay)).tolist()
+                knots_p += [knots_p[0]] + [knots_p[0] + q * (stance - knots_p[0]) for q in _quintic(u)]
             knots_t += [first_ds, first_ds + ss]
             knots_p += [stance, stance]
             swing = (idx, first_ds, goal)
@@ -560,8 +576,10 @@ class ZmpStepWalker:
                 self._last_side = chunk.swing_side
             chunk = self._chunk = self._make_chunk()
             chunk.k = extra
-        if self.balance().falling:
-            self._fell = True
+        self._since_check += samples
+        if self._since_check >= self.cfg.monitor_every_samples:  # the hulls cost more than the control
+            self._since_check = 0
+            self._fell |= self.balance().falling
 
     # ------------------------------------------------------------------ state
     def feet_xyyaw_w(self) -> np.ndarray:
@@ -570,6 +588,16 @@ class ZmpStepWalker:
         d = self.data
         return np.array([[d.site_xpos[s][0], d.site_xpos[s][1], math.atan2(d.site_xmat[s][3], d.site_xmat[s][0])]
                          for s in self.sites])
+
+    def next_stance_feet_xyyaw_w(self) -> np.ndarray:
+        """(2, 3) the feet a new plan starts from (left, right): the soles now, except that a foot
+        in the air is where it will land (``swing_target_w``). With ``stance_side`` as the plan's
+        first stance, the new plan's start rows match the feet at the next touchdown exactly."""
+        feet = self.feet_xyyaw_w()
+        target = self.swing_target_w
+        if target is not None:
+            feet[(1 - self._chunk.swing_side) // 2] = target
+        return feet
 
     @property
     def stance_side(self) -> int:
