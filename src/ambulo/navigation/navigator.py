@@ -67,6 +67,10 @@ class NavigatorCfg(Checked):
     """A partial plan is renewed when this much of its body path is left, m."""
     blocked_clearance_m: float = 0.18
     """After a map change, a remaining body path point with less clearance than this forces a replan, m."""
+    goal_backoff_m: float = 0.15
+    """A goal whose stance touches an obstacle is approached up to this short along the route, m."""
+    min_replan_gap_s: float = 0.25
+    """Triggers other than a new goal or relocalisation wait this long after the last replan, s."""
     goal_tolerance_m: float = 0.3
     """Success radius, m (the benchmarks' 0.3 m)."""
     settle_s: float = 0.6
@@ -308,8 +312,10 @@ class Navigator:
 
     def _replan_trigger(self, now: float, est: np.ndarray, map_changed: bool) -> str | None:
         c = self.cfg
+        if now - self._last_plan_s < c.min_replan_gap_s:
+            return None
         if self.plan is None:
-            return "no plan" if now - self._last_plan_s >= 0.25 else None
+            return "no plan"
         if now - self._last_plan_s >= c.replan_period_s:
             return "period"
         tracker = getattr(self.walker, "tracker", None)
@@ -350,7 +356,7 @@ class Navigator:
             if np.linalg.norm(goal_xy - est[:2]) < 0.05 and not final:
                 status = "subgoal_at_robot"
             else:
-                plan = self.footsteps_stage.plan(grid, version, optimistic, est, (goal_xy[0], goal_xy[1], yaw))
+                plan = self._plan_footsteps(grid, version, optimistic, est, route, k, final, goal_xy, yaw)
                 status, steps = plan.status.value, plan.num_steps
                 usable = plan.status == PlanStatus.SUCCESS or (plan.num_steps >= 2 and plan.status in (
                     PlanStatus.BUDGET_EXHAUSTED, PlanStatus.GOAL_UNREACHABLE))
@@ -362,6 +368,42 @@ class Navigator:
                         self.walker.set_plan(plan, final=final)
         self.replans.append(ReplanRecord(now, time.perf_counter() - t0, reason, route.found, status, steps, final,
                                          refused))
+
+
+    def _plan_footsteps(self, grid, version, optimistic, est, route, k, final, goal_xy, yaw) -> FootstepPlan:
+        """Footsteps from the robot to route point ``k``. Two recoveries: a goal stance that touches
+        an obstacle at the route's heading is tried at three other headings and then moved back
+        along the route (up to ``goal_backoff_m``, inside the success radius); a start stance that
+        touches one (the robot brushed close to something) starts from the nearest route point
+        ahead whose stance is clear, within the walker's start offset."""
+        stage = self.footsteps_stage
+        plan = stage.plan(grid, version, optimistic, est, (goal_xy[0], goal_xy[1], yaw))
+        path = route.path_xy_m
+        if plan.status == PlanStatus.START_IN_COLLISION:
+            s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
+            for j in range(1, k + 1):
+                if s[j] > 0.4:
+                    break
+                if s[j] < 0.1:
+                    continue
+                start = (path[j][0], path[j][1], route_heading(path, j))
+                retry = stage.plan(grid, version, optimistic, start, (goal_xy[0], goal_xy[1], yaw))
+                if retry.status != PlanStatus.START_IN_COLLISION:
+                    return retry
+        if plan.status == PlanStatus.GOAL_IN_COLLISION and final:
+            for turn in (math.pi / 2, -math.pi / 2, math.pi):
+                retry = stage.plan(grid, version, optimistic, est, (goal_xy[0], goal_xy[1], yaw + turn))
+                if retry.status != PlanStatus.GOAL_IN_COLLISION:
+                    return retry
+            s_end = np.cumsum(np.linalg.norm(np.diff(path[::-1], axis=0), axis=1))
+            for j in range(len(s_end)):
+                if s_end[j] > self.cfg.goal_backoff_m:
+                    break
+                p = path[len(path) - 2 - j]
+                retry = stage.plan(grid, version, optimistic, est, (p[0], p[1], route_heading(path, len(path) - 2 - j)))
+                if retry.status != PlanStatus.GOAL_IN_COLLISION:
+                    return retry
+        return plan
 
 
 __all__ = ["MODES", "NavSnapshot", "Navigator", "NavigatorCfg"]

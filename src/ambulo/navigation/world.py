@@ -12,8 +12,9 @@ world without a plane gets the one scene builder's ground.
 
 **Collisions** are events, not steps: every ``contact_check_every`` physics steps the contacts are
 read (``engine.get_data``), and a collision is counted each time a body of the environment starts
-touching a robot geom other than the soles (the two foot boxes); while it stays in touch it is the
-same event. **A fall** is the pelvis below ``fall_height_m``.
+touching a robot geom other than the soles (the two foot boxes); while it stays in touch, or
+touches again within ``collision_gap_s`` (an arm brushing a wall in and out with the gait), it is
+the same event. **A fall** is the pelvis below ``fall_height_m``.
 """
 
 from __future__ import annotations
@@ -59,6 +60,8 @@ class NavWorldCfg(Checked):
     """A pelvis below this height is a fall, m (standing: 0.92 m)."""
     contact_check_every: int = 4
     """Read contacts every this many physics steps (4 = the policy's 20 ms control period)."""
+    collision_gap_s: float = 0.5
+    """Contacts with one body less than this apart are one collision event, s."""
     map_resolution_m: float = 0.05
     """Cell side of a user world's ground-truth occupancy, m."""
     step_height_m: float = 0.03
@@ -178,7 +181,7 @@ class NavWorld:
         """Whether the pelvis ever dropped below ``cfg.fall_height_m``."""
         self.collisions: list[tuple[float, str]] = []
         """One (time s, name of the environment's body) per collision event (module docstring)."""
-        self._touching: set[int] = set()
+        self._last_touch_s: dict[int, float] = {}
         self._steps = 0
         self.gyro.reset()
 
@@ -214,9 +217,11 @@ class NavWorld:
                 other = np.where(robot[mixed][:, 0], g[:, 1], g[:, 0])
                 hits = ~self._sole_geom[rob]
                 touching = {int(b) for b in self.model.geom_bodyid[other[hits]]}
-        for body in touching - self._touching:
-            self.collisions.append((self.time_s, self.model.body(body).name or f"body {body}"))
-        self._touching = touching
+        now = self.time_s
+        for body in touching:
+            if now - self._last_touch_s.get(body, -np.inf) > self.cfg.collision_gap_s:
+                self.collisions.append((now, self.model.body(body).name or f"body {body}"))
+            self._last_touch_s[body] = now
 
     # -- sensors ------------------------------------------------------------------------------
     def capture(self) -> RgbdFrame:

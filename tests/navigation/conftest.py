@@ -1,0 +1,29 @@
+"""Fixtures of the navigation tests: a small user world (MJCF)."""
+
+import pytest
+
+ROOM_XML = """
+<mujoco model="test_room">
+  <worldbody>
+    <geom name="floor" type="plane" size="6 6 0.1"/>
+    <light pos="0 0 3" dir="0 0 -1"/>
+    <body name="wall_north" pos="1.5 2.0 0.75"><geom type="box" size="2.5 0.05 0.75" rgba="0.7 0.6 0.5 1"/></body>
+    <body name="wall_south" pos="1.5 -2.0 0.75"><geom type="box" size="2.5 0.05 0.75" rgba="0.6 0.7 0.5 1"/></body>
+    <body name="crate" pos="1.5 0.9 0.3"><geom type="box" size="0.3 0.2 0.3" rgba="0.3 0.4 0.8 1"/></body>
+    <body name="post" pos="1.5 -1.0 0.5"><geom type="cylinder" size="0.1 0.5" rgba="0.8 0.3 0.3 1"/></body>
+    <body name="rail" pos="0.0 -1.5 0.9" euler="0 90 0"><geom type="capsule" size="0.05 0.4" rgba="0.3 0.3 0.3 1"/></body>
+    <body name="rug" pos="3.0 0.0 0.005"><geom type="box" size="0.5 0.5 0.005" rgba="0.9 0.2 0.2 1"/></body>
+    <body name="shelf" pos="-1.5 1.0 2.0"><geom type="box" size="0.3 0.3 0.05"/></body>
+  </worldbody>
+</mujoco>
+"""
+"""A 5 m x 4 m strip between two walls: a crate and a post to walk past, a rail at hip height
+(a capsule lying along x), a rug (walked over) and a shelf above the head (walked under)."""
+
+
+@pytest.fixture(scope="session")
+def room(tmp_path_factory):
+    """``ROOM_XML`` written to a file."""
+    path = tmp_path_factory.mktemp("world") / "room.xml"
+    path.write_text(ROOM_XML)
+    return path

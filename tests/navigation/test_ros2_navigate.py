@@ -1,0 +1,298 @@
+"""Issue 24's ROS 2 acceptance: a real rclpy node in another process sends a goal on /goal_pose, the
+navigator (``navigation.ros2_node.NavigateNode``) walks the humanoid there, and what the peer
+received (/plan, /footsteps, /map, /costmap, /odom, /tf, /navigate/status) is checked against
+the simulator's truth. On a loopback-only network, as ``tests/ros2`` runs its scenarios.
+
+This file is also the two processes: ``python test_ros2_navigate.py scenario OUT`` (the navigator
+and its node; starts the peer) and ``python test_ros2_navigate.py peer OUT GOAL_X GOAL_Y GOAL_YAW``
+(the independent rclpy node: rclpy, the message wheels and ``mcap_ros2``'s CDR decoder only).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+HERE = Path(__file__).resolve()
+APARTMENT_SEED = 1000
+EPISODE_SEED = 0
+"""Apartment 1000, episode 0: a start and a goal 2.9 m apart along the robot's clearance (2.8 m straight)."""
+SIM_LIMIT_S = 60.0
+"""Simulated seconds the robot gets from the goal (the oracle navigator arrives in ~12 s)."""
+TERMINAL = ("arrived", "fell", "stuck", "timeout", "lost_timeout")
+
+
+# -- the test -------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def navigate_run(tmp_path_factory):
+    from ros2.conftest import needs_rclpy, run_loopback
+
+    needs_rclpy()
+    out = tmp_path_factory.mktemp("navigate")
+    t0 = time.perf_counter()
+    run_loopback([str(HERE), "scenario", str(out)], timeout_s=300.0)
+    wall_s = time.perf_counter() - t0
+    print(f"navigate scenario: {wall_s:.1f} s wall")
+    return json.loads((out / "peer.json").read_text()), json.loads((out / "truth.json").read_text())
+
+
+def test_a_goal_on_goal_pose_is_walked_to_and_arrival_is_reported(navigate_run):
+    peer, truth = navigate_run
+    goal = np.array(truth["goal_xy_m"])
+    statuses = [s for _, s in peer["status"]]
+    assert "walking" in statuses, statuses
+    assert statuses[-1] == "arrived", statuses
+    assert truth["status"] == "arrived" and truth["goals_taken"] == 1
+    # the simulator's pelvis, and the peer's own view of it (/ground_truth/odom, /odom: oracle mode)
+    assert np.linalg.norm(np.array(truth["final_xy_m"]) - goal) < 0.3
+    assert np.linalg.norm(np.array(peer["truth"][-1][1:3]) - goal) < 0.3
+    assert np.linalg.norm(np.array(peer["odom"][-1][1:3]) - goal) < 0.3
+    # it walked there: the start was 2.8 m away
+    assert np.linalg.norm(np.array(peer["truth"][0][1:3]) - np.array(truth["start_pose"][:2])) < 0.1
+    assert not truth["fell"]
+
+
+def test_the_plan_runs_from_the_robot_to_the_goal(navigate_run):
+    peer, truth = navigate_run
+    goal, start = np.array(truth["goal_xy_m"]), np.array(truth["start_pose"][:2])
+    assert peer["plan"], "no /plan received"
+    frame, path = peer["plan"][0][1], np.array(peer["plan"][0][2])
+    assert frame == "map" and len(path) >= 2
+    assert np.linalg.norm(path[0] - start) < 0.15  # the robot's cell centre
+    assert np.linalg.norm(path[-1] - goal) < 0.15  # the goal's cell centre
+    steps = np.linalg.norm(np.diff(path, axis=0), axis=1)
+    assert steps.max() < 0.15  # neighbouring 5 cm cells: a path, not a jump
+    # the route keeps the robot's clearance: no point of it on an occupied cell of the true map
+    occ = np.array(peer["map"][-1]["data"], np.int8).reshape(peer["map"][-1]["height"], peer["map"][-1]["width"])
+    ox, oy, res = peer["map"][-1]["origin"][0], peer["map"][-1]["origin"][1], peer["map"][-1]["resolution"]
+    ix, iy = ((path[:, 0] - ox) / res).astype(int), ((path[:, 1] - oy) / res).astype(int)
+    assert (occ[iy, ix] < 100).all()
+
+
+def test_footsteps_are_cubes_alternating_left_and_right_ending_at_the_goal(navigate_run):
+    peer, truth = navigate_run
+    assert peer["footsteps"], "no /footsteps received"
+    for markers in peer["footsteps"]:
+        assert markers[0]["action"] == 3  # DELETEALL first: the last plan's markers go
+    final = peer["footsteps"][-1]
+    cubes = [m for m in final[1:] if m["action"] == 0]
+    assert len(cubes) > 2 and all(m["type"] == 1 and m["frame_id"] == "map" for m in cubes)
+    green, red = (m["color"][1] > m["color"][0] for m in cubes), (m["color"][0] > m["color"][1] for m in cubes)
+    sides = [1 if g else -1 if r else 0 for g, r in zip(green, red)]
+    assert all(s != 0 for s in sides) and all(a == -b for a, b in zip(sides[2:], sides[3:]))  # steps alternate
+    assert all(m["scale"][0] > m["scale"][1] > m["scale"][2] > 0 for m in cubes)  # a sole: long, narrow, thin
+    last_two = np.array([m["xyz"][:2] for m in cubes[-2:]])
+    assert np.linalg.norm(last_two.mean(axis=0) - np.array(truth["goal_xy_m"])) < 0.3
+    assert len({m["id"] for m in cubes}) == len(cubes)
+
+
+def test_map_is_the_apartment_occupancy_and_the_costmap_matches_it(navigate_run):
+    peer, truth = navigate_run
+    assert peer["map"] and peer["costmap"]
+    m, c, occ = peer["map"][-1], peer["costmap"][-1], truth["occupancy"]
+    assert (m["height"], m["width"]) == tuple(occ["shape"]) == (c["height"], c["width"])
+    assert m["resolution"] == pytest.approx(occ["resolution_m"]) == c["resolution"]
+    assert m["origin"] == pytest.approx(occ["origin_xy_m"]) == c["origin"]
+    assert m["frame_id"] == c["frame_id"] == "map"
+    truth_data = np.array(occ["data"], np.int8)
+    assert np.array_equal(np.array(m["data"], np.int8), truth_data)  # oracle mode: the true map, cell for cell
+    cost = np.array(c["data"], np.int8)
+    assert (cost[truth_data == 100] == 100).all()  # occupied cells are lethal (Nav2's 100)
+    assert (cost[truth_data == 0] < 100).any() and cost.max() <= 100 and cost.min() >= -1
+
+
+def test_tf_is_map_odom_base_link_with_odom_equal_to_the_odometry(navigate_run):
+    peer, _ = navigate_run
+    assert peer["tf"]
+    by_stamp = {o[0]: o for o in peer["odom"]}
+    checked = 0
+    for stamp, transforms in peer["tf"]:
+        pairs = {(p, ch): (xyz, q) for p, ch, xyz, q in transforms}
+        xyz, q = pairs[("map", "odom")]
+        assert xyz == [0.0, 0.0, 0.0] and q == [0.0, 0.0, 0.0, 1.0]  # identity (ros2_node docstring)
+        xyz, q = pairs[("odom", "base_link")]
+        if stamp in by_stamp:
+            _, x, y, yaw = by_stamp[stamp]
+            assert xyz[:2] == pytest.approx([x, y]) and 2 * math.atan2(q[2], q[3]) == pytest.approx(yaw, abs=1e-9)
+            checked += 1
+    assert checked > 10
+    stamps = [s for s, _ in peer["tf"]]
+    assert stamps == sorted(stamps) and peer["clock"][-1] >= stamps[-1]
+
+
+# -- the scenario process: the navigator and its node ------------------------------------------------
+def scenario(out: Path) -> int:
+    from ambulo.navigation import Navigator, NavigatorCfg, NavWorld, NavWorldCfg
+    from ambulo.navigation.ros2_node import NavigateNode, NavigateNodeCfg
+    from ambulo.robots import humanoid
+    from ambulo.scenes.apartment import apartment
+
+    apt = apartment(APARTMENT_SEED)
+    ep = apt.sample_start_goal(EPISODE_SEED, 2.5, 3.5, humanoid.BODY_RADIUS_M)
+    world = NavWorld.from_apartment(apt, ep.start_pose, NavWorldCfg(record_gyro=False))
+    nav = Navigator(world, NavigatorCfg(mode="oracle", time_limit_s=SIM_LIMIT_S))
+    # a reliable writer keeps only its history of unacknowledged samples: the test is of what the node
+    # sends, so a peer starved of CPU must lose nothing
+    node = NavigateNode(nav, NavigateNodeCfg(qos_depth=10_000))
+    goal = np.array(ep.goal_xy_m, float)
+    d = goal - np.array(ep.start_pose[:2])
+    yaw = math.atan2(d[1], d[0])  # arrive facing the way it came
+    peer = subprocess.Popen([sys.executable, str(HERE), "peer", str(out), *map(str, (goal[0], goal[1], yaw))])
+    wall_end = time.monotonic() + 240.0
+    goal_time: list[float] = []
+
+    def over(n: NavigateNode) -> bool:
+        if n.goals and not goal_time:
+            goal_time.append(world.time_s)
+        sim_over = bool(goal_time) and world.time_s - goal_time[0] > SIM_LIMIT_S + 5.0
+        return peer.poll() is not None or time.monotonic() > wall_end or sim_over
+
+    try:
+        node.spin(until=over)
+        end = time.monotonic() + 60.0
+        while peer.poll() is None and time.monotonic() < end:  # the peer may still take what is in flight
+            node.spin(seconds=0.05)
+    finally:
+        if peer.poll() is None:
+            peer.kill()
+        peer.wait()
+        node.close()
+    grid = apt.occupancy
+    (out / "truth.json").write_text(json.dumps({
+        "status": nav.status, "goals_taken": len(node.goals), "goal_xy_m": goal.tolist(),
+        "start_pose": list(ep.start_pose), "final_xy_m": world.true_pose()[:2].tolist(), "fell": world.fell,
+        "published": dict(node.published),
+        "occupancy": {"shape": list(grid.shape), "resolution_m": grid.resolution_m,
+                      "origin_xy_m": list(grid.origin_xy_m), "data": grid.occupancy.reshape(-1).tolist()}}))
+    world.close()
+    return 0
+
+
+# -- the peer process: an independent rclpy node --------------------------------------------------------
+def _raw_class(typename: str):
+    """A serialized-only class for a type without a wheel, from ambulo's ``raw_types.py`` loaded by path
+    (the declaration a stock ROS 2 node would have from its generated package)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("peer_raw_types", HERE.parents[2] / "src/ambulo/ros2/raw_types.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.raw_message_class(typename), module.typestore()
+
+
+def _decoder(typename: str, store):
+    """``mcap_ros2``'s CDR decoder, from the type's message definition text."""
+    from mcap_ros2._dynamic import generate_dynamic
+
+    text, _ = store.generate_msgdef(typename, ros_version=2)
+    return generate_dynamic(typename, text)[typename]
+
+
+def peer(out: Path, goal_x: float, goal_y: float, goal_yaw: float) -> int:
+    import rclpy
+    from geometry_msgs.msg import PoseStamped
+    from nav_msgs.msg import OccupancyGrid, Odometry
+    from nav_msgs.msg import Path as PathMsg
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from rosgraph_msgs.msg import Clock
+    from std_msgs.msg import String
+
+    rclpy.init()
+    node = rclpy.create_node("navigate_peer")
+    reliable = QoSProfile(depth=10_000, reliability=ReliabilityPolicy.RELIABLE)
+    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    status_qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE,
+                            durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    got: dict[str, list] = {k: [] for k in ("status", "plan", "footsteps", "map", "costmap", "odom", "truth", "tf",
+                                            "clock")}
+    lock = threading.Lock()
+
+    def add(key, item):
+        with lock:
+            got[key].append(item)
+
+    def t(stamp) -> int:
+        return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+    def yaw(q) -> float:
+        return math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
+
+    def grid(m) -> dict:
+        return {"frame_id": m.header.frame_id, "width": m.info.width, "height": m.info.height,
+                "resolution": m.info.resolution, "origin": [m.info.origin.position.x, m.info.origin.position.y],
+                "data": list(m.data)}
+
+    def odom(m) -> list:
+        p = m.pose.pose
+        return [t(m.header.stamp), p.position.x, p.position.y, yaw(p.orientation)]
+
+    markers_type, store = _raw_class("visualization_msgs/msg/MarkerArray")
+    tf_type, _ = _raw_class("tf2_msgs/msg/TFMessage")
+    decode_markers, decode_tf = _decoder("visualization_msgs/msg/MarkerArray", store), _decoder(
+        "tf2_msgs/msg/TFMessage", store)
+
+    def markers(raw: bytes) -> list:
+        return [{"action": m.action, "type": m.type, "id": m.id, "frame_id": m.header.frame_id,
+                 "xyz": [m.pose.position.x, m.pose.position.y, m.pose.position.z],
+                 "scale": [m.scale.x, m.scale.y, m.scale.z], "color": [m.color.r, m.color.g, m.color.b, m.color.a]}
+                for m in decode_markers(raw).markers]
+
+    def transforms(raw: bytes) -> list:
+        msg = decode_tf(raw).transforms
+        return [t(msg[0].header.stamp), [[x.header.frame_id, x.child_frame_id,
+                                          [x.transform.translation.x, x.transform.translation.y,
+                                           x.transform.translation.z],
+                                          [x.transform.rotation.x, x.transform.rotation.y, x.transform.rotation.z,
+                                           x.transform.rotation.w]] for x in msg]]
+
+    sub = node.create_subscription
+    sub(String, "/navigate/status", lambda m: add("status", [time.monotonic(), m.data]), status_qos)
+    sub(PathMsg, "/plan", lambda m: add("plan", [t(m.header.stamp), m.header.frame_id,
+                                                 [[p.pose.position.x, p.pose.position.y] for p in m.poses]]), reliable)
+    sub(markers_type, "/footsteps", lambda raw: add("footsteps", markers(raw)), reliable, raw=True)
+    sub(OccupancyGrid, "/map", lambda m: add("map", grid(m)), latched)
+    sub(OccupancyGrid, "/costmap", lambda m: add("costmap", grid(m)), latched)
+    sub(Odometry, "/odom", lambda m: add("odom", odom(m)), reliable)
+    sub(Odometry, "/ground_truth/odom", lambda m: add("truth", odom(m)), reliable)
+    sub(tf_type, "/tf", lambda raw: add("tf", transforms(raw)), reliable, raw=True)
+    sub(Clock, "/clock", lambda m: add("clock", t(m.clock)), reliable)
+    pub = node.create_publisher(PoseStamped, "/goal_pose", 10)
+    end = time.monotonic() + 120.0
+    while (pub.get_subscription_count() == 0 or not got["map"]) and time.monotonic() < end:
+        rclpy.spin_once(node, timeout_sec=0.05)  # the navigator's node is there and we have its map
+    goal = PoseStamped()
+    goal.header.frame_id = "map"  # RViz's "2D Goal Pose": the fixed frame, stamp now
+    goal.pose.position.x, goal.pose.position.y = goal_x, goal_y
+    goal.pose.orientation.z, goal.pose.orientation.w = math.sin(goal_yaw / 2), math.cos(goal_yaw / 2)
+    pub.publish(goal)
+    linger_until = None
+    while time.monotonic() < end + 120.0:
+        rclpy.spin_once(node, timeout_sec=0.05)
+        with lock:
+            done = got["status"] and got["status"][-1][1] in TERMINAL
+        if done and linger_until is None:
+            linger_until = time.monotonic() + 1.0  # what is still in flight (the last odometry, TF)
+        if linger_until is not None and time.monotonic() > linger_until:
+            break
+    with lock:
+        (out / "peer.json").write_text(json.dumps(got))
+    threading.Timer(10.0, os._exit, args=(0,)).start()  # DDS teardown has hung on CI: nothing is left to lose
+    node.destroy_node()
+    rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    os.environ.setdefault("PYTHONUNBUFFERED", "1")
+    if sys.argv[1] == "scenario":
+        sys.exit(scenario(Path(sys.argv[2])))
+    sys.exit(peer(Path(sys.argv[2]), *map(float, sys.argv[3:6])))
