@@ -2,7 +2,7 @@
 
     python benchmarks/footstep_maps.py [--maps-per-category 34] [--seed 0] [--png-dir DIR]
 
-Six categories of maps, built as a user's would be and written as map_server YAML + PGM into a
+Seven categories of maps, built as a user's would be and written as map_server YAML + PGM into a
 temporary folder with ``ambulo.maps.save_map_yaml``, then loaded back with ``load_map_yaml`` (the
 planner sees only what the loader returns, through ``GridMap.from_map``; unknown cells blocked):
 
@@ -13,7 +13,10 @@ planner sees only what the loader returns, through ``GridMap.from_map``; unknown
 - ``narrow_passages``: two rooms joined by a corridor 0.60-0.80 m wide and 1.5-4 m long, straight
   or with a bend;
 - ``u_traps``: a U-shaped obstacle opening towards the start, the goal behind its base;
-- ``serpentines``: 3-5 walls across a room, alternately from either side, gaps 0.7-1.2 m.
+- ``serpentines``: 3-5 walls across a room, alternately from either side, gaps 0.7-1.2 m;
+- ``angled_doors``: a wall across a room at up to 30 degrees off the cell lines (jagged raster
+  edges), thickness 0.1-0.2 m, one door 0.65-1.0 m wide; start on one side, goal on the other
+  (added after the planner's 98 % run, where doors approached at an angle failed).
 
 Every problem gives the exact start feet (left and right sole poses, up to 4 cm and 0.1 rad off
 the nominal stance), which foot stays down first (random), and a goal body pose (random yaw).
@@ -30,7 +33,9 @@ the body clearance, the start feet exactly as given, and the final stance at the
 Prints one line per category and ``RESULT {json}``: ``valid_pct`` (plans that claim success and
 pass the checker, over all problems), ``false_successes`` (claimed successes the checker rejects:
 must be 0), planning ms p50/p95 per category (``plan_ms``: ``FootstepPlanner(grid)`` plus its
-``plan`` call, i.e. a fresh map each query; ``query_ms``: the ``plan`` call alone), the load average.
+``plan`` call, i.e. a fresh map each query; ``query_ms``: the ``plan`` call alone), lattice
+expansions p50/p95/max per category (0 where the walk along the body path is the plan), the load
+average.
 """
 
 from __future__ import annotations
@@ -54,7 +59,7 @@ from ambulo.maps import Grid2D, load_map_yaml, save_map_yaml
 from ambulo.nav import FootstepPlanner, GridMap, PlanStatus, plot_plan
 from ambulo.nav.footstep_lattice import LEFT, RIGHT
 
-CATEGORIES = ("open_rooms", "clutter", "doors", "narrow_passages", "u_traps", "serpentines")
+CATEGORIES = ("open_rooms", "clutter", "doors", "narrow_passages", "u_traps", "serpentines", "angled_doors")
 RESOLUTION_M = 0.05
 # the checker's numbers: the bundled humanoid's walker limits and sole, typed here on purpose
 STEP_LENGTH_M = (-0.10, 0.25)
@@ -212,8 +217,27 @@ def serpentine(rng, index):
     return c, start_box, goal_box, 0.0
 
 
+def angled_door(rng, index):
+    """A wall across the room at up to 30 degrees from the y axis, not on the cell lines (its raster
+    edges are jagged), with one door 0.65-1.0 m wide; start on one side, goal on the other."""
+    sx, sy = rng.uniform(7.0, 8.0), rng.uniform(4.0, 5.5)
+    c = Canvas(sx, sy)
+    c.walls()
+    tilt, t = rng.uniform(-math.pi / 6, math.pi / 6), rng.uniform(0.1, 0.2)
+    door = rng.uniform(0.65, 1.0)
+    along = np.array([math.sin(tilt), math.cos(tilt)])  # the wall's direction
+    center = np.array([sx / 2, sy / 2])
+    offset = rng.uniform(-sy / 2 + 0.8, sy / 2 - 0.8)  # the door's centre along the wall
+    reach = sy  # each wall piece runs past the room's edge
+    for lo, hi in ((-reach, offset - door / 2), (offset + door / 2, reach)):
+        c.box(center + along * (lo + hi) / 2, (hi - lo, t), math.atan2(along[1], along[0]))
+    start_box = (0.5, 0.5, sx / 2 - 1.8, sy - 0.5)
+    goal_box = (sx / 2 + 1.8, 0.5, sx - 0.5, sy - 0.5)
+    return c, start_box, goal_box, 0.0
+
+
 BUILDERS = {"open_rooms": open_room, "clutter": clutter, "doors": doors, "narrow_passages": narrow_passage,
-            "u_traps": u_trap, "serpentines": serpentine}
+            "u_traps": u_trap, "serpentines": serpentine, "angled_doors": angled_door}
 
 
 def clearance_m(occupied: np.ndarray) -> np.ndarray:
@@ -413,13 +437,17 @@ def run(maps_per_category: int, seed: int = 0, png_dir: Path | None = None, cate
             "plan_ms": percentiles_ms([r["plan_s"] for r in group]),
             "query_ms": percentiles_ms([r["query_s"] for r in group]),
             "steps_p50": int(np.median([r["steps"] for r in valid])) if valid else None,
+            "expansions": {"p50": int(np.percentile([r["expansions"] for r in group], 50)),
+                           "p95": int(np.percentile([r["expansions"] for r in group], 95)),
+                           "max": int(max(r["expansions"] for r in group))},
             "failures": dict(Counter(r["status"] for r in group if not r["ok"])),
         }
         if verbose:
             c = per_category[category]
             print(f"{category:16s} valid {c['valid_pct']:5.1f} %  plan ms p50 {c['plan_ms']['p50']:6.1f} "
                   f"p95 {c['plan_ms']['p95']:6.1f} max {c['plan_ms']['max']:7.1f}  query ms p95 "
-                  f"{c['query_ms']['p95']:6.1f}  steps p50 {c['steps_p50']}  failures {c['failures']}")
+                  f"{c['query_ms']['p95']:6.1f}  steps p50 {c['steps_p50']}  expansions p50/p95/max "
+                  f"{c['expansions']['p50']}/{c['expansions']['p95']}/{c['expansions']['max']}  failures {c['failures']}")
     valid_all = sum(r["ok"] and not r["problems"] for r in rows)
     result = {
         "maps": len(rows),
@@ -443,7 +471,7 @@ def draw_figure(shown: dict, path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(2, 3, figsize=(15, 9.5), dpi=110)
+    fig, axes = plt.subplots(2, 4, figsize=(20, 9.5), dpi=110)
     for ax, (category, (grid, plan, goal)) in zip(axes.ravel(), shown.items()):
         plot_plan(grid, plan, None, goal_xyyaw_w=goal, ax=ax,
                   title=f"{category}: {plan.num_steps} steps, {plan.planning_time_s * 1e3:.0f} ms")
@@ -457,7 +485,7 @@ def draw_figure(shown: dict, path: Path) -> None:
 
 def main(argv=None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--maps-per-category", type=int, default=34, help="34 x 6 = 204 maps (default)")
+    parser.add_argument("--maps-per-category", type=int, default=34, help="34 x 7 = 238 maps (default)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--categories", default=",".join(CATEGORIES))
     parser.add_argument("--png-dir", type=Path, default=None, help="write a picture of each failed or invalid plan")
