@@ -555,3 +555,35 @@ def test_a_bent_corridor_is_planned_with_few_expansions():
     assert 0 < plan.expansions <= 150
     assert_valid(plan, grid, goal=problem["goal"], start_feet=problem["start_feet"],
                  stance_side=problem["stance_side"])
+
+
+def test_progress_table_is_the_sum_of_its_per_step_bounds():
+    # the table by its definition (progress_table's docstring), brute force: the support of every
+    # pair displacement on 257 angles, its envelope, and per chain the sum over the steps of u at
+    # the heading bound max(b0 - k dyaw, bf - (n - k) dyaw, 0), rounded down to the grid
+    from ambulo.nav.footstep_lattice import HEADING_BINS, TABLE_STEPS, _rotate, progress_table
+
+    cfg = humanoid_footstep_cfg(step_lengths_m=(-0.1, 0.0, 0.12, 0.25), step_yaws_rad=(-0.3, 0.0, 0.3))
+    left = build_lattice(cfg, 0.05).actions[LEFT]
+    right = left * np.array([1.0, -1.0, -1.0])
+    pairs = np.concatenate([(a[:, None, :2] + _rotate(b[None, :, :2], a[:, None, 2])).reshape(-1, 2)
+                            for a, b in ((left, right), (right, left))])
+    singles = np.concatenate([left[:, :2], right[:, :2]])
+    angles = np.linspace(-np.pi, np.pi, 257)
+    e = np.stack([np.cos(angles), np.sin(angles)])
+    grid = np.linspace(0.0, np.pi, HEADING_BINS + 1)
+
+    def envelope(points):
+        support = (points @ e).max(axis=0) + np.hypot(*points.T).max() * (angles[1] - angles[0]) / 2
+        return np.array([support[np.abs(angles) >= x - 1e-12].max() for x in grid])
+
+    u = envelope(pairs) / 2
+    odd = max(float((envelope(singles) - u).max()), 0.0)
+    table = progress_table(left, cfg.max_step_yaw_rad)
+    dyaw, step = cfg.max_step_yaw_rad, np.pi / HEADING_BINS
+    rng = np.random.default_rng(9)
+    for j0, jf, n in zip(rng.integers(0, HEADING_BINS + 1, 300), rng.integers(0, HEADING_BINS + 1, 300),
+                         rng.integers(1, TABLE_STEPS + 1, 300)):
+        heading = [max(grid[j0] - dyaw * k, grid[jf] - dyaw * (n - k), 0.0) for k in range(n)]
+        want = sum(u[math.floor(h / step + 1e-9)] for h in heading) + odd
+        assert table[j0, jf, n] == pytest.approx(want, abs=1e-12)

@@ -18,6 +18,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import ConvexHull
 
 LEFT = 1
 RIGHT = -1
@@ -221,19 +222,22 @@ def progress_table(left_actions: np.ndarray, max_step_yaw_rad: float) -> np.ndar
     e = np.stack([np.cos(angles), np.sin(angles)])
     grid = np.linspace(0.0, np.pi, HEADING_BINS + 1)
 
-    def envelope(points):  # U on the grid
-        support = (points @ e).max(axis=0) + np.hypot(*points.T).max() * (angles[1] - angles[0]) / 2
+    def envelope(points):  # U on the grid; a support function's maximum lies on the convex hull
+        hull = points[ConvexHull(points).vertices]
+        support = (hull @ e).max(axis=0) + np.hypot(*points.T).max() * (angles[1] - angles[0]) / 2
         return np.array([support[np.abs(angles) >= x - 1e-12].max() for x in grid])
 
     per_step = envelope(pairs) / 2
     odd_step_out = max(float((envelope(singles) - per_step).max()), 0.0)
     step = np.pi / HEADING_BINS
     table = np.zeros((HEADING_BINS + 1, HEADING_BINS + 1, TABLE_STEPS + 1))
-    x0, xf = grid[:, None, None], grid[None, :, None]
-    for n in range(1, TABLE_STEPS + 1):
-        k = np.arange(n)[None, None, :]
-        heading = np.maximum(np.maximum(x0 - max_step_yaw_rad * k, xf - max_step_yaw_rad * (n - k)), 0.0)
-        table[:, :, n] = per_step[np.floor(heading / step + 1e-9).astype(int)].sum(axis=2) + odd_step_out
+    # u of the heading max(b - m dyaw, 0) rounded down to the grid, for b on the grid and m steps:
+    # (HEADING_BINS + 1, TABLE_STEPS + 1). Since u does not increase with the heading, u of
+    # max(b0 - k dyaw, bf - (n - k) dyaw, 0) is the smaller of the two u's.
+    m = np.arange(TABLE_STEPS + 1)
+    u = per_step[np.maximum(np.floor((grid[:, None] - max_step_yaw_rad * m) / step + 1e-9), 0).astype(int)]
+    for n in range(1, TABLE_STEPS + 1):  # steps k = 0 .. n - 1: u[j0, k] against u[jf, n - k]
+        table[:, :, n] = np.minimum(u[:, None, :n], u[None, :, n:0:-1]).sum(axis=2) + odd_step_out
     return table
 
 
