@@ -76,7 +76,7 @@ def test_map_png_has_each_layer_where_the_world_puts_it(tmp_path):
     assert tuple(png[_pixel((-0.5, -0.3), s, h)]) == COLORS["free"]
     assert tuple(png[_pixel((1.9, -0.3), s, h)]) == COLORS["inflated"]  # 0.1 m from the wall
     # the robot at its final pose, the goal's centre
-    assert tuple(png[_pixel((0.6, 0.0), s, h)]) == COLORS["robot"]
+    assert tuple(png[_pixel((0.6, -0.08), s, h)]) == COLORS["robot"]  # beside its white heading line
     assert tuple(png[_pixel((2.5, 1.0), s, h)]) == COLORS["goal"]
     # the last foot (right, yawed 90 deg) at (1.0, -0.1): its border is 0.11 m along y from its
     # centre (the sole's length runs along y now) and 0.05 m along x
@@ -84,8 +84,8 @@ def test_map_png_has_each_layer_where_the_world_puts_it(tmp_path):
     assert fill[0] > fill[1] and fill[0] > fill[2]  # a light red inside
     assert tuple(png[_pixel((1.0, -0.1 + 0.105), s, h)]) == COLORS["right"]
     assert tuple(png[_pixel((1.0 + 0.07, -0.1), s, h)]) == COLORS["free"]  # outside the sole
-    # the left foot at (0.5, 0.1), yaw 0: its border 0.105 m along x
-    assert tuple(png[_pixel((0.5 + 0.105, 0.1), s, h)]) == COLORS["left"]
+    # the left foot at (0.5, 0.1), yaw 0: its heel border 0.105 m back along x
+    assert tuple(png[_pixel((0.5 - 0.105, 0.1), s, h)]) == COLORS["left"]
 
 
 def test_the_video_reads_back_frame_for_frame(tmp_path):
@@ -96,14 +96,15 @@ def test_the_video_reads_back_frame_for_frame(tmp_path):
         video(_snapshot(k, grid))
     files = video.close()
     assert (tmp_path / "ep.mp4") in files and (tmp_path / "map.png") in files
-    frames = list(imageio.get_reader(tmp_path / "ep.mp4"))
-    assert len(frames) == 7
+    reader = imageio.get_reader(tmp_path / "ep.mp4")
+    assert reader.count_frames() == 7
+    frames = [reader.get_data(i) for i in (0, 3, 6)]
     # camera 80x60 scaled to 160x120, map 4 m x 2 m at min(120/2, 240/4) = 60 px/m -> 240 x 120;
     # height 120 + 16 caption = 136 (a multiple of 8), width 400
     assert frames[0].shape == (136, 400, 3)
     assert video.last_frame.shape == (136, 400, 3)
     # the camera panel carries each frame's red level (lossy: within a few levels)
-    assert abs(int(frames[3][60, 80, 0]) - 60) < 12 and abs(int(frames[6][60, 80, 0]) - 120) < 12
+    assert abs(int(frames[1][60, 80, 0]) - 60) < 12 and abs(int(frames[2][60, 80, 0]) - 120) < 12
 
 
 def test_every_n_frames_films_a_subset(tmp_path):
@@ -113,7 +114,7 @@ def test_every_n_frames_films_a_subset(tmp_path):
         video(_snapshot(k, grid))
     video.close()
     assert video.frames_written == 3
-    assert len(list(imageio.get_reader(tmp_path / "ep.mp4"))) == 3
+    assert imageio.get_reader(tmp_path / "ep.mp4").count_frames() == 3
     assert len(video.true_xy_m) == 7  # the paths keep every frame
 
 
