@@ -127,6 +127,11 @@ def test_polyline_and_rect_sampling_by_hand():
     border, inside = rect_points(np.array([[50.0, 50.0]]), np.array([math.pi / 2]), (5.0, 2.0))
     allp = np.concatenate([border, inside])
     assert np.ptp(allp[:, 0]) == pytest.approx(10.0) and np.ptp(allp[:, 1]) == pytest.approx(4.0)
+    # yawed 45 deg: the toe points up-right in the picture (row -, column +), the sole's side down-right
+    border, inside = rect_points(np.array([[50.0, 50.0]]), np.array([math.pi / 4]), (5.0, 2.0))
+    rel = np.concatenate([border, inside]) - 50.0
+    along, across = np.array([-1.0, 1.0]) / math.sqrt(2), np.array([1.0, 1.0]) / math.sqrt(2)
+    assert (rel @ along).max() == pytest.approx(5.0) and np.abs(rel @ across).max() == pytest.approx(2.0)
 
 
 def test_the_map_picture_is_rebuilt_only_for_a_new_grid():

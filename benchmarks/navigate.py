@@ -1,0 +1,57 @@
+"""The autonomous navigator on seeded apartments: success, SPL and costs per mode.
+
+    python benchmarks/navigate.py [--episodes 100] [--modes oracle,mapping,full] [--walkers policy]
+                                  [--randomize] [--workers 2] [--out out/bench_navigate] [--first-seed 0]
+
+Runs ``--episodes`` episodes per mode and walker on ``apartment(seed)`` for seeds
+``first_seed .. first_seed + N - 1`` (the tests use seeds >= 1000, so these are held out), start and
+goal drawn by ``metrics.run_episode`` with episode seed 0 (geodesic 3-8 m, time limit 30 s + 6 s per
+metre). ``--randomize`` adds domain randomization (friction, masses, lights, colours, pushes,
+sensor noise); ``--both`` runs each group with and without it. The work is
+``navigation.benchmark.run_benchmark`` (the code ``ambulo navigate --episodes`` runs): a process
+pool, one episode per task, each episode's JSON written under ``<out>/episodes`` as it finishes,
+so a killed run resumes where it stopped when started again with the same ``--out``.
+
+Prints a table and ``RESULT {json}``: per group (mode/walker[/rand]) success, SPL, fall rate,
+collisions per episode, stuck rate, p95 replan ms, simulated/wall time, episodes per minute (of
+the episodes run now), plus the load average at the start and the end.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+
+from ambulo.navigation.benchmark import EpisodeSpec, format_table, run_benchmark
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--episodes", type=int, default=100)
+    ap.add_argument("--modes", default="oracle,mapping,full")
+    ap.add_argument("--walkers", default="policy")
+    ap.add_argument("--randomize", action="store_true", help="randomized episodes only")
+    ap.add_argument("--both", action="store_true", help="nominal and randomized episodes")
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--first-seed", type=int, default=0)
+    ap.add_argument("--out", default="out/bench_navigate")
+    args = ap.parse_args()
+    randomize = (False, True) if args.both else (args.randomize,)
+    specs = [EpisodeSpec(args.first_seed + i, 0, mode, walker, rand)
+             for walker in args.walkers.split(",") for rand in randomize for mode in args.modes.split(",")
+             for i in range(args.episodes)]
+    load_start = os.getloadavg()[0]
+    t0 = time.perf_counter()
+    run = run_benchmark(specs, args.out, workers=args.workers)
+    print(format_table(run.summary))
+    print("RESULT " + json.dumps({
+        "benchmark": "navigate", "episodes_per_group": args.episodes, "workers": args.workers,
+        "first_seed": args.first_seed, "resumed": run.resumed, "wall_s": time.perf_counter() - t0,
+        "load_start": load_start, "load_end": os.getloadavg()[0], "cpus": os.cpu_count(),
+        "groups": run.summary}))
+
+
+if __name__ == "__main__":
+    main()
