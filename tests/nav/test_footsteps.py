@@ -587,3 +587,19 @@ def test_progress_table_is_the_sum_of_its_per_step_bounds():
         heading = [max(grid[j0] - dyaw * k, grid[jf] - dyaw * (n - k), 0.0) for k in range(n)]
         want = sum(u[math.floor(h / step + 1e-9)] for h in heading) + odd
         assert table[j0, jf, n] == pytest.approx(want, abs=1e-12)
+
+
+def test_a_replan_to_the_same_goal_reuses_the_goal_fields():
+    # the distance fields depend on the map and the goal only: a second query to the same goal
+    # from elsewhere reuses them (and plans as a fresh planner would); a new goal gets new ones
+    grid = corridor()
+    planner = FootstepPlanner(grid)
+    goal = np.array([4.5, 1.0, 0.0])
+    planner.plan((0.6, 1.0, 0.0), goal)
+    fields = planner.heuristic
+    again = planner.plan((1.5, 0.9, 0.3), goal)
+    assert planner.heuristic is fields
+    fresh = FootstepPlanner(grid).plan((1.5, 0.9, 0.3), goal)
+    np.testing.assert_array_equal(again.footsteps_xyyaw_w, fresh.footsteps_xyyaw_w)
+    planner.plan((1.5, 0.9, 0.3), (4.0, 1.0, 0.0))
+    assert planner.heuristic is not fields and planner.heuristic.goal[0] == 4.0

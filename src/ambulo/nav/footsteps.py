@@ -257,7 +257,8 @@ class FootstepPlanner:
         self._state_array: np.ndarray | None = None
         self._pool = _Pool()
         self.heuristic: GoalHeuristic | None = None
-        """The heuristic of the last query (its distance fields and ``steps_left``)."""
+        """The heuristic of the last query (its distance fields and ``steps_left``); the next
+        query to the same goal reuses it."""
 
     @property
     def _state(self) -> np.ndarray:
@@ -324,7 +325,11 @@ class FootstepPlanner:
             return result(PlanStatus.START_IN_COLLISION, detail=f"the start feet {start_feet.tolist()} touch an obstacle")
         if checks.stance_blocked(self.stance_feet(goal)):
             return result(PlanStatus.GOAL_IN_COLLISION, detail=f"the stance at the goal {goal} touches an obstacle")
-        self.heuristic = heuristic = GoalHeuristic(checks, goal)
+        if self.heuristic is None or not np.array_equal(self.heuristic.goal, goal):
+            # its fields depend on the map and the goal alone: a replan to the same goal on this
+            # map (a navigator's, each control period) reuses them, Dijkstra and all
+            self.heuristic = GoalHeuristic(checks, goal)
+        heuristic = self.heuristic
         if not heuristic.reachable(start_mid[0], start_mid[1]):
             return result(PlanStatus.GOAL_UNREACHABLE, detail="no path of body cells joins the start and the goal")
         for root in roots:
