@@ -77,8 +77,11 @@ class OnlineMapperCfg(Checked):
     surface voxels to the head."""
     update_hz: float = 2.0
     """Slices per second of simulated time."""
-    body_free_radius_m: float = 0.2
-    """Cells within this of a pose the robot stood at are free unless seen otherwise, m."""
+    body_free_radius_m: float = 0.35
+    """Cells within this of a pose the robot stood at are free unless seen otherwise, m: the body's
+    0.265 m radius, a cell and the gait's sway. The head camera cannot see the floor within ~1.6 m
+    ahead, so without this the footstep planner (0.25 m body clearance from unknown cells) could
+    never start."""
     margin_m: float = 1.0
     """The map covers the world's ground-truth extent grown by this, m."""
 

@@ -318,14 +318,23 @@ class Navigator:
             return "no plan"
         if now - self._last_plan_s >= c.replan_period_s:
             return "period"
-        tracker = getattr(self.walker, "tracker", None)
-        if tracker is not None and tracker.path is not None and tracker.cross_track_m > c.drift_replan_m:
+        if self._drift_m(est) > c.drift_replan_m:
             return "drift"
         if not self.plan_final and self.walker.remaining_m < c.subgoal_renew_m:
             return "subgoal"
         if map_changed and self._plan_blocked():
             return "map changed"
         return None
+
+    def _drift_m(self, est: np.ndarray) -> float:
+        """Distance from the estimated position to the plan's body path, m."""
+        path = body_path(self.plan)
+        if len(path) == 1:
+            return float(np.linalg.norm(path[0] - est[:2]))
+        a, b = path[:-1], path[1:]
+        ab = b - a
+        t = np.clip(np.einsum("ij,ij->i", est[:2] - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12), 0, 1)
+        return float(np.linalg.norm(a + t[:, None] * ab - est[:2], axis=1).min())
 
     def _plan_blocked(self) -> bool:
         grid = self.mapper.grid
@@ -377,6 +386,10 @@ class Navigator:
         touches one (the robot brushed close to something) starts from the nearest route point
         ahead whose stance is clear, within the walker's start offset."""
         stage = self.footsteps_stage
+        feet = self.walker.start_feet() if hasattr(self.walker, "start_feet") else None
+        if feet is not None:  # a walker that steps on the footholds: plan from its feet
+            return stage.plan(grid, version, optimistic, est, (goal_xy[0], goal_xy[1], yaw),
+                              start_feet=feet[0], stance_side=feet[1])
         plan = stage.plan(grid, version, optimistic, est, (goal_xy[0], goal_xy[1], yaw))
         path = route.path_xy_m
         if plan.status == PlanStatus.START_IN_COLLISION:

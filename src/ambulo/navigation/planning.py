@@ -175,8 +175,11 @@ class FootstepStage:
         self.footstep_cfg = humanoid_footstep_cfg(time_budget_s=cfg.footstep_budget_s)
         self._full: tuple | None = None
 
-    def plan(self, grid: Grid2D, version: int, optimistic: bool, start_xyyaw, goal_xyyaw) -> FootstepPlan:
-        """A plan from the nominal stance at ``start_xyyaw`` to ``goal_xyyaw`` (x m, y m, yaw rad)."""
+    def plan(self, grid: Grid2D, version: int, optimistic: bool, start_xyyaw, goal_xyyaw, *,
+             start_feet=None, stance_side=None) -> FootstepPlan:
+        """A plan from the nominal stance at ``start_xyyaw`` (or from ``start_feet`` (2, 3), left then
+        right, keeping ``stance_side`` down first, for a walker that steps on the plan's footholds)
+        to ``goal_xyyaw`` (x m, y m, yaw rad)."""
         blocked = grid.occupied() if optimistic else grid.blocked()
         if optimistic:  # a map that never changes (the ground truth): one planner for the whole map
             key = (id(grid), version)
@@ -186,6 +189,9 @@ class FootstepStage:
             planner = self._full[1]
         else:
             planner = FootstepPlanner(self._window(grid, blocked, start_xyyaw, goal_xyyaw), self.footstep_cfg)
+        if start_feet is not None:
+            return planner.plan(goal_xyyaw_w=np.asarray(goal_xyyaw, float), start_feet_xyyaw_w=start_feet,
+                                stance_side=stance_side, time_budget_s=self.cfg.footstep_budget_s)
         return planner.plan(np.asarray(start_xyyaw, float), np.asarray(goal_xyyaw, float),
                             time_budget_s=self.cfg.footstep_budget_s)
 
