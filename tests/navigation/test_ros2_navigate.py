@@ -132,6 +132,48 @@ def test_tf_is_map_odom_base_link_with_odom_equal_to_the_odometry(navigate_run):
     assert stamps == sorted(stamps) and peer["clock"] == sorted(peer["clock"]) and len(set(peer["clock"])) > 100
 
 
+# -- the command ----------------------------------------------------------------------------------------
+@pytest.mark.parametrize("argv, parts", [
+    (["bridge", "apartment", "--navigate", "--record", "x.mcap"], ["--record does not go with --navigate"]),
+    (["bridge", "apartment", "--navigate", "--start", "1,2"], ["--start '1,2' is not 3 finite numbers", "e.g."]),
+    (["bridge", "apartment", "--navigate", "--goal", "1,nan"], ["--goal '1,nan' is not 2 or 3 finite numbers"]),
+    (["bridge", "jetbot", "--navigate"], ["--navigate needs 'apartment' or a world file, not 'jetbot'"]),
+    (["bridge", str(HERE), "--navigate"], ["--navigate needs 'apartment' or a world file"]),
+])
+def test_navigate_bad_input_is_one_line(capsys, argv, parts):
+    from ambulo.cli import main
+
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and err.startswith("ambulo bridge: error: ")
+    assert all(part in err for part in parts), err
+
+
+def test_navigate_a_world_file_needs_a_start(capsys, tmp_path):
+    from ambulo.cli import main
+
+    world = tmp_path / "room.xml"
+    world.write_text("<mujoco><worldbody><geom type='box' size='1 1 1' pos='3 0 1'/></worldbody></mujoco>")
+    assert main(["bridge", str(world), "--navigate"]) == 2
+    assert "--start is missing" in capsys.readouterr().err
+
+
+@pytest.mark.slow  # ~40-70 s on a loaded machine: the apartment, the navigator and rclpy start in a process
+def test_bridge_navigate_walks_to_the_goal_given_on_the_command_line():
+    from ambulo.robots import humanoid
+    from ambulo.scenes.apartment import apartment
+    from ros2.conftest import needs_rclpy, run_loopback
+
+    needs_rclpy()
+    ep = apartment(APARTMENT_SEED).sample_start_goal(EPISODE_SEED, 2.5, 3.5, humanoid.BODY_RADIUS_M)
+    proc = run_loopback(["-m", "ambulo.cli", "bridge", "apartment", "--seed", str(APARTMENT_SEED), "--navigate",
+                         "--start", ",".join(map(str, ep.start_pose)), "--goal", ",".join(map(str, ep.goal_xy_m)),
+                         "--seconds", "25"])
+    assert "publishing /clock, /costmap, /footsteps, /ground_truth/odom, /map, /navigate/status, /odom, /plan, /tf" \
+        in proc.stdout
+    assert "simulated 25.00 s" in proc.stdout and "status arrived" in proc.stdout
+
+
 # -- the scenario process: the navigator and its node ------------------------------------------------
 def scenario(out: Path) -> int:
     from ambulo.navigation import Navigator, NavigatorCfg, NavWorld, NavWorldCfg

@@ -86,7 +86,88 @@ def _recover(bag: str) -> int:
     return 0
 
 
+def _numbers(flag: str, text: str, counts: tuple[int, ...], example: str) -> list[float]:
+    """``"1,2,0.5"`` -> [1.0, 2.0, 0.5] with one of ``counts`` entries, else ``CliError``."""
+    try:
+        values = [float(v) for v in text.replace(" ", "").split(",")]
+    except ValueError:
+        values = []
+    if len(values) not in counts or not all(abs(v) < float("inf") for v in values):
+        raise CliError(f"{flag} {text!r} is not {' or '.join(map(str, counts))} finite numbers", f"e.g. {flag} {example}")
+    return values
+
+
+_NAVIGATE_UNSUPPORTED = {"record": "--record", "foxglove": "--foxglove", "lidar": "--lidar", "rate": "--rate",
+                         "no_camera": "--no-camera"}
+
+
+def _navigate(args: argparse.Namespace) -> int:
+    """``ambulo bridge apartment|WORLD --navigate``: the navigator in its world as a ROS 2 node
+    (``navigation.ros2_node``): goals on /goal_pose, plan, footsteps, map, odometry and TF out."""
+    for name, flag in _NAVIGATE_UNSUPPORTED.items():
+        if getattr(args, name) not in (None, False):
+            raise CliError(f"{flag} does not go with --navigate", f"leave {flag} out (the navigator's robot has its "
+                           "head RGB-D camera and runs its own physics rate)")
+    world_file = args.target != "apartment"
+    if world_file and not (os.path.isfile(args.target) and os.path.splitext(args.target)[1].lower() in _KINDS):
+        raise CliError(f"--navigate needs 'apartment' or a world file, not {args.target!r}",
+                       "e.g. `ambulo bridge apartment --seed 3 --navigate` or `ambulo bridge room.xml --navigate "
+                       "--start 0,0,0`")
+    if world_file and args.start is None:
+        raise CliError(f"--start is missing for the world {args.target!r}",
+                       "give the robot's start pose x,y,yaw in m, m, rad, e.g. --start 0,0,0")
+    start = None if args.start is None else _numbers("--start", args.start, (3,), "1.0,2.0,0.0")
+    goal = None if args.goal is None else _numbers("--goal", args.goal, (2, 3), "4.0,2.5")
+    if args.seconds is not None:
+        check_seconds(args.seconds)
+    from ambulo.ros2.runtime import Ros2Unavailable, import_rclpy
+
+    try:
+        import_rclpy()
+    except Ros2Unavailable as err:
+        raise CliError(str(err).split("; ")[0], str(err).split("; ", 1)[-1]) from None
+    from ambulo.navigation import Navigator, NavigatorCfg, NavWorld, NavWorldCfg
+    from ambulo.navigation.ros2_node import NavigateNode, NavigateNodeCfg
+
+    world_cfg = NavWorldCfg(record_gyro=args.mode == "full")  # only the VO reads the gyro
+    if world_file:
+        world = NavWorld.from_file(args.target, start, world_cfg)
+    else:
+        from ambulo.robots import humanoid
+        from ambulo.scenes.apartment import apartment
+
+        apt = apartment(args.seed)
+        if start is None:  # a free cell where the robot fits, drawn with the apartment's seed
+            start = apt.sample_start_goal(args.seed, 1.0, 100.0, humanoid.BODY_RADIUS_M).start_pose
+        world = NavWorld.from_apartment(apt, start, world_cfg)
+    nav = Navigator(world, NavigatorCfg(mode=args.mode, camera_hz=args.camera_rate))
+    signal.signal(signal.SIGTERM, _interrupt)
+    node = NavigateNode(nav, NavigateNodeCfg(namespace=args.namespace, frame_prefix=args.frame_prefix))
+    x, y, yaw = world.start_pose
+    print(f"ambulo bridge: navigator ({args.mode}) node {node.node.get_fully_qualified_name()} on ROS_DOMAIN_ID="
+          f"{os.environ.get('ROS_DOMAIN_ID', '0')}; robot at ({x:.2f}, {y:.2f}, {yaw:.2f} rad); send goals on "
+          f"{node.cfg.goal_topic} (RViz: 2D Goal Pose, fixed frame map); publishing {', '.join(sorted(node.topics.values()))}",
+          flush=True)
+    if goal is not None:
+        nav.set_goal(goal[:2], goal[2] if len(goal) == 3 else None)
+    start_wall = time.perf_counter()
+    t0 = world.time_s
+    try:
+        node.spin(args.seconds, real_time=args.real_time)
+    finally:
+        node.close()
+        world.close()
+        print(f"simulated {world.time_s - t0:.2f} s in {time.perf_counter() - start_wall:.2f} s wall; "
+              f"{len(node.goals) + (goal is not None)} goals, status {nav.status}; published "
+              + ", ".join(f"{t} {n}" for t, n in sorted(node.published.items())), flush=True)
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
+    if args.navigate and not args.recover:
+        if args.target is None:
+            raise CliError("no world given", "e.g. `ambulo bridge apartment --seed 3 --navigate`")
+        return _navigate(args)
     if args.recover:
         _require("rosbags", "rosbags", "--recover")
         _require("mcap", "mcap", "--recover")
@@ -169,4 +250,16 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
                    help="QoS of camera topics: reliable (default) or best-effort sensor data")
     p.add_argument("--no-camera", action="store_true", help="no camera on the robot")
     p.add_argument("--lidar", action="store_true", help="add a planar lidar (/scan) to the Jetbot")
+    nav = p.add_argument_group("navigator", "`ambulo bridge apartment|WORLD --navigate`: the humanoid navigator "
+                               "as a ROS 2 node: goals on /goal_pose (RViz's 2D Goal Pose); /plan, /footsteps, /map, "
+                               "/costmap, /odom, /tf (map -> odom -> base_link), /navigate/status out")
+    nav.add_argument("--navigate", action="store_true", help="run the navigator in 'apartment' or a world file "
+                     "(MJCF/USD) instead of serving a robot")
+    nav.add_argument("--seed", type=int, default=0, help="the apartment's seed (default 0)")
+    nav.add_argument("--mode", choices=("oracle", "mapping", "full"), default="oracle",
+                     help="oracle: true pose and map; mapping: true pose, online map; full: visual odometry and "
+                     "online map (default oracle)")
+    nav.add_argument("--start", metavar="X,Y,YAW", help="the robot's start pose, m, m, rad (needed for a world file; "
+                     "default in an apartment: a free spot drawn with --seed)")
+    nav.add_argument("--goal", metavar="X,Y[,YAW]", help="a first goal, m (more come on /goal_pose)")
     p.set_defaults(func=run)
