@@ -145,7 +145,9 @@ def choose_subgoal(route: Route, clearance: np.ndarray, grid: Grid2D, cfg: Plann
     ny, nx = grid.shape
     inside = (iy >= 0) & (iy < ny) & (ix >= 0) & (ix < nx)
     ok = np.zeros(len(path), bool)
-    ok[inside] = clearance[iy[inside], ix[inside]] >= cfg.route_clearance_m
+    # one cell more than the route's clearance: the planner tests the stance at the exact point,
+    # which may lie up to a cell's half-diagonal nearer the blocked cells than its cell's centre
+    ok[inside] = clearance[iy[inside], ix[inside]] >= cfg.route_clearance_m + grid.resolution_m
     ok |= s < skip_m
     bad = np.flatnonzero(~ok)
     last_ok = (bad[0] - 1) if bad.size else len(path) - 1
