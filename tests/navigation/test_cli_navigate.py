@@ -1,0 +1,105 @@
+"""``ambulo navigate``: a short oracle episode end to end, and one-line errors for bad input."""
+
+import json
+import math
+import re
+
+import imageio.v3 as iio
+import numpy as np
+import pytest
+
+from ambulo.cli import main
+from ambulo.cli.errors import CliError
+from ambulo.cli.navigate import check_point
+from ambulo.navigation import benchmark
+from ambulo.navigation.topdown import COLORS
+from ambulo.robots import humanoid
+from ambulo.scenes.apartment import apartment
+
+SEED = 1000
+START = "4.375,3.025,-17.6"  # apartment 1000's episode 0 with a 3.0-3.5 m geodesic: 3.17 m
+GOAL = "7.125,1.725"
+
+
+def _error_line(capsys, argv) -> str:
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1, err
+    assert err.startswith("ambulo navigate: error: ")
+    return err
+
+
+def test_a_short_oracle_episode_arrives_and_writes_its_json_and_map(tmp_path):
+    out = tmp_path / "ep"
+    assert main(["navigate", "apartment", "--seed", str(SEED), "--start", START, "--goal", GOAL,
+                 "--out", str(out)]) == 0
+    data = json.loads((out / "episode.json").read_text())
+    assert data["success"] and data["status"] == "arrived" and not data["fell"]
+    assert data["distance_to_goal_m"] <= 0.3
+    assert data["geodesic_m"] == pytest.approx(3.17, abs=0.01)
+    assert 0.5 < data["spl"] <= 1.0
+    # the map PNG (80 px/m, y up): the true path's pixels run from the start to the goal through free cells
+    png = iio.imread(out / "map.png")
+    grid = apartment(SEED).occupancy
+    ox, oy = grid.origin_xy_m
+    h = png.shape[0]
+    xy = np.array([float(v) for v in START.split(",")[:2]])
+    goal = np.array([float(v) for v in GOAL.split(",")])
+    blue = np.all(png == COLORS["true"], axis=-1)
+    assert blue.sum() > 100
+    rows, cols = np.nonzero(blue)
+    path_xy = np.stack([ox + (cols + 0.5) / 80.0, oy + (h - rows - 0.5) / 80.0], -1)
+    # the drawn path starts at the start pose and ends near the goal, and never crosses a wall
+    assert np.linalg.norm(path_xy - xy, axis=1).min() < 0.05
+    assert np.linalg.norm(path_xy - goal, axis=1).min() < 0.35
+    iy, ix = grid.cells_of(path_xy)
+    assert not grid.occupied()[iy, ix].any()
+
+
+def test_bad_inputs_give_one_line_with_the_fix(capsys, tmp_path):
+    grid = apartment(SEED).occupancy
+    iy, ix = np.argwhere(grid.occupied())[len(np.argwhere(grid.occupied())) // 2]
+    wx, wy = grid.cell_center_xy_m(iy, ix)
+    base = ["navigate", "apartment", "--seed", str(SEED), "--out", str(tmp_path)]
+    err = _error_line(capsys, [*base, "--start", START, "--goal", f"{wx},{wy}"])
+    assert "inside an obstacle" in err and "nearest point with room for the robot" in err
+    x0, y0, x1, y1 = grid.extent_xy_m()
+    err = _error_line(capsys, [*base, "--start", f"{x1 + 5},{y0},0", "--goal", GOAL])
+    assert "--start" in err and "outside the map" in err
+    err = _error_line(capsys, [*base, "--goal", "4,abc"])
+    assert "--goal '4,abc' is not x,y" in err and "e.g. --goal" in err
+    err = _error_line(capsys, [*base, "--start", "1,2,3,4", "--goal", GOAL])
+    assert "--start" in err
+    err = _error_line(capsys, ["navigate", str(tmp_path / "nope.xml"), "--start", "0,0", "--goal", "1,1"])
+    assert "neither 'apartment' nor a file" in err
+    world = tmp_path / "w.xml"
+    world.write_text("<mujoco/>")
+    err = _error_line(capsys, ["navigate", str(world), "--goal", "1,1"])
+    assert "needs --start and --goal" in err
+    err = _error_line(capsys, [*base, "--mode", "teleport"])
+    assert "--mode 'teleport' is not a mode" in err
+    err = _error_line(capsys, [*base, "--time-limit", "-3"])
+    assert "--time-limit" in err
+    err = _error_line(capsys, ["navigate", "--episodes", "2", "--goal", "1,1", "--out", str(tmp_path)])
+    assert "--goal applies to one episode" in err
+
+
+def test_zmp_walker_refused_with_one_line_while_its_adapter_is_missing(capsys, tmp_path, monkeypatch):
+    monkeypatch.setattr(benchmark, "zmp_walker_available", lambda: False)
+    err = _error_line(capsys, ["navigate", "apartment", "--seed", str(SEED), "--walker", "zmp", "--start", START,
+                               "--goal", GOAL, "--out", str(tmp_path)])
+    assert "not available yet" in err and "--walker policy" in err
+
+
+def test_a_point_too_near_a_wall_gets_a_suggestion_that_passes():
+    grid = apartment(SEED).occupancy
+    occupied = grid.occupied()
+    # a free cell next to an occupied one: 0.025 m of clearance
+    free_next = np.argwhere(~occupied[1:-1, 1:-1] & occupied[1:-1, 2:])[0] + 1
+    x, y = (float(v) for v in grid.cell_center_xy_m(*free_next))
+    with pytest.raises(CliError) as info:
+        check_point(grid, (x, y), "--goal", humanoid.BODY_RADIUS_M)
+    assert re.search(r"is 0\.0\d m from an obstacle", info.value.problem)
+    sx, sy = (float(v) for v in re.search(r"--goal (-?[\d.]+),(-?[\d.]+)$", info.value.fix).groups())
+    check_point(grid, (sx, sy), "--goal", humanoid.BODY_RADIUS_M)  # passes
+    assert math.dist((x, y), (sx, sy)) < 0.6  # the nearest such point: within the body radius + a few cells
