@@ -114,10 +114,14 @@ def test_a_plan_whose_start_feet_are_off_keeps_the_real_feet(arena_walker):
     plan = make_plan([[rx + off, ry, 0], [lx + off, ly, 0], [rx + off + 0.2, ry, 0], [lx + off + 0.2, ly, 0]],
                      [-1, 1, -1, 1])
     assert walker.set_plan(plan) is None
-    run(sim, walker, 0.3)
-    # the real feet stay where they are; the plan's first step is taken from them
+    run(sim, walker, 1.5)  # the first swing starts after the 1.8 s transfer from standing
+    # the real feet stay where they are (not dragged to the plan's); its first step is taken from them
     assert np.allclose(walker.swing_target_w, [rx + off + 0.2, ry, 0.0], atol=1e-6)
     assert np.allclose(walker.feet_xyyaw_w()[:, :2], [[lx, ly], [rx, ry]], atol=0.005)
+    # and the foot lands there in the world, 0.25 m ahead of the real left foot
+    run(sim, walker, 3.0, until=lambda: walker.steps_taken >= 1)
+    assert not walker.fell and walker.steps_taken == 1
+    assert np.hypot(*(walker.feet_xyyaw_w()[1, :2] - [rx + off + 0.2, ry])) < 0.02
 
 
 # --------------------------------------------------------------------------- walking

@@ -376,8 +376,8 @@ class ZmpStepWalker:
         self._queue = []
         if plan is None:
             return
-        poses, sides = footsteps_array(plan)
-        poses = self._to_pattern(poses)
+        poses_w, sides = footsteps_array(plan)
+        poses = self._to_pattern(poses_w)
         feet = self._feet
         start = 2  # no match: the real feet stay, the plan's steps follow from its first
         for r in range(len(poses) - 1, 0, -1):
@@ -393,7 +393,10 @@ class ZmpStepWalker:
             if reason:
                 self.last_refusal = f"spliced onto the feet as they are, the first step is refused: {reason}"
                 return
-        self._queue = steps
+        # kept in the world frame: each chunk maps them through the re-anchoring of its time, so
+        # footsteps land where the plan says in the world rather than where the drift of the
+        # steps before would carry them
+        self._queue = [(poses_w[i].copy(), int(sides[i])) for i in range(start, len(poses))]
         self.plans_taken += 1
 
     def _matches(self, pose: np.ndarray, side: int) -> bool:
@@ -423,9 +426,14 @@ class ZmpStepWalker:
         feet = self._feet.copy()
         knots_t, knots_p = [0.0], [self._zmp_last.copy()]
         swing = None
+        queue = []
         if self._queue:
+            poses = self._to_pattern(np.array([pose for pose, _ in self._queue]))
+            queue = [(pose, side) for pose, (_, side) in zip(poses, self._queue)]
+        if queue:
             kind = "step"
-            goal, side = self._queue.pop(0)
+            goal, side = queue.pop(0)
+            self._queue.pop(0)
             idx = (1 - side) // 2
             first_ds = cfg.start_delay_s + cfg.start_transfer_s if self._standing else ds
             goal = goal.copy()
@@ -447,7 +455,7 @@ class ZmpStepWalker:
             after[idx] = goal
             # the rest of the queue, as far as the preview looks, then standing
             t, f = length, after.copy()
-            for pose, s2 in self._queue:
+            for pose, s2 in queue:
                 if t > length + cfg.preview_time_s + dt:
                     break
                 i2 = (1 - s2) // 2
