@@ -51,27 +51,41 @@ def test_a_goal_on_goal_pose_is_walked_to_and_arrival_is_reported(navigate_run):
     statuses = [s for _, s in peer["status"]]
     assert "walking" in statuses, statuses
     assert statuses[-1] == "arrived", statuses
-    assert truth["status"] == "arrived" and truth["goals_taken"] == 1
+    assert truth["status"] == "arrived" and truth["goals_taken"] == 2  # the first goal, then the real one
     # at arrival: the simulator's pelvis, and the peer's own view of it (/ground_truth/odom; /odom in oracle mode)
     arrived_ns = round(truth["arrived_s"] * 1e9)
     assert np.linalg.norm(np.array(truth["arrived_xy_m"]) - goal) < 0.3
     for topic in ("truth", "odom"):
         at = min(peer[topic], key=lambda o: abs(o[0] - arrived_ns))
         assert abs(at[0] - arrived_ns) < 0.11e9 and np.linalg.norm(np.array(at[1:3]) - goal) < 0.3
+        assert abs(math.remainder(at[3] - truth["goal_yaw_rad"], math.tau)) < 0.4  # facing the goal pose's way
     # it walked there: it stood 2.5 m or more away before the goal (2.8 m at the start pose)
     assert np.linalg.norm(np.array(peer["truth"][0][1:3]) - goal) > 2.5
     assert not truth["fell"]
 
 
-def test_the_plan_runs_from_the_robot_to_the_goal(navigate_run):
+def test_a_goal_in_another_frame_is_refused_saying_why(navigate_run):
     peer, truth = navigate_run
-    goal = np.array(truth["goal_xy_m"])
+    rejected = [s for _, s in peer["status"] if s.startswith("rejected: ")]
+    assert len(rejected) == 1 and "'base_link'" in rejected[0] and "'map'" in rejected[0]
+    assert truth["rejected"] == [rejected[0].removeprefix("rejected: ")]
+
+
+def test_the_plan_runs_from_the_robot_to_the_goal_and_a_new_goal_replaces_the_old(navigate_run):
+    peer, truth = navigate_run
+    goal, decoy = np.array(truth["goal_xy_m"]), np.array(truth["decoy_xy_m"])
     assert peer["plan"], "no /plan received"
-    stamp, frame, path = peer["plan"][0][0], peer["plan"][0][1], np.array(peer["plan"][0][2])
-    assert frame == "map" and len(path) >= 2
-    robot = min(peer["truth"], key=lambda o: abs(o[0] - stamp))  # where the robot was then (+- 50 ms)
-    assert np.linalg.norm(path[0] - np.array(robot[1:3])) < 0.1  # the robot's cell centre
-    assert np.linalg.norm(path[-1] - goal) < 0.15  # the goal's cell centre
+    ends = np.array([p[2][-1] for p in peer["plan"]])
+    to_decoy = np.linalg.norm(ends - decoy, axis=1) < 0.15
+    to_goal = np.linalg.norm(ends - goal, axis=1) < 0.15  # the goal's cell centre
+    assert to_decoy.any() and to_goal[-1]
+    assert to_goal[np.argmax(to_decoy):].any() and not to_decoy[np.argmax(to_goal):].any()  # decoy, then goal
+    for stamp, frame, path in peer["plan"]:
+        path = np.array(path)
+        assert frame == "map" and len(path) >= 2
+        robot = min(peer["truth"], key=lambda o: abs(o[0] - stamp))  # where the robot was then (+- 50 ms)
+        assert np.linalg.norm(path[0] - np.array(robot[1:3])) < 0.1  # the robot's cell centre
+    stamp, frame, path = peer["plan"][-1][0], peer["plan"][-1][1], np.array(peer["plan"][-1][2])
     steps = np.linalg.norm(np.diff(path, axis=0), axis=1)
     assert steps.max() < 0.15  # neighbouring 5 cm cells: a path, not a jump
     # the route keeps the robot's clearance: no point of it on an occupied cell of the true map
@@ -191,7 +205,12 @@ def scenario(out: Path) -> int:
     goal = np.array(ep.goal_xy_m, float)
     d = goal - np.array(ep.start_pose[:2])
     yaw = math.atan2(d[1], d[0])  # arrive facing the way it came
-    peer = subprocess.Popen([sys.executable, str(HERE), "peer", str(out), *map(str, (goal[0], goal[1], yaw))])
+    # the first goal, replaced by the real one: another episode's goal, reachable from the start
+    decoy = next(np.array(g) for g in (apt.sample_start_goal(s, 1.5, 6.0, humanoid.BODY_RADIUS_M).goal_xy_m
+                                       for s in range(1, 20))
+                 if math.isfinite(apt.geodesic_m(ep.start_pose[:2], g)) and math.dist(g, goal) > 1.0)
+    peer = subprocess.Popen([sys.executable, str(HERE), "peer", str(out),
+                             *map(str, (goal[0], goal[1], yaw, decoy[0], decoy[1]))])
     wall_end = time.monotonic() + 240.0
     goal_time: list[float] = []
     arrived: dict = {}
@@ -216,7 +235,8 @@ def scenario(out: Path) -> int:
     grid = apt.occupancy
     (out / "truth.json").write_text(json.dumps({
         "status": nav.status, "goals_taken": len(node.goals), "goal_xy_m": goal.tolist(),
-        "start_pose": list(ep.start_pose), **arrived, "fell": world.fell,
+        "start_pose": list(ep.start_pose), "goal_yaw_rad": yaw, "decoy_xy_m": decoy.tolist(),
+        "rejected": node.rejected, **arrived, "fell": world.fell,
         "published": dict(node.published),
         "occupancy": {"shape": list(grid.shape), "resolution_m": grid.resolution_m,
                       "origin_xy_m": list(grid.origin_xy_m), "data": grid.occupancy.reshape(-1).tolist()}}))
@@ -244,7 +264,7 @@ def _decoder(typename: str, store):
     return generate_dynamic(typename, text)[typename]
 
 
-def peer(out: Path, goal_x: float, goal_y: float, goal_yaw: float) -> int:
+def peer(out: Path, goal_x: float, goal_y: float, goal_yaw: float, decoy_x: float, decoy_y: float) -> int:
     import rclpy
     from geometry_msgs.msg import PoseStamped
     from nav_msgs.msg import OccupancyGrid, Odometry
@@ -318,11 +338,28 @@ def peer(out: Path, goal_x: float, goal_y: float, goal_yaw: float) -> int:
     end = time.monotonic() + 120.0
     while (pub.get_subscription_count() == 0 or not got["map"]) and time.monotonic() < end:
         rclpy.spin_once(node, timeout_sec=0.05)  # the navigator's node is there and we have its map
-    goal = PoseStamped()
-    goal.header.frame_id = "map"  # RViz's "2D Goal Pose": the fixed frame, stamp now
-    goal.pose.position.x, goal.pose.position.y = goal_x, goal_y
-    goal.pose.orientation.z, goal.pose.orientation.w = math.sin(goal_yaw / 2), math.cos(goal_yaw / 2)
-    pub.publish(goal)
+
+    def send(x: float, y: float, yaw_rad: float, frame_id: str = "map") -> None:
+        goal = PoseStamped()
+        goal.header.frame_id = frame_id  # RViz's "2D Goal Pose": the fixed frame
+        goal.pose.position.x, goal.pose.position.y = x, y
+        goal.pose.orientation.z, goal.pose.orientation.w = math.sin(yaw_rad / 2), math.cos(yaw_rad / 2)
+        pub.publish(goal)
+
+    def wait_for(condition, timeout_s: float) -> None:
+        until = time.monotonic() + timeout_s
+        while time.monotonic() < until:
+            rclpy.spin_once(node, timeout_sec=0.05)
+            with lock:
+                if condition():
+                    return
+
+    # a goal in the robot's frame is refused; a first goal is then replaced by the real one once planned
+    send(1.0, 0.0, 0.0, frame_id="base_link")
+    wait_for(lambda: any(s.startswith("rejected") for _, s in got["status"]), 60.0)
+    send(decoy_x, decoy_y, 0.0)
+    wait_for(lambda: any(math.dist(p[2][-1], (decoy_x, decoy_y)) < 0.3 for p in got["plan"]), 60.0)
+    send(goal_x, goal_y, goal_yaw)
     linger_until = None
     while time.monotonic() < end + 120.0:
         rclpy.spin_once(node, timeout_sec=0.05)
@@ -345,4 +382,4 @@ if __name__ == "__main__":
     os.environ.setdefault("PYTHONUNBUFFERED", "1")
     if sys.argv[1] == "scenario":
         sys.exit(scenario(Path(sys.argv[2])))
-    sys.exit(peer(Path(sys.argv[2]), *map(float, sys.argv[3:6])))
+    sys.exit(peer(Path(sys.argv[2]), *map(float, sys.argv[3:8])))
