@@ -62,15 +62,52 @@ def _origin(grid_origin_index: torch.Tensor, voxel_size_m: float) -> tuple[float
     return ((float(grid_origin_index[0]) - 0.5) * voxel_size_m, (float(grid_origin_index[1]) - 0.5) * voxel_size_m)
 
 
+def surface_voxels(tsdf: torch.Tensor, weight: torch.Tensor, truncation_m: float, voxel_size_m: float,
+                   min_weight: float = 1.0) -> tuple[torch.Tensor, torch.Tensor]:
+    """(occupied, free), each (X, Y, Z) bool, of a dense block of voxels (``tsdf`` normalised by
+    ``truncation_m``, ``weight``): what an occupancy map may claim of each voxel.
+
+    occupied: the *surface layer*: an observed voxel behind a surface (tsdf < 0) that is within one
+    voxel of it (sdf > -voxel) or next to an observed voxel in front of it (a zero crossing between the
+    two along x, y or z, whatever the angle it was seen at, where the projective sdf overstates the
+    distance). The voxels further behind (up to the truncation) are the inside of a solid seen from
+    one side: counting them occupied made walls ~2 truncations thick in the slice and closed doors;
+    they are neither occupied nor free (a wall seen from both sides is its two surface layers, which
+    meet in a 10-15 cm wall). free: observed voxels in front of every surface (tsdf >= 0)."""
+    observed = weight >= min_weight
+    free = observed & (tsdf >= 0)
+    behind = observed & (tsdf < 0)
+    near = tsdf * truncation_m > -voxel_size_m
+    crossing = torch.zeros_like(free)
+    for axis in range(3):  # a free 6-neighbour: free shifted by one voxel each way along each axis
+        n = free.shape[axis]
+        if n < 2:
+            continue
+        crossing.narrow(axis, 0, n - 1).logical_or_(free.narrow(axis, 1, n - 1))
+        crossing.narrow(axis, 1, n - 1).logical_or_(free.narrow(axis, 0, n - 1))
+    return behind & (near | crossing), free
+
+
 def occupancy_slice(grid: DenseGrid, z_min_m: float, z_max_m: float, min_weight: float = 1.0) -> Slice2D:
-    """(H, W) int8: OCCUPIED where a voxel centred in [z_min_m, z_max_m] is behind a surface, FREE
-    where the band was observed and holds no surface, UNKNOWN where none of it was seen."""
+    """(H, W) int8 over the voxel columns of ``grid``: OCCUPIED where a voxel centred in
+    [z_min_m, z_max_m] is on a surface (``surface_voxels``: the surface layer, not the whole
+    truncation band behind it, so a wall keeps its thickness), FREE where none is and the band was
+    seen free, UNKNOWN where it was not seen, or only from inside a solid."""
     band = _band(int(grid.origin_index[2]), grid.voxel_size_m, grid.tsdf.shape[2], z_min_m, z_max_m,
                  grid.tsdf.device)
-    occupied = grid.occupied(min_weight)[:, :, band].any(-1)
-    observed = grid.observed(min_weight)[:, :, band].any(-1)
+    idx = torch.nonzero(band, as_tuple=True)[0]
+    if len(idx) == 0:
+        raise InvalidValueError("occupancy_slice z band", (z_min_m, z_max_m), "it holds no voxel centre of the map",
+                                "pass z_min_m < z_max_m within the mapped heights, e.g. 0.1, 1.6")
+    # the band and one voxel either side (the zero-crossing test looks at the neighbours)
+    lo, hi = max(int(idx[0]) - 1, 0), min(int(idx[-1]) + 2, grid.tsdf.shape[2])
+    occupied, free = surface_voxels(grid.tsdf[:, :, lo:hi], grid.weight[:, :, lo:hi], grid.truncation_m,
+                                    grid.voxel_size_m, min_weight)
+    inner = band[lo:hi]
+    occupied = occupied[:, :, inner].any(-1)
+    free = free[:, :, inner].any(-1)
     data = torch.full(occupied.shape, UNKNOWN, dtype=torch.int8, device=occupied.device)
-    data[observed] = FREE
+    data[free] = FREE
     data[occupied] = OCCUPIED
     return Slice2D(data.T.contiguous(), _origin(grid.origin_index, grid.voxel_size_m), grid.voxel_size_m)
 
@@ -138,4 +175,4 @@ def height_map(grid: DenseGrid, *, max_height_m: float = 0.5, foot_half_cells: i
 
 
 __all__ = ["FREE", "OCCUPIED", "UNKNOWN", "HeightMap", "Slice2D", "distance_slice", "height_map", "occupancy_slice",
-           "to_grid2d"]
+           "surface_voxels", "to_grid2d"]

@@ -203,7 +203,8 @@ class IntegrateGraph:
             launch(begin_frame, 1, [state])
             launch(mark_band_blocks, (rows, columns), [
                 0, 0, 1, depth, cfg.allocation_stride, view(buf.rays), params,
-                wp.vec3(-cfg.truncation_m, 0.0, cfg.truncation_m), key.side, cfg.depth_min_m, cfg.depth_max_m,
+                wp.vec3(-cfg.truncation_m, 0.0, cfg.truncation_m), cfg.carve_stride, cfg.free_space_step_m, key.side,
+                cfg.depth_min_m, cfg.depth_max_m,
                 view(buf.volume_stamp), keys, slots, view(m._slot_stamp), new_keys, state])
             launch(plan_frame, 1, [state, capacity])
             launch(select_blocks, capacity, [
@@ -216,7 +217,7 @@ class IntegrateGraph:
                                                     coords])
             values = voxel_values(
                 launches, self.rgb, weight_ref_depth_m=cfg.weight_ref_depth_m, clear_free_space=cfg.clear_free_space,
-                truncation_m=cfg.truncation_m, selected=m._selected, slot_coords=m.hash.slot_coord_buffer,
+                truncation_m=cfg.truncation_m, dropoff_m=cfg.dropoff_m, selected=m._selected, slot_coords=m.hash.slot_coord_buffer,
                 block_voxels=cfg.block_voxels, voxel_size_m=cfg.voxel_size_m, depth_pad_m=buf.depth,
                 depth_min_m=cfg.depth_min_m, depth_max_m=cfg.depth_max_m, max_weight=cfg.max_weight,
                 tsdf=m.tsdf, weight=m.weight, color=m.color, updated=m.updated, has_surface=m.has_surface)

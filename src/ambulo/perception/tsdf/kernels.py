@@ -136,6 +136,35 @@ if wp is not None:
                 slot = int(key_slots[lo])
         return slot
 
+    @wp.func
+    def mark_sample(dd: float, ray_w: wp.vec3, prm: FrameParams, side: int, part: int, stamp: int, num_keys: int,
+                    volume_stamp: wp.array2d(dtype=wp.int32), keys: wp.array(dtype=wp.int64),
+                    key_slots: wp.array(dtype=wp.int64), slot_stamp: wp.array2d(dtype=wp.int32),
+                    new_keys: wp.array2d(dtype=wp.int64), state: wp.array(dtype=wp.int32)):
+        """``mark_band_blocks``' work for the sample at depth ``dd`` along a ray (``ray_w``: its world
+        direction in blocks per metre): the first sample of the frame and part in its volume cell looks
+        the cell's block up; an allocated one is stamped, a new one's key appended."""
+        cell = int(0)
+        for a in range(3):
+            sample = wp.floor(prm.start_blocks[a] + ray_w[a] * dd)
+            k = wp.clamp(sample - prm.corner_blocks[a], 0.0, float(side - 1))
+            cell = cell * side + int(k)
+        if volume_stamp[part, cell] != stamp:
+            if wp.atomic_exch(volume_stamp, part, cell, stamp) != stamp:
+                bx = prm.corner_index[0] + cell // (side * side)
+                by = prm.corner_index[1] + (cell // side) % side
+                bz = prm.corner_index[2] + cell % side
+                if wp.max(wp.max(wp.abs(bx), wp.abs(by)), wp.abs(bz)) >= KEY_OFFSET:
+                    wp.atomic_add(state, S_PARTS + 2 * part + 1, 1)  # beyond the key range
+                else:
+                    key = block_key(bx, by, bz)
+                    slot = find_slot(keys, key_slots, num_keys, key)
+                    if slot >= 0:
+                        slot_stamp[slot, part] = stamp
+                    else:
+                        new_keys[part, wp.atomic_add(state, S_PARTS + 2 * part, 1)] = key
+        return 0
+
     @wp.kernel(enable_backward=False)
     def mark_band_blocks(
         first_row: wp.int32,
@@ -146,6 +175,8 @@ if wp is not None:
         rays: wp.array3d(dtype=wp.float32),
         params: wp.array(dtype=FrameParams),
         band_m: wp.vec3,
+        carve_stride: wp.int32,
+        carve_step_m: wp.float32,
         side: wp.int32,
         depth_min_m: wp.float32,
         depth_max_m: wp.float32,
@@ -175,6 +206,10 @@ if wp is not None:
         rays (z = 1) of the allocation pixels. params: the frame's ``rot_blocks``, ``start_blocks``
         (block = floor(round(p / voxel) / B) = floor(p / block + 0.5 / B)) and the dense side^3 volume's
         corner (cells x-major; samples outside are clamped in). band_m: -trunc, 0, trunc.
+        Free space: the allocation pixels whose row and column are multiples of ``carve_stride`` (0:
+        none) also sample their ray from the camera every ``carve_step_m`` of depth up to the band
+        (depths k step < d - trunc, k = 0, 1, ...), so the blocks it crosses in front of the surface are
+        allocated and updated too, and their voxels read observed free (``TsdfCfg.free_space_stride``).
         keys, key_slots: the hash's (capacity,) buffers. volume_stamp: (parts, side^3) int32. slot_stamp:
         (capacity, parts) int32. new_keys: (parts, >= side^3) int64 out; ``state``'s part counters zero
         before; cells beyond the key range are counted at S_PARTS + 2 part + 1 (``BlockHash.insert``'s
@@ -196,26 +231,18 @@ if wp is not None:
                                 rx * prm.rot_blocks[0, 1] + ry * prm.rot_blocks[1, 1] + rz * prm.rot_blocks[2, 1],
                                 rx * prm.rot_blocks[0, 2] + ry * prm.rot_blocks[1, 2] + rz * prm.rot_blocks[2, 2])
                 for j in range(3):
-                    dd = d + band_m[j]
-                    cell = int(0)
-                    for a in range(3):
-                        sample = wp.floor(prm.start_blocks[a] + ray_w[a] * dd)
-                        k = wp.clamp(sample - prm.corner_blocks[a], 0.0, float(side - 1))
-                        cell = cell * side + int(k)
-                    if volume_stamp[part, cell] != stamp:
-                        if wp.atomic_exch(volume_stamp, part, cell, stamp) != stamp:
-                            bx = prm.corner_index[0] + cell // (side * side)
-                            by = prm.corner_index[1] + (cell // side) % side
-                            bz = prm.corner_index[2] + cell % side
-                            if wp.max(wp.max(wp.abs(bx), wp.abs(by)), wp.abs(bz)) >= KEY_OFFSET:
-                                wp.atomic_add(state, S_PARTS + 2 * part + 1, 1)  # beyond the key range
-                            else:
-                                key = block_key(bx, by, bz)
-                                slot = find_slot(keys, key_slots, num_keys, key)
-                                if slot >= 0:
-                                    slot_stamp[slot, part] = stamp
-                                else:
-                                    new_keys[part, wp.atomic_add(state, S_PARTS + 2 * part, 1)] = key
+                    mark_sample(d + band_m[j], ray_w, prm, side, part, stamp, num_keys, volume_stamp, keys,
+                                key_slots, slot_stamp, new_keys, state)
+                if carve_stride > 0:
+                    if r % carve_stride == 0 and c % carve_stride == 0:
+                        limit = d + band_m[0]
+                        k = int(0)
+                        dd = float(0.0)
+                        while dd < limit:
+                            mark_sample(dd, ray_w, prm, side, part, stamp, num_keys, volume_stamp, keys,
+                                        key_slots, slot_stamp, new_keys, state)
+                            k += 1
+                            dd = float(k) * carve_step_m
 
     @wp.kernel(enable_backward=False)
     def select_blocks(
@@ -314,6 +341,8 @@ if wp is not None:
         max_weight: wp.float32,
         weight_ref_depth_m: wp.float32,
         clear_free_space: wp.int32,
+        dropoff_m: wp.float32,
+        dropoff_scale: wp.float32,
         tsdf: wp.array2d(dtype=wp.float32),
         weight: wp.array2d(dtype=wp.float32),
         color: wp.array3d(dtype=wp.uint8),
@@ -339,7 +368,10 @@ if wp is not None:
         their nearest pixel is inside the image, as the border fails the depth range test). tsdf,
         weight: (capacity, V) float32 and color: (capacity, V, 3) uint8, updated in place. updated,
         has_surface: (capacity,) bool set True where a voxel of the block was updated / holds tsdf < 0
-        (``select_blocks`` cleared ``has_surface``)."""
+        (``select_blocks`` cleared ``has_surface``). dropoff_m: behind the surface by more than this
+        (sdf < -dropoff_m) an observation weighs less, linearly down to 0 at -truncation (voxblox's
+        weight drop-off; 0: off); dropoff_scale: 1 / (truncation - dropoff_m), a float32 product in both
+        paths (torch divides by a scalar as a product with its reciprocal)."""
         num_selected = state[S_SELECTED]
         first_new_slot = state[S_NUM_BLOCKS]
         total_runs = (num_selected + state[S_NEW_BLOCKS]) * runs_per_block
@@ -413,6 +445,8 @@ if wp is not None:
                         if weight_ref_depth_m > 0.0:
                             q = weight_ref_depth_m / zc
                             w_obs = wp.min(q * q, 1.0)
+                        if dropoff_m > 0.0 and sdf < -dropoff_m:  # behind the surface: less and less sure
+                            w_obs = w_obs * ((sdf + truncation_m) * dropoff_scale)
                         total = old_w + w_obs
                         blend = w_obs / (total + 1.0e-12)
                         new_t = old_t + blend * (tsdf_obs - old_t)

@@ -460,11 +460,17 @@ class IntegrateLaunches:
         return launches
 
 
+def dropoff_scale(truncation_m: float, dropoff_m: float) -> float:
+    """1 / (truncation - drop-off depth) in float32 (``integrate_voxels``' ``dropoff_scale``; both paths)."""
+    return float(np.float32(1.0) / (np.float32(truncation_m) - np.float32(dropoff_m)))
+
+
 def voxel_values(launches: IntegrateLaunches, rgb: torch.Tensor | None, *, weight_ref_depth_m: float | None,
-                 clear_free_space: bool, truncation_m: float, **values) -> dict:
+                 clear_free_space: bool, truncation_m: float, dropoff_m: float, **values) -> dict:
     """``integrate_voxels``' arguments from ``TsdfMap``'s settings and buffers (shared with ``tsdf.graph``)."""
     values.update(rgb=launches.no_rgb if rgb is None else rgb, weight_ref_depth_m=float(weight_ref_depth_m or 0.0),
-                  clear_free_space=int(clear_free_space), truncation_m=float(truncation_m),
+                  clear_free_space=int(clear_free_space), truncation_m=float(truncation_m), dropoff_m=float(dropoff_m),
+                  dropoff_scale=dropoff_scale(truncation_m, dropoff_m),
                   inv_truncation=float(1.0 / truncation_m), local_px=launches.local_px, params=launches.params,
                   state=launches.state)
     return values

@@ -17,6 +17,7 @@ import torch
 from . import kernels
 from .block_hash import decode, encode
 from .frame import _NO_DEPTH, _FrameBuffers, _FrameGeometry
+from .launches import dropoff_scale
 
 _MAX_STEP = kernels.MAX_STEP
 """Relative depth spread of a 2x2 pixel cell up to which the depth lookup interpolates."""
@@ -55,7 +56,8 @@ class _TorchIntegration:
 
     def _allocate(self, depth: torch.Tensor, buf: _FrameBuffers, g: _FrameGeometry) -> torch.Tensor:
         """Allocate the blocks that the truncation band of every ``allocation_stride``-th valid pixel
-        touches; return their slots. Deduplicated sort-free, through a dense volume of block cells
+        touches, and those in front of it along the free-space rays (``TsdfCfg.free_space_stride``);
+        return their slots. Deduplicated sort-free, through a dense volume of block cells
         around the camera (``torch.unique`` only when the depth range makes that volume too big)."""
         s = self.cfg.allocation_stride
         # the band [d - trunc, d + trunc] along each ray: a block (>= 2 trunc here) is hit by one of 3
@@ -67,11 +69,25 @@ class _TorchIntegration:
         d = depth[::s, ::s]
         valid = (d >= self.cfg.depth_min_m) & (d <= self.cfg.depth_max_m)  # False for NaN and inf too
         samples = torch.mul(rays_w, d[..., None] + buf.band).add_(start).floor_()
+        valid = valid.expand(3, -1, -1)
+        if self.cfg.carve_stride:
+            # free space: every carve_stride-th allocation ray also at depths k step < d - trunc (the kernel's
+            # float32 k * step), so the blocks between the camera and the band are allocated too
+            cs, step = self.cfg.carve_stride, self.cfg.free_space_step_m
+            rays_c, d_c, ok_c = rays_w[::cs, ::cs], d[::cs, ::cs], valid[0, ::cs, ::cs]
+            k = torch.arange(int(self.cfg.depth_max_m / step) + 2, dtype=torch.float32, device=self.device)
+            t = k.mul_(step)[:, None, None]  # (K, 1, 1)
+            limit = d_c + buf.band[0, 0, 0]
+            carve = torch.mul(rays_c, t[..., None]).add_(start).floor_()  # (K, h, w, 3)
+            carve_ok = ok_c & (t < limit)
+            samples = torch.cat([samples.reshape(-1, 3), carve.reshape(-1, 3)])
+            valid = torch.cat([valid.reshape(-1), carve_ok.reshape(-1)])
+        samples, valid = samples.reshape(-1, 3), valid.reshape(-1)
         if buf.volume is not None:
             side = 2 * buf.r_blocks + 1
             corner = torch.from_numpy(self._corner_blocks(buf, g)).to(self.device)
             cell = (samples - corner).clamp_(0, side - 1) @ buf.strides
-            cell = torch.where(valid.expand(3, -1, -1), cell, side ** 3).to(torch.int64).reshape(-1)
+            cell = torch.where(valid, cell, side ** 3).to(torch.int64)
             vol = buf.volume
             vol.zero_()
             vol.index_fill_(0, cell, True)
@@ -79,7 +95,7 @@ class _TorchIntegration:
             flat = torch.nonzero(vol, as_tuple=True)[0]
             coords = torch.stack([flat // (side * side), (flat // side) % side, flat % side], -1) + corner.to(torch.int64)
         else:
-            coords = decode(torch.unique(encode(samples[valid.expand(3, -1, -1)].to(torch.int64))))
+            coords = decode(torch.unique(encode(samples[valid].to(torch.int64))))
         slots = self.hash.insert(coords)
         self._grow(len(self.hash))
         return slots
@@ -192,6 +208,9 @@ class _TorchIntegration:
             w_obs = update.to(torch.float32)
         else:
             w_obs = torch.where(update, (cfg.weight_ref_depth_m / z.clamp(min=1e-6)).square_().clamp_(max=1.0), 0.0)
+        if cfg.dropoff_m > 0.0:  # behind the surface by more than dropoff_m: less and less sure (voxblox)
+            fade = (sdf + trunc) * dropoff_scale(trunc, cfg.dropoff_m)  # the kernel's float32 product
+            w_obs = torch.where(sdf < -cfg.dropoff_m, w_obs * fade, w_obs)
         total = old_w.add_(w_obs)
         blend = w_obs.div_(total + 1e-12)
         flat_t.index_copy_(0, vox, torch.addcmul(old_t, blend, tsdf_new.sub_(old_t)))
