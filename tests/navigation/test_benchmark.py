@@ -1,0 +1,92 @@
+"""``navigation.benchmark``: a killed run resumes (episodes with a JSON are skipped, failed ones
+retried), and the summary's figures by hand."""
+
+import json
+from dataclasses import asdict
+
+import pytest
+
+from ambulo.navigation import benchmark
+from ambulo.navigation.benchmark import EpisodeSpec, episode_path, format_table, run_benchmark, summarize
+
+
+def _result(spec: EpisodeSpec, *, success: bool, spl: float, collisions: int, replans_ms, fell=False, stuck=False,
+            time_s=10.0, wall_s=20.0) -> dict:
+    return {"spec": asdict(spec), "status": "arrived" if success else "timeout", "success": success, "spl": spl,
+            "fell": fell, "collisions": collisions, "stuck": stuck, "replan_wall_s": [t / 1e3 for t in replans_ms],
+            "time_s": time_s, "wall_s": wall_s, "ate_m": 0.0}
+
+
+def test_a_killed_run_resumes_skipping_finished_episodes_and_retrying_failed_ones(tmp_path, monkeypatch):
+    specs = [EpisodeSpec(1000 + i, 0, "oracle") for i in range(3)]
+    # the "killed" run finished episode 0 only: its JSON is there
+    (tmp_path / "episodes").mkdir()
+    episode_path(tmp_path, specs[0]).write_text(json.dumps(_result(specs[0], success=True, spl=0.9, collisions=0,
+                                                                   replans_ms=[10])))
+    calls, failed = [], set()
+
+    def fake_run_spec(spec, out_dir, base=None):
+        calls.append(spec)
+        if spec.apartment_seed == 1002 and spec not in failed:  # fails the first time: nothing written
+            failed.add(spec)
+            return {"spec": asdict(spec), "error": "Traceback ...\nRuntimeError: boom"}
+        data = _result(spec, success=False, spl=0.0, collisions=2, replans_ms=[30])
+        episode_path(out_dir, spec).write_text(json.dumps(data))
+        return data
+
+    monkeypatch.setattr(benchmark, "run_spec", fake_run_spec)
+    run = run_benchmark(specs, tmp_path, workers=1, log=None)
+    assert calls == specs[1:] and run.resumed == 1
+    s = run.summary["oracle/policy"]
+    assert s["episodes"] == 3 and s["errors"] == 1 and s["success"] == pytest.approx(1 / 3)
+    assert not episode_path(tmp_path, specs[2]).exists()
+    # run again: 0 and 1 are skipped, the failed 2 is retried
+    calls.clear()
+    run = run_benchmark(specs, tmp_path, workers=1, log=None)
+    assert calls == [specs[2]] and run.resumed == 2 and run.summary["oracle/policy"]["errors"] == 0
+    assert json.loads((tmp_path / "summary.json").read_text()) == run.summary
+
+
+def test_summary_by_hand():
+    a, b = EpisodeSpec(1, 0, "oracle"), EpisodeSpec(2, 0, "oracle")
+    c, d = EpisodeSpec(1, 0, "full"), EpisodeSpec(2, 0, "full", randomize=True)
+    results = [
+        _result(a, success=True, spl=0.8, collisions=1, replans_ms=[10, 20, 30], time_s=12.0, wall_s=24.0),
+        _result(b, success=False, spl=0.0, collisions=2, replans_ms=[40, 50], fell=True, time_s=8.0, wall_s=16.0),
+        _result(c, success=False, spl=0.0, collisions=0, replans_ms=[], stuck=True, time_s=30.0, wall_s=120.0),
+        {"spec": asdict(d), "error": "boom"},
+    ]
+    s = summarize(results, {"oracle/policy": 30.0}, {"oracle/policy": 2})
+    assert set(s) == {"oracle/policy", "full/policy", "full/policy/rand"}
+    o = s["oracle/policy"]
+    assert o["success"] == 0.5 and o["spl"] == pytest.approx(0.4) and o["falls"] == 0.5
+    assert o["collisions_per_episode"] == 1.5 and o["stuck"] == 0.0
+    # the pooled replans 10..50 ms: the 95th percentile interpolates 40 + 0.8 * (50 - 40)
+    assert o["replan_p95_ms"] == pytest.approx(48.0)
+    assert o["sim_to_wall"] == pytest.approx(20.0 / 40.0)
+    assert o["episodes_per_min"] == pytest.approx(60.0 * 2 / 30.0)
+    f = s["full/policy"]
+    assert f["stuck"] == 1.0 and f["replan_p95_ms"] == 0.0 and f["episodes_per_min"] is None  # resumed
+    r = s["full/policy/rand"]
+    assert r["errors"] == 1 and r["success"] == 0.0 and r["sim_to_wall"] is None
+    table = format_table(s).splitlines()
+    assert len(table) == 2 + 3 and table[2].startswith("| oracle/policy | 2 | 50% | 0.40 | 50% | 1.50 |")
+
+
+def test_specs_name_their_files_and_configs_follow_them():
+    spec = EpisodeSpec(7, 2, "mapping", "policy", True)
+    assert spec.name == "mapping-policy-rand-apt0007-ep2"
+    cfg = benchmark.episode_cfg(spec)
+    assert cfg.navigator.mode == "mapping" and cfg.world.randomization.enabled and cfg.world.seed == 7002
+    with pytest.raises(Exception, match="unknown mode"):
+        benchmark.check_spec(EpisodeSpec(1, 0, "teleport"))
+
+
+@pytest.mark.slow
+def test_two_real_oracle_episodes_over_a_pool_of_two(tmp_path):
+    specs = [EpisodeSpec(1000, 0, "oracle"), EpisodeSpec(1001, 0, "oracle")]
+    run = run_benchmark(specs, tmp_path, workers=2, log=None)
+    for spec in specs:
+        data = json.loads(episode_path(tmp_path, spec).read_text())
+        assert data["spec"]["apartment_seed"] == spec.apartment_seed and "status" in data
+    assert run.summary["oracle/policy"]["episodes"] == 2 and run.summary["oracle/policy"]["errors"] == 0
