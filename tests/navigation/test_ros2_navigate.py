@@ -210,7 +210,7 @@ def scenario(out: Path) -> int:
                                        for s in range(1, 20))
                  if math.isfinite(apt.geodesic_m(ep.start_pose[:2], g)) and math.dist(g, goal) > 1.0)
     peer = subprocess.Popen([sys.executable, str(HERE), "peer", str(out),
-                             *map(str, (goal[0], goal[1], yaw, decoy[0], decoy[1]))])
+                             *map(str, (goal[0], goal[1], yaw, decoy[0], decoy[1]))], stdin=subprocess.PIPE)
     wall_end = time.monotonic() + 240.0
     goal_time: list[float] = []
     arrived: dict = {}
@@ -226,6 +226,10 @@ def scenario(out: Path) -> int:
 
     try:
         node.spin(until=over)
+        peer.stdin.close()  # over without arrival: the peer dumps what it has
+        end = time.monotonic() + 30.0
+        while peer.poll() is None and time.monotonic() < end and not (out / "peer.json").exists():
+            node.spin(seconds=0.05)
         peer.wait(timeout=30.0)
     finally:
         if peer.poll() is None:
@@ -335,8 +339,12 @@ def peer(out: Path, goal_x: float, goal_y: float, goal_yaw: float, decoy_x: floa
     clear()
     sub(Clock, "/clock", lambda m: add("clock", t(m.clock)), reliable)
     pub = node.create_publisher(PoseStamped, "/goal_pose", 10)
+    stop = threading.Event()  # the scenario closes our stdin when it is over
+    threading.Thread(target=lambda: (sys.stdin.read(), stop.set()), daemon=True).start()
+
     end = time.monotonic() + 120.0
-    while (pub.get_subscription_count() == 0 or not got["map"]) and time.monotonic() < end:
+    while (pub.get_subscription_count() == 0 or not got["map"]) and time.monotonic() < end \
+            and not stop.is_set():
         rclpy.spin_once(node, timeout_sec=0.05)  # the navigator's node is there and we have its map
 
     def send(x: float, y: float, yaw_rad: float, frame_id: str = "map") -> None:
@@ -348,7 +356,7 @@ def peer(out: Path, goal_x: float, goal_y: float, goal_yaw: float, decoy_x: floa
 
     def wait_for(condition, timeout_s: float) -> None:
         until = time.monotonic() + timeout_s
-        while time.monotonic() < until:
+        while time.monotonic() < until and not stop.is_set():
             rclpy.spin_once(node, timeout_sec=0.05)
             with lock:
                 if condition():
@@ -361,7 +369,7 @@ def peer(out: Path, goal_x: float, goal_y: float, goal_yaw: float, decoy_x: floa
     wait_for(lambda: any(math.dist(p[2][-1], (decoy_x, decoy_y)) < 0.3 for p in got["plan"]), 60.0)
     send(goal_x, goal_y, goal_yaw)
     linger_until = None
-    while time.monotonic() < end + 120.0:
+    while time.monotonic() < end + 120.0 and not stop.is_set():
         rclpy.spin_once(node, timeout_sec=0.05)
         with lock:
             done = got["status"] and got["status"][-1][1] in TERMINAL
