@@ -11,10 +11,11 @@ occupancy from the walker's feet to the goal (heading: start to goal). After ``-
 steps the planner plans again from the walker's ``next_stance_feet_xyyaw_w`` and ``stance_side``
 (the same goal) and the walker takes the new plan at the next touchdown (0: no replanning).
 
+Starts the planner finds no plan from are sampled again (counted as ``unplanned_samples``).
 Success: the walker reports ``done`` (standing, the plan walked) without ``fell``, and the
 midpoint of its soles ends within 0.10 m of the midpoint of the plan's last two footsteps.
 Reported: success rate, mean speed (straight-line distance of the soles' midpoint over the time
-from the first plan to ``done``), wall time per simulated second (the walker and the physics),
+from the first plan to ``done``), wall and CPU (process) time per simulated second (the walker and the physics),
 steps, and the failures' reasons. One ``RESULT {json}`` line at the end.
 """
 
@@ -55,7 +56,7 @@ def episode(ap, planner: FootstepPlanner, rng: np.random.Generator, args) -> dic
     start_mid = feet[:, :2].mean(0)
     dt = 0.005
     limit_s = plan.num_steps * 0.8 + 15.0
-    wall, replanned, steps = time.perf_counter(), args.replan_after <= 0, 0
+    wall, cpu, replanned, steps = time.perf_counter(), time.process_time(), args.replan_after <= 0, 0
     while steps < int(limit_s / dt):
         walker.step(dt)
         sim.step()
@@ -68,7 +69,7 @@ def episode(ap, planner: FootstepPlanner, rng: np.random.Generator, args) -> dic
                 plan = new
         if walker.fell or (walker.done and replanned):
             break
-    wall = time.perf_counter() - wall
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
     sim_s = steps * dt
     end_mid = walker.feet_xyyaw_w()[:, :2].mean(0)
     target_mid = plan.footsteps_xyyaw_w[-2:, :2].mean(0)
@@ -79,7 +80,7 @@ def episode(ap, planner: FootstepPlanner, rng: np.random.Generator, args) -> dic
     return {**out, "result": "success" if ok else "failure", "detail": reason, "final_error_m": round(error, 4),
             "steps": walker.steps_taken, "plans_taken": walker.plans_taken, "sim_s": round(sim_s, 2),
             "speed_mps": round(float(np.hypot(*(end_mid - start_mid))) / sim_s, 4),
-            "wall_per_sim_s": round(wall / sim_s, 3)}
+            "wall_per_sim_s": round(wall / sim_s, 3), "cpu_per_sim_s": round(cpu / sim_s, 3)}
 
 
 def main() -> None:
@@ -94,11 +95,13 @@ def main() -> None:
     grid = GridMap.from_map(ap.occupancy)
     planner = FootstepPlanner(grid, humanoid_footstep_cfg(goal_tolerance_m=0.10))
     rng = np.random.default_rng(args.seed)
-    runs = []
-    for i in range(args.episodes):
+    runs, unplanned = [], []
+    while len(runs) < args.episodes and len(unplanned) < 3 * args.episodes:
         run = episode(ap, planner, rng, args)
-        runs.append(run)
-        print(i, json.dumps(run), flush=True)
+        # a start whose home-pose soles the planner finds on an occupied cell (near a wall), or
+        # no plan in the budget: not the walker's episode; sampled again
+        (unplanned if run["result"] == "no plan" else runs).append(run)
+        print(len(runs), json.dumps(run), flush=True)
     walked = [r for r in runs if "sim_s" in r]
     ok = [r for r in runs if r["result"] == "success"]
     summary = {"seed": args.seed, "episodes": len(runs), "success": len(ok),
@@ -106,6 +109,8 @@ def main() -> None:
                "success_rate_of_planned": round(len(ok) / max(len(walked), 1), 3),
                "mean_speed_mps": round(float(np.mean([r["speed_mps"] for r in ok])), 4) if ok else None,
                "wall_per_sim_s": round(float(np.mean([r["wall_per_sim_s"] for r in walked])), 3) if walked else None,
+               "cpu_per_sim_s": round(float(np.mean([r["cpu_per_sim_s"] for r in walked])), 3) if walked else None,
+               "unplanned_samples": len(unplanned),
                "failures": [r["detail"] for r in runs if r["result"] != "success"]}
     print("RESULT " + json.dumps(summary))
 

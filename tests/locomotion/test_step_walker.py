@@ -134,18 +134,28 @@ def test_a_plan_received_mid_swing_does_not_move_the_swinging_foot(arena_walker)
         and walker.feet_xyyaw_w()[1, 0] > feet0[1, 0] + 0.08)
     assert walker.swing_target_w is not None and walker.steps_taken == 0
     target = walker.swing_target_w.copy()
-    # a new plan, from the feet as they are (the right foot in the air), turning left at once:
-    # it would put the right foot elsewhere, but that foot is already swinging
-    feet = walker.feet_xyyaw_w()
-    turn = make_plan([feet[1], feet[0], [feet[0, 0] + 0.05, feet[0, 1] - 0.2, 0.25], [feet[0, 0] + 0.1, feet[0, 1], 0.3]],
-                     [-1, 1, -1, 1])
+    # a new plan that has the right foot 6 cm further right and then turns left: the right foot
+    # is in the air already, so it lands where it was going and the plan's steps follow from there
+    left = walker.feet_xyyaw_w()[0]
+    elsewhere = target + [0.0, -0.06, 0.0]
+    step1 = [target[0] + 0.15, target[1] + 0.18, 0.2]
+    step2 = [step1[0] + 0.18 * math.sin(0.2), step1[1] - 0.18 * math.cos(0.2), 0.3]
+    turn = make_plan([left, elsewhere, step1, step2], [1, -1, 1, -1])
     assert walker.set_plan(turn) is None
+    assert np.allclose(walker.swing_target_w, target)
     run(sim, walker, 2.0, until=lambda: walker.steps_taken >= 1)
     landed = walker.feet_xyyaw_w()[1]
     assert not walker.fell
     assert np.hypot(*(landed[:2] - target[:2])) < 0.02, (landed, target)  # where it was going
     assert abs(landed[2] - target[2]) < 0.03
-    assert abs(landed[2] - 0.25) > 0.2  # not the new plan's first step
+    # the plan's first step is under way, from the real feet
+    assert np.allclose(walker.swing_target_w, step1, atol=0.02)
+    # an empty plan mid-walk: it stops after the step in progress, the CoM over its feet
+    assert walker.set_plan(None) is None
+    run(sim, walker, 6.0, until=lambda: walker.done)
+    assert walker.done and walker.is_standing and not walker.fell and walker.steps_taken <= 2
+    balance = walker.balance()
+    assert balance.capture_margin_m > 0.02 and balance.zmp_margin_m > 0.02
 
 
 def test_walks_2m_then_turns_90deg_on_a_plan_received_mid_walk(arena_walker):

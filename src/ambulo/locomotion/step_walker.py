@@ -295,6 +295,8 @@ class ZmpStepWalker:
         self.plans_taken = 0
         self.last_refusal = None
         self._fell = False
+        self._last_side = 0
+        """The foot that landed last (+1 left, -1 right; 0 none since ``reset``)."""
         self._since_check = 0
         self._chunk = self._make_chunk()
 
@@ -379,12 +381,20 @@ class ZmpStepWalker:
         poses_w, sides = footsteps_array(plan)
         poses = self._to_pattern(poses_w)
         feet = self._feet
-        start = 2  # no match: the real feet stay, the plan's steps follow from its first
+        start = None
         for r in range(len(poses) - 1, 0, -1):
             if sides[r] != sides[r - 1] and self._matches(poses[r], int(sides[r])) \
                     and self._matches(poses[r - 1], int(sides[r - 1])):
                 start = r + 1
                 break
+        if start is None:
+            # no match: the real feet stay, the plan's steps follow from its first; but a first
+            # step of the foot that has just landed was planned from where that foot was before
+            # (the plan's start feet are stale): moving it again at once would make the CoM
+            # turn back onto the foot it is leaving, so the steps start with the other foot
+            start = 2
+            while start < len(poses) and not self._standing and sides[start] == self._last_side:
+                start += 1
         steps = [(poses[i].copy(), int(sides[i])) for i in range(start, len(poses))]
         if steps:
             pose, side = steps[0]
@@ -614,7 +624,7 @@ class ZmpStepWalker:
         chunk = self._chunk
         if chunk.swing_goal is not None:
             return chunk.swing_side
-        return getattr(self, "_last_side", 1)
+        return self._last_side or 1
 
     @property
     def swing_target_w(self) -> np.ndarray | None:
