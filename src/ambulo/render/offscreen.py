@@ -151,18 +151,31 @@ class OffscreenRenderer:
         mujoco.mjr_render(self._rect, self._scene, self._con)
         self._lut = self._segid_to_geom()  # the scene may be reused before the read
 
-    def read_ids(self, want_depth: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
-        """Wait for the id pass of ``queue_ids``; same outputs as ``render_ids``."""
+    def read_ids(self, want_depth: bool = True, per_geom: tuple[np.ndarray, ...] = ()
+                 ) -> tuple[np.ndarray, np.ndarray | None] | tuple[np.ndarray, np.ndarray | None, list[np.ndarray]]:
+        """Wait for the id pass of ``queue_ids``; same outputs as ``render_ids``.
+
+        ``per_geom``: tables indexed by geom id + 1 (index 0: no geom), e.g. each geom's instance
+        id; when given, also returns each table's value per pixel, (H, W) of its dtype. Below 256
+        scene geoms each is one lookup of the id pass's red channel through the table composed
+        with this pass's segment ids: ``np.take`` of uint8 indices costs half a lookup of the
+        int32 geom ids (which NumPy first widens to intp).
+        """
         self._gl.make_current()
         mujoco.mjr_readPixels(self._ids, self._zbuf if want_depth else None, self._rect, self._con)
         lut = self._lut
         if len(lut) <= 256:
             # fewer than 256 scene geoms: the id lives in the red channel alone
-            geom_ids = lut[self._ids[::-1, :, 0]]
+            red = self._ids[::-1, :, 0]
+            geom_ids = np.take(lut, red)
+            values = [np.take(np.take(table, lut + 1), red) for table in per_geom]
         else:
             ids = self._ids[::-1].astype(np.int32)
             geom_ids = lut[ids[..., 0] | (ids[..., 1] << 8) | (ids[..., 2] << 16)]
+            values = [np.take(table, geom_ids + 1) for table in per_geom]
         depth = self._linear_depth(self._zbuf[::-1]) if want_depth else None
+        if per_geom:
+            return geom_ids, depth, values
         return geom_ids, depth
 
     def render_ids_isolated(self, geoms: np.ndarray) -> np.ndarray:

@@ -81,14 +81,31 @@ def instance_rles(instances: np.ndarray, ids: np.ndarray) -> list[dict]:
     order = np.argsort(flat[starts], kind="stable")  # runs grouped by id, in image order within an id
     values = flat[starts][order]
     first, last = np.searchsorted(values, ids, "left"), np.searchsorted(values, ids, "right")
-    objs = []
-    for lo, hi in zip(first.tolist(), last.tolist()):
-        runs = order[lo:hi]
-        edges = np.empty(2 * len(runs) + 2, np.int64)  # 0, start, end, start, end, ..., H*W
-        edges[0], edges[-1] = 0, flat.size
-        edges[1:-1:2], edges[2:-1:2] = starts[runs], ends[runs]
-        counts = np.diff(edges)  # zeros, ones, zeros, ...: pycocotools drops an empty last run
-        objs.append({"counts": counts[:-1] if counts[-1] == 0 else counts, "size": [h, w]})
+    # every kept instance's runs, grouped by instance (in ``ids`` order), in image order within one
+    n_runs = last - first
+    total = int(n_runs.sum())
+    group_start = np.cumsum(n_runs) - n_runs  # where each instance's runs begin in ``runs``
+    runs = order[np.repeat(first - group_start, n_runs) + np.arange(total)]
+    run_start, run_end = starts[runs], ends[runs]
+    # one array of every instance's counts, side by side: zeros, ones, ..., zeros, ones, then the
+    # zeros after its last run; run j of instance g sits at 2 j + g (each instance before adds a tail)
+    group = np.repeat(np.arange(len(ids)), n_runs)
+    has_runs = n_runs > 0
+    previous_end = np.zeros(total, np.int64)
+    previous_end[1:] = run_end[:-1]
+    previous_end[group_start[has_runs]] = 0
+    counts = np.empty(2 * total + len(ids), np.int64)
+    at = 2 * np.arange(total) + group
+    counts[at] = run_start - previous_end
+    counts[at + 1] = run_end - run_start
+    offsets = 2 * group_start + np.arange(len(ids))
+    tails = offsets + 2 * n_runs
+    last_end = np.zeros(len(ids), np.int64)  # an instance without pixels: all zeros
+    last_end[has_runs] = run_end[(group_start + n_runs - 1)[has_runs]]
+    counts[tails] = flat.size - last_end
+    # pycocotools drops an empty last run
+    stops = np.where(counts[tails] == 0, tails, tails + 1)
+    objs = [{"counts": counts[lo:hi], "size": [h, w]} for lo, hi in zip(offsets.tolist(), stops.tolist())]
     return mask_utils.frPyObjects(objs, h, w) if objs else []
 
 

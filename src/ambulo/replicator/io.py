@@ -75,9 +75,10 @@ def encode_png(image: np.ndarray, compress_level: int = 1) -> bytes:
     Rows use the "Up" filter (difference to the row above), computed with
     NumPy; it compresses rendered images and depth far better than no filter
     at the same level. The bytes are a pure function of the image, the level
-    and ``PNG_DEFLATE``.
+    and ``PNG_DEFLATE``. A big-endian uint16 image (``>u2``, PNG's order) is
+    used as it is, without the byte-swapped copy a native one needs.
     """
-    if image.dtype not in (np.uint8, np.uint16):
+    if image.dtype.kind != "u" or image.dtype.itemsize not in (1, 2):
         raise ValueError(f"encode_png needs uint8 or uint16, got {image.dtype}")
     h, w = image.shape[:2]
     channels = 1 if image.ndim == 2 else image.shape[2]
@@ -95,9 +96,11 @@ def encode_png(image: np.ndarray, compress_level: int = 1) -> bytes:
     ])
 
 
-def depth_to_mm_u16(depth_m: np.ndarray) -> np.ndarray:
-    """Depth (m) as uint16 millimetres; 0 marks no return or beyond 65.535 m (the usual convention)."""
+def depth_to_mm_u16(depth_m: np.ndarray, byteorder: str = "=") -> np.ndarray:
+    """Depth (m) as uint16 millimetres; 0 marks no return or beyond 65.535 m (the usual convention).
+
+    ``byteorder`` '>' gives big-endian uint16, what ``encode_png`` writes, in the same pass."""
     mm = np.multiply(depth_m, 1000.0)  # in the input's precision, as numbers times a Python float are
     np.rint(mm, out=mm)
     mm[~((mm >= 0) & (mm <= 65535))] = 0  # also NaN and +-inf (no return)
-    return mm.astype(np.uint16)
+    return mm.astype(np.dtype(np.uint16).newbyteorder(byteorder))

@@ -46,6 +46,7 @@ from .coco import frame_annotations
 from .io import depth_to_mm_u16, encode_png
 
 WRITERS = ("coco", "depth", "masks", "kitti", "raw")
+_PNG_U16 = np.dtype(">u2")
 
 
 @dataclass(kw_only=True)
@@ -179,12 +180,13 @@ def write_frame_files(out: Path, index: int, capture: dict, table, log: dict, cf
     put(f"rgb/{stem}.png", encode_png(capture["rgb"], level))
     if "depth" in cfg.outputs:
         if cfg.depth_format == "png16":
-            put(f"depth/{stem}.png", encode_png(depth_to_mm_u16(capture["depth"]), level))
+            put(f"depth/{stem}.png", encode_png(depth_to_mm_u16(capture["depth"], ">"), level))
         else:
             put(f"depth/{stem}.npy", capture["depth"])
     if "masks" in cfg.outputs:
-        put(f"instance/{stem}.png", encode_png(capture["instance_segmentation"].astype(np.uint16), level))
-        put(f"semantic/{stem}.png", encode_png(capture["semantic_segmentation"].astype(np.uint16), level))
+        # straight to PNG's big-endian uint16: one conversion, not a cast and then a byte swap
+        put(f"instance/{stem}.png", encode_png(capture["instance_segmentation"].astype(_PNG_U16), level))
+        put(f"semantic/{stem}.png", encode_png(capture["semantic_segmentation"].astype(_PNG_U16), level))
     annotations = frame_annotations(capture, table.semantic_ids, table.names, cfg.min_visible_pixels)
     if "kitti" in cfg.outputs:
         put(f"kitti/{stem}.txt", kitti_lines(annotations, table.categories, capture).encode())
