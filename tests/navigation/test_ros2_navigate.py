@@ -146,6 +146,49 @@ def test_tf_is_map_odom_base_link_with_odom_equal_to_the_odometry(navigate_run):
     assert stamps == sorted(stamps) and peer["clock"] == sorted(peer["clock"]) and len(set(peer["clock"])) > 100
 
 
+# -- the messages, by hand ------------------------------------------------------------------------------
+def test_footstep_markers_decode_as_a_deleteall_then_one_cube_per_foot():
+    from ros2.conftest import needs_rclpy
+
+    needs_rclpy()
+    from ambulo.nav import FootstepPlan, PlanStatus
+    from ambulo.navigation.ros2_messages import footstep_markers_cdr
+    from ambulo.ros2.raw_types import typestore
+
+    feet = np.array([[0.0, 0.1, 0.0], [0.0, -0.1, 0.0], [0.3, 0.1, 0.0], [0.6, -0.1, math.pi / 2]])
+    plan = FootstepPlan(PlanStatus.SUCCESS, feet, np.array([1, -1, 1, -1], np.int8), np.array([0.0, 0.0, 0.0, 0.05]),
+                        4.0, 10, 0.01)
+    raw = footstep_markers_cdr(2.5, "map", plan, (0.22, 0.10))
+    markers = _decoder("visualization_msgs/msg/MarkerArray", typestore())(raw).markers  # mcap_ros2's decoder
+    assert [m.action for m in markers] == [3, 0, 0, 0, 0] and [m.id for m in markers[1:]] == [0, 1, 2, 3]
+    cubes = markers[1:]
+    assert all(m.type == 1 and m.header.frame_id == "map" for m in cubes)
+    assert cubes[0].header.stamp.sec == 2 and cubes[0].header.stamp.nanosec == 500_000_000
+    assert [(m.pose.position.x, m.pose.position.y) for m in cubes] == [tuple(f[:2]) for f in feet]
+    assert cubes[3].pose.position.z == pytest.approx(0.05 + 0.01)  # on its terrain, half the 2 cm thickness up
+    q = cubes[3].pose.orientation  # 90 deg about z
+    assert (q.x, q.y, q.z, q.w) == pytest.approx((0.0, 0.0, math.sqrt(0.5), math.sqrt(0.5)))
+    assert (cubes[0].scale.x, cubes[0].scale.y, cubes[0].scale.z) == pytest.approx((0.22, 0.10, 0.02))
+    left, right = cubes[2].color, cubes[3].color
+    assert left.g > left.r and right.r > right.g  # left green, right red
+    assert cubes[0].color.a < cubes[2].color.a  # the start feet are faint
+    empty = _decoder("visualization_msgs/msg/MarkerArray", typestore())(footstep_markers_cdr(0.0, "map", None))
+    assert [m.action for m in empty.markers] == [3]  # no plan: only the DELETEALL
+
+
+def test_path_poses_face_the_next_point():
+    from ros2.conftest import needs_rclpy
+
+    needs_rclpy()
+    from ambulo.navigation.ros2_messages import path_msg
+
+    msg = path_msg(1.0, "map", np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]))
+    yaws = [2 * math.atan2(p.pose.orientation.z, p.pose.orientation.w) for p in msg.poses]
+    assert yaws == pytest.approx([0.0, math.pi / 2, math.pi, math.pi])  # the last keeps the previous heading
+    assert [(p.pose.position.x, p.pose.position.y) for p in msg.poses] == [(0, 0), (1, 0), (1, 1), (0, 1)]
+    assert msg.header.frame_id == "map" and msg.header.stamp.sec == 1
+
+
 # -- the command ----------------------------------------------------------------------------------------
 @pytest.mark.parametrize("argv, parts", [
     (["bridge", "apartment", "--navigate", "--record", "x.mcap"], ["--record does not go with --navigate"]),
