@@ -140,3 +140,25 @@ def test_the_map_picture_is_rebuilt_only_for_a_new_grid():
     assert td.base(grid) is td.base(grid)
     other = Grid2D(occupancy=grid.occupancy.copy(), origin_xy_m=ORIGIN, resolution_m=RES_M)
     assert td.base(other) is not td.base(grid)
+
+
+@pytest.mark.slow
+def test_a_real_oracle_episode_films_every_frame_and_draws_where_the_robot_went(tmp_path):
+    from ambulo.navigation import EpisodeCfg, run_episode
+
+    video = EpisodeVideo(tmp_path / "ep.mp4", VideoCfg(panel_height_px=240, map_max_width_px=400),
+                         map_png=tmp_path / "map.png")
+    result = run_episode(1000, 0, EpisodeCfg(min_geodesic_m=3.0, max_geodesic_m=3.5), observer=video)
+    video.close()
+    assert result.frames == video.frames_written
+    reader = imageio.get_reader(tmp_path / "ep.mp4")
+    assert reader.count_frames() == result.frames
+    assert tuple(reader.get_meta_data()["size"]) == video.last_frame.shape[1::-1]
+    png = iio.imread(tmp_path / "map.png")
+    img, topdown = video.final_map()
+    assert np.array_equal(png, img)
+    true = np.array(video.true_xy_m)
+    far = np.linalg.norm(true - true[-1], axis=1) > 0.3  # the robot's disc covers the path's end
+    rc = topdown.pixel_of(video.last.occupancy, true[far]).astype(int)
+    on_path = np.all(png[rc[:, 0], rc[:, 1]] == COLORS["true"], axis=-1)
+    assert on_path.mean() > 0.95  # a few points may sit under the goal mark
