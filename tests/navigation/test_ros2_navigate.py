@@ -189,6 +189,19 @@ def test_path_poses_face_the_next_point():
     assert msg.header.frame_id == "map" and msg.header.stamp.sec == 1
 
 
+def test_status_says_no_route_while_the_latest_replan_for_the_goal_found_none():
+    from ambulo.navigation.planning import ReplanRecord
+    from ambulo.navigation.ros2_node import goal_status
+
+    found = ReplanRecord(1.0, 0.01, "new goal", True, "success", 12, True)
+    none = ReplanRecord(2.0, 0.01, "period", False, "no_route", 0, False)
+    assert goal_status("walking", None) == "walking"  # no replan for this goal yet
+    assert goal_status("walking", found) == "walking"
+    assert goal_status("walking", none) == "no_route"
+    assert goal_status("arrived", none) == "arrived"  # an ending stands
+    assert goal_status("lost", none) == "lost"
+
+
 # -- the command ----------------------------------------------------------------------------------------
 @pytest.mark.parametrize("argv, parts", [
     (["bridge", "apartment", "--navigate", "--record", "x.mcap"], ["--record does not go with --navigate"]),

@@ -149,7 +149,7 @@ def _navigate(args: argparse.Namespace) -> int:
           f"{node.cfg.goal_topic} (RViz: 2D Goal Pose, fixed frame map); publishing {', '.join(sorted(node.topics.values()))}",
           flush=True)
     if goal is not None:
-        nav.set_goal(goal[:2], goal[2] if len(goal) == 3 else None)
+        node.set_goal(goal[:2], goal[2] if len(goal) == 3 else None)
     start_wall = time.perf_counter()
     t0 = world.time_s
     try:
@@ -158,7 +158,7 @@ def _navigate(args: argparse.Namespace) -> int:
         node.close()
         world.close()
         print(f"simulated {world.time_s - t0:.2f} s in {time.perf_counter() - start_wall:.2f} s wall; "
-              f"{len(node.goals) + (goal is not None)} goals, status {nav.status}; published "
+              f"{len(node.goals)} goals, status {node.status}; published "
               + ", ".join(f"{t} {n}" for t, n in sorted(node.published.items())), flush=True)
     return 0
 

@@ -26,8 +26,9 @@ Out, stamped with simulated time (``/clock`` as the bridge publishes it, every p
   ``head_camera_optical``, its TF from base_link) when the navigator renders it anyway (``mapping``
   and ``full`` modes) or ``images="always"``;
 - ``/navigate/status`` (``std_msgs/String``, transient-local): the navigator's status (``walking``,
-  ``lost``, ``arrived``, ``fell``, ``stuck``, ``timeout``, ``lost_timeout``, ``no_route``) each
-  time it changes or a goal is taken, and ``rejected: <why>`` for a refused goal.
+  ``lost``, ``arrived``, ``fell``, ``stuck``, ``timeout``, ``lost_timeout``; ``no_route`` while
+  its latest replan found no route, ``goal_status``) each time it changes or a goal is taken, and
+  ``rejected: <why>`` for a refused goal.
 
 The node runs in this process: rclpy's executor thread takes goals, the thread that steps the
 navigator applies them and publishes (every message is built from one consistent state).
@@ -46,6 +47,7 @@ import numpy as np
 
 from ..utils.validate import Checked
 from .navigator import Navigator, NavSnapshot
+from .planning import ReplanRecord
 
 TERMINAL = ("arrived", "fell", "stuck", "timeout", "lost_timeout")
 """Statuses that end an episode (the navigator stands until the next goal)."""
@@ -112,9 +114,10 @@ class NavigateNode:
         rclpy.init(context=self.context)
         self.node = rclpy.create_node(self.cfg.node_name, namespace=self.cfg.namespace or None, context=self.context)
         self._make_publishers()
-        self._last_status: str | None = None
+        self.status: str | None = None
+        """What /navigate/status said last (refusals aside)."""
         self._route = self._plan = None
-        self._replans_seen = 0
+        self._replans_seen = self._goal_replans = 0
         self._next_map_s = -math.inf
         self._map_key = self._costmap_msg = None
         self._last_estimate: tuple[float, np.ndarray] | None = None
@@ -201,6 +204,12 @@ class NavigateNode:
         with self._lock:
             self._pending_rejections.append(why)
 
+    def set_goal(self, goal_xy_m, yaw_rad: float | None = None) -> None:
+        """Take a goal as if it came on the goal topic (applied at the next step)."""
+        x, y = (float(v) for v in goal_xy_m)
+        with self._lock:
+            self._pending = (x, y, None if yaw_rad is None else float(yaw_rad))
+
     def _apply_goal(self) -> None:
         with self._lock:
             goal, self._pending = self._pending, None
@@ -215,6 +224,7 @@ class NavigateNode:
         x, y, yaw = goal
         self.nav.set_goal((x, y), yaw if self.cfg.use_goal_yaw else None)
         self.goals.append(goal)
+        self._goal_replans = len(self.nav.replans)  # the replans for this goal start here
         self._publish_status(self.nav.status)
 
     # -- publishing ---------------------------------------------------------------------------------
@@ -223,7 +233,7 @@ class NavigateNode:
         self.published[self.topics[key]] += 1
 
     def _publish_status(self, status: str) -> None:
-        self._last_status = status
+        self.status = status
         self._publish("status", _string(status))
 
     def _publish_maps(self, now: float) -> None:
@@ -302,8 +312,10 @@ class NavigateNode:
             self._publish_plan(now)
         if now >= self._next_map_s:
             self._publish_maps(now)
-        if self.nav.status != self._last_status:
-            self._publish_status(self.nav.status)
+        replans = self.nav.replans
+        status = goal_status(self.nav.status, replans[-1] if len(replans) > self._goal_replans else None)
+        if status != self.status:
+            self._publish_status(status)
 
     def spin(self, seconds: float | None = None, *, real_time: bool = False, until=None) -> None:
         """Step for ``seconds`` of simulated time (None: until Ctrl-C or ``until(self)``); ``real_time``
@@ -337,6 +349,16 @@ class NavigateNode:
         self.close()
 
 
+def goal_status(status: str, last_replan: ReplanRecord | None) -> str:
+    """What /navigate/status says: the navigator's ``status``, except ``no_route`` while it walks but
+    its latest replan for this goal (None: none yet) found no route to it (off the map, or walled
+    in): the navigator keeps trying (the map may open up) and would only call it ``stuck`` after its
+    stuck window."""
+    if status == "walking" and last_replan is not None and not last_replan.route_found:
+        return "no_route"
+    return status
+
+
 def _string(text: str):
     from std_msgs.msg import String
 
@@ -360,4 +382,4 @@ def _quat_xyzw(rot: np.ndarray) -> np.ndarray:
     return Rotation.from_matrix(rot).as_quat()
 
 
-__all__ = ["TERMINAL", "NavigateNode", "NavigateNodeCfg"]
+__all__ = ["TERMINAL", "NavigateNode", "NavigateNodeCfg", "goal_status"]
