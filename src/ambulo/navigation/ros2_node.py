@@ -6,7 +6,8 @@
 
 In: ``/goal_pose`` (``geometry_msgs/PoseStamped``, what RViz's "2D Goal Pose" tool sends) in the
 ``map`` frame (``odom`` is accepted too: map -> odom is the identity, below). A goal replaces the
-one being walked to; after a fall the robot is stood at its start again first. A goal in another
+one being walked to; after a fall the navigator is reset first (``Navigator.reset``: the walker's
+default pose, where the robot lies; the map and plans forgotten). A goal in another
 frame, or not finite, is refused: a warning and ``rejected: <why>`` on the status topic.
 
 Out, stamped with simulated time (``/clock`` as the bridge publishes it, every physics step):
@@ -219,7 +220,7 @@ class NavigateNode:
             self._publish("status", _string(f"rejected: {why}"))
         if goal is None:
             return
-        if self.world.fell:  # a fallen robot walks nowhere: stand it at its start again
+        if self.world.fell:  # a fallen robot walks nowhere: stand it up (the navigator's reset)
             self.nav.reset()
         x, y, yaw = goal
         self.nav.set_goal((x, y), yaw if self.cfg.use_goal_yaw else None)
