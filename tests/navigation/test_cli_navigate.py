@@ -103,3 +103,24 @@ def test_a_point_too_near_a_wall_gets_a_suggestion_that_passes():
     sx, sy = (float(v) for v in re.search(r"--goal (-?[\d.]+),(-?[\d.]+)$", info.value.fix).groups())
     check_point(grid, (sx, sy), "--goal", humanoid.BODY_RADIUS_M)  # passes
     assert math.dist((x, y), (sx, sy)) < 0.6  # the nearest such point: within the body radius + a few cells
+
+
+ROOM = """<mujoco><worldbody>
+  <geom type="plane" size="5 5 0.1"/>
+  <geom type="box" pos="1.5 0.5 0.5" size="0.3 0.3 0.5"/>
+  <geom type="box" pos="0 3 0.5" size="4 0.1 0.5"/>
+</worldbody></mujoco>"""
+
+
+@pytest.mark.slow
+def test_a_users_mjcf_world(tmp_path, capsys):
+    world = tmp_path / "room.xml"
+    world.write_text(ROOM)
+    # the goal inside the box: refused, with a point beside it
+    err = _error_line(capsys, ["navigate", str(world), "--start", "0,0,0", "--goal", "1.5,0.5", "--out", str(tmp_path)])
+    assert "inside an obstacle" in err
+    # past the box: it walks around it, the geodesic taken from the route on the true map
+    assert main(["navigate", str(world), "--start", "0,0,0", "--goal", "3,0.5", "--out", str(tmp_path)]) == 0
+    data = json.loads((tmp_path / "episode.json").read_text())
+    assert data["success"] and data["collisions"] == 0 and data["geodesic_m"] >= math.dist((0, 0), (3, 0.5))
+    assert data["world"] == str(world) and "not exact" in data["extras"]["geodesic"]
