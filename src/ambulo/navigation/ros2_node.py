@@ -120,7 +120,7 @@ class NavigateNode:
         self._route = self._plan = None
         self._replans_seen = self._goal_replans = 0
         self._next_map_s = -math.inf
-        self._map_key = self._costmap_msg = None
+        self._map_key = self._costmap = None
         self._last_estimate: tuple[float, np.ndarray] | None = None
         self._dt = self.world.dt_s
         navigator.add_observer(self._on_frame, images="image" in self._pubs)
