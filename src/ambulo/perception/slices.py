@@ -67,17 +67,18 @@ def surface_voxels(tsdf: torch.Tensor, weight: torch.Tensor, truncation_m: float
     """(occupied, free), each (X, Y, Z) bool, of a dense block of voxels (``tsdf`` normalised by
     ``truncation_m``, ``weight``): what an occupancy map may claim of each voxel.
 
-    occupied: the *surface layer*: an observed voxel behind a surface (tsdf < 0) that is within one
-    voxel of it (sdf > -voxel) or next to an observed voxel in front of it (a zero crossing between the
-    two along x, y or z, whatever the angle it was seen at, where the projective sdf overstates the
-    distance). The voxels further behind (up to the truncation) are the inside of a solid seen from
-    one side: counting them occupied made walls ~2 truncations thick in the slice and closed doors;
-    they are neither occupied nor free (a wall seen from both sides is its two surface layers, which
-    meet in a 10-15 cm wall). free: observed voxels in front of every surface (tsdf >= 0)."""
+    occupied: the voxels whose cell holds the surface: observed, with the surface less than half a
+    voxel in front of the centre or behind it (sdf < voxel / 2, so the cell meets the solid, as a
+    ground-truth cell that meets a footprint is occupied) and not deep inside: within one voxel of the
+    surface (sdf > -voxel) or next to a free voxel along x, y or z (the zero crossing, whatever angle it
+    was seen at: the projective sdf overstates the distance at a grazing view). The voxels further
+    behind (up to the truncation) are the inside of a solid seen from one side: counting them occupied
+    made walls ~2 truncations thick in the slice and closed doors; they are neither occupied nor free
+    (a wall seen from both sides is its two surface layers, which meet in a 10-15 cm wall).
+    free: observed voxels at least half a voxel in front of every surface."""
     observed = weight >= min_weight
-    free = observed & (tsdf >= 0)
-    behind = observed & (tsdf < 0)
-    near = tsdf * truncation_m > -voxel_size_m
+    sdf_vox = tsdf * (truncation_m / voxel_size_m)  # in voxels
+    free = observed & (sdf_vox >= 0.5)
     crossing = torch.zeros_like(free)
     for axis in range(3):  # a free 6-neighbour: free shifted by one voxel each way along each axis
         n = free.shape[axis]
@@ -85,14 +86,20 @@ def surface_voxels(tsdf: torch.Tensor, weight: torch.Tensor, truncation_m: float
             continue
         crossing.narrow(axis, 0, n - 1).logical_or_(free.narrow(axis, 1, n - 1))
         crossing.narrow(axis, 1, n - 1).logical_or_(free.narrow(axis, 0, n - 1))
-    return behind & (near | crossing), free
+    occupied = observed & (sdf_vox < 0.5) & ((sdf_vox > -1.0) | crossing)
+    return occupied, free
 
 
-def occupancy_slice(grid: DenseGrid, z_min_m: float, z_max_m: float, min_weight: float = 1.0) -> Slice2D:
+def occupancy_slice(grid: DenseGrid, z_min_m: float, z_max_m: float, min_weight: float = 1.0,
+                    floor_seen_m: float | None = None) -> Slice2D:
     """(H, W) int8 over the voxel columns of ``grid``: OCCUPIED where a voxel centred in
-    [z_min_m, z_max_m] is on a surface (``surface_voxels``: the surface layer, not the whole
-    truncation band behind it, so a wall keeps its thickness), FREE where none is and the band was
-    seen free, UNKNOWN where it was not seen, or only from inside a solid."""
+    [z_min_m, z_max_m] holds a surface (``surface_voxels``: the surface layer, not the whole truncation
+    band behind it, so a wall keeps its thickness), FREE where none does and a voxel of the band was
+    seen free, UNKNOWN otherwise (never seen, or seen only from inside a solid).
+
+    ``floor_seen_m``: FREE only where a voxel centred in [z_min_m, z_min_m + floor_seen_m] was seen
+    free, so a low box hidden behind furniture while rays passed over it does not read free (stricter:
+    on an apartment walk it left 35 % of the seen free cells unknown, against 1-3 % without)."""
     band = _band(int(grid.origin_index[2]), grid.voxel_size_m, grid.tsdf.shape[2], z_min_m, z_max_m,
                  grid.tsdf.device)
     idx = torch.nonzero(band, as_tuple=True)[0]
@@ -104,8 +111,10 @@ def occupancy_slice(grid: DenseGrid, z_min_m: float, z_max_m: float, min_weight:
     occupied, free = surface_voxels(grid.tsdf[:, :, lo:hi], grid.weight[:, :, lo:hi], grid.truncation_m,
                                     grid.voxel_size_m, min_weight)
     inner = band[lo:hi]
+    bottom = inner if floor_seen_m is None else inner & _band(
+        int(grid.origin_index[2]) + lo, grid.voxel_size_m, hi - lo, z_min_m, z_min_m + floor_seen_m, grid.tsdf.device)
     occupied = occupied[:, :, inner].any(-1)
-    free = free[:, :, inner].any(-1)
+    free = free[:, :, bottom].any(-1)
     data = torch.full(occupied.shape, UNKNOWN, dtype=torch.int8, device=occupied.device)
     data[free] = FREE
     data[occupied] = OCCUPIED

@@ -423,26 +423,63 @@ class TsdfMap(_TorchIntegration):
         self.updated.zero_()
         return slots
 
-    def dense(self, pad_voxels: int = 0) -> DenseGrid:
+    def dense(self, pad_voxels: int = 0, *, region_xy_m: tuple[float, float, float, float] | None = None,
+              z_range_m: tuple[float, float] | None = None, color: bool = True) -> DenseGrid:
         """The allocated blocks' bounding box as dense (X, Y, Z) arrays; unallocated voxels are
-        unobserved (weight 0, tsdf 1). Padding adds unobserved voxels around it."""
+        unobserved (weight 0, tsdf 1). Padding adds unobserved voxels around it. ``region_xy_m``
+        (x_min, y_min, x_max, y_max) and ``z_range_m`` (z_min, z_max), world m: only the blocks that
+        meet that box (the box of those blocks: cheaper than the whole map for a robot's surroundings);
+        ``color=False`` leaves the colour out (an empty (X, Y, Z, 3) array)."""
         b = self.cfg.block_voxels
         coords = self.hash.slot_coords
         if len(coords) == 0:
             raise ValueError("the map is empty: integrate frames before reading it")
+        slots = None
+        if region_xy_m is not None or z_range_m is not None:
+            size, half = self.cfg.block_size_m, 0.5 * self.cfg.voxel_size_m
+            lo_m = (coords * b).to(torch.float64) * self.cfg.voxel_size_m - half  # (n, 3) block's lower corner
+            keep = torch.ones(len(coords), dtype=torch.bool, device=coords.device)
+            boxes = []
+            if region_xy_m is not None:
+                x0, y0, x1, y1 = region_xy_m
+                boxes += [(0, x0, x1), (1, y0, y1)]
+            if z_range_m is not None:
+                boxes.append((2, *z_range_m))
+            for axis, a0, a1 in boxes:
+                keep &= (lo_m[:, axis] + size >= a0) & (lo_m[:, axis] <= a1)
+            slots = torch.nonzero(keep, as_tuple=True)[0]
+            if len(slots) == 0:
+                raise ValueError(f"no block of the map meets region_xy_m={region_xy_m}, z_range_m={z_range_m}: "
+                                 "nothing mapped there yet")
+            coords = coords[slots]
         lo = coords.min(0).values * b - pad_voxels
         hi = (coords.max(0).values + 1) * b + pad_voxels
         shape = tuple(int(s) for s in (hi - lo))
         tsdf = torch.ones(shape, dtype=torch.float32, device=self.device)
         weight = torch.zeros(shape, dtype=torch.float32, device=self.device)
-        color = torch.zeros((*shape, 3), dtype=torch.uint8, device=self.device)
-        idx = (self.voxel_index() - lo).reshape(-1, 3)
-        n = self.num_blocks
-        tsdf[idx[:, 0], idx[:, 1], idx[:, 2]] = self.tsdf[:n].reshape(-1)
-        weight[idx[:, 0], idx[:, 1], idx[:, 2]] = self.weight[:n].reshape(-1)
-        color[idx[:, 0], idx[:, 1], idx[:, 2]] = self.color[:n].reshape(-1, 3)
-        return DenseGrid(tsdf=tsdf, weight=weight, color=color, origin_index=lo, voxel_size_m=self.cfg.voxel_size_m,
+        color_shape = (*shape, 3) if color else (0, 0, 0, 3)
+        colors = torch.zeros(color_shape, dtype=torch.uint8, device=self.device)
+        idx = (self.voxel_index(slots) - lo).reshape(-1, 3)
+        rows = slice(0, self.num_blocks) if slots is None else slots
+        tsdf[idx[:, 0], idx[:, 1], idx[:, 2]] = self.tsdf[rows].reshape(-1)
+        weight[idx[:, 0], idx[:, 1], idx[:, 2]] = self.weight[rows].reshape(-1)
+        if color:
+            colors[idx[:, 0], idx[:, 1], idx[:, 2]] = self.color[rows].reshape(-1, 3)
+        return DenseGrid(tsdf=tsdf, weight=weight, color=colors, origin_index=lo, voxel_size_m=self.cfg.voxel_size_m,
                          truncation_m=self.cfg.truncation_m)
+
+    def occupancy_slice(self, z_min_m: float, z_max_m: float, region_xy_m: tuple[float, float, float, float] | None
+                        = None, min_weight: float = 1.0):
+        """The occupancy slice of the height band [z_min_m, z_max_m] (``slices.occupancy_slice``: -1 unknown,
+        0 free, 1 occupied, cells on the voxel columns) over the blocks that meet ``region_xy_m`` (x_min,
+        y_min, x_max, y_max, world m; None: the whole map), densifying only those blocks and no colour:
+        what a navigator reads every replan (``slices.Slice2D``; ``costmap.inflate`` makes its costmap).
+        The slice covers whole blocks, so it may reach up to a block beyond the region."""
+        from ..slices import occupancy_slice  # slices reads DenseGrid from here
+
+        vs = self.cfg.voxel_size_m
+        grid = self.dense(region_xy_m=region_xy_m, z_range_m=(z_min_m - vs, z_max_m + vs), color=False)
+        return occupancy_slice(grid, z_min_m, z_max_m, min_weight)
 
     def memory_bytes(self) -> int:
         """Bytes held by the voxel storage (allocated capacity)."""
