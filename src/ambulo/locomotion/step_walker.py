@@ -214,6 +214,7 @@ class ZmpStepWalker:
             raise InvalidValueError("sim_or_engine", type(sim_or_engine).__name__, "expected a started "
                                     "core.Simulation or its engine", "call sim.start() first")
         self.engine, self.robot = engine, robot
+        self._chunk = None
         m = self.model = engine.model
         names = walk_robot(m, robot.prim_path if hasattr(robot, "prim_path") else humanoid.PRIM_PATH)
         self.names = names
@@ -238,16 +239,18 @@ class ZmpStepWalker:
         self.data = mujoco.MjData(m)
         return self
 
-    def _require_bound(self) -> None:
+    def _require_bound(self, reset: bool = True) -> None:
         if self.engine is None:
             raise InvalidValueError("walker", "unbound", "bind it to a simulation first",
                                     "call walker.bind(sim, core.Entity(sim.engine, robots.humanoid.PRIM_PATH))")
+        if reset and getattr(self, "_chunk", None) is None:
+            raise InvalidValueError("walker", "not reset", "it has no pattern yet", "call walker.reset() after bind")
 
     def reset(self, floor_z_m: float = 0.0) -> None:
         """Put the robot in the ``home`` keyframe at its current x, y and yaw, soles on the floor
         at ``floor_z_m``, legs set by the IK so that the CoM stands at the pattern's height over
         the middle of the soles, at rest; the walker stands with no plan."""
-        self._require_bound()
+        self._require_bound(reset=False)
         data = self.engine.get_data(0, self.data)
         pos = data.xpos[self.pelvis].copy()
         mat = data.xmat[self.pelvis]
@@ -597,13 +600,20 @@ class ZmpStepWalker:
         self._since_check += samples
         if self._since_check >= self.cfg.monitor_every_samples:  # the hulls cost more than the control
             self._since_check = 0
-            self._fell |= self.balance().falling
+            self._fell |= self._balance(self.data).falling
 
     # ------------------------------------------------------------------ state
+    def _current(self) -> mujoco.MjData:
+        """The simulation's state now (the physics has stepped since ``step`` read it)."""
+        self.data = self.engine.get_data(0, self.data)
+        return self.data
+
     def feet_xyyaw_w(self) -> np.ndarray:
         """(2, 3) the soles now (left, right; x m, y m, yaw rad), measured: the planner's start feet."""
-        self._require_bound()
-        d = self.data
+        self._require_bound(reset=False)
+        return self._soles(self._current())
+
+    def _soles(self, d: mujoco.MjData) -> np.ndarray:
         return np.array([[d.site_xpos[s][0], d.site_xpos[s][1], math.atan2(d.site_xmat[s][3], d.site_xmat[s][0])]
                          for s in self.sites])
 
@@ -660,13 +670,16 @@ class ZmpStepWalker:
     def balance(self) -> WalkerBalance:
         """Capture point, ZMP and their margins to the support polygon now (``balance``)."""
         self._require_bound()
-        m, d = self.model, self.data
+        return self._balance(self._current())
+
+    def _balance(self, d: mujoco.MjData) -> WalkerBalance:
+        m = self.model
         mujoco.mj_subtreeVel(m, d)
         xi = d.subtree_com[self.root, :2] + d.subtree_linvel[self.root, :2] / self.omega
         chunk = self._chunk
         k = min(chunk.k, chunk.length - 1)
         feet = [i for i in (0, 1) if chunk.pattern.foot_contact[k, i]]
-        soles = self.feet_xyyaw_w()
+        soles = self._soles(d)
         poly = support_polygon([soles[i] for i in feet], HUMANOID_FOOT)
         margin = float(polygon_signed_distance(xi, poly))
         pc = self.cop(d)
