@@ -17,7 +17,7 @@ import torch
 from ..maps import CellGeometry, Grid2D
 from ..utils.checks import Described, InvalidValueError
 from .esdf import Esdf
-from .tsdf.map import DenseGrid
+from .tsdf.map import DenseGrid, TsdfMap
 
 UNKNOWN, FREE, OCCUPIED = -1, 0, 1
 """An occupancy slice's int8 codes (``maps.Grid2D`` stores ROS's -1 / 0 / 100; ``to_grid2d`` converts)."""
@@ -121,6 +121,20 @@ def occupancy_slice(grid: DenseGrid, z_min_m: float, z_max_m: float, min_weight:
     return Slice2D(data.T.contiguous(), _origin(grid.origin_index, grid.voxel_size_m), grid.voxel_size_m)
 
 
+def map_occupancy_slice(tsdf: TsdfMap, z_min_m: float, z_max_m: float,
+                        region_xy_m: tuple[float, float, float, float] | None = None, min_weight: float = 1.0,
+                        floor_seen_m: float | None = None) -> Slice2D:
+    """``occupancy_slice`` of a ``TsdfMap`` over the blocks that meet ``region_xy_m`` (x_min, y_min, x_max,
+    y_max, world m; None: the whole map) and the band (with a voxel either side), densified without colour
+    (``TsdfMap.dense(region_xy_m=, z_range_m=, color=False)``): what a navigator reads at every replan, the
+    costmap being ``costmap.inflate`` of it. Its cells are the voxel columns (those of the whole map's
+    slice), covering whole blocks, so it may reach up to a block beyond the region. Measured on an
+    apartment after a 12 s walk (benchmarks/mapping.py --apartment): see the benchmark's navigator_ms."""
+    vs = tsdf.cfg.voxel_size_m
+    grid = tsdf.dense(region_xy_m=region_xy_m, z_range_m=(z_min_m - vs, z_max_m + vs), color=False)
+    return occupancy_slice(grid, z_min_m, z_max_m, min_weight, floor_seen_m)
+
+
 def distance_slice(esdf: Esdf, z_min_m: float, z_max_m: float) -> Slice2D:
     """(H, W) float32: the smallest ESDF value over the band's observed voxels (nvblox's 2-D
     distance map), m; ``nan`` where the band was never observed."""
@@ -183,5 +197,5 @@ def height_map(grid: DenseGrid, *, max_height_m: float = 0.5, foot_half_cells: i
     return HeightMap(Slice2D(height.T.contiguous(), origin, vs), Slice2D(steppable.T.contiguous(), origin, vs))
 
 
-__all__ = ["FREE", "OCCUPIED", "UNKNOWN", "HeightMap", "Slice2D", "distance_slice", "height_map", "occupancy_slice",
-           "surface_voxels", "to_grid2d"]
+__all__ = ["FREE", "OCCUPIED", "UNKNOWN", "HeightMap", "Slice2D", "distance_slice", "height_map", "map_occupancy_slice",
+           "occupancy_slice", "surface_voxels", "to_grid2d"]

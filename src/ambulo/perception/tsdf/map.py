@@ -468,19 +468,6 @@ class TsdfMap(_TorchIntegration):
         return DenseGrid(tsdf=tsdf, weight=weight, color=colors, origin_index=lo, voxel_size_m=self.cfg.voxel_size_m,
                          truncation_m=self.cfg.truncation_m)
 
-    def occupancy_slice(self, z_min_m: float, z_max_m: float, region_xy_m: tuple[float, float, float, float] | None
-                        = None, min_weight: float = 1.0):
-        """The occupancy slice of the height band [z_min_m, z_max_m] (``slices.occupancy_slice``: -1 unknown,
-        0 free, 1 occupied, cells on the voxel columns) over the blocks that meet ``region_xy_m`` (x_min,
-        y_min, x_max, y_max, world m; None: the whole map), densifying only those blocks and no colour:
-        what a navigator reads every replan (``slices.Slice2D``; ``costmap.inflate`` makes its costmap).
-        The slice covers whole blocks, so it may reach up to a block beyond the region."""
-        from ..slices import occupancy_slice  # slices reads DenseGrid from here
-
-        vs = self.cfg.voxel_size_m
-        grid = self.dense(region_xy_m=region_xy_m, z_range_m=(z_min_m - vs, z_max_m + vs), color=False)
-        return occupancy_slice(grid, z_min_m, z_max_m, min_weight)
-
     def memory_bytes(self) -> int:
         """Bytes held by the voxel storage (allocated capacity)."""
         return sum(t.numel() * t.element_size() for t in (self.tsdf, self.weight, self.color))
