@@ -28,7 +28,7 @@ from ..perception.costmap import Costmap, InflationCfg, inflate
 from ..perception.frames import RgbdFrame
 from ..perception.slices import OCCUPIED as SLICE_OCCUPIED
 from ..perception.slices import UNKNOWN as SLICE_UNKNOWN
-from ..perception.slices import Slice2D, occupancy_slice
+from ..perception.slices import Slice2D
 from ..perception.tsdf.map import TsdfCfg, TsdfMap
 from ..robots import humanoid
 from ..utils.validate import Checked
@@ -60,7 +60,7 @@ class OracleMapper:
     def mark_body(self, xy) -> None:
         pass
 
-    def refresh(self, time_s: float) -> bool:
+    def refresh(self, time_s: float, xy=None) -> bool:
         return False
 
     def costmap(self) -> Costmap:
@@ -72,16 +72,22 @@ class OnlineMapperCfg(Checked):
     tsdf: TsdfCfg = field(default_factory=lambda: TsdfCfg(depth_max_m=4.0))
     """5 cm voxels; depth beyond 4 m is left out (the head camera's far floor is noisy and its
     rays graze it)."""
-    band_m: tuple[float, float] = (0.1, humanoid.HEAD_HEIGHT_M)
-    """Height band of the occupancy slice, m: from the first voxel centre clear of the floor's
-    surface voxels to the head."""
+    band_m: tuple[float, float] = (0.04, humanoid.HEAD_HEIGHT_M)
+    """Height band of the occupancy slice, m: from the first voxel centre above the floor (5 cm, so
+    a 5-15 cm box of shoes or pile of books is in it: the apartments' clutter, which the robot
+    fell over with the band starting at 0.1 m) to the head."""
     update_hz: float = 2.0
     """Slices per second of simulated time."""
-    body_free_radius_m: float = 0.35
+    body_free_radius_m: float = 0.4
     """Cells within this of a pose the robot stood at are free unless seen otherwise, m: the body's
-    0.265 m radius, a cell and the gait's sway. The head camera cannot see the floor within ~1.6 m
+    0.265 m radius and what the arms sweep; the footstep planner needs 0.25 m of clearance from
+    unknown cells around its start stance. The head camera cannot see the floor within ~1.6 m
     ahead, so without this the footstep planner (0.25 m body clearance from unknown cells) could
     never start."""
+    region_half_m: float = 5.0
+    """Each refresh re-slices only the TSDF blocks within this of the robot (``TsdfMap.occupancy_slice``
+    with a region: the frames fused since the last refresh saw at most ``tsdf.depth_max_m`` ahead
+    of poses this close), m; the rest of the map keeps its cells."""
     margin_m: float = 1.0
     """The map covers the world's ground-truth extent grown by this, m."""
 
@@ -141,16 +147,19 @@ class OnlineMapper:
             self._body_free[ys[inside], xs[inside]] = True
             self._dirty = True
 
-    def refresh(self, time_s: float) -> bool:
-        """Cut a new slice if one is due and anything changed; True when the map changed."""
+    def refresh(self, time_s: float, xy=None) -> bool:
+        """Cut a new slice around ``xy`` (the robot; None: the whole map) if one is due and anything
+        changed; True when the map changed."""
         if not self._dirty or time_s - self._last_refresh_s < 1.0 / self.cfg.update_hz:
             return False
         t0 = time.perf_counter()
         self._last_refresh_s = time_s
         self._dirty = False
-        occ = np.full_like(self._occ, UNKNOWN)
+        occ = self._occ.copy()
         if self.tsdf.num_blocks:
-            sl = occupancy_slice(self.tsdf.dense(), *self.cfg.band_m)
+            h = self.cfg.region_half_m
+            region = None if xy is None else (float(xy[0]) - h, float(xy[1]) - h, float(xy[0]) + h, float(xy[1]) + h)
+            sl = self.tsdf.occupancy_slice(*self.cfg.band_m, region_xy_m=region)
             data = sl.data.cpu().numpy()
             vs = self.grid.resolution_m
             sx, sy = (int(round(sl.origin_xy_m[0] / vs + 0.5)), int(round(sl.origin_xy_m[1] / vs + 0.5)))

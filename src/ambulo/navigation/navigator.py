@@ -67,6 +67,11 @@ class NavigatorCfg(Checked):
     """A partial plan is renewed when this much of its body path is left, m."""
     blocked_clearance_m: float = 0.18
     """After a map change, a remaining body path point with less clearance than this forces a replan, m."""
+    look_radius_m: float = 0.3
+    """A subgoal nearer than this (no observed free space along the route) becomes a turn on the
+    spot towards the route, so the camera sees where the robot is to go, m."""
+    start_snap_m: float = 0.35
+    """A start stance that touches an obstacle moves to the nearest clear cell within this, m."""
     goal_backoff_m: float = 0.15
     """A goal whose stance touches an obstacle is approached up to this short along the route, m."""
     min_replan_gap_s: float = 0.25
@@ -280,7 +285,7 @@ class Navigator:
             self.estimate = PoseEstimate(self.localizer.pose(), True, now)
         if self.estimate.tracked:
             self._mark_body()
-        map_changed = self.mapper.refresh(now)
+        map_changed = self.mapper.refresh(now, self.estimate.xyyaw[:2])
         if w.fell:
             return self._finish("fell")
         if self.goal_xy_m is None:
@@ -326,6 +331,28 @@ class Navigator:
             return "map changed"
         return None
 
+    def _clear_start(self, grid, optimistic: bool, est: np.ndarray):
+        """The nearest pose (the robot's heading) within ``start_snap_m`` whose cell has the route's
+        clearance and one cell more, or None: where a plan starts when the robot brushed close to
+        something (the policy walker walks to a plan's start within its start offset)."""
+        clr = footstep_clearance(grid, optimistic)
+        need = self.cfg.planning.route_clearance_m + grid.resolution_m
+        iy, ix = grid.cell_of(est[:2])
+        k = int(math.ceil(self.cfg.start_snap_m / grid.resolution_m))
+        ny, nx = grid.shape
+        y0, y1, x0, x1 = max(0, iy - k), min(ny, iy + k + 1), max(0, ix - k), min(nx, ix + k + 1)
+        if y0 >= y1 or x0 >= x1:
+            return None
+        yy, xx = np.nonzero(clr[y0:y1, x0:x1] >= need)
+        if not len(yy):
+            return None
+        cx, cy = grid.cell_center_xy_m(yy + y0, xx + x0)
+        d = np.hypot(cx - est[0], cy - est[1])
+        j = int(np.argmin(d))
+        if d[j] > self.cfg.start_snap_m:
+            return None
+        return (float(cx[j]), float(cy[j]), float(est[2]))
+
     def _drift_m(self, est: np.ndarray) -> float:
         """Distance from the estimated position to the plan's body path, m."""
         path = body_path(self.plan)
@@ -362,19 +389,23 @@ class Navigator:
                 yaw = self.goal_yaw_rad if self.goal_yaw_rad is not None else route_heading(path, k)
             else:
                 goal_xy, yaw = path[k], route_heading(path, k)
-            if np.linalg.norm(goal_xy - est[:2]) < 0.05 and not final:
-                status = "subgoal_at_robot"
-            else:
-                plan = self._plan_footsteps(grid, version, optimistic, est, route, k, final, goal_xy, yaw)
-                status, steps = plan.status.value, plan.num_steps
-                usable = plan.status == PlanStatus.SUCCESS or (plan.num_steps >= 2 and plan.status in (
-                    PlanStatus.BUDGET_EXHAUSTED, PlanStatus.GOAL_UNREACHABLE))
-                final = final and plan.status == PlanStatus.SUCCESS
-                if usable:
-                    refused = self.walker.refuse(plan)
-                    if refused is None:
-                        self.plan, self.plan_final = plan, final
-                        self.walker.set_plan(plan, final=final)
+            if not final and np.linalg.norm(goal_xy - est[:2]) < self.cfg.look_radius_m:
+                # nothing observed along the route ahead: turn on the spot to look down it
+                s = np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))
+                j = min(len(path) - 1, int(np.searchsorted(s, 0.6)) + 1)
+                d = path[j] - est[:2]
+                goal_xy, yaw = est[:2].copy(), float(math.atan2(d[1], d[0]))
+                reason = reason + " (look)"
+            plan = self._plan_footsteps(grid, version, optimistic, est, route, k, final, goal_xy, yaw)
+            status, steps = plan.status.value, plan.num_steps
+            usable = plan.status == PlanStatus.SUCCESS or (plan.num_steps >= 2 and plan.status in (
+                PlanStatus.BUDGET_EXHAUSTED, PlanStatus.GOAL_UNREACHABLE))
+            final = final and plan.status == PlanStatus.SUCCESS
+            if usable:
+                refused = self.walker.refuse(plan)
+                if refused is None:
+                    self.plan, self.plan_final = plan, final
+                    self.walker.set_plan(plan, final=final)
         self.replans.append(ReplanRecord(now, time.perf_counter() - t0, reason, route.found, status, steps, final,
                                          refused))
 
@@ -393,13 +424,8 @@ class Navigator:
         plan = stage.plan(grid, version, optimistic, est, (goal_xy[0], goal_xy[1], yaw))
         path = route.path_xy_m
         if plan.status == PlanStatus.START_IN_COLLISION:
-            s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
-            for j in range(1, k + 1):
-                if s[j] > 0.4:
-                    break
-                if s[j] < 0.1:
-                    continue
-                start = (path[j][0], path[j][1], route_heading(path, j))
+            start = self._clear_start(grid, optimistic, est)
+            if start is not None:
                 retry = stage.plan(grid, version, optimistic, start, (goal_xy[0], goal_xy[1], yaw))
                 if retry.status != PlanStatus.START_IN_COLLISION:
                     return retry

@@ -59,9 +59,12 @@ class PathTracker:
         self.cfg = cfg or TrackerCfg()
         self.set_path(None, final=False)
 
-    def set_path(self, path_xy: np.ndarray | None, *, final: bool) -> None:
-        """Follow ``path_xy`` (K, 2) m, world frame; ``final``: it ends at the goal (stop there)."""
+    def set_path(self, path_xy: np.ndarray | None, *, final: bool, end_yaw_rad: float | None = None) -> None:
+        """Follow ``path_xy`` (K, 2) m, world frame; ``final``: it ends at the goal (stop there);
+        ``end_yaw_rad``: at the end of a path that is not final, turn on the spot to this heading (a
+        plan that only turns the robot: look where the route goes before walking into the unseen)."""
         self.final = final
+        self.end_yaw_rad = end_yaw_rad
         self.arrived = False
         """At a final goal and standing (latched; see the module docstring)."""
         self._turning = False
@@ -139,7 +142,12 @@ class PathTracker:
             if self.arrived:
                 return 0.0, 0.0, 0.0
         elif self.remaining_m < 0.05 and to_end < c.stop_radius_m:  # the end of a partial path: wait there
-            return 0.0, 0.0, 0.0
+            if self.end_yaw_rad is None:
+                return 0.0, 0.0, 0.0
+            err = math.atan2(math.sin(self.end_yaw_rad - yaw), math.cos(self.end_yaw_rad - yaw))
+            if abs(err) < 0.1:
+                return 0.0, 0.0, 0.0
+            return 0.0, 0.0, float(np.clip(c.yaw_gain_per_s * err, -c.max_yaw_rate_rad_s, c.max_yaw_rate_rad_s))
         target = self.point_at(self.progress_m + c.lookahead_m)
         if self.remaining_m < c.lookahead_m:
             target = end

@@ -198,7 +198,9 @@ class PolicyWalker:
             self.tracker.set_path(None, final=False)
             self._standing = True
             return
-        self.tracker.set_path(body_path(plan), final=final)
+        end = plan.footsteps_xyyaw_w[-2:, 2]
+        end_yaw = math.atan2(np.sin(end).sum(), np.cos(end).sum())
+        self.tracker.set_path(body_path(plan), final=final, end_yaw_rad=None if final else end_yaw)
         self._standing = False
 
     def stand(self) -> None:

@@ -52,7 +52,7 @@ class NavWorldCfg(Checked):
     focal_length_px: float | None = None
     """None: TUM RGB-D's 525 px at 640 px wide, scaled to ``camera_width``."""
     depth_range_m: tuple[float, float] = (0.1, 20.0)
-    head_lamp: float = 0.5
+    head_lamp: float = 0.8
     """Diffuse intensity of a lamp on the camera (MuJoCo's headlight; 0: off). The apartments are lit
     for their overview and read ~28/255 with a contrast of ~5 levels from the head camera facing a
     wall: too dark for the odometry's corners; a robot's head lamp is the usual fix."""
