@@ -13,7 +13,7 @@ from ambulo.maps import Grid2D
 from ambulo.nav import FootstepPlan, PlanStatus
 from ambulo.navigation.localization import PoseEstimate
 from ambulo.navigation.navigator import NavSnapshot
-from ambulo.navigation.topdown import COLORS, TopDown, polyline_points, rect_points
+from ambulo.navigation.topdown import COLORS, TopDown, crop, polyline_points, rect_points
 from ambulo.navigation.video import EpisodeVideo, VideoCfg
 from ambulo.perception.frames import RgbdFrame
 
@@ -132,6 +132,19 @@ def test_polyline_and_rect_sampling_by_hand():
     rel = np.concatenate([border, inside]) - 50.0
     along, across = np.array([-1.0, 1.0]) / math.sqrt(2), np.array([1.0, 1.0]) / math.sqrt(2)
     assert (rel @ along).max() == pytest.approx(5.0) and np.abs(rel @ across).max() == pytest.approx(2.0)
+
+
+def test_a_view_crops_the_map_on_its_lattice_and_pads_with_unknown():
+    grid = _grid()  # x -1..3, y -0.5..1.5 m
+    view = crop(grid, (1.5, -1.0, 2.52, 0.0))  # past the bottom edge; 2.52 grows to the cell edge 2.55
+    assert view.origin_xy_m == pytest.approx((1.5, -1.0)) and view.shape == (20, 21)
+    assert (view.occupancy[:10] == -1).all()  # y -1.0..-0.5: outside the map
+    assert (view.occupancy[10:, 10:12] == 100).all() and (view.occupancy[10:, :10] == 0).all()  # the wall at x 2.0
+    # drawn through a view, a world point lands on the same map content as without one
+    td, full = TopDown(20.0, (1.5, -1.0, 2.52, 0.0)), TopDown(20.0)
+    for xy in ((2.05, -0.2), (1.7, -0.2)):
+        a, b = td.pixel_of(grid, xy)[0].astype(int), full.pixel_of(grid, xy)[0].astype(int)
+        assert tuple(td.base(grid)[a[0], a[1]]) == tuple(full.base(grid)[b[0], b[1]])
 
 
 def test_the_map_picture_is_rebuilt_only_for_a_new_grid():

@@ -167,7 +167,8 @@ def run_one(args: argparse.Namespace) -> int:
     try:
         nav = Navigator(world, nav_cfg, walker=walker)
         video = EpisodeVideo(args.video, map_png=out / "map.png", title=f"{name}  {mode}",
-                             goal_tolerance_m=nav_cfg.goal_tolerance_m)
+                             goal_tolerance_m=nav_cfg.goal_tolerance_m,
+                             view_xy_m=world.occupancy.extent_xy_m())  # an online map covers far more
         nav.add_observer(video, images=args.video is not None)
         nav.set_goal(goal)
         try:

@@ -48,6 +48,21 @@ def map_rgb(grid: Grid2D, inflation_radius_m: float = humanoid.BODY_RADIUS_M) ->
     return rgb
 
 
+def crop(grid: Grid2D, box_xy_m) -> Grid2D:
+    """The cells of ``grid`` covering ``box_xy_m`` (x0, y0, x1, y1), m, on the same lattice (the
+    box grows to whole cells); cells outside ``grid`` are unknown."""
+    x0, y0, x1, y1 = (float(v) for v in box_xy_m)
+    (ox, oy), r = grid.origin_xy_m, grid.resolution_m
+    ny, nx = grid.shape
+    ix0, iy0 = math.floor((x0 - ox) / r + 1e-9), math.floor((y0 - oy) / r + 1e-9)
+    ix1, iy1 = max(ix0 + 1, math.ceil((x1 - ox) / r - 1e-9)), max(iy0 + 1, math.ceil((y1 - oy) / r - 1e-9))
+    occ = np.full((iy1 - iy0, ix1 - ix0), UNKNOWN, np.int8)
+    sy0, sy1, sx0, sx1 = max(iy0, 0), min(iy1, ny), max(ix0, 0), min(ix1, nx)
+    if sy0 < sy1 and sx0 < sx1:
+        occ[sy0 - iy0:sy1 - iy0, sx0 - ix0:sx1 - ix0] = grid.occupancy[sy0:sy1, sx0:sx1]
+    return Grid2D(occupancy=occ, origin_xy_m=(ox + ix0 * r, oy + iy0 * r), resolution_m=r)
+
+
 def stamp(img: np.ndarray, rc: np.ndarray, radius_px: float, color) -> None:
     """Paint discs of ``radius_px`` at the continuous pixel positions ``rc`` (K, 2) (row, column)
     into ``img`` (H, W, 3) in place; parts outside the picture are dropped."""
@@ -103,33 +118,42 @@ def _lighter(color, amount: float = 0.55) -> tuple[int, int, int]:
 
 
 class TopDown:
-    """Draws episode layers over one map at ``px_per_m`` pixels per metre (module docstring).
-    The map picture is rebuilt only when the grid object changes (mappers make a new one per
-    update)."""
+    """Draws episode layers over one map at ``px_per_m`` pixels per metre (module docstring),
+    showing only ``view_xy_m`` (x0, y0, x1, y1), m, when given (an online map covers far more than
+    the scene). The map picture is rebuilt only when the grid object changes (mappers make a new
+    one per update)."""
 
-    def __init__(self, px_per_m: float):
+    def __init__(self, px_per_m: float, view_xy_m=None):
         self.px_per_m = float(px_per_m)
+        self.view_xy_m = None if view_xy_m is None else tuple(float(v) for v in view_xy_m)
         self._grid: Grid2D | None = None
+        self._view: Grid2D | None = None
         self._base: np.ndarray | None = None
+
+    def view(self, grid: Grid2D) -> Grid2D:
+        """The part of ``grid`` drawn (``grid`` itself without ``view_xy_m``)."""
+        self.base(grid)
+        return self._view
 
     def base(self, grid: Grid2D) -> np.ndarray:
         """(H, W, 3) uint8 map picture of ``grid`` at ``px_per_m``, y up (cached per grid object)."""
         if grid is not self._grid:
-            rgb = map_rgb(grid)
-            ny, nx = grid.shape
-            cell_px = grid.resolution_m * self.px_per_m
+            view = grid if self.view_xy_m is None else crop(grid, self.view_xy_m)
+            rgb = map_rgb(view)
+            ny, nx = view.shape
+            cell_px = view.resolution_m * self.px_per_m
             h, w = max(1, round(ny * cell_px)), max(1, round(nx * cell_px))
             iy = np.minimum(ny - 1, ((h - 1 - np.arange(h) + 0.5) / cell_px).astype(np.int64))
             ix = np.minimum(nx - 1, ((np.arange(w) + 0.5) / cell_px).astype(np.int64))
-            self._base = rgb[iy[:, None], ix[None, :]]
-            self._grid = grid
+            self._base = rgb.take(iy, axis=0).take(ix, axis=1)
+            self._grid, self._view = grid, view
         return self._base
 
     def pixel_of(self, grid: Grid2D, xy_m) -> np.ndarray:
         """(K, 2) float (row, column) of world points (K, 2) on ``grid``'s picture."""
         xy = np.asarray(xy_m, np.float64).reshape(-1, 2)
-        ox, oy = grid.origin_xy_m
         h = self.base(grid).shape[0]
+        ox, oy = self._view.origin_xy_m
         return np.stack([h - (xy[:, 1] - oy) * self.px_per_m, (xy[:, 0] - ox) * self.px_per_m], -1)
 
     def draw(self, grid: Grid2D, *, route_xy_m=None, footsteps=None, estimated_xy_m=None, true_xy_m=None,
@@ -167,4 +191,4 @@ class TopDown:
         return img
 
 
-__all__ = ["COLORS", "FOOT_SIZE_M", "TopDown", "map_rgb", "polyline_points", "rect_points", "stamp"]
+__all__ = ["COLORS", "FOOT_SIZE_M", "TopDown", "crop", "map_rgb", "polyline_points", "rect_points", "stamp"]

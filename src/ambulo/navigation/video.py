@@ -80,11 +80,14 @@ class EpisodeVideo:
     files (``abort()`` drops the video). ``last_frame`` is the latest composed frame."""
 
     def __init__(self, path: str | os.PathLike | None, cfg: VideoCfg | None = None, *,
-                 map_png: str | os.PathLike | None = None, title: str = "", goal_tolerance_m: float = 0.3):
+                 map_png: str | os.PathLike | None = None, title: str = "", goal_tolerance_m: float = 0.3,
+                 view_xy_m=None):
         self.cfg = cfg = cfg or VideoCfg()
         self.path = None if path is None else Path(path)
         self.map_png = None if map_png is None else Path(map_png)
         self.title, self.goal_tolerance_m = title, goal_tolerance_m
+        self.view_xy_m = view_xy_m
+        """(x0, y0, x1, y1) m: the part of the map drawn (e.g. the scene's extent), or None for all of it."""
         self._writer = None if self.path is None else VideoWriter(self.path, fps=cfg.fps)
         self._topdown: TopDown | None = None
         self._map_size: tuple[int, int] | None = None
@@ -117,8 +120,12 @@ class EpisodeVideo:
         c = self.cfg
         grid = snap.occupancy
         if self._topdown is None:  # the scale is fixed once: every frame has the first one's size
-            span_y, span_x = (n * grid.resolution_m for n in grid.shape)
-            self._topdown = TopDown(min(c.panel_height_px / span_y, c.map_max_width_px / span_x))
+            if self.view_xy_m is None:
+                span_y, span_x = (n * grid.resolution_m for n in grid.shape)
+            else:
+                x0, y0, x1, y1 = self.view_xy_m
+                span_y, span_x = y1 - y0, x1 - x0
+            self._topdown = TopDown(min(c.panel_height_px / span_y, c.map_max_width_px / span_x), self.view_xy_m)
             base = self._topdown.base(grid)
             self._map_size = (c.panel_height_px, base.shape[1])
         top = self._topdown.draw(grid, route_xy_m=snap.route_xy_m, footsteps=snap.footsteps,
@@ -155,7 +162,7 @@ class EpisodeVideo:
         if self.last is None:
             raise RuntimeError("no snapshot was observed: add the video with Navigator.add_observer and run")
         snap = self.last
-        topdown = TopDown(px_per_m or self.cfg.map_png_px_per_m)
+        topdown = TopDown(px_per_m or self.cfg.map_png_px_per_m, self.view_xy_m)
         img = topdown.draw(snap.occupancy, route_xy_m=snap.route_xy_m, footsteps=snap.footsteps,
                            estimated_xy_m=np.array(self.estimated_xy_m), true_xy_m=self._true_path(snap),
                            goal_xy_m=snap.goal_xy_m, robot_xyyaw=snap.true_pose, goal_tolerance_m=self.goal_tolerance_m)
