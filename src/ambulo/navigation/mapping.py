@@ -28,7 +28,7 @@ from ..perception.costmap import Costmap, InflationCfg, inflate
 from ..perception.frames import RgbdFrame
 from ..perception.slices import OCCUPIED as SLICE_OCCUPIED
 from ..perception.slices import UNKNOWN as SLICE_UNKNOWN
-from ..perception.slices import Slice2D
+from ..perception.slices import Slice2D, map_occupancy_slice
 from ..perception.tsdf.map import TsdfCfg, TsdfMap
 from ..robots import humanoid
 from ..utils.validate import Checked
@@ -85,7 +85,7 @@ class OnlineMapperCfg(Checked):
     ahead, so without this the footstep planner (0.25 m body clearance from unknown cells) could
     never start."""
     region_half_m: float = 5.0
-    """Each refresh re-slices only the TSDF blocks within this of the robot (``TsdfMap.occupancy_slice``
+    """Each refresh re-slices only the TSDF blocks within this of the robot (``slices.map_occupancy_slice``
     with a region: the frames fused since the last refresh saw at most ``tsdf.depth_max_m`` ahead
     of poses this close), m; the rest of the map keeps its cells."""
     margin_m: float = 1.0
@@ -159,7 +159,7 @@ class OnlineMapper:
         if self.tsdf.num_blocks:
             h = self.cfg.region_half_m
             region = None if xy is None else (float(xy[0]) - h, float(xy[1]) - h, float(xy[0]) + h, float(xy[1]) + h)
-            sl = self.tsdf.occupancy_slice(*self.cfg.band_m, region_xy_m=region)
+            sl = map_occupancy_slice(self.tsdf, *self.cfg.band_m, region_xy_m=region)
             data = sl.data.cpu().numpy()
             vs = self.grid.resolution_m
             sx, sy = (int(round(sl.origin_xy_m[0] / vs + 0.5)), int(round(sl.origin_xy_m[1] / vs + 0.5)))
