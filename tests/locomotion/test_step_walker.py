@@ -5,6 +5,7 @@ import math
 
 import numpy as np
 import pytest
+import torch
 
 from ambulo.core import Entity, PhysicsCfg, Simulation
 from ambulo.locomotion import ZmpStepWalker
@@ -203,3 +204,19 @@ def test_walks_a_plan_in_an_apartment_among_its_geoms():
     assert walker.done and not walker.fell
     end_mid, goal_mid = walker.feet_xyyaw_w()[:, :2].mean(0), plan.footsteps_xyyaw_w[-2:, :2].mean(0)
     assert np.hypot(*(end_mid - goal_mid)) < 0.10
+
+
+def test_falling_when_the_capture_point_leaves_the_support(arena_walker):
+    sim, walker = arena_walker
+    run(sim, walker, 0.2)
+    standing = walker.balance()
+    assert not standing.falling and standing.capture_margin_m > 0.05
+    # the CoM over the soles' middle at rest: the capture point is there too
+    assert np.hypot(*(standing.capture_point_xy - walker.feet_xyyaw_w()[:, :2].mean(0))) < 0.02
+    # shoved forward at 1 m/s: xi = c + v / omega lies 1 / sqrt(9.81 / 0.80) = 0.29 m ahead of the
+    # CoM, 0.29 - 0.11 (half a sole) = 0.18 m beyond the toes
+    robot = walker.robot
+    robot.write_root_velocity(lin_vel_w=torch.tensor([[1.0, 0.0, 0.0]], dtype=torch.float64))
+    shoved = walker.balance()
+    assert shoved.falling
+    assert shoved.capture_margin_m == pytest.approx(-0.18, abs=0.03)
