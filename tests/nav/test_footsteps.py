@@ -603,3 +603,19 @@ def test_a_replan_to_the_same_goal_reuses_the_goal_fields():
     np.testing.assert_array_equal(again.footsteps_xyyaw_w, fresh.footsteps_xyyaw_w)
     planner.plan((1.5, 0.9, 0.3), (4.0, 1.0, 0.0))
     assert planner.heuristic is not fields and planner.heuristic.goal[0] == 4.0
+
+
+def test_a_corridor_bending_away_from_the_goal_is_searched_along_the_corridor():
+    # a benchmark corridor that turns down, away from a goal up and to the right: footsteps that
+    # turn into it face away from the straight line to the goal. The weight multiplies only the
+    # path part of the heuristic, not that turning bound, so the search goes down the corridor in
+    # a handful of expansions (it took 1,531 when the weight multiplied both; a budget, not a timing)
+    rng = np.random.default_rng([3, BENCH.CATEGORIES.index("narrow_passages")])
+    problem = [BENCH.make_problem("narrow_passages", index, rng) for index in range(13)][12]
+    grid = GridMap.from_array(problem["occupied"], origin_xy_m=problem["origin_xy_m"], resolution_m=0.05)
+    plan = FootstepPlanner(grid, humanoid_footstep_cfg(max_expansions=100, time_budget_s=60.0)).plan(
+        goal_xyyaw_w=problem["goal"], start_feet_xyyaw_w=problem["start_feet"], stance_side=problem["stance_side"])
+    assert plan.status is PlanStatus.SUCCESS, plan.detail
+    assert 0 < plan.expansions <= 100
+    assert_valid(plan, grid, goal=problem["goal"], start_feet=problem["start_feet"],
+                 stance_side=problem["stance_side"])

@@ -130,9 +130,11 @@ class GoalHeuristic:
         return ((np.hypot(*(mid - self.goal[:2]).T) <= self.cfg.goal_tolerance_m)
                 & (np.abs(wrap_angle(mean_yaw - self.goal[2])) <= self.cfg.goal_tolerance_yaw_rad))
 
-    def steps_left(self, new_feet: np.ndarray, stance_foot: np.ndarray) -> np.ndarray:
+    def steps_left(self, new_feet: np.ndarray, stance_foot: np.ndarray, *, split: bool = False):
         """(K,) lower bound on the steps still needed once footsteps ``new_feet`` (K, 3) stand
-        beside ``stance_foot`` (3,), which moves next (module docstring)."""
+        beside ``stance_foot`` (3,), which moves next (module docstring). With ``split``: (that
+        bound, its path part (K,): the larger of the geodesic and the yaw bound, without the
+        turning towards the straight line to the goal), which the planner weights apart."""
         cfg, goal = self.cfg, self.goal
         mid_x, mid_y = 0.5 * (new_feet[:, 0] + stance_foot[0]), 0.5 * (new_feet[:, 1] + stance_foot[1])
         steps_geodesic = self.dist_m[self.checks.cells(mid_x, mid_y)] / self.mid_step_bound_m
@@ -146,8 +148,10 @@ class GoalHeuristic:
             final_err)
         yaw_err = np.abs(wrap_angle(new_feet[:, 2] - goal[2]))
         steps_yaw = np.maximum(yaw_err - cfg.goal_tolerance_yaw_rad - cfg.max_step_yaw_rad / 2, 0.0) / cfg.max_step_yaw_rad
-        return np.maximum(np.maximum(np.minimum(steps_geodesic, steps_line) + steps_turning, steps_geodesic),
-                          steps_yaw)
+        h = np.maximum(np.maximum(np.minimum(steps_geodesic, steps_line) + steps_turning, steps_geodesic), steps_yaw)
+        if not split:
+            return h
+        return h, np.maximum(steps_geodesic, steps_yaw)
 
     def _steps_to_advance(self, distance_m, err_new_rad, err_other_rad, err_final_rad):
         """(D / rate, turning extra), both (K,): see the module docstring. The feet's headings
