@@ -245,7 +245,8 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
                    help="oracle (true pose and map), mapping (true pose, online map) or full (visual odometry "
                         "and online map); comma-separated with --episodes (default oracle)")
     p.add_argument("--walker", default="policy", choices=("policy", "zmp"),
-                   help="policy: the shipped walking policy (default); zmp: the ZMP walker, once its adapter exists")
+                   help="policy: the shipped walking policy (default); zmp: the ZMP preview-control walker "
+                        "stepping on the planned footholds (use it in oracle mode)")
     p.add_argument("--randomize", action="store_true", help="domain randomization (friction, mass, lights, "
                    "colours, pushes, sensor noise)")
     p.add_argument("--video", metavar="OUT.mp4", help="film the episode: head camera beside the top-down map")
