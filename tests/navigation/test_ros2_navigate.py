@@ -189,6 +189,28 @@ def test_path_poses_face_the_next_point():
     assert msg.header.frame_id == "map" and msg.header.stamp.sec == 1
 
 
+def test_odometry_bytes_decode_with_rclpy_to_the_pose_and_body_velocity():
+    from ros2.conftest import needs_rclpy
+
+    needs_rclpy()
+    import rclpy  # noqa: F401 - the message packages need its libraries
+    from nav_msgs.msg import Odometry
+    from rclpy.serialization import deserialize_message
+
+    from ambulo.navigation.ros2_messages import OdometryCdr
+
+    raw = OdometryCdr("odom", "base_link")(3.25, (1.0, -2.0, -math.pi / 2), (0.4, -0.1, 0.3))
+    msg = deserialize_message(raw, Odometry)  # rclpy's own typesupport
+    assert (msg.header.frame_id, msg.child_frame_id) == ("odom", "base_link")
+    assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (3, 250_000_000)
+    p, q = msg.pose.pose.position, msg.pose.pose.orientation
+    assert (p.x, p.y, p.z) == (1.0, -2.0, 0.0)
+    assert (q.x, q.y, q.z, q.w) == pytest.approx((0.0, 0.0, -math.sqrt(0.5), math.sqrt(0.5)))  # -90 deg about z
+    v, w = msg.twist.twist.linear, msg.twist.twist.angular
+    assert (v.x, v.y, v.z, w.x, w.y, w.z) == (0.4, -0.1, 0.0, 0.0, 0.0, 0.3)
+    assert not any(msg.pose.covariance) and not any(msg.twist.covariance)
+
+
 def test_status_says_no_route_while_the_latest_replan_for_the_goal_found_none():
     from ambulo.navigation.planning import ReplanRecord
     from ambulo.navigation.ros2_node import goal_status
