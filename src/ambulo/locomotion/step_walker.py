@@ -26,6 +26,12 @@ How (one *chunk* per step, made when the previous one ends, i.e. at each touchdo
    where its rows match the landed feet (``splice_tolerance_m``), it continues after the last
    match; otherwise the real feet stay and its steps are taken from its first step on.
 
+Measured (``benchmarks/zmp_step_walker.py``, apartments 3 and 7, 10 random plans of 2-4 m of
+geodesic each, every one replanned after 4 steps): 20 of 20 walked to ``done`` without a fall,
+the soles' midpoint 1-3 mm from the plan's last stance; 0.12-0.13 m/s straight-line speed (start
+1.8 s, stop 1.2 s and the turns included); 0.69-0.77 s of CPU per simulated second, physics
+included (half of it the stabilizer's support-polygon clipping, a fifth the chunks' IK).
+
 Units: m, s, rad; poses (x, y, yaw) or (x, y, z, yaw) in the world frame unless said otherwise;
 arrays over the two feet are [left, right]; sides are +1 left, -1 right (``nav``'s).
 """
