@@ -28,7 +28,7 @@ from ..perception.costmap import Costmap, InflationCfg, inflate
 from ..perception.frames import RgbdFrame
 from ..perception.slices import OCCUPIED as SLICE_OCCUPIED
 from ..perception.slices import UNKNOWN as SLICE_UNKNOWN
-from ..perception.slices import Slice2D, map_occupancy_slice
+from ..perception.slices import Slice2D, occupancy_slice
 from ..perception.tsdf.map import TsdfCfg, TsdfMap
 from ..robots import humanoid
 from ..utils.validate import Checked
@@ -76,6 +76,14 @@ class OnlineMapperCfg(Checked):
     """Height band of the occupancy slice, m: from the first voxel centre above the floor (5 cm, so
     a 5-15 cm box of shoes or pile of books is in it: the apartments' clutter, which the robot
     fell over with the band starting at 0.1 m) to the head."""
+    floor_seen_m: float | None = 0.3
+    """A cell reads free only where a band voxel within this of the band's bottom was seen free
+    (``slices.occupancy_slice``): rays passing over a low box do not make it free (the robot walked
+    onto a 12 cm pile the slice read free, apartment 4), m; None: any band voxel seen free."""
+    start_blind_radius_m: float = 1.5
+    """Within this of the start, where the head camera (floor in view from ~1.6 m ahead) cannot see
+    the floor before the robot moves, a cell reads free when any band voxel over it was seen free
+    (rays passed over it), as if ``floor_seen_m`` were None, m."""
     update_hz: float = 2.0
     """Slices per second of simulated time."""
     body_free_radius_m: float = 0.4
@@ -85,8 +93,8 @@ class OnlineMapperCfg(Checked):
     ahead, so without this the footstep planner (0.25 m body clearance from unknown cells) could
     never start."""
     region_half_m: float = 5.0
-    """Each refresh re-slices only the TSDF blocks within this of the robot (``slices.map_occupancy_slice``
-    with a region: the frames fused since the last refresh saw at most ``tsdf.depth_max_m`` ahead
+    """Each refresh re-slices only the TSDF blocks within this of the robot (the dense grid of a region, as
+    ``slices.map_occupancy_slice``: the frames fused since the last refresh saw at most ``tsdf.depth_max_m`` ahead
     of poses this close), m; the rest of the map keeps its cells."""
     margin_m: float = 1.0
     """The map covers the world's ground-truth extent grown by this, m."""
@@ -116,6 +124,7 @@ class OnlineMapper:
         self._body_free = np.zeros((ny, nx), bool)
         self.grid = Grid2D(occupancy=self._occ.copy(), origin_xy_m=origin, resolution_m=vs)
         self.tsdf = TsdfMap(c.tsdf, device=self.device)
+        self._start_xy = np.asarray(world.start_pose[:2], float)
         self.version = 0
         self.frames_fused = 0
         self._last_refresh_s = -math.inf
@@ -159,8 +168,16 @@ class OnlineMapper:
         if self.tsdf.num_blocks:
             h = self.cfg.region_half_m
             region = None if xy is None else (float(xy[0]) - h, float(xy[1]) - h, float(xy[0]) + h, float(xy[1]) + h)
-            sl = map_occupancy_slice(self.tsdf, *self.cfg.band_m, region_xy_m=region)
+            z0, z1 = self.cfg.band_m
+            vs = self.cfg.tsdf.voxel_size_m
+            dense = self.tsdf.dense(region_xy_m=region, z_range_m=(z0 - vs, z1 + vs), color=False)
+            sl = occupancy_slice(dense, z0, z1, floor_seen_m=self.cfg.floor_seen_m)
             data = sl.data.cpu().numpy()
+            if self.cfg.floor_seen_m is not None and self.cfg.start_blind_radius_m > 0:
+                loose = occupancy_slice(dense, z0, z1).data.cpu().numpy()
+                cx, cy = sl.cell_centers_xy_m()[..., 0], sl.cell_centers_xy_m()[..., 1]
+                near = np.hypot(cx - self._start_xy[0], cy - self._start_xy[1]) <= self.cfg.start_blind_radius_m
+                data = np.where(near & (data == SLICE_UNKNOWN) & (loose != SLICE_UNKNOWN), loose, data)
             vs = self.grid.resolution_m
             sx, sy = (int(round(sl.origin_xy_m[0] / vs + 0.5)), int(round(sl.origin_xy_m[1] / vs + 0.5)))
             ox, oy = sx - self._k0[0], sy - self._k0[1]

@@ -67,7 +67,7 @@ class NavigatorCfg(Checked):
     """A partial plan is renewed when this much of its body path is left, m."""
     blocked_clearance_m: float = 0.18
     """After a map change, a remaining body path point with less clearance than this forces a replan, m."""
-    look_radius_m: float = 0.3
+    look_radius_m: float = 0.45
     """A subgoal nearer than this (no observed free space along the route) becomes a turn on the
     spot towards the route, so the camera sees where the robot is to go, m."""
     start_snap_m: float = 0.35

@@ -148,11 +148,13 @@ def choose_subgoal(route: Route, clearance: np.ndarray, grid: Grid2D, cfg: Plann
     # one cell more than the route's clearance: the planner tests the stance at the exact point,
     # which may lie up to a cell's half-diagonal nearer the blocked cells than its cell's centre
     ok[inside] = clearance[iy[inside], ix[inside]] >= cfg.route_clearance_m + grid.resolution_m
-    ok |= s < skip_m
-    bad = np.flatnonzero(~ok)
-    last_ok = (bad[0] - 1) if bad.size else len(path) - 1
-    within = int(np.searchsorted(s, cfg.horizon_m, side="right") - 1)
-    k = max(0, min(last_ok, within))
+    passable = ok | (s < skip_m)
+    bad = np.flatnonzero(~passable)
+    last = (bad[0] - 1) if bad.size else len(path) - 1
+    last = min(last, int(np.searchsorted(s, cfg.horizon_m, side="right") - 1))
+    # the subgoal itself needs the clearance (the stretch under the robot is only passed through)
+    good = np.flatnonzero(ok[:max(last, 0) + 1])
+    k = int(good[-1]) if good.size else 0
     return k, k == len(path) - 1
 
 
