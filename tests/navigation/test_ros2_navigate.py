@@ -268,6 +268,11 @@ def test_bridge_navigate_walks_to_the_goal_given_on_the_command_line():
 
 # -- the scenario process: the navigator and its node ------------------------------------------------
 def scenario(out: Path) -> int:
+    t0 = time.monotonic()
+
+    def phase(name: str) -> None:  # where the wall time goes (shown when the test fails)
+        print(f"scenario: {name} at {time.monotonic() - t0:.1f} s wall", flush=True)
+
     from ambulo.navigation import Navigator, NavigatorCfg, NavWorld, NavWorldCfg
     from ambulo.navigation.ros2_node import NavigateNode, NavigateNodeCfg
     from ambulo.robots import humanoid
@@ -280,6 +285,7 @@ def scenario(out: Path) -> int:
     # a reliable writer keeps only its history of unacknowledged samples: the test is of what the node
     # sends, so a peer starved of CPU must lose nothing
     node = NavigateNode(nav, NavigateNodeCfg(qos_depth=10_000))
+    phase("imported, world and node built")
     goal = np.array(ep.goal_xy_m, float)
     d = goal - np.array(ep.start_pose[:2])
     yaw = math.atan2(d[1], d[0])  # arrive facing the way it came
@@ -307,13 +313,15 @@ def scenario(out: Path) -> int:
         # the CPU the peer needs to start, and walk the robot in place
         while node.node.count_publishers("/goal_pose") == 0 and peer.poll() is None and time.monotonic() < wall_end:
             time.sleep(0.05)
+        phase("peer ready")
         node.spin(until=over)
+        phase(f"over at {world.time_s:.1f} s simulated ({nav.status})")
         peer.stdin.close()  # over without arrival: the peer dumps what it has
         end = time.monotonic() + 30.0
         while peer.poll() is None and time.monotonic() < end and not (out / "peer.json").exists():
             node.spin(seconds=0.05)
-        peer.wait(timeout=30.0)
-    finally:
+        phase("peer dumped")
+    finally:  # a peer that dumped has nothing left to lose: its DDS teardown is not waited for
         if peer.poll() is None:
             peer.kill()
         peer.wait()
@@ -327,6 +335,7 @@ def scenario(out: Path) -> int:
         "occupancy": {"shape": list(grid.shape), "resolution_m": grid.resolution_m,
                       "origin_xy_m": list(grid.origin_xy_m), "data": grid.occupancy.reshape(-1).tolist()}}))
     world.close()
+    phase("truth written")
     return 0
 
 
@@ -471,5 +480,9 @@ def peer(out: Path, goal_x: float, goal_y: float, goal_yaw: float, decoy_x: floa
 if __name__ == "__main__":
     os.environ.setdefault("PYTHONUNBUFFERED", "1")
     if sys.argv[1] == "scenario":
-        sys.exit(scenario(Path(sys.argv[2])))
+        code = scenario(Path(sys.argv[2]))
+        sys.stdout.flush()
+        sys.stderr.flush()
+        # everything is written: the interpreter's teardown (DDS, rclpy, warp) took ~10 s on a loaded machine
+        os._exit(code)
     sys.exit(peer(Path(sys.argv[2]), *map(float, sys.argv[3:8])))
