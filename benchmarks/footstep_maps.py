@@ -33,7 +33,8 @@ the body clearance, the start feet exactly as given, and the final stance at the
 Prints one line per category and ``RESULT {json}``: ``valid_pct`` (plans that claim success and
 pass the checker, over all problems), ``false_successes`` (claimed successes the checker rejects:
 must be 0), planning ms p50/p95 per category (``plan_ms``: ``FootstepPlanner(grid)`` plus its
-``plan`` call, i.e. a fresh map each query; ``query_ms``: the ``plan`` call alone), lattice
+``plan`` call, i.e. a fresh map each query; ``query_ms``: the ``plan`` call alone; ``plan_cpu_ms``:
+the process time of ``plan_ms``, near what a quiet machine's wall time would be), lattice
 expansions p50/p95/max per category (0 where the walk along the body path is the plan), the load
 average.
 """
@@ -403,19 +404,22 @@ def run(maps_per_category: int, seed: int = 0, png_dir: Path | None = None, cate
                 problem = make_problem(category, index, rng)
                 loaded = write_and_load(problem, Path(tmp))
                 grid = GridMap.from_map(loaded)
+                c0 = time.process_time()
                 t0 = time.perf_counter()
                 planner = FootstepPlanner(grid)
                 t1 = time.perf_counter()
                 plan = planner.plan(goal_xyyaw_w=problem["goal"], start_feet_xyyaw_w=problem["start_feet"],
                                     stance_side=problem["stance_side"])
                 t2 = time.perf_counter()
+                c2 = time.process_time()
                 ok = plan.status is PlanStatus.SUCCESS
                 blocked, extent = blocked_geometry(loaded)
                 problems = check_plan(plan.footsteps_xyyaw_w, plan.foot_sides, blocked, extent,
                                       start_feet=problem["start_feet"], stance_side=problem["stance_side"],
                                       goal=problem["goal"] if ok else None)
                 rows.append(dict(category=category, index=index, status=plan.status.value, ok=ok, problems=problems,
-                                 plan_s=t2 - t0, query_s=t2 - t1, steps=plan.num_steps, expansions=plan.expansions))
+                                 plan_s=t2 - t0, query_s=t2 - t1, cpu_s=c2 - c0, steps=plan.num_steps,
+                                 expansions=plan.expansions))
                 if ok and problems and verbose:
                     print(f"{category} {index}: claimed success, checker: {problems[:3]}")
                 if ok and not problems and category not in shown:
@@ -436,6 +440,7 @@ def run(maps_per_category: int, seed: int = 0, png_dir: Path | None = None, cate
             "maps": len(group), "valid_pct": round(100 * len(valid) / len(group), 1),
             "plan_ms": percentiles_ms([r["plan_s"] for r in group]),
             "query_ms": percentiles_ms([r["query_s"] for r in group]),
+            "plan_cpu_ms": percentiles_ms([r["cpu_s"] for r in group]),
             "steps_p50": int(np.median([r["steps"] for r in valid])) if valid else None,
             "expansions": {"p50": int(np.percentile([r["expansions"] for r in group], 50)),
                            "p95": int(np.percentile([r["expansions"] for r in group], 95)),
@@ -446,7 +451,7 @@ def run(maps_per_category: int, seed: int = 0, png_dir: Path | None = None, cate
             c = per_category[category]
             print(f"{category:16s} valid {c['valid_pct']:5.1f} %  plan ms p50 {c['plan_ms']['p50']:6.1f} "
                   f"p95 {c['plan_ms']['p95']:6.1f} max {c['plan_ms']['max']:7.1f}  query ms p95 "
-                  f"{c['query_ms']['p95']:6.1f}  steps p50 {c['steps_p50']}  expansions p50/p95/max "
+                  f"{c['query_ms']['p95']:6.1f}  CPU ms p50/p95 {c['plan_cpu_ms']['p50']}/{c['plan_cpu_ms']['p95']}  steps p50 {c['steps_p50']}  expansions p50/p95/max "
                   f"{c['expansions']['p50']}/{c['expansions']['p95']}/{c['expansions']['max']}  failures {c['failures']}")
     valid_all = sum(r["ok"] and not r["problems"] for r in rows)
     result = {
@@ -456,6 +461,7 @@ def run(maps_per_category: int, seed: int = 0, png_dir: Path | None = None, cate
         "plans_with_violations": sum(bool(r["problems"]) for r in rows),
         "plan_ms": percentiles_ms([r["plan_s"] for r in rows]),
         "query_ms": percentiles_ms([r["query_s"] for r in rows]),
+        "plan_cpu_ms": percentiles_ms([r["cpu_s"] for r in rows]),
         "per_category": per_category,
         "cpu_count": os.cpu_count(),
         "loadavg_1m_before_after": [round(load_before[0], 2), round(os.getloadavg()[0], 2)],
