@@ -10,8 +10,9 @@
 - ``eval``: the head-camera walk run through the odometry and scored (imports the sim; not loaded here).
 """
 
-from .config import KorniaFeaturesCfg, TrackState, VoCfg, kornia_vo_cfg
+from .config import KorniaFeaturesCfg, TrackState, VoCfg, head_camera_vo_cfg, kornia_vo_cfg
 from .imu import GyroSamples
 from .odometry import RgbdOdometry, VoResult
 
-__all__ = ["GyroSamples", "KorniaFeaturesCfg", "RgbdOdometry", "TrackState", "VoCfg", "VoResult", "kornia_vo_cfg"]
+__all__ = ["GyroSamples", "KorniaFeaturesCfg", "RgbdOdometry", "TrackState", "VoCfg", "VoResult", "head_camera_vo_cfg",
+           "kornia_vo_cfg"]

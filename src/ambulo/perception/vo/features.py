@@ -61,7 +61,8 @@ class OrbFeatures:
         import cv2  # perception extra
 
         self.cv2, self.cfg, self.k = cv2, cfg, k
-        self.orb = cv2.ORB_create(nfeatures=cfg.num_features, fastThreshold=cfg.fast_threshold)
+        self.orb = cv2.ORB_create(nfeatures=cfg.num_features, fastThreshold=cfg.fast_threshold,
+                                  patchSize=cfg.orb_patch_px, edgeThreshold=cfg.orb_edge_px)
         self.matcher = cv2.BFMatcher(cv2.NORM_HAMMING)
 
     def detect(self, rgb, depth_m) -> FrameFeatures:
