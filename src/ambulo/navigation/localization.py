@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..perception.frames import RgbdFrame
-from ..perception.vo.config import TrackState, VoCfg
+from ..perception.vo.config import TrackState, VoCfg, head_camera_vo_cfg
 from ..perception.vo.odometry import RgbdOdometry
 from .world import NavWorld
 
@@ -73,7 +73,9 @@ class OracleLocalizer:
 
 @dataclass(kw_only=True)
 class VoLocalizerCfg:
-    vo: VoCfg = field(default_factory=VoCfg)
+    vo: VoCfg = field(default_factory=head_camera_vo_cfg)
+    """ORB tuned for the small, low-contrast head camera (the defaults lose track facing the
+    apartments' walls; ``head_camera_vo_cfg`` gives the figures)."""
     use_gyro: bool = True
 
 
