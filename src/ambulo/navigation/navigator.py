@@ -84,6 +84,11 @@ class NavigatorCfg(Checked):
     """Below this pelvis speed the robot counts as standing, m/s."""
     lost_timeout_s: float = 5.0
     """Untracked this long ends the episode ("lost"), s."""
+    scan_when_lost_after_s: float | None = None
+    """None: while untracked, stand and wait (the default). A duration: untracked this long, turn
+    on the spot open loop (``scan_rate_rad_s``; no pose is used) so the camera sweeps for texture to
+    relocalise against, s (a walker without ``scan`` just stands)."""
+    scan_rate_rad_s: float = 0.4
     stuck_window_s: float = 20.0
     stuck_progress_m: float = 0.5
     """Moving less than this in ``stuck_window_s`` ends the episode ("stuck"), m."""
@@ -300,6 +305,9 @@ class Navigator:
         if not self.estimate.tracked:
             if now - self._lost_since > c.lost_timeout_s:
                 return self._finish("lost_timeout")
+            if (c.scan_when_lost_after_s is not None and now - self._lost_since > c.scan_when_lost_after_s
+                    and hasattr(self.walker, "scan")):
+                self.walker.scan(c.scan_rate_rad_s)
             return
         est = self.estimate.xyyaw
         if self.walker.arrived and self.plan_final:

@@ -176,6 +176,7 @@ class PolicyWalker:
         self.policy.reset()
         self.tracker.set_path(None, final=False)
         self._standing = True
+        self._scan_rate = 0.0
         self._count = 0
         self.command = (0.0, 0.0, 0.0)
 
@@ -202,10 +203,18 @@ class PolicyWalker:
         end_yaw = math.atan2(np.sin(end).sum(), np.cos(end).sum())
         self.tracker.set_path(body_path(plan), final=final, end_yaw_rad=None if final else end_yaw)
         self._standing = False
+        self._scan_rate = 0.0
 
     def stand(self) -> None:
         self._standing = True
+        self._scan_rate = 0.0
         self.command = (0.0, 0.0, 0.0)
+
+    def scan(self, yaw_rate_rad_s: float) -> None:
+        """Stand and turn on the spot at ``yaw_rate_rad_s``, open loop (no pose is used): a lost
+        camera sweeps for texture to relocalise against."""
+        self._standing = True
+        self._scan_rate = float(yaw_rate_rad_s)
 
     def resume(self) -> None:
         """Walk the current plan again after ``stand``."""
@@ -214,7 +223,7 @@ class PolicyWalker:
     def step(self, dt_s: float, pose_xyyaw: np.ndarray) -> None:
         self._pose = pose_xyyaw
         if self._count % self._decimation == 0:
-            self.command = (0.0, 0.0, 0.0) if self._standing else self.tracker.command(pose_xyyaw)
+            self.command = (0.0, 0.0, self._scan_rate) if self._standing else self.tracker.command(pose_xyyaw)
         self.policy.forward(dt_s, self.command)
         self._count += 1
 
