@@ -31,6 +31,7 @@ from ambulo.utils.validate import Checked
 
 from .esdf import edt
 from .slices import OCCUPIED, UNKNOWN, Slice2D
+from .torch_threads import one_torch_thread
 
 HUMANOID_FOOTPRINT_XY_M = ((0.11, 0.24), (0.11, -0.24), (-0.11, -0.24), (-0.11, 0.24))
 """The bundled humanoid standing, seen from above (humanoid.xml): feet 0.22 m long; upper arms at
@@ -96,8 +97,13 @@ class Costmap(Slice2D):
 
 
 def inflate(occupancy: Slice2D, cfg: InflationCfg | None = None) -> Costmap:
-    """Nav2's inflation of an occupancy slice (``slices.occupancy_slice``: -1/0/1)."""
-    cfg = cfg or InflationCfg()
+    """Nav2's inflation of an occupancy slice (``slices.occupancy_slice``: -1/0/1), its CPU torch ops on one
+    thread (``torch_threads``)."""
+    with one_torch_thread(occupancy.data.device):
+        return _inflate(occupancy, cfg or InflationCfg())
+
+
+def _inflate(occupancy: Slice2D, cfg: InflationCfg) -> Costmap:
     data = occupancy.data
     cell_radius = math.ceil(cfg.inflation_radius_m / occupancy.resolution_m)
     dist = edt(data == OCCUPIED, cell_radius)

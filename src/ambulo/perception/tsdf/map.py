@@ -429,7 +429,12 @@ class TsdfMap(_TorchIntegration):
         unobserved (weight 0, tsdf 1). Padding adds unobserved voxels around it. ``region_xy_m``
         (x_min, y_min, x_max, y_max) and ``z_range_m`` (z_min, z_max), world m: only the blocks that
         meet that box (the box of those blocks: cheaper than the whole map for a robot's surroundings);
-        ``color=False`` leaves the colour out (an empty (X, Y, Z, 3) array)."""
+        ``color=False`` leaves the colour out (an empty (X, Y, Z, 3) array). Runs its CPU torch ops on one
+        thread (``torch_threads``: 63 against 226 ms for 723 blocks with 2 threads on a busy 2-core machine)."""
+        with one_torch_thread(self.device):
+            return self._dense(pad_voxels, region_xy_m, z_range_m, color)
+
+    def _dense(self, pad_voxels: int, region_xy_m, z_range_m, color: bool) -> DenseGrid:
         b = self.cfg.block_voxels
         coords = self.hash.slot_coords
         if len(coords) == 0:
