@@ -1,7 +1,7 @@
 """``ZmpStepWalker`` walking random short footstep plans online inside an apartment scene.
 
     python benchmarks/zmp_step_walker.py [--seed 3] [--episodes 10] [--min-m 2] [--max-m 4]
-        [--replan-after 4]
+        [--replan-after 4] [--replan-every 0]
 
 Per episode: ``scenes.apartment(seed)`` samples a start pose and a goal ``--min-m``..``--max-m``
 m of geodesic apart (the robot's clearance); the scene is built with the humanoid at the start
@@ -9,7 +9,8 @@ and started on ``core.Simulation`` (``PhysicsCfg(timestep_s=0.005)``); the walke
 (home keyframe, standing) and the footstep planner plans on the apartment's ground-truth
 occupancy from the walker's feet to the goal (heading: start to goal). After ``--replan-after``
 steps the planner plans again from the walker's ``next_stance_feet_xyyaw_w`` and ``stance_side``
-(the same goal) and the walker takes the new plan at the next touchdown (0: no replanning).
+(the same goal) and the walker takes the new plan at the next touchdown (0: no replanning);
+``--replan-every`` N > 0 replans again every N steps after that, until the goal.
 
 Starts the planner finds no plan from are sampled again (counted as ``unplanned_samples``).
 Success: the walker reports ``done`` (standing, the plan walked) without ``fell``, and the
@@ -57,17 +58,21 @@ def episode(ap, planner: FootstepPlanner, rng: np.random.Generator, args) -> dic
     dt = 0.005
     limit_s = plan.num_steps * 0.8 + 15.0
     wall, cpu, replanned, steps = time.perf_counter(), time.process_time(), args.replan_after <= 0, 0
+    next_replan = args.replan_after
     while steps < int(limit_s / dt):
         walker.step(dt)
         sim.step()
         steps += 1
-        if not replanned and walker.steps_taken >= args.replan_after and walker.swing_target_w is not None:
+        if not replanned and walker.steps_taken >= next_replan and walker.swing_target_w is not None:
             new = planner.plan(goal_xyyaw_w=goal, start_feet_xyyaw_w=walker.next_stance_feet_xyyaw_w(),
                                stance_side=walker.stance_side, time_budget_s=2.0)
-            replanned = True
+            replanned = args.replan_every <= 0
+            next_replan = walker.steps_taken + max(args.replan_every, 1)
             if new.status == PlanStatus.SUCCESS and not walker.set_plan(new):
                 plan = new
-        if walker.fell or (walker.done and replanned):
+            else:
+                replanned = True  # no plan from here: walk the plan taken
+        if walker.fell or (walker.done and walker.steps_taken > 0):
             break
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
     sim_s = steps * dt
@@ -80,7 +85,8 @@ def episode(ap, planner: FootstepPlanner, rng: np.random.Generator, args) -> dic
     return {**out, "result": "success" if ok else "failure", "detail": reason, "final_error_m": round(error, 4),
             "steps": walker.steps_taken, "plans_taken": walker.plans_taken, "sim_s": round(sim_s, 2),
             "speed_mps": round(float(np.hypot(*(end_mid - start_mid))) / sim_s, 4),
-            "wall_per_sim_s": round(wall / sim_s, 3), "cpu_per_sim_s": round(cpu / sim_s, 3)}
+            "wall_per_sim_s": round(wall / sim_s, 3), "cpu_per_sim_s": round(cpu / sim_s, 3),
+            "last_refusal": walker.last_refusal}
 
 
 def main() -> None:
@@ -90,6 +96,7 @@ def main() -> None:
     parser.add_argument("--min-m", type=float, default=2.0)
     parser.add_argument("--max-m", type=float, default=4.0)
     parser.add_argument("--replan-after", type=int, default=4, help="steps before the replan (0: none)")
+    parser.add_argument("--replan-every", type=int, default=0, help="then again every this many steps (0: once)")
     args = parser.parse_args()
     ap = scenes.apartment(args.seed)
     grid = GridMap.from_map(ap.occupancy)

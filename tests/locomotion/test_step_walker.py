@@ -220,3 +220,18 @@ def test_falling_when_the_capture_point_leaves_the_support(arena_walker):
     shoved = walker.balance()
     assert shoved.falling
     assert shoved.capture_margin_m == pytest.approx(-0.18, abs=0.03)
+
+
+def test_a_plan_matching_the_feet_within_tolerance_is_not_rechecked_against_them(arena_walker):
+    sim, walker = arena_walker
+    (lx, ly, _), right = walker.feet_xyyaw_w()
+    # the plan has the left foot 0.015 rad off the real one (a match) and turns the full 0.3 rad
+    # from its own left row: 0.315 rad from the real left foot, a hair beyond the limit's slack
+    left_row = np.array([lx, ly, -0.015])
+    c, s = math.cos(left_row[2]), math.sin(left_row[2])
+    step = [lx + c * 0.2 + s * 0.18, ly + s * 0.2 - c * 0.18, left_row[2] - 0.3]
+    plan = make_plan([right, left_row, step], [-1, 1, -1])
+    assert walker.refuse(plan) is None and walker.set_plan(plan) is None
+    run(sim, walker, 0.3)
+    assert walker.last_refusal is None
+    assert np.allclose(walker.swing_target_w, step, atol=1e-6)
