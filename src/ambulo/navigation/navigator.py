@@ -77,6 +77,8 @@ class NavigatorCfg(Checked):
     min_replan_gap_s: float = 0.25
     """Triggers other than a new goal or relocalisation wait this long after the last replan, s."""
     goal_tolerance_m: float = 0.3
+    arrive_radius_m: float = 0.12
+    """The estimated position this close to the goal stops the robot whatever its plan, m."""
     """Success radius, m (the benchmarks' 0.3 m)."""
     settle_s: float = 0.6
     """Standing still this long at the goal ends the episode, s."""
@@ -310,7 +312,10 @@ class Navigator:
                 self.walker.scan(c.scan_rate_rad_s)
             return
         est = self.estimate.xyyaw
-        if self.walker.arrived and self.plan_final:
+        at_goal = float(np.linalg.norm(est[:2] - self.goal_xy_m)) < c.arrive_radius_m
+        if at_goal and not self.walker.arrived:
+            self.walker.stand()  # close enough whatever the plan says (a goal stance that touched something)
+        if (self.walker.arrived and self.plan_final) or at_goal:
             if w.base_speed_m_s() < c.standing_speed_m_s:
                 self._settled_since = now if self._settled_since is None else self._settled_since
                 if now - self._settled_since >= c.settle_s:

@@ -148,6 +148,10 @@ def choose_subgoal(route: Route, clearance: np.ndarray, grid: Grid2D, cfg: Plann
     # one cell more than the route's clearance: the planner tests the stance at the exact point,
     # which may lie up to a cell's half-diagonal nearer the blocked cells than its cell's centre
     ok[inside] = clearance[iy[inside], ix[inside]] >= cfg.route_clearance_m + grid.resolution_m
+    # the goal itself needs only the route's clearance: a goal stance that touches something is the
+    # navigator's to recover (other headings, a step back along the route)
+    end = len(path) - 1
+    ok[end] = bool(inside[end] and clearance[iy[end], ix[end]] >= cfg.route_clearance_m)
     passable = ok | (s < skip_m)
     bad = np.flatnonzero(~passable)
     last = (bad[0] - 1) if bad.size else len(path) - 1
