@@ -144,7 +144,8 @@ class Navigator:
 
     # -- public API ---------------------------------------------------------------------------
     def reset(self) -> None:
-        """Stand the robot at the world's start; forget goal, map and plans."""
+        """Stand the robot in the walker's default pose where it is now (it is not moved back to the
+        start); forget goal, map and plans. The estimate restarts at the true pose."""
         w = self.world
         self.walker.reset()
         w.engine.forward()
