@@ -95,8 +95,9 @@ def moved_by_rigidity(points_w: torch.Tensor, points_c: torch.Tensor, valid: tor
     distances: for static points |p_i - p_j| (map) equals |q_i - q_j| (current camera frame). Each
     match is compared with up to 256 anchor matches (drawn with ``seed`` on the host, the same on
     every device); one whose distances disagree (beyond ``dynamic_threshold_m`` +
-    ``dynamic_threshold_coeff`` (z_i^2 + z_j^2)) with most anchors has moved: the static scene is the
-    majority of what is seen."""
+    ``dynamic_threshold_coeff`` (z_i^2 + z_j^2)) with most anchors, or with fewer than 3/4 as many
+    as the best-agreeing tenth of the matches do, has moved: the static scene is the largest rigid
+    group of what is matched."""
     idx = torch.nonzero(valid)[:, 0]
     out = torch.zeros(len(points_w), dtype=torch.bool, device=points_w.device)
     if len(idx) < 12:
@@ -109,7 +110,13 @@ def moved_by_rigidity(points_w: torch.Tensor, points_c: torch.Tensor, valid: tor
     z = points_c[:, 2]
     tol = cfg.dynamic_threshold_m + cfg.dynamic_threshold_coeff * (z[idx, None] ** 2 + z[None, anchors] ** 2)
     agree = ((d_map - d_cur).abs() < tol).double().mean(dim=1)
-    out[idx] = agree < 0.5
+    # Static matches agree with every other static match, so with each other as often as static
+    # matches are among the anchors. Mismatches (noisy images give more of them than right matches)
+    # agree with nothing: measured against the best-agreeing tenth, not against a majority of all
+    # matches, right matches stay static when most matches are wrong; with few mismatches the
+    # threshold is the majority, 0.5.
+    best = torch.quantile(agree, 0.9)
+    out[idx] = agree < torch.clamp(0.75 * best, max=0.5)
     return out
 
 
