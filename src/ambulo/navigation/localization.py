@@ -23,6 +23,7 @@ import numpy as np
 from ..perception.frames import RgbdFrame
 from ..perception.vo.config import TrackState, VoCfg, head_camera_vo_cfg
 from ..perception.vo.odometry import RgbdOdometry
+from ..utils.validate import Checked
 from .world import NavWorld
 
 TRACKED_STATES = (TrackState.INITIALIZED, TrackState.TRACKING, TrackState.RECOVERED)
@@ -72,7 +73,7 @@ class OracleLocalizer:
 
 
 @dataclass(kw_only=True)
-class VoLocalizerCfg:
+class VoLocalizerCfg(Checked):
     vo: VoCfg = field(default_factory=head_camera_vo_cfg)
     """ORB tuned for the small, low-contrast head camera (the defaults lose track facing the
     apartments' walls; ``head_camera_vo_cfg`` gives the figures)."""
