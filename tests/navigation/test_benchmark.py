@@ -40,6 +40,7 @@ def test_a_killed_run_resumes_skipping_finished_episodes_and_retrying_failed_one
     s = run.summary["oracle/policy"]
     assert s["episodes"] == 3 and s["errors"] == 1 and s["success"] == pytest.approx(1 / 3)
     assert not episode_path(tmp_path, specs[2]).exists()
+    assert benchmark.error_path(tmp_path, specs[2]).read_text().endswith("RuntimeError: boom")
     # run again: 0 and 1 are skipped, the failed 2 is retried
     calls.clear()
     run = run_benchmark(specs, tmp_path, workers=1, log=None)

@@ -186,6 +186,8 @@ def run_benchmark(specs: Iterable[EpisodeSpec], out_dir: str | os.PathLike, *, w
                 done = ((futures[f], f.result()) for f in as_completed(futures))
             for spec, data in done:
                 by_spec[spec] = data
+                if "error" in data:  # the whole traceback, beside the results (a rerun retries the episode)
+                    atomic_write_text(error_path(out, spec), data["error"])
                 if log:
                     log(_line(spec, data))
             label = group_label(group)
@@ -198,6 +200,11 @@ def run_benchmark(specs: Iterable[EpisodeSpec], out_dir: str | os.PathLike, *, w
     run.summary = summarize(run.results, run.group_wall_s, run.group_run)
     atomic_write_text(out / "summary.json", json.dumps(run.summary, indent=1) + "\n")
     return run
+
+
+def error_path(out_dir: str | os.PathLike, spec: EpisodeSpec) -> Path:
+    """Where the traceback of an episode that raised is written (not a result: it is run again)."""
+    return Path(out_dir) / "episodes" / f"{spec.name}.error.txt"
 
 
 def _line(spec: EpisodeSpec, data: dict) -> str:
