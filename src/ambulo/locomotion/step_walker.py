@@ -52,6 +52,7 @@ from ..robots import humanoid
 from ..robots.humanoid import FOOT_BODIES, SOLE_SITES
 from ..scenes.walk_arena import walk_model
 from ..utils.checks import InvalidValueError
+from ..utils.math import quat_from_yaw
 from ..utils.validate import Checked, rule
 from .balance import CenterOfPressure, lipm_omega, polygon_signed_distance, support_polygon
 from .preview import PreviewController, WalkPattern, footsteps_array, walk_pattern_cfg
@@ -169,10 +170,6 @@ def _rot(yaw: float) -> np.ndarray:
     return np.array([[c, -s], [s, c]])
 
 
-def _yaw_quat(yaw: float) -> np.ndarray:
-    return np.array([math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)])
-
-
 def _quintic(tau: np.ndarray) -> np.ndarray:
     return tau**3 * (10.0 - 15.0 * tau + 6.0 * tau**2)
 
@@ -273,7 +270,7 @@ class ZmpStepWalker:
                 q[rm.jnt_qposadr[j]] = key.joint_pos[name]
         base = rn.free_qpos_adr + np.arange(7)
         q[base[0:3]] = [pos[0], pos[1], key.root_pos_m[2]]
-        q[base[3:7]] = _yaw_quat(yaw)
+        q[base[3:7]] = quat_from_yaw(yaw)
         # feet where the keyframe puts them, on the floor
         d = mujoco.MjData(rm)
         d.qpos[:] = q

@@ -46,6 +46,7 @@ import numpy as np
 from ..core import EntityNames
 from ..robots import humanoid
 from ..robots.humanoid import BASE_BODY, LEG_JOINTS, PRIM_PATH, SOLE_SITES
+from ..utils.math import quat_from_yaw
 from ..utils.validate import Checked, rule
 from .balance import FootShape, lipm_omega, support_polygon
 from .preview import WalkPattern
@@ -61,10 +62,6 @@ def walk_robot(model: mujoco.MjModel, prim_path: str = PRIM_PATH) -> EntityNames
         raise ValueError(f"the walking controller needs the humanoid on a free joint; {prim_path} has none "
                          "(build the scene with scenes.walk_arena)")
     return robot
-
-
-def _yaw_quat(yaw: float) -> np.ndarray:
-    return np.array([math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)])
 
 
 def _rot_error(target_mat: np.ndarray, current_mat: np.ndarray) -> np.ndarray:
@@ -192,7 +189,7 @@ def build_reference(model: mujoco.MjModel, pattern: WalkPattern, home_qpos: np.n
     ik_err = np.empty(num)
     q = np.array(home_qpos, dtype=np.float64)
     q[ik.base_qpos[0:2]] = pattern.com_pos_w[0, :2]
-    q[ik.base_qpos[3:7]] = _yaw_quat(float(pattern.foot_pose_w[0, :, 3].mean()))
+    q[ik.base_qpos[3:7]] = quat_from_yaw(float(pattern.foot_pose_w[0, :, 3].mean()))
     for k in range(num):
         feet = pattern.foot_pose_w[k]
         q, ik_err[k] = ik.solve(q, pattern.com_pos_w[k], float(feet[:, 3].mean()), feet,

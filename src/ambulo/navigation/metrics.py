@@ -25,15 +25,10 @@ import numpy as np
 
 from ..robots import humanoid
 from ..scenes.apartment import apartment
+from ..scenes.apartment_paths import path_length_m
 from ..utils.validate import Checked
 from .navigator import Navigator, NavigatorCfg
 from .world import NavWorld, NavWorldCfg
-
-
-def path_length_m(xy: np.ndarray) -> float:
-    """Length of the polyline ``xy`` (K, 2), m."""
-    xy = np.asarray(xy, float).reshape(-1, 2)
-    return float(np.linalg.norm(np.diff(xy, axis=0), axis=1).sum()) if len(xy) > 1 else 0.0
 
 
 def spl(success: bool, geodesic_m: float, walked_m: float) -> float:

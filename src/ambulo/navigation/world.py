@@ -36,6 +36,7 @@ from ..scenes.apartment import Apartment, apartment
 from ..sensors import Camera, CameraCfg, Imu, ImuCfg
 from ..sensors.imu_noise import ImuNoiseCfg, euroc_adis16448
 from ..utils.checks import InvalidValueError, check_vector
+from ..utils.math import quat_from_yaw
 from ..utils.validate import Checked
 from .ground_truth import world_occupancy
 from .randomization import RandomizationCfg, Randomizer
@@ -74,10 +75,6 @@ class NavWorldCfg(Checked):
     """Domain randomization; ``RandomizationCfg(enabled=True)`` switches it on."""
     seed: int = 0
     """Seed of the gyro noise and of the randomization."""
-
-
-def _yaw_quat(yaw: float) -> tuple[float, float, float, float]:
-    return (math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2))
 
 
 def _has_plane(spec: mujoco.MjSpec) -> bool:
@@ -148,7 +145,7 @@ class NavWorld:
         if not _has_plane(spec):
             add_ground(spec, GroundCfg())
         add_robot(spec, RobotCfg(file=humanoid.ASSET, prim_path=humanoid.PRIM_PATH, pos_m=(x, y, 0.0),
-                                 quat=_yaw_quat(yaw)))
+                                 quat=quat_from_yaw(yaw).tolist()))
         return cls(spec, start_pose, cfg)
 
     @classmethod

@@ -154,8 +154,9 @@ class PathFinder:
 
 
 def path_length_m(path_xy_m: np.ndarray) -> float:
-    """Length of a polyline (K, 2), m."""
-    return float(np.linalg.norm(np.diff(np.asarray(path_xy_m, float), axis=0), axis=1).sum())
+    """Length of a polyline (K, 2), m (0 for fewer than two points)."""
+    xy = np.asarray(path_xy_m, float).reshape(-1, 2)
+    return float(np.linalg.norm(np.diff(xy, axis=0), axis=1).sum())
 
 
 __all__ = ["PathFinder", "StartGoal", "path_length_m"]
