@@ -27,6 +27,7 @@ import numpy as np
 
 from ..maps import Grid2D
 from ..robots import humanoid
+from ..scenes.apartment_geometry import point_segment_distance
 from ..utils.checks import InvalidValueError
 
 _EPS_M = 1e-6
@@ -141,16 +142,10 @@ def _square_meets_polygon(cmin: np.ndarray, cmax: np.ndarray, poly: np.ndarray) 
     return hit
 
 
-def _point_segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    ab = b - a
-    t = np.clip(((p - a) @ ab) / max(float(ab @ ab), 1e-18), 0.0, 1.0)
-    return np.linalg.norm(p - (a + t[..., None] * ab), axis=-1)
-
-
 def _square_segment_distance(cmin: np.ndarray, cmax: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(K,) exact distance between squares and the segment ab (0 where they meet)."""
     corners = np.stack([cmin, np.stack([cmax[:, 0], cmin[:, 1]], -1), cmax, np.stack([cmin[:, 0], cmax[:, 1]], -1)], 1)
-    d = _point_segment_distance(corners, a, b).min(1)
+    d = point_segment_distance(corners, a, b).min(1)
     for end in (a, b):
         near = np.clip(end, cmin, cmax)
         d = np.minimum(d, np.linalg.norm(near - end, axis=-1))

@@ -137,7 +137,7 @@ def _one_rect(fp: Footprints, k: int) -> Footprints:
                       fp.disc_center_xy_m[:0], fp.disc_radius_m[:0])
 
 
-def _point_segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def point_segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(...) distance from points p to segments [a, b] (all (..., 2), broadcast)."""
     ab = b - a
     denom = np.maximum((ab * ab).sum(-1), 1e-300)
@@ -177,11 +177,11 @@ def segment_clearance_m(fp: Footprints, a_xy_m: np.ndarray, b_xy_m: np.ndarray) 
         ga, gb = np.maximum(np.abs(la) - half, 0.0), np.maximum(np.abs(lb) - half, 0.0)
         d = np.minimum(np.hypot(ga[..., 0], ga[..., 1]), np.hypot(gb[..., 0], gb[..., 1]))
         for corner in signs * half:
-            d = np.minimum(d, _point_segment_distance(corner, la, lb))
+            d = np.minimum(d, point_segment_distance(corner, la, lb))
         d = np.where(_segment_hits_box(la, lb, half), 0.0, d)
         np.minimum(out, d, out=out)
     for j in range(len(fp.disc_radius_m)):
-        d = _point_segment_distance(fp.disc_center_xy_m[j], a, b) - fp.disc_radius_m[j]
+        d = point_segment_distance(fp.disc_center_xy_m[j], a, b) - fp.disc_radius_m[j]
         np.minimum(out, np.maximum(d, 0.0), out=out)
     return out
 
@@ -202,11 +202,11 @@ def rect_distances_m(center_xy_m, half_xy_m, yaw_rad, centers_xy_m, halves_xy_m,
             separated |= (pa.max(1) <= pb.min(1)) | (pb.max(1) <= pa.min(1))
     a_start, a_end = a, np.roll(a, -1, axis=1)
     b_start, b_end = b, np.roll(b, -1, axis=1)
-    vertex_a = _point_segment_distance(a[:, :, None], b_start[:, None], b_end[:, None])  # (K, 4, 4)
-    vertex_b = _point_segment_distance(b[:, :, None], a_start[:, None], a_end[:, None])
+    vertex_a = point_segment_distance(a[:, :, None], b_start[:, None], b_end[:, None])  # (K, 4, 4)
+    vertex_b = point_segment_distance(b[:, :, None], a_start[:, None], a_end[:, None])
     dist = np.minimum(vertex_a.min((1, 2)), vertex_b.min((1, 2)))
     return np.where(separated, dist, 0.0)
 
 
-__all__ = ["CELL_SHRINK_M", "Footprints", "point_clearance_m", "rasterize", "rect_corners_xy_m",
+__all__ = ["CELL_SHRINK_M", "Footprints", "point_clearance_m", "point_segment_distance", "rasterize", "rect_corners_xy_m",
            "rect_distances_m", "segment_clearance_m"]
