@@ -36,6 +36,19 @@ if ! command -v ip >/dev/null || ! command -v unshare >/dev/null; then
   fi
 fi
 
+# The path-traced camera tier (ambulo/render/path.py): Mitsuba's LLVM variant JIT-compiles with
+# libLLVM >= 16 (Debian 12 ships 15 by default; libllvm19 is in bookworm/main). Without it the path
+# tier fails in one line naming this package; the CUDA variant needs no LLVM.
+if ! ldconfig -p 2>/dev/null | grep -qE 'libLLVM(-1[6-9]|-2[0-9]|\.so\.(1[6-9]|2[0-9]))'; then
+  if command -v apt-get >/dev/null && [ "$(id -u)" = 0 ]; then
+    echo "installing libllvm19 (Mitsuba's CPU path tracer)"
+    apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libllvm19 >/dev/null
+  else
+    echo "warning: no libLLVM >= 16; install libllvm19 (Debian/Ubuntu) for the path-traced camera tier" >&2
+  fi
+fi
+
 if [ ! -x "$VENV/bin/python" ]; then
   "$PYTHON" -m venv "$VENV"
 fi
@@ -44,7 +57,7 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
   "$VENV/bin/python" -m pip install -q --upgrade pip
   # the CPU build of torch first, pinned, so nothing pulls a multi-GB CUDA build
   "$VENV/bin/python" -m pip install -q "torch==${TORCH_VERSION:-2.13.0}"
-  "$VENV/bin/python" -m pip install -q -e ".[data,rl,dev,robots,gpu,ros2,perception]"
+  "$VENV/bin/python" -m pip install -q -e ".[data,rl,dev,robots,gpu,ros2,perception,render]"
   touch "$stamp"
 fi
 echo "ambulo is set up in $VENV"
