@@ -49,6 +49,19 @@ if ! ldconfig -p 2>/dev/null | grep -qE 'libLLVM(-1[6-9]|-2[0-9]|\.so\.(1[6-9]|2
   fi
 fi
 
+# The PBR camera tier (ambulo/render/pbr.py): MuJoCo's Filament renderer draws through Vulkan; on a
+# machine without a GPU driver Mesa's lavapipe (mesa-vulkan-drivers) renders on the CPU. Without the
+# loader or a driver the pbr tier fails in one line naming these packages.
+if ! ldconfig -p 2>/dev/null | grep -q 'libvulkan.so.1' || ! ls /usr/share/vulkan/icd.d/*.json >/dev/null 2>&1; then
+  if command -v apt-get >/dev/null && [ "$(id -u)" = 0 ]; then
+    echo "installing libvulkan1 and mesa-vulkan-drivers (the Filament PBR camera tier)"
+    apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libvulkan1 mesa-vulkan-drivers >/dev/null
+  else
+    echo "warning: no Vulkan; install libvulkan1 mesa-vulkan-drivers (Debian/Ubuntu) for the PBR camera tier" >&2
+  fi
+fi
+
 if [ ! -x "$VENV/bin/python" ]; then
   "$PYTHON" -m venv "$VENV"
 fi
