@@ -5,8 +5,13 @@ on observed free cells only, up to a subgoal on the route.
    (exact distance to the nearest occupied cell, ``nav.grid_map.clearance_m``) is at least
    ``route_clearance_m``, unknown cells counted free (optimistic: the unseen may be a door). A move
    costs its length times ``1 + inflation_gain * exp(-(clearance - r) / inflation_decay_m)``
-   (Nav2's inflation in spirit): routes keep to the middle of doors and corridors. The distance
-   field is cached per map version and goal, so a replan on an unchanged map costs one walk down it.
+   (Nav2's inflation in spirit): routes keep to the middle of doors and corridors. The search
+   (scikit-image's compiled ``MCP_Geometric``, whose move cost is exactly that: length times the
+   mean of the two cells' costs) stops once the cells around the robot are settled, so a replan
+   pays for the part of the map nearer the goal than the robot, not for the whole map: on the
+   recorded replans of a full-mode episode (apartment 200) 8 % of the map, 9 ms against 52 ms
+   for the whole field (scipy's Dijkstra on a graph built per map version). The cost grid is built
+   once per map version and goal.
 2. **Subgoal** (``choose_subgoal``): the farthest route point within ``horizon_m`` of path length
    whose every route point before it lies in observed free space with the footstep clearance
    (unknown = blocked); the route's own end when that holds all the way (a final plan).
@@ -22,10 +27,11 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+from skimage.graph import MCP_Geometric
 
 from ..maps import Grid2D
 from ..nav import FootstepPlan, FootstepPlanner, GridMap, humanoid_footstep_cfg
-from ..nav.grid_map import GridGraph, clearance_m
+from ..nav.grid_map import clearance_m
 from ..utils.validate import Checked
 
 
@@ -62,40 +68,51 @@ class RoutePlanner:
     def __init__(self, cfg: PlanningCfg):
         self.cfg = cfg
         self._key = None
-        self._dist = self._next = self._free = None
+        self._grid = self._free = self._search = self._goal_cell = None
 
     def _prepare(self, grid: Grid2D, version: int, goal_xy) -> None:
         key = (id(grid), version, tuple(np.round(goal_xy, 4)))
-        if key == self._key:
+        if key == self._key and grid is self._grid:
             return
         c = self.cfg
-        occupied = grid.occupied()
-        clr = clearance_m(occupied, grid.resolution_m)
+        clr = footstep_clearance(grid, optimistic=True)
         free = clr >= c.route_clearance_m
-        cost = c.inflation_gain * np.exp(-(clr - c.route_clearance_m) / c.inflation_decay_m)
-        graph = GridGraph(free, grid.resolution_m, cost_per_m=np.where(free, cost, 0.0))
-        seeds = np.zeros(grid.shape, bool)
-        cell = _snap(grid, free, goal_xy, c.goal_snap_m)
-        if cell is not None:
-            seeds[cell] = True
-        self._dist, self._next = graph.distances(seeds)
+        cost = grid.resolution_m * (1.0 + c.inflation_gain * np.exp(-(clr - c.route_clearance_m) / c.inflation_decay_m))
+        # MCP_Geometric: a move costs its length in cells times the mean of its two cells' costs
+        # (1 + inflation per m, times the cell size); inf cells are impassable; diagonal moves
+        # between two free cells whatever the cells beside them hold (corner cutting)
+        self._search = MCP_Geometric(np.where(free, cost, np.inf), fully_connected=True)
+        self._goal_cell = _snap(grid, free, goal_xy, c.goal_snap_m)
         self._free, self._key, self._grid = free, key, grid
+
+    def _settle(self, start_xy) -> tuple[tuple[int, int] | None, np.ndarray | None]:
+        """Search from the goal until the free cells within ``goal_snap_m`` of the start are settled;
+        (the start's cell if it is reachable, else the nearest reachable one within that radius,
+        or None; the costs so far, inf where unreached)."""
+        grid, free = self._grid, self._free
+        if self._goal_cell is None:
+            return None, None
+        iy, ix = grid.cell_of(start_xy)
+        ny, nx = grid.shape
+        if 0 <= iy < ny and 0 <= ix < nx and free[iy, ix]:  # the usual case: the start's own cell
+            costs, _ = self._search.find_costs([self._goal_cell], [(iy, ix)])
+            if np.isfinite(costs[iy, ix]):
+                return (iy, ix), costs
+        near = _cells_near(grid, free, (iy, ix), self.cfg.goal_snap_m)
+        if not len(near):
+            return None, None
+        costs, _ = self._search.find_costs([self._goal_cell], [tuple(c) for c in near])
+        reached = near[np.isfinite(costs[near[:, 0], near[:, 1]])]
+        return (None, costs) if not len(reached) else ((int(reached[0, 0]), int(reached[0, 1])), costs)
 
     def route(self, grid: Grid2D, version: int, start_xy, goal_xy) -> Route:
         """The route from ``start_xy`` to ``goal_xy`` on ``grid`` (whose contents are ``version``)."""
         self._prepare(grid, version, goal_xy)
-        start = _snap(grid, self._free, start_xy, self.cfg.goal_snap_m, dist=self._dist)
-        if start is None or not np.isfinite(self._dist[start]):
+        start, _ = self._settle(start_xy)
+        if start is None:
             return Route(np.zeros((0, 2)), math.inf, False)
-        cells = [np.ravel_multi_index(start, grid.shape)]
-        nxt = self._next.ravel()
-        for _ in range(grid.shape[0] * grid.shape[1]):
-            n = nxt[cells[-1]]
-            if n < 0:
-                break
-            cells.append(int(n))
-        iy, ix = np.unravel_index(np.array(cells), grid.shape)
-        xs, ys = grid.cell_center_xy_m(iy, ix)
+        cells = np.array(self._search.traceback(start)[::-1])  # start's cell first, the goal's last
+        xs, ys = grid.cell_center_xy_m(cells[:, 0], cells[:, 1])
         path = np.stack([xs, ys], -1)
         path = np.concatenate([np.asarray(start_xy, float)[None, :2], path[1:] if len(path) > 1 else path,
                                np.asarray(goal_xy, float)[None, :2]])
@@ -103,34 +120,47 @@ class RoutePlanner:
         return Route(path, length, True)
 
 
-def _snap(grid: Grid2D, free: np.ndarray, xy, radius_m: float, dist: np.ndarray | None = None):
-    """The cell of ``xy`` if free (and reachable when ``dist`` is given), else the nearest such
-    cell within ``radius_m``, else None."""
-    iy, ix = grid.cell_of(xy)
-    ok = free if dist is None else free & np.isfinite(dist)
-    ny, nx = grid.shape
-    if 0 <= iy < ny and 0 <= ix < nx and ok[iy, ix]:
-        return iy, ix
+def _cells_near(grid: Grid2D, ok: np.ndarray, cell: tuple[int, int], radius_m: float) -> np.ndarray:
+    """(K, 2) the ``ok`` cells within ``radius_m`` (centre to centre) of ``cell``, nearest first
+    (ties in row-major order)."""
+    iy, ix = cell
     k = int(math.ceil(radius_m / grid.resolution_m))
+    ny, nx = grid.shape
     y0, y1, x0, x1 = max(0, iy - k), min(ny, iy + k + 1), max(0, ix - k), min(nx, ix + k + 1)
     if y0 >= y1 or x0 >= x1:
-        return None
-    sub = ok[y0:y1, x0:x1]
-    if not sub.any():
-        return None
-    yy, xx = np.nonzero(sub)
-    d = (yy + y0 - iy) ** 2 + (xx + x0 - ix) ** 2
-    j = int(np.argmin(d))
-    if math.sqrt(d[j]) * grid.resolution_m > radius_m:
-        return None
-    return int(yy[j] + y0), int(xx[j] + x0)
+        return np.zeros((0, 2), np.int64)
+    yy, xx = np.nonzero(ok[y0:y1, x0:x1])
+    yy, xx = yy + y0, xx + x0
+    d2 = (yy - iy) ** 2 + (xx - ix) ** 2
+    keep = np.sqrt(d2) * grid.resolution_m <= radius_m
+    order = np.argsort(d2[keep], kind="stable")
+    return np.stack([yy[keep][order], xx[keep][order]], -1)
+
+
+def _snap(grid: Grid2D, free: np.ndarray, xy, radius_m: float):
+    """The cell of ``xy`` if free, else the nearest free cell within ``radius_m``, else None."""
+    near = _cells_near(grid, free, grid.cell_of(xy), radius_m)
+    return None if not len(near) else (int(near[0, 0]), int(near[0, 1]))
+
+
+_CLEARANCE_CACHE: dict[bool, tuple[Grid2D, np.ndarray, np.ndarray]] = {}
+"""Per ``optimistic``: the last grid, a copy of its occupancy and its clearance (read-only)."""
 
 
 def footstep_clearance(grid: Grid2D, optimistic: bool) -> np.ndarray:
-    """(num_y, num_x) exact clearance of each cell for footsteps, m: unknown cells are blocked
-    unless ``optimistic`` (a map with no unknown cells, e.g. the ground truth)."""
+    """(num_y, num_x) exact clearance of each cell for footsteps, m (read-only): unknown cells are
+    blocked unless ``optimistic`` (a map with no unknown cells, e.g. the ground truth). The last
+    grid's is kept: a replan asks for it up to four times (route, subgoal, start snap, blocked
+    plan), and a map that did not change between replans keeps its grid; a grid whose occupancy
+    was changed in place is computed afresh (the copy is compared, ~10 us)."""
+    hit = _CLEARANCE_CACHE.get(optimistic)
+    if hit is not None and hit[0] is grid and np.array_equal(hit[1], grid.occupancy):
+        return hit[2]
     blocked = grid.occupied() if optimistic else grid.blocked()
-    return clearance_m(blocked, grid.resolution_m)
+    clr = clearance_m(blocked, grid.resolution_m)
+    clr.flags.writeable = False
+    _CLEARANCE_CACHE[optimistic] = (grid, grid.occupancy.copy(), clr)
+    return clr
 
 
 def choose_subgoal(route: Route, clearance: np.ndarray, grid: Grid2D, cfg: PlanningCfg,
