@@ -95,6 +95,10 @@ class _Finder(importlib.abc.MetaPathFinder, importlib.abc.Loader):
     def exec_module(self, module) -> None:
         if module.__name__ not in names.INJECTED:
             module.__all__ = sorted(names.MODULES.get(module.__name__, {}))
+        if module.__name__ == "isaacgym":
+            from .gym.session import on_isaacgym_import
+
+            on_isaacgym_import()
 
 
 @contextlib.contextmanager

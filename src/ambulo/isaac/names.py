@@ -11,6 +11,9 @@ from __future__ import annotations
 
 import importlib
 
+from .gym.names import HINTS as GYM_HINTS
+from .gym.names import MODULES as GYM_MODULES
+from .gym.names import ROOTS as GYM_ROOTS
 from .replicator_names import MODULES as REPLICATOR_MODULES
 
 
@@ -158,12 +161,13 @@ MODULES: dict[str, dict[str, str]] = {
 }
 """Isaac module name -> {name it provides: "ambulo.module:attribute"}."""
 MODULES.update(REPLICATOR_MODULES)
+MODULES.update(GYM_MODULES)  # Isaac Gym's isaacgym.* (ambulo.isaac.gym)
 
 INJECTED: dict[str, str] = {"pxr.PhysxSchema": "ambulo.isaac.physx_schema"}
 """Modules Isaac Sim adds to other packages (usd-core's ``pxr`` has no PhysxSchema) -> the ambulo
 module whose ``as_module(name)`` answers them during a run (and ``restore()`` cleans up after)."""
 
-ROOTS = ("isaacsim", "omni", "carb")
+ROOTS = ("isaacsim", "omni", "carb", *GYM_ROOTS)
 """Top-level names the hook answers for: every module under them is Isaac's, found or not."""
 
 HINTS: dict[str, str] = {
@@ -173,6 +177,7 @@ HINTS: dict[str, str] = {
     "PreviewSurface": "not supported: give shapes a color= (RGB) instead",
     "OmniPBR": "not supported: give shapes a color= (RGB) instead",
 }
+HINTS.update(GYM_HINTS)
 """What to use instead of an Isaac name that ambulo does not provide."""
 
 

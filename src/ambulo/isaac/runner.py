@@ -12,6 +12,7 @@ from ambulo.sim.current import current_world_or_none
 from ambulo.sim.usd_stage import forget_stages
 
 from .app import run_budget
+from .gym import GymBudgetSpent, gym_session, simulated
 from .hook import isaac_names
 from .kit_commands import clear_stack
 
@@ -29,6 +30,9 @@ class RunResult:
     """The ``BaseSample`` subclass run as LOAD then PLAY, or None for a standalone script."""
     sim_time_s: float
     physics_steps: int
+    """For an Isaac Gym script: the ``simulate`` calls of its sims (each ``substeps`` MuJoCo steps)."""
+    budget_spent: bool = False
+    """An Isaac Gym script was stopped at a ``simulate`` call because ``seconds`` were simulated."""
 
 
 def run_script(path: str | os.PathLike, argv: list[str] | tuple[str, ...] = (), seconds: float = 10.0) -> RunResult:
@@ -37,7 +41,9 @@ def run_script(path: str | os.PathLike, argv: list[str] | tuple[str, ...] = (), 
     A script with a ``__main__`` flow (``SimulationApp``, then a World it steps) runs as is;
     ``while simulation_app.is_running()`` loops stop after ``seconds`` of simulated time. A
     script that only defines a ``BaseSample`` subclass (an extension-workflow example) is then
-    loaded and played for ``seconds``, as the Examples browser's LOAD and PLAY would.
+    loaded and played for ``seconds``, as the Examples browser's LOAD and PLAY would. An Isaac
+    Gym script (``from isaacgym import gymapi``) stops at the ``simulate`` call that would pass
+    ``seconds`` of simulated time (``ambulo.isaac.gym.session``).
     """
     script = Path(path)
     if script.is_dir():
@@ -49,11 +55,15 @@ def run_script(path: str | os.PathLike, argv: list[str] | tuple[str, ...] = (), 
     saved_argv, saved_path = sys.argv, list(sys.path)
     forget_stages()  # no World and an empty stage, as Kit starts a script (nothing left from a previous run)
     clear_stack()  # no undo history either
+    budget_spent = False
     try:
-        with isaac_names(), run_budget(seconds):
+        with isaac_names(), run_budget(seconds), gym_session(seconds):
             sys.argv = [str(script), *argv]
             sys.path.insert(0, str(script.resolve().parent))  # as `python script.py` would
-            namespace = runpy.run_path(str(script), run_name="__main__")
+            try:
+                namespace = runpy.run_path(str(script), run_name="__main__")
+            except GymBudgetSpent:
+                namespace, budget_spent = {}, True
             samples = [v for v in namespace.values() if isinstance(v, type) and issubclass(v, BaseSample)
                        and v is not BaseSample and v.__module__ == "__main__"]
             ran_sample = None
@@ -62,6 +72,10 @@ def run_script(path: str | os.PathLike, argv: list[str] | tuple[str, ...] = (), 
                 run_sample(samples[-1], seconds)
     finally:
         sys.argv, sys.path[:] = saved_argv, saved_path
+    gym_time_s, gym_calls = simulated()
+    if gym_calls:
+        return RunResult(script=str(script), ran_sample=None, sim_time_s=gym_time_s, physics_steps=gym_calls,
+                         budget_spent=budget_spent)
     world = current_world_or_none()
     return RunResult(script=str(script), ran_sample=ran_sample,
                      sim_time_s=0.0 if world is None else world.current_time,
