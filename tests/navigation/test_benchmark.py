@@ -25,7 +25,7 @@ def test_a_killed_run_resumes_skipping_finished_episodes_and_retrying_failed_one
                                                                    replans_ms=[10])))
     calls, failed = [], set()
 
-    def fake_run_spec(spec, out_dir, base=None):
+    def fake_run_spec(spec, out_dir, base=None, ceiling=False):
         calls.append(spec)
         if spec.apartment_seed == 1002 and spec not in failed:  # fails the first time: nothing written
             failed.add(spec)
@@ -91,3 +91,38 @@ def test_two_real_oracle_episodes_over_a_pool_of_two(tmp_path):
         data = json.loads(episode_path(tmp_path, spec).read_text())
         assert data["spec"]["apartment_seed"] == spec.apartment_seed and "status" in data
     assert run.summary["oracle/policy"]["episodes"] == 2 and run.summary["oracle/policy"]["errors"] == 0
+
+
+def test_ceiling_figures_by_hand_and_which_episodes_get_one(tmp_path, monkeypatch):
+    a, b, c = (EpisodeSpec(s, 0, "full") for s in (1, 2, 3))
+    results = [
+        {**_result(a, success=True, spl=0.8, collisions=0, replans_ms=[10], time_s=10.0, wall_s=40.0),
+         "ceiling": {"time_s": 10.0, "wall_s": 2.0, "sim_to_wall": 5.0}},
+        {**_result(b, success=True, spl=0.8, collisions=0, replans_ms=[10], time_s=20.0, wall_s=40.0),
+         "ceiling": {"time_s": 20.0, "wall_s": 3.0, "sim_to_wall": 20.0 / 3.0}},
+        _result(c, success=True, spl=0.8, collisions=0, replans_ms=[10], time_s=5.0, wall_s=50.0),  # no ceiling
+    ]
+    s = summarize(results)["full/policy"]
+    assert s["ceiling_sim_to_wall"] == pytest.approx(30.0 / 5.0)
+    # the episodes with a ceiling ran 30 s in 80 s: 0.375 sim/wall, 6.25 % of the ceiling's 6
+    assert s["of_ceiling"] == pytest.approx((30.0 / 80.0) / 6.0)
+    assert summarize(results[2:])["full/policy"]["of_ceiling"] is None
+    asked = {}
+
+    def fake_run_spec(spec, out_dir, base=None, ceiling=False):
+        asked[spec.apartment_seed] = ceiling
+        return _result(spec, success=True, spl=1.0, collisions=0, replans_ms=[1])
+
+    monkeypatch.setattr(benchmark, "run_spec", fake_run_spec)
+    specs = [EpisodeSpec(s, 0, "oracle") for s in range(5)] + [EpisodeSpec(s, 0, "full") for s in range(10, 13)]
+    run_benchmark(specs, tmp_path, workers=1, log=None, ceiling_every=2)
+    assert asked == {0: True, 1: False, 2: True, 3: False, 4: True, 10: True, 11: False, 12: True}
+
+
+def test_the_ceiling_steps_physics_and_the_turning_policy_for_the_simulated_time():
+    from ambulo.navigation.ceiling import physics_policy_ceiling
+
+    top = physics_policy_ceiling(1000, 0, 1.0)
+    assert top.time_s == pytest.approx(1.0, abs=1e-6) and top.wall_s > 0 and top.sim_to_wall > 0
+    # the policy stepped: it turned on the spot (0.4 rad/s asked) and stood
+    assert top.turned_rad > 0.1 and not top.fell

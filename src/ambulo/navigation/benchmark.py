@@ -11,10 +11,15 @@ their summary. ``ambulo navigate --episodes N`` and ``benchmarks/navigate.py`` b
   writes nothing (a rerun retries it) and counts as a failure in the summary (``errors``).
 - **Groups.** Specs are grouped by (mode, walker, randomized) and the groups run one after the
   other, so each group's wall-clock throughput (episodes per minute) is its own.
+- **Ceiling** (``ceiling_every`` k > 0): every k-th episode of a group (the first, the k+1-th, ...) is
+  followed, in the same worker, by ``ceiling.physics_policy_ceiling`` for the episode's simulated
+  time: the same robot and scene stepped with physics and walker only. Its result is the episode
+  JSON's ``ceiling``.
 - **Summary** per group (``summarize``): success rate, SPL, fall rate, collisions per episode, stuck
   rate, 95th percentile of the replan wall times (all the group's replans pooled), simulated over
   wall time (sums over episodes), episodes per minute (only episodes run now, over the group's wall
-  time; None when all were resumed).
+  time; None when all were resumed); with ceilings, the ceiling's simulated over wall time and the
+  episodes' over it (both sums over the episodes that have a ceiling; None without).
 """
 
 from __future__ import annotations
@@ -111,17 +116,24 @@ def check_spec(spec: EpisodeSpec) -> None:
         make_walker("zmp")  # fails early, before any pool starts
 
 
-def run_spec(spec: EpisodeSpec, out_dir: str | None, base: EpisodeCfg | None = None) -> dict:
-    """Run one episode; write its JSON under ``out_dir/episodes`` (if given); return the result as
-    a dict (``{"spec": ..., "error": traceback}`` when the episode raised: nothing is written)."""
+def run_spec(spec: EpisodeSpec, out_dir: str | None, base: EpisodeCfg | None = None, ceiling: bool = False) -> dict:
+    """Run one episode (and then, with ``ceiling``, its physics-and-walker ceiling for the same
+    simulated time); write its JSON under ``out_dir/episodes`` (if given); return the result as a
+    dict (``{"spec": ..., "error": traceback}`` when the episode raised: nothing is written)."""
+    from .ceiling import physics_policy_ceiling
     from .metrics import run_episode
 
     try:
-        result = run_episode(spec.apartment_seed, spec.episode_seed, episode_cfg(spec, base),
-                             walker=make_walker(spec.walker))
+        cfg = episode_cfg(spec, base)
+        result = run_episode(spec.apartment_seed, spec.episode_seed, cfg, walker=make_walker(spec.walker))
+        top = physics_policy_ceiling(spec.apartment_seed, spec.episode_seed, result.time_s, cfg,
+                                     walker=make_walker(spec.walker)) if ceiling else None
     except Exception:  # one broken episode must not end a 100-episode run; it is reported
         return {"spec": asdict(spec), "error": traceback.format_exc()}
     data = {**asdict(result), "spec": asdict(spec)}
+    if top is not None:
+        data["ceiling"] = {"time_s": top.time_s, "wall_s": top.wall_s, "sim_to_wall": top.sim_to_wall,
+                           "fell": top.fell}
     if out_dir is not None:
         atomic_write_json(episode_path(out_dir, spec), data, indent=1)
     return data
@@ -151,12 +163,18 @@ class BenchmarkRun:
 
 
 def run_benchmark(specs: Iterable[EpisodeSpec], out_dir: str | os.PathLike, *, workers: int = 1,
-                  base: EpisodeCfg | None = None, log: Callable[[str], None] | None = print) -> BenchmarkRun:
+                  base: EpisodeCfg | None = None, log: Callable[[str], None] | None = print,
+                  ceiling_every: int = 0) -> BenchmarkRun:
     """Run ``specs`` (module docstring): ``workers`` processes (1: in this process), results and
-    ``summary.json`` under ``out_dir``."""
+    ``summary.json`` under ``out_dir``; ``ceiling_every`` k > 0: every k-th episode of a group gets
+    its ceiling (module docstring)."""
     specs = list(dict.fromkeys(specs))
     if workers < 1:
         raise InvalidValueError("workers", workers, "needs at least one worker", "pass workers >= 1")
+    if ceiling_every < 0:
+        raise InvalidValueError("ceiling_every", ceiling_every, "must be >= 0", "pass 0 (no ceiling) or k >= 1")
+    with_ceiling = {spec for group in _by_group(specs).values() for i, spec in enumerate(group)
+                    if ceiling_every and i % ceiling_every == 0}
     for spec in specs:
         check_spec(spec)
     out = Path(out_dir)
@@ -180,9 +198,10 @@ def run_benchmark(specs: Iterable[EpisodeSpec], out_dir: str | os.PathLike, *, w
         for group, group_specs in todo.items():
             t0 = time.perf_counter()
             if pool is None:
-                done = ((spec, run_spec(spec, str(out), base)) for spec in group_specs)
+                done = ((spec, run_spec(spec, str(out), base, spec in with_ceiling)) for spec in group_specs)
             else:
-                futures = {pool.submit(run_spec, spec, str(out), base): spec for spec in group_specs}
+                futures = {pool.submit(run_spec, spec, str(out), base, spec in with_ceiling): spec
+                           for spec in group_specs}
                 done = ((futures[f], f.result()) for f in as_completed(futures))
             for spec, data in done:
                 by_spec[spec] = data
@@ -200,6 +219,13 @@ def run_benchmark(specs: Iterable[EpisodeSpec], out_dir: str | os.PathLike, *, w
     run.summary = summarize(run.results, run.group_wall_s, run.group_run)
     atomic_write_text(out / "summary.json", json.dumps(run.summary, indent=1) + "\n")
     return run
+
+
+def _by_group(specs: list[EpisodeSpec]) -> dict[tuple, list[EpisodeSpec]]:
+    groups: dict[tuple, list[EpisodeSpec]] = {}
+    for spec in specs:
+        groups.setdefault(spec.group, []).append(spec)
+    return groups
 
 
 def error_path(out_dir: str | os.PathLike, spec: EpisodeSpec) -> Path:
@@ -233,6 +259,10 @@ def summarize(results: list[dict], group_wall_s: dict | None = None, group_run: 
         wall = (group_wall_s or {}).get(label)
         ran = (group_run or {}).get(label, 0)
         sim_s, wall_s = sum(d["time_s"] for d in ok), sum(d["wall_s"] for d in ok)
+        topped = [d for d in ok if d.get("ceiling")]
+        top_sim, top_wall = sum(d["ceiling"]["time_s"] for d in topped), sum(d["ceiling"]["wall_s"] for d in topped)
+        own = sum(d["time_s"] for d in topped) / max(sum(d["wall_s"] for d in topped), 1e-9)
+        ceiling = top_sim / top_wall if top_wall > 0 else None
         summary[label] = {
             "episodes": n,
             "success": sum(d["success"] for d in ok) / n,
@@ -242,6 +272,8 @@ def summarize(results: list[dict], group_wall_s: dict | None = None, group_run: 
             "stuck": sum(d["stuck"] for d in ok) / n,
             "replan_p95_ms": 1e3 * p95(replans),
             "sim_to_wall": sim_s / wall_s if wall_s > 0 else None,
+            "ceiling_sim_to_wall": ceiling,
+            "of_ceiling": own / ceiling if ceiling else None,
             "episodes_per_min": 60.0 * ran / wall if wall and ran else None,
             "statuses": {s: sum(d.get("status") == s for d in ok) for s in sorted({d["status"] for d in ok})},
             "errors": n - len(ok),
@@ -253,7 +285,8 @@ def summarize(results: list[dict], group_wall_s: dict | None = None, group_run: 
 _COLUMNS = (("episodes", "n", "{:d}"), ("success", "success", "{:.0%}"), ("spl", "SPL", "{:.2f}"),
             ("falls", "falls", "{:.0%}"), ("collisions_per_episode", "coll/ep", "{:.2f}"),
             ("stuck", "stuck", "{:.0%}"), ("replan_p95_ms", "p95 replan ms", "{:.0f}"),
-            ("sim_to_wall", "sim/wall", "{:.2f}"), ("episodes_per_min", "ep/min", "{:.2f}"),
+            ("sim_to_wall", "sim/wall", "{:.2f}"), ("ceiling_sim_to_wall", "ceiling sim/wall", "{:.2f}"),
+            ("of_ceiling", "of ceiling", "{:.0%}"), ("episodes_per_min", "ep/min", "{:.2f}"),
             ("errors", "errors", "{:d}"))
 
 
@@ -262,7 +295,7 @@ def format_table(summary: dict) -> str:
     head = "| group | " + " | ".join(title for _, title, _ in _COLUMNS) + " |"
     rows = [head, "|" + "---|" * (len(_COLUMNS) + 1)]
     for label, s in summary.items():
-        cells = ["-" if s[key] is None else fmt.format(s[key]) for key, _, fmt in _COLUMNS]
+        cells = ["-" if s.get(key) is None else fmt.format(s[key]) for key, _, fmt in _COLUMNS]
         rows.append(f"| {label} | " + " | ".join(cells) + " |")
     return "\n".join(rows)
 
