@@ -243,3 +243,8 @@ def test_render_benchmark_runs_on_the_cpu_with_tiny_sizes(capsys):
     assert "RESULT {" in capsys.readouterr().out
     assert result["frames_per_s"] > 0 and result["raw_frames_per_s"] > 0
     assert result["same_segmentation_as_raw"] == 1.0 and result["robot_pixel_fraction"] > 0.02
+
+
+def test_tiled_camera_refuses_a_tier_it_cannot_batch_in_one_line():
+    with pytest.raises(ValueError, match="cannot batch renderer='pbr'.*Camera\\(CameraCfg\\(renderer='pbr'"):
+        TiledCamera(TiledCameraCfg(prim_path="/World/cam", renderer="pbr"))

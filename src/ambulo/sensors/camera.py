@@ -3,12 +3,19 @@
 The camera sits on a mount (a body or site) at an offset that can differ per
 world (pose jitter, ``set_camera_view``). Each world is rendered with one
 reused ``OffscreenRenderer``; ground truth comes from ``annotators``.
+
+``renderer`` picks what draws the colour image: ``"raster"`` (MuJoCo's rasterizer),
+``"pbr"`` (Filament: physically based materials, image-based lighting, shadows;
+``ambulo.render.pbr``) or ``"path"`` (path tracing, ``ambulo.render.path``). Labels
+(depth, ids, boxes, normals) always come from the rasterizer's id pass, from the
+same camera, so they are identical pixel for pixel whichever tier draws the colours.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Literal
 
 import mujoco
 import numpy as np
@@ -42,6 +49,8 @@ ALIASES = {"distance_to_image_plane": "depth", "rgba": "rgb", "occlusion": "visi
 _NEEDS_IDS = {"semantic_segmentation", "instance_segmentation", "bounding_box_2d_tight",
               "visible_fraction"}
 _NEEDS_DEPTH = {"depth", "distance_to_camera", "normals"}
+RENDERERS = ("raster", "pbr", "path")
+"""What can draw a camera's colour image (see the module doc)."""
 
 
 @dataclass(kw_only=True)
@@ -67,6 +76,9 @@ class PinholeCfg(Checked):
     """'world' (x forward, z up), 'opengl' (MuJoCo: looks along -z) or 'opencv'/'ros'."""
     clipping_range_m: tuple[float, float] = (0.05, 100.0)
     """Near and far clip distances (m); depth resolution is best with a far-away near plane."""
+    renderer: Literal["raster", "pbr", "path"] = "raster"
+    """What draws the colour image: 'raster' (MuJoCo's rasterizer), 'pbr' (Filament, physically
+    based) or 'path' (path traced); labels come from the raster id pass whichever it is."""
 
     def __post_init__(self):
         """Refuse sizes, angles and ranges no camera can have (one line: the field, why, the fix)."""
@@ -162,6 +174,8 @@ class Camera(Sensor):
         super().__init__(cfg.prim_path, period)
         self.name = cfg.prim_path
         self._renderer: OffscreenRenderer | None = None
+        self._color_renderer = None
+        """The pbr or path tier's renderer (None for raster: the rasterizer draws the colours)."""
         self._pending = None
         self._frames: list[dict | None] = []
 
@@ -208,10 +222,34 @@ class Camera(Sensor):
                                                self.cfg.render)
         return self._renderer
 
+    @property
+    def color_renderer(self):
+        """What draws the colour image: the rasterizer, a ``PbrRenderer`` or a ``PathTracer``."""
+        if self.cfg.renderer == "raster":
+            return self.renderer
+        if self._color_renderer is None:
+            self._require_initialized()
+            self._color_renderer = make_color_renderer(self.cfg.renderer, self._model_buf,
+                                                       self.cfg.width, self.cfg.height)
+        return self._color_renderer
+
+    @property
+    def renderer_name(self) -> str:
+        """The colour tier and its device, recorded with datasets: e.g. 'raster: llvmpipe (...)'."""
+        name = f"raster: {self.renderer.gl_renderer}"
+        if self.cfg.renderer != "raster":
+            name = f"{self.cfg.renderer}: {getattr(self.color_renderer, 'gl_renderer', '')}; labels {name}"
+        return name
+
     def close(self) -> None:
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
+        if self._color_renderer is not None:
+            close = getattr(self._color_renderer, "close", None)
+            if close is not None:
+                close()
+            self._color_renderer = None
 
     # -- intrinsics / extrinsics ------------------------------------------------
     @property
@@ -297,7 +335,10 @@ class Camera(Sensor):
             "intrinsics": k_matrix, "extrinsics_cw": extr, "pos_w": pos,
             "quat_w_opengl": mat_to_quat(rot_gl), "width": self.cfg.width, "height": self.cfg.height}}
         if "rgb" in names:
-            out["rgb"] = r.render_rgb().copy()
+            if self.cfg.renderer == "raster":
+                out["rgb"] = r.render_rgb().copy()
+            else:  # the raster pass's own camera: the same intrinsics and pose, by construction
+                out["rgb"] = np.array(self.color_renderer.render(data, r.scene.camera[0]), np.uint8, copy=True)
         if "poses_w" in names:  # the state this frame shows: 3D boxes in a prim's frame, motion vectors
             out["poses_w"] = {"body_pos": data.xpos.copy(), "body_rot": data.xmat.reshape(-1, 3, 3).copy(),
                               "geom_pos": data.geom_xpos.copy(), "geom_rot": data.geom_xmat.reshape(-1, 3, 3).copy(),
@@ -474,3 +515,19 @@ class Camera(Sensor):
         ids_t = torch.as_tensor(ids, device=cam_pos.device)
         cam_pos[ids_t, self.cam_id] = torch.from_numpy(np.ascontiguousarray(pos)).to(cam_pos)
         cam_quat[ids_t, self.cam_id] = torch.from_numpy(quat).to(cam_quat)
+
+
+def make_color_renderer(renderer: str, model: mujoco.MjModel, width: int, height: int):
+    """The pbr or path tier's renderer of ``model`` at ``width`` x ``height``: an object whose
+    ``render(data, gl_camera)`` returns (H, W, 3) uint8 (``PbrRenderer``, ``PathTracer``)."""
+    if renderer == "pbr":
+        from ambulo.render.pbr import PbrRenderer
+
+        return PbrRenderer(model, width, height)
+    if renderer == "path":
+        try:
+            from ambulo.render.path import PathTracer, PathTracerCfg
+        except ImportError as err:
+            raise RuntimeError(f"the path tier is not available here ({err}); use renderer='pbr' or 'raster'") from err
+        return PathTracer(model, PathTracerCfg(width=width, height=height))
+    raise ValueError(f"unknown renderer {renderer!r}; choose from {RENDERERS}")

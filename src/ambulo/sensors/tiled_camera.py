@@ -112,6 +112,13 @@ class TiledCamera(Sensor):
             cfg = TiledCameraCfg(**kwargs)
         elif kwargs:
             raise TypeError("pass either a TiledCameraCfg or keyword arguments, not both")
+        if cfg.renderer != "raster":
+            # MuJoCo Warp casts one ray per pixel for all worlds in one launch; Filament reads back one
+            # view per render call and the path tracer one world per scene, so neither batches here
+            raise ValueError(
+                f"TiledCamera renders every world in one MuJoCo Warp launch and cannot batch renderer="
+                f"{cfg.renderer!r}; use Camera(CameraCfg(renderer={cfg.renderer!r}, ...)), which renders "
+                "world by world, or renderer='raster' here")
         self.cfg = cfg
         self.data_types = tuple(dict.fromkeys(_ALIASES.get(n, n) for n in cfg.data_types))
         super().__init__(cfg.prim_path)

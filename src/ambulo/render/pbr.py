@@ -1,0 +1,209 @@
+"""The ``pbr`` camera tier: MuJoCo 4's Filament renderer (physically based materials, image-based
+lighting, shadows) behind one small class.
+
+``PbrRenderer(model, width, height).render(data, camera)`` returns an (H, W, 3) uint8 image seen
+from ``camera``, a ``mujoco.MjvGLCamera`` (position, forward/up axes and the frustum on the near
+plane): the type MuJoCo's own rasterizer reads, so the ``raster`` and ``pbr`` tiers take the same
+intrinsics from the same object (``gl_camera`` builds one from a pose and a field of view).
+
+What Filament reads from the MJCF: each geom's colour and material (``rgba``, ``roughness``,
+``metallic``, ``specular``, ``reflectance``, textures), the model's lights (directional, spot,
+point; ``castshadow``) and image lights (``<light type="image" texture=...>`` on a KTX cubemap,
+which ``ambulo.render.ibl`` writes from an HDR environment). It reads them on every ``render``,
+so colour, material and light randomizers written into the model show. Labels never come from
+here: depth, ids and boxes come from the raster id pass whatever tier draws the colours.
+
+Filament draws through Vulkan. On a machine without a GPU driver Mesa's lavapipe renders on the
+CPU (``apt-get install libvulkan1 mesa-vulkan-drivers``); without a loader or a driver the first
+``PbrRenderer`` raises ``NoVulkanError``, one line naming those packages, instead of the abort
+inside Filament. One Filament engine serves the whole process (creating one costs ~1 s and
+compiling its shaders for lavapipe ~9 s on the first frame).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import glob
+import math
+import os
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from ..utils.validate import Checked
+
+INSTALL = "install Vulkan: apt-get install libvulkan1 mesa-vulkan-drivers (Mesa's lavapipe renders on the CPU)"
+
+_VULKAN_LOADER = "libvulkan.so.1"
+"""The Vulkan loader Filament opens (tests rename it to simulate a machine without one)."""
+
+_ICD_DIRS = ("/usr/share/vulkan/icd.d", "/etc/vulkan/icd.d", "/usr/local/share/vulkan/icd.d")
+"""Where the loader looks for drivers (ICD manifests) unless ``VK_ICD_FILENAMES``/``VK_DRIVER_FILES``
+name them: the Vulkan loader's documented search path on Linux."""
+
+
+class NoVulkanError(RuntimeError):
+    """The pbr tier cannot start here; ``str(err)`` is one line ``"<problem>; <fix>"``."""
+
+    def __init__(self, problem: str, fix: str = INSTALL):
+        self.problem, self.fix = problem, fix
+        super().__init__(f"{problem}; {fix}")
+
+
+@dataclass(kw_only=True)
+class PbrSettings(Checked):
+    """What Filament draws beyond the lit surfaces.
+
+    ``post_processing`` is Filament's colour pipeline: tone mapping (PBR Neutral), sRGB encoding,
+    ambient occlusion and FXAA; off, the image holds linear radiance scaled by the camera's
+    exposure, clipped at 1 and quantized to 8 bits (what the Lambertian check compares to the
+    analytic irradiance). On lavapipe at 320x240 post-processing costs ~half the frame.
+    """
+
+    shadows: bool = True
+    reflections: bool = False
+    post_processing: bool = True
+    skybox: bool = True
+    haze: bool = False
+
+
+def _vulkan_problem() -> str | None:
+    """Why Filament's Vulkan backend cannot start here, or None: checked before Filament, which
+    aborts the process when it finds no loader or no device."""
+    try:
+        ctypes.CDLL(_VULKAN_LOADER)
+    except OSError:
+        return f"no Vulkan loader ({_VULKAN_LOADER} cannot be loaded)"
+    named = os.environ.get("VK_DRIVER_FILES") or os.environ.get("VK_ICD_FILENAMES")
+    if named:
+        if not any(os.path.isfile(p) for p in named.split(os.pathsep)):
+            return f"no Vulkan driver: none of the files VK_DRIVER_FILES/VK_ICD_FILENAMES names exists ({named})"
+        return None
+    if not any(glob.glob(os.path.join(d, "*.json")) for d in _ICD_DIRS):
+        return f"no Vulkan driver (no ICD manifest in {', '.join(_ICD_DIRS)})"
+    return None
+
+
+_ENGINE = None
+"""The process's one Filament context (``mjrf.Context``), made by the first renderer."""
+
+
+def _filament_context():
+    global _ENGINE
+    if _ENGINE is not None:
+        return _ENGINE
+    problem = _vulkan_problem()
+    if problem is not None:
+        raise NoVulkanError(problem)
+    try:
+        # registers the 'filament:' resource provider that serves the shipped materials (pbr.filamat)
+        import mujoco.studio._studio  # noqa: F401
+        from mujoco import mjrf
+    except ImportError as err:
+        raise NoVulkanError(f"MuJoCo's Filament renderer is not installed ({err})",
+                            "pip install mujoco-studio (it ships mujoco.mjrf)") from err
+    config = mjrf.ContextConfig()
+    config.graphics_api = mjrf.GraphicsApi.GRAPHICS_API_VULKAN
+    _ENGINE = mjrf.Context(config)
+    return _ENGINE
+
+
+def gl_camera(pos_w, rot_w_gl, fovy_deg: float, width: int, height: int,
+              clip_m: tuple[float, float]) -> mujoco.MjvGLCamera:
+    """A pinhole ``MjvGLCamera`` at ``pos_w`` (3,) m with OpenGL axes ``rot_w_gl`` (3, 3) columns
+    in the world, ``fovy_deg`` vertical field of view, square pixels and (near, far) ``clip_m``:
+    the frustum MuJoCo's rasterizer builds for the same camera (``mjv_updateScene``)."""
+    cam = mujoco.MjvGLCamera()
+    rot = np.asarray(rot_w_gl, float)
+    cam.pos[:] = pos_w
+    cam.forward[:] = -rot[:, 2]
+    cam.up[:] = rot[:, 1]
+    near, far = clip_m
+    half_h = near * math.tan(math.radians(fovy_deg) / 2)
+    cam.frustum_near, cam.frustum_far = near, far
+    cam.frustum_top, cam.frustum_bottom = half_h, -half_h
+    cam.frustum_center = 0.0
+    cam.frustum_width = half_h * width / height
+    cam.orthographic = 0
+    return cam
+
+
+class PbrRenderer:
+    """Renders worlds of ``model`` at ``width`` x ``height`` with Filament.
+
+    ``model`` is read on every ``render`` (colours, materials, lights), so pass the model object
+    that randomizers edit in place; ``data`` must belong to a model of the same structure.
+    """
+
+    def __init__(self, model: mujoco.MjModel, width: int, height: int, settings: PbrSettings | None = None):
+        from mujoco import mjrf  # only after _filament_context has checked Vulkan
+
+        self.width, self.height = int(width), int(height)
+        self.settings = settings or PbrSettings()
+        self._ctx = _filament_context()
+        self._model = model
+        self._resources = mjrf.ModelResources(self._ctx, model)
+        self._scene = self._ctx.create_scene(mjrf.SceneParams())
+        self._scene.configure_from_model(model)
+        self._lights = mjrf.ModelLights(self._scene, self._resources)
+        self._renderables = mjrf.ModelRenderables(self._scene, self._resources)
+        self._renderables.set_options(_scenery_only())
+        self._target = self._ctx.create_render_target(mjrf.RenderTargetConfig(
+            width=self.width, height=self.height, color_format=mjrf.PixelFormat.PIXEL_FORMAT_RGB8))
+        self._rgb = np.zeros((self.height, self.width, 3), np.uint8)
+        self._read = mjrf.ReadRequest(self._target)
+        self._read.set_buffer(self._rgb)
+        self._request = mjrf.RenderRequest()
+        self._request.scene = self._scene
+        self._request.target = self._target
+        self._request.viewport.left, self._request.viewport.bottom = 0, 0
+        self._request.viewport.width, self._request.viewport.height = self.width, self.height
+        s = self.settings
+        self._request.shadows, self._request.reflections = s.shadows, s.reflections
+        self._request.post_processing, self._request.skybox, self._request.haze = s.post_processing, s.skybox, s.haze
+        self._request.headlight = bool(model.vis.headlight.active)
+        if self._request.headlight:  # MuJoCo's headlight is a diffuse colour; Filament's is in lux
+            self._request.headlight_color = np.asarray(model.vis.headlight.diffuse, np.float32)
+            self._request.headlight_intensity = _HEADLIGHT_LUX
+        self._camera = mjrf.Camera()
+        self.gl_renderer = "filament/vulkan"
+
+    def render(self, data: mujoco.MjData, camera: mujoco.MjvGLCamera) -> np.ndarray:
+        """(H, W, 3) uint8 colour image of ``data`` seen from ``camera``, top row first (a view
+        reused by the next call: copy it to keep it)."""
+        self._lights.update(data)
+        self._renderables.update(data)
+        cam = self._camera
+        cam.pos, cam.forward, cam.up = camera.pos, camera.forward, camera.up
+        cam.frustum_near, cam.frustum_far = camera.frustum_near, camera.frustum_far
+        cam.frustum_top, cam.frustum_bottom = camera.frustum_top, camera.frustum_bottom
+        cam.frustum_center, cam.frustum_width = camera.frustum_center, camera.frustum_width
+        cam.orthographic = camera.orthographic
+        self._request.camera = cam
+        frame = self._ctx.render([self._request], [self._read])
+        self._ctx.wait_for_frame(frame)
+        return self._rgb
+
+    def close(self) -> None:
+        """Drop this renderer's scene objects (the process's Filament engine stays for the next)."""
+        self._read = self._request = self._renderables = self._lights = self._scene = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+_HEADLIGHT_LUX = 30000.0
+"""Illuminance (lux) of the headlight when the model turns it on: Filament's default exposure
+(f/16, 1/125 s, ISO 100) maps ~100,000 lux of sunlight to white, so this is a fill, not a sun."""
+
+
+def _scenery_only() -> mujoco.MjvOption:
+    """What the pbr tier draws: geoms of the default groups, no sites (mounts), no decor; the
+    same selection as the rasterizer's camera pass (``OffscreenRenderer``)."""
+    option = mujoco.MjvOption()
+    option.sitegroup[:] = 0
+    return option
