@@ -1,0 +1,307 @@
+"""The path-traced camera tier: Mitsuba 3 renders what MuJoCo's rasterizer would draw.
+
+The scene (``scene_description``: the rasterizer's own geoms, colours, lights and camera) is
+built into a Mitsuba scene once; each frame only what moved or changed colour is written through
+``mi.traverse`` parameters (vertex positions of moving geoms, light and camera poses), never a
+rebuild, so Mitsuba reuses its compiled kernels. Images are rendered with Mitsuba's ``path``
+integrator at ``spp`` samples per pixel, denoised with Open Image Denoise guided by first-hit
+albedo and normals (``denoise``), and encoded to sRGB.
+
+Variants: ``cuda_ad_rgb`` on an NVIDIA GPU, else ``llvm_ad_rgb`` (CPU; needs libLLVM >= 16:
+Debian's ``libllvm19``, which ``scripts/setup.sh`` installs). Labels (depth, ids) are not made
+here: they come from the rasterizer's id pass, so they are identical in every tier.
+
+What it does not model: MuJoCo cube-map textures (mean colour), skyboxes (use ``envmap_path``),
+flexes and skins, orthographic or off-axis cameras, light textures.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import mujoco
+import numpy as np
+
+from ..utils.validate import Checked, rule
+from .denoise import denoise_numpy, denoise_torch, has_pyoidn
+from .scene_description import (
+    CameraDesc,
+    LightDesc,
+    MaterialDesc,
+    SceneReader,
+    SurfaceDesc,
+    ambient_radiance,
+    camera_of,
+    geom_pose,
+    infinite_plane_half_m,
+    lights_of,
+    linear_to_srgb,
+    srgb_to_linear,
+    surface_of,
+)
+
+
+class NoPathTracerError(RuntimeError):
+    """Mitsuba cannot run here; the one-line message names what to install."""
+
+
+@dataclass(kw_only=True)
+class PathTracerCfg(Checked):
+    """How the path tracer renders; the defaults are the CPU tier of issue 26 (320x240, 16 spp)."""
+
+    width: int = field(default=320, metadata=rule(minimum=1))
+    height: int = field(default=240, metadata=rule(minimum=1))
+    spp: int = field(default=16, metadata=rule(minimum=1))
+    """Samples per pixel."""
+    max_depth: int = field(default=4, metadata=rule(signed=True, minimum=-1))
+    """Longest path in vertices (Mitsuba's ``max_depth``): 4 is three bounces; -1 is unbounded."""
+    denoise: bool = True
+    denoise_quality: Literal["fast", "balanced", "high"] = "fast"
+    """Open Image Denoise's speed/quality trade: "fast" costs half of "balanced" (0.17 vs 0.32 CPU-s at 320x240)."""
+    guide_spp: int = field(default=4, metadata=rule(minimum=1))
+    """Samples per pixel of the denoiser's albedo and normal guides (antialiased like the colour)."""
+    variant: Literal["auto", "cuda_ad_rgb", "llvm_ad_rgb"] = "auto"
+    """"auto": CUDA when an NVIDIA driver is there, else the LLVM CPU backend."""
+    envmap_path: str | None = None
+    """Latitude-longitude HDR image (.exr, .hdr; Isaac's DomeLight texture) lighting the scene, z up;
+    None: a constant environment of the MuJoCo lights' ambient."""
+    envmap_scale: float = field(default=1.0, metadata=rule(minimum=0))
+    exposure: float = field(default=1.0, metadata=rule(minimum=0, strict=True))
+    """Multiplies linear radiance before the sRGB encoding."""
+    seed: int = 0
+    """Noise seed of the first frame; each frame adds one, so frames are independent samples."""
+    slices: int = field(default=32, metadata=rule(minimum=3))
+    """Tessellation of curved geoms: segments around, and ``slices // 2`` from pole to pole."""
+
+
+def _mitsuba(variant: str):
+    """Import Mitsuba and set ``variant`` ("auto": CUDA if it works, else LLVM)."""
+    try:
+        import drjit as dr
+        import mitsuba as mi
+    except ImportError as e:
+        raise NoPathTracerError(f"the path tracer needs Mitsuba 3: pip install 'ambulo[render]' ({e})") from None
+    if variant == "auto":
+        variant = "cuda_ad_rgb" if dr.has_backend(dr.JitBackend.CUDA) else "llvm_ad_rgb"
+    backend = dr.JitBackend.CUDA if variant.startswith("cuda") else dr.JitBackend.LLVM
+    if not dr.has_backend(backend):
+        need = ("an NVIDIA driver (libcuda)" if backend == dr.JitBackend.CUDA
+                else "libLLVM >= 16: apt-get install libllvm19 (scripts/setup.sh does it)")
+        raise NoPathTracerError(f"Mitsuba variant {variant} cannot run here: it needs {need}")
+    mi.set_variant(variant)
+    return mi, dr
+
+
+class PathTracer:
+    """Path-traced colour images of ``model``'s scene from its cameras.
+
+    >>> tracer = PathTracer(model, PathTracerCfg(width=320, height=240, spp=16))
+    >>> rgb = tracer.render(data, "head_cam")   # (240, 320, 3) uint8 sRGB
+    """
+
+    def __init__(self, model: mujoco.MjModel, cfg: PathTracerCfg | None = None):
+        self.cfg = cfg or PathTracerCfg()
+        self.mi, self._dr = _mitsuba(self.cfg.variant)
+        self.variant = self.mi.variant()
+        if self.cfg.denoise and not has_pyoidn():
+            raise NoPathTracerError("denoise=True needs Open Image Denoise: pip install pyoidn, or pass denoise=False")
+        self.model = model
+        self._reader = SceneReader(model)
+        self._frame = 0
+        data = mujoco.MjData(model)
+        mujoco.mj_forward(model, data)
+        scene = self._reader.read(model, data, 0 if model.ncam else -1)
+        self._surfaces: dict[int, SurfaceDesc] = {}
+        self._poses: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self._colors: dict[int, np.ndarray] = {}
+        half = infinite_plane_half_m(model)
+        for geom in scene.geoms[: scene.ngeom]:
+            surface = surface_of(model, geom, half, self.cfg.slices, self.cfg.slices // 2)
+            if surface is not None:
+                self._surfaces[surface.geom_id] = surface
+                self._poses[surface.geom_id] = geom_pose(geom)
+                self._colors[surface.geom_id] = surface.material.base_color
+        self._lights = lights_of(model, data, scene)
+        self._scene = self.mi.load_dict(self._scene_dict(scene, camera_of(scene, self.cfg.width, self.cfg.height)))
+        self._params = self.mi.traverse(self._scene)
+        self._guide_integrator = self.mi.load_dict({"type": "aov", "aovs": "albedo:albedo,nn:sh_normal"})
+
+    # -- building -------------------------------------------------------------------------------
+    def _bsdf(self, material: MaterialDesc) -> dict:
+        mi = self.mi
+        if material.texture is not None:
+            pixels = material.texture[..., :3].astype(np.float32) / 255.0
+            if pixels.shape[-1] == 1:
+                pixels = np.repeat(pixels, 3, -1)
+            linear = srgb_to_linear(pixels) if material.texture_is_srgb else pixels
+            color = {"type": "bitmap", "bitmap": mi.Bitmap(np.ascontiguousarray(linear * material.base_color)),
+                     "raw": True, "filter_type": "bilinear", "wrap_mode": "repeat"}
+        else:
+            color = {"type": "rgb", "value": material.base_color.tolist()}
+        if material.metallic > 0 or material.specular > 0:
+            bsdf = {"type": "principled", "base_color": color, "roughness": material.roughness,
+                    "metallic": material.metallic, "specular": material.specular}
+        else:
+            bsdf = {"type": "diffuse", "reflectance": color}
+        if material.opacity < 1:
+            bsdf = {"type": "mask", "opacity": material.opacity, "material": bsdf}
+        return bsdf
+
+    def _mesh(self, surface: SurfaceDesc, pose: tuple[np.ndarray, np.ndarray]):
+        mi, mesh = self.mi, surface.mesh
+        props = mi.Properties()
+        props["bsdf"] = mi.load_dict(self._bsdf(surface.material))
+        if np.any(surface.material.emission > 0):
+            props["emitter"] = mi.load_dict({"type": "area", "radiance": {
+                "type": "rgb", "value": surface.material.emission.tolist()}})
+        out = mi.Mesh(f"geom_{surface.geom_id}", len(mesh.positions), len(mesh.faces), props=props,
+                      has_vertex_normals=True, has_vertex_texcoords=mesh.texcoords is not None)
+        params = mi.traverse(out)
+        positions, normals = _to_world(mesh.positions, mesh.normals, pose)
+        params["vertex_positions"] = mi.Float(positions.ravel())
+        params["vertex_normals"] = mi.Float(normals.ravel())
+        params["faces"] = mi.UInt(mesh.faces.ravel())
+        if mesh.texcoords is not None:
+            params["vertex_texcoords"] = mi.Float(mesh.texcoords.ravel())
+        params.update()
+        return out
+
+    def _scene_dict(self, scene: mujoco.MjvScene, camera: CameraDesc) -> dict:
+        cfg = self.cfg
+        out = {"type": "scene", "integrator": {"type": "path", "max_depth": cfg.max_depth}, "sensor": {
+            "type": "perspective", "fov_axis": "y", "fov": camera.fovy_deg, "near_clip": camera.near_m,
+            "far_clip": camera.far_m, "to_world": self._look_at(camera.pos_w, camera.rot_w_gl, scalar=True),
+            "sampler": {"type": "multijitter", "sample_count": cfg.spp},
+            "film": {"type": "hdrfilm", "width": cfg.width, "height": cfg.height, "rfilter": {"type": "box"},
+                     "pixel_format": "rgb"}}}
+        for gid, surface in self._surfaces.items():
+            out[f"geom_{gid}"] = self._mesh(surface, self._poses[gid])
+        for i, light in enumerate(self._lights):
+            out[f"light_{i}"] = self._light_dict(light)
+        if cfg.envmap_path is not None:
+            out["environment"] = {"type": "envmap", "filename": cfg.envmap_path, "scale": cfg.envmap_scale,
+                                  "to_world": self.mi.ScalarTransform4f().rotate([1, 0, 0], 90)}  # its y up -> z up
+        else:
+            ambient = ambient_radiance(scene)
+            if np.any(ambient > 0):
+                out["environment"] = {"type": "constant", "radiance": {"type": "rgb", "value": ambient.tolist()}}
+        return out
+
+    def _light_dict(self, light: LightDesc) -> dict:
+        value = {"type": "rgb", "value": light.intensity.tolist()}
+        if light.kind == "directional":
+            return {"type": "directional", "irradiance": value, "to_world": self._shine(light, scalar=True)}
+        if light.kind == "point":
+            return {"type": "point", "intensity": value, "position": light.pos_w.tolist()}
+        return {"type": "spot", "intensity": value, "cutoff_angle": light.cutoff_deg, "beam_width": light.beam_deg,
+                "to_world": self._shine(light, scalar=True)}
+
+    def _look_at(self, pos_w, rot_w_gl, scalar: bool = False):
+        """Mitsuba's camera frame (looks along +z, y up) at the OpenGL pose ``rot_w_gl``."""
+        transform = self.mi.ScalarTransform4f() if scalar else self.mi.Transform4f()
+        pos = [float(v) for v in pos_w]
+        target = [float(v) for v in np.asarray(pos_w) - rot_w_gl[:, 2]]
+        return transform.look_at(origin=pos, target=target, up=[float(v) for v in rot_w_gl[:, 1]])
+
+    def _shine(self, light: LightDesc, scalar: bool = False):
+        """A frame whose +z is the light's direction (directional and spot emitters shine along +z)."""
+        d = light.dir_w
+        up = np.array([0.0, 0.0, 1.0]) if abs(d[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+        transform = self.mi.ScalarTransform4f() if scalar else self.mi.Transform4f()
+        return transform.look_at(origin=light.pos_w.tolist(), target=(light.pos_w + d).tolist(), up=up.tolist())
+
+    # -- per frame ------------------------------------------------------------------------------
+    def update(self, data: mujoco.MjData, camera: int | str = 0,
+               pose: tuple[np.ndarray, np.ndarray] | None = None) -> CameraDesc:
+        """Write the poses of ``data`` (geoms, lights, camera ``camera`` or ``pose``) into the scene.
+
+        ``pose``: (pos_w (3,), rot_w_gl (3, 3)) replacing the model camera's (as ``OffscreenRenderer``
+        takes it). Geoms whose pose and colour are unchanged are not written, so a static scene
+        costs no acceleration-structure rebuild. Returns the camera rendered from.
+        """
+        model, params, mi = self.model, self._params, self.mi
+        cam_id = camera if isinstance(camera, (int, np.integer)) else model.camera(camera).id
+        scene = self._reader.read(model, data, int(cam_id), pose)
+        for geom in scene.geoms[: scene.ngeom]:
+            gid = int(geom.objid)
+            surface = self._surfaces.get(gid) if geom.objtype == mujoco.mjtObj.mjOBJ_GEOM else None
+            if surface is None:
+                continue
+            if not surface.static:
+                new_pose = geom_pose(geom)
+                old = self._poses[gid]
+                if not (np.array_equal(new_pose[0], old[0]) and np.array_equal(new_pose[1], old[1])):
+                    positions, normals = _to_world(surface.mesh.positions, surface.mesh.normals, new_pose)
+                    params[f"geom_{gid}.vertex_positions"] = mi.Float(positions.ravel())
+                    params[f"geom_{gid}.vertex_normals"] = mi.Float(normals.ravel())
+                    self._poses[gid] = new_pose
+            if surface.material.texture is None:
+                color = srgb_to_linear(np.asarray(geom.rgba[:3]))
+                if not np.array_equal(color, self._colors[gid]):
+                    key = next(k for k in (f"geom_{gid}.bsdf.base_color.value", f"geom_{gid}.bsdf.reflectance.value",
+                                           f"geom_{gid}.bsdf.material.base_color.value",
+                                           f"geom_{gid}.bsdf.material.reflectance.value") if k in params)
+                    params[key] = mi.Color3f(*color.tolist())
+                    self._colors[gid] = color
+        self._update_lights(lights_of(model, data, scene))
+        cam = camera_of(scene, self.cfg.width, self.cfg.height)
+        params["sensor.to_world"] = self._look_at(cam.pos_w, cam.rot_w_gl)
+        params["sensor.x_fov"] = _x_fov_deg(cam)
+        params.update()  # rebuilds the acceleration structure only when vertices were written
+        return cam
+
+    def _update_lights(self, lights: list[LightDesc]) -> None:
+        params, mi = self._params, self.mi
+        if len(lights) != len(self._lights):
+            raise RuntimeError("the number of lights changed; build a new PathTracer for the new model")
+        for i, (new, old) in enumerate(zip(lights, self._lights)):
+            if (np.array_equal(new.pos_w, old.pos_w) and np.array_equal(new.dir_w, old.dir_w)
+                    and np.array_equal(new.intensity, old.intensity)):
+                continue
+            key = "irradiance" if new.kind == "directional" else "intensity"
+            params[f"light_{i}.{key}.value"] = mi.Color3f(*new.intensity.tolist())
+            if new.kind == "point":
+                params[f"light_{i}.position"] = mi.Point3f(*new.pos_w.tolist())
+            else:
+                params[f"light_{i}.to_world"] = self._shine(new)
+            self._lights[i] = new
+
+    def render_linear(self, data: mujoco.MjData, camera: int | str = 0,
+                      pose: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+        """(H, W, 3) float32 linear radiance (denoised when ``cfg.denoise``) after ``update``."""
+        self.update(data, camera, pose)
+        seed = self.cfg.seed + self._frame
+        self._frame += 1
+        image = self.mi.render(self._scene, spp=self.cfg.spp, seed=seed)
+        if not self.cfg.denoise:
+            return np.asarray(image, np.float32)
+        # the guides: first-hit albedo and normal, nearly noise-free at a few samples (4 cost ~5 % of 16 path samples)
+        guides = self.mi.render(self._scene, integrator=self._guide_integrator, spp=self.cfg.guide_spp, seed=seed)
+        if self.variant.startswith("cuda"):
+            color, guides = image.torch(), guides.torch()
+            return denoise_torch(color, guides[..., :3], guides[..., 3:6], quality=self.cfg.denoise_quality).cpu().numpy()
+        guides = np.asarray(guides, np.float32)
+        return denoise_numpy(np.asarray(image, np.float32), guides[..., :3], guides[..., 3:6],
+                             quality=self.cfg.denoise_quality)
+
+    def render(self, data: mujoco.MjData, camera: int | str = 0,
+               pose: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+        """(H, W, 3) uint8 sRGB image of camera ``camera`` (id or name) for the state ``data``."""
+        linear = self.render_linear(data, camera, pose) * np.float32(self.cfg.exposure)
+        return (linear_to_srgb(linear) * 255.0 + 0.5).astype(np.uint8)
+
+
+def _to_world(positions: np.ndarray, normals: np.ndarray, pose: tuple[np.ndarray, np.ndarray]):
+    pos_w, rot_w = pose
+    rot = rot_w.astype(np.float32)
+    return positions @ rot.T + pos_w.astype(np.float32), normals @ rot.T
+
+
+def _x_fov_deg(cam: CameraDesc) -> float:
+    """Mitsuba stores the horizontal field of view; the rasterizer's is fixed by fovy and aspect."""
+    half_y = np.tan(np.radians(cam.fovy_deg) / 2)
+    return float(np.degrees(2 * np.arctan(half_y * cam.width / cam.height)))
+
+
+__all__ = ["NoPathTracerError", "PathTracer", "PathTracerCfg"]
