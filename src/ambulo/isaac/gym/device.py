@@ -42,8 +42,10 @@ class CudaOnCpu(TorchFunctionMode):
 
 @contextlib.contextmanager
 def cuda_on_cpu() -> Iterator[None]:
-    """Inside the block, torch calls that ask for a CUDA device get the CPU."""
-    with CudaOnCpu():
+    """Inside the block, torch calls that ask for a CUDA device get the CPU. ``torch.compile``d
+    functions (rl_games compiles its models) run eagerly there: dynamo cannot trace through a
+    Python torch function mode."""
+    with torch.compiler.set_stance("force_eager"), CudaOnCpu():
         yield
 
 
