@@ -70,7 +70,9 @@ if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
   "$VENV/bin/python" -m pip install -q --upgrade pip
   # the CPU build of torch first, pinned, so nothing pulls a multi-GB CUDA build
   "$VENV/bin/python" -m pip install -q "torch==${TORCH_VERSION:-2.13.0}"
-  "$VENV/bin/python" -m pip install -q -e ".[data,rl,dev,robots,gpu,ros2,perception,render]"
+  "$VENV/bin/python" -m pip install -q -e ".[data,rl,dev,robots,gpu,ros2,perception,render,isaacgym]"
+  # rl_games for Isaac Gym scripts, without its pins (see the isaacgym extra in pyproject.toml)
+  "$VENV/bin/python" -m pip install -q --no-deps "rl-games==1.6.5"
   touch "$stamp"
 fi
 echo "ambulo is set up in $VENV"
