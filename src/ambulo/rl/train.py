@@ -20,12 +20,14 @@ from ambulo.engine import engine_class
 from ambulo.utils.atomic import remove_partial_files
 
 from . import distributed, interrupt, runs
-from .config import ppo_cfg
+from .config import PpoCfg, ppo_cfg
 from .episodes import EpisodeStats
 from .log_writer import ProgressWriter
+from .logger import EpisodeLogger
 from .periodic_eval import PeriodicEval, resume_evals
 from .ppo import AmbuloPPO
 from .progress import CriterionReached, TrainingProgress
+from .sampling import SyncFreeGaussian
 from .vecenv import RslRlVecEnv
 
 
@@ -39,6 +41,12 @@ class AmbuloRunner(OnPolicyRunner):
     env: RslRlVecEnv
     episodes: EpisodeStats | None = None
     """The main rank's episode statistics (set by ``train``)."""
+
+    def __init__(self, env: RslRlVecEnv, train_cfg: dict, log_dir: str | None = None, device: str = "cpu"):
+        super().__init__(env, train_cfg, log_dir=log_dir, device=device)
+        # rsl-rl's logger reads finished episodes back to the host every step; ambulo's keeps
+        # them on the device (``logger.EpisodeLogger``)
+        self.logger = EpisodeLogger.adopt(self.logger, env.episodes)
 
     def learn(self, num_learning_iterations: int, init_at_random_ep_len: bool = False) -> None:
         if self.alg.is_multi_gpu and not self.is_distributed:  # CPU ranks (ppo.AmbuloPPO): rank 0's weights
@@ -73,12 +81,25 @@ class AmbuloRunner(OnPolicyRunner):
         return self.current_learning_iteration
 
 
-def _make_runner(env, ppo, run_dir: Path, rank: distributed.Rank, episodes: EpisodeStats | None,
-                 progress_box: list) -> AmbuloRunner:
-    """The runner, with ambulo's algorithm class and log writer in its config (rsl-rl's extension
-    points). ``progress_box`` receives the ``TrainingProgress`` once it exists (it needs the runner)."""
+def runner_cfg(env: envs.RLEnv, ppo: PpoCfg) -> dict[str, Any]:
+    """rsl-rl-lib's ``train_cfg`` as ``ambulo train`` runs it: the task's PPO settings
+    (``PpoCfg.to_rsl_rl``) with ambulo's algorithm class, the Gaussian head that samples without
+    a host sync (``sampling.SyncFreeGaussian``) and the NaN check moved from every step into the
+    algorithm, once an iteration (``ppo.AmbuloPPO``). Benchmarks build from it to time what
+    training runs; the log writer is added by ``train``."""
     cfg = ppo.to_rsl_rl(env.num_privileged_obs > 0)
     cfg["algorithm"]["class_name"] = AmbuloPPO
+    cfg["actor"]["distribution_cfg"]["class_name"] = SyncFreeGaussian
+    cfg["check_for_nan"] = False
+    return cfg
+
+
+def _make_runner(env, ppo, run_dir: Path, rank: distributed.Rank, episodes: EpisodeStats | None,
+                 progress_box: list) -> AmbuloRunner:
+    """The runner, with ambulo's classes (``runner_cfg``) and log writer in its config (rsl-rl's
+    extension points). ``progress_box`` receives the ``TrainingProgress`` once it exists (it needs
+    the runner)."""
+    cfg = runner_cfg(env, ppo)
     cfg["logger"] = {"class_name": ProgressWriter.factory(
         on_iteration=lambda *args: progress_box[0].iteration_done(*args),
         means=lambda: episodes.means())}
