@@ -146,7 +146,7 @@ def run_one(args: argparse.Namespace) -> int:
         world = NavWorld.from_apartment(apt, start, world_cfg)
         name = f"apartment {args.seed}"
     else:
-        world = NavWorld.from_file(args.world, start, world_cfg)
+        world = NavWorld.from_file(args.world, start, world_cfg, cover_xy_m=[goal])  # the map reaches the goal
         try:
             check_point(world.occupancy, start, "--start", radius)
             check_point(world.occupancy, goal, "--goal", radius)

@@ -16,6 +16,12 @@ square (less 1 micrometre a side) meets the solid's footprint. How exact each fo
 Planes are the ground and never block. Geoms that collide with nothing (``contype`` and
 ``conaffinity`` both 0, visual-only) are left out: the robot cannot touch them. Bodies that move
 (free joints, mocap) are taken where the compiled model puts them at its initial state.
+
+**Extent.** The map covers the blocking solids and the points the caller names (the start, the
+goal) grown by ``margin_m``, and the world's finite floor planes (up to ``floor_reach_m`` beyond
+that box). When every floor plane is finite (a user's ``<geom type="plane" size="6 6 .1"/>``), a
+cell over none of them is OCCUPIED: there is nothing to stand on, so no route or goal goes there.
+A floor plane is a colliding plane facing up at or below ``step_height_m``.
 """
 
 from __future__ import annotations
@@ -48,6 +54,25 @@ def static_geoms(model: mujoco.MjModel, data: mujoco.MjData, exclude_prefix: str
             continue
         out.append(g)
     return out
+
+
+def floor_planes(model: mujoco.MjModel, data: mujoco.MjData, step_height_m: float) -> tuple[list[np.ndarray], bool]:
+    """(outlines, infinite): the (4, 2) corners of each finite floor plane seen from above, and whether
+    any floor plane is infinite (a size of 0 in x or y is MuJoCo's infinite plane)."""
+    out, infinite = [], False
+    for g in np.flatnonzero(model.geom_type == mujoco.mjtGeom.mjGEOM_PLANE):
+        if model.geom_contype[g] == 0 and model.geom_conaffinity[g] == 0:
+            continue
+        rot = data.geom_xmat[g].reshape(3, 3)
+        if rot[2, 2] < 1.0 - 1e-6 or data.geom_xpos[g, 2] > step_height_m:  # not a floor: tilted, facing down, high
+            continue
+        sx, sy = (float(v) for v in model.geom_size[g, :2])
+        if sx <= 0 or sy <= 0:
+            infinite = True
+            continue
+        corners = np.array([[-sx, -sy, 0], [sx, -sy, 0], [sx, sy, 0], [-sx, sy, 0]]) @ rot.T + data.geom_xpos[g]
+        out.append(_hull_xy(corners))
+    return out, infinite
 
 
 def _hull_xy(points: np.ndarray) -> np.ndarray:
@@ -159,11 +184,14 @@ def _square_segment_distance(cmin: np.ndarray, cmax: np.ndarray, a: np.ndarray, 
 
 def world_occupancy(model: mujoco.MjModel, data: mujoco.MjData, *, resolution_m: float = 0.05,
                     step_height_m: float = 0.03, head_height_m: float = humanoid.HEAD_HEIGHT_M,
-                    margin_m: float = 0.5, exclude_prefix: str = humanoid.PRIM_PATH,
+                    margin_m: float = 1.0, floor_reach_m: float = 5.0, exclude_prefix: str = humanoid.PRIM_PATH,
                     include_xy_m: np.ndarray | None = None) -> Grid2D:
     """The body band's occupancy of ``model``'s static geoms (module docstring) at ``data``'s
-    state (after ``mj_forward``), over their bounding box plus ``margin_m`` (and the points
-    ``include_xy_m`` (K, 2), e.g. the start and goal)."""
+    state (after ``mj_forward``). Extent (module docstring): the solids' and the points
+    ``include_xy_m``'s (K, 2) (the start and the goal) bounding box plus ``margin_m`` (1 m: a route
+    around a solid on the box's edge keeps the robot's 0.25 m clearance with room to spare), joined
+    with the finite floor planes up to ``floor_reach_m`` beyond that box (``add_ground``'s 100 m
+    plane would be 4 M cells)."""
     if not resolution_m > 0:
         raise InvalidValueError("resolution_m", resolution_m, "a cell side must be > 0", "pass e.g. 0.05")
     outlines = []
@@ -173,23 +201,39 @@ def world_occupancy(model: mujoco.MjModel, data: mujoco.MjData, *, resolution_m:
             outlines.append((kind, shape))
     pts = [] if include_xy_m is None else [np.asarray(include_xy_m, float).reshape(-1, 2)]
     for kind, shape in outlines:
-        if kind == "poly":
-            pts.append(shape)
-        elif kind == "disc":
-            cx, cy, rad = shape
-            pts.append(np.array([[cx - rad, cy - rad], [cx + rad, cy + rad]]))
-        else:
-            x0, y0, x1, y1, rad = shape
-            pts.append(np.array([[min(x0, x1) - rad, min(y0, y1) - rad], [max(x0, x1) + rad, max(y0, y1) + rad]]))
+        pts.append(_bounds(kind, shape))
     allp = np.concatenate(pts) if pts else np.zeros((1, 2))
-    lo = np.floor((allp.min(0) - margin_m) / resolution_m) * resolution_m
-    hi = allp.max(0) + margin_m
+    lo, hi = allp.min(0) - margin_m, allp.max(0) + margin_m
+    floors, infinite_floor = floor_planes(model, data, step_height_m)
+    if floors:
+        plane_pts = np.concatenate(floors)
+        lo = np.minimum(lo, np.maximum(plane_pts.min(0), lo - floor_reach_m))
+        hi = np.maximum(hi, np.minimum(plane_pts.max(0), hi + floor_reach_m))
+    lo = np.floor(lo / resolution_m) * resolution_m
     shape_yx = (int(math.ceil((hi[1] - lo[1]) / resolution_m)), int(math.ceil((hi[0] - lo[0]) / resolution_m)))
+    origin = (float(lo[0]), float(lo[1]))
     occupied = np.zeros(shape_yx, bool)
     for kind, shape in outlines:
-        iy, ix, hit = _cells_meeting(kind, shape, (float(lo[0]), float(lo[1])), resolution_m, shape_yx)
+        iy, ix, hit = _cells_meeting(kind, shape, origin, resolution_m, shape_yx)
         occupied[iy[hit], ix[hit]] = True
-    return Grid2D.from_masks(occupied, origin_xy_m=(float(lo[0]), float(lo[1])), resolution_m=resolution_m)
+    if floors and not infinite_floor:  # nothing to stand on off the floor planes
+        on_floor = np.zeros(shape_yx, bool)
+        for poly in floors:
+            iy, ix, hit = _cells_meeting("poly", poly, origin, resolution_m, shape_yx)
+            on_floor[iy[hit], ix[hit]] = True
+        occupied |= ~on_floor
+    return Grid2D.from_masks(occupied, origin_xy_m=origin, resolution_m=resolution_m)
 
 
-__all__ = ["static_geoms", "world_occupancy"]
+def _bounds(kind: str, shape) -> np.ndarray:
+    """(2, 2) or (M, 2) points whose bounding box is the outline's."""
+    if kind == "poly":
+        return shape
+    if kind == "disc":
+        cx, cy, rad = shape
+        return np.array([[cx - rad, cy - rad], [cx + rad, cy + rad]])
+    x0, y0, x1, y1, rad = shape
+    return np.array([[min(x0, x1) - rad, min(y0, y1) - rad], [max(x0, x1) + rad, max(y0, y1) + rad]])
+
+
+__all__ = ["floor_planes", "static_geoms", "world_occupancy"]

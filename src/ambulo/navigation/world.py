@@ -86,7 +86,7 @@ class NavWorld:
     ``from_apartment``, ``from_file`` or ``from_spec``; ``step()`` advances one physics step."""
 
     def __init__(self, spec: mujoco.MjSpec, start_pose, cfg: NavWorldCfg | None = None, *,
-                 occupancy: Grid2D | None = None, apartment_: Apartment | None = None):
+                 occupancy: Grid2D | None = None, apartment_: Apartment | None = None, cover_xy_m=None):
         self.cfg = cfg = cfg or NavWorldCfg()
         self.start_pose = tuple(float(v) for v in check_vector("start_pose", start_pose, 3, "pass (x m, y m, yaw rad)"))
         self.apartment = apartment_
@@ -119,10 +119,12 @@ class NavWorld:
         feet = [model.body(prefix + name).id for name in humanoid.FOOT_BODIES]
         self._sole_geom = np.isin(model.geom_bodyid, feet)
         self._pelvis = model.body(prefix + humanoid.BASE_BODY).id
+        cover = np.asarray([] if cover_xy_m is None else cover_xy_m, float).reshape(-1, 2)
         self.occupancy = occupancy if occupancy is not None else world_occupancy(
             model, self._data, resolution_m=cfg.map_resolution_m, step_height_m=cfg.step_height_m,
-            include_xy_m=np.array([self.start_pose[:2]]))
-        """Ground-truth occupancy of the body band (``maps.Grid2D``)."""
+            include_xy_m=np.concatenate([[self.start_pose[:2]], cover]))
+        """Ground-truth occupancy of the body band (``maps.Grid2D``); a user world's covers the start and
+        ``cover_xy_m`` (``ground_truth.world_occupancy``)."""
         self._root_pos = self.robot.data.root_pos_w
         self.randomizer.initialize(self)
         self.reset_monitors()
@@ -136,8 +138,9 @@ class NavWorld:
         return cls(spec, start_pose, cfg, occupancy=apt.occupancy, apartment_=apt)
 
     @classmethod
-    def from_spec(cls, spec: mujoco.MjSpec, start_pose, cfg: NavWorldCfg | None = None) -> NavWorld:
-        """A user's world built in code (an ``MjSpec`` without the robot; edited in place)."""
+    def from_spec(cls, spec: mujoco.MjSpec, start_pose, cfg: NavWorldCfg | None = None, *, cover_xy_m=None) -> NavWorld:
+        """A user's world built in code (an ``MjSpec`` without the robot; edited in place). ``cover_xy_m``
+        (K, 2): points the ground-truth map must cover besides the start (the goal), m."""
         if spec.body(humanoid.PRIM_PATH) is not None or spec.frame(humanoid.PRIM_PATH) is not None:
             raise InvalidValueError("spec", humanoid.PRIM_PATH, "the world already holds a robot at the humanoid's prim path",
                                     "pass the environment alone: the navigator adds the humanoid at the start pose")
@@ -146,18 +149,19 @@ class NavWorld:
             add_ground(spec, GroundCfg())
         add_robot(spec, RobotCfg(file=humanoid.ASSET, prim_path=humanoid.PRIM_PATH, pos_m=(x, y, 0.0),
                                  quat=quat_from_yaw(yaw).tolist()))
-        return cls(spec, start_pose, cfg)
+        return cls(spec, start_pose, cfg, cover_xy_m=cover_xy_m)
 
     @classmethod
-    def from_file(cls, path: str | Path, start_pose, cfg: NavWorldCfg | None = None) -> NavWorld:
-        """A user's MJCF (``.xml``) or USD (``.usd``, ``.usda``, ``.usdc``) world file."""
+    def from_file(cls, path: str | Path, start_pose, cfg: NavWorldCfg | None = None, *, cover_xy_m=None) -> NavWorld:
+        """A user's MJCF (``.xml``) or USD (``.usd``, ``.usda``, ``.usdc``) world file (``cover_xy_m``: as
+        ``from_spec``)."""
         file = Path(path).expanduser()
         if not file.is_file():
             raise InvalidValueError("world file", str(path), "no such file", "pass the path of an MJCF or USD world")
         if file.suffix.lower() not in (".xml", ".mjcf", ".usd", ".usda", ".usdc", ".usdz"):
             raise InvalidValueError("world file", str(path), f"unknown format {file.suffix!r}",
                                     "pass an MJCF (.xml) or USD (.usd/.usda/.usdc) world")
-        return cls.from_spec(mujoco.MjSpec.from_file(str(file)), start_pose, cfg)
+        return cls.from_spec(mujoco.MjSpec.from_file(str(file)), start_pose, cfg, cover_xy_m=cover_xy_m)
 
     # -- state --------------------------------------------------------------------------------
     @property
