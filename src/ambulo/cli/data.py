@@ -2,6 +2,7 @@
 
     ambulo generate --frames 100 --out data/ --seed 0              # the warehouse example
     ambulo generate my_config.py --frames 1000 --out data/ --workers 4
+    ambulo generate --frames 100 --out data_pbr/ --renderer pbr      # Filament colours, same labels
     RAY_ADDRESS=auto ambulo generate my_config.py --frames 100000 --out /shared/data --workers 64
 
 A CONFIG file is Python defining ``config()`` (or ``CONFIG``) that returns an
@@ -31,9 +32,11 @@ _DISK_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EACCES, errno.EPERM, errno.ERO
 _CONFIG_FIX = "give a Python file whose config() or CONFIG is an ambulo.replicator.DatasetConfig"
 
 
-def load_config(path: str | None, width: int | None = None, height: int | None = None):
+def load_config(path: str | None, width: int | None = None, height: int | None = None,
+                renderer: str | None = None):
     """The ``DatasetConfig`` of Python file ``path`` (the example scene's for ``None``), with its
-    camera resized to ``width`` x ``height`` where given. ``CliError`` on a bad file."""
+    camera resized to ``width`` x ``height`` and drawn by ``renderer`` where given. ``CliError`` on
+    a bad file."""
     from ambulo import replicator as rep
 
     if path is None:
@@ -55,9 +58,10 @@ def load_config(path: str | None, width: int | None = None, height: int | None =
             raise CliError(f"{path} defines neither config() nor CONFIG", _CONFIG_FIX)
         if not isinstance(config, rep.DatasetConfig):
             raise CliError(f"{path} gave a {type(config).__name__}, not a DatasetConfig", _CONFIG_FIX)
-    if width or height:
+    if width or height or renderer:
         camera = dataclasses.replace(config.camera, width=width or config.camera.width,
-                                     height=height or config.camera.height)
+                                     height=height or config.camera.height,
+                                     renderer=renderer or config.camera.renderer)
         config = dataclasses.replace(config, camera=camera)
     return config
 
@@ -72,7 +76,7 @@ def generate(args: argparse.Namespace) -> int:
             raise CliError(f"--{flag} {value} is not positive", f"give --{flag} 1 or more")
     if args.seed < 0:
         raise CliError(f"--seed {args.seed} is negative", "give --seed 0 or more")
-    config = load_config(args.config, args.width, args.height)
+    config = load_config(args.config, args.width, args.height, args.renderer)
     try:
         with _terminate_as_interrupt() as received:
             path = rep.generate(config, args.out, num_frames=args.frames, seed=args.seed, workers=args.workers,
@@ -140,6 +144,9 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
                    help="run the workers on Ray (also when RAY_ADDRESS is set): for several machines sharing --out")
     p.add_argument("--width", type=int, default=None, help="override the camera width (px)")
     p.add_argument("--height", type=int, default=None, help="override the camera height (px)")
+    p.add_argument("--renderer", choices=("raster", "pbr", "path"), default=None,
+                   help="what draws the colour images: raster (MuJoCo), pbr (Filament, physically based) or path "
+                        "(path traced); labels are the same whichever (default: the config's camera, raster)")
     p.add_argument("--overwrite", action="store_true",
                    help="delete the ambulo dataset in --out (its own files only) and start afresh")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

@@ -75,7 +75,7 @@ def os_error(err: OSError) -> CliError | None:
 def expected_error(err: BaseException) -> CliError | None:
     """``err`` as the one-line ``CliError`` a user sees, if it is bad input rather than a bug:
     ambulo's own checks (``CliError``, ``InvalidValueError``, ``OverrideError``, ``AssetError``),
-    no OpenGL to render with or no ffmpeg to encode with, a missing file or optional package, an unwritable path. ``None`` for anything else."""
+    no OpenGL or Vulkan to render with or no ffmpeg to encode with, a missing file or optional package, an unwritable path. ``None`` for anything else."""
     from ..core.importers import AssetError
     from ..utils.checks import InvalidValueError
     from ..utils.overrides import OverrideError
@@ -86,6 +86,9 @@ def expected_error(err: BaseException) -> CliError | None:
         return CliError(" ".join(str(err).split()))  # MuJoCo's parser messages span lines
     gl = sys.modules.get("ambulo.render.gl")  # loaded if a render was tried; not imported for other errors
     if gl is not None and isinstance(err, gl.NoOpenGLError):
+        return CliError(err.problem, err.fix)
+    pbr = sys.modules.get("ambulo.render.pbr")  # loaded if the pbr tier was asked for
+    if pbr is not None and isinstance(err, pbr.NoVulkanError):
         return CliError(err.problem, err.fix)
     video = sys.modules.get("ambulo.render.video")  # loaded if a video was written
     if video is not None and isinstance(err, video.VideoError):

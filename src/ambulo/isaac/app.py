@@ -14,6 +14,7 @@ import math
 from collections.abc import Iterator
 from typing import Any
 
+from ambulo.sim.camera import set_default_renderer
 from ambulo.sim.current import current_world_or_none
 
 from . import carb
@@ -40,8 +41,20 @@ def advance_playing_world() -> None:
         world.step(render=True)
 
 
+RENDER_MODES = {"RayTracedLighting": "pbr", "RaytracedLighting": "pbr", "PathTracing": "path",
+                "raster": "raster", "pbr": "pbr", "path": "path"}
+"""``SimulationApp``'s ``renderer`` key -> ambulo's camera tier: Isaac's real-time RTX mode is the
+physically based rasterizer (Filament), its path tracer the path tier (Mitsuba); ambulo's own
+names pass through."""
+
+
 class SimulationApp:
-    """Isaac's ``SimulationApp(launch_config)``; ``headless`` and the other keys are recorded."""
+    """Isaac's ``SimulationApp(launch_config)``; ``headless`` and the other keys are recorded.
+
+    A ``renderer`` given in ``launch_config`` sets the colour tier of the cameras made afterwards
+    (``RENDER_MODES``); left out, cameras keep the rasterizer (Isaac's default RTX mode would
+    need Vulkan and cost ~10x per frame on a CPU, so it is not implied).
+    """
 
     DEFAULT_LAUNCHER_CONFIG: dict[str, Any] = {
         "headless": True, "width": 1280, "height": 720, "renderer": "RayTracedLighting",
@@ -50,6 +63,12 @@ class SimulationApp:
 
     def __init__(self, launch_config: dict[str, Any] | None = None, experience: str = ""):
         self.config = {**self.DEFAULT_LAUNCHER_CONFIG, **(launch_config or {})}
+        if launch_config and "renderer" in launch_config:
+            mode = launch_config["renderer"]
+            if mode not in RENDER_MODES:
+                raise ValueError(f"SimulationApp renderer {mode!r} is not one ambulo renders; use one of "
+                                 f"{sorted(RENDER_MODES)}")
+            set_default_renderer(RENDER_MODES[mode])
         self.experience = experience
         self._exiting = False
         self._loop_calls = 0

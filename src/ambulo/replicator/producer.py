@@ -58,7 +58,8 @@ class FrameProducer:
 
     @property
     def gl_renderer(self) -> str:
-        return self.camera.renderer.gl_renderer
+        """What drew the frames: the GL renderer string, with the colour tier where not raster."""
+        return self.camera.renderer_name if self.camera.cfg.renderer != "raster" else self.camera.renderer.gl_renderer
 
     def randomize(self, seed: int, index: int) -> dict:
         """Reset world 0 and apply every randomizer for frame ``index``; returns the frame log.

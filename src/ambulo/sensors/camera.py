@@ -337,8 +337,10 @@ class Camera(Sensor):
         if "rgb" in names:
             if self.cfg.renderer == "raster":
                 out["rgb"] = r.render_rgb().copy()
-            else:  # the raster pass's own camera: the same intrinsics and pose, by construction
+            elif self.cfg.renderer == "pbr":  # the raster pass's own camera: the same intrinsics and pose
                 out["rgb"] = np.array(self.color_renderer.render(data, r.scene.camera[0]), np.uint8, copy=True)
+            else:  # the path tracer reads the model camera's intrinsics and takes this pose
+                out["rgb"] = self.color_renderer.render(data, self.cam_id, pose=(pos, rot_gl))
         if "poses_w" in names:  # the state this frame shows: 3D boxes in a prim's frame, motion vectors
             out["poses_w"] = {"body_pos": data.xpos.copy(), "body_rot": data.xmat.reshape(-1, 3, 3).copy(),
                               "geom_pos": data.geom_xpos.copy(), "geom_rot": data.geom_xmat.reshape(-1, 3, 3).copy(),
@@ -518,8 +520,9 @@ class Camera(Sensor):
 
 
 def make_color_renderer(renderer: str, model: mujoco.MjModel, width: int, height: int):
-    """The pbr or path tier's renderer of ``model`` at ``width`` x ``height``: an object whose
-    ``render(data, gl_camera)`` returns (H, W, 3) uint8 (``PbrRenderer``, ``PathTracer``)."""
+    """The pbr or path tier's renderer of ``model`` at ``width`` x ``height``: a ``PbrRenderer``
+    (``render(data, gl_camera)``) or a ``PathTracer`` (``render(data, cam_id, pose=...)``), each
+    returning (H, W, 3) uint8."""
     if renderer == "pbr":
         from ambulo.render.pbr import PbrRenderer
 

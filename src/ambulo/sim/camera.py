@@ -7,6 +7,11 @@ in the ``"world"``/``"ros"``/``"usd"`` camera axes (``camera_axes``), focal leng
 apertures in Isaac's stage units (tenths of the USD attribute), and an intrinsics matrix with
 the principal point at ``(W/2, H/2)`` (pixel centres at half-integers, as Isaac).
 
+``renderer`` (an ambulo argument) picks the colour tier, ``"raster"``, ``"pbr"`` or ``"path"``;
+left out, the process default, which ``SimulationApp({"renderer": ...})`` sets
+(``set_default_renderer``): Isaac's ``RayTracedLighting`` is ``"pbr"`` and ``PathTracing`` is
+``"path"``. Labels are the same in every tier.
+
 The frame is refreshed lazily (rendering costs milliseconds): the first read in each period of
 ``1/frequency`` s of simulated time renders, later reads in that period return that render
 (every read at a new time renders when no frequency is given), as Isaac's frame holds its
@@ -24,6 +29,7 @@ import numpy as np
 
 from ambulo.sensors import Camera as _Camera
 from ambulo.sensors import CameraCfg
+from ambulo.sensors.camera import RENDERERS
 from ambulo.utils.checks import check_quat
 from ambulo.utils.rotations import mat_to_quat, quat_to_mat
 
@@ -43,6 +49,22 @@ DEFAULT_RESOLUTION = (128, 128)
 SUPPORTED_ANNOTATORS = ("distance_to_image_plane", "distance_to_camera", "semantic_segmentation",
                         "instance_segmentation", "bounding_box_2d_tight", "pointcloud", "motion_vectors")
 _UNSUPPORTED: dict[str, str] = {}
+
+_default_renderer = "raster"
+"""The colour tier of cameras made without ``renderer=`` (``set_default_renderer``)."""
+
+
+def set_default_renderer(renderer: str) -> None:
+    """Make ``renderer`` ('raster', 'pbr' or 'path') the tier of cameras created from now on."""
+    global _default_renderer
+    if renderer not in RENDERERS:
+        raise ValueError(f"unknown renderer {renderer!r}; choose from {RENDERERS}")
+    _default_renderer = renderer
+
+
+def default_renderer() -> str:
+    """The tier cameras made without ``renderer=`` use (``set_default_renderer``; 'raster' at start)."""
+    return _default_renderer
 
 
 
@@ -69,7 +91,7 @@ class Camera(BaseSensor):
     def __init__(self, prim_path: str, name: str = "camera", frequency: float | None = None,
                  dt: float | None = None, resolution: tuple[int, int] | None = None, position=None,
                  orientation=None, translation=None, render_product_path: str | None = None,
-                 annotator_device: str | None = None):
+                 annotator_device: str | None = None, renderer: str | None = None):
         if render_product_path is not None:
             raise ValueError("render_product_path is not supported: each ambulo camera renders itself; drop it")
         if annotator_device not in (None, "cpu"):
@@ -82,7 +104,8 @@ class Camera(BaseSensor):
         cfg = CameraCfg(prim_path=prim_path, width=int(width), height=int(height),
                         fovy_deg=_fovy_deg(self._focal_length, self._horizontal_aperture, width, height),
                         clipping_range_m=DEFAULT_CLIPPING_RANGE, offset_convention="opengl",
-                        frequency_hz=None if period is None else 1.0 / period, annotators=("rgb",))
+                        frequency_hz=None if period is None else 1.0 / period, annotators=("rgb",),
+                        renderer=default_renderer() if renderer is None else renderer)
         self._pending_world_pose = None
         if translation is not None or (orientation is not None and position is None):
             cfg.offset_pos = tuple(float(v) for v in (translation if translation is not None else (0, 0, 0)))
