@@ -32,6 +32,7 @@ from .scene_description import (
     SceneReader,
     SurfaceDesc,
     ambient_radiance,
+    base_color_of,
     camera_of,
     geom_pose,
     infinite_plane_half_m,
@@ -237,7 +238,7 @@ class PathTracer:
                     params[f"geom_{gid}.vertex_normals"] = mi.Float(normals.ravel())
                     self._poses[gid] = new_pose
             if surface.material.texture is None:
-                color = srgb_to_linear(np.asarray(geom.rgba[:3]))
+                color = base_color_of(geom, surface.material.tint)
                 if not np.array_equal(color, self._colors[gid]):
                     key = next(k for k in (f"geom_{gid}.bsdf.base_color.value", f"geom_{gid}.bsdf.reflectance.value",
                                            f"geom_{gid}.bsdf.material.base_color.value",

@@ -63,6 +63,8 @@ class MaterialDesc:
     texture: np.ndarray | None = None
     """(H, W, C) uint8 2-D texture, top row first, or None."""
     texture_is_srgb: bool = True
+    tint: np.ndarray | None = None
+    """(3,) float32 factor of ``base_color`` beyond the rgba (a cube map's mean colour), or None."""
 
 
 @dataclass
@@ -127,6 +129,12 @@ def _texture(model: mujoco.MjModel, tex_id: int) -> tuple[np.ndarray, bool]:
     return pixels, int(model.tex_colorspace[tex_id]) != int(mujoco.mjtColorSpace.mjCOLORSPACE_LINEAR)
 
 
+def base_color_of(geom: mujoco.MjvGeom, tint: np.ndarray | None = None) -> np.ndarray:
+    """(3,) float32 linear albedo of a scene geom's resolved rgba (times ``tint``)."""
+    base = srgb_to_linear(np.asarray(geom.rgba[:3]))
+    return base if tint is None else (base * tint).astype(np.float32)
+
+
 def material_of(model: mujoco.MjModel, geom: mujoco.MjvGeom) -> MaterialDesc:
     """The PBR material of a scene geom (its rgba/emission/specular are already resolved)."""
     rgba = np.asarray(geom.rgba, np.float32)
@@ -137,8 +145,7 @@ def material_of(model: mujoco.MjModel, geom: mujoco.MjvGeom) -> MaterialDesc:
         roughness = float(model.mat_roughness[mat])
     if mat >= 0 and model.mat_metallic[mat] >= 0:
         metallic = float(model.mat_metallic[mat])
-    texture, srgb = None, True
-    base = srgb_to_linear(rgba[:3])
+    texture, srgb, tint = None, True, None
     tex_id = int(geom.texid)
     if tex_id >= 0:
         pixels, srgb = _texture(model, tex_id)
@@ -147,11 +154,11 @@ def material_of(model: mujoco.MjModel, geom: mujoco.MjvGeom) -> MaterialDesc:
         else:
             # cube maps on objects: their mean colour (each face's mapping is not reproduced)
             mean = pixels[..., :3].reshape(-1, pixels.shape[-1] if pixels.shape[-1] < 3 else 3).mean(0) / 255.0
-            base = base * (srgb_to_linear(mean) if srgb else mean.astype(np.float32))
-    return MaterialDesc(base_color=base, opacity=float(rgba[3]), roughness=float(np.clip(roughness, 0, 1)),
+            tint = srgb_to_linear(mean) if srgb else mean.astype(np.float32)
+    return MaterialDesc(base_color=base_color_of(geom, tint), opacity=float(rgba[3]), roughness=float(np.clip(roughness, 0, 1)),
                         metallic=float(np.clip(metallic, 0, 1)), specular=float(np.clip(geom.specular, 0, 1)),
                         emission=(float(geom.emission) * srgb_to_linear(rgba[:3])).astype(np.float32),
-                        texture=texture, texture_is_srgb=srgb)
+                        texture=texture, texture_is_srgb=srgb, tint=tint)
 
 
 def _planar_texcoords(mesh: TriangleMesh, geom: mujoco.MjvGeom) -> np.ndarray:
@@ -307,6 +314,6 @@ def infinite_plane_half_m(model: mujoco.MjModel) -> float:
     return float(model.vis.map.zfar * model.stat.extent)
 
 
-__all__ = ["CameraDesc", "LightDesc", "MaterialDesc", "SceneReader", "SurfaceDesc", "ambient_radiance",
+__all__ = ["CameraDesc", "LightDesc", "MaterialDesc", "SceneReader", "SurfaceDesc", "ambient_radiance", "base_color_of",
            "camera_of", "geom_pose", "infinite_plane_half_m", "light_intensity", "lights_of", "linear_to_srgb",
            "material_of", "roughness_from_shininess", "srgb_to_linear", "surface_of"]
