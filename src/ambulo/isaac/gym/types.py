@@ -283,6 +283,32 @@ class RigidBodyProperties:
     flags: int = 0
 
 
+_IGNORED = "accepted and not used: MuJoCo has no counterpart"
+ISAAC_APPROXIMATED: dict[str, str] = {
+    **{f"PhysXParams.{name}": _IGNORED for name in (
+        "solver_type", "num_position_iterations", "num_velocity_iterations", "bounce_threshold_velocity",
+        "max_depenetration_velocity", "friction_offset_threshold", "friction_correlation_distance",
+        "default_buffer_size_multiplier", "max_gpu_contact_pairs", "num_subscenes", "use_gpu",
+        "always_use_articulations", "contact_collection")},
+    "PhysXParams.contact_offset": "MuJoCo geom margin of every actor geom (contacts detected this far apart)",
+    "PhysXParams.rest_offset": "MuJoCo geom gap = contact_offset - rest_offset (shapes rest this far apart)",
+    "PhysXParams.num_threads": "the CPU engine's thread count (0: every CPU)",
+    "SimParams.substeps": "MuJoCo steps per simulate; the MuJoCo timestep is dt / substeps",
+    "SimParams.up_axis": "UP_AXIS_Z only (UP_AXIS_Y fails at create_sim)",
+    "SimParams.use_gpu_pipeline": "tensors and MuJoCo Warp on cuda:<compute device> when CUDA is present, else the CPU",
+    **{f"SimParams.{name}": _IGNORED for name in ("num_client_threads", "enable_actor_creation_warning",
+                                                  "stress_visualization", "flex")},
+    **{f"AssetOptions.{name}": _IGNORED for name in (
+        "angular_damping", "linear_damping", "max_angular_velocity", "max_linear_velocity", "density", "armature",
+        "thickness", "collapse_fixed_joints", "flip_visual_attachments", "replace_cylinder_with_capsule",
+        "override_com", "override_inertia", "use_mesh_materials", "mesh_normal_mode", "disable_gravity",
+        "convex_decomposition_from_submeshes", "vhacd_enabled", "slices_per_cylinder", "enable_gyroscopic_forces")},
+    "PlaneParams.normal": "+z only",
+    "PlaneParams.static_friction": "kept, not used: MuJoCo has one sliding friction, dynamic_friction",
+    "PlaneParams.segmentation_id": _IGNORED,
+}
+"""Fields of Isaac Gym's structs that ambulo maps differently or ignores -> how."""
+
 DOF_PROPERTIES_DTYPE = np.dtype([
     ("hasLimits", "?"), ("lower", "f4"), ("upper", "f4"), ("driveMode", "i4"), ("velocity", "f4"),
     ("effort", "f4"), ("stiffness", "f4"), ("damping", "f4"), ("friction", "f4"), ("armature", "f4"),
@@ -293,7 +319,7 @@ DOF_STATE_DTYPE = np.dtype([("pos", "f4"), ("vel", "f4")])
 """Isaac Gym's ``DofState`` record (``get_actor_dof_states``)."""
 
 __all__ = [
-    "AssetOptions", "CameraProperties", "DOF_INVALID", "DOF_MODE_EFFORT", "DOF_MODE_NONE", "DOF_MODE_POS",
+    "AssetOptions", "CameraProperties", "DOF_INVALID", "ISAAC_APPROXIMATED", "DOF_MODE_EFFORT", "DOF_MODE_NONE", "DOF_MODE_POS",
     "DOF_MODE_VEL", "DOF_PROPERTIES_DTYPE", "DOF_ROTATION", "DOF_STATE_DTYPE", "DOF_TRANSLATION", "FlexParams",
     "PhysXParams", "PlaneParams", "Quat", "RigidBodyProperties", "RigidShapeProperties", "SIM_FLEX", "SIM_PHYSX",
     "SimParams", "Transform", "UP_AXIS_Y", "UP_AXIS_Z", "Vec3",
