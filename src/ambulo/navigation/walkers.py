@@ -9,7 +9,8 @@ from ``locomotion.balance``) and refuses, *before* it is taken, a plan it cannot
 ``PolicyWalker`` (the default): the shipped walking policy (``policies.WalkingPolicy``) follows the
 plan's body path, the midpoints of consecutive footsteps, with ``tracker.PathTracker``. It places
 its own feet (the policy knows no footholds), so the plan gives the path and the footholds'
-clearance, not exact steps.
+clearance, not exact steps. Standing (told to, at the end of a plan, arrived) it holds its pose
+with ``stand_hold.PositionHold``: the policy creeps ~4 cm/s when commanded zero.
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ from ..nav import FootstepPlan, PlanStatus
 from ..policies.walking import WalkingPolicy
 from ..robots import humanoid
 from ..utils.validate import Checked
+from .stand_hold import PositionHold, StandHoldCfg
 from .tracker import PathTracker, TrackerCfg
 from .world import NavWorld
 
@@ -150,6 +152,9 @@ class PolicyWalkerCfg(Checked):
     max_step_m: float = 0.45
     """A plan with a body path jump longer than this between consecutive footstep pairs is refused:
     the policy walks about 0.3 m a step at 0.55 m/s, and a longer jump is a plan for another walker, m."""
+    hold: StandHoldCfg | None = field(default_factory=StandHoldCfg)
+    """Standing, hold the pose where standing began (``stand_hold``); None: command zero (the policy
+    then creeps ~4 cm/s)."""
 
 
 class PolicyWalker:
@@ -161,6 +166,7 @@ class PolicyWalker:
         self.cfg = cfg or PolicyWalkerCfg()
         self.policy = WalkingPolicy()
         self.tracker = PathTracker(self.cfg.tracker)
+        self.hold = PositionHold(self.cfg.hold) if self.cfg.hold is not None else None
         self.world: NavWorld | None = None
         self.command = (0.0, 0.0, 0.0)
         """The last velocity command (vx m/s, vy m/s, yaw rate rad/s)."""
@@ -170,6 +176,7 @@ class PolicyWalker:
         self.policy.bind(world.robot)
         self.monitor = BalanceMonitor(world)
         self._decimation = round(self.policy.contract["control_dt_s"] / world.dt_s)
+        self._control_dt_s = self._decimation * world.dt_s
         self._pose = np.array(world.start_pose, float)
 
     def reset(self) -> None:
@@ -179,6 +186,8 @@ class PolicyWalker:
         self._scan_rate = 0.0
         self._count = 0
         self.command = (0.0, 0.0, 0.0)
+        if self.hold is not None:
+            self.hold.release()
 
     def refuse(self, plan: FootstepPlan) -> str | None:
         if plan.status in (PlanStatus.START_IN_COLLISION, PlanStatus.GOAL_IN_COLLISION):
@@ -223,9 +232,22 @@ class PolicyWalker:
     def step(self, dt_s: float, pose_xyyaw: np.ndarray) -> None:
         self._pose = pose_xyyaw
         if self._count % self._decimation == 0:
-            self.command = (0.0, 0.0, self._scan_rate) if self._standing else self.tracker.command(pose_xyyaw)
+            self.command = self._command(pose_xyyaw)
         self.policy.forward(dt_s, self.command)
         self._count += 1
+
+    def _command(self, pose_xyyaw: np.ndarray) -> tuple[float, float, float]:
+        """This control period's command: the scan's turn, the tracker's, or (standing, or the tracker
+        says stop) the position hold's."""
+        if self._standing and self._scan_rate:
+            cmd = (0.0, 0.0, self._scan_rate)
+        else:
+            cmd = (0.0, 0.0, 0.0) if self._standing else self.tracker.command(pose_xyyaw)
+            if self.hold is not None and cmd == (0.0, 0.0, 0.0):
+                return self.hold.command(pose_xyyaw, self._control_dt_s)
+        if self.hold is not None:
+            self.hold.release()
+        return cmd
 
     def balance(self) -> BalanceReport:
         return self.monitor.report()
