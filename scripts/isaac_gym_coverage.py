@@ -58,7 +58,7 @@ def _gym_method(gym_module, name: str) -> tuple[str, str, str]:
     gym_class = gym_module.Gym
     if name in gym_module.ISAAC_UNSUPPORTED:
         return name, "fails", gym_module.ISAAC_UNSUPPORTED[name]
-    if not callable(gym_class.__dict__.get(name)):
+    if not callable(getattr(gym_class, name, None)):
         return name, "missing", ""
     if name in gym_module.ISAAC_APPROXIMATED:
         return name, "approximated", gym_module.ISAAC_APPROXIMATED[name]

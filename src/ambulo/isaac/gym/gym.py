@@ -17,6 +17,7 @@ import torch
 
 from . import session
 from .assets import Asset, load_asset
+from .gym_notes import ISAAC_APPROXIMATED, ISAAC_UNSUPPORTED
 from .sim import Actor, Env, Sim
 from .tensors import GymTensor, SimTensors
 from .types import (
@@ -25,12 +26,12 @@ from .types import (
     DOF_TRANSLATION,
     SIM_PHYSX,
     AssetOptions,
-    CameraProperties,
     PlaneParams,
     SimParams,
     Transform,
     Vec3,
 )
+from .viewer import HeadlessViewer, Viewer
 
 DOMAIN_ACTOR, DOMAIN_ENV, DOMAIN_SIM = 0, 1, 2
 STATE_NONE, STATE_POS, STATE_VEL, STATE_ALL = 0, 1, 2, 3
@@ -40,64 +41,7 @@ class GymNotSupported(AttributeError):
     """An Isaac Gym method ambulo does not provide; the message names the alternative."""
 
 
-ISAAC_UNSUPPORTED: dict[str, str] = {
-    "create_asset_box": "load a URDF/MJCF with the box instead (ambulo's importers make it one body)",
-    "create_asset_sphere": "load a URDF/MJCF with the sphere instead",
-    "create_asset_capsule": "load a URDF/MJCF with the capsule instead",
-    "add_triangle_mesh": "add terrain as a mesh asset (load_asset) or use ambulo.scenes' terrain",
-    "add_heightfield": "add terrain as a mesh asset (load_asset) or use ambulo.scenes' terrain",
-    "create_camera_sensor": "use ambulo.sensors' Camera / TiledCamera on the same model",
-    "apply_rigid_body_force_tensors": "set root velocities (set_actor_root_state_tensor) to push, as legged_gym does",
-    "acquire_jacobian_tensor": "use mujoco.mj_jacBody on engine.get_data(world)",
-    "acquire_mass_matrix_tensor": "use mujoco.mj_fullM on engine.get_data(world)",
-    "acquire_force_sensor_tensor": "read forces with ambulo.sensors' ContactSensor on the model",
-    "refresh_force_sensor_tensor": "read forces with ambulo.sensors' ContactSensor on the model",
-    "refresh_jacobian_tensors": "use mujoco.mj_jacBody on engine.get_data(world)",
-    "refresh_mass_matrix_tensors": "use mujoco.mj_fullM on engine.get_data(world)",
-    "apply_rigid_body_force_at_pos_tensors": "set root velocities (set_actor_root_state_tensor) to push",
-    "set_camera_location": "use ambulo.sensors' Camera / TiledCamera on the same model",
-    "render_all_camera_sensors": "use ambulo.sensors' Camera / TiledCamera on the same model",
-    "get_camera_image": "use ambulo.sensors' Camera / TiledCamera on the same model",
-    "get_camera_image_gpu_tensor": "use ambulo.sensors' TiledCamera (batched images as tensors)",
-    "set_sim_params": "create the sim with the SimParams it needs (the model is compiled once)",
-    "get_actor_rigid_shape_properties": "set friction on the PlaneParams or in the asset file",
-    "set_actor_rigid_shape_properties": "set friction on the PlaneParams or in the asset file",
-    "set_actor_rigid_body_properties": "randomize masses with ambulo.core.randomize on the engine",
-    "write_viewer_image_to_file": "record with ambulo's renderer (ambulo.render) on engine.get_data(world)",
-}
-"""Isaac Gym methods ambulo lacks -> what to use instead."""
-
-ISAAC_APPROXIMATED: dict[str, str] = {
-    "create_sim": "z-up only; SIM_FLEX fails; use_gpu_pipeline on a CUDA host runs MuJoCo Warp, else MuJoCo's CPU batch",
-    "simulate": "one MuJoCo step per PhysX substep (dt / substeps): soft contacts and implicit PD drives, not PhysX TGS",
-    "create_env": "every env must create the same assets in the same order (one model in N worlds); "
-                  "poses and DOF properties may differ per env",
-    "create_actor": "collision group and filter are ignored: each env is its own world, so envs never collide",
-    "load_asset": "URDF, MJCF or USD through ambulo's importers; a missing file named like a bundled asset "
-                  "(assets/humanoid.urdf) loads that asset, with a warning",
-    "add_ground": "the plane's normal must be +z",
-    "set_actor_dof_properties": "drive mode, stiffness, damping, armature, friction and limits per env; "
-                                "velocity and effort limits are not applied",
-    "acquire_net_contact_force_tensor": "MuJoCo's net contact force per body from the last step's constraint solve",
-    "acquire_dof_force_tensor": "the force each DOF's drive applies (MuJoCo's actuator force)",
-    "create_viewer": "headless: a viewer that never closes and draws nothing",
-    "draw_viewer": "headless: draws nothing",
-    "sync_frame_time": "headless: returns at once (no real-time pacing)",
-    "begin_aggregate": "accepted, no effect (a PhysX broad-phase hint)",
-    "set_rigid_body_color": "headless: colors are not drawn",
-    "set_actor_dof_velocity_targets": "applied in velocity (and position) drive mode, as Isaac's",
-}
-"""Isaac Gym methods ambulo provides with a difference worth knowing -> the difference."""
-
-
-class Viewer:
-    """A headless viewer: Isaac's viewer calls succeed and draw nothing; the window never closes."""
-
-    def __init__(self, props: CameraProperties):
-        self.props = props
-
-
-class Gym:
+class Gym(HeadlessViewer):
     """Isaac Gym's interface object (``gymapi.acquire_gym()``)."""
 
     def __getattr__(self, name: str):
@@ -415,49 +359,6 @@ class Gym:
         t = self._tensors(sim)
         t.set_dof_buffer(t.effort, _torch(forces), _torch(indices)[:count])
         return True
-
-    # -- viewer (headless) -------------------------------------------------------------------------
-    def create_viewer(self, sim: Sim, props: CameraProperties) -> Viewer:
-        return Viewer(props)
-
-    def destroy_viewer(self, viewer: Viewer) -> None:
-        """Nothing to close headless."""
-
-    def query_viewer_has_closed(self, viewer: Viewer) -> bool:
-        return False
-
-    def draw_viewer(self, viewer: Viewer, sim: Sim, render_collision: bool = False) -> None:
-        """Headless: nothing is drawn."""
-
-    def step_graphics(self, sim: Sim) -> None:
-        """Headless: no graphics state to update."""
-
-    def sync_frame_time(self, sim: Sim) -> None:
-        """Headless runs as fast as it can (Isaac's viewer waits for real time here)."""
-
-    def poll_viewer_events(self, viewer: Viewer) -> None:
-        """No window, no events."""
-
-    def query_viewer_action_events(self, viewer: Viewer) -> list:
-        return []
-
-    def subscribe_viewer_keyboard_event(self, viewer: Viewer, key: int, action: str) -> None:
-        """No keyboard headless."""
-
-    def subscribe_viewer_mouse_event(self, viewer: Viewer, button: int, action: str) -> None:
-        """No mouse headless."""
-
-    def viewer_camera_look_at(self, viewer: Viewer, env: Env | None, position: Vec3, target: Vec3) -> None:
-        """No camera to move headless."""
-
-    def clear_lines(self, viewer: Viewer) -> None:
-        """No lines drawn headless."""
-
-    def add_lines(self, viewer: Viewer, env: Env, num_lines: int, vertices, colors) -> None:
-        """No lines drawn headless."""
-
-    def draw_env_rigid_contacts(self, viewer: Viewer, env: Env, color: Vec3, scale: float, flag: bool) -> None:
-        """No contacts drawn headless."""
 
     # -- helpers -----------------------------------------------------------------------------------
     @staticmethod

@@ -1,0 +1,55 @@
+"""What ambulo's ``Gym`` object does differently from Isaac Gym's, method by method: the tables the
+unsupported methods' errors and docs/isaac-gym-coverage.md read."""
+
+from __future__ import annotations
+
+ISAAC_UNSUPPORTED: dict[str, str] = {
+    "create_asset_box": "load a URDF/MJCF with the box instead (ambulo's importers make it one body)",
+    "create_asset_sphere": "load a URDF/MJCF with the sphere instead",
+    "create_asset_capsule": "load a URDF/MJCF with the capsule instead",
+    "add_triangle_mesh": "add terrain as a mesh asset (load_asset) or use ambulo.scenes' terrain",
+    "add_heightfield": "add terrain as a mesh asset (load_asset) or use ambulo.scenes' terrain",
+    "create_camera_sensor": "use ambulo.sensors' Camera / TiledCamera on the same model",
+    "apply_rigid_body_force_tensors": "set root velocities (set_actor_root_state_tensor) to push, as legged_gym does",
+    "acquire_jacobian_tensor": "use mujoco.mj_jacBody on engine.get_data(world)",
+    "acquire_mass_matrix_tensor": "use mujoco.mj_fullM on engine.get_data(world)",
+    "acquire_force_sensor_tensor": "read forces with ambulo.sensors' ContactSensor on the model",
+    "refresh_force_sensor_tensor": "read forces with ambulo.sensors' ContactSensor on the model",
+    "refresh_jacobian_tensors": "use mujoco.mj_jacBody on engine.get_data(world)",
+    "refresh_mass_matrix_tensors": "use mujoco.mj_fullM on engine.get_data(world)",
+    "apply_rigid_body_force_at_pos_tensors": "set root velocities (set_actor_root_state_tensor) to push",
+    "set_camera_location": "use ambulo.sensors' Camera / TiledCamera on the same model",
+    "render_all_camera_sensors": "use ambulo.sensors' Camera / TiledCamera on the same model",
+    "get_camera_image": "use ambulo.sensors' Camera / TiledCamera on the same model",
+    "get_camera_image_gpu_tensor": "use ambulo.sensors' TiledCamera (batched images as tensors)",
+    "set_sim_params": "create the sim with the SimParams it needs (the model is compiled once)",
+    "get_actor_rigid_shape_properties": "set friction on the PlaneParams or in the asset file",
+    "set_actor_rigid_shape_properties": "set friction on the PlaneParams or in the asset file",
+    "set_actor_rigid_body_properties": "randomize masses with ambulo.core.randomize on the engine",
+    "write_viewer_image_to_file": "record with ambulo's renderer (ambulo.render) on engine.get_data(world)",
+}
+"""Isaac Gym methods ambulo lacks -> what to use instead."""
+
+ISAAC_APPROXIMATED: dict[str, str] = {
+    "create_sim": "z-up only; SIM_FLEX fails; use_gpu_pipeline on a CUDA host runs MuJoCo Warp, else MuJoCo's CPU batch",
+    "simulate": "one MuJoCo step per PhysX substep (dt / substeps): soft contacts and implicit PD drives, not PhysX TGS",
+    "create_env": "every env must create the same assets in the same order (one model in N worlds); "
+                  "poses and DOF properties may differ per env",
+    "create_actor": "collision group and filter are ignored: each env is its own world, so envs never collide",
+    "load_asset": "URDF, MJCF or USD through ambulo's importers; a missing file named like a bundled asset "
+                  "(assets/humanoid.urdf) loads that asset, with a warning",
+    "add_ground": "the plane's normal must be +z",
+    "set_actor_dof_properties": "drive mode, stiffness, damping, armature, friction and limits per env; "
+                                "velocity and effort limits are not applied",
+    "acquire_net_contact_force_tensor": "MuJoCo's net contact force per body from the last step's constraint solve",
+    "acquire_dof_force_tensor": "the force each DOF's drive applies (MuJoCo's actuator force)",
+    "create_viewer": "headless: a viewer that never closes and draws nothing",
+    "draw_viewer": "headless: draws nothing",
+    "sync_frame_time": "headless: returns at once (no real-time pacing)",
+    "begin_aggregate": "accepted, no effect (a PhysX broad-phase hint)",
+    "set_rigid_body_color": "headless: colors are not drawn",
+    "set_actor_dof_velocity_targets": "applied in velocity (and position) drive mode, as Isaac's",
+}
+"""Isaac Gym methods ambulo provides with a difference worth knowing -> the difference."""
+
+__all__ = ["ISAAC_APPROXIMATED", "ISAAC_UNSUPPORTED"]
