@@ -155,7 +155,6 @@ def test_camera_labels_are_identical_across_raster_and_pbr_and_colours_differ():
 
 def test_no_vulkan_loader_is_one_line_naming_the_apt_packages(monkeypatch):
     monkeypatch.setattr(pbr, "_VULKAN_LOADER", "libvulkan-not-installed.so.1")
-    monkeypatch.setattr(pbr, "_ENGINE", None)
     model = mujoco.MjModel.from_xml_string("<mujoco><worldbody><geom size='1'/></worldbody></mujoco>")
     with pytest.raises(NoVulkanError) as err:
         PbrRenderer(model, 32, 24)
@@ -165,7 +164,6 @@ def test_no_vulkan_loader_is_one_line_naming_the_apt_packages(monkeypatch):
 
 
 def test_no_vulkan_driver_is_one_line_naming_the_apt_packages(monkeypatch, tmp_path):
-    monkeypatch.setattr(pbr, "_ENGINE", None)
     monkeypatch.setattr(pbr, "_VULKAN_LOADER", pbr._VULKAN_LOADER)
     monkeypatch.setenv("VK_DRIVER_FILES", str(tmp_path / "missing_icd.json"))
     problem = pbr._vulkan_problem()
@@ -173,3 +171,22 @@ def test_no_vulkan_driver_is_one_line_naming_the_apt_packages(monkeypatch, tmp_p
         pytest.skip("no Vulkan loader here: the driver check comes after it")
     with pytest.raises(NoVulkanError, match="no Vulkan driver.*mesa-vulkan-drivers"):
         pbr._filament_context()
+
+
+@needs_vulkan
+def test_two_renderers_of_a_textured_model_render_side_by_side():
+    """Each renderer has its own Filament engine: two model scenes with textures in one engine
+    fail the second's first frame in mujoco-studio 4.0.0."""
+    model = mujoco.MjModel.from_xml_string("""<mujoco><asset>
+      <texture name="c" type="2d" builtin="checker" width="64" height="64" rgb1="1 1 1" rgb2="0 0 0"/>
+      <material name="m" texture="c"/></asset><worldbody><light directional="true" dir="0 0 -1"/>
+      <geom type="plane" size="3 3 .1" material="m"/></worldbody></mujoco>""")
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    eye = np.array([-2.0, -1.5, 1.8])
+    cam = gl_camera(eye, look_at_gl(eye, np.zeros(3)), 60.0, 64, 48, (0.05, 20.0))
+    first, second = PbrRenderer(model, 64, 48), PbrRenderer(model, 64, 48)
+    a = first.render(data, cam).copy()
+    b = second.render(data, cam).copy()
+    # both engines drew the same first frame (Filament's temporal dithering depends on the frame count)
+    assert np.ptp(a) > 100 and np.abs(a.astype(int) - b).max() <= 1

@@ -16,8 +16,9 @@ here: depth, ids and boxes come from the raster id pass whatever tier draws the 
 Filament draws through Vulkan. On a machine without a GPU driver Mesa's lavapipe renders on the
 CPU (``apt-get install libvulkan1 mesa-vulkan-drivers``); without a loader or a driver the first
 ``PbrRenderer`` raises ``NoVulkanError``, one line naming those packages, instead of the abort
-inside Filament. One Filament engine serves the whole process (creating one costs ~1 s and
-compiling its shaders for lavapipe ~9 s on the first frame).
+inside Filament. Each renderer has its own Filament engine (~1 s to create; the first frame
+compiles shaders, ~9 s on lavapipe until Mesa's shader cache holds them): in mujoco-studio 4.0.0
+a second model scene with textures in one engine fails its first frame ("unknown exception").
 """
 
 from __future__ import annotations
@@ -85,14 +86,8 @@ def _vulkan_problem() -> str | None:
     return None
 
 
-_ENGINE = None
-"""The process's one Filament context (``mjrf.Context``), made by the first renderer."""
-
-
 def _filament_context():
-    global _ENGINE
-    if _ENGINE is not None:
-        return _ENGINE
+    """A new Filament context (``mjrf.Context``) on Vulkan, or ``NoVulkanError``."""
     problem = _vulkan_problem()
     if problem is not None:
         raise NoVulkanError(problem)
@@ -105,8 +100,7 @@ def _filament_context():
                             "pip install mujoco-studio (it ships mujoco.mjrf)") from err
     config = mjrf.ContextConfig()
     config.graphics_api = mjrf.GraphicsApi.GRAPHICS_API_VULKAN
-    _ENGINE = mjrf.Context(config)
-    return _ENGINE
+    return mjrf.Context(config)
 
 
 def gl_camera(pos_w, rot_w_gl, fovy_deg: float, width: int, height: int,
@@ -186,8 +180,9 @@ class PbrRenderer:
         return self._rgb
 
     def close(self) -> None:
-        """Drop this renderer's scene objects (the process's Filament engine stays for the next)."""
+        """Drop this renderer's Filament objects, its engine last."""
         self._read = self._request = self._renderables = self._lights = self._scene = None
+        self._target = self._resources = self._ctx = None
 
     def __enter__(self):
         return self
