@@ -30,6 +30,7 @@ class HumanoidLocomotionEnv:
         sim_params.physx.rest_offset = 0.0
         sim_params.physx.use_gpu = True
         sim_params.physx.num_threads = 4
+        sim_params.use_gpu_pipeline = True  # ambulo fix: Isaac Gym's default CPU pipeline hands out CPU tensors, and the listing's cuda:0 tensors then fail to mix with them
         # Create simulation
         self.sim = self.gym.create_sim(0, 0, gymapi.SIM_PHYSX, sim_params)
         # Environment dimensions

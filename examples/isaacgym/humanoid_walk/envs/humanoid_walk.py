@@ -31,6 +31,7 @@ class HumanoidWalkEnv:
         sim_params.physx.num_velocity_iterations = 1
         sim_params.physx.contact_offset = 0.01
         sim_params.physx.rest_offset = 0.0
+        sim_params.use_gpu_pipeline = True  # ambulo fix: Isaac Gym's default CPU pipeline hands out CPU tensors, and the listing's cuda:0 tensors then fail to mix with them
 
         # Create simulation
         self.sim = self.gym.create_sim(
