@@ -7,8 +7,12 @@
   (``perception.slices.occupancy_slice``) is cut and written into a fixed map covering the world
   (cells aligned with the TSDF's voxel columns, so the slice lands cell for cell). Cells the robot's
   body stood on (a disc of ``body_free_radius_m`` around each estimated pose) are free when the
-  slice has not seen them: the robot was there. The slice covers every allocated block; its cost
-  is measured and kept in ``refresh_wall_s``.
+  slice has not seen them: the robot was there. Each refresh re-slices only the voxel columns the
+  frames fused since the last one changed (the box of the TSDF blocks they updated, and one column
+  around it, whose surface test looks at its neighbours), densifying the blocks that meet that box
+  grown by a column more: so the map is, cell for cell, the slice of the whole TSDF (the tests
+  check it), at the cost of the view's few metres (on the recorded refreshes of a full-mode
+  episode, apartment 200: ``refresh_wall_s``).
 
 ``costmap()`` gives the humanoid's Nav2-style costmap of the current map (``perception.costmap``),
 for displays and the ROS node; the planners use exact clearances (``planning``).
@@ -93,10 +97,6 @@ class OnlineMapperCfg(Checked):
     unknown cells around its start stance. The head camera cannot see the floor within ~1.6 m
     ahead, so without this the footstep planner (0.25 m body clearance from unknown cells) could
     never start."""
-    region_half_m: float = 5.0
-    """Each refresh re-slices only the TSDF blocks within this of the robot (the dense grid of a region, as
-    ``slices.map_occupancy_slice``: the frames fused since the last refresh saw at most ``tsdf.depth_max_m`` ahead
-    of poses this close), m; the rest of the map keeps its cells."""
     margin_m: float = 1.0
     """The map covers the world's ground-truth extent grown by this, m."""
 
@@ -158,37 +158,18 @@ class OnlineMapper:
             self._dirty = True
 
     def refresh(self, time_s: float, xy=None) -> bool:
-        """Cut a new slice around ``xy`` (the robot; None: the whole map) if one is due and anything
-        changed; True when the map changed."""
+        """Re-slice what the frames fused since the last refresh changed (module docstring), if a
+        refresh is due and anything changed; True when the map changed. ``xy`` (the robot) is not
+        needed: the TSDF knows which blocks changed."""
         if not self._dirty or time_s - self._last_refresh_s < 1.0 / self.cfg.update_hz:
             return False
         t0 = time.perf_counter()
         self._last_refresh_s = time_s
         self._dirty = False
         occ = self._occ.copy()
-        if self.tsdf.num_blocks:
-            h = self.cfg.region_half_m
-            region = None if xy is None else (float(xy[0]) - h, float(xy[1]) - h, float(xy[0]) + h, float(xy[1]) + h)
-            z0, z1 = self.cfg.band_m
-            vs = self.cfg.tsdf.voxel_size_m
-            dense = self.tsdf.dense(region_xy_m=region, z_range_m=(z0 - vs, z1 + vs), color=False)
-            sl = occupancy_slice(dense, z0, z1, floor_seen_m=self.cfg.floor_seen_m)
-            data = sl.data.cpu().numpy()
-            if self.cfg.floor_seen_m is not None and self.cfg.start_blind_radius_m > 0:
-                loose = occupancy_slice(dense, z0, z1).data.cpu().numpy()
-                cx, cy = sl.cell_centers_xy_m()[..., 0], sl.cell_centers_xy_m()[..., 1]
-                near = np.hypot(cx - self._start_xy[0], cy - self._start_xy[1]) <= self.cfg.start_blind_radius_m
-                data = np.where(near & (data == SLICE_UNKNOWN) & (loose != SLICE_UNKNOWN), loose, data)
-            vs = self.grid.resolution_m
-            sx, sy = (int(round(sl.origin_xy_m[0] / vs + 0.5)), int(round(sl.origin_xy_m[1] / vs + 0.5)))
-            ox, oy = sx - self._k0[0], sy - self._k0[1]
-            ny, nx = occ.shape
-            y0, x0 = max(0, oy), max(0, ox)
-            y1, x1 = min(ny, oy + data.shape[0]), min(nx, ox + data.shape[1])
-            if y1 > y0 and x1 > x0:
-                part = data[y0 - oy:y1 - oy, x0 - ox:x1 - ox]
-                occ[y0:y1, x0:x1] = np.where(part == SLICE_OCCUPIED, OCCUPIED,
-                                             np.where(part == SLICE_UNKNOWN, UNKNOWN, FREE))
+        columns = self._changed_columns()
+        if columns is not None:
+            self._paste(occ, columns)
         occ[(occ == UNKNOWN) & self._body_free] = FREE
         changed = not np.array_equal(occ, self._occ)
         if changed:
@@ -201,6 +182,54 @@ class OnlineMapper:
 
     def costmap(self) -> Costmap:
         return costmap_of(self.grid)
+
+    def _changed_columns(self) -> tuple[int, int, int, int] | None:
+        """(ix0, iy0, ix1, iy1), world voxel column indices, inclusive: the box of the band's blocks
+        updated since the last call, grown by the one column whose slice reads its neighbours; None
+        when no block of the band changed."""
+        slots = self.tsdf.clear_updated()
+        if not len(slots):
+            return None
+        b, vs = self.cfg.tsdf.block_voxels, self.cfg.tsdf.voxel_size_m
+        coords = self.tsdf.block_coords()[slots]
+        z0, z1 = self.cfg.band_m
+        # a block's voxel centres span [c b, (c + 1) b - 1] voxels; the slice reads the band and a voxel either side
+        kz0, kz1 = math.floor(z0 / vs) - 1, math.ceil(z1 / vs) + 1
+        coords = coords[(coords[:, 2] * b <= kz1) & ((coords[:, 2] + 1) * b - 1 >= kz0)]
+        if not len(coords):
+            return None
+        lo, hi = coords[:, :2].min(0).values * b - 1, (coords[:, :2].max(0).values + 1) * b
+        return int(lo[0]), int(lo[1]), int(hi[0]), int(hi[1])
+
+    def _paste(self, occ: np.ndarray, columns: tuple[int, int, int, int]) -> None:
+        """Slice the TSDF over ``columns`` (``_changed_columns``) and write it into ``occ`` (this map's
+        cells) in place."""
+        c = self.cfg
+        vs = c.tsdf.voxel_size_m
+        ix0, iy0, ix1, iy1 = columns
+        z0, z1 = c.band_m
+        # the blocks that hold the columns' neighbours too: every pasted column is cut as from the whole map
+        region = ((ix0 - 1) * vs, (iy0 - 1) * vs, (ix1 + 1) * vs, (iy1 + 1) * vs)
+        dense = self.tsdf.dense(region_xy_m=region, z_range_m=(z0 - vs, z1 + vs), color=False)
+        sl = occupancy_slice(dense, z0, z1, floor_seen_m=c.floor_seen_m)
+        data = sl.data.cpu().numpy()
+        if c.floor_seen_m is not None and c.start_blind_radius_m > 0:
+            loose = occupancy_slice(dense, z0, z1).data.cpu().numpy()
+            centres = sl.cell_centers_xy_m()
+            near = np.hypot(centres[..., 0] - self._start_xy[0],
+                            centres[..., 1] - self._start_xy[1]) <= c.start_blind_radius_m
+            data = np.where(near & (data == SLICE_UNKNOWN) & (loose != SLICE_UNKNOWN), loose, data)
+        sx, sy = int(dense.origin_index[0]), int(dense.origin_index[1])  # the slice's cell [0, 0] is this column
+        ny, nx = occ.shape
+        # the changed columns, clipped to the slice and to this map, in this map's cells
+        gx0, gy0 = max(ix0, sx) - self._k0[0], max(iy0, sy) - self._k0[1]
+        gx1, gy1 = min(ix1, sx + data.shape[1] - 1) - self._k0[0], min(iy1, sy + data.shape[0] - 1) - self._k0[1]
+        gx0, gy0, gx1, gy1 = max(gx0, 0), max(gy0, 0), min(gx1, nx - 1), min(gy1, ny - 1)
+        if gx1 < gx0 or gy1 < gy0:
+            return
+        part = data[gy0 + self._k0[1] - sy:gy1 + self._k0[1] - sy + 1, gx0 + self._k0[0] - sx:gx1 + self._k0[0] - sx + 1]
+        occ[gy0:gy1 + 1, gx0:gx1 + 1] = np.where(part == SLICE_OCCUPIED, OCCUPIED,
+                                                 np.where(part == SLICE_UNKNOWN, UNKNOWN, FREE))
 
 
 __all__ = ["OnlineMapper", "OnlineMapperCfg", "OracleMapper", "costmap_of"]
