@@ -164,9 +164,11 @@ def _look_at(target):
 
 
 def light(light_type: str = "distant", color=(1.0, 1.0, 1.0), intensity: float = 1000.0, position=None,
-          rotation=None, scale=None, count: int = 1, name: str | None = None, **unsupported_args) -> Item:
+          rotation=None, scale=None, count: int = 1, name: str | None = None, texture: str | None = None,
+          **unsupported_args) -> Item:
     """A light: "distant" (aimed along -z turned by ``rotation``), "sphere" (a point light) or "dome"
-    (uniform ambient light).
+    (uniform ambient light; with ``texture``, an HDR environment: image-based lighting in the pbr
+    camera tier, ``ambulo.render.ibl``, and its ambient level in the rasterizer).
 
     Replicator intensities are nits; ambulo's rasterizer takes a 0-1 diffuse level, so
     ``intensity`` is scaled to make Replicator's default (1000) ambulo's default sun level (0.7).
@@ -177,6 +179,8 @@ def light(light_type: str = "distant", color=(1.0, 1.0, 1.0), intensity: float =
     kind = str(light_type).lower()
     if kind not in _LIGHTS:
         raise unsupported(f"create.light(light_type={light_type!r})", f"ambulo has {', '.join(_LIGHTS)} lights")
+    if texture is not None and kind != "dome":
+        raise unsupported(f"create.light(light_type={light_type!r}, texture=...)", "only a dome light takes a texture")
     if is_random(color) or is_random(intensity) or is_random(position) or is_random(rotation):
         raise unsupported("create.light with distributions",
                           "create the light with values and randomize it with rep.modify.attribute in a trigger")
@@ -185,7 +189,8 @@ def light(light_type: str = "distant", color=(1.0, 1.0, 1.0), intensity: float =
     for _ in range(int(count)):
         prim = PrimDecl(path=graph.unique_path(f"/Replicator/{name or kind.capitalize() + 'Light'}_Xform"),
                         kind="light", position=np.zeros(3), rotation_deg=np.zeros(3), scale=np.ones(3))
-        prim.extra = {"light_type": kind, "intensity": float(intensity), "color": tuple(float(c) for c in color)}
+        prim.extra = {"light_type": kind, "intensity": float(intensity), "color": tuple(float(c) for c in color),
+                      "texture": None if texture is None else str(texture)}
         _set_pose(graph, prim, position, rotation, scale)
         graph.add_prim(prim)
         paths.append(prim.path)

@@ -12,9 +12,11 @@ import mujoco
 import numpy as np
 
 from ambulo.core import add_light, new_scene, set_semantic_label
+from ambulo.render.ibl import add_image_light
 from ambulo.replicator import DatasetConfig
 from ambulo.sensors import CameraCfg
 from ambulo.sensors.frames import look_at_gl
+from ambulo.sim.camera import default_renderer
 from ambulo.utils.rotations import mat_to_quat
 
 from .distribution import Choice, draw, is_random
@@ -69,9 +71,18 @@ def _add_light(spec, prim: PrimDecl) -> None:
         add_light(spec, prim.path, kind="distant", intensity=0.0, ambient=level)
         light = spec.light(prim.path)
         light.ambient = [level * c for c in prim.extra["color"]]
+        if prim.extra.get("texture"):
+            # the HDR's values x Replicator's nits, scaled so its default 1000 is Filament's default
+            # environment intensity (30,000): the 30x that maps 1000 nits to the 0.7 sun of the rasterizer
+            add_image_light(spec, prim.extra["texture"], name=f"{prim.path}/texture",
+                            intensity=_IBL_PER_NIT * prim.extra["intensity"])
     else:
         add_light(spec, prim.path, kind=kind, position=prim.position.tolist(), direction=direction.tolist(),
                   intensity=level, color=prim.extra["color"])
+
+
+_IBL_PER_NIT = 30.0
+"""Filament image-light intensity per Replicator dome-light nit (see ``_add_light``)."""
 
 
 def camera_cfg(graph: Graph, product, annotators) -> CameraCfg:
@@ -80,7 +91,8 @@ def camera_cfg(graph: Graph, product, annotators) -> CameraCfg:
     return CameraCfg(prim_path=f"{prim.path}/{CAMERA_CHILD}", width=product.width, height=product.height,
                      focal_length_px=focal_mm * product.width / aperture_mm, offset_pos=tuple(prim.position),
                      offset_quat=tuple(mat_to_quat(camera_rotation(graph, prim))), offset_convention="opengl",
-                     clipping_range_m=prim.extra["clipping_range"], annotators=tuple(annotators))
+                     clipping_range_m=prim.extra["clipping_range"], annotators=tuple(annotators),
+                     renderer=default_renderer())
 
 
 def dataset_config(graph: Graph, product, annotators) -> DatasetConfig:
