@@ -71,7 +71,8 @@ class DemoReport:
         ]
 
 
-def run_demo(seconds: float = 8.0, video: str | None = "out/demo.mp4", progress: bool = True) -> DemoReport:
+def run_demo(seconds: float = 8.0, video: str | None = "out/demo.mp4", progress: bool = True,
+             renderer: str = "raster") -> DemoReport:
     from tqdm import tqdm
 
     world, jetbot, humanoid = build_demo_world()
@@ -86,7 +87,7 @@ def run_demo(seconds: float = 8.0, video: str | None = "out/demo.mp4", progress:
     if video:
         from .sim.recorder import Recorder
 
-        recorder = Recorder(world, video, width=640, height=480, fps=25)
+        recorder = Recorder(world, video, width=640, height=480, fps=25, renderer=renderer)
     start = time.perf_counter()
     path_m, last = 0.0, jetbot.get_world_pose()[0]
     pelvis_start = float(humanoid.get_world_pose()[0][2])

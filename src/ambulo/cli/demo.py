@@ -14,7 +14,7 @@ def run(args: argparse.Namespace) -> int:
     from ambulo.demo import run_demo
 
     report = run_demo(seconds=args.seconds, video=None if args.no_video else args.video,
-                      progress=not args.quiet)
+                      progress=not args.quiet, renderer=args.renderer)
     for line in report.lines():
         print(line)
     return 0 if report.humanoid_stood else 1
@@ -26,5 +26,7 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--seconds", type=float, default=8.0, help="simulated seconds")
     p.add_argument("--video", default="out/demo.mp4", help="MP4 to write")
     p.add_argument("--no-video", action="store_true", help="skip rendering")
+    p.add_argument("--renderer", choices=("raster", "pbr"), default="raster",
+                   help="what draws the video: raster (MuJoCo) or pbr (Filament: PBR materials, shadows)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)

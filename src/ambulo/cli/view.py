@@ -45,6 +45,9 @@ def run(args: argparse.Namespace) -> int:
     check_seconds(args.seconds)
     if args.video:
         check_output_file(args.video, "--video")
+    if args.renderer != "raster" and not args.video:
+        raise CliError(f"--renderer {args.renderer} draws --video frames; the interactive viewer is MuJoCo's own",
+                       "add --video out.mp4, or leave --renderer out")
     if not args.video and not os.environ.get("DISPLAY") and sys.platform.startswith("linux"):
         raise CliError("no display for the interactive viewer",
                        "set DISPLAY, or record headless with --video out.mp4")
@@ -62,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
     if args.video:
         from ambulo.sim.recorder import Recorder
 
-        with Recorder(world, args.video) as rec:
+        with Recorder(world, args.video, renderer=args.renderer) as rec:
             for _ in range(int(args.seconds / world.get_rendering_dt())):
                 world.step()
                 rec.capture()
@@ -80,4 +83,6 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("target", help="'demo', a bundled asset name (jetbot, humanoid, ...) or a file")
     p.add_argument("--video", help="record headless to this MP4 instead of opening a window")
     p.add_argument("--seconds", type=float, default=5.0)
+    p.add_argument("--renderer", choices=("raster", "pbr"), default="raster",
+                   help="what draws the --video frames: raster (MuJoCo) or pbr (Filament: PBR materials, shadows)")
     p.set_defaults(func=run)
