@@ -1,8 +1,9 @@
 """Profile of humanoid-walk rollout steps on the GPU engine: what one env step spends, and where
 it waits for the device.
 
-After a warm-up (graphs captured, kernels loaded), ``--steps`` rollout steps (the task's actor
-sampling actions, then ``env.step``, as ``benchmarks/env_gpu.py`` times them) run under
+After a warm-up (graphs captured, kernels loaded), ``--steps`` rollout steps (training's rollout
+step on the runner ``ambulo train`` builds: the algorithm's ``act``, then ``env.step`` and the
+step bookkeeping, as ``benchmarks/env_gpu.py`` times them) run under
 ``torch.profiler`` with CPU and CUDA activities. Ranges name the parts: ``rollout_step``,
 ``policy``, ``env.step``, ``engine.step`` and ``physics`` (the CUDA-graph launch of MuJoCo
 Warp, or its eager launches on Warp's CPU device: ``wp.capture_launch`` and
@@ -12,8 +13,8 @@ Printed: the top ops by CUDA time and by CPU time; per step, the wall time (time
 profiler), the host time split into physics launch, torch ops and the rest (Python), the device
 time split into Warp kernels (``*_cuda_kernel_*``), torch kernels and copies; and the host
 round trips of the step path, found two ways: CUDA sync calls and device-to-host copies in the
-trace, and torch's sync debug mode (``torch.cuda.set_sync_debug_mode("warn")``) over a separate
-run, whose warnings name the Python line that waited.
+trace, and torch's sync debug mode (``torch.cuda.set_sync_debug_mode("warn")``, ``env_gpu.count_syncs``)
+over a separate run, whose warnings name the Python line that waited.
 
     python benchmarks/profile_gpu.py [--num-envs 4096] [--steps 20] [--trace trace.json]
     python benchmarks/profile_gpu.py --device cpu --num-envs 4 --steps 3 --warmup 2
@@ -29,12 +30,11 @@ import contextlib
 import datetime
 import json
 import time
-import warnings
 
 import mujoco_warp as mjw
 import torch
 import warp as wp
-from env_gpu import TASK, device_name, rollout_fns, sync
+from env_gpu import TASK, count_syncs, device_name, rollout_fns, sync
 from torch.autograd import DeviceType
 from torch.profiler import ProfilerActivity, profile, record_function
 
@@ -139,23 +139,6 @@ def host_round_trips(events, steps: int) -> dict:
             "scalar_reads_per_step": round(scalar_reads / steps, 2)}
 
 
-def sync_warnings(act, step, obs, steps: int, device: torch.device):
-    """Where torch waits for the device on the step path: its sync debug mode warns once per
-    synchronizing op, naming the Python line (CUDA only)."""
-    if device.type != "cuda":
-        return obs, None
-    with warnings.catch_warnings(record=True) as caught, torch.inference_mode():
-        warnings.simplefilter("always")
-        torch.cuda.set_sync_debug_mode("warn")
-        try:
-            obs = rollout(act, step, obs, steps)
-        finally:
-            torch.cuda.set_sync_debug_mode("default")
-    where = collections.Counter(f"{w.filename}:{w.lineno}" for w in caught
-                                if "synchroniz" in str(w.message).lower())
-    return obs, {"per_step": round(sum(where.values()) / steps, 2), "where": dict(where.most_common(10))}
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--num-envs", type=int, default=4096)
@@ -180,7 +163,7 @@ def main() -> None:
     with named_physics(env.engine), torch.inference_mode(), profile(activities=activities) as prof:
         obs = rollout(act, step, obs, args.steps)
         sync(device)
-    obs, warned = sync_warnings(act, step, obs, args.steps, device)
+    obs, warned = count_syncs(act, step, obs, args.steps, device)
 
     table = prof.key_averages()
     if device.type == "cuda":

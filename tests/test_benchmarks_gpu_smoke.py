@@ -20,7 +20,7 @@ def run_benchmark(script: str, *args: str) -> dict:
     """Run ``benchmarks/<script>`` on the CPU as a subprocess; return its parsed RESULT line."""
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT / "src"), os.environ.get("PYTHONPATH", "")])}
     run = subprocess.run([sys.executable, str(BENCHMARKS / script), "--device", "cpu", *args],
-                         cwd=ROOT, env=env, capture_output=True, text=True, timeout=120)
+                         cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)  # minutes on a loaded 2-core machine
     assert run.returncode == 0, f"{script} failed:\n{run.stdout[-2000:]}\n{run.stderr[-4000:]}"
     lines = [line for line in run.stdout.splitlines() if line.startswith("RESULT ")]
     assert len(lines) == 1, f"{script} printed {len(lines)} RESULT lines:\n{run.stdout[-2000:]}"
@@ -38,6 +38,10 @@ def test_env_gpu_measures_env_against_an_exact_replay():
     # the ceiling redoes the env's physics: on Warp's CPU device the replay is bit for bit
     assert row["replay_match"] == 1.0
     assert result["target"]["ratio"] is None  # no 4096-env row in this run
+    # it times training's rollout step on the runner `ambulo train` builds, never a stand-in MLP
+    assert row["policy"].startswith("AmbuloRunner rollout step: rsl-rl-lib MLPModel")
+    assert "SyncFreeGaussian" in row["policy"] and result["policy"] == row["policy"]
+    assert row["syncs"] is None  # counted on CUDA only
     assert {"torch", "warp", "mujoco", "mujoco_warp"} <= set(result["versions"])
 
 
@@ -51,6 +55,7 @@ def test_profile_gpu_splits_the_step_and_counts_round_trips(tmp_path):
     assert host["physics_launch"] + host["torch_ops"] + host["python_other"] == pytest.approx(host["total"], abs=0.01)
     assert result["host_round_trips"]["sync_calls_per_step"] == 0  # no CUDA on this run
     assert result["device_ms_per_step"] is None
+    assert result["policy"].startswith("AmbuloRunner rollout step") and result["torch_sync_warnings"] is None
     assert json.loads(trace.read_text())["traceEvents"]
 
 
@@ -76,3 +81,57 @@ def test_sim_to_sim_finds_the_engines_agreeing_from_walking_states():
     assert at["normal_force_rel_diff_p90"] < 1e-3
     step = result["divergence_from_mujoco"]["warp"]["step_4"]
     assert step["qpos_max_abs_p90"] < 1e-5 and step["qvel_max_abs_p90"] < 1e-3
+
+
+def test_cuda_test_selection_records_what_ran_passed_failed_and_skipped(tmp_path):
+    """benchmarks/cuda_tests.py (gpu_suite.sh's test part) keeps the tests marked as CUDA tests
+    either way the project marks them, drops the rest, and reports each outcome."""
+    (tmp_path / "test_marked.py").write_text(
+        "import pytest\n"
+        "pytestmark = pytest.mark.skipif(True, reason='needs CUDA')\n"
+        "def test_on_the_gpu():\n    pass\n")
+    (tmp_path / "test_device_variable.py").write_text(
+        "import os\n"
+        "DEVICE = os.environ.get('AMBULO_TEST_DEVICE', 'cpu')\n"
+        "def test_passes():\n    assert DEVICE == 'cuda'\n"
+        "def test_fails():\n    assert DEVICE == 'cpu', 'ran on ' + DEVICE\n")
+    (tmp_path / "test_plain.py").write_text(
+        "import pytest\n"
+        "@pytest.mark.skipif(True, reason='needs a display')\n"
+        "def test_cpu_only():\n    pass\n"
+        "def test_other():\n    pass\n")
+    report = tmp_path / "report.json"
+    env = {**os.environ, "PYTHONPATH": str(BENCHMARKS), "AMBULO_TEST_DEVICE": "cuda"}
+    run = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-p", "cuda_tests",
+                          "--cuda-report", str(report), str(tmp_path)],
+                         cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)
+    assert run.returncode == 1, run.stdout[-2000:]  # one test fails on purpose
+    result = json.loads(report.read_text())
+    outcomes = {name.split("::")[-1]: row["outcome"] for name, row in result["tests"].items()}
+    assert outcomes == {"test_on_the_gpu": "skipped", "test_passes": "passed", "test_fails": "failed"}
+    assert result["selected"] == 3 and result["deselected"] == 2 and result["not_run"] == []
+    assert result["summary"] == {"skipped": 1, "passed": 1, "failed": 1, "not_run": 0}
+    assert result["test_device"] == "cuda"
+    failed = next(row for name, row in result["tests"].items() if name.endswith("test_fails"))
+    assert "ran on cuda" in failed["reason"]
+
+
+@pytest.mark.slow
+def test_issue25_device_script_runs_on_the_cpu(tmp_path):
+    """benchmarks/issue25_device.sh end to end on Warp's CPU device (ISSUE25_SMOKE=1)."""
+    env = {**os.environ, "ISSUE25_SMOKE": "1", "PYTHON": sys.executable}
+    run = subprocess.run(["bash", str(BENCHMARKS / "issue25_device.sh"), str(tmp_path)], cwd=ROOT, env=env,
+                         capture_output=True, text=True, timeout=900)
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-2000:]
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert {p: s["status"] for p, s in summary["parts"].items()} == {
+        "sync_test": "ok", "env_gpu": "ok", "profile_gpu": "ok", "gpu_suite": "ran"}
+    assert summary["sync_test"]["summary"]["skipped"] == 2  # no CUDA here
+    assert summary["env_gpu"]["ratio"] > 0 and summary["profile"]["policy"].startswith("AmbuloRunner")
+    # the suite's tests part only collects in a smoke run: every selected GPU test is listed, none ran
+    tests = summary["gpu_tests"]
+    assert tests["selected"] >= 10 and tests["summary"]["not_run"] == tests["selected"]
+    assert not any("test_sync_free_gpu" in name for name in tests["not_run"])
+    assert sorted(p.name for p in tmp_path.rglob("*") if p.is_file()) == sorted(
+        ["summary.json", "sync_test.json", "sync_test.log", "env_gpu.log", "profile_gpu.log", "suite.log",
+         "results.json", "gpu_tests.json"])
