@@ -154,3 +154,21 @@ def test_position_targets_drive_the_dof_they_name(gym_sim):
     gym.refresh_net_contact_force_tensor(sim)
     contacts = gymtorch.wrap_tensor(gym.acquire_net_contact_force_tensor(sim))
     assert contacts.shape == (4 * NUM_ENVS, 3)
+
+
+def test_friction_and_mass_set_per_env_reach_that_world_only(gym_sim):
+    gym, sim, asset, envs = gym_sim
+    shapes = gym.get_actor_rigid_shape_properties(envs[1], 0)
+    assert len(shapes) == gym.get_asset_rigid_shape_count(asset) == 4
+    for shape in shapes:
+        shape.friction = 0.25
+    gym.set_actor_rigid_shape_properties(envs[1], 0, shapes)
+    bodies = gym.get_actor_rigid_body_properties(envs[2], 0)
+    assert bodies[0].mass == pytest.approx(4.0)  # the base box
+    bodies[0].mass = 6.0
+    gym.set_actor_rigid_body_properties(envs[2], 0, bodies, True)
+    entity = sim.entities[0]
+    geoms = torch.as_tensor(np.flatnonzero(np.isin(sim.engine.model.geom_bodyid, entity._body_ids_np)))
+    friction = sim.engine.model_field("geom_friction")[:, geoms, 0]
+    assert torch.all(friction[1] == 0.25) and torch.all(friction[[0, 2]] == 1.0)
+    torch.testing.assert_close(entity.data.body_mass[:, 0], torch.tensor([4.0, 4.0, 6.0], dtype=torch.float64))

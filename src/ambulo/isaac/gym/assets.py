@@ -18,7 +18,17 @@ import numpy as np
 from ambulo import assets as bundled
 from ambulo.core import DriveDefaults, EntityNames, RobotCfg, add_robot, new_scene
 
-from .types import DOF_MODE_EFFORT, DOF_MODE_NONE, DOF_MODE_POS, DOF_MODE_VEL, DOF_PROPERTIES_DTYPE, AssetOptions
+from .types import (
+    DOF_MODE_EFFORT,
+    DOF_MODE_NONE,
+    DOF_MODE_POS,
+    DOF_MODE_VEL,
+    DOF_PROPERTIES_DTYPE,
+    AssetOptions,
+    RigidBodyProperties,
+    RigidShapeProperties,
+    Vec3,
+)
 
 log = logging.getLogger(__name__)
 
@@ -56,9 +66,29 @@ class Asset:
     names: EntityNames
     dof_props: np.ndarray = field(init=False)
     """(num_dofs,) ``DOF_PROPERTIES_DTYPE``: what ``get_asset_dof_properties`` returns."""
+    shape_props: list[RigidShapeProperties] = field(init=False)
+    """One per collision geom of the asset, in model order (``get/set_asset_rigid_shape_properties``:
+    actors created after a set take the new values, as in Isaac Gym)."""
 
     def __post_init__(self):
         self.dof_props = default_dof_properties(self.model, self.names, self.options.default_dof_drive_mode)
+        m = self.model
+        self.shape_props = [RigidShapeProperties(friction=float(m.geom_friction[g, 0]),
+                                                 torsion_friction=float(m.geom_friction[g, 1]),
+                                                 rolling_friction=float(m.geom_friction[g, 2]),
+                                                 contact_offset=float(m.geom_margin[g]))
+                            for g in self.shape_geom_ids.tolist()]
+
+    @property
+    def shape_geom_ids(self) -> np.ndarray:
+        """Model ids of the asset's geoms, in model order (Isaac's shape order)."""
+        return np.flatnonzero(np.isin(self.model.geom_bodyid, self.names.body_ids))
+
+    def body_properties(self) -> list[RigidBodyProperties]:
+        """Each body's mass (kg), centre of mass in the body frame (m) and inertia about it (kg m^2)."""
+        m = self.model
+        return [RigidBodyProperties(mass=float(m.body_mass[b]), com=Vec3(*m.body_ipos[b]),
+                                    inertia=np.diag(m.body_inertia[b])) for b in self.names.body_ids.tolist()]
 
     @property
     def dof_names(self) -> list[str]:
@@ -78,7 +108,7 @@ class Asset:
 
     @property
     def num_shapes(self) -> int:
-        return int(np.isin(self.model.geom_bodyid, self.names.body_ids).sum())
+        return len(self.shape_geom_ids)
 
     def robot_cfg(self, prim_path: str) -> RobotCfg:
         """How the batched model attaches this asset at ``prim_path``."""

@@ -8,6 +8,7 @@ A method Isaac Gym has and ambulo does not fails with one line naming the altern
 
 from __future__ import annotations
 
+import copy
 import os
 import time
 
@@ -137,6 +138,16 @@ class Gym(HeadlessViewer):
     def get_asset_dof_properties(self, asset: Asset) -> np.ndarray:
         return asset.dof_props.copy()
 
+    def get_asset_rigid_shape_properties(self, asset: Asset) -> list:
+        return copy.deepcopy(asset.shape_props)
+
+    def set_asset_rigid_shape_properties(self, asset: Asset, props: list) -> bool:
+        """Actors created from now on take ``props`` (legged_gym randomizes friction this way, per env)."""
+        if len(props) != asset.num_shapes:
+            raise ValueError(f"isaacgym: {len(props)} shape properties for an asset with {asset.num_shapes} shapes")
+        asset.shape_props = copy.deepcopy(list(props))
+        return True
+
     def get_asset_dof_type(self, asset: Asset, index: int) -> int:
         joint = int(asset.names.joint_ids[index])
         return DOF_TRANSLATION if asset.model.jnt_type[joint] == mujoco.mjtJoint.mjJNT_SLIDE else DOF_ROTATION
@@ -159,7 +170,8 @@ class Gym(HeadlessViewer):
         if env.sim.engine is not None:
             raise RuntimeError("isaacgym: create_actor after prepare_sim; create every actor before prepare_sim")
         pose = Transform(Vec3(pose.p.x, pose.p.y, pose.p.z), pose.r.normalize())
-        env.actors.append(Actor(asset, pose, name or f"actor{len(env.actors)}", group, filter, asset.dof_props.copy()))
+        env.actors.append(Actor(asset, pose, name or f"actor{len(env.actors)}", group, filter, asset.dof_props.copy(),
+                                copy.deepcopy(asset.shape_props), asset.body_properties()))
         return len(env.actors) - 1
 
     def get_actor_count(self, env: Env) -> int:
@@ -236,6 +248,24 @@ class Gym(HeadlessViewer):
         target[:] = props
         if env.sim.engine is not None:
             env.sim.apply_dof_properties([env.index])
+        return True
+
+    def get_actor_rigid_shape_properties(self, env: Env, actor: int) -> list:
+        return copy.deepcopy(env.actors[actor].shape_props)
+
+    def set_actor_rigid_shape_properties(self, env: Env, actor: int, props: list) -> bool:
+        env.actors[actor].shape_props = copy.deepcopy(list(props))
+        if env.sim.engine is not None:
+            env.sim.apply_body_and_shape_properties([env.index])
+        return True
+
+    def get_actor_rigid_body_properties(self, env: Env, actor: int) -> list:
+        return copy.deepcopy(env.actors[actor].body_props)
+
+    def set_actor_rigid_body_properties(self, env: Env, actor: int, props: list, recomputeInertia: bool = False) -> bool:
+        env.actors[actor].body_props = copy.deepcopy(list(props))
+        if env.sim.engine is not None:
+            env.sim.apply_body_and_shape_properties([env.index])
         return True
 
     def get_actor_dof_states(self, env: Env, actor: int, flags: int = STATE_ALL) -> np.ndarray:

@@ -23,9 +23,6 @@ ISAAC_UNSUPPORTED: dict[str, str] = {
     "get_camera_image": "use ambulo.sensors' Camera / TiledCamera on the same model",
     "get_camera_image_gpu_tensor": "use ambulo.sensors' TiledCamera (batched images as tensors)",
     "set_sim_params": "create the sim with the SimParams it needs (the model is compiled once)",
-    "get_actor_rigid_shape_properties": "set friction on the PlaneParams or in the asset file",
-    "set_actor_rigid_shape_properties": "set friction on the PlaneParams or in the asset file",
-    "set_actor_rigid_body_properties": "randomize masses with ambulo.core.randomize on the engine",
     "write_viewer_image_to_file": "record with ambulo's renderer (ambulo.render) on engine.get_data(world)",
 }
 """Isaac Gym methods ambulo lacks -> what to use instead."""
@@ -46,6 +43,10 @@ ISAAC_APPROXIMATED: dict[str, str] = {
     "create_viewer": "headless: a viewer that never closes and draws nothing",
     "draw_viewer": "headless: draws nothing",
     "sync_frame_time": "headless: returns at once (no real-time pacing)",
+    "set_actor_rigid_shape_properties": "friction (sliding, torsional, rolling) per env; restitution, offsets "
+                                        "and filters are not applied",
+    "set_asset_rigid_shape_properties": "as set_actor_rigid_shape_properties, for actors created afterwards",
+    "set_actor_rigid_body_properties": "mass per env (the model's constants recomputed); com and inertia are kept",
     "begin_aggregate": "accepted, no effect (a PhysX broad-phase hint)",
     "set_rigid_body_color": "headless: colors are not drawn",
     "set_actor_dof_velocity_targets": "applied in velocity (and position) drive mode, as Isaac's",

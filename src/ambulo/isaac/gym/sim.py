@@ -41,6 +41,10 @@ class Actor:
     filter: int
     dof_props: np.ndarray
     """This actor's DOF properties (a copy of the asset's until the script sets them)."""
+    shape_props: list = field(default_factory=list)
+    """This actor's ``RigidShapeProperties`` (the asset's at ``create_actor``)."""
+    body_props: list = field(default_factory=list)
+    """This actor's ``RigidBodyProperties`` (the asset's at ``create_actor``)."""
 
 
 @dataclass
@@ -147,6 +151,7 @@ class Sim:
         self.contacts.initialize(self.engine)
         self._write_start_state()
         self.apply_dof_properties()
+        self.apply_body_and_shape_properties()
 
     def _write_start_state(self) -> None:
         f = dict(dtype=self.engine.dtype, device=self.engine.device)
@@ -188,17 +193,34 @@ class Sim:
                     self._write_model_rows("jnt_range", torch.as_tensor(entity._joint_ids),
                                            np.where(limited[..., None], lim, model_range), rows)
 
-    def _write_model_rows(self, name: str, cols, values: np.ndarray, rows: torch.Tensor) -> None:
+    def apply_body_and_shape_properties(self, env_ids: list[int] | None = None) -> None:
+        """Write the actors' shape frictions and body masses into the worlds (per-world model fields;
+        masses then recompute the model's derived constants)."""
+        envs = self.envs if env_ids is None else [self.envs[i] for i in env_ids]
+        rows = torch.tensor([e.index for e in envs], device=self.engine.device)
+        masses_changed = False
+        for k, entity in enumerate(self.entities):
+            geoms = np.flatnonzero(np.isin(self.engine.model.geom_bodyid, entity._body_ids_np))
+            friction = np.array([[[p.friction, p.torsion_friction, p.rolling_friction] for p in e.actors[k].shape_props]
+                                 for e in envs]).reshape(len(envs), len(geoms), 3)
+            self._write_model_rows("geom_friction", geoms, friction, rows)
+            masses = np.array([[p.mass for p in e.actors[k].body_props] for e in envs]).reshape(len(envs), -1)
+            masses_changed |= self._write_model_rows("body_mass", entity._body_ids_np, masses, rows)
+        if masses_changed:
+            self.engine.set_const(rows)
+
+    def _write_model_rows(self, name: str, cols, values: np.ndarray, rows: torch.Tensor) -> bool:
         """Write per-world ``values`` (R, C, ...) of model field ``name`` at columns ``cols`` of worlds
         ``rows``; a field every world leaves at the model's value is not expanded per world."""
         cols = torch.as_tensor(np.arange(cols.start, cols.stop) if isinstance(cols, slice) else cols,
                                device=self.engine.device)
         model_values = getattr(self.engine.model, name)[cols.cpu().numpy()]
         if name not in self._expanded and np.allclose(values, model_values, atol=1e-7):
-            return
+            return False
         self._expanded.add(name)
         field_ = self.engine.model_field(name)
         field_[rows[:, None], cols[None, :]] = torch.as_tensor(values, dtype=field_.dtype, device=field_.device)
+        return True
 
     # -- stepping ----------------------------------------------------------------------------
     def step(self) -> None:
