@@ -172,3 +172,43 @@ def test_friction_and_mass_set_per_env_reach_that_world_only(gym_sim):
     friction = sim.engine.model_field("geom_friction")[:, geoms, 0]
     assert torch.all(friction[1] == 0.25) and torch.all(friction[[0, 2]] == 1.0)
     torch.testing.assert_close(entity.data.body_mass[:, 0], torch.tensor([4.0, 4.0, 6.0], dtype=torch.float64))
+
+
+def test_two_actors_per_env_index_env_major_actor_minor(tmp_path):
+    """Isaac's actor index is env * actors_per_env + actor; DOF rows follow the same order."""
+    from ambulo import assets
+
+    (tmp_path / "lopsided.xml").write_text(ROBOT)
+    gym = gymapi.acquire_gym()
+    params = gymapi.SimParams()
+    params.up_axis, params.gravity = gymapi.UP_AXIS_Z, gymapi.Vec3(0.0, 0.0, -9.81)
+    sim = gym.create_sim(0, 0, gymapi.SIM_PHYSX, params)
+    fixed = gymapi.AssetOptions()
+    fixed.fix_base_link = True
+    cartpole = gym.load_asset(sim, str(tmp_path.parent), assets.path("cartpole"), fixed)
+    robot = gym.load_asset(sim, str(tmp_path), "lopsided.xml", gymapi.AssetOptions())
+    envs = []
+    for i in range(2):
+        env = gym.create_env(sim, gymapi.Vec3(-2.0, -2.0, 0.0), gymapi.Vec3(2.0, 2.0, 2.0), 2)
+        gym.create_actor(env, cartpole, gymapi.Transform(gymapi.Vec3(0.0, 0.0, 2.0)), "cartpole", i, 0)
+        gym.create_actor(env, robot, gymapi.Transform(gymapi.Vec3(1.0, 0.0, 1.0)), "robot", i, 0)
+        envs.append(env)
+    gym.prepare_sim(sim)
+    cart_dofs = gym.get_asset_dof_count(cartpole)
+    assert gym.get_actor_index(envs[1], 1, gymapi.DOMAIN_SIM) == 3
+    root = gymtorch.wrap_tensor(gym.acquire_actor_root_state_tensor(sim))
+    assert root.shape == (4, 13)
+    torch.testing.assert_close(root[2, 0:3], torch.tensor([*envs[1].origin[:2], 2.0], dtype=torch.float32))  # the cart
+    root[3, 0:3] = torch.tensor([*envs[1].origin[:2], 0.0]) + torch.tensor([0.3, -0.3, 0.7])
+    gym.set_actor_root_state_tensor_indexed(sim, gymtorch.unwrap_tensor(root),
+                                            gymtorch.unwrap_tensor(torch.tensor([3], dtype=torch.int32)), 1)
+    cart, lopsided = sim.entities
+    torch.testing.assert_close(lopsided.data.root_pos_w[:, 0:3],
+                               torch.tensor([[1.0, 0.0, 1.0], [0.3, -0.3, 0.7]], dtype=torch.float64), atol=1e-5, rtol=0)
+    dofs = gymtorch.wrap_tensor(gym.acquire_dof_state_tensor(sim))
+    assert dofs.shape == (2 * (cart_dofs + 3), 2)
+    dofs[:, 0] = torch.arange(dofs.shape[0], dtype=torch.float32) / 100
+    gym.set_dof_state_tensor(sim, gymtorch.unwrap_tensor(dofs))
+    per_env = cart_dofs + 3
+    torch.testing.assert_close(cart.data.joint_pos[1].float(), dofs[per_env:per_env + cart_dofs, 0])
+    torch.testing.assert_close(lopsided.data.joint_pos[0].float(), dofs[cart_dofs:per_env, 0])
