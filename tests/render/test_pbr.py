@@ -190,3 +190,33 @@ def test_two_renderers_of_a_textured_model_render_side_by_side():
     b = second.render(data, cam).copy()
     # both engines drew the same first frame (Filament's temporal dithering depends on the frame count)
     assert np.ptp(a) > 100 and np.abs(a.astype(int) - b).max() <= 1
+
+
+@needs_vulkan
+def test_shadows_fall_behind_a_box_even_when_the_mjcf_light_casts_none():
+    """PbrSettings.shadows makes every light cast shadows (MJCF castshadow is a rasterizer cost
+    knob): the floor where the box blocks the sun is darker than its mirror image; without
+    shadows the two are equally lit."""
+    model = mujoco.MjModel.from_xml_string("""<mujoco><visual><headlight active="0"/></visual><worldbody>
+      <light directional="true" pos="0 0 3" dir="0.5 0.3 -1" castshadow="false" intensity="100000"/>
+      <geom type="plane" size="5 5 .1" rgba=".8 .8 .8 1"/>
+      <geom type="box" pos="0 0 .3" size=".3 .3 .3" rgba="1 0 0 1"/></worldbody></mujoco>""")
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    eye = np.array([0.0, -3.0, 2.5])
+    rot = look_at_gl(eye, np.zeros(3))
+    cam = gl_camera(eye, rot, 60.0, 160, 120, (0.05, 20.0))
+    f = 60 / math.tan(math.radians(30))
+
+    def pixel(p):
+        p_c = rot.T @ (np.asarray(p) - eye)
+        return int(round(60 - 0.5 - f * p_c[1] / -p_c[2])), int(round(80 - 0.5 + f * p_c[0] / -p_c[2]))
+
+    shaded, mirror = pixel([0.45, 0.1, 0.0]), pixel([-0.45, 0.1, 0.0])  # (0.45, 0.1) is on the sun's line behind the box
+    for shadows in (False, True):
+        image = PbrRenderer(model, 160, 120, PbrSettings(shadows=shadows)).render(data, cam).astype(int)
+        dark, lit = image[shaded].mean(), image[mirror].mean()
+        if shadows:
+            assert dark < 0.8 * lit, (dark, lit)
+        else:
+            assert abs(dark - lit) <= 3, (dark, lit)

@@ -63,6 +63,8 @@ class PbrSettings(Checked):
     """
 
     shadows: bool = True
+    """Shadow maps, cast by every light: an MJCF light's ``castshadow`` is usually off for the
+    rasterizer's sake (10-20x its frame time on llvmpipe), not because the scene has none."""
     reflections: bool = False
     post_processing: bool = True
     skybox: bool = True
@@ -167,6 +169,11 @@ class PbrRenderer:
         """(H, W, 3) uint8 colour image of ``data`` seen from ``camera``, top row first (a view
         reused by the next call: copy it to keep it)."""
         self._lights.update(data)
+        if self.settings.shadows:
+            for i in range(self._model.nlight):
+                light = self._lights.get_light(i)
+                if light is not None and self._model.light_type[i] != mujoco.mjtLightType.mjLIGHT_IMAGE:
+                    light.set_cast_shadow(True)
         self._renderables.update(data)
         cam = self._camera
         cam.pos, cam.forward, cam.up = camera.pos, camera.forward, camera.up
