@@ -3,7 +3,8 @@
 - a Lambertian plane under a MuJoCo light (no physical ``intensity`` given) reads what the
   rasterizer draws there: within 2 grey levels everywhere under a directional light, within 5
   where a spot light points (``scene_description.light_intensity``);
-- an HDR environment map is z up (Isaac's DomeLight convention after the y-up -> z-up turn);
+- an HDR environment map is z up (Isaac's DomeLight convention after the y-up -> z-up turn), and
+  the model's skybox is the one the rasterizer draws (its random marks in the same places);
 - a colour written into the model after the tracer was built shows in the next frame (the
   replicator's colour randomizer), without a rebuild.
 """
@@ -95,3 +96,29 @@ def test_phong_shininess_maps_to_disney_roughness():
     assert roughness_from_shininess(0.0) == pytest.approx(1.0)
     assert roughness_from_shininess(0.5) == pytest.approx((2 / 66) ** 0.25)
     assert roughness_from_shininess(1.0) == pytest.approx((2 / 130) ** 0.25)
+
+
+def test_the_skybox_is_the_rasterizers_star_for_star():
+    # a gradient sky strewn with random white marks: the marks' high-pass pattern must correlate
+    # with the rasterizer's (mirrored it does not), looking at the horizon and straight up
+    from scipy.ndimage import uniform_filter
+
+    model = mujoco.MjModel.from_xml_string(
+        f'<mujoco>{_DARK}<asset><texture type="skybox" builtin="gradient" rgb1="0.55 0.7 0.9" rgb2="0.1 0.12 0.18" '
+        'width="64" height="64" mark="random" random="0.02" markrgb="1 1 1"/></asset><worldbody>'
+        '<camera name="horizon" xyaxes="1 0 0 0 0 1" fovy="90"/><camera name="up" xyaxes="1 0 0 0 1 0" fovy="90"/>'
+        '</worldbody></mujoco>')
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    tracer = PathTracer(model, _cfg(width=64, height=48, spp=4))
+
+    def high_pass(image):
+        gray = image.astype(float).mean(-1)
+        return gray - uniform_filter(gray, 5)
+
+    for cam in ("horizon", "up"):
+        raster, path = _raster(model, data, model.camera(cam).id, 64, 48), tracer.render(data, cam)
+        assert np.abs(raster.astype(float) - path).mean() < 8.0, cam
+        same = np.corrcoef(high_pass(raster).ravel(), high_pass(path).ravel())[0, 1]
+        mirrored = np.corrcoef(high_pass(raster).ravel(), high_pass(path)[:, ::-1].ravel())[0, 1]
+        assert same > 0.5 and mirrored < 0.2, (cam, same, mirrored)

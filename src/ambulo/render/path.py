@@ -11,8 +11,10 @@ Variants: ``cuda_ad_rgb`` on an NVIDIA GPU, else ``llvm_ad_rgb`` (CPU; needs lib
 Debian's ``libllvm19``, which ``scripts/setup.sh`` installs). Labels (depth, ids) are not made
 here: they come from the rasterizer's id pass, so they are identical in every tier.
 
-What it does not model: MuJoCo cube-map textures (mean colour), skyboxes (use ``envmap_path``),
-flexes and skins, orthographic or off-axis cameras, light textures.
+The environment: ``envmap_path`` if given, else the model's skybox (which, unlike in the rasterizer,
+also lights the scene), else a constant one of the lights' ambient. What it does not model: MuJoCo
+cube-map textures on objects (mean colour), flexes and skins, orthographic or off-axis cameras,
+light textures, the rasterizer's fog and haze.
 """
 
 from __future__ import annotations
@@ -38,6 +40,7 @@ from .scene_description import (
     infinite_plane_half_m,
     lights_of,
     linear_to_srgb,
+    skybox_latlong,
     srgb_to_linear,
     surface_of,
 )
@@ -180,13 +183,18 @@ class PathTracer:
             out[f"geom_{gid}"] = self._mesh(surface, self._poses[gid])
         for i, light in enumerate(self._lights):
             out[f"light_{i}"] = self._light_dict(light)
+        turn = self.mi.ScalarTransform4f().rotate([1, 0, 0], 90)  # Mitsuba's envmaps are y up; ours z up
+        ambient = ambient_radiance(scene)
+        sky = skybox_latlong(self.model) if scene.flags[mujoco.mjtRndFlag.mjRND_SKYBOX] else None
         if cfg.envmap_path is not None:
             out["environment"] = {"type": "envmap", "filename": cfg.envmap_path, "scale": cfg.envmap_scale,
-                                  "to_world": self.mi.ScalarTransform4f().rotate([1, 0, 0], 90)}  # its y up -> z up
-        else:
-            ambient = ambient_radiance(scene)
-            if np.any(ambient > 0):
-                out["environment"] = {"type": "constant", "radiance": {"type": "rgb", "value": ambient.tolist()}}
+                                  "to_world": turn}
+        elif sky is not None:
+            # the one environment emitter: the skybox the rasterizer shows, plus the lights' ambient
+            sky = np.ascontiguousarray(sky + ambient, np.float32)
+            out["environment"] = {"type": "envmap", "bitmap": self.mi.Bitmap(sky), "to_world": turn}
+        elif np.any(ambient > 0):
+            out["environment"] = {"type": "constant", "radiance": {"type": "rgb", "value": ambient.tolist()}}
         return out
 
     def _light_dict(self, light: LightDesc) -> dict:

@@ -256,6 +256,44 @@ def ambient_radiance(scene: mujoco.MjvScene) -> np.ndarray:
     return srgb_to_linear(np.clip(total, 0, 1))
 
 
+def skybox_latlong(model: mujoco.MjModel, height_px: int = 128) -> np.ndarray | None:
+    """The model's skybox as a (height_px, 2 height_px, 3) float32 linear latitude-longitude image.
+
+    Row 0 is the zenith (world +z), column u at azimuth phi = 2 pi (u + 0.5) / width from +y
+    towards +x: pixel (u, v) looks along (sin t sin phi, sin t cos phi, cos t), t = pi (v + 0.5) /
+    height. The rasterizer draws the skybox as a cube map looked up along (x, z, -y) for a world
+    direction (x, y, z) (render_gl3.c, "rotate 90 deg around X"), faces stored +x, -x, +y, -y, +z, -z
+    with OpenGL's per-face (s, t) axes. None when the model has no skybox.
+    """
+    ids = np.nonzero(model.tex_type == int(mujoco.mjtTexture.mjTEXTURE_SKYBOX))[0]
+    if len(ids) == 0:
+        return None
+    pixels, srgb = _texture(model, int(ids[0]))
+    face_px = pixels.shape[1]
+    faces = pixels.reshape(-1, face_px, face_px, pixels.shape[-1])
+    if len(faces) != 6:  # a single-image skybox repeated on every face (MuJoCo's default layout)
+        faces = np.repeat(faces[:1], 6, 0)
+    theta = np.pi * (np.arange(height_px) + 0.5) / height_px
+    phi = 2 * np.pi * (np.arange(2 * height_px) + 0.5) / (2 * height_px)
+    t, p = np.meshgrid(theta, phi, indexing="ij")
+    x, y, z = np.sin(t) * np.sin(p), np.sin(t) * np.cos(p), np.cos(t)
+    gx, gy, gz = x, z, -y  # the GL lookup direction
+    ax, ay, az = np.abs(gx), np.abs(gy), np.abs(gz)
+    major = np.argmax(np.stack([ax, ay, az]), 0)
+    # OpenGL 4.6 table 8.19: face, sc, tc and the major axis magnitude per selected axis and sign
+    face = np.where(major == 0, np.where(gx > 0, 0, 1), np.where(major == 1, np.where(gy > 0, 2, 3),
+                                                                  np.where(gz > 0, 4, 5)))
+    sc = np.choose(face, [-gz, gz, gx, gx, gx, -gx])
+    tc = np.choose(face, [-gy, -gy, gz, -gz, -gy, -gy])
+    ma = np.choose(major, [ax, ay, az])
+    s_px = np.clip(((sc / ma + 1) / 2 * face_px).astype(int), 0, face_px - 1)
+    t_px = np.clip(((tc / ma + 1) / 2 * face_px).astype(int), 0, face_px - 1)
+    rgb = faces[face, t_px, s_px][..., :3].astype(np.float32) / 255.0
+    if rgb.shape[-1] == 1:
+        rgb = np.repeat(rgb, 3, -1)
+    return srgb_to_linear(rgb) if srgb else rgb
+
+
 def camera_of(scene: mujoco.MjvScene, width: int, height: int) -> CameraDesc:
     """The camera ``mjr_render`` draws a mono image with: the average of the scene's two eyes."""
     cam = mujoco.mjv_averageCamera(scene.camera[0], scene.camera[1])
@@ -316,4 +354,4 @@ def infinite_plane_half_m(model: mujoco.MjModel) -> float:
 
 __all__ = ["CameraDesc", "LightDesc", "MaterialDesc", "SceneReader", "SurfaceDesc", "ambient_radiance", "base_color_of",
            "camera_of", "geom_pose", "infinite_plane_half_m", "light_intensity", "lights_of", "linear_to_srgb",
-           "material_of", "roughness_from_shininess", "srgb_to_linear", "surface_of"]
+           "material_of", "roughness_from_shininess", "skybox_latlong", "srgb_to_linear", "surface_of"]
