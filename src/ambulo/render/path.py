@@ -287,7 +287,8 @@ class PathTracer:
             return np.asarray(image, np.float32)
         # the guides: first-hit albedo and normal, nearly noise-free at a few samples (4 cost ~5 % of 16 path samples)
         guides = self.mi.render(self._scene, integrator=self._guide_integrator, spp=self.cfg.guide_spp, seed=seed)
-        if self.variant.startswith("cuda"):
+        if self.variant.startswith("cuda") and _torch_has_cuda():
+            # denoised on the GPU the image is on (a CPU-only torch build copies to the host instead)
             color, guides = image.torch(), guides.torch()
             return denoise_torch(color, guides[..., :3], guides[..., 3:6], quality=self.cfg.denoise_quality).cpu().numpy()
         guides = np.asarray(guides, np.float32)
@@ -299,6 +300,14 @@ class PathTracer:
         """(H, W, 3) uint8 sRGB image of camera ``camera`` (id or name) for the state ``data``."""
         linear = self.render_linear(data, camera, pose) * np.float32(self.cfg.exposure)
         return (linear_to_srgb(linear) * 255.0 + 0.5).astype(np.uint8)
+
+
+def _torch_has_cuda() -> bool:
+    try:
+        import torch
+    except ImportError:
+        return False
+    return torch.cuda.is_available()
 
 
 def _to_world(positions: np.ndarray, normals: np.ndarray, pose: tuple[np.ndarray, np.ndarray]):
