@@ -45,6 +45,8 @@ PARTS=$WORK/parts.jsonl
 : >"$PARTS"
 export PYTHONPATH="$PWD/src${PYTHONPATH:+:$PYTHONPATH}"
 export PYTHONUNBUFFERED=1
+# rsl-rl (tests/rl) imports GitPython, which refuses to import without a git executable unless told
+export GIT_PYTHON_REFRESH=${GIT_PYTHON_REFRESH:-quiet}
 # an empty kernel cache, so the first part measures a cold start; later parts reuse it
 # (the smoke run keeps Warp's usual cache: a CPU compile of everything takes many minutes)
 # (a tests-only run keeps it: what an earlier call on this machine compiled is reused)

@@ -119,7 +119,7 @@ def test_cuda_test_selection_records_what_ran_passed_failed_and_skipped(tmp_path
 @pytest.mark.slow
 def test_issue25_device_script_runs_on_the_cpu(tmp_path):
     """benchmarks/issue25_device.sh end to end on Warp's CPU device (ISSUE25_SMOKE=1)."""
-    env = {**os.environ, "ISSUE25_SMOKE": "1", "PYTHON": sys.executable}
+    env = {**os.environ, "ISSUE25_SMOKE": "1", "ISSUE25_BUDGET_S": "1500", "PYTHON": sys.executable}
     run = subprocess.run(["bash", str(BENCHMARKS / "issue25_device.sh"), str(tmp_path)], cwd=ROOT, env=env,
                          capture_output=True, text=True, timeout=900)
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-2000:]
