@@ -212,3 +212,28 @@ def test_two_actors_per_env_index_env_major_actor_minor(tmp_path):
     per_env = cart_dofs + 3
     torch.testing.assert_close(cart.data.joint_pos[1].float(), dofs[per_env:per_env + cart_dofs, 0])
     torch.testing.assert_close(lopsided.data.joint_pos[0].float(), dofs[cart_dofs:per_env, 0])
+
+
+def test_the_headless_viewer_writes_what_its_camera_sees(tmp_path):
+    import imageio.v3 as iio
+
+    gym = gymapi.acquire_gym()
+    params = gymapi.SimParams()
+    params.up_axis, params.gravity = gymapi.UP_AXIS_Z, gymapi.Vec3(0.0, 0.0, -9.81)
+    sim = gym.create_sim(0, 0, gymapi.SIM_PHYSX, params)
+    gym.add_ground(sim, gymapi.PlaneParams())
+    asset = gym.load_asset(sim, "assets", "humanoid.urdf", gymapi.AssetOptions())  # the bundled humanoid stands in
+    env = gym.create_env(sim, gymapi.Vec3(-1.0, -1.0, 0.0), gymapi.Vec3(1.0, 1.0, 1.0), 1)
+    gym.create_actor(env, asset, gymapi.Transform(gymapi.Vec3(0.0, 0.0, 1.0)), "humanoid", 0, 0)
+    gym.prepare_sim(sim)
+    viewer = gym.create_viewer(sim, gymapi.CameraProperties())
+    assert not gym.query_viewer_has_closed(viewer)
+    gym.draw_viewer(viewer, sim, True)
+    images = []
+    for target_z in (1.0, 50.0):  # at the humanoid and the ground, then up at the (black) sky
+        gym.viewer_camera_look_at(viewer, env, gymapi.Vec3(3.0, 3.0, 1.5), gymapi.Vec3(0.0, 0.0, target_z))
+        path = tmp_path / f"frame_{target_z:g}.png"
+        gym.write_viewer_image_to_file(viewer, str(path))
+        images.append(iio.imread(path))
+    assert images[0].shape == (960, 1280, 3)
+    assert images[0].mean() > 20.0 and images[1].mean() < images[0].mean() / 4

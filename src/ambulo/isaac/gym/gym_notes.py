@@ -23,7 +23,6 @@ ISAAC_UNSUPPORTED: dict[str, str] = {
     "get_camera_image": "use ambulo.sensors' Camera / TiledCamera on the same model",
     "get_camera_image_gpu_tensor": "use ambulo.sensors' TiledCamera (batched images as tensors)",
     "set_sim_params": "create the sim with the SimParams it needs (the model is compiled once)",
-    "write_viewer_image_to_file": "record with ambulo's renderer (ambulo.render) on engine.get_data(world)",
 }
 """Isaac Gym methods ambulo lacks -> what to use instead."""
 
@@ -41,7 +40,8 @@ ISAAC_APPROXIMATED: dict[str, str] = {
     "acquire_net_contact_force_tensor": "MuJoCo's net contact force per body from the last step's constraint solve",
     "acquire_dof_force_tensor": "the force each DOF's drive applies (MuJoCo's actuator force)",
     "create_viewer": "headless: a viewer that never closes and draws nothing",
-    "draw_viewer": "headless: draws nothing",
+    "draw_viewer": "headless: draws nothing (write_viewer_image_to_file renders env 0 on request)",
+    "write_viewer_image_to_file": "renders env 0 only, with MuJoCo's offscreen renderer, at most 1280 x 960",
     "sync_frame_time": "headless: returns at once (no real-time pacing)",
     "set_actor_rigid_shape_properties": "friction (sliding, torsional, rolling) per env; restitution, offsets "
                                         "and filters are not applied",

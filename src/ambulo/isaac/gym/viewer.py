@@ -2,21 +2,52 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from .types import CameraProperties, Vec3
 
 
 class Viewer:
-    """A headless viewer: Isaac's viewer calls succeed and draw nothing; the window never closes."""
+    """A headless viewer: Isaac's viewer calls succeed and the window never closes; its camera
+    (``viewer_camera_look_at``) renders env 0 when a script asks for an image
+    (``write_viewer_image_to_file``), with MuJoCo's offscreen renderer."""
 
-    def __init__(self, props: CameraProperties):
+    def __init__(self, props: CameraProperties, sim):
         self.props = props
+        self.sim = sim
+        self.position = np.array([3.0, 3.0, 2.0])
+        self.target = np.zeros(3)
+        self._renderer = None
+
+    def render_rgb(self) -> np.ndarray:
+        """(height, width, 3) uint8: env 0 (its own world, so at its origin) seen from the camera."""
+        import mujoco
+
+        from ambulo.render.offscreen import OffscreenRenderer
+
+        engine = self.sim.engine
+        if engine is None:
+            raise RuntimeError("isaacgym: prepare_sim before writing viewer images")
+        width, height = min(self.props.width, 1280), min(self.props.height, 960)  # the scene's offscreen buffer
+        if self._renderer is None:
+            self._renderer = OffscreenRenderer(engine.model, width, height)
+        origin = self.sim.envs[0].origin
+        offset = self.position - self.target
+        camera = mujoco.MjvCamera()
+        camera.type = mujoco.mjtCamera.mjCAMERA_FREE
+        camera.lookat[:] = self.target - origin
+        camera.distance = float(np.linalg.norm(offset))
+        camera.azimuth = float(np.degrees(np.arctan2(offset[1], offset[0]))) + 180.0
+        camera.elevation = -float(np.degrees(np.arcsin(offset[2] / max(camera.distance, 1e-9))))
+        self._renderer.update_view(engine.model, engine.get_data(0), camera)
+        return self._renderer.render_rgb()
 
 
 class HeadlessViewer:
     """The viewer methods of the ``Gym`` object: they succeed and draw nothing."""
 
     def create_viewer(self, sim, props: CameraProperties) -> Viewer:
-        return Viewer(props)
+        return Viewer(props, sim)
 
     def destroy_viewer(self, viewer: Viewer) -> None:
         """Nothing to close headless."""
@@ -46,7 +77,18 @@ class HeadlessViewer:
         """No mouse headless."""
 
     def viewer_camera_look_at(self, viewer: Viewer, env, position: Vec3, target: Vec3) -> None:
-        """No camera to move headless."""
+        """Aim the camera that ``write_viewer_image_to_file`` renders (sim frame; ``env`` as Isaac's:
+        positions relative to that env's origin, or the sim frame for None)."""
+        origin = np.zeros(3) if env is None else env.origin
+        viewer.position = position.as_array() + origin
+        viewer.target = target.as_array() + origin
+
+    def write_viewer_image_to_file(self, viewer: Viewer, path: str) -> bool:
+        """Render env 0 from the viewer camera to the image ``path`` (PNG, ...)."""
+        import imageio.v3 as iio
+
+        iio.imwrite(path, viewer.render_rgb())
+        return True
 
     def clear_lines(self, viewer: Viewer) -> None:
         """No lines drawn headless."""
