@@ -4,6 +4,7 @@ import importlib.util
 import sys
 
 import pytest
+import torch
 
 from ambulo.isaac import IsaacNameError, run_script
 
@@ -28,6 +29,9 @@ def test_isaacgym_is_answered_only_during_a_run(tmp_path, capsys):
     assert "rotated [0.0, 1.0, 0.0]" in out and "device cpu" in out
     assert "missing: ambulo does not provide Gym.create_asset_box" in out and "load a URDF/MJCF" in out
     assert not any(m.split(".")[0] == "isaacgym" for m in sys.modules)
+    if not torch.cuda.is_available():  # CUDA tensors are CPU tensors for the run only
+        with pytest.raises((RuntimeError, AssertionError)):
+            torch.zeros(1, device="cuda:0")
     if "rl_games.common.vecenv" in sys.modules:  # registered for a run only
         assert "ISAACGYM" not in sys.modules["rl_games.common.vecenv"].vecenv_config
 
