@@ -122,3 +122,21 @@ def test_the_skybox_is_the_rasterizers_star_for_star():
         same = np.corrcoef(high_pass(raster).ravel(), high_pass(path).ravel())[0, 1]
         mirrored = np.corrcoef(high_pass(raster).ravel(), high_pass(path)[:, ::-1].ravel())[0, 1]
         assert same > 0.5 and mirrored < 0.2, (cam, same, mirrored)
+
+
+@pytest.mark.parametrize("uniform", ["false", "true"])
+def test_a_2d_texture_lies_where_the_rasterizer_puts_it(uniform):
+    # an asymmetric pattern (a 3 x 2 checker, repeated 1.5 x 2.5 times) on a plane seen from above
+    model = mujoco.MjModel.from_xml_string(
+        f'<mujoco>{_DARK}<asset><texture name="t" type="2d" builtin="checker" rgb1="1 1 1" rgb2="0 0 0" '
+        f'width="96" height="64"/><material name="m" texture="t" texrepeat="1.5 2.5" texuniform="{uniform}" '
+        'specular="0" shininess="0"/></asset><worldbody><geom type="plane" size="1.5 1 0.1" material="m"/>'
+        '<light type="directional" dir="0 0 -1" diffuse="0.8 0.8 0.8" specular="0 0 0"/>'
+        '<camera name="c" pos="0.2 0.1 2" xyaxes="1 0 0 0 1 0" fovy="50"/></worldbody></mujoco>')
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    raster = _raster(model, data, 0, 64, 48).astype(float).mean(-1)
+    path = PathTracer(model, _cfg(width=64, height=48, spp=8)).render(data, "c").astype(float).mean(-1)
+    same = np.corrcoef(raster.ravel(), path.ravel())[0, 1]
+    flipped = np.corrcoef(raster.ravel(), path[::-1].ravel())[0, 1]
+    assert same > 0.9 and flipped < 0.5, (same, flipped)

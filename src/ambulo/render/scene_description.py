@@ -162,19 +162,22 @@ def material_of(model: mujoco.MjModel, geom: mujoco.MjvGeom) -> MaterialDesc:
 
 
 def _planar_texcoords(mesh: TriangleMesh, geom: mujoco.MjvGeom) -> np.ndarray:
-    """MuJoCo's object-linear 2-D texture mapping (render_gl3.c ``settexture``) as UVs.
+    """MuJoCo 4's 2-D texture mapping of geoms without UVs, as UVs: planar in the geom's x, y.
 
-    s = 0.5 * repeat_x * x / size_x - 0.5 and t = -0.5 * repeat_y * y / size_y - 0.5 in the geom
-    frame (``texuniform``: per metre, without the size). OpenGL's t = 0 is the texture's first row,
-    which a top-row-first image puts at v = 1, hence v = 1 - t.
+    u = 0.5 * k_x * (x + size_x), v = 0.5 * k_y * (y + size_y), with k = repeat / size (``texuniform``:
+    k = repeat, per metre): the texture starts at the geom's (-x, -y) corner and repeats ``repeat``
+    times across it. Fitted to the rasterizer's own pictures (``test_path_look``: the cell edges and
+    colours of a checker on a plane), which differ from render_gl3.c's older object-linear planes by
+    that corner offset. Mitsuba's bitmap and MuJoCo's texture then agree on which row v = 0 is.
+    Explicit mesh UVs are passed as they are (not checked against the rasterizer).
     """
     scale = np.asarray(geom.texrepeat, np.float32).copy()
     size = np.asarray(geom.size[:2], np.float32)
     if not geom.texuniform:
         scale = np.where(size > 0, scale / np.maximum(size, 1e-9), scale)
-    s = 0.5 * scale[0] * mesh.positions[:, 0] - 0.5
-    t = -0.5 * scale[1] * mesh.positions[:, 1] - 0.5
-    return np.stack([s, 1.0 - t], 1).astype(np.float32)
+    u = 0.5 * scale[0] * (mesh.positions[:, 0] + size[0])
+    v = 0.5 * scale[1] * (mesh.positions[:, 1] + size[1])
+    return np.stack([u, v], 1).astype(np.float32)
 
 
 def surface_of(model: mujoco.MjModel, geom: mujoco.MjvGeom, infinite_half_m: float,
