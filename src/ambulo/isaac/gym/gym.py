@@ -35,6 +35,7 @@ from .types import (
 from .viewer import HeadlessViewer, Viewer
 
 DOMAIN_ACTOR, DOMAIN_ENV, DOMAIN_SIM = 0, 1, 2
+ENV_SPACE, LOCAL_SPACE, GLOBAL_SPACE = 0, 1, 2
 STATE_NONE, STATE_POS, STATE_VEL, STATE_ALL = 0, 1, 2, 3
 
 
@@ -76,6 +77,7 @@ class Gym(HeadlessViewer):
         session.charge(sim.params.dt)
         sim.tensors.apply_controls(sim.effort_mode)
         sim.step()
+        sim.tensors.clear_body_forces()
 
     def fetch_results(self, sim: Sim, wait: bool = True) -> None:
         """Results are ready when ``simulate`` returns (the engines step synchronously)."""
@@ -151,6 +153,14 @@ class Gym(HeadlessViewer):
     def get_asset_dof_type(self, asset: Asset, index: int) -> int:
         joint = int(asset.names.joint_ids[index])
         return DOF_TRANSLATION if asset.model.jnt_type[joint] == mujoco.mjtJoint.mjJNT_SLIDE else DOF_ROTATION
+
+    def apply_rigid_body_force_tensors(self, sim: Sim, forceTensor: GymTensor | None = None,
+                                       torqueTensor: GymTensor | None = None, space: int = ENV_SPACE) -> bool:
+        """Forces and torques ``(num_bodies, 3)`` at the bodies' centres of mass for the next simulate."""
+        self._tensors(sim).apply_body_forces(None if forceTensor is None else _torch(forceTensor),
+                                             None if torqueTensor is None else _torch(torqueTensor),
+                                             local=space == LOCAL_SPACE)
+        return True
 
     # -- envs and actors ---------------------------------------------------------------------------
     def create_env(self, sim: Sim, lower: Vec3, upper: Vec3, num_per_row: int) -> Env:

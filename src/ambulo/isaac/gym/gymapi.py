@@ -1,6 +1,18 @@
 """``isaacgym.gymapi`` under ``ambulo run``: the value types, the enums and ``acquire_gym``."""
 
-from .gym import DOMAIN_ACTOR, DOMAIN_ENV, DOMAIN_SIM, STATE_ALL, STATE_NONE, STATE_POS, STATE_VEL, acquire_gym
+from .gym import (
+                  DOMAIN_ACTOR,
+                  DOMAIN_ENV,
+                  DOMAIN_SIM,
+                  ENV_SPACE,
+                  GLOBAL_SPACE,
+                  LOCAL_SPACE,
+                  STATE_ALL,
+                  STATE_NONE,
+                  STATE_POS,
+                  STATE_VEL,
+                  acquire_gym,
+)
 from .types import (
                   DOF_INVALID,
                   DOF_MODE_EFFORT,
@@ -26,8 +38,6 @@ from .types import (
                   Vec3,
 )
 
-ENV_SPACE, LOCAL_SPACE, GLOBAL_SPACE = 0, 1, 2
-"""Coordinate spaces Isaac's force calls take (accepted; see ``Gym.apply_rigid_body_force_tensors``)."""
 KEY_ESCAPE, KEY_V, KEY_R, KEY_SPACE = 27, 86, 82, 32
 """Keyboard keys scripts subscribe the (headless) viewer to."""
 IMAGE_COLOR, IMAGE_DEPTH, IMAGE_SEGMENTATION = 0, 1, 2

@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import torch
 
+from ambulo.utils.math import quat_rotate
+
 from .sim import Sim
 
 
@@ -63,6 +65,7 @@ class SimTensors:
         self.pos_target = torch.zeros(n, self.dofs_per_env, **fe)
         self.vel_target = torch.zeros(n, self.dofs_per_env, **fe)
         self.effort = torch.zeros(n, self.dofs_per_env, **fe)
+        self.forces_pending = False
         self._dof_cols = _spans(self.dofs)
         self._body_cols = _spans(self.bodies)
         for refresh in (self.refresh_root, self.refresh_dof_state, self.refresh_body_state,
@@ -140,6 +143,27 @@ class SimTensors:
             if e.num_joints:
                 e.set_joint_targets(self.pos_target[:, cols], self.vel_target[:, cols],
                                     torch.where(effort_mode, self.effort[:, cols], 0.0))
+
+    def apply_body_forces(self, force: torch.Tensor | None, torque: torch.Tensor | None, local: bool) -> None:
+        """Push bodies for the next ``simulate`` only, as Isaac Gym does: ``force``/``torque``
+        ``(num_bodies, 3)`` N and N m at each body's centre of mass, in the sim frame (``local``:
+        the body's frame). MuJoCo's ``xfrc_applied`` holds them until ``clear_body_forces``."""
+        xfrc = self.sim.engine.field("xfrc_applied")
+        for values, cols in ((force, slice(0, 3)), (torque, slice(3, 6))):
+            if values is None:
+                continue
+            view = self._engine_view(values, self.bodies_per_env, 3)
+            for e, body_cols in zip(self.entities, self._body_cols, strict=True):
+                part = view[:, body_cols]
+                if local:
+                    part = quat_rotate(e.data.body_quat_w, part)
+                xfrc[:, e.body_ids, cols] = part
+        self.forces_pending = True
+
+    def clear_body_forces(self) -> None:
+        if self.forces_pending:
+            self.sim.engine.field("xfrc_applied")[:] = 0.0
+            self.forces_pending = False
 
     # -- helpers -------------------------------------------------------------------------------------
     def _engine_view(self, values: torch.Tensor, per_env: int, *tail: int) -> torch.Tensor:
