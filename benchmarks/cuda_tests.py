@@ -8,7 +8,7 @@ The project marks GPU tests two ways, and both are selected:
 - ``pytest.mark.skipif(not torch.cuda.is_available(), reason="... CUDA ...")``, on a test or as a
   module's ``pytestmark`` (perception's CUDA tests, tests/rl/test_sync_free_gpu.py, ...): a
   skipif whose reason names CUDA;
-- modules that read ``AMBULO_TEST_DEVICE`` (tests/engine/test_gpu_engine.py,
+- modules that read ``AMBULO_TEST_DEVICE`` into a module-level name (tests/engine/test_gpu_engine.py,
   tests/sensors/test_tiled_camera.py): all their tests, which run on Warp's CPU device by
   default and on the GPU with ``AMBULO_TEST_DEVICE=cuda``.
 
@@ -21,12 +21,16 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import time
 from pathlib import Path
 
 import pytest
 
 DEVICE_VARIABLE = "AMBULO_TEST_DEVICE"
+READS_VARIABLE = re.compile(r"^\w+\s*=\s*os\.environ\.get\(\s*[\"']AMBULO_TEST_DEVICE[\"']", re.MULTILINE)
+"""A module-level ``DEVICE = os.environ.get("AMBULO_TEST_DEVICE", ...)``: the name in a string or a
+comment (a test that writes such a module, say) does not count."""
 
 
 def pytest_addoption(parser):
@@ -36,7 +40,7 @@ def pytest_addoption(parser):
 def _reads_device_variable(path: Path, cache: dict[Path, bool]) -> bool:
     if path not in cache:
         try:
-            cache[path] = DEVICE_VARIABLE in path.read_text(errors="replace")
+            cache[path] = READS_VARIABLE.search(path.read_text(errors="replace")) is not None
         except OSError:
             cache[path] = False
     return cache[path]
