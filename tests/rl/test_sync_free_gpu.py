@@ -10,7 +10,7 @@ synchronizes once, by design), two more iterations run under torch's sync debug 
   physics graph, divergence resets, terminations, rewards, resets of finished episodes,
   observations, the env's episode statistics), ``RslRlVecEnv`` (ambulo's episode returns),
   the NaN check's accumulation, rollout storage and the logger's per-step bookkeeping;
-- except these, run with the mode off: ``compute_returns`` (reads the NaN flag once),
+- except these, run with the mode off (their syncs are counted in the warn pass and printed): ``compute_returns`` (reads the NaN flag once),
   ``update`` (rsl-rl's PPO update reads its losses and the adaptive learning rate's KL with
   ``.item()``), ``Logger.log``, ``save`` and ``init_logging_writer``: once an iteration each.
 
@@ -21,6 +21,7 @@ The warn pass lists every synchronizing line at once (the error pass stops at th
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import io
 import warnings
@@ -43,11 +44,33 @@ def sync_debug(mode):
         torch.cuda.set_sync_debug_mode(previous)
 
 
-def _unchecked(fn):
-    """``fn`` with torch's sync debug mode off while it runs (a once-per-iteration part)."""
+class AllowedSyncs:
+    """Syncs of the once-per-iteration parts, by part, taken out of the warn pass's record."""
+
+    caught: list | None = None
+    by_part: collections.Counter = collections.Counter()
+
+
+def _is_sync(warning) -> bool:
+    return "synchroniz" in str(warning.message).lower()
+
+
+def _unchecked(fn, part: str):
+    """``fn``, a once-per-iteration part: under ``"error"`` it runs with the mode off; under
+    ``"warn"`` its sync warnings are counted in ``AllowedSyncs.by_part`` and removed from the
+    step path's record."""
     def call(*args, **kwargs):
-        with sync_debug("default"):
+        if torch.cuda.get_sync_debug_mode() == 2:  # error
+            with sync_debug("default"):
+                return fn(*args, **kwargs)
+        record = AllowedSyncs.caught
+        before = len(record) if record is not None else 0
+        try:
             return fn(*args, **kwargs)
+        finally:
+            if record is not None:
+                AllowedSyncs.by_part[part] += sum(map(_is_sync, record[before:]))
+                del record[before:]
     return call
 
 
@@ -67,10 +90,10 @@ def runner(tmp_path_factory):
                               log_dir=str(tmp_path_factory.mktemp("run")), device=str(env.device))
         runner.learn(1, init_at_random_ep_len=True)  # warm-up: compile, captures, first resets
     for name in ("compute_returns", "update"):
-        setattr(runner.alg, name, _unchecked(getattr(runner.alg, name)))
+        setattr(runner.alg, name, _unchecked(getattr(runner.alg, name), name))
     for name in ("log", "init_logging_writer"):
-        setattr(runner.logger, name, _unchecked(getattr(runner.logger, name)))
-    runner.save = _unchecked(runner.save)
+        setattr(runner.logger, name, _unchecked(getattr(runner.logger, name), f"logger.{name}"))
+    runner.save = _unchecked(runner.save, "save")
     return runner
 
 
@@ -84,9 +107,14 @@ def _iteration(runner, mode: str) -> None:
 def test_a_ppo_iteration_syncs_nowhere_but_the_update(runner):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        _iteration(runner, "warn")
-    where = sorted({f"{w.filename}:{w.lineno}: {str(w.message).splitlines()[0]}" for w in caught
-                    if "synchroniz" in str(w.message).lower()})
+        AllowedSyncs.caught = caught
+        try:
+            _iteration(runner, "warn")
+        finally:
+            AllowedSyncs.caught = None
+    # the figure for the record (pytest -rA prints it): what the update and logging read per iteration
+    print(f"syncs per iteration outside the step path: {dict(AllowedSyncs.by_part)}")
+    where = sorted({f"{w.filename}:{w.lineno}: {str(w.message).splitlines()[0]}" for w in caught if _is_sync(w)})
     assert where == [], "host syncs in the training step:\n" + "\n".join(where)
     # on a GPU resets are masks, so every step runs the reset path whether or not an episode ended
     _iteration(runner, "error")  # a RuntimeError names the first synchronizing op
