@@ -75,3 +75,14 @@ def test_route_keeps_its_clearance_and_reports_no_route():
     clr = footstep_clearance(grid, optimistic=True)
     iy, ix = grid.cells_of(route.path_xy_m[1:-1])
     assert clr[iy, ix].min() >= 0.25
+
+
+def test_a_footstep_window_off_the_map_is_one_blocked_cell_not_the_far_side():
+    """Robot and subgoal below and left of the map (a drifted estimate's turn on the spot): the clamped
+    window is empty, and slicing with its negative end took rows from the map's far side."""
+    grid = _corridor_map()
+    stage = FootstepStage(PlanningCfg())
+    window = stage._window(grid, grid.blocked(), np.array([-4.0, -4.0]), np.array([-4.0, -3.9]))
+    assert window.occupied.shape == (1, 1) and window.occupied.all()
+    plan = stage.plan(grid, 0, False, (-4.0, -4.0, 0.0), (-4.0, -3.9, 1.0))
+    assert plan.status.value == "start_in_collision"

@@ -150,7 +150,10 @@ class OnlineMapper:
         iy, ix = g.cell_of(xy)
         k = int(math.ceil(r / g.resolution_m))
         ny, nx = g.shape
-        ys, xs = np.mgrid[max(0, iy - k):min(ny, iy + k + 1), max(0, ix - k):min(nx, ix + k + 1)]
+        y0, y1, x0, x1 = max(0, iy - k), min(ny, iy + k + 1), max(0, ix - k), min(nx, ix + k + 1)
+        if y0 >= y1 or x0 >= x1:  # the pose is off the map (a drifted estimate): none of its cells to mark
+            return
+        ys, xs = np.mgrid[y0:y1, x0:x1]
         cx, cy = g.cell_center_xy_m(ys, xs)
         inside = np.hypot(cx - xy[0], cy - xy[1]) <= r
         if inside.any() and not self._body_free[ys[inside], xs[inside]].all():

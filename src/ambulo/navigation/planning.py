@@ -241,6 +241,9 @@ class FootstepStage:
         iy1, ix1 = grid.cell_of(hi)
         ny, nx = grid.shape
         iy0, ix0, iy1, ix1 = max(0, iy0), max(0, ix0), min(ny - 1, iy1), min(nx - 1, ix1)
+        if iy1 < iy0 or ix1 < ix0:  # robot and goal off the map (a drifted estimate): one blocked cell there
+            return GridMap(occupied=np.ones((1, 1), bool), origin_xy_m=(float(lo[0]), float(lo[1])),
+                           resolution_m=grid.resolution_m)
         ox, oy, _, _ = grid.cell_rect_xy_m(iy0, ix0)
         return GridMap(occupied=np.ascontiguousarray(blocked[iy0:iy1 + 1, ix0:ix1 + 1]), origin_xy_m=(ox, oy),
                        resolution_m=grid.resolution_m)
