@@ -8,6 +8,19 @@
   its map at a coasted pose (``REINITIALIZED``, that frame). While untracked the estimate is not
   updated at all: the navigator must neither steer on nor fuse a coasted pose.
 
+- ``LegVoLocalizer`` (full mode's default): the VO fused with leg-inertial odometry
+  (``leg_odometry``). The estimate is the last accepted VO pose composed with the legs' motion since
+  that frame, renewed every physics step, so it moves between camera frames and goes on while the
+  VO is lost (``source`` "legs": a *bridge*; the navigator bounds how far and how long it walks on
+  one, ``NavigatorCfg.bridge_max_m`` / ``bridge_max_s``). A tracked VO pose whose motion since the
+  last fix disagrees with the legs' beyond ``outlier_gate_m`` (+ ``outlier_gate_fraction`` of the
+  distance walked since) or ``outlier_gate_yaw_deg`` is rejected as an outlier while the bridge is
+  within its limits. The legs' motion is the VO's motion prior (its prediction and its coasting
+  while lost, so a map restarted after a loss starts where the legs say), and an accepted fix gives
+  the legs the VO's attitude and gyro bias. The base pose of a VO fix goes from the head to the
+  pelvis through the encoders (the torso's joints), not through the pose measured at the start. A bridged pose is never fused into the map: only a VO
+  fix carries a ``pose_wc``.
+
 The base pose (x, y, yaw of the pelvis on the floor) comes from the camera pose through the
 pelvis's pose in the camera frame measured once at the start (the head turns little on the
 pelvis, so the error is the head's sway: a few cm).
@@ -24,6 +37,7 @@ from ..perception.frames import RgbdFrame
 from ..perception.vo.config import TrackState, VoCfg, head_camera_vo_cfg
 from ..perception.vo.odometry import RgbdOdometry
 from ..utils.validate import Checked
+from .leg_odometry import LegOdometry, LegOdometryCfg
 from .world import NavWorld
 
 TRACKED_STATES = (TrackState.INITIALIZED, TrackState.TRACKING, TrackState.RECOVERED)
@@ -42,7 +56,15 @@ class PoseEstimate:
     """(4, 4) the camera-to-world pose the estimate came from (what a mapper fuses at); None for
     estimates between frames."""
     state: str = "tracking"
-    """The localizer's own word for it (the VO's ``TrackState`` value)."""
+    """The localizer's own word for it (the VO's ``TrackState`` value; "rejected" for a VO pose
+    refused as an outlier)."""
+    source: str = "vo"
+    """Where ``xyyaw`` came from: "vo" (a VO fix), "legs" (leg odometry since the last fix),
+    "oracle" (the simulator), "none" (untracked: the last estimate, held)."""
+    since_fix_m: float = 0.0
+    """Distance walked by the legs since the last VO fix, m (0 for a fix)."""
+    since_fix_s: float = 0.0
+    """Time since the last VO fix, s (0 for a fix)."""
 
 
 def xyyaw_from_matrix(pose: np.ndarray) -> np.ndarray:
@@ -69,7 +91,7 @@ class OracleLocalizer:
 
     def on_frame(self, frame: RgbdFrame | None) -> PoseEstimate:
         pose_wc = frame.pose_wc.numpy() if frame is not None else None
-        return PoseEstimate(self.world.true_pose(), True, self.world.time_s, pose_wc, "oracle")
+        return PoseEstimate(self.world.true_pose(), True, self.world.time_s, pose_wc, "oracle", "oracle")
 
 
 @dataclass(kw_only=True)
@@ -104,21 +126,134 @@ class VoLocalizer:
         """The last tracked estimate (held between frames and while untracked)."""
         return self._xyyaw
 
-    def on_frame(self, frame: RgbdFrame) -> PoseEstimate:
+    def on_frame(self, frame: RgbdFrame, motion_cam: np.ndarray | None = None) -> PoseEstimate:
+        """Track ``frame``; ``motion_cam``: (4, 4) the camera's motion since the last frame from
+        another sensor (``T_prev_cur``), the odometry's motion prior."""
         if self.vo is None:
             self.vo = RgbdOdometry(frame.intrinsics.numpy(), self.cfg.vo, initial_pose_wc=frame.pose_wc.numpy(),
                                    pose_cam_imu=self._pose_cam_imu)
         gyro = frame.gyro if self.cfg.use_gyro else None
-        result = self.vo.track(frame.rgb.numpy(), frame.depth_m.numpy(), gyro=gyro)
+        prior = {} if motion_cam is None else {"motion_cam": motion_cam}
+        result = self.vo.track(frame.rgb.numpy(), frame.depth_m.numpy(), gyro=gyro, **prior)
         self.last = result
         self.tracked = is_tracked(result)
         state = getattr(result.state, "value", str(result.state))
         if not self.tracked:
-            return PoseEstimate(self._xyyaw.copy(), False, frame.time_s, None, state)
+            return PoseEstimate(self._xyyaw.copy(), False, frame.time_s, None, state, "none")
         pose_wc = np.asarray(result.pose_wc, float)
         self._xyyaw = xyyaw_from_matrix(pose_wc @ self._base_in_cam)
         return PoseEstimate(self._xyyaw.copy(), True, frame.time_s, pose_wc, state)
 
 
-__all__ = ["OracleLocalizer", "PoseEstimate", "TRACKED_STATES", "VoLocalizer", "VoLocalizerCfg", "is_tracked",
-           "xyyaw_from_matrix"]
+def compose_xyyaw(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(3,) the planar pose ``a`` followed by ``b`` (``b`` in ``a``'s frame): x m, y m, yaw rad."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    return np.array([a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], wrap_angle(a[2] + b[2])])
+
+
+def between_xyyaw(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(3,) the planar pose ``b`` in ``a``'s frame (``compose_xyyaw(a, between_xyyaw(a, b)) == b``)."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    return np.array([c * dx + s * dy, -s * dx + c * dy, wrap_angle(b[2] - a[2])])
+
+
+def wrap_angle(a: float) -> float:
+    return (a + math.pi) % (2 * math.pi) - math.pi
+
+
+@dataclass(kw_only=True)
+class LegVoLocalizerCfg(Checked):
+    """The fusion's settings (the VO's own are a ``VoLocalizerCfg``)."""
+
+    legs: LegOdometryCfg = field(default_factory=LegOdometryCfg)
+    outlier_gate_m: float = 0.15
+    """A VO fix farther than this from where the legs put the robot is an outlier, m (the legs drift
+    2-3 % of the distance walked; ``benchmarks/leg_odometry.py``)..."""
+    outlier_gate_fraction: float = 0.1
+    """... plus this share of the distance the legs walked since the last fix."""
+    outlier_gate_yaw_deg: float = 10.0
+    """A VO fix whose heading differs from the legs' by more than this is an outlier, deg."""
+    motion_prior: bool = True
+    """Give the VO the legs' camera motion as its prediction (and its coast while lost)."""
+
+
+class LegVoLocalizer:
+    """VO fused with leg-inertial odometry (module docstring); ``vo_cfg`` and ``odometry`` as
+    ``VoLocalizer``'s. ``bridge_max_m`` / ``bridge_max_s``:
+    past these since the last fix the legs no longer gate the VO (the navigator's bridge limits:
+    a bridge that long is not trusted over the camera)."""
+
+    name = "vo+legs"
+    needs_images = True
+
+    def __init__(self, cfg: LegVoLocalizerCfg | None = None, vo_cfg: VoLocalizerCfg | None = None, odometry=None, *,
+                 bridge_max_m: float = 3.0, bridge_max_s: float = 10.0):
+        self.cfg = cfg or LegVoLocalizerCfg()
+        self.visual = VoLocalizer(vo_cfg, odometry)
+        self.legs = LegOdometry(self.cfg.legs)
+        self.bridge_max_m, self.bridge_max_s = bridge_max_m, bridge_max_s
+
+    def reset(self, world: NavWorld) -> None:
+        self.world = world
+        self.visual.reset(world)
+        self.legs.reset(world)
+        self._pose_imu_cam = np.linalg.inv(self.visual._pose_cam_imu if self.visual._pose_cam_imu is not None
+                                           else world.pose_cam_imu())
+        self._anchor(world.true_pose(), world.time_s)
+        self._prior_from = self._legs_camera()
+        self.rejected = 0
+        """VO fixes refused as outliers."""
+
+    def on_step(self) -> None:
+        """Every physics step (after ``world.step()``): the legs move on."""
+        self.legs.update()
+
+    def pose(self) -> np.ndarray:
+        """The last fix composed with the legs' motion since (module docstring)."""
+        return compose_xyyaw(self._fix_xyyaw, between_xyyaw(self._fix_legs, self.legs.xyyaw))
+
+    def since_fix(self) -> tuple[float, float]:
+        """(m walked by the legs, s) since the last accepted VO fix."""
+        return self.legs.distance_m - self._fix_distance_m, self.world.time_s - self._fix_time_s
+
+    def on_frame(self, frame: RgbdFrame) -> PoseEstimate:
+        legs_cam = self._legs_camera()
+        motion = np.linalg.inv(self._prior_from) @ legs_cam if self.cfg.motion_prior else None
+        self._prior_from = legs_cam
+        est = self.visual.on_frame(frame, motion)
+        since_m, since_s = self.since_fix()
+        predicted = self.pose()
+        if est.tracked:
+            # the pelvis through the torso's joints now, not the head-to-pelvis pose of the start: the
+            # torso turns the head by a few degrees with the gait
+            pose_wi = est.pose_wc @ np.linalg.inv(self._pose_imu_cam)
+            est.xyyaw = xyyaw_from_matrix(pose_wi @ np.linalg.inv(self.legs.pose_pelvis_imu()))
+            bridged = since_m <= self.bridge_max_m and since_s <= self.bridge_max_s
+            off = between_xyyaw(predicted, est.xyyaw)
+            gate_m = self.cfg.outlier_gate_m + self.cfg.outlier_gate_fraction * since_m
+            if bridged and (math.hypot(off[0], off[1]) > gate_m or abs(math.degrees(off[2])) > self.cfg.outlier_gate_yaw_deg):
+                self.rejected += 1
+                return PoseEstimate(predicted, False, frame.time_s, None, "rejected", "legs", since_m, since_s)
+            self._anchor(est.xyyaw, frame.time_s)
+            self.legs.anchor(est.pose_wc[:3, :3] @ self._pose_imu_cam[:3, :3].T)
+            bias = getattr(getattr(self.visual.vo, "gyro", None), "bias_rad_s", None)
+            if bias is not None:
+                self.legs.gyro_bias_rad_s = np.asarray(bias, float)
+            est.source = "vo"
+            return est
+        return PoseEstimate(predicted, False, frame.time_s, None, est.state, "legs", since_m, since_s)
+
+    def _anchor(self, xyyaw: np.ndarray, time_s: float) -> None:
+        self._fix_xyyaw = np.asarray(xyyaw, float).copy()
+        self._fix_legs = self.legs.xyyaw
+        self._fix_distance_m = self.legs.distance_m
+        self._fix_time_s = time_s
+
+    def _legs_camera(self) -> np.ndarray:
+        """(4, 4) the camera's pose by the legs (the IMU's pose and the camera rigid on it)."""
+        return self.legs.pose_w_imu() @ self._pose_imu_cam
+
+
+__all__ = ["LegVoLocalizer", "LegVoLocalizerCfg", "OracleLocalizer", "PoseEstimate", "TRACKED_STATES",
+           "VoLocalizer", "VoLocalizerCfg", "between_xyyaw", "compose_xyyaw", "is_tracked", "xyyaw_from_matrix"]

@@ -9,8 +9,9 @@ Evaluation of Embodied Navigation Agents*, arXiv:1807.06757), and ``run_episode`
 - **stuck**: some ``window_s`` (20 s) stretch in which the robot moved less than ``progress_m``
   (0.5 m) from where the stretch began, the goal not reached;
 - **collisions**: contact events (``NavWorld``), **fell**: the pelvis dropped below its threshold;
-- **ATE**: root-mean-square of |estimated - true| base position over the tracked frames
-  (the VO starts at the true pose, so no alignment), m;
+- **ATE**: root-mean-square of |estimated - true| base position over the tracked frames (VO
+  fixes; the VO starts at the true pose, so no alignment), m; the bridged frames' (leg odometry
+  while the VO is lost) are scored apart (``bridged_ate_m``), and frames are counted per source;
 - replan wall times (each replan's route + subgoal + footsteps) and their 95th percentile.
 """
 
@@ -98,6 +99,12 @@ class EpisodeResult:
     untracked_frames: int
     fused_while_untracked: int
     extras: dict = field(default_factory=dict)
+    frames_by_source: dict = field(default_factory=dict)
+    """Frames per pose source: "vo", "oracle", "legs" (a leg-odometry bridge), "none" (untracked)."""
+    bridged_ate_m: float = 0.0
+    """Root-mean-square |estimated - true| base position over the bridged frames, m (0: none)."""
+    rejected_vo_frames: int = 0
+    """VO fixes refused as outliers by the leg odometry's gate."""
 
     def to_json(self, indent: int | None = None) -> str:
         return json.dumps(asdict(self), indent=indent, default=float)
@@ -134,7 +141,10 @@ def result_of(nav: Navigator, *, geodesic_m: float, wall_s: float, apartment_see
         time_s=sim_s, wall_s=wall_s, sim_to_wall=sim_s / max(wall_s, 1e-9), replan_wall_s=replans,
         replan_p95_s=p95(replans), num_replans=len(replans),
         ate_m=float(np.sqrt(np.mean(errors ** 2))) if errors.size else 0.0, frames=nav.frames,
-        untracked_frames=nav.untracked_frames, fused_while_untracked=nav.fused_while_untracked, extras=extras)
+        untracked_frames=nav.untracked_frames, fused_while_untracked=nav.fused_while_untracked, extras=extras,
+        frames_by_source=dict(nav.frames_by_source),
+        bridged_ate_m=float(np.sqrt(np.mean(np.square(nav.bridged_errors_m)))) if nav.bridged_errors_m else 0.0,
+        rejected_vo_frames=int(getattr(nav.localizer, "rejected", 0)))
 
 
 @dataclass(kw_only=True)

@@ -8,8 +8,11 @@
 
 Every physics step (5 ms) the walker steps on the pose estimate. Every ``1 / camera_hz`` s a frame
 is taken (rendered only when the localizer, the mapper or an observer needs images): the
-localizer updates, and a tracked pose is fused into the map; an untracked one makes the robot
-stand and wait for relocalisation (``lost_timeout_s``), never fused, never steered on. Every
+localizer updates, and a tracked pose (a VO fix) is fused into the map. In full mode the leg
+odometry bridges a VO loss (``localization.LegVoLocalizer``): the robot walks on the bridged
+estimate up to ``bridge_max_m`` / ``bridge_max_s`` since the last fix, and never fuses depth at it.
+Untracked (no fix and no bridge within those limits), the robot stands (then scans) and waits for
+relocalisation (``lost_timeout_s``): nothing is fused or steered on. Every
 control period (20 ms) the map is refreshed (at its own rate), the episode's end is checked, and
 the plan is renewed when:
 
@@ -38,7 +41,14 @@ from ..perception.costmap import Costmap
 from ..perception.frames import RgbdFrame
 from ..utils.checks import InvalidValueError, check_vector
 from ..utils.validate import Checked
-from .localization import OracleLocalizer, PoseEstimate, VoLocalizer, VoLocalizerCfg
+from .localization import (
+    LegVoLocalizer,
+    LegVoLocalizerCfg,
+    OracleLocalizer,
+    PoseEstimate,
+    VoLocalizer,
+    VoLocalizerCfg,
+)
 from .mapping import OnlineMapper, OnlineMapperCfg, OracleMapper
 from .planning import (
     FootstepStage,
@@ -99,6 +109,14 @@ class NavigatorCfg(Checked):
     planning: PlanningCfg = field(default_factory=PlanningCfg)
     mapper: OnlineMapperCfg = field(default_factory=OnlineMapperCfg)
     vo: VoLocalizerCfg = field(default_factory=VoLocalizerCfg)
+    leg_odometry: bool = True
+    """Full mode fuses leg-inertial odometry with the VO (``LegVoLocalizer``); False: the VO alone."""
+    legs: LegVoLocalizerCfg = field(default_factory=LegVoLocalizerCfg)
+    bridge_max_m: float = 3.0
+    """The robot walks on the legs' bridge up to this far since the last VO fix, m (the legs drift
+    2-3 % of the distance: ~8 cm at 3 m)..."""
+    bridge_max_s: float = 10.0
+    """... and this long, s (the gyro's yaw drifts between fixes)."""
     path_log_period_s: float = 0.1
     """The walked paths are logged this often, s."""
 
@@ -133,7 +151,7 @@ class Navigator:
         if cfg.mode not in MODES:
             raise InvalidValueError("NavigatorCfg.mode", cfg.mode, "unknown mode", f"use one of {MODES}")
         self.world = world
-        self.localizer = localizer or (VoLocalizer(cfg.vo) if cfg.mode == "full" else OracleLocalizer())
+        self.localizer = localizer or self._default_localizer()
         self.mapper = mapper or (OracleMapper() if cfg.mode == "oracle" else OnlineMapper(cfg.mapper))
         self.walker = walker or PolicyWalker()
         self.routes = RoutePlanner(cfg.planning)
@@ -141,6 +159,14 @@ class Navigator:
         self._observers: list[tuple[Callable[[NavSnapshot], None], bool]] = []
         self.walker.bind(world)
         self.reset()
+
+    def _default_localizer(self):
+        c = self.cfg
+        if c.mode != "full":
+            return OracleLocalizer()
+        if c.leg_odometry:
+            return LegVoLocalizer(c.legs, c.vo, bridge_max_m=c.bridge_max_m, bridge_max_s=c.bridge_max_s)
+        return VoLocalizer(c.vo)
 
     # -- public API ---------------------------------------------------------------------------
     def reset(self) -> None:
@@ -154,7 +180,8 @@ class Navigator:
         self.mapper.reset(w)
         self.goal_xy_m: np.ndarray | None = None
         self.goal_yaw_rad: float | None = None
-        self.estimate = PoseEstimate(w.true_pose(), True, w.time_s)
+        self.estimate = PoseEstimate(w.true_pose(), True, w.time_s, source="oracle" if self.cfg.mode != "full" else "vo")
+        self._localizer_step = getattr(self.localizer, "on_step", None)
         self.route: Route | None = None
         self.plan: FootstepPlan | None = None
         self.plan_final = False
@@ -178,6 +205,10 @@ class Navigator:
         self.frame_errors_m: list[float] = []
         """Per tracked frame: |estimated - true| base position, m (the ATE's samples)."""
         self.frames = 0
+        self.frames_by_source: dict[str, int] = {}
+        """Frames per estimate source: "vo", "oracle", "legs" (bridged), "none" (untracked)."""
+        self.bridged_errors_m: list[float] = []
+        """Per bridged frame: |estimated - true| base position, m."""
         self.untracked_frames = 0
         self.fused_while_untracked = 0
         """Frames fused into the map while untracked: 0 by construction (checked by the tests)."""
@@ -237,6 +268,8 @@ class Navigator:
             self.estimated_path_xy_m.append(self.estimate.xyyaw[:2].copy())
         self.walker.step(self.world.dt_s, self.estimate.xyyaw)
         self.world.step()
+        if self._localizer_step is not None:
+            self._localizer_step()
         self._steps += 1
 
     # -- the loop -----------------------------------------------------------------------------
@@ -253,10 +286,18 @@ class Navigator:
         else:
             est = PoseEstimate(self.localizer.pose(), True, w.time_s, None if frame is None else frame.pose_wc.numpy())
         self.frames += 1
-        if est.tracked:
+        usable = est.tracked or self._bridges(est)
+        source = est.source if usable else "none"
+        self.frames_by_source[source] = self.frames_by_source.get(source, 0) + 1
+        if usable:
             self.estimate = est
-            self.frame_errors_m.append(float(np.linalg.norm(est.xyyaw[:2] - w.true_pose()[:2])))
-            if frame is not None and self.mapper.needs_images and est.pose_wc is not None:
+            error_m = float(np.linalg.norm(est.xyyaw[:2] - w.true_pose()[:2]))
+            if est.tracked:
+                self.frame_errors_m.append(error_m)
+            else:
+                self.bridged_errors_m.append(error_m)
+            # depth is fused at VO fixes (and the oracle's pose) only, never at a bridged pose
+            if est.tracked and frame is not None and self.mapper.needs_images and est.pose_wc is not None:
                 self.mapper.fuse(frame, est.pose_wc)
             if self._lost_since is not None:
                 self._lost_since = None
@@ -265,7 +306,8 @@ class Navigator:
                 self._replan_reason = "relocalised"
         else:
             self.untracked_frames += 1
-            self.estimate = PoseEstimate(self.estimate.xyyaw, False, w.time_s, None, est.state)
+            self.estimate = PoseEstimate(self.estimate.xyyaw, False, w.time_s, None, est.state, "none",
+                                         est.since_fix_m, est.since_fix_s)
             if self._lost_since is None:
                 self._lost_since = w.time_s
             self.walker.stand()
@@ -280,6 +322,16 @@ class Navigator:
             for fn, _ in self._observers:
                 fn(snap)
 
+    def _bridges(self, est: PoseEstimate) -> bool:
+        """Whether an untracked estimate is a leg-odometry bridge within the limits (module docstring)."""
+        c = self.cfg
+        return est.source == "legs" and est.since_fix_m <= c.bridge_max_m and est.since_fix_s <= c.bridge_max_s
+
+    @property
+    def localized(self) -> bool:
+        """Whether the navigator has a pose to act on: a VO fix (or the oracle) or a bridge within limits."""
+        return self.estimate.tracked or self._bridges(self.estimate)
+
     def _mark_body(self) -> None:
         self.mapper.mark_body(self.estimate.xyyaw[:2])
 
@@ -291,8 +343,19 @@ class Navigator:
         w, c = self.world, self.cfg
         now = w.time_s
         if not self.localizer.needs_images:  # the oracle pose is there every step
-            self.estimate = PoseEstimate(self.localizer.pose(), True, now)
-        if self.estimate.tracked:
+            self.estimate = PoseEstimate(self.localizer.pose(), True, now, source="oracle")
+        elif self._localizer_step is not None and self.localized:  # the legs move the estimate every tick
+            since_m, since_s = self.localizer.since_fix()
+            self.estimate = PoseEstimate(self.localizer.pose(), self.estimate.tracked, now, None, self.estimate.state,
+                                         self.estimate.source, since_m, since_s)
+            if not self.localized:  # the bridge ran out between frames
+                self._lost_since = now
+                self.estimate = PoseEstimate(self.estimate.xyyaw, False, now, None, "bridge ended", "none",
+                                             since_m, since_s)
+                self.walker.stand()
+                if not self.done and self.status == "walking":
+                    self.status = "lost"
+        if self.estimate.tracked and self.estimate.source != "legs":
             self._mark_body()
         map_changed = self.mapper.refresh(now, self.estimate.xyyaw[:2])
         if w.fell:
@@ -306,7 +369,7 @@ class Navigator:
             self._progress_mark = (now, w.true_pose()[:2])
         elif now - t_mark > c.stuck_window_s:
             return self._finish("stuck")
-        if not self.estimate.tracked:
+        if not self.localized:
             if now - self._lost_since > c.lost_timeout_s:
                 return self._finish("lost_timeout")
             if (c.scan_when_lost_after_s is not None and now - self._lost_since > c.scan_when_lost_after_s

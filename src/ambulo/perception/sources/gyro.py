@@ -45,6 +45,14 @@ class GyroStream:
         self._times.extend(float(t) for t in np.atleast_1d(times_s))
         self._rates.extend(noisy.numpy())
 
+    def latest(self) -> tuple[float, np.ndarray] | None:
+        """The newest reading ``(time s, (3,) rad/s)`` without taking it, or None before the first: a
+        consumer that integrates every physics step (``navigation.leg_odometry``) reads alongside the
+        camera frames' ``take``."""
+        if not self._times:
+            return None
+        return self._times[-1], self._rates[-1]
+
     def take(self) -> GyroSamples | None:
         """The readings since the last ``take``, with the last one kept as the next interval's first;
         None when fewer than two are held (the first frame)."""

@@ -245,11 +245,16 @@ class RgbdOdometry:
         self.keyframes.append(Keyframe(self.frame_index, self.pose_wc.copy(), f.descriptors[keep], pts_w,
                                        torch.zeros(len(pts_w), dtype=torch.bool, device=self.device)))
 
-    def _track_next(self, f: FrameFeatures, gyro: GyroSamples | None) -> int:
+    def _track_next(self, f: FrameFeatures, gyro: GyroSamples | None, motion_cam: np.ndarray | None) -> int:
         """Pose of a frame after the first (sets ``pose_wc``, ``state``); returns the inlier count."""
         prev_wc, was_lost = self.pose_wc, self.state == TrackState.LOST
         gyro_rot = None if gyro is None else self.gyro.camera_rotation(gyro)  # (3, 3) R_prev_cur, camera
-        predicted_wc = prev_wc @ self.velocity if gyro_rot is None else self._imu_coast(prev_wc, gyro_rot)
+        if motion_cam is not None:  # another sensor's motion (leg odometry) beats the models below
+            predicted_wc = prev_wc @ np.asarray(motion_cam, np.float64)
+        elif gyro_rot is None:
+            predicted_wc = prev_wc @ self.velocity
+        else:
+            predicted_wc = self._imu_coast(prev_wc, gyro_rot)
         if was_lost:
             found = self._relocalize(f) if len(f.pixels) else None
             state = TrackState.RECOVERED
@@ -330,18 +335,21 @@ class RgbdOdometry:
         return (inliers < self.cfg.keyframe_min_inliers or np.linalg.norm(rel[:3, 3]) > self.cfg.keyframe_max_translation_m
                 or _angle_deg(rel[:3, :3]) > self.cfg.keyframe_max_rotation_deg)
 
-    def track(self, rgb, depth, gyro: GyroSamples | None = None) -> VoResult:
+    def track(self, rgb, depth, gyro: GyroSamples | None = None, motion_cam: np.ndarray | None = None) -> VoResult:
         """Estimate the pose of the next frame: ``rgb`` (H, W, 3) uint8, ``depth`` (H, W) metres,
         numpy arrays or torch tensors (on any device); ``gyro``: the IMU's rates from the previous
-        frame to this one (needs ``pose_cam_imu``; ignored on the first frame)."""
+        frame to this one (needs ``pose_cam_imu``; ignored on the first frame); ``motion_cam``: (4, 4)
+        the camera's motion since the previous frame measured by another sensor (``T_prev_cur``, e.g.
+        leg odometry): the prediction the local map is matched and gated against, and the pose
+        coasted on while lost, in place of the constant-velocity / gyro models."""
         if gyro is not None and self.gyro is None:
             raise ValueError("track(gyro=...) needs the IMU's extrinsic: pass pose_cam_imu to RgbdOdometry")
         # the frame's CPU torch ops on this thread only (``torch_threads``: 59 -> 222 ms a frame with 2
         # torch threads on a busy 2-core machine)
         with one_torch_thread(self.device):
-            return self._track(rgb, depth, gyro)
+            return self._track(rgb, depth, gyro, motion_cam)
 
-    def _track(self, rgb, depth, gyro: GyroSamples | None) -> VoResult:
+    def _track(self, rgb, depth, gyro: GyroSamples | None, motion_cam: np.ndarray | None) -> VoResult:
         self.frame_index += 1
         f = self.features.detect(rgb, depth)
         self._moving = torch.zeros(len(f.pixels), dtype=torch.bool, device=self.device)
@@ -352,7 +360,7 @@ class RgbdOdometry:
                 self._imu_trail.append(self._imu_position(self.pose_wc))
                 self.state = TrackState.INITIALIZED
         else:
-            inliers = self._track_next(f, gyro)
+            inliers = self._track_next(f, gyro, motion_cam)
         self.history.append(self.state)
         return VoResult(self.pose_wc.copy(), self.state, inliers, len(self.keyframes), tracked=self.tracked)
 
