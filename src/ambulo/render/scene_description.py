@@ -186,7 +186,8 @@ def surface_of(model: mujoco.MjModel, geom: mujoco.MjvGeom, infinite_half_m: flo
     if geom.objtype != _GEOM or geom.rgba[3] <= 0:
         return None
     gid = int(geom.objid)
-    mesh = geom_mesh(model, int(geom.type), geom.size, int(model.geom_dataid[gid]),
+    # model.geom_size, not MjvGeom.size (which reads (r, r, half-length) for capsules and cylinders)
+    mesh = geom_mesh(model, int(geom.type), model.geom_size[gid], int(model.geom_dataid[gid]),
                      infinite_half_m=infinite_half_m, slices=slices, stacks=stacks)
     if mesh is None:
         return None
