@@ -10,6 +10,8 @@ written; the tensors it makes report ``device(type='cpu')``.
 from __future__ import annotations
 
 import contextlib
+import os
+import sys
 from collections.abc import Iterator
 
 import torch
@@ -45,8 +47,33 @@ def cuda_on_cpu() -> Iterator[None]:
     """Inside the block, torch calls that ask for a CUDA device get the CPU. ``torch.compile``d
     functions (rl_games compiles its models) run eagerly there: dynamo cannot trace through a
     Python torch function mode."""
-    with torch.compiler.set_stance("force_eager"), CudaOnCpu():
+    with _eager_compile(), CudaOnCpu():
         yield
+
+
+@contextlib.contextmanager
+def _eager_compile() -> Iterator[None]:
+    """``torch.compile`` as a no-op inside the block. Importing dynamo costs seconds, so when a
+    script has not imported it yet, its own switch (``TORCH_COMPILE_DISABLE``, read at import) is
+    set instead, and dynamo's ``config.disable`` put back after the block if the script imported it."""
+    if "torch._dynamo" in sys.modules:
+        with torch.compiler.set_stance("force_eager"):
+            yield
+        return
+    previous = os.environ.get(_DISABLE)
+    os.environ[_DISABLE] = "1"
+    try:
+        yield
+    finally:
+        if previous is None:
+            del os.environ[_DISABLE]
+        else:
+            os.environ[_DISABLE] = previous
+        if "torch._dynamo" in sys.modules:
+            sys.modules["torch._dynamo"].config.disable = previous == "1"
+
+
+_DISABLE = "TORCH_COMPILE_DISABLE"
 
 
 __all__ = ["CudaOnCpu", "cuda_on_cpu"]
