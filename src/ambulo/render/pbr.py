@@ -23,10 +23,12 @@ a second model scene with textures in one engine fails its first frame ("unknown
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import glob
 import math
 import os
+import sys
 from dataclasses import dataclass
 
 import mujoco
@@ -110,6 +112,22 @@ def _filament_context():
     return mjrf.Context(config)
 
 
+@contextlib.contextmanager
+def _quiet_stdout():
+    """Filament logs its engine start-up (backend, device, buffers: seven lines) on file descriptor
+    1 from C++, where a program's own output goes (``ambulo generate``'s summary, JSON on stdout);
+    they are dropped while the engine starts and draws its first frame. Errors go to stderr."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        with open(os.devnull, "wb") as devnull:
+            os.dup2(devnull.fileno(), 1)
+        yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
 def gl_camera(pos_w, rot_w_gl, fovy_deg: float, width: int, height: int,
               clip_m: tuple[float, float]) -> mujoco.MjvGLCamera:
     """A pinhole ``MjvGLCamera`` at ``pos_w`` (3,) m with OpenGL axes ``rot_w_gl`` (3, 3) columns
@@ -142,7 +160,9 @@ class PbrRenderer:
 
         self.width, self.height = int(width), int(height)
         self.settings = settings or PbrSettings()
-        self._ctx = _filament_context()
+        with _quiet_stdout():
+            self._ctx = _filament_context()
+        self._frames = 0
         self._model = model
         self._resources = mjrf.ModelResources(self._ctx, model)
         self._scene = self._ctx.create_scene(mjrf.SceneParams())
@@ -187,8 +207,10 @@ class PbrRenderer:
         cam.frustum_center, cam.frustum_width = camera.frustum_center, camera.frustum_width
         cam.orthographic = camera.orthographic
         self._request.camera = cam
-        frame = self._ctx.render([self._request], [self._read])
-        self._ctx.wait_for_frame(frame)
+        with _quiet_stdout() if self._frames == 0 else contextlib.nullcontext():
+            frame = self._ctx.render([self._request], [self._read])
+            self._ctx.wait_for_frame(frame)
+        self._frames += 1
         return self._rgb
 
     def close(self) -> None:
