@@ -220,3 +220,11 @@ def test_shadows_fall_behind_a_box_even_when_the_mjcf_light_casts_none():
             assert dark < 0.8 * lit, (dark, lit)
         else:
             assert abs(dark - lit) <= 3, (dark, lit)
+
+
+def test_the_no_vulkan_error_survives_a_worker_process_boundary():
+    import pickle
+
+    err = pickle.loads(pickle.dumps(NoVulkanError("no Vulkan loader (libvulkan.so.1 cannot be loaded)")))
+    assert str(err) == "no Vulkan loader (libvulkan.so.1 cannot be loaded); " + pbr.INSTALL
+    assert err.fix == pbr.INSTALL

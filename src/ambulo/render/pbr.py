@@ -53,6 +53,10 @@ class NoVulkanError(RuntimeError):
         self.problem, self.fix = problem, fix
         super().__init__(f"{problem}; {fix}")
 
+    def __reduce__(self):
+        # raised in a dataset worker process, it crosses back to the parent by pickling
+        return type(self), (self.problem, self.fix)
+
 
 @dataclass(kw_only=True)
 class PbrSettings(Checked):
