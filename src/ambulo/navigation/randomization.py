@@ -3,8 +3,11 @@
 What changes, and where (all cheap; nothing is re-rendered or re-compiled during an episode):
 
 - at build (the ``MjSpec``, before it compiles): sliding friction of every environment geom,
-  the mass of every robot geom (so each body's mass and inertia), the intensity of every light,
-  and a colour tint of every material (the textures keep their pattern; their colours shift);
+  the mass of every robot geom (so each body's mass and inertia), the intensity and colour of
+  every light, and every material's colour tint, pattern scale (``texrepeat``) and specularity;
+  every image texture (a PNG among the spec's assets, as the apartments' procedural ones are)
+  redrawn with its own contrast and brightness, so the surfaces the odometry tracks range from
+  faint to bold;
 - during the episode: pushes, a horizontal velocity added to the pelvis at random times;
 - in the sensors: depth noise growing with range, depth drop-outs, RGB pixel noise.
 
@@ -34,8 +37,18 @@ class RandomizationCfg(Checked):
     """Factor on each robot geom's mass, drawn per geom."""
     light_scale_range: tuple[float, float] = (0.6, 1.4)
     """Factor on each light's diffuse intensity."""
+    light_colour_range: tuple[float, float] = (0.85, 1.15)
+    """Factor on each colour channel of each light (warm to cool lamps)."""
     tint_range: tuple[float, float] = (0.7, 1.3)
     """Factor on each colour channel of each material."""
+    texture_scale_range: tuple[float, float] = (0.75, 1.33)
+    """Factor on each material's texture repeats: its pattern 0.75-1.33 times as fine."""
+    specular_range: tuple[float, float] = (0.0, 0.5)
+    """Each material's specular reflectance, drawn."""
+    texture_contrast_range: tuple[float, float] = (0.6, 1.4)
+    """Factor on each image texture's deviation from its mean colour (its contrast)."""
+    texture_brightness_range: tuple[float, float] = (0.8, 1.15)
+    """Factor on each image texture's brightness."""
     push_interval_s_range: tuple[float, float] = (4.0, 8.0)
     """Time between two pushes, s."""
     push_speed_m_s: float = 0.3
@@ -74,11 +87,36 @@ class Randomizer:
                 friction[0] *= float(rng.uniform(*c.friction_scale_range))
                 g.friction = friction
         for light in spec.lights:
-            light.diffuse = list(np.clip(np.asarray(light.diffuse) * rng.uniform(*c.light_scale_range), 0.0, 1.0))
+            scale = rng.uniform(*c.light_scale_range) * rng.uniform(*c.light_colour_range, size=3)
+            light.diffuse = list(np.clip(np.asarray(light.diffuse) * scale, 0.0, 1.0))
         for material in spec.materials:
             rgba = np.asarray(material.rgba, float)
             rgba[:3] = np.clip(rgba[:3] * rng.uniform(*c.tint_range, size=3), 0.0, 1.0)
             material.rgba = list(rgba)
+            material.texrepeat = list(np.asarray(material.texrepeat, float) * rng.uniform(*c.texture_scale_range))
+            material.specular = float(rng.uniform(*c.specular_range))
+        self._redraw_textures(spec)
+
+    def _redraw_textures(self, spec: mujoco.MjSpec) -> None:
+        """Each PNG texture among ``spec.assets`` with its contrast and brightness drawn, stored
+        under a new file name (MuJoCo caches decoded assets by name, so the old one must not be
+        reused); builtin textures and files on disk are left as they are."""
+        import imageio.v3 as iio
+
+        c, rng, assets = self.cfg, self.rng, spec.assets
+        for texture in spec.textures:
+            data = assets.get(texture.file) if texture.file.lower().endswith(".png") else None
+            if data is None:
+                continue
+            image = iio.imread(data).astype(np.float32)
+            mean = image.mean(axis=(0, 1), keepdims=True)
+            contrast, brightness = rng.uniform(*c.texture_contrast_range), rng.uniform(*c.texture_brightness_range)
+            image = np.clip((mean + (image - mean) * contrast) * brightness, 0, 255).astype(np.uint8)
+            file = texture.file[:-4] + f"_dr{int(rng.integers(1 << 30))}.png"
+            spec.assets[file] = iio.imwrite("<bytes>", image, extension=".png", compress_level=1)
+            if sum(t.file == texture.file for t in spec.textures) == 1:
+                del spec.assets[texture.file]
+            texture.file = file
 
     def initialize(self, world) -> None:
         self.pushes = []
