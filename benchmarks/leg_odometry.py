@@ -1,11 +1,12 @@
 """Leg-inertial odometry alone (``navigation.leg_odometry``) on policy walks: drift per metre walked.
 
-    python benchmarks/leg_odometry.py [--seeds 200,201,202] [--stand-s 1.0]
+    python benchmarks/leg_odometry.py [--seeds 200,201,202] [--stand-s 3.0] [--settle-s 1.0]
 
 Each walk: ``apartment(seed)`` with the benchmark's start and goal (episode seed 0), the oracle
 navigator (true pose, true map) walking it with the policy, and the leg odometry running alongside
 from the start pose on the encoders and the noisy head gyro. The robot first stands ``--stand-s``
-and the gyro's bias is the mean reading over that stand (an AHRS's start-up calibration); no VO
+and the gyro's bias is the mean reading over that stand after ``--settle-s`` (an AHRS's start-up
+calibration; the robot sways as it settles from its spawn pose at first); no VO
 anchors anything, so the figures are the odometry's open-loop drift. Per walk: final position
 error as % of the true distance walked, final |yaw error| in degrees per metre, and the largest
 position error over any 3 m stretch (the navigator's bridge limit). The ceiling is 0 drift; the
@@ -33,7 +34,7 @@ def _wrap(a: float) -> float:
     return (a + math.pi) % (2 * math.pi) - math.pi
 
 
-def walk(seed: int, stand_s: float) -> dict:
+def walk(seed: int, stand_s: float, settle_s: float) -> dict:
     cfg = EpisodeCfg()
     apt = apartment(seed)
     ep = apt.sample_start_goal(0, cfg.min_geodesic_m, cfg.max_geodesic_m, humanoid.BODY_RADIUS_M)
@@ -42,7 +43,8 @@ def walk(seed: int, stand_s: float) -> dict:
     readings = []
     while world.time_s < stand_s:
         nav.step()
-        readings.append(world.gyro.latest()[1])
+        if world.time_s > settle_s:
+            readings.append(world.gyro.latest()[1])
     legs = LegOdometry()
     legs.gyro_bias_rad_s = np.mean(readings, axis=0)
     legs.reset(world)
@@ -85,9 +87,10 @@ def walk(seed: int, stand_s: float) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seeds", default="200,201,202")
-    ap.add_argument("--stand-s", type=float, default=1.0)
+    ap.add_argument("--stand-s", type=float, default=3.0)
+    ap.add_argument("--settle-s", type=float, default=1.0)
     args = ap.parse_args()
-    rows = [walk(int(s), args.stand_s) for s in args.seeds.split(",")]
+    rows = [walk(int(s), args.stand_s, args.settle_s) for s in args.seeds.split(",")]
     for r in rows:
         print(f"apt {r['seed']}: {r['status']:8s} walked {r['walked_m']:.2f} m, end error {r['final_error_m']:.3f} m "
               f"({r['drift_percent']:.2f} %), yaw {r['final_yaw_error_deg']:+.2f} deg "

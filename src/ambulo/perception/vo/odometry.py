@@ -355,6 +355,10 @@ class RgbdOdometry:
         self._moving = torch.zeros(len(f.pixels), dtype=torch.bool, device=self.device)
         inliers = 0
         if not self.keyframes:
+            if motion_cam is not None and self.frame_index > 0:
+                # not started yet (too few features with depth): the initial pose moves on with the
+                # other sensor, so a late first keyframe is made where the camera is, not where it began
+                self.pose_wc = self.pose_wc @ np.asarray(motion_cam, np.float64)
             if int(f.valid.sum()) >= self.cfg.relocalize_min_inliers:
                 self._add_keyframe(f)
                 self._imu_trail.append(self._imu_position(self.pose_wc))
