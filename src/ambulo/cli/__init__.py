@@ -18,10 +18,10 @@ import argparse
 import sys
 
 from ..utils.overrides import OverrideError, apply_overrides
-from . import bridge, data, demo, navigate, perception, plan, rl, run, view
+from . import bridge, data, demo, detection, navigate, perception, plan, rl, run, view
 from .errors import EXIT_INTERRUPTED, ArgumentParser, CliError, expected_error, report
 
-_COMMAND_MODULES = (demo, view, data, rl, run, plan, bridge, perception, navigate)
+_COMMAND_MODULES = (demo, view, data, detection, rl, run, plan, bridge, perception, navigate)
 _DEBUG_HELP = "show the full traceback of any error (for bug reports)"
 
 

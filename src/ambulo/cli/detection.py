@@ -1,0 +1,85 @@
+"""``ambulo train-detector`` and ``ambulo export-detector``: a detector trained from scratch on an
+``ambulo generate`` dataset, and its ONNX export checked against torch.
+
+    ambulo generate --frames 2000 --out data/ --seed 0
+    ambulo train-detector data/ --epochs 30 --device cuda --out runs/det     # --resume continues it
+    ambulo export-detector runs/det/checkpoint.pt --out runs/det/model.onnx
+    tensorboard --logdir runs/det
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from .errors import CliError
+
+MODEL_NAMES = ("centernet-small", "centernet-medium")
+"""``ambulo.detection.MODELS``' names, here so that building the parser imports no torch."""
+
+
+def train_detector(args: argparse.Namespace) -> int:
+    import torch
+
+    from ambulo.detection import CHECKPOINT, DatasetError, TrainCfg, train
+
+    for flag in ("epochs", "batch_size"):
+        if getattr(args, flag) < 1:
+            raise CliError(f"--{flag.replace('_', '-')} {getattr(args, flag)} is not positive", "give 1 or more")
+    if args.device.startswith("cuda") and not torch.cuda.is_available():
+        raise CliError(f"--device {args.device} but torch sees no CUDA GPU", "use --device cpu")
+    if not args.resume and (Path(args.out) / CHECKPOINT).exists():
+        raise CliError(f"{args.out} already holds a training run", "give --resume to continue it, or another --out")
+    cfg = TrainCfg(model=args.model, epochs=args.epochs, batch_size=args.batch_size, device=args.device,
+                   eval_every_epochs=args.eval_every, num_workers=args.workers, learning_rate=args.lr,
+                   seed=args.seed)
+    try:
+        result = train(args.dataset, args.out, cfg, resume=args.resume, show_progress=not args.quiet)
+    except DatasetError as err:
+        raise CliError(err.problem, err.fix) from None
+    last = result.evaluations[-1] if result.evaluations else None
+    if last is not None:
+        classes = ", ".join(f"{name} {ap:.3f}" for name, ap in last["per_class"].items())
+        print(f"held-out frames: mAP {last['mAP']:.3f}, mAP50 {last['mAP50']:.3f} ({classes})")
+    print(f"trained {result.step} steps; checkpoint {Path(args.out) / CHECKPOINT}; TensorBoard: "
+          f"tensorboard --logdir {args.out}")
+    return 0
+
+
+def export_detector(args: argparse.Namespace) -> int:
+    from ambulo.detection import check_onnx, export_onnx
+
+    if not Path(args.checkpoint).is_file():
+        raise CliError(f"no checkpoint {args.checkpoint}", "give the checkpoint.pt of `ambulo train-detector`")
+    out = export_onnx(args.checkpoint, args.out)
+    diff = check_onnx(args.checkpoint, out)
+    if diff["boxes_px"] > 0.01 or diff["scores"] > 1e-4:
+        raise CliError(f"ONNX Runtime disagrees with torch (boxes {diff['boxes_px']:.3g} px, scores "
+                       f"{diff['scores']:.3g})", "report this with the checkpoint; the export is kept for inspection")
+    print(f"wrote {out} (+ {out}.json); ONNX Runtime matches torch: boxes within {diff['boxes_px']:.2g} px, "
+          f"scores within {diff['scores']:.2g} ({diff['compared']} boxes compared)")
+    return 0
+
+
+def add_commands(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``train-detector`` and ``export-detector`` to the ``ambulo`` parser."""
+    p = subparsers.add_parser("train-detector", help="train an object detector on an `ambulo generate` dataset",
+                              description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("dataset", help="folder made by `ambulo generate` (annotations.json + rgb/)")
+    p.add_argument("--model", choices=MODEL_NAMES, default="centernet-small", help="detector (default centernet-small)")
+    p.add_argument("--device", default="cpu", help="torch device: cpu or cuda (bfloat16 autocast on cuda)")
+    p.add_argument("--epochs", type=int, default=30, help="passes over the training frames (default 30)")
+    p.add_argument("--batch-size", type=int, default=16, help="frames per step (default 16)")
+    p.add_argument("--lr", type=float, default=2e-3, help="AdamW peak learning rate (default 2e-3)")
+    p.add_argument("--eval-every", type=int, default=5, help="COCO evaluation of held-out frames every N epochs")
+    p.add_argument("--workers", type=int, default=2, help="image-reading processes (default 2)")
+    p.add_argument("--seed", type=int, default=0, help="initialisation and shuffling seed (default 0)")
+    p.add_argument("--out", default="runs/detector", help="run folder: checkpoint, metrics, TensorBoard")
+    p.add_argument("--resume", action="store_true", help="continue the run in --out from its checkpoint")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=train_detector)
+    e = subparsers.add_parser("export-detector", help="export a trained detector to ONNX (checked with ONNX Runtime)",
+                              description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    e.add_argument("checkpoint", help="checkpoint.pt of `ambulo train-detector`")
+    e.add_argument("--out", required=True, help="the .onnx file to write (its categories go to <out>.json)")
+    e.set_defaults(func=export_detector)

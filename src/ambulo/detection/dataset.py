@@ -1,0 +1,167 @@
+"""An ``ambulo generate`` dataset as detection samples: COCO boxes and labels, a held-out split, augmentations.
+
+The dataset folder is the one ``replicator.writers`` documents: ``annotations.json`` (COCO instances,
+categories 1..C, one image per frame, ``bbox`` in pixel edges x, y, w, h) and ``rgb/NNNNNN.png``.
+The split is by frame: the last ``held_out_fraction`` of the frames are never trained on. Frames
+differ by randomization seed stream, so held-out frames are unseen poses, textures and lighting of
+the training distribution (the issue's split (a)).
+
+A sample is ``(image, target)``: image float32 (3, H, W) in [0, 1] on a canvas of the fixed
+``canvas_hw`` (the dataset's size rounded up to the model's stride; padding is black, bottom and
+right), target ``{"boxes": (N, 4) float32 x0 y0 x1 y1 px, "labels": (N,) int64 COCO category ids,
+"image_id": int}``. Boxes stay in the canvas's pixels, which are the image's pixels (padding is
+only ever added after the image's last row and column).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import imageio.v3 as iio
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+from ambulo.utils.validate import Checked
+
+
+class DatasetError(Exception):
+    """A folder that is not a readable ``ambulo generate`` dataset: ``problem`` and ``fix``."""
+
+    def __init__(self, problem: str, fix: str):
+        self.problem, self.fix = problem, fix
+        super().__init__(f"{problem}; {fix}")
+
+
+@dataclass(kw_only=True)
+class AugmentCfg(Checked):
+    """Training-time augmentations (none at evaluation)."""
+
+    flip_probability: float = 0.5
+    """Horizontal flip: the scenes have no left-right meaning."""
+    scale_range: tuple[float, float] = (0.75, 1.25)
+    """Scale jitter: the image is resized by a factor drawn here, then cropped or padded back to the
+    canvas, so objects are seen at sizes between the camera heights of the data."""
+    brightness_fraction: float = 0.25
+    """Colour jitter: brightness, contrast and saturation each multiplied by 1 +- this."""
+
+
+def no_augment() -> AugmentCfg:
+    return AugmentCfg(flip_probability=0.0, scale_range=(1.0, 1.0), brightness_fraction=0.0)
+
+
+def load_coco(root: str | Path) -> dict:
+    """The merged COCO file of a dataset folder, with a clear error when it is not one."""
+    path = Path(root) / "annotations.json"
+    if not path.is_file():
+        raise DatasetError(f"{root} has no annotations.json",
+                           "give a folder made by `ambulo generate` (an interrupted one: run the same command to finish)")
+    coco = json.loads(path.read_text())
+    if not coco.get("images") or not coco.get("categories"):
+        raise DatasetError(f"{path} has no images or no categories", "generate at least one frame with objects")
+    return coco
+
+
+def split_image_ids(coco: dict, held_out_fraction: float) -> tuple[list[int], list[int]]:
+    """(train ids, held-out ids): the held-out ids are the last frames, at least one when asked for any."""
+    ids = [image["id"] for image in sorted(coco["images"], key=lambda im: im["id"])]
+    n_held = math.ceil(len(ids) * held_out_fraction) if held_out_fraction > 0 else 0
+    if n_held >= len(ids):
+        raise DatasetError(f"{len(ids)} frames leave none to train on with {held_out_fraction:.0%} held out",
+                           "generate more frames or hold out a smaller fraction")
+    return ids[:len(ids) - n_held], ids[len(ids) - n_held:]
+
+
+def canvas_size(coco: dict, stride: int) -> tuple[int, int]:
+    """(H, W) holding every image, rounded up to a multiple of ``stride``."""
+    h = max(im["height"] for im in coco["images"])
+    w = max(im["width"] for im in coco["images"])
+    return -(-h // stride) * stride, -(-w // stride) * stride
+
+
+class CocoFrames(torch.utils.data.Dataset):
+    """The frames ``image_ids`` of dataset ``root`` as (image, target) samples (module docstring)."""
+
+    def __init__(self, root: str | Path, coco: dict, image_ids: list[int], canvas_hw: tuple[int, int],
+                 augment: AugmentCfg | None = None, seed: int = 0):
+        self.root, self.canvas_hw, self.augment = Path(root), canvas_hw, augment
+        images = {im["id"]: im for im in coco["images"]}
+        self.images = [images[i] for i in image_ids]
+        by_image: dict[int, list[dict]] = {i: [] for i in image_ids}
+        for ann in coco["annotations"]:
+            if ann["image_id"] in by_image and not ann.get("iscrowd", 0):
+                by_image[ann["image_id"]].append(ann)
+        self.annotations = [by_image[i] for i in image_ids]
+        self.seed = seed
+        self._draws = 0
+
+    def __len__(self) -> int:
+        return len(self.images)
+
+    def __getitem__(self, index: int) -> tuple[torch.Tensor, dict]:
+        image_info = self.images[index]
+        path = self.root / image_info["file_name"]
+        if not path.is_file():
+            raise DatasetError(f"{path} is missing", "run `ambulo generate` again with the same command to repair it")
+        rgb = torch.from_numpy(np.ascontiguousarray(iio.imread(path)[..., :3])).permute(2, 0, 1).float() / 255.0
+        anns = self.annotations[index]
+        boxes = torch.tensor([[x, y, x + w, y + h] for x, y, w, h in (a["bbox"] for a in anns)],
+                             dtype=torch.float32).reshape(-1, 4)
+        labels = torch.tensor([a["category_id"] for a in anns], dtype=torch.int64)
+        if self.augment is not None:
+            # one generator per draw: workers and epochs see different draws, a seed repeats them
+            self._draws += 1
+            g = torch.Generator().manual_seed(hash((self.seed, index, self._draws, torch.utils.data.get_worker_info()
+                                                    and torch.utils.data.get_worker_info().id)) & 0x7FFFFFFF)
+            rgb, boxes, labels = augment_sample(rgb, boxes, labels, self.augment, g)
+        canvas = torch.zeros(3, *self.canvas_hw)
+        h, w = min(rgb.shape[1], self.canvas_hw[0]), min(rgb.shape[2], self.canvas_hw[1])
+        canvas[:, :h, :w] = rgb[:, :h, :w]
+        return canvas, {"boxes": boxes, "labels": labels, "image_id": image_info["id"]}
+
+
+def augment_sample(rgb: torch.Tensor, boxes: torch.Tensor, labels: torch.Tensor, cfg: AugmentCfg,
+                   g: torch.Generator) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Flip, scale jitter (resize, then crop or pad back to the input's size) and colour jitter of one
+    image (3, H, W) in [0, 1] and its boxes (N, 4) x0 y0 x1 y1 px; boxes cut to under a quarter of
+    their area, or under 2 px a side, are dropped with their labels."""
+    _, h, w = rgb.shape
+    u = torch.rand(6, generator=g).tolist()
+    if u[0] < cfg.flip_probability:
+        rgb = rgb.flip(-1)
+        boxes = torch.stack([w - boxes[:, 2], boxes[:, 1], w - boxes[:, 0], boxes[:, 3]], dim=1)
+    lo, hi = cfg.scale_range
+    scale = lo + (hi - lo) * u[1]
+    if scale != 1.0:
+        sh, sw = max(1, round(h * scale)), max(1, round(w * scale))
+        rgb = F.interpolate(rgb[None], size=(sh, sw), mode="bilinear", align_corners=False)[0]
+        boxes = boxes * torch.tensor([sw / w, sh / h, sw / w, sh / h])
+        # a window of the input's size: anywhere inside a larger image, the image anywhere inside a larger window
+        x0, y0 = round((sw - w) * u[2]), round((sh - h) * u[3])
+        out = torch.zeros(3, h, w)
+        src = rgb[:, max(0, y0):max(0, y0) + h, max(0, x0):max(0, x0) + w]
+        dy, dx = max(0, -y0), max(0, -x0)
+        out[:, dy:dy + src.shape[1], dx:dx + src.shape[2]] = src[:, :h - dy, :w - dx]
+        rgb = out
+        area = (boxes[:, 2] - boxes[:, 0]) * (boxes[:, 3] - boxes[:, 1])
+        boxes = boxes - torch.tensor([x0, y0, x0, y0], dtype=torch.float32)
+        boxes = torch.stack([boxes[:, 0].clamp(0, w), boxes[:, 1].clamp(0, h),
+                             boxes[:, 2].clamp(0, w), boxes[:, 3].clamp(0, h)], dim=1)
+        bw, bh = boxes[:, 2] - boxes[:, 0], boxes[:, 3] - boxes[:, 1]
+        keep = (bw >= 2) & (bh >= 2) & (bw * bh >= 0.25 * area)
+        boxes, labels = boxes[keep], labels[keep]
+    if cfg.brightness_fraction > 0:
+        b, c, s = (1 + cfg.brightness_fraction * (2 * v - 1) for v in u[3:6])
+        gray = (0.299 * rgb[0] + 0.587 * rgb[1] + 0.114 * rgb[2])[None]
+        rgb = gray + s * (rgb - gray)  # saturation
+        rgb = rgb.mean() + c * (rgb - rgb.mean())  # contrast
+        rgb = (b * rgb).clamp(0, 1)
+    return rgb, boxes, labels
+
+
+def collate(batch: list[tuple[torch.Tensor, dict]]) -> tuple[torch.Tensor, list[dict]]:
+    """Images stacked (all share the canvas), targets kept as a list (each image has its own count)."""
+    return torch.stack([image for image, _ in batch]), [target for _, target in batch]

@@ -1,0 +1,81 @@
+"""``Detector``: frames in, detections out, from a training checkpoint (torch) or an exported ONNX file.
+
+    detector = Detector("runs/det/model.onnx")          # or "runs/det/checkpoint.pt"
+    result = detector(rgb)                              # rgb: (H, W, 3) uint8, H, W <= the canvas
+    result.boxes_px, result.labels, result.scores
+
+A frame smaller than the training canvas is padded black at the bottom and right (as in training),
+so boxes are in the frame's own pixels; a larger one is an error (resize it, or train on that size).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+
+@dataclass
+class Detections:
+    boxes_px: np.ndarray
+    """(N, 4) float32 x0 y0 x1 y1 in the frame's pixels."""
+    labels: list[str]
+    """N category names."""
+    category_ids: np.ndarray
+    """(N,) int64 COCO category ids of the dataset."""
+    scores: np.ndarray
+    """(N,) float32 in [0, 1], descending."""
+
+
+class Detector:
+    """Runs a trained detector on single frames; ``score_threshold`` drops weak boxes."""
+
+    def __init__(self, path: str | Path, score_threshold: float = 0.3, device: str = "cpu"):
+        self.path, self.score_threshold = Path(path), score_threshold
+        if not self.path.is_file():
+            raise FileNotFoundError(f"{path}: no such detector; train one with `ambulo train-detector`")
+        if self.path.suffix == ".onnx":
+            import onnxruntime as ort
+
+            from .export import read_sidecar
+
+            meta = read_sidecar(self.path)
+            self._session = ort.InferenceSession(str(self.path), providers=["CPUExecutionProvider"])
+            self._run = lambda x: self._session.run(["boxes", "scores", "classes"], {"images": x})
+        else:
+            import torch
+
+            from .model import ExportedDetector
+            from .train import load_trained
+
+            model, meta = load_trained(self.path, device)
+            graph = ExportedDetector(model).eval()
+
+            def run(x: np.ndarray):
+                with torch.no_grad():
+                    return [t.cpu().numpy() for t in graph(torch.from_numpy(x).to(device))]
+
+            self._run = run
+        self.categories: list[str] = list(meta["categories"])
+        self.category_ids = np.asarray(meta["category_ids"], np.int64)
+        self.canvas_hw: tuple[int, int] = tuple(meta["canvas_hw"])
+
+    def __call__(self, rgb: np.ndarray) -> Detections:
+        if rgb.ndim != 3 or rgb.shape[2] < 3 or rgb.dtype != np.uint8:
+            raise ValueError(f"a frame must be (H, W, 3) uint8, got {rgb.shape} {rgb.dtype}")
+        h, w = rgb.shape[:2]
+        ch, cw = self.canvas_hw
+        if h > ch or w > cw:
+            raise ValueError(f"a {w}x{h} frame is larger than the detector's {cw}x{ch} canvas; resize it or "
+                             "train on frames of that size")
+        canvas = np.zeros((1, 3, ch, cw), np.float32)
+        canvas[0, :, :h, :w] = rgb[..., :3].transpose(2, 0, 1) / np.float32(255)
+        boxes, scores, classes = (a[0] for a in self._run(canvas))
+        keep = scores >= self.score_threshold
+        boxes = boxes[keep].astype(np.float32)
+        boxes[:, 0::2] = boxes[:, 0::2].clip(0, w)
+        boxes[:, 1::2] = boxes[:, 1::2].clip(0, h)
+        classes = classes[keep].astype(np.int64)
+        return Detections(boxes_px=boxes, labels=[self.categories[k] for k in classes],
+                          category_ids=self.category_ids[classes], scores=scores[keep].astype(np.float32))

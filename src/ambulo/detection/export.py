@@ -1,0 +1,81 @@
+"""ONNX export of a trained detector (model + NMS-free decoding in one graph), checked with ONNX Runtime.
+
+The graph takes ``images`` (1, 3, H, W) float32 in [0, 1] at the checkpoint's canvas size and returns
+``boxes`` (1, K, 4) x0 y0 x1 y1 px, ``scores`` (1, K) and ``classes`` (1, K) int64 (0-based; the
+category names are in ``<file>.json`` beside it). ``check_onnx`` runs both on one image and returns
+the largest differences, so an export that disagrees with torch is caught where it is made.
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from ambulo.utils.atomic import atomic_write_json
+
+from .model import ExportedDetector
+from .train import load_trained
+
+OUTPUTS = ("boxes", "scores", "classes")
+
+
+def export_onnx(checkpoint: str | Path, out: str | Path, opset: int = 17) -> Path:
+    """Write ``out`` (ONNX) and ``out``.json (categories, canvas size) from a training checkpoint."""
+    model, state = load_trained(checkpoint)
+    h, w = state["canvas_hw"]
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    example = torch.rand(1, 3, h, w)
+    # the TorchScript exporter: the graph is static (one canvas size), and it needs no onnxscript
+    with warnings.catch_warnings():  # the trace's shape arithmetic is constant for one canvas size
+        warnings.simplefilter("ignore", torch.jit.TracerWarning)
+        torch.onnx.export(ExportedDetector(model), (example,), str(out), input_names=["images"],
+                          output_names=list(OUTPUTS), opset_version=opset, dynamo=False)
+    atomic_write_json(sidecar(out), {"categories": state["categories"], "category_ids": state["category_ids"],
+                                     "canvas_hw": [h, w], "max_detections": model.cfg.max_detections})
+    return out
+
+
+def sidecar(onnx_path: str | Path) -> Path:
+    return Path(f"{onnx_path}.json")
+
+
+def check_onnx(checkpoint: str | Path, onnx_path: str | Path, image: np.ndarray | None = None,
+               seed: int = 0) -> dict:
+    """``compare_detections`` of torch and ONNX Runtime on one image (1, 3, H, W) float32 in [0, 1] at
+    the canvas size (a random one by default)."""
+    import onnxruntime as ort
+
+    model, state = load_trained(checkpoint)
+    h, w = state["canvas_hw"]
+    if image is None:
+        image = np.random.default_rng(seed).random((1, 3, h, w), dtype=np.float32)
+    with torch.no_grad():
+        expected = [t.numpy() for t in ExportedDetector(model)(torch.from_numpy(image))]
+    session = ort.InferenceSession(str(onnx_path), providers=["CPUExecutionProvider"])
+    got = session.run(list(OUTPUTS), {"images": image})
+    return compare_detections(expected, got)
+
+
+def compare_detections(expected: list[np.ndarray], got: list[np.ndarray], score_tol: float = 1e-4) -> dict:
+    """Order-free agreement of two (boxes, scores, classes) outputs of batch 1: the largest score
+    difference of the sorted scores, and for each expected box whose score stands clear of the K-th
+    (ties at the cut-off may be broken either way), the distance (px, largest coordinate) to the
+    nearest box of the same class and score in ``got``; ``compared`` boxes were checked."""
+    (eb, es, ec), (gb, gs, gc) = ([a[0] for a in out] for out in (expected, got))
+    score_diff = float(np.abs(np.sort(es) - np.sort(gs)).max())
+    inner = np.flatnonzero(es > es.min() + score_tol)
+    worst = 0.0
+    for i in inner:
+        same = (gc == ec[i]) & (np.abs(gs - es[i]) <= score_tol)
+        distance = np.abs(gb[same] - eb[i]).max(axis=1).min() if same.any() else np.inf
+        worst = max(worst, float(distance))
+    return {"scores": score_diff, "boxes_px": worst, "compared": int(len(inner))}
+
+
+def read_sidecar(onnx_path: str | Path) -> dict:
+    return json.loads(sidecar(onnx_path).read_text())

@@ -1,0 +1,130 @@
+"""A small anchor-free detector (CenterNet: Zhou et al. 2019, "Objects as Points"), pure torch.
+
+Why not torchvision's detection models: torchvision's PyPI wheels are CUDA builds whose C++ ops
+(``nms``, ``roi_align``) need torch's CUDA libraries, so ``import torchvision`` fails against the CPU
+torch the project installs by default; and their box decoding ends in NMS, an op ONNX Runtime runs
+slowly on CPU. CenterNet decodes with a 3x3 max-pool and top-k, plain ops that export to ONNX and
+need no NMS; it trains from random weights (nothing is downloaded).
+
+Frames: input images (B, 3, H, W) float in [0, 1], H and W multiples of ``STRIDE_OUT * 8``;
+outputs at stride ``STRIDE_OUT`` (4 px): a heatmap per class (object centres), box size (w, h) in
+output cells and the centre's sub-cell offset. ``decode`` turns them into the ``max_detections``
+best boxes (B, K, 4) x0 y0 x1 y1 in input pixels, scores (B, K) and 0-based class indices (B, K).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from ambulo.utils.validate import Checked
+
+STRIDE_OUT = 4
+"""Output stride in input pixels (CenterNet's)."""
+STRIDE_MAX = 32
+"""The deepest feature's stride: input sizes must be multiples of it."""
+MODELS: dict[str, tuple[int, ...]] = {
+    "centernet-small": (16, 32, 64, 96, 128),
+    "centernet-medium": (32, 64, 128, 192, 256),
+}
+"""Channels at strides 2, 4, 8, 16, 32 of each named model: 'small' runs > 10 frames/s at 320x240 on
+two CPU cores (benchmarks/detector.py), 'medium' is for a GPU."""
+
+
+@dataclass(kw_only=True)
+class ModelCfg(Checked):
+    name: Literal["centernet-small", "centernet-medium"] = "centernet-small"
+    num_classes: int = 1
+    """Categories 1..C of the COCO file are classes 0..C-1 here."""
+    max_detections: int = 100
+    """Boxes ``decode`` returns per image (the best by score; COCO evaluation reads up to 100)."""
+    head_channels: int = 32
+
+
+def _conv(c_in: int, c_out: int, stride: int = 1) -> nn.Sequential:
+    return nn.Sequential(nn.Conv2d(c_in, c_out, 3, stride, 1, bias=False), nn.BatchNorm2d(c_out), nn.ReLU(inplace=True))
+
+
+class CenterNet(nn.Module):
+    """Backbone of strided 3x3 conv stages, a top-down feature pyramid to stride 4, three heads."""
+
+    def __init__(self, cfg: ModelCfg):
+        super().__init__()
+        self.cfg = cfg
+        widths = MODELS[cfg.name]
+        stages, c_in = [], 3
+        for i, c in enumerate(widths):  # the stride-2 stem is one conv: most pixels, least to see
+            stages.append(_conv(c_in, c, 2) if i == 0 else nn.Sequential(_conv(c_in, c, 2), _conv(c, c)))
+            c_in = c
+        self.stages = nn.ModuleList(stages)
+        d = cfg.head_channels
+        self.lateral = nn.ModuleList([nn.Conv2d(c, d, 1) for c in widths[1:]])  # strides 4..32
+        self.smooth = nn.ModuleList([_conv(d, d) for _ in widths[1:-1]])
+        # one shared 3x3 conv before three 1x1 outputs: at stride 4 a 3x3 conv per head would be most
+        # of the model's cost (the stride-4 map has 16x the stride-16 map's cells)
+        self.head = _conv(d, d)
+        self.heat = nn.Conv2d(d, cfg.num_classes, 1)
+        self.size = nn.Conv2d(d, 2, 1)
+        self.offset = nn.Conv2d(d, 2, 1)
+        # the heatmap starts at p = 0.1 everywhere (CenterNet's focal-loss prior), not 0.5
+        nn.init.constant_(self.heat.bias, -math.log((1 - 0.1) / 0.1))
+        self.register_buffer("mean", torch.tensor([0.485, 0.456, 0.406]).view(1, 3, 1, 1), persistent=False)
+        self.register_buffer("std", torch.tensor([0.229, 0.224, 0.225]).view(1, 3, 1, 1), persistent=False)
+
+    def forward(self, images: torch.Tensor) -> dict[str, torch.Tensor]:
+        """Raw maps at stride 4: ``heat`` logits (B, C, h, w), ``size`` (B, 2, h, w) in cells, ``offset``
+        (B, 2, h, w) in cells."""
+        x = (images - self.mean) / self.std
+        features = []
+        for stage in self.stages:
+            x = stage(x)
+            features.append(x)
+        top = self.lateral[-1](features[-1])
+        for i in range(len(self.lateral) - 2, -1, -1):
+            top = F.interpolate(top, scale_factor=2.0, mode="nearest") + self.lateral[i](features[i + 1])
+            top = self.smooth[i](top)
+        top = self.head(top)
+        return {"heat": self.heat(top), "size": F.relu(self.size(top)), "offset": self.offset(top)}
+
+
+def decode(maps: dict[str, torch.Tensor], max_detections: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """(boxes (B, K, 4) x0 y0 x1 y1 px, scores (B, K), class indices (B, K) int64): the K highest
+    peaks of the heatmap, a peak being a cell that equals the max of its 3x3 neighbourhood (CenterNet's
+    NMS-free decoding)."""
+    heat = torch.sigmoid(maps["heat"].float())
+    b, c, h, w = heat.shape
+    peaks = heat * (F.max_pool2d(heat, 3, stride=1, padding=1) == heat).to(heat.dtype)
+    k = min(max_detections, c * h * w)
+    scores, index = peaks.reshape(b, -1).topk(k, dim=1)
+    classes = torch.div(index, h * w, rounding_mode="floor")
+    cell = index - classes * (h * w)
+    cy = torch.div(cell, w, rounding_mode="floor")
+    cx = cell - cy * w
+    size = maps["size"].float().reshape(b, 2, h * w).gather(2, cell[:, None, :].expand(b, 2, k))
+    offset = maps["offset"].float().reshape(b, 2, h * w).gather(2, cell[:, None, :].expand(b, 2, k))
+    x = (cx.to(heat.dtype) + offset[:, 0]) * STRIDE_OUT
+    y = (cy.to(heat.dtype) + offset[:, 1]) * STRIDE_OUT
+    half_w, half_h = size[:, 0] * STRIDE_OUT / 2, size[:, 1] * STRIDE_OUT / 2
+    boxes = torch.stack([x - half_w, y - half_h, x + half_w, y + half_h], dim=2)
+    return boxes, scores, classes
+
+
+class ExportedDetector(nn.Module):
+    """The model plus ``decode``: images (B, 3, H, W) in [0, 1] -> (boxes, scores, classes), the
+    graph ONNX export traces."""
+
+    def __init__(self, model: CenterNet):
+        super().__init__()
+        self.model = model
+
+    def forward(self, images: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        return decode(self.model(images), self.model.cfg.max_detections)
+
+
+def build_model(cfg: ModelCfg) -> CenterNet:
+    return CenterNet(cfg)
