@@ -114,8 +114,9 @@ class CocoFrames(torch.utils.data.Dataset):
         if self.augment is not None:
             # one generator per draw: workers and epochs see different draws, a seed repeats them
             self._draws += 1
-            g = torch.Generator().manual_seed(hash((self.seed, index, self._draws, torch.utils.data.get_worker_info()
-                                                    and torch.utils.data.get_worker_info().id)) & 0x7FFFFFFF)
+            worker = torch.utils.data.get_worker_info()
+            key = np.random.SeedSequence([self.seed, index, self._draws, 0 if worker is None else worker.id + 1])
+            g = torch.Generator().manual_seed(int(key.generate_state(1)[0]))
             rgb, boxes, labels = augment_sample(rgb, boxes, labels, self.augment, g)
         canvas = torch.zeros(3, *self.canvas_hw)
         h, w = min(rgb.shape[1], self.canvas_hw[0]), min(rgb.shape[2], self.canvas_hw[1])

@@ -17,7 +17,7 @@ import torch
 
 from ambulo.utils.atomic import atomic_write_json
 
-from .model import ExportedDetector
+from .model import CenterNet, ExportedDetector
 from .train import load_trained
 
 OUTPUTS = ("boxes", "scores", "classes")
@@ -26,17 +26,23 @@ OUTPUTS = ("boxes", "scores", "classes")
 def export_onnx(checkpoint: str | Path, out: str | Path, opset: int = 17) -> Path:
     """Write ``out`` (ONNX) and ``out``.json (categories, canvas size) from a training checkpoint."""
     model, state = load_trained(checkpoint)
-    h, w = state["canvas_hw"]
+    out = export_model(model, state["canvas_hw"], out, opset)
+    atomic_write_json(sidecar(out), {"categories": state["categories"], "category_ids": state["category_ids"],
+                                     "canvas_hw": list(state["canvas_hw"]),
+                                     "max_detections": model.cfg.max_detections})
+    return out
+
+
+def export_model(model: CenterNet, canvas_hw: tuple[int, int], out: str | Path, opset: int = 17) -> Path:
+    """Write the ONNX graph of ``model`` + decoding for images of ``canvas_hw`` (H, W) to ``out``."""
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    example = torch.rand(1, 3, h, w)
+    example = torch.rand(1, 3, *canvas_hw)
     # the TorchScript exporter: the graph is static (one canvas size), and it needs no onnxscript
     with warnings.catch_warnings():  # the trace's shape arithmetic is constant for one canvas size
         warnings.simplefilter("ignore", torch.jit.TracerWarning)
-        torch.onnx.export(ExportedDetector(model), (example,), str(out), input_names=["images"],
+        torch.onnx.export(ExportedDetector(model.eval()), (example,), str(out), input_names=["images"],
                           output_names=list(OUTPUTS), opset_version=opset, dynamo=False)
-    atomic_write_json(sidecar(out), {"categories": state["categories"], "category_ids": state["category_ids"],
-                                     "canvas_hw": [h, w], "max_detections": model.cfg.max_detections})
     return out
 
 
