@@ -42,3 +42,9 @@ def test_comparison_sees_a_moved_box():
     assert compare_detections([boxes, scores, classes], [moved, scores, classes])["boxes_px"] == pytest.approx(0.005, abs=1e-6)
     moved[0, 1, 0] += 4.0  # a cell away
     assert compare_detections([boxes, scores, classes], [moved, scores, classes])["unmatched"] == 1
+
+
+def test_a_folder_that_is_no_dataset_is_one_line(tmp_path, capsys):
+    assert main(["train-detector", str(tmp_path), "--out", str(tmp_path / "run"), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "no annotations.json" in err and "ambulo generate" in err
