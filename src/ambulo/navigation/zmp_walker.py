@@ -15,7 +15,7 @@ from the VO's map frame while the steps are placed in the simulator's; use it in
 Its steps take 0.6 s (``zmp_walker_cfg``), not the step walker's 0.8 s default: on the navigate
 benchmark's apartments 200-209 (oracle, episode seed 0) 0.6 s arrived in 9 of 10 (SPL 0.71, one
 stuck, no fall, no collision) against 9 of 10 at 0.8 s (SPL 0.67, one fall, 0.4 collisions an
-episode), 17-29 % sooner on each of the 9 apartments both reached (``zmp_walker_cfg`` has the command).
+episode), 14-29 % sooner on each of the 9 apartments both reached (``zmp_walker_cfg`` has the command).
 """
 
 from __future__ import annotations
