@@ -467,7 +467,8 @@ class Navigator:
                 yaw = self.goal_yaw_rad if self.goal_yaw_rad is not None else route_heading(path, k)
             else:
                 goal_xy, yaw = path[k], route_heading(path, k)
-            if not final and np.linalg.norm(goal_xy - est[:2]) < self.cfg.look_radius_m:
+            look = not final and np.linalg.norm(goal_xy - est[:2]) < self.cfg.look_radius_m
+            if look:
                 # nothing observed along the route ahead: turn on the spot to look down it
                 s = np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))
                 j = min(len(path) - 1, int(np.searchsorted(s, 0.6)) + 1)
@@ -475,6 +476,13 @@ class Navigator:
                 goal_xy, yaw = est[:2].copy(), float(math.atan2(d[1], d[0]))
                 reason = reason + " (look)"
             plan = self._plan_footsteps(grid, version, optimistic, est, route, k, final, goal_xy, yaw)
+            if look and plan.status == PlanStatus.SUCCESS and plan.num_steps < 1:
+                # already facing down the route: the camera cannot see the floor this near (it sees
+                # from ~1.6 m), so turning shows nothing new; walk on along the route instead (a
+                # well-localised robot stood here for the whole 20 s stuck window, apartments 200-209)
+                plan = self._plan_footsteps(grid, version, optimistic, est, route, j, False, path[j],
+                                            route_heading(path, j))
+                reason = reason + " (faced: walk on)"
             status, steps = plan.status.value, plan.num_steps
             usable = plan.status == PlanStatus.SUCCESS or (plan.num_steps >= 2 and plan.status in (
                 PlanStatus.BUDGET_EXHAUSTED, PlanStatus.GOAL_UNREACHABLE))
