@@ -4,7 +4,10 @@ import numpy as np
 import pytest
 import torch
 
-pytest.importorskip("open3d", reason="the perception extra (pip install 'ambulo[perception]') is not installed")
+try:  # a skip raised while a conftest imports is a collection error for the whole run (the GPU suite's)
+    import open3d  # noqa: F401  (the reference every test here checks against)
+except ImportError:
+    collect_ignore_glob = ["*"]
 
 
 @pytest.fixture(scope="session")
