@@ -8,6 +8,7 @@ import pytest
 
 from ambulo.core.semantics import set_semantic_label
 from ambulo.engine import CpuEngine
+from ambulo.render import pbr
 from ambulo.sensors import Camera, CameraCfg
 
 W, H = 64, 48
@@ -43,6 +44,17 @@ def test_the_path_tier_gives_the_raster_labels_and_its_own_colours():
     # the path tracer drew the boxes where the raster did: reddish there, not the grey floor
     assert (traced["rgb"][boxes, 0].astype(int) - traced["rgb"][boxes, 2]).mean() > 20
     assert np.abs(traced["rgb"].astype(int) - raster["rgb"]).mean() > 2
+
+
+@pytest.mark.skipif(pbr._vulkan_problem() is not None, reason=f"no Vulkan here: {pbr._vulkan_problem()}")
+def test_the_pbr_tier_gives_the_raster_labels_and_its_own_colours():
+    raster, lit = _capture("raster"), _capture("pbr")
+    for key in ("depth", "instance_segmentation", "semantic_segmentation", "geom_ids"):
+        assert np.array_equal(raster[key], lit[key]), key
+    for key in ("box", "instance_id", "pixels"):
+        assert np.array_equal(raster["bounding_box_2d_tight"][key], lit["bounding_box_2d_tight"][key])
+    assert lit["rgb"].shape == raster["rgb"].shape == (H, W, 3)
+    assert np.abs(lit["rgb"].astype(int) - raster["rgb"]).mean() > 5  # another renderer drew the colours
 
 
 def test_an_unknown_renderer_is_refused_in_one_line():
