@@ -43,33 +43,8 @@ from ambulo.navigation.world import NavWorld, NavWorldCfg
 from ambulo.perception.vo.odometry import RgbdOdometry
 from ambulo.robots import humanoid
 from ambulo.scenes.apartment import apartment
+from ambulo.scenes.apartment_paths import walk_poses
 from ambulo.utils.rotations import mat_to_quat
-
-TURN_RAD = math.radians(6.0)
-"""Turn per frame on the spot (60 deg/s at 10 Hz)."""
-STEP_M = 0.05
-"""Walk per frame (0.5 m/s at 10 Hz)."""
-
-
-def walk_poses(path_xy_m: np.ndarray, yaw0_rad: float, max_frames: int) -> list[tuple[float, float, float]]:
-    """(x m, y m, yaw rad) per frame: turn towards the next waypoint, then walk to it."""
-    x, y = (float(v) for v in path_xy_m[0])
-    yaw, out, k = yaw0_rad, [], 1
-    while len(out) < max_frames and k < len(path_xy_m):
-        dx, dy = path_xy_m[k, 0] - x, path_xy_m[k, 1] - y
-        dist = math.hypot(dx, dy)
-        if dist < 1e-6:
-            k += 1
-            continue
-        turn = (math.atan2(dy, dx) - yaw + math.pi) % (2 * math.pi) - math.pi
-        if abs(turn) > math.radians(1.0):
-            yaw += math.copysign(min(abs(turn), TURN_RAD), turn)
-        else:
-            step = min(STEP_M, dist)
-            x, y = x + step * math.cos(yaw), y + step * math.sin(yaw)
-            k += step == dist
-        out.append((x, y, yaw))
-    return out
 
 
 def wall_patch_std(rgb: np.ndarray, depth_m: np.ndarray, geom_ids: np.ndarray) -> float | None:

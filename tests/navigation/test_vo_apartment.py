@@ -3,7 +3,7 @@ lost in every apartment).
 
 The walk is scripted with ground-truth motion: the robot is played along a sampled start/goal's
 geodesic in the navigator's ``NavWorld`` (its head camera, lamp and 320x240 view), turning on the
-spot towards each waypoint at ``TURN_DEG`` a frame, then walking ``STEP_M`` a frame (at the
+spot towards each waypoint 6 deg a frame, then walking 5 cm a frame (``scenes.apartment_paths.walk_poses``) (at the
 navigator's 10 Hz: 60 deg/s and 0.5 m/s). Apartment 1000's walk starts facing a plain wall and
 turns away from it: the 640x480 ORB defaults (FAST 12, 31 px patches) track 45 of its 60 frames
 with 0.62 m error; the head-camera preset tracks all 60 within 4 mm.
@@ -30,32 +30,8 @@ from ambulo.navigation.world import NavWorld, NavWorldCfg
 from ambulo.perception.vo.odometry import RgbdOdometry
 from ambulo.robots import humanoid
 from ambulo.scenes.apartment import apartment
+from ambulo.scenes.apartment_paths import walk_poses
 from ambulo.utils.rotations import mat_to_quat
-
-TURN_DEG = 6.0
-STEP_M = 0.05
-
-
-def _poses(path_xy_m: np.ndarray, yaw0: float, num_frames: int) -> list[tuple[float, float, float]]:
-    """(x, y, yaw) per frame along ``path_xy_m`` (K, 2): turn towards the next waypoint, then walk."""
-    x, y = (float(v) for v in path_xy_m[0])
-    yaw, out, k = yaw0, [], 1
-    while len(out) < num_frames and k < len(path_xy_m):
-        dx, dy = path_xy_m[k, 0] - x, path_xy_m[k, 1] - y
-        dist = math.hypot(dx, dy)
-        if dist < 1e-6:
-            k += 1
-            continue
-        turn = (math.atan2(dy, dx) - yaw + math.pi) % (2 * math.pi) - math.pi
-        if abs(turn) > math.radians(1.0):
-            yaw += math.copysign(min(abs(turn), math.radians(TURN_DEG)), turn)
-        else:
-            step = min(STEP_M, dist)
-            x, y = x + step * math.cos(yaw), y + step * math.sin(yaw)
-            if step == dist:
-                k += 1
-        out.append((x, y, yaw))
-    return out
 
 
 def scripted_walk_frames(apartment_seed: int, num_frames: int, episode_seed: int = 0):
@@ -67,7 +43,7 @@ def scripted_walk_frames(apartment_seed: int, num_frames: int, episode_seed: int
     z = float(qpos[0, 2])
     frames = []
     try:
-        for x, y, yaw in _poses(np.asarray(ep.path_xy_m, float), ep.start_pose[2], num_frames):
+        for x, y, yaw in walk_poses(np.asarray(ep.path_xy_m, float), ep.start_pose[2], num_frames):
             c, s = math.cos(yaw), math.sin(yaw)
             qpos[0, 0:3] = qpos.new_tensor([x, y, z])
             qpos[0, 3:7] = qpos.new_tensor(mat_to_quat(np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])))

@@ -160,3 +160,27 @@ def path_length_m(path_xy_m: np.ndarray) -> float:
 
 
 __all__ = ["PathFinder", "StartGoal", "path_length_m"]
+
+
+def walk_poses(path_xy_m: np.ndarray, yaw0_rad: float, max_frames: int, *, turn_rad: float = math.radians(6.0),
+               step_m: float = 0.05) -> list[tuple[float, float, float]]:
+    """A scripted camera walk along ``path_xy_m`` (K, 2): (x m, y m, yaw rad) per frame, turning on the spot
+    towards the next waypoint by at most ``turn_rad`` a frame, then walking to it by ``step_m`` a frame
+    (defaults: 60 deg/s and 0.5 m/s at 10 Hz). Drives the head camera's VO checks without the walking policy."""
+    x, y = (float(v) for v in path_xy_m[0])
+    yaw, out, k = yaw0_rad, [], 1
+    while len(out) < max_frames and k < len(path_xy_m):
+        dx, dy = path_xy_m[k, 0] - x, path_xy_m[k, 1] - y
+        dist = math.hypot(dx, dy)
+        if dist < 1e-6:
+            k += 1
+            continue
+        turn = (math.atan2(dy, dx) - yaw + math.pi) % (2 * math.pi) - math.pi
+        if abs(turn) > math.radians(1.0):
+            yaw += math.copysign(min(abs(turn), turn_rad), turn)
+        else:
+            step = min(step_m, dist)
+            x, y = x + step * math.cos(yaw), y + step * math.sin(yaw)
+            k += step == dist
+        out.append((x, y, yaw))
+    return out
