@@ -82,6 +82,9 @@ class NavigatorCfg(Checked):
     spot towards the route, so the camera sees where the robot is to go, m."""
     look_ahead_m: float = 0.6
     """A look turn faces the route point this far along it; a robot already facing it walks there, m."""
+    look_done_rad: float = 0.2
+    """A look turn is renewed early (the "subgoal" trigger) only once the robot faces within this of
+    its heading; the period and map triggers still renew it, rad."""
     start_snap_m: float = 0.35
     """A start stance that touches an obstacle moves to the nearest clear cell within this, m."""
     goal_backoff_m: float = 0.15
@@ -187,6 +190,8 @@ class Navigator:
         self.route: Route | None = None
         self.plan: FootstepPlan | None = None
         self.plan_final = False
+        self._look_yaw_rad: float | None = None
+        """The heading the current plan turns the robot to on the spot (a look turn), else None."""
         self.replans: list[ReplanRecord] = []
         self.status = "idle"
         """idle | walking | lost (waiting) | arrived | fell | lost_timeout | stuck | timeout | no_route"""
@@ -405,7 +410,7 @@ class Navigator:
             return "period"
         if self._drift_m(est) > c.drift_replan_m:
             return "drift"
-        if not self.plan_final and self.walker.remaining_m < c.subgoal_renew_m:
+        if not self.plan_final and self.walker.remaining_m < c.subgoal_renew_m and not self._turning(est):
             return "subgoal"
         if map_changed and self._plan_blocked():
             return "map changed"
@@ -432,6 +437,16 @@ class Navigator:
         if d[j] > self.cfg.start_snap_m:
             return None
         return (float(cx[j]), float(cy[j]), float(est[2]))
+
+    def _turning(self, est: np.ndarray) -> bool:
+        """Whether a look turn is still turning (``look_done_rad`` from its heading): its plan is
+        all "subgoal" (no path left), and renewing it every ``min_replan_gap_s`` restarted the
+        tracker on the turn's zig-zag body path, which then never reached the end where it turns to
+        the heading: 16 s for a 135 deg turn at the start of apartment 3 (mapping mode)."""
+        if self._look_yaw_rad is None:
+            return False
+        err = est[2] - self._look_yaw_rad
+        return abs(math.atan2(math.sin(err), math.cos(err))) > self.cfg.look_done_rad
 
     def _drift_m(self, est: np.ndarray) -> float:
         """Distance from the estimated position to the plan's body path, m."""
@@ -504,6 +519,7 @@ class Navigator:
                 refused = self.walker.refuse(plan)
                 if refused is None:
                     self.plan, self.plan_final = plan, final
+                    self._look_yaw_rad = yaw if look and "(faced" not in reason else None
                     self.walker.set_plan(plan, final=final)
         self.replans.append(ReplanRecord(now, time.perf_counter() - t0, reason, route.found, status, steps, final,
                                          refused))
