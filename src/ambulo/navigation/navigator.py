@@ -493,12 +493,25 @@ class Navigator:
                 goal_xy, yaw = est[:2].copy(), float(math.atan2(d[1], d[0]))
                 reason = reason + " (look)"
             plan = self._plan_footsteps(grid, version, optimistic, est, route, k, final, goal_xy, yaw)
+            if look and plan.status == PlanStatus.GOAL_IN_COLLISION and not optimistic:
+                # the body's cells (yaw-free) are clear, the turned soles touch cells never seen
+                # beside it: turning on the spot there is what the robot's own cells allow
+                # (apartment 200: 82 refused look turns, stuck)
+                plan = self._plan_footsteps(grid, version, True, est, route, k, final, goal_xy, yaw)
+                reason = reason + " (unseen free)"
             if look and plan.status == PlanStatus.SUCCESS and plan.num_steps < 1:
                 # already facing down the route: the camera cannot see the floor this near (it sees
                 # from ~1.6 m), so turning shows nothing new; walk on along the route instead (a
                 # well-localised robot stood here for the whole 20 s stuck window, apartments 200-209)
-                plan = self._plan_footsteps(grid, version, optimistic, est, route, j, False, path[j],
-                                            route_heading(path, j))
+                # up to the goal itself when it is that near, with the goal's recoveries (a goal
+                # stance by a wall: apartment 201 stood 0.28 m from it, refused 72 times)
+                final = j == len(path) - 1
+                if final:
+                    walk_xy = self.goal_xy_m
+                    walk_yaw = self.goal_yaw_rad if self.goal_yaw_rad is not None else route_heading(path, j)
+                else:
+                    walk_xy, walk_yaw = path[j], route_heading(path, j)
+                plan = self._plan_footsteps(grid, version, optimistic, est, route, j, final, walk_xy, walk_yaw)
                 reason = reason + " (faced: walk on)"
                 if plan.status == PlanStatus.GOAL_IN_COLLISION and not optimistic:
                     # the walk-on stance touches cells the camera never saw: a door jamb's shadow
@@ -508,8 +521,7 @@ class Navigator:
                     # refused walk-ons). So this short step (``look_ahead_m``, inside the blind
                     # zone) counts unseen cells free; seen obstacles still block it, and the cells
                     # the body crosses are marked free (``mark_body``).
-                    plan = self._plan_footsteps(grid, version, True, est, route, j, False, path[j],
-                                                route_heading(path, j))
+                    plan = self._plan_footsteps(grid, version, True, est, route, j, final, walk_xy, walk_yaw)
                     reason = reason + " (unseen free)"
             status, steps = plan.status.value, plan.num_steps
             usable = plan.status == PlanStatus.SUCCESS or (plan.num_steps >= 2 and plan.status in (
