@@ -4,11 +4,15 @@ import pytest
 
 from ambulo.isaac.app import SimulationApp
 from ambulo.sim import camera as sim_camera
+from ambulo.sim.world import World
 
 
 @pytest.fixture(autouse=True)
 def _restore_default_renderer():
+    # the cameras join the current World: start without one another test left (a name taken there fails)
+    World.clear_instance()
     yield
+    World.clear_instance()
     sim_camera.set_default_renderer("raster")
 
 
