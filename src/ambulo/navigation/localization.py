@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..nav.footstep_lattice import compose, relative
 from ..perception.frames import RgbdFrame
 from ..perception.vo.config import TrackState, VoCfg, head_camera_vo_cfg
 from ..perception.vo.odometry import RgbdOdometry
@@ -145,23 +146,6 @@ class VoLocalizer:
         return PoseEstimate(self._xyyaw.copy(), True, frame.time_s, pose_wc, state)
 
 
-def compose_xyyaw(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(3,) the planar pose ``a`` followed by ``b`` (``b`` in ``a``'s frame): x m, y m, yaw rad."""
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return np.array([a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], wrap_angle(a[2] + b[2])])
-
-
-def between_xyyaw(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(3,) the planar pose ``b`` in ``a``'s frame (``compose_xyyaw(a, between_xyyaw(a, b)) == b``)."""
-    c, s = math.cos(a[2]), math.sin(a[2])
-    dx, dy = b[0] - a[0], b[1] - a[1]
-    return np.array([c * dx + s * dy, -s * dx + c * dy, wrap_angle(b[2] - a[2])])
-
-
-def wrap_angle(a: float) -> float:
-    return (a + math.pi) % (2 * math.pi) - math.pi
-
-
 @dataclass(kw_only=True)
 class LegVoLocalizerCfg(Checked):
     """The fusion's settings (the VO's own are a ``VoLocalizerCfg``)."""
@@ -211,7 +195,7 @@ class LegVoLocalizer:
 
     def pose(self) -> np.ndarray:
         """The last fix composed with the legs' motion since (module docstring)."""
-        return compose_xyyaw(self._fix_xyyaw, between_xyyaw(self._fix_legs, self.legs.xyyaw))
+        return compose(self._fix_xyyaw, relative(self._fix_legs, self.legs.xyyaw))
 
     def since_fix(self) -> tuple[float, float]:
         """(m walked by the legs, s) since the last accepted VO fix."""
@@ -230,7 +214,7 @@ class LegVoLocalizer:
             pose_wi = est.pose_wc @ np.linalg.inv(self._pose_imu_cam)
             est.xyyaw = xyyaw_from_matrix(pose_wi @ np.linalg.inv(self.legs.pose_pelvis_imu()))
             bridged = since_m <= self.bridge_max_m and since_s <= self.bridge_max_s
-            off = between_xyyaw(predicted, est.xyyaw)
+            off = relative(predicted, est.xyyaw)
             gate_m = self.cfg.outlier_gate_m + self.cfg.outlier_gate_fraction * since_m
             if bridged and (math.hypot(off[0], off[1]) > gate_m or abs(math.degrees(off[2])) > self.cfg.outlier_gate_yaw_deg):
                 self.rejected += 1
@@ -256,4 +240,4 @@ class LegVoLocalizer:
 
 
 __all__ = ["LegVoLocalizer", "LegVoLocalizerCfg", "OracleLocalizer", "PoseEstimate", "TRACKED_STATES",
-           "VoLocalizer", "VoLocalizerCfg", "between_xyyaw", "compose_xyyaw", "is_tracked", "xyyaw_from_matrix"]
+           "VoLocalizer", "VoLocalizerCfg", "is_tracked", "xyyaw_from_matrix"]
