@@ -42,10 +42,18 @@ import time
 from pathlib import Path
 
 
-def launch(args, seed: int, out: Path) -> tuple[subprocess.Popen, Path]:
+def launch(args, seed: int, out: Path, gpus: list[str]) -> tuple[subprocess.Popen, Path]:
+    """Start one seed's training run on ``gpus`` (CUDA ids; empty: the device as given), through
+    torchrun with one rank per GPU when there are several."""
     root = out / f"seed{seed}"
     root.mkdir(parents=True, exist_ok=True)
-    cmd = [sys.executable, "-m", "ambulo.cli", "train", args.task, "--device", args.device,
+    env = dict(os.environ)
+    if gpus:
+        env["CUDA_VISIBLE_DEVICES"] = ",".join(gpus)
+    ranks = len(gpus) if len(gpus) > 1 else 1
+    prefix = ([sys.executable, "-m", "torch.distributed.run", "--standalone", f"--nproc-per-node={ranks}"]
+              if ranks > 1 else [sys.executable])
+    cmd = [*prefix, "-m", "ambulo.cli", "train", args.task, "--device", args.device,
            "--seed", str(seed), "--eval-every", str(args.eval_every),
            *([] if args.keep_training else ["--stop-at-criterion"]), "--max-iterations", str(args.max_iterations), "--log-root", str(root)]
     if args.num_envs:
@@ -55,7 +63,7 @@ def launch(args, seed: int, out: Path) -> tuple[subprocess.Popen, Path]:
     for pair in args.ppo_cfg or []:
         cmd += ["--ppo-cfg", pair]
     log = open(root / "train.log", "w")
-    proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT)
+    proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=env)
     return proc, root
 
 
@@ -118,7 +126,12 @@ def main() -> None:
     p.add_argument("--eval-every", type=int, default=25)
     p.add_argument("--max-iterations", type=int, default=100000)
     p.add_argument("--max-minutes", type=float, default=9.0)
-    p.add_argument("--parallel", type=int, default=1, help="runs at once (on one device)")
+    p.add_argument("--parallel", type=int, default=1, help="runs at once (on one device, or each on its "
+                                                            "own GPUs with --gpu-ids)")
+    p.add_argument("--gpu-ids", default="", help="CUDA ids the runs share out, e.g. 0,1,2,3 (default: "
+                                                 "every run on --device)")
+    p.add_argument("--gpus-per-run", type=int, default=1,
+                   help="GPUs per run from --gpu-ids: more than 1 trains data-parallel through torchrun")
     p.add_argument("--env-cfg", action="append")
     p.add_argument("--ppo-cfg", action="append")
     p.add_argument("--out", default="/tmp/ambulo-time-to-walk")
@@ -129,11 +142,17 @@ def main() -> None:
     args = p.parse_args()
     out = Path(args.out)
     seeds = [int(s) for s in args.seeds.split(",")]
-    pending, running, done = list(seeds), {}, {}
+    free_gpus = [g for g in args.gpu_ids.split(",") if g]
+    if free_gpus and len(free_gpus) < args.gpus_per_run:
+        raise SystemExit(f"--gpus-per-run {args.gpus_per_run} needs at least that many --gpu-ids (got {free_gpus})")
+    pending, running, done, held = list(seeds), {}, {}, {}
     while pending or running:
         while pending and len(running) < args.parallel:
+            if args.gpu_ids and len(free_gpus) < args.gpus_per_run:
+                break
             seed = pending.pop(0)
-            running[seed] = (*launch(args, seed, out), time.monotonic())
+            held[seed] = [free_gpus.pop(0) for _ in range(args.gpus_per_run)] if args.gpu_ids else []
+            running[seed] = (*launch(args, seed, out, held[seed]), time.monotonic())
         time.sleep(2.0)
         for seed, (proc, root, began) in list(running.items()):
             if proc.poll() is None and time.monotonic() - began > args.max_minutes * 60:
@@ -145,6 +164,7 @@ def main() -> None:
             if proc.poll() is not None:
                 done[seed] = run_summary(root)
                 del running[seed]
+                free_gpus.extend(held.pop(seed))
                 s = done[seed]
                 print(f"seed {seed}: " + (f"meets the criterion after {s['minutes']} min (iteration {s['iteration']})"
                                           if s["reached"] else "did not reach the criterion"), flush=True)
@@ -152,7 +172,8 @@ def main() -> None:
     rates = [done[s]["train_env_steps_per_s"] for s in seeds if "train_env_steps_per_s" in done[s]]
     result = {
         "benchmark": "time_to_walk", "task": args.task, "device": args.device,
-        "date": datetime.date.today().isoformat(), "seeds": seeds, "parallel_runs_per_device": args.parallel,
+        "date": datetime.date.today().isoformat(), "seeds": seeds, "parallel_runs_per_device": 1 if args.gpu_ids else args.parallel,
+        "gpus_per_run": args.gpus_per_run if args.gpu_ids else 1,
         "reached": f"{len(reached)}/{len(seeds)}",
         "minutes_median": statistics.median(reached) if reached else None,
         "minutes_min": min(reached) if reached else None,
