@@ -1,0 +1,130 @@
+"""Relocalisation against the map (``relocalize``) and the fused localizer that asks it: the head
+camera's depth in an apartment (seed 1000) is matched on the apartment's occupancy map."""
+
+import math
+
+import numpy as np
+import pytest
+
+from ambulo.navigation import NavWorld, NavWorldCfg
+from ambulo.navigation.localization import LegVoLocalizer
+from ambulo.navigation.relocalize import RelocalizeCfg, apply_correction, match_scan, scan_xy_m
+from ambulo.perception.vo.config import TrackState
+from ambulo.perception.vo.odometry import VoResult
+from ambulo.scenes import apartment
+
+FACING_ROOM = (4.3, 2.0, -math.pi / 2)
+"""Apartment 1000: in the doorway between its two right rooms, looking down the room (walls,
+a door, furniture in view)."""
+FACING_WALL = (4.3, 3.1, math.pi / 2)
+"""The same room's north wall 0.6 m ahead: one bare plane in view."""
+
+
+@pytest.fixture(scope="module")
+def apt():
+    return apartment(1000)
+
+
+def _world(apt, pose):
+    return NavWorld.from_apartment(apt, pose, NavWorldCfg())
+
+
+def _shifted(pose_wc, correction):
+    """The camera pose moved by the planar ``correction`` (dx, dy, dyaw) about its own position."""
+    out = pose_wc.copy()
+    c, s = math.cos(correction[2]), math.sin(correction[2])
+    rot = np.array([[c, -s], [s, c]])
+    out[:2, :3] = rot @ pose_wc[:2, :3]
+    out[:2, 3] = pose_wc[:2, 3] + correction[:2]
+    return out
+
+
+@pytest.mark.parametrize("offset", [(0.0, 0.0, 0.0), (0.4, -0.3, 0.05), (-0.8, 0.5, -0.07)])
+def test_a_frame_matched_from_a_wrong_guess_finds_the_true_pose(apt, offset):
+    world = _world(apt, FACING_ROOM)
+    frame = world.capture()
+    world.close()
+    truth = frame.pose_wc.numpy()
+    guess = _shifted(truth, -np.asarray(offset))
+    cfg = RelocalizeCfg(search_xy_m=1.0)
+    scan = scan_xy_m(frame.depth_m.numpy(), frame.intrinsics.numpy(), guess, cfg)
+    m = match_scan(world.occupancy, scan, guess[:2, 3], cfg)
+    assert m.confident, m.reason
+    found = apply_correction(m.correction, guess[:2, 3], np.array([*guess[:2, 3], 0.0]))
+    assert np.linalg.norm(found[:2] - truth[:2, 3]) < 0.06
+    assert abs(m.correction[2] - offset[2]) < math.radians(1.5)
+
+
+def test_a_bare_wall_is_ambiguous(apt):
+    world = _world(apt, FACING_WALL)
+    frame = world.capture()
+    world.close()
+    pose = frame.pose_wc.numpy()
+    cfg = RelocalizeCfg()
+    m = match_scan(world.occupancy, scan_xy_m(frame.depth_m.numpy(), frame.intrinsics.numpy(), pose, cfg),
+                   pose[:2, 3], cfg)
+    assert not m.confident and m.reason == "ambiguous"
+
+
+class _SlippedOdometry:
+    """A stand-in for ``RgbdOdometry``: the true camera pose on the first frame, then TRACKING
+    poses moved by ``slip`` (a VO whose frame slipped: a wrong relocalisation)."""
+
+    def __init__(self, world, slip):
+        self.world, self.slip, self.index = world, np.asarray(slip, float), -1
+
+    def track(self, rgb, depth, gyro=None, motion_cam=None):
+        self.index += 1
+        pose = self.world.camera_pose_wc()
+        if self.index > 0:
+            pose = _shifted(pose, self.slip)
+        return VoResult(pose_wc=pose, state=TrackState.TRACKING, inliers=200, num_keyframes=1, tracked=True)
+
+
+def _localizer(world, with_map: bool, **kw):
+    loc = LegVoLocalizer(odometry=_SlippedOdometry(world, (0.6, -0.4, 0.0)),
+                         map_source=(lambda: world.occupancy) if with_map else None, **kw)
+    loc.reset(world)
+    return loc
+
+
+def test_a_slipped_vo_is_moved_back_by_the_map_and_its_later_fixes_agree(apt):
+    world = _world(apt, FACING_ROOM)
+    truth = world.true_pose()
+    loc = _localizer(world, with_map=True)
+    frames = [world.capture() for _ in range(3)]
+    first, slipped, later = (loc.on_frame(f) for f in frames)
+    world.close()
+    assert first.source == "vo"
+    assert slipped.tracked and slipped.source == "map" and loc.map_checks[-1][2] == "legs"
+    assert np.linalg.norm(slipped.xyyaw[:2] - truth[:2]) < 0.06
+    assert np.linalg.norm(slipped.pose_wc[:2, 3] - frames[1].pose_wc.numpy()[:2, 3]) < 0.06
+    assert later.tracked and later.source == "vo" and loc.rejected == 0
+    assert np.linalg.norm(later.xyyaw[:2] - truth[:2]) < 0.06
+
+
+def test_without_a_map_the_slipped_vo_is_refused_within_the_bridge(apt):
+    world = _world(apt, FACING_ROOM)
+    loc = _localizer(world, with_map=False)
+    loc.on_frame(world.capture())
+    est = loc.on_frame(world.capture())
+    world.close()
+    assert not est.tracked and est.state == "rejected" and loc.rejected == 1
+
+
+@pytest.mark.parametrize("pose, with_map, taken", [(FACING_WALL, True, False), (FACING_ROOM, True, True),
+                                                   (FACING_WALL, False, True)])
+def test_past_the_bridge_a_disagreeing_fix_is_taken_only_where_the_map_confirms_it(apt, pose, with_map, taken):
+    world = _world(apt, pose)
+    truth = world.true_pose()
+    loc = _localizer(world, with_map, bridge_max_m=-1.0)  # every bridge has run out
+    loc.on_frame(world.capture())
+    est = loc.on_frame(world.capture())
+    world.close()
+    assert est.tracked == taken
+    if not taken:
+        assert est.state == "unverified" and est.source == "none" and loc.unverified == 1
+    elif with_map:
+        assert np.linalg.norm(est.xyyaw[:2] - truth[:2]) < 0.06  # at the map's pose, not the VO's
+    else:
+        assert np.linalg.norm(est.xyyaw[:2] - truth[:2]) > 0.5  # no witness: the VO's (module docstring)
