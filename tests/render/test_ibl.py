@@ -17,37 +17,11 @@ from ambulo.sensors.frames import look_at_gl
 SHIPPED = Path(mujoco.__file__).parent / "studio" / "assets" / "ibl.ktx"
 
 
-def _unpack(words: np.ndarray) -> np.ndarray:
-    """R11F_G11F_B10F texels -> (..., 3) float (unsigned 5-bit exponent, bias 15)."""
-    def channel(shift, mantissa_bits):
-        v = (words >> shift) & ((1 << (5 + mantissa_bits)) - 1)
-        e, m = (v >> mantissa_bits) & 31, v & ((1 << mantissa_bits) - 1)
-        frac = m / 2.0**mantissa_bits
-        return np.where(e == 0, frac * 2.0**-14, 2.0 ** (e.astype(float) - 15) * (1 + frac))
-    return np.stack([channel(0, 6), channel(11, 6), channel(22, 5)], -1)
-
-
-def _read_ktx(blob: bytes) -> tuple[list[np.ndarray], np.ndarray]:
-    """Level-0 faces and the ``sh`` coefficients (9, 3) of a KTX1 cubemap."""
-    header = struct.unpack("<13I", blob[12:64])
-    size, kv_bytes = header[6], header[12]
-    text = blob[68:64 + kv_bytes].split(b"\0")[1].decode().split()
-    sh = np.array(text, float).reshape(9, 3)
-    offset = 64 + kv_bytes
-    face_bytes = struct.unpack("<I", blob[offset:offset + 4])[0]
-    offset += 4
-    faces = []
-    for _ in range(6):
-        faces.append(_unpack(np.frombuffer(blob[offset:offset + face_bytes], "<u4").reshape(size, size)))
-        offset += face_bytes
-    return faces, sh
-
-
 @pytest.mark.skipif(not SHIPPED.is_file(), reason="mujoco-studio's ibl.ktx is not installed")
 def test_irradiance_sh_reproduces_cmgen_coefficients_of_the_shipped_environment():
     """cmgen multiplies bands 1 and 2 by a ringing window; band 0 is the plain irradiance, and within
     each band every coefficient and colour has the same ratio: same basis, order, axes and scale."""
-    faces, stored = _read_ktx(SHIPPED.read_bytes())
+    faces, stored = ibl.read_ktx(SHIPPED.read_bytes())
     ours = ibl.irradiance_sh(faces)
     ratio = stored / ours
     assert np.allclose(ratio[0], 1.0, rtol=5e-3)
@@ -66,7 +40,7 @@ def test_a_uniform_environment_has_only_the_constant_coefficient():
 
 def test_texel_packing_round_trips_within_the_format_precision():
     values = np.array([[0.0, 0.0, 0.0], [1.0, 0.5, 0.25], [123.4, 0.01, 7.7], [60000.0, 3e-3, 1e-4]])
-    back = _unpack(ibl._pack_r11g11b10(values))
+    back = ibl._unpack_r11g11b10(ibl._pack_r11g11b10(values))
     assert np.all(np.abs(back - values) <= values * 2.0**-5 + 1e-4)  # 6/5-bit mantissas, truncated
 
 
@@ -77,7 +51,7 @@ def test_ktx_header_and_levels_match_the_shipped_layout(tmp_path):
     assert blob[:12] == ibl._KTX1_ID and header[6:12] == (8, 8, 0, 0, 6, 4)  # 8, 4, 2, 1 px levels
     if SHIPPED.is_file():
         assert header[1:6] == struct.unpack("<13I", SHIPPED.read_bytes()[12:64])[1:6]
-    read_faces, sh = _read_ktx(blob)
+    read_faces, sh = ibl.read_ktx(blob)
     assert np.allclose(read_faces[0], 1.0, rtol=2**-5) and np.allclose(sh[0], 1.0, rtol=1e-3)
 
 
@@ -108,3 +82,16 @@ def test_the_environment_lights_the_side_it_shines_from(tmp_path, bright, lit_si
     sides = {"top": image[20, 32, 0], "bottom": image[44, 32, 0], "left": image[32, 20, 0], "right": image[32, 44, 0]}
     opposite = {"top": "bottom", "right": "left"}[lit_side]
     assert int(sides[lit_side]) > 2 * int(sides[opposite]) + 5, sides
+
+
+def test_cube_faces_back_to_latlong_is_the_same_environment():
+    """What the path tier reads from an image light's KTX: a smooth sky varying with azimuth and
+    elevation (each axis direction a different colour) survives lat-long -> cube -> lat-long."""
+    h = 32
+    theta = np.pi * (np.arange(h) + 0.5) / h
+    phi = 2 * np.pi * (np.arange(2 * h) + 0.5) / (2 * h)
+    t, p = np.meshgrid(theta, phi, indexing="ij")
+    x, y, z = np.sin(t) * np.sin(p), np.sin(t) * np.cos(p), np.cos(t)
+    env = np.stack([1.5 + x, 1.5 + y, 1.5 + z], -1).astype(np.float32)
+    back = ibl.latlong_of_faces(ibl.cube_faces(env, 32), h)  # float faces: the mapping, not the 6-bit packing
+    assert np.abs(back - env).max() < 0.03 and np.abs(back - env).mean() < 0.003

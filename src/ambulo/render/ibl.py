@@ -1,5 +1,6 @@
-"""Image-based lighting for the pbr tier: an HDR environment (Isaac's ``DomeLight``
-``inputs:texture:file``) as the KTX cubemap MuJoCo's Filament renderer lights with.
+"""Image-based lighting for the pbr and path tiers: an HDR environment (Isaac's ``DomeLight``
+``inputs:texture:file``) as the KTX cubemap MuJoCo's Filament renderer lights with, stored in the
+model; the path tier reads the same texels back (``image_light_radiance``), so one model lights both.
 
 ``add_image_light(spec, "sky.hdr")`` adds ``<texture file="...ktx">`` and ``<light type="image">``
 to a scene. Filament reads an image light as a KTX1 cubemap whose key ``sh`` holds the
@@ -44,6 +45,15 @@ _SH_A_OVER_PI = np.array([1.0, 2 / 3, 2 / 3, 2 / 3, 0.25, 0.25, 0.25, 0.25, 0.25
 # glType, glTypeSize, glFormat, glInternalFormat, glBaseInternalFormat (GL_R11F_G11F_B10F = 0x8C3A)
 _KTX_FORMAT = (0x8C3A, 1, 0x1907, 0x8C3A, 0x8C3A)
 _KTX1_ID = b"\xabKTX 11\xbb\r\n\x1a\n"
+
+FILAMENT_EXPOSURE = 1.0 / 38400.0
+"""Linear image value per unit of luminance of Filament's default camera (f/16, 1/125 s, ISO 100:
+1 / (1.2 * 2^EV100), EV100 = log2(16^2 * 125)). The path tier reads an image light's radiance as
+texel x intensity x this, so both tiers show the same linear value (before the pbr tier's tone mapping)."""
+
+IMAGE_LIGHT_PER_NIT = 30.0
+"""Image-light intensity per nit of an Isaac DomeLight (``inputs:intensity``): Isaac's default
+1000-nit dome becomes Filament's default 30,000 (a radiance-1 environment shown at 0.78 linear)."""
 
 
 def read_hdr(path: str | os.PathLike) -> np.ndarray:
@@ -140,30 +150,131 @@ def ktx_bytes(faces: list[np.ndarray]) -> bytes:
     return header + key_value + b"".join(body)
 
 
-def environment_ktx(hdr_path: str | os.PathLike, cache_dir: str | os.PathLike | None = None,
-                    face_px: int = FACE_PX) -> Path:
-    """The KTX of HDR ``hdr_path`` in ``cache_dir`` (default ``~/.cache/ambulo/ibl``), written once
-    per file content and face size (the name is their hash)."""
-    data = Path(hdr_path).read_bytes()
+def environment_ktx(env: str | os.PathLike | np.ndarray, cache_dir: str | os.PathLike | None = None,
+                    face_px: int = FACE_PX, name: str = "environment") -> Path:
+    """The KTX of lat-long environment ``env`` (an HDR file, or an (H, W, 3) float linear image
+    called ``name``) in ``cache_dir`` (default ``~/.cache/ambulo/ibl``), written once per content
+    and face size (the file name is their hash)."""
+    if isinstance(env, np.ndarray):
+        image = np.ascontiguousarray(env, np.float32)
+        if image.ndim != 3 or image.shape[-1] != 3:
+            raise ValueError(f"an environment image is (H, W, 3) linear RGB, not {image.shape}")
+        data, stem = image.tobytes() + str(image.shape).encode(), name
+    else:
+        image, data, stem = None, Path(env).read_bytes(), Path(env).stem
     digest = hashlib.sha256(data + str(face_px).encode()).hexdigest()[:16]
     folder = Path(cache_dir or Path.home() / ".cache" / "ambulo" / "ibl")
-    out = folder / f"{Path(hdr_path).stem}-{digest}.ktx"
+    out = folder / f"{stem.replace('/', '_')}-{digest}.ktx"
     if not out.is_file():
         folder.mkdir(parents=True, exist_ok=True)
         tmp = out.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_bytes(ktx_bytes(cube_faces(read_hdr(hdr_path), face_px)))
+        tmp.write_bytes(ktx_bytes(cube_faces(read_hdr(env) if image is None else image, face_px)))
         os.replace(tmp, out)
     return out
 
 
-def add_image_light(spec: mujoco.MjSpec, hdr_path: str | os.PathLike, *, name: str = "environment",
+def add_image_light(spec: mujoco.MjSpec, env: str | os.PathLike | np.ndarray, *, name: str = "environment",
                     intensity: float = 30000.0, cache_dir: str | os.PathLike | None = None) -> mujoco.MjsLight:
-    """Light ``spec``'s scene with the HDR environment ``hdr_path`` (pbr tier; the rasterizer ignores
-    image lights). ``intensity`` scales the HDR's values: Filament's default 30,000 shows an
-    environment of radiance 1 at about half of white with its default exposure."""
-    ktx = environment_ktx(hdr_path, cache_dir)
+    """Light ``spec``'s scene with the lat-long environment ``env`` (an HDR file or an (H, W, 3)
+    linear image), for the pbr and path tiers (the rasterizer ignores image lights). ``intensity``
+    scales the values: a white Lambertian surface under a uniform environment of value T shows
+    ``T * intensity * FILAMENT_EXPOSURE`` (linear), so Filament's default 30,000 shows T = 1 at 0.78."""
+    ktx = environment_ktx(env, cache_dir, name=name)
     spec.add_texture(name=f"{name}_ktx", file=str(ktx), type=mujoco.mjtTexture.mjTEXTURE_2D)
     light = spec.worldbody.add_light(name=name, type=mujoco.mjtLightType.mjLIGHT_IMAGE, texture=f"{name}_ktx")
     light.intensity = float(intensity)
     light.castshadow = False
     return light
+
+
+def _unpack_r11g11b10(words: np.ndarray) -> np.ndarray:
+    """R11F_G11F_B10F texels -> (..., 3) float32 (unsigned floats: 5-bit exponent, bias 15)."""
+    def channel(shift, mantissa_bits):
+        v = (words >> shift) & ((1 << (5 + mantissa_bits)) - 1)
+        e, m = (v >> mantissa_bits) & 31, v & ((1 << mantissa_bits) - 1)
+        frac = m / 2.0**mantissa_bits
+        return np.where(e == 0, frac * 2.0**-14, 2.0 ** (e.astype(float) - 15) * (1 + frac))
+    return np.stack([channel(0, 6), channel(11, 6), channel(22, 5)], -1).astype(np.float32)
+
+
+def read_ktx(blob: bytes) -> tuple[list[np.ndarray], np.ndarray | None]:
+    """Level-0 faces (six (N, N, 3) float32, KTX order) and the ``sh`` coefficients (9, 3) (None
+    without that key) of an R11F_G11F_B10F KTX1 cubemap: what ``ktx_bytes`` and Filament's cmgen write."""
+    if blob[:12] != _KTX1_ID:
+        raise ValueError("not a KTX1 file: image lights are KTX1 cubemaps (ambulo.render.ibl writes them)")
+    header = struct.unpack("<13I", blob[12:64])
+    if header[1:6] != _KTX_FORMAT or header[10] != 6:
+        raise ValueError("only R11F_G11F_B10F KTX1 cubemaps are read (as ambulo.render.ibl and cmgen write them)")
+    size, kv_bytes = header[6], header[12]
+    sh, offset = None, 64
+    while offset < 64 + kv_bytes:
+        length = struct.unpack("<I", blob[offset:offset + 4])[0]
+        key, _, value = blob[offset + 4:offset + 4 + length].partition(b"\0")
+        if key == b"sh":
+            sh = np.array(value.rstrip(b"\0").decode().split(), float).reshape(9, 3)
+        offset += 4 + length + (-length % 4)
+    offset = 64 + kv_bytes
+    face_bytes = struct.unpack("<I", blob[offset:offset + 4])[0]
+    offset += 4
+    faces = []
+    for _ in range(6):
+        faces.append(_unpack_r11g11b10(np.frombuffer(blob[offset:offset + face_bytes], "<u4").reshape(size, size)))
+        offset += face_bytes
+    return faces, sh
+
+
+def latlong_of_faces(faces: list[np.ndarray], height_px: int) -> np.ndarray:
+    """The (height_px, 2 height_px, 3) lat-long image (z up, as ``sample_latlong`` reads) of cube
+    ``faces``: the inverse of ``cube_faces``, bilinear within each face (edges clamped)."""
+    size = faces[0].shape[0]
+    theta = np.pi * (np.arange(height_px) + 0.5) / height_px
+    phi = 2 * np.pi * (np.arange(2 * height_px) + 0.5) / (2 * height_px)
+    t, p = np.meshgrid(theta, phi, indexing="ij")
+    d_w = np.stack([np.sin(t) * np.sin(p), np.sin(t) * np.cos(p), np.cos(t)], -1)
+    x, y, z = np.moveaxis(d_w @ CUBE_TO_WORLD, -1, 0)  # cube coordinates (CUBE_TO_WORLD is a rotation)
+    ax, ay, az = np.abs(x), np.abs(y), np.abs(z)
+    major = np.argmax(np.stack([ax, ay, az]), 0)
+    face = np.where(major == 0, np.where(x > 0, 0, 1), np.where(major == 1, np.where(y > 0, 2, 3),
+                                                                np.where(z > 0, 4, 5)))
+    # (s, t) of face_directions' texel grid, solved for each face's major axis
+    s = np.choose(face, [-z / ax, z / ax, x / ay, x / ay, x / az, -x / az])
+    tc = np.choose(face, [-y / ax, -y / ax, z / ay, -z / ay, -y / az, -y / az])
+    col = np.clip((s + 1) / 2 * size - 0.5, 0, size - 1)
+    row = np.clip((tc + 1) / 2 * size - 0.5, 0, size - 1)
+    c0, r0 = np.minimum(col.astype(int), size - 2), np.minimum(row.astype(int), size - 2)
+    fc, fr = (col - c0)[..., None], (row - r0)[..., None]
+    cube = np.stack(faces)
+    top = cube[face, r0, c0] * (1 - fc) + cube[face, r0, c0 + 1] * fc
+    bottom = cube[face, r0 + 1, c0] * (1 - fc) + cube[face, r0 + 1, c0 + 1] * fc
+    return (top * (1 - fr) + bottom * fr).astype(np.float32)
+
+
+def rotate_latlong(env: np.ndarray, rot_w_local: np.ndarray) -> np.ndarray:
+    """Lat-long ``env`` given in a frame turned by ``rot_w_local`` (3, 3) (a rotated USD DomeLight),
+    resampled in the world frame at the same size."""
+    h = env.shape[0]
+    theta = np.pi * (np.arange(h) + 0.5) / h
+    phi = 2 * np.pi * (np.arange(2 * h) + 0.5) / (2 * h)
+    t, p = np.meshgrid(theta, phi, indexing="ij")
+    d_w = np.stack([np.sin(t) * np.sin(p), np.sin(t) * np.cos(p), np.cos(t)], -1)
+    return sample_latlong(env, d_w @ np.asarray(rot_w_local, float)).astype(np.float32)  # d_local = R^T d_w
+
+
+def image_light_radiance(model: mujoco.MjModel, light_id: int, height_px: int | None = None) -> np.ndarray:
+    """(H, 2H, 3) float32 lat-long radiance of image light ``light_id`` in the tiers' units: texel x
+    intensity x ``FILAMENT_EXPOSURE``, what the pbr tier shows with its default camera (before tone
+    mapping). ``height_px`` defaults to twice the cube face (the texels' own resolution)."""
+    tex = int(model.light_texid[light_id])
+    if tex < 0:
+        raise ValueError(f"image light {light_id} has no texture; give it a KTX cubemap (add_image_light)")
+    adr = int(model.tex_adr[tex])
+    n = int(model.tex_width[tex]) * int(model.tex_height[tex]) * int(model.tex_nchannel[tex])
+    faces, _ = read_ktx(model.tex_data[adr:adr + n].tobytes())
+    env = latlong_of_faces(faces, height_px or 2 * faces[0].shape[0])
+    return env * np.float32(model.light_intensity[light_id] * FILAMENT_EXPOSURE)
+
+
+def image_light_ids(model: mujoco.MjModel) -> list[int]:
+    """The active image lights of ``model`` (MJCF ``<light type="image">``)."""
+    return [i for i in range(model.nlight)
+            if model.light_type[i] == mujoco.mjtLightType.mjLIGHT_IMAGE and model.light_active[i]]

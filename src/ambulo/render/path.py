@@ -11,8 +11,9 @@ Variants: ``cuda_ad_rgb`` on an NVIDIA GPU, else ``llvm_ad_rgb`` (CPU; needs lib
 Debian's ``libllvm19``, which ``scripts/setup.sh`` installs). Labels (depth, ids) are not made
 here: they come from the rasterizer's id pass, so they are identical in every tier.
 
-The environment: ``envmap_path`` if given, else the model's skybox (which, unlike in the rasterizer,
-also lights the scene), else a constant one of the lights' ambient. What it does not model: MuJoCo
+The environment: ``envmap_path`` if given, else the model's image lights (``<light type="image">``,
+what a USD DomeLight becomes; read once, when the tracer is built), else the model's skybox (which,
+unlike in the rasterizer, also lights the scene), else a constant one of the lights' ambient. What it does not model: MuJoCo
 cube-map textures on objects (mean colour), flexes and skins, orthographic or off-axis cameras,
 light textures, the rasterizer's fog and haze.
 """
@@ -27,6 +28,7 @@ import numpy as np
 
 from ..utils.validate import Checked, rule
 from .denoise import denoise_numpy, denoise_torch, has_pyoidn
+from .ibl import image_light_ids, image_light_radiance
 from .scene_description import (
     CameraDesc,
     LightDesc,
@@ -68,9 +70,10 @@ class PathTracerCfg(Checked):
     variant: Literal["auto", "cuda_ad_rgb", "llvm_ad_rgb"] = "auto"
     """"auto": CUDA when an NVIDIA driver is there, else the LLVM CPU backend."""
     envmap_path: str | None = None
-    """Latitude-longitude HDR image (.exr, .hdr; Isaac's DomeLight texture) lighting the scene, z up;
-    None: a constant environment of the MuJoCo lights' ambient."""
+    """Latitude-longitude HDR image (.exr, .hdr) lighting the scene, z up, in place of the model's own
+    environment; None: the model's image lights, else its skybox, else the lights' ambient (module doc)."""
     envmap_scale: float = field(default=1.0, metadata=rule(minimum=0))
+    """Multiplies ``envmap_path``'s values or the model's image lights."""
     exposure: float = field(default=1.0, metadata=rule(minimum=0, strict=True))
     """Multiplies linear radiance before the sRGB encoding."""
     seed: int = 0
@@ -186,9 +189,16 @@ class PathTracer:
         turn = self.mi.ScalarTransform4f().rotate([1, 0, 0], 90)  # Mitsuba's envmaps are y up; ours z up
         ambient = ambient_radiance(scene)
         sky = skybox_latlong(self.model) if scene.flags[mujoco.mjtRndFlag.mjRND_SKYBOX] else None
+        images = image_light_ids(self.model)
         if cfg.envmap_path is not None:
             out["environment"] = {"type": "envmap", "filename": cfg.envmap_path, "scale": cfg.envmap_scale,
                                   "to_world": turn}
+        elif images:
+            # the model's image lights (a USD DomeLight) are the environment, as in the pbr tier: they
+            # replace the skybox and the lights' ambient (the rasterizer's stand-in for them)
+            env = sum(image_light_radiance(self.model, i) for i in images)
+            out["environment"] = {"type": "envmap", "bitmap": self.mi.Bitmap(np.ascontiguousarray(env, np.float32)),
+                                  "scale": cfg.envmap_scale, "to_world": turn}
         elif sky is not None:
             # the one environment emitter: the skybox the rasterizer shows, plus the lights' ambient
             sky = np.ascontiguousarray(sky + ambient, np.float32)

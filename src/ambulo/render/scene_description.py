@@ -225,9 +225,12 @@ def light_intensity(light: mujoco.MjvLight, reference_m: float, attenuation=(1.0
 
 
 def lights_of(model: mujoco.MjModel, data: mujoco.MjData, scene: mujoco.MjvScene) -> list[LightDesc]:
-    """The scene's lights (headlight included) with physical intensities."""
+    """The scene's lights (headlight included) with physical intensities; image lights are not
+    among them (they are the environment: ``ibl.image_light_radiance``)."""
     out = []
     for light in scene.lights[: scene.nlight]:
+        if light.type == _LIGHT.mjLIGHT_IMAGE:
+            continue
         pos, direction = np.asarray(light.pos, float), np.asarray(light.dir, float)
         direction = direction / max(np.linalg.norm(direction), 1e-12)
         if light.type == _LIGHT.mjLIGHT_DIRECTIONAL or light.headlight:

@@ -19,7 +19,8 @@ false`` ones left out, their bodies then unconnected by them), ``DriveAPI`` gain
 and max force, the ``PhysicsScene`` gravity, and PhysX's ``physxScene:solverType``-free
 iteration counts (``physxRigidBody:solverPositionIterationCount``, the largest one sets the
 solver iterations), ``physxScene:timeStepsPerSecond`` (the World's ``physics_dt``), and the
-other PhysX attributes with a MuJoCo meaning (``ambulo.core.usd_physx``). Not honoured:
+other PhysX attributes with a MuJoCo meaning (``ambulo.core.usd_physx``), and ``UsdLux`` dome lights
+(``ambulo.sim.usd_lights``: image-based lighting of the pbr and path tiers). Not honoured:
 materials' friction combine modes other than max, and edits made with pxr to mirrored prims
 (move those through the ambulo API).
 """
@@ -31,6 +32,8 @@ import os
 import tempfile
 
 import mujoco
+
+from .usd_lights import add_dome_lights
 
 MIRRORED = "ambulo:mirrored"
 """customData key on prims whose physics is in the MjSpec (made through the ambulo API)."""
@@ -205,6 +208,7 @@ class UsdStage:
             layer.Export(file)
             spec = load_spec(file, drives=drives)
         _apply_display_colors(copy, spec)
+        add_dome_lights(copy, spec, ROOT)  # MuJoCo's importer reads no UsdLux prims
         return spec
 
     def initial_velocities(self) -> dict[str, tuple[tuple[float, ...], tuple[float, ...]]]:
