@@ -182,6 +182,12 @@ class RLEnv:
         """Write drive targets for the next ``decimation`` physics steps from (N, A) float32 actions."""
         raise NotImplementedError
 
+    def _simulate(self) -> torch.Tensor:
+        """Advance the physics one policy step; return the (N,) bool mask of diverged worlds.
+        Default: ``decimation`` physics steps in one batched call (a task whose drives change
+        within the policy step, such as an action latency, steps them itself)."""
+        return self.sim.step(self.cfg.decimation)
+
     def _pre_physics(self) -> None:
         """Per-policy-step state changes before physics (pushes, command updates, ...)."""
 
@@ -255,7 +261,7 @@ class RLEnv:
         self.actions.copy_(actions.clamp(-self.cfg.action_clip, self.cfg.action_clip))
         self._apply_action(self.actions)
         self._pre_physics()
-        diverged = self.sim.step(self.cfg.decimation).to(self.device)
+        diverged = self._simulate().to(self.device)
         self.episode_length_buf += 1
         self._post_physics()
 

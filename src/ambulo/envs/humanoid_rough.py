@@ -1,0 +1,194 @@
+"""humanoid-rough: humanoid-walk over a terrain curriculum, with a height scan and transfer randomization.
+
+The task of humanoid-walk (commands, rewards, the ``walks`` criterion) on a grid of tiles
+(``scenes.terrain``: flat, rough, slopes, stairs up and down to 0.15 m risers, stepping stones)
+that robots climb level by level as they walk out of their tile (legged_gym's curriculum). The
+actor sees, after humanoid-walk's 72 values, a height scan: base height over the ground at a
+17 x 11 grid around the base (``HeightScanCfg``), read from the terrain's samples on the device.
+The critic sees the clean scan and, privileged, each foot's height over the ground under it.
+Falls count against the ground under the base (a robot on a 0.75 m stair summit is not fallen).
+Transfer randomization (``envs.transfer``) draws gains, motor strength, joint friction and
+armature, CoM offsets at start and action latency and observation delay per episode.
+
+Play and evaluation put every robot on the hardest level, with no curriculum and no transfer
+randomization (``humanoid_rough_play_cfg``); ``mean_terrain_level`` reports where training is.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import torch
+
+from ambulo.core.rows import fill_rows, put_rows, take_rows
+from ambulo.scenes.terrain import (
+    HeightScan,
+    HeightScanCfg,
+    TerrainCfg,
+    TerrainCurriculum,
+    TerrainCurriculumCfg,
+    TerrainHeights,
+    add_terrain,
+    generate,
+)
+from ambulo.sensors import ContactSensor, ContactSensorCfg
+
+from .humanoid_walk import WALKS, HumanoidWalkCfg, HumanoidWalkEnv, as_play, humanoid_walk_cfg, humanoid_walk_ppo
+from .registry import TaskSpec, register
+from .transfer import TransferCfg, TransferRandomization, transfer_cfg_wide
+
+
+@dataclass(kw_only=True)
+class HumanoidRoughCfg(HumanoidWalkCfg):
+    """humanoid-rough settings: humanoid-walk's and the terrain's."""
+
+    terrain: TerrainCfg = field(default_factory=TerrainCfg)
+    curriculum: TerrainCurriculumCfg = field(default_factory=TerrainCurriculumCfg)
+    height_scan: HeightScanCfg = field(default_factory=lambda: HeightScanCfg(height_offset_m=0.9))
+    scan_in_actor: bool = True
+    """The actor sees the height scan; False: only the critic does (a blind walker)."""
+    spawn_radius_m: float = 0.3
+    """Robots start uniformly within +-this of their tile's centre along x and y, m."""
+    terrain_friction: float = 1.0
+    """Sliding friction of the terrain geom before randomization."""
+    transfer: TransferCfg = field(default_factory=TransferCfg)
+
+
+def humanoid_rough_cfg() -> HumanoidRoughCfg:
+    """humanoid-walk's settings on the terrain grid, with the issue's transfer ranges
+    (``transfer_cfg_wide``) and scan noise of +-5 cm."""
+    walk = humanoid_walk_cfg()
+    cfg = HumanoidRoughCfg(**{name: getattr(walk, name) for name in walk.__dataclass_fields__})
+    cfg.ground = None  # the terrain is the ground
+    cfg.terrain = TerrainCfg(border_m=5.0)
+    cfg.transfer = transfer_cfg_wide()
+    cfg.observation_noise = dict(cfg.observation_noise, height_scan=0.05)
+    return cfg
+
+
+def humanoid_rough_play_cfg() -> HumanoidRoughCfg:
+    """Play and evaluation: humanoid-walk's play variant, every robot on the hardest level."""
+    cfg = as_play(humanoid_rough_cfg())
+    cfg.curriculum = TerrainCurriculumCfg(enabled=False, init_level=-1)
+    cfg.transfer = TransferCfg()
+    return cfg
+
+
+class HumanoidRoughEnv(HumanoidWalkEnv):
+    """Velocity tracking over the terrain curriculum; see the module docstring."""
+
+    cfg: HumanoidRoughCfg
+
+    def _design_scene(self, spec) -> None:
+        cfg = self.cfg
+        if cfg.ground is not None:
+            raise ValueError("humanoid-rough's ground is its terrain; set ground=None")
+        self.terrain = generate(cfg.terrain)
+        geom = add_terrain(spec, self.terrain, friction=cfg.terrain_friction)
+        feet = tuple(f"{cfg.robot.prim_path}/{foot}" for foot in cfg.feet_bodies)
+        self.feet = self.sim.add(ContactSensor(ContactSensorCfg(
+            name="feet_contact", prim_paths=feet, include_subtree=True, against=geom.name)))
+
+    def _setup(self) -> None:
+        super()._setup()
+        n, dev, cfg = self.num_envs, self.device, self.cfg
+        self.heights = TerrainHeights(self.terrain, dev)
+        self.curriculum = TerrainCurriculum(cfg.curriculum, self.terrain, n, self.generator, dev)
+        self.scanner = HeightScan(cfg.height_scan, self.heights)
+        f32 = dict(dtype=torch.float32, device=dev)
+        self._default_root_z = self.robot.data.root_pos_w[:, 2].float().clone()  # the initial state's
+        self._start_xy = torch.zeros(n, 2, **f32)
+        self.distance_m = torch.zeros(n, **f32)
+        """(N,) horizontal distance of each robot from where its episode started, m."""
+        self.command_path_m = torch.zeros(n, **f32)
+        """(N,) path length the commands asked for this episode (|v_cmd| integrated), m."""
+        self._targets = self.robot.default_joint_pos.expand(n, -1).clone()
+        self.transfer = TransferRandomization(cfg.transfer, self)
+        self.transfer.startup()
+
+    # -- terrain ----------------------------------------------------------------------------
+    def ground_height_m(self, xy_w: torch.Tensor) -> torch.Tensor:
+        """Terrain heights (m) under (..., 2) world points."""
+        return self.heights.height_at(xy_w)
+
+    def base_height_over_ground_m(self) -> torch.Tensor:
+        """(N,) base height over the terrain under it, m."""
+        root = self.robot.data.root_pos_w
+        return root[:, 2].float() - self.heights.height_at(root[:, :2])
+
+    # -- RLEnv hooks ------------------------------------------------------------------------
+    def _apply_action(self, actions: torch.Tensor) -> None:
+        self._targets = self.robot.default_joint_pos + actions * self.cfg.action_scale
+
+    def _simulate(self) -> torch.Tensor:
+        return self.transfer.simulate(self._targets, self.cfg.decimation)
+
+    def _post_physics(self) -> None:
+        super()._post_physics()
+        xy = self.robot.data.root_pos_w[:, :2].float()
+        self.distance_m = torch.linalg.vector_norm(xy - self._start_xy, dim=-1)
+        self.command_path_m += torch.linalg.vector_norm(self.commands.command[:, :2], dim=-1) * self.step_dt_s
+
+    def _reset_idx(self, rows: torch.Tensor) -> None:
+        # the curriculum reads how far the ended episodes got before anything is reset
+        self.curriculum.update(rows, self.distance_m, self.command_path_m)
+        super()._reset_idx(rows)
+        n, dt = self._num_rows(rows), self.engine.dtype
+        xy = take_rows(self.curriculum.origins_w[:, :2], rows) + self._uniform(
+            (n, 2), -self.cfg.spawn_radius_m, self.cfg.spawn_radius_m)
+        z = self.heights.height_at(xy) + take_rows(self._default_root_z, rows)
+        self.robot.write_root_pose(pos_w=torch.cat([xy, z[:, None]], dim=-1).to(dt), env_ids=rows)
+        put_rows(self._start_xy, slice(None), xy, rows)
+        fill_rows(self.distance_m, rows, 0.0)
+        fill_rows(self.command_path_m, rows, 0.0)
+        self.transfer.reset(rows)
+        self.transfer.start_episode_targets(rows, self.robot.default_joint_pos.expand(self.num_envs, -1))
+
+    def _compute_observations(self) -> torch.Tensor:
+        obs = super()._compute_observations()
+        return self.transfer.observe(obs, self.episode_length_buf == 0)
+
+    def _height_scan(self) -> torch.Tensor:
+        data = self.robot.data
+        return self.scanner.scan(data.root_pos_w, data.heading_w)
+
+    def _policy_terms(self) -> dict[str, torch.Tensor]:
+        terms = super()._policy_terms()
+        if self.cfg.scan_in_actor:
+            terms["height_scan"] = self._height_scan()
+        return terms
+
+    def _privileged_terms(self) -> dict[str, torch.Tensor]:
+        terms = super()._privileged_terms()
+        if not self.cfg.scan_in_actor:
+            terms["height_scan"] = self._height_scan()
+        feet_w = self.robot.data.body_pos_w[:, self.feet_body_ids]
+        terms["feet_height_over_ground"] = feet_w[..., 2].float() - self.heights.height_at(feet_w[..., :2])
+        return terms
+
+    def _get_terminations(self) -> dict[str, torch.Tensor]:
+        terms = super()._get_terminations()
+        fell_height = self.base_height_over_ground_m() < self.cfg.min_base_height_m
+        self._fell = fell_height | terms["tilt"]
+        return {"base_height": fell_height, "tilt": terms["tilt"]}
+
+
+def humanoid_rough_metrics(env: HumanoidRoughEnv) -> dict[str, torch.Tensor]:
+    lin_err, yaw_err = env.velocity_tracking_error()
+    return {"abs_vel_error_m_s": lin_err, "abs_yaw_rate_error_rad_s": yaw_err,
+            "terrain_level": env.curriculum.levels.float()}
+
+
+register(TaskSpec(
+    name="humanoid-rough",
+    env_cls=HumanoidRoughEnv,
+    cfg_fn=humanoid_rough_cfg,
+    play_cfg_fn=humanoid_rough_play_cfg,
+    ppo_cfg_fn=humanoid_walk_ppo,
+    description="humanoid-walk over a terrain curriculum (slopes, rough, 0.15 m stairs, stones) with a "
+                "height scan and transfer randomization",
+    step_metrics=humanoid_rough_metrics,
+    criteria=(WALKS,),
+))
+
+__all__ = ["HumanoidRoughCfg", "HumanoidRoughEnv", "humanoid_rough_cfg", "humanoid_rough_play_cfg"]

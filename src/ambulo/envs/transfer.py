@@ -1,0 +1,159 @@
+"""Randomization for sim-to-real transfer: what a real robot has that the model does not.
+
+Per world, on the engine's device, through the one randomization layer (``core.randomize``):
+
+- at start (Isaac Lab's "startup" events): PD gains (``kp``, ``kd`` scales per joint), motor
+  strength (a torque scale per joint), joint friction (Coulomb ``frictionloss`` added, N m) and
+  armature (reflected rotor inertia, scaled), centre-of-mass offsets of chosen bodies;
+- per episode, at each reset: action latency (0-20 ms: the joint targets a world's physics sees
+  lag the policy's by a whole number of physics steps) and observation delay (the actor reads
+  observations a whole number of policy steps old; the critic reads current ones).
+
+The latency acts inside the policy step: with 5 ms physics and a 20 ms policy step, a world
+with 10 ms latency runs its first two physics steps on the previous targets and its last two on
+the new ones, so the engine steps one physics step at a time while any latency is possible.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import torch
+
+from ambulo.core import randomize
+from ambulo.core.rows import num_rows, put_rows, select_rows
+from ambulo.utils.validate import Checked, rule
+
+from .delay import DelayBuffer
+
+
+@dataclass(kw_only=True)
+class TransferCfg(Checked):
+    """Transfer randomization ranges; None turns a term off."""
+
+    kp_scale_range: tuple[float, float] | None = None
+    """Factor on each joint's stiffness kp, e.g. (0.8, 1.2) for +-20 %."""
+    kd_scale_range: tuple[float, float] | None = None
+    """Factor on each joint's damping kd."""
+    motor_strength_range: tuple[float, float] | None = None
+    """Factor on each joint's whole torque (gains and force limit), e.g. (0.9, 1.1)."""
+    joint_friction_range_n_m: tuple[float, float] | None = None
+    """Coulomb friction added to each joint (MuJoCo ``frictionloss``), N m."""
+    armature_scale_range: tuple[float, float] | None = None
+    """Factor on each joint's armature (rotor inertia)."""
+    com_offset_m: float | None = None
+    """Each of ``com_bodies``' centres of mass moves by up to +-this along x, y and z, m."""
+    com_bodies: tuple[str, ...] = ("pelvis", "torso")
+    action_latency_range_s: tuple[float, float] | None = field(default=None, metadata=rule(minimum=0.0))
+    """Delay between the policy's action and the drives, s, drawn per episode and rounded to
+    whole physics steps (0-20 ms is 0-4 steps of 5 ms)."""
+    observation_delay_range_steps: tuple[int, int] | None = None
+    """Policy steps the actor's observations lag by, drawn per episode (both ends included)."""
+
+
+def transfer_cfg_wide() -> TransferCfg:
+    """The issue's robustness ranges: gains +-20 %, strength +-10 %, joint friction up to 0.5 N m,
+    armature +-20 %, CoM +-3 cm, 0-20 ms action latency, 0-1 policy step of observation delay."""
+    return TransferCfg(kp_scale_range=(0.8, 1.2), kd_scale_range=(0.8, 1.2), motor_strength_range=(0.9, 1.1),
+                       joint_friction_range_n_m=(0.0, 0.5), armature_scale_range=(0.8, 1.2), com_offset_m=0.03,
+                       action_latency_range_s=(0.0, 0.02), observation_delay_range_steps=(0, 1))
+
+
+class TransferRandomization:
+    """The terms of a ``TransferCfg`` on one env: startup writes, per-episode delays, the delay lines.
+
+    The env calls ``startup()`` once (after its robot exists), ``reset(rows)`` from its reset,
+    ``simulate(targets)`` in place of stepping the engine, and ``observe(obs)`` on the actor's
+    observations.
+    """
+
+    def __init__(self, cfg: TransferCfg, env):
+        self.cfg, self.env = cfg, env
+        n, dev = env.num_envs, env.device
+        dt = env.physics_dt_s
+        latency = cfg.action_latency_range_s or (0.0, 0.0)
+        self.latency_steps = tuple(int(round(t / dt)) for t in latency)
+        """(low, high) action latency in physics steps."""
+        self.obs_delay_steps = cfg.observation_delay_range_steps or (0, 0)
+        self.action_delay = DelayBuffer(self.latency_steps[1], n, (env.robot.num_joints,), device=dev,
+                                        dtype=env.engine.dtype) if self.latency_steps[1] > 0 else None
+        self.obs_delay: DelayBuffer | None = None  # sized by the first observation
+        self._obs_delay = torch.zeros(n, dtype=torch.long, device=dev)
+        """(N,) policy steps each world's actor observations lag by (the obs buffer's ``delay``)."""
+        self.factors: dict[str, torch.Tensor] = {}
+        """The startup draws by term name, (N, k) each (for tests and logs)."""
+
+    @property
+    def steps_each_substep(self) -> bool:
+        return self.action_delay is not None
+
+    def startup(self) -> None:
+        cfg, env, gen = self.cfg, self.env, self.env.generator
+        robot = env.robot
+        uniform = randomize.uniform
+        self.factors.update(randomize.drive_gains(
+            robot, gen, kp_scale=None if cfg.kp_scale_range is None else uniform(*cfg.kp_scale_range),
+            kd_scale=None if cfg.kd_scale_range is None else uniform(*cfg.kd_scale_range),
+            strength=None if cfg.motor_strength_range is None else uniform(*cfg.motor_strength_range)))
+        if cfg.joint_friction_range_n_m is not None:
+            self.factors["joint_friction_n_m"] = randomize.joint_dof_field(
+                robot, "dof_frictionloss", uniform(*cfg.joint_friction_range_n_m), gen, operation="add")
+        if cfg.armature_scale_range is not None:
+            self.factors["armature_scale"] = randomize.joint_dof_field(
+                robot, "dof_armature", uniform(*cfg.armature_scale_range), gen, operation="scale")
+        if cfg.com_offset_m is not None:
+            c = cfg.com_offset_m
+            self.factors["com_w"] = randomize.body_com_offset(
+                robot, uniform((-c, -c, -c), (c, c, c)), gen, bodies=list(cfg.com_bodies))
+        if cfg.com_offset_m is not None or cfg.armature_scale_range is not None:
+            env.engine.set_const()
+
+    def reset(self, rows: torch.Tensor | None) -> None:
+        """Draw the reset worlds' latency and observation delay for their new episode."""
+        env, n = self.env, num_rows(rows, self.env.num_envs)
+        if self.action_delay is not None:
+            lo, hi = self.latency_steps
+            delay = torch.randint(lo, hi + 1, (n, 1), generator=env.generator, device=env.device)
+            put_rows(self.action_delay.delay[:, None], slice(None), delay, rows)
+        if self.obs_delay_steps[1] > 0:
+            lo, hi = self.obs_delay_steps
+            delay = torch.randint(lo, hi + 1, (n, 1), generator=env.generator, device=env.device)
+            put_rows(self._obs_delay[:, None], slice(None), delay, rows)
+
+    def simulate(self, targets: torch.Tensor, decimation: int) -> torch.Tensor:
+        """Step the engine ``decimation`` physics steps driving the joints to ``targets`` (N, J)
+        rad, each world's lagging by its latency; return the (N,) diverged mask."""
+        env = self.env
+        if self.action_delay is None:
+            env.robot.set_joint_targets(targets)
+            return env.sim.step(decimation)
+        diverged = None
+        for _ in range(decimation):
+            self.action_delay.push(targets)
+            env.robot.set_joint_targets(self.action_delay.read())
+            step = env.sim.step(1)
+            diverged = step if diverged is None else diverged | step
+        return diverged
+
+    def start_episode_targets(self, rows: torch.Tensor | None, targets: torch.Tensor) -> None:
+        """A reset world's past targets are its start pose (not the last episode's actions)."""
+        if self.action_delay is not None:
+            self.action_delay.fill(rows, targets)
+
+    def observe(self, obs: torch.Tensor, fresh: torch.Tensor) -> torch.Tensor:
+        """The actor's observations (N, D) ``obs`` delayed per world; ``fresh`` (N,) bool marks
+        worlds whose episode just started (their history is filled with ``obs``)."""
+        if self.obs_delay_steps[1] == 0:
+            return obs
+        if self.obs_delay is None:
+            self.obs_delay = DelayBuffer(self.obs_delay_steps[1], obs.shape[0], tuple(obs.shape[1:]),
+                                         device=obs.device, dtype=obs.dtype)
+            self.obs_delay.delay = self._obs_delay
+        self.obs_delay.push(obs)
+        rows = select_rows(fresh)
+        if rows is not None:
+            self.obs_delay.fill(rows, obs)
+        return self.obs_delay.read()
+
+
+__all__ = ["TransferCfg", "TransferRandomization", "transfer_cfg_wide"]

@@ -1,0 +1,18 @@
+"""Procedural terrain for locomotion: tiles of sub-terrains by difficulty, one MuJoCo hfield.
+
+- ``subterrains``: each kind's height function (flat, slopes, rough, stairs up and down,
+  stepping stones) of a difficulty in [0, 1];
+- ``generator``: ``TerrainCfg`` -> ``TerrainGrid`` (levels x kinds tiles, heights, tile centres)
+  and ``add_terrain`` (into a scene spec as one hfield geom, for the CPU and GPU engines);
+- ``heights``: ``TerrainHeights`` (the same samples interpolated on the device) and
+  ``HeightScan`` (the actor's grid of ground heights around the base);
+- ``curriculum``: ``TerrainCurriculum`` (legged_gym's level moves, vectorized over worlds).
+"""
+
+from .curriculum import TerrainCurriculum, TerrainCurriculumCfg
+from .generator import TERRAIN_PRIM_PATH, TerrainCfg, TerrainGrid, add_terrain, difficulties, generate
+from .heights import HeightScan, HeightScanCfg, TerrainHeights
+from .subterrains import KINDS
+
+__all__ = ["KINDS", "TERRAIN_PRIM_PATH", "HeightScan", "HeightScanCfg", "TerrainCfg", "TerrainCurriculum",
+           "TerrainCurriculumCfg", "TerrainGrid", "TerrainHeights", "add_terrain", "difficulties", "generate"]

@@ -1,0 +1,91 @@
+"""The terrain curriculum (legged_gym's): robots that walked far move to harder tiles.
+
+Every env has a level (a row of the terrain grid) and a kind (a column, fixed: env ``i`` takes
+column ``i % num_kinds``). When an episode ends, its env moves up a level if the robot got farther
+than ``up_distance_fraction`` of a tile from where it started, and down one if it covered less
+than ``down_command_fraction`` of the distance its commands asked for (so robots told to stand
+never move down for standing). A robot that passes the hardest level goes to a random level, so
+the hardest tiles never hold the whole population (legged_gym does the same).
+
+Everything is (N,) tensors written through row selectors (``core.rows``): no per-env loop, no
+host sync.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import torch
+
+from ...core.rows import num_rows, put_rows, take_rows
+from ...utils.validate import Checked, rule
+from .generator import TerrainGrid
+
+
+@dataclass(kw_only=True)
+class TerrainCurriculumCfg(Checked):
+    enabled: bool = True
+    """Move envs between levels at resets; False keeps every env on its first level."""
+    init_level: int | None = field(default=None, metadata=rule(signed=True))
+    """Every env's first level (negative counts from the hardest: -1 is the hardest); None draws
+    it uniformly in [0, ``max_init_level``]."""
+    max_init_level: int = 4
+    """Highest first level when ``init_level`` is None (clipped to the grid)."""
+    up_distance_fraction: float = 0.5
+    """Move up after walking farther than this share of a tile's edge (legged_gym: a half)."""
+    down_command_fraction: float = 0.5
+    """Move down after covering less than this share of the commanded path length."""
+
+
+class TerrainCurriculum:
+    """Per-env terrain levels and start positions.
+
+    Attributes:
+      levels: (N,) int64 level of each env.
+      kinds: (N,) int64 column (sub-terrain kind) of each env.
+      origins_w: (N, 3) float32 world position of each env's tile centre on its platform, m.
+    """
+
+    def __init__(self, cfg: TerrainCurriculumCfg, grid: TerrainGrid, num_envs: int,
+                 generator: torch.Generator, device: torch.device | str):
+        self.cfg, self.num_envs, self.generator = cfg, num_envs, generator
+        self.device = torch.device(device)
+        self.num_levels, num_kinds = grid.num_levels, grid.num_kinds
+        self.max_level = self.num_levels - 1
+        self.tile_size_m = float(grid.cfg.tile_size_m)
+        self.centers_w = torch.as_tensor(grid.tile_centers_w, dtype=torch.float32, device=self.device)
+        self.kinds = torch.arange(num_envs, device=self.device) % num_kinds
+        if cfg.init_level is None:
+            top = min(cfg.max_init_level, self.max_level)
+            self.levels = torch.randint(0, top + 1, (num_envs,), generator=generator, device=self.device)
+        else:
+            level = cfg.init_level % self.num_levels if cfg.init_level < 0 else min(cfg.init_level, self.max_level)
+            self.levels = torch.full((num_envs,), level, dtype=torch.long, device=self.device)
+        self.origins_w = self.centers_w[self.levels, self.kinds]
+
+    def update(self, rows: torch.Tensor | None, distance_m: torch.Tensor, command_path_m: torch.Tensor) -> None:
+        """Move the envs ``rows`` selects (their episodes ended) up or down a level.
+
+        ``distance_m``: (N,) how far each robot got from its start, m (horizontal);
+        ``command_path_m``: (N,) how far its commands asked it to walk in the episode, m."""
+        if not self.cfg.enabled:
+            return
+        n = num_rows(rows, self.num_envs)
+        level = take_rows(self.levels, rows)
+        distance, asked = take_rows(distance_m, rows), take_rows(command_path_m, rows)
+        up = distance > self.cfg.up_distance_fraction * self.tile_size_m
+        down = (distance < self.cfg.down_command_fraction * asked) & ~up
+        level = level + up.long() - down.long()
+        # always drawn (n values), so the generator's stream does not depend on who passed
+        anywhere = torch.randint(0, self.num_levels, (n,), generator=self.generator, device=self.device)
+        level = torch.where(level > self.max_level, anywhere, level.clamp(min=0))
+        put_rows(self.levels[:, None], slice(None), level[:, None], rows)
+        origins = self.centers_w[level, take_rows(self.kinds, rows)]
+        put_rows(self.origins_w, slice(None), origins, rows)
+
+    def mean_level(self) -> torch.Tensor:
+        """() float32 mean level over the envs (a device scalar, for logging)."""
+        return self.levels.float().mean()
+
+
+__all__ = ["TerrainCurriculum", "TerrainCurriculumCfg"]

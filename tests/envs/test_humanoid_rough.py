@@ -1,0 +1,120 @@
+"""humanoid-rough: robots stand on their tiles, falls count against the ground under them, the
+transfer randomization lags actions and observations by exactly the drawn steps, PPO runs."""
+
+import csv
+
+import numpy as np
+import pytest
+import torch
+
+import ambulo.envs as envs
+from ambulo.envs.humanoid_rough import HumanoidRoughEnv
+from ambulo.envs.transfer import TransferCfg
+from ambulo.robots import humanoid
+
+SMALL = {"terrain.num_levels": 3, "terrain.tile_size_m": 4.0, "terrain.platform_size_m": 1.0,
+         "terrain.border_m": 1.0}
+STAIRS_DOWN = 5  # index of "stairs_down" in the default TerrainCfg.kinds
+
+
+def make(num_envs=7, transfer=None, **overrides):
+    cfg = envs.make_cfg("humanoid-rough", num_envs=num_envs, seed=0, num_threads=1, push_interval_s=None,
+                        **SMALL, **overrides)
+    cfg.transfer = transfer or TransferCfg()
+    return HumanoidRoughEnv(cfg)
+
+
+def test_robots_stand_on_the_hardest_stairs_summit():
+    """Every robot starts on its tile's platform at the hardest level; on the stairs-down tile that
+    is 5 steps of 0.15 m up. Standing still for 0.5 s, its soles rest on the platform, and it is
+    not "fallen" although its base is 1.6 m above z = 0."""
+    env = make(**{"curriculum.init_level": -1, "curriculum.enabled": False})
+    assert env.curriculum.levels.tolist() == [2] * 7
+    assert env.curriculum.origins_w[STAIRS_DOWN, 2].item() == pytest.approx(0.75)
+    for _ in range(25):
+        _, _, dones, _ = env.step(torch.zeros(7, env.num_actions))
+        assert not dones.any()
+    sites = [env.model.site(f"{humanoid.PRIM_PATH}/{s}").id for s in humanoid.SOLE_SITES]
+    soles = env.engine.site_xpos[:, sites].float()
+    ground = env.ground_height_m(soles[..., :2])
+    np.testing.assert_allclose(ground[STAIRS_DOWN].numpy(), [0.75, 0.75], atol=1e-6)
+    np.testing.assert_allclose((soles[..., 2] - ground).numpy(), 0.0, atol=0.015)
+    assert env.robot.data.root_pos_w[STAIRS_DOWN, 2].item() > 1.5
+
+
+def test_action_latency_delays_targets_by_exactly_the_drawn_physics_steps():
+    env = make(num_envs=6, transfer=TransferCfg(action_latency_range_s=(0.0, 0.02)))
+    delay = env.transfer.action_delay.delay.clone()
+    assert set(delay.tolist()) <= {0, 1, 2, 3, 4} and len(set(delay.tolist())) > 1
+    kp = -env.engine.model_field("actuator_biasprm")[:, env.robot.actuator_idx, 1]
+    seen = []
+    step = env.sim.step
+
+    def spy(n):
+        seen.append(env.engine.ctrl[:, env.robot.actuator_idx].clone() / kp)  # the targets physics uses
+        return step(n)
+
+    env.sim.step = spy
+    generator = torch.Generator().manual_seed(0)
+    actions = [torch.rand(6, env.num_actions, generator=generator) * 0.2 for _ in range(2)]
+    targets = [env.robot.default_joint_pos + a * env.cfg.action_scale for a in actions]
+    for a in actions:
+        env.step(a)
+    assert len(seen) == 8  # one physics step at a time
+    previous = [env.robot.default_joint_pos.expand(6, -1), targets[0]]
+    for t in range(2):
+        for s in range(4):
+            expected = torch.where((s >= delay)[:, None], targets[t], previous[t])
+            torch.testing.assert_close(seen[4 * t + s], expected.to(seen[0].dtype))
+
+
+def test_observation_delay_shows_the_actor_last_steps_clean_observations():
+    env = make(num_envs=4, transfer=TransferCfg(observation_delay_range_steps=(1, 1)), observation_noise={})
+    critic = [env.get_privileged_observations()[:, :env.num_obs].clone()]
+    generator = torch.Generator().manual_seed(0)
+    for _ in range(3):
+        obs, _, dones, _ = env.step(torch.rand(4, env.num_actions, generator=generator) * 0.2)
+        assert not dones.any()
+        torch.testing.assert_close(obs, critic[-1])
+        critic.append(env.get_privileged_observations()[:, :env.num_obs].clone())
+    assert not torch.equal(critic[-1], critic[-2])
+
+
+def test_startup_randomization_reaches_each_worlds_model():
+    env = make(num_envs=4, transfer=TransferCfg(joint_friction_range_n_m=(0.1, 0.5), armature_scale_range=(0.8, 1.2),
+                                                com_offset_m=0.03))
+    dofs = env.robot.dof_idx
+    nominal_arm = env.model.dof_armature[dofs]
+    for w in range(4):
+        model = env.engine.get_model(w)
+        friction = model.dof_frictionloss[dofs] - env.model.dof_frictionloss[dofs]
+        assert ((friction >= 0.1) & (friction < 0.5)).all()
+        ratio = model.dof_armature[dofs] / nominal_arm
+        assert ((ratio >= 0.8) & (ratio < 1.2)).all()
+        pelvis = env.model.body(f"{humanoid.PRIM_PATH}/pelvis").id
+        offset = model.body_ipos[pelvis] - env.model.body_ipos[pelvis]
+        assert (np.abs(offset) <= 0.03).all() and np.abs(offset).max() > 0
+    frictions = env.engine.model_field("dof_frictionloss")[:, dofs]
+    assert not torch.equal(frictions[0], frictions[1])
+
+
+def test_height_scan_is_in_the_actor_observation():
+    env = make(num_envs=2, observation_noise={})
+    points = env.scanner.num_points
+    assert points == 17 * 11 and env.num_obs == 72 + points
+    scan = env.get_observations()[:, -points:]
+    # on the platform at the start: every point that lies on it reads the standing height
+    torch.testing.assert_close(scan, env._height_scan())
+    blind = make(num_envs=2, scan_in_actor=False, observation_noise={})
+    assert blind.num_obs == 72 and blind.num_privileged_obs == env.num_privileged_obs
+
+
+@pytest.mark.slow  # ~65 s on a shared 2-core machine
+def test_ppo_smoke_run(tmp_path):
+    from ambulo.rl import train
+
+    run = train("humanoid-rough", num_envs=8, max_iterations=2, seed=0, log_root=tmp_path, env_overrides=SMALL,
+                ppo_overrides={"num_steps_per_env": 8})
+    rows = list(csv.DictReader(open(run / "metrics.csv")))
+    assert [int(r["iteration"]) for r in rows] == [0, 1]
+    assert all(np.isfinite(float(r["mean_reward"])) for r in rows if r.get("mean_reward"))

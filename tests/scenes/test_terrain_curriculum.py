@@ -1,0 +1,56 @@
+"""The terrain curriculum moves levels as legged_gym's does, for index and mask row selectors alike."""
+
+import pytest
+import torch
+
+from ambulo.scenes.terrain import TerrainCfg, TerrainCurriculum, TerrainCurriculumCfg, generate
+
+GRID = generate(TerrainCfg(num_levels=3, tile_size_m=4.0, platform_size_m=1.0, border_m=1.0,
+                           kinds=("flat", "stairs_up")))
+
+
+def curriculum(levels, **cfg):
+    c = TerrainCurriculum(TerrainCurriculumCfg(init_level=0, **cfg), GRID, len(levels),
+                          torch.Generator().manual_seed(0), "cpu")
+    c.levels[:] = torch.tensor(levels)
+    c.origins_w[:] = c.centers_w[c.levels, c.kinds]
+    return c
+
+
+# env:        0 far      1 short of its commands  2 short, told to stand  3 far at the top  4 short at 0
+LEVELS = [1, 1, 1, 2, 0]
+DISTANCE_M = torch.tensor([2.5, 0.5, 0.1, 3.0, 0.2])  # up when > 0.5 * 4 m = 2 m
+COMMAND_PATH_M = torch.tensor([6.0, 4.0, 0.0, 5.0, 6.0])  # down when distance < 0.5 * path (and not up)
+
+
+@pytest.mark.parametrize("selector", ["indices", "mask"])
+def test_levels_move_up_down_and_wrap_from_the_top(selector):
+    c = curriculum(LEVELS)
+    ids = torch.tensor([0, 1, 2, 3, 4])
+    rows = ids if selector == "indices" else torch.ones(5, dtype=torch.bool)
+    c.update(rows, DISTANCE_M, COMMAND_PATH_M)
+    levels = c.levels.tolist()
+    assert levels[:3] == [2, 0, 1]
+    assert 0 <= levels[3] <= 2  # passed the hardest level: a random one
+    assert levels[4] == 0  # no level below 0
+    assert torch.equal(c.origins_w, c.centers_w[c.levels, c.kinds])
+
+
+def test_only_the_selected_envs_move():
+    c = curriculum(LEVELS)
+    c.update(torch.tensor([1]), DISTANCE_M, COMMAND_PATH_M)
+    assert c.levels.tolist() == [1, 0, 1, 2, 0]
+    mask = torch.tensor([True, False, False, False, False])
+    c.update(mask, DISTANCE_M, COMMAND_PATH_M)
+    assert c.levels.tolist() == [2, 0, 1, 2, 0]
+
+
+def test_disabled_curriculum_and_fixed_first_levels():
+    c = curriculum(LEVELS, enabled=False)
+    c.update(None, DISTANCE_M, COMMAND_PATH_M)
+    assert c.levels.tolist() == LEVELS
+    hardest = TerrainCurriculum(TerrainCurriculumCfg(init_level=-1), GRID, 4, torch.Generator(), "cpu")
+    assert hardest.levels.tolist() == [2, 2, 2, 2] and hardest.kinds.tolist() == [0, 1, 0, 1]
+    drawn = TerrainCurriculum(TerrainCurriculumCfg(max_init_level=1), GRID, 64, torch.Generator().manual_seed(1),
+                              "cpu")
+    assert set(drawn.levels.tolist()) == {0, 1}
