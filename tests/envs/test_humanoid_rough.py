@@ -118,3 +118,10 @@ def test_ppo_smoke_run(tmp_path):
     rows = list(csv.DictReader(open(run / "metrics.csv")))
     assert [int(r["iteration"]) for r in rows] == [0, 1]
     assert all(np.isfinite(float(r["mean_reward"])) for r in rows if r.get("mean_reward"))
+
+
+def test_training_logs_the_mean_terrain_level():
+    env = make(num_envs=3, stats_interval_steps=1, episode_length_s=0.04)  # time-outs after 2 steps
+    extras = [env.step(torch.zeros(3, env.num_actions))[3] for _ in range(2)]
+    level = extras[-1]["episode"]["Curriculum/terrain_level"]
+    assert level.item() == pytest.approx(env.curriculum.levels.float().mean().item())

@@ -144,6 +144,12 @@ class HumanoidRoughEnv(HumanoidWalkEnv):
         self.transfer.reset(rows)
         self.transfer.start_episode_targets(rows, self.robot.default_joint_pos.expand(self.num_envs, -1))
 
+    def _step(self, actions):
+        obs, rewards, dones, extras = super()._step(actions)
+        if "episode" in extras:  # every stats window: the curriculum's progress, a device scalar
+            extras["episode"]["Curriculum/terrain_level"] = self.curriculum.mean_level()
+        return obs, rewards, dones, extras
+
     def _compute_observations(self) -> torch.Tensor:
         obs = super()._compute_observations()
         return self.transfer.observe(obs, self.episode_length_buf == 0)

@@ -1,0 +1,78 @@
+"""Env-steps/s of humanoid-rough against humanoid-walk (flat), same engine, device and env count.
+
+Issue 30's bar: rough-terrain env throughput >= 50 % of flat. Both tasks step random actions
+(uniform in +-1) through ``env.step`` (physics, observations, rewards, resets); the flat task is
+the ceiling. humanoid-rough is timed twice: as trained (the heightfield, the 187-point height scan,
+transfer randomization with 0-20 ms action latency, which steps physics one step at a time) and
+without action latency (one batched call per policy step, as the flat task), so the cost of the
+terrain and of the latency show apart. Runs alternate (flat, rough, rough without latency, ...)
+and the best of each is kept; CUDA timings are bracketed by synchronizations.
+
+    python benchmarks/rough_terrain.py --device cuda --num-envs 4096 --steps 100
+    python benchmarks/rough_terrain.py --num-envs 16 --steps 20          # CPU engine
+
+Ends with one ``RESULT {json}`` line: ``ratio`` = rough (as trained) / flat env-steps/s.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import torch
+
+import ambulo.envs as envs
+
+TARGET_RATIO = 0.5
+
+
+def make(task: str, args, **overrides):
+    return envs.make(task, num_envs=args.num_envs, device=args.device, seed=0, **overrides)
+
+
+def steps_per_s(env, steps: int, warmup: int, generator: torch.Generator) -> float:
+    def run(n):
+        for _ in range(n):
+            env.step(torch.rand(env.num_envs, env.num_actions, generator=generator, device=env.device) * 2 - 1)
+
+    run(warmup)
+    if env.device.type == "cuda":
+        torch.cuda.synchronize(env.device)
+    start = time.perf_counter()
+    run(steps)
+    if env.device.type == "cuda":
+        torch.cuda.synchronize(env.device)
+    return steps * env.num_envs / (time.perf_counter() - start)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--device", default="cpu")
+    parser.add_argument("--num-envs", type=int, default=64)
+    parser.add_argument("--steps", type=int, default=50)
+    parser.add_argument("--warmup", type=int, default=10)
+    parser.add_argument("--repeats", type=int, default=2)
+    args = parser.parse_args()
+    generator = torch.Generator(device=args.device).manual_seed(0)
+    variants = {
+        "flat": make("humanoid-walk", args),
+        "rough": make("humanoid-rough", args),
+        "rough_no_latency": make("humanoid-rough", args, **{"transfer.action_latency_range_s": None}),
+    }
+    best = dict.fromkeys(variants, 0.0)
+    for _ in range(args.repeats):
+        for name, env in variants.items():
+            best[name] = max(best[name], steps_per_s(env, args.steps, args.warmup, generator))
+    result = {"device": args.device, "num_envs": args.num_envs, "steps": args.steps,
+              "env_steps_per_s": {k: round(v, 1) for k, v in best.items()},
+              "ratio": round(best["rough"] / best["flat"], 3),
+              "ratio_no_latency": round(best["rough_no_latency"] / best["flat"], 3),
+              "target_ratio": TARGET_RATIO}
+    for name, value in best.items():
+        print(f"{name:18s} {value:12.1f} env-steps/s")
+    print("RESULT " + json.dumps(result))
+
+
+if __name__ == "__main__":
+    main()
