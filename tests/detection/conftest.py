@@ -13,3 +13,46 @@ def tiny_dataset(tmp_path_factory):
     out = tmp_path_factory.mktemp("detection_data")
     rep.generate(config, out, num_frames=8, seed=3, workers=1, show_progress=False)
     return out
+
+
+@pytest.fixture
+def shapes_dataset():
+    """``write_shapes_dataset``: a function (tests pick the folder and the number of frames)."""
+    return write_shapes_dataset
+
+
+def write_shapes_dataset(root, num_frames: int = 5, size_px: int = 64, seed: int = 0):
+    """A COCO dataset of ``num_frames`` frames of one disc and one square each, on a grey floor,
+    with their RLE masks: shapes whose masks differ from their boxes, a task a mask head must learn."""
+    import json
+
+    import imageio.v3 as iio
+    import numpy as np
+    from pycocotools import mask as mask_utils
+
+    rng = np.random.default_rng(seed)
+    (root / "rgb").mkdir(parents=True, exist_ok=True)
+    images, annotations = [], []
+    yy, xx = np.mgrid[0:size_px, 0:size_px] + 0.5
+    for index in range(num_frames):
+        rgb = np.full((size_px, size_px, 3), 90, np.uint8)
+        half = size_px // 2
+        for category_id, (x_lo, colour) in ((1, (0, (230, 60, 40))), (2, (half, (40, 90, 230)))):
+            r = rng.uniform(7, 11)
+            cx, cy = rng.uniform(x_lo + r + 1, x_lo + half - r - 1), rng.uniform(r + 1, size_px - r - 1)
+            if category_id == 1:
+                mask = (xx - cx) ** 2 + (yy - cy) ** 2 <= r ** 2
+            else:
+                mask = (np.abs(xx - cx) <= r) & (np.abs(yy - cy) <= r)
+            rgb[mask] = colour
+            rle = mask_utils.encode(np.asfortranarray(mask.astype(np.uint8)))
+            annotations.append({"id": len(annotations) + 1, "image_id": index + 1, "category_id": category_id,
+                                "bbox": mask_utils.toBbox(rle).tolist(), "area": int(mask.sum()), "iscrowd": 0,
+                                "segmentation": {"size": [size_px, size_px], "counts": rle["counts"].decode()}})
+        name = f"rgb/{index:06d}.png"
+        iio.imwrite(root / name, rgb)
+        images.append({"id": index + 1, "file_name": name, "width": size_px, "height": size_px})
+    categories = [{"id": 1, "name": "disc"}, {"id": 2, "name": "square"}]
+    (root / "annotations.json").write_text(json.dumps({"images": images, "annotations": annotations,
+                                                       "categories": categories}))
+    return root

@@ -24,12 +24,17 @@ def test_cli_trains_exports_and_onnx_matches_torch(tiny_dataset, tmp_path, capsy
     diff = check_onnx(run / "checkpoint.pt", onnx_path, canvas)
     # a model trained two steps has near-flat heatmaps: a few peaks tie with a neighbour to float rounding
     assert diff["compared"] >= 10 and diff["unmatched"] <= 0.05 * diff["compared"], diff
-    assert diff["boxes_px"] < 1e-3 and diff["scores"] < 1e-5, diff
+    assert diff["boxes_px"] < 1e-3 and diff["scores"] < 1e-5 and diff["masks"] < 1e-4, diff
     by_onnx, by_torch = Detector(onnx_path, 0.0)(frame), Detector(run / "checkpoint.pt", 0.0)(frame)
     assert len(by_onnx.scores) == len(by_torch.scores) == 100
     assert np.allclose(np.sort(by_onnx.scores), np.sort(by_torch.scores), atol=1e-5)
     assert by_onnx.boxes_px.shape == (100, 4) and (by_onnx.boxes_px[:, 2] <= 160).all()
     assert set(by_onnx.labels) <= {"ball", "box", "can", "cone"}
+    # the masks of the same detections, pasted to the frame: equal but for pixels at the threshold
+    assert by_onnx.masks.shape == by_torch.masks.shape == (100, 120, 160)
+    order_onnx, order_torch = np.lexsort(by_onnx.boxes_px.T), np.lexsort(by_torch.boxes_px.T)
+    differ = by_onnx.masks[order_onnx] != by_torch.masks[order_torch]
+    assert differ.mean() < 1e-3, differ.mean()
 
 
 def test_comparison_sees_a_moved_box():

@@ -78,12 +78,12 @@ def test_flip_and_scale_move_boxes_with_the_pixels():
     rgb[:, 4:10, 2:8] = 1.0  # an object at x 2..8, y 4..10
     boxes, labels = torch.tensor([[2.0, 4.0, 8.0, 10.0]]), torch.tensor([1])
     g = torch.Generator().manual_seed(0)
-    flipped, fb, _ = augment_sample(rgb, boxes, labels, AugmentCfg(flip_probability=1.0, scale_range=(1.0, 1.0),
+    flipped, fb, _, _ = augment_sample(rgb, boxes, labels, AugmentCfg(flip_probability=1.0, scale_range=(1.0, 1.0),
                                                                    brightness_fraction=0.0), g)
     assert torch.equal(fb, torch.tensor([[22.0, 4.0, 28.0, 10.0]]))
     assert flipped[0, 4:10, 22:28].min() == 1 and flipped[0].sum() == 36
     # scale 0.5: the halved image lands somewhere in a black window of the input's size; the box moves with it
-    scaled, sb, sl = augment_sample(rgb, boxes, labels, AugmentCfg(flip_probability=0.0, scale_range=(0.5, 0.5),
+    scaled, sb, sl, _ = augment_sample(rgb, boxes, labels, AugmentCfg(flip_probability=0.0, scale_range=(0.5, 0.5),
                                                                    brightness_fraction=0.0), g)
     x0, y0, x1, y1 = sb[0].round().int().tolist()
     inside = scaled[0, y0:y1, x0:x1]

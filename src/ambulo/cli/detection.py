@@ -30,9 +30,11 @@ def train_detector(args: argparse.Namespace) -> int:
         raise CliError(f"--device {args.device} but torch sees no CUDA GPU", "use --device cpu")
     if not args.resume and (Path(args.out) / CHECKPOINT).exists():
         raise CliError(f"{args.out} already holds a training run", "give --resume to continue it, or another --out")
+    if args.mask_prototypes < 0:
+        raise CliError(f"--mask-prototypes {args.mask_prototypes} is negative", "give 0 (boxes only) or more")
     cfg = TrainCfg(model=args.model, epochs=args.epochs, batch_size=args.batch_size, device=args.device,
                    eval_every_epochs=args.eval_every, num_workers=args.workers, learning_rate=args.lr,
-                   seed=args.seed)
+                   seed=args.seed, mask_prototypes=args.mask_prototypes)
     try:
         result = train(args.dataset, args.out, cfg, resume=args.resume, show_progress=not args.quiet)
     except DatasetError as err:
@@ -41,6 +43,10 @@ def train_detector(args: argparse.Namespace) -> int:
     if last is not None:
         classes = ", ".join(f"{name} {ap:.3f}" for name, ap in last["per_class"].items())
         print(f"held-out frames: mAP {last['mAP']:.3f}, mAP50 {last['mAP50']:.3f} ({classes})")
+        if "mask" in last:
+            masks = last["mask"]
+            classes = ", ".join(f"{name} {ap:.3f}" for name, ap in masks["per_class"].items())
+            print(f"held-out masks:  mAP {masks['mAP']:.3f}, mAP50 {masks['mAP50']:.3f} ({classes})")
     print(f"trained {result.step} steps; checkpoint {Path(args.out) / CHECKPOINT}; TensorBoard: "
           f"tensorboard --logdir {args.out}")
     return 0
@@ -53,12 +59,13 @@ def export_detector(args: argparse.Namespace) -> int:
         raise CliError(f"no checkpoint {args.checkpoint}", "give the checkpoint.pt of `ambulo train-detector`")
     out = export_onnx(args.checkpoint, args.out)
     diff = check_onnx(args.checkpoint, out)
-    if diff["scores"] > 1e-4 or diff["unmatched"] > 0.1 * diff["compared"]:
+    if diff["scores"] > 1e-4 or diff.get("masks", 0.0) > 1e-3 or diff["unmatched"] > 0.1 * diff["compared"]:
         raise CliError(f"ONNX Runtime disagrees with torch (scores by {diff['scores']:.3g}, {diff['unmatched']} of "
                        f"{diff['compared']} boxes unmatched)", "report this with the checkpoint; the export is kept")
+    masks = f", masks within {diff['masks']:.2g}" if "masks" in diff else ""
     print(f"wrote {out} (+ {out}.json); ONNX Runtime matches torch: boxes within {diff['boxes_px']:.2g} px, "
-          f"scores within {diff['scores']:.2g} ({diff['compared']} boxes compared, {diff['unmatched']} moved by a cell "
-          "where neighbouring scores tie)")
+          f"scores within {diff['scores']:.2g}{masks} ({diff['compared']} boxes compared, {diff['unmatched']} moved by "
+          "a cell where neighbouring scores tie)")
     return 0
 
 
@@ -75,6 +82,8 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--eval-every", type=int, default=5, help="COCO evaluation of held-out frames every N epochs")
     p.add_argument("--workers", type=int, default=2, help="image-reading processes (default 2)")
     p.add_argument("--seed", type=int, default=0, help="initialisation and shuffling seed (default 0)")
+    p.add_argument("--mask-prototypes", type=int, default=8,
+                   help="instance masks from the dataset's segmentation with this many prototypes (0: boxes only)")
     p.add_argument("--out", default="runs/detector", help="run folder: checkpoint, metrics, TensorBoard")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its checkpoint")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

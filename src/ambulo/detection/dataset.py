@@ -9,8 +9,9 @@ the training distribution (the issue's split (a)).
 A sample is ``(image, target)``: image float32 (3, H, W) in [0, 1] on a canvas of the fixed
 ``canvas_hw`` (the dataset's size rounded up to the model's stride; padding is black, bottom and
 right), target ``{"boxes": (N, 4) float32 x0 y0 x1 y1 px, "labels": (N,) int64 COCO category ids,
-"image_id": int}``. Boxes stay in the canvas's pixels, which are the image's pixels (padding is
-only ever added after the image's last row and column).
+"image_id": int}`` and, with ``masks``, ``"masks": (N, H, W) bool`` on the canvas (decoded from
+each annotation's ``segmentation``, RLE or polygons). Boxes stay in the canvas's pixels, which are
+the image's pixels (padding is only ever added after the image's last row and column).
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ import imageio.v3 as iio
 import numpy as np
 import torch
 import torch.nn.functional as F
+from pycocotools import mask as mask_utils
 
 from ambulo.utils.validate import Checked
 
@@ -86,8 +88,8 @@ class CocoFrames(torch.utils.data.Dataset):
     """The frames ``image_ids`` of dataset ``root`` as (image, target) samples (module docstring)."""
 
     def __init__(self, root: str | Path, coco: dict, image_ids: list[int], canvas_hw: tuple[int, int],
-                 augment: AugmentCfg | None = None, seed: int = 0):
-        self.root, self.canvas_hw, self.augment = Path(root), canvas_hw, augment
+                 augment: AugmentCfg | None = None, seed: int = 0, masks: bool = False):
+        self.root, self.canvas_hw, self.augment, self.masks = Path(root), canvas_hw, augment, masks
         images = {im["id"]: im for im in coco["images"]}
         self.images = [images[i] for i in image_ids]
         by_image: dict[int, list[dict]] = {i: [] for i in image_ids}
@@ -111,25 +113,53 @@ class CocoFrames(torch.utils.data.Dataset):
         boxes = torch.tensor([[x, y, x + w, y + h] for x, y, w, h in (a["bbox"] for a in anns)],
                              dtype=torch.float32).reshape(-1, 4)
         labels = torch.tensor([a["category_id"] for a in anns], dtype=torch.int64)
+        masks = instance_masks(anns, rgb.shape[1], rgb.shape[2]) if self.masks else None
         if self.augment is not None:
             # one generator per draw: workers and epochs see different draws, a seed repeats them
             self._draws += 1
             worker = torch.utils.data.get_worker_info()
             key = np.random.SeedSequence([self.seed, index, self._draws, 0 if worker is None else worker.id + 1])
             g = torch.Generator().manual_seed(int(key.generate_state(1)[0]))
-            rgb, boxes, labels = augment_sample(rgb, boxes, labels, self.augment, g)
+            rgb, boxes, labels, masks = augment_sample(rgb, boxes, labels, self.augment, g, masks)
         canvas = torch.zeros(3, *self.canvas_hw)
         h, w = min(rgb.shape[1], self.canvas_hw[0]), min(rgb.shape[2], self.canvas_hw[1])
         canvas[:, :h, :w] = rgb[:, :h, :w]
-        return canvas, {"boxes": boxes, "labels": labels, "image_id": image_info["id"]}
+        target = {"boxes": boxes, "labels": labels, "image_id": image_info["id"]}
+        if masks is not None:
+            target["masks"] = torch.zeros(len(masks), *self.canvas_hw, dtype=torch.bool)
+            target["masks"][:, :h, :w] = masks[:, :h, :w]
+        return canvas, target
+
+
+def instance_masks(annotations: list[dict], height: int, width: int) -> torch.Tensor:
+    """(N, H, W) bool masks of COCO annotations' ``segmentation`` (compressed or plain RLE, or polygons)."""
+    if not annotations:
+        return torch.zeros(0, height, width, dtype=torch.bool)
+    rles = []
+    for ann in annotations:
+        seg = ann.get("segmentation")
+        if not seg:
+            raise DatasetError(f"annotation {ann.get('id')} has no segmentation",
+                               "train boxes only (ModelCfg(mask_prototypes=0)) or give a dataset with masks")
+        if isinstance(seg, dict) and isinstance(seg["counts"], str):  # compressed RLE, as ambulo writes
+            rles.append({"size": seg["size"], "counts": seg["counts"].encode()})
+            continue
+        rle = mask_utils.frPyObjects(seg, height, width)
+        rles.append(mask_utils.merge(rle) if isinstance(rle, list) else rle)  # polygons: one RLE per part
+    return torch.from_numpy(mask_utils.decode(rles).transpose(2, 0, 1).astype(bool))
 
 
 def augment_sample(rgb: torch.Tensor, boxes: torch.Tensor, labels: torch.Tensor, cfg: AugmentCfg,
-                   g: torch.Generator) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+                   g: torch.Generator, masks: torch.Tensor | None = None
+                   ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor | None]:
     """Flip, scale jitter (resize, then crop or pad back to the input's size) and colour jitter of one
-    image (3, H, W) in [0, 1] and its boxes (N, 4) x0 y0 x1 y1 px; boxes cut to under a quarter of
-    their area, or under 2 px a side, are dropped with their labels."""
+    image (3, H, W) in [0, 1], its boxes (N, 4) x0 y0 x1 y1 px and masks (N, H, W) bool (or None);
+    boxes cut to under a quarter of their area, or under 2 px a side, are dropped with their labels
+    and masks. The masks ride through the flip, resize and crop as extra channels of the image, so
+    they move exactly as its pixels do (resized bilinearly, then thresholded at one half)."""
     _, h, w = rgb.shape
+    if masks is not None:
+        rgb = torch.cat([rgb, masks.float()])
     u = torch.rand(6, generator=g).tolist()
     if u[0] < cfg.flip_probability:
         rgb = rgb.flip(-1)
@@ -142,7 +172,7 @@ def augment_sample(rgb: torch.Tensor, boxes: torch.Tensor, labels: torch.Tensor,
         boxes = boxes * torch.tensor([sw / w, sh / h, sw / w, sh / h])
         # a window of the input's size: anywhere inside a larger image, the image anywhere inside a larger window
         x0, y0 = round((sw - w) * u[2]), round((sh - h) * u[3])
-        out = torch.zeros(3, h, w)
+        out = torch.zeros(rgb.shape[0], h, w)
         src = rgb[:, max(0, y0):max(0, y0) + h, max(0, x0):max(0, x0) + w]
         dy, dx = max(0, -y0), max(0, -x0)
         out[:, dy:dy + src.shape[1], dx:dx + src.shape[2]] = src[:, :h - dy, :w - dx]
@@ -154,13 +184,17 @@ def augment_sample(rgb: torch.Tensor, boxes: torch.Tensor, labels: torch.Tensor,
         bw, bh = boxes[:, 2] - boxes[:, 0], boxes[:, 3] - boxes[:, 1]
         keep = (bw >= 2) & (bh >= 2) & (bw * bh >= 0.25 * area)
         boxes, labels = boxes[keep], labels[keep]
+        if masks is not None:
+            rgb = torch.cat([rgb[:3], rgb[3:][keep]])
+    if masks is not None:
+        rgb, masks = rgb[:3], rgb[3:] > 0.5
     if cfg.brightness_fraction > 0:
         b, c, s = (1 + cfg.brightness_fraction * (2 * v - 1) for v in u[3:6])
         gray = (0.299 * rgb[0] + 0.587 * rgb[1] + 0.114 * rgb[2])[None]
         rgb = gray + s * (rgb - gray)  # saturation
         rgb = rgb.mean() + c * (rgb - rgb.mean())  # contrast
         rgb = (b * rgb).clamp(0, 1)
-    return rgb, boxes, labels
+    return rgb, boxes, labels, masks
 
 
 def collate(batch: list[tuple[torch.Tensor, dict]]) -> tuple[torch.Tensor, list[dict]]:

@@ -2,7 +2,7 @@
 
     detector = Detector("runs/det/model.onnx")          # or "runs/det/checkpoint.pt"
     result = detector(rgb)                              # rgb: (H, W, 3) uint8, H, W <= the canvas
-    result.boxes_px, result.labels, result.scores
+    result.boxes_px, result.labels, result.scores, result.masks   # masks: (N, H, W) bool, or None
 
 A frame smaller than the training canvas is padded black at the bottom and right (as in training),
 so boxes are in the frame's own pixels; a larger one is an error (resize it, or train on that size).
@@ -26,6 +26,8 @@ class Detections:
     """(N,) int64 COCO category ids of the dataset."""
     scores: np.ndarray
     """(N,) float32 in [0, 1], descending."""
+    masks: np.ndarray | None = None
+    """(N, H, W) bool instance masks in the frame's pixels, for a model trained with masks."""
 
 
 class Detector:
@@ -42,7 +44,8 @@ class Detector:
 
             meta = read_sidecar(self.path)
             self._session = ort.InferenceSession(str(self.path), providers=["CPUExecutionProvider"])
-            self._run = lambda x: self._session.run(["boxes", "scores", "classes"], {"images": x})
+            names = meta.get("outputs", ["boxes", "scores", "classes"])
+            self._run = lambda x: self._session.run(names, {"images": x})
         else:
             import torch
 
@@ -71,11 +74,20 @@ class Detector:
                              "train on frames of that size")
         canvas = np.zeros((1, 3, ch, cw), np.float32)
         canvas[0, :, :h, :w] = rgb[..., :3].transpose(2, 0, 1) / np.float32(255)
-        boxes, scores, classes = (a[0] for a in self._run(canvas))
+        boxes, scores, classes, *masks = (a[0] for a in self._run(canvas))
         keep = scores >= self.score_threshold
         boxes = boxes[keep].astype(np.float32)
         boxes[:, 0::2] = boxes[:, 0::2].clip(0, w)
         boxes[:, 1::2] = boxes[:, 1::2].clip(0, h)
         classes = classes[keep].astype(np.int64)
+        pasted = None
+        if masks:  # stride-4 probabilities of every detection: only the kept ones become pixels
+            import torch
+
+            from .model import paste_masks
+
+            pasted = paste_masks(torch.from_numpy(np.ascontiguousarray(masks[0][keep])), torch.from_numpy(boxes),
+                                 (h, w)).numpy()
         return Detections(boxes_px=boxes, labels=[self.categories[k] for k in classes],
-                          category_ids=self.category_ids[classes], scores=scores[keep].astype(np.float32))
+                          category_ids=self.category_ids[classes], scores=scores[keep].astype(np.float32),
+                          masks=pasted)

@@ -1,4 +1,5 @@
-"""COCO evaluation of a detector on held-out frames with pycocotools: mAP, mAP50 and AP per class."""
+"""COCO evaluation of a detector on held-out frames with pycocotools: mAP, mAP50 and AP per class,
+of the boxes and, for a model with masks, of the instance masks (iouType 'segm')."""
 
 from __future__ import annotations
 
@@ -8,29 +9,46 @@ import io
 
 import numpy as np
 import torch
+from pycocotools import mask as mask_utils
 
-from .model import CenterNet, decode
+from .model import CenterNet, decode, decode_masks, paste_masks
 
 
 @torch.no_grad()
-def predict_coco(model: CenterNet, loader, device: torch.device, category_ids: list[int]) -> list[dict]:
+def predict_coco(model: CenterNet, loader, device: torch.device, category_ids: list[int],
+                 image_sizes: dict[int, tuple[int, int]] | None = None) -> list[dict]:
     """COCO result entries ``{"image_id", "category_id", "bbox" (x, y, w, h px), "score"}`` of every
-    image of ``loader``; class index k is category ``category_ids[k]``."""
+    image of ``loader``; class index k is category ``category_ids[k]``. For a model with masks and
+    ``image_sizes`` ({image id: (H, W) px}), each entry also has its ``segmentation`` (compressed
+    RLE of the image's size), which ``coco_metrics(..., iou_type="segm")`` scores."""
     model.eval()
+    with_masks = bool(model.cfg.mask_prototypes) and image_sizes is not None
     results = []
     for images, batch_targets in loader:
-        boxes, scores, classes = decode(model(images.to(device)), model.cfg.max_detections)
-        for target, b, s, c in zip(batch_targets, boxes.cpu(), scores.cpu(), classes.cpu()):
+        maps = model(images.to(device))
+        if with_masks:
+            boxes, scores, classes, masks = (t.cpu() for t in decode_masks(maps, model.cfg.max_detections))
+        else:
+            boxes, scores, classes = (t.cpu() for t in decode(maps, model.cfg.max_detections))
+        for n, target in enumerate(batch_targets):
+            image_id = int(target["image_id"])
+            b = boxes[n]
             xywh = torch.cat([b[:, :2], b[:, 2:] - b[:, :2]], dim=1)
-            for box, score, cls in zip(xywh.tolist(), s.tolist(), c.tolist()):
-                results.append({"image_id": int(target["image_id"]), "category_id": category_ids[cls],
-                                "bbox": box, "score": score})
+            entries = [{"image_id": image_id, "category_id": category_ids[cls], "bbox": box, "score": score}
+                       for box, score, cls in zip(xywh.tolist(), scores[n].tolist(), classes[n].tolist())]
+            if with_masks:
+                binary = paste_masks(masks[n], b, image_sizes[image_id]).numpy()
+                rles = mask_utils.encode(np.asfortranarray(binary.transpose(1, 2, 0).astype(np.uint8)))
+                for entry, rle in zip(entries, rles):
+                    entry["segmentation"] = {"size": [int(v) for v in rle["size"]], "counts": rle["counts"].decode()}
+            results.extend(entries)
     return results
 
 
-def coco_metrics(coco_dict: dict, image_ids: list[int], results: list[dict]) -> dict:
+def coco_metrics(coco_dict: dict, image_ids: list[int], results: list[dict], iou_type: str = "bbox") -> dict:
     """``{"mAP", "mAP50", "per_class": {name: AP}}`` of ``results`` on ``image_ids`` of the COCO dict
-    (pycocotools' COCOeval, bbox, maxDets 100; AP of a class with no ground truth is left out)."""
+    (pycocotools' COCOeval, ``iou_type`` 'bbox' or 'segm', maxDets 100; AP of a class with no ground
+    truth is left out)."""
     from pycocotools.coco import COCO
     from pycocotools.cocoeval import COCOeval
 
@@ -40,8 +58,12 @@ def coco_metrics(coco_dict: dict, image_ids: list[int], results: list[dict]) -> 
         gt.createIndex()
         if not results:
             return {"mAP": 0.0, "mAP50": 0.0, "per_class": {}}
+        # copies (loadRes writes into them) without the other kind: given both, loadRes keeps the box's
+        # area for the mask; given only masks, it takes each mask's area and box
+        drop = "segmentation" if iou_type == "bbox" else "bbox"
+        results = [{k: v for k, v in r.items() if k != drop} for r in results]
         dt = gt.loadRes(results)
-        ev = COCOeval(gt, dt, "bbox")
+        ev = COCOeval(gt, dt, iou_type)
         ev.params.imgIds = list(image_ids)
         ev.evaluate()
         ev.accumulate()
@@ -53,3 +75,11 @@ def coco_metrics(coco_dict: dict, image_ids: list[int], results: list[dict]) -> 
         if (p > -1).any():
             per_class[gt.cats[cat_id]["name"]] = float(np.mean(p[p > -1]))
     return {"mAP": max(0.0, float(ev.stats[0])), "mAP50": max(0.0, float(ev.stats[1])), "per_class": per_class}
+
+
+def evaluate_all(coco_dict: dict, image_ids: list[int], results: list[dict]) -> dict:
+    """``coco_metrics`` of the boxes, with ``"mask"``: the same of the masks when ``results`` have them."""
+    metrics = coco_metrics(coco_dict, image_ids, results, "bbox")
+    if results and "segmentation" in results[0]:
+        metrics["mask"] = coco_metrics(coco_dict, image_ids, results, "segm")
+    return metrics

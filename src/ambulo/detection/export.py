@@ -2,8 +2,10 @@
 
 The graph takes ``images`` (1, 3, H, W) float32 in [0, 1] at the checkpoint's canvas size and returns
 ``boxes`` (1, K, 4) x0 y0 x1 y1 px, ``scores`` (1, K) and ``classes`` (1, K) int64 (0-based; the
-category names are in ``<file>.json`` beside it). ``check_onnx`` runs both on one image and returns
-the largest differences, so an export that disagrees with torch is caught where it is made.
+category names are in ``<file>.json`` beside it); a model with masks also returns ``masks`` (1, K,
+H/4, W/4) float32, each detection's mask probabilities at stride 4 (``model.paste_masks`` makes
+them pixels). ``check_onnx`` runs both on one image and returns the largest differences, so an
+export that disagrees with torch is caught where it is made.
 """
 
 from __future__ import annotations
@@ -21,6 +23,11 @@ from .model import CenterNet, ExportedDetector
 from .train import load_trained
 
 OUTPUTS = ("boxes", "scores", "classes")
+MASK_OUTPUT = "masks"
+
+
+def output_names(model: CenterNet) -> list[str]:
+    return [*OUTPUTS, MASK_OUTPUT] if model.cfg.mask_prototypes else list(OUTPUTS)
 
 
 def export_onnx(checkpoint: str | Path, out: str | Path, opset: int = 17) -> Path:
@@ -29,7 +36,8 @@ def export_onnx(checkpoint: str | Path, out: str | Path, opset: int = 17) -> Pat
     out = export_model(model, state["canvas_hw"], out, opset)
     atomic_write_json(sidecar(out), {"categories": state["categories"], "category_ids": state["category_ids"],
                                      "canvas_hw": list(state["canvas_hw"]),
-                                     "max_detections": model.cfg.max_detections})
+                                     "max_detections": model.cfg.max_detections,
+                                     "outputs": output_names(model)})
     return out
 
 
@@ -42,7 +50,7 @@ def export_model(model: CenterNet, canvas_hw: tuple[int, int], out: str | Path, 
     with warnings.catch_warnings():  # the trace's shape arithmetic is constant for one canvas size
         warnings.simplefilter("ignore", torch.jit.TracerWarning)
         torch.onnx.export(ExportedDetector(model.eval()), (example,), str(out), input_names=["images"],
-                          output_names=list(OUTPUTS), opset_version=opset, dynamo=False)
+                          output_names=output_names(model), opset_version=opset, dynamo=False)
     return out
 
 
@@ -63,13 +71,13 @@ def check_onnx(checkpoint: str | Path, onnx_path: str | Path, image: np.ndarray 
     with torch.no_grad():
         expected = [t.numpy() for t in ExportedDetector(model)(torch.from_numpy(image))]
     session = ort.InferenceSession(str(onnx_path), providers=["CPUExecutionProvider"])
-    got = session.run(list(OUTPUTS), {"images": image})
+    got = session.run(output_names(model), {"images": image})
     return compare_detections(expected, got)
 
 
 def compare_detections(expected: list[np.ndarray], got: list[np.ndarray], score_tol: float = 1e-4,
                        box_tol_px: float = 0.01) -> dict:
-    """Order-free agreement of two (boxes, scores, classes) outputs of batch 1.
+    """Order-free agreement of two (boxes, scores, classes[, masks]) outputs of batch 1.
 
     ``scores``: the largest difference of the sorted scores. Each expected box whose score stands
     clear of the K-th (ties at the cut-off may be broken either way) is ``compared`` with the boxes of
@@ -77,19 +85,25 @@ def compare_detections(expected: list[np.ndarray], got: list[np.ndarray], score_
     nearest of them among the boxes that have one within ``box_tol_px``, ``unmatched`` counts those
     that have none. A box is unmatched when two neighbouring cells' scores are equal to float
     rounding: which of them is the 3x3 maximum then depends on the runtime's last bit (the box moves
-    by one 4 px cell). That happens on flat, untrained heatmaps; a trained model's peaks stand clear."""
-    (eb, es, ec), (gb, gs, gc) = ([a[0] for a in out] for out in (expected, got))
+    by one 4 px cell). That happens on flat, untrained heatmaps; a trained model's peaks stand clear.
+    With masks, ``masks`` is the largest probability difference between the masks of matched boxes."""
+    (eb, es, ec, *em), (gb, gs, gc, *gm) = ([a[0] for a in out] for out in (expected, got))
     score_diff = float(np.abs(np.sort(es) - np.sort(gs)).max())
     inner = np.flatnonzero(es > es.min() + score_tol)
-    worst, unmatched = 0.0, 0
+    worst, unmatched, worst_mask = 0.0, 0, 0.0
     for i in inner:
-        same = (gc == ec[i]) & (np.abs(gs - es[i]) <= score_tol)
-        distance = np.abs(gb[same] - eb[i]).max(axis=1).min() if same.any() else np.inf
-        if distance > box_tol_px:
+        same = np.flatnonzero((gc == ec[i]) & (np.abs(gs - es[i]) <= score_tol))
+        distances = np.abs(gb[same] - eb[i]).max(axis=1) if len(same) else np.array([np.inf])
+        if distances.min() > box_tol_px:
             unmatched += 1
-        else:
-            worst = max(worst, float(distance))
-    return {"scores": score_diff, "boxes_px": worst, "compared": int(len(inner)), "unmatched": unmatched}
+            continue
+        worst = max(worst, float(distances.min()))
+        if em:
+            worst_mask = max(worst_mask, float(np.abs(gm[0][same[distances.argmin()]] - em[0][i]).max()))
+    out = {"scores": score_diff, "boxes_px": worst, "compared": int(len(inner)), "unmatched": unmatched}
+    if em:
+        out["masks"] = worst_mask
+    return out
 
 
 def read_sidecar(onnx_path: str | Path) -> dict:

@@ -5,6 +5,12 @@ Each box puts a Gaussian on its class's heatmap at its centre, with standard dev
 boxes are not over-penalised along their short side); the loss is the penalty-reduced focal loss
 on the heatmap (alpha 2, beta 4) plus L1 on size (weight 0.1) and offset (weight 1) at each box's
 centre cell, all normalised by the number of boxes.
+
+Masks (YOLACT's loss, Bolya et al. 2019): each box's mask logits are its centre cell's
+coefficients times the prototypes; the target is its binary mask averaged over each 4x4 cell (a
+soft edge, exactly what ``paste_masks`` up-samples back); binary cross-entropy over the cells of its
+box widened by one cell, divided by that area, so a small object counts as much as a large one
+(weight ``MASK_WEIGHT``, averaged over the boxes).
 """
 
 from __future__ import annotations
@@ -17,6 +23,7 @@ from .model import STRIDE_OUT
 GAUSSIAN_ALPHA = 0.54
 SIZE_WEIGHT = 0.1
 OFFSET_WEIGHT = 1.0
+MASK_WEIGHT = 1.0
 
 
 def targets(boxes_px: list[torch.Tensor], classes: list[torch.Tensor], num_classes: int,
@@ -53,9 +60,34 @@ def focal_loss(logits: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     return pos.sum() + neg.sum()
 
 
+def mask_loss(proto: torch.Tensor, coef: torch.Tensor, per_image: list[tuple], masks: list[torch.Tensor]
+              ) -> torch.Tensor:
+    """Sum over boxes of the box-cropped, area-normalised BCE of their masks (module docstring);
+    ``per_image`` is ``targets``' (so each box's centre cell), ``masks`` (N, H, W) bool per image."""
+    total = proto.new_zeros((), dtype=torch.float32)
+    b, p, h, w = proto.shape
+    ys = torch.arange(h, device=proto.device)[None, :, None]
+    xs = torch.arange(w, device=proto.device)[None, None, :]
+    for i, ((cell, size, offset), mask) in enumerate(zip(per_image, masks)):
+        if not len(cell):
+            continue
+        c = coef[i, :, cell[:, 1], cell[:, 0]].float().T  # (N, P)
+        logits = (c @ proto[i].float().reshape(p, h * w)).reshape(-1, h, w)
+        target = F.avg_pool2d(mask.to(proto.device, torch.float32)[:, None], STRIDE_OUT)[:, 0]
+        centre = cell.float() + offset
+        lo = (centre - size / 2).floor() - 1  # the box in cells, one cell wider on each side
+        hi = (centre + size / 2).ceil() + 1
+        inside = ((xs >= lo[:, 0, None, None]) & (xs < hi[:, 0, None, None])
+                  & (ys >= lo[:, 1, None, None]) & (ys < hi[:, 1, None, None])).float()
+        bce = F.binary_cross_entropy_with_logits(logits, target, reduction="none")
+        total = total + ((bce * inside).sum(dim=(1, 2)) / inside.sum(dim=(1, 2)).clamp(min=1)).sum()
+    return total
+
+
 def centernet_loss(maps: dict[str, torch.Tensor], boxes_px: list[torch.Tensor], classes: list[torch.Tensor],
-                   ) -> dict[str, torch.Tensor]:
-    """``{"heat", "size", "offset", "total"}`` losses of one batch; ``classes`` are 0-based."""
+                   masks: list[torch.Tensor] | None = None) -> dict[str, torch.Tensor]:
+    """``{"heat", "size", "offset", "total"}`` losses of one batch, plus ``"mask"`` when ``masks``
+    (N, H, W) bool per image are given and the model has a mask branch; ``classes`` are 0-based."""
     b, c, h, w = maps["heat"].shape
     heat_target, per_image = targets(boxes_px, classes, c, (h, w), maps["heat"].device)
     # a box's own centre cell is exactly 1 (the Gaussian's peak), the positives of the focal loss
@@ -69,5 +101,9 @@ def centernet_loss(maps: dict[str, torch.Tensor], boxes_px: list[torch.Tensor], 
                                                   reduction="sum")
     heat = focal_loss(maps["heat"], heat_target) / n
     size_loss, offset_loss = size_loss / n, offset_loss / n
-    return {"heat": heat, "size": size_loss, "offset": offset_loss,
-            "total": heat + SIZE_WEIGHT * size_loss + OFFSET_WEIGHT * offset_loss}
+    out = {"heat": heat, "size": size_loss, "offset": offset_loss,
+           "total": heat + SIZE_WEIGHT * size_loss + OFFSET_WEIGHT * offset_loss}
+    if masks is not None and "proto" in maps:
+        out["mask"] = mask_loss(maps["proto"], maps["coef"], per_image, masks) / n
+        out["total"] = out["total"] + MASK_WEIGHT * out["mask"]
+    return out

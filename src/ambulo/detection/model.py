@@ -1,4 +1,5 @@
-"""A small anchor-free detector (CenterNet: Zhou et al. 2019, "Objects as Points"), pure torch.
+"""A small anchor-free detector (CenterNet: Zhou et al. 2019, "Objects as Points") with instance
+masks (YOLACT's prototypes and coefficients: Bolya et al. 2019), pure torch.
 
 Why not torchvision's detection models: torchvision's PyPI wheels are CUDA builds whose C++ ops
 (``nms``, ``roi_align``) need torch's CUDA libraries, so ``import torchvision`` fails against the CPU
@@ -10,6 +11,13 @@ Frames: input images (B, 3, H, W) float in [0, 1], H and W multiples of ``STRIDE
 outputs at stride ``STRIDE_OUT`` (4 px): a heatmap per class (object centres), box size (w, h) in
 output cells and the centre's sub-cell offset. ``decode`` turns them into the ``max_detections``
 best boxes (B, K, 4) x0 y0 x1 y1 in input pixels, scores (B, K) and 0-based class indices (B, K).
+
+Masks (``mask_prototypes`` > 0): a branch makes P prototype maps at stride 4 for the whole image,
+the head P coefficients per cell; an object's mask logits are its centre cell's coefficients times
+the prototypes (a 1x1 convolution whose weights the detection chooses: CondInst's dynamic mask head
+reduced to one linear layer). That costs two small convolutions and one (K, P) x (P, h*w) product,
+and exports to ONNX as a MatMul. ``decode_masks`` gives (B, K, h, w) probabilities at stride 4;
+``paste_masks`` turns the kept ones into full-resolution binary masks inside their boxes.
 """
 
 from __future__ import annotations
@@ -44,6 +52,8 @@ class ModelCfg(Checked):
     max_detections: int = 100
     """Boxes ``decode`` returns per image (the best by score; COCO evaluation reads up to 100)."""
     head_channels: int = 32
+    mask_prototypes: int = 8
+    """Prototype masks of the instance-mask branch (0: boxes only)."""
 
 
 def _conv(c_in: int, c_out: int, stride: int = 1) -> nn.Sequential:
@@ -71,6 +81,9 @@ class CenterNet(nn.Module):
         self.heat = nn.Conv2d(d, cfg.num_classes, 1)
         self.size = nn.Conv2d(d, 2, 1)
         self.offset = nn.Conv2d(d, 2, 1)
+        if cfg.mask_prototypes:
+            self.proto = nn.Sequential(_conv(d, d), nn.Conv2d(d, cfg.mask_prototypes, 1))
+            self.coef = nn.Conv2d(d, cfg.mask_prototypes, 1)
         # the heatmap starts at p = 0.1 everywhere (CenterNet's focal-loss prior), not 0.5
         nn.init.constant_(self.heat.bias, -math.log((1 - 0.1) / 0.1))
         self.register_buffer("mean", torch.tensor([0.485, 0.456, 0.406]).view(1, 3, 1, 1), persistent=False)
@@ -78,7 +91,7 @@ class CenterNet(nn.Module):
 
     def forward(self, images: torch.Tensor) -> dict[str, torch.Tensor]:
         """Raw maps at stride 4: ``heat`` logits (B, C, h, w), ``size`` (B, 2, h, w) in cells, ``offset``
-        (B, 2, h, w) in cells."""
+        (B, 2, h, w) in cells; with masks also ``proto`` (B, P, h, w) and ``coef`` (B, P, h, w)."""
         x = (images - self.mean) / self.std
         features = []
         for stage in self.stages:
@@ -88,14 +101,33 @@ class CenterNet(nn.Module):
         for i in range(len(self.lateral) - 2, -1, -1):
             top = F.interpolate(top, scale_factor=2.0, mode="nearest") + self.lateral[i](features[i + 1])
             top = self.smooth[i](top)
+        pyramid = top
         top = self.head(top)
-        return {"heat": self.heat(top), "size": F.relu(self.size(top)), "offset": self.offset(top)}
+        maps = {"heat": self.heat(top), "size": F.relu(self.size(top)), "offset": self.offset(top)}
+        if self.cfg.mask_prototypes:
+            maps["proto"], maps["coef"] = self.proto(pyramid), self.coef(top)
+        return maps
 
 
 def decode(maps: dict[str, torch.Tensor], max_detections: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """(boxes (B, K, 4) x0 y0 x1 y1 px, scores (B, K), class indices (B, K) int64): the K highest
     peaks of the heatmap, a peak being a cell that equals the max of its 3x3 neighbourhood (CenterNet's
     NMS-free decoding)."""
+    return _decode(maps, max_detections)[:3]
+
+
+def decode_masks(maps: dict[str, torch.Tensor], max_detections: int
+                 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+    """``decode``'s three outputs plus each detection's mask probabilities (B, K, h, w) at stride 4
+    (cell (i, j) is the mean over pixels [4 i, 4 i + 4) x [4 j, 4 j + 4)), not yet cut to the box."""
+    boxes, scores, classes, cell = _decode(maps, max_detections)
+    b, p, h, w = maps["proto"].shape
+    coef = maps["coef"].float().reshape(b, p, h * w).gather(2, cell[:, None, :].expand(b, p, cell.shape[1]))
+    logits = torch.matmul(coef.transpose(1, 2), maps["proto"].float().reshape(b, p, h * w))
+    return boxes, scores, classes, torch.sigmoid(logits).reshape(b, -1, h, w)
+
+
+def _decode(maps: dict[str, torch.Tensor], max_detections: int):
     heat = torch.sigmoid(maps["heat"].float())
     b, c, h, w = heat.shape
     peaks = heat * (F.max_pool2d(heat, 3, stride=1, padding=1) == heat).to(heat.dtype)
@@ -111,19 +143,41 @@ def decode(maps: dict[str, torch.Tensor], max_detections: int) -> tuple[torch.Te
     y = (cy.to(heat.dtype) + offset[:, 1]) * STRIDE_OUT
     half_w, half_h = size[:, 0] * STRIDE_OUT / 2, size[:, 1] * STRIDE_OUT / 2
     boxes = torch.stack([x - half_w, y - half_h, x + half_w, y + half_h], dim=2)
-    return boxes, scores, classes
+    return boxes, scores, classes, cell
+
+
+def paste_masks(masks_cells: torch.Tensor, boxes_px: torch.Tensor, out_hw: tuple[int, int],
+                threshold: float = 0.5) -> torch.Tensor:
+    """Binary masks (K, H, W) bool of ``out_hw`` pixels from stride-4 probabilities (K, h, w): bilinear
+    up-sampling (a cell's value sits at its pixels' centre, as the average pooling of the targets
+    put it), thresholded, and cut to each box (K, 4) x0 y0 x1 y1 px widened to whole pixels (YOLACT
+    crops the same way: the box branch is sharper than a stride-4 mask at an object's edge)."""
+    k, h, w = masks_cells.shape
+    if k == 0:
+        return torch.zeros(0, *out_hw, dtype=torch.bool)
+    full = F.interpolate(masks_cells[None].float(), size=(h * STRIDE_OUT, w * STRIDE_OUT), mode="bilinear",
+                         align_corners=False)[0, :, :out_hw[0], :out_hw[1]]
+    ys = torch.arange(out_hw[0], dtype=torch.float32)[None, :, None] + 0.5
+    xs = torch.arange(out_hw[1], dtype=torch.float32)[None, None, :] + 0.5
+    b = boxes_px.float()
+    inside = ((xs >= b[:, 0, None, None].floor()) & (xs <= b[:, 2, None, None].ceil())
+              & (ys >= b[:, 1, None, None].floor()) & (ys <= b[:, 3, None, None].ceil()))
+    return (full > threshold) & inside
 
 
 class ExportedDetector(nn.Module):
-    """The model plus ``decode``: images (B, 3, H, W) in [0, 1] -> (boxes, scores, classes), the
-    graph ONNX export traces."""
+    """The model plus ``decode``: images (B, 3, H, W) in [0, 1] -> (boxes, scores, classes) and, for a
+    model with masks, ``decode_masks``' stride-4 mask probabilities; the graph ONNX export traces."""
 
     def __init__(self, model: CenterNet):
         super().__init__()
         self.model = model
 
-    def forward(self, images: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        return decode(self.model(images), self.model.cfg.max_detections)
+    def forward(self, images: torch.Tensor) -> tuple[torch.Tensor, ...]:
+        maps = self.model(images)
+        if self.model.cfg.mask_prototypes:
+            return decode_masks(maps, self.model.cfg.max_detections)
+        return decode(maps, self.model.cfg.max_detections)
 
 
 def build_model(cfg: ModelCfg) -> CenterNet:

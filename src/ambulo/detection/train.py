@@ -3,7 +3,8 @@ COCO evaluation on held-out frames every ``eval_every_epochs``.
 
 The run folder holds ``checkpoint.pt`` (model, optimizer, AMP scaler, epoch, step, the configs and
 category names: all a resume or an export needs), ``metrics.json`` (every evaluation) and the
-TensorBoard events (``loss/*``, ``lr``, ``eval/mAP``, ``eval/mAP50``, ``eval_ap/<class>``).
+TensorBoard events (``loss/*``, ``lr``, ``eval/mAP``, ``eval/mAP50``, ``eval_ap/<class>``, and for
+a model with masks ``eval/mask_mAP``, ``eval/mask_mAP50``, ``eval_mask_ap/<class>``).
 A resumed run starts at the epoch after the checkpoint's, at its step, with its optimizer state.
 """
 
@@ -23,7 +24,7 @@ from ambulo.utils.atomic import atomic_write_bytes, atomic_write_json
 from ambulo.utils.validate import Checked
 
 from .dataset import AugmentCfg, CocoFrames, canvas_size, collate, load_coco, no_augment, split_image_ids
-from .evaluate import coco_metrics, predict_coco
+from .evaluate import evaluate_all, predict_coco
 from .loss import centernet_loss
 from .model import STRIDE_MAX, ModelCfg, build_model
 
@@ -33,6 +34,8 @@ CHECKPOINT = "checkpoint.pt"
 @dataclass(kw_only=True)
 class TrainCfg(Checked):
     model: Literal["centernet-small", "centernet-medium"] = "centernet-small"
+    mask_prototypes: int = 8
+    """Instance masks from the dataset's segmentation (``ModelCfg.mask_prototypes``; 0: boxes only)."""
     epochs: int = 30
     batch_size: int = 16
     learning_rate: float = 2e-3
@@ -79,15 +82,17 @@ def train(dataset_dir: str | Path, run_dir: str | Path, cfg: TrainCfg, resume: b
     class_of = {cat_id: k for k, cat_id in enumerate(category_ids)}
     train_ids, held_ids = split_image_ids(coco, cfg.held_out_fraction)
     canvas = canvas_size(coco, STRIDE_MAX)
-    train_set = CocoFrames(dataset_dir, coco, train_ids, canvas, cfg.augment, seed=cfg.seed)
+    with_masks = cfg.mask_prototypes > 0
+    train_set = CocoFrames(dataset_dir, coco, train_ids, canvas, cfg.augment, seed=cfg.seed, masks=with_masks)
     eval_set = CocoFrames(dataset_dir, coco, held_ids, canvas, None)
+    image_sizes = {im["id"]: (im["height"], im["width"]) for im in coco["images"]}
     loader = torch.utils.data.DataLoader(train_set, batch_size=cfg.batch_size, shuffle=True, drop_last=False,
                                          num_workers=cfg.num_workers, collate_fn=collate,
                                          persistent_workers=cfg.num_workers > 0,
                                          generator=torch.Generator().manual_seed(cfg.seed))
     eval_loader = torch.utils.data.DataLoader(eval_set, batch_size=cfg.batch_size, num_workers=cfg.num_workers,
                                               collate_fn=collate)
-    model_cfg = ModelCfg(name=cfg.model, num_classes=len(categories))
+    model_cfg = ModelCfg(name=cfg.model, num_classes=len(categories), mask_prototypes=cfg.mask_prototypes)
     model = build_model(model_cfg).to(device)
     optimizer = torch.optim.AdamW(model.parameters(), lr=cfg.learning_rate, weight_decay=cfg.weight_decay)
     steps_per_epoch = len(loader) if cfg.max_steps_per_epoch == 0 else min(len(loader), cfg.max_steps_per_epoch)
@@ -123,7 +128,7 @@ def train(dataset_dir: str | Path, run_dir: str | Path, cfg: TrainCfg, resume: b
                 classes = [torch.tensor([class_of[int(c)] for c in t["labels"]], dtype=torch.int64) for t in targets]
                 with torch.autocast(device.type, dtype=torch.bfloat16, enabled=use_amp):
                     maps = model(images.to(device, non_blocking=True))
-                loss = centernet_loss(maps, boxes, classes)
+                loss = centernet_loss(maps, boxes, classes, [t["masks"] for t in targets] if with_masks else None)
                 optimizer.zero_grad(set_to_none=True)
                 loss["total"].backward()
                 torch.nn.utils.clip_grad_norm_(model.parameters(), 10.0)
@@ -140,12 +145,16 @@ def train(dataset_dir: str | Path, run_dir: str | Path, cfg: TrainCfg, resume: b
             bar.close()
             last = epoch == cfg.epochs - 1
             if last or (cfg.eval_every_epochs and (epoch + 1) % cfg.eval_every_epochs == 0):
-                metrics = coco_metrics(coco, held_ids, predict_coco(model, eval_loader, device, category_ids))
+                metrics = evaluate_all(coco, held_ids,
+                                       predict_coco(model, eval_loader, device, category_ids, image_sizes))
                 evaluations.append({"epoch": epoch, "step": step, **metrics})
-                writer.add_scalar("eval/mAP", metrics["mAP"], step)
-                writer.add_scalar("eval/mAP50", metrics["mAP50"], step)
-                for name, ap in metrics["per_class"].items():
-                    writer.add_scalar(f"eval_ap/{name}", ap, step)
+                for prefix, m in (("", metrics), ("mask_", metrics.get("mask"))):
+                    if m is None:
+                        continue
+                    writer.add_scalar(f"eval/{prefix}mAP", m["mAP"], step)
+                    writer.add_scalar(f"eval/{prefix}mAP50", m["mAP50"], step)
+                    for name, ap in m["per_class"].items():
+                        writer.add_scalar(f"eval_{prefix}ap/{name}", ap, step)
                 atomic_write_json(run_dir / "metrics.json", evaluations, indent=1)
             save_checkpoint(run_dir / CHECKPOINT, model, optimizer, scheduler, step=step, epoch=epoch, cfg=cfg,
                             model_cfg=model_cfg, categories=[c["name"] for c in categories],
