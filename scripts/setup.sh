@@ -62,6 +62,18 @@ if ! ldconfig -p 2>/dev/null | grep -q 'libvulkan.so.1' || ! ls /usr/share/vulka
   fi
 fi
 
+# The web viewer's page test (tests/viewer) opens the page in headless Chromium, Debian's build
+# (Playwright's own browser download is not used); WebGL runs on its SwiftShader rasterizer.
+if ! command -v chromium >/dev/null; then
+  if command -v apt-get >/dev/null && [ "$(id -u)" = 0 ]; then
+    echo "installing chromium (the web viewer's page test)"
+    apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null
+  else
+    echo "warning: no chromium; install it (Debian/Ubuntu) for the web viewer's page test" >&2
+  fi
+fi
+
 if [ ! -x "$VENV/bin/python" ]; then
   "$PYTHON" -m venv "$VENV"
 fi

@@ -25,9 +25,12 @@ HUMANOID_COMMAND = (0.25, 0.0, 0.6)
 """(vx m/s, vy m/s, yaw rate rad/s): a circle of radius v / w = 0.42 m, inside the Jetbot's."""
 
 
-def build_demo_world(num_worlds: int = 1) -> tuple[World, WheeledRobot, Robot]:
-    """The demo stage: ground, a Jetbot at (1, 0), the 21-DoF humanoid at the origin, two crates."""
-    world = World(physics_dt=humanoid_facts.POLICY_PHYSICS_DT_S, rendering_dt=0.02, num_worlds=num_worlds)
+def build_demo_world(num_worlds: int = 1, viewer: str | None = None,
+                     viewer_port: int = 8080) -> tuple[World, WheeledRobot, Robot]:
+    """The demo stage: ground, a Jetbot at (1, 0), the 21-DoF humanoid at the origin, two crates.
+    ``viewer="web"``: watched in a browser (``World(viewer=...)``)."""
+    world = World(physics_dt=humanoid_facts.POLICY_PHYSICS_DT_S, rendering_dt=0.02, num_worlds=num_worlds,
+                  viewer=viewer, viewer_port=viewer_port)
     world.scene.add_default_ground_plane()
     jetbot = world.scene.add(WheeledRobot(
         prim_path="/World/Jetbot", name="jetbot", create_robot=True, usd_path=assets.path("jetbot"),
@@ -72,14 +75,28 @@ class DemoReport:
 
 
 def run_demo(seconds: float = 8.0, video: str | None = "out/demo.mp4", progress: bool = True,
-             renderer: str = "raster") -> DemoReport:
+             renderer: str = "raster", viewer: str | None = None, viewer_port: int = 8080) -> DemoReport:
+    """Run the demo; with ``viewer="web"`` it is watched in a browser, whose velocity command
+    (when the page teleoperates) replaces ``HUMANOID_COMMAND``."""
+    world, jetbot, humanoid = build_demo_world(viewer=viewer, viewer_port=viewer_port)
+    try:
+        return _run(world, jetbot, humanoid, seconds, video, progress, renderer)
+    finally:
+        if world.viewer is not None:
+            world.viewer.close()
+
+
+def _run(world, jetbot, humanoid, seconds, video, progress, renderer) -> DemoReport:
     from tqdm import tqdm
 
-    world, jetbot, humanoid = build_demo_world()
     world.reset()
     walker = HumanoidWalkingPolicy(humanoid)
     walker.initialize()
-    world.add_physics_callback("humanoid_walk", lambda dt: walker.forward(dt, HUMANOID_COMMAND))
+
+    def humanoid_command():
+        return HUMANOID_COMMAND if world.viewer is None else world.viewer.velocity_command(HUMANOID_COMMAND)
+
+    world.add_physics_callback("humanoid_walk", lambda dt: walker.forward(dt, humanoid_command()))
     controller = DifferentialController(wheel_radius=0.03, wheel_base=0.1125)
     # a 1 m circle: v = w r
     wheel_command = controller.forward([0.25, 0.25])

@@ -42,6 +42,7 @@ from .scene import Scene
 from .stage_view import StageView
 from .tasks import TaskHost
 from .usd_stage import authored_labels, stage_for_new_world
+from .viewers import open_viewer
 
 log = logging.getLogger(__name__)
 
@@ -100,6 +101,8 @@ class World(TaskHost):
       stage_units_in_meters: metres per stage unit of the USD stage and of positions, lengths
         and linear velocities at the prim API (Isaac's ``World(stage_units_in_meters=0.01)``
         works in centimetres); the MuJoCo model is always in metres.
+      viewer: ``"web"`` opens a browser viewer on 127.0.0.1:``viewer_port`` (``ambulo.viewer``,
+        imported first); it is ``self.viewer`` (None without one).
     """
 
     def __init__(
@@ -118,6 +121,8 @@ class World(TaskHost):
         stage_units_in_meters: float = 1.0,
         num_threads: int = 0,
         engine: str = "auto",
+        viewer: str | None = None,
+        viewer_port: int = 8080,
     ):
         self.stage_units_in_meters = check_positive(
             "stage_units_in_meters", stage_units_in_meters, "pass metres per stage unit, e.g. 1.0 (m) or 0.01 (cm)")
@@ -165,6 +170,7 @@ class World(TaskHost):
         adopted, self.usd.on_adopt = self.usd.on_adopt, []
         for attach in adopted:  # what a script imported onto the stage before this World existed
             attach(self)
+        self.viewer = None if viewer is None else open_viewer(self, viewer, viewer_port)
 
     @classmethod
     def instance(cls) -> World | None:

@@ -1,0 +1,141 @@
+"""The viewer as a component of the watched simulation, without a browser: frames are copied only
+when the streaming thread asks, the page's pause holds the simulation thread (Step lets exactly one
+step through), an env gets the page's command and reset through its own paths, and ``close``
+frees the port. Waits are on conditions with generous limits; nothing asserts a duration."""
+
+from __future__ import annotations
+
+import socket
+import threading
+import time
+
+import numpy as np
+import pytest
+import torch
+
+pytest.importorskip("viser")
+import ambulo.viewer
+from ambulo.sim import DynamicCuboid, World
+from ambulo.sim.viewers import open_viewer
+from ambulo.utils.checks import InvalidValueError
+
+LIMIT_S = 120.0
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def wait_until(condition, what: str) -> None:
+    deadline = time.monotonic() + LIMIT_S
+    while not condition():
+        assert time.monotonic() < deadline, f"timed out waiting for {what}"
+        time.sleep(0.01)
+
+
+@pytest.fixture
+def world():
+    World.clear_instance()
+    w = World(physics_dt=0.01, viewer="web", viewer_port=free_port())
+    w.scene.add_default_ground_plane()
+    w.scene.add(DynamicCuboid(prim_path="/World/Box", position=[0.0, 0.0, 1.0], size=0.2))
+    w.reset()
+    yield w
+    w.viewer.close()
+    World.clear_instance()
+
+
+def test_world_viewer_by_name_and_unknown_name():
+    assert isinstance(ambulo.viewer.WebViewer, type)
+    with pytest.raises(InvalidValueError, match="import ambulo.viewer"):
+        open_viewer(None, "vr", 8080)
+
+
+def test_frames_are_copied_only_when_the_stream_asks(world):
+    viewer = world.viewer
+    requests, copies = [0], [0]
+    request, publish = viewer.exchange.request, viewer.exchange.publish
+
+    def counted_request():
+        requests[0] += 1
+        request()
+
+    def counted_publish(frame):
+        copies[0] += 1
+        publish(frame)
+
+    viewer.exchange.request, viewer.exchange.publish = counted_request, counted_publish
+    viewer.controls.speed = None  # as fast as it runs
+    for _ in range(300):
+        world.step(render=False)
+    assert world.current_time == pytest.approx(3.0)
+    assert copies[0] <= requests[0] + 1 < 300
+
+
+def test_pause_holds_the_simulation_and_step_lets_one_through(world):
+    viewer, controls = world.viewer, world.viewer.controls
+    controls.speed = None
+    stop = threading.Event()
+
+    def loop():
+        while not stop.is_set():
+            world.step(render=False)
+
+    runner = threading.Thread(target=loop, daemon=True)
+    runner.start()
+    try:
+        controls.set_paused(True)
+        sequence, frame = 0, None
+        while frame is None or not frame.paused:  # a frame copied by the held simulation thread
+            sequence, frame = viewer.exchange.latest(sequence, timeout_s=LIMIT_S)
+        held_at = world.current_time
+        for _ in range(5):  # the stream keeps asking; the held simulation answers with the same state
+            sequence, frame = viewer.exchange.latest(sequence, timeout_s=LIMIT_S)
+        assert world.current_time == held_at
+        controls.step_once()
+        wait_until(lambda: world.current_time > held_at, "the single step")
+        sequence, _ = viewer.exchange.latest(sequence, timeout_s=LIMIT_S)
+        sequence, _ = viewer.exchange.latest(sequence, timeout_s=LIMIT_S)
+        assert world.current_time == pytest.approx(held_at + world.physics_dt)
+        controls.set_paused(False)
+        wait_until(lambda: world.current_time > held_at + 0.5, "the resumed simulation")
+    finally:
+        stop.set()
+        controls.set_paused(False)
+        runner.join(timeout=LIMIT_S)
+
+
+def test_close_frees_the_port_and_leaves_the_simulation(world):
+    viewer = world.viewer
+    port = viewer.port
+    with socket.socket() as s:
+        assert s.connect_ex(("127.0.0.1", port)) == 0
+    viewer.close()
+    assert "ambulo.viewer" not in world.sim.components
+    with socket.socket() as s:
+        assert s.connect_ex(("127.0.0.1", port)) != 0
+    world.step(render=False)  # the simulation goes on without it
+
+
+def test_env_gets_the_pages_command_and_reset():
+    from ambulo import envs
+
+    env = envs.make("humanoid-walk", num_envs=2, seed=0)
+    viewer = ambulo.viewer.serve(env, port=free_port(), announce=False)
+    try:
+        viewer.controls.watch(1)
+        viewer.controls.set_command([0.5, 0.0, 0.3])
+        other = env.commands.command[0, :2].clone()  # (its yaw rate may steer to a heading)
+        actions = torch.zeros(env.num_envs, env.num_actions)
+        for _ in range(3):
+            env.step(actions)
+        np.testing.assert_allclose(env.commands.command[1].numpy(), [0.5, 0.0, 0.3], atol=1e-6)
+        assert torch.equal(env.commands.command[0, :2], other)  # the other env keeps its own
+        assert int(env.episode_length_buf[1]) == 3
+        viewer.controls.request_reset()
+        env.step(actions)
+        assert int(env.episode_length_buf[1]) == 0 and int(env.episode_length_buf[0]) == 4
+    finally:
+        viewer.close()
