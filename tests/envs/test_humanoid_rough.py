@@ -18,17 +18,19 @@ STAIRS_DOWN = 5  # index of "stairs_down" in the default TerrainCfg.kinds
 
 
 def make(num_envs=7, transfer=None, **overrides):
-    cfg = envs.make_cfg("humanoid-rough", num_envs=num_envs, seed=0, num_threads=1, push_interval_s=None,
-                        **SMALL, **overrides)
+    cfg = envs.make_cfg("humanoid-rough", num_envs=num_envs, seed=0, num_threads=1, push_interval_s=None, **SMALL,
+                        **overrides)
     cfg.transfer = transfer or TransferCfg()
     return HumanoidRoughEnv(cfg)
 
 
-def test_robots_stand_on_the_hardest_stairs_summit():
+@pytest.mark.parametrize("engine", ["mujoco", pytest.param("warp", marks=pytest.mark.slow)])
+def test_robots_stand_on_the_hardest_stairs_summit(engine):
     """Every robot starts on its tile's platform at the hardest level; on the stairs-down tile that
     is 5 steps of 0.15 m up. Standing still for 0.5 s, its soles rest on the platform, and it is
-    not "fallen" although its base is 1.6 m above z = 0."""
-    env = make(**{"curriculum.init_level": -1, "curriculum.enabled": False})
+    not "fallen" although its base is 1.6 m above z = 0 (nor in the stairs-up pit at 0.15 m).
+    On MuJoCo Warp (its CPU device here: minutes of kernel compilation) the hfield holds them too."""
+    env = make(engine=engine, **{"curriculum.init_level": -1, "curriculum.enabled": False})
     assert env.curriculum.levels.tolist() == [2] * 7
     assert env.curriculum.origins_w[STAIRS_DOWN, 2].item() == pytest.approx(0.75)
     for _ in range(25):
@@ -38,7 +40,7 @@ def test_robots_stand_on_the_hardest_stairs_summit():
     soles = env.engine.site_xpos[:, sites].float()
     ground = env.ground_height_m(soles[..., :2])
     np.testing.assert_allclose(ground[STAIRS_DOWN].numpy(), [0.75, 0.75], atol=1e-6)
-    np.testing.assert_allclose((soles[..., 2] - ground).numpy(), 0.0, atol=0.015)
+    np.testing.assert_allclose((soles[..., 2] - ground).numpy(), 0.0, atol=0.03 if engine == "warp" else 0.015)
     assert env.robot.data.root_pos_w[STAIRS_DOWN, 2].item() > 1.5
 
 

@@ -7,8 +7,9 @@ actor sees, after humanoid-walk's 72 values, a height scan: base height over the
 17 x 11 grid around the base (``HeightScanCfg``), read from the terrain's samples on the device.
 The critic sees the clean scan and, privileged, each foot's height over the ground under it.
 Falls count against the ground under the base (a robot on a 0.75 m stair summit is not fallen).
-Transfer randomization (``envs.transfer``) draws gains, motor strength, joint friction and
-armature, CoM offsets at start and action latency and observation delay per episode.
+Transfer randomization (``envs.transfer``, humanoid-walk's ``transfer`` setting) is on: gains,
+motor strength, joint friction and armature, CoM offsets at start, action latency and observation
+delay per episode (``transfer_cfg_wide``).
 
 Play and evaluation put every robot on the hardest level, with no curriculum and no transfer
 randomization (``humanoid_rough_play_cfg``); ``mean_terrain_level`` reports where training is.
@@ -35,7 +36,7 @@ from ambulo.sensors import ContactSensor, ContactSensorCfg
 
 from .humanoid_walk import WALKS, HumanoidWalkCfg, HumanoidWalkEnv, as_play, humanoid_walk_cfg, humanoid_walk_ppo
 from .registry import TaskSpec, register
-from .transfer import TransferCfg, TransferRandomization, transfer_cfg_wide
+from .transfer import transfer_cfg_wide
 
 
 @dataclass(kw_only=True)
@@ -51,7 +52,6 @@ class HumanoidRoughCfg(HumanoidWalkCfg):
     """Robots start uniformly within +-this of their tile's centre along x and y, m."""
     terrain_friction: float = 1.0
     """Sliding friction of the terrain geom before randomization."""
-    transfer: TransferCfg = field(default_factory=TransferCfg)
 
 
 def humanoid_rough_cfg() -> HumanoidRoughCfg:
@@ -67,10 +67,10 @@ def humanoid_rough_cfg() -> HumanoidRoughCfg:
 
 
 def humanoid_rough_play_cfg() -> HumanoidRoughCfg:
-    """Play and evaluation: humanoid-walk's play variant, every robot on the hardest level."""
+    """Play and evaluation: humanoid-walk's play variant (no pushes, noise or transfer
+    randomization), every robot on the hardest level."""
     cfg = as_play(humanoid_rough_cfg())
     cfg.curriculum = TerrainCurriculumCfg(enabled=False, init_level=-1)
-    cfg.transfer = TransferCfg()
     return cfg
 
 
@@ -102,9 +102,6 @@ class HumanoidRoughEnv(HumanoidWalkEnv):
         """(N,) horizontal distance of each robot from where its episode started, m."""
         self.command_path_m = torch.zeros(n, **f32)
         """(N,) path length the commands asked for this episode (|v_cmd| integrated), m."""
-        self._targets = self.robot.default_joint_pos.expand(n, -1).clone()
-        self.transfer = TransferRandomization(cfg.transfer, self)
-        self.transfer.startup()
 
     # -- terrain ----------------------------------------------------------------------------
     def ground_height_m(self, xy_w: torch.Tensor) -> torch.Tensor:
@@ -117,12 +114,6 @@ class HumanoidRoughEnv(HumanoidWalkEnv):
         return root[:, 2].float() - self.heights.height_at(root[:, :2])
 
     # -- RLEnv hooks ------------------------------------------------------------------------
-    def _apply_action(self, actions: torch.Tensor) -> None:
-        self._targets = self.robot.default_joint_pos + actions * self.cfg.action_scale
-
-    def _simulate(self) -> torch.Tensor:
-        return self.transfer.simulate(self._targets, self.cfg.decimation)
-
     def _post_physics(self) -> None:
         super()._post_physics()
         xy = self.robot.data.root_pos_w[:, :2].float()
@@ -141,18 +132,12 @@ class HumanoidRoughEnv(HumanoidWalkEnv):
         put_rows(self._start_xy, slice(None), xy, rows)
         fill_rows(self.distance_m, rows, 0.0)
         fill_rows(self.command_path_m, rows, 0.0)
-        self.transfer.reset(rows)
-        self.transfer.start_episode_targets(rows, self.robot.default_joint_pos.expand(self.num_envs, -1))
 
     def _step(self, actions):
         obs, rewards, dones, extras = super()._step(actions)
         if "episode" in extras:  # every stats window: the curriculum's progress, a device scalar
             extras["episode"]["Curriculum/terrain_level"] = self.curriculum.mean_level()
         return obs, rewards, dones, extras
-
-    def _compute_observations(self) -> torch.Tensor:
-        obs = super()._compute_observations()
-        return self.transfer.observe(obs, self.episode_length_buf == 0)
 
     def _height_scan(self) -> torch.Tensor:
         data = self.robot.data

@@ -32,6 +32,7 @@ from .base import EnvCfg, RLEnv
 from .commands import VelocityCommand, VelocityCommandCfg
 from .ppo import PpoCfg
 from .registry import Criterion, TaskSpec, register
+from .transfer import TransferCfg, TransferRandomization
 
 
 @dataclass(kw_only=True)
@@ -74,6 +75,10 @@ class HumanoidWalkCfg(EnvCfg):
     """The range widens while the running mean of the linear tracking kernel is above this."""
     curriculum_rate_per_s: float = 0.02
     """How fast the range share grows while tracking is good, per second of simulated time."""
+    transfer: TransferCfg = field(default_factory=TransferCfg)
+    """Transfer randomization (gains, strength, joint friction, armature, CoM, action latency,
+    observation delay; ``envs.transfer``); off by default, ``transfer_cfg_wide()`` for the
+    issue's robustness ranges."""
 
 
 def humanoid_walk_cfg() -> HumanoidWalkCfg:
@@ -122,6 +127,7 @@ def as_play(cfg: HumanoidWalkCfg) -> HumanoidWalkCfg:
     cfg.added_base_mass_kg = None
     cfg.episode_length_s = 1.0e9
     cfg.curriculum_start_scale = None
+    cfg.transfer = TransferCfg()
     return cfg
 
 
@@ -172,6 +178,10 @@ class HumanoidWalkEnv(RLEnv):
         if cfg.curriculum_start_scale is not None:
             self.commands.range_scale.fill_(cfg.curriculum_start_scale)
         self._randomize_physics()
+        self._targets = self.robot.default_joint_pos.expand(n, -1).clone()
+        """(N, J) joint targets of the last action, rad (the drives get them in ``_simulate``)."""
+        self.transfer = TransferRandomization(cfg.transfer, self)
+        self.transfer.startup()  # draws nothing unless a term is on: the walk's seeds stay as they were
 
     def _randomize_physics(self) -> None:
         """Per-env friction and base mass, drawn once at start (Isaac Lab's "startup" events)
@@ -206,7 +216,15 @@ class HumanoidWalkEnv(RLEnv):
 
     # -- RLEnv hooks ---------------------------------------------------------------------
     def _apply_action(self, actions: torch.Tensor) -> None:
-        self.robot.set_joint_targets(self.robot.default_joint_pos + actions * self.cfg.action_scale)
+        self._targets = self.robot.default_joint_pos + actions * self.cfg.action_scale
+
+    def _simulate(self) -> torch.Tensor:
+        # the drives get the targets here: delayed per world when an action latency is on
+        return self.transfer.simulate(self._targets, self.cfg.decimation)
+
+    def _compute_observations(self) -> torch.Tensor:
+        obs = super()._compute_observations()
+        return self.transfer.observe(obs, self.episode_length_buf == 0)  # the actor's, delayed if on
 
     def _pre_physics(self) -> None:
         self.commands.update(self.step_dt_s, self.robot.data.heading_w)
@@ -289,6 +307,8 @@ class HumanoidWalkEnv(RLEnv):
         pos = (robot.default_joint_pos + noise).clamp(robot.joint_pos_limits[:, 0], robot.joint_pos_limits[:, 1])
         robot.write_joint_state(pos=pos, env_ids=rows)
         self.commands.resample(rows)
+        self.transfer.reset(rows)
+        self.transfer.start_episode_targets(rows, robot.default_joint_pos.expand(self.num_envs, -1))
 
 
 WALKS = Criterion("walks", max_values={"fall_rate": 0.05, "mean_abs_vel_error_m_s": 0.2})

@@ -1,0 +1,93 @@
+"""The robustness table: a walking policy evaluated under transfer randomization, term by term.
+
+Issue 30: "the flat-ground policy still meets ``walks`` with gains +-20 %, 0-20 ms latency and
+CoM +-3 cm". Each row evaluates the same policy as ``ambulo eval`` does (``rl.run_episodes``: one
+full episode per env of the task's play variant, deterministic actions) with one
+``envs.transfer.TransferCfg`` on top: nominal, each term alone, the issue's three together, and
+``transfer_cfg_wide`` (all terms). The nominal row is the ceiling the others are read against.
+
+    python benchmarks/robustness.py --shipped humanoid-walk --num-episodes 100
+    python benchmarks/robustness.py --run runs/humanoid-walk/<run> --device cuda --num-episodes 1000
+
+Ends with one ``RESULT {json}``: each row's fall rate, velocity error and ``walks``; ``ratio`` is
+the worst row's ``walks``-passing share of the rows (1.0 when every row walks).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from ambulo import envs
+from ambulo.envs.transfer import TransferCfg, transfer_cfg_wide
+from ambulo.rl import runs
+from ambulo.rl.evaluate import eval_episode_length_s, run_episodes
+from ambulo.rl.vecenv import RslRlVecEnv
+
+CONDITIONS = {
+    "nominal": TransferCfg(),
+    "gains_20pct": TransferCfg(kp_scale_range=(0.8, 1.2), kd_scale_range=(0.8, 1.2)),
+    "latency_0_20ms": TransferCfg(action_latency_range_s=(0.0, 0.02)),
+    "com_3cm": TransferCfg(com_offset_m=0.03),
+    "issue_three": TransferCfg(kp_scale_range=(0.8, 1.2), kd_scale_range=(0.8, 1.2),
+                               action_latency_range_s=(0.0, 0.02), com_offset_m=0.03),
+    "wide": transfer_cfg_wide(),
+}
+
+
+def policy_maker(args):
+    """``make(env) -> policy`` for a run's checkpoint or a shipped policy, and the task name."""
+    if args.run:
+        run_dir, ckpt = runs.resolve_policy(args.run, None, args.log_root)
+        info = runs.read_run_info(run_dir)
+
+        def make_env(num_envs, seed, **overrides):
+            return runs.make_env_for_run(info, num_envs=num_envs, seed=seed, play=True, device=args.device,
+                                         **overrides)
+
+        def make_policy(env):
+            return runs.load_runner(run_dir, env, ckpt).get_inference_policy(device=str(env.device))
+        return info["task"], make_env, make_policy
+    from ambulo.policies.shipped import load_policy
+
+    shipped = load_policy(args.shipped)
+
+    def make_env(num_envs, seed, **overrides):
+        return envs.make(args.shipped, num_envs=num_envs, device=args.device or "cpu", seed=seed, play=True,
+                         **overrides)
+    return args.shipped, make_env, lambda env: (lambda obs: shipped(obs["policy"]))
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    source = parser.add_mutually_exclusive_group(required=True)
+    source.add_argument("--run", help="a training run folder or checkpoint")
+    source.add_argument("--shipped", help="a task whose shipped policy to evaluate (humanoid-walk)")
+    parser.add_argument("--log-root", default="runs")
+    parser.add_argument("--device", default=None)
+    parser.add_argument("--num-episodes", type=int, default=100)
+    parser.add_argument("--episode-length-s", type=float, default=None)
+    parser.add_argument("--seed", type=int, default=12345)
+    parser.add_argument("--only", default=None, help="comma-separated condition names")
+    args = parser.parse_args()
+    task, make_env, make_policy = policy_maker(args)
+    spec = envs.spec(task)
+    names = args.only.split(",") if args.only else list(CONDITIONS)
+    rows = {}
+    for name in names:
+        env = make_env(args.num_episodes, args.seed, transfer=CONDITIONS[name],
+                       episode_length_s=eval_episode_length_s(spec, args.episode_length_s))
+        policy = make_policy(env)
+        measured = run_episodes(env, RslRlVecEnv(env), policy, spec, desc=name, quiet=True)
+        rows[name] = {k: measured[k] for k in ("fall_rate", "mean_abs_vel_error_m_s", *measured["criteria"])
+                      if k in measured}
+        print(f"{name:16s} " + "  ".join(f"{k}={v:.3f}" if isinstance(v, float) else f"{k}={v}"
+                                         for k, v in rows[name].items()), flush=True)
+    walks = [bool(r.get("walks", False)) for r in rows.values()]
+    result = {"task": task, "policy": args.run or f"shipped {args.shipped}", "device": args.device or "cpu",
+              "episodes": args.num_episodes, "rows": rows, "ratio": round(sum(walks) / len(walks), 3)}
+    print("RESULT " + json.dumps(result))
+
+
+if __name__ == "__main__":
+    main()
