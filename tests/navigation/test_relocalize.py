@@ -8,7 +8,7 @@ import pytest
 
 from ambulo.navigation import NavWorld, NavWorldCfg
 from ambulo.navigation.localization import LegVoLocalizer
-from ambulo.navigation.relocalize import RelocalizeCfg, apply_correction, match_scan, scan_xy_m
+from ambulo.navigation.relocalize import RelocalizeCfg, apply_correction, look_yaw_rad, match_scan, scan_xy_m
 from ambulo.perception.vo.config import TrackState
 from ambulo.perception.vo.odometry import VoResult
 from ambulo.scenes import apartment
@@ -128,3 +128,17 @@ def test_past_the_bridge_a_disagreeing_fix_is_taken_only_where_the_map_confirms_
         assert np.linalg.norm(est.xyyaw[:2] - truth[:2]) < 0.06  # at the map's pose, not the VO's
     else:
         assert np.linalg.norm(est.xyyaw[:2] - truth[:2]) > 0.5  # no witness: the VO's (module docstring)
+
+
+def test_a_robot_facing_a_bare_wall_is_told_to_look_where_a_match_is_confident(apt):
+    x, y, _ = FACING_WALL
+    look = look_yaw_rad(apt.occupancy, (x, y), RelocalizeCfg())
+    assert look is not None and abs(math.remainder(look - FACING_WALL[2], 2 * math.pi)) > math.radians(60)
+    world = _world(apt, (x, y, look))
+    frame = world.capture()
+    world.close()
+    pose = frame.pose_wc.numpy()
+    cfg = RelocalizeCfg()
+    m = match_scan(world.occupancy, scan_xy_m(frame.depth_m.numpy(), frame.intrinsics.numpy(), pose, cfg),
+                   pose[:2, 3], cfg)
+    assert m.confident, m.reason

@@ -193,6 +193,44 @@ def match_scan(grid: Grid2D, scan_xy: np.ndarray, pivot_xy_m, cfg: RelocalizeCfg
     return Match(best_c, best_c, score, hits, n, True, "ok", hyp_scores, -1)
 
 
+def look_yaw_rad(grid: Grid2D, xy_m, cfg: RelocalizeCfg, fov_deg: float = 62.0, min_range_m: float = 0.8,
+                 rays: int = 360) -> float | None:
+    """The heading (world yaw, rad) whose view (``fov_deg`` wide, up to ``cfg.max_depth_m``) holds
+    the most mapped surfaces at ``min_range_m`` or more, and among equals the widest spread of
+    ranges (corners and furniture constrain a match in every direction; one bare wall does not):
+    where a lost robot turns to relocalise (``match_scan`` needs mapped surfaces in view). None
+    when no ray meets a mapped surface. ``fov_deg``: the head camera's 62 deg (320 px at 262.5 px
+    focal length)."""
+    angles = np.arange(rays) * (2 * math.pi / rays)
+    r = grid.resolution_m
+    steps = np.arange(1, int(cfg.max_depth_m / (0.5 * r)) + 1) * 0.5 * r  # half-cell steps along each ray
+    pts = np.asarray(xy_m, float)[None, None, :] + steps[None, :, None] * np.stack([np.cos(angles), np.sin(angles)], -1)[:, None, :]
+    iy, ix = grid.cells_of(pts.reshape(-1, 2))
+    ny, nx = grid.shape
+    inside = (iy >= 0) & (iy < ny) & (ix >= 0) & (ix < nx)
+    occ = np.full(len(iy), FREE - 1, np.int16)
+    occ[inside] = grid.occupancy[iy[inside], ix[inside]]
+    occ = occ.reshape(rays, len(steps))
+    hit = occ >= OCCUPIED
+    first = np.where(hit.any(1), hit.argmax(1), -1)
+    range_m = np.where(first >= 0, steps[np.maximum(first, 0)], np.nan)
+    seen = (first >= 0) & (range_m >= min_range_m)
+    # a ray whose cells before the hit are all unknown did not come from the map's seen space
+    known_before = np.array([first[i] <= 0 or (occ[i, :first[i]] >= FREE).mean() > 0.5 for i in range(rays)])
+    seen &= known_before
+    if not seen.any():
+        return None
+    half = int(round(0.5 * fov_deg / 360 * rays))
+    window = np.arange(-half, half + 1)
+    idx = (np.arange(rays)[:, None] + window[None, :]) % rays
+    counts = seen[idx].sum(1)
+    ranges = np.where(seen[idx], range_m[idx], np.nan)
+    with np.errstate(invalid="ignore"):
+        spread = np.nan_to_num(np.nanstd(ranges, axis=1))
+    best = np.lexsort((spread, counts))[-1]
+    return float(math.atan2(math.sin(angles[best]), math.cos(angles[best])))
+
+
 def _rot(yaw: float) -> np.ndarray:
     c, s = math.cos(yaw), math.sin(yaw)
     return np.array([[c, -s], [s, c]])
@@ -244,4 +282,4 @@ def _hits(field_, grid, scan, pivot, correction, origin, cfg: RelocalizeCfg) -> 
     return int((_lookup(field_, grid, scan, pivot, correction, origin) >= math.exp(-0.5 * (cfg.miss_m / cfg.hit_sigma_m) ** 2)).sum())
 
 
-__all__ = ["Match", "RelocalizeCfg", "apply_correction", "correction_between", "match_scan", "scan_xy_m"]
+__all__ = ["Match", "RelocalizeCfg", "apply_correction", "correction_between", "look_yaw_rad", "match_scan", "scan_xy_m"]
