@@ -15,6 +15,19 @@ def tiny_dataset(tmp_path_factory):
     return out
 
 
+@pytest.fixture(scope="session")
+def trained_shapes(tmp_path_factory):
+    """(dataset folder, checkpoint) of a detector trained 40 steps on 4 frames of discs and squares."""
+    from ambulo.detection import TrainCfg, no_augment, train
+
+    root = write_shapes_dataset(tmp_path_factory.mktemp("shapes"), num_frames=4)
+    run = tmp_path_factory.mktemp("shapes_run")
+    cfg = TrainCfg(epochs=40, batch_size=4, learning_rate=5e-3, warmup_steps=0, num_workers=0, eval_every_epochs=0,
+                   held_out_fraction=0.0, augment=no_augment())
+    train(root, run, cfg, show_progress=False)
+    return root, run / "checkpoint.pt"
+
+
 @pytest.fixture
 def shapes_dataset():
     """``write_shapes_dataset``: a function (tests pick the folder and the number of frames)."""

@@ -31,12 +31,9 @@ def mask_ious_at_true_centres(model, root) -> dict[int, list[float]]:
     return ious
 
 
-def test_mask_head_learns_discs_and_squares(tmp_path, shapes_dataset):
-    root = shapes_dataset(tmp_path / "shapes", num_frames=4)
-    cfg = TrainCfg(epochs=30, batch_size=4, learning_rate=5e-3, warmup_steps=0, num_workers=0, eval_every_epochs=0,
-                   held_out_fraction=0.0, augment=no_augment())
-    train(root, tmp_path / "run", cfg, show_progress=False)
-    model, _ = load_trained(tmp_path / "run" / "checkpoint.pt")
+def test_mask_head_learns_discs_and_squares(trained_shapes):
+    root, checkpoint = trained_shapes
+    model, _ = load_trained(checkpoint)
     ious = mask_ious_at_true_centres(model, root)
     mean = {category: sum(v) / len(v) for category, v in ious.items()}
     # a disc filling its box scores pi/4 = 0.785: above that, the mask has the disc's shape

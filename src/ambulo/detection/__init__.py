@@ -1,6 +1,7 @@
 """Detection trained on ambulo's own synthetic data: read an ``ambulo generate`` COCO dataset,
-train a small CenterNet from scratch (nothing downloaded), evaluate with pycocotools, export to
-ONNX and run it on frames (``Detector``). See docs/detection.md."""
+train a small CenterNet with instance masks from scratch (nothing downloaded), evaluate with
+pycocotools (boxes and masks, on held-out frames or another dataset: ``evaluate_checkpoint``),
+export to ONNX and run it on frames (``Detector``). See docs/detection.md."""
 
 from .dataset import AugmentCfg, CocoFrames, DatasetError, load_coco, no_augment, split_image_ids
 from .detector import Detections, Detector
@@ -8,7 +9,8 @@ from .evaluate import coco_metrics, predict_coco
 from .export import check_onnx, export_onnx
 from .model import MODELS, CenterNet, ModelCfg, build_model, decode
 from .train import CHECKPOINT, TrainCfg, TrainResult, load_trained, train
+from .transfer import evaluate_checkpoint
 
 __all__ = ["CHECKPOINT", "MODELS", "AugmentCfg", "CenterNet", "CocoFrames", "DatasetError", "Detections", "Detector",
            "ModelCfg", "TrainCfg", "TrainResult", "build_model", "check_onnx", "coco_metrics", "decode",
-           "export_onnx", "load_coco", "load_trained", "no_augment", "predict_coco", "split_image_ids", "train"]
+           "evaluate_checkpoint", "export_onnx", "load_coco", "load_trained", "no_augment", "predict_coco", "split_image_ids", "train"]
