@@ -50,3 +50,15 @@ def test_drawing_again_does_not_compound(env):
         f = randomize.drive_gains(env.robot, torch.Generator().manual_seed(2), kp_scale=randomize.uniform(1.1, 1.2))
     np.testing.assert_allclose(-env.engine.model_field("actuator_biasprm")[:, acts, 1].numpy(),
                                kp0 * f["kp_scale"].numpy(), rtol=1e-12)
+
+
+def test_nominal_world_scales_gains_written_after_compiling(env):
+    """g1-walk writes its URDF gains per world after compiling: the factors apply to those."""
+    robot, engine = env.robot, env.engine
+    acts = randomize.entity_actuator_ids(robot)
+    kp0 = -torch.as_tensor(engine.model.actuator_biasprm[acts, 1])
+    robot.write_gains(kp=(3.0 * kp0).expand(N, -1))
+    f = randomize.drive_gains(robot, torch.Generator().manual_seed(3), kp_scale=randomize.uniform(0.8, 1.2),
+                              nominal_world=0)
+    np.testing.assert_allclose(-engine.model_field("actuator_biasprm")[:, acts, 1].numpy(),
+                               3.0 * kp0.numpy() * f["kp_scale"].numpy(), rtol=1e-12)

@@ -181,7 +181,6 @@ class HumanoidWalkEnv(RLEnv):
         self._targets = self.robot.default_joint_pos.expand(n, -1).clone()
         """(N, J) joint targets of the last action, rad (the drives get them in ``_simulate``)."""
         self.transfer = TransferRandomization(cfg.transfer, self)
-        self.transfer.startup()  # draws nothing unless a term is on: the walk's seeds stay as they were
 
     def _randomize_physics(self) -> None:
         """Per-env friction and base mass, drawn once at start (Isaac Lab's "startup" events)
@@ -307,6 +306,9 @@ class HumanoidWalkEnv(RLEnv):
         pos = (robot.default_joint_pos + noise).clamp(robot.joint_pos_limits[:, 0], robot.joint_pos_limits[:, 1])
         robot.write_joint_state(pos=pos, env_ids=rows)
         self.commands.resample(rows)
+        # at the first reset, after every setup (a subclass's gains included); draws nothing
+        # unless a term is on, so the walk's seeds give what they gave
+        self.transfer.startup()
         self.transfer.reset(rows)
         self.transfer.start_episode_targets(rows, robot.default_joint_pos.expand(self.num_envs, -1))
 

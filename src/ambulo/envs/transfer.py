@@ -62,7 +62,7 @@ def transfer_cfg_wide() -> TransferCfg:
 class TransferRandomization:
     """The terms of a ``TransferCfg`` on one env: startup writes, per-episode delays, the delay lines.
 
-    The env calls ``startup()`` once (after its robot exists), ``reset(rows)`` from its reset,
+    The env calls ``startup()`` at its first reset, ``reset(rows)`` from every reset,
     ``simulate(targets)`` in place of stepping the engine, and ``observe(obs)`` on the actor's
     observations.
     """
@@ -82,19 +82,27 @@ class TransferRandomization:
         """(N,) policy steps each world's actor observations lag by (the obs buffer's ``delay``)."""
         self.factors: dict[str, torch.Tensor] = {}
         """The startup draws by term name, (N, k) each (for tests and logs)."""
+        self.started = False
 
     @property
     def steps_each_substep(self) -> bool:
         return self.action_delay is not None
 
     def startup(self) -> None:
+        """Draw and write the start terms, once. Gains scale what the drives hold now (world 0's,
+        the same in every world before this): a task may set its gains after compiling (g1-walk
+        from its URDF), so the env calls this at its first reset, after its whole setup."""
+        if self.started:
+            return
+        self.started = True
         cfg, env, gen = self.cfg, self.env, self.env.generator
         robot = env.robot
         uniform = randomize.uniform
         self.factors.update(randomize.drive_gains(
             robot, gen, kp_scale=None if cfg.kp_scale_range is None else uniform(*cfg.kp_scale_range),
             kd_scale=None if cfg.kd_scale_range is None else uniform(*cfg.kd_scale_range),
-            strength=None if cfg.motor_strength_range is None else uniform(*cfg.motor_strength_range)))
+            strength=None if cfg.motor_strength_range is None else uniform(*cfg.motor_strength_range),
+            nominal_world=0))
         if cfg.joint_friction_range_n_m is not None:
             self.factors["joint_friction_n_m"] = randomize.joint_dof_field(
                 robot, "dof_frictionloss", uniform(*cfg.joint_friction_range_n_m), gen, operation="add")

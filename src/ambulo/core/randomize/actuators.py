@@ -29,8 +29,13 @@ def entity_actuator_ids(entity, joints=None):
 
 def drive_gains(entity, generator: torch.Generator, *, kp_scale: Distribution | None = None,
                 kd_scale: Distribution | None = None, strength: Distribution | None = None, joints=None,
-                rows: Rows = None, dtype: torch.dtype = torch.float64) -> dict[str, torch.Tensor]:
+                rows: Rows = None, nominal_world: int | None = None,
+                dtype: torch.dtype = torch.float64) -> dict[str, torch.Tensor]:
     """Draw and write per-world factors of ``entity``'s drive gains and strength.
+
+    ``nominal_world``: read the nominal gains and force ranges from this world's current values
+    instead of the compiled model, for a task that sets its gains per world after compiling
+    (g1-walk's URDF-derived gains); the factors then apply to what is there, so draw only once.
 
     Returns the drawn factors by name (``"kp_scale"``, ``"kd_scale"``, ``"strength"``: those
     given), each ``(n, k)`` for ``n`` selected worlds and ``k`` joints, in the draw order
@@ -46,17 +51,24 @@ def drive_gains(entity, generator: torch.Generator, *, kp_scale: Distribution | 
     if not factors:
         return factors
     bias = engine.model_field("actuator_biasprm")
+    forcerange = engine.model_field("actuator_forcerange")
+
+    def nominal(name, field, column=None):
+        if nominal_world is None:
+            return nominal_values(engine, name, ids, column=column, dtype=field.dtype)
+        values = field[nominal_world, torch.as_tensor(ids, device=field.device)]
+        return (values if column is None else values[..., column]).clone()
+
     one = torch.ones((), dtype=dtype, device=torch.device(engine.device))
     s = factors.get("strength", one)
+    gains = {column: nominal("actuator_biasprm", bias, column) for column in (1, 2)}
+    ranges = nominal("actuator_forcerange", forcerange)
     for column, name in ((1, "kp_scale"), (2, "kd_scale")):
         if name in factors or "strength" in factors:
-            nominal = nominal_values(engine, "actuator_biasprm", ids, column=column, dtype=bias.dtype)
-            value = nominal * (factors.get(name, one) * s).to(nominal)
+            value = gains[column] * (factors.get(name, one) * s).to(gains[column])
             write_field(bias[..., column], value, rows=rows, index=ids)
     if "strength" in factors:
-        forcerange = engine.model_field("actuator_forcerange")
-        nominal = nominal_values(engine, "actuator_forcerange", ids, dtype=forcerange.dtype)
-        write_field(forcerange, nominal * s.to(nominal)[..., None], rows=rows, index=ids)
+        write_field(forcerange, ranges * s.to(ranges)[..., None], rows=rows, index=ids)
     return factors
 
 
