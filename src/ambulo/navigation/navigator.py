@@ -41,6 +41,7 @@ from ..perception.costmap import Costmap
 from ..perception.frames import RgbdFrame
 from ..utils.checks import InvalidValueError, check_vector
 from ..utils.validate import Checked
+from .floor_level import FloorLevelCfg, level_on_floor
 from .localization import (
     LegVoLocalizer,
     LegVoLocalizerCfg,
@@ -85,6 +86,13 @@ class NavigatorCfg(Checked):
     look_done_rad: float = 0.2
     """A look turn is renewed early (the "subgoal" trigger) only once the robot faces within this of
     its heading; the period and map triggers still renew it, rad."""
+    look_turn_gain_per_s: float = 1.6
+    """A walker that can turn on the spot by a yaw rate (``scan``: the policy walker) makes a look turn
+    by its heading alone: yaw rate = this gain * heading error, rad/s per rad..."""
+    look_turn_rate_rad_s: tuple[float, float] = (0.3, 0.9)
+    """... its magnitude clipped to this range (the policy turns on the spot at 0.3-0.9 rad/s), rad/s;
+    it turns until it faces within half ``look_done_rad`` (inside the footstep planner's 0.2 rad yaw
+    tolerance, so the renewed plan finds it facing the route and walks on)."""
     start_snap_m: float = 0.35
     """A start stance that touches an obstacle moves to the nearest clear cell within this, m."""
     goal_backoff_m: float = 0.15
@@ -122,6 +130,10 @@ class NavigatorCfg(Checked):
     2-3 % of the distance: ~8 cm at 3 m)..."""
     bridge_max_s: float = 10.0
     """... and this long, s (the gyro's yaw drifts between fixes)."""
+    level_floor: FloorLevelCfg | None = field(default_factory=FloorLevelCfg)
+    """Full mode: a VO fix's camera pose is levelled on the floor its frame sees before its depth is
+    fused (``floor_level``: a 0.5 deg pitch error put the far floor into the occupancy band); None:
+    fuse the VO's pose as it is."""
     path_log_period_s: float = 0.1
     """The walked paths are logged this often, s."""
 
@@ -192,6 +204,8 @@ class Navigator:
         self.plan_final = False
         self._look_yaw_rad: float | None = None
         """The heading the current plan turns the robot to on the spot (a look turn), else None."""
+        self._look_by_heading = False
+        """The look turn is steered by the heading (``_steer_look``), the walker standing and turning."""
         self.replans: list[ReplanRecord] = []
         self.status = "idle"
         """idle | walking | lost (waiting) | arrived | fell | lost_timeout | stuck | timeout | no_route"""
@@ -220,6 +234,9 @@ class Navigator:
         self.fused_while_untracked = 0
         """Frames fused into the map while untracked: 0 by construction (checked by the tests)."""
         self.frame_wall_s: list[float] = []
+        self.floor_tilts_rad: list[float] = []
+        """Per fused estimated frame: the tilt its levelling on the floor corrected, rad (NaN: the
+        frame showed too little floor to level it)."""
         self._mark_body()
 
     def set_goal(self, goal_xy_m, yaw_rad: float | None = None) -> None:
@@ -305,7 +322,7 @@ class Navigator:
                 self.bridged_errors_m.append(error_m)
             # depth is fused at VO fixes (and the oracle's pose) only, never at a bridged pose
             if est.tracked and frame is not None and self.mapper.needs_images and est.pose_wc is not None:
-                self.mapper.fuse(frame, est.pose_wc)
+                self.mapper.fuse(frame, self._levelled(frame, est.pose_wc))
             if self._lost_since is not None:
                 self._lost_since = None
                 if self.status == "lost":
@@ -328,6 +345,18 @@ class Navigator:
                                self.status)
             for fn, _ in self._observers:
                 fn(snap)
+
+    def _levelled(self, frame: RgbdFrame, pose_wc: np.ndarray) -> np.ndarray:
+        """The pose to fuse ``frame`` at: an estimated (VO) pose levelled on the floor the frame sees
+        (``NavigatorCfg.level_floor``); the oracle's as it is."""
+        if self.cfg.level_floor is None or not self.localizer.needs_images:
+            return pose_wc
+        fit = level_on_floor(frame.depth_m.numpy(), frame.intrinsics.numpy(), pose_wc, self.cfg.level_floor)
+        if fit is None:
+            self.floor_tilts_rad.append(math.nan)
+            return pose_wc
+        self.floor_tilts_rad.append(fit.tilt_rad)
+        return fit.pose_wc
 
     def _bridges(self, est: PoseEstimate) -> bool:
         """Whether an untracked estimate is a leg-odometry bridge within the limits (module docstring)."""
@@ -396,6 +425,8 @@ class Navigator:
                 self._settled_since = None
             return
         self._settled_since = None
+        if self._look_by_heading:
+            self._steer_look(est)
         reason = self._replan_reason or self._replan_trigger(now, est, map_changed)
         if reason is not None:
             self._replan(now, est, reason)
@@ -448,6 +479,22 @@ class Navigator:
         err = est[2] - self._look_yaw_rad
         return abs(math.atan2(math.sin(err), math.cos(err))) > self.cfg.look_done_rad
 
+    def _steer_look(self, est: np.ndarray) -> None:
+        """One control period of a look turn by the heading: turn on the spot towards the look
+        heading; facing it (within half ``look_done_rad``), stand and replan at once (the plan then
+        walks on down the route)."""
+        c = self.cfg
+        err = self._look_yaw_rad - est[2]
+        err = math.atan2(math.sin(err), math.cos(err))
+        if abs(err) > 0.5 * c.look_done_rad:
+            lo, hi = c.look_turn_rate_rad_s
+            self.walker.scan(math.copysign(min(max(c.look_turn_gain_per_s * abs(err), lo), hi), err))
+            return
+        self.walker.stand()
+        self._look_by_heading = False
+        self._look_yaw_rad = None
+        self._replan_reason = "faced"
+
     def _drift_m(self, est: np.ndarray) -> float:
         """Distance from the estimated position to the plan's body path, m."""
         path = body_path(self.plan)
@@ -499,12 +546,17 @@ class Navigator:
                 # (apartment 200: 82 refused look turns, stuck)
                 plan = self._plan_footsteps(grid, version, True, est, route, k, final, goal_xy, yaw)
                 reason = reason + " (unseen free)"
-            if look and plan.status == PlanStatus.SUCCESS and plan.num_steps < 1:
+            faced = look and plan.status == PlanStatus.SUCCESS and plan.num_steps < 1
+            cornered = look and plan.status == PlanStatus.GOAL_IN_COLLISION
+            if faced or cornered:
                 # already facing down the route: the camera cannot see the floor this near (it sees
                 # from ~1.6 m), so turning shows nothing new; walk on along the route instead (a
                 # well-localised robot stood here for the whole 20 s stuck window, apartments 200-209)
                 # up to the goal itself when it is that near, with the goal's recoveries (a goal
-                # stance by a wall: apartment 201 stood 0.28 m from it, refused 72 times)
+                # stance by a wall: apartment 201 stood 0.28 m from it, refused 72 times).
+                # Cornered: the turned stance touches a *seen* obstacle (the robot stands by a wall or
+                # furniture), so it cannot turn on the spot here; walking on turns while it walks,
+                # away from it (apartments 40, 50 full mode stood through 65-74 refused look turns)
                 final = j == len(path) - 1
                 if final:
                     walk_xy = self.goal_xy_m
@@ -512,7 +564,7 @@ class Navigator:
                 else:
                     walk_xy, walk_yaw = path[j], route_heading(path, j)
                 plan = self._plan_footsteps(grid, version, optimistic, est, route, j, final, walk_xy, walk_yaw)
-                reason = reason + " (faced: walk on)"
+                reason = reason + (" (faced: walk on)" if faced else " (cornered: walk on)")
                 if plan.status == PlanStatus.GOAL_IN_COLLISION and not optimistic:
                     # the walk-on stance touches cells the camera never saw: a door jamb's shadow
                     # beside the route just past a door, which the head camera (floor in view from
@@ -531,8 +583,19 @@ class Navigator:
                 refused = self.walker.refuse(plan)
                 if refused is None:
                     self.plan, self.plan_final = plan, final
-                    self._look_yaw_rad = yaw if look and "(faced" not in reason else None
-                    self.walker.set_plan(plan, final=final)
+                    turn = look and not (faced or cornered)
+                    self._look_yaw_rad = yaw if turn else None
+                    self._look_by_heading = turn and hasattr(self.walker, "scan")
+                    if self._look_by_heading:
+                        # the turn goes by the heading alone (``_steer_look``), not along the plan's
+                        # body path: that path zig-zags a few cm about the robot, and the tracker's
+                        # pure pursuit turned towards its points (the wrong way as often as not); with
+                        # pushes and randomized friction the robot turned back and forth for the whole
+                        # 20 s stuck window (apartments 9, 60, 67 randomized)
+                        self.walker.set_plan(None, final=False)
+                        self._steer_look(est)
+                    else:
+                        self.walker.set_plan(plan, final=final)
         self.replans.append(ReplanRecord(now, time.perf_counter() - t0, reason, route.found, status, steps, final,
                                          refused))
 
