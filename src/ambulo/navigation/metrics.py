@@ -126,6 +126,11 @@ def result_of(nav: Navigator, *, geodesic_m: float, wall_s: float, apartment_see
               "refusals": [r.refused for r in nav.replans if r.refused],
               "pushes": len(w.randomizer.pushes),
               "frame_wall_s_median": float(np.median(nav.frame_wall_s)) if nav.frame_wall_s else 0.0}
+    tilts = np.asarray(nav.floor_tilts_rad)
+    if tilts.size:
+        extras["floor_levelled_fraction"] = float(np.isfinite(tilts).mean())
+        extras["floor_tilt_deg_median"] = float(np.degrees(np.nanmedian(tilts))) if np.isfinite(tilts).any() else 0.0
+        extras["floor_tilt_deg_max"] = float(np.degrees(np.nanmax(tilts))) if np.isfinite(tilts).any() else 0.0
     refresh = getattr(nav.mapper, "refresh_wall_s", None)
     if refresh:
         extras["map_refresh_wall_s_median"] = float(np.median(refresh))
