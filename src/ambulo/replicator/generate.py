@@ -42,7 +42,8 @@ BACKENDS = ("auto", "processes", "ray")
 
 
 def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int = 0, workers: int | None = 1,
-             show_progress: bool = True, backend: str = "auto", overwrite: bool = False) -> Path:
+             show_progress: bool = True, backend: str = "auto", overwrite: bool = False,
+             device: str | None = None, num_worlds: int = 64, writer_threads: int | None = None) -> Path:
     """Write (or finish) a dataset of ``num_frames`` frames in ``out``; returns annotations.json.
 
     ``out`` must be new, empty, or a dataset of the same config and seed (``dataset.json``):
@@ -54,6 +55,11 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
     cluster, which needs ``out`` on shared storage; a local one unless ``ray.init`` was called
     or RAY_ADDRESS is set), or 'auto': Ray when RAY_ADDRESS is set or Ray is initialized, else
     processes. The files do not depend on any of this.
+
+    ``device`` ("cuda", "cuda:1", or "cpu" for Warp's CPU device) renders ``num_worlds`` frames per
+    launch with MuJoCo Warp instead (``batched.BatchedFrameProducer``): the same frames' scenes,
+    labels within a pixel of the CPU path's, colours from MuJoCo Warp's ray caster; one process,
+    ``writer_threads`` encoding frames (default: one per CPU).
     """
     if backend not in BACKENDS:
         raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
@@ -63,14 +69,27 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
         raise ValueError(f"--workers must be >= 1, got {workers}")
     if seed < 0:
         raise ValueError(f"--seed must be >= 0 (numpy seeds are non-negative), got {seed}")
+    if device is not None and workers not in (None, 1):
+        raise ValueError(f"--device {device} renders every frame of a batch in one launch on one GPU; drop "
+                         f"--workers {workers} (or generate on the CPU without --device)")
+    if num_worlds < 1:
+        raise ValueError(f"--num-worlds must be >= 1, got {num_worlds}")
+    writer_threads = writer_threads or os.cpu_count() or 1
     out = Path(out)
     # the parent process may hold no producer (workers render): compile the scene as they do
     model = compile_scene(config.build_scene(), config.physics)
-    open_dataset(out, config, seed, model, num_frames, overwrite)
+    producer = None
+    if device is not None:
+        from .batched import IMAGE_SOURCE, BatchedFrameProducer
+
+        producer = BatchedFrameProducer(config, num_worlds, device)
+    open_dataset(out, config, seed, model, num_frames, overwrite,
+                 image_source=IMAGE_SOURCE if producer is not None else None)
     prepare_dirs(out, config.writer)
     remove_partial_files(out, *(out / sub for sub in frame_subdirs(config.writer)))
     todo = sorted(set(range(num_frames)) - done_frames(out, num_frames))
-    workers = default_workers(len(todo)) if workers is None else min(workers, max(1, len(todo)))
+    workers = 1 if producer is not None else (
+        default_workers(len(todo)) if workers is None else min(workers, max(1, len(todo))))
     use_ray = backend == "ray" or (backend == "auto" and workers > 1 and _ray_requested())
     bar = tqdm(total=num_frames, initial=num_frames - len(todo), desc="frames", unit="frame",
                disable=not show_progress)
@@ -82,7 +101,8 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
         elif workers > 1:
             renderer = run_on_processes(config, out, seed, todo, workers, bar.update)
         else:
-            renderer = run_frames(config, out, seed, todo, bar.update)
+            renderer = run_frames(config, out, seed, todo, bar.update, producer=producer,
+                                  writer_threads=1 if producer is None else writer_threads)
     finally:
         bar.close()
     from ambulo.sensors.annotators import instance_table

@@ -45,8 +45,10 @@ class DatasetFolderError(Exception):
         super().__init__(f"{problem}; {fix}")
 
 
-def fingerprint(config: DatasetConfig, seed: int, model: mujoco.MjModel) -> dict:
-    """Everything that decides the dataset's bytes, as JSON data (``num_frames`` aside: more frames extend it)."""
+def fingerprint(config: DatasetConfig, seed: int, model: mujoco.MjModel, image_source: str | None = None) -> dict:
+    """Everything that decides the dataset's bytes, as JSON data (``num_frames`` aside: more frames extend it).
+    ``image_source`` names a renderer other than the CPU camera's (the batched GPU path); absent
+    for CPU datasets, whose fingerprints it leaves as they were."""
     camera = describe(config.camera)
     names = [r.name or type(r).__name__ for r in config.randomizers]
     writer = describe(config.writer)
@@ -57,6 +59,7 @@ def fingerprint(config: DatasetConfig, seed: int, model: mujoco.MjModel) -> dict
         "name": config.name, "camera": camera, "writer": writer,
         "randomizers": {name: describe(r) for name, r in zip(names, config.randomizers)},
         "scene_sha256": model_sha256(model), "mujoco_version": mujoco.__version__, "png_deflate": PNG_DEFLATE,
+        **({"image_source": image_source} if image_source else {}),
     })
 
 
@@ -89,7 +92,7 @@ def describe(value):
 
 
 def open_dataset(out: Path, config: DatasetConfig, seed: int, model: mujoco.MjModel, num_frames: int,
-                 overwrite: bool = False) -> None:
+                 overwrite: bool = False, image_source: str | None = None) -> None:
     """Make ``out`` ready for ``num_frames`` frames of (config, seed): a new dataset in a new or empty
     folder, the same one resumed (or extended), or, with ``overwrite``, an ambulo dataset's own files
     deleted first. ``DatasetFolderError`` for anything else; nothing is written before the checks pass."""
@@ -98,7 +101,7 @@ def open_dataset(out: Path, config: DatasetConfig, seed: int, model: mujoco.MjMo
     if out.exists() and not out.is_dir():
         raise DatasetFolderError(f"output folder {str(out)!r} is an existing file",
                                  "give the path of a new or empty folder")
-    wanted = fingerprint(config, seed, model)
+    wanted = fingerprint(config, seed, model, image_source)
     existing = read_manifest(out)
     if existing is not None and not overwrite:
         _check_resumable(out, existing, wanted, num_frames)

@@ -10,6 +10,7 @@ import this module, never ``generate``.
 
 from __future__ import annotations
 
+import collections
 import concurrent.futures as cf
 import contextlib
 import gc
@@ -23,7 +24,7 @@ from ambulo.sensors import Camera
 
 from .config import DatasetConfig
 from .randomizers import SceneContext
-from .writers import FrameWriter
+from .writers import FrameWriter, write_frame_files
 
 _MAX_PENDING_WRITES = 4  # frames queued for the writer thread; bounds memory
 
@@ -130,17 +131,25 @@ def _with_annotators(cfg, annotators):
 
 
 def run_frames(config: DatasetConfig, out: Path, seed: int, frames: list[int], progress=None,
-               producer: FrameProducer | None = None) -> str:
+               producer: FrameProducer | None = None, writer_threads: int = 1) -> str:
     """Render and write ``frames`` (skipping none); returns the GL renderer string.
 
     The writer thread encodes and writes frame i while frame i+1 renders. On any exit
     (Ctrl-C included) the records of the frames already written are written too, so
-    an interrupted run keeps them.
+    an interrupted run keeps them. ``writer_threads`` > 1 encodes that many frames at once
+    (PNG deflate and file writes release the GIL): what a producer rendering many frames
+    per call (``batched``) needs to keep up.
     """
     out = Path(out)
     owned = producer is None
     producer = producer or FrameProducer(config)
     writer = FrameWriter(out, config.writer)
+    if writer_threads > 1:
+        try:
+            return _run_frames_threaded(config, out, seed, frames, progress, producer, writer, writer_threads)
+        finally:
+            if owned:
+                producer.close()
     pending: list[cf.Future] = []
     try:
         with _heap_frozen(), cf.ThreadPoolExecutor(max_workers=1, thread_name_prefix="ambulo-writer") as pool:
@@ -163,6 +172,37 @@ def run_frames(config: DatasetConfig, out: Path, seed: int, frames: list[int], p
     finally:
         if owned:
             producer.close()
+
+
+def _run_frames_threaded(config, out, seed, frames, progress, producer, writer, threads: int) -> str:
+    """``run_frames`` with ``threads`` encoders: files written on the pool, records kept in frame
+    order on this thread (``FrameWriter.add``), so the batch flushes work as with one thread."""
+    pending: collections.deque = collections.deque()
+
+    def settle(future_pair) -> None:
+        index, future = future_pair
+        writer.add(index, future.result())
+        if progress is not None:
+            progress(1)
+
+    with _heap_frozen(), cf.ThreadPoolExecutor(max_workers=threads, thread_name_prefix="ambulo-writer") as pool:
+        try:
+            for index, log, capture in producer.frames(seed, frames):
+                pending.append((index, pool.submit(write_frame_files, out, index, capture, producer.table, log,
+                                                   config.writer, writer.fsync_files)))
+                while len(pending) > 2 * threads:  # bounds the frames held in memory
+                    settle(pending.popleft())
+            while pending:
+                settle(pending.popleft())
+        except BaseException:
+            for index, future in pending:  # keep every frame whose files were written
+                if not future.cancel():
+                    with contextlib.suppress(Exception):
+                        writer.add(index, future.result())
+            writer.flush()
+            raise
+        writer.flush()
+    return producer.gl_renderer
 
 
 @contextlib.contextmanager

@@ -115,7 +115,7 @@ class Scatter2D(Randomizer):
         pool_free[:, 6] = np.sin(half_yaw)
         used = 0
         last_row = np.zeros(n, np.int64)  # each object's latest pool row: its pose if placed
-        qpos = ctx.engine.qpos[ctx.world].numpy().copy()
+        qpos = ctx.engine.qpos[ctx.world].cpu().numpy().copy()
         qpos[self._park_index] = self._park_values
         free_index, rest_z_m = self._free_index, self._rest_z_m
 
@@ -148,7 +148,7 @@ class Scatter2D(Randomizer):
         write_field(ctx.engine.qpos, free.reshape(1, -1), rows=ctx.world, index=self._park_index)
         if self._checker is not None:
             # later scatterers (distractors) check against where these objects now are
-            self._checker.data.qpos[:] = ctx.engine.qpos[ctx.world].numpy()
+            self._checker.data.qpos[:] = ctx.engine.qpos[ctx.world].cpu().numpy()
 
     def _write(self, qpos: np.ndarray, objects, poses, quat_wxyz=None) -> None:
         """Stand ``objects`` (indices, or one index) upright at ``poses`` (k, 3) x, y (m), yaw (rad)

@@ -132,9 +132,18 @@ class FrameWriter:
         self._syncfs = cfg.fsync and can_sync_filesystem()
         """One flush of the whole file system per batch rather than one per file."""
 
+    @property
+    def fsync_files(self) -> bool:
+        """Whether each data file is flushed before its rename (no ``syncfs`` per batch)."""
+        return self.cfg.fsync and not self._syncfs
+
     def write(self, index: int, capture: dict, table, log: dict) -> None:
-        record = write_frame_files(self.out, index, capture, table, log, self.cfg,
-                                   fsync_files=self.cfg.fsync and not self._syncfs)
+        self.add(index, write_frame_files(self.out, index, capture, table, log, self.cfg,
+                                          fsync_files=self.fsync_files))
+
+    def add(self, index: int, record: dict) -> None:
+        """Hold back the record of frame ``index``, whose files ``write_frame_files`` wrote (on any
+        thread), until the next batch flush."""
         self._records.append((index, record))
         self._folders |= {relpath.split("/")[0] for relpath in record["files"]}
         if len(self._records) >= self.batch:

@@ -1,0 +1,231 @@
+"""Dataset frames rendered many at a time: world w of a MuJoCo Warp engine shows frame ``indices[w]``.
+
+``BatchedFrameProducer`` is ``FrameProducer`` for ``ambulo generate --device cuda``: the same
+config, randomizers and writers, but a ``Simulation`` of ``num_worlds`` worlds on the warp engine
+and a ``TiledCamera`` that renders all of them in one launch. Each world gets the frame that
+``FrameProducer`` would have drawn for its index: randomizer k of frame i samples from
+``default_rng([seed, k, i // every_n])`` on the host exactly as the CPU path does (that is what
+makes the two paths' datasets agree object for object), and applies to its own world
+(``SceneContext.world``). Everything per pixel stays on the device: the render, geom id ->
+instance id, and each instance's tight box and pixel count (``device_tight_boxes``: three
+scatter reductions over all worlds at once). The host receives one copy per batch of the
+images and boxes and of the geom and body poses, from which the loose 2D and the 3D boxes are
+computed as the CPU camera computes them (they depend on the pose, not on pixels).
+
+What differs from the CPU path, and why the fingerprint says so (``image_source``): the colours
+come from MuJoCo Warp's ray caster (no shadows, one ray per pixel), not from MuJoCo's OpenGL
+rasterizer; ids and boxes agree with the CPU path's to a pixel at object silhouettes (tested
+with pycocotools). A dataset is never resumed with the other path's images.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import torch
+
+from ambulo.core import Simulation
+from ambulo.sensors import annotators as ann
+from ambulo.sensors.camera import PinholeCfg, _extrinsics
+from ambulo.sensors.tiled_camera import TiledCamera, TiledCameraCfg
+from ambulo.utils.rotations import mat_to_quat
+
+from .config import DatasetConfig
+from .producer import _entropy
+from .randomizers import SceneContext
+
+IMAGE_SOURCE = "mujoco_warp_raycast"
+"""The fingerprint's ``image_source`` of a dataset this module renders."""
+
+
+def device_tight_boxes(instances: torch.Tensor, num_instances: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """Each instance's box and pixel count in every image, on the images' device (no host sync).
+
+    Args:
+      instances: (N, H, W) integer instance ids, 0 for background, 1..K objects.
+      num_instances: K.
+    Returns:
+      boxes: (N, K, 4) int64 [x_min, y_min, x_max, y_max] inclusive pixel indices, -1 where the
+        instance has no pixel (``annotators.tight_boxes``'s layout, per image);
+      pixels: (N, K) int64 visible pixel counts.
+    """
+    n, h, w = instances.shape
+    k = num_instances
+    dev = instances.device
+    slot = instances.reshape(n, h * w).long() + (torch.arange(n, device=dev) * (k + 1))[:, None]
+    slot = slot.reshape(-1)  # (N*H*W,) world-major (instance id) slots
+    cols = torch.arange(w, device=dev).repeat(n * h)
+    rows = torch.arange(h, device=dev).repeat_interleave(w).repeat(n)
+    size = n * (k + 1)
+    big = torch.iinfo(torch.int64).max
+    lo_x = torch.full((size,), big, dtype=torch.int64, device=dev).scatter_reduce_(0, slot, cols, "amin")
+    lo_y = torch.full((size,), big, dtype=torch.int64, device=dev).scatter_reduce_(0, slot, rows, "amin")
+    hi_x = torch.full((size,), -1, dtype=torch.int64, device=dev).scatter_reduce_(0, slot, cols, "amax")
+    hi_y = torch.full((size,), -1, dtype=torch.int64, device=dev).scatter_reduce_(0, slot, rows, "amax")
+    pixels = torch.bincount(slot, minlength=size).reshape(n, k + 1)[:, 1:]
+    boxes = torch.stack((lo_x, lo_y, hi_x, hi_y), dim=1).reshape(n, k + 1, 4)[:, 1:]
+    boxes = torch.where((pixels > 0)[..., None], boxes, torch.full_like(boxes, -1))
+    return boxes, pixels
+
+
+def tiled_camera_cfg(camera: PinholeCfg) -> TiledCameraCfg:
+    """The dataset camera's pinhole (mount, offset, resolution, field of view, clip) as a
+    ``TiledCameraCfg`` with the outputs a dataset frame needs."""
+    shared = {f.name: getattr(camera, f.name) for f in dataclasses.fields(PinholeCfg) if f.init}
+    shared["renderer"] = "raster"
+    return TiledCameraCfg(**shared, data_types=("rgb", "depth", "instance_segmentation", "semantic_segmentation"))
+
+
+class BatchedFrameProducer:
+    """Renders ``num_worlds`` frames of a seeded dataset per launch (see the module docstring)."""
+
+    def __init__(self, config: DatasetConfig, num_worlds: int = 64, device: str = "cuda"):
+        if config.visible_fraction:
+            raise ValueError("visible_fraction needs one isolated render per object, which the batched GPU path "
+                             "does not do; generate on the CPU (no --device) or set visible_fraction=False")
+        if config.camera.renderer != "raster":
+            raise ValueError(f"the GPU path renders with MuJoCo Warp's ray caster, not renderer="
+                             f"{config.camera.renderer!r}; drop --renderer or generate on the CPU")
+        self.config = config
+        self.num_worlds = int(num_worlds)
+        names = [r.name or type(r).__name__ for r in config.randomizers]
+        if len(set(names)) != len(names):
+            raise ValueError(f"randomizer names must be unique (they key the frame log): {names}")
+        self.sim = Simulation(config.build_scene(), config.physics, num_worlds=self.num_worlds, device=device,
+                              engine="warp", num_threads=1)
+        for name, r in zip(names, config.randomizers):
+            r.name = name
+            self.sim.add(r)
+        self.camera = self.sim.add(TiledCamera(tiled_camera_cfg(config.camera)))
+        self.engine = self.sim.start()
+        self.model = self.sim.model
+        self.ctx = SceneContext(model=self.model, engine=self.engine, cameras={self.camera.name: self.camera})
+        self.table = ann.instance_table(self.model)
+        # geom id + 1 -> instance id (index 0: no geom -> background)
+        self._instance_of_geom = torch.as_tensor(self.table.geom_instance, dtype=torch.int32,
+                                                 device=self.engine.device)
+        self._names = names
+        self._cache: dict[int, tuple[tuple[int, int], dict]] = {}
+        self._annotators = set(config.camera.annotators)
+        self._fields = {name: self.engine.field(name) for name in ("geom_xpos", "geom_xmat", "xpos", "xmat")}
+
+    @property
+    def gl_renderer(self) -> str:
+        return f"{IMAGE_SOURCE} ({self.engine.device})"
+
+    def randomize_world(self, world: int, seed: int, index: int) -> dict:
+        """Apply every randomizer of frame ``index`` to world ``world``; returns the frame log.
+        The draws are ``FrameProducer.randomize``'s: the same parameters for the same index."""
+        self.ctx.world = world
+        log = {}
+        for k, (name, r) in enumerate(zip(self._names, self.config.randomizers)):
+            block = index // max(1, r.every_n_frames)
+            cached = self._cache.get(k)
+            if cached is None or cached[0] != (seed, block):
+                params = r.sample(np.random.default_rng(_entropy(seed, k, block)), self.ctx)
+                self._cache[k] = ((seed, block), params)
+            params = self._cache[k][1]
+            r.apply(params, self.ctx)
+            log[name] = params
+        return log
+
+    def frames(self, seed: int, indices: list[int]):
+        """Yield (index, log, capture) for ``indices``, ``num_worlds`` at a time; ``capture`` has
+        ``Camera.capture``'s keys and layouts (NumPy), so the CPU path's writers take it."""
+        indices = list(indices)
+        for start in range(0, len(indices), self.num_worlds):
+            chunk = indices[start:start + self.num_worlds]
+            self.sim.reset(forward=False)
+            self.camera.reset_pose()
+            logs = [self.randomize_world(w, seed, index) for w, index in enumerate(chunk)]
+            self.engine.forward()
+            yield from zip(chunk, logs, self._captures(len(chunk)))
+
+    def batches(self, seed: int, indices: list[int]):
+        """The in-memory mode: yield one dict of device tensors per ``num_worlds`` frames, for a
+        training loop that never touches the disk. The tensors are the camera's buffers and are
+        overwritten by the next batch (clone what must outlive it).
+
+        Keys: ``index`` (B,) int64 frame indices; ``rgb`` (B, H, W, 3) uint8; ``depth`` (B, H, W)
+        float32 m, +inf for no hit; ``instances`` (B, H, W) int32 instance ids (0 background);
+        ``boxes`` (B, K, 4) int64 inclusive [x_min, y_min, x_max, y_max] (-1 if unseen);
+        ``pixels`` (B, K) int64; ``semantic_ids`` (K,) int64 category id of each instance (1-based
+        into ``table.categories``). B is ``num_worlds`` but for a last, partial batch.
+        """
+        indices = list(indices)
+        dev = self.engine.device
+        semantic = torch.as_tensor(self.table.semantic_ids[1:], dtype=torch.int64, device=dev)
+        for start in range(0, len(indices), self.num_worlds):
+            chunk = indices[start:start + self.num_worlds]
+            self.sim.reset(forward=False)
+            self.camera.reset_pose()
+            for w, index in enumerate(chunk):
+                self.randomize_world(w, seed, index)
+            self.engine.forward()
+            out = self.camera.data.output
+            count = len(chunk)
+            instances = self._instance_of_geom[(out["instance_segmentation"][:count, ..., 0] + 1).long()]
+            boxes, pixels = device_tight_boxes(instances, self.table.num_instances)
+            yield {"index": torch.as_tensor(chunk, dtype=torch.int64, device=dev), "rgb": out["rgb"][:count],
+                   "depth": out["depth"][:count, ..., 0], "instances": instances, "boxes": boxes, "pixels": pixels,
+                   "semantic_ids": semantic}
+
+    def _captures(self, count: int) -> list[dict]:
+        cam = self.camera
+        out = cam.data.output
+        geom_ids = out["instance_segmentation"][:count, ..., 0]
+        instances = self._instance_of_geom[(geom_ids + 1).long()]
+        boxes, pixels = device_tight_boxes(instances, self.table.num_instances)
+        host = {  # one copy each, for the whole batch
+            "rgb": out["rgb"][:count].cpu().numpy(), "depth": out["depth"][:count].cpu().numpy(),
+            "geom_ids": geom_ids.cpu().numpy(), "instances": instances.cpu().numpy(),
+            "semantic": out["semantic_segmentation"][:count, ..., 0].cpu().numpy(),
+            "boxes": boxes.cpu().numpy(), "pixels": pixels.cpu().numpy(),
+            "pos_w": cam.data.pos_w[:count].double().cpu().numpy(),
+            "rot_gl": cam.data.rot_w_gl[:count].double().cpu().numpy(),
+            **{name: field[:count].double().cpu().numpy() for name, field in self._fields.items()},
+        }
+        k_matrix = cam.get_intrinsics_matrix()
+        return [self._capture(w, host, k_matrix) for w in range(count)]
+
+    def _capture(self, w: int, host: dict, k_matrix: np.ndarray) -> dict:
+        """World ``w``'s frame in ``Camera.capture``'s form."""
+        cfg, table, names = self.camera.cfg, self.table, self._annotators
+        pos, rot_gl = host["pos_w"][w], host["rot_gl"][w]
+        extr = _extrinsics(pos[None], rot_gl[None])[0]
+        out: dict = {"camera": {"intrinsics": k_matrix, "extrinsics_cw": extr, "pos_w": pos,
+                                "quat_w_opengl": mat_to_quat(rot_gl), "width": cfg.width, "height": cfg.height},
+                     "rgb": host["rgb"][w], "geom_ids": host["geom_ids"][w]}
+        if "depth" in names:
+            out["depth"] = host["depth"][w, ..., 0]
+        if "instance_segmentation" in names:
+            out["instance_segmentation"] = host["instances"][w]
+        if "semantic_segmentation" in names:
+            out["semantic_segmentation"] = host["semantic"][w]
+        boxes, pixels = host["boxes"][w], host["pixels"][w]
+        visible = np.flatnonzero(pixels > 0)
+        if "bounding_box_2d_tight" in names:
+            out["bounding_box_2d_tight"] = {"instance_id": visible + 1, "semantic_id": table.semantic_ids[visible + 1],
+                                            "box": boxes[visible], "pixels": pixels[visible]}
+        geom_pos, geom_rot = host["geom_xpos"][w], host["geom_xmat"][w].reshape(-1, 3, 3)
+        if "bounding_box_2d_loose" in names:
+            loose = ann.loose_boxes(table, self.model, geom_pos, geom_rot, extr, k_matrix, cfg.width, cfg.height,
+                                    cfg.clipping_range_m[0])
+            ids = np.array([i for i, b in enumerate(loose) if b is not None], np.int64)
+            out["bounding_box_2d_loose"] = {"instance_id": ids + 1, "semantic_id": table.semantic_ids[ids + 1],
+                                            "box": np.array([loose[i] for i in ids]).reshape(-1, 4)}
+        if "bounding_box_3d" in names:
+            center_w, rot_w, half = ann.instance_boxes_3d(table, self.model, host["xpos"][w],
+                                                          host["xmat"][w].reshape(-1, 3, 3), geom_pos, geom_rot)
+            out["bounding_box_3d"] = {
+                "instance_id": np.arange(1, table.num_instances + 1), "semantic_id": table.semantic_ids[1:],
+                "center_w": center_w, "rot_w": rot_w, "half_extent": half,
+                "center_c": center_w @ extr[:3, :3].T + extr[:3, 3], "rot_c": extr[:3, :3] @ rot_w}
+        return out
+
+    def close(self) -> None:
+        """Nothing to release: the engine and camera buffers are freed with the producer."""
+
+
+__all__ = ["BatchedFrameProducer", "IMAGE_SOURCE", "device_tight_boxes", "tiled_camera_cfg"]
