@@ -3,7 +3,8 @@
 Content, not an app: a scene module builds into a ``core.scene`` builder (and may read
 ``robots/`` and ``maps/``), so every app (the replicator, perception, the walking controller, the
 ROS 2 bridge, the navigator) places the same rooms. Modules: ``walk_arena``, ``indoor``,
-``warehouse``, ``apartment`` (seeded procedural apartments with ground-truth occupancy).
+``warehouse``, ``apartment`` (seeded procedural apartments with ground-truth occupancy), ``terrain``
+(locomotion terrain tiles as one heightfield, their curriculum and height scan).
 """
 
 from .apartment import apartment
