@@ -98,6 +98,13 @@ class PathTracker:
         t = (s - self._s[k]) / max(self._seg_len[k], 1e-9)
         return self.path[k] + min(max(t, 0.0), 1.0) * (self.path[k + 1] - self.path[k])
 
+    def path_ahead(self) -> np.ndarray:
+        """(K, 2) the path from the point at ``progress_m`` to its end, m (empty without a path)."""
+        if self.path is None:
+            return np.zeros((0, 2))
+        k = int(np.searchsorted(self._s, self.progress_m, side="right"))
+        return np.concatenate([[self.point_at(self.progress_m)], self.path[k:]])
+
     def _project(self, xy: np.ndarray) -> None:
         """Update progress: nearest point on the segments within [-0.3, +1.0] m of the last progress."""
         if len(self.path) == 1:

@@ -10,7 +10,9 @@ from ``locomotion.balance``) and refuses, *before* it is taken, a plan it cannot
 plan's body path, the midpoints of consecutive footsteps, with ``tracker.PathTracker``. It places
 its own feet (the policy knows no footholds), so the plan gives the path and the footholds'
 clearance, not exact steps. Standing (told to, at the end of a plan, arrived) it holds its pose
-with ``stand_hold.PositionHold``: the policy creeps ~4 cm/s when commanded zero.
+with ``stand_hold.PositionHold``: the policy creeps ~4 cm/s when commanded zero. Where the head
+camera has not seen the floor (near the start) it walks slowly, and a foot that feels an obstacle
+makes it step back and refuse plans through it (``caution``; ``felt_xy_m`` for the navigator's map).
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ from ..nav import FootstepPlan, PlanStatus
 from ..policies.walking import WalkingPolicy
 from ..robots import humanoid
 from ..utils.validate import Checked
+from .caution import CautionCfg, FootTouch, floor_blind_distance_m
 from .stand_hold import PositionHold, StandHoldCfg
 from .tracker import PathTracker, TrackerCfg
 from .world import NavWorld
@@ -155,6 +158,9 @@ class PolicyWalkerCfg(Checked):
     hold: StandHoldCfg | None = field(default_factory=StandHoldCfg)
     """Standing, hold the pose where standing began (``stand_hold``); None: command zero (the policy
     then creeps ~4 cm/s)."""
+    caution: CautionCfg | None = field(default_factory=CautionCfg)
+    """Slow in the camera's blind zone at the start, step back from what the feet feel (``caution``);
+    None: neither."""
 
 
 class PolicyWalker:
@@ -178,6 +184,7 @@ class PolicyWalker:
         self._decimation = round(self.policy.contract["control_dt_s"] / world.dt_s)
         self._control_dt_s = self._decimation * world.dt_s
         self._pose = np.array(world.start_pose, float)
+        self.touch = FootTouch(world, self.cfg.caution) if self.cfg.caution is not None else None
 
     def reset(self) -> None:
         self.policy.reset()
@@ -188,6 +195,14 @@ class PolicyWalker:
         self.command = (0.0, 0.0, 0.0)
         if self.hold is not None:
             self.hold.release()
+        self.felt_xy_m = np.zeros((0, 2))
+        """(K, 2) obstacles the feet felt, in the pose estimate's frame (x m, y m): cells the navigator's
+        map should mark occupied (the camera may never have seen them)."""
+        self._blind_xy_m: np.ndarray | None = None
+        """Centre of the blind zone (where the walker started), set at the first control period."""
+        self._blind_radius_m = 0.0
+        self._back_off_until_s = -math.inf
+        self._back_off_dir_b = np.array([-1.0, 0.0])
 
     def refuse(self, plan: FootstepPlan) -> str | None:
         if plan.status in (PlanStatus.START_IN_COLLISION, PlanStatus.GOAL_IN_COLLISION):
@@ -201,7 +216,21 @@ class PolicyWalker:
         jumps = np.linalg.norm(np.diff(path, axis=0), axis=1)
         if len(jumps) and jumps.max() > self.cfg.max_step_m:
             return f"the plan's body moves {jumps.max():.2f} m in one step (more than {self.cfg.max_step_m} m)"
+        near = self._felt_distance_m(path)
+        if self.cfg.caution is not None and near < self.cfg.caution.felt_clearance_m:
+            return f"the plan's body passes {near:.2f} m from an obstacle the feet felt"
         return None
+
+    def _felt_distance_m(self, path_xy: np.ndarray) -> float:
+        """Distance of the polyline ``path_xy`` (K, 2) to the nearest felt obstacle, m (inf: none felt)."""
+        if not len(self.felt_xy_m) or not len(path_xy):
+            return math.inf
+        if len(path_xy) == 1:
+            return float(np.linalg.norm(self.felt_xy_m - path_xy[0], axis=1).min())
+        a, ab = path_xy[:-1], np.diff(path_xy, axis=0)
+        rel = self.felt_xy_m[:, None, :] - a[None]
+        t = np.clip(np.einsum("fkj,kj->fk", rel, ab) / np.maximum(np.einsum("kj,kj->k", ab, ab), 1e-12), 0.0, 1.0)
+        return float(np.linalg.norm(rel - t[..., None] * ab[None], axis=2).min())
 
     def set_plan(self, plan: FootstepPlan | None, *, final: bool) -> None:
         if plan is None:
@@ -237,17 +266,65 @@ class PolicyWalker:
         self._count += 1
 
     def _command(self, pose_xyyaw: np.ndarray) -> tuple[float, float, float]:
-        """This control period's command: the scan's turn, the tracker's, or (standing, or the tracker
-        says stop) the position hold's."""
+        """This control period's command: the step back after a touch, the scan's turn, the
+        tracker's (slowed in the blind zone), or (standing, the tracker says stop, or its path runs
+        into a felt obstacle) the position hold's."""
+        if self.cfg.caution is not None:
+            backing = self._feel(pose_xyyaw)
+            if backing is not None:
+                return backing
         if self._standing and self._scan_rate:
             cmd = (0.0, 0.0, self._scan_rate)
         else:
-            cmd = (0.0, 0.0, 0.0) if self._standing else self.tracker.command(pose_xyyaw)
+            cmd = (0.0, 0.0, 0.0) if self._standing else self._cautious(self.tracker.command(pose_xyyaw), pose_xyyaw)
             if self.hold is not None and cmd == (0.0, 0.0, 0.0):
                 return self.hold.command(pose_xyyaw, self._control_dt_s)
         if self.hold is not None:
             self.hold.release()
         return cmd
+
+    def _feel(self, pose_xyyaw: np.ndarray) -> tuple[float, float, float] | None:
+        """Read the feet (``caution.FootTouch``); the step-back command while it lasts, else None."""
+        c = self.cfg.caution
+        now = self.world.time_s
+        if self._blind_xy_m is None:
+            self._blind_xy_m = np.array(pose_xyyaw[:2], float)
+            self._blind_radius_m = floor_blind_distance_m(self.world) + c.blind_margin_m
+        felt_w = self.touch.felt_xy_m()
+        if len(felt_w):
+            # the contact relative to the body (what the leg's kinematics give), placed at the estimate
+            true = self.world.true_pose()
+            cos, sin = math.cos(true[2]), math.sin(true[2])
+            rel_w = felt_w - true[:2]
+            rel_b = np.stack([cos * rel_w[:, 0] + sin * rel_w[:, 1], -sin * rel_w[:, 0] + cos * rel_w[:, 1]], 1)
+            ce, se = math.cos(pose_xyyaw[2]), math.sin(pose_xyyaw[2])
+            est = pose_xyyaw[:2] + np.stack([ce * rel_b[:, 0] - se * rel_b[:, 1], se * rel_b[:, 0] + ce * rel_b[:, 1]], 1)
+            self.felt_xy_m = np.concatenate([self.felt_xy_m, est])
+            if now >= self._back_off_until_s:  # a new touch: back away from where it was felt
+                away = -rel_b.mean(0)
+                norm = float(np.linalg.norm(away))
+                self._back_off_dir_b = away / norm if norm > 1e-6 else np.array([-1.0, 0.0])
+            self._back_off_until_s = now + c.back_off_s
+        if now < self._back_off_until_s:
+            if self.hold is not None:
+                self.hold.release()
+            v = c.back_off_speed_m_s * self._back_off_dir_b
+            return float(v[0]), float(v[1]), 0.0
+        return None
+
+    def _cautious(self, cmd: tuple[float, float, float], pose_xyyaw: np.ndarray) -> tuple[float, float, float]:
+        """The tracker's command, capped in the blind zone; zero when the path ahead runs into a felt
+        obstacle (the robot waits for a plan around it)."""
+        c = self.cfg.caution
+        if c is None or cmd == (0.0, 0.0, 0.0):
+            return cmd
+        if len(self.felt_xy_m) and self.tracker.path is not None:
+            if self._felt_distance_m(self.tracker.path_ahead()) < c.felt_clearance_m:
+                return 0.0, 0.0, 0.0
+        vx, vy, yaw_rate = cmd
+        if np.linalg.norm(pose_xyyaw[:2] - self._blind_xy_m) < self._blind_radius_m:
+            vx = min(vx, c.blind_speed_m_s)
+        return vx, vy, yaw_rate
 
     def balance(self) -> BalanceReport:
         return self.monitor.report()
