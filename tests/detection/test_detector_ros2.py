@@ -1,0 +1,56 @@
+"""``ambulo.ros2.detections``: a real rclpy node publishes vision_msgs/msg/Detection2DArray and a
+segmentation image; another node in a loopback-only network receives them."""
+
+import contextlib
+import json
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+SCENARIO = Path(__file__).resolve().parent / "ros2_detections_scenario.py"
+
+
+def test_detections_reach_another_node():
+    pytest.importorskip("rclpy", reason="needs rclpy: pip install 'ambulo[ros2]'")
+    pytest.importorskip("mcap_ros2")
+    from ambulo.ros2.loopback import isolated, loopback_env
+
+    proc = subprocess.Popen(isolated([sys.executable, str(SCENARIO)]), env=loopback_env(), stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        stdout, stderr = proc.communicate(timeout=120)
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 0, stderr[-4000:]
+    out = json.loads(stdout.strip().splitlines()[-1])
+    assert out["graph"]["/detections"] == ["vision_msgs/msg/Detection2DArray"]
+    assert out["graph"]["/detections/segmentation"] == ["sensor_msgs/msg/Image"]
+    array = out["array"]
+    assert array["stamp"] == [12, 250_000_000] and array["frame_id"] == "head_camera"
+    assert [(d["class_id"], d["id"]) for d in array["detections"]] == [("box", "0"), ("cone", "1")]
+    assert array["detections"][0]["centre"] == [3.0, 2.5] and array["detections"][0]["size"] == [4.0, 3.0]
+    assert array["detections"][1]["score"] == pytest.approx(0.6)
+    image = out["image"]
+    assert image["encoding"] == "mono16" and image["shape"] == [6, 8]
+    pixels = np.array(image["pixels"])
+    expected = np.zeros((6, 8), int)
+    expected[2:6, 3:8] = 2
+    expected[1:4, 1:5] = 1  # the higher score is drawn over the overlap
+    assert (pixels == expected).all(), pixels
+
+
+def test_instance_image_draws_higher_scores_over_lower():
+    from ambulo.ros2.detections import instance_image
+
+    masks = np.zeros((3, 2, 3), bool)
+    masks[0, :, :2] = True
+    masks[1, :, 1:] = True
+    image = instance_image(masks, [0.2, 0.7, 0.1])
+    assert image.dtype == np.uint16 and image.tolist() == [[1, 2, 2], [1, 2, 2]]
+    assert instance_image(np.zeros((0, 2, 3), bool), []).tolist() == [[0, 0, 0], [0, 0, 0]]
