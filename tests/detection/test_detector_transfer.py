@@ -36,3 +36,15 @@ def test_scores_follow_category_names_not_ids(tmp_path, trained_shapes):
     (other / "annotations.json").write_text(json.dumps(coco))
     with pytest.raises(DatasetError, match="no categories"):
         evaluate_checkpoint(checkpoint, other)
+
+
+def test_cli_evaluates_a_checkpoint_on_a_dataset(tmp_path, trained_shapes, capsys):
+    from ambulo.cli import main
+
+    root, checkpoint = trained_shapes
+    assert main(["evaluate-detector", str(checkpoint), str(root), "--held-out", "0.5"]) == 0
+    out = capsys.readouterr().out
+    assert "2 frames, boxes: mAP" in out and "2 frames, masks: mAP" in out and "disc" in out
+    assert main(["evaluate-detector", str(checkpoint), str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "no annotations.json" in err

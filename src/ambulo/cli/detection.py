@@ -4,6 +4,7 @@
     ambulo generate --frames 2000 --out data/ --seed 0
     ambulo train-detector data/ --epochs 30 --device cuda --out runs/det     # --resume continues it
     ambulo export-detector runs/det/checkpoint.pt --out runs/det/model.onnx
+    ambulo evaluate-detector runs/det/checkpoint.pt other_data/               # mAP on another dataset
     tensorboard --logdir runs/det
 """
 
@@ -69,8 +70,30 @@ def export_detector(args: argparse.Namespace) -> int:
     return 0
 
 
+def _print_metrics(what: str, metrics: dict) -> None:
+    classes = ", ".join(f"{name} {ap:.3f}" for name, ap in metrics["per_class"].items())
+    print(f"{what}: mAP {metrics['mAP']:.3f}, mAP50 {metrics['mAP50']:.3f} ({classes})")
+
+
+def evaluate_detector(args: argparse.Namespace) -> int:
+    from ambulo.detection import DatasetError, evaluate_checkpoint
+
+    if not Path(args.checkpoint).is_file():
+        raise CliError(f"no checkpoint {args.checkpoint}", "give the checkpoint.pt of `ambulo train-detector`")
+    if args.held_out is not None and not 0 < args.held_out < 1:
+        raise CliError(f"--held-out {args.held_out} is not a fraction in (0, 1)", "give e.g. 0.1, or leave it out")
+    try:
+        metrics = evaluate_checkpoint(args.checkpoint, args.dataset, args.held_out, device=args.device)
+    except DatasetError as err:
+        raise CliError(err.problem, err.fix) from None
+    _print_metrics(f"{metrics['frames']} frames, boxes", metrics)
+    if "mask" in metrics:
+        _print_metrics(f"{metrics['frames']} frames, masks", metrics["mask"])
+    return 0
+
+
 def add_commands(subparsers: argparse._SubParsersAction) -> None:
-    """Add ``train-detector`` and ``export-detector`` to the ``ambulo`` parser."""
+    """Add ``train-detector``, ``export-detector`` and ``evaluate-detector`` to the ``ambulo`` parser."""
     p = subparsers.add_parser("train-detector", help="train an object detector on an `ambulo generate` dataset",
                               description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("dataset", help="folder made by `ambulo generate` (annotations.json + rgb/)")
@@ -93,3 +116,11 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     e.add_argument("checkpoint", help="checkpoint.pt of `ambulo train-detector`")
     e.add_argument("--out", required=True, help="the .onnx file to write (its categories go to <out>.json)")
     e.set_defaults(func=export_detector)
+    v = subparsers.add_parser("evaluate-detector", help="COCO mAP of a trained detector on a dataset (boxes, masks)",
+                              description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    v.add_argument("checkpoint", help="checkpoint.pt of `ambulo train-detector`")
+    v.add_argument("dataset", help="folder made by `ambulo generate` with the detector's categories (by name)")
+    v.add_argument("--held-out", type=float, default=None,
+                   help="score only the last fraction of the frames (the split training held out); default all")
+    v.add_argument("--device", default="cpu", help="torch device")
+    v.set_defaults(func=evaluate_detector)
