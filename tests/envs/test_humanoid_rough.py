@@ -70,8 +70,11 @@ def test_action_latency_delays_targets_by_exactly_the_drawn_physics_steps():
             torch.testing.assert_close(seen[4 * t + s], expected.to(seen[0].dtype))
 
 
-def test_observation_delay_shows_the_actor_last_steps_clean_observations():
+@pytest.mark.parametrize("final_obs", [False, True])
+def test_observation_delay_shows_the_actor_last_steps_clean_observations(final_obs):
+    """Also when each step computes observations twice (``final_obs``, as ``GymVectorEnv`` asks)."""
     env = make(num_envs=4, transfer=TransferCfg(observation_delay_range_steps=(1, 1)), observation_noise={})
+    env.return_final_obs = final_obs
     critic = [env.get_privileged_observations()[:, :env.num_obs].clone()]
     generator = torch.Generator().manual_seed(0)
     for _ in range(3):

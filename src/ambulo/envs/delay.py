@@ -33,6 +33,10 @@ class DelayBuffer:
         self._head = (self._head + 1) % (self.max_delay + 1)
         self.buffer[self._head] = value
 
+    def overwrite_latest(self, value: torch.Tensor) -> None:
+        """Replace the latest push with (N, *shape) ``value`` (a value recomputed within one step)."""
+        self.buffer[self._head] = value
+
     def read(self) -> torch.Tensor:
         """Each world's value from ``delay`` pushes ago (the latest push for delay 0)."""
         if self.max_delay == 0:

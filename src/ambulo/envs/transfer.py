@@ -83,10 +83,7 @@ class TransferRandomization:
         self.factors: dict[str, torch.Tensor] = {}
         """The startup draws by term name, (N, k) each (for tests and logs)."""
         self.started = False
-
-    @property
-    def steps_each_substep(self) -> bool:
-        return self.action_delay is not None
+        self._observed_this_step = False
 
     def startup(self) -> None:
         """Draw and write the start terms, once. Gains scale what the drives hold now (world 0's,
@@ -132,6 +129,7 @@ class TransferRandomization:
         """Step the engine ``decimation`` physics steps driving the joints to ``targets`` (N, J)
         rad, each world's lagging by its latency; return the (N,) diverged mask."""
         env = self.env
+        self._observed_this_step = False
         if self.action_delay is None:
             env.robot.set_joint_targets(targets)
             return env.sim.step(decimation)
@@ -150,14 +148,20 @@ class TransferRandomization:
 
     def observe(self, obs: torch.Tensor, fresh: torch.Tensor) -> torch.Tensor:
         """The actor's observations (N, D) ``obs`` delayed per world; ``fresh`` (N,) bool marks
-        worlds whose episode just started (their history is filled with ``obs``)."""
+        worlds whose episode just started (their history is filled with ``obs``). One push per
+        policy step: observations computed again within a step (the post-reset ones after a
+        ``final_obs``, a public ``reset``) replace that step's entry instead of adding one."""
         if self.obs_delay_steps[1] == 0:
             return obs
         if self.obs_delay is None:
             self.obs_delay = DelayBuffer(self.obs_delay_steps[1], obs.shape[0], tuple(obs.shape[1:]),
                                          device=obs.device, dtype=obs.dtype)
             self.obs_delay.delay = self._obs_delay
-        self.obs_delay.push(obs)
+        if self._observed_this_step:
+            self.obs_delay.overwrite_latest(obs)
+        else:
+            self.obs_delay.push(obs)
+            self._observed_this_step = True
         rows = select_rows(fresh)
         if rows is not None:
             self.obs_delay.fill(rows, obs)
