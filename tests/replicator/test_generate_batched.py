@@ -113,3 +113,13 @@ def test_in_memory_batches_hold_the_written_datasets_boxes(device, tmp_path):
                 assert bbox == [x0, y0, x1 - x0 + 1, y1 - y0 + 1] and area == int(batch["pixels"][row, k])
                 seen += 1
     assert seen >= 2 * frames
+
+
+def test_generate_cli_refuses_device_with_workers_or_another_renderer(tmp_path, capsys):
+    from ambulo.cli import main
+
+    assert main(["generate", "--frames", "2", "--out", str(tmp_path / "a"), "--device", "cpu", "--workers", "2"]) != 0
+    assert "drop --workers" in capsys.readouterr().err
+    assert main(["generate", "--frames", "2", "--out", str(tmp_path / "b"), "--device", "cpu", "--renderer", "pbr"]) != 0
+    assert "drop --renderer" in capsys.readouterr().err
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()  # nothing written

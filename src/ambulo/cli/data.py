@@ -76,12 +76,23 @@ def generate(args: argparse.Namespace) -> int:
             raise CliError(f"--{flag} {value} is not positive", f"give --{flag} 1 or more")
     if args.seed < 0:
         raise CliError(f"--seed {args.seed} is negative", "give --seed 0 or more")
+    if args.device is not None and args.workers not in (None, 1):
+        raise CliError(f"--device {args.device} renders every frame of a batch in one launch on one GPU",
+                       "drop --workers (or drop --device to render on the CPU's processes)")
+    if args.num_worlds < 1:
+        raise CliError(f"--num-worlds {args.num_worlds} is not positive", "give --num-worlds 1 or more")
     config = load_config(args.config, args.width, args.height, args.renderer)
+    if args.device is not None and config.camera.renderer != "raster":
+        raise CliError(f"--device renders with MuJoCo Warp's ray caster, not renderer={config.camera.renderer!r}",
+                       "drop --renderer (or --device, to render pbr/path on the CPU)")
+    if args.device is not None and config.visible_fraction:
+        raise CliError("--device cannot compute visible_fraction (one isolated render per object)",
+                       "set visible_fraction=False in the config, or drop --device")
     try:
         with _terminate_as_interrupt() as received:
             path = rep.generate(config, args.out, num_frames=args.frames, seed=args.seed, workers=args.workers,
                                 show_progress=not args.quiet, backend="ray" if args.ray else "auto",
-                                overwrite=args.overwrite)
+                                overwrite=args.overwrite, device=args.device, num_worlds=args.num_worlds)
     except DatasetFolderError as err:
         raise CliError(err.problem, err.fix) from None
     except OSError as err:
@@ -149,5 +160,9 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
                         "(path traced); labels are the same whichever (default: the config's camera, raster)")
     p.add_argument("--overwrite", action="store_true",
                    help="delete the ambulo dataset in --out (its own files only) and start afresh")
+    p.add_argument("--device", default=None,
+                   help="render --num-worlds frames per launch with MuJoCo Warp on this device (cuda, cuda:1; cpu: "
+                        "Warp's CPU device): the CPU path's scenes and labels, ray-cast colours (default: the CPU)")
+    p.add_argument("--num-worlds", type=int, default=64, help="frames per launch with --device (default 64)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=generate)
