@@ -68,6 +68,8 @@ class CautionCfg(Checked):
     """Backward speed after a touch, m/s."""
     back_off_s: float = 1.0
     """How long to walk backwards after a touch, s."""
+    felt_spacing_m: float = 0.05
+    """A contact point within this of one already felt adds nothing, m (the online map's cell)."""
     felt_clearance_m: float = 0.2
     """A plan whose body path passes within this of a felt obstacle is refused, m (the policy's
     feet land up to ~0.15 m beside its body path; a sole is 0.22 m long)."""

@@ -299,7 +299,9 @@ class PolicyWalker:
             rel_b = np.stack([cos * rel_w[:, 0] + sin * rel_w[:, 1], -sin * rel_w[:, 0] + cos * rel_w[:, 1]], 1)
             ce, se = math.cos(pose_xyyaw[2]), math.sin(pose_xyyaw[2])
             est = pose_xyyaw[:2] + np.stack([ce * rel_b[:, 0] - se * rel_b[:, 1], se * rel_b[:, 0] + ce * rel_b[:, 1]], 1)
-            self.felt_xy_m = np.concatenate([self.felt_xy_m, est])
+            for xy in est:  # one point per obstacle cell's worth of sole: the navigator marks each
+                if not len(self.felt_xy_m) or np.linalg.norm(self.felt_xy_m - xy, axis=1).min() > c.felt_spacing_m:
+                    self.felt_xy_m = np.concatenate([self.felt_xy_m, xy[None]])
             if now >= self._back_off_until_s:  # a new touch: back away from where it was felt
                 away = -rel_b.mean(0)
                 norm = float(np.linalg.norm(away))
