@@ -16,10 +16,11 @@ Two measures, what a robot without a view of its feet does:
 
 - **slow in the blind zone**: within ``floor_blind_distance_m`` of the start (the floor there was
   never in view) the forward speed is capped at ``blind_speed_m_s``;
-- **feel with the feet, then step back**: a foot contact point higher than ``touch_height_m``
-  above the floor (what a sole force sensor and the leg's kinematics measure) is an obstacle
-  felt; the walker walks backwards for ``back_off_s`` and remembers where (``felt_xy_m``) so the
-  navigator can put it in its map and plans through it are refused.
+- **feel with the feet, then step back**: a contact point of a foot or shin higher than
+  ``touch_height_m`` above the floor (what foot force sensors, joint torques and the leg's
+  kinematics measure) is an obstacle felt; the walker walks away from it for ``back_off_s`` and
+  remembers where (``felt_xy_m``) so the navigator can put it in its map and plans through it are
+  refused.
 
 Together (0.25 m/s, 0.3 m/s back for 1 s) the policy fell on none of the 15 approaches, against 9
 of 15 at 0.25 m/s without the step back and 8 of 15 with the step back at 0.55 m/s: the slow
@@ -76,13 +77,15 @@ class CautionCfg(Checked):
 
 
 class FootTouch:
-    """Contact points of the humanoid's feet on anything but the floor (module docstring)."""
+    """Contact points of the humanoid's feet and shins on anything but the floor and the robot
+    (module docstring)."""
 
     def __init__(self, world: NavWorld, cfg: CautionCfg):
         model = world.model
         prefix = humanoid.PRIM_PATH + "/"
         feet = [model.body(prefix + f).id for f in humanoid.FOOT_BODIES]
-        self._foot = np.isin(model.geom_bodyid, feet)
+        # the feet and the bodies they hang from (the shanks): a shin that meets a low box trips too
+        self._foot = np.isin(model.geom_bodyid, feet + [int(model.body_parentid[f]) for f in feet])
         robot = np.array([model.body(b).name.startswith(prefix) for b in range(model.nbody)])
         self._robot = robot[model.geom_bodyid]
         self.world = world
@@ -90,7 +93,7 @@ class FootTouch:
         self._data: mujoco.MjData | None = None
 
     def felt_xy_m(self) -> np.ndarray:
-        """(K, 2) world xy of the feet's contact points higher than ``touch_height_m`` now, m."""
+        """(K, 2) world xy of the feet's and shins' contact points higher than ``touch_height_m`` now, m."""
         data = self._data = self.world.engine.get_data(0, self._data)
         if not data.ncon:
             return np.zeros((0, 2))

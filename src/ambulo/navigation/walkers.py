@@ -198,8 +198,10 @@ class PolicyWalker:
         self.felt_xy_m = np.zeros((0, 2))
         """(K, 2) obstacles the feet felt, in the pose estimate's frame (x m, y m): cells the navigator's
         map should mark occupied (the camera may never have seen them)."""
-        self._blind_xy_m: np.ndarray | None = None
-        """Centre of the blind zone (where the walker started), set at the first control period."""
+        self.blind_zones_xy_m = np.zeros((0, 2))
+        """(K, 2) centres of the blind zones (``add_blind_zone``; the start's is added at the first
+        control period), pose estimate frame, m."""
+        self._started = False
         self._blind_radius_m = 0.0
         self._back_off_until_s = -math.inf
         self._back_off_dir_b = np.array([-1.0, 0.0])
@@ -287,9 +289,10 @@ class PolicyWalker:
         """Read the feet (``caution.FootTouch``); the step-back command while it lasts, else None."""
         c = self.cfg.caution
         now = self.world.time_s
-        if self._blind_xy_m is None:
-            self._blind_xy_m = np.array(pose_xyyaw[:2], float)
+        if not self._started:
+            self._started = True
             self._blind_radius_m = floor_blind_distance_m(self.world) + c.blind_margin_m
+            self.add_blind_zone(pose_xyyaw[:2])
         felt_w = self.touch.felt_xy_m()
         if len(felt_w):
             # the contact relative to the body (what the leg's kinematics give), placed at the estimate
@@ -314,6 +317,12 @@ class PolicyWalker:
             return float(v[0]), float(v[1]), 0.0
         return None
 
+    def add_blind_zone(self, xy_m) -> None:
+        """Walk slowly within the camera's blind distance of ``xy_m`` (x m, y m, the pose estimate's
+        frame): where the navigator lets the robot walk on floor the camera has not seen (the start
+        is one already)."""
+        self.blind_zones_xy_m = np.concatenate([self.blind_zones_xy_m, np.asarray(xy_m, float).reshape(1, 2)])
+
     def _cautious(self, cmd: tuple[float, float, float], pose_xyyaw: np.ndarray) -> tuple[float, float, float]:
         """The tracker's command, capped in the blind zone; zero when the path ahead runs into a felt
         obstacle (the robot waits for a plan around it)."""
@@ -324,7 +333,8 @@ class PolicyWalker:
             if self._felt_distance_m(self.tracker.path_ahead()) < c.felt_clearance_m:
                 return 0.0, 0.0, 0.0
         vx, vy, yaw_rate = cmd
-        if np.linalg.norm(pose_xyyaw[:2] - self._blind_xy_m) < self._blind_radius_m:
+        if len(self.blind_zones_xy_m) and (np.linalg.norm(self.blind_zones_xy_m - pose_xyyaw[:2], axis=1)
+                                           < self._blind_radius_m).any():
             vx = min(vx, c.blind_speed_m_s)
         return vx, vy, yaw_rate
 
