@@ -54,3 +54,18 @@ def test_instance_image_draws_higher_scores_over_lower():
     image = instance_image(masks, [0.2, 0.7, 0.1])
     assert image.dtype == np.uint16 and image.tolist() == [[1, 2, 2], [1, 2, 2]]
     assert instance_image(np.zeros((0, 2, 3), bool), []).tolist() == [[0, 0, 0], [0, 0, 0]]
+
+
+RIHS01_DETECTION2D_ARRAY = "RIHS01_214274120007f4a683866481336b70310268cfa107aebe9d594a6acf75bda968"
+"""What rosidl_generator_type_description (the wheels' own, 4.9.5) computes from vision_msgs 4.1.1's
+msg/*.msg files (ros-perception/vision_msgs, branch ros2, tag 4.1.1): the hash a ROS 2 node with
+vision_msgs installed matches our publisher on."""
+
+
+def test_detection_array_hash_is_vision_msgs_own():
+    pytest.importorskip("rclpy", reason="needs rclpy: pip install 'ambulo[ros2]'")
+    from ambulo.ros2.detections import DETECTION_ARRAY, register_vision_msgs
+    from ambulo.ros2.raw_types import hash_of
+
+    register_vision_msgs()
+    assert hash_of(DETECTION_ARRAY) == RIHS01_DETECTION2D_ARRAY
