@@ -81,8 +81,8 @@ class _SlippedOdometry:
         return VoResult(pose_wc=pose, state=TrackState.TRACKING, inliers=200, num_keyframes=1, tracked=True)
 
 
-def _localizer(world, with_map: bool, **kw):
-    loc = LegVoLocalizer(odometry=_SlippedOdometry(world, (0.6, -0.4, 0.0)),
+def _localizer(world, with_map: bool, slip=(0.6, -0.4, 0.0), **kw):
+    loc = LegVoLocalizer(odometry=_SlippedOdometry(world, slip),
                          map_source=(lambda: world.occupancy) if with_map else None, **kw)
     loc.reset(world)
     return loc
@@ -112,12 +112,18 @@ def test_without_a_map_the_slipped_vo_is_refused_within_the_bridge(apt):
     assert not est.tracked and est.state == "rejected" and loc.rejected == 1
 
 
-@pytest.mark.parametrize("pose, with_map, taken", [(FACING_WALL, True, False), (FACING_ROOM, True, True),
-                                                   (FACING_WALL, False, True)])
-def test_past_the_bridge_a_disagreeing_fix_is_taken_only_where_the_map_confirms_it(apt, pose, with_map, taken):
+ALONG_WALL, OFF_WALL = (0.6, 0.0, 0.0), (0.1, -0.4, 0.0)
+"""VO slips facing the north wall (along x): along it the map cannot tell the VO from the legs;
+0.4 m back from it the VO's pose puts the wall into space the map saw free."""
+
+
+@pytest.mark.parametrize("pose, slip, with_map, taken", [
+    (FACING_WALL, ALONG_WALL, True, False), (FACING_WALL, OFF_WALL, True, True), (FACING_ROOM, (0.6, -0.4, 0.0), True, True),
+    (FACING_WALL, ALONG_WALL, False, True)])
+def test_past_the_bridge_a_disagreeing_fix_is_taken_only_where_the_map_confirms_it(apt, pose, slip, with_map, taken):
     world = _world(apt, pose)
     truth = world.true_pose()
-    loc = _localizer(world, with_map, bridge_max_m=-1.0)  # every bridge has run out
+    loc = _localizer(world, with_map, slip, bridge_max_m=-1.0)  # every bridge has run out
     loc.on_frame(world.capture())
     est = loc.on_frame(world.capture())
     world.close()
@@ -142,3 +148,26 @@ def test_a_robot_facing_a_bare_wall_is_told_to_look_where_a_match_is_confident(a
     m = match_scan(world.occupancy, scan_xy_m(frame.depth_m.numpy(), frame.intrinsics.numpy(), pose, cfg),
                    pose[:2, 3], cfg)
     assert m.confident, m.reason
+
+
+def _level_camera(height_m):
+    """(4, 4) a camera at (0, 0, height_m) looking along world +x (OpenCV axes: z forward, y down)."""
+    pose = np.eye(4)
+    pose[:3, :3] = [[0, 0, 1], [-1, 0, 0], [0, -1, 0]]
+    pose[2, 3] = height_m
+    return pose
+
+
+def test_a_wall_is_in_the_scan_and_a_table_top_is_not():
+    k = np.array([[100.0, 0, 40], [0, 100.0, 30], [0, 0, 1]])
+    v = np.arange(60, dtype=float)[:, None].repeat(80, 1)
+    wall = np.full((60, 80), 2.0)  # a wall 2 m ahead: depth 2 everywhere
+    below = (v - 30) / 100  # the rays' downward slope
+    top = np.where(below > 0.01, 0.6 / np.maximum(below, 1e-9), 0.0)  # a level top 0.6 m under the camera
+    cfg = RelocalizeCfg(pixel_stride=2)
+    pose = _level_camera(1.2)
+    wall_xy = scan_xy_m(wall.astype(np.float32), k, pose, cfg)
+    assert len(wall_xy) > 300 and np.allclose(wall_xy[:, 0], 2.0, atol=1e-6)
+    top = np.where(top <= cfg.max_depth_m, top, 0.0).astype(np.float32)
+    assert len(scan_xy_m(top, k, pose, cfg)) == 0
+    assert len(scan_xy_m(top, k, pose, RelocalizeCfg(pixel_stride=2, max_normal_z=1.01))) > 100

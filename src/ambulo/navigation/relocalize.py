@@ -17,10 +17,10 @@ scored on a *likelihood field* of the map:
 
 - ``exp(-d^2 / 2 hit_sigma_m^2)`` where ``d`` is the distance to the nearest surface cell (an
   occupied cell beside a non-occupied one: the inside of a solid the map holds is no surface);
-- ``-free_penalty`` on observed cells (free, or occupied deep inside a solid) farther than
-  ``miss_m`` from any surface cell (the map saw through there, or it is solid: a surface there
-  contradicts it);
-- 0 on unknown cells (no evidence either way: a frame seeing past the map's edge is not punished).
+- ``-free_penalty`` on observed-free cells farther than ``miss_m`` from any surface cell (the map
+  saw through there: a surface in them contradicts it);
+- 0 on unknown cells and deep inside solids (no evidence either way: a frame seeing past the
+  map's edge is not punished).
 
 The score is the mean over the scan's points. For each yaw step, the scores of every translation
 are one cross-correlation of the field with the scan's point-count image (``scipy.signal``, FFT).
@@ -31,7 +31,9 @@ correction farther than ``ambiguity_m`` (or ``ambiguity_yaw_deg``) from the best
 ridge along it, and the match says so instead of picking a point on the ridge. Hypotheses (the
 guess itself, the legs' pose) are scored too: one within ``confirm_ratio`` of the best is
 *confirmed* and preferred over the best (the map's 5 cm cells do not tell apart poses that fit it
-almost equally well).
+almost equally well). Where the window is ambiguous the map still tells two hypotheses apart when
+one is confirmed and another *refuted* (below ``refute_ratio`` of the best): a corridor cannot say
+where along it the robot is, but it can say that the VO's pose puts a wall in its free space.
 """
 
 from __future__ import annotations
@@ -57,6 +59,9 @@ class RelocalizeCfg(Checked):
     """Points nearer the camera than this (horizontally) are the robot's own hands, m."""
     pixel_stride: int = 4
     """Every this many pixels along each image axis (80 x 60 of the head camera's 320 x 240)."""
+    max_normal_z: float = 0.5
+    """Points whose surface normal has a larger vertical share than this (a top within 60 deg of
+    level) are left out (``scan_xy_m``)."""
     search_xy_m: float = 0.5
     """The translation window reaches this far beyond the hypotheses' spread, m."""
     search_yaw_deg: float = 6.0
@@ -76,6 +81,9 @@ class RelocalizeCfg(Checked):
     ambiguity_yaw_deg: float = 4.0
     confirm_ratio: float = 0.95
     """A hypothesis scoring this share of the best is confirmed."""
+    refute_ratio: float = 0.5
+    """A hypothesis scoring less than this share of the best is refuted: on an ambiguous map (a
+    corridor) a confirmed hypothesis is still chosen over a refuted one."""
     map_margin_m: float = 1.0
     """The field is computed over the scan's box grown by the window and this, m."""
 
@@ -94,7 +102,8 @@ class Match:
     points: int
     confident: bool
     reason: str
-    """Why (not) confident: "ok", "few points", "poor fit", "ambiguous"."""
+    """Why (not) confident: "ok", "told apart" (ambiguous, but one hypothesis confirmed and
+    another refuted), "few points", "poor fit", "ambiguous"."""
     hypothesis_scores: list[float] = field(default_factory=list)
     """Score of each hypothesis given (the guess, the identity, first)."""
     chosen: int = -1
@@ -102,19 +111,30 @@ class Match:
 
 
 def scan_xy_m(depth_m: np.ndarray, intrinsics: np.ndarray, pose_wc: np.ndarray, cfg: RelocalizeCfg) -> np.ndarray:
-    """(N, 2) world x, y of the frame's body-band points with the camera at ``pose_wc`` (4, 4;
-    OpenCV axes), m. ``depth_m`` (H, W) metres along the optical axis, 0 / non-finite: none."""
+    """(N, 2) world x, y of the frame's body-band points on steep surfaces with the camera at
+    ``pose_wc`` (4, 4; OpenCV axes), m. ``depth_m`` (H, W) metres along the optical axis, 0 /
+    non-finite: none. A point of a flat top (a bed, a table seen from above: its normal within
+    ``max_normal_z`` of vertical) is left out: it lands inside the top's footprint, which the map
+    holds solid, not on its outline."""
     s = cfg.pixel_stride
     depth = np.asarray(depth_m, np.float64)[::s, ::s]
     k = np.asarray(intrinsics, np.float64)
     v, u = np.mgrid[0:depth_m.shape[0]:s, 0:depth_m.shape[1]:s].astype(np.float64)
     ok = np.isfinite(depth) & (depth > 0) & (depth <= cfg.max_depth_m)
-    z = depth[ok]
-    pts_c = np.stack([(u[ok] - k[0, 2]) / k[0, 0] * z, (v[ok] - k[1, 2]) / k[1, 1] * z, z], -1)
+    z = np.where(ok, depth, np.nan)
+    pts_c = np.stack([(u - k[0, 2]) / k[0, 0] * z, (v - k[1, 2]) / k[1, 1] * z, z], -1)  # (h, w, 3)
     pts_w = pts_c @ pose_wc[:3, :3].T + pose_wc[:3, 3]
-    keep = (pts_w[:, 2] >= cfg.band_m[0]) & (pts_w[:, 2] <= cfg.band_m[1])
-    keep &= np.hypot(pts_w[:, 0] - pose_wc[0, 3], pts_w[:, 1] - pose_wc[1, 3]) >= cfg.min_range_m
-    return pts_w[keep, :2]
+    # normals from the neighbours (central differences; NaN at the border and beside holes)
+    du = np.full_like(pts_w, np.nan)
+    dv = np.full_like(pts_w, np.nan)
+    du[:, 1:-1] = pts_w[:, 2:] - pts_w[:, :-2]
+    dv[1:-1] = pts_w[2:] - pts_w[:-2]
+    n = np.cross(du, dv)
+    with np.errstate(invalid="ignore"):
+        steep = np.abs(n[..., 2]) < cfg.max_normal_z * np.linalg.norm(n, axis=-1)
+        keep = ok & steep & (pts_w[..., 2] >= cfg.band_m[0]) & (pts_w[..., 2] <= cfg.band_m[1])
+        keep &= np.hypot(pts_w[..., 0] - pose_wc[0, 3], pts_w[..., 1] - pose_wc[1, 3]) >= cfg.min_range_m
+    return pts_w[keep][:, :2]
 
 
 def correction_between(from_xyyaw, to_xyyaw, pivot_xy_m) -> np.ndarray:
@@ -178,19 +198,30 @@ def match_scan(grid: Grid2D, scan_xy: np.ndarray, pivot_xy_m, cfg: RelocalizeCfg
         return Match(hyps[0], best_c, score, hits, n, False, "few points", hyp_scores)
     if score < cfg.min_score:
         return Match(hyps[0], best_c, score, hits, n, False, "poor fit", hyp_scores)
-    near = cfg.ambiguity_ratio * score
+    confirmed = [i for i, s in enumerate(hyp_scores) if s >= cfg.confirm_ratio * score]
+    if _ambiguous(ridge, yaws, (yaw_b, ty, tx), (ky[0], kx[0]), r, cfg.ambiguity_ratio * score, cfg):
+        refuted = [i for i, s in enumerate(hyp_scores) if s < cfg.refute_ratio * score]
+        if confirmed and refuted:  # the map cannot place the robot, but it tells the hypotheses apart
+            return Match(hyps[confirmed[0]], best_c, score, hits, n, True, "told apart", hyp_scores, confirmed[0])
+        return Match(hyps[0], best_c, score, hits, n, False, "ambiguous", hyp_scores)
+    if confirmed:
+        return Match(hyps[confirmed[0]], best_c, score, hits, n, True, "ok", hyp_scores, confirmed[0])
+    return Match(best_c, best_c, score, hits, n, True, "ok", hyp_scores, -1)
+
+
+def _ambiguous(ridge, yaws, best, k0, r: float, near: float, cfg: RelocalizeCfg) -> bool:
+    """Whether a correction far from the best (``ambiguity_m`` / ``ambiguity_yaw_deg``) scores
+    ``near`` or more."""
+    yaw_b, ty, tx = best
     for yaw, scores in zip(yaws, ridge, strict=True):
         jy, jx = np.nonzero(scores >= near)
         if not len(jy):
             continue
-        far_yaw = abs(yaw - yaw_b) > math.radians(cfg.ambiguity_yaw_deg)
-        far_xy = np.hypot((jx + kx[0] - tx) * r, (jy + ky[0] - ty) * r).max() > cfg.ambiguity_m
-        if far_yaw or far_xy:
-            return Match(hyps[0], best_c, score, hits, n, False, "ambiguous", hyp_scores)
-    for i, s in enumerate(hyp_scores):
-        if s >= cfg.confirm_ratio * score:
-            return Match(hyps[i], best_c, score, hits, n, True, "ok", hyp_scores, i)
-    return Match(best_c, best_c, score, hits, n, True, "ok", hyp_scores, -1)
+        if abs(yaw - yaw_b) > math.radians(cfg.ambiguity_yaw_deg):
+            return True
+        if np.hypot((jx + k0[1] - tx) * r, (jy + k0[0] - ty) * r).max() > cfg.ambiguity_m:
+            return True
+    return False
 
 
 def look_yaw_rad(grid: Grid2D, xy_m, cfg: RelocalizeCfg, fov_deg: float = 62.0, min_range_m: float = 0.8,
@@ -250,9 +281,10 @@ def _field(grid: Grid2D, scan: np.ndarray, pivot, cfg: RelocalizeCfg, reach_m: f
     else:
         dist_m = np.full(occ.shape, np.inf)
     out = np.exp(-0.5 * (dist_m / cfg.hit_sigma_m) ** 2)
-    # a surface seen in free space, or deep inside a solid the map holds, contradicts the map
-    out[(occ >= FREE) & (dist_m > cfg.miss_m)] = -cfg.free_penalty
-    out[(occ < FREE) & (dist_m > cfg.miss_m)] = 0.0
+    # a surface seen in free space contradicts the map; deep inside a solid the map holds (a wall's
+    # core, under a top) or in unknown space it is no evidence either way
+    out[(occ >= FREE) & (occ < OCCUPIED) & (dist_m > cfg.miss_m)] = -cfg.free_penalty
+    out[((occ < FREE) | (occ >= OCCUPIED)) & (dist_m > cfg.miss_m)] = 0.0
     return out, (iy0, ix0)
 
 
