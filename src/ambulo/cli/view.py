@@ -8,6 +8,7 @@ import os
 import sys
 
 from .errors import CliError, check_output_file, check_seconds
+from .viewer_args import add_viewer_args, viewer_kind
 
 _KINDS = (".xml", ".urdf", ".usd", ".usda", ".usdc", ".usdz")
 """File kinds ``ambulo.core.load_spec`` reads."""
@@ -45,22 +46,18 @@ def run(args: argparse.Namespace) -> int:
     check_seconds(args.seconds)
     if args.video:
         check_output_file(args.video, "--video")
+    viewer = viewer_kind(args)
+    if viewer is not None and args.video:
+        raise CliError("--viewer web shows the scene live; --video records it headless", "pass one of them")
+    if viewer is not None:
+        return _serve(path, viewer, args)
     if args.renderer != "raster" and not args.video:
         raise CliError(f"--renderer {args.renderer} draws --video frames; the interactive viewer is MuJoCo's own",
                        "add --video out.mp4, or leave --renderer out")
     if not args.video and not os.environ.get("DISPLAY") and sys.platform.startswith("linux"):
         raise CliError("no display for the interactive viewer",
                        "set DISPLAY, or record headless with --video out.mp4")
-    from ambulo.sim import World, add_reference_to_stage
-
-    if path is None:
-        from ambulo.demo import build_demo_world
-
-        world = build_demo_world()[0]
-    else:
-        world = World()
-        world.scene.add_default_ground_plane()
-        add_reference_to_stage(usd_path=path, prim_path="/World/Asset")
+    world = _world(path)
     world.reset()
     if args.video:
         from ambulo.sim.recorder import Recorder
@@ -77,12 +74,38 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _serve(path: str | None, viewer: str, args: argparse.Namespace) -> int:
+    """The scene simulated at real time (the page's speed) in a browser, ``--seconds`` of it."""
+    world = _world(path, viewer=viewer, viewer_port=args.viewer_port)
+    try:
+        world.reset()
+        for _ in range(int(round(args.seconds / world.get_rendering_dt()))):
+            world.step(render=False)
+    finally:
+        world.viewer.close()
+    return 0
+
+
+def _world(path: str | None, **world_args):
+    from ambulo.sim import World, add_reference_to_stage
+
+    if path is None:
+        from ambulo.demo import build_demo_world
+
+        return build_demo_world(**world_args)[0]
+    world = World(**world_args)
+    world.scene.add_default_ground_plane()
+    add_reference_to_stage(usd_path=path, prim_path="/World/Asset")
+    return world
+
+
 def add_commands(subparsers: argparse._SubParsersAction) -> None:
     """Add ``view`` to the ``ambulo`` parser."""
     p = subparsers.add_parser("view", help="open a scene or robot file in the MuJoCo viewer")
     p.add_argument("target", help="'demo', a bundled asset name (jetbot, humanoid, ...) or a file")
     p.add_argument("--video", help="record headless to this MP4 instead of opening a window")
-    p.add_argument("--seconds", type=float, default=5.0)
+    p.add_argument("--seconds", type=float, default=5.0, help="simulated seconds (--video, --viewer web)")
     p.add_argument("--renderer", choices=("raster", "pbr"), default="raster",
                    help="what draws the --video frames: raster (MuJoCo) or pbr (Filament: PBR materials, shadows)")
+    add_viewer_args(p)
     p.set_defaults(func=run)
