@@ -1,11 +1,13 @@
 """The path-traced camera tier: Mitsuba 3 renders what MuJoCo's rasterizer would draw.
 
 The scene (``scene_description``: the rasterizer's own geoms, colours, lights and camera) is
-built into a Mitsuba scene once; each frame only what moved or changed colour is written through
-``mi.traverse`` parameters (vertex positions of moving geoms, light and camera poses), never a
-rebuild, so Mitsuba reuses its compiled kernels. Images are rendered with Mitsuba's ``path``
-integrator at ``spp`` samples per pixel, denoised with Open Image Denoise guided by first-hit
-albedo and normals (``denoise``), and encoded to sRGB.
+built into a Mitsuba scene once; each frame only what moved or changed is written through
+``mi.traverse`` parameters (vertex positions of moving geoms, light and camera poses, a geom's
+colour, texture and material when a randomizer changed them), so Mitsuba reuses its compiled
+kernels; only a surface changing kind (matte <-> glossy, opaque <-> not, emitting) rebuilds the
+scene. Images are rendered with Mitsuba's ``path`` integrator at ``spp`` samples per pixel,
+denoised with Open Image Denoise guided by first-hit albedo and normals (``denoise``), and encoded
+to sRGB.
 
 Variants: ``cuda_ad_rgb`` on an NVIDIA GPU, else ``llvm_ad_rgb`` (CPU; needs libLLVM >= 16:
 Debian's ``libllvm19``, which ``scripts/setup.sh`` installs). Labels (depth, ids) are not made
@@ -13,9 +15,12 @@ here: they come from the rasterizer's id pass, so they are identical in every ti
 
 The environment: ``envmap_path`` if given, else the model's image lights (``<light type="image">``,
 what a USD DomeLight becomes; read once, when the tracer is built), else the model's skybox (which,
-unlike in the rasterizer, also lights the scene), else a constant one of the lights' ambient. What it does not model: MuJoCo
-cube-map textures on objects (mean colour), flexes and skins, orthographic or off-axis cameras,
-light textures, the rasterizer's fog and haze.
+unlike in the rasterizer, also lights the scene), else a constant one of the lights' ambient.
+
+What it does not model: MuJoCo cube-map textures on objects (mean colour), 2-D textures on
+spheres, ellipsoids, cylinders and capsules where the rasterizer puts them (planar in x, y here;
+planes and boxes are mapped as the rasterizer maps them), flexes and skins, orthographic or
+off-axis cameras, light textures, the rasterizer's fog and haze.
 """
 
 from __future__ import annotations
@@ -36,12 +41,13 @@ from .scene_description import (
     SceneReader,
     SurfaceDesc,
     ambient_radiance,
-    base_color_of,
     camera_of,
     geom_pose,
     infinite_plane_half_m,
     lights_of,
     linear_to_srgb,
+    material_of,
+    planar_texcoords,
     skybox_latlong,
     srgb_to_linear,
     surface_of,
@@ -121,14 +127,14 @@ class PathTracer:
         scene = self._reader.read(model, data, 0 if model.ncam else -1)
         self._surfaces: dict[int, SurfaceDesc] = {}
         self._poses: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-        self._colors: dict[int, np.ndarray] = {}
+        self._looks: dict[int, tuple] = {}
         half = infinite_plane_half_m(model)
         for geom in scene.geoms[: scene.ngeom]:
             surface = surface_of(model, geom, half, self.cfg.slices, self.cfg.slices // 2)
             if surface is not None:
                 self._surfaces[surface.geom_id] = surface
                 self._poses[surface.geom_id] = geom_pose(geom)
-                self._colors[surface.geom_id] = surface.material.base_color
+                self._looks[surface.geom_id] = _look_of(geom)
         self._lights = lights_of(model, data, scene)
         self._scene = self.mi.load_dict(self._scene_dict(scene, camera_of(scene, self.cfg.width, self.cfg.height)))
         self._params = self.mi.traverse(self._scene)
@@ -136,17 +142,11 @@ class PathTracer:
 
     # -- building -------------------------------------------------------------------------------
     def _bsdf(self, material: MaterialDesc) -> dict:
-        mi = self.mi
-        if material.texture is not None:
-            pixels = material.texture[..., :3].astype(np.float32) / 255.0
-            if pixels.shape[-1] == 1:
-                pixels = np.repeat(pixels, 3, -1)
-            linear = srgb_to_linear(pixels) if material.texture_is_srgb else pixels
-            color = {"type": "bitmap", "bitmap": mi.Bitmap(np.ascontiguousarray(linear * material.base_color)),
-                     "raw": True, "filter_type": "bilinear", "wrap_mode": "repeat"}
-        else:
-            color = {"type": "rgb", "value": material.base_color.tolist()}
-        if material.metallic > 0 or material.specular > 0:
+        # a bitmap even without a texture (1 x 1): a material randomizer may texture it later, and
+        # a bitmap's texels can be replaced by one of another size without rebuilding the scene
+        color = {"type": "bitmap", "bitmap": self.mi.Bitmap(_texels(material)), "raw": True,
+                 "filter_type": "bilinear", "wrap_mode": "repeat"}
+        if _is_principled(material):
             bsdf = {"type": "principled", "base_color": color, "roughness": material.roughness,
                     "metallic": material.metallic, "specular": material.specular}
         else:
@@ -163,14 +163,13 @@ class PathTracer:
             props["emitter"] = mi.load_dict({"type": "area", "radiance": {
                 "type": "rgb", "value": surface.material.emission.tolist()}})
         out = mi.Mesh(f"geom_{surface.geom_id}", len(mesh.positions), len(mesh.faces), props=props,
-                      has_vertex_normals=True, has_vertex_texcoords=mesh.texcoords is not None)
+                      has_vertex_normals=True, has_vertex_texcoords=True)
         params = mi.traverse(out)
         positions, normals = _to_world(mesh.positions, mesh.normals, pose)
         params["vertex_positions"] = mi.Float(positions.ravel())
         params["vertex_normals"] = mi.Float(normals.ravel())
         params["faces"] = mi.UInt(mesh.faces.ravel())
-        if mesh.texcoords is not None:
-            params["vertex_texcoords"] = mi.Float(mesh.texcoords.ravel())
+        params["vertex_texcoords"] = mi.Float(mesh.texcoords.ravel())
         params.update()
         return out
 
@@ -242,6 +241,7 @@ class PathTracer:
         model, params, mi = self.model, self._params, self.mi
         cam_id = camera if isinstance(camera, (int, np.integer)) else model.camera(camera).id
         scene = self._reader.read(model, data, int(cam_id), pose)
+        rebuild = False
         for geom in scene.geoms[: scene.ngeom]:
             gid = int(geom.objid)
             surface = self._surfaces.get(gid) if geom.objtype == mujoco.mjtObj.mjOBJ_GEOM else None
@@ -255,20 +255,44 @@ class PathTracer:
                     params[f"geom_{gid}.vertex_positions"] = mi.Float(positions.ravel())
                     params[f"geom_{gid}.vertex_normals"] = mi.Float(normals.ravel())
                     self._poses[gid] = new_pose
-            if surface.material.texture is None:
-                color = base_color_of(geom, surface.material.tint)
-                if not np.array_equal(color, self._colors[gid]):
-                    key = next(k for k in (f"geom_{gid}.bsdf.base_color.value", f"geom_{gid}.bsdf.reflectance.value",
-                                           f"geom_{gid}.bsdf.material.base_color.value",
-                                           f"geom_{gid}.bsdf.material.reflectance.value") if k in params)
-                    params[key] = mi.Color3f(*color.tolist())
-                    self._colors[gid] = color
+            look = _look_of(geom)
+            if look != self._looks[gid]:  # colour, material or texture changed (randomizers)
+                self._looks[gid] = look
+                rebuild |= self._restyle(surface, geom)
+        if rebuild:  # a surface changed kind (matte <-> glossy, opaque <-> not, emitting): a new scene
+            self._scene = self.mi.load_dict(self._scene_dict(scene, camera_of(scene, self.cfg.width, self.cfg.height)))
+            self._params = params = self.mi.traverse(self._scene)
         self._update_lights(lights_of(model, data, scene))
         cam = camera_of(scene, self.cfg.width, self.cfg.height)
         params["sensor.to_world"] = self._look_at(cam.pos_w, cam.rot_w_gl)
         params["sensor.x_fov"] = _x_fov_deg(cam)
         params.update()  # rebuilds the acceleration structure only when vertices were written
         return cam
+
+    def _restyle(self, surface: SurfaceDesc, geom: mujoco.MjvGeom) -> bool:
+        """Write geom ``geom``'s current material into its BSDF (and its planar UVs when the
+        texture's repeat changed); True when the BSDF's kind changed, which needs a new scene."""
+        old, new = surface.material, material_of(self.model, geom)
+        surface.material = new
+        if _kind(new) != _kind(old):
+            return True
+        params, mi, gid = self._params, self.mi, surface.geom_id
+        prefix = f"geom_{gid}.bsdf." + ("material." if new.opacity < 1 else "")
+        if _is_principled(new):
+            params[prefix + "base_color.data"] = mi.TensorXf(_texels(new))
+            params[prefix + "roughness.value"] = new.roughness
+            params[prefix + "metallic.value"] = new.metallic
+            params[prefix + "specular"] = new.specular
+        else:
+            params[prefix + "reflectance.data"] = mi.TensorXf(_texels(new))
+        if new.opacity < 1:
+            params[f"geom_{gid}.bsdf.opacity.value"] = new.opacity
+        if new.texture is not None and surface.planar_uv:
+            uv = planar_texcoords(surface.mesh, geom)
+            if not np.array_equal(uv, surface.mesh.texcoords):
+                surface.mesh.texcoords = uv
+                params[f"geom_{gid}.vertex_texcoords"] = mi.Float(uv.ravel())
+        return False
 
     def _update_lights(self, lights: list[LightDesc]) -> None:
         params, mi = self._params, self.mi
@@ -310,6 +334,33 @@ class PathTracer:
         """(H, W, 3) uint8 sRGB image of camera ``camera`` (id or name) for the state ``data``."""
         linear = self.render_linear(data, camera, pose) * np.float32(self.cfg.exposure)
         return (linear_to_srgb(linear) * 255.0 + 0.5).astype(np.uint8)
+
+
+def _texels(material: MaterialDesc) -> np.ndarray:
+    """(H, W, 3) float32 linear base colour: the texture (sRGB decoded unless linear) times the
+    rgba colour, or (1, 1, 3) of the colour alone."""
+    if material.texture is None:
+        return np.ascontiguousarray(material.base_color.reshape(1, 1, 3), np.float32)
+    pixels = material.texture[..., :3].astype(np.float32) / 255.0
+    if pixels.shape[-1] == 1:
+        pixels = np.repeat(pixels, 3, -1)
+    linear = srgb_to_linear(pixels) if material.texture_is_srgb else pixels
+    return np.ascontiguousarray(linear * material.base_color, np.float32)
+
+
+def _is_principled(material: MaterialDesc) -> bool:
+    return material.metallic > 0 or material.specular > 0
+
+
+def _kind(material: MaterialDesc) -> tuple:
+    """What fixes a surface's Mitsuba objects: BSDF type, mask, emission (values changed in place otherwise)."""
+    return _is_principled(material), material.opacity < 1, tuple(material.emission.tolist())
+
+
+def _look_of(geom: mujoco.MjvGeom) -> tuple:
+    """What a scene geom's material depends on (resolved colour, material, texture and its mapping)."""
+    return (int(geom.matid), int(geom.texid), tuple(geom.rgba), tuple(geom.texrepeat), bool(geom.texuniform),
+            float(geom.shininess), float(geom.specular), float(geom.reflectance), float(geom.emission))
 
 
 def _torch_has_cuda() -> bool:

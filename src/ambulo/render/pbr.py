@@ -168,7 +168,8 @@ class PbrRenderer:
             self._ctx = _filament_context()
         self._frames = 0
         self._model = model
-        self._resources = mjrf.ModelResources(self._ctx, model)
+        with _colour_textures_as_srgb(model):
+            self._resources = mjrf.ModelResources(self._ctx, model)
         self._scene = self._ctx.create_scene(mjrf.SceneParams())
         self._scene.configure_from_model(model)
         self._lights = mjrf.ModelLights(self._scene, self._resources)
@@ -232,6 +233,26 @@ class PbrRenderer:
 _HEADLIGHT_LUX = 30000.0
 """Illuminance (lux) of the headlight when the model turns it on: Filament's default exposure
 (f/16, 1/125 s, ISO 100) maps ~100,000 lux of sunlight to white, so this is a fill, not a sun."""
+
+
+@contextlib.contextmanager
+def _colour_textures_as_srgb(model: mujoco.MjModel):
+    """While Filament uploads the textures: colour textures (materials' RGB role, skyboxes) whose
+    MJCF ``colorspace`` is ``auto`` marked sRGB, then put back.
+
+    MuJoCo's rasterizer shows texels as they are (display values, like MJCF rgba), which is what
+    sRGB-encoded colours look like; Filament reads an ``auto`` texture as linear, so a texture lit
+    the same as an rgba of its mean colour came out brighter and paler (a checker of mean sRGB
+    (0.55, 0.40, 0.45) showed (96, 69, 76) instead of (71, 25, 52) beside that rgba's (46, 24, 29)).
+    The model is left as it was: the rasterizer would decode sRGB textures into darker pixels."""
+    colour = set(int(t) for t in model.mat_texid[:, int(mujoco.mjtTextureRole.mjTEXROLE_RGB)] if t >= 0)
+    colour |= set(np.nonzero(model.tex_type == int(mujoco.mjtTexture.mjTEXTURE_SKYBOX))[0].tolist())
+    auto = [t for t in sorted(colour) if model.tex_colorspace[t] == int(mujoco.mjtColorSpace.mjCOLORSPACE_AUTO)]
+    model.tex_colorspace[auto] = int(mujoco.mjtColorSpace.mjCOLORSPACE_SRGB)
+    try:
+        yield
+    finally:
+        model.tex_colorspace[auto] = int(mujoco.mjtColorSpace.mjCOLORSPACE_AUTO)
 
 
 def _scenery_only() -> mujoco.MjvOption:

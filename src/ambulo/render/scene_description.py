@@ -73,10 +73,12 @@ class SurfaceDesc:
 
     geom_id: int
     mesh: TriangleMesh
-    """Triangles in the geom frame; ``texcoords`` set when ``material.texture`` is."""
+    """Triangles in the geom frame, with ``texcoords`` (planar unless the mesh has its own)."""
     material: MaterialDesc
     static: bool
     """Welded to the world: its pose never changes."""
+    planar_uv: bool = True
+    """``mesh.texcoords`` are ``planar_texcoords`` (they follow the material's texrepeat), not the mesh's own."""
 
 
 @dataclass
@@ -161,23 +163,39 @@ def material_of(model: mujoco.MjModel, geom: mujoco.MjvGeom) -> MaterialDesc:
                         texture=texture, texture_is_srgb=srgb, tint=tint)
 
 
-def _planar_texcoords(mesh: TriangleMesh, geom: mujoco.MjvGeom) -> np.ndarray:
-    """MuJoCo 4's 2-D texture mapping of geoms without UVs, as UVs: planar in the geom's x, y.
+def planar_texcoords(mesh: TriangleMesh, geom: mujoco.MjvGeom) -> np.ndarray:
+    """MuJoCo 4's 2-D texture mapping of geoms without UVs, as UVs: planar in two geom axes (a, b).
 
-    u = 0.5 * k_x * (x + size_x), v = 0.5 * k_y * (y + size_y), with k = repeat / size (``texuniform``:
-    k = repeat, per metre): the texture starts at the geom's (-x, -y) corner and repeats ``repeat``
-    times across it. Fitted to the rasterizer's own pictures (``test_path_look``: the cell edges and
-    colours of a checker on a plane), which differ from render_gl3.c's older object-linear planes by
-    that corner offset. Mitsuba's bitmap and MuJoCo's texture then agree on which row v = 0 is.
-    Explicit mesh UVs are passed as they are (not checked against the rasterizer).
+    u = 0.5 * k_a * (size_a + a), v = 0.5 * k_b * (size_b - b) (texture rows), with k = repeat / size_a:
+    the texture starts at the face's (-a, +b) corner and repeats ``repeat`` times across it;
+    ``texuniform``: k_a = repeat_u * size_x / size_a, k_b = repeat_v * size_y / size_b (``repeat``
+    per metre on a plane or a box's top). (a, b) is (x, y), except on a box's faces, each mapped in
+    its own plane: (y, z) on the +-x faces, (x, z) on the +-y faces (the same way on both faces of a
+    pair). An infinite plane (size 0): u = 0.5 + 0.5 * repeat * x, v = 0.5 - 0.5 * repeat * y.
+    Measured on MuJoCo 4's rasterizer (a texture whose texels encode their own (column, row),
+    drawn unlit: ``test_path_look`` checks planes and every face of a box, both texuniform modes);
+    render_gl3.c's older object-linear planes differ. Explicit mesh UVs are passed as they are (not
+    checked against the rasterizer).
     """
-    scale = np.asarray(geom.texrepeat, np.float32).copy()
-    size = np.asarray(geom.size[:2], np.float32)
-    if not geom.texuniform:
-        scale = np.where(size > 0, scale / np.maximum(size, 1e-9), scale)
-    u = 0.5 * scale[0] * (mesh.positions[:, 0] + size[0])
-    v = 0.5 * scale[1] * (mesh.positions[:, 1] + size[1])
-    return np.stack([u, v], 1).astype(np.float32)
+    positions = mesh.positions
+    n = len(positions)
+    a, b = np.zeros(n, np.intp), np.ones(n, np.intp)
+    if geom.type == mujoco.mjtGeom.mjGEOM_BOX:  # flat faces: the normal's axis picks the plane
+        axis = np.argmax(np.abs(mesh.normals), 1)
+        a, b = np.where(axis == 0, 1, 0), np.where(axis == 2, 1, 2)
+    size = np.asarray(geom.size, np.float32)
+    repeat = np.asarray(geom.texrepeat, np.float32)
+    rows = np.arange(n)
+    coords = []
+    for j, (axes, sign) in enumerate(((a, 1.0), (b, -1.0))):  # v runs against its axis (texture rows)
+        half = size[axes]
+        # repeats across a face: ``repeat``, or with texuniform ``repeat`` per metre of the geom's
+        # own x (u) or y (v) size, whichever face it is (the rasterizer's rule, measured on boxes)
+        span = repeat[j] * size[j] if geom.texuniform and size[j] > 0 else repeat[j]
+        k = np.where(half > 0, span / np.maximum(half, 1e-9), repeat[j])
+        start = np.where(half > 0, 0.5 * k * half, 0.5)  # an infinite plane: texture centred on the origin
+        coords.append(start + 0.5 * k * sign * positions[rows, axes])
+    return np.stack(coords, 1).astype(np.float32)
 
 
 def surface_of(model: mujoco.MjModel, geom: mujoco.MjvGeom, infinite_half_m: float,
@@ -192,11 +210,13 @@ def surface_of(model: mujoco.MjModel, geom: mujoco.MjvGeom, infinite_half_m: flo
     if mesh is None:
         return None
     material = material_of(model, geom)
-    if material.texture is not None and (mesh.texcoords is None or not geom.texcoord):
-        mesh.texcoords = _planar_texcoords(mesh, geom)
+    # every surface gets UVs, textured or not: a material randomizer may give it a texture later
+    planar = mesh.texcoords is None or not geom.texcoord
+    if planar:
+        mesh.texcoords = planar_texcoords(mesh, geom)
     body = int(model.geom_bodyid[gid])
     static = int(model.body_weldid[body]) == 0 and int(model.body_mocapid[body]) < 0
-    return SurfaceDesc(geom_id=gid, mesh=mesh, material=material, static=static)
+    return SurfaceDesc(geom_id=gid, mesh=mesh, material=material, static=static, planar_uv=planar)
 
 
 def geom_pose(geom: mujoco.MjvGeom) -> tuple[np.ndarray, np.ndarray]:
@@ -361,4 +381,4 @@ def infinite_plane_half_m(model: mujoco.MjModel) -> float:
 
 __all__ = ["CameraDesc", "LightDesc", "MaterialDesc", "SceneReader", "SurfaceDesc", "ambient_radiance", "base_color_of",
            "camera_of", "geom_pose", "infinite_plane_half_m", "light_intensity", "lights_of", "linear_to_srgb",
-           "material_of", "roughness_from_shininess", "skybox_latlong", "srgb_to_linear", "surface_of"]
+           "material_of", "planar_texcoords", "roughness_from_shininess", "skybox_latlong", "srgb_to_linear", "surface_of"]
