@@ -10,8 +10,9 @@ fastest of ONNX Runtime and torch (eager, no grad) on the same graph; ``ratio`` 
 Speed does not depend on the weights, so an untrained model is timed unless ``--checkpoint``.
 
 Training (``--train``): ``ambulo.detection.train`` on the dataset, then ``steps_per_s`` against the
-ceiling of the same model's forward + backward + step on a batch already on the device (no
-reading, no augmentation): ``train_ratio``. Prints the held-out mAP/mAP50 and one ``RESULT {json}``.
+ceiling of the same model's forward + backward + step (masks included) on a batch already on the
+device (no reading, no augmentation): ``train_ratio``. The model has the instance-mask branch
+(``ModelCfg.mask_prototypes``) unless ``--mask-prototypes 0``. Prints the held-out mAP/mAP50 and one ``RESULT {json}``.
 """
 
 from __future__ import annotations
@@ -67,18 +68,24 @@ def inference(model, threads: int, repeats: int) -> dict:
             "ratio": round(fastest / ort_s, 3), "target_fps": 10, "threads": threads}
 
 
-def training_ceiling(model_name: str, num_classes: int, canvas_hw, batch_size: int, device: str, steps: int) -> float:
+def training_ceiling(model_name: str, num_classes: int, canvas_hw, batch_size: int, device: str, steps: int,
+                     mask_prototypes: int = 8) -> float:
     """Steps/s of forward + loss + backward + AdamW step on one resident batch (bf16 autocast on CUDA)."""
-    model = build_model(ModelCfg(name=model_name, num_classes=num_classes)).to(device).train()
+    model = build_model(ModelCfg(name=model_name, num_classes=num_classes, mask_prototypes=mask_prototypes))
+    model = model.to(device).train()
     optimizer = torch.optim.AdamW(model.parameters(), lr=1e-3)
     images = torch.rand(batch_size, 3, *canvas_hw, device=device)
     boxes = [torch.tensor([[10.0, 10.0, 60.0, 50.0], [80.0, 40.0, 120.0, 100.0]])] * batch_size
     classes = [torch.tensor([0, num_classes - 1])] * batch_size
+    masks = torch.zeros(2, *canvas_hw, dtype=torch.bool)  # the boxes filled: the mask loss's cost, not its values
+    masks[0, 10:50, 10:60] = True
+    masks[1, 40:100, 80:120] = True
+    masks = [masks] * batch_size
 
     def step():
         with torch.autocast(torch.device(device).type, dtype=torch.bfloat16, enabled=device.startswith("cuda")):
             maps = model(images)
-        loss = centernet_loss(maps, boxes, classes)["total"]
+        loss = centernet_loss(maps, boxes, classes, masks)["total"]
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
         optimizer.step()
@@ -92,6 +99,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--threads", type=int, default=2, help="CPU threads for inference (the target: 2 cores)")
     parser.add_argument("--model", default="centernet-small")
+    parser.add_argument("--mask-prototypes", type=int, default=8, help="0: the boxes-only model")
     parser.add_argument("--checkpoint", default=None, help="time this trained model instead of an untrained one")
     parser.add_argument("--repeats", type=int, default=30)
     parser.add_argument("--train", default=None, help="dataset folder: also train on it and report mAP")
@@ -101,19 +109,19 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=min(8, os.cpu_count() or 1))
     parser.add_argument("--out", default=None, help="run folder for --train (default: a temporary one)")
     args = parser.parse_args()
-    summary: dict = {"model": args.model, "cpus": os.cpu_count()}
+    summary: dict = {"model": args.model, "mask_prototypes": args.mask_prototypes, "cpus": os.cpu_count()}
     if args.train:
         from ambulo.detection import TrainCfg, train
 
         cfg = TrainCfg(model=args.model, epochs=args.epochs, batch_size=args.batch_size, device=args.device,
-                       num_workers=args.workers)
+                       num_workers=args.workers, mask_prototypes=args.mask_prototypes)
         out = args.out or tempfile.mkdtemp(prefix="detector_bench_")
         start = time.perf_counter()
         result = train(args.train, out, cfg)
         seconds = time.perf_counter() - start
         state = torch.load(Path(out) / "checkpoint.pt", map_location="cpu", weights_only=False)
         ceiling = training_ceiling(args.model, len(state["categories"]), state["canvas_hw"], args.batch_size,
-                                   args.device, 20)
+                                   args.device, 20, args.mask_prototypes)
         steps_per_s = result.step / seconds
         summary["train"] = {"device": args.device, "epochs": args.epochs, "steps": result.step, "seconds": round(seconds, 1),
                             "steps_per_s": round(steps_per_s, 3), "ceiling_steps_per_s": round(ceiling, 3),
@@ -125,7 +133,7 @@ def main() -> None:
     if args.checkpoint:
         model, _ = load_trained(args.checkpoint)
     else:
-        model = build_model(ModelCfg(name=args.model, num_classes=4)).eval()
+        model = build_model(ModelCfg(name=args.model, num_classes=4, mask_prototypes=args.mask_prototypes)).eval()
     summary["inference_320x240_cpu"] = inference(model.cpu(), args.threads, args.repeats)
     i = summary["inference_320x240_cpu"]
     print(f"320x240 batch 1 on {args.threads} CPU threads: ONNX Runtime {i['onnxruntime_fps']} frames/s, torch "
