@@ -19,6 +19,7 @@ import time
 from pathlib import Path
 
 from .errors import CliError, check_output_file, check_seconds
+from .viewer_args import add_viewer_args, viewer_kind
 
 _WORLD_SUFFIXES = (".xml", ".mjcf", ".usd", ".usda", ".usdc", ".usdz")
 
@@ -104,6 +105,7 @@ def _modes(text: str, many: bool) -> list[str]:
 
 def run_one(args: argparse.Namespace) -> int:
     """One episode (module docstring)."""
+    watch = viewer_kind(args)
     kind = _world_kind(args.world)
     mode = _modes(args.mode, many=False)[0]
     goal = None if args.goal is None else parse_goal(args.goal)
@@ -164,7 +166,12 @@ def run_one(args: argparse.Namespace) -> int:
           f"start {start[0]:.2f},{start[1]:.2f},{math.degrees(start[2]):.0f} deg -> goal {goal[0]:.2f},{goal[1]:.2f} "
           f"(geodesic {geodesic_m:.2f} m, time limit {limit_s:.0f} s)")
     t0 = time.perf_counter()
+    viewer = None
     try:
+        if watch is not None:
+            from ..viewer import serve
+
+            viewer = serve(world, port=args.viewer_port)
         nav = Navigator(world, nav_cfg, walker=walker)
         video = EpisodeVideo(args.video, map_png=out / "map.png", title=f"{name}  {mode}",
                              goal_tolerance_m=nav_cfg.goal_tolerance_m,
@@ -178,6 +185,8 @@ def run_one(args: argparse.Namespace) -> int:
             raise
         final_pose = world.true_pose()
     finally:
+        if viewer is not None:
+            viewer.close()
         world.close()
     result = result_of(nav, geodesic_m=geodesic_m, wall_s=time.perf_counter() - t0,
                        apartment_seed=args.seed if kind == "apartment" else None,
@@ -223,6 +232,9 @@ def run_many(args: argparse.Namespace) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.episodes is not None and args.viewer != "none":
+        raise CliError("--viewer web watches one episode; --episodes runs many in worker processes",
+                       "leave out --episodes (or --viewer)")
     return run_many(args) if args.episodes is not None else run_one(args)
 
 
@@ -250,6 +262,7 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--randomize", action="store_true", help="domain randomization (friction, mass, lights, "
                    "colours, pushes, sensor noise)")
     p.add_argument("--video", metavar="OUT.mp4", help="film the episode: head camera beside the top-down map")
+    add_viewer_args(p)
     p.add_argument("--out", default="out/navigate", help="folder for episode.json and map.png, or for a "
                    "benchmark's episodes/ and summary.json (default out/navigate)")
     p.add_argument("--time-limit", type=float, metavar="S",

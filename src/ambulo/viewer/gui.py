@@ -22,13 +22,13 @@ class Panel:
     """The GUI handles of one viewer (shared by every connected page)."""
 
     def __init__(self, server: viser.ViserServer, controls: Controls, *, root_names: list[str],
-                 follow: bool, show_command: bool, show_return: bool):
+                 follow: bool, show_command: bool, show_return: bool, can_reset: bool):
         gui, self.controls = server.gui, controls
         self.status = gui.add_markdown("starting")
         with gui.add_folder("Simulation"):
             self.pause = gui.add_button("Pause", hint="pause or resume the simulation (key P)")
             self.step = gui.add_button("Step", hint="one simulation step while paused")
-            self.reset = gui.add_button("Reset", hint="reset the watched world")
+            self.reset = gui.add_button("Reset", hint="reset the watched world", visible=can_reset)
             self.speed = gui.add_dropdown("Speed", SPEEDS, initial_value=speed_label(controls.speed),
                                           hint="simulated time per wall time (max: as fast as it runs)")
         with gui.add_folder("Watch"):

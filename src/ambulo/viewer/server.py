@@ -173,9 +173,8 @@ class WebViewer:
         self._sent_static = False
         if self.panel is None:
             self.panel = Panel(self.server, self.controls, root_names=[body_name(model, r) for r in self._roots],
-                               follow=self.target.follow_default, show_command=getattr(self.target, "has_command",
-                                                                                          True),
-                               show_return=hasattr(self.target, "env"))
+                               follow=self.target.follow_default, show_command=self.target.has_command,
+                               show_return=hasattr(self.target, "env"), can_reset=self.target.can_reset)
             for root, box in zip(self._roots, self.panel.visible.values()):
                 box.on_update(lambda _e, root=root, box=box: self._show_subtree(root, box.value))
         for client in self.server.get_clients().values():

@@ -31,6 +31,9 @@ NEVER_RESAMPLE_S = 1e9
 class WorldTarget:
     """An ``ambulo.sim.World``."""
 
+    can_reset = True
+    has_command = True  # its scripts may read it (the demo's walking humanoid does)
+
     def __init__(self, world):
         self.world = world
         self.sim = world.sim
@@ -65,6 +68,8 @@ class WorldTarget:
 
 class EnvTarget:
     """A vectorized ``RLEnv`` (``ambulo.envs``)."""
+
+    can_reset = True
 
     def __init__(self, env):
         self.env = env
@@ -108,11 +113,42 @@ class EnvTarget:
         return self._commands is not None
 
 
+class SimTarget:
+    """Any other owner of a ``Simulation`` (``.sim``), e.g. the navigator's ``NavWorld``: watched,
+    paused and stepped from the page; its loop owns resets and commands."""
+
+    can_reset = False
+    has_command = False
+
+    def __init__(self, owner):
+        self.sim = owner.sim
+        self.follow_default = True
+        self.default_speed = 1.0
+
+    @property
+    def num_worlds(self) -> int:
+        return self.sim.num_worlds
+
+    camera = EnvTarget.camera
+
+    def extras(self, world: int) -> dict[str, torch.Tensor]:
+        return {}
+
+    def reset_world(self, world: int) -> None:
+        """Not offered (``can_reset``): the loop that owns the simulation decides when it resets."""
+
+    def apply_command(self, world: int, command: np.ndarray) -> None:
+        """Not offered (``has_command``)."""
+
+
 def target_of(world_or_env):
-    """The target for a World or an env; a clear error for anything else."""
-    if hasattr(world_or_env, "viewport_camera") and hasattr(world_or_env, "sim"):
+    """The target for a World, an env or another owner of a ``Simulation``; a clear error otherwise."""
+    sim = getattr(world_or_env, "sim", None)
+    if sim is None or not hasattr(sim, "components"):
+        raise TypeError(f"ambulo.viewer.serve watches an ambulo.sim.World, an ambulo.envs env or another owner of "
+                        f"an ambulo.core.Simulation (.sim), not a {type(world_or_env).__name__}; pass world or env")
+    if hasattr(world_or_env, "viewport_camera"):
         return WorldTarget(world_or_env)
-    if hasattr(world_or_env, "episode_length_buf") and hasattr(world_or_env, "sim"):
+    if hasattr(world_or_env, "episode_length_buf"):
         return EnvTarget(world_or_env)
-    raise TypeError(f"ambulo.viewer.serve watches an ambulo.sim.World or an ambulo.envs env, not a "
-                    f"{type(world_or_env).__name__}; pass world or env (envs.make(...))")
+    return SimTarget(world_or_env)
