@@ -142,7 +142,7 @@ class PathTracer:
 
     # -- building -------------------------------------------------------------------------------
     def _bsdf(self, material: MaterialDesc) -> dict:
-        # a bitmap even without a texture (1 x 1): a material randomizer may texture it later, and
+        # a bitmap even without a texture (2 x 2): a material randomizer may texture it later, and
         # a bitmap's texels can be replaced by one of another size without rebuilding the scene
         color = {"type": "bitmap", "bitmap": self.mi.Bitmap(_texels(material)), "raw": True,
                  "filter_type": "bilinear", "wrap_mode": "repeat"}
@@ -338,9 +338,9 @@ class PathTracer:
 
 def _texels(material: MaterialDesc) -> np.ndarray:
     """(H, W, 3) float32 linear base colour: the texture (sRGB decoded unless linear) times the
-    rgba colour, or (1, 1, 3) of the colour alone."""
+    rgba colour, or (2, 2, 3) of the colour alone (Mitsuba refuses to update a bitmap to less than 2 x 2)."""
     if material.texture is None:
-        return np.ascontiguousarray(material.base_color.reshape(1, 1, 3), np.float32)
+        return np.ascontiguousarray(np.broadcast_to(material.base_color, (2, 2, 3)), np.float32)
     pixels = material.texture[..., :3].astype(np.float32) / 255.0
     if pixels.shape[-1] == 1:
         pixels = np.repeat(pixels, 3, -1)
