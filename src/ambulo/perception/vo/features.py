@@ -1,7 +1,8 @@
 """Feature front ends of ``RgbdOdometry``: keypoints, descriptors, their 3-D points from the depth
 image, and descriptor matching. Both hand the tracker torch tensors on its device.
 
-- ``OrbFeatures``: OpenCV's ORB (Rublee et al. 2011) and a brute-force Hamming matcher, on the host.
+- ``OrbFeatures``: OpenCV's ORB (Rublee et al. 2011) and a brute-force Hamming matcher (or the
+  guided one, ``vo.guided``), on the host; the tensors it hands over live on the tracker's device.
 - ``KorniaFeatures``: weight-free kornia parts on any torch device (CPU or CUDA, the same code):
   Shi-Tomasi corners (``gftt_response``, kornia's ``nms2d``, top-k), SIFT descriptors of upright
   patches (``laf_from_center_scale_ori``, ``extract_patches_from_pyramid``, ``SIFTDescriptor`` with
@@ -19,6 +20,7 @@ import numpy as np
 import torch
 
 from .config import VoCfg
+from .guided import best_two, hamming, window_pairs
 
 
 @dataclass
@@ -58,12 +60,14 @@ def lift_keypoints(pixels: torch.Tensor, depth_m: torch.Tensor, k: torch.Tensor,
 
 
 class OrbFeatures:
-    """OpenCV ORB keypoints and a Hamming matcher with Lowe's ratio test; host (CPU) tensors."""
+    """OpenCV ORB keypoints and a Hamming matcher with Lowe's ratio test. Detection and matching run
+    on the host; the frame's tensors and the matches are handed over on ``device`` (where the
+    tracker keeps its map, refines and checks rigidity)."""
 
-    def __init__(self, cfg: VoCfg, k: torch.Tensor):
+    def __init__(self, cfg: VoCfg, k: torch.Tensor, device: torch.device | str = "cpu"):
         import cv2  # perception extra
 
-        self.cv2, self.cfg, self.k = cv2, cfg, k
+        self.cv2, self.cfg, self.k, self.device = cv2, cfg, k.cpu(), torch.device(device)
         self.orb = cv2.ORB_create(nfeatures=cfg.num_features, fastThreshold=cfg.fast_threshold,
                                   patchSize=cfg.orb_patch_px, edgeThreshold=cfg.orb_edge_px)
         self.matcher = cv2.BFMatcher(cv2.NORM_HAMMING)
@@ -78,17 +82,30 @@ class OrbFeatures:
             des, kps = np.zeros((0, 32), np.uint8), []
         pixels = torch.tensor([kp.pt for kp in kps], dtype=torch.float64).reshape(-1, 2)
         points_c, valid = lift_keypoints(pixels, depth, self.k, self.cfg.depth_range_m, self.cfg.depth_edge_fraction)
-        return FrameFeatures(pixels=pixels, descriptors=torch.from_numpy(des), points_c=points_c, valid=valid)
+        d = self.device
+        return FrameFeatures(pixels=pixels.to(d), descriptors=torch.from_numpy(des).to(d), points_c=points_c.to(d),
+                             valid=valid.to(d))
 
     def match(self, descriptors: torch.Tensor, map_descriptors: torch.Tensor) -> torch.Tensor:
         """(M, 2) int64 index pairs (query, map) passing the ratio test and ``max_hamming``."""
         if len(descriptors) < 2 or len(map_descriptors) < 2:
-            return torch.zeros((0, 2), dtype=torch.long)
+            return torch.zeros((0, 2), dtype=torch.long, device=self.device)
         pairs = [(m[0].queryIdx, m[0].trainIdx)
-                 for m in self.matcher.knnMatch(descriptors.numpy(), map_descriptors.numpy(), k=2)
+                 for m in self.matcher.knnMatch(descriptors.cpu().numpy(), map_descriptors.cpu().numpy(), k=2)
                  if len(m) == 2 and m[0].distance < self.cfg.ratio_test * m[1].distance
                  and m[0].distance <= self.cfg.max_hamming]
-        return torch.tensor(pairs, dtype=torch.long).reshape(-1, 2)
+        return torch.tensor(pairs, dtype=torch.long).reshape(-1, 2).to(self.device)
+
+    def match_window(self, descriptors: torch.Tensor, pixels: torch.Tensor, map_descriptors: torch.Tensor,
+                     map_pixels: torch.Tensor, window_px: float) -> torch.Tensor:
+        """``match`` among the map points whose predicted pixels ``map_pixels`` (M, 2) (non-finite:
+        not in view) lie within ``window_px`` of the keypoint's ``pixels`` (N, 2) (``vo.guided``)."""
+        q, m = window_pairs(pixels.cpu().numpy(), map_pixels.cpu().numpy(), window_px)
+        dist = hamming(descriptors.cpu().numpy()[q], map_descriptors.cpu().numpy()[m])
+        queries, best, second = best_two(q, dist)
+        d = dist[best]
+        keep = (d < self.cfg.ratio_test * second) & (d <= self.cfg.max_hamming)
+        return torch.from_numpy(np.stack([queries[keep], m[best[keep]]], 1)).reshape(-1, 2).to(self.device)
 
 
 class KorniaFeatures:
@@ -301,6 +318,24 @@ class KorniaFeatures:
             _, pairs = self.kf.match_snn(descriptors, map_descriptors, self.cfg.ratio_test)
         return pairs
 
+    def match_window(self, descriptors: torch.Tensor, pixels: torch.Tensor, map_descriptors: torch.Tensor,
+                     map_pixels: torch.Tensor, window_px: float) -> torch.Tensor:
+        """``match`` (Lowe's ratio as kornia's ``match_snn``: ``d1 <= ratio d2``) among the map points
+        whose predicted pixels ``map_pixels`` (M, 2) (non-finite: not in view) lie within
+        ``window_px`` of the keypoint's ``pixels`` (N, 2); a keypoint with one such point passes.
+        The whole distance matrix, masked, on the device: no host read."""
+        if not len(descriptors) or not len(map_descriptors):
+            return torch.zeros((0, 2), dtype=torch.long, device=self.device)
+        with torch.no_grad():
+            dist = torch.cdist(descriptors, map_descriptors)
+            far = torch.cdist(pixels.float(), map_pixels.float()) > window_px
+            dist = dist.masked_fill(far | ~torch.isfinite(map_pixels).all(1), torch.inf)
+            top, idx = dist.topk(min(2, dist.shape[1]), dim=1, largest=False)
+            second = top[:, 1] if top.shape[1] > 1 else torch.full_like(top[:, 0], torch.inf)
+            keep = torch.isfinite(top[:, 0]) & (top[:, 0] <= self.cfg.ratio_test * second)
+            query = torch.arange(len(descriptors), device=self.device)
+            return torch.stack([query[keep], idx[keep, 0]], 1)
+
 
 def _kornia_sift_parts():
     """kornia's private SIFT steps ``(_gradient_magnitude_orientation, _l2_normalize, _rootsift)``,
@@ -354,7 +389,7 @@ def _exact_fp32_convolutions(device: torch.device):
 
 
 def make_features(cfg: VoCfg, k: torch.Tensor, device: torch.device) -> OrbFeatures | KorniaFeatures:
-    return OrbFeatures(cfg, k) if cfg.features == "orb" else KorniaFeatures(cfg, k, device)
+    return OrbFeatures(cfg, k, device) if cfg.features == "orb" else KorniaFeatures(cfg, k, device)
 
 
 __all__ = ["FrameFeatures", "KorniaFeatures", "OrbFeatures", "lift_keypoints", "make_features"]

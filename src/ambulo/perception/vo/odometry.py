@@ -199,12 +199,30 @@ class RgbdOdometry:
         return pose_cw, count
 
     def _track_local_map(self, f: FrameFeatures, prior_cw: np.ndarray):
+        """The pose from matches to the local map: guided by the prediction ``prior_cw`` (world to
+        camera) when ``VoCfg.match_window_px`` is set, and against the whole local map when that is
+        off or its pose fails (the prediction was off by more than the window)."""
         kfs = self.keyframes[-self.cfg.local_map_keyframes:]
         map_pts = torch.cat([kf.points_w for kf in kfs])
-        dynamic = torch.cat([kf.dynamic for kf in kfs])
-        pairs = self.features.match(f.descriptors, torch.cat([kf.descriptors for kf in kfs]))
+        map_des = torch.cat([kf.descriptors for kf in kfs])
+        if self.cfg.match_window_px is not None:
+            prior = torch.as_tensor(prior_cw, device=self.device)
+            pc = map_pts @ prior[:3, :3].T + prior[:3, 3]
+            uv = pc[:, :2] / pc[:, 2:] * self.k_t.diagonal()[:2] + self.k_t[:2, 2]
+            uv = torch.where(pc[:, 2:] > 1e-6, uv, torch.nan)  # behind the camera: in no window
+            pairs = self.features.match_window(f.descriptors, f.pixels, map_des, uv, self.cfg.match_window_px)
+            found = self._pose_from_pairs(f, kfs, map_pts, pairs, prior_cw)
+            if found is not None:
+                return found
+        return self._pose_from_pairs(f, kfs, map_pts, self.features.match(f.descriptors, map_des), prior_cw)
+
+    def _pose_from_pairs(self, f: FrameFeatures, kfs: list[Keyframe], map_pts: torch.Tensor, pairs: torch.Tensor,
+                         prior_cw: np.ndarray):
+        """Rigidity check, RANSAC and refinement on matches ``pairs`` (K, 2) (keypoint, local map
+        point), then the prior gate: ``(pose_cw, inliers)`` or None."""
         if len(pairs) == 0:
             return None
+        dynamic = torch.cat([kf.dynamic for kf in kfs])
         q, m = pairs[:, 0], pairs[:, 1]
         moved = moved_by_rigidity(map_pts[m], f.points_c[q], f.valid[q], self.cfg, max(self.frame_index, 0)) | dynamic[m]
         hits = torch.zeros(len(map_pts), dtype=torch.long, device=self.device).index_add_(0, m, moved.long())
