@@ -2,7 +2,7 @@
 
     python benchmarks/navigate.py [--episodes 100] [--modes oracle,mapping,full] [--walkers policy]
                                   [--randomize] [--workers 2] [--out out/bench_navigate] [--first-seed 0]
-                                  [--ceiling-every 5]
+                                  [--ceiling-every 5] [--perception-device cpu|cuda]
 
 Runs ``--episodes`` episodes per mode and walker on ``apartment(seed)`` for seeds
 ``first_seed .. first_seed + N - 1`` (the tests use seeds >= 1000, so these are held out), start and
@@ -12,6 +12,10 @@ sensor noise); ``--both`` runs each group with and without it. The work is
 ``navigation.benchmark.run_benchmark`` (the code ``ambulo navigate --episodes`` runs): a process
 pool, one episode per task, each episode's JSON written under ``<out>/episodes`` as it finishes,
 so a killed run resumes where it stopped when started again with the same ``--out``.
+
+``--perception-device cuda``: full mode's TSDF and the odometry's map, rigidity check and pose
+refinement run on the GPU (all workers share it); ORB, its matching and PnP stay on each worker's
+core (``navigation.benchmark.with_perception_device``).
 
 The ceiling: every ``--ceiling-every``-th episode of a group (0: none) is followed, in its worker,
 by the same robot and scene stepped with physics and the walking policy only (no camera, VO,
@@ -32,7 +36,7 @@ import json
 import os
 import time
 
-from ambulo.navigation.benchmark import EpisodeSpec, format_table, run_benchmark
+from ambulo.navigation.benchmark import EpisodeSpec, format_table, run_benchmark, with_perception_device
 
 
 def main() -> None:
@@ -47,18 +51,21 @@ def main() -> None:
     ap.add_argument("--out", default="out/bench_navigate")
     ap.add_argument("--ceiling-every", type=int, default=5,
                     help="measure the physics+policy ceiling after every k-th episode of a group (0: never)")
+    ap.add_argument("--perception-device", default="cpu",
+                    help="torch device of full mode's TSDF and odometry map/refinement, e.g. cuda (ORB stays on the host)")
     args = ap.parse_args()
+    base = with_perception_device(args.perception_device)
     randomize = (False, True) if args.both else (args.randomize,)
     specs = [EpisodeSpec(args.first_seed + i, 0, mode, walker, rand)
              for walker in args.walkers.split(",") for rand in randomize for mode in args.modes.split(",")
              for i in range(args.episodes)]
     load_start = os.getloadavg()[0]
     t0 = time.perf_counter()
-    run = run_benchmark(specs, args.out, workers=args.workers, ceiling_every=args.ceiling_every)
+    run = run_benchmark(specs, args.out, workers=args.workers, ceiling_every=args.ceiling_every, base=base)
     print(format_table(run.summary))
     print("RESULT " + json.dumps({
         "benchmark": "navigate", "episodes_per_group": args.episodes, "workers": args.workers,
-        "first_seed": args.first_seed, "resumed": run.resumed, "wall_s": time.perf_counter() - t0,
+        "first_seed": args.first_seed, "perception_device": args.perception_device, "resumed": run.resumed, "wall_s": time.perf_counter() - t0,
         "load_start": load_start, "load_end": os.getloadavg()[0], "cpus": os.cpu_count(),
         "ratio_to_ceiling": {label: s["of_ceiling"] for label, s in run.summary.items()},
         "groups": run.summary}))

@@ -126,3 +126,21 @@ def test_the_ceiling_steps_physics_and_the_turning_policy_for_the_simulated_time
     assert top.time_s == pytest.approx(1.0, abs=1e-6) and top.wall_s > 0 and top.sim_to_wall > 0
     # the policy stepped: it turned on the spot (0.4 rad/s asked) and stood
     assert top.turned_rad > 0.1 and not top.fell
+
+
+def test_the_perception_device_reaches_the_odometry_and_the_tsdf():
+    import torch
+
+    from ambulo.navigation.benchmark import episode_cfg, with_perception_device
+    from ambulo.navigation.mapping import OnlineMapper
+    from ambulo.utils.checks import InvalidValueError
+
+    base = with_perception_device("meta")  # any torch device the config passes on, not only cuda
+    cfg = episode_cfg(EpisodeSpec(3, 0, "full"), base)
+    assert cfg.navigator.vo.vo.device == "meta" and cfg.navigator.mapper.device == "meta"
+    assert OnlineMapper(cfg.navigator.mapper).device == "meta"
+    assert cfg.navigator.vo.vo.match_window_px is not None  # the rest of the preset is kept
+    assert with_perception_device("cpu").navigator.mapper.device == "cpu"
+    if not torch.cuda.is_available():
+        with pytest.raises(InvalidValueError, match="CUDA"):
+            with_perception_device("cuda")

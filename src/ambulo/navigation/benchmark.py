@@ -11,6 +11,9 @@ their summary. ``ambulo navigate --episodes N`` and ``benchmarks/navigate.py`` b
   writes nothing (a rerun retries it) and counts as a failure in the summary (``errors``).
 - **Groups.** Specs are grouped by (mode, walker, randomized) and the groups run one after the
   other, so each group's wall-clock throughput (episodes per minute) is its own.
+- **Workers**: one process per episode, one torch and one OpenCV thread each. Full mode's perception
+  (the TSDF, the odometry's map and refinement) runs where ``with_perception_device`` puts it
+  (``base``; default the CPU); the head camera renders where MuJoCo's GL backend does.
 - **Ceiling** (``ceiling_every`` k > 0): every k-th episode of a group (the first, the k+1-th, ...) is
   followed, in the same worker, by ``ceiling.physics_policy_ceiling`` for the episode's simulated
   time: the same robot and scene stepped with physics and walker only. Its result is the episode
@@ -24,6 +27,7 @@ their summary. ``ambulo navigate --episodes N`` and ``benchmarks/navigate.py`` b
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import json
 import os
@@ -107,6 +111,22 @@ def episode_cfg(spec: EpisodeSpec, base: EpisodeCfg | None = None) -> EpisodeCfg
     return EpisodeCfg(**{**base.__dict__, "navigator": navigator, "world": world})
 
 
+def with_perception_device(device: str, base: EpisodeCfg | None = None) -> EpisodeCfg:
+    """``base`` (default ``EpisodeCfg()``) with the full mode's perception on the torch ``device``: the
+    TSDF (``OnlineMapperCfg.device``) and the odometry's map, rigidity check and refinement
+    (``VoCfg.device``; ORB, its matching and PnP stay on the host). ``InvalidValueError`` for a CUDA
+    device on a machine without one (before any worker starts)."""
+    import torch
+
+    if torch.device(device).type == "cuda" and not torch.cuda.is_available():
+        raise InvalidValueError("perception_device", device, "CUDA is not available here", "pass cpu")
+    base = base or EpisodeCfg()
+    nav = base.navigator
+    vo = dataclasses.replace(nav.vo, vo=dataclasses.replace(nav.vo.vo, device=device))
+    navigator = dataclasses.replace(nav, vo=vo, mapper=dataclasses.replace(nav.mapper, device=device))
+    return dataclasses.replace(base, navigator=navigator)
+
+
 def check_spec(spec: EpisodeSpec) -> None:
     if spec.mode not in MODES:
         raise InvalidValueError("mode", spec.mode, "unknown mode", f"use one of {', '.join(MODES)}")
@@ -142,7 +162,14 @@ def run_spec(spec: EpisodeSpec, out_dir: str | None, base: EpisodeCfg | None = N
 def _init_worker() -> None:
     import torch
 
-    torch.set_num_threads(1)  # one episode per core: threads would only fight over the cores
+    # one episode per core: threads would only fight over the cores (OpenCV's pool is as wide as the
+    # machine: 64 threads per worker on a 64-core host running 62 workers)
+    torch.set_num_threads(1)
+    try:
+        import cv2  # perception extra (full mode's odometry)
+    except ImportError:
+        return
+    cv2.setNumThreads(1)
 
 
 def episode_path(out_dir: str | os.PathLike, spec: EpisodeSpec) -> Path:
@@ -301,4 +328,5 @@ def format_table(summary: dict) -> str:
 
 
 __all__ = ["WALKERS", "BenchmarkRun", "EpisodeSpec", "check_spec", "episode_cfg", "episode_path", "format_table",
-           "group_label", "make_walker", "run_benchmark", "run_spec", "summarize", "zmp_walker_available"]
+           "group_label", "make_walker", "run_benchmark", "run_spec", "summarize", "with_perception_device",
+           "zmp_walker_available"]
