@@ -11,8 +11,9 @@ plan's body path, the midpoints of consecutive footsteps, with ``tracker.PathTra
 its own feet (the policy knows no footholds), so the plan gives the path and the footholds'
 clearance, not exact steps. Standing (told to, at the end of a plan, arrived) it holds its pose
 with ``stand_hold.PositionHold``: the policy creeps ~4 cm/s when commanded zero. Where the head
-camera has not seen the floor (near the start) it walks slowly, and a foot that feels an obstacle
-makes it step back and refuse plans through it (``caution``; ``felt_xy_m`` for the navigator's map).
+camera has not seen the floor (near the start, and where the navigator says: ``add_blind_zone``) it
+walks slowly, and a foot that feels an obstacle makes it step back and refuse plans through it
+(``caution``; ``felt_xy_m`` for the navigator's map).
 """
 
 from __future__ import annotations
