@@ -105,8 +105,10 @@ def moved_by_rigidity(points_w: torch.Tensor, points_c: torch.Tensor, valid: tor
     anchors = idx
     if len(idx) > 256:
         anchors = idx[torch.from_numpy(np.random.default_rng(seed).choice(len(idx), 256, replace=False)).to(idx.device)]
-    d_map = (points_w[idx, None] - points_w[None, anchors]).norm(dim=-1)
-    d_cur = (points_c[idx, None] - points_c[None, anchors]).norm(dim=-1)
+    # cdist without its matrix-product shortcut: the same sqrt of summed squares (to round-off) in one
+    # kernel, ~3x faster than broadcasting a (M, 256, 3) difference and taking its norm
+    d_map = torch.cdist(points_w[idx], points_w[anchors], compute_mode="donot_use_mm_for_euclid_dist")
+    d_cur = torch.cdist(points_c[idx], points_c[anchors], compute_mode="donot_use_mm_for_euclid_dist")
     z = points_c[:, 2]
     tol = cfg.dynamic_threshold_m + cfg.dynamic_threshold_coeff * (z[idx, None] ** 2 + z[None, anchors] ** 2)
     agree = ((d_map - d_cur).abs() < tol).double().mean(dim=1)
