@@ -123,3 +123,17 @@ def test_generate_cli_refuses_device_with_workers_or_another_renderer(tmp_path, 
     assert main(["generate", "--frames", "2", "--out", str(tmp_path / "b"), "--device", "cpu", "--renderer", "pbr"]) != 0
     assert "drop --renderer" in capsys.readouterr().err
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()  # nothing written
+
+
+@pytest.mark.slow
+def test_frames_split_over_two_batched_processes_make_the_one_process_dataset(tmp_path):
+    # what --num-gpus does with cuda:0 and cuda:1, here with two Warp CPU devices
+    one = generate(rep.example_config(96, 72), tmp_path / "one", 9, seed=5, show_progress=False,
+                   device="cpu", num_worlds=2)
+    two = generate(rep.example_config(96, 72), tmp_path / "two", 9, seed=5, show_progress=False,
+                   device="cpu", num_worlds=2, num_gpus=2)
+    a, b = json.loads(one.read_text()), json.loads(two.read_text())
+    assert a["annotations"] == b["annotations"] and len(a["images"]) == 9
+    for i in range(9):  # the same pixels whichever process rendered the frame
+        name = f"rgb/{i:06d}.png"
+        assert (tmp_path / "one" / name).read_bytes() == (tmp_path / "two" / name).read_bytes()

@@ -79,6 +79,8 @@ def generate(args: argparse.Namespace) -> int:
     if args.device is not None and args.workers not in (None, 1):
         raise CliError(f"--device {args.device} renders every frame of a batch in one launch on one GPU",
                        "drop --workers (or drop --device to render on the CPU's processes)")
+    if args.num_gpus != 1 and (args.device is None or args.num_gpus < 1):
+        raise CliError(f"--num-gpus {args.num_gpus} splits the batched GPU path", "give --device cuda and 1 or more GPUs")
     if args.num_worlds < 1:
         raise CliError(f"--num-worlds {args.num_worlds} is not positive", "give --num-worlds 1 or more")
     config = load_config(args.config, args.width, args.height, args.renderer)
@@ -92,7 +94,8 @@ def generate(args: argparse.Namespace) -> int:
         with _terminate_as_interrupt() as received:
             path = rep.generate(config, args.out, num_frames=args.frames, seed=args.seed, workers=args.workers,
                                 show_progress=not args.quiet, backend="ray" if args.ray else "auto",
-                                overwrite=args.overwrite, device=args.device, num_worlds=args.num_worlds)
+                                overwrite=args.overwrite, device=args.device, num_worlds=args.num_worlds,
+                                num_gpus=args.num_gpus)
     except DatasetFolderError as err:
         raise CliError(err.problem, err.fix) from None
     except OSError as err:
@@ -164,5 +167,7 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
                    help="render --num-worlds frames per launch with MuJoCo Warp on this device (cuda, cuda:1; cpu: "
                         "Warp's CPU device): the CPU path's scenes and labels, ray-cast colours (default: the CPU)")
     p.add_argument("--num-worlds", type=int, default=64, help="frames per launch with --device (default 64)")
+    p.add_argument("--num-gpus", type=int, default=1,
+                   help="with --device cuda: one process per GPU (cuda:0 ...), each rendering whole launches")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=generate)

@@ -20,6 +20,7 @@ from tqdm import tqdm
 from ambulo.core import compile_scene
 from ambulo.utils.atomic import atomic_write_json, remove_partial_files
 
+from .batched import IMAGE_SOURCE, BatchedFrameProducer
 from .coco import merge_coco
 from .config import DatasetConfig
 from .io import PNG_DEFLATE
@@ -43,7 +44,8 @@ BACKENDS = ("auto", "processes", "ray")
 
 def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int = 0, workers: int | None = 1,
              show_progress: bool = True, backend: str = "auto", overwrite: bool = False,
-             device: str | None = None, num_worlds: int = 64, writer_threads: int | None = None) -> Path:
+             device: str | None = None, num_worlds: int = 64, writer_threads: int | None = None,
+             num_gpus: int = 1) -> Path:
     """Write (or finish) a dataset of ``num_frames`` frames in ``out``; returns annotations.json.
 
     ``out`` must be new, empty, or a dataset of the same config and seed (``dataset.json``):
@@ -59,7 +61,8 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
     ``device`` ("cuda", "cuda:1", or "cpu" for Warp's CPU device) renders ``num_worlds`` frames per
     launch with MuJoCo Warp instead (``batched.BatchedFrameProducer``): the same frames' scenes,
     labels within a pixel of the CPU path's, colours from MuJoCo Warp's ray caster; one process,
-    ``writer_threads`` encoding frames (default: one per CPU).
+    ``writer_threads`` encoding frames (default: one per CPU). ``num_gpus`` > 1 splits the frames
+    over that many processes, one per GPU (``cuda:0`` ... of ``device``'s type), whole launches each.
     """
     if backend not in BACKENDS:
         raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
@@ -69,6 +72,8 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
         raise ValueError(f"--workers must be >= 1, got {workers}")
     if seed < 0:
         raise ValueError(f"--seed must be >= 0 (numpy seeds are non-negative), got {seed}")
+    if num_gpus < 1 or (num_gpus > 1 and device is None):
+        raise ValueError(f"--num-gpus {num_gpus} needs a positive count and --device (cuda)")
     if device is not None and workers not in (None, 1):
         raise ValueError(f"--device {device} renders every frame of a batch in one launch on one GPU; drop "
                          f"--workers {workers} (or generate on the CPU without --device)")
@@ -79,12 +84,10 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
     # the parent process may hold no producer (workers render): compile the scene as they do
     model = compile_scene(config.build_scene(), config.physics)
     producer = None
-    if device is not None:
-        from .batched import IMAGE_SOURCE, BatchedFrameProducer
-
+    if device is not None and num_gpus == 1:
         producer = BatchedFrameProducer(config, num_worlds, device)
     open_dataset(out, config, seed, model, num_frames, overwrite,
-                 image_source=IMAGE_SOURCE if producer is not None else None)
+                 image_source=IMAGE_SOURCE if device is not None else None)
     prepare_dirs(out, config.writer)
     remove_partial_files(out, *(out / sub for sub in frame_subdirs(config.writer)))
     todo = sorted(set(range(num_frames)) - done_frames(out, num_frames))
@@ -96,6 +99,11 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
     try:
         if not todo:
             renderer = _read_metadata_renderer(out)
+        elif device is not None and num_gpus > 1:
+            kind = "cpu" if device == "cpu" else "cuda"
+            devices = [kind if kind == "cpu" else f"cuda:{i}" for i in range(num_gpus)]
+            renderer = run_on_processes(config, out, seed, todo, num_gpus, bar.update, devices=devices,
+                                        num_worlds=num_worlds)
         elif use_ray:
             renderer = run_on_ray(config, out, seed, todo, workers, bar.update)
         elif workers > 1:

@@ -60,19 +60,28 @@ class ProducerPool:
     first).
     """
 
-    def __init__(self, config, out: str | Path, seed: int, workers: int):
+    def __init__(self, config, out: str | Path, seed: int, workers: int, devices: list[str] | None = None,
+                 num_worlds: int = 64):
         if workers < 1:
             raise ValueError(f"workers must be >= 1, got {workers}")
+        if devices is not None and len(devices) != workers:
+            raise ValueError(f"one device per worker: {workers} workers, devices {devices}")
         self.workers = workers
+        self._batch = num_worlds if devices is not None else 0
         ctx = mp.get_context("spawn")
         self._barrier = ctx.Barrier(workers)
+        # each batched worker takes the next device of the list when it starts
+        self._next_device = ctx.Value("i", 0)
         self._pool = cf.ProcessPoolExecutor(
             workers, mp_context=ctx, initializer=_start_worker,
-            initargs=(_dump_config(config), str(out), seed, os.getpid(), self._barrier))
+            initargs=(_dump_config(config), str(out), seed, os.getpid(), self._barrier,
+                      devices, num_worlds, self._next_device))
 
     def run(self, frames: list[int], progress=None) -> str:
         """Render and write ``frames`` across the processes; returns the GL renderer string."""
-        futures = {self._pool.submit(_run_chunk, chunk): len(chunk) for chunk in _chunks(frames, self.workers)}
+        chunks = _chunks(frames, self.workers) if not self._batch else _batched_chunks(frames, self.workers,
+                                                                                        self._batch)
+        futures = {self._pool.submit(_run_chunk, chunk): len(chunk) for chunk in chunks}
         renderer = ""
         try:
             for fut in cf.as_completed(futures):
@@ -114,13 +123,23 @@ class ProducerPool:
         self.close()
 
 
-def run_on_processes(config, out: Path, seed: int, frames: list[int], workers: int, progress=None) -> str:
-    with ProducerPool(config, out, seed, workers) as pool:
+def run_on_processes(config, out: Path, seed: int, frames: list[int], workers: int, progress=None,
+                     devices: list[str] | None = None, num_worlds: int = 64) -> str:
+    """Render ``frames`` on ``workers`` processes: CPU producers, or with ``devices`` (one per worker,
+    e.g. ``["cuda:0", "cuda:1"]``) batched MuJoCo Warp producers of ``num_worlds`` worlds each."""
+    with ProducerPool(config, out, seed, workers, devices, num_worlds) as pool:
         return pool.run(frames, progress)
 
 
 def _chunks(frames: list[int], workers: int) -> list[list[int]]:
     size = max(_MIN_CHUNK, min(_MAX_CHUNK, len(frames) // (4 * workers)))
+    return [frames[i:i + size] for i in range(0, len(frames), size)]
+
+
+def _batched_chunks(frames: list[int], workers: int, batch: int) -> list[list[int]]:
+    """Whole launches per task (a multiple of ``batch`` frames), about four tasks per worker."""
+    launches = max(1, len(frames) // (4 * workers * batch))
+    size = launches * batch
     return [frames[i:i + size] for i in range(0, len(frames), size)]
 
 
@@ -140,23 +159,37 @@ def _dump_config(config) -> bytes:
 _worker: dict = {}
 
 
-def _start_worker(payload: bytes, out: str, seed: int, parent_pid: int, barrier) -> None:
+def _start_worker(payload: bytes, out: str, seed: int, parent_pid: int, barrier, devices=None, num_worlds=64,
+                  next_device=None) -> None:
     _die_with_parent(parent_pid)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's: it stops the pool
     prepare_producer_process()
-    _worker.update(payload=payload, out=Path(out), seed=seed, barrier=barrier)
+    device = None
+    if devices is not None:
+        with next_device.get_lock():
+            device = devices[next_device.value % len(devices)]
+            next_device.value += 1
+    _worker.update(payload=payload, out=Path(out), seed=seed, barrier=barrier, device=device,
+                   num_worlds=num_worlds, writer_threads=max(1, usable_cpus() // max(1, len(devices or [1]))))
 
 
 def _producer():
     if "producer" not in _worker:
         _worker["config"] = pickle.loads(_worker["payload"])
-        _worker["producer"] = FrameProducer(_worker["config"])
+        if _worker["device"] is None:
+            _worker["producer"] = FrameProducer(_worker["config"])
+        else:
+            from .batched import BatchedFrameProducer
+
+            _worker["producer"] = BatchedFrameProducer(_worker["config"], _worker["num_worlds"], _worker["device"])
     return _worker["producer"]
 
 
 def _run_chunk(frames: list[int]) -> str:
     producer = _producer()
-    return run_frames(_worker["config"], _worker["out"], _worker["seed"], frames, producer=producer)
+    threads = _worker["writer_threads"] if _worker["device"] is not None else 1
+    return run_frames(_worker["config"], _worker["out"], _worker["seed"], frames, producer=producer,
+                      writer_threads=threads)
 
 
 def _on_each(fn, args):
