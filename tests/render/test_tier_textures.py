@@ -144,6 +144,14 @@ def test_a_texture_colour_or_material_given_after_the_build_shows_in_the_next_fr
         inside = ids == geom
         assert np.all(np.abs(path[inside].mean(0) - expected[inside].mean(0)) <= 3.0), geom
     assert np.corrcoef(path[ids == 1, 0], expected[ids == 1, 0])[0, 1] > 0.9  # the checker, cell for cell
-    model.mat_specular[0] = 0.5  # matte -> glossy: another kind of BSDF (a new Mitsuba scene)
+    model.mat_specular[:] = 0.5  # matte -> glossy: another kind of BSDF (a new Mitsuba scene)
     glossy = tracer.render(data, "c").astype(float)
     assert np.abs(glossy[ids == 1].mean(0) - path[ids == 1].mean(0)).max() > 1.0
+    model.geom_matid[:] = [0, 1]  # glossy checker -> glossy plain: the texture replaced by a colour in place
+    tracer.render(data, "c")
+    model.geom_rgba[1] = [0.2, 0.3, 0.9, 1.0]  # and that colour changed (Mitsuba refuses 1 x 1 bitmap updates)
+    plain = tracer.render(data, "c").astype(float)
+    def one_colour(pixels):  # the share of pixels within 10 levels of the median colour
+        return (np.abs(pixels - np.median(pixels, 0)).max(1) <= 10).mean()
+    assert one_colour(plain[ids == 1]) > 0.8 > one_colour(glossy[ids == 1]), (one_colour(plain[ids == 1]),
+                                                                               one_colour(glossy[ids == 1]))

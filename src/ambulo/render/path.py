@@ -340,7 +340,7 @@ def _texels(material: MaterialDesc) -> np.ndarray:
     """(H, W, 3) float32 linear base colour: the texture (sRGB decoded unless linear) times the
     rgba colour, or (2, 2, 3) of the colour alone (Mitsuba refuses to update a bitmap to less than 2 x 2)."""
     if material.texture is None:
-        return np.ascontiguousarray(np.broadcast_to(material.base_color, (2, 2, 3)), np.float32)
+        return np.full((2, 2, 3), material.base_color, np.float32)
     pixels = material.texture[..., :3].astype(np.float32) / 255.0
     if pixels.shape[-1] == 1:
         pixels = np.repeat(pixels, 3, -1)
