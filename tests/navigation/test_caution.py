@@ -95,3 +95,23 @@ def test_without_caution_the_policy_falls_on_the_box():
     world, walker, _ = _walk_into_the_box(PolicyWalkerCfg(caution=None), seconds=5.0)
     assert world.fell
     world.close()
+
+
+def test_the_speed_cap_holds_in_blind_zones_only():
+    """Capped within the blind distance of the start and of a zone the navigator adds; not elsewhere."""
+    world = NavWorld.from_spec(mujoco.MjSpec.from_string(BOX_XML.replace("1.0 0.0 0.05", "4.0 3.0 0.05")),
+                               (0.0, 0.0, 0.0), NavWorldCfg(record_gyro=False))
+    walker = PolicyWalker()
+    walker.bind(world)
+    walker.reset()
+    world.engine.forward()
+    walker.step(world.dt_s, world.true_pose())  # the first control period places the start's zone
+    cap = walker.cfg.caution.blind_speed_m_s
+    blind = floor_blind_distance_m(world)
+    walker.set_plan(_straight_plan(0.0, 3.0), final=True)
+    near, far = np.array([blind - 0.1, 0.0, 0.0]), np.array([blind + 0.3, 0.0, 0.0])
+    assert walker._cautious((0.5, 0.0, 0.2), near) == (cap, 0.0, 0.2)
+    assert walker._cautious((0.5, 0.0, 0.2), far) == (0.5, 0.0, 0.2)
+    walker.add_blind_zone(far[:2] + [0.5, 0.0])
+    assert walker._cautious((0.5, 0.0, 0.2), far) == (cap, 0.0, 0.2)
+    world.close()
