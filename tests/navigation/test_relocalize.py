@@ -171,3 +171,38 @@ def test_a_wall_is_in_the_scan_and_a_table_top_is_not():
     top = np.where(top <= cfg.max_depth_m, top, 0.0).astype(np.float32)
     assert len(scan_xy_m(top, k, pose, cfg)) == 0
     assert len(scan_xy_m(top, k, pose, RelocalizeCfg(pixel_stride=2, max_normal_z=1.01))) > 100
+
+
+class _LostOdometry:
+    """A stand-in for ``RgbdOdometry``: the true pose on the first frame, then LOST (coasted 1 m off)."""
+
+    def __init__(self, world):
+        self.world, self.index = world, -1
+
+    def track(self, rgb, depth, gyro=None, motion_cam=None):
+        self.index += 1
+        pose = self.world.camera_pose_wc()
+        if self.index == 0:
+            return VoResult(pose_wc=pose, state=TrackState.TRACKING, inliers=200, num_keyframes=1, tracked=True)
+        return VoResult(pose_wc=_shifted(pose, (1.0, 0.0, 0.0)), state=TrackState.LOST, inliers=0, num_keyframes=1,
+                        tracked=False)
+
+
+@pytest.mark.parametrize("with_map", [True, False])
+def test_with_the_vo_lost_past_the_bridge_a_drifted_legs_pose_is_pulled_back_onto_the_map(apt, with_map):
+    world = _world(apt, FACING_ROOM)
+    truth = world.true_pose()
+    loc = LegVoLocalizer(odometry=_LostOdometry(world), map_source=(lambda: world.occupancy) if with_map else None,
+                         bridge_max_m=-1.0)
+    loc.reset(world)
+    loc.on_frame(world.capture())
+    drifted = truth + np.array([0.3, -0.2, math.radians(3)])  # where a long bridge left the estimate
+    loc._anchor(drifted, world.time_s)
+    est = loc.on_frame(world.capture())
+    world.close()
+    if with_map:
+        assert est.tracked and est.source == "map" and loc.map_checks[-1][:2] == (est.time_s, "vo lost")
+        assert np.linalg.norm(est.xyyaw[:2] - truth[:2]) < 0.06
+        assert np.linalg.norm(loc.pose()[:2] - truth[:2]) < 0.06
+    else:
+        assert not est.tracked and np.linalg.norm(est.xyyaw[:2] - drifted[:2]) < 0.01

@@ -35,7 +35,9 @@
   (or, with no map bound, as before: the VO is then the only source); otherwise the frame is
   untracked (state "unverified"), so the robot stands and scans (the navigator's recovery) until
   a frame fits the map: apartment 26 (benchmark of 2026-11-28) took such a fix 2.5 m off and
-  "arrived" 3.7 m from its goal.
+  "arrived" 3.7 m from its goal. **While the VO is lost** (``lost_check_after_s`` into a bridge,
+  and past its limits) the legs' pose is checked against the map: a confident match is a fix
+  from the depth and the map alone (``source`` "map"), which renews the bridge.
 
 The base pose (x, y, yaw of the pelvis on the floor) comes from the camera pose through the
 pelvis's pose in the camera frame measured once at the start (the head turns little on the
@@ -183,6 +185,11 @@ class LegVoLocalizerCfg(Checked):
     row (a check costs ~0.1 s of CPU)."""
     verify_period_s: float | None = 2.0
     """While tracked, the fix is checked against the map this often (None: never), s."""
+    lost_check_after_s: float = 1.0
+    """While the VO is lost (untracked), the legs' pose is checked against the map (every
+    ``check_rejected_every``-th frame) once the bridge is this old or past its limits: a confident
+    match is a fix from the depth and the map alone, which renews the bridge (a VO lost in a bare
+    place, apartments 30 and 84, walked 3 m / 10 s on the legs and then stood lost), s."""
     correct_min_m: float = 0.1
     """A confident match moves an agreeing fix only when it is this far from it, m (the map's
     cells are 5 cm: nearer corrections are its quantisation)..."""
@@ -223,6 +230,7 @@ class LegVoLocalizer:
         self.rejected = 0
         """VO fixes refused as outliers."""
         self._rejected_run = 0
+        self._lost_run = 0
         self.unverified = 0
         """VO fixes past the bridge's limits that disagreed with the legs and that the map could not confirm."""
         self._map_vo = np.zeros(3)
@@ -252,9 +260,20 @@ class LegVoLocalizer:
         est = self.visual.on_frame(frame, motion)
         since_m, since_s = self.since_fix()
         predicted = self.pose()
-        if not est.tracked:
-            return PoseEstimate(predicted, False, frame.time_s, None, est.state, "legs", since_m, since_s)
         c = self.cfg
+        if not est.tracked:
+            bridged = since_m <= self.bridge_max_m and since_s <= self.bridge_max_s
+            self._lost_run += 1
+            if (self.map_source is not None and (not bridged or since_s >= c.lost_check_after_s)
+                    and self._lost_run % c.check_rejected_every == 1):
+                taken = self._check_map(frame, self._legs_fix(predicted, frame.time_s), None, "vo lost",
+                                        correct_vo=False)
+                if taken is not None:
+                    taken.state, taken.source = "relocalised", "map"
+                    self._take_fix(taken, frame)
+                    return taken
+            return PoseEstimate(predicted, False, frame.time_s, None, est.state, "legs", since_m, since_s)
+        self._lost_run = 0
         est.pose_wc = _planar_matrix(self._map_vo) @ est.pose_wc  # the VO's frame -> the map's
         est.xyyaw = self._pelvis_of(est.pose_wc)
         bridged = since_m <= self.bridge_max_m and since_s <= self.bridge_max_s
@@ -301,7 +320,15 @@ class LegVoLocalizer:
         self._last_fix = (frame, taken.pose_wc)
         return False
 
-    def _check_map(self, frame: RgbdFrame, est: PoseEstimate, legs_xyyaw: np.ndarray | None, why: str) -> PoseEstimate | None:
+    def _legs_fix(self, predicted: np.ndarray, time_s: float) -> PoseEstimate:
+        """The legs' pose as a fix to check: their camera pose moved from their own frame into the
+        estimate's (the planar motion that takes the legs' pelvis pose onto ``predicted``)."""
+        to_estimate = compose(predicted, relative(self.legs.xyyaw, np.zeros(3)))
+        pose_wc = _planar_matrix(to_estimate) @ self._legs_camera()
+        return PoseEstimate(self._pelvis_of(pose_wc), True, time_s, pose_wc, "tracking", "legs")
+
+    def _check_map(self, frame: RgbdFrame, est: PoseEstimate, legs_xyyaw: np.ndarray | None, why: str, *,
+                   correct_vo: bool = True) -> PoseEstimate | None:
         """Match ``frame`` on the map around the fix ``est`` (and the legs' pose, when they
         disagree): the fix to take (``est`` itself, or moved to where the map puts it, with the
         ``map <- VO`` correction renewed), or None when the match is not confident."""
@@ -325,7 +352,8 @@ class LegVoLocalizer:
         # the correction turns about the pivot: as a motion of the world, R p + pivot + t - R pivot
         moved = _planar_matrix(apply_correction(m.correction, pivot, np.zeros(3)))
         self._last_move = moved
-        self._map_vo = _xyyaw_of_planar(moved @ _planar_matrix(self._map_vo))
+        if correct_vo:
+            self._map_vo = _xyyaw_of_planar(moved @ _planar_matrix(self._map_vo))
         pose_wc = moved @ est.pose_wc
         self.map_checks.append((frame.time_s, why, "legs" if m.chosen == 1 else "map"))
         return PoseEstimate(self._pelvis_of(pose_wc), True, est.time_s, pose_wc, "relocalised", "map")
