@@ -10,12 +10,17 @@ route planner found no route for the rest of the episode (11 of the 18 randomize
 ended in 30-116 "no route" replans).
 
 ``level_on_floor`` fits the floor plane among the frame's depth points that the estimate puts near
-z = 0 (a least-squares plane, refitted on its inliers so low clutter drops out) and, when the fit
-is trustworthy (enough points, spread over enough depth, a tilt and a height offset within
-plausible estimate errors), returns the pose rotated about the camera centre by the smallest
+z = 0 (RANSAC, then least squares on its inliers, so wall bottoms and low clutter drop out) and,
+when the fit is trustworthy (enough points, spread over enough depth and across, a tilt and a
+height offset within plausible estimate errors), returns the pose rotated about the camera centre by the smallest
 rotation that levels that plane and moved vertically to put it at z = 0. Position in x, y and
 the yaw are left as estimated (the rotation's axis is horizontal). Only the map sees the levelled
 pose; the localizer's estimate is not changed.
+
+Its own error, on true camera poses along scripted walks through apartments 200 and 201 with the
+randomized depth noise (1 % of range): tilt median 0.35 deg, p90 0.58 deg; height p90 1.9 cm
+(0.19 / 0.45 deg without the noise): below the VO's drift it corrects in randomized episodes, not
+far below it, so it is for a VO that drifts, not for a true pose.
 """
 
 from __future__ import annotations
@@ -41,8 +46,13 @@ class FloorLevelCfg(Checked):
     stride_px: int = 4
     """Every this many pixels in each direction."""
     min_points: int = 200
+    ransac_trials: int = 60
+    """Planes tried through three candidate points each."""
     min_depth_spread_m: float = 0.8
     """The inliers' depths must span this much (a plane from a patch does not fix the pitch), m."""
+    min_extent_m: float = 0.3
+    """The inliers' spread (std) across the plane's narrower direction must be at least this: a strip
+    of floor along a wall pins the pitch along it but not the roll across it, m."""
     max_tilt_rad: float = 0.05
     """A fitted floor tilted more than this (3 deg) is not the floor's error but something else
     (a ramp, a low table top): no correction, rad."""
@@ -80,13 +90,33 @@ def level_on_floor(depth_m: np.ndarray, intrinsics: np.ndarray, pose_wc: np.ndar
     p_c = np.stack([(u[ok] - k[0, 2]) / k[0, 0] * z, (v[ok] - k[1, 2]) / k[1, 1] * z, z], -1)
     pose = np.asarray(pose_wc, float)
     p_w = p_c @ pose[:3, :3].T + pose[:3, 3]
-    near = np.abs(p_w[:, 2]) < c.near_floor_m
-    fit = None
-    for band in (None, c.inlier_m):
-        sel = near if band is None else near & (np.abs(p_w @ fit[:3] + fit[3]) < band)
-        if sel.sum() < c.min_points:
-            return None
-        fit = _plane(p_w[sel])
+    near = np.flatnonzero(np.abs(p_w[:, 2]) < c.near_floor_m)
+    if len(near) < c.min_points:
+        return None
+    # RANSAC: the plane through three candidates that the most candidates lie within ``inlier_m``
+    # of (the floor, not the bottoms of walls and furniture or the clutter on it), then a least-
+    # squares refit on its inliers
+    rng = np.random.default_rng(len(near))
+    pts = p_w[near]
+    best, best_count = None, 0
+    for trio in rng.integers(0, len(pts), size=(c.ransac_trials, 3)):
+        a, b, d3 = pts[trio]
+        n = np.cross(b - a, d3 - a)
+        norm = np.linalg.norm(n)
+        if norm < 1e-9 or abs(n[2]) < norm * math.cos(c.max_tilt_rad * 2):
+            continue  # degenerate, or far from level: not the floor's estimate error
+        n = n / norm
+        count = int((np.abs((pts - a) @ n) < c.inlier_m).sum())
+        if count > best_count:
+            best, best_count = (n, a), count
+    if best is None or best_count < c.min_points:
+        return None
+    sel_local = np.abs((pts - best[1]) @ best[0]) < c.inlier_m
+    fit, extent = _plane(pts[sel_local])
+    if extent < c.min_extent_m:
+        return None
+    sel = np.zeros(len(p_w), bool)
+    sel[near[sel_local]] = True
     if np.ptp(z[sel]) < c.min_depth_spread_m:
         return None
     n, d = fit[:3], fit[3]
@@ -103,14 +133,14 @@ def level_on_floor(depth_m: np.ndarray, intrinsics: np.ndarray, pose_wc: np.ndar
     return FloorFit(out, tilt, offset, int(sel.sum()))
 
 
-def _plane(points: np.ndarray) -> np.ndarray:
-    """(4,) n_x, n_y, n_z, d of the least-squares plane n . p + d = 0 through ``points`` (K, 3),
-    |n| = 1 and n_z > 0."""
+def _plane(points: np.ndarray) -> tuple[np.ndarray, float]:
+    """((4,) n_x, n_y, n_z, d of the least-squares plane n . p + d = 0 through ``points`` (K, 3),
+    |n| = 1 and n_z > 0; the points' spread (std) along the plane's narrower direction, m)."""
     mean = points.mean(0)
-    _, _, vt = np.linalg.svd(points - mean, full_matrices=False)
+    _, sv, vt = np.linalg.svd(points - mean, full_matrices=False)
     n = vt[-1]
     n = n if n[2] >= 0 else -n
-    return np.concatenate([n, [-float(n @ mean)]])
+    return np.concatenate([n, [-float(n @ mean)]]), float(sv[1] / math.sqrt(len(points)))
 
 
 def _rotation_onto_z(n: np.ndarray) -> np.ndarray:
