@@ -121,7 +121,7 @@ def run_one(args: argparse.Namespace) -> int:
         check_output_file(args.video, "--video")
 
     from ..navigation import Navigator, NavigatorCfg, NavWorld, result_of  # heavy imports only when run
-    from ..navigation.benchmark import EpisodeSpec, episode_cfg, make_walker
+    from ..navigation.benchmark import EpisodeSpec, episode_cfg, make_walker, with_perception_device
     from ..navigation.planning import PlanningCfg, RoutePlanner
     from ..navigation.video import EpisodeVideo
     from ..robots import humanoid
@@ -130,7 +130,7 @@ def run_one(args: argparse.Namespace) -> int:
 
     spec = EpisodeSpec(args.seed, args.episode_seed, mode, args.walker, args.randomize)
     walker = make_walker(args.walker)
-    cfg = episode_cfg(spec)
+    cfg = episode_cfg(spec, with_perception_device(args.perception_device))
     world_cfg = cfg.world if mode == "full" else type(cfg.world)(**{**cfg.world.__dict__, "record_gyro": False})
     radius = humanoid.BODY_RADIUS_M
     if kind == "apartment":
@@ -221,11 +221,11 @@ def run_many(args: argparse.Namespace) -> int:
     out = Path(args.out).expanduser()
     check_output_file(out / "summary.json", "--out")
 
-    from ..navigation.benchmark import EpisodeSpec, format_table, run_benchmark
+    from ..navigation.benchmark import EpisodeSpec, format_table, run_benchmark, with_perception_device
 
     specs = [EpisodeSpec(args.seed + i, args.episode_seed, mode, args.walker, args.randomize)
              for mode in modes for i in range(args.episodes)]
-    run = run_benchmark(specs, out, workers=args.workers)
+    run = run_benchmark(specs, out, workers=args.workers, base=with_perception_device(args.perception_device))
     print(format_table(run.summary))
     print(f"wrote {out / 'summary.json'} and {len(specs)} episodes under {out / 'episodes'}")
     return 0
@@ -262,6 +262,9 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--randomize", action="store_true", help="domain randomization (friction, mass, lights, "
                    "colours, pushes, sensor noise)")
     p.add_argument("--video", metavar="OUT.mp4", help="film the episode: head camera beside the top-down map")
+    p.add_argument("--perception-device", default="cpu",
+                   help="torch device of full mode's TSDF and odometry map/refinement, e.g. cuda (ORB stays on the "
+                        "host; default cpu)")
     add_viewer_args(p)
     p.add_argument("--out", default="out/navigate", help="folder for episode.json and map.png, or for a "
                    "benchmark's episodes/ and summary.json (default out/navigate)")
