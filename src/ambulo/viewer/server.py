@@ -115,6 +115,10 @@ class WebViewer:
         command = self.controls.command()
         return np.asarray(default, dtype=float) if command is None else command
 
+    def watch(self, world: int) -> None:
+        """Show world ``world`` (as the page's World field does)."""
+        self.controls.watch(world)
+
     def close(self) -> None:
         """Stop streaming, free a paused simulation, leave the simulation and stop the server."""
         if self._stop.is_set():
@@ -228,13 +232,18 @@ class WebViewer:
             self._write_readout(frame, time_s, xpos_w, extras)
 
     def _follow(self, root_w: np.ndarray) -> None:
+        """Keep the opening camera's offset from the robot. (Not the page's current offset: the page
+        reports its camera back asynchronously, and an offset read from that lags our own moves, so
+        the camera drifted away. Untick Follow to orbit freely.)"""
+        offset = np.asarray(self._camera.eye_w) - np.asarray(self._camera.target_w)
         for client in self.server.get_clients().values():
-            offset = np.asarray(client.camera.position) - np.asarray(client.camera.look_at)
             with client.atomic():
                 client.camera.look_at = root_w
                 client.camera.position = root_w + offset
 
     def _write_readout(self, frame, time_s: float, xpos_w: np.ndarray, extras: dict) -> None:
+        if int(self.panel.world.value) != frame.world:  # watch() from Python: the page shows it too
+            self.panel.world.value = frame.world
         state = "paused" if frame.paused else "running"
         self.panel.status.content = (f"**t = {time_s:.2f} s** · {state} · world {frame.world} of "
                                      f"{self.controls.num_worlds} · {self.frames_sent} frames sent")
