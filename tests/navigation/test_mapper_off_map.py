@@ -43,3 +43,18 @@ def test_a_pose_across_the_edge_marks_the_part_of_its_disc_on_the_map(mapper):
     expected = sum(1 for kx in range(mapper.grid.shape[1]) for ky in range(mapper.grid.shape[0])
                    if math.hypot(*(np.array(mapper.grid.cell_center_xy_m(ky, kx)) - xy)) <= 0.4)
     assert len(iy) == expected
+
+
+def test_a_felt_obstacle_is_occupied_even_where_the_robot_stood(mapper):
+    """What the feet felt (the walker's ``felt_xy_m``) is an obstacle in the next map, over the
+    body's free disc (the robot stood there before it tripped); off the map it is ignored."""
+    from ambulo.maps import OCCUPIED
+
+    xy = np.array([1.3, 1.2])
+    mapper.mark_body(np.array([1.2, 1.2]))
+    mapper.mark_obstacle(xy)
+    mapper.mark_obstacle(np.array([40.0, 40.0]))
+    assert mapper.refresh(1.0)
+    iy, ix = mapper.grid.cell_of(xy)
+    assert mapper.grid.occupancy[iy, ix] == OCCUPIED
+    assert (mapper.grid.occupancy == OCCUPIED).sum() == 1

@@ -64,6 +64,9 @@ class OracleMapper:
     def mark_body(self, xy) -> None:
         pass
 
+    def mark_obstacle(self, xy) -> None:
+        pass
+
     def refresh(self, time_s: float, xy=None) -> bool:
         return False
 
@@ -126,6 +129,9 @@ class OnlineMapper:
         origin = ((self._k0[0] - 0.5) * vs, (self._k0[1] - 0.5) * vs)
         self._occ = np.full((ny, nx), UNKNOWN, np.int8)
         self._body_free = np.zeros((ny, nx), bool)
+        self._felt = np.zeros((ny, nx), bool)
+        """Cells where the walker's feet or shins touched something the camera never showed
+        (``PolicyWalker.felt_xy_m``): occupied whatever the slice says."""
         self.grid = Grid2D(occupancy=self._occ.copy(), origin_xy_m=origin, resolution_m=vs)
         self.tsdf = TsdfMap(c.tsdf, device=self.device)
         self._start_xy = np.asarray(world.start_pose[:2], float)
@@ -163,6 +169,14 @@ class OnlineMapper:
             self._body_free[ys[inside], xs[inside]] = True
             self._dirty = True
 
+    def mark_obstacle(self, xy) -> None:
+        """Something was felt at ``xy`` (estimated frame, m): its cell is occupied from the next refresh."""
+        iy, ix = self.grid.cell_of(xy)
+        ny, nx = self.grid.shape
+        if 0 <= iy < ny and 0 <= ix < nx and not self._felt[iy, ix]:
+            self._felt[iy, ix] = True
+            self._dirty = True
+
     def refresh(self, time_s: float, xy=None) -> bool:
         """Re-slice what the frames fused since the last refresh changed (module docstring), if a
         refresh is due and anything changed; True when the map changed. ``xy`` (the robot) is not
@@ -177,6 +191,7 @@ class OnlineMapper:
         if columns is not None:
             self._paste(occ, columns)
         occ[(occ == UNKNOWN) & self._body_free] = FREE
+        occ[self._felt] = OCCUPIED
         changed = not np.array_equal(occ, self._occ)
         if changed:
             self._occ = occ
