@@ -175,6 +175,9 @@ class Navigator:
         self.footsteps_stage = FootstepStage(cfg.planning)
         self._observers: list[tuple[Callable[[NavSnapshot], None], bool]] = []
         self.walker.bind(world)
+        if hasattr(self.localizer, "bind_map") and self.mapper.needs_images:
+            # the map built so far is what a lost or slipped VO is relocalised against (relocalize)
+            self.localizer.bind_map(lambda: self.mapper.grid)
         self.reset()
 
     def _default_localizer(self):
@@ -195,6 +198,8 @@ class Navigator:
         w.reset_monitors()
         self.localizer.reset(w)
         self.mapper.reset(w)
+        self._felt_marked = 0
+        """How many of the walker's felt points (``felt_xy_m``) the map has been given."""
         self.goal_xy_m: np.ndarray | None = None
         self.goal_yaw_rad: float | None = None
         self.estimate = PoseEstimate(w.true_pose(), True, w.time_s, source="oracle" if self.cfg.mode != "full" else "vo")
@@ -375,6 +380,13 @@ class Navigator:
         self.status, self.done = status, True
         self.walker.stand()
 
+    def _blind_zone(self, est) -> None:
+        """A plan that counts unseen floor free: the walker goes slowly from here (``caution``),
+        so low clutter the camera never saw is felt, not tripped over."""
+        add = getattr(self.walker, "add_blind_zone", None)
+        if add is not None:
+            add(est[:2])
+
     def _control_tick(self) -> None:
         w, c = self.world, self.cfg
         now = w.time_s
@@ -393,6 +405,12 @@ class Navigator:
                     self.status = "lost"
         if self.estimate.tracked and self.estimate.source != "legs":
             self._mark_body()
+        felt = getattr(self.walker, "felt_xy_m", ())
+        if len(felt) > self._felt_marked:  # the feet touched what the camera never showed: map it
+            for xy in felt[self._felt_marked:]:
+                self.mapper.mark_obstacle(xy)
+            self._felt_marked = len(felt)
+            self._replan_reason = "felt obstacle"
         map_changed = self.mapper.refresh(now, self.estimate.xyyaw[:2])
         if w.fell:
             return self._finish("fell")
@@ -420,6 +438,12 @@ class Navigator:
             if w.base_speed_m_s() < c.standing_speed_m_s:
                 self._settled_since = now if self._settled_since is None else self._settled_since
                 if now - self._settled_since >= c.settle_s:
+                    verify = getattr(self.localizer, "verify", None)
+                    if verify is not None and verify() is False:
+                        # the map puts the robot elsewhere (the estimate has moved there): not there yet
+                        self._settled_since = None
+                        self._replan_reason = "relocalised"
+                        return
                     return self._finish("arrived")
             else:
                 self._settled_since = None
@@ -546,6 +570,7 @@ class Navigator:
                 # (apartment 200: 82 refused look turns, stuck)
                 plan = self._plan_footsteps(grid, version, True, est, route, k, final, goal_xy, yaw)
                 reason = reason + " (unseen free)"
+                self._blind_zone(est)
             faced = look and plan.status == PlanStatus.SUCCESS and plan.num_steps < 1
             cornered = look and plan.status == PlanStatus.GOAL_IN_COLLISION
             if faced or cornered:
@@ -575,6 +600,7 @@ class Navigator:
                     # the body crosses are marked free (``mark_body``).
                     plan = self._plan_footsteps(grid, version, True, est, route, j, final, walk_xy, walk_yaw)
                     reason = reason + " (unseen free)"
+                    self._blind_zone(est)
             status, steps = plan.status.value, plan.num_steps
             usable = plan.status == PlanStatus.SUCCESS or (plan.num_steps >= 2 and plan.status in (
                 PlanStatus.BUDGET_EXHAUSTED, PlanStatus.GOAL_UNREACHABLE))
