@@ -32,7 +32,7 @@ from ambulo.sensors.tiled_camera import TiledCamera, TiledCameraCfg
 from ambulo.utils.rotations import mat_to_quat
 
 from .config import DatasetConfig
-from .producer import _entropy
+from .producer import apply_randomizers
 from .randomizers import SceneContext
 
 IMAGE_SOURCE = "mujoco_warp_raycast"
@@ -118,17 +118,7 @@ class BatchedFrameProducer:
         """Apply every randomizer of frame ``index`` to world ``world``; returns the frame log.
         The draws are ``FrameProducer.randomize``'s: the same parameters for the same index."""
         self.ctx.world = world
-        log = {}
-        for k, (name, r) in enumerate(zip(self._names, self.config.randomizers)):
-            block = index // max(1, r.every_n_frames)
-            cached = self._cache.get(k)
-            if cached is None or cached[0] != (seed, block):
-                params = r.sample(np.random.default_rng(_entropy(seed, k, block)), self.ctx)
-                self._cache[k] = ((seed, block), params)
-            params = self._cache[k][1]
-            r.apply(params, self.ctx)
-            log[name] = params
-        return log
+        return apply_randomizers(self.config.randomizers, self._names, self._cache, self.ctx, seed, index)
 
     def frames(self, seed: int, indices: list[int]):
         """Yield (index, log, capture) for ``indices``, ``num_worlds`` at a time; ``capture`` has

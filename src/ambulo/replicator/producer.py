@@ -69,17 +69,7 @@ class FrameProducer:
         """
         self.sim.reset(forward=False)
         self.camera.reset_pose()
-        log = {}
-        for k, (name, r) in enumerate(zip(self._names, self.config.randomizers)):
-            block = index // max(1, r.every_n_frames)
-            cached = self._cache.get(k)
-            if cached is None or cached[0] != (seed, block):
-                params = r.sample(np.random.default_rng(_entropy(seed, k, block)), self.ctx)
-                self._cache[k] = ((seed, block), params)
-            params = self._cache[k][1]
-            r.apply(params, self.ctx)
-            log[name] = params
-        return log
+        return apply_randomizers(self.config.randomizers, self._names, self._cache, self.ctx, seed, index)
 
     def replay(self, log: dict) -> None:
         """Apply a logged frame's parameters (no random draws): regenerates that frame alone."""
@@ -109,6 +99,25 @@ class FrameProducer:
 
     def close(self) -> None:
         self.camera.close()
+
+
+def apply_randomizers(randomizers, names: list[str], cache: dict, ctx: SceneContext, seed: int, index: int) -> dict:
+    """Draw and apply every randomizer of frame ``index`` to world ``ctx.world``; returns the frame log.
+
+    Randomizer k of frame i draws from ``default_rng([seed, k, i // every_n_frames])``, so a frame's
+    parameters depend on (config, seed, index) alone; ``cache`` ({k: ((seed, block), params)}) keeps
+    the last draw of each randomizer for the frames of the same block."""
+    log = {}
+    for k, (name, r) in enumerate(zip(names, randomizers)):
+        block = index // max(1, r.every_n_frames)
+        cached = cache.get(k)
+        if cached is None or cached[0] != (seed, block):
+            params = r.sample(np.random.default_rng(_entropy(seed, k, block)), ctx)
+            cache[k] = ((seed, block), params)
+        params = cache[k][1]
+        r.apply(params, ctx)
+        log[name] = params
+    return log
 
 
 def _entropy(seed: int, k: int, block: int):
