@@ -15,8 +15,9 @@ def add_viewer_args(parser: argparse.ArgumentParser) -> None:
 
 
 def viewer_kind(args: argparse.Namespace) -> str | None:
-    """``"web"`` (the viewer package imported, so ``World(viewer="web")`` finds it) or None."""
-    if args.viewer == "none":
+    """``"web"`` (the viewer package imported, so ``World(viewer="web")`` finds it) or None. A
+    namespace built without the viewer flags (a script calling a command's function) means none."""
+    if getattr(args, "viewer", "none") == "none":
         return None
     if not 0 < args.viewer_port < 65536:
         raise CliError(f"--viewer-port {args.viewer_port} is not a TCP port", "pass 1-65535, e.g. 8080")
