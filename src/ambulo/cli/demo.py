@@ -16,7 +16,7 @@ def run(args: argparse.Namespace) -> int:
     from ambulo.demo import run_demo
 
     report = run_demo(seconds=args.seconds, video=None if args.no_video else args.video,
-                      progress=not args.quiet, renderer=args.renderer, viewer=viewer, viewer_port=args.viewer_port)
+                      progress=not args.quiet, renderer=args.renderer, viewer=viewer, viewer_port=getattr(args, "viewer_port", 8080))
     for line in report.lines():
         print(line)
     return 0 if report.humanoid_stood else 1

@@ -232,7 +232,7 @@ def run_many(args: argparse.Namespace) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.episodes is not None and args.viewer != "none":
+    if args.episodes is not None and getattr(args, "viewer", "none") != "none":
         raise CliError("--viewer web watches one episode; --episodes runs many in worker processes",
                        "leave out --episodes (or --viewer)")
     return run_many(args) if args.episodes is not None else run_one(args)

@@ -76,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _serve(path: str | None, viewer: str, args: argparse.Namespace) -> int:
     """The scene simulated at real time (the page's speed) in a browser, ``--seconds`` of it."""
-    world = _world(path, viewer=viewer, viewer_port=args.viewer_port)
+    world = _world(path, viewer=viewer, viewer_port=getattr(args, "viewer_port", 8080))
     try:
         world.reset()
         for _ in range(int(round(args.seconds / world.get_rendering_dt()))):
