@@ -126,11 +126,8 @@ class BatchedFrameProducer:
         indices = list(indices)
         for start in range(0, len(indices), self.num_worlds):
             chunk = indices[start:start + self.num_worlds]
-            self.sim.reset(forward=False)
-            self.camera.reset_pose()
-            logs = [self.randomize_world(w, seed, index) for w, index in enumerate(chunk)]
-            self.engine.forward()
-            yield from zip(chunk, logs, self._captures(len(chunk)))
+            logs, labels = self._render_chunk(seed, chunk)
+            yield from zip(chunk, logs, self._captures(len(chunk), *labels))
 
     def batches(self, seed: int, indices: list[int]):
         """The in-memory mode: yield one dict of device tensors per ``num_worlds`` frames, for a
@@ -148,25 +145,28 @@ class BatchedFrameProducer:
         semantic = torch.as_tensor(self.table.semantic_ids[1:], dtype=torch.int64, device=dev)
         for start in range(0, len(indices), self.num_worlds):
             chunk = indices[start:start + self.num_worlds]
-            self.sim.reset(forward=False)
-            self.camera.reset_pose()
-            for w, index in enumerate(chunk):
-                self.randomize_world(w, seed, index)
-            self.engine.forward()
-            out = self.camera.data.output
-            count = len(chunk)
-            instances = self._instance_of_geom[(out["instance_segmentation"][:count, ..., 0] + 1).long()]
-            boxes, pixels = device_tight_boxes(instances, self.table.num_instances)
+            _, (instances, boxes, pixels) = self._render_chunk(seed, chunk)
+            out, count = self.camera.data.output, len(chunk)
             yield {"index": torch.as_tensor(chunk, dtype=torch.int64, device=dev), "rgb": out["rgb"][:count],
                    "depth": out["depth"][:count, ..., 0], "instances": instances, "boxes": boxes, "pixels": pixels,
                    "semantic_ids": semantic}
 
-    def _captures(self, count: int) -> list[dict]:
+    def _render_chunk(self, seed: int, chunk: list[int]) -> tuple[list[dict], tuple]:
+        """World w shows frame ``chunk[w]``: reset, randomize, one kinematics pass, one render.
+        Returns the frame logs and the device labels of the chunk's worlds: instance ids (B, H, W),
+        tight boxes (B, K, 4) and pixel counts (B, K)."""
+        self.sim.reset(forward=False)
+        self.camera.reset_pose()
+        logs = [self.randomize_world(w, seed, index) for w, index in enumerate(chunk)]
+        self.engine.forward()
+        geom_ids = self.camera.data.output["instance_segmentation"][:len(chunk), ..., 0]
+        instances = self._instance_of_geom[(geom_ids + 1).long()]
+        return logs, (instances, *device_tight_boxes(instances, self.table.num_instances))
+
+    def _captures(self, count: int, instances: torch.Tensor, boxes: torch.Tensor, pixels: torch.Tensor) -> list[dict]:
         cam = self.camera
         out = cam.data.output
         geom_ids = out["instance_segmentation"][:count, ..., 0]
-        instances = self._instance_of_geom[(geom_ids + 1).long()]
-        boxes, pixels = device_tight_boxes(instances, self.table.num_instances)
         host = {  # one copy each, for the whole batch
             "rgb": out["rgb"][:count].cpu().numpy(), "depth": out["depth"][:count].cpu().numpy(),
             "geom_ids": geom_ids.cpu().numpy(), "instances": instances.cpu().numpy(),
