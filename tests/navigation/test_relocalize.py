@@ -56,14 +56,19 @@ def test_a_frame_matched_from_a_wrong_guess_finds_the_true_pose(apt, offset):
 
 
 def test_a_bare_wall_is_ambiguous(apt):
-    world = _world(apt, FACING_WALL)
+    m = _match_from(apt, FACING_WALL)
+    assert not m.confident and m.reason == "ambiguous"
+
+
+def _match_from(apt, pose_xyyaw):
+    """The scan match of the head camera's depth seen from ``pose_xyyaw``, started at the true pose."""
+    world = _world(apt, pose_xyyaw)
     frame = world.capture()
     world.close()
     pose = frame.pose_wc.numpy()
     cfg = RelocalizeCfg()
-    m = match_scan(world.occupancy, scan_xy_m(frame.depth_m.numpy(), frame.intrinsics.numpy(), pose, cfg),
-                   pose[:2, 3], cfg)
-    assert not m.confident and m.reason == "ambiguous"
+    return match_scan(world.occupancy, scan_xy_m(frame.depth_m.numpy(), frame.intrinsics.numpy(), pose, cfg),
+                      pose[:2, 3], cfg)
 
 
 class _SlippedOdometry:
@@ -140,13 +145,7 @@ def test_a_robot_facing_a_bare_wall_is_told_to_look_where_a_match_is_confident(a
     x, y, _ = FACING_WALL
     look = look_yaw_rad(apt.occupancy, (x, y), RelocalizeCfg())
     assert look is not None and abs(math.remainder(look - FACING_WALL[2], 2 * math.pi)) > math.radians(60)
-    world = _world(apt, (x, y, look))
-    frame = world.capture()
-    world.close()
-    pose = frame.pose_wc.numpy()
-    cfg = RelocalizeCfg()
-    m = match_scan(world.occupancy, scan_xy_m(frame.depth_m.numpy(), frame.intrinsics.numpy(), pose, cfg),
-                   pose[:2, 3], cfg)
+    m = _match_from(apt, (x, y, look))
     assert m.confident, m.reason
 
 
