@@ -21,6 +21,7 @@ from viser import _messages
 
 from .camera import CameraPose
 from .controls import Controls
+from .curves import CurvePanel, ScalarLog
 from .frames import FrameExchange, copy_world
 from .geometry import body_name, geom_shapes, root_bodies, static_bodies, subtree
 from .gui import Panel
@@ -65,6 +66,8 @@ class WebViewer:
         self._follow_body: int | None = None
         self._camera: CameraPose | None = None
         self.panel: Panel | None = None
+        self.scalars = ScalarLog()
+        self._curves = CurvePanel(self.server, self.scalars)
         self.frames_sent = 0
         self.stream_cpu_s = 0.0
         """CPU time the streaming thread has used, s (what the viewer takes from the machine)."""
@@ -114,6 +117,12 @@ class WebViewer:
         """The page's (vx m/s, vy m/s, yaw rate rad/s) while it teleoperates, else ``default``."""
         command = self.controls.command()
         return np.asarray(default, dtype=float) if command is None else command
+
+    def add_scalars(self, step: int, scalars: dict[str, float]) -> None:
+        """Plot ``scalars`` ({name: value}, e.g. mean reward, episode length, a task's criteria) at
+        x = ``step`` (a training iteration), one curve per name beside the scene. Safe from any
+        thread and cheap: it queues the values; the streaming thread draws them (5 times a second)."""
+        self.scalars.add(step, scalars)
 
     def watch(self, world: int) -> None:
         """Show world ``world`` (as the page's World field does)."""
@@ -204,9 +213,15 @@ class WebViewer:
 
     def _stream(self) -> None:
         """The streaming thread: ask for a frame, send it, at most once per ``period_s``."""
-        sequence, next_readout = 0, 0.0
+        sequence, next_readout, next_curves = 0, 0.0, 0.0
         while not self._stop.is_set():
             started, cpu0 = time.perf_counter(), time.thread_time()
+            if started >= next_curves:  # curves are fed by the caller, not the simulation: drawn even while paused
+                next_curves = started + READOUT_PERIOD_S
+                try:
+                    self._curves.update()
+                except Exception:
+                    log.exception("web viewer: drawing the curves failed")
             self.exchange.request()
             sequence, frame = self.exchange.latest(sequence, timeout_s=self.period_s)
             if frame is not None and self._model is not None:
