@@ -32,6 +32,7 @@ from ambulo.sensors.tiled_camera import TiledCamera, TiledCameraCfg
 from ambulo.utils.rotations import mat_to_quat
 
 from .config import DatasetConfig
+from .host_worlds import HostWorlds
 from .producer import apply_randomizers
 from .randomizers import SceneContext
 
@@ -53,18 +54,23 @@ def device_tight_boxes(instances: torch.Tensor, num_instances: int) -> tuple[tor
     n, h, w = instances.shape
     k = num_instances
     dev = instances.device
-    slot = instances.reshape(n, h * w).long() + (torch.arange(n, device=dev) * (k + 1))[:, None]
-    slot = slot.reshape(-1)  # (N*H*W,) world-major (instance id) slots
-    cols = torch.arange(w, device=dev).repeat(n * h)
-    rows = torch.arange(h, device=dev).repeat_interleave(w).repeat(n)
-    size = n * (k + 1)
+    # per image row first: each row's first and last column and pixel count of every instance,
+    # (N, H, K+1), scattered along the row; the columns are a broadcast view, never materialized
+    ids = instances.long()
+    cols = torch.arange(w, device=dev).expand(n, h, w)
     big = torch.iinfo(torch.int64).max
-    lo_x = torch.full((size,), big, dtype=torch.int64, device=dev).scatter_reduce_(0, slot, cols, "amin")
-    lo_y = torch.full((size,), big, dtype=torch.int64, device=dev).scatter_reduce_(0, slot, rows, "amin")
-    hi_x = torch.full((size,), -1, dtype=torch.int64, device=dev).scatter_reduce_(0, slot, cols, "amax")
-    hi_y = torch.full((size,), -1, dtype=torch.int64, device=dev).scatter_reduce_(0, slot, rows, "amax")
-    pixels = torch.bincount(slot, minlength=size).reshape(n, k + 1)[:, 1:]
-    boxes = torch.stack((lo_x, lo_y, hi_x, hi_y), dim=1).reshape(n, k + 1, 4)[:, 1:]
+    row_lo = torch.full((n, h, k + 1), big, dtype=torch.int64, device=dev).scatter_reduce_(2, ids, cols, "amin")
+    row_hi = torch.full((n, h, k + 1), -1, dtype=torch.int64, device=dev).scatter_reduce_(2, ids, cols, "amax")
+    # scatter_add, not bincount: bincount reads the largest id back to size its output (a sync)
+    row_px = torch.zeros((n, h, k + 1), dtype=torch.int64, device=dev).scatter_add_(
+        2, ids, torch.ones((1, 1, 1), dtype=torch.int64, device=dev).expand(n, h, w))
+    # then over the rows: the columns' extremes, and the first and last row holding a pixel
+    present = row_px > 0
+    row = torch.arange(h, device=dev)[None, :, None]
+    lo_y = torch.where(present, row, big).amin(1)
+    hi_y = torch.where(present, row, -1).amax(1)
+    pixels = row_px.sum(1)[:, 1:]
+    boxes = torch.stack((row_lo.amin(1), lo_y, row_hi.amax(1), hi_y), dim=-1)[:, 1:]
     boxes = torch.where((pixels > 0)[..., None], boxes, torch.full_like(boxes, -1))
     return boxes, pixels
 
@@ -100,7 +106,9 @@ class BatchedFrameProducer:
         self.camera = self.sim.add(TiledCamera(tiled_camera_cfg(config.camera)))
         self.engine = self.sim.start()
         self.model = self.sim.model
-        self.ctx = SceneContext(model=self.model, engine=self.engine, cameras={self.camera.name: self.camera})
+        # the randomizers sample and apply on host copies of the fields, uploaded once a batch
+        self.host = HostWorlds(self.engine, {self.camera.name: self.camera})
+        self.ctx = SceneContext(model=self.model, engine=self.host, cameras=self.host.cameras)
         self.table = ann.instance_table(self.model)
         # geom id + 1 -> instance id (index 0: no geom -> background)
         self._instance_of_geom = torch.as_tensor(self.table.geom_instance, dtype=torch.int32,
@@ -115,19 +123,41 @@ class BatchedFrameProducer:
         return f"{IMAGE_SOURCE} ({self.engine.device})"
 
     def randomize_world(self, world: int, seed: int, index: int) -> dict:
-        """Apply every randomizer of frame ``index`` to world ``world``; returns the frame log.
-        The draws are ``FrameProducer.randomize``'s: the same parameters for the same index."""
+        """Apply every randomizer of frame ``index`` to world ``world`` of the host copies
+        (``self.host``, uploaded by ``randomize``); returns the frame log. The draws are
+        ``FrameProducer.randomize``'s: the same parameters for the same index."""
         self.ctx.world = world
         return apply_randomizers(self.config.randomizers, self._names, self._cache, self.ctx, seed, index)
+
+    def randomize(self, seed: int, chunk: list[int]) -> list[dict]:
+        """World w gets frame ``chunk[w]``'s scene: the device reset, every world's draws applied
+        on the host, then one copy per written field (``HostWorlds``); returns the frame logs."""
+        self.sim.reset(forward=False)
+        self.host.begin()
+        logs = [self.randomize_world(w, seed, index) for w, index in enumerate(chunk)]
+        self.host.upload(len(chunk))
+        return logs
+
+    def kinematics(self) -> None:
+        """Poses of bodies, geoms, cameras and lights from ``qpos``: all a render and the boxes
+        read. ``engine.forward`` would add collision detection, constraints and dynamics, which a
+        picture does not need (the state is set, not simulated), and their kernels' compile."""
+        import mujoco_warp as mjw  # the warp engine's dependency
+
+        with self.engine.warp_scope():
+            mjw.fwd_kinematics(self.engine.wp_model, self.engine.wp_data)
 
     def frames(self, seed: int, indices: list[int]):
         """Yield (index, log, capture) for ``indices``, ``num_worlds`` at a time; ``capture`` has
         ``Camera.capture``'s keys and layouts (NumPy), so the CPU path's writers take it."""
         indices = list(indices)
+        k_matrix = self.camera.get_intrinsics_matrix()
         for start in range(0, len(indices), self.num_worlds):
             chunk = indices[start:start + self.num_worlds]
             logs, labels = self._render_chunk(seed, chunk)
-            yield from zip(chunk, logs, self._captures(len(chunk), *labels))
+            host = self.to_host(len(chunk), *labels)
+            for w, (index, log) in enumerate(zip(chunk, logs)):
+                yield index, log, self.capture(w, host, k_matrix)
 
     def batches(self, seed: int, indices: list[int]):
         """The in-memory mode: yield one dict of device tensors per ``num_worlds`` frames, for a
@@ -153,34 +183,47 @@ class BatchedFrameProducer:
 
     def _render_chunk(self, seed: int, chunk: list[int]) -> tuple[list[dict], tuple]:
         """World w shows frame ``chunk[w]``: reset, randomize, one kinematics pass, one render.
-        Returns the frame logs and the device labels of the chunk's worlds: instance ids (B, H, W),
-        tight boxes (B, K, 4) and pixel counts (B, K)."""
-        self.sim.reset(forward=False)
-        self.camera.reset_pose()
-        logs = [self.randomize_world(w, seed, index) for w, index in enumerate(chunk)]
-        self.engine.forward()
-        geom_ids = self.camera.data.output["instance_segmentation"][:len(chunk), ..., 0]
-        instances = self._instance_of_geom[(geom_ids + 1).long()]
-        return logs, (instances, *device_tight_boxes(instances, self.table.num_instances))
+        Returns the frame logs and the device labels of the chunk's worlds (``labels``)."""
+        logs = self.randomize(seed, chunk)
+        self.kinematics()
+        self.camera.render()
+        return logs, self.labels(len(chunk))
 
-    def _captures(self, count: int, instances: torch.Tensor, boxes: torch.Tensor, pixels: torch.Tensor) -> list[dict]:
+    def labels(self, count: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Instance ids (B, H, W), tight boxes (B, K, 4) and pixel counts (B, K) of the first
+        ``count`` worlds' images, on the device (no sync)."""
+        geom_ids = self.camera.data.output["instance_segmentation"][:count, ..., 0]
+        instances = self._instance_of_geom[(geom_ids + 1).long()]
+        return (instances, *device_tight_boxes(instances, self.table.num_instances))
+
+    def to_host(self, count: int, instances: torch.Tensor, boxes: torch.Tensor, pixels: torch.Tensor) -> dict:
+        """Everything the first ``count`` worlds' captures read, as NumPy arrays of the whole batch:
+        one copy each, queued together (pinned buffers) and waited for once. New arrays every
+        batch: the writer threads may still be encoding the last batch's frames."""
         cam = self.camera
         out = cam.data.output
-        geom_ids = out["instance_segmentation"][:count, ..., 0]
-        host = {  # one copy each, for the whole batch
-            "rgb": out["rgb"][:count].cpu().numpy(), "depth": out["depth"][:count].cpu().numpy(),
-            "geom_ids": geom_ids.cpu().numpy(), "instances": instances.cpu().numpy(),
-            "semantic": out["semantic_segmentation"][:count, ..., 0].cpu().numpy(),
-            "boxes": boxes.cpu().numpy(), "pixels": pixels.cpu().numpy(),
-            "pos_w": cam.data.pos_w[:count].double().cpu().numpy(),
-            "rot_gl": cam.data.rot_w_gl[:count].double().cpu().numpy(),
-            **{name: field[:count].double().cpu().numpy() for name, field in self._fields.items()},
+        device = {
+            "rgb": out["rgb"][:count], "depth": out["depth"][:count],
+            "geom_ids": out["instance_segmentation"][:count, ..., 0], "instances": instances,
+            "semantic": out["semantic_segmentation"][:count, ..., 0], "boxes": boxes, "pixels": pixels,
+            "pos_w": cam.data.pos_w[:count], "rot_gl": cam.data.rot_w_gl[:count],
+            **{name: field[:count] for name, field in self._fields.items()},
         }
-        k_matrix = cam.get_intrinsics_matrix()
-        return [self._capture(w, host, k_matrix) for w in range(count)]
+        cuda = self.engine.device.type == "cuda"
+        host = {}
+        for name, tensor in device.items():
+            # on Warp's CPU device the tensors are the camera's buffers: copied, not viewed
+            host[name] = torch.empty(tensor.shape, dtype=tensor.dtype, pin_memory=cuda)
+            host[name].copy_(tensor, non_blocking=cuda)
+        if cuda:
+            torch.cuda.current_stream(self.engine.device).synchronize()
+        arrays = {name: t.numpy() for name, t in host.items()}
+        for name in ("pos_w", "rot_gl", *self._fields):  # the pose arithmetic is float64, as on the CPU camera
+            arrays[name] = arrays[name].astype(np.float64)
+        return arrays
 
-    def _capture(self, w: int, host: dict, k_matrix: np.ndarray) -> dict:
-        """World ``w``'s frame in ``Camera.capture``'s form."""
+    def capture(self, w: int, host: dict, k_matrix: np.ndarray) -> dict:
+        """World ``w``'s frame of a batch (``to_host``) in ``Camera.capture``'s form."""
         cfg, table, names = self.camera.cfg, self.table, self._annotators
         pos, rot_gl = host["pos_w"][w], host["rot_gl"][w]
         extr = _extrinsics(pos[None], rot_gl[None])[0]

@@ -1,0 +1,63 @@
+"""The batched path's randomization on host copies (``HostWorlds``) and its kinematics-only pass.
+
+Applying every world's draws on the host and uploading each field once must leave the device
+exactly as applying them world by world on the engine does (the CPU path's draws, the same
+float32 values, byte for byte), and the kinematics pass must pose everything as ``forward``
+does. Two producers on Warp's CPU device (slow: each builds a MuJoCo Warp model).
+"""
+
+from __future__ import annotations
+
+import pytest
+import torch
+
+from ambulo import replicator as rep
+from ambulo.replicator.batched import BatchedFrameProducer
+from ambulo.replicator.producer import apply_randomizers
+from ambulo.replicator.randomizers import SceneContext
+
+MODEL_FIELDS = ("geom_rgba", "geom_matid", "light_diffuse", "light_ambient", "light_dir")
+POSED_FIELDS = ("xpos", "xmat", "geom_xpos", "geom_xmat", "light_xpos", "light_xdir", "cam_xpos")
+
+
+def _state(producer: BatchedFrameProducer) -> dict[str, torch.Tensor]:
+    engine, camera = producer.engine, producer.camera
+    out = {name: engine.model_field(name).clone() for name in MODEL_FIELDS}
+    out["qpos"] = engine.qpos.clone()
+    out["camera_offset_pos"] = camera._offset_pos.clone()
+    out["camera_offset_rot_gl"] = camera._offset_rot_gl.clone()
+    return out
+
+
+@pytest.mark.slow
+def test_host_randomization_leaves_the_device_as_per_world_writes_would():
+    config_size, seed, chunk = (48, 36), 4, [5, 9, 2]
+    host = BatchedFrameProducer(rep.example_config(*config_size), num_worlds=3, device="cpu")
+    direct = BatchedFrameProducer(rep.example_config(*config_size), num_worlds=3, device="cpu")
+
+    logs = host.randomize(seed, chunk)
+    host.kinematics()
+
+    # the reference: every randomizer applied world by world on the engine and camera themselves
+    ctx = SceneContext(model=direct.model, engine=direct.engine, cameras={direct.camera.name: direct.camera})
+    direct.sim.reset(forward=False)
+    direct.camera.reset_pose()
+    want_logs = []
+    for w, index in enumerate(chunk):
+        ctx.world = w
+        want_logs.append(apply_randomizers(direct.config.randomizers, direct._names, {}, ctx, seed, index))
+    direct.engine.forward()
+
+    assert logs == want_logs
+    got, want = _state(host), _state(direct)
+    for name in want:
+        assert torch.equal(got[name], want[name]), name
+    # the frames differ from one another (each world got its own draws)
+    assert not torch.equal(got["qpos"][0], got["qpos"][1])
+    assert not torch.equal(got["geom_rgba"][0], got["geom_rgba"][2])
+    for name in POSED_FIELDS:
+        assert torch.equal(host.engine.field(name), direct.engine.field(name)), name
+
+    # a second batch starts from the reset state, not from the first batch's
+    host.randomize(seed, chunk)
+    assert torch.equal(host.engine.qpos, want["qpos"])
