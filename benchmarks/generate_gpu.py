@@ -38,7 +38,6 @@ import collections
 import contextlib
 import datetime
 import json
-import os
 import shutil
 import sys
 import tempfile
