@@ -30,6 +30,7 @@ class Controls:
         self._steps_allowed = 0
         self._reset = False
         self._world = 0
+        self._shown = 1
         self._teleop = False
         self._command = np.zeros(3)
         self.closed = False
@@ -54,6 +55,11 @@ class Controls:
         with self._lock:
             self._world = min(max(int(world), 0), self.num_worlds - 1)
             self._resume.notify_all()
+
+    def show(self, count: int) -> None:
+        """Draw ``count`` worlds side by side (a grid), from the watched one on (1: it alone)."""
+        with self._lock:
+            self._shown = min(max(int(count), 1), self.num_worlds)
 
     def set_command(self, command) -> np.ndarray:
         """Teleoperate with ``command`` (clipped to ``COMMAND_LIMITS``); returns what was kept."""
@@ -86,6 +92,11 @@ class Controls:
     @property
     def world(self) -> int:
         return self._world
+
+    def worlds(self) -> list[int]:
+        """The worlds drawn: the watched one, then the next ones (wrapping) up to the grid's size."""
+        with self._lock:
+            return [(self._world + k) % self.num_worlds for k in range(self._shown)]
 
     @property
     def paused(self) -> bool:

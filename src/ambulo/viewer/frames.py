@@ -1,8 +1,8 @@
 """The hand-over of poses from the simulation thread to the viewer's streaming thread.
 
 The simulation never waits for the browser: the streaming thread asks for a frame (``request``)
-at its capped rate, and the simulation, after its next step, copies one world's body poses (a
-few hundred floats) into a new ``Frame`` and swaps it in under a lock held only for the swap.
+at its capped rate, and the simulation, after its next step, copies the drawn worlds' body poses (a
+few hundred floats each) into a new ``Frame`` and swaps it in under a lock held only for the swap.
 Between requests a step costs one ``Event.is_set`` test. On a GPU the copy is asynchronous
 (pinned memory, a CUDA event the streaming thread waits on), so the simulation thread never
 synchronizes the device for the viewer.
@@ -11,7 +11,7 @@ synchronizes the device for the viewer.
 from __future__ import annotations
 
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import torch
@@ -19,24 +19,32 @@ import torch
 
 @dataclass
 class Frame:
-    """One world's state at one instant, as the streaming thread reads it.
+    """The drawn worlds' state at one instant, as the streaming thread reads it.
 
     Attributes:
-      world: the world index.
-      time_s: its simulated time, s.
-      xpos_w: (nbody, 3) body positions, world frame, m.
-      xquat_w: (nbody, 4) body orientations (w, x, y, z), world frame.
-      extras: named (k,) values of that world (the env's command, its episode return), or empty.
+      worlds: the world indices drawn (the watched one first; more for a grid).
+      time_s: the watched world's simulated time, s.
+      xpos_w: (K, nbody, 3) body positions of each drawn world, world frame, m.
+      xquat_w: (K, nbody, 4) body orientations (w, x, y, z), world frame.
+      extras: named (k,) values of the watched world (the env's command, its episode return), or empty.
+      state: the watched world's MjData state rows (qpos, qvel, ctrl, ...) when an overlay needs to
+        recompute it on the viewer thread (contacts, balance), else empty.
     """
 
-    world: int
+    worlds: list[int]
     time_s: torch.Tensor
     xpos_w: torch.Tensor
     xquat_w: torch.Tensor
     extras: dict[str, torch.Tensor]
+    state: dict[str, torch.Tensor] = field(default_factory=dict)
     ready: torch.cuda.Event | None = None
     paused: bool = False
     """Copied while the simulation thread was held by the page's pause (the state is frozen)."""
+
+    @property
+    def world(self) -> int:
+        """The watched world."""
+        return self.worlds[0]
 
     def numpy(self) -> tuple[float, np.ndarray, np.ndarray, dict[str, np.ndarray]]:
         """(time_s, xpos_w, xquat_w, extras) as host values; waits for a GPU copy to land."""
@@ -45,13 +53,21 @@ class Frame:
         return (float(self.time_s), self.xpos_w.numpy(), self.xquat_w.numpy(),
                 {k: v.numpy() for k, v in self.extras.items()})
 
+    def state_numpy(self) -> dict[str, np.ndarray]:
+        """The watched world's copied state rows as host arrays (after ``numpy``)."""
+        return {k: v.numpy() for k, v in self.state.items()}
 
-def copy_world(world: int, time_s: torch.Tensor, xpos_w: torch.Tensor, xquat_w: torch.Tensor,
-               extras: dict[str, torch.Tensor]) -> Frame:
-    """A ``Frame`` of row ``world`` of the (N, ...) engine tensors and of ``extras`` (that world's
-    values already), copied off the device without a sync."""
-    rows = {"time": time_s[world], "xpos": xpos_w[world], "xquat": xquat_w[world]}
+
+def copy_world(worlds, time_s: torch.Tensor, xpos_w: torch.Tensor, xquat_w: torch.Tensor,
+               extras: dict[str, torch.Tensor], state: dict[str, torch.Tensor] | None = None) -> Frame:
+    """A ``Frame`` of rows ``worlds`` (an index or a list, the watched world first) of the (N, ...)
+    engine tensors, of ``extras`` (the watched world's values already) and of ``state`` ((N, ...)
+    fields whose watched row is copied), copied off the device without a sync."""
+    worlds = [int(worlds)] if isinstance(worlds, (int, np.integer)) else [int(w) for w in worlds]
+    first = worlds[0]
+    rows = {"time": time_s[first], "xpos": xpos_w[worlds], "xquat": xquat_w[worlds]}
     rows.update({f"x.{k}": v for k, v in extras.items()})
+    rows.update({f"s.{k}": v[first] for k, v in (state or {}).items()})
     device = xpos_w.device
     if device.type == "cuda":
         host = {k: torch.empty(v.shape, dtype=v.dtype, pin_memory=True) for k, v in rows.items()}
@@ -61,8 +77,9 @@ def copy_world(world: int, time_s: torch.Tensor, xpos_w: torch.Tensor, xquat_w: 
         ready.record(torch.cuda.current_stream(device))
     else:
         host, ready = {k: v.detach().clone() for k, v in rows.items()}, None
-    return Frame(world=world, time_s=host["time"], xpos_w=host["xpos"], xquat_w=host["xquat"],
-                 extras={k[2:]: v for k, v in host.items() if k.startswith("x.")}, ready=ready)
+    return Frame(worlds=worlds, time_s=host["time"], xpos_w=host["xpos"], xquat_w=host["xquat"],
+                 extras={k[2:]: v for k, v in host.items() if k.startswith("x.")},
+                 state={k[2:]: v for k, v in host.items() if k.startswith("s.")}, ready=ready)
 
 
 class FrameExchange:

@@ -10,6 +10,7 @@ import numpy as np
 import viser
 
 from .controls import COMMAND_LIMITS, KEY_STEPS, Controls
+from .layout import GRID_SIZES
 
 SPEEDS = ("max", "0.25x", "0.5x", "1x", "2x", "4x")
 """The simulation speeds the page offers."""
@@ -22,7 +23,7 @@ class Panel:
     """The GUI handles of one viewer (shared by every connected page)."""
 
     def __init__(self, server: viser.ViserServer, controls: Controls, *, root_names: list[str],
-                 follow: bool, show_command: bool, show_return: bool, can_reset: bool):
+                 follow: bool, show_command: bool, show_return: bool, can_reset: bool, spacing_m: float = 2.0):
         gui, self.controls = server.gui, controls
         self.status = gui.add_markdown("starting")
         with gui.add_folder("Simulation"):
@@ -35,6 +36,13 @@ class Panel:
             self.world = gui.add_number("World", 0, min=0, max=max(controls.num_worlds - 1, 0), step=1,
                                         hint=f"which of the {controls.num_worlds} worlds to show")
             self.follow = gui.add_checkbox("Follow robot", follow, hint="the camera follows the first robot")
+            sizes = [str(n) for n in GRID_SIZES if n <= controls.num_worlds]
+            shown = str(len(controls.worlds()))
+            self.grid = gui.add_dropdown("Worlds drawn", sizes if shown in sizes else [*sizes, shown],
+                                         initial_value=shown, visible=controls.num_worlds > 1,
+                                         hint="a grid of worlds side by side: the watched one, then the next ones")
+            self.spacing = gui.add_number("Grid spacing m", round(spacing_m, 2), min=0.5, step=0.5,
+                                          visible=controls.num_worlds > 1, hint="distance between drawn worlds")
         self.sliders = []
         if show_command:
             with gui.add_folder("Velocity command"):
@@ -64,6 +72,7 @@ class Panel:
         self.reset.on_click(lambda _e: controls.request_reset())
         self.speed.on_update(lambda _e: setattr(controls, "speed", speed_value(self.speed.value)))
         self.world.on_update(lambda _e: controls.watch(int(self.world.value)))
+        self.grid.on_update(lambda _e: controls.show(int(self.grid.value)))
         if self.sliders:
             def from_sliders(_event) -> None:
                 if self.teleop.value:
@@ -78,6 +87,10 @@ class Panel:
                 command.on_trigger(lambda _e, key=key: self.press(key))
         server.gui.add_command("pause", description="pause or resume", hotkey="P").on_trigger(
             lambda _e: self.toggle_pause())
+
+    def spacing_m(self) -> float:
+        """The grid's spacing, m (the page's field; at least 0.5 m)."""
+        return max(0.5, float(self.spacing.value))
 
     def toggle_pause(self) -> None:
         paused = not self.controls.paused

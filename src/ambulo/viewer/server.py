@@ -17,38 +17,48 @@ import time
 import mujoco
 import numpy as np
 import viser
-from viser import _messages
 
+from ..engine import STATE_FIELDS
 from .camera import CameraPose
 from .controls import Controls
 from .curves import CurvePanel, ScalarLog
+from .feed import OverlayFeed
+from .feed_api import FeedApi
 from .frames import FrameExchange, copy_world
-from .geometry import body_name, geom_shapes, root_bodies, static_bodies, subtree
+from .geometry import body_name, geom_shapes, root_bodies, subtree
 from .gui import Panel
+from .layout import scene_spacing_m
+from .overlays import Overlays
+from .scene import GridScene
 
 log = logging.getLogger(__name__)
 
 COMPONENT_NAME = "ambulo.viewer"
 READOUT_PERIOD_S = 0.2
 """s between updates of the panel's text and curve (text at 30 Hz only costs bandwidth)."""
+STATE_ROWS = tuple(f for f in STATE_FIELDS if f != "time")
+"""The watched world's state an overlay recomputes contacts and balance from (``physics_overlay``)."""
 
 
-class WebViewer:
+class WebViewer(FeedApi):
     """A browser view of ``target`` (``targets.WorldTarget`` or ``EnvTarget``).
 
     Args:
       target: what to watch.
       port: TCP port on 127.0.0.1 (viser moves to the next free one if taken: read ``port``).
       rate_hz: most frames per second streamed to the page.
+      grid: worlds drawn side by side from the start (the page's "Worlds drawn" changes it).
     """
 
-    def __init__(self, target, *, port: int = 8080, rate_hz: float = 30.0, host: str = "127.0.0.1"):
+    def __init__(self, target, *, port: int = 8080, rate_hz: float = 30.0, host: str = "127.0.0.1",
+                 grid: int = 1):
         if rate_hz <= 0:
             raise ValueError(f"rate_hz is {rate_hz}: pass frames per second, e.g. 30")
         self.name = COMPONENT_NAME
         self.target = target
         self.period_s = 1.0 / rate_hz
         self.controls = Controls(target.num_worlds, speed=target.default_speed)
+        self.controls.show(grid)
         self._pace = _Pace()
         self.exchange = FrameExchange()
         self.server = viser.ViserServer(host=host, port=port, label="ambulo", verbose=False)
@@ -61,7 +71,9 @@ class WebViewer:
         self.url = f"http://{host}:{self.port}"
         self._model: mujoco.MjModel | None = None
         self._engine = None
-        self._frames: dict[int, viser.FrameHandle] = {}
+        self.grid = GridScene(self.server)
+        self.feed = OverlayFeed()
+        self.overlays: Overlays | None = None
         self._roots: list[int] = []
         self._follow_body: int | None = None
         self._camera: CameraPose | None = None
@@ -137,6 +149,8 @@ class WebViewer:
         self.target.sim.components.pop(COMPONENT_NAME, None)
         if self._thread is not threading.current_thread():
             self._thread.join(timeout=5.0)
+        if self.overlays is not None and not self._thread.is_alive():
+            self.overlays.close()  # its GL context is the streaming thread's: freed once that ended
         self.server.stop()
 
     def __enter__(self):
@@ -153,50 +167,40 @@ class WebViewer:
             self.exchange.publish(self._copy(paused=True))
 
     def _copy(self, paused: bool = False):
-        e, world = self._engine, self.controls.world
-        frame = copy_world(world, e.field("time"), e.field("xpos"), e.field("xquat"), self.target.extras(world))
+        e, worlds = self._engine, self.controls.worlds()
+        state = ({f: e.field(f) for f in STATE_ROWS}
+                 if self.overlays is not None and self.overlays.needs_state else None)
+        frame = copy_world(worlds, e.field("time"), e.field("xpos"), e.field("xquat"),
+                           self.target.extras(worlds[0]), state)
         frame.paused = paused
         return frame
 
     def _send_model(self, model: mujoco.MjModel) -> None:
-        scene = self.server.scene
-        for handle in self._frames.values():
-            handle.remove()
-        self._frames.clear()
-        static = static_bodies(model)
-        for shape in geom_shapes(model):
-            b = shape.body_id
-            if b not in self._frames:
-                self._frames[b] = scene.add_frame(f"/b{b}", show_axes=False)
-            rgb = tuple(int(round(255 * c)) for c in shape.rgba[:3])
-            opacity = None if shape.rgba[3] >= 1.0 else shape.rgba[3]
-            scene.add_mesh_simple(f"/b{b}/g{shape.geom_id}", shape.vertices_b, shape.faces, color=rgb,
-                                  opacity=opacity, cast_shadow=not shape.is_plane, receive_shadow=True)
-            if shape.is_plane:
-                half = float(np.abs(shape.vertices_b[:, :2]).max())
-                scene.add_grid(f"/b{b}/grid{shape.geom_id}", width=2 * half, height=2 * half,
-                               position=tuple(shape.vertices_b[:, :3].mean(axis=0) + [0, 0, 1e-3]),
-                               cell_size=0.5, section_size=1.0, plane_opacity=0.0)
-        self._static = static
+        """The model's shapes, once per grid slot (``scene.GridScene``), and the panel's controls."""
+        shapes = geom_shapes(model)
+        e = self._engine
+        spacing_m = scene_spacing_m(shapes, e.field("xpos")[0].cpu().numpy(),
+                                    e.field("xmat")[0].cpu().numpy().reshape(-1, 3, 3))
+        self.grid.set_model(model, shapes, spacing_m)
+        self.grid.layout(len(self.controls.worlds()))
         self._roots = root_bodies(model)
         self._model = model
         self._camera = self.target.camera(model)
         # the first robot (the root with the most bodies below it) is the one the camera follows
         self._follow_body = max(self._roots, key=lambda r: len(subtree(model, r)), default=None)
-        self._sent_static = False
         if self.panel is None:
             self.panel = Panel(self.server, self.controls, root_names=[body_name(model, r) for r in self._roots],
                                follow=self.target.follow_default, show_command=self.target.has_command,
-                               show_return=hasattr(self.target, "env"), can_reset=self.target.can_reset)
+                               show_return=hasattr(self.target, "env"), can_reset=self.target.can_reset,
+                               spacing_m=spacing_m)
             for root, box in zip(self._roots, self.panel.visible.values()):
-                box.on_update(lambda _e, root=root, box=box: self._show_subtree(root, box.value))
+                box.on_update(lambda _e, root=root, box=box: self.grid.set_visible(subtree(self._model, root),
+                                                                                     box.value))
+            self.overlays = Overlays(self.server, self.feed)
+        robot = self._follow_body
+        self.overlays.set_model(model, robot, [] if robot is None else subtree(model, robot))
         for client in self.server.get_clients().values():
             self._place_camera(client)
-
-    def _show_subtree(self, root: int, visible: bool) -> None:
-        for b in subtree(self._model, root):
-            if b in self._frames:
-                self._frames[b].visible = visible
 
     def _place_camera(self, client: viser.ClientHandle) -> None:
         if self._camera is None:
@@ -236,13 +240,15 @@ class WebViewer:
 
     def _send(self, frame, readout: bool) -> None:
         time_s, xpos_w, xquat_w, extras = frame.numpy()
+        if self.panel is not None:
+            self.grid.layout(len(frame.worlds), self.panel.spacing_m())
         with self.server.atomic():
-            moving = [b for b in self._frames if not (self._static[b] and self._sent_static)]
-            _queue_poses([self._frames[b] for b in moving], xpos_w[moving].tolist(), xquat_w[moving].tolist())
-        self._sent_static = True
+            self.grid.send(xpos_w, xquat_w)
         self.frames_sent += 1
+        if self.overlays is not None:
+            self.overlays.draw(frame.state_numpy(), time.perf_counter())
         if self.panel is not None and self.panel.follow.value and self._follow_body is not None:
-            self._follow(xpos_w[self._follow_body])
+            self._follow(xpos_w[0, self._follow_body])
         if readout and self.panel is not None:
             self._write_readout(frame, time_s, xpos_w, extras)
 
@@ -260,9 +266,11 @@ class WebViewer:
         if int(self.panel.world.value) != frame.world:  # watch() from Python: the page shows it too
             self.panel.world.value = frame.world
         state = "paused" if frame.paused else "running"
+        drawn = f" (+{len(frame.worlds) - 1} beside it)" if len(frame.worlds) > 1 else ""
         self.panel.status.content = (f"**t = {time_s:.2f} s** · {state} · world {frame.world} of "
-                                     f"{self.controls.num_worlds} · {self.frames_sent} frames sent")
-        rows = [f"- `{body_name(self._model, r)}` ({xpos_w[r][0]:.3f}, {xpos_w[r][1]:.3f}, {xpos_w[r][2]:.3f}) m"
+                                     f"{self.controls.num_worlds}{drawn} · {self.frames_sent} frames sent")
+        pos = xpos_w[0]
+        rows = [f"- `{body_name(self._model, r)}` ({pos[r][0]:.3f}, {pos[r][1]:.3f}, {pos[r][2]:.3f}) m"
                 for r in self._roots]
         if "command" in extras:
             c = extras["command"]
@@ -271,20 +279,6 @@ class WebViewer:
             rows.append(f"- episode return {float(extras['episode_return'][0]):.3f}")
             self.panel.show_return(time_s, float(extras["episode_return"][0]))
         self.panel.readout.content = "\n".join(rows)
-
-
-def _queue_poses(handles: list, positions: list, quats_wxyz: list) -> None:
-    """Queue new poses of scene nodes: what ``handle.position = ...; handle.wxyz = ...`` does in
-    viser 1.1.1 (``_scene_handles._set_pose_vector``) without its per-value cast and ``np.allclose``
-    test, a tenth of the streaming thread's time per frame (0.3 ms instead of 3.4 ms for 19
-    bodies, measured). Private API: viser is pinned in pyproject.toml, and the page test
-    (tests/viewer/test_viewer_browser.py) fails if the page stops following the poses."""
-    for handle, position, wxyz in zip(handles, positions, quats_wxyz):
-        impl = handle._impl
-        impl.position[:] = position
-        impl.wxyz[:] = wxyz
-        impl.api._queue_scene_message(_messages.SetPositionMessage(impl.name, tuple(position)))
-        impl.api._queue_scene_message(_messages.SetOrientationMessage(impl.name, tuple(wxyz)))
 
 
 class _Pace:

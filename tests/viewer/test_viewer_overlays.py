@@ -1,0 +1,149 @@
+"""The grid of worlds and the overlays, read from viser's server-side scene (no browser): the
+grid's bodies at their slot offsets, a contact arrow where a resting box touches the floor with
+the box's weight, the box's CoM / ZMP / capture point, and the nodes features feed (plan,
+footsteps, walked path, map, points, images with detections) at the positions they were given.
+Waits are on conditions with generous limits; nothing asserts a duration."""
+
+from __future__ import annotations
+
+import socket
+import time
+
+import numpy as np
+import pytest
+
+pytest.importorskip("viser")
+import ambulo.viewer
+from ambulo.sim import DynamicCuboid, World
+from ambulo.viewer.layout import grid_offsets_w
+
+LIMIT_S = 120.0
+BOX_XY_M = (0.5, 0.2)
+BOX_HALF_M = 0.1
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def nodes(viewer) -> dict:
+    """viser's server-side scene graph: node name -> handle."""
+    return viewer.server.scene._handle_from_node_name
+
+
+def step_until(world, condition, what: str) -> None:
+    """Step the world (each step may hand the streaming thread a frame) until ``condition()``."""
+    deadline = time.monotonic() + LIMIT_S
+    while not condition():
+        assert time.monotonic() < deadline, f"timed out waiting for {what}"
+        world.step(render=False)
+        time.sleep(0.005)
+
+
+@pytest.fixture
+def world():
+    World.clear_instance()
+    w = World(physics_dt=0.005, num_worlds=4)
+    w.scene.add_default_ground_plane()
+    w.scene.add(DynamicCuboid(prim_path="/World/Box", position=[*BOX_XY_M, BOX_HALF_M + 0.002], size=2 * BOX_HALF_M))
+    w.reset()
+    for _ in range(200):  # 1 s: the box settles on the floor
+        w.step(render=False)
+    yield w
+    World.clear_instance()
+
+
+@pytest.fixture
+def viewer(world):
+    v = ambulo.viewer.serve(world, port=free_port(), announce=False, grid=4)
+    v.controls.speed = None
+    yield v
+    v.close()
+
+
+def box_body(viewer) -> int:
+    return viewer._follow_body
+
+
+def test_grid_draws_each_world_at_its_offset(world, viewer):
+    grid = viewer.grid
+    step_until(world, lambda: len(grid.slots) == 4 and viewer.frames_sent > 2, "a grid of 4 worlds")
+    expected = grid_offsets_w(4, grid.spacing_m)
+    assert grid.spacing_m >= 2.0 and np.allclose(expected[0], 0.0)
+    box = box_body(viewer)
+    for k in range(4):
+        slot = nodes(viewer)[f"/w{k}"]
+        np.testing.assert_allclose(slot.position, expected[k], atol=1e-6)
+        # the box's frame inside the slot holds its world pose: drawn at offset + pose
+        np.testing.assert_allclose(grid.slots[k][box].position[:2], BOX_XY_M, atol=0.01)
+    assert f"/w1/b{box}" in nodes(viewer) and not any(n.startswith("/w1/b0/") for n in nodes(viewer))  # one floor
+    viewer.controls.show(1)  # back to one world: the other slots leave the scene
+    step_until(world, lambda: len(grid.slots) == 1, "one world")
+    assert "/w1" not in nodes(viewer) and "/w0" in nodes(viewer)
+
+
+def test_contact_arrows_carry_the_box_weight(world, viewer):
+    viewer.overlays.contacts.value = True
+    name = "/overlay/contacts"
+    step_until(world, lambda: name in nodes(viewer) and nodes(viewer)[name].visible, "contact arrows")
+    arrows = np.asarray(nodes(viewer)[name].points, dtype=float)  # (K, 2, 3) start, end
+    start, end = arrows[:, 0], arrows[:, 1]
+    assert np.all(np.abs(start[:, 2]) < 0.01)  # on the floor
+    assert np.all(np.abs(start[:, :2] - BOX_XY_M) <= BOX_HALF_M + 0.01)  # under the box
+    weight_n = float(viewer._model.body_mass[box_body(viewer)]) * 9.81
+    total_n = (end - start).sum(axis=0) / 1e-3  # FORCE_SCALE_M_PER_N
+    np.testing.assert_allclose(total_n, [0.0, 0.0, weight_n], atol=0.02 * weight_n)
+    viewer.overlays.contacts.value = False
+    step_until(world, lambda: not nodes(viewer)[name].visible, "the arrows hidden")
+
+
+def test_balance_points_of_a_resting_box(world, viewer):
+    viewer.overlays.balance.value = True
+    names = [f"/overlay/balance/{k}" for k in ("com", "zmp", "capture_point")]
+    step_until(world, lambda: all(n in nodes(viewer) for n in names), "the balance points")
+    com, zmp, cp = (np.asarray(nodes(viewer)[n].position) for n in names)
+    np.testing.assert_allclose(com, [*BOX_XY_M, BOX_HALF_M + 0.005], atol=0.005)  # drawn 5 mm up
+    np.testing.assert_allclose(zmp, [*BOX_XY_M, 0.005], atol=0.005)  # the CoP under a resting box
+    np.testing.assert_allclose(cp, [*BOX_XY_M, 0.005], atol=0.005)  # at rest: the CoM's ground point
+
+
+def test_fed_layers_are_drawn_where_given(world, viewer):
+    plan = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 2.0]])
+    steps = np.array([[0.0, 0.1, 0.0], [0.3, -0.1, 0.5]])
+    occupancy = np.zeros((4, 6), np.int8)
+    occupancy[0, :] = 100
+    cloud = np.array([[1.0, 2.0, 0.5], [2.0, 1.0, 0.3]])
+    viewer.show_plan(plan)
+    viewer.show_path(plan[:2])
+    viewer.show_footsteps(steps, sides=[1, -1])
+    viewer.show_map(occupancy, origin_xy_m=(-1.0, -2.0), resolution_m=0.5)
+    viewer.show_points("lidar", cloud)
+    image = np.zeros((40, 60, 3), np.uint8)
+    viewer.show_image("front", image)
+    viewer.show_detections("front", (np.array([[10, 5, 30, 25]]), ["chair"], np.array([0.9])))
+    want = ["/overlay/plan", "/overlay/path", "/overlay/footsteps", "/overlay/map", "/overlay/points/lidar"]
+    step_until(world, lambda: all(n in nodes(viewer) for n in want) and "front" in viewer.overlays._image_handles,
+               "the fed layers")
+    segments = np.asarray(nodes(viewer)["/overlay/plan"].points)
+    np.testing.assert_allclose(segments[:, 0, :2], plan[:-1], atol=1e-6)
+    np.testing.assert_allclose(segments[:, 1, :2], plan[1:], atol=1e-6)
+    feet = nodes(viewer)["/overlay/footsteps"]
+    np.testing.assert_allclose(np.asarray(feet.batched_positions)[:, :2], steps[:, :2], atol=1e-6)
+    yaw = 2 * np.arctan2(np.asarray(feet.batched_wxyzs)[:, 3], np.asarray(feet.batched_wxyzs)[:, 0])
+    np.testing.assert_allclose(yaw, steps[:, 2], atol=1e-5)
+    np.testing.assert_allclose(nodes(viewer)["/overlay/map"].position[:2], (-1.0 + 1.5, -2.0 + 1.0), atol=1e-6)
+    np.testing.assert_allclose(nodes(viewer)["/overlay/points/lidar"].points, cloud, atol=1e-6)
+    shown = viewer.overlays._image_handles["front"].image
+    assert shown[5, 20].tolist() != [0, 0, 0] and shown[15, 20].tolist() == [0, 0, 0]  # the box's edge, not inside
+
+
+def test_map_image_puts_the_largest_y_on_top_and_unknown_clear():
+    from ambulo.viewer.feed import MapLayer
+    from ambulo.viewer.overlays import map_image
+
+    occupancy = np.array([[100, 0], [-1, 0]], np.int8)  # row 0: y = origin (the bottom of the map)
+    rgba = map_image(MapLayer(occupancy=occupancy, origin_xy_m=(0.0, 0.0), resolution_m=1.0))
+    assert rgba[1, 0, 0] < rgba[1, 1, 0]  # bottom-left (occupied) darker than bottom-right (free)
+    assert rgba[0, 0, 3] == 0 and rgba[0, 1, 3] > 0  # top-left unknown: clear
