@@ -1,20 +1,29 @@
-"""What the web viewer costs the simulation it watches (issue 29: at most 5 %).
+"""What the web viewer costs the training run it watches (issue 29: at most 5 % slower).
 
-    python benchmarks/viewer_overhead.py [--task humanoid-walk] [--num-envs 64] [--device cpu]
-                                         [--steps 200] [--rounds 3] [--rate-hz 30]
+    python benchmarks/viewer_overhead.py [--task humanoid-walk] [--device cpu] [--num-envs 64]
+                                         [--rounds 4] [--iterations-per-round 2] [--warmup 2]
+    python benchmarks/viewer_overhead.py --device cuda --num-envs 4096 --rounds 5
 
-Env-steps/s of the task's step loop (zero actions: the same physics work as training's rollout,
-without the learner) with no viewer and with one (``ambulo.viewer.serve(env)``) watching world
-``num_envs // 2`` and followed by a page: a separate process that connects to the viewer's
-websocket as the browser does and reads everything it streams (the server serializes and sends
-every frame; a real browser would add its own rendering, on the user's machine, not the
-simulation's). The loops alternate, ``rounds`` times each, so a busy machine slows both alike;
-the figure is the median round. ``ratio`` = with / without (1.0: free; 0.95: 5 % slower).
-``stream_hz`` is the frames the viewer sent per second of the viewed loops: the page's frame rate
-(at most one per env step, so a slow loop caps it). On a shared, overloaded machine wall-clock
-ratios swing by tens of percent between identical rounds; ``cpu_s_per_env_step_ratio`` (CPU time
-of every thread of the process per env-step, without / with) and ``stream_thread_cpu_share`` (the
-streaming thread's part of it) say what the viewer costs independently of that.
+Runs ``ambulo train TASK`` (``ambulo.rl.train``, what the command runs: PPO's collection and
+update, metrics.csv, TensorBoard, the progress bar) once, and inside that one run alternates
+rounds of ``--iterations-per-round`` iterations without a viewer (A) and with one (B), A/B/A/B...,
+so the machine's load swings hit both alike. A B round is ``ambulo train --viewer web``: a viewer
+(``ambulo.viewer.serve(env)``) watching world ``num_envs // 2`` of the batch, fed the iteration's
+curves (``add_scalars``), followed by a page: a separate process connected to the viewer's
+websocket as a browser is, reading everything it streams (the browser's own drawing happens on
+the user's machine, not the simulation's). The viewer is opened and closed between iterations,
+through ``train``'s ``watch`` hook and its per-iteration scalars; an iteration is timed from the
+end of the previous one (after the switch) to its own end, so opening and closing cost nothing
+here (they cost a command once). The first ``--warmup`` iterations (kernel compile, allocation)
+are not counted.
+
+- ``env_steps_per_s_without`` / ``_with_viewer``: the median round's env-steps per wall second;
+  ``ratio`` = with / without (1.0: free; 0.95: 5 % slower; the ceiling is the run without viewer);
+- ``stream_hz``: pose frames the viewer actually sent per wall second during B rounds, for the one
+  selected world among ``num_envs`` (capped at ``--rate-hz`` and at one per policy step);
+- ``cpu_s_per_env_step_ratio``: CPU time of every thread of the process per env-step, without /
+  with (what the viewer takes from a busy machine, less sensitive to its load than wall time), and
+  ``stream_thread_cpu_share``: the viewer's streaming thread's part of the B rounds' CPU time.
 
 Prints ``RESULT {json}``.
 """
@@ -22,15 +31,13 @@ Prints ``RESULT {json}``.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
-
-import torch
-
-from ambulo import envs
 
 READER = """
 import sys, time
@@ -49,68 +56,132 @@ print(messages, flush=True)
 """
 
 
-def steps_per_s(env, actions: torch.Tensor, steps: int, cpu: list | None = None) -> float:
-    """Env-steps per wall second; appends CPU seconds (every thread of this process) per env-step to ``cpu``."""
-    start, cpu0 = time.perf_counter(), time.process_time()
-    for _ in range(steps):
-        env.step(actions)
-    if cpu is not None:
-        cpu.append((time.process_time() - cpu0) / (steps * env.num_envs))
-    return steps * env.num_envs / (time.perf_counter() - start)
+class Page:
+    """A websocket client process reading all a viewer sends, as a browser tab would."""
+
+    def __init__(self, port: int):
+        self.process = subprocess.Popen([sys.executable, "-c", READER, f"ws://127.0.0.1:{port}", "60"],
+                                        stdout=subprocess.PIPE, text=True)
+        if self.process.stdout.readline().strip() != "connected":
+            raise RuntimeError("the page process did not connect to the viewer")
+
+    def messages(self) -> int:
+        """Messages read, once the viewer has closed (the process then ends)."""
+        out, _ = self.process.communicate(timeout=120)
+        return int(out.split()[-1])
 
 
-def watched_round(env, actions, steps: int, rate_hz: float, cpu: list) -> tuple[float, float, float, int]:
-    """Env-steps/s with a viewer and a connected page: (steps/s, frames sent per s, the streaming
-    thread's share of the process' CPU time, page messages)."""
-    import ambulo.viewer
+class Rounds:
+    """``train``'s ``watch``: receives every iteration's scalars and switches the viewer on and off
+    between rounds (A: none, B: viewer + page), timing each iteration under the state it ran in."""
 
-    viewer = ambulo.viewer.serve(env, port=8800, rate_hz=rate_hz, announce=False)
-    reader = subprocess.Popen([sys.executable, "-c", READER, f"ws://127.0.0.1:{viewer.port}", "30"],
-                              stdout=subprocess.PIPE, text=True)
-    try:
-        assert reader.stdout.readline().strip() == "connected", "the page process did not connect"
-        viewer.controls.watch(env.num_envs // 2)
-        frames0, stream_cpu0, start = viewer.frames_sent, viewer.stream_cpu_s, time.perf_counter()
-        rate = steps_per_s(env, actions, steps, cpu)
-        stream_hz = (viewer.frames_sent - frames0) / (time.perf_counter() - start)
-        stream_share = (viewer.stream_cpu_s - stream_cpu0) / (cpu[-1] * steps * env.num_envs)
-    finally:
-        viewer.close()
-    out, _ = reader.communicate(timeout=120)
-    return rate, stream_hz, stream_share, int(out.split()[-1])
+    def __init__(self, warmup: int, per_round: int, steps_per_iteration: int, rate_hz: float):
+        self.warmup, self.per_round, self.rate_hz = warmup, per_round, rate_hz
+        self.steps_per_iteration = steps_per_iteration
+        self.env = self.viewer = self.page = None
+        self.wall_s = {"A": [], "B": []}  # per round: summed iteration seconds
+        self.cpu_s = {"A": [], "B": []}
+        self.stream_hz: list[float] = []
+        self.stream_cpu_share: list[float] = []
+        self.page_messages: list[int] = []
+        self._iteration = 0
+        self._round_wall = self._round_cpu = 0.0
+        self._t, self._cpu = time.perf_counter(), time.process_time()
+
+    def __call__(self, env):  # the watch hook: called once, with the training env
+        self.env = env
+        return self
+
+    @property
+    def state(self) -> str | None:
+        """The state of the iteration under way: None in warm-up, else A or B by round."""
+        k = self._iteration - self.warmup
+        return None if k < 0 else "AB"[(k // self.per_round) % 2]
+
+    def add_scalars(self, iteration: int, scalars: dict[str, float]) -> None:
+        if "env steps/s" not in scalars:  # an evaluation's scalars, not an iteration's end
+            return
+        now, cpu = time.perf_counter(), time.process_time()
+        state = self.state
+        if self.viewer is not None:
+            self.viewer.add_scalars(iteration, scalars)  # what `ambulo train --viewer web` does
+        if state is not None:
+            self._round_wall += now - self._t
+            self._round_cpu += cpu - self._cpu
+        self._iteration += 1
+        if state is not None and self.state != state:  # the round ended
+            self._end_round(state, now)
+        if self.state == "B" and self.viewer is None:
+            self._open()
+        self._t, self._cpu = time.perf_counter(), time.process_time()
+
+    def _open(self) -> None:
+        import ambulo.viewer
+
+        self.viewer = ambulo.viewer.serve(self.env, port=8800, rate_hz=self.rate_hz, announce=False)
+        self.viewer.watch(self.env.num_envs // 2)
+        self.page = Page(self.viewer.port)
+        self._frames0, self._stream_cpu0, self._opened = (self.viewer.frames_sent, self.viewer.stream_cpu_s,
+                                                          time.perf_counter())
+
+    def _end_round(self, state: str, now: float) -> None:
+        self.wall_s[state].append(self._round_wall)
+        self.cpu_s[state].append(self._round_cpu)
+        if state == "B":
+            self.stream_hz.append((self.viewer.frames_sent - self._frames0) / (now - self._opened))
+            self.stream_cpu_share.append((self.viewer.stream_cpu_s - self._stream_cpu0) / self._round_cpu)
+            self.close()
+        self._round_wall = self._round_cpu = 0.0
+
+    def close(self) -> None:
+        if self.viewer is not None:
+            self.viewer.close()
+            self.page_messages.append(self.page.messages())
+            self.viewer = self.page = None
+
+    def result(self) -> dict:
+        steps = self.per_round * self.steps_per_iteration
+        rate = {s: [steps / w for w in self.wall_s[s]] for s in "AB"}
+        cpu = {s: statistics.median(c / steps for c in self.cpu_s[s]) for s in "AB"}
+        a, b = statistics.median(rate["A"]), statistics.median(rate["B"])
+        return {"env_steps_per_s_without": round(a), "env_steps_per_s_with_viewer": round(b),
+                "ratio": round(b / a, 3), "stream_hz": round(statistics.median(self.stream_hz), 1),
+                "cpu_s_per_env_step_ratio": round(cpu["A"] / cpu["B"], 3),
+                "stream_thread_cpu_share": round(statistics.median(self.stream_cpu_share), 4),
+                "without_rounds": [round(x) for x in rate["A"]], "with_rounds": [round(x) for x in rate["B"]],
+                "stream_hz_rounds": [round(x, 1) for x in self.stream_hz], "page_messages_per_round": self.page_messages}
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--task", default="humanoid-walk")
-    parser.add_argument("--num-envs", type=int, default=64)
     parser.add_argument("--device", default="cpu")
-    parser.add_argument("--steps", type=int, default=200, help="policy steps per round")
-    parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--num-envs", type=int, default=None, help="default: 64 on the CPU, 4096 on a GPU")
+    parser.add_argument("--rounds", type=int, default=4, help="rounds of each kind (A and B)")
+    parser.add_argument("--iterations-per-round", type=int, default=2)
+    parser.add_argument("--warmup", type=int, default=2, help="first iterations not counted")
     parser.add_argument("--rate-hz", type=float, default=30.0)
     args = parser.parse_args()
+    if min(args.rounds, args.iterations_per_round) < 1 or args.warmup < 0:
+        parser.error("--rounds and --iterations-per-round must be >= 1, --warmup >= 0")
+    num_envs = args.num_envs or (64 if args.device == "cpu" else 4096)
 
-    env = envs.make(args.task, num_envs=args.num_envs, device=args.device, seed=0)
-    actions = torch.zeros(env.num_envs, env.num_actions, device=env.device)
-    steps_per_s(env, actions, 20)  # warm-up
-    without, with_viewer, stream, shares, messages, cpu_without, cpu_with = [], [], [], [], [], [], []
-    for _ in range(args.rounds):
-        without.append(steps_per_s(env, actions, args.steps, cpu_without))
-        rate, hz, share, n = watched_round(env, actions, args.steps, args.rate_hz, cpu_with)
-        with_viewer.append(rate)
-        stream.append(hz)
-        shares.append(share)
-        messages.append(n)
-    a, b = statistics.median(without), statistics.median(with_viewer)
-    cpu_a, cpu_b = statistics.median(cpu_without), statistics.median(cpu_with)
+    from ambulo.rl import train
+    from ambulo.rl.config import ppo_cfg
+
+    ppo = ppo_cfg(args.task, num_envs=num_envs)
+    rounds = Rounds(args.warmup, args.iterations_per_round, ppo.num_steps_per_env * num_envs, args.rate_hz)
+    iterations = args.warmup + 2 * args.rounds * args.iterations_per_round
+    started = time.perf_counter()
+    with tempfile.TemporaryDirectory() as root, contextlib.ExitStack() as stack:
+        stack.callback(rounds.close)
+        train(args.task, num_envs=num_envs, max_iterations=iterations, device=args.device, log_root=root,
+              watch=rounds)
     print("RESULT " + json.dumps({
-        "task": args.task, "num_envs": args.num_envs, "device": args.device, "steps_per_round": args.steps,
-        "rounds": args.rounds, "env_steps_per_s_without": round(a), "env_steps_per_s_with_viewer": round(b),
-        "ratio": round(b / a, 3), "stream_hz": round(statistics.median(stream), 1), "rate_cap_hz": args.rate_hz,
-        "cpu_s_per_env_step_ratio": round(cpu_a / cpu_b, 3),
-        "stream_thread_cpu_share": round(statistics.median(shares), 4),
-        "page_messages_per_round": messages, "without_rounds": [round(x) for x in without],
-        "with_rounds": [round(x) for x in with_viewer],
+        "task": args.task, "device": args.device, "num_envs": num_envs, "watched_world": num_envs // 2,
+        "rounds": args.rounds, "iterations_per_round": args.iterations_per_round,
+        "env_steps_per_iteration": rounds.steps_per_iteration, "rate_cap_hz": args.rate_hz, **rounds.result(),
+        "wall_s": round(time.perf_counter() - started, 1),
     }))
 
 

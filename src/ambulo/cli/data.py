@@ -26,6 +26,7 @@ import threading
 from pathlib import Path
 
 from .errors import CliError
+from .viewer_args import add_viewer_args, web_watch
 
 _DISK_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EACCES, errno.EPERM, errno.EROFS)
 """Errors of the disk under --out, not of ambulo: one line, and the frames done are kept."""
@@ -83,6 +84,10 @@ def generate(args: argparse.Namespace) -> int:
         raise CliError(f"--num-gpus {args.num_gpus} splits the batched GPU path", "give --device cuda and 1 or more GPUs")
     if args.num_worlds < 1:
         raise CliError(f"--num-worlds {args.num_worlds} is not positive", "give --num-worlds 1 or more")
+    watch = web_watch(args)
+    if watch is not None and (args.workers not in (None, 1) or args.ray or args.num_gpus > 1):
+        raise CliError("--viewer web watches the frames rendered in this process; --workers, --ray and "
+                       "--num-gpus render in other processes", "drop them (one process renders), or drop --viewer")
     config = load_config(args.config, args.width, args.height, args.renderer)
     if args.device is not None and config.camera.renderer != "raster":
         raise CliError(f"--device renders with MuJoCo Warp's ray caster, not renderer={config.camera.renderer!r}",
@@ -95,7 +100,7 @@ def generate(args: argparse.Namespace) -> int:
             path = rep.generate(config, args.out, num_frames=args.frames, seed=args.seed, workers=args.workers,
                                 show_progress=not args.quiet, backend="ray" if args.ray else "auto",
                                 overwrite=args.overwrite, device=args.device, num_worlds=args.num_worlds,
-                                num_gpus=args.num_gpus)
+                                num_gpus=args.num_gpus, watch=watch)
     except DatasetFolderError as err:
         raise CliError(err.problem, err.fix) from None
     except OSError as err:
@@ -170,4 +175,5 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--num-gpus", type=int, default=1,
                    help="with --device cuda: one process per GPU (cuda:0 ...), each rendering whole launches")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_viewer_args(p)  # the scene of each frame as it is generated (one process)
     p.set_defaults(func=generate)

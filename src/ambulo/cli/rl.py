@@ -23,6 +23,7 @@ from typing import Any
 
 from ..utils.overrides import OverrideError, parse_overrides
 from .errors import CliError
+from .viewer_args import add_viewer_args, web_watch
 
 STARTED_S = time.monotonic()
 """When the command started (this module is imported as ``ambulo`` starts): ``--eval-every``
@@ -253,6 +254,7 @@ def train(args: argparse.Namespace) -> int:
     _check_writable(args.log_root, "--log-root", folder=True)
     if args.stop_at_criterion and not args.eval_every:
         raise CliError("--stop-at-criterion needs --eval-every", "add e.g. --eval-every 50")
+    watch = web_watch(args)
 
     from ambulo.rl import TrainingInterrupted
     from ambulo.rl import train as run_train
@@ -263,7 +265,7 @@ def train(args: argparse.Namespace) -> int:
                       seed=args.seed, device=args.device, resume=resume, log_root=args.log_root,
                       env_overrides=env_overrides, ppo_overrides=ppo_overrides,
                       verbose=args.verbose, eval_every=args.eval_every,
-                      stop_at_criterion=args.stop_at_criterion, started_s=STARTED_S)
+                      stop_at_criterion=args.stop_at_criterion, started_s=STARTED_S, watch=watch)
     except TrainingInterrupted as stopped:  # SIGINT/SIGTERM: says what was saved, how to resume
         print(f"ambulo train: {stopped}", file=sys.stderr)
         return stopped.exit_status
@@ -273,11 +275,15 @@ def train(args: argparse.Namespace) -> int:
 def play(args: argparse.Namespace) -> int:
     _check_run(args.run)
     _check_writable(args.out, "--out", folder=False)
+    watch = web_watch(args, real_time=True)
+    if watch is not None and args.out:
+        raise CliError("--viewer web shows the rollout live; --out films it to an MP4", "pass one of them")
     from ambulo.rl import play as run_play
 
     with _rl_errors("--out"):
         run_play(args.run, checkpoint=args.checkpoint, seconds=args.seconds, out=args.out,
-                 width=args.width, height=args.height, log_root=args.log_root, device=args.device)
+                 width=args.width, height=args.height, log_root=args.log_root, device=args.device,
+                 watch=watch)
     return 0
 
 
@@ -293,8 +299,9 @@ def export(args: argparse.Namespace) -> int:
 
 
 def evaluate(args: argparse.Namespace) -> int:
+    watch = web_watch(args)
     if args.shipped:
-        result = _evaluate_shipped(args)
+        result = _evaluate_shipped(args, watch)
     else:
         _check_run(args.run)
         from ambulo.rl import evaluate as run_eval
@@ -302,14 +309,14 @@ def evaluate(args: argparse.Namespace) -> int:
         with _rl_errors("the run folder (eval.json goes there)"):
             result = run_eval(args.run, checkpoint=args.checkpoint, num_episodes=args.episodes,
                               episode_length_s=args.episode_length_s, seed=args.seed,
-                              log_root=args.log_root, device=args.device)
+                              log_root=args.log_root, device=args.device, watch=watch)
     if not args.require_criteria:
         return 0
     failed = [name for name in result.get("criteria", []) if not result[name]]
     return 1 if failed else 0
 
 
-def _evaluate_shipped(args: argparse.Namespace) -> dict:
+def _evaluate_shipped(args: argparse.Namespace, watch: Callable | None) -> dict:
     """``ambulo eval TASK --shipped``: the policy in ambulo's assets, no run folder."""
     from ambulo.policies.shipped import shipped_tasks
 
@@ -322,7 +329,7 @@ def _evaluate_shipped(args: argparse.Namespace) -> dict:
     from ambulo.rl.evaluate import evaluate_shipped
 
     return evaluate_shipped(args.run, num_episodes=args.episodes, episode_length_s=args.episode_length_s,
-                            seed=args.seed, device=args.device or "cpu")
+                            seed=args.seed, device=args.device or "cpu", watch=watch)
 
 
 def add_commands(subparsers: argparse._SubParsersAction) -> None:
@@ -363,6 +370,7 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--stop-at-criterion", action="store_true",
                    help="with --eval-every: end training at the first evaluation that meets them "
                         "(on a GPU: that also meets them on the CPU engine, evaluated then)")
+    add_viewer_args(p)  # one env of the batch, with the training curves beside it
     p.set_defaults(func=train)
 
     p = subparsers.add_parser("play", help="roll a trained policy out headless to an MP4")
@@ -374,6 +382,7 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--height", type=whole_above_zero("--height 480"), default=480)
     p.add_argument("--device", help="cpu or cuda[:N] (default: the run's)")
     p.add_argument("--log-root", default="runs")
+    add_viewer_args(p)  # the rollout live at real time instead of an MP4
     p.set_defaults(func=play)
 
     p = subparsers.add_parser("export", help="write ONNX (checked with onnxruntime) + TorchScript")
@@ -400,4 +409,5 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--require-criteria", "--require-walk", dest="require_criteria", action="store_true",
                    help="exit 1 unless every success criterion of the task holds (humanoid-walk's "
                         "'walks': fall rate <= 5%% and velocity error <= 0.2 m/s)")
+    add_viewer_args(p)  # the episodes as they run, one env of --episodes at a time
     p.set_defaults(func=evaluate)

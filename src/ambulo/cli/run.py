@@ -5,16 +5,19 @@ from __future__ import annotations
 import argparse
 
 from .errors import CliError
+from .viewer_args import add_viewer_args, viewer_kind
 
 
 def run(args: argparse.Namespace) -> int:
     if args.seconds <= 0:
         raise CliError(f"--seconds {args.seconds} is not positive", "give --seconds above 0")
+    viewer = viewer_kind(args)
     from ambulo.isaac import IsaacNameError, run_script
     from ambulo.isaac.runner import ScriptPathError
 
     try:
-        result = run_script(args.script, args.script_args, seconds=args.seconds)
+        result = run_script(args.script, args.script_args, seconds=args.seconds, viewer=viewer,
+                            viewer_port=getattr(args, "viewer_port", 8080))
     except (IsaacNameError, ScriptPathError) as err:
         # anything else raised inside the user's script keeps its traceback, as `python script.py`
         raise CliError(str(err)) from None
@@ -35,6 +38,7 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
                    help="simulated seconds for a BaseSample's PLAY and for `while simulation_app.is_running()` "
                         "loops (default 10)")
     p.add_argument("--quiet", action="store_true", help="no summary line")
+    add_viewer_args(p)  # the script's World, or its Isaac Gym viewer, in a browser
     p.add_argument("script", help="the Isaac Sim script (.py)")
     p.add_argument("script_args", nargs=argparse.REMAINDER, help="arguments passed to the script")
     p.set_defaults(func=run)

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
+from typing import Any
 
 from .errors import CliError
 
@@ -26,3 +28,32 @@ def viewer_kind(args: argparse.Namespace) -> str | None:
     except ImportError as err:
         raise CliError(f"--viewer web needs viser ({err})", "pip install 'viser==1.1.1'") from None
     return args.viewer
+
+
+def web_watch(args: argparse.Namespace, *, real_time: bool = False) -> Callable[[Any], Any] | None:
+    """What the commands that build their simulation inside a library (``ambulo.rl``,
+    ``ambulo.replicator``) take as ``watch``: ``ambulo.viewer.serve`` on what they build, at
+    ``--viewer-port`` (None without ``--viewer web``). ``real_time``: the page opens at 1x instead
+    of the env's max (``ambulo play``: a rollout is for watching)."""
+    if viewer_kind(args) is None:
+        return None
+
+    def watch(world_or_env):
+        from ambulo.viewer import serve
+
+        viewer = serve(world_or_env, port=args.viewer_port)
+        if real_time:
+            _open_at_real_time(viewer)
+        return viewer
+
+    return watch
+
+
+def _open_at_real_time(viewer) -> None:
+    """Set the viewer's speed to 1x, on the page's Speed field too (its callback sets the speed)."""
+    if viewer.panel is None:  # the panel is built with the model, at this speed
+        viewer.controls.speed = 1.0
+    else:
+        from ambulo.viewer.gui import speed_label
+
+        viewer.panel.speed.value = speed_label(1.0)

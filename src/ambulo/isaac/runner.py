@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import runpy
 import sys
@@ -10,9 +11,11 @@ from pathlib import Path
 
 from ambulo.sim.current import current_world_or_none
 from ambulo.sim.usd_stage import forget_stages
+from ambulo.sim.viewers import viewer_for_new_worlds
 
 from .app import run_budget
 from .gym import GymBudgetSpent, gym_session, simulated
+from .gym.viewer import web_viewers
 from .hook import isaac_names
 from .kit_commands import clear_stack
 
@@ -35,7 +38,8 @@ class RunResult:
     """An Isaac Gym script was stopped at a ``simulate`` call because ``seconds`` were simulated."""
 
 
-def run_script(path: str | os.PathLike, argv: list[str] | tuple[str, ...] = (), seconds: float = 10.0) -> RunResult:
+def run_script(path: str | os.PathLike, argv: list[str] | tuple[str, ...] = (), seconds: float = 10.0,
+               viewer: str | None = None, viewer_port: int = 8080) -> RunResult:
     """Run the Isaac script ``path`` with ``sys.argv = [path, *argv]`` and Isaac's module names.
 
     A script with a ``__main__`` flow (``SimulationApp``, then a World it steps) runs as is;
@@ -44,6 +48,11 @@ def run_script(path: str | os.PathLike, argv: list[str] | tuple[str, ...] = (), 
     loaded and played for ``seconds``, as the Examples browser's LOAD and PLAY would. An Isaac
     Gym script (``from isaacgym import gymapi``) stops at the ``simulate`` call that would pass
     ``seconds`` of simulated time (``ambulo.isaac.gym.session``).
+
+    ``viewer="web"`` (``ambulo run --viewer web``) watches the script in a browser from
+    ``viewer_port``: each World it creates opens a web viewer (``sim.viewers.viewer_for_new_worlds``),
+    and so does each Isaac Gym viewer (``gym.create_viewer``; ``gym.viewer.web_viewers``), shown
+    at every ``draw_viewer``. They close when the run ends, Ctrl-C included.
     """
     script = Path(path)
     if script.is_dir():
@@ -57,7 +66,7 @@ def run_script(path: str | os.PathLike, argv: list[str] | tuple[str, ...] = (), 
     clear_stack()  # no undo history either
     budget_spent = False
     try:
-        with isaac_names(), run_budget(seconds), gym_session(seconds):
+        with isaac_names(), run_budget(seconds), gym_session(seconds), _watched(viewer, viewer_port):
             sys.argv = [str(script), *argv]
             sys.path.insert(0, str(script.resolve().parent))  # as `python script.py` would
             try:
@@ -80,6 +89,18 @@ def run_script(path: str | os.PathLike, argv: list[str] | tuple[str, ...] = (), 
     return RunResult(script=str(script), ran_sample=ran_sample,
                      sim_time_s=0.0 if world is None else world.current_time,
                      physics_steps=0 if world is None else world.current_time_step_index)
+
+
+@contextlib.contextmanager
+def _watched(viewer: str | None, port: int):
+    """The run's Worlds and Isaac Gym viewers open ``viewer`` inside the block (nothing for None)."""
+    if viewer is None:
+        yield
+        return
+    import ambulo.viewer  # noqa: F401  (registers viewer="web" for the Worlds)
+
+    with viewer_for_new_worlds(viewer, port), web_viewers(port):
+        yield
 
 
 __all__ = ["RunResult", "ScriptPathError", "run_script"]

@@ -12,7 +12,9 @@ from __future__ import annotations
 import os
 import platform
 import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import mujoco
 from tqdm import tqdm
@@ -26,7 +28,7 @@ from .config import DatasetConfig
 from .io import PNG_DEFLATE
 from .manifest import open_dataset
 from .processes import default_workers, run_on_processes
-from .producer import run_frames
+from .producer import FrameProducer, run_frames
 from .ray_workers import run_on_ray
 from .writers import frame_is_complete, frame_subdirs, prepare_dirs
 
@@ -45,7 +47,7 @@ BACKENDS = ("auto", "processes", "ray")
 def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int = 0, workers: int | None = 1,
              show_progress: bool = True, backend: str = "auto", overwrite: bool = False,
              device: str | None = None, num_worlds: int = 64, writer_threads: int | None = None,
-             num_gpus: int = 1) -> Path:
+             num_gpus: int = 1, watch: Callable[[Any], Any] | None = None) -> Path:
     """Write (or finish) a dataset of ``num_frames`` frames in ``out``; returns annotations.json.
 
     ``out`` must be new, empty, or a dataset of the same config and seed (``dataset.json``):
@@ -63,6 +65,12 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
     labels within a pixel of the CPU path's, colours from MuJoCo Warp's ray caster; one process,
     ``writer_threads`` encoding frames (default: one per CPU). ``num_gpus`` > 1 splits the frames
     over that many processes, one per GPU (``cuda:0`` ... of ``device``'s type), whole launches each.
+
+    ``watch`` (``ambulo generate --viewer web``) is called with the producer, in this process (so
+    one worker, one GPU), before the first frame; what it returns joins the producer's
+    ``Simulation`` as a component (the web viewer does). Generation never steps physics (a frame
+    is a reset, the randomizers and a capture), so that component's ``update(0.0)`` runs after
+    each frame is written instead, and ``close()`` at the end.
     """
     if backend not in BACKENDS:
         raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
@@ -79,6 +87,9 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
                          f"--workers {workers} (or generate on the CPU without --device)")
     if num_worlds < 1:
         raise ValueError(f"--num-worlds must be >= 1, got {num_worlds}")
+    if watch is not None and (workers not in (None, 1) or num_gpus > 1 or backend == "ray"):
+        raise ValueError("watching a dataset's generation needs its producer in this process: one worker, "
+                         "one GPU, no Ray")
     writer_threads = writer_threads or os.cpu_count() or 1
     out = Path(out)
     # the parent process may hold no producer (workers render): compile the scene as they do
@@ -91,11 +102,20 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
     prepare_dirs(out, config.writer)
     remove_partial_files(out, *(out / sub for sub in frame_subdirs(config.writer)))
     todo = sorted(set(range(num_frames)) - done_frames(out, num_frames))
-    workers = 1 if producer is not None else (
+    batched = producer is not None
+    workers = 1 if batched or watch is not None else (
         default_workers(len(todo)) if workers is None else min(workers, max(1, len(todo))))
     use_ray = backend == "ray" or (backend == "auto" and workers > 1 and _ray_requested())
     bar = tqdm(total=num_frames, initial=num_frames - len(todo), desc="frames", unit="frame",
                disable=not show_progress)
+    progress, watcher = bar.update, None
+    if watch is not None and todo:
+        producer = producer or FrameProducer(config)
+        watcher = watch(producer)
+
+        def progress(frames_written: int) -> None:
+            bar.update(frames_written)
+            watcher.update(0.0)
     try:
         if not todo:
             renderer = _read_metadata_renderer(out)
@@ -109,10 +129,13 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
         elif workers > 1:
             renderer = run_on_processes(config, out, seed, todo, workers, bar.update)
         else:
-            renderer = run_frames(config, out, seed, todo, bar.update, producer=producer,
-                                  writer_threads=1 if producer is None else writer_threads)
+            renderer = run_frames(config, out, seed, todo, progress, producer=producer,
+                                  writer_threads=writer_threads if batched else 1)
     finally:
         bar.close()
+        if watcher is not None:
+            watcher.close()
+            producer.close()
     from ambulo.sensors.annotators import instance_table
 
     categories = instance_table(model).categories

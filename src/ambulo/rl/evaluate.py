@@ -12,9 +12,11 @@ saved checkpoint, ``ambulo.rl.periodic_eval`` to the policy under training.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from typing import Any
 
 import torch
 from tqdm import tqdm
@@ -75,6 +77,18 @@ def run_episodes(env: envs.RLEnv, vec_env, policy: Callable, task: envs.TaskSpec
     return result
 
 
+@contextlib.contextmanager
+def watched(env: envs.RLEnv, watch: Callable[[envs.RLEnv], Any] | None) -> Iterator[None]:
+    """Inside the block ``env`` is watched by what ``watch(env)`` returns (``ambulo eval --viewer
+    web``: the web viewer, an app this package may not import), ``close()``d on the way out."""
+    watcher = None if watch is None else watch(env)
+    try:
+        yield
+    finally:
+        if watcher is not None:
+            watcher.close()
+
+
 def eval_episode_length_s(task: envs.TaskSpec, episode_length_s: float | None) -> float:
     """The play variant has no time-out: episodes last the training episode length."""
     return task.cfg_fn().episode_length_s if episode_length_s is None else episode_length_s
@@ -82,10 +96,12 @@ def eval_episode_length_s(task: envs.TaskSpec, episode_length_s: float | None) -
 
 def evaluate(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = None,
              num_episodes: int = 100, episode_length_s: float | None = None, seed: int = 12345,
-             log_root: str | os.PathLike = "runs", quiet: bool = False, device: str | None = None) -> dict:
+             log_root: str | os.PathLike = "runs", quiet: bool = False, device: str | None = None,
+             watch: Callable[[envs.RLEnv], Any] | None = None) -> dict:
     """Evaluate ``run`` and return (and print) a dict of metrics; also written to
     ``<run>/eval.json``. ``device`` (default: the run's) evaluates on another engine: a policy
-    trained on a GPU, evaluated with ``device="cpu"``, is a sim-to-sim check."""
+    trained on a GPU, evaluated with ``device="cpu"``, is a sim-to-sim check. ``watch``: see
+    ``watched`` (the episodes are shown as they run)."""
     run_dir, ckpt = runs.resolve_policy(run, checkpoint, log_root)
     info = runs.read_run_info(run_dir)
     task = envs.spec(info["task"])
@@ -93,7 +109,8 @@ def evaluate(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = N
                                 episode_length_s=eval_episode_length_s(task, episode_length_s))
     runner = runs.load_runner(run_dir, env, ckpt)
     policy = runner.get_inference_policy(device=str(env.device))
-    measured = run_episodes(env, runner.env, policy, task, desc=f"eval {info['task']}", quiet=quiet)
+    with watched(env, watch):
+        measured = run_episodes(env, runner.env, policy, task, desc=f"eval {info['task']}", quiet=quiet)
     result = {"task": info["task"], "run": str(run_dir), "checkpoint": ckpt.name,
               "device": str(env.device), **measured}
     atomic_write_json(run_dir / "eval.json", result, indent=2, sort_keys=False, fsync=True)
@@ -104,9 +121,11 @@ def evaluate(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = N
 
 
 def evaluate_shipped(task: str, *, num_episodes: int = 100, episode_length_s: float | None = None,
-                     seed: int = 12345, device: str = "cpu", quiet: bool = False) -> dict:
+                     seed: int = 12345, device: str = "cpu", quiet: bool = False,
+                     watch: Callable[[envs.RLEnv], Any] | None = None) -> dict:
     """Evaluate the policy that ships with ambulo for ``task`` (``ambulo.policies``) as
-    ``evaluate`` measures a run: the same episodes, metrics and criteria; no run folder needed."""
+    ``evaluate`` measures a run: the same episodes, metrics and criteria; no run folder needed.
+    ``watch``: as ``evaluate``'s."""
     from ambulo.policies.shipped import load_policy
 
     from .vecenv import RslRlVecEnv
@@ -115,8 +134,9 @@ def evaluate_shipped(task: str, *, num_episodes: int = 100, episode_length_s: fl
     spec = envs.spec(task)
     env = envs.make(task, num_envs=num_episodes, device=device, seed=seed, play=True,
                     episode_length_s=eval_episode_length_s(spec, episode_length_s))
-    measured = run_episodes(env, RslRlVecEnv(env), lambda obs: shipped(obs["policy"]), spec,
-                            desc=f"eval shipped {task}", quiet=quiet)
+    with watched(env, watch):
+        measured = run_episodes(env, RslRlVecEnv(env), lambda obs: shipped(obs["policy"]), spec,
+                                desc=f"eval shipped {task}", quiet=quiet)
     result = {"task": task, "policy": str(shipped.folder), "checkpoint": shipped.contract["trained"]["checkpoint"],
               "device": str(env.device), **measured}
     if not quiet:

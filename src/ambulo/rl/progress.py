@@ -4,7 +4,8 @@ Rank 0 (``TrainingProgress.iteration_done``, called by ``log_writer.ProgressWrit
 has logged the iteration): append the headline numbers to ``metrics.csv`` (from ``start``: rows
 of a killed run's later iterations are dropped), advance the progress bar (unless ``verbose``,
 when rsl-rl's own report prints instead), evaluate when ``periodic`` is due, end training there if
-``stop`` was asked or (``stop_at_criterion``) the criteria hold.
+``stop`` was asked or (``stop_at_criterion``) the criteria hold, and hand the iteration's
+numbers to ``on_scalars`` (``training_scalars``, ``evaluation_scalars``: the web viewer's curves).
 
 The other ranks (``TrainingProgress.follow``, called by ``ppo.AmbuloPPO`` after each update):
 only the bookkeeping every rank must share, at the same point of the iteration: the stop request,
@@ -14,7 +15,9 @@ and rank 0's decision at an evaluation, so every rank stops at the same iteratio
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from tqdm import tqdm
 
@@ -37,16 +40,20 @@ class TrainingProgress:
       start, total: the first iteration this process runs and the run's iteration count.
       step_dt_s: the env's policy step, s (episode lengths in the CSV are in seconds).
       steps_per_iteration: env steps of all ranks in one iteration.
+      on_scalars: ``(iteration, {name: value})`` once an iteration is logged (``training_scalars``);
+        it must not block (``ambulo.viewer``'s ``add_scalars`` queues them).
     """
 
     def __init__(self, runner, run_dir: Path, *, episodes: EpisodeStats | None, start: int, total: int,
                  verbose: bool, step_dt_s: float, steps_per_iteration: int, stop: interrupt.StopRequest,
                  periodic: PeriodicEval | None = None, stop_at_criterion: bool = False,
-                 eval_every: int | None = None, rank: distributed.Rank | None = None):
+                 eval_every: int | None = None, rank: distributed.Rank | None = None,
+                 on_scalars: Callable[[int, dict[str, float]], None] | None = None):
         self.runner, self.episodes, self.stop, self.periodic = runner, episodes, stop, periodic
         self.step_dt_s, self.steps_per_iteration = step_dt_s, steps_per_iteration
         rank = rank if rank is not None else distributed.Rank()  # one process: the main rank
         self.stop_at_criterion, self.eval_every, self.rank = stop_at_criterion, eval_every, rank
+        self.on_scalars = on_scalars
         self.bar = tqdm(total=total, initial=start, desc=f"train {run_dir.parent.name}", unit="it",
                         disable=verbose or not rank.is_main)
         self.metrics = MetricsCsv(run_dir / "metrics.csv", start) if rank.is_main else None
@@ -69,10 +76,14 @@ class TrainingProgress:
                                   action_std)
         self.bar.update(1)
         self.bar.set_postfix(reward=row[2] or "-", ep_len_s=row[3] or "-", fps=row[4])
+        if self.on_scalars is not None:
+            self.on_scalars(iteration, training_scalars(reward, length_s, float(row[4])))
         self.stop.check()
         if self.periodic is not None and self.periodic.due(iteration):
             result = self.periodic(self.runner, iteration)
             self.bar.write(summary(result, iteration, time.monotonic() - self.periodic.started_s))
+            if self.on_scalars is not None:
+                self.on_scalars(iteration, evaluation_scalars(result))
             reached = distributed.agree(self.periodic.reached is not None, self.rank, self.device)
             if self.stop_at_criterion and reached:
                 raise CriterionReached
@@ -90,4 +101,26 @@ class TrainingProgress:
         self.bar.close()
 
 
-__all__ = ["CriterionReached", "TrainingProgress"]
+def training_scalars(mean_reward: float | None, mean_episode_length_s: float | None,
+                     steps_per_s: float) -> dict[str, float]:
+    """An iteration's curves: the mean return and episode length (s) of the last 100 episodes
+    (absent before one ended) and env steps/s (the metrics.csv row's)."""
+    scalars = {"env steps/s": steps_per_s}
+    if mean_reward is not None:
+        scalars["mean reward"] = mean_reward
+    if mean_episode_length_s is not None:
+        scalars["episode length (s)"] = mean_episode_length_s
+    return scalars
+
+
+def evaluation_scalars(result: dict[str, Any]) -> dict[str, float]:
+    """An evaluation's curves (``--eval-every``): its fall rate, its step metrics (humanoid-walk:
+    the velocity errors) and each of the task's criteria, 1 met or 0 not."""
+    scalars = {"eval fall rate": result["fall_rate"]}
+    scalars.update({f"eval {name[len('mean_'):]}": value for name, value in result.items()
+                    if name.startswith("mean_abs")})
+    scalars.update({f"criterion {name}": float(bool(result[name])) for name in result["criteria"]})
+    return scalars
+
+
+__all__ = ["CriterionReached", "TrainingProgress", "evaluation_scalars", "training_scalars"]

@@ -8,6 +8,7 @@ import io
 import os
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -156,7 +157,7 @@ def train(task: str | None = None, *, num_envs: int | None = None,
           resume: str | os.PathLike | bool | None = None, log_root: str | os.PathLike = "runs",
           env_overrides: dict[str, Any] | None = None, ppo_overrides: dict[str, Any] | None = None,
           verbose: bool = False, eval_every: int | None = None, stop_at_criterion: bool = False,
-          started_s: float | None = None) -> Path:
+          started_s: float | None = None, watch: Callable[[envs.RLEnv], Any] | None = None) -> Path:
     """Train ``task`` with PPO; return the run directory.
 
     Args:
@@ -179,6 +180,11 @@ def train(task: str | None = None, *, num_envs: int | None = None,
         criteria on the CPU engine too (``ambulo.rl.periodic_eval``).
       started_s: ``time.monotonic()`` the timing counts from (default: now; the CLI passes
         the time it started).
+      watch: called with the training env before the first iteration (main rank only): ``ambulo
+        train --viewer web`` opens the web viewer on it (``ambulo.viewer.serve``: an app this
+        package may not import). What it returns gets ``add_scalars(iteration, {name: value})``
+        after every iteration (``progress.TrainingProgress``: the curves beside the scene) and
+        ``close()`` when training ends, however it ends.
 
     SIGINT and SIGTERM during training save the iteration under way and raise
     ``interrupt.TrainingInterrupted`` (see ``ambulo.rl.interrupt``).
@@ -241,12 +247,14 @@ def train(task: str | None = None, *, num_envs: int | None = None,
                                 device=str(env.device), start=start)
     elif resume and rank.is_main:  # evaluations of a crashed run's later iterations go, with or without --eval-every
         resume_evals(run_dir, start)
+    watcher = watch(env) if watch is not None and rank.is_main else None
     progress = TrainingProgress(runner, run_dir, episodes=episodes, start=start, total=ppo.max_iterations,
                                 verbose=verbose, step_dt_s=env.step_dt_s,
                                 # env steps of all ranks: each collects its own num_envs x rollout
                                 steps_per_iteration=ppo.num_steps_per_env * ppo.num_envs * rank.world_size,
                                 stop=stop, periodic=periodic, stop_at_criterion=stop_at_criterion,
-                                eval_every=eval_every, rank=rank)
+                                eval_every=eval_every, rank=rank,
+                                on_scalars=None if watcher is None else watcher.add_scalars)
     progress_box.append(progress)
     if not rank.is_main:
         runner.alg.after_update = progress.follow
@@ -258,6 +266,8 @@ def train(task: str | None = None, *, num_envs: int | None = None,
         pass
     finally:
         progress.close()
+        if watcher is not None:
+            watcher.close()
         env.close()
         if periodic is not None:
             periodic.close()

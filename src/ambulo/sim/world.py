@@ -170,7 +170,7 @@ class World(TaskHost):
         adopted, self.usd.on_adopt = self.usd.on_adopt, []
         for attach in adopted:  # what a script imported onto the stage before this World existed
             attach(self)
-        self.viewer = None if viewer is None else open_viewer(self, viewer, viewer_port)
+        self.viewer = open_viewer(self, viewer, viewer_port)  # None: none, unless a block asks (viewers.py)
 
     @classmethod
     def instance(cls) -> World | None:

@@ -1,6 +1,15 @@
-"""Isaac Gym's viewer calls, headless: scripts that open a viewer run unchanged without a display."""
+"""Isaac Gym's viewer calls, headless: scripts that open a viewer run unchanged without a display.
+
+Under ``ambulo run --viewer web`` (``web_viewers``) a script's viewer is also a web viewer
+(``ambulo.viewer``): the browser shows what Isaac Gym's window would, the sim at each
+``draw_viewer`` (a script that never draws it shows nothing, in Isaac Gym as here), with
+pause/step and the speed on the page (1x: what ``sync_frame_time`` does in Isaac Gym).
+"""
 
 from __future__ import annotations
+
+import contextlib
+from collections.abc import Iterator
 
 import numpy as np
 
@@ -18,6 +27,8 @@ class Viewer:
         self.position = np.array([3.0, 3.0, 2.0])
         self.target = np.zeros(3)
         self._renderer = None
+        self.web: _WebView | None = _WebView(sim, *_WEB[-1]) if _WEB else None
+        """The web viewer's side of this viewer (``ambulo run --viewer web``), else None."""
 
     def render_rgb(self) -> np.ndarray:
         """(height, width, 3) uint8: env 0 (its own world, so at its origin) seen from the camera."""
@@ -50,13 +61,17 @@ class HeadlessViewer:
         return Viewer(props, sim)
 
     def destroy_viewer(self, viewer: Viewer) -> None:
-        """Nothing to close headless."""
+        """Headless: nothing to close; a web viewer stops serving."""
+        if viewer.web is not None:
+            viewer.web.close()
 
     def query_viewer_has_closed(self, viewer: Viewer) -> bool:
         return False
 
     def draw_viewer(self, viewer: Viewer, sim, render_collision: bool = False) -> None:
-        """Headless: nothing is drawn."""
+        """Headless: nothing is drawn; a web viewer gets the sim's state (and holds it while paused)."""
+        if viewer.web is not None:
+            viewer.web.draw()
 
     def step_graphics(self, sim) -> None:
         """Headless: no graphics state to update."""
@@ -100,4 +115,71 @@ class HeadlessViewer:
         """No contacts drawn headless."""
 
 
-__all__ = ["HeadlessViewer", "Viewer"]
+_WEB: list[tuple[int, list]] = []
+"""(port, web views opened) of each ``web_viewers`` block, innermost last."""
+
+
+@contextlib.contextmanager
+def web_viewers(port: int) -> Iterator[list]:
+    """Inside the block every ``create_viewer`` also serves a web viewer (from port ``port``);
+    each is closed when the block ends, however it ends."""
+    opened: list[_WebView] = []
+    _WEB.append((port, opened))
+    try:
+        yield opened
+    finally:
+        _WEB.pop()
+        for view in opened:
+            view.close()
+
+
+class _WebView:
+    """A gym ``Sim`` as the web viewer watches an owner of a ``Simulation`` (``.sim``: its engine,
+    worlds and components). The web viewer opens at the first ``draw`` after ``prepare_sim``
+    (scripts create their viewer before or after their envs and ``prepare_sim``), then each
+    ``draw`` is its step: ``update`` with the simulated time since the last one."""
+
+    def __init__(self, gym_sim, port: int, opened: list):
+        self.gym_sim, self.port = gym_sim, port
+        self.components: dict = {}
+        self.viewer = None
+        self._drawn_frames = 0
+        self._closed = False
+        opened.append(self)
+
+    @property
+    def sim(self):  # the web viewer reads ``owner.sim``: this object is both
+        return self
+
+    @property
+    def engine(self):
+        return self.gym_sim.engine
+
+    @property
+    def num_worlds(self) -> int:
+        return len(self.gym_sim.envs)
+
+    def add(self, component):
+        self.components[component.name] = component
+        return component
+
+    def draw(self) -> None:
+        if self._closed or self.engine is None:
+            return
+        if self.viewer is None:
+            from ambulo.viewer import serve
+
+            self.viewer = serve(self, port=self.port)
+            self._drawn_frames = self.gym_sim.frame_count
+        frames = self.gym_sim.frame_count - self._drawn_frames
+        self._drawn_frames = self.gym_sim.frame_count
+        for component in list(self.components.values()):
+            component.update(frames * self.gym_sim.params.dt)
+
+    def close(self) -> None:
+        self._closed = True
+        if self.viewer is not None:
+            self.viewer.close()
+
+
+__all__ = ["HeadlessViewer", "Viewer", "web_viewers"]
