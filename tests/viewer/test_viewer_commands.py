@@ -4,6 +4,7 @@ leaves the port free. (The page itself is checked in a browser by test_viewer_br
 
 from __future__ import annotations
 
+import signal
 import socket
 import textwrap
 import threading
@@ -119,6 +120,35 @@ def test_generate_serves_the_page_and_writes_the_dataset(tmp_path):
                                "--height", "48", "--quiet"])
     assert status == 0 and served_the_viewer(page)
     assert (tmp_path / "data" / "annotations.json").is_file()
+
+
+@pytest.mark.timeout(300)
+def test_ctrl_c_during_training_frees_the_port(tmp_path):
+    def interrupt(viewer, step, scalars):  # Ctrl-C arrives during the first iteration's bookkeeping
+        signal.raise_signal(signal.SIGINT)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(ambulo.viewer.WebViewer, "add_scalars", interrupt)
+        status, page = run_served(["train", "cartpole", "--num-envs", "4", "--max-iterations", "5",
+                                   "--log-root", str(tmp_path)])
+    assert status == 128 + signal.SIGINT and served_the_viewer(page)  # run_served checked the port
+
+
+@pytest.mark.timeout(300)
+def test_ctrl_c_during_play_frees_the_port(watched_training):
+    updates = []
+    original = ambulo.viewer.WebViewer.update
+
+    def interrupt_after_half_a_second(viewer, dt_s):
+        updates.append(dt_s)
+        if len(updates) == 25:
+            raise KeyboardInterrupt
+        original(viewer, dt_s)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(ambulo.viewer.WebViewer, "update", interrupt_after_half_a_second)
+        status, page = run_served(["play", str(watched_training[3][0]), "--seconds", "5"])
+    assert status == 130 and served_the_viewer(page) and len(updates) == 25
 
 
 WORLD_SCRIPT = """
