@@ -18,6 +18,7 @@ import numpy as np
 from ambulo import assets as bundled
 from ambulo.core import DriveDefaults, EntityNames, RobotCfg, add_robot, new_scene
 
+from .asset_options import UrdfJointInfo, apply_asset_options, keep_links, urdf_joint_info
 from .types import (
     DOF_MODE_EFFORT,
     DOF_MODE_NONE,
@@ -64,6 +65,8 @@ class Asset:
     model: mujoco.MjModel
     """The asset compiled alone (at ``PROBE_PRIM``)."""
     names: EntityNames
+    urdf: UrdfJointInfo = field(default_factory=UrdfJointInfo)
+    """What the URDF says that the model does not keep (velocity limits, ``dont_collapse`` links)."""
     dof_props: np.ndarray = field(init=False)
     """(num_dofs,) ``DOF_PROPERTIES_DTYPE``: what ``get_asset_dof_properties`` returns."""
     shape_props: list[RigidShapeProperties] = field(init=False)
@@ -71,7 +74,7 @@ class Asset:
     actors created after a set take the new values, as in Isaac Gym)."""
 
     def __post_init__(self):
-        self.dof_props = default_dof_properties(self.model, self.names, self.options.default_dof_drive_mode)
+        self.dof_props = default_dof_properties(self.model, self.names, self.options, self.urdf.velocity)
         m = self.model
         self.shape_props = [RigidShapeProperties(friction=float(m.geom_friction[g, 0]),
                                                  torsion_friction=float(m.geom_friction[g, 1]),
@@ -81,8 +84,8 @@ class Asset:
 
     @property
     def shape_geom_ids(self) -> np.ndarray:
-        """Model ids of the asset's geoms, in model order (Isaac's shape order)."""
-        return np.flatnonzero(np.isin(self.model.geom_bodyid, self.names.body_ids))
+        """Model ids of the asset's collision geoms, in model order (Isaac's shape order)."""
+        return collision_geoms(self.model, self.names.body_ids)
 
     def body_properties(self) -> list[RigidBodyProperties]:
         """Each body's mass (kg), centre of mass in the body frame (m) and inertia about it (kg m^2)."""
@@ -110,24 +113,45 @@ class Asset:
     def num_shapes(self) -> int:
         return len(self.shape_geom_ids)
 
-    def robot_cfg(self, prim_path: str) -> RobotCfg:
-        """How the batched model attaches this asset at ``prim_path``."""
-        return RobotCfg(file=self.file, prim_path=prim_path, drives=NO_DRIVE, fixed_base=self.options.fix_base_link)
+    def attach(self, spec: mujoco.MjSpec, prim_path: str) -> None:
+        """Attach this asset at ``prim_path`` of ``spec`` as its options ask (the batched model
+        compiles it exactly as the probe did: same file, drives and option edits)."""
+        attach_asset(spec, self.file, prim_path, self.options)
+
+
+def collision_geoms(model: mujoco.MjModel, body_ids: np.ndarray) -> np.ndarray:
+    """Model ids of the geoms of ``body_ids`` that collide (Isaac's shapes: visual meshes are not
+    shapes), in model order."""
+    collides = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
+    return np.flatnonzero(np.isin(model.geom_bodyid, body_ids) & collides)
+
+
+def attach_asset(spec: mujoco.MjSpec, file: str, prim_path: str, options: AssetOptions) -> None:
+    add_robot(spec, RobotCfg(file=file, prim_path=prim_path, drives=NO_DRIVE, fixed_base=options.fix_base_link))
+    apply_asset_options(spec, prim_path, options)
 
 
 def load_asset(root: str, file: str, options: AssetOptions | None) -> Asset:
     """Load ``root/file`` (URDF, MJCF or USD) as an Isaac Gym asset."""
     options = options or AssetOptions()
     path = resolve_asset_file(root, file)
+    urdf = urdf_joint_info(path)
     spec = new_scene("asset")
-    add_robot(spec, RobotCfg(file=path, prim_path=PROBE_PRIM, drives=NO_DRIVE, fixed_base=options.fix_base_link))
+    attach_asset(spec, path, PROBE_PRIM, options)
+    keep = list(urdf.dont_collapse)
+    if options.fix_base_link:  # a welded root has no joint either: keep it a body, not part of the world
+        keep += [b.name.removeprefix(PROBE_PRIM + "/") for b in spec.bodies if (b.name or "").startswith(PROBE_PRIM)][:1]
+    keep_links(spec, PROBE_PRIM, keep)
     model = spec.compile()
-    return Asset(file=path, options=options, model=model, names=EntityNames(model, PROBE_PRIM))
+    return Asset(file=path, options=options, model=model, names=EntityNames(model, PROBE_PRIM), urdf=urdf)
 
 
-def default_dof_properties(model: mujoco.MjModel, names: EntityNames, drive_mode: int) -> np.ndarray:
-    """Isaac's DOF properties of the asset: limits, armature and friction from the joints;
-    stiffness, damping and effort limits from the file's drives (MJCF actuators; zero for a URDF)."""
+def default_dof_properties(model: mujoco.MjModel, names: EntityNames, options: AssetOptions,
+                           velocity_limits: dict[str, float] | None = None) -> np.ndarray:
+    """Isaac's DOF properties of the asset: limits, friction and armature (at least
+    ``options.armature``) from the joints; effort limits from the file's actuators or joint force
+    ranges (a URDF's ``<limit effort>``); velocity limits from a URDF's ``<limit velocity>``;
+    stiffness and damping from the file's drives (MJCF actuators; zero for a URDF)."""
     joints = names.joint_ids
     props = np.zeros(len(joints), DOF_PROPERTIES_DTYPE)
     if not len(joints):
@@ -136,10 +160,13 @@ def default_dof_properties(model: mujoco.MjModel, names: EntityNames, drive_mode
     props["hasLimits"] = model.jnt_limited[joints].astype(bool)
     props["lower"] = np.where(props["hasLimits"], model.jnt_range[joints, 0], -np.finfo(np.float32).max)
     props["upper"] = np.where(props["hasLimits"], model.jnt_range[joints, 1], np.finfo(np.float32).max)
-    props["driveMode"] = drive_mode
+    props["driveMode"] = options.default_dof_drive_mode
     props["friction"] = model.dof_frictionloss[dofs]
-    props["armature"] = model.dof_armature[dofs]
-    props["velocity"] = np.finfo(np.float32).max
+    props["armature"] = np.maximum(model.dof_armature[dofs], options.armature)
+    big = np.finfo(np.float32).max
+    velocity_limits = velocity_limits or {}
+    props["velocity"] = [velocity_limits.get(n, big) for n in names.joint_names]
+    props["effort"] = np.where(model.jnt_actfrclimited[joints], model.jnt_actfrcrange[joints, 1], big)
     act_of = {int(model.actuator_trnid[a, 0]): a for a in range(model.nu)}
     for i, j in enumerate(joints.tolist()):
         a = act_of.get(j)
@@ -149,8 +176,6 @@ def default_dof_properties(model: mujoco.MjModel, names: EntityNames, drive_mode
         props["damping"][i] = -model.actuator_biasprm[a, 2]
         if model.actuator_forcelimited[a]:
             props["effort"][i] = model.actuator_forcerange[a, 1]
-        else:
-            props["effort"][i] = np.finfo(np.float32).max
     return props
 
 
@@ -168,5 +193,5 @@ def drive_gains(props: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return kp.astype(np.float64), kd.astype(np.float64)
 
 
-__all__ = ["Asset", "NO_DRIVE", "PROBE_PRIM", "default_dof_properties", "drive_gains", "load_asset",
-           "resolve_asset_file"]
+__all__ = ["Asset", "NO_DRIVE", "PROBE_PRIM", "attach_asset", "collision_geoms", "default_dof_properties",
+           "drive_gains", "load_asset", "resolve_asset_file"]

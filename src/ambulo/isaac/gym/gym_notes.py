@@ -42,8 +42,9 @@ ISAAC_APPROXIMATED: dict[str, str] = {
     "draw_viewer": "headless: draws nothing (write_viewer_image_to_file renders env 0 on request)",
     "write_viewer_image_to_file": "renders env 0 only, with MuJoCo's offscreen renderer, at most 1280 x 960",
     "sync_frame_time": "headless: returns at once (no real-time pacing)",
-    "set_actor_rigid_shape_properties": "friction (sliding, torsional, rolling) per env; restitution, offsets "
-                                        "and filters are not applied",
+    "set_actor_rigid_shape_properties": "friction (sliding, torsional, rolling) per env, sliding averaged with "
+                                        "the ground's as PhysX combines it; restitution, offsets and filters are "
+                                        "not applied",
     "set_asset_rigid_shape_properties": "as set_actor_rigid_shape_properties, for actors created afterwards",
     "set_actor_rigid_body_properties": "mass per env (the model's constants recomputed); com and inertia are kept",
     "apply_rigid_body_force_tensors": "MuJoCo's xfrc_applied at each body's centre of mass, for the next simulate",

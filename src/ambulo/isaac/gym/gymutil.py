@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from .types import SIM_FLEX, SIM_PHYSX, SimParams
+from .types import SIM_FLEX, SIM_PHYSX, UP_AXIS_Y, UP_AXIS_Z, SimParams, Vec3
 
 
 def parse_device_str(device: str) -> tuple[str, int]:
@@ -59,13 +59,31 @@ def parse_sim_params(args: argparse.Namespace, cfg: dict | None = None, cfg_trai
     params.physx.use_gpu = getattr(args, "use_gpu", False)
     params.physx.num_threads = getattr(args, "num_threads", 0)
     params.physx.num_subscenes = getattr(args, "subscenes", 0)
-    for key, value in ((cfg or {}).get("sim") or {}).items():
-        if key == "physx":
-            for name, v in value.items():
-                setattr(params.physx, name, v)
-        elif hasattr(params, key):
-            setattr(params, key, value)
+    if (cfg or {}).get("sim"):
+        parse_sim_config(cfg["sim"], params)
     return params
 
 
-__all__ = ["parse_arguments", "parse_device_str", "parse_sim_params"]
+def parse_sim_config(values: dict, sim_params: SimParams) -> None:
+    """Set ``sim_params`` from a config dict (a task's ``sim`` section, as legged_gym and
+    IsaacGymEnvs write it): ``gravity`` a 3-list (m/s^2), ``up_axis`` 0 (y) or 1 (z), ``physx`` and
+    ``flex`` dicts of their fields, any other key a ``SimParams`` field. Keys ``SimParams`` does
+    not have fail, as a misspelt field would otherwise be silently dropped."""
+    for key, value in values.items():
+        if key == "gravity":
+            sim_params.gravity = Vec3(*value)
+        elif key == "up_axis":
+            sim_params.up_axis = UP_AXIS_Z if int(value) == UP_AXIS_Z else UP_AXIS_Y
+        elif key in ("physx", "flex"):
+            section = getattr(sim_params, key)
+            for name, v in value.items():
+                if not hasattr(section, name):
+                    raise ValueError(f"isaacgym: sim config {key}.{name} is not a {type(section).__name__} field")
+                setattr(section, name, v)
+        elif hasattr(sim_params, key):
+            setattr(sim_params, key, value)
+        else:
+            raise ValueError(f"isaacgym: sim config key {key!r} is not a SimParams field")
+
+
+__all__ = ["parse_arguments", "parse_device_str", "parse_sim_config", "parse_sim_params"]

@@ -18,6 +18,7 @@ MODULES: dict[str, dict[str, str]] = {
     "isaacgym.gymtorch": _all_of(f"{_GYM}.gymtorch"),
     "isaacgym.gymutil": _all_of(f"{_GYM}.gymutil"),
     "isaacgym.torch_utils": _all_of(f"{_GYM}.torch_utils"),
+    "isaacgym.terrain_utils": _all_of(f"{_GYM}.terrain_utils"),
 }
 """Isaac Gym module -> {name it provides: "ambulo.module:attribute"}."""
 

@@ -20,11 +20,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
-from ambulo.core import Entity, GroundCfg, PhysicsCfg, add_ground, add_robot, compile_scene, new_scene
+from ambulo.core import Entity, GroundCfg, PhysicsCfg, add_ground, compile_scene, new_scene
 from ambulo.engine import make_engine
 from ambulo.sensors.contact import ContactSensor, ContactSensorCfg
 
-from .assets import Asset, drive_gains
+from .assets import Asset, collision_geoms, drive_gains
 from .types import DOF_MODE_EFFORT, UP_AXIS_Z, PlaneParams, SimParams, Transform, Vec3
 
 log = logging.getLogger(__name__)
@@ -132,14 +132,16 @@ class Sim:
             add_ground(spec, ground_cfg(self.ground))
         paths = [f"/World/actor{k}" for k in range(len(template))]
         for asset, path in zip(template, paths, strict=True):
-            add_robot(spec, asset.robot_cfg(path))
+            asset.attach(spec, path)
         physx = self.params.physx
-        for geom in spec.geoms:
-            if geom.name.startswith("/World/actor"):
-                # PhysX creates contacts within contact_offset and rests shapes rest_offset apart;
-                # MuJoCo detects within margin and pushes apart below margin - gap
-                geom.margin = physx.contact_offset
-                geom.gap = physx.contact_offset - physx.rest_offset
+        for geom in _actor_geoms(spec):  # by body: a URDF's geoms have no names
+            # PhysX creates contacts within contact_offset and rests shapes rest_offset apart;
+            # MuJoCo detects within margin and pushes apart below margin - gap
+            geom.margin = physx.contact_offset
+            geom.gap = physx.contact_offset - physx.rest_offset
+            # PhysX averages two shapes' frictions, MuJoCo takes the larger: the actors' geoms
+            # outrank the ground and carry the average with it (``_contact_friction``)
+            geom.priority = 1
         self.contacts = ContactSensor(ContactSensorCfg(prim_paths=tuple(
             f"{path}/{name}" for asset, path in zip(template, paths, strict=True) for name in asset.body_names),
             name="isaacgym_contacts"))
@@ -200,14 +202,21 @@ class Sim:
         rows = torch.tensor([e.index for e in envs], device=self.engine.device)
         masses_changed = False
         for k, entity in enumerate(self.entities):
-            geoms = np.flatnonzero(np.isin(self.engine.model.geom_bodyid, entity._body_ids_np))
-            friction = np.array([[[p.friction, p.torsion_friction, p.rolling_friction] for p in e.actors[k].shape_props]
-                                 for e in envs]).reshape(len(envs), len(geoms), 3)
+            geoms = collision_geoms(self.engine.model, entity._body_ids_np)
+            friction = np.array([[[self._contact_friction(p.friction), p.torsion_friction, p.rolling_friction]
+                                  for p in e.actors[k].shape_props] for e in envs]).reshape(len(envs), len(geoms), 3)
             self._write_model_rows("geom_friction", geoms, friction, rows)
             masses = np.array([[p.mass for p in e.actors[k].body_props] for e in envs]).reshape(len(envs), -1)
             masses_changed |= self._write_model_rows("body_mass", entity._body_ids_np, masses, rows)
         if masses_changed:
             self.engine.set_const(rows)
+
+    def _contact_friction(self, shape_friction: float) -> float:
+        """The sliding friction MuJoCo should use for an actor shape: PhysX's average of the shape's
+        and the ground's (``PlaneParams.dynamic_friction``); the shape's own without a ground."""
+        if self.ground is None:
+            return shape_friction
+        return 0.5 * (shape_friction + self.ground.dynamic_friction)
 
     def _write_model_rows(self, name: str, cols, values: np.ndarray, rows: torch.Tensor) -> bool:
         """Write per-world ``values`` (R, C, ...) of model field ``name`` at columns ``cols`` of worlds
@@ -219,6 +228,8 @@ class Sim:
             return False
         self._expanded.add(name)
         field_ = self.engine.model_field(name)
+        # a field of a DOF-properties record is a strided view: copy it before torch wraps it
+        values = np.ascontiguousarray(values)
         field_[rows[:, None], cols[None, :]] = torch.as_tensor(values, dtype=field_.dtype, device=field_.device)
         return True
 
@@ -236,6 +247,13 @@ class Sim:
             self._origins = torch.tensor(np.array([e.origin for e in self.envs]), dtype=self.engine.dtype,
                                          device=self.engine.device)
         return self._origins
+
+
+def _actor_geoms(spec):
+    """The geoms of every actor attached to ``spec`` (bodies under ``/World/actor``)."""
+    for body in spec.bodies:
+        if (body.name or "").startswith("/World/actor"):
+            yield from body.geoms
 
 
 def ground_cfg(plane: PlaneParams) -> GroundCfg:

@@ -19,6 +19,8 @@ frame and positions per world without the env origin, so no zero-copy view has I
 
 from __future__ import annotations
 
+import math
+
 import torch
 
 from ambulo.utils.math import quat_rotate
@@ -169,8 +171,9 @@ class SimTensors:
     def _engine_view(self, values: torch.Tensor, per_env: int, *tail: int) -> torch.Tensor:
         values = torch.as_tensor(values)
         expected = self.num_envs * per_env
-        if values.shape[0] != expected:
-            raise ValueError(f"isaacgym: a tensor of {values.shape[0]} rows where the sim has {expected} "
+        # Isaac reads the tensor's memory as the flat buffer: (num_envs, dofs) works as (num_dofs,)
+        if values.numel() != expected * math.prod(tail):
+            raise ValueError(f"isaacgym: a tensor of shape {tuple(values.shape)} where the sim has {expected} rows "
                              f"({self.num_envs} envs x {per_env}); pass the whole tensor (indexed calls take indices)")
         return values.detach().to(self.sim.engine.device, self.sim.engine.dtype).reshape(self.num_envs, per_env, *tail)
 

@@ -258,9 +258,24 @@ class CameraProperties:
     supersampling_vertical: int = 1
 
 
+class _FloatFields:
+    """Isaac's property structs are pybind classes whose float fields convert what they are given
+    (legged_gym assigns a one-element torch tensor to ``friction``); these do the same on assignment."""
+
+    _FLOATS: tuple[str, ...] = ()
+
+    def __setattr__(self, name, value):
+        if name in self._FLOATS and not isinstance(value, float):
+            value = float(value)
+        super().__setattr__(name, value)
+
+
 @dataclass
-class RigidShapeProperties:
+class RigidShapeProperties(_FloatFields):
     """One shape's contact properties (``get_actor_rigid_shape_properties``)."""
+
+    _FLOATS = ("friction", "rolling_friction", "torsion_friction", "restitution", "contact_offset", "rest_offset",
+               "compliance", "thickness")
 
     friction: float = 1.0
     rolling_friction: float = 0.0
@@ -274,8 +289,10 @@ class RigidShapeProperties:
 
 
 @dataclass
-class RigidBodyProperties:
+class RigidBodyProperties(_FloatFields):
     """One body's mass properties (``get_actor_rigid_body_properties``)."""
+
+    _FLOATS = ("mass",)
 
     mass: float = 0.0
     com: Vec3 = field(default_factory=Vec3)
@@ -299,10 +316,15 @@ ISAAC_APPROXIMATED: dict[str, str] = {
     **{f"SimParams.{name}": _IGNORED for name in ("num_client_threads", "enable_actor_creation_warning",
                                                   "stress_visualization", "flex")},
     **{f"AssetOptions.{name}": _IGNORED for name in (
-        "angular_damping", "linear_damping", "max_angular_velocity", "max_linear_velocity", "density", "armature",
-        "thickness", "collapse_fixed_joints", "flip_visual_attachments", "replace_cylinder_with_capsule",
-        "override_com", "override_inertia", "use_mesh_materials", "mesh_normal_mode", "disable_gravity",
+        "angular_damping", "linear_damping", "max_angular_velocity", "max_linear_velocity", "density",
+        "thickness", "override_com", "override_inertia", "use_mesh_materials", "mesh_normal_mode", "disable_gravity",
         "convex_decomposition_from_submeshes", "vhacd_enabled", "slices_per_cylinder", "enable_gyroscopic_forces")},
+    "AssetOptions.armature": "the DOFs' armature is at least this (MuJoCo dof armature; a file's larger one is kept)",
+    "AssetOptions.collapse_fixed_joints": "MuJoCo's fusestatic: links on fixed joints merge into their parent body; "
+                                          "URDF joints with dont_collapse=\"true\" keep their child link",
+    "AssetOptions.replace_cylinder_with_capsule": "collision cylinders become capsules of the same radius and "
+                                                  "cylinder length (so 2 radii longer overall)",
+    "AssetOptions.flip_visual_attachments": "accepted: visual meshes keep the file's frames (they are only drawn)",
     "PlaneParams.normal": "+z only",
     "PlaneParams.static_friction": "kept, not used: MuJoCo has one sliding friction, dynamic_friction",
     "PlaneParams.segmentation_id": _IGNORED,
