@@ -206,8 +206,16 @@ def test_run_serves_the_scripts_simulation(tmp_path, capsys, script):
         status, page = run_served(["run", "--seconds", "0.3", str(path)])
     World.clear_instance()
     assert status == 0 and served_the_viewer(page)
-    assert "0.30 s simulated" in capsys.readouterr().out
+    printed = capsys.readouterr()
+    assert "0.30 s simulated" in printed.out and "showed nothing" not in printed.err
     assert len(opened) == 1 and opened[0].frames_sent > 1  # frames after the first: its steps were streamed
+
+
+def test_run_says_when_a_script_showed_nothing(tmp_path, capsys):
+    path = tmp_path / "headless.py"
+    path.write_text("print('no World, no viewer')\n")
+    status, _ = run_served(["run", str(path)])
+    assert status == 0 and "showed nothing" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("argv, problem", [

@@ -99,8 +99,11 @@ def _watched(viewer: str | None, port: int):
         return
     import ambulo.viewer  # noqa: F401  (registers viewer="web" for the Worlds)
 
-    with viewer_for_new_worlds(viewer, port), web_viewers(port):
+    with viewer_for_new_worlds(viewer, port) as worlds, web_viewers(port) as gym_views:
         yield
+    if not worlds and not any(view.viewer is not None for view in gym_views):
+        print(f"ambulo run: --viewer {viewer} showed nothing: the script created no World and drew no Isaac Gym "
+              "viewer (gym.create_viewer, then gym.draw_viewer in its loop)", file=sys.stderr)
 
 
 __all__ = ["RunResult", "ScriptPathError", "run_script"]
