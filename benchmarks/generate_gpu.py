@@ -14,8 +14,8 @@ The tutorial dataset (``replicator.example_config``, the warehouse bay) at ``--s
 - **raw** (the ceiling): ``TiledCamera.render`` alone (BVH refit, ray cast, unpack) of the batch
   just randomized, repeated: the renderer's own speed;
 - **memory**: ``BatchedFrameProducer.batches``, what a training loop gets: every frame
-  randomized with the CPU path's draws, rendered, instance ids, tight boxes and pixel counts on
-  the device; nothing copied to the host;
+  randomized with the CPU path's draws (on ``--draw-workers`` processes, a batch ahead),
+  rendered, instance ids, tight boxes and pixel counts on the device; nothing copied to the host;
 - **disk**: ``ambulo generate --device``'s ``run_frames`` with this producer and
   ``--writer-threads`` encoders, then the COCO merge, into a fresh folder;
 - **disk, processes**: ``--processes`` producers on the same device (``ProducerPool``, what
@@ -137,6 +137,9 @@ def main() -> None:
     p.add_argument("--num-worlds", "--worlds", dest="num_worlds", type=int, default=256, help="frames per launch")
     p.add_argument("--frames", type=int, default=2048, help="frames of each timed run")
     p.add_argument("--writer-threads", type=int, default=None, help="encoders of the disk run (default: cores)")
+    p.add_argument("--draw-workers", type=int, default=None,
+                   help="processes drawing the randomizations for the memory and disk runs (default: cores - 2 "
+                        "on CUDA, 0 on Warp's CPU device)")
     p.add_argument("--processes", type=int, default=None,
                    help="producers on the device for the second disk run (default: cores // 2, at most 8; 0 skips)")
     p.add_argument("--out", default=None, help="parent folder of the disk runs' datasets (default: a temporary one)")
@@ -145,6 +148,9 @@ def main() -> None:
     cpus = usable_cpus()
     writer_threads = args.writer_threads or cpus
     processes = min(8, max(1, cpus // 2)) if args.processes is None else args.processes
+    draw_workers = args.draw_workers
+    if draw_workers is None:
+        draw_workers = max(0, cpus - 2) if args.device.startswith("cuda") else 0
     config = rep.example_config(width, height)
     n, dev = args.num_worlds, args.device
     frames = list(range(args.frames))
@@ -157,7 +163,10 @@ def main() -> None:
         # -- warm-up: not in any rate ------------------------------------------------------
         start = time.perf_counter()
         say("building the producer (scene, MuJoCo Warp model, render context)")
-        producer = BatchedFrameProducer(config, num_worlds=n, device=dev)
+        producer = BatchedFrameProducer(config, num_worlds=n, device=dev, draw_workers=draw_workers)
+        if producer.draws is not None:
+            say(f"starting {draw_workers} draw processes")
+            producer.draws.warm()
         setup_s = time.perf_counter() - start
         say(f"producer ready after {setup_s:.1f} s; first batch: compiles or loads the kernels "
             "(minutes with a cold cache)")
@@ -167,13 +176,15 @@ def main() -> None:
         first_batch_s = time.perf_counter() - start
         say(f"first batch after {first_batch_s:.1f} s; warming the capture and writer paths")
         start = time.perf_counter()
+        draws, producer.draws = producer.draws, None  # the profile draws in this process
         profile_batch(producer, dev, 0, frames[:n], root / "warm")  # first use of every other path
         shutil.rmtree(root / "warm", ignore_errors=True)
         warm_paths_s = time.perf_counter() - start
 
-        # -- profile: one batch stage by stage ---------------------------------------------------
-        say("profiling one batch stage by stage")
+        # -- profile: one batch stage by stage, the draws in this process -----------------------
+        say("profiling one batch stage by stage (draws in this process)")
         profile = profile_batch(producer, dev, 1, frames[:n], root / "profile")
+        producer.draws = draws
         shutil.rmtree(root / "profile", ignore_errors=True)
         say("ms a frame: " + ", ".join(f"{k} {v}" for k, v in profile.items()))
 
@@ -209,6 +220,7 @@ def main() -> None:
         shutil.rmtree(out, ignore_errors=True)
         say(f"to disk: {disk_fps:.0f} frames/s ({disk_fps / raw_fps:.3f} of raw), {size_mb / len(frames):.2f} "
             f"MB a frame, {writer_threads} encoder threads")
+        producer.close()
         del producer
 
         # -- disk on several producer processes sharing the device -------------------------------
@@ -244,7 +256,7 @@ def main() -> None:
         "raw_render_fps": round(raw_fps, 1),
         "memory_fps": round(memory_fps, 1), "memory_of_raw": round(memory_fps / raw_fps, 3),
         "disk_fps": round(disk_fps, 1), "disk_of_raw": round(disk_fps / raw_fps, 3),
-        "writer_threads": writer_threads, "disk_processes": procs, "dataset_mb_per_frame": round(size_mb / len(frames), 3),
+        "writer_threads": writer_threads, "draw_workers": draw_workers, "disk_processes": procs, "dataset_mb_per_frame": round(size_mb / len(frames), 3),
         "targets": {"disk_fps": 2000, "memory_fps": 50000, "size": [640, 480]},
         "meets_targets": {"disk": best_disk >= 2000, "memory": memory_fps >= 50000} if (width, height) == (640, 480)
         else None,

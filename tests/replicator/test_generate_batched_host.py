@@ -61,3 +61,22 @@ def test_host_randomization_leaves_the_device_as_per_world_writes_would():
     # a second batch starts from the reset state, not from the first batch's
     host.randomize(seed, chunk)
     assert torch.equal(host.engine.qpos, want["qpos"])
+
+
+@pytest.mark.slow
+def test_draws_on_worker_processes_equal_the_draws_in_process():
+    # what --draw-workers changes: where the draws run, never what they are
+    size, seed, chunk = (48, 36), 7, [3, 1, 4, 1, 5]
+    pooled = BatchedFrameProducer(rep.example_config(*size), num_worlds=5, device="cpu", draw_workers=2)
+    inline = BatchedFrameProducer(rep.example_config(*size), num_worlds=5, device="cpu")
+    try:
+        assert pooled.randomize(seed, chunk) == inline.randomize(seed, chunk)
+        got, want = _state(pooled), _state(inline)
+        for name in want:
+            assert torch.equal(got[name], want[name]), name
+        # batches draw a chunk ahead; the labels are the in-process ones, batch for batch
+        for a, b in zip(pooled.batches(seed, range(8)), inline.batches(seed, range(8)), strict=True):
+            assert torch.equal(a["index"], b["index"]) and torch.equal(a["boxes"], b["boxes"])
+            assert torch.equal(a["rgb"], b["rgb"])
+    finally:
+        pooled.close()

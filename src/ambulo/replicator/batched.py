@@ -32,6 +32,7 @@ from ambulo.sensors.tiled_camera import TiledCamera, TiledCameraCfg
 from ambulo.utils.rotations import mat_to_quat
 
 from .config import DatasetConfig
+from .draw_pool import DrawPool, collect
 from .host_worlds import HostWorlds
 from .producer import apply_randomizers
 from .randomizers import SceneContext
@@ -86,7 +87,7 @@ def tiled_camera_cfg(camera: PinholeCfg) -> TiledCameraCfg:
 class BatchedFrameProducer:
     """Renders ``num_worlds`` frames of a seeded dataset per launch (see the module docstring)."""
 
-    def __init__(self, config: DatasetConfig, num_worlds: int = 64, device: str = "cuda"):
+    def __init__(self, config: DatasetConfig, num_worlds: int = 64, device: str = "cuda", draw_workers: int = 0):
         if config.visible_fraction:
             raise ValueError("visible_fraction needs one isolated render per object, which the batched GPU path "
                              "does not do; generate on the CPU (no --device) or set visible_fraction=False")
@@ -117,6 +118,8 @@ class BatchedFrameProducer:
         self._cache: dict[int, tuple[tuple[int, int], dict]] = {}
         self._annotators = set(config.camera.annotators)
         self._fields = {name: self.engine.field(name) for name in ("geom_xpos", "geom_xmat", "xpos", "xmat")}
+        # draw_workers > 0: the draws run on that many processes, a batch ahead (``draw_pool``)
+        self.draws = DrawPool(config, draw_workers) if draw_workers else None
 
     @property
     def gl_renderer(self) -> str:
@@ -129,14 +132,31 @@ class BatchedFrameProducer:
         self.ctx.world = world
         return apply_randomizers(self.config.randomizers, self._names, self._cache, self.ctx, seed, index)
 
-    def randomize(self, seed: int, chunk: list[int]) -> list[dict]:
+    def randomize(self, seed: int, chunk: list[int], drawn: list | None = None) -> list[dict]:
         """World w gets frame ``chunk[w]``'s scene: the device reset, every world's draws applied
-        on the host, then one copy per written field (``HostWorlds``); returns the frame logs."""
+        on the host, then one copy per written field (``HostWorlds``); returns the frame logs.
+        With a draw pool the draws come from its processes (``drawn``: the chunk's submission,
+        made here if not given)."""
         self.sim.reset(forward=False)
         self.host.begin()
-        logs = [self.randomize_world(w, seed, index) for w, index in enumerate(chunk)]
+        if self.draws is None:
+            logs = [self.randomize_world(w, seed, index) for w, index in enumerate(chunk)]
+        else:
+            logs = collect(self.draws.submit(seed, chunk) if drawn is None else drawn, self.host)
         self.host.upload(len(chunk))
         return logs
+
+    def _chunks(self, seed: int, indices: list[int]):
+        """(chunk, drawn) for each launch's frames; with a draw pool, the next chunk's draws are
+        submitted before this one is rendered, so they run while it renders and is consumed."""
+        indices = list(indices)
+        chunks = [indices[start:start + self.num_worlds] for start in range(0, len(indices), self.num_worlds)]
+        ahead = self.draws.submit(seed, chunks[0]) if self.draws is not None and chunks else None
+        for i, chunk in enumerate(chunks):
+            drawn = ahead
+            if self.draws is not None and i + 1 < len(chunks):
+                ahead = self.draws.submit(seed, chunks[i + 1])
+            yield chunk, drawn
 
     def kinematics(self) -> None:
         """Poses of bodies, geoms, cameras and lights from ``qpos``: all a render and the boxes
@@ -150,11 +170,9 @@ class BatchedFrameProducer:
     def frames(self, seed: int, indices: list[int]):
         """Yield (index, log, capture) for ``indices``, ``num_worlds`` at a time; ``capture`` has
         ``Camera.capture``'s keys and layouts (NumPy), so the CPU path's writers take it."""
-        indices = list(indices)
         k_matrix = self.camera.get_intrinsics_matrix()
-        for start in range(0, len(indices), self.num_worlds):
-            chunk = indices[start:start + self.num_worlds]
-            logs, labels = self._render_chunk(seed, chunk)
+        for chunk, drawn in self._chunks(seed, indices):
+            logs, labels = self._render_chunk(seed, chunk, drawn)
             host = self.to_host(len(chunk), *labels)
             for w, (index, log) in enumerate(zip(chunk, logs)):
                 yield index, log, self.capture(w, host, k_matrix)
@@ -170,21 +188,19 @@ class BatchedFrameProducer:
         ``pixels`` (B, K) int64; ``semantic_ids`` (K,) int64 category id of each instance (1-based
         into ``table.categories``). B is ``num_worlds`` but for a last, partial batch.
         """
-        indices = list(indices)
         dev = self.engine.device
         semantic = torch.as_tensor(self.table.semantic_ids[1:], dtype=torch.int64, device=dev)
-        for start in range(0, len(indices), self.num_worlds):
-            chunk = indices[start:start + self.num_worlds]
-            _, (instances, boxes, pixels) = self._render_chunk(seed, chunk)
+        for chunk, drawn in self._chunks(seed, indices):
+            _, (instances, boxes, pixels) = self._render_chunk(seed, chunk, drawn)
             out, count = self.camera.data.output, len(chunk)
             yield {"index": torch.as_tensor(chunk, dtype=torch.int64, device=dev), "rgb": out["rgb"][:count],
                    "depth": out["depth"][:count, ..., 0], "instances": instances, "boxes": boxes, "pixels": pixels,
                    "semantic_ids": semantic}
 
-    def _render_chunk(self, seed: int, chunk: list[int]) -> tuple[list[dict], tuple]:
+    def _render_chunk(self, seed: int, chunk: list[int], drawn: list | None = None) -> tuple[list[dict], tuple]:
         """World w shows frame ``chunk[w]``: reset, randomize, one kinematics pass, one render.
         Returns the frame logs and the device labels of the chunk's worlds (``labels``)."""
-        logs = self.randomize(seed, chunk)
+        logs = self.randomize(seed, chunk, drawn)
         self.kinematics()
         self.camera.render()
         return logs, self.labels(len(chunk))
@@ -258,7 +274,10 @@ class BatchedFrameProducer:
         return out
 
     def close(self) -> None:
-        """Nothing to release: the engine and camera buffers are freed with the producer."""
+        """Stop the draw processes (the engine and camera buffers are freed with the producer)."""
+        if self.draws is not None:
+            self.draws.close()
+            self.draws = None
 
 
 __all__ = ["BatchedFrameProducer", "IMAGE_SOURCE", "device_tight_boxes", "tiled_camera_cfg"]

@@ -76,6 +76,29 @@ class HostWorlds:
         for camera in self.cameras.values():
             camera.reset_pose()
 
+    def rows(self, start: int, count: int) -> dict:
+        """Worlds ``[start, start + count)`` of every field handed out, as NumPy copies keyed by
+        (kind, name): what ``set_rows`` writes into another ``HostWorlds`` (``draw_pool``)."""
+        part = slice(start, start + count)
+        out: dict = {("model", name): host[part].numpy().copy() for name, host in self._model.items()}
+        out |= {("state", name): host[part].numpy().copy() for name, host in self._state.items()}
+        for name, camera in self.cameras.items():
+            out["camera_pos", name] = camera._offset_pos[part].numpy().copy()
+            out["camera_rot_gl", name] = camera._offset_rot_gl[part].numpy().copy()
+        return out
+
+    def set_rows(self, start: int, rows: dict) -> None:
+        """Write ``rows`` (from ``rows``) into worlds from ``start`` on."""
+        for (kind, name), values in rows.items():
+            if kind == "model":
+                host = self.model_field(name)
+            elif kind == "state":
+                host = self.field(name)
+            else:
+                camera = self.cameras[name]
+                host = camera._offset_pos if kind == "camera_pos" else camera._offset_rot_gl
+            host[start:start + len(values)] = torch.from_numpy(values)
+
     def upload(self, count: int) -> None:
         """Write worlds ``[0, count)`` of every field handed out to the device: one copy each."""
         engine = self._engine
