@@ -110,6 +110,19 @@ def geom_shapes(model: mujoco.MjModel) -> list[GeomShape]:
     return shapes
 
 
+GROUND_MIN_M = 2.0
+"""A horizontal plane at least this wide is ground (below: a decor plane)."""
+
+
+def is_ground(shape: GeomShape) -> bool:
+    """A plane lying flat (in its body's frame: ground planes hang from the world) and wide."""
+    if not shape.is_plane:
+        return False
+    v = shape.vertices_b
+    span = v.max(axis=0) - v.min(axis=0)
+    return bool(span[2] < 1e-6 and min(span[0], span[1]) >= GROUND_MIN_M)
+
+
 def static_bodies(model: mujoco.MjModel) -> np.ndarray:
     """(nbody,) bool: bodies welded to the world (they never move, so their poses are sent once)."""
     return (model.body_weldid == 0) & (model.body_mocapid < 0)

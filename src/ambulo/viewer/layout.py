@@ -13,10 +13,11 @@ import math
 
 import numpy as np
 
-from .geometry import GeomShape
+from .geometry import GeomShape, is_ground
 
-MIN_SPACING_M = 2.0
-"""Closest two drawn worlds sit: a robot alone is about a metre wide."""
+MIN_SPACING_M = 3.0
+"""Closest two drawn worlds sit: a robot alone is about a metre wide, and a walking one leaves its
+start by a metre in a few seconds."""
 MARGIN_M = 1.0
 """Gap between two worlds' scenes, m."""
 GRID_SIZES = (1, 4, 9, 16)
@@ -34,10 +35,10 @@ def grid_offsets_w(count: int, spacing_m: float) -> np.ndarray:
 
 def scene_spacing_m(shapes: list[GeomShape], xpos_w: np.ndarray, xmat_w: np.ndarray) -> float:
     """Spacing of the grid: the larger horizontal extent of the scene's shapes other than ground
-    planes (posed by ``xpos_w`` (nbody, 3) and ``xmat_w`` (nbody, 3, 3)) plus ``MARGIN_M``, at
+    planes (``geometry.is_ground``) (posed by ``xpos_w`` (nbody, 3) and ``xmat_w`` (nbody, 3, 3)) plus ``MARGIN_M``, at
     least ``MIN_SPACING_M``: an apartment's walls do not overlap the next world's."""
     points = [shape.vertices_b @ xmat_w[shape.body_id].T + xpos_w[shape.body_id]
-              for shape in shapes if not shape.is_plane]
+              for shape in shapes if not is_ground(shape)]
     if not points:
         return MIN_SPACING_M
     xy = np.concatenate(points)[:, :2]

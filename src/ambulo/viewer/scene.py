@@ -2,8 +2,10 @@
 ``/w<k>`` at its offset (``layout.grid_offsets_w``) holding a frame ``/w<k>/b<body>`` per body with
 its meshes; only the poses of moving bodies travel after the first frame of a layout.
 
-Ground planes are drawn in slot 0 only (every world's ground is the same plane; copies would
-z-fight); the other worlds stand on it or beside it.
+Ground planes (``geometry.is_ground``: horizontal planes at least 2 m wide) are drawn in slot 0 only, with a
+grid on them (every world's ground is the same plane; copies would z-fight); the other worlds stand
+on it or beside it. Other planes (an apartment's skirting, door casings, pictures) are scenery,
+drawn in every slot without a grid.
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ import numpy as np
 import viser
 from viser import _messages
 
-from .geometry import GeomShape, static_bodies
+from .geometry import GeomShape, is_ground, static_bodies
 from .layout import grid_offsets_w
 
 
@@ -65,7 +67,8 @@ class GridScene:
         slot_frame = scene.add_frame(f"/w{k}", show_axes=False, position=tuple(offset_w))
         bodies: dict[int, viser.FrameHandle] = {}
         for shape in self.shapes:
-            if shape.is_plane and k > 0:
+            ground = is_ground(shape)
+            if ground and k > 0:
                 continue
             b = shape.body_id
             if b not in bodies:
@@ -74,7 +77,7 @@ class GridScene:
             opacity = None if shape.rgba[3] >= 1.0 else shape.rgba[3]
             scene.add_mesh_simple(f"/w{k}/b{b}/g{shape.geom_id}", shape.vertices_b, shape.faces, color=rgb,
                                   opacity=opacity, cast_shadow=not shape.is_plane, receive_shadow=True)
-            if shape.is_plane:
+            if ground:
                 half = float(np.abs(shape.vertices_b[:, :2]).max())
                 scene.add_grid(f"/w{k}/b{b}/grid{shape.geom_id}", width=2 * half, height=2 * half,
                                position=tuple(shape.vertices_b[:, :3].mean(axis=0) + [0, 0, 1e-3]),
