@@ -86,3 +86,20 @@ def test_a_footstep_window_off_the_map_is_one_blocked_cell_not_the_far_side():
     assert window.occupied.shape == (1, 1) and window.occupied.all()
     plan = stage.plan(grid, 0, False, (-4.0, -4.0, 0.0), (-4.0, -3.9, 1.0))
     assert plan.status.value == "start_in_collision"
+
+
+def test_a_goal_beside_a_wall_is_stood_on_a_little_away_from_it():
+    """``roomy_goal``: a goal 0.3 m from the south wall moves up to ``shift_m`` away from it (to the
+    cell with the most clearance, capped at ``room_m``); a goal with room stays where it is."""
+    from ambulo.navigation.planning import roomy_goal
+
+    grid = _corridor_map()
+    clearance = footstep_clearance(grid, optimistic=True)
+    near = np.array([1.5, 0.1 + 0.3])  # the wall's cells end at y = 0.1
+    stance = roomy_goal(grid, clearance, near, room_m=0.35, shift_m=0.1)
+    assert np.linalg.norm(stance - near) <= 0.1 + 1e-9
+    assert stance[1] > near[1] + 0.04  # away from the wall
+    iy, ix = grid.cell_of(stance)
+    assert clearance[iy, ix] > clearance[grid.cell_of(near)]
+    open_goal = np.array([1.5, 1.5])
+    assert np.array_equal(roomy_goal(grid, clearance, open_goal, room_m=0.35, shift_m=0.1), open_goal)

@@ -59,6 +59,7 @@ from .planning import (
     RoutePlanner,
     choose_subgoal,
     footstep_clearance,
+    roomy_goal,
     route_heading,
 )
 from .walkers import BalanceReport, PolicyWalker, Walker, body_path
@@ -97,6 +98,12 @@ class NavigatorCfg(Checked):
     """A start stance that touches an obstacle moves to the nearest clear cell within this, m."""
     goal_backoff_m: float = 0.15
     """A goal whose stance touches an obstacle is approached up to this short along the route, m."""
+    goal_room_m: float = 0.35
+    """The robot stands where it has this much clearance near the goal, when there is such a place
+    within ``goal_shift_m`` (``planning.roomy_goal``: its arms reach 0.30-0.33 m), m..."""
+    goal_shift_m: float = 0.1
+    """... this far from the goal at most (the tracker stops within 0.12 m of it: 0.22 m inside the
+    0.3 m success radius), m."""
     min_replan_gap_s: float = 0.25
     """Triggers other than a new goal or relocalisation wait this long after the last replan, s."""
     goal_tolerance_m: float = 0.3
@@ -247,6 +254,9 @@ class Navigator:
     def set_goal(self, goal_xy_m, yaw_rad: float | None = None) -> None:
         """Navigate to ``goal_xy_m`` (x m, y m), arriving with ``yaw_rad`` if given."""
         self.goal_xy_m = np.array(check_vector("goal_xy_m", goal_xy_m, 2, "pass (x m, y m)"), float)
+        self._stance_xy_m = self.goal_xy_m.copy()
+        """Where the robot stands for the goal (``planning.roomy_goal``, renewed with the map at each
+        final plan)."""
         self.goal_yaw_rad = None if yaw_rad is None else float(yaw_rad)
         self.done = False
         self.status = "walking"
@@ -431,7 +441,7 @@ class Navigator:
                 self.walker.scan(c.scan_rate_rad_s)
             return
         est = self.estimate.xyyaw
-        at_goal = float(np.linalg.norm(est[:2] - self.goal_xy_m)) < c.arrive_radius_m
+        at_goal = float(np.linalg.norm(est[:2] - self._stance_xy_m)) < c.arrive_radius_m
         if at_goal and not self.walker.arrived:
             self.walker.stand()  # close enough whatever the plan says (a goal stance that touched something)
         if (self.walker.arrived and self.plan_final) or at_goal:
@@ -551,7 +561,8 @@ class Navigator:
             k, final = choose_subgoal(route, clearance, grid, self.cfg.planning)
             path = route.path_xy_m
             if final:
-                goal_xy = self.goal_xy_m
+                self._stance_xy_m = goal_xy = roomy_goal(grid, clearance, self.goal_xy_m, self.cfg.goal_room_m,
+                                                         self.cfg.goal_shift_m)
                 yaw = self.goal_yaw_rad if self.goal_yaw_rad is not None else route_heading(path, k)
             else:
                 goal_xy, yaw = path[k], route_heading(path, k)
@@ -584,7 +595,8 @@ class Navigator:
                 # away from it (apartments 40, 50 full mode stood through 65-74 refused look turns)
                 final = j == len(path) - 1
                 if final:
-                    walk_xy = self.goal_xy_m
+                    self._stance_xy_m = walk_xy = roomy_goal(grid, clearance, self.goal_xy_m, self.cfg.goal_room_m,
+                                                             self.cfg.goal_shift_m)
                     walk_yaw = self.goal_yaw_rad if self.goal_yaw_rad is not None else route_heading(path, j)
                 else:
                     walk_xy, walk_yaw = path[j], route_heading(path, j)

@@ -192,6 +192,34 @@ def choose_subgoal(route: Route, clearance: np.ndarray, grid: Grid2D, cfg: Plann
     return k, k == len(path) - 1
 
 
+def roomy_goal(grid: Grid2D, clearance: np.ndarray, goal_xy_m, room_m: float, shift_m: float) -> np.ndarray:
+    """(2,) where to stand for a goal, m: the goal itself when its cell has ``room_m`` of clearance,
+    else the cell centre within ``shift_m`` of it with the most clearance (capped at ``room_m``;
+    the nearest among equals). A goal beside a wall is a stance beside it: the policy's arms
+    reach 0.30-0.33 m from the pelvis while it stands and turns (``benchmarks/turn_on_the_spot.py``),
+    and the goals are drawn with 0.265 m of clearance, so a robot standing on the goal itself
+    touches the wall (nominal apartments 24, 52, 70, 78, 88 of the benchmark: feet and forearms on a
+    wall at the goal). ``shift_m`` stays well inside the success radius."""
+    goal = np.asarray(goal_xy_m, float)
+    iy, ix = grid.cell_of(goal)
+    ny, nx = grid.shape
+    if not (0 <= iy < ny and 0 <= ix < nx) or clearance[iy, ix] >= room_m:
+        return goal.copy()
+    k = int(math.ceil(shift_m / grid.resolution_m))
+    y0, y1, x0, x1 = max(0, iy - k), min(ny, iy + k + 1), max(0, ix - k), min(nx, ix + k + 1)
+    yy, xx = np.mgrid[y0:y1, x0:x1]
+    cx, cy = grid.cell_center_xy_m(yy.ravel(), xx.ravel())
+    d = np.hypot(cx - goal[0], cy - goal[1])
+    room = np.minimum(clearance[yy.ravel(), xx.ravel()], room_m)
+    ok = d <= shift_m
+    if not ok.any():
+        return goal.copy()
+    best = np.lexsort((d[ok], -room[ok]))[0]
+    if room[ok][best] <= min(clearance[iy, ix], room_m):
+        return goal.copy()
+    return np.array([cx[ok][best], cy[ok][best]])
+
+
 def route_heading(path: np.ndarray, k: int, back_m: float = 0.4) -> float:
     """Direction of the route arriving at point ``k``, averaged over the last ``back_m``, rad."""
     if k == 0:
@@ -273,4 +301,4 @@ def timed(fn, *args):
 
 
 __all__ = ["FootstepStage", "PlanningCfg", "ReplanRecord", "Route", "RoutePlanner", "choose_subgoal",
-           "footstep_clearance", "route_heading"]
+           "footstep_clearance", "roomy_goal", "route_heading"]

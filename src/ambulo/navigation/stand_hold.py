@@ -75,5 +75,15 @@ class PositionHold:
         yaw_rate = float(np.clip(c.yaw_gain_per_s * e_yaw, -c.max_yaw_rate_rad_s, c.max_yaw_rate_rad_s))
         return float(v_b[0]), float(v_b[1]), yaw_rate
 
+    def turn_command(self, pose_xyyaw: np.ndarray, dt_s: float, yaw_rate_rad_s: float) -> tuple[float, float, float]:
+        """Turn on the spot at ``yaw_rate_rad_s`` while holding the position (module docstring): the
+        first call after ``release`` latches ``pose_xyyaw``'s position; the held heading follows
+        the robot's, so standing after the turn keeps the heading turned to."""
+        pose = np.asarray(pose_xyyaw, float)
+        if self.hold_xyyaw is not None:
+            self.hold_xyyaw[2] = pose[2]
+        vx, vy, _ = self.command(pose, dt_s)
+        return vx, vy, float(yaw_rate_rad_s)
+
 
 __all__ = ["PositionHold", "StandHoldCfg"]

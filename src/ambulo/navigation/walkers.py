@@ -252,8 +252,9 @@ class PolicyWalker:
         self.command = (0.0, 0.0, 0.0)
 
     def scan(self, yaw_rate_rad_s: float) -> None:
-        """Stand and turn on the spot at ``yaw_rate_rad_s``, open loop (no pose is used): a lost
-        camera sweeps for texture to relocalise against."""
+        """Stand and turn on the spot at ``yaw_rate_rad_s`` (its heading open loop; the position
+        held on the estimate, ``PositionHold.turn_command``): a lost camera sweeps for texture to
+        relocalise against, a look turn faces the route."""
         self._standing = True
         self._scan_rate = float(yaw_rate_rad_s)
 
@@ -283,6 +284,10 @@ class PolicyWalker:
             if self.hold is not None and cmd == (0.0, 0.0, 0.0):
                 return self.hold.command(pose_xyyaw, self._control_dt_s)
         if self.hold is not None:
+            if cmd[0] == 0.0 and cmd[1] == 0.0:
+                # a turn on the spot (a scan, a look turn, the tracker's turn at a bend) holds the
+                # position where it began: open loop the policy wanders 0.14-0.23 m while it turns
+                return self.hold.turn_command(pose_xyyaw, self._control_dt_s, cmd[2])
             self.hold.release()
         return cmd
 
