@@ -17,6 +17,7 @@ import numpy as np
 import torch
 
 from . import session
+from . import terrain as terrains
 from .assets import Asset, load_asset
 from .gym_notes import ISAAC_APPROXIMATED, ISAAC_UNSUPPORTED
 from .sim import Actor, Env, Sim
@@ -27,9 +28,11 @@ from .types import (
     DOF_TRANSLATION,
     SIM_PHYSX,
     AssetOptions,
+    HeightFieldParams,
     PlaneParams,
     SimParams,
     Transform,
+    TriangleMeshParams,
     Vec3,
 )
 from .viewer import HeadlessViewer, Viewer
@@ -66,6 +69,22 @@ class Gym(HeadlessViewer):
 
     def add_ground(self, sim: Sim, params: PlaneParams) -> None:
         sim.ground = params
+
+    def add_heightfield(self, sim: Sim, heightSamples: np.ndarray, params: HeightFieldParams) -> None:
+        """Terrain from height samples (int16 units of ``params.vertical_scale``), as a MuJoCo hfield."""
+        self._require_building(sim)
+        sim.terrains.append(terrains.from_samples(heightSamples, params))
+
+    def add_triangle_mesh(self, sim: Sim, vertices: np.ndarray, triangles: np.ndarray,
+                          params: TriangleMeshParams) -> None:
+        """Terrain from a triangle mesh, sampled into a MuJoCo hfield (``terrain``'s docstring)."""
+        self._require_building(sim)
+        sim.terrains.append(terrains.from_mesh(vertices, triangles, params))
+
+    @staticmethod
+    def _require_building(sim: Sim) -> None:
+        if sim.engine is not None:
+            raise RuntimeError("isaacgym: terrain added after prepare_sim; add ground and terrain before prepare_sim")
 
     def prepare_sim(self, sim: Sim) -> bool:
         sim.prepare()

@@ -7,8 +7,6 @@ ISAAC_UNSUPPORTED: dict[str, str] = {
     "create_asset_box": "load a URDF/MJCF with the box instead (ambulo's importers make it one body)",
     "create_asset_sphere": "load a URDF/MJCF with the sphere instead",
     "create_asset_capsule": "load a URDF/MJCF with the capsule instead",
-    "add_triangle_mesh": "add terrain as a mesh asset (load_asset) or use ambulo.scenes' terrain",
-    "add_heightfield": "add terrain as a mesh asset (load_asset) or use ambulo.scenes' terrain",
     "create_camera_sensor": "use ambulo.sensors' Camera / TiledCamera on the same model",
     "acquire_jacobian_tensor": "use mujoco.mj_jacBody on engine.get_data(world)",
     "acquire_mass_matrix_tensor": "use mujoco.mj_fullM on engine.get_data(world)",
@@ -34,6 +32,9 @@ ISAAC_APPROXIMATED: dict[str, str] = {
     "load_asset": "URDF, MJCF or USD through ambulo's importers; a missing file named like a bundled asset "
                   "(assets/humanoid.urdf) loads that asset, with a warning",
     "add_ground": "the plane's normal must be +z",
+    "add_heightfield": "a MuJoCo hfield (sliding friction only; the transform's position, no rotation)",
+    "add_triangle_mesh": "sampled into a MuJoCo hfield at the mesh's vertex spacing (highest surface per sample): "
+                         "exact for height-function terrain at the vertices; vertical walls become one-sample slopes",
     "set_actor_dof_properties": "drive mode, stiffness, damping, armature, friction and limits per env; "
                                 "velocity and effort limits are not applied",
     "acquire_net_contact_force_tensor": "MuJoCo's net contact force per body from the last step's constraint solve",

@@ -28,6 +28,7 @@ from .types import (
                   AssetOptions,
                   CameraProperties,
                   FlexParams,
+                  HeightFieldParams,
                   PhysXParams,
                   PlaneParams,
                   Quat,
@@ -35,6 +36,7 @@ from .types import (
                   RigidShapeProperties,
                   SimParams,
                   Transform,
+                  TriangleMeshParams,
                   Vec3,
 )
 
@@ -46,8 +48,8 @@ IMAGE_COLOR, IMAGE_DEPTH, IMAGE_SEGMENTATION = 0, 1, 2
 __all__ = [
     "AssetOptions", "CameraProperties", "DOF_INVALID", "DOF_MODE_EFFORT", "DOF_MODE_NONE", "DOF_MODE_POS",
     "DOF_MODE_VEL", "DOF_ROTATION", "DOF_TRANSLATION", "DOMAIN_ACTOR", "DOMAIN_ENV", "DOMAIN_SIM", "ENV_SPACE",
-    "FlexParams", "GLOBAL_SPACE", "IMAGE_COLOR", "IMAGE_DEPTH", "IMAGE_SEGMENTATION", "KEY_ESCAPE", "KEY_R",
+    "FlexParams", "GLOBAL_SPACE", "HeightFieldParams", "IMAGE_COLOR", "IMAGE_DEPTH", "IMAGE_SEGMENTATION", "KEY_ESCAPE", "KEY_R",
     "KEY_SPACE", "KEY_V", "LOCAL_SPACE", "PhysXParams", "PlaneParams", "Quat", "RigidBodyProperties",
     "RigidShapeProperties", "SIM_FLEX", "SIM_PHYSX", "STATE_ALL", "STATE_NONE", "STATE_POS", "STATE_VEL",
-    "SimParams", "Transform", "UP_AXIS_Y", "UP_AXIS_Z", "Vec3", "acquire_gym",
+    "SimParams", "Transform", "TriangleMeshParams", "UP_AXIS_Y", "UP_AXIS_Z", "Vec3", "acquire_gym",
 ]

@@ -24,6 +24,7 @@ from ambulo.core import Entity, GroundCfg, PhysicsCfg, add_ground, compile_scene
 from ambulo.engine import make_engine
 from ambulo.sensors.contact import ContactSensor, ContactSensorCfg
 
+from . import terrain as terrains
 from .assets import Asset, collision_geoms, drive_gains
 from .types import DOF_MODE_EFFORT, UP_AXIS_Z, PlaneParams, SimParams, Transform, Vec3
 
@@ -63,7 +64,7 @@ def physics_of(params: SimParams) -> PhysicsCfg:
 
     PhysX's iteration counts and solver type have no MuJoCo counterpart (MuJoCo's Newton solver
     converges in a few iterations to the constraint solution PhysX approaches), so they are not
-    mapped; ``contact_offset``/``rest_offset`` become geom margin/gap in ``Sim.prepare``."""
+    mapped; nor are ``contact_offset``/``rest_offset`` (see ``Sim.prepare``)."""
     if params.up_axis != UP_AXIS_Z:
         raise ValueError("isaacgym: ambulo's worlds are z-up; set sim_params.up_axis = gymapi.UP_AXIS_Z and "
                          "sim_params.gravity = gymapi.Vec3(0.0, 0.0, -9.81)")
@@ -81,6 +82,8 @@ class Sim:
         self.physics = physics_of(params)
         self.device = torch.device(device)
         self.ground: PlaneParams | None = None
+        self.terrains: list[terrains.HeightField] = []
+        """``add_heightfield`` / ``add_triangle_mesh`` terrain, as height fields."""
         self.envs: list[Env] = []
         self.asset_cache: dict[tuple[str, str], Asset] = {}
         """(file, options) -> the asset ``load_asset`` returned for them."""
@@ -130,17 +133,17 @@ class Sim:
         spec = new_scene("isaacgym")
         if self.ground is not None:
             add_ground(spec, ground_cfg(self.ground))
+        for k, terrain in enumerate(self.terrains):
+            terrains.add_to_spec(spec, terrain, f"/World/terrain{k}")
         paths = [f"/World/actor{k}" for k in range(len(template))]
         for asset, path in zip(template, paths, strict=True):
             asset.attach(spec, path)
         physx = self.params.physx
         for geom in _actor_geoms(spec):  # by body: a URDF's geoms have no names
-            # PhysX creates contacts within contact_offset and rests shapes rest_offset apart;
-            # MuJoCo detects within margin and pushes apart below margin - gap
-            geom.margin = physx.contact_offset
-            geom.gap = physx.contact_offset - physx.rest_offset
             # PhysX averages two shapes' frictions, MuJoCo takes the larger: the actors' geoms
-            # outrank the ground and carry the average with it (``_contact_friction``)
+            # outrank the ground and carry the average with it (``_contact_friction``).
+            # contact_offset / rest_offset are not mapped to margin / gap: MuJoCo's contacts act
+            # across the whole margin, so a margin would hold shapes contact_offset apart
             geom.priority = 1
         self.contacts = ContactSensor(ContactSensorCfg(prim_paths=tuple(
             f"{path}/{name}" for asset, path in zip(template, paths, strict=True) for name in asset.body_names),
@@ -213,10 +216,11 @@ class Sim:
 
     def _contact_friction(self, shape_friction: float) -> float:
         """The sliding friction MuJoCo should use for an actor shape: PhysX's average of the shape's
-        and the ground's (``PlaneParams.dynamic_friction``); the shape's own without a ground."""
-        if self.ground is None:
-            return shape_friction
-        return 0.5 * (shape_friction + self.ground.dynamic_friction)
+        and the ground's (the plane's or else the first terrain's dynamic friction); the shape's own
+        without a ground."""
+        surfaces = ([self.ground.dynamic_friction] if self.ground is not None else []) + \
+            [t.dynamic_friction for t in self.terrains]
+        return 0.5 * (shape_friction + surfaces[0]) if surfaces else shape_friction
 
     def _write_model_rows(self, name: str, cols, values: np.ndarray, rows: torch.Tensor) -> bool:
         """Write per-world ``values`` (R, C, ...) of model field ``name`` at columns ``cols`` of worlds

@@ -156,8 +156,8 @@ class Transform:
 @dataclass
 class PhysXParams:
     """``SimParams.physx``. ambulo's engines are MuJoCo, so ``create_sim`` maps what has a meaning
-    there (``contact_offset``/``rest_offset`` -> geom margin/gap, ``num_threads`` -> the CPU
-    engine's threads) and records the rest (see docs/isaac-gym-coverage.md)."""
+    there (``num_threads`` -> the CPU engine's threads) and records the rest (see
+    docs/isaac-gym-coverage.md)."""
 
     solver_type: int = 1
     num_position_iterations: int = 4
@@ -244,6 +244,38 @@ class PlaneParams:
 
 
 @dataclass
+class HeightFieldParams:
+    """``add_heightfield``'s terrain: samples ``[i, j]`` (i along x, ``nbColumns`` of them, spaced
+    ``column_scale`` m; j along y, ``nbRows``, ``row_scale`` m; as legged_gym fills them), each
+    ``vertical_scale`` m per unit, placed by ``transform`` (its position; rotation must be identity)."""
+
+    column_scale: float = 1.0
+    row_scale: float = 1.0
+    vertical_scale: float = 1.0
+    nbRows: int = 0
+    nbColumns: int = 0
+    transform: Transform = field(default_factory=Transform)
+    static_friction: float = 1.0
+    dynamic_friction: float = 1.0
+    restitution: float = 0.0
+    segmentation_id: int = 0
+
+
+@dataclass
+class TriangleMeshParams:
+    """``add_triangle_mesh``'s terrain: ``nb_vertices`` vertices and ``nb_triangles`` triangles,
+    placed by ``transform`` (its position; rotation must be identity)."""
+
+    nb_vertices: int = 0
+    nb_triangles: int = 0
+    transform: Transform = field(default_factory=Transform)
+    static_friction: float = 1.0
+    dynamic_friction: float = 1.0
+    restitution: float = 0.0
+    segmentation_id: int = 0
+
+
+@dataclass
 class CameraProperties:
     """Isaac Gym's ``CameraProperties`` (used by the headless viewer and camera sensors)."""
 
@@ -307,8 +339,10 @@ ISAAC_APPROXIMATED: dict[str, str] = {
         "max_depenetration_velocity", "friction_offset_threshold", "friction_correlation_distance",
         "default_buffer_size_multiplier", "max_gpu_contact_pairs", "num_subscenes", "use_gpu",
         "always_use_articulations", "contact_collection")},
-    "PhysXParams.contact_offset": "MuJoCo geom margin of every actor geom (contacts detected this far apart)",
-    "PhysXParams.rest_offset": "MuJoCo geom gap = contact_offset - rest_offset (shapes rest this far apart)",
+    "PhysXParams.contact_offset": "not mapped: MuJoCo contacts act across a geom's whole margin, so a margin "
+                                  "would hold shapes this far apart; contacts start at touching",
+    "PhysXParams.rest_offset": "not mapped: shapes rest touching (slightly interpenetrating: soft contacts), "
+                               "as with rest_offset 0",
     "PhysXParams.num_threads": "the CPU engine's thread count (0: every CPU)",
     "SimParams.substeps": "MuJoCo steps per simulate; the MuJoCo timestep is dt / substeps",
     "SimParams.up_axis": "UP_AXIS_Z only (UP_AXIS_Y fails at create_sim)",
@@ -343,6 +377,6 @@ DOF_STATE_DTYPE = np.dtype([("pos", "f4"), ("vel", "f4")])
 __all__ = [
     "AssetOptions", "CameraProperties", "DOF_INVALID", "ISAAC_APPROXIMATED", "DOF_MODE_EFFORT", "DOF_MODE_NONE", "DOF_MODE_POS",
     "DOF_MODE_VEL", "DOF_PROPERTIES_DTYPE", "DOF_ROTATION", "DOF_STATE_DTYPE", "DOF_TRANSLATION", "FlexParams",
-    "PhysXParams", "PlaneParams", "Quat", "RigidBodyProperties", "RigidShapeProperties", "SIM_FLEX", "SIM_PHYSX",
-    "SimParams", "Transform", "UP_AXIS_Y", "UP_AXIS_Z", "Vec3",
+    "HeightFieldParams", "PhysXParams", "PlaneParams", "Quat", "RigidBodyProperties", "RigidShapeProperties", "SIM_FLEX", "SIM_PHYSX",
+    "SimParams", "Transform", "TriangleMeshParams", "UP_AXIS_Y", "UP_AXIS_Z", "Vec3",
 ]
