@@ -122,6 +122,31 @@ def test_generate_serves_the_page_and_writes_the_dataset(tmp_path):
     assert (tmp_path / "data" / "annotations.json").is_file()
 
 
+def test_training_curves_include_each_evaluation_and_its_criteria(tmp_path):
+    """What --eval-every adds to the curves, without running 100 evaluation episodes."""
+    from types import SimpleNamespace
+
+    from ambulo.rl.interrupt import StopRequest
+    from ambulo.rl.progress import TrainingProgress
+
+    evaluation = {"fall_rate": 0.25, "mean_return": 3.0, "mean_abs_lin_vel_error": 0.3, "criteria": ["walks"],
+                  "walks": False}
+    periodic = type("Periodic", (), {"due": lambda self, it: it == 1, "started_s": time.monotonic(), "reached": None,
+                                     "__call__": lambda self, runner, it: evaluation})()
+    sent = []
+    (tmp_path / "task" / "run").mkdir(parents=True)
+    progress = TrainingProgress(SimpleNamespace(device="cpu"), tmp_path / "task" / "run", start=0, total=2,
+                                episodes=SimpleNamespace(means=lambda: (2.0, 50)), verbose=True, step_dt_s=0.02,
+                                steps_per_iteration=96, stop=StopRequest(), periodic=periodic,
+                                on_scalars=lambda step, scalars: sent.append((step, scalars)))
+    progress.iteration_done(0, 0.5, 0.5, 1.0)
+    progress.iteration_done(1, 0.5, 0.5, 1.0)
+    progress.close()
+    assert sent[0] == (0, {"env steps/s": 96.0, "mean reward": 2.0, "episode length (s)": 1.0})
+    assert [step for step, _ in sent] == [0, 1, 1]  # iteration 1's numbers, then its evaluation's
+    assert sent[2][1] == {"eval fall rate": 0.25, "eval abs_lin_vel_error": 0.3, "criterion walks": 0.0}
+
+
 @pytest.mark.timeout(300)
 def test_ctrl_c_during_training_frees_the_port(tmp_path):
     def interrupt(viewer, step, scalars):  # Ctrl-C arrives during the first iteration's bookkeeping
