@@ -117,12 +117,17 @@ def resolve_policy(run: str | os.PathLike, checkpoint: str | os.PathLike | None 
 
 def load_runner(run_dir: Path, env: envs.RLEnv, checkpoint: Path):
     """An ``OnPolicyRunner`` on ``env`` with the run's networks and the weights of
-    ``checkpoint`` (from ``resolve_policy``), without logging."""
+    ``checkpoint`` (from ``resolve_policy``), without logging; for an off-policy run, its
+    ``offpolicy.OffPolicyRunner`` (the same ``env``, ``get_inference_policy``)."""
     from rsl_rl.runners import OnPolicyRunner
 
     from .vecenv import RslRlVecEnv
 
     info = read_run_info(run_dir)
+    if info.get("algo", "ppo") != "ppo":  # fast-sac / fast-td3: their actor, the same interface
+        from .offpolicy import load_runner as load_offpolicy_runner
+
+        return load_offpolicy_runner(info, env, checkpoint)
     ppo = ppo_from_info(info)
     with contextlib.redirect_stdout(io.StringIO()):  # rsl-rl prints the networks
         runner = OnPolicyRunner(RslRlVecEnv(env), ppo.to_rsl_rl(env.num_privileged_obs > 0),

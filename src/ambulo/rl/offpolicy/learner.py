@@ -1,0 +1,183 @@
+"""FastOffPolicy: the gradient updates of fast-sac and fast-td3 on a ``replay.Batch``.
+
+Both: a twin categorical critic (``categorical``) trained by cross-entropy against the projected
+n-step target; clipped double Q, the FastTD3 way for distributions: of the two target critics'
+next-state distributions, the one with the smaller mean is projected; Polyak-averaged target
+critics; the actor updated every ``policy_delay`` critic updates against the smaller of the two
+critics' means.
+
+fast-sac: the target's returns carry the entropy bonus (``- discount * alpha * log pi(a'|s')``),
+the actor minimizes ``alpha * log pi - Q`` and ``alpha`` is tuned so the policy's entropy tracks
+``target_entropy_per_action * num_actions``. fast-td3: a deterministic actor, target actions
+smoothed by clipped Gaussian noise.
+
+Every loss and statistic stays on the device; ``stats`` sums them for one read per iteration.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+
+import torch
+from torch import nn
+
+from . import categorical
+from .config import OffPolicyCfg
+from .networks import Actor, TwinCategoricalCritic
+from .replay import Batch
+
+STAT_NAMES = ("critic_loss", "actor_loss", "alpha", "entropy", "q_mean", "action_std")
+"""What ``FastOffPolicy.stats`` accumulates (per update; actor terms per actor update)."""
+
+
+class FastOffPolicy(nn.Module):
+    """Networks, optimizers and the update of one off-policy learner (see the module docstring)."""
+
+    def __init__(self, cfg: OffPolicyCfg, num_obs: int, num_critic_obs: int, num_actions: int,
+                 device: torch.device | str):
+        super().__init__()
+        self.cfg, self.num_actions = cfg, num_actions
+        self.sac = cfg.algo == "fast-sac"
+        self.actor = Actor(num_obs, num_actions, cfg.actor_hidden_dims, stochastic=self.sac,
+                           action_bound=cfg.action_bound, log_std_range=cfg.log_std_range,
+                           obs_normalization=cfg.obs_normalization)
+        self.critic = TwinCategoricalCritic(num_critic_obs, num_actions, cfg.critic_hidden_dims, cfg.num_atoms,
+                                            layer_norm=cfg.critic_layer_norm,
+                                            obs_normalization=cfg.obs_normalization)
+        self.critic_target = copy.deepcopy(self.critic).requires_grad_(False)
+        self.log_alpha = nn.Parameter(torch.tensor(math.log(cfg.init_alpha)), requires_grad=self.sac)
+        self.to(device)
+        self.device = torch.device(device)
+        self.atoms = categorical.support(cfg.v_min, cfg.v_max, cfg.num_atoms, self.device)
+        self.target_entropy = cfg.target_entropy_per_action * num_actions
+        opt = dict(weight_decay=cfg.weight_decay)
+        self.actor_opt = torch.optim.AdamW(self.actor.parameters(), lr=cfg.actor_lr, **opt)
+        self.critic_opt = torch.optim.AdamW(self.critic.parameters(), lr=cfg.critic_lr, **opt)
+        self.alpha_opt = torch.optim.Adam([self.log_alpha], lr=cfg.critic_lr)
+        self.num_updates = 0
+        """Critic updates so far (host counter: picks the actor's turns)."""
+        self.stats = torch.zeros(len(STAT_NAMES) + 2, device=self.device)
+        """Sums of ``STAT_NAMES`` and the numbers of critic and actor updates they cover."""
+        self.autocast = cfg.amp and self.device.type == "cuda"
+        self._critic_step = self._critic_update
+        self._actor_step = self._actor_update
+        if cfg.compile and self.device.type == "cuda":
+            self._critic_step = torch.compile(self._critic_update)
+            self._actor_step = torch.compile(self._actor_update)
+
+    # -- acting ----------------------------------------------------------------------------------
+    @torch.no_grad()
+    def explore(self, obs: torch.Tensor, noise_std: torch.Tensor | None = None) -> torch.Tensor:
+        """Training actions: sampled (fast-sac) or the actor's plus Gaussian noise of per-world
+        ``noise_std`` (N, 1), clipped to the action bound (fast-td3)."""
+        with torch.autocast(self.device.type, torch.bfloat16, enabled=self.autocast):
+            if self.sac:
+                actions = self.actor.sample(obs)[0]
+            else:
+                actions = self.actor(obs)
+                actions = actions + torch.randn_like(actions) * noise_std
+        bound = self.cfg.action_bound
+        return actions.float().clamp(-bound, bound)
+
+    def train_mode(self) -> None:
+        """What ``PeriodicEval`` calls after evaluating (rsl-rl's name): training mode."""
+        self.train()
+
+    # -- learning --------------------------------------------------------------------------------
+    def update(self, batch: Batch) -> None:
+        """One critic update and, every ``policy_delay`` updates, one actor (and alpha) update."""
+        self._critic_step(batch)
+        if self.num_updates % self.cfg.policy_delay == 0:
+            self._actor_step(batch)
+        self.num_updates += 1
+        with torch.no_grad():  # Polyak for weights, the normalizer's statistics copied
+            target, online = list(self.critic_target.parameters()), list(self.critic.parameters())
+            torch._foreach_lerp_(target, online, self.cfg.tau)
+            torch._foreach_copy_(list(self.critic_target.buffers()), list(self.critic.buffers()))
+
+    def _critic_update(self, batch: Batch) -> None:
+        cfg = self.cfg
+        with torch.no_grad(), torch.autocast(self.device.type, torch.bfloat16, enabled=self.autocast):
+            if self.sac:
+                next_actions, next_log_prob, _ = self.actor.sample(batch.next_obs)
+                returns = batch.returns - batch.discount * self.log_alpha.exp() * next_log_prob.float()
+            else:
+                next_actions = self.actor(batch.next_obs)
+                noise = (torch.randn_like(next_actions) * cfg.target_noise_std).clamp(
+                    -cfg.target_noise_clip, cfg.target_noise_clip)
+                next_actions = (next_actions + noise).clamp(-cfg.action_bound, cfg.action_bound)
+                returns = batch.returns
+            next_probs = torch.softmax(self.critic_target(batch.next_critic_obs, next_actions).float(), dim=-1)
+            means = categorical.expected(next_probs, self.atoms)  # (2, B)
+            smaller = torch.where((means[0] <= means[1])[:, None], next_probs[0], next_probs[1])
+            target = categorical.project(smaller, returns, batch.discount, cfg.v_min, cfg.v_max)
+        with torch.autocast(self.device.type, torch.bfloat16, enabled=self.autocast):
+            logits = self.critic(batch.critic_obs, batch.actions).float()
+        loss = -(target[None] * torch.log_softmax(logits, dim=-1)).sum(dim=-1).mean(dim=1).sum()
+        self.critic_opt.zero_grad(set_to_none=True)
+        loss.backward()
+        self._clip(self.critic)
+        self.critic_opt.step()
+        with torch.no_grad():
+            q = categorical.expected(torch.softmax(logits, dim=-1), self.atoms).mean()
+            self.stats[0] += loss.detach()
+            self.stats[4] += q
+            self.stats[6] += 1.0
+
+    def _actor_update(self, batch: Batch) -> None:
+        with torch.autocast(self.device.type, torch.bfloat16, enabled=self.autocast):
+            if self.sac:
+                actions, log_prob, std = self.actor.sample(batch.obs)
+                log_prob = log_prob.float()
+            else:
+                actions = self.actor(batch.obs)
+            probs = torch.softmax(self.critic(batch.critic_obs, actions).float(), dim=-1)
+        q = categorical.expected(probs, self.atoms).min(dim=0).values
+        alpha = self.log_alpha.exp().detach()
+        loss = (alpha * log_prob - q).mean() if self.sac else -q.mean()
+        self.actor_opt.zero_grad(set_to_none=True)
+        loss.backward()
+        self._clip(self.actor)
+        self.actor_opt.step()
+        with torch.no_grad():
+            self.stats[1] += loss.detach()
+            self.stats[2] += alpha
+            self.stats[7] += 1.0
+        if self.sac:
+            alpha_loss = -(self.log_alpha * (log_prob.detach() + self.target_entropy)).mean()
+            self.alpha_opt.zero_grad(set_to_none=True)
+            alpha_loss.backward()
+            self.alpha_opt.step()
+            with torch.no_grad():
+                self.stats[3] += -log_prob.detach().mean()
+                self.stats[5] += std.detach().float().mean()
+
+    def _clip(self, module: nn.Module) -> None:
+        if self.cfg.max_grad_norm > 0:
+            nn.utils.clip_grad_norm_(module.parameters(), self.cfg.max_grad_norm)
+
+    def read_stats(self) -> dict[str, float]:
+        """Means of ``STAT_NAMES`` since the last read (one host read), then reset."""
+        values = self.stats.tolist()
+        self.stats.zero_()
+        critic_n, actor_n = max(values[6], 1.0), max(values[7], 1.0)
+        per = (critic_n, actor_n, actor_n, actor_n, critic_n, actor_n)
+        return {name: values[i] / per[i] for i, name in enumerate(STAT_NAMES)}
+
+    # -- checkpoints -------------------------------------------------------------------------------
+    def state(self) -> dict:
+        return {"model": self.state_dict(), "actor_opt": self.actor_opt.state_dict(),
+                "critic_opt": self.critic_opt.state_dict(), "alpha_opt": self.alpha_opt.state_dict(),
+                "num_updates": self.num_updates}
+
+    def load_state(self, saved: dict, *, optimizers: bool = True) -> None:
+        self.load_state_dict(saved["model"])
+        if optimizers:
+            self.actor_opt.load_state_dict(saved["actor_opt"])
+            self.critic_opt.load_state_dict(saved["critic_opt"])
+            self.alpha_opt.load_state_dict(saved["alpha_opt"])
+            self.num_updates = int(saved["num_updates"])
+
+
+__all__ = ["STAT_NAMES", "FastOffPolicy"]

@@ -1,0 +1,257 @@
+"""OffPolicyRunner: collects every world's steps into the replay ring and updates the learner.
+
+It offers what ambulo's training machinery asks of rsl-rl's ``OnPolicyRunner``, so the same
+progress bar, ``metrics.csv``, TensorBoard, periodic evaluation, early stop, signal handling,
+``play``, ``eval`` and ``export`` serve both: ``learn``, ``save``, ``current_learning_iteration``,
+``get_inference_policy`` (a policy that takes the TensorDict observations of ``vecenv`` and has
+rsl-rl's ``as_jit``/``as_onnx``/``obs_groups``), ``alg.train_mode``, ``logger.writer``, ``env``.
+
+The step path has no host sync: actions, noise, the ring's writes and samples and the updates
+are device work queued one after another; the host reads the device once an iteration (the
+loss means and the episode statistics).
+
+Time-outs bootstrap: the env returns each world's observation before its reset
+(``RLEnv.return_final_obs``), stored as the step's next observation. The critic's observation
+of that moment (clean terms plus privileged ones) is recorded by ``FinalCriticObs``.
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import torch
+
+from ambulo.envs import RLEnv
+
+from ..checkpoints import atomic_torch_save
+from ..episodes import EpisodeStats
+from ..vecenv import RslRlVecEnv
+from .config import OffPolicyCfg
+from .learner import FastOffPolicy
+from .networks import Actor
+from .replay import ReplayRing
+
+
+class FinalCriticObs:
+    """Records the critic observations the env computes for ``extras["final_obs"]``.
+
+    ``RLEnv.step`` computes the observations twice when ``return_final_obs`` is set: before the
+    resets (the final ones) and after; its critic buffer holds the second. This wraps the env's
+    ``_compute_observations`` to keep the critic buffer of the first call of each step."""
+
+    def __init__(self, env: RLEnv):
+        self.env, self.calls, self.final = env, 0, None
+        compute = env._compute_observations
+
+        def recorded():
+            obs = compute()
+            if self.calls == 0:
+                self.final = env._critic_buf
+            self.calls += 1
+            return obs
+
+        env._compute_observations = recorded
+
+    def step(self, step: Callable):
+        """Run ``step()`` (the env's step) and return its result with the final critic obs."""
+        self.calls, self.final = 0, None
+        return step(), self.final
+
+
+class InferencePolicy:
+    """The deterministic actor as ambulo's evaluation and export code use rsl-rl's policies:
+    called on the TensorDict observations, ``as_jit``/``as_onnx`` copies for export."""
+
+    obs_groups = ("policy",)
+
+    def __init__(self, actor: Actor):
+        self.actor = actor
+
+    def __call__(self, obs) -> torch.Tensor:
+        return self.actor(obs["policy"])
+
+    def as_jit(self) -> Actor:
+        return copy.deepcopy(self.actor)
+
+    def as_onnx(self, verbose: bool = False) -> Actor:
+        return copy.deepcopy(self.actor)
+
+
+class _Logger:
+    """``runner.logger`` as ``interrupt`` and ``periodic_eval`` read it: the TensorBoard writer."""
+
+    def __init__(self, writer):
+        self.writer = writer
+
+
+class OffPolicyRunner:
+    """Training (or, with ``training=False``, only the networks for play/eval/export) of
+    ``cfg.algo`` on ``env``. ``on_iteration(it, collect_s, learn_s, action_std)`` runs at the end
+    of each iteration (``progress.TrainingProgress.iteration_done``)."""
+
+    def __init__(self, env: RLEnv, cfg: OffPolicyCfg, *, episodes: EpisodeStats | None = None,
+                 writer=None, on_iteration: Callable[[int, float, float, float], None] | None = None,
+                 training: bool = True, seed: int = 0, run_dir: Path | None = None):
+        self.cfg, self.raw_env, self.run_dir = cfg, env, run_dir
+        """``run_dir``: where ``learn`` saves ``model_<it>.pt`` (None: no periodic saves)."""
+        self.env = RslRlVecEnv(env, episodes)
+        self.episodes, self.on_iteration = episodes, on_iteration
+        self.device = env.device
+        self.logger = _Logger(writer)
+        critic_obs = env.num_privileged_obs or env.num_obs
+        self.alg = FastOffPolicy(cfg, env.num_obs, critic_obs, env.num_actions, env.device)
+        self.current_learning_iteration = 0
+        self._action_std = 0.0
+        self.env_steps = 0
+        """Env steps per world collected by this process (host counter)."""
+        self.generator = torch.Generator(device=env.device)
+        self.generator.manual_seed(seed)
+        """Replay sampling and exploration-noise draws."""
+        if not training:
+            return
+        env.return_final_obs = True
+        self._final_critic = FinalCriticObs(env) if env.num_privileged_obs else None
+        self.ring = ReplayRing(env.num_envs, cfg.buffer_steps_per_env, env.num_obs, env.num_privileged_obs,
+                               env.num_actions, env.device)
+        self._noise_std = torch.zeros(env.num_envs, 1, device=env.device)
+        self._draw_noise(torch.ones(env.num_envs, dtype=torch.bool, device=env.device))
+        obs = self.env.get_observations()
+        self._obs, self._critic_obs = obs["policy"], obs.get("critic", None)
+
+    def _draw_noise(self, worlds: torch.Tensor) -> None:
+        """fast-td3's per-world exploration std, drawn anew where ``worlds`` (N,) is set."""
+        low, high = self.cfg.exploration_noise_std_range
+        fresh = torch.rand(self.raw_env.num_envs, 1, generator=self.generator, device=self.device)
+        self._noise_std = torch.where(worlds[:, None], low + (high - low) * fresh, self._noise_std)
+
+    def _collect(self) -> None:
+        """One env step of every world into the ring."""
+        cfg, env = self.cfg, self.raw_env
+        obs, critic_obs = self._obs, self._critic_obs
+        if cfg.obs_normalization:
+            self.alg.actor.normalizer.update(obs)
+            self.alg.critic.normalizer.update(obs if critic_obs is None else critic_obs)
+        if self.env_steps < cfg.random_steps:
+            actions = (torch.rand(env.num_envs, env.num_actions, generator=self.generator, device=self.device)
+                       * 2.0 - 1.0) * cfg.action_bound
+        else:
+            actions = self.alg.explore(obs, self._noise_std)
+        if self._final_critic is not None:
+            (next_obs, rewards, dones, extras), final_critic = self._final_critic.step(
+                lambda: self.env.step(actions))
+        else:
+            (next_obs, rewards, dones, extras), final_critic = self.env.step(actions), None
+        ended = dones.bool()
+        self.ring.add(obs, critic_obs, actions, rewards, extras["final_obs"], final_critic,
+                      extras["terminated"], ended)
+        self._obs, self._critic_obs = next_obs["policy"], next_obs.get("critic", None)
+        if not self.alg.sac:
+            self._draw_noise(ended)
+        self.env_steps += 1
+
+    def learn(self, num_learning_iterations: int, init_at_random_ep_len: bool = False) -> None:
+        """Run ``num_learning_iterations`` iterations from ``current_learning_iteration``."""
+        threads = torch.get_num_threads()
+        if self.device.type == "cpu" and self.cfg.cpu_threads > 0:
+            torch.set_num_threads(self.cfg.cpu_threads)
+        try:
+            self._learn(num_learning_iterations, init_at_random_ep_len)
+        finally:
+            torch.set_num_threads(threads)
+
+    def _learn(self, num_learning_iterations: int, init_at_random_ep_len: bool) -> None:
+        cfg = self.cfg
+        if init_at_random_ep_len:  # spread the resets in time, as rsl-rl's runner does
+            high = max(int(self.raw_env.max_episode_length), 1)
+            self.env.episode_length_buf = torch.randint(0, high, (self.raw_env.num_envs,),
+                                                        generator=self.generator, device=self.device)
+        start = self.current_learning_iteration
+        for it in range(start, start + num_learning_iterations):
+            self.current_learning_iteration = it
+            collect_s = learn_s = 0.0
+            for _ in range(cfg.num_steps_per_env):
+                began = time.perf_counter()
+                self._collect()
+                collected = time.perf_counter()
+                collect_s += collected - began
+                if self.env_steps >= cfg.learning_starts:
+                    for _ in range(cfg.updates_per_step):
+                        self.alg.update(self.ring.sample(cfg.batch_size, cfg.n_step, cfg.gamma, self.generator))
+                learn_s += time.perf_counter() - collected
+            if self.device.type == "cuda":  # once an iteration: the times cover the queued work
+                began = time.perf_counter()
+                torch.cuda.synchronize(self.device)
+                learn_s += time.perf_counter() - began
+            self._log(it)
+            if self.on_iteration is not None:
+                self.on_iteration(it, collect_s, learn_s, self._action_std)
+            if it % cfg.save_interval == 0 and self.run_dir is not None:
+                self.save(str(self.run_dir / f"model_{it}.pt"))
+        if self.run_dir is not None:
+            self.save(str(self.run_dir / f"model_{self.current_learning_iteration}.pt"))
+
+    def _log(self, it: int) -> None:
+        stats = self.alg.read_stats()
+        if not self.alg.sac:
+            stats["action_std"] = float(self._noise_std.mean())
+        self._action_std = stats["action_std"]
+        writer = self.logger.writer
+        if writer is None:
+            return
+        for name, value in stats.items():
+            writer.add_scalar(("Loss/" if "loss" in name else "Policy/") + name, value, it)
+        if self.episodes is not None:
+            reward, length = self.episodes.means()
+            if reward is not None:
+                writer.add_scalar("Train/mean_reward", reward, it)
+                writer.add_scalar("Train/mean_episode_length", length, it)
+
+    # -- checkpoints and policies ----------------------------------------------------------------
+    def save(self, path: str, infos: dict | None = None) -> None:
+        saved = {"iter": self.current_learning_iteration, "algo": self.cfg.algo, **self.alg.state(),
+                 "env_steps": self.env_steps,
+                 "infos": {**(infos or {}), "env_rng": self.raw_env.generator.get_state(),
+                           "torch_rng": torch.get_rng_state(), "sampling_rng": self.generator.get_state(),
+                           "episode_returns": self.episodes.returns() if self.episodes is not None else [],
+                           "episode_lengths": self.episodes.lengths() if self.episodes is not None else []}}
+        atomic_torch_save(saved, Path(path))
+
+    def load(self, path: str | Path, *, optimizers: bool = True) -> dict:
+        saved = torch.load(path, weights_only=False, map_location=str(self.device))
+        self.alg.load_state(saved, optimizers=optimizers)
+        self.current_learning_iteration = int(saved["iter"])
+        return saved
+
+    def load_for_resume(self, path: Path) -> int:
+        """Weights, optimizers and RNG states of ``path``; return the next iteration. The replay
+        ring is not in checkpoints (hundreds of MB): it refills, and updates wait for
+        ``learning_starts`` steps again."""
+        saved = self.load(path)
+        infos = saved.get("infos", {})
+        self.raw_env.generator.set_state(infos["env_rng"].cpu())
+        torch.set_rng_state(infos["torch_rng"].cpu())
+        self.generator.set_state(infos["sampling_rng"].cpu())
+        if self.episodes is not None:
+            self.episodes.restore(infos.get("episode_returns", []), infos.get("episode_lengths", []))
+        self.current_learning_iteration += 1
+        return self.current_learning_iteration
+
+    def get_inference_policy(self, device: str | None = None) -> InferencePolicy:
+        self.alg.eval()
+        return InferencePolicy(self.alg.actor)
+
+
+def load_runner(info: dict, env: RLEnv, checkpoint: Path) -> OffPolicyRunner:
+    """The networks of an off-policy run (its ``run.json`` ``info``) on ``env``, with the weights
+    of ``checkpoint``: what ``runs.load_runner`` returns for ``play``, ``eval`` and ``export``."""
+    from .config import cfg_from_info
+
+    runner = OffPolicyRunner(env, cfg_from_info(info), training=False)
+    runner.load(checkpoint, optimizers=False)
+    return runner
+
+
+__all__ = ["FinalCriticObs", "InferencePolicy", "OffPolicyRunner", "load_runner"]
