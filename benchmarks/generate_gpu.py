@@ -49,6 +49,7 @@ import torch
 from ambulo import replicator as rep
 from ambulo.replicator.batched import BatchedFrameProducer
 from ambulo.replicator.coco import merge_coco
+from ambulo.replicator.draw_pool import DrawPool
 from ambulo.replicator.processes import ProducerPool, usable_cpus
 from ambulo.replicator.producer import run_frames
 from ambulo.replicator.writers import FrameWriter, prepare_dirs, write_frame_files
@@ -163,10 +164,12 @@ def main() -> None:
         # -- warm-up: not in any rate ------------------------------------------------------
         start = time.perf_counter()
         say("building the producer (scene, MuJoCo Warp model, render context)")
-        producer = BatchedFrameProducer(config, num_worlds=n, device=dev, draw_workers=draw_workers)
-        if producer.draws is not None:
-            say(f"starting {draw_workers} draw processes")
-            producer.draws.warm()
+        draws = DrawPool(config, draw_workers) if draw_workers else None
+        producer = BatchedFrameProducer(config, num_worlds=n, device=dev, draws=draws)
+        if draws is not None:
+            say(f"starting {draw_workers} draw processes (the first compiles Warp's CPU render-context kernels "
+                "if the cache is cold)")
+            draws.warm()
         setup_s = time.perf_counter() - start
         say(f"producer ready after {setup_s:.1f} s; first batch: compiles or loads the kernels "
             "(minutes with a cold cache)")

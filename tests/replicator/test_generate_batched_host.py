@@ -13,6 +13,7 @@ import torch
 
 from ambulo import replicator as rep
 from ambulo.replicator.batched import BatchedFrameProducer
+from ambulo.replicator.draw_pool import DrawPool
 from ambulo.replicator.producer import apply_randomizers
 from ambulo.replicator.randomizers import SceneContext
 
@@ -65,9 +66,10 @@ def test_host_randomization_leaves_the_device_as_per_world_writes_would():
 
 @pytest.mark.slow
 def test_draws_on_worker_processes_equal_the_draws_in_process():
-    # what --draw-workers changes: where the draws run, never what they are
+    # what a draw pool changes: where the draws run, never what they are
     size, seed, chunk = (48, 36), 7, [3, 1, 4, 1, 5]
-    pooled = BatchedFrameProducer(rep.example_config(*size), num_worlds=5, device="cpu", draw_workers=2)
+    config = rep.example_config(*size)
+    pooled = BatchedFrameProducer(config, num_worlds=5, device="cpu", draws=DrawPool(config, 2))
     inline = BatchedFrameProducer(rep.example_config(*size), num_worlds=5, device="cpu")
     try:
         assert pooled.randomize(seed, chunk) == inline.randomize(seed, chunk)

@@ -21,6 +21,7 @@ with pycocotools). A dataset is never resumed with the other path's images.
 from __future__ import annotations
 
 import dataclasses
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
@@ -32,10 +33,12 @@ from ambulo.sensors.tiled_camera import TiledCamera, TiledCameraCfg
 from ambulo.utils.rotations import mat_to_quat
 
 from .config import DatasetConfig
-from .draw_pool import DrawPool, collect
 from .host_worlds import HostWorlds
 from .producer import apply_randomizers
 from .randomizers import SceneContext
+
+if TYPE_CHECKING:
+    from .draw_pool import DrawPool
 
 IMAGE_SOURCE = "mujoco_warp_raycast"
 """The fingerprint's ``image_source`` of a dataset this module renders."""
@@ -87,7 +90,8 @@ def tiled_camera_cfg(camera: PinholeCfg) -> TiledCameraCfg:
 class BatchedFrameProducer:
     """Renders ``num_worlds`` frames of a seeded dataset per launch (see the module docstring)."""
 
-    def __init__(self, config: DatasetConfig, num_worlds: int = 64, device: str = "cuda", draw_workers: int = 0):
+    def __init__(self, config: DatasetConfig, num_worlds: int = 64, device: str = "cuda",
+                 draws: DrawPool | None = None):
         if config.visible_fraction:
             raise ValueError("visible_fraction needs one isolated render per object, which the batched GPU path "
                              "does not do; generate on the CPU (no --device) or set visible_fraction=False")
@@ -118,8 +122,10 @@ class BatchedFrameProducer:
         self._cache: dict[int, tuple[tuple[int, int], dict]] = {}
         self._annotators = set(config.camera.annotators)
         self._fields = {name: self.engine.field(name) for name in ("geom_xpos", "geom_xmat", "xpos", "xmat")}
-        # draw_workers > 0: the draws run on that many processes, a batch ahead (``draw_pool``)
-        self.draws = DrawPool(config, draw_workers) if draw_workers else None
+        self._compiled = False
+        self.draws = draws
+        """Processes that draw the randomizations a batch ahead (``draw_pool.DrawPool`` of this
+        config; the producer closes it), or None: drawn on this thread."""
 
     @property
     def gl_renderer(self) -> str:
@@ -142,7 +148,7 @@ class BatchedFrameProducer:
         if self.draws is None:
             logs = [self.randomize_world(w, seed, index) for w, index in enumerate(chunk)]
         else:
-            logs = collect(self.draws.submit(seed, chunk) if drawn is None else drawn, self.host)
+            logs = self.draws.collect(self.draws.submit(seed, chunk) if drawn is None else drawn, self.host)
         self.host.upload(len(chunk))
         return logs
 
@@ -201,8 +207,18 @@ class BatchedFrameProducer:
         """World w shows frame ``chunk[w]``: reset, randomize, one kinematics pass, one render.
         Returns the frame logs and the device labels of the chunk's worlds (``labels``)."""
         logs = self.randomize(seed, chunk, drawn)
-        self.kinematics()
-        self.camera.render()
+        if self._compiled:
+            self.kinematics()
+            self.camera.render()
+        else:  # the first launch compiles (or loads) the kernels: minutes when cold, so say so
+            from ambulo.engine.gpu import _Ticker  # the engine's own progress lines for a first compile
+
+            with _Ticker("compiling MuJoCo Warp's kinematics and render kernels"):
+                self.kinematics()
+                self.camera.render()
+                if self.engine.device.type == "cuda":
+                    torch.cuda.synchronize(self.engine.device)
+            self._compiled = True
         return logs, self.labels(len(chunk))
 
     def labels(self, count: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:

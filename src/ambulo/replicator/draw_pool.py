@@ -3,8 +3,9 @@
 Drawing a frame's scene (``Scatter2D``'s collision-checked placement above all) is a few ms of
 Python on one core, while the GPU renders a frame in well under a tenth of that: with draws on
 the producer's thread alone, a batch waits on them. A ``DrawPool`` runs the same
-``apply_randomizers`` on ``workers`` spawned processes, each with its own one-world producer on
-Warp's CPU device (the same randomizers, host field copies and float32 rounding as the
+``apply_randomizers`` on ``workers`` spawned processes
+(``BatchedFrameProducer(config, draws=DrawPool(config, workers))``), each with its own one-world
+producer on Warp's CPU device (the same randomizers, host field copies and float32 rounding as the
 producer's ``HostWorlds``, so the same numbers), and hands back each frame's log and the field
 rows it wrote; the producer copies the rows into its ``HostWorlds`` and uploads as usual.
 
@@ -32,8 +33,10 @@ class DrawPool:
         if workers < 1:
             raise ValueError(f"draw workers must be >= 1, got {workers}")
         self.workers = workers
-        self._pool = cf.ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn"), initializer=_start_worker,
-                                            initargs=(_dump_config(config), os.getpid()))
+        ctx = mp.get_context("spawn")
+        self._barrier = ctx.Barrier(workers)
+        self._pool = cf.ProcessPoolExecutor(workers, mp_context=ctx, initializer=_start_worker,
+                                            initargs=(_dump_config(config), os.getpid(), self._barrier))
 
     def submit(self, seed: int, indices: list[int]) -> list[tuple[int, cf.Future]]:
         """Start drawing ``indices`` (in contiguous parts, one per process: frames of one
@@ -43,33 +46,36 @@ class DrawPool:
                 for start in range(0, len(indices), size)]
 
     def warm(self) -> None:
-        """Build every process's producer now (spawn, imports, scene: seconds), not on the first batch."""
-        for future in [self._pool.submit(_warm) for _ in range(self.workers)]:
-            future.result()
+        """Build every process's producer now (spawn, imports, scene: seconds), not on the first batch.
+        One process first: with a cold Warp cache it compiles the render context's CPU kernels
+        (a minute) once, and the others then load them."""
+        self._pool.submit(_warm).result()
+        for future in [self._pool.submit(_warm_together) for _ in range(self.workers)]:
+            future.result()  # each waits for the others (a barrier): every process takes one
+
+    @staticmethod
+    def collect(parts: list[tuple[int, cf.Future]], host) -> list[dict]:
+        """Wait for a ``submit``'s parts, write their rows into ``host`` (a ``HostWorlds``) at
+        their positions, and return the frame logs in order."""
+        logs: list[dict] = []
+        for start, future in parts:
+            part_logs, rows = future.result()
+            host.set_rows(start, rows)
+            logs.extend(part_logs)
+        return logs
 
     def close(self) -> None:
         self._pool.shutdown(wait=True, cancel_futures=True)
 
 
-def collect(parts: list[tuple[int, cf.Future]], host) -> list[dict]:
-    """Wait for a ``DrawPool.submit``'s parts, write their rows into ``host`` (a ``HostWorlds``)
-    at their positions, and return the frame logs in order."""
-    logs: list[dict] = []
-    for start, future in parts:
-        part_logs, rows = future.result()
-        host.set_rows(start, rows)
-        logs.extend(part_logs)
-    return logs
-
-
 # -- in the worker processes ------------------------------------------------------------------
 
-def _start_worker(payload: bytes, parent_pid: int) -> None:
+def _start_worker(payload: bytes, parent_pid: int, barrier) -> None:
     from .processes import _die_with_parent
 
     _die_with_parent(parent_pid)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's
-    _worker["payload"] = payload
+    _worker.update(payload=payload, barrier=barrier)
 
 
 def _producer():
@@ -87,6 +93,15 @@ def _warm() -> None:
     _producer()
 
 
+def _warm_together() -> None:
+    try:
+        _producer()
+    except BaseException:
+        _worker["barrier"].abort()  # the others would wait for this one forever
+        raise
+    _worker["barrier"].wait()
+
+
 def _draw(seed: int, indices: list[int]) -> tuple[list[dict], dict]:
     """Each frame of ``indices`` drawn and applied on world 0 of this process's host copies;
     returns the logs and the rows of every field written, stacked (len(indices), ...)."""
@@ -102,4 +117,4 @@ def _draw(seed: int, indices: list[int]) -> tuple[list[dict], dict]:
     return logs, stacked
 
 
-__all__ = ["DrawPool", "collect"]
+__all__ = ["DrawPool"]
