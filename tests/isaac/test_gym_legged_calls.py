@@ -55,3 +55,15 @@ def test_actuation_forces_as_envs_by_dofs_reach_each_dof(tmp_path):
     assert abs(float(vel[1, 0])) < abs(float(vel[1, 2]))
     with pytest.raises(ValueError, match="shape"):
         gym.set_dof_actuation_force_tensor(sim, gymtorch.unwrap_tensor(torch.zeros(2, 2)))
+
+
+def test_quat_apply_reads_both_arguments_as_flat_lists():
+    """legged_gym's quat_apply_yaw passes (envs * points, 4) quaternions and (envs, points, 3) points."""
+    from ambulo.isaac.gym import torch_utils
+
+    yaw = torch.tensor([[0.0, 0.0, 1.0, 0.0]]).repeat(6, 1)  # 180 degrees about z, xyzw
+    points = torch.arange(18.0).view(2, 3, 3)
+    out = torch_utils.quat_apply(yaw, points)
+    assert out.shape == (2, 3, 3)
+    torch.testing.assert_close(out[..., :2], -points[..., :2])
+    torch.testing.assert_close(out[..., 2], points[..., 2])

@@ -46,7 +46,12 @@ def quat_rotate_inverse(q: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
     return wxyz_math.quat_rotate_inverse(_wxyz(q), v)
 
 
-quat_apply = quat_rotate
+def quat_apply(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """Rotate vectors ``b`` (any shape (..., 3)) by xyzw quaternions ``a``, both read as flat lists
+    of the same length, the result in ``b``'s shape: as Isaac Gym's, which legged_gym calls with
+    (N * P, 4) quaternions and (N, P, 3) points."""
+    shape = b.shape
+    return wxyz_math.quat_rotate(_wxyz(a.reshape(-1, 4)), b.reshape(-1, 3)).view(shape)
 
 
 def quat_from_angle_axis(angle: torch.Tensor, axis: torch.Tensor) -> torch.Tensor:
