@@ -24,6 +24,16 @@ learning.
     python benchmarks/time_to_walk.py --task cartpole --seeds 0 --device cpu --num-envs 256 \
         --eval-every 10 --max-minutes 2 --no-ceiling   # a smoke run on the CPU
 
+``--algo`` picks the learner (``ppo``, ``fast-sac``, ``fast-td3``; see ``ambulo.rl.offpolicy``);
+a comma list runs each on the same seeds, one after the other, and the result holds each one's
+numbers under ``algos`` plus ``speedup_vs_ppo`` (PPO's median minutes / the algorithm's) and
+``env_steps_ratio_vs_ppo`` (its median env steps to the criterion / PPO's). An off-policy
+iteration is ``num_steps_per_env`` (8) env steps and their updates, a PPO one 24 steps: give each
+its ``--eval-every`` as ``ALGO=K`` pairs, e.g. ``--eval-every ppo=25,fast-sac=100``.
+
+    python benchmarks/time_to_walk.py --task cartpole --algo ppo,fast-sac --seeds 0,1,2 --device cpu \
+        --eval-every ppo=10,fast-sac=25 --max-minutes 10 --no-ceiling --out /tmp/ttw-cartpole
+
 Ends with one ``RESULT {json}`` line.
 """
 
@@ -42,7 +52,7 @@ import time
 from pathlib import Path
 
 
-def launch(args, seed: int, out: Path, gpus: list[str]) -> tuple[subprocess.Popen, Path]:
+def launch(args, algo: str, seed: int, out: Path, gpus: list[str]) -> tuple[subprocess.Popen, Path]:
     """Start one seed's training run on ``gpus`` (CUDA ids; empty: the device as given), through
     torchrun with one rank per GPU when there are several."""
     root = out / f"seed{seed}"
@@ -54,17 +64,32 @@ def launch(args, seed: int, out: Path, gpus: list[str]) -> tuple[subprocess.Pope
     prefix = ([sys.executable, "-m", "torch.distributed.run", "--standalone", f"--nproc-per-node={ranks}"]
               if ranks > 1 else [sys.executable])
     cmd = [*prefix, "-m", "ambulo.cli", "train", args.task, "--device", args.device,
-           "--seed", str(seed), "--eval-every", str(args.eval_every),
+           "--seed", str(seed), "--eval-every", str(eval_every(args.eval_every, algo)),
            *([] if args.keep_training else ["--stop-at-criterion"]), "--max-iterations", str(args.max_iterations), "--log-root", str(root)]
     if args.num_envs:
         cmd += ["--num-envs", str(args.num_envs)]
     for pair in args.env_cfg or []:
         cmd += ["--env-cfg", pair]
-    for pair in args.ppo_cfg or []:
-        cmd += ["--ppo-cfg", pair]
+    if algo != "ppo":
+        cmd += ["--algo", algo]
+        for pair in args.algo_cfg or []:
+            cmd += ["--algo-cfg", pair]
+    else:
+        for pair in args.ppo_cfg or []:
+            cmd += ["--ppo-cfg", pair]
     log = open(root / "train.log", "w")
     proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=env)
     return proc, root
+
+
+def eval_every(text: str, algo: str) -> int:
+    """``--eval-every``: one K for every algorithm, or ``ALGO=K`` pairs."""
+    if "=" not in text:
+        return int(text)
+    pairs = dict(pair.split("=") for pair in text.split(","))
+    if algo not in pairs:
+        raise SystemExit(f"--eval-every {text} gives no K for {algo}")
+    return int(pairs[algo])
 
 
 def run_summary(root: Path) -> dict:
@@ -123,7 +148,8 @@ def main() -> None:
     p.add_argument("--seeds", default="0,1,2")
     p.add_argument("--device", default="cuda")
     p.add_argument("--num-envs", type=int)
-    p.add_argument("--eval-every", type=int, default=25)
+    p.add_argument("--algo", default="ppo", help="ppo, fast-sac or fast-td3, or a comma list of them")
+    p.add_argument("--eval-every", default="25", help="K, or ALGO=K pairs (ppo=25,fast-sac=100)")
     p.add_argument("--max-iterations", type=int, default=100000)
     p.add_argument("--max-minutes", type=float, default=9.0)
     p.add_argument("--parallel", type=int, default=1, help="runs at once (on one device, or each on its "
@@ -134,13 +160,32 @@ def main() -> None:
                    help="GPUs per run from --gpu-ids: more than 1 trains data-parallel through torchrun")
     p.add_argument("--env-cfg", action="append")
     p.add_argument("--ppo-cfg", action="append")
+    p.add_argument("--algo-cfg", action="append", help="the off-policy algorithms' settings (OffPolicyCfg)")
     p.add_argument("--out", default="/tmp/ambulo-time-to-walk")
     p.add_argument("--no-ceiling", action="store_true")
     p.add_argument("--keep-training", action="store_true",
                    help="train on to --max-minutes after the criterion (for the best policy); the "
                         "time to the criterion is recorded all the same")
     args = p.parse_args()
-    out = Path(args.out)
+    algos = [a for a in args.algo.split(",") if a]
+    results = {algo: run_algo(args, algo, Path(args.out) / algo if len(algos) > 1 else Path(args.out))
+               for algo in algos}
+    if len(algos) == 1:
+        result = results[algos[0]]
+    else:
+        result = {"benchmark": "time_to_walk", "task": args.task, "device": args.device,
+                  "date": datetime.date.today().isoformat(), "algos": results}
+        ppo = results.get("ppo")
+        for algo, res in results.items():
+            if algo == "ppo" or ppo is None or not ppo["minutes_median"] or not res["minutes_median"]:
+                continue
+            res["speedup_vs_ppo"] = round(ppo["minutes_median"] / res["minutes_median"], 3)
+            res["env_steps_ratio_vs_ppo"] = round(res["env_steps_median"] / ppo["env_steps_median"], 4)
+    print("RESULT " + json.dumps(result))
+
+
+def run_algo(args, algo: str, out: Path) -> dict:
+    """Every seed of ``algo``; its result (``RESULT``'s fields)."""
     seeds = [int(s) for s in args.seeds.split(",")]
     free_gpus = [g for g in args.gpu_ids.split(",") if g]
     if free_gpus and len(free_gpus) < args.gpus_per_run:
@@ -152,7 +197,7 @@ def main() -> None:
                 break
             seed = pending.pop(0)
             held[seed] = [free_gpus.pop(0) for _ in range(args.gpus_per_run)] if args.gpu_ids else []
-            running[seed] = (*launch(args, seed, out, held[seed]), time.monotonic())
+            running[seed] = (*launch(args, algo, seed, out, held[seed]), time.monotonic())
         time.sleep(2.0)
         for seed, (proc, root, began) in list(running.items()):
             if proc.poll() is None and time.monotonic() - began > args.max_minutes * 60:
@@ -166,18 +211,21 @@ def main() -> None:
                 del running[seed]
                 free_gpus.extend(held.pop(seed))
                 s = done[seed]
-                print(f"seed {seed}: " + (f"meets the criterion after {s['minutes']} min (iteration {s['iteration']})"
-                                          if s["reached"] else "did not reach the criterion"), flush=True)
+                print(f"{algo} seed {seed}: " + (f"meets the criterion after {s['minutes']} min (iteration "
+                                                 f"{s['iteration']}, {s['env_steps']:,} env steps)"
+                                                 if s["reached"] else "did not reach the criterion"), flush=True)
     reached = [done[s]["minutes"] for s in seeds if done[s]["reached"]]
+    steps = [done[s]["env_steps"] for s in seeds if done[s]["reached"]]
     rates = [done[s]["train_env_steps_per_s"] for s in seeds if "train_env_steps_per_s" in done[s]]
     result = {
-        "benchmark": "time_to_walk", "task": args.task, "device": args.device,
+        "benchmark": "time_to_walk", "task": args.task, "algo": algo, "device": args.device,
         "date": datetime.date.today().isoformat(), "seeds": seeds, "parallel_runs_per_device": 1 if args.gpu_ids else args.parallel,
         "gpus_per_run": args.gpus_per_run if args.gpu_ids else 1,
         "reached": f"{len(reached)}/{len(seeds)}",
         "minutes_median": statistics.median(reached) if reached else None,
         "minutes_min": min(reached) if reached else None,
         "minutes_max": max(reached) if reached else None,
+        "env_steps_median": statistics.median(steps) if steps else None,
         "train_env_steps_per_s_median": statistics.median(rates) if rates else None,
         "runs": {str(s): {k: v for k, v in done[s].items() if k != "evals"} for s in seeds},
     }
@@ -186,12 +234,13 @@ def main() -> None:
 
         result["gpu"] = torch.cuda.get_device_name(0)
     if not args.no_ceiling:
-        num_envs = args.num_envs or json.loads(next(out.glob("seed*/*/*/run.json")).read_text())["ppo"]["num_envs"]
+        run_file = json.loads(next(out.glob("seed*/*/*/run.json")).read_text())
+        num_envs = args.num_envs or run_file.get("ppo", run_file.get("offpolicy"))["num_envs"]
         result["ceiling"] = ceiling(args.task, num_envs, args.device)
         if rates:
             result["ratio"] = round(statistics.median(rates) / result["ceiling"]["raw_env_steps_per_s"], 3)
     (out / "evals.json").write_text(json.dumps({str(s): done[s].get("evals", []) for s in seeds}, indent=1))
-    print("RESULT " + json.dumps(result))
+    return result
 
 
 if __name__ == "__main__":

@@ -64,6 +64,14 @@ def default_ppo_cfg(task: str) -> Any:
     return ppo_cfg(task)
 
 
+def default_offpolicy_cfg(task: str, algo: str) -> Any:
+    """The default settings (an ``OffPolicyCfg``) of ``ambulo train TASK --algo ALGO`` for an
+    off-policy ``algo`` (fast-sac, fast-td3)."""
+    from ambulo.rl.offpolicy.config import offpolicy_cfg
+
+    return offpolicy_cfg(task, algo)
+
+
 def check_task(task: str) -> None:
     """``CliError`` naming close task names if ``task`` is not registered."""
     names = task_names()
@@ -227,6 +235,8 @@ def train(args: argparse.Namespace) -> int:
     env_overrides: dict[str, Any] = {}
     ppo_overrides: dict[str, Any] = {}
     sizes = {"num_envs": args.num_envs, "max_iterations": args.max_iterations}
+    algo, algo_cfg = getattr(args, "algo", None), getattr(args, "algo_cfg", None)  # a namespace built by hand
+    offpolicy = (algo or "ppo") != "ppo"
     if resume:
         if args.env_cfg or args.ppo_cfg:
             raise CliError("--env-cfg and --ppo-cfg apply to new runs only (a resumed run keeps "
@@ -236,19 +246,30 @@ def train(args: argparse.Namespace) -> int:
                            "ambulo train <task> --resume, or --resume runs/<task>/<time>")
         if resume is not True:
             _check_run(resume)
+        if algo_cfg:
+            raise CliError("--algo-cfg applies to new runs only (a resumed run keeps the settings in "
+                           "its run.json)", "drop it, or start a new run")
     else:
         if args.task is None:
             raise CliError("no task given", f"name one: {', '.join(task_names())}")
         if args.env_cfg:
             env_overrides = typed_overrides("--env-cfg", default_env_cfg(args.task), args.env_cfg,
                                             reserved=_ENV_KEYS_WITH_FLAGS)
+        if offpolicy and args.ppo_cfg:
+            raise CliError(f"--ppo-cfg sets PPO's settings, not {algo}'s", "use --algo-cfg KEY=VALUE")
+        if not offpolicy and algo_cfg:
+            raise CliError("--algo-cfg sets the settings of --algo fast-sac or fast-td3", "use --ppo-cfg for PPO")
         if args.ppo_cfg:
             ppo_overrides = typed_overrides("--ppo-cfg", default_ppo_cfg(args.task), args.ppo_cfg)
+        if algo_cfg:  # the off-policy settings, in the same dict: num_envs/max_iterations below
+            ppo_overrides = typed_overrides("--algo-cfg", default_offpolicy_cfg(args.task, algo),
+                                            algo_cfg, reserved={"algo": "--algo"})
         for key, value in sizes.items():  # PpoCfg fields that are also flags: one or the other
             if key in ppo_overrides:
                 flag = "--" + key.replace("_", "-")
                 if value is not None:
-                    raise CliError(f"{flag} and --ppo-cfg {key}=... both given", "give one of them")
+                    raise CliError(f"{flag} and --{'algo' if offpolicy else 'ppo'}-cfg {key}=... both given",
+                                   "give one of them")
                 sizes[key] = ppo_overrides.pop(key)
     _check_positive(argparse.Namespace(**sizes), *sizes)
     _check_writable(args.log_root, "--log-root", folder=True)
@@ -263,7 +284,9 @@ def train(args: argparse.Namespace) -> int:
         with _rl_errors("--log-root"):
             run_train(args.task, num_envs=sizes["num_envs"], max_iterations=sizes["max_iterations"],
                       seed=args.seed, device=args.device, resume=resume, log_root=args.log_root,
-                      env_overrides=env_overrides, ppo_overrides=ppo_overrides,
+                      env_overrides=env_overrides, algo=algo,
+                      ppo_overrides=None if offpolicy else ppo_overrides,
+                      algo_overrides=ppo_overrides if offpolicy else None,
                       verbose=args.verbose, eval_every=args.eval_every,
                       stop_at_criterion=args.stop_at_criterion, started_s=STARTED_S, watch=watch)
     except TrainingInterrupted as stopped:  # SIGINT/SIGTERM: says what was saved, how to resume
@@ -363,6 +386,12 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
                    help="set a field of the task's config, e.g. episode_length_s=10 (repeatable)")
     p.add_argument("--ppo-cfg", action="append", metavar="KEY=VALUE",
                    help="set a PPO setting (PpoCfg), e.g. learning_rate=3e-4 (repeatable)")
+    p.add_argument("--algo", choices=("ppo", "fast-sac", "fast-td3"),
+                   help="ppo (default: rsl-rl-lib), or the parallel off-policy fast-sac / fast-td3 "
+                        "(ambulo.rl.offpolicy); a resumed run keeps its own")
+    p.add_argument("--algo-cfg", action="append", metavar="KEY=VALUE",
+                   help="with --algo fast-sac/fast-td3: set one of its settings (OffPolicyCfg), e.g. "
+                        "batch_size=4096 (repeatable)")
     p.add_argument("--verbose", action="store_true", help="rsl-rl's full report per iteration")
     p.add_argument("--eval-every", type=whole_above_zero("--eval-every 50"), metavar="K",
                    help="every K iterations evaluate the policy as `ambulo eval` does (evals.csv) "

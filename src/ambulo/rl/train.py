@@ -157,8 +157,9 @@ def train(task: str | None = None, *, num_envs: int | None = None,
           resume: str | os.PathLike | bool | None = None, log_root: str | os.PathLike = "runs",
           env_overrides: dict[str, Any] | None = None, ppo_overrides: dict[str, Any] | None = None,
           verbose: bool = False, eval_every: int | None = None, stop_at_criterion: bool = False,
-          started_s: float | None = None, watch: Callable[[envs.RLEnv], Any] | None = None) -> Path:
-    """Train ``task`` with PPO; return the run directory.
+          started_s: float | None = None, watch: Callable[[envs.RLEnv], Any] | None = None,
+          algo: str | None = None, algo_overrides: dict[str, Any] | None = None) -> Path:
+    """Train ``task`` with PPO (or ``algo``); return the run directory.
 
     Args:
       task: registered task name (optional when resuming a run folder).
@@ -180,6 +181,9 @@ def train(task: str | None = None, *, num_envs: int | None = None,
         criteria on the CPU engine too (``ambulo.rl.periodic_eval``).
       started_s: ``time.monotonic()`` the timing counts from (default: now; the CLI passes
         the time it started).
+      algo: ``"ppo"`` (default) or an off-policy learner, ``"fast-sac"`` or ``"fast-td3"``
+        (``ambulo.rl.train_offpolicy``, whose settings ``algo_overrides`` changes as
+        ``ppo_overrides`` does PPO's); a resumed run keeps the algorithm of its run.json.
       watch: called with the training env before the first iteration (main rank only): ``ambulo
         train --viewer web`` opens the web viewer on it (``ambulo.viewer.serve``: an app this
         package may not import). What it returns gets ``add_scalars(iteration, {name: value})``
@@ -192,9 +196,22 @@ def train(task: str | None = None, *, num_envs: int | None = None,
     started_s = time.monotonic() if started_s is None else started_s
     if stop_at_criterion and not eval_every:
         raise ValueError("stopping at the criterion needs periodic evaluation; give eval_every too")
+    resume_point = _resume_point(task, resume, log_root) if resume else None
+    run_algo = runs.read_run_info(resume_point[0]).get("algo", "ppo") if resume_point else algo or "ppo"
+    if algo is not None and algo != run_algo:
+        raise ValueError(f"{resume_point[0]} was trained with {run_algo}, not {algo}; drop the algorithm "
+                         "to resume it, or start a new run")
+    if run_algo != "ppo":
+        from .train_offpolicy import train_offpolicy
+
+        return train_offpolicy(task, algo=run_algo, num_envs=num_envs, max_iterations=max_iterations, seed=seed,
+                               device=device, resume_point=resume_point, log_root=log_root,
+                               env_overrides=env_overrides, algo_overrides=algo_overrides, verbose=verbose,
+                               eval_every=eval_every, stop_at_criterion=stop_at_criterion, started_s=started_s,
+                               report=_report_time_to_criterion, watch=watch)
     rank = distributed.current()
     if resume:
-        run_dir, checkpoint = _resume_point(task, resume, log_root)
+        run_dir, checkpoint = resume_point
         info = runs.read_run_info(run_dir)
         if rank.is_main:
             _note_kept_settings(info, num_envs=num_envs, seed=seed, device=device)
