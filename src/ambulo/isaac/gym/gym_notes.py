@@ -36,7 +36,8 @@ ISAAC_APPROXIMATED: dict[str, str] = {
     "add_triangle_mesh": "sampled into a MuJoCo hfield at the mesh's vertex spacing (highest surface per sample): "
                          "exact for height-function terrain at the vertices; vertical walls become one-sample slopes",
     "set_actor_dof_properties": "drive mode, stiffness, damping, armature, friction and limits per env; "
-                                "velocity and effort limits are not applied",
+                                "velocity limits are not applied, effort limits are the file's (a URDF's "
+                                "<limit effort> caps the joint's actuator force), not per-env values",
     "acquire_net_contact_force_tensor": "MuJoCo's net contact force per body from the last step's constraint solve",
     "acquire_dof_force_tensor": "the force each DOF's drive applies (MuJoCo's actuator force)",
     "create_viewer": "headless: a viewer that never closes and draws nothing",
