@@ -1,7 +1,8 @@
 """Textured surfaces look the same in the raster, pbr and path tiers (issue 26).
 
 - texture mapping: a texture whose texels encode their own (column, row), drawn unlit (ambient 1),
-  shows the same texel on every pixel of a plane (finite and infinite) and on each face of a box,
+  shows the same texel on every pixel of a plane (finite and infinite), on each face of a box and
+  on spheres, ellipsoids, cylinders (caps too) and capsules seen from above, the sides and below,
   in both ``texuniform`` modes, in the path tier as in the rasterizer (median within 2 texels of 4 levels;
   a flipped or shifted mapping misses by tens);
 - colour: a checker box beside an untextured box of its mean colour under one directional light:
@@ -52,13 +53,24 @@ def _coded_texture_model(geom_type: str, size, repeat, uniform: bool) -> mujoco.
     return spec.compile()
 
 
+_CURVED_EYES = [(0.4, -0.1, 4.0), (4.0, 0.5, 0.3), (-1.0, 4.0, -0.5), (0.3, -0.2, -4.0)]
+"""Top (the +z cap or pole), two sides (the azimuth seam at +x among them) and the bottom."""
+
+
 @pytest.mark.parametrize(("geom_type", "size", "repeat", "uniform", "eyes"), [
     ("plane", (0.4, 0.3, 0.1), (1.5, 2.5), False, [(0.4, -0.1, 4.0)]),
     ("plane", (0.4, 0.3, 0.1), (1.5, 2.5), True, [(0.4, -0.1, 4.0)]),
     ("plane", (0.0, 0.0, 0.1), (1.5, 2.5), False, [(0.4, -0.1, 4.0)]),
     ("box", (0.4, 0.3, 0.5), (1.5, 2.5), False, [(0.4, -0.1, 4.0), (4.0, 0.5, 0.3), (0.5, 4.0, 0.2)]),
     ("box", (0.4, 0.3, 0.5), (1.5, 2.5), True, [(0.4, -0.1, 4.0), (-4.0, -1.0, 0.5), (1.0, -4.0, -0.3)]),
-], ids=["plane", "plane-uniform", "plane-infinite", "box", "box-uniform"])
+    ("sphere", (0.5, 0.0, 0.0), (1.5, 2.5), False, _CURVED_EYES),
+    ("sphere", (0.5, 0.0, 0.0), (1.5, 2.5), True, _CURVED_EYES),
+    ("ellipsoid", (0.5, 0.3, 0.4), (1.5, 2.5), True, _CURVED_EYES),
+    ("cylinder", (0.3, 0.5, 0.0), (1.5, 2.5), False, _CURVED_EYES),
+    ("cylinder", (0.3, 0.5, 0.0), (1.5, 2.5), True, _CURVED_EYES),
+    ("capsule", (0.3, 0.5, 0.0), (1.5, 2.5), False, _CURVED_EYES),
+], ids=["plane", "plane-uniform", "plane-infinite", "box", "box-uniform", "sphere", "sphere-uniform",
+        "ellipsoid-uniform", "cylinder", "cylinder-uniform", "capsule"])
 def test_the_path_tier_puts_each_texel_where_the_rasterizer_does(geom_type, size, repeat, uniform, eyes):
     from scipy.ndimage import binary_erosion
 

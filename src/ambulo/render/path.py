@@ -17,10 +17,11 @@ The environment: ``envmap_path`` if given, else the model's image lights (``<lig
 what a USD DomeLight becomes; read once, when the tracer is built), else the model's skybox (which,
 unlike in the rasterizer, also lights the scene), else a constant one of the lights' ambient.
 
-What it does not model: MuJoCo cube-map textures on objects (mean colour), 2-D textures on
-spheres, ellipsoids, cylinders and capsules where the rasterizer puts them (planar in x, y here;
-planes and boxes are mapped as the rasterizer maps them), flexes and skins, orthographic or
-off-axis cameras, light textures, the rasterizer's fog and haze.
+2-D textures lie where the rasterizer puts them on every primitive (planes, boxes, spheres,
+ellipsoids, cylinders, capsules: ``scene_description.primitive_texcoords``) and at a mesh's own UVs.
+
+What it does not model: MuJoCo cube-map textures on objects (mean colour), flexes and skins,
+orthographic or off-axis cameras, light textures, the rasterizer's fog and haze.
 """
 
 from __future__ import annotations
@@ -47,7 +48,7 @@ from .scene_description import (
     lights_of,
     linear_to_srgb,
     material_of,
-    planar_texcoords,
+    primitive_texcoords,
     skybox_latlong,
     srgb_to_linear,
     surface_of,
@@ -270,7 +271,7 @@ class PathTracer:
         return cam
 
     def _restyle(self, surface: SurfaceDesc, geom: mujoco.MjvGeom) -> bool:
-        """Write geom ``geom``'s current material into its BSDF (and its planar UVs when the
+        """Write geom ``geom``'s current material into its BSDF (and its UVs when the
         texture's repeat changed); True when the BSDF's kind changed, which needs a new scene."""
         old, new = surface.material, material_of(self.model, geom)
         surface.material = new
@@ -288,7 +289,7 @@ class PathTracer:
         if new.opacity < 1:
             params[f"geom_{gid}.bsdf.opacity.value"] = new.opacity
         if new.texture is not None and surface.planar_uv:
-            uv = planar_texcoords(surface.mesh, geom)
+            uv = primitive_texcoords(surface.mesh, geom)
             if not np.array_equal(uv, surface.mesh.texcoords):
                 surface.mesh.texcoords = uv
                 params[f"geom_{gid}.vertex_texcoords"] = mi.Float(uv.ravel())

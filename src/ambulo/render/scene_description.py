@@ -78,7 +78,7 @@ class SurfaceDesc:
     static: bool
     """Welded to the world: its pose never changes."""
     planar_uv: bool = True
-    """``mesh.texcoords`` are ``planar_texcoords`` (they follow the material's texrepeat), not the mesh's own."""
+    """``mesh.texcoords`` are ``primitive_texcoords`` (they follow the material's texrepeat), not the mesh's own."""
 
 
 @dataclass
@@ -198,6 +198,19 @@ def planar_texcoords(mesh: TriangleMesh, geom: mujoco.MjvGeom) -> np.ndarray:
     return np.stack(coords, 1).astype(np.float32)
 
 
+def primitive_texcoords(mesh: TriangleMesh, geom: mujoco.MjvGeom) -> np.ndarray:
+    """(V, 2) float32 UVs of a primitive geom where MuJoCo 4's rasterizer puts its 2-D texture:
+    ``mesh.surface_uv`` (spheres, ellipsoids, cylinders, capsules; measured, see ``TriangleMesh``)
+    times ``texrepeat`` (with ``texuniform``, times the geom's size too: ``repeat_u * size_x``,
+    ``repeat_v * size_y``, the rule ``planar_texcoords`` follows), else ``planar_texcoords``."""
+    if mesh.surface_uv is None:
+        return planar_texcoords(mesh, geom)
+    span = np.asarray(geom.texrepeat, np.float32)
+    if geom.texuniform:
+        span = span * np.asarray(geom.size, np.float32)[:2]
+    return (mesh.surface_uv * span).astype(np.float32)
+
+
 def surface_of(model: mujoco.MjModel, geom: mujoco.MjvGeom, infinite_half_m: float,
                slices: int = 32, stacks: int = 16) -> SurfaceDesc | None:
     """The surface of a scene geom, or None when it is not a model geom drawn as triangles."""
@@ -213,7 +226,7 @@ def surface_of(model: mujoco.MjModel, geom: mujoco.MjvGeom, infinite_half_m: flo
     # every surface gets UVs, textured or not: a material randomizer may give it a texture later
     planar = mesh.texcoords is None or not geom.texcoord
     if planar:
-        mesh.texcoords = planar_texcoords(mesh, geom)
+        mesh.texcoords = primitive_texcoords(mesh, geom)
     body = int(model.geom_bodyid[gid])
     static = int(model.body_weldid[body]) == 0 and int(model.body_mocapid[body]) < 0
     return SurfaceDesc(geom_id=gid, mesh=mesh, material=material, static=static, planar_uv=planar)
@@ -381,4 +394,4 @@ def infinite_plane_half_m(model: mujoco.MjModel) -> float:
 
 __all__ = ["CameraDesc", "LightDesc", "MaterialDesc", "SceneReader", "SurfaceDesc", "ambient_radiance", "base_color_of",
            "camera_of", "geom_pose", "infinite_plane_half_m", "light_intensity", "lights_of", "linear_to_srgb",
-           "material_of", "planar_texcoords", "roughness_from_shininess", "skybox_latlong", "srgb_to_linear", "surface_of"]
+           "material_of", "planar_texcoords", "primitive_texcoords", "roughness_from_shininess", "skybox_latlong", "srgb_to_linear", "surface_of"]

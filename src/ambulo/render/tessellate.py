@@ -6,7 +6,9 @@ surfaces get smooth vertex normals, so a sphere of ``slices`` x ``stacks`` quads
 sphere; flat faces (box sides, cylinder caps, planes) get face normals.
 
 Every function returns a ``TriangleMesh`` in the geom frame (m): MuJoCo sizes are half-sizes and
-radii (``geom_size``), capsules and cylinders lie along the local z axis.
+radii (``geom_size``), capsules and cylinders lie along the local z axis. Curved primitives also
+carry ``surface_uv``: where MuJoCo 4's rasterizer puts a 2-D texture on them at texrepeat 1
+(measured on its images, see ``TriangleMesh.surface_uv``), so other renderers put texels where it does.
 """
 
 from __future__ import annotations
@@ -29,6 +31,14 @@ class TriangleMesh:
     """(F, 3) uint32 vertex indices, counter-clockwise seen from outside."""
     texcoords: np.ndarray | None = None
     """(V, 2) float32 texture coordinates when the model gives them (meshes with UVs), else None."""
+    surface_uv: np.ndarray | None = None
+    """(V, 2) float32 (u, v) of spheres, ellipsoids, cylinders and capsules at texrepeat 1, v down the
+    texture's rows; None for flat primitives and meshes. MuJoCo 4's rasterizer, measured with a
+    texture whose texels encode their own (column, row) (``test_tier_textures``): u = azimuth / 2 pi
+    from the geom's +x towards +y; v = polar angle / pi from +z on spheres and ellipsoids (the angles
+    of the unit sphere it is scaled from), (half-length - z) / length on tubes; each capsule cap spans
+    the whole v range by itself (pole 0 to rim 1 on top, rim 0 to pole 1 below); a cylinder cap is
+    planar, u = (1 + x / r) / 2, v = (1 + y / r) / 2 on both caps. Texrepeat multiplies both."""
 
 
 def _grid_faces(rows: int, cols: int, offset: int = 0) -> np.ndarray:
@@ -39,25 +49,30 @@ def _grid_faces(rows: int, cols: int, offset: int = 0) -> np.ndarray:
     return np.concatenate([np.stack([a, b, d + 1], 1), np.stack([a, d + 1, d], 1)]).astype(np.uint32)
 
 
-def _mesh(positions, normals, faces, texcoords=None) -> TriangleMesh:
+def _mesh(positions, normals, faces, texcoords=None, surface_uv=None) -> TriangleMesh:
+    def floats(a):
+        return None if a is None else np.asarray(a, np.float32)
     return TriangleMesh(np.asarray(positions, np.float32), np.asarray(normals, np.float32),
-                        np.asarray(faces, np.uint32), None if texcoords is None else np.asarray(texcoords, np.float32))
+                        np.asarray(faces, np.uint32), floats(texcoords), floats(surface_uv))
 
 
 def _merge(parts: list[TriangleMesh]) -> TriangleMesh:
     offsets = np.cumsum([0] + [len(p.positions) for p in parts[:-1]])
+    uv = None if any(p.surface_uv is None for p in parts) else np.concatenate([p.surface_uv for p in parts])
     return _mesh(np.concatenate([p.positions for p in parts]), np.concatenate([p.normals for p in parts]),
-                 np.concatenate([p.faces + o for p, o in zip(parts, offsets)]))
+                 np.concatenate([p.faces + o for p, o in zip(parts, offsets)]), surface_uv=uv)
 
 
 def sphere_patch(slices: int, stacks: int, polar_from_rad: float = 0.0, polar_to_rad: float = np.pi,
                  ) -> TriangleMesh:
-    """Unit-sphere band between two polar angles (0 = +z pole); smooth normals."""
+    """Unit-sphere band between two polar angles (0 = +z pole); smooth normals; ``surface_uv`` of the
+    whole sphere (u = azimuth / 2 pi, v = polar / pi; the seam's column twice, at u = 0 and 1)."""
     polar = np.linspace(polar_from_rad, polar_to_rad, stacks + 1)
     azimuth = np.linspace(0.0, 2 * np.pi, slices + 1)
     p, a = np.meshgrid(polar, azimuth, indexing="ij")
     n = np.stack([np.sin(p) * np.cos(a), np.sin(p) * np.sin(a), np.cos(p)], -1).reshape(-1, 3)
-    return _mesh(n, n, _grid_faces(stacks, slices)[:, ::-1])  # rows run down from +z: flip to face out
+    uv = np.stack([a / (2 * np.pi), p / np.pi], -1).reshape(-1, 2)
+    return _mesh(n, n, _grid_faces(stacks, slices)[:, ::-1], surface_uv=uv)  # rows run down from +z: flip to face out
 
 
 def ellipsoid(radii_m, slices: int = 32, stacks: int = 16) -> TriangleMesh:
@@ -66,7 +81,7 @@ def ellipsoid(radii_m, slices: int = 32, stacks: int = 16) -> TriangleMesh:
     radii = np.asarray(radii_m, np.float32)
     normals = unit.normals / radii  # the normal of x^2/a^2 + ... = 1 is (x/a^2, ...)
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-    return _mesh(unit.positions * radii, normals, unit.faces)
+    return _mesh(unit.positions * radii, normals, unit.faces, surface_uv=unit.surface_uv)
 
 
 def _disk(radius_m: float, z_m: float, slices: int, up: bool) -> TriangleMesh:
@@ -77,14 +92,17 @@ def _disk(radius_m: float, z_m: float, slices: int, up: bool) -> TriangleMesh:
     faces = np.stack([np.zeros(slices, int), 1 + i, 1 + (i + 1) % slices], 1)
     if not up:
         faces = faces[:, ::-1]
-    return _mesh(pos, np.tile([0.0, 0.0, 1.0 if up else -1.0], (slices + 1, 1)), faces)
+    uv = 0.5 + 0.5 * pos[:, :2] / radius_m  # planar, the same way up on both caps
+    return _mesh(pos, np.tile([0.0, 0.0, 1.0 if up else -1.0], (slices + 1, 1)), faces, surface_uv=uv)
 
 
 def _tube(radius_m: float, half_length_m: float, slices: int) -> TriangleMesh:
     a = np.linspace(0.0, 2 * np.pi, slices + 1)
     ring = np.stack([np.cos(a), np.sin(a), np.zeros_like(a)], 1)
     pos = np.concatenate([ring * radius_m + [0, 0, half_length_m], ring * radius_m - [0, 0, half_length_m]])
-    return _mesh(pos, np.concatenate([ring, ring]), _grid_faces(1, slices)[:, ::-1])
+    u = a / (2 * np.pi)
+    uv = np.concatenate([np.stack([u, np.zeros_like(u)], 1), np.stack([u, np.ones_like(u)], 1)])  # v: top to bottom
+    return _mesh(pos, np.concatenate([ring, ring]), _grid_faces(1, slices)[:, ::-1], surface_uv=uv)
 
 
 def cylinder(radius_m: float, half_length_m: float, slices: int = 32) -> TriangleMesh:
@@ -98,7 +116,9 @@ def capsule(radius_m: float, half_length_m: float, slices: int = 32, stacks: int
     parts = []
     for sign, (lo, hi) in ((1.0, (0.0, np.pi / 2)), (-1.0, (np.pi / 2, np.pi))):
         cap = sphere_patch(slices, stacks // 2, lo, hi)
-        parts.append(_mesh(cap.positions * radius_m + [0.0, 0.0, sign * half_length_m], cap.normals, cap.faces))
+        uv = cap.surface_uv * [1.0, 2.0] - [0.0, 0.0 if sign > 0 else 1.0]  # each cap spans v in [0, 1]
+        parts.append(_mesh(cap.positions * radius_m + [0.0, 0.0, sign * half_length_m], cap.normals, cap.faces,
+                           surface_uv=uv))
     return _merge([parts[0], _tube(radius_m, half_length_m, slices), parts[1]])
 
 
