@@ -27,3 +27,22 @@ def room(tmp_path_factory):
     path = tmp_path_factory.mktemp("world") / "room.xml"
     path.write_text(ROOM_XML)
     return path
+
+
+@pytest.fixture
+def room_nav(room):
+    """A navigator in ``room`` (mapping mode unless asked: ``room_nav("full")``), the robot at
+    (-1, 0) facing +x, a 64 x 48 camera; closed after the test."""
+    from ambulo.navigation import Navigator, NavigatorCfg, NavWorld, NavWorldCfg
+
+    worlds = []
+
+    def make(mode: str = "mapping", **navigator_kw):
+        world = NavWorld.from_file(room, start_pose=(-1.0, 0.0, 0.0),
+                                   cfg=NavWorldCfg(camera_width=64, camera_height=48, record_gyro=mode == "full"))
+        worlds.append(world)
+        return Navigator(world, NavigatorCfg(mode=mode, **navigator_kw))
+
+    yield make
+    for world in worlds:
+        world.close()

@@ -5,15 +5,13 @@ import numpy as np
 import pytest
 
 from ambulo.maps import OCCUPIED
-from ambulo.navigation import Navigator, NavigatorCfg, NavWorld, NavWorldCfg
 
 pytest.importorskip("onnxruntime")
 
 
-def test_a_felt_point_becomes_an_occupied_cell_and_a_replan(room):
-    world = NavWorld.from_file(room, start_pose=(-1.0, 0.0, 0.0),
-                               cfg=NavWorldCfg(camera_width=64, camera_height=48, record_gyro=False))
-    nav = Navigator(world, NavigatorCfg(mode="mapping"))
+def test_a_felt_point_becomes_an_occupied_cell_and_a_replan(room_nav):
+    nav = room_nav()
+    world = nav.world
     nav.set_goal((2.5, 0.0))
     felt = np.array([[-0.4, 0.05]])
     nav.walker.felt_xy_m = felt  # as the walker records a touch (caution.py)
@@ -27,4 +25,3 @@ def test_a_felt_point_becomes_an_occupied_cell_and_a_replan(room):
     assert nav.mapper.grid.occupancy[iy, ix] == OCCUPIED
     nav._control_tick()  # the same point again adds nothing
     assert nav._felt_marked == 1
-    world.close()

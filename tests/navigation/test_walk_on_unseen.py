@@ -8,15 +8,13 @@ import numpy as np
 import pytest
 
 from ambulo.maps import FREE, UNKNOWN, Grid2D
-from ambulo.navigation import Navigator, NavigatorCfg, NavWorld, NavWorldCfg
 
 pytest.importorskip("onnxruntime")
 
 
-def test_a_robot_facing_its_route_walks_on_past_an_unseen_shadow(room):
-    world = NavWorld.from_file(room, start_pose=(-1.0, 0.0, 0.0),
-                               cfg=NavWorldCfg(camera_width=64, camera_height=48, record_gyro=False))
-    nav = Navigator(world, NavigatorCfg(mode="mapping"))
+def test_a_robot_facing_its_route_walks_on_past_an_unseen_shadow(room_nav):
+    nav = room_nav()
+    world = nav.world
     nav.set_goal((2.5, 0.0))
     # the map as the robot would hold it: all seen free but a patch beside the route 0.2 m to its
     # left, 0.3-0.7 m ahead (unseen: the walk-on stance 0.6 m ahead touches it)
@@ -27,6 +25,7 @@ def test_a_robot_facing_its_route_walks_on_past_an_unseen_shadow(room):
     occ[(cx > -0.7) & (cx < -0.3) & (cy > 0.2) & (cy < 0.6)] = UNKNOWN
     nav.mapper.grid = Grid2D(occupancy=occ, origin_xy_m=g.origin_xy_m, resolution_m=g.resolution_m)
     nav.mapper.refresh = lambda time_s, xy=None: False  # keep this map (no frame is fused here)
+    zones = len(nav.walker.blind_zones_xy_m)
     nav._replan(world.time_s, np.array([-1.0, 0.0, 0.0]), "test")
     record = nav.replans[-1]
     assert "(faced: walk on)" in record.reason  # the look turn had no step: it faces the route
@@ -35,4 +34,6 @@ def test_a_robot_facing_its_route_walks_on_past_an_unseen_shadow(room):
     end = nav.plan.footsteps_xyyaw_w[-2:, :2].mean(axis=0)
     assert end[0] > -0.6 and abs(end[1]) < 0.15  # it walks down the route, ~0.6 m
     assert abs(math.atan2(end[1] + 1e-9, end[0] + 1.0)) < 0.3
-    world.close()
+    # the walk-on counts unseen floor free: the walker goes slowly from here (a blind zone)
+    assert len(nav.walker.blind_zones_xy_m) == zones + 1
+    assert np.allclose(nav.walker.blind_zones_xy_m[-1], [-1.0, 0.0])

@@ -34,3 +34,21 @@ def test_zmp_walker_is_a_walker_and_refuses_an_impossible_step(room):
     reason = walker.refuse(wide)
     assert reason is not None and "width" in reason
     world.close()
+
+
+def test_a_zmp_walker_whose_feet_lack_room_steps_out_first(room):
+    """Started 0.22 m from the north wall's face (the benchmark's starts come within 0.23 m), the
+    walker's own feet lack the planner's body clearance: the navigator plans a step out to room
+    (``step_out_clearance_m``), not the goal's plan, instead of refusing every plan (stuck)."""
+    from ambulo.navigation import Navigator, NavigatorCfg
+
+    world = NavWorld.from_file(room, start_pose=(-1.0, 1.95 - 0.22, 0.0), cfg=NavWorldCfg(record_gyro=False))
+    nav = Navigator(world, NavigatorCfg(mode="oracle"), walker=ZmpWalker())
+    nav.set_goal((-1.0, -0.5))
+    nav._replan(world.time_s, world.true_pose(), "test")
+    record = nav.replans[-1]
+    assert record.footstep_status == "success" and record.refused is None, record
+    assert not nav.plan_final  # a step out, not the goal's plan
+    end = nav.plan.footsteps_xyyaw_w[-2:, :2].mean(axis=0)
+    assert end[1] < 1.95 - 0.22 - 0.01  # away from the wall
+    world.close()

@@ -236,9 +236,11 @@ def route_heading(path: np.ndarray, k: int, back_m: float = 0.4) -> float:
 class FootstepStage:
     """Footsteps to a subgoal on the map with unknown cells blocked (module docstring, step 3)."""
 
-    def __init__(self, cfg: PlanningCfg):
+    def __init__(self, cfg: PlanningCfg, body_clearance_m: float | None = None):
+        """``body_clearance_m``: the planner's (``FootstepPlannerCfg.body_clearance_m``) if None."""
         self.cfg = cfg
-        self.footstep_cfg = humanoid_footstep_cfg(time_budget_s=cfg.footstep_budget_s)
+        extra = {} if body_clearance_m is None else {"body_clearance_m": body_clearance_m}
+        self.footstep_cfg = humanoid_footstep_cfg(time_budget_s=cfg.footstep_budget_s, **extra)
         self._full: tuple | None = None
 
     def plan(self, grid: Grid2D, version: int, optimistic: bool, start_xyyaw, goal_xyyaw, *,
