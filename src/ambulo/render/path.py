@@ -69,6 +69,13 @@ class PathTracerCfg(Checked):
     """Samples per pixel."""
     max_depth: int = field(default=4, metadata=rule(signed=True, minimum=-1))
     """Longest path in vertices (Mitsuba's ``max_depth``): 4 is three bounces; -1 is unbounded."""
+    rr_depth: int = field(default=2, metadata=rule(minimum=1))
+    """Path depth from which Russian roulette may end a path (Mitsuba's ``rr_depth``; 1: after the
+    first bounce). Unbiased (a surviving path is weighted up by 1 / its survival probability):
+    only noise, which the denoiser takes. On the warehouse at 320x240, 16 spp (2026-11-28): 2
+    instead of Mitsuba's 5 (never, with ``max_depth`` 4) cut the path tracing's CPU time by a
+    quarter (~1.75 -> ~1.3 s); the mean image was unchanged (0.264 / 0.287 / 0.187 both) and the
+    denoised image's mean error against a 512-spp reference went from 1.05 to 1.08 sRGB levels."""
     denoise: bool = True
     denoise_quality: Literal["fast", "balanced", "high"] = "fast"
     """Open Image Denoise's speed/quality trade: "fast" costs half of "balanced" (0.17 vs 0.32 CPU-s at 320x240)."""
@@ -176,7 +183,8 @@ class PathTracer:
 
     def _scene_dict(self, scene: mujoco.MjvScene, camera: CameraDesc) -> dict:
         cfg = self.cfg
-        out = {"type": "scene", "integrator": {"type": "path", "max_depth": cfg.max_depth}, "sensor": {
+        integrator = {"type": "path", "max_depth": cfg.max_depth, "rr_depth": cfg.rr_depth}
+        out = {"type": "scene", "integrator": integrator, "sensor": {
             "type": "perspective", "fov_axis": "y", "fov": camera.fovy_deg, "near_clip": camera.near_m,
             "far_clip": camera.far_m, "to_world": self._look_at(camera.pos_w, camera.rot_w_gl, scalar=True),
             "sampler": {"type": "multijitter", "sample_count": cfg.spp},
