@@ -31,7 +31,8 @@ creating one file in ``--dir`` (five a frame): on an ext4 without journal it
 grows with the files deleted there in the last ~50 min. Shadows and MSAA off
 (the defaults). Ends with one line ``RESULT {json}``; "ratio" is annotated /
 floor at 320x240 for the RESULT's worker count (the most measured);
-"stage_cpu_ms_320x240" splits a frame's CPU by stage (``stage_cpu_ms``). Targets:
+"stage_cpu_ms_320x240" splits a frame's CPU by stage (``stage_cpu_ms``), and
+"capture_split_ms_320x240" a capture into the floor's passes and the rest (``capture_split_ms``). Targets:
 >= 150 annotated frames/s at 320x240 on 2 cores (issue 7, item 8; ``meets_target``)
 and annotated >= 0.5 of the floor (issue 22, item 6; ``meets_ratio``).
 """
@@ -135,6 +136,42 @@ def stage_cpu_ms(producer: FrameProducer, out: str, frames: int) -> dict[str, fl
     return {stage: 1000 * seconds / frames for stage, seconds in totals.items()}
 
 
+def capture_split_ms(producer: FrameProducer, frames: int) -> dict[str, float]:
+    """What a capture costs beyond the floor's two passes, CPU ms a frame (one thread, in line).
+
+    Each frame is randomized and captured as in ``run_frames`` (``capture_cold``); then, on the same
+    state, the floor's two passes run (``passes``: scene update, lit pass, id pass, read back) and
+    the capture once more (``capture_warm``). ``extra_work`` = capture_warm - passes is what a
+    capture does besides rendering (model and state copies, the camera's pose, the instance and
+    semantic maps, the annotators); ``cold`` = capture_cold - capture_warm is what randomizing
+    before it costs the render in cache misses.
+    """
+    camera, renderer = producer.camera, producer.camera.renderer
+    clip = camera.cfg.clipping_range_m
+    clock = time.process_time
+    cold = warm = passes = 0.0
+    for index in range(20_000_000, 20_000_000 + frames):
+        producer.randomize(SEED, index)
+        start = clock()
+        pose = producer.capture()["camera"]
+        cold += clock() - start
+        model, data = camera._model_buf, camera._data_buf  # the state the capture rendered
+        rot_gl = quat_to_mat(pose["quat_w_opengl"])
+        start = clock()
+        renderer.update(model, data, camera.cam_id, pose["pos_w"], rot_gl, clip)
+        renderer.render_rgb()
+        renderer.render_ids(want_depth=True)
+        passes += clock() - start
+        start = clock()
+        producer.capture()
+        warm += clock() - start
+    ms = {"capture_cold": cold, "capture_warm": warm, "passes": passes}
+    ms = {key: 1000 * value / frames for key, value in ms.items()}
+    ms["extra_work"] = ms["capture_warm"] - ms["passes"]
+    ms["cold"] = ms["capture_cold"] - ms["capture_warm"]
+    return ms
+
+
 def _warm(producer: FrameProducer) -> tuple[float, float]:
     return render_floor(producer, 1)
 
@@ -165,6 +202,9 @@ class InProcess:
 
     def stages(self, out: Path, frames: int) -> dict[str, float]:
         return stage_cpu_ms(self.producer, str(out), frames)
+
+    def capture_split(self, frames: int) -> dict[str, float]:
+        return capture_split_ms(self.producer, frames)
 
     def renderer(self) -> str:
         return self.producer.gl_renderer
@@ -201,6 +241,10 @@ class Pool:
         runs = self.pool.run_on_each(stage_cpu_ms, str(out), frames)
         return {stage: sum(run[stage] for run in runs) / len(runs) for stage in STAGES}
 
+    def capture_split(self, frames: int) -> dict[str, float]:
+        runs = self.pool.run_on_each(capture_split_ms, frames)
+        return {key: sum(run[key] for run in runs) / len(runs) for key in runs[0]}
+
     def renderer(self) -> str:
         return self._renderer
 
@@ -232,12 +276,13 @@ def measure(out: Path, width: int, height: int, workers: int, frames: int, repea
             first += frames
         renderer = side.renderer()
         stages = side.stages(out, max(48, frames // (2 * workers)))
+        split = side.capture_split(max(48, frames // (4 * workers)))
     finally:
         side.close()
     return {"floor_fps": max(fps for fps, _ in floor), "floor_cpu_ms": min(cpu for _, cpu in floor),
             "annotated_fps": max(fps for fps, _ in annotated), "annotated_cpu_ms": min(cpu for _, cpu in annotated),
             "floor_runs": [fps for fps, _ in floor], "annotated_runs": [fps for fps, _ in annotated],
-            "gl_renderer": renderer, "stage_cpu_ms": stages}
+            "gl_renderer": renderer, "stage_cpu_ms": stages, "capture_split_ms": split}
 
 
 def end_to_end_fps(out: Path, width: int, height: int, workers: int, frames: int) -> float:
@@ -284,6 +329,8 @@ def main() -> None:
                       f"{r['annotated_cpu_ms']:6.2f} | {r['annotated_fps'] / r['floor_fps']:.2f}", flush=True)
                 print("    CPU ms a frame by stage (one thread, in line): " + ", ".join(
                     f"{stage} {ms:.2f}" for stage, ms in r["stage_cpu_ms"].items()), flush=True)
+                print("    a capture beyond the two passes: " + ", ".join(
+                    f"{key} {ms:.2f}" for key, ms in r["capture_split_ms"].items()), flush=True)
         workers = max(args.workers)
         e2e = end_to_end_fps(Path(tmp) / "end_to_end", 320, 240, workers, args.frames)
     print(f"ambulo generate --workers {workers} --frames {args.frames} at 320x240, end to end: {e2e:.1f} frames/s; "
@@ -301,6 +348,7 @@ def main() -> None:
                                      "floor": round(low["floor_cpu_ms"], 2)},
         "file_create_ms": round(create_ms, 3),
         "stage_cpu_ms_320x240": {stage: round(ms, 2) for stage, ms in low["stage_cpu_ms"].items()},
+        "capture_split_ms_320x240": {key: round(ms, 2) for key, ms in low["capture_split_ms"].items()},
         "annotated_fps_320x240_by_workers": {p: round(results[(320, p)]["annotated_fps"], 1) for p in args.workers},
         "target_annotated_fps_320x240": TARGET_FPS,
         "meets_target": low["annotated_fps"] >= TARGET_FPS,

@@ -17,7 +17,7 @@ from pycocotools import mask as mask_utils
 from ambulo import replicator as rep
 from ambulo.core import randomize as dist
 from ambulo.core.randomize.fields import geoms_by_body, write_field
-from ambulo.replicator.coco import frame_annotations, instance_rles
+from ambulo.replicator.coco import column_runs, frame_annotations, instance_rles
 from ambulo.replicator.io import depth_to_mm_u16
 from ambulo.sensors import annotators as ann
 from ambulo.utils.rotations import quat_to_mat
@@ -94,6 +94,16 @@ def test_rles_of_all_instances_at_once_equal_pycocotools_encode_of_each_mask(seg
         x0, y0, x1, y1 = tight[iid - 1]
         assert box.tolist() == ([x0, y0, x1 - x0 + 1, y1 - y0 + 1] if x0 >= 0 else [0, 0, 0, 0])
     assert instance_rles(seg, np.array([], np.int64)) == []
+
+
+@pytest.mark.parametrize("seg", hand_made_segmentations() + random_segmentations()
+                         + [np.array([[1, 1, 2, 0]], np.int32), np.array([[3], [3], [0]], np.int32)])
+def test_column_runs_equal_the_runs_of_the_column_major_copy(seg):
+    flat = seg.T.ravel()  # the straightforward way: copy the ids column by column, compare neighbours
+    expected = np.concatenate(([0], np.flatnonzero(flat[1:] != flat[:-1]) + 1))
+    starts, ids = column_runs(seg)
+    np.testing.assert_array_equal(starts, expected)
+    np.testing.assert_array_equal(ids, flat[expected])
 
 
 def test_instance_map_equals_the_table_lookup():

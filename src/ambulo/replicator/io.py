@@ -102,5 +102,9 @@ def depth_to_mm_u16(depth_m: np.ndarray, byteorder: str = "=") -> np.ndarray:
     ``byteorder`` '>' gives big-endian uint16, what ``encode_png`` writes, in the same pass."""
     mm = np.multiply(depth_m, 1000.0)  # in the input's precision, as numbers times a Python float are
     np.rint(mm, out=mm)
-    mm[~((mm >= 0) & (mm <= 65535))] = 0  # also NaN and +-inf (no return)
+    # 0 outside [0, 65535], NaN and +-inf (no return) included; one mask, written in place
+    bad = mm <= 65535
+    bad &= mm >= 0
+    np.logical_not(bad, out=bad)
+    np.copyto(mm, 0, where=bad)
     return mm.astype(np.dtype(np.uint16).newbyteorder(byteorder))

@@ -240,8 +240,9 @@ class CameraJitter(Randomizer):
 
     def apply(self, params, ctx):
         cam = ctx.cameras[self.camera]
-        # NumPy on the CPU camera, device tensors on the TiledCamera of the batched GPU path
-        base_pos, base_rot = (np.asarray(torch.as_tensor(v).cpu(), np.float64) for v in cam._default_offset)
+        # NumPy on the CPU camera (used as it is), device tensors on the TiledCamera of the batched GPU path
+        base_pos, base_rot = (v if isinstance(v, np.ndarray) and v.dtype == np.float64
+                              else np.asarray(torch.as_tensor(v).cpu(), np.float64) for v in cam._default_offset)
         rot = rot_about_axes(np.radians(params["rotation_deg"])) @ base_rot
         cam.set_local_pose(base_pos + np.asarray(params["position_m"]), mat_to_quat(rot),
                            convention="opengl", world_ids=[ctx.world])

@@ -58,6 +58,18 @@ class InstanceTable:
             self._instance_geoms = (geoms, self.geom_instance[1:][geoms])
         return self._instance_geoms
 
+    @property
+    def instance_groups(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``instance_geoms``' runs per instance (cached): where each instance's geoms start in
+        them, that instance's id, and each geom's labelled body. Per-frame boxes reduce over
+        these runs; they depend on the table alone, so they are worked out once."""
+        if getattr(self, "_instance_groups", None) is None:
+            _, owner = self.instance_geoms
+            starts = np.flatnonzero(np.concatenate(([True], owner[1:] != owner[:-1]))) if len(owner) \
+                else np.zeros(0, np.int64)
+            self._instance_groups = (starts, owner[starts], self.body_ids[owner - 1])
+        return self._instance_groups
+
 
 def instance_table(model: mujoco.MjModel) -> InstanceTable:
     labels_by_body = semantic_labels(model)
@@ -126,26 +138,30 @@ def tight_boxes(instances: np.ndarray, num_instances: int) -> tuple[np.ndarray, 
 
 
 def instance_boxes_3d(table: InstanceTable, model: mujoco.MjModel, body_pos_w: np.ndarray,
-                      body_rot_w: np.ndarray, geom_pos_w: np.ndarray, geom_rot_w: np.ndarray):
+                      body_rot_w: np.ndarray, geom_pos_w: np.ndarray, geom_rot_w: np.ndarray,
+                      corners_w: np.ndarray | None = None):
     """Oriented 3D box of each instance, aligned with its labelled body's frame.
 
     The box encloses the bounding boxes (``geom_aabb``) of the instance's geoms.
     Inputs are one world's poses: body (nbody, 3) and (nbody, 3, 3), geom
-    (ngeom, 3) and (ngeom, 3, 3). Returns ``center_w`` (K, 3) m, ``rot_w``
-    (K, 3, 3) (box axes as columns) and ``half_extent`` (K, 3) m.
+    (ngeom, 3) and (ngeom, 3, 3); ``corners_w``: ``geom_corners_w`` of the instances' geoms
+    for these poses, when the caller has them already (the loose boxes use the same).
+    Returns ``center_w`` (K, 3) m, ``rot_w`` (K, 3, 3) (box axes as columns) and
+    ``half_extent`` (K, 3) m.
     """
     k = table.num_instances
-    center_w, rot_w, half = np.zeros((k, 3)), np.tile(np.eye(3), (k, 1, 1)), np.zeros((k, 3))
+    center_w, half = np.zeros((k, 3)), np.zeros((k, 3))
+    rot_w = np.zeros((k, 3, 3))
+    rot_w[:, [0, 1, 2], [0, 1, 2]] = 1.0
     geoms, owner = table.instance_geoms
     if len(geoms) == 0:
         return center_w, rot_w, half
-    bodies = table.body_ids[owner - 1]
-    corners = geom_corners_w(geoms, model, geom_pos_w, geom_rot_w)  # (G, 8, 3)
+    starts, ids, bodies = table.instance_groups
+    corners = geom_corners_w(geoms, model, geom_pos_w, geom_rot_w) if corners_w is None else corners_w  # (G, 8, 3)
     local = np.einsum("gcj,gji->gci", corners - body_pos_w[bodies][:, None], body_rot_w[bodies])
-    starts = np.flatnonzero(np.r_[True, owner[1:] != owner[:-1]])
     lo = np.minimum.reduceat(local.min(1), starts)
     hi = np.maximum.reduceat(local.max(1), starts)
-    idx = owner[starts] - 1
+    idx = ids - 1
     b = table.body_ids[idx]
     center_w[idx] = body_pos_w[b] + np.einsum("kij,kj->ki", body_rot_w[b], (lo + hi) / 2)
     rot_w[idx], half[idx] = body_rot_w[b], (hi - lo) / 2
@@ -162,16 +178,17 @@ def geom_corners_w(geoms: np.ndarray, model: mujoco.MjModel, geom_pos_w: np.ndar
 
 def loose_boxes(table: InstanceTable, model: mujoco.MjModel, geom_pos_w: np.ndarray, geom_rot_w: np.ndarray,
                 extrinsics_cw: np.ndarray, k_matrix: np.ndarray, width: int, height: int,
-                near_m: float) -> list[np.ndarray | None]:
+                near_m: float, corners_w: np.ndarray | None = None) -> list[np.ndarray | None]:
     """Loose 2D box per instance, all instances' geoms at once: [x_min, y_min, x_max, y_max]
     (float px, clipped to the image) around the projected corners of the instance's geoms'
     bounding boxes, or None when nothing is in front of the camera or inside the image.
 
     ``extrinsics_cw`` maps world to the OpenCV camera frame. Box edges crossing the near
     plane are cut there, so boxes partly behind the camera still project correctly.
+    ``corners_w``: ``geom_corners_w`` of the instances' geoms, when the caller has them.
     """
     geoms, owner = table.instance_geoms
-    corners = geom_corners_w(geoms, model, geom_pos_w, geom_rot_w)
+    corners = geom_corners_w(geoms, model, geom_pos_w, geom_rot_w) if corners_w is None else corners_w
     corners_c = corners @ extrinsics_cw[:3, :3].T + extrinsics_cw[:3, 3]
     points, valid = _near_clipped(corners_c, near_m)
     zs = np.where(valid, points[..., 2], 1.0)
@@ -179,7 +196,7 @@ def loose_boxes(table: InstanceTable, model: mujoco.MjModel, geom_pos_w: np.ndar
     lo = np.where(valid[..., None], uv, np.inf).min(1)
     hi = np.where(valid[..., None], uv, -np.inf).max(1)
     out: list[np.ndarray | None] = [None] * table.num_instances
-    starts = np.flatnonzero(np.r_[True, owner[1:] != owner[:-1]]) if len(owner) else np.array([], int)
+    starts, ids, _ = table.instance_groups
     if len(starts) == 0:
         return out
     lo_i = np.minimum.reduceat(lo, starts)
@@ -187,7 +204,7 @@ def loose_boxes(table: InstanceTable, model: mujoco.MjModel, geom_pos_w: np.ndar
     lo_i = np.maximum(lo_i, -0.5)
     hi_i = np.minimum(hi_i, [width - 0.5, height - 0.5])
     seen = np.all(hi_i > lo_i, 1)
-    for inst, box in zip(owner[starts][seen].tolist(), np.concatenate([lo_i, hi_i], 1)[seen]):
+    for inst, box in zip(ids[seen].tolist(), np.concatenate([lo_i, hi_i], 1)[seen]):
         out[inst - 1] = box
     return out
 
