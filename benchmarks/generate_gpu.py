@@ -36,11 +36,13 @@ from __future__ import annotations
 import argparse
 import collections
 import contextlib
+import dataclasses
 import datetime
 import json
 import shutil
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -54,6 +56,9 @@ from ambulo.replicator.processes import ProducerPool, usable_cpus
 from ambulo.replicator.producer import run_frames
 from ambulo.replicator.writers import FrameWriter, prepare_dirs, write_frame_files
 from ambulo.sensors.annotators import instance_table
+
+ENCODE_SAMPLE = 32
+"""Frames of the profiled batch encoded and written on one thread."""
 
 
 def sync(device: str) -> None:
@@ -114,9 +119,12 @@ def profile_batch(producer: BatchedFrameProducer, device: str, seed: int, chunk:
     cfg = producer.config.writer
     prepare_dirs(out, cfg)
     fsync_files = FrameWriter(out, cfg).fsync_files
+    # a sample of the batch (PNG encoding is the slowest stage on one thread)
+    sample = min(len(chunk), ENCODE_SAMPLE)
     stage("encode_write_1_thread", lambda: [write_frame_files(out, i, c, producer.table, log, cfg, fsync_files)
-                                            for i, c, log in zip(chunk, captures, logs)])
+                                            for i, c, log in list(zip(chunk, captures, logs))[:sample]])
     ms = {name: round(1e3 * s / len(chunk), 3) for name, s in stages.items()}
+    ms["encode_write_1_thread"] = round(1e3 * stages["encode_write_1_thread"] / sample, 3)
     device_stages = ("kinematics", "render", "labels")
     ms["host_total"] = round(sum(v for k, v in ms.items() if k not in device_stages), 3)
     ms["device_total"] = round(sum(ms[k] for k in device_stages), 3)
@@ -143,6 +151,10 @@ def main() -> None:
                         "on CUDA, 0 on Warp's CPU device)")
     p.add_argument("--processes", type=int, default=None,
                    help="producers on the device for the second disk run (default: cores // 2, at most 8; 0 skips)")
+    p.add_argument("--outputs", default=None,
+                   help="writers of the disk runs, comma-separated (default: the config's, coco,depth,masks); "
+                        "'coco' alone writes the rgb PNGs, COCO RLE masks and records")
+    p.add_argument("--no-fsync", action="store_true", help="skip the flushes to disk (WriterCfg.fsync=False)")
     p.add_argument("--out", default=None, help="parent folder of the disk runs' datasets (default: a temporary one)")
     args = p.parse_args()
     width, height = (int(v) for v in args.size.lower().split("x"))
@@ -153,6 +165,10 @@ def main() -> None:
     if draw_workers is None:
         draw_workers = max(0, cpus - 2) if args.device.startswith("cuda") else 0
     config = rep.example_config(width, height)
+    writer = config.writer
+    if args.outputs:
+        writer = dataclasses.replace(writer, outputs=tuple(args.outputs.split(",")))
+    config = dataclasses.replace(config, writer=dataclasses.replace(writer, fsync=writer.fsync and not args.no_fsync))
     n, dev = args.num_worlds, args.device
     frames = list(range(args.frames))
     root = Path(tempfile.mkdtemp(prefix="ambulo-gen-gpu-", dir=args.out))
@@ -165,19 +181,26 @@ def main() -> None:
         start = time.perf_counter()
         say("building the producer (scene, MuJoCo Warp model, render context)")
         draws = DrawPool(config, draw_workers) if draw_workers else None
-        producer = BatchedFrameProducer(config, num_worlds=n, device=dev, draws=draws)
-        if draws is not None:
+        warming = None
+        if draws is not None:  # the draw processes start while this one builds and compiles
             say(f"starting {draw_workers} draw processes (the first compiles Warp's CPU render-context kernels "
                 "if the cache is cold)")
-            draws.warm()
+            warming = threading.Thread(target=draws.warm, daemon=True)
+            warming.start()
+        producer = BatchedFrameProducer(config, num_worlds=n, device=dev)
         setup_s = time.perf_counter() - start
         say(f"producer ready after {setup_s:.1f} s; first batch: compiles or loads the kernels "
             "(minutes with a cold cache)")
         start = time.perf_counter()
-        next(producer.batches(0, frames[:n]))
+        next(producer.batches(0, frames[:n]))  # drawn in this process: the pool may still be starting
         sync(dev)
         first_batch_s = time.perf_counter() - start
-        say(f"first batch after {first_batch_s:.1f} s; warming the capture and writer paths")
+        if warming is not None:
+            warming.join()
+            producer.draws = draws
+        pool_ready_s = time.perf_counter() - start
+        say(f"first batch after {first_batch_s:.1f} s, draw processes ready after {pool_ready_s:.1f} s; "
+            "warming the capture and writer paths")
         start = time.perf_counter()
         draws, producer.draws = producer.draws, None  # the profile draws in this process
         profile_batch(producer, dev, 0, frames[:n], root / "warm")  # first use of every other path
@@ -254,12 +277,13 @@ def main() -> None:
         "benchmark": "generate_gpu", "date": datetime.date.today().isoformat(), "device": dev, "gpu": gpu,
         "cpus": cpus, "size": [width, height], "num_worlds": n, "frames": args.frames,
         "warmup": {"setup_s": round(setup_s, 1), "first_batch_s": round(first_batch_s, 1),
+                   "draw_processes_ready_s": round(pool_ready_s, 1),
                    "other_paths_s": round(warm_paths_s, 1)},
         "profile_ms_per_frame": profile,
         "raw_render_fps": round(raw_fps, 1),
         "memory_fps": round(memory_fps, 1), "memory_of_raw": round(memory_fps / raw_fps, 3),
         "disk_fps": round(disk_fps, 1), "disk_of_raw": round(disk_fps / raw_fps, 3),
-        "writer_threads": writer_threads, "draw_workers": draw_workers, "disk_processes": procs, "dataset_mb_per_frame": round(size_mb / len(frames), 3),
+        "outputs": list(config.writer.outputs), "fsync": config.writer.fsync, "writer_threads": writer_threads, "draw_workers": draw_workers, "disk_processes": procs, "dataset_mb_per_frame": round(size_mb / len(frames), 3),
         "targets": {"disk_fps": 2000, "memory_fps": 50000, "size": [640, 480]},
         "meets_targets": {"disk": best_disk >= 2000, "memory": memory_fps >= 50000} if (width, height) == (640, 480)
         else None,

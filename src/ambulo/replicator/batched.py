@@ -199,7 +199,10 @@ class BatchedFrameProducer:
         for chunk, drawn in self._chunks(seed, indices):
             _, (instances, boxes, pixels) = self._render_chunk(seed, chunk, drawn)
             out, count = self.camera.data.output, len(chunk)
-            yield {"index": torch.as_tensor(chunk, dtype=torch.int64, device=dev), "rgb": out["rgb"][:count],
+            # through pinned memory: a plain copy to the GPU would wait for the batch's render
+            index = torch.as_tensor(chunk, dtype=torch.int64)
+            index = index.pin_memory().to(dev, non_blocking=True) if dev.type == "cuda" else index
+            yield {"index": index, "rgb": out["rgb"][:count],
                    "depth": out["depth"][:count, ..., 0], "instances": instances, "boxes": boxes, "pixels": pixels,
                    "semantic_ids": semantic}
 

@@ -20,6 +20,8 @@ import multiprocessing as mp
 import os
 import pickle
 import signal
+import threading
+import time
 
 _worker: dict = {}
 
@@ -71,11 +73,17 @@ class DrawPool:
 # -- in the worker processes ------------------------------------------------------------------
 
 def _start_worker(payload: bytes, parent_pid: int, barrier) -> None:
-    from .processes import _die_with_parent
-
-    _die_with_parent(parent_pid)
+    # exit when the parent process dies. Not PR_SET_PDEATHSIG (``processes``): that fires when the
+    # parent *thread* that spawned this process ends, and a pool may be started from any thread
+    threading.Thread(target=_exit_with, args=(parent_pid,), daemon=True).start()
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's
     _worker.update(payload=payload, barrier=barrier)
+
+
+def _exit_with(parent_pid: int) -> None:
+    while os.getppid() == parent_pid:
+        time.sleep(0.5)
+    os._exit(1)
 
 
 def _producer():
