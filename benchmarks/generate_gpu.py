@@ -4,9 +4,9 @@ The tutorial dataset (``replicator.example_config``, the warehouse bay) at ``--s
 ``--num-worlds`` frames per launch, timed in one process after a warm-up:
 
 - **warm-up** (reported, never timed into a rate): building the producer, then one batch, which
-  compiles MuJoCo Warp's kinematics and render kernels (2-2.5 min with a cold cache on a GPU,
-  seconds from Warp's kernel cache), captures the render graph and warms every other path;
-  progress lines are printed while it runs;
+  compiles MuJoCo Warp's kinematics and render kernels (minutes with a cold cache, seconds from
+  Warp's kernel cache), captures the render graph and warms every other path, while the
+  ``--draw-workers`` processes start; progress lines are printed while it runs;
 - **profile**: one batch stage by stage, each bracketed by device syncs, in ms a frame: the
   randomizers' draws and applies (on the host, ``HostWorlds``), reset and upload, kinematics,
   render, labels (instance ids, tight boxes, pixel counts), the copy to the host, the per-frame
@@ -16,12 +16,13 @@ The tutorial dataset (``replicator.example_config``, the warehouse bay) at ``--s
 - **memory**: ``BatchedFrameProducer.batches``, what a training loop gets: every frame
   randomized with the CPU path's draws (on ``--draw-workers`` processes, a batch ahead),
   rendered, instance ids, tight boxes and pixel counts on the device; nothing copied to the host;
-- **disk**: ``ambulo generate --device``'s ``run_frames`` with this producer and
-  ``--writer-threads`` encoders, then the COCO merge, into a fresh folder;
+- **disk**: ``ambulo generate --device``'s ``run_frames`` with this producer (and its draw
+  processes) and ``--writer-threads`` encoders, then the COCO merge, into a fresh folder;
 - **disk, processes**: ``--processes`` producers on the same device (``ProducerPool``, what
   ``--num-gpus`` runs, one process per GPU), each with cores / processes encoders: the host work
   (draws, captures, encoding) then runs on all cores. Warmed up first (each process builds its
-  producer and loads the kernels from the cache), then timed on other frames. 0 skips it.
+  producer and renders a batch, loading the kernels from the cache), then timed on
+  ``--process-frames`` frames. 0 skips it.
 
     python benchmarks/generate_gpu.py --device cuda --size 640x480 --num-worlds 256 --frames 2048
     python benchmarks/generate_gpu.py --device cpu --size 64x48 --num-worlds 4 --frames 8 --processes 0
@@ -38,6 +39,7 @@ import collections
 import contextlib
 import dataclasses
 import datetime
+import gc
 import json
 import shutil
 import sys
@@ -155,6 +157,8 @@ def main() -> None:
                    help="writers of the disk runs, comma-separated (default: the config's, coco,depth,masks); "
                         "'coco' alone writes the rgb PNGs, COCO RLE masks and records")
     p.add_argument("--no-fsync", action="store_true", help="skip the flushes to disk (WriterCfg.fsync=False)")
+    p.add_argument("--process-frames", type=int, default=None,
+                   help="frames of the processes' disk run (default: 2 x --frames, two launches each at the defaults)")
     p.add_argument("--out", default=None, help="parent folder of the disk runs' datasets (default: a temporary one)")
     args = p.parse_args()
     width, height = (int(v) for v in args.size.lower().split("x"))
@@ -164,6 +168,7 @@ def main() -> None:
     draw_workers = args.draw_workers
     if draw_workers is None:
         draw_workers = max(0, cpus - 2) if args.device.startswith("cuda") else 0
+    args.process_frames = args.process_frames or 2 * args.frames
     config = rep.example_config(width, height)
     writer = config.writer
     if args.outputs:
@@ -248,6 +253,9 @@ def main() -> None:
             f"MB a frame, {writer_threads} encoder threads")
         producer.close()
         del producer
+        if dev.startswith("cuda"):  # give the device memory back before the processes take theirs
+            gc.collect()
+            torch.cuda.empty_cache()
 
         # -- disk on several producer processes sharing the device -------------------------------
         procs = None
@@ -262,11 +270,11 @@ def main() -> None:
                 procs_warm_s = time.perf_counter() - start
                 say(f"processes warm after {procs_warm_s:.1f} s (first batch each: {max(warm):.1f} s at most)")
                 start = time.perf_counter()
-                pool.run(frames)
-                procs_fps = len(frames) / (time.perf_counter() - start)
+                pool.run(list(range(args.process_frames)))
+                procs_fps = args.process_frames / (time.perf_counter() - start)
             shutil.rmtree(out, ignore_errors=True)
             say(f"to disk, {processes} processes: {procs_fps:.0f} frames/s ({procs_fps / raw_fps:.3f} of raw)")
-            procs = {"processes": processes, "writer_threads_each": max(1, cpus // processes),
+            procs = {"processes": processes, "frames": args.process_frames, "writer_threads_each": max(1, cpus // processes),
                      "warmup_s": round(procs_warm_s, 1), "fps": round(procs_fps, 1),
                      "of_raw": round(procs_fps / raw_fps, 3)}
     finally:

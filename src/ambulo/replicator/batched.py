@@ -6,7 +6,10 @@ and a ``TiledCamera`` that renders all of them in one launch. Each world gets th
 ``FrameProducer`` would have drawn for its index: randomizer k of frame i samples from
 ``default_rng([seed, k, i // every_n])`` on the host exactly as the CPU path does (that is what
 makes the two paths' datasets agree object for object), and applies to its own world
-(``SceneContext.world``). Everything per pixel stays on the device: the render, geom id ->
+(``SceneContext.world``) of host copies of the fields, which then reach the device in one copy
+per field (``host_worlds``); the draws may run on other processes, a batch ahead
+(``draw_pool``). One kinematics pass poses the worlds (no collision or dynamics: nothing is
+simulated). Everything per pixel stays on the device: the render, geom id ->
 instance id, and each instance's tight box and pixel count (``device_tight_boxes``: three
 scatter reductions over all worlds at once). The host receives one copy per batch of the
 images and boxes and of the geom and body poses, from which the loose 2D and the 3D boxes are
