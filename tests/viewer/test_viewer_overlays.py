@@ -147,3 +147,32 @@ def test_map_image_puts_the_largest_y_on_top_and_unknown_clear():
     rgba = map_image(MapLayer(occupancy=occupancy, origin_xy_m=(0.0, 0.0), resolution_m=1.0))
     assert rgba[1, 0, 0] < rgba[1, 1, 0]  # bottom-left (occupied) darker than bottom-right (free)
     assert rgba[0, 0, 3] == 0 and rgba[0, 1, 3] > 0  # top-left unknown: clear
+
+
+def test_camera_overlay_renders_a_world_camera_on_the_streaming_thread():
+    from ambulo.sim.camera import Camera
+
+    World.clear_instance()
+    w = World(physics_dt=0.005)
+    w.scene.add_default_ground_plane()
+    w.scene.add(DynamicCuboid(prim_path="/World/Box", position=[0.0, 0.0, 0.1], size=0.2))
+    # looking straight down (Isaac's camera axes: +X forward, turned +90 deg about y): the sensor puts
+    # this pose into the world's own row of the model's cameras, which the viewer must copy
+    w.scene.add(Camera("/World/cam", position=[0.0, 0.0, 3.0], orientation=[0.7071068, 0.0, 0.7071068, 0.0],
+                       resolution=(64, 48)))
+    w.reset()
+    v = ambulo.viewer.serve(w, port=free_port(), announce=False)
+    try:
+        overlays = v.overlays
+        assert overlays.camera_name.options == ("/World/cam",)
+        overlays.camera_kind.value = "depth"
+        overlays.camera.value = True
+        def centre():
+            return None if overlays.camera_image is None else np.asarray(overlays.camera_image.image)[120, 160]
+
+        # the box's top 2.8 m below the camera: a depth colour at the centre (black is no return)
+        step_until(w, lambda: centre() is not None and centre().any(), "the box in the camera's depth image")
+    finally:
+        v.close()
+        World.clear_instance()
+    assert overlays._renders is None  # freed by the streaming thread that owned its GL context

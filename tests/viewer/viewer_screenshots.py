@@ -6,7 +6,7 @@
 - grid: 9 humanoid-walk envs walked by the shipped policy, drawn as a 3 x 3 grid (``serve(env, grid=9)``).
 - overlays: one navigation episode (apartment 3, oracle mode) with the navigator feeding the
   viewer (``Navigator.add_observer(viewer.navigator_observer)``: map, route, footsteps, walked
-  path), contact forces and CoM / ZMP / capture point switched on.
+  path), contact forces, CoM / ZMP / capture point and the head camera switched on.
 
 Not a test (pytest collects ``test_*.py`` only): it writes files for people to look at.
 """
@@ -46,13 +46,15 @@ def screenshot(viewer, path: Path, setup, settle_s: float = 8.0, expand: str | N
         page.goto(viewer.url, timeout=WAIT_MS)
         page.wait_for_function("() => document.body.innerText.includes('frames sent')", timeout=WAIT_MS)
         setup(viewer)
+        time.sleep(2.0)
+        setup(viewer)  # again: the viewer's own camera placement on connect may land after the first
         time.sleep(settle_s)
         close = page.locator(".mantine-Notification-closeButton")  # the "software WebGL" notice
         for i in range(close.count()):
             close.nth(i).click(timeout=WAIT_MS)
         if expand is not None:  # open a folder of the panel
             page.get_by_text(expand, exact=True).click(timeout=WAIT_MS)
-        time.sleep(1.0)
+        time.sleep(4.0)
         page.screenshot(path=str(path), timeout=WAIT_MS)
         browser.close()
     print(f"wrote {path}")
@@ -96,7 +98,7 @@ def overlays(out: Path) -> None:
     world = NavWorld.from_apartment(apt, tuple(ep.start_pose), world_cfg)
     viewer = ambulo.viewer.serve(world, port=8098)
     viewer.controls.speed = None
-    for box in (viewer.overlays.contacts, viewer.overlays.balance):
+    for box in (viewer.overlays.contacts, viewer.overlays.balance, viewer.overlays.camera):
         box.value = True
     nav = Navigator(world, cfg.navigator, walker=make_walker("policy"))
     nav.add_observer(viewer.navigator_observer, images=False)
@@ -110,8 +112,8 @@ def overlays(out: Path) -> None:
         away = robot - goal
         away[:2] /= max(np.linalg.norm(away[:2]), 1e-6)
         screenshot(viewer, out / "viewer_overlays.png",
-                   lambda v: look(v, robot + [1.6 * away[0] + 0.8 * away[1], 1.6 * away[1] - 0.8 * away[0], 2.2],
-                                  0.75 * robot + 0.25 * target), expand="Overlays")
+                   lambda v: look(v, robot + [1.3 * away[0], 1.3 * away[1], 3.6], 0.7 * robot + 0.3 * target),
+                   expand="Overlays")
     finally:
         viewer.close()
         world.close()

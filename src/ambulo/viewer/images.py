@@ -5,8 +5,8 @@ depth and segmentation colour-mapped, detections drawn on them.
 it (a GL context belongs to a thread), and renders the model's cameras from the viewer's own
 ``MjData`` (the copied state, ``physics_overlay.StateReplay``): the simulation renders nothing
 for the page. The cameras are the compiled model's (``<camera>`` elements, and the cameras
-``sensors.Camera`` adds to the model), posed by the model; a per-world pose that a sensor writes
-into its own copy of the model is not seen.
+``sensors.Camera`` adds to the model, posed where the sensor put them in the watched world: the
+viewer copies that world's ``cam_pos`` / ``cam_quat`` rows with the state).
 """
 
 from __future__ import annotations
@@ -82,19 +82,21 @@ class CameraRenders:
         self._camera = mujoco.MjvCamera()
         self._camera.type = mujoco.mjtCamera.mjCAMERA_FIXED
 
-    def render(self, data: mujoco.MjData, cam_id: int, kind: str) -> np.ndarray:
+    def render(self, data: mujoco.MjData, cam_id: int, kind: str, model: mujoco.MjModel | None = None) -> np.ndarray:
         """(H, W, 3) uint8: the camera's ``kind`` image ("rgb"; "depth" colour-mapped; "segmentation":
-        one colour per body)."""
+        one colour per body). ``model``: one of the same structure with the world's own values
+        (default the one it was made for)."""
+        model = self.model if model is None else model
         if kind not in IMAGE_KINDS:
             raise ValueError(f"image kind {kind!r}: pass one of {IMAGE_KINDS}")
         self._camera.fixedcamid = int(cam_id)
-        self.renderer.update_view(self.model, data, self._camera)
+        self.renderer.update_view(model, data, self._camera)
         if kind == "rgb":
             return self.renderer.render_rgb().copy()
         geom_ids, depth = self.renderer.render_ids(want_depth=kind == "depth")
         if kind == "depth":
             return colour_depth(depth)
-        body = np.where(geom_ids >= 0, self.model.geom_bodyid[np.maximum(geom_ids, 0)], -1)
+        body = np.where(geom_ids >= 0, model.geom_bodyid[np.maximum(geom_ids, 0)], -1)
         return colour_ids(body + 1)
 
     def close(self) -> None:

@@ -110,9 +110,7 @@ class Overlays:
             self._balance = BalanceProbe(model, robot_root, robot_bodies) if robot_root is not None else None
         except ValueError:  # nothing to stand on: the overlay stays empty
             self._balance = None
-        if self._renders is not None:
-            self._renders.close()
-            self._renders = None
+        # (a camera renderer of the old model is replaced by the streaming thread, which owns its GL context)
         names = camera_names(model)
         self.camera_name.options = tuple(names) if names else ("none",)
         self.camera_name.value = self.camera_name.options[0]
@@ -130,6 +128,7 @@ class Overlays:
         self._draw_fed()
 
     def close(self) -> None:
+        """Free the camera renderer: on the streaming thread, whose GL context it is."""
         if self._renders is not None:
             self._renders.close()
             self._renders = None
@@ -179,10 +178,12 @@ class Overlays:
             if self.camera_image is not None and self.camera_image.visible:
                 self.camera_image.visible = False
             return
+        if self._renders is not None and self._renders.model is not self._model:
+            self.close()  # the model was recompiled
         if self._renders is None:
             self._renders = CameraRenders(self._model)
         cam_id = list(self.camera_name.options).index(self.camera_name.value)
-        image = self._renders.render(data, cam_id, self.camera_kind.value)
+        image = self._renders.render(data, cam_id, self.camera_kind.value, self._replay.model)
         detections = self.feed.get(f"detections/{self.camera_name.value}")
         if detections is not None and self.camera_kind.value == "rgb":
             image = draw_detections(image, *detections)

@@ -12,6 +12,7 @@ instantaneous capture point (``capture_point``) of its subtree CoM.
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import mujoco
@@ -26,18 +27,21 @@ MIN_FORCE_N = 1.0
 
 
 class StateReplay:
-    """A private ``MjData`` of ``model`` filled from copied state rows and run through ``mj_forward``."""
+    """A private ``MjData`` (and ``MjModel`` copy) of ``model`` filled from copied state rows and run
+    through ``mj_forward``."""
 
     def __init__(self, model: mujoco.MjModel):
-        self.model = model
-        self.data = mujoco.MjData(model)
+        self.model = copy.copy(model)  # per-world model rows (a camera sensor's pose) are written here
+        self.data = mujoco.MjData(self.model)
 
     def load(self, state: dict[str, np.ndarray]) -> mujoco.MjData:
-        """Write ``state`` (field name -> the world's row: qpos, qvel, act, ctrl, mocap_pos, ...) and
+        """Write ``state`` (field name -> the world's row: qpos, qvel, act, ctrl, mocap_pos, ...;
+        "model.<field>" -> that world's row of a per-world model field, e.g. ``model.cam_pos``) and
         recompute every derived field (contacts, forces, CoM, subtree velocities)."""
         data = self.data
         for name, row in state.items():
-            target = getattr(data, name)
+            owner, field = (self.model, name[6:]) if name.startswith("model.") else (data, name)
+            target = getattr(owner, field)
             target[...] = np.asarray(row).reshape(target.shape)
         mujoco.mj_forward(self.model, data)
         mujoco.mj_subtreeVel(self.model, data)

@@ -19,6 +19,7 @@ import numpy as np
 import viser
 
 from ..engine import STATE_FIELDS
+from ..sensors.camera import Camera as CameraSensor
 from .camera import CameraPose
 from .controls import Controls
 from .curves import CurvePanel, ScalarLog
@@ -36,6 +37,8 @@ log = logging.getLogger(__name__)
 COMPONENT_NAME = "ambulo.viewer"
 READOUT_PERIOD_S = 0.2
 """s between updates of the panel's text and curve (text at 30 Hz only costs bandwidth)."""
+AMBIENT_INTENSITY = 0.6
+"""Ambient light of the page (three.js units; 0.6 keeps a wall turned from the lights a mid grey)."""
 STATE_ROWS = tuple(f for f in STATE_FIELDS if f != "time")
 """The watched world's state an overlay recomputes contacts and balance from (``physics_overlay``)."""
 
@@ -67,9 +70,13 @@ class WebViewer(FeedApi):
         # rasterizer (a headless browser, a remote desktop) keeps up
         self.server.scene.configure_environment_map(hdri=None)
         self.server.scene.configure_default_lights(enabled=True, cast_shadow=False)
+        # without the environment map nothing lights a face turned from the default lights: an
+        # apartment's walls drew black. A dim ambient term, as MuJoCo's headlight ambient does
+        self.server.scene.add_light_ambient("/ambient", intensity=AMBIENT_INTENSITY)
         self.port = self.server.get_port()
         self.url = f"http://{host}:{self.port}"
         self._model: mujoco.MjModel | None = None
+        self._camera_sensors = False
         self._engine = None
         self.grid = GridScene(self.server)
         self.feed = OverlayFeed()
@@ -149,8 +156,6 @@ class WebViewer(FeedApi):
         self.target.sim.components.pop(COMPONENT_NAME, None)
         if self._thread is not threading.current_thread():
             self._thread.join(timeout=5.0)
-        if self.overlays is not None and not self._thread.is_alive():
-            self.overlays.close()  # its GL context is the streaming thread's: freed once that ended
         self.server.stop()
 
     def __enter__(self):
@@ -168,8 +173,11 @@ class WebViewer(FeedApi):
 
     def _copy(self, paused: bool = False):
         e, worlds = self._engine, self.controls.worlds()
-        state = ({f: e.field(f) for f in STATE_ROWS}
-                 if self.overlays is not None and self.overlays.needs_state else None)
+        state = None
+        if self.overlays is not None and self.overlays.needs_state:
+            state = {f: e.field(f) for f in STATE_ROWS}
+            if self._camera_sensors and self.overlays.camera.value:  # where the sensors put their cameras
+                state.update({f"model.{f}": e.model_field(f) for f in ("cam_pos", "cam_quat")})
         frame = copy_world(worlds, e.field("time"), e.field("xpos"), e.field("xquat"),
                            self.target.extras(worlds[0]), state)
         frame.paused = paused
@@ -182,6 +190,10 @@ class WebViewer(FeedApi):
         spacing_m = scene_spacing_m(shapes, e.field("xpos")[0].cpu().numpy(),
                                     e.field("xmat")[0].cpu().numpy().reshape(-1, 3, 3))
         self.grid.set_model(model, shapes, spacing_m)
+        # camera sensors pose their model cameras per world (``engine.model_field``); without one the
+        # shared model's poses hold, and the viewer must not make those fields per world itself
+        self._camera_sensors = any(isinstance(c, CameraSensor) or isinstance(getattr(c, "sensor", None), CameraSensor)
+                                   for c in self.target.sim.components.values())  # (Isaac-style ones wrap it)
         self.grid.layout(len(self.controls.worlds()))
         self._roots = root_bodies(model)
         self._model = model
@@ -217,6 +229,13 @@ class WebViewer(FeedApi):
 
     def _stream(self) -> None:
         """The streaming thread: ask for a frame, send it, at most once per ``period_s``."""
+        try:
+            self._stream_frames()
+        finally:
+            if self.overlays is not None:
+                self.overlays.close()  # its camera renderer's GL context belongs to this thread
+
+    def _stream_frames(self) -> None:
         sequence, next_readout, next_curves = 0, 0.0, 0.0
         while not self._stop.is_set():
             started, cpu0 = time.perf_counter(), time.thread_time()
