@@ -98,9 +98,10 @@ def test_the_path_tier_shows_and_is_lit_by_the_domes_radiance(uniform_hdr):
 
 
 @pytest.mark.skipif(pbr._vulkan_problem() is not None, reason=f"no Vulkan here: {pbr._vulkan_problem()}")
-def test_the_pbr_tier_is_lit_by_the_domes_radiance(uniform_hdr):
+def test_the_pbr_tier_shows_and_is_lit_by_the_domes_radiance(uniform_hdr):
     """Filament's diffuse under a uniform image light reads 2.7 % below the white-furnace value
-    (measured; its 9-coefficient irradiance is exact for a uniform sky): 5 % tolerance."""
+    (measured; its 9-coefficient irradiance is exact for a uniform sky): 5 % tolerance. The
+    background is the dome itself (it was black: Filament lit with the dome but did not show it)."""
     from ambulo.render.pbr import PbrRenderer, PbrSettings, gl_camera
 
     usd = UsdStage()
@@ -108,8 +109,28 @@ def test_the_pbr_tier_is_lit_by_the_domes_radiance(uniform_hdr):
     model, data = _matte_sphere_model(usd.physics_spec())
     cam = gl_camera(data.cam_xpos[0], data.cam_xmat[0].reshape(3, 3), 40.0, 32, 32, (0.05, 20.0))
     with PbrRenderer(model, 32, 32, PbrSettings(post_processing=False, shadows=False)) as renderer:
-        centre = renderer.render(data, cam)[14:18, 14:18].reshape(-1, 3).mean(0) / 255
+        image = renderer.render(data, cam) / 255
+    centre = image[14:18, 14:18].reshape(-1, 3).mean(0)
     assert np.allclose(centre, RADIANCE, rtol=0.05, atol=1 / 255), (centre, RADIANCE)
+    background = image[:3, :3].reshape(-1, 3).mean(0)
+    assert np.allclose(background, RADIANCE, rtol=0.02, atol=1.5 / 255), (background, RADIANCE)
+
+
+def test_the_rasterizer_says_once_that_it_skips_the_domes_texture(uniform_hdr, capfd, monkeypatch):
+    """Every rasterizer context (cameras, viewers, recorders, workers) met the dome's KTX texture
+    and MuJoCo warned each time; once per process is enough."""
+    from ambulo.render import offscreen
+
+    monkeypatch.setattr(offscreen, "_ktx_warned", False)
+    usd = UsdStage()
+    _dome(usd.stage, uniform_hdr)
+    model, data = _matte_sphere_model(usd.physics_spec())
+    for _ in range(3):
+        with OffscreenRenderer(model, 16, 16) as raster:
+            raster.update(model, data, 0, data.cam_xpos[0], data.cam_xmat[0].reshape(3, 3))
+            raster.render_rgb()
+    out, err = capfd.readouterr()
+    assert (out + err).count("classic renderer can't upload") == 1, (out, err)
 
 
 def test_isaacs_create_prim_dome_lights_a_path_tier_camera(uniform_hdr):

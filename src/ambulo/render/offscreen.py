@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import sys
 from dataclasses import dataclass
 
 import mujoco
@@ -22,6 +23,37 @@ from .gl import create_gl_context, gl_renderer_string
 # Geom categories we draw: no decorations (contact points, frames, labels).
 _CATMASK = int(mujoco.mjtCatBit.mjCAT_STATIC) | int(mujoco.mjtCatBit.mjCAT_DYNAMIC)
 _GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)
+
+
+_KTX_SKIPPED = "classic renderer can't upload"
+"""MuJoCo's warning when a context meets a KTX texture (an image light's: a USD DomeLight)."""
+_ktx_warned = False
+
+
+@contextlib.contextmanager
+def _image_light_warning_once():
+    """MuJoCo's rasterizer warns, on every context it makes, that it skips a model's KTX textures
+    (image lights, which it stands in for with an ambient light); a camera, a viewer, a recorder
+    or a dataset worker each make one, so a model with a dome printed it again and again. Said
+    once per process here; MuJoCo's other warnings pass through as before."""
+    previous = mujoco.get_mju_user_warning()
+
+    def warn(message: str) -> None:
+        global _ktx_warned
+        if _KTX_SKIPPED in message:
+            if _ktx_warned:
+                return
+            _ktx_warned = True
+        if previous is not None:
+            previous(message)
+        else:
+            print(f"WARNING: {message}", file=sys.stderr, flush=True)  # MuJoCo's own handler: stdout
+
+    mujoco.set_mju_user_warning(warn)
+    try:
+        yield
+    finally:
+        mujoco.set_mju_user_warning(previous)
 
 
 @dataclass(kw_only=True)
@@ -65,7 +97,8 @@ class OffscreenRenderer:
         ctx_model.vis.global_.offheight = max(self.height, model.vis.global_.offheight)
         ctx_model.vis.quality.offsamples = 4 if self.settings.multisample else 0
         self._gl = create_gl_context(self.width, self.height)
-        self._con = mujoco.MjrContext(ctx_model, mujoco.mjtFontScale.mjFONTSCALE_100)
+        with _image_light_warning_once():
+            self._con = mujoco.MjrContext(ctx_model, mujoco.mjtFontScale.mjFONTSCALE_100)
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._con)
         self._con.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR
         self.gl_renderer = gl_renderer_string()

@@ -79,6 +79,7 @@ class PbrSettings(Checked):
     reflections: bool = False
     post_processing: bool = True
     skybox: bool = True
+    """Draw the background: the model's first image light (a USD DomeLight) if it has one, else its MJCF skybox."""
     haze: bool = False
 
 
@@ -175,6 +176,10 @@ class PbrRenderer:
         self._lights = mjrf.ModelLights(self._scene, self._resources)
         self._renderables = mjrf.ModelRenderables(self._scene, self._resources)
         self._renderables.set_options(_scenery_only())
+        # after ModelLights and ModelRenderables: set before them, the background stayed black
+        self._skybox = _image_light_skybox(self._ctx, model) if self.settings.skybox else None
+        if self._skybox is not None:
+            self._scene.set_skybox(self._skybox)
         self._target = self._ctx.create_render_target(mjrf.RenderTargetConfig(
             width=self.width, height=self.height, color_format=mjrf.PixelFormat.PIXEL_FORMAT_RGB8))
         self._rgb = np.zeros((self.height, self.width, 3), np.uint8)
@@ -220,7 +225,7 @@ class PbrRenderer:
 
     def close(self) -> None:
         """Drop this renderer's Filament objects, its engine last."""
-        self._read = self._request = self._renderables = self._lights = self._scene = None
+        self._read = self._request = self._renderables = self._lights = self._scene = self._skybox = None
         self._target = self._resources = self._ctx = None
 
     def __enter__(self):
@@ -253,6 +258,33 @@ def _colour_textures_as_srgb(model: mujoco.MjModel):
         yield
     finally:
         model.tex_colorspace[auto] = int(mujoco.mjtColorSpace.mjCOLORSPACE_AUTO)
+
+
+def _image_light_skybox(ctx, model: mujoco.MjModel):
+    """The model's first image light's cubemap as Filament's skybox, or None without image lights.
+
+    An image light (a USD DomeLight) lights the scene but Filament does not show it: the background
+    stayed black (or the MJCF skybox). Shown, it reads the image light's radiance, as the path tier
+    shows it (a uniform dome: within 1 level of the expected linear value, ``test_dome_light``); it
+    replaces the MJCF skybox there as it does in the path tier."""
+    from mujoco import mjrf
+
+    from .ibl import image_light_ids
+
+    ids = image_light_ids(model)
+    if not ids:
+        return None
+    tex = int(model.light_texid[ids[0]])
+    if tex < 0:
+        return None
+    adr = int(model.tex_adr[tex])
+    size = int(model.tex_width[tex]) * int(model.tex_height[tex]) * int(model.tex_nchannel[tex])
+    texture = ctx.create_texture(mjrf.TextureConfig(width=0, height=0, format=mjrf.PixelFormat.PIXEL_FORMAT_KTX,
+                                                    sampler_type=mjrf.SamplerType.TEXTURE_SKYBOX))
+    pixels = mjrf.TextureData()
+    pixels.set_image(model.tex_data[adr:adr + size].tobytes())
+    texture.upload(pixels)
+    return texture
 
 
 def _scenery_only() -> mujoco.MjvOption:
