@@ -106,11 +106,11 @@ class OffPolicyCfg(Checked):
 def _cartpole() -> dict[str, Any]:
     """Few worlds, small nets and batches, many updates per transition: solved on an idle CPU
     core in about a minute. Returns reach ~2 (0.02 a step)."""
-    return dict(num_envs=16, max_iterations=150, num_steps_per_env=8, save_interval=50,
+    return dict(num_envs=16, max_iterations=300, num_steps_per_env=8, save_interval=50,
                 buffer_steps_per_env=2048, batch_size=256, updates_per_step=4, learning_starts=16,
                 random_steps=16, actor_hidden_dims=(64, 64), critic_hidden_dims=(64, 64), num_atoms=51,
                 v_min=-1.0, v_max=3.0, tau=0.02, actor_lr=1.0e-3, critic_lr=1.0e-3, policy_delay=1,
-                target_entropy_per_action=-1.0, init_alpha=0.01)
+                target_entropy_per_action=-1.0)
 
 
 def _walking() -> dict[str, Any]:

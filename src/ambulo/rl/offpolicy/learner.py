@@ -51,10 +51,11 @@ class FastOffPolicy(nn.Module):
         self.device = torch.device(device)
         self.atoms = categorical.support(cfg.v_min, cfg.v_max, cfg.num_atoms, self.device)
         self.target_entropy = cfg.target_entropy_per_action * num_actions
-        opt = dict(weight_decay=cfg.weight_decay)
+        # fused: the step counts live on the device (the default Adam reads each one back per step)
+        opt = dict(weight_decay=cfg.weight_decay, fused=True)
         self.actor_opt = torch.optim.AdamW(self.actor.parameters(), lr=cfg.actor_lr, **opt)
         self.critic_opt = torch.optim.AdamW(self.critic.parameters(), lr=cfg.critic_lr, **opt)
-        self.alpha_opt = torch.optim.Adam([self.log_alpha], lr=cfg.critic_lr)
+        self.alpha_opt = torch.optim.Adam([self.log_alpha], lr=cfg.critic_lr, fused=True)
         self.num_updates = 0
         """Critic updates so far (host counter: picks the actor's turns)."""
         self.stats = torch.zeros(len(STAT_NAMES) + 2, device=self.device)

@@ -88,6 +88,7 @@ class Actor(nn.Module):
         """Reparameterized actions (B, A), their log-probabilities (B,) under the squashed
         Gaussian, and the std (B, A)."""
         mean, log_std = self.distribution(obs)
+        mean, log_std = mean.float(), log_std.float()  # log-probabilities in float32 under autocast
         std = log_std.exp()
         pre = mean + std * torch.randn_like(mean)
         squashed = torch.tanh(pre)
