@@ -82,3 +82,18 @@ def test_draws_on_worker_processes_equal_the_draws_in_process():
             assert torch.equal(a["rgb"], b["rgb"])
     finally:
         pooled.close()
+
+
+@pytest.mark.slow
+def test_dataset_files_do_not_depend_on_the_worlds_per_launch(tmp_path):
+    # frame i is world i % n of some launch: every file must be the same whichever world drew it
+    from ambulo.replicator.generate import generate
+
+    for n in (2, 3):
+        generate(rep.example_config(64, 48), tmp_path / str(n), 5, seed=11, show_progress=False, device="cpu",
+                 num_worlds=n)
+    a, b = tmp_path / "2", tmp_path / "3"
+    names = sorted(str(f.relative_to(a)) for f in a.rglob("*") if f.is_file())
+    assert len(names) > 5 * 4 and names == sorted(str(f.relative_to(b)) for f in b.rglob("*") if f.is_file())
+    for name in names:
+        assert (a / name).read_bytes() == (b / name).read_bytes(), name
