@@ -32,6 +32,23 @@ def test_zlib_ng_is_the_default_deflate_when_installed():
         assert rio.PNG_DEFLATE.startswith("zlib-ng ")
 
 
+def test_every_chunk_carries_zlibs_crc32():
+    """The chunk checksums come from zlib-ng's CRC-32 when installed: the same function as zlib's."""
+    import struct
+    import zlib
+
+    png = rio.encode_png(np.random.default_rng(4).integers(0, 2**16, (40, 50), dtype=np.uint16), 1)
+    at, kinds = 8, []
+    while at < len(png):
+        (size,) = struct.unpack(">I", png[at:at + 4])
+        kind, data = png[at + 4:at + 8], png[at + 8:at + 8 + size]
+        (crc,) = struct.unpack(">I", png[at + 8 + size:at + 12 + size])
+        assert crc == zlib.crc32(kind + data), kind
+        kinds.append(kind)
+        at += 12 + size
+    assert kinds == [b"IHDR", b"IDAT", b"IEND"]
+
+
 def test_an_unknown_deflate_is_refused():
     with pytest.raises(ValueError, match="AMBULO_PNG_DEFLATE"):
         rio._pick_deflate("zstd")
