@@ -9,7 +9,9 @@ producer on Warp's CPU device (the same randomizers, host field copies and float
 producer's ``HostWorlds``, so the same numbers), and hands back each frame's log and the field
 rows it wrote; the producer copies the rows into its ``HostWorlds`` and uploads as usual.
 
-A frame's draws depend only on (config, seed, index), so which process draws it changes nothing.
+A frame's draws depend only on (config, seed, index), so which process draws it changes nothing,
+as long as every randomizer writes the same fields each frame (the bundled ones do): a value
+left over from an earlier frame would depend on which process drew that frame.
 """
 
 from __future__ import annotations

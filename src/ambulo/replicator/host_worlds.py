@@ -63,9 +63,9 @@ class HostWorlds:
         return host
 
     def __getattr__(self, name: str) -> torch.Tensor:
-        # engine.qpos as on the engines; only for state fields
-        if name.startswith("_"):
-            raise AttributeError(name)
+        # engine.qpos as on the engines; only for state fields (else AttributeError, as hasattr expects)
+        if name.startswith("_") or name not in self._engine.initial_state:
+            raise AttributeError(f"HostWorlds has no attribute {name!r}")
         return self.field(name)
 
     def begin(self) -> None:
