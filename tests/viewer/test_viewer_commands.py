@@ -69,6 +69,19 @@ def served_the_viewer(page: str | None) -> bool:
     return page is not None and "<html" in page.lower()
 
 
+def recording_viewers(mp: pytest.MonkeyPatch) -> list:
+    """The web viewers opened while ``mp`` is active, in order."""
+    opened = []
+    original = ambulo.viewer.WebViewer.__init__
+
+    def record(viewer, target, **kwargs):
+        original(viewer, target, **kwargs)
+        opened.append(viewer)
+
+    mp.setattr(ambulo.viewer.WebViewer, "__init__", record)
+    return opened
+
+
 @pytest.fixture(scope="module")
 def watched_training(tmp_path_factory):
     """``ambulo train cartpole --viewer web`` for 2 iterations, the scalars it sent recorded."""
@@ -100,10 +113,13 @@ def test_train_serves_the_page_and_plots_every_iteration(watched_training):
 @pytest.mark.timeout(300)
 def test_play_shows_the_rollout_instead_of_filming_it(watched_training, capsys):
     run = watched_training[3][0]
-    status, page = run_served(["play", str(run), "--seconds", "0.3"])
+    with pytest.MonkeyPatch.context() as mp:
+        opened = recording_viewers(mp)
+        status, page = run_served(["play", str(run), "--seconds", "0.3"])
     assert status == 0 and served_the_viewer(page)
     assert "played 15 steps" in capsys.readouterr().out  # 0.3 s of cartpole's 0.02 s steps
     assert not (run / "videos").exists()
+    assert len(opened) == 1 and opened[0].controls.speed == 1.0  # at real time, not the env's max
 
 
 @pytest.mark.timeout(300)
@@ -219,15 +235,8 @@ def test_run_serves_the_scripts_simulation(tmp_path, capsys, script):
     path = tmp_path / "script.py"
     path.write_text(textwrap.dedent(script))
     World.clear_instance()
-    opened = []
-    original = ambulo.viewer.WebViewer.__init__
-
-    def record(viewer, target, **kwargs):
-        original(viewer, target, **kwargs)
-        opened.append(viewer)
-
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(ambulo.viewer.WebViewer, "__init__", record)
+        opened = recording_viewers(mp)
         status, page = run_served(["run", "--seconds", "0.3", str(path)])
     World.clear_instance()
     assert status == 0 and served_the_viewer(page)
