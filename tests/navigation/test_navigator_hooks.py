@@ -51,3 +51,17 @@ def test_arrival_waits_for_the_map_not_to_contradict_the_pose(room_nav, answers,
     assert nav.status == status
     if status == "walking":  # the map put the robot elsewhere: settle again, and replan from there
         assert nav._settled_since is None and nav._replan_reason == "relocalised"
+
+
+@pytest.mark.parametrize("answer, status", [(None, "walking"), (True, "arrived")])
+def test_no_arrival_while_the_camera_disputes_the_estimate_and_the_map_cannot_tell(room_nav, answer, status):
+    """The last camera fix was refused (it disagreed with the legs' bridge the robot walks on): an
+    arrival needs the map's confirmation then, not just its silence."""
+    nav = room_nav()
+    nav.localizer = ScriptedVerify([answer])
+    nav.localizer.reset(nav.world)
+    _settled_at_goal(nav)
+    nav.localizer.needs_images = True  # a camera localizer: the tick keeps the frame's estimate
+    nav.estimate.state = "rejected"
+    nav._control_tick()
+    assert nav.status == status
