@@ -70,3 +70,18 @@ def test_terrain_heights_and_a_box_resting_on_it(tmp_path, add_terrain):
     gym.refresh_actor_root_state_tensor(sim)
     z = gymtorch.wrap_tensor(gym.acquire_actor_root_state_tensor(sim))[:, 2].numpy()
     np.testing.assert_allclose(z, [0.05, hf.max() + 0.05], atol=0.01)  # on the bottom step and on the platform
+
+
+def test_mesh_far_from_the_origin_samples_back_to_its_heights():
+    """legged_gym's terrain mesh spans ~200 m in float32: samples on vertices must still find their
+    triangles (a missed sample would fall to the lowest height)."""
+    from ambulo.isaac.gym import terrain
+
+    rng = np.random.default_rng(0)
+    hf = rng.integers(-40, 40, (200, 300)).astype(np.int16)
+    vertices, triangles = terrain_utils.convert_heightfield_to_trimesh(hf, H_SCALE, V_SCALE)
+    vertices = (vertices + np.array([230.0, 190.0, 0.0])).astype(np.float32)
+    field = terrain.from_mesh(vertices.flatten(), triangles.flatten(), gymapi.TriangleMeshParams())
+    assert field.heights_m.shape == hf.shape
+    np.testing.assert_allclose(field.heights_m, hf * V_SCALE, atol=1e-3)
+    np.testing.assert_allclose(field.origin[:2], [230.0, 190.0], atol=1e-3)

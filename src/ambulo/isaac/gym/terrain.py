@@ -21,6 +21,8 @@ BASE_THICKNESS_M = 1.0
 """Depth of the solid below the lowest sample (MuJoCo's hfield base)."""
 _CHUNK = 400_000
 """Triangles rasterized at once (bounds the temporary arrays to a few hundred MB)."""
+_INSIDE = 1e-3
+"""Barycentric slack: a sample on a shared edge or vertex (float32 vertices) counts as inside."""
 
 
 @dataclass
@@ -59,10 +61,15 @@ def from_mesh(vertices: np.ndarray, triangles: np.ndarray, params: TriangleMeshP
     onto a grid at its median horizontal edge length (module docstring)."""
     v = np.asarray(vertices, np.float64).reshape(-1, 3)
     t = np.asarray(triangles, np.int64).reshape(-1, 3)
-    edges = np.linalg.norm(v[t[:, 1], :2] - v[t[:, 0], :2], axis=1)
-    step = float(np.median(edges[edges > 1e-9])) if (edges > 1e-9).any() else 1.0
+    # each triangle's shortest horizontal edge (a grid cell's side, not its diagonal)
+    edges = np.stack([np.linalg.norm(v[t[:, k], :2] - v[t[:, (k + 1) % 3], :2], axis=1) for k in range(3)], 1)
+    edges = np.where(edges > 1e-9, edges, np.inf).min(1)
+    edges = edges[np.isfinite(edges)]
+    edge = float(np.median(edges)) if len(edges) else 1.0
     lo, hi = v[:, :2].min(0), v[:, :2].max(0)
-    nx, ny = (np.floor((hi - lo) / step + 1e-6).astype(int) + 1).tolist()
+    counts = np.maximum(np.rint((hi - lo) / edge).astype(int), 1)
+    step = (hi - lo) / counts  # the samples land on the vertices of a grid mesh (float32 meshes drift)
+    nx, ny = (counts + 1).tolist()
     heights = np.full(nx * ny, -np.inf)
     for start in range(0, len(t), _CHUNK):
         _rasterize(v, t[start:start + _CHUNK], lo, step, nx, ny, heights)
@@ -72,28 +79,28 @@ def from_mesh(vertices: np.ndarray, triangles: np.ndarray, params: TriangleMeshP
         raise ValueError("isaacgym: the terrain mesh covers no grid sample (a mesh without area?)")
     heights[missing] = heights[~missing].min()  # holes: the lowest terrain height
     origin = _position(params.transform) + np.array([lo[0], lo[1], 0.0])
-    return HeightField(heights, origin, (step, step), params.dynamic_friction)
+    return HeightField(heights, origin, (float(step[0]), float(step[1])), params.dynamic_friction)
 
 
 def _rasterize(v, t, lo, step, nx, ny, heights) -> None:
     """Max into ``heights`` (flat nx * ny) the height of each triangle of ``t`` over the grid
-    samples inside it (each triangle spans at most 3 x 3 samples at the mesh's own spacing)."""
+    samples inside it (spacing ``step`` (2,) m; each triangle spans at most 3 x 3 samples)."""
     a, b, c = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
-    tri_lo = np.ceil((np.minimum(np.minimum(a, b), c)[:, :2] - lo) / step - 1e-6).astype(int)
-    tri_hi = np.floor((np.maximum(np.maximum(a, b), c)[:, :2] - lo) / step + 1e-6).astype(int)
+    tri_lo = np.ceil((np.minimum(np.minimum(a, b), c)[:, :2] - lo) / step - 1e-4).astype(int)
+    tri_hi = np.floor((np.maximum(np.maximum(a, b), c)[:, :2] - lo) / step + 1e-4).astype(int)
     d = (b[:, 1] - c[:, 1]) * (a[:, 0] - c[:, 0]) + (c[:, 0] - b[:, 0]) * (a[:, 1] - c[:, 1])
     flat = np.abs(d) < 1e-12  # a triangle seen edge-on from above (a vertical wall) covers no sample
     for di in range(3):
         for dj in range(3):
             i, j = tri_lo[:, 0] + di, tri_lo[:, 1] + dj
             ok = ~flat & (i <= tri_hi[:, 0]) & (j <= tri_hi[:, 1]) & (i >= 0) & (j >= 0) & (i < nx) & (j < ny)
-            x, y = lo[0] + i * step, lo[1] + j * step
-            with np.errstate(divide="ignore", invalid="ignore"):
+            x, y = lo[0] + i * step[0], lo[1] + j * step[1]
+            with np.errstate(divide="ignore", invalid="ignore"):  # edge-on triangles: masked by ``flat``
                 w0 = ((b[:, 1] - c[:, 1]) * (x - c[:, 0]) + (c[:, 0] - b[:, 0]) * (y - c[:, 1])) / d
                 w1 = ((c[:, 1] - a[:, 1]) * (x - c[:, 0]) + (a[:, 0] - c[:, 0]) * (y - c[:, 1])) / d
-            w2 = 1.0 - w0 - w1
-            ok &= (w0 >= -1e-9) & (w1 >= -1e-9) & (w2 >= -1e-9)
-            z = w0 * a[:, 2] + w1 * b[:, 2] + w2 * c[:, 2]
+                w2 = 1.0 - w0 - w1
+                ok &= (w0 >= -_INSIDE) & (w1 >= -_INSIDE) & (w2 >= -_INSIDE)
+                z = w0 * a[:, 2] + w1 * b[:, 2] + w2 * c[:, 2]
             np.maximum.at(heights, (i * ny + j)[ok], z[ok])
 
 
