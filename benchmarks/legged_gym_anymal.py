@@ -98,14 +98,16 @@ def parse_iterations(lines: list[str]) -> list[dict]:
 
 
 def train(args, workdir: Path) -> tuple[list[dict], float, int, list[float]]:
-    """Run train.py under ``ambulo run``; (iterations, wall s, return code, wall time of each iteration's log)."""
+    """Run train.py under ``ambulo run``; (iterations, wall s, return code, wall time of each iteration's log).
+    The command is kept in ``args.command`` for the result."""
     script = Path(args.legged_gym) / "legged_gym" / "scripts" / "train.py"
     cmd = [sys.executable, "-m", "ambulo.cli", "run", "--seconds", "1e9", str(script), f"--task={args.task}",
            "--headless", "--num_envs", str(args.num_envs), "--max_iterations", str(args.max_iterations),
            "--sim_device", args.sim_device, "--rl_device", args.rl_device, "--seed", str(args.seed)]
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(
         [str(Path(args.legged_gym).resolve()), str(Path(args.rsl_rl).resolve()), os.environ.get("PYTHONPATH", "")]))
-    print("$", f"PYTHONPATH={env['PYTHONPATH']}", " ".join(cmd), flush=True)
+    args.command = f"PYTHONPATH={env['PYTHONPATH']} " + " ".join(cmd)
+    print("$", args.command, flush=True)
     log = open(workdir / "train.log", "w")
     start = time.perf_counter()
     lines, stamps = [], []
@@ -175,7 +177,7 @@ def summarize(args, rows: list[dict], wall_s: float, stamps: list[float], ceilin
     mean_fps = sum(fps) / len(fps) if fps else None
     return {
         "task": args.task, "num_envs": args.num_envs, "sim_device": args.sim_device, "rl_device": args.rl_device,
-        "returncode": rc, "iterations": len(rows), "wall_s": round(wall_s, 1),
+        "command": getattr(args, "command", None), "returncode": rc, "iterations": len(rows), "wall_s": round(wall_s, 1),
         "mean_fps_env_steps_per_s": None if mean_fps is None else round(mean_fps, 1),
         "first": {k: rows[0].get(k) for k in ("mean_reward", "mean_episode_length", "tracking_lin_vel")} if rows else None,
         "last": {k: last.get(k) for k in ("mean_reward", "mean_episode_length", "tracking_lin_vel", "total_time_s")},
