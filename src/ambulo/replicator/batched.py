@@ -173,8 +173,11 @@ class BatchedFrameProducer:
         picture does not need (the state is set, not simulated), and their kernels' compile."""
         import mujoco_warp as mjw  # the warp engine's dependency
 
-        with self.engine.warp_scope():
-            mjw.fwd_kinematics(self.engine.wp_model, self.engine.wp_data)
+        m, d = self.engine.wp_model, self.engine.wp_data
+        with self.engine.warp_scope():  # the passes GpuEngine.step(refresh=True) runs
+            mjw.kinematics(m, d)
+            mjw.com_pos(m, d)
+            mjw.camlight(m, d)
 
     def frames(self, seed: int, indices: list[int]):
         """Yield (index, log, capture) for ``indices``, ``num_worlds`` at a time; ``capture`` has
