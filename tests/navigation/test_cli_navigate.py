@@ -124,3 +124,29 @@ def test_a_users_mjcf_world(tmp_path, capsys):
     data = json.loads((tmp_path / "episode.json").read_text())
     assert data["success"] and data["collisions"] == 0 and data["geodesic_m"] >= math.dist((0, 0), (3, 0.5))
     assert data["world"] == str(world) and "not exact" in data["extras"]["geodesic"]
+
+
+def test_viewer_web_gets_the_navigators_map_plan_footsteps_and_path(tmp_path, monkeypatch):
+    """``--viewer web`` feeds the page what the navigator sees: its map, route, footsteps and walk."""
+    import socket
+
+    import ambulo.viewer as viewer_pkg
+
+    served = []
+
+    def serve(world, port, **kw):
+        served.append(real_serve(world, port, announce=False, **kw))
+        return served[-1]
+
+    real_serve = viewer_pkg.serve
+    monkeypatch.setattr(viewer_pkg, "serve", serve)
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    assert main(["navigate", "apartment", "--seed", str(SEED), "--start", START, "--goal", GOAL,
+                 "--out", str(tmp_path / "ep"), "--viewer", "web", "--viewer-port", str(port)]) == 0
+    (viewer,) = served
+    assert {"map", "plan", "footsteps", "path"} <= set(viewer.feed.layers())
+    walked = viewer.feed.get("path")
+    goal = np.array([float(v) for v in GOAL.split(",")])
+    assert np.linalg.norm(walked[-1][:2] - goal) < 0.35  # the page's walked path ends at the goal

@@ -177,6 +177,8 @@ def run_one(args: argparse.Namespace) -> int:
                              goal_tolerance_m=nav_cfg.goal_tolerance_m,
                              view_xy_m=world.occupancy.extent_xy_m())  # an online map covers far more
         nav.add_observer(video, images=args.video is not None)
+        if viewer is not None:  # the page's map, plan, footsteps and walked path
+            nav.add_observer(viewer.navigator_observer, images=False)
         nav.set_goal(goal)
         try:
             nav.run()
