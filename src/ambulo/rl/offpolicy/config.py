@@ -114,10 +114,12 @@ def _cartpole() -> dict[str, Any]:
 
 
 def _walking() -> dict[str, Any]:
-    """FastTD3/FastSAC humanoid settings: 1024 worlds, 32k batches, 2 updates a step."""
+    """FastTD3/FastSAC humanoid settings: 1024 worlds, 32k batches, 2 updates a step. Actions up
+    to 2 (0.5 rad at humanoid-walk's action_scale 0.25): the shipped PPO walker's |action| has a
+    median of 0.18, a 99th percentile of 1.51 and a maximum of 1.99 over 8 x 100 steps."""
     return dict(num_envs=1024, max_iterations=20000, num_steps_per_env=8, save_interval=250,
                 buffer_steps_per_env=1024, batch_size=32768, updates_per_step=2, learning_starts=8,
-                v_min=-10.0, v_max=10.0, amp=True)
+                v_min=-10.0, v_max=10.0, action_bound=2.0, amp=True)
 
 
 TASK_DEFAULTS = {"cartpole": _cartpole, "humanoid-walk": _walking, "humanoid-rough": _walking,
