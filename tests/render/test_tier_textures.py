@@ -167,3 +167,39 @@ def test_a_texture_colour_or_material_given_after_the_build_shows_in_the_next_fr
         return (np.abs(pixels - np.median(pixels, 0)).max(1) <= 10).mean()
     assert one_colour(plain[ids == 1]) > 0.8 > one_colour(glossy[ids == 1]), (one_colour(plain[ids == 1]),
                                                                                one_colour(glossy[ids == 1]))
+
+
+def test_a_png_textured_sphere_and_cylinder_have_the_rasterizers_colours_in_the_path_tier(tmp_path):
+    """Unlit (ambient 1): each tier shows the texels themselves, so the mean colour of each shape
+    agrees. The PNG (no sRGB chunk) compiles to colorspace ``linear``, which the rasterizer shows as
+    display values; its halves (red at u < 0.5, blue beyond, a green top band) make a texture read
+    as linear (paler) or mapped in x, y (the front shows red and blue, not blue) miss by tens of levels."""
+    from PIL import Image
+
+    texels = np.zeros((64, 64, 3), np.uint8)
+    texels[:, :32], texels[:, 32:], texels[:16] = (230, 40, 30), (30, 60, 230), (40, 200, 40)
+    Image.fromarray(texels).save(tmp_path / "halves.png")
+    model = mujoco.MjModel.from_xml_string(f"""<mujoco>
+      <visual><headlight active="1" ambient="1 1 1" diffuse="0 0 0" specular="0 0 0"/>
+        <global offwidth="96" offheight="72"/></visual>
+      <asset><texture name="halves" type="2d" file="{tmp_path / 'halves.png'}"/>
+        <material name="m" texture="halves" specular="0" shininess="0"/></asset>
+      <worldbody><geom type="sphere" size="0.45" pos="-0.6 0 0" material="m"/>
+        <geom type="cylinder" size="0.35 0.45" pos="0.6 0 0" material="m"/>
+        <camera name="c" pos="0 -4 0.8" xyaxes="1 0 0 0 0.2 1" fovy="40"/></worldbody></mujoco>""")
+    assert model.tex_colorspace[0] == mujoco.mjtColorSpace.mjCOLORSPACE_LINEAR
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    with OffscreenRenderer(model, 96, 72) as raster:
+        raster.update(model, data, 0, data.cam_xpos[0], data.cam_xmat[0].reshape(3, 3))
+        expected = raster.render_rgb().astype(float)
+        ids, _ = raster.render_ids(want_depth=False)
+    path = PathTracer(model, PathTracerCfg(width=96, height=72, spp=16, denoise=False, variant="llvm_ad_rgb")
+                      ).render(data, "c").astype(float)
+    from scipy.ndimage import binary_erosion
+
+    for geom in (0, 1):
+        inside = binary_erosion(ids == geom, iterations=2)  # the path tier's edges are antialiased
+        assert inside.sum() > 150
+        mean_path, mean_raster = path[inside].mean(0), expected[inside].mean(0)
+        assert np.all(np.abs(mean_path - mean_raster) <= 4.0), (geom, mean_path, mean_raster)

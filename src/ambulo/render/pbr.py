@@ -243,21 +243,23 @@ _HEADLIGHT_LUX = 30000.0
 @contextlib.contextmanager
 def _colour_textures_as_srgb(model: mujoco.MjModel):
     """While Filament uploads the textures: colour textures (materials' RGB role, skyboxes) whose
-    MJCF ``colorspace`` is ``auto`` marked sRGB, then put back.
+    MJCF ``colorspace`` is ``auto`` or ``linear`` (a PNG without an sRGB chunk compiles to it)
+    marked sRGB, then put back.
 
-    MuJoCo's rasterizer shows texels as they are (display values, like MJCF rgba), which is what
-    sRGB-encoded colours look like; Filament reads an ``auto`` texture as linear, so a texture lit
+    MuJoCo's rasterizer shows those texels as they are (display values, like MJCF rgba), which is what
+    sRGB-encoded colours look like; Filament reads them as linear, so a texture lit
     the same as an rgba of its mean colour came out brighter and paler (a checker of mean sRGB
     (0.55, 0.40, 0.45) showed (96, 69, 76) instead of (71, 25, 52) beside that rgba's (46, 24, 29)).
     The model is left as it was: the rasterizer would decode sRGB textures into darker pixels."""
     colour = set(int(t) for t in model.mat_texid[:, int(mujoco.mjtTextureRole.mjTEXROLE_RGB)] if t >= 0)
     colour |= set(np.nonzero(model.tex_type == int(mujoco.mjtTexture.mjTEXTURE_SKYBOX))[0].tolist())
-    auto = [t for t in sorted(colour) if model.tex_colorspace[t] == int(mujoco.mjtColorSpace.mjCOLORSPACE_AUTO)]
-    model.tex_colorspace[auto] = int(mujoco.mjtColorSpace.mjCOLORSPACE_SRGB)
+    shown_raw = [t for t in sorted(colour) if model.tex_colorspace[t] != int(mujoco.mjtColorSpace.mjCOLORSPACE_SRGB)]
+    authored = model.tex_colorspace[shown_raw].copy()
+    model.tex_colorspace[shown_raw] = int(mujoco.mjtColorSpace.mjCOLORSPACE_SRGB)
     try:
         yield
     finally:
-        model.tex_colorspace[auto] = int(mujoco.mjtColorSpace.mjCOLORSPACE_AUTO)
+        model.tex_colorspace[shown_raw] = authored
 
 
 def _image_light_skybox(ctx, model: mujoco.MjModel):

@@ -125,10 +125,17 @@ def roughness_from_shininess(shininess: float) -> float:
 
 
 def _texture(model: mujoco.MjModel, tex_id: int) -> tuple[np.ndarray, bool]:
+    """(H, W, C) uint8 texels of colour texture ``tex_id`` and whether to decode them as sRGB: always.
+
+    MuJoCo's rasterizer shows ``auto`` and ``linear`` texels as they are, display values like MJCF
+    rgba (a PNG file without an sRGB chunk compiles to ``linear``: read as linear albedo it came
+    out far paler than the rasterizer shows it, blue (30, 60, 230) lit to (63, 96, 154) beside its
+    (18, 42, 118)). ``sRGB`` texels it decodes and does not encode again, so they look darker there
+    than in the pbr and path tiers, which decode them once (the physical reading)."""
     h, w, c = int(model.tex_height[tex_id]), int(model.tex_width[tex_id]), int(model.tex_nchannel[tex_id])
     adr = int(model.tex_adr[tex_id])
     pixels = model.tex_data[adr:adr + h * w * c].reshape(h, w, c)
-    return pixels, int(model.tex_colorspace[tex_id]) != int(mujoco.mjtColorSpace.mjCOLORSPACE_LINEAR)
+    return pixels, True
 
 
 def base_color_of(geom: mujoco.MjvGeom, tint: np.ndarray | None = None) -> np.ndarray:
