@@ -30,7 +30,9 @@ ISAAC_APPROXIMATED: dict[str, str] = {
                   "poses and DOF properties may differ per env",
     "create_actor": "collision group and filter are ignored: each env is its own world, so envs never collide",
     "load_asset": "URDF, MJCF or USD through ambulo's importers; a missing file named like a bundled asset "
-                  "(assets/humanoid.urdf) loads that asset, with a warning",
+                  "(assets/humanoid.urdf) loads that asset, with a warning; bodies and DOFs come in the file's "
+                  "order (Isaac Gym can differ: it lists legged_gym's anymal_c legs LF, LH, RF, RH, the URDF "
+                  "LF, RF, LH, RH)",
     "add_ground": "the plane's normal must be +z",
     "add_heightfield": "a MuJoCo hfield (sliding friction only; the transform's position, no rotation)",
     "add_triangle_mesh": "sampled into a MuJoCo hfield at the mesh's vertex spacing (highest surface per sample): "
