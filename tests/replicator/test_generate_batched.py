@@ -122,7 +122,9 @@ def test_generate_cli_refuses_device_with_workers_or_another_renderer(tmp_path, 
     assert "drop --workers" in capsys.readouterr().err
     assert main(["generate", "--frames", "2", "--out", str(tmp_path / "b"), "--device", "cpu", "--renderer", "pbr"]) != 0
     assert "drop --renderer" in capsys.readouterr().err
-    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()  # nothing written
+    assert main(["generate", "--frames", "2", "--out", str(tmp_path / "c"), "--draw-workers", "2"]) != 0
+    assert "--draw-workers 2 feeds the one-GPU batched path" in capsys.readouterr().err
+    assert not any((tmp_path / d).exists() for d in "abc")  # nothing written
 
 
 @pytest.mark.slow
@@ -137,3 +139,21 @@ def test_frames_split_over_two_batched_processes_make_the_one_process_dataset(tm
     for i in range(9):  # the same pixels whichever process rendered the frame
         name = f"rgb/{i:06d}.png"
         assert (tmp_path / "one" / name).read_bytes() == (tmp_path / "two" / name).read_bytes()
+
+
+@pytest.mark.slow
+def test_draws_in_other_processes_make_the_same_dataset(tmp_path, monkeypatch):
+    # ambulo generate --device ... --draw-workers 2: the randomizers sampled a batch ahead elsewhere
+    from ambulo.replicator.draw_pool import DrawPool
+
+    submitted, submit = [], DrawPool.submit
+    monkeypatch.setattr(DrawPool, "submit", lambda pool, seed, idx: submitted.append(list(idx)) or submit(pool, seed, idx))
+    one = generate(rep.example_config(96, 72), tmp_path / "one", 5, seed=4, show_progress=False,
+                   device="cpu", num_worlds=2)
+    pool = generate(rep.example_config(96, 72), tmp_path / "pool", 5, seed=4, show_progress=False,
+                    device="cpu", num_worlds=2, draw_workers=2)
+    assert sorted(i for part in submitted for i in part) == list(range(5))  # every frame drawn by the pool
+    assert json.loads(one.read_text())["annotations"] == json.loads(pool.read_text())["annotations"]
+    for i in range(5):
+        name = f"rgb/{i:06d}.png"
+        assert (tmp_path / "one" / name).read_bytes() == (tmp_path / "pool" / name).read_bytes()

@@ -84,6 +84,9 @@ def generate(args: argparse.Namespace) -> int:
         raise CliError(f"--num-gpus {args.num_gpus} splits the batched GPU path", "give --device cuda and 1 or more GPUs")
     if args.num_worlds < 1:
         raise CliError(f"--num-worlds {args.num_worlds} is not positive", "give --num-worlds 1 or more")
+    if args.draw_workers < 0 or (args.draw_workers and (args.device is None or args.num_gpus > 1)):
+        raise CliError(f"--draw-workers {args.draw_workers} feeds the one-GPU batched path",
+                       "give --device cuda (one GPU) with it, or drop it")
     watch = web_watch(args)
     if watch is not None and (args.workers not in (None, 1) or args.ray or args.num_gpus > 1):
         raise CliError("--viewer web watches the frames rendered in this process; --workers, --ray and "
@@ -100,7 +103,7 @@ def generate(args: argparse.Namespace) -> int:
             path = rep.generate(config, args.out, num_frames=args.frames, seed=args.seed, workers=args.workers,
                                 show_progress=not args.quiet, backend="ray" if args.ray else "auto",
                                 overwrite=args.overwrite, device=args.device, num_worlds=args.num_worlds,
-                                num_gpus=args.num_gpus, watch=watch)
+                                num_gpus=args.num_gpus, watch=watch, draw_workers=args.draw_workers)
     except DatasetFolderError as err:
         raise CliError(err.problem, err.fix) from None
     except OSError as err:
@@ -174,6 +177,9 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--num-worlds", type=int, default=64, help="frames per launch with --device (default 64)")
     p.add_argument("--num-gpus", type=int, default=1,
                    help="with --device cuda: one process per GPU (cuda:0 ...), each rendering whole launches")
+    p.add_argument("--draw-workers", type=int, default=0,
+                   help="with --device and one GPU: sample the randomizers in this many processes, a batch ahead of "
+                        "the render (the same numbers; default 0: in this process)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_viewer_args(p)  # the scene of each frame as it is generated (one process)
     p.set_defaults(func=generate)

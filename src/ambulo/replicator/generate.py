@@ -47,7 +47,7 @@ BACKENDS = ("auto", "processes", "ray")
 def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int = 0, workers: int | None = 1,
              show_progress: bool = True, backend: str = "auto", overwrite: bool = False,
              device: str | None = None, num_worlds: int = 64, writer_threads: int | None = None,
-             num_gpus: int = 1, watch: Callable[[Any], Any] | None = None) -> Path:
+             num_gpus: int = 1, watch: Callable[[Any], Any] | None = None, draw_workers: int = 0) -> Path:
     """Write (or finish) a dataset of ``num_frames`` frames in ``out``; returns annotations.json.
 
     ``out`` must be new, empty, or a dataset of the same config and seed (``dataset.json``):
@@ -65,6 +65,9 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
     labels within a pixel of the CPU path's, colours from MuJoCo Warp's ray caster; one process,
     ``writer_threads`` encoding frames (default: one per CPU). ``num_gpus`` > 1 splits the frames
     over that many processes, one per GPU (``cuda:0`` ... of ``device``'s type), whole launches each.
+    ``draw_workers`` > 0 (one GPU) samples the randomizers' draws in that many processes, a batch ahead
+    of the render (``draw_pool.DrawPool``; the same numbers): the host-side draws otherwise bound a
+    GPU's rate.
 
     ``watch`` (``ambulo generate --viewer web``) is called with the producer, in this process (so
     one worker, one GPU), before the first frame; what it returns joins the producer's
@@ -87,6 +90,9 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
                          f"--workers {workers} (or generate on the CPU without --device)")
     if num_worlds < 1:
         raise ValueError(f"--num-worlds must be >= 1, got {num_worlds}")
+    if draw_workers < 0 or (draw_workers and (device is None or num_gpus > 1)):
+        raise ValueError(f"--draw-workers {draw_workers} feeds the one-GPU batched path: give --device and one GPU, "
+                         "or drop it")
     if watch is not None and (workers not in (None, 1) or num_gpus > 1 or backend == "ray"):
         raise ValueError("watching a dataset's generation needs its producer in this process: one worker, "
                          "one GPU, no Ray")
@@ -96,7 +102,12 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
     model = compile_scene(config.build_scene(), config.physics)
     producer = None
     if device is not None and num_gpus == 1:
-        producer = BatchedFrameProducer(config, num_worlds, device)
+        draws = None
+        if draw_workers:
+            from .draw_pool import DrawPool
+
+            draws = DrawPool(config, draw_workers)
+        producer = BatchedFrameProducer(config, num_worlds, device, draws=draws)
     open_dataset(out, config, seed, model, num_frames, overwrite,
                  image_source=IMAGE_SOURCE if device is not None else None)
     prepare_dirs(out, config.writer)
@@ -135,7 +146,8 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
         bar.close()
         if watcher is not None:
             watcher.close()
-            producer.close()
+        if producer is not None and (watcher is not None or batched):
+            producer.close()  # a batched producer holds the device's buffers and any draw processes
     from ambulo.sensors.annotators import instance_table
 
     categories = instance_table(model).categories
