@@ -42,13 +42,23 @@ IMAGE_FRAME = 3
 """The frame shown in the side-by-side picture (objects in view of the head camera)."""
 
 
-def _path_tracer(model, width: int, height: int):
+def _path_tracer(model, width: int, height: int, spp: int = 16, variant: str = "auto"):
     try:
         from ambulo.render.path import PathTracer, PathTracerCfg
     except ImportError as err:
         print(f"path tier not importable here ({err}); left out")
         return None
-    return PathTracer(model, PathTracerCfg(width=width, height=height, spp=16, denoise=True))
+    return PathTracer(model, PathTracerCfg(width=width, height=height, spp=spp, denoise=True, variant=variant))
+
+
+def frame_view(producer: FrameProducer, k: int, width: int, height: int):
+    """Frame ``k`` of the benchmark's sequence written into the producer's model and data (objects
+    scattered, recoloured, relit; kinematics), and its camera: (pos_w, rot_w_gl, MjvGLCamera)."""
+    camera = producer.camera
+    producer.randomize(SEED, k)
+    pose = camera.capture(0, annotators=())["camera"]  # kinematics and the camera pose
+    pos, rot_gl = pose["pos_w"], quat_to_mat(pose["quat_w_opengl"])
+    return pos, rot_gl, gl_camera(pos, rot_gl, camera.fovy_deg, width, height, camera.cfg.clipping_range_m)
 
 
 def main() -> None:
@@ -64,7 +74,7 @@ def main() -> None:
     camera = producer.camera
     model = camera._model_buf  # what randomizers edit in place, and every tier reads
     raster = camera.renderer
-    fovy, clip, w, h = camera.fovy_deg, camera.cfg.clipping_range_m, args.width, args.height
+    clip, w, h = camera.cfg.clipping_range_m, args.width, args.height
     tiers = {
         "raster": None,
         "pbr": PbrRenderer(model, w, h),
@@ -77,11 +87,8 @@ def main() -> None:
     cpu = {name: [] for name in tiers}
     pictures: dict[str, np.ndarray] = {}
     for k in range(args.frames + 1):
-        producer.randomize(SEED, k)
-        pose = camera.capture(0, annotators=())["camera"]  # kinematics and the camera pose, untimed
+        pos, rot_gl, glcam = frame_view(producer, k, w, h)  # untimed
         data = camera._data_buf
-        pos, rot_gl = pose["pos_w"], quat_to_mat(pose["quat_w_opengl"])
-        glcam = gl_camera(pos, rot_gl, fovy, w, h, clip)
         for name, renderer in tiers.items():
             if name == "path" and k > args.path_frames:
                 continue
