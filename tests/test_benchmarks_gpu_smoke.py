@@ -135,3 +135,33 @@ def test_issue25_device_script_runs_on_the_cpu(tmp_path):
     assert sorted(p.name for p in tmp_path.rglob("*") if p.is_file()) == sorted(
         ["summary.json", "sync_test.json", "sync_test.log", "env_gpu.log", "profile_gpu.log", "suite.log",
          "results.json", "gpu_tests.json"])
+
+
+@pytest.mark.slow
+def test_render_tiers_gpu_runs_on_the_cpu():
+    """benchmarks/render_tiers_gpu.py at a tiny size on lavapipe and Mitsuba's LLVM variant: pbr from
+    one and from two processes at once (each its frames behind a barrier), raster and the path tier
+    per frame, judged against the CPU targets (~1.5 min on a loaded 2-core machine)."""
+    from ambulo.render.pbr import _vulkan_problem
+
+    pytest.importorskip("mitsuba")
+    if _vulkan_problem() is not None:
+        pytest.skip(_vulkan_problem())
+    result = run_benchmark("render_tiers_gpu.py", "--width", "64", "--height", "48", "--frames", "3",
+                           "--path-frames", "2", "--path-spp", "2", "--warmup", "1", "--pbr-processes", "2")
+    tiers = result["tiers"]
+    assert result["gpu"] is False and result["target"]["pbr_fps"] == 8.0 and result["target"]["path_fps"] == 1.0
+    assert result["target"]["settings_match"] is False  # 64x48 is not the target's size
+    assert tiers["pbr_1_process"]["processes"] == 1 and tiers["pbr_1_process"]["frames"] == 3
+    two = result["pbr_by_processes"]["2"]
+    assert two["processes"] == 2 and two["frames"] == 6
+    # every process renders its frames inside the aggregate's wall time
+    assert two["wall_s"] >= two["slowest_process_s"] > 0
+    assert two["fps"] == pytest.approx(6 / two["wall_s"], rel=0.01)
+    assert tiers["pbr"]["fps"] == max(r["fps"] for r in result["pbr_by_processes"].values())
+    assert tiers["raster"]["frames"] == 3 and tiers["raster"]["ratio_to_raster"] == 1.0
+    path = tiers["path"]
+    assert path["frames"] == 2 and path["spp"] == 2 and path["denoise"] and path["variant"] == "llvm_ad_rgb"
+    assert result["meets_pbr"] == (tiers["pbr"]["fps"] >= 8.0)
+    assert result["meets_path"] == (path["fps"] >= 1.0)
+    assert tiers["pbr"]["ratio_to_raster"] == pytest.approx(tiers["pbr"]["fps"] / tiers["raster"]["fps"], abs=1e-3)
