@@ -41,11 +41,12 @@ def test_resume_continues_the_run_and_its_algorithm(tmp_path):
 
 
 @pytest.mark.slow
-def test_fast_sac_balances_cartpole_and_exports(tmp_path):
+@pytest.mark.parametrize("algo", ["fast-sac", "fast-td3"])  # met at iterations 99 and 124 (12,800 / 16,000 env steps)
+def test_balances_cartpole_and_exports(tmp_path, algo):
     """The learner must solve cartpole: the task's criterion (fall rate <= 5 % over 100
     evaluation episodes) from the default settings, and the actor exports like PPO's."""
-    run_dir = train("cartpole", algo="fast-sac", seed=0, log_root=tmp_path, eval_every=25,
-                    stop_at_criterion=True, max_iterations=200)  # met at iteration 99 (12,800 env steps)
+    run_dir = train("cartpole", algo=algo, seed=0, log_root=tmp_path, eval_every=25,
+                    stop_at_criterion=True, max_iterations=200)
     rows = list(csv.DictReader(open(run_dir / "evals.csv")))
     assert rows[-1]["criteria_met"] == "True", rows
     result = evaluate(run_dir, quiet=True)
