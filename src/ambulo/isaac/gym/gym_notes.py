@@ -26,7 +26,7 @@ ISAAC_UNSUPPORTED: dict[str, str] = {
 ISAAC_APPROXIMATED: dict[str, str] = {
     "create_sim": "z-up only; SIM_FLEX fails; use_gpu_pipeline on a CUDA host runs MuJoCo Warp, else MuJoCo's CPU batch",
     "simulate": "one MuJoCo step per PhysX substep (dt / substeps): soft contacts and implicit PD drives, not PhysX TGS; "
-                "elliptic friction cones with impratio 100 so that friction sticks as PhysX's does",
+                "static friction creeps slowly under load where PhysX's sticks",
     "create_env": "every env must create the same assets in the same order (one model in N worlds); "
                   "poses and DOF properties may differ per env",
     "create_actor": "collision group and filter are ignored: each env is its own world, so envs never collide",
