@@ -98,7 +98,33 @@ def _numbers(flag: str, text: str, counts: tuple[int, ...], example: str) -> lis
 
 
 _NAVIGATE_UNSUPPORTED = {"record": "--record", "foxglove": "--foxglove", "lidar": "--lidar", "rate": "--rate",
-                         "no_camera": "--no-camera"}
+                         "no_camera": "--no-camera", "detector": "--detector"}
+
+
+def _detector(path: str):
+    """``--detector``: a train-detector run folder (its exported ``model.onnx``, else ``checkpoint.pt``),
+    a checkpoint or an ONNX file, loaded as ``ambulo.detection.Detector``; else ``CliError``."""
+    from ambulo.detection.train import CHECKPOINT
+
+    file = Path(path).expanduser()
+    if file.is_dir():
+        found = [file / name for name in ("model.onnx", CHECKPOINT) if (file / name).is_file()]
+        if not found:
+            raise CliError(f"--detector {path!r}: the folder holds neither model.onnx nor {CHECKPOINT}",
+                           "give a run folder of `ambulo train-detector`, its checkpoint.pt or an exported .onnx")
+        file = found[0]
+    if not file.is_file():
+        raise CliError(f"--detector {path!r}: no such file",
+                       "train one with `ambulo train-detector DATASET --out RUN` and give RUN (or RUN/checkpoint.pt)")
+    from ambulo.detection import Detector
+
+    try:
+        return Detector(file)
+    except Exception as err:  # a file that is not a detector: torch, onnxruntime or pickle say why
+        raise CliError(f"--detector {path!r}: {str(file)!r} is not a detector ({type(err).__name__}: "
+                       f"{str(err).splitlines()[0][:200] if str(err) else 'unreadable'})",
+                       "give a checkpoint.pt of `ambulo train-detector` or the .onnx `ambulo export-detector` "
+                       "wrote") from None
 
 
 def _navigate(args: argparse.Namespace) -> int:
@@ -184,12 +210,15 @@ def run(args: argparse.Namespace) -> int:
         _require("rosbags", "rosbags", "--record")
     if args.foxglove:
         _require("foxglove", "foxglove-sdk", "--foxglove")
+    if args.detector and args.no_camera:
+        raise CliError("--detector needs the camera that --no-camera removes", "leave out one of the two")
     from ambulo.ros2.runtime import Ros2Unavailable, import_rclpy
 
     try:
         import_rclpy()
     except Ros2Unavailable as err:
         raise CliError(str(err).split("; ")[0], str(err).split("; ", 1)[-1]) from None
+    detector = _detector(args.detector) if args.detector else None
     from ambulo.ros2 import BridgeCfg, Ros2Bridge
 
     world = _world(args.target, args)
@@ -197,7 +226,12 @@ def run(args: argparse.Namespace) -> int:
                     camera_rate_hz=args.camera_rate, record=str(bag) if bag else None,
                     foxglove_port=args.foxglove_port if args.foxglove else None)
     signal.signal(signal.SIGTERM, _interrupt)  # `kill` ends like Ctrl-C: the bag is finished
-    bridge = Ros2Bridge(world, cfg)
+    try:
+        bridge = Ros2Bridge(world, cfg, detector=detector)
+    except ValueError as err:  # the detector cannot take the scene's camera (check_detector)
+        if detector is None:
+            raise
+        raise CliError(f"--detector: {str(err).split('; ')[0]}", str(err).split("; ", 1)[-1]) from None
     print(f"ambulo bridge: node {bridge.node_name} on ROS_DOMAIN_ID="
           f"{os.environ.get('ROS_DOMAIN_ID', '0')}, publishing {', '.join(bridge.topics)}"
           + (f"; Foxglove: ws://127.0.0.1:{bridge.foxglove.port}" if bridge.foxglove else ""), flush=True)
@@ -250,6 +284,11 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
                    help="QoS of camera topics: reliable (default) or best-effort sensor data")
     p.add_argument("--no-camera", action="store_true", help="no camera on the robot")
     p.add_argument("--lidar", action="store_true", help="add a planar lidar (/scan) to the Jetbot")
+    p.add_argument("--detector", metavar="PATH", help="run this detector (a train-detector run folder, its "
+                   "checkpoint.pt or exported .onnx) on every published camera frame: /detections "
+                   "(vision_msgs/Detection2DArray) and /detections/segmentation (mono16, models with masks), "
+                   "stamped like the image. Inference runs in the camera path on the physics thread: it costs "
+                   "--camera-rate inferences of CPU per simulated second and slows the simulation by as much")
     nav = p.add_argument_group("navigator", "`ambulo bridge apartment|WORLD --navigate`: the humanoid navigator "
                                "as a ROS 2 node: goals on /goal_pose (RViz's 2D Goal Pose); /plan, /footsteps, /map, "
                                "/costmap, /odom, /tf (map -> odom -> base_link), /navigate/status out")

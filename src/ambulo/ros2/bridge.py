@@ -41,7 +41,7 @@ from .bridge_launch import (
     static_messages,
     time_source,
 )
-from .bridge_publishing import PhysicsPublisher
+from .bridge_publishing import PhysicsPublisher, check_detector
 from .bridge_scene import SceneDiscovery
 from .commands import CmdVelHandler, default_cmd_vel_handler
 from .config import BridgeCfg
@@ -58,9 +58,15 @@ class Ros2Bridge:
         ``WheeledRobot``, the shipped walking policy for the bundled humanoid when the World steps
         at its physics_dt, ``robots.humanoid.POLICY_PHYSICS_DT_S``; another free-floating robot
         refuses /cmd_vel saying why).
+      detector: an ``ambulo.detection.Detector`` (any callable of an (H, W, 3) uint8 frame returning
+        ``boxes_px``, ``labels``, ``scores``, ``masks``, with ``canvas_hw``), run on every published camera
+        frame on the physics thread: ``detections`` (vision_msgs/msg/Detection2DArray) and, for a model
+        with masks, ``detections/segmentation`` (mono16 instances), stamped and framed like the image.
+        A camera larger than its canvas is a ``ValueError``.
     """
 
-    def __init__(self, world, cfg: BridgeCfg | None = None, *, cmd_vel_handler: CmdVelHandler | None = None):
+    def __init__(self, world, cfg: BridgeCfg | None = None, *, cmd_vel_handler: CmdVelHandler | None = None,
+                 detector=None):
         if world.engine is None:
             raise RuntimeError("the World has not been reset yet: call world.reset() before attaching a bridge")
         if world.num_worlds != 1:
@@ -81,6 +87,8 @@ class Ros2Bridge:
         if handler is None and self.robot is not None:
             handler = default_cmd_vel_handler(self.robot, world.get_physics_dt())
         self.commands = CommandIntake(self.cfg, self.robot, self.command_joints, handler, self._send)
+        if detector is not None:
+            check_detector(detector, scene.cameras)
         snapshot = snapshot_sources(world, self.cfg, scene)
         static, self.urdf = static_messages(world, self.cfg, scene, serialize_message)
         """``urdf``: the robot_description published (None without robots)."""
@@ -96,7 +104,7 @@ class Ros2Bridge:
         """topic -> (matched subscriptions, ``time.time()`` when that count last changed), as the
         publisher's DDS writer saw it: a message published after that time reaches every one of them."""
         self.publishing = PhysicsPublisher(world, self.cfg, scene, self.process, snapshot, serialize_message,
-                                           time_source(world))
+                                           time_source(world), detector)
         self.closed = False
         close_at_exit(self)  # an exception ending the program still closes the publisher process cleanly
         world.add_physics_callback("ros2_bridge", self._on_physics_step)

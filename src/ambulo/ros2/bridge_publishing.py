@@ -18,10 +18,24 @@ import numpy as np
 from . import cdr
 from . import messages as m
 from .bridge_launch import SnapshotSources, imu_is_clean, state_topics
-from .frames import xyzw
+from .frames import leaf, xyzw
 from .ring import _FENCE, HEADER_BYTES, IMU0, JOINT_STATES, ODOM, READ, TF, WAITING, WRITTEN
 
 _INF = float("inf")
+
+
+def check_detector(detector, cameras) -> None:
+    """``ValueError`` naming the fix when a camera's frames are larger than ``detector``'s canvas (before
+    the publisher process starts); a scene without cameras has nothing to detect on."""
+    from .detections import detections_fit
+
+    if not cameras:
+        raise ValueError("a detector needs a camera, and the scene has none; leave out --no-camera (or the "
+                         "detector)")
+    for camera in cameras:
+        problem = detections_fit(detector.canvas_hw, *camera.resolution, f"camera {camera.prim_path!r}")
+        if problem:
+            raise ValueError(problem)
 
 
 class PhysicsPublisher:
@@ -33,7 +47,7 @@ class PhysicsPublisher:
     when a message's state is taken), ``last`` (key -> simulated time it was last due).
     """
 
-    def __init__(self, world, cfg, scene, process, snapshot: SnapshotSources, serialize, now):
+    def __init__(self, world, cfg, scene, process, snapshot: SnapshotSources, serialize, now, detector=None):
         self.world, self.cfg, self.scene, self.process = world, cfg, scene, process
         self.robot, self.imus, self.cameras, self.lidars = scene.robot, scene.imus, scene.cameras, scene.lidars
         self._serialize, self._now = serialize, now
@@ -54,6 +68,9 @@ class PhysicsPublisher:
         self.dropped = 0
         self.dropped_frames = 0
         self.on_publish = None
+        self.detector = detector
+        if detector is not None:
+            self._advertise_detections()
 
     # -- the step path: the rate schedule, then a snapshot into the ring --------------------------
     def step(self) -> None:
@@ -203,11 +220,40 @@ class PhysicsPublisher:
         rgb = np.ascontiguousarray(out["rgb"][..., :3])
         height, width = rgb.shape[:2]
         self._publish_frame(f"rgb{i}", ns, frame, "rgb8", rgb)
+        if self.detector is not None:
+            self._publish_detections(i, rgb, now, ns, frame)
         if self.cfg.publish_depth:  # REP 118: 32FC1, metres along the optical axis
             self._publish_frame(f"depth{i}", ns, frame, "32FC1", np.ascontiguousarray(out["depth"], "<f4"))
         cam = out["camera"]
         self._publish(f"info{i}", self._serialize(m.camera_info(now, frame, cam["width"], cam["height"],
                                                                 cam["intrinsics"])), ns)
+
+    def _advertise_detections(self) -> None:
+        """Topics of ``detector``'s output for each camera: ``detections`` (one camera) or
+        ``detections/<camera>``, and ``<that>/segmentation``."""
+        from .detections import DETECTION_ARRAY
+
+        for i, camera in enumerate(self.cameras):
+            topic = "detections" if len(self.cameras) == 1 else f"detections/{leaf(camera.prim_path)}"
+            self._advertise(f"det{i}", DETECTION_ARRAY, topic, "data")
+            self._advertise(f"seg{i}", "sensor_msgs/msg/Image", f"{topic}/segmentation", "camera")
+
+    def _advertise(self, key: str, typename: str, topic: str, kind: str) -> None:
+        """A publisher added after the process started (QoS ``kind``: data, camera, static)."""
+        if key not in self._topic:
+            self.process.send(("advertise", key, typename, topic, kind))
+            self._topic[key] = topic if topic.startswith("/") else f"{self.cfg.namespace.rstrip('/')}/{topic}"
+
+    def _publish_detections(self, i: int, rgb: np.ndarray, now: float, ns: int, frame: str) -> None:
+        """The detector on camera ``i``'s frame, here on the physics thread (it costs the camera rate's
+        inferences a simulated second of CPU), stamped and framed like the image."""
+        from .detections import detection_array_cdr, segmentation_of
+
+        found = self.detector(rgb)
+        self._publish(f"det{i}", detection_array_cdr(now, frame, found.boxes_px, found.labels, found.scores), ns)
+        image = segmentation_of(found)
+        if image is not None:
+            self._publish_frame(f"seg{i}", ns, frame, "mono16", np.ascontiguousarray(image, "<u2"))
 
     def _lidar_msg(self, lidar, now: float):
         data, frame = lidar.get_current_frame(), self.scene.sensor_frame[id(lidar)]
@@ -240,12 +286,10 @@ class PhysicsPublisher:
     def publish_costmap(self, costmap, topic: str, frame_id: str | None) -> None:
         """``Ros2Bridge.publish_costmap``: advertise ``topic`` once (Nav2's map QoS), then publish."""
         key = f"grid:{topic}"
-        if key not in self._topic:
-            self.process.send(("advertise", key, "nav_msgs/msg/OccupancyGrid", topic, "static"))
-            self._topic[key] = topic if topic.startswith("/") else f"{self.cfg.namespace.rstrip('/')}/{topic}"
+        self._advertise(key, "nav_msgs/msg/OccupancyGrid", topic, "static")
         now = self.world.current_time
         frame = frame_id if frame_id is not None else self.cfg.frame_prefix + self.cfg.odom_frame
         self._publish(key, self._serialize(m.occupancy_grid(now, frame, costmap)), round(now * 1e9))
 
 
-__all__ = ["PhysicsPublisher"]
+__all__ = ["PhysicsPublisher", "check_detector"]

@@ -84,6 +84,24 @@ def detection_array_cdr(time_s: float, frame_id: str, boxes_px, labels: list[str
     return bytes(store.serialize_cdr(t[DETECTION_ARRAY](header=header, detections=detections), DETECTION_ARRAY))
 
 
+def segmentation_of(detections) -> np.ndarray | None:
+    """The instance image (``instance_image``) of duck-typed detections, or None when they carry no masks
+    (a box-only model): the one rule for when ``<topic>/segmentation`` is published."""
+    masks = getattr(detections, "masks", None)
+    return None if masks is None else instance_image(masks, detections.scores)
+
+
+def detections_fit(canvas_hw, width: int, height: int, what: str) -> str | None:
+    """Why a detector trained on a ``canvas_hw`` (height, width) canvas cannot take ``what``'s
+    ``width`` x ``height`` frames (smaller ones are padded, larger ones are not resized), or None."""
+    ch, cw = canvas_hw
+    if width <= cw and height <= ch:
+        return None
+    return (f"{what} is {width}x{height} px, larger than the detector's {cw}x{ch} canvas (frames are padded, "
+            f"never resized); train the detector on {width}x{height} frames (`ambulo generate` at that camera size) "
+            f"or give the scene a camera of at most {cw}x{ch} px")
+
+
 def instance_image(masks, scores) -> np.ndarray:
     """(H, W) uint16: k + 1 where detection k's mask is, the highest-scoring one where masks overlap."""
     masks = np.asarray(masks, bool)
@@ -110,13 +128,12 @@ class DetectionPublisher:
     def publish(self, time_s: float, detections) -> None:
         self.boxes.publish(detection_array_cdr(time_s, self.frame_id, detections.boxes_px, detections.labels,
                                                detections.scores))
-        masks = getattr(detections, "masks", None)
-        if masks is not None:
+        image = segmentation_of(detections)
+        if image is not None:
             from sensor_msgs.msg import Image
 
             from .messages import header
 
-            image = instance_image(masks, detections.scores)
             msg = Image(header=header(time_s, self.frame_id), height=image.shape[0], width=image.shape[1],
                         encoding="mono16", is_bigendian=0, step=2 * image.shape[1])
             msg.data = image.astype("<u2").tobytes()
@@ -124,5 +141,4 @@ class DetectionPublisher:
 
 
 __all__ = ["DETECTION_ARRAY", "VISION_MSGS", "DetectionPublisher", "detection_array_cdr", "detection_array_class",
-           "instance_image",
-           "register_vision_msgs"]
+           "detections_fit", "instance_image", "register_vision_msgs", "segmentation_of"]

@@ -148,6 +148,11 @@ class Publisher:
         # before create_publisher returns
         name = self.node.resolve_topic_name(topic)
         matched = PublisherEventCallbacks(matched=lambda info: self._on_matched(name, info))
+        if typename not in self._types:  # a type declared by the project, e.g. vision_msgs (detections.py)
+            from .detections import DETECTION_ARRAY, detection_array_class
+
+            if typename == DETECTION_ARRAY:
+                self._types[typename] = detection_array_class()
         pub = self.node.create_publisher(self._types[typename], topic, profile, event_callbacks=matched)
         clear_rcutils_error()
         offered = bag_qos(reliable=profile.reliability == ReliabilityPolicy.RELIABLE,

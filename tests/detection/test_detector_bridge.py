@@ -1,0 +1,166 @@
+"""``Ros2Bridge(..., detector=)`` and ``ambulo bridge --detector``: the bridge runs a trained detector on
+each published camera frame; a second rclpy node in a loopback-only network receives the image and the
+vision_msgs/msg/Detection2DArray (decoded by mcap_ros2, not by the project's serializer) and checks that
+the array is the detector's output on that very image: same stamp, the camera's frame id, the same boxes.
+
+Run as a script (by the test, in the isolated network): ``python test_detector_bridge.py CHECKPOINT``
+prints one JSON line of what the listener received."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+HERE = Path(__file__).resolve()
+
+
+def _scenario(checkpoint: str) -> None:
+    """The bridge (the Jetbot, its camera at 64x48, the shapes detector) and a listener node here."""
+    from ambulo.ros2.runtime import import_rclpy, use_fastdds_profile
+
+    use_fastdds_profile()
+    rclpy = import_rclpy()
+    from rclpy.executors import SingleThreadedExecutor
+    from sensor_msgs.msg import Image
+
+    sys.path.insert(0, str(HERE.parent))
+    from ros2_detections_scenario import decoder
+
+    from ambulo.detection import Detector
+    from ambulo.ros2 import BridgeCfg, Ros2Bridge, SceneCfg, jetbot_world
+    from ambulo.ros2.detections import detection_array_class
+
+    world = jetbot_world(SceneCfg(camera_width=64, camera_height=48))
+    detector = Detector(checkpoint, score_threshold=0.05)  # low: frames of a warehouse floor, not of discs
+    bridge = Ros2Bridge(world, BridgeCfg(camera_rate_hz=50.0, publish_depth=False), detector=detector)
+    rclpy.init()
+    listener = rclpy.create_node("detections_listener")
+    arrays, images, segmentations = {}, {}, {}
+
+    def stamp(msg) -> int:
+        return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+
+    decode = decoder()
+
+    def on_array(raw: bytes) -> None:
+        array = decode(raw)
+        arrays[stamp(array)] = array
+
+    listener.create_subscription(detection_array_class(), "detections", on_array, 10, raw=True)
+    listener.create_subscription(Image, "camera/image_raw", lambda msg: images.setdefault(stamp(msg), msg), 10)
+    listener.create_subscription(Image, "detections/segmentation",
+                                 lambda msg: segmentations.setdefault(stamp(msg), msg), 10)
+    executor = SingleThreadedExecutor()
+    executor.add_node(listener)
+    has_masks = detector(np.zeros((48, 64, 3), np.uint8)).masks is not None
+    deadline = time.monotonic() + 60.0
+    both: list[int] = []
+    while time.monotonic() < deadline:
+        world.step(render=False)
+        executor.spin_once(timeout_sec=0.005)
+        both = sorted(set(arrays) & set(images))
+        if len(both) >= 2 and (not has_masks or set(segmentations) & set(both)):
+            break
+    graph = dict(listener.get_topic_names_and_types())
+    out: dict = {"graph": graph, "frames": []}
+    for ns in both:
+        image, array = images[ns], arrays[ns]
+        rgb = np.frombuffer(bytes(image.data), np.uint8).reshape(image.height, image.width, 3)
+        again = detector(rgb)  # the detector on the frame the listener got
+        seg = segmentations.get(ns)
+        out["frames"].append({
+            "stamp_ns": ns, "image_frame_id": image.header.frame_id, "array_frame_id": array.header.frame_id,
+            "shape": [image.height, image.width],
+            "boxes": [[d.bbox.center.position.x - d.bbox.size_x / 2, d.bbox.center.position.y - d.bbox.size_y / 2,
+                       d.bbox.center.position.x + d.bbox.size_x / 2, d.bbox.center.position.y + d.bbox.size_y / 2]
+                      for d in array.detections],
+            "labels": [d.results[0].hypothesis.class_id for d in array.detections],
+            "stamps": [stamp(d) for d in array.detections],
+            "expected_boxes": again.boxes_px.tolist(), "expected_labels": again.labels,
+            "has_masks": again.masks is not None,
+            "segmentation": None if seg is None else {
+                "encoding": seg.encoding, "shape": [seg.height, seg.width], "frame_id": seg.header.frame_id,
+                "max": int(np.frombuffer(bytes(seg.data), "<u2").max(initial=0))}})
+    bridge.close()
+    out["published"] = dict(bridge.published)
+    print(json.dumps(out))
+    listener.destroy_node()
+    rclpy.shutdown()
+
+
+def test_bridge_publishes_the_detectors_output_on_each_frame(trained_shapes):
+    pytest.importorskip("rclpy", reason="needs rclpy: pip install 'ambulo[ros2]'")
+    pytest.importorskip("mcap_ros2")
+    from ambulo.ros2.loopback import isolated, loopback_env
+
+    _, checkpoint = trained_shapes
+    proc = subprocess.Popen(isolated([sys.executable, str(HERE), str(checkpoint)]), env=loopback_env(),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        stdout, stderr = proc.communicate(timeout=180)
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 0, stderr[-4000:]
+    out = json.loads(stdout.strip().splitlines()[-1])
+    assert out["graph"]["/detections"] == ["vision_msgs/msg/Detection2DArray"]
+    assert out["frames"], f"no frame with both its image and its detections arrived: {out['published']}"
+    for frame in out["frames"]:
+        h, w = frame["shape"]
+        assert (h, w) == (48, 64)
+        assert frame["array_frame_id"] == frame["image_frame_id"] != ""
+        assert frame["stamps"] == [frame["stamp_ns"]] * len(frame["boxes"])  # each Detection2D's header too
+        assert frame["boxes"], "the detector (threshold 0.05) found nothing: the check below would be empty"
+        boxes = np.array(frame["boxes"])
+        assert (boxes[:, 0] >= 0).all() and (boxes[:, 2] <= w).all() and (boxes[:, 1] >= 0).all()
+        assert (boxes[:, 3] <= h).all() and (boxes[:, 2] >= boxes[:, 0]).all() and (boxes[:, 3] >= boxes[:, 1]).all()
+        # the detections are of this very image (not the previous frame's, nor another camera's)
+        np.testing.assert_allclose(boxes, np.array(frame["expected_boxes"]), atol=1e-3)
+        assert frame["labels"] == frame["expected_labels"]
+        if frame["has_masks"] and frame["segmentation"] is not None:
+            seg = frame["segmentation"]
+            assert seg["encoding"] == "mono16" and seg["shape"] == [h, w]
+            assert seg["frame_id"] == frame["image_frame_id"] and seg["max"] <= len(boxes)
+    assert any(f["segmentation"] for f in out["frames"]) == any(f["has_masks"] for f in out["frames"])
+
+
+def _bridge_cli(*args: str) -> subprocess.CompletedProcess:
+    from ambulo.ros2.loopback import isolated, loopback_env
+
+    return subprocess.run(isolated([sys.executable, "-m", "ambulo", "bridge", *args]), env=loopback_env(),
+                          capture_output=True, text=True, timeout=180)
+
+
+def test_bridge_cli_refuses_a_missing_detector(tmp_path):
+    pytest.importorskip("rclpy", reason="needs rclpy: pip install 'ambulo[ros2]'")
+    done = _bridge_cli("jetbot", "--seconds", "0.1", "--detector", str(tmp_path / "nope.onnx"))
+    assert done.returncode != 0
+    assert len(done.stderr.strip().splitlines()) == 1 and "nope.onnx" in done.stderr and "no such file" in done.stderr, done.stderr
+    assert "train-detector" in done.stderr and "Traceback" not in done.stderr
+    empty = tmp_path / "run"
+    empty.mkdir()
+    done = _bridge_cli("jetbot", "--seconds", "0.1", "--detector", str(empty))
+    assert done.returncode != 0 and "neither model.onnx nor checkpoint.pt" in done.stderr, done.stderr
+
+
+def test_bridge_cli_refuses_a_camera_larger_than_the_detectors_canvas(trained_shapes):
+    """The Jetbot's camera is 320x240; the shapes detector was trained on 64x64 frames."""
+    pytest.importorskip("rclpy", reason="needs rclpy: pip install 'ambulo[ros2]'")
+    _, checkpoint = trained_shapes
+    done = _bridge_cli("jetbot", "--seconds", "0.1", "--detector", str(checkpoint.parent))
+    assert done.returncode != 0 and "Traceback" not in done.stderr, done.stderr
+    assert "320x240" in done.stderr and "64x64" in done.stderr and "train the detector on 320x240" in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1, done.stderr
+
+
+if __name__ == "__main__":
+    _scenario(sys.argv[1])
