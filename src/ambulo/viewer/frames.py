@@ -65,7 +65,8 @@ def copy_world(worlds, time_s: torch.Tensor, xpos_w: torch.Tensor, xquat_w: torc
     fields whose watched row is copied), copied off the device without a sync."""
     worlds = [int(worlds)] if isinstance(worlds, (int, np.integer)) else [int(w) for w in worlds]
     first = worlds[0]
-    rows = {"time": time_s[first], "xpos": xpos_w[worlds], "xquat": xquat_w[worlds]}
+    index = _world_index(tuple(worlds), xpos_w.device)
+    rows = {"time": time_s[first], "xpos": xpos_w[index], "xquat": xquat_w[index]}
     rows.update({f"x.{k}": v for k, v in extras.items()})
     rows.update({f"s.{k}": v[first] for k, v in (state or {}).items()})
     device = xpos_w.device
@@ -80,6 +81,24 @@ def copy_world(worlds, time_s: torch.Tensor, xpos_w: torch.Tensor, xquat_w: torc
     return Frame(worlds=worlds, time_s=host["time"], xpos_w=host["xpos"], xquat_w=host["xquat"],
                  extras={k[2:]: v for k, v in host.items() if k.startswith("x.")},
                  state={k[2:]: v for k, v in host.items() if k.startswith("s.")}, ready=ready)
+
+
+_INDEX_CACHE: dict[tuple[tuple[int, ...], str], torch.Tensor] = {}
+
+
+def _world_index(worlds: tuple[int, ...], device: torch.device) -> torch.Tensor | slice:
+    """Rows ``worlds`` as an index that costs the device nothing per frame: a slice when they are
+    consecutive, else an index tensor made on the device once per set of worlds. (Indexing a CUDA
+    tensor with a Python list first copies the list from pageable memory, and CUDA synchronizes the
+    stream before such a copy: a training thread would wait for the device up to 30 times a second.)"""
+    if worlds == tuple(range(worlds[0], worlds[0] + len(worlds))):
+        return slice(worlds[0], worlds[0] + len(worlds))
+    key = (worlds, str(device))
+    if key not in _INDEX_CACHE:
+        if len(_INDEX_CACHE) > 64:  # the page changes the watched worlds rarely; keep a few
+            _INDEX_CACHE.clear()
+        _INDEX_CACHE[key] = torch.tensor(worlds, dtype=torch.long, device=device)
+    return _INDEX_CACHE[key]
 
 
 class FrameExchange:
