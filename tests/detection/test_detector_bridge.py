@@ -8,10 +8,7 @@ prints one JSON line of what the listener received."""
 
 from __future__ import annotations
 
-import contextlib
 import json
-import os
-import signal
 import subprocess
 import sys
 import time
@@ -100,18 +97,12 @@ def _scenario(checkpoint: str) -> None:
 def test_bridge_publishes_the_detectors_output_on_each_frame(trained_shapes):
     pytest.importorskip("rclpy", reason="needs rclpy: pip install 'ambulo[ros2]'")
     pytest.importorskip("mcap_ros2")
-    from ambulo.ros2.loopback import isolated, loopback_env
+    from ambulo.ros2.loopback import run_isolated
 
     _, checkpoint = trained_shapes
-    proc = subprocess.Popen(isolated([sys.executable, str(HERE), str(checkpoint)]), env=loopback_env(),
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
-    try:
-        stdout, stderr = proc.communicate(timeout=180)
-    finally:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(proc.pid, signal.SIGKILL)
-    assert proc.returncode == 0, stderr[-4000:]
-    out = json.loads(stdout.strip().splitlines()[-1])
+    done = run_isolated([str(HERE), str(checkpoint)], timeout_s=180)
+    assert done.returncode == 0, done.stderr[-4000:]
+    out = json.loads(done.stdout.strip().splitlines()[-1])
     assert out["graph"]["/detections"] == ["vision_msgs/msg/Detection2DArray"]
     assert out["frames"], f"no frame with both its image and its detections arrived: {out['published']}"
     for frame in out["frames"]:

@@ -1,12 +1,7 @@
 """``ambulo.ros2.detections``: a real rclpy node publishes vision_msgs/msg/Detection2DArray and a
 segmentation image; another node in a loopback-only network receives them."""
 
-import contextlib
 import json
-import os
-import signal
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -18,17 +13,11 @@ SCENARIO = Path(__file__).resolve().parent / "ros2_detections_scenario.py"
 def test_detections_reach_another_node():
     pytest.importorskip("rclpy", reason="needs rclpy: pip install 'ambulo[ros2]'")
     pytest.importorskip("mcap_ros2")
-    from ambulo.ros2.loopback import isolated, loopback_env
+    from ambulo.ros2.loopback import run_isolated
 
-    proc = subprocess.Popen(isolated([sys.executable, str(SCENARIO)]), env=loopback_env(), stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, start_new_session=True)
-    try:
-        stdout, stderr = proc.communicate(timeout=120)
-    finally:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(proc.pid, signal.SIGKILL)
-    assert proc.returncode == 0, stderr[-4000:]
-    out = json.loads(stdout.strip().splitlines()[-1])
+    done = run_isolated([str(SCENARIO)], timeout_s=120)
+    assert done.returncode == 0, done.stderr[-4000:]
+    out = json.loads(done.stdout.strip().splitlines()[-1])
     assert out["graph"]["/detections"] == ["vision_msgs/msg/Detection2DArray"]
     assert out["graph"]["/detections/segmentation"] == ["sensor_msgs/msg/Image"]
     array = out["array"]

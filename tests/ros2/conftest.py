@@ -2,12 +2,7 @@
 
 from __future__ import annotations
 
-import contextlib
-import os
-import signal
 import subprocess
-import sys
-import tempfile
 from pathlib import Path
 
 import pytest
@@ -27,26 +22,13 @@ def run_loopback(args: list[str], timeout_s: float = 240.0) -> subprocess.Comple
     """``python args...`` in a loopback-only network namespace (or localhost-only discovery), on a
     domain id of its own; fails the test with the process's output if it fails.
 
-    Output goes to files, not pipes: a pipe stays open while any descendant lives, so a hung
-    grandchild would hold the test until the timeout even after the scenario has exited. The
-    scenario runs in a session of its own, killed whole at the end."""
-    from ambulo.ros2.loopback import isolated, loopback_env
+    The scenario's output goes to files and its session is killed whole at the end
+    (``loopback.run_isolated``)."""
+    from ambulo.ros2.loopback import run_isolated
 
-    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
-        proc = subprocess.Popen(isolated([sys.executable, *args]), env=loopback_env(), stdout=out, stderr=err,
-                                text=True, start_new_session=True)
-        try:
-            returncode = proc.wait(timeout=timeout_s)
-        except subprocess.TimeoutExpired:
-            returncode = None
-        finally:
-            with contextlib.suppress(ProcessLookupError):
-                os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
-        out.seek(0)
-        err.seek(0)
-        stdout, stderr = out.read(), err.read()
+    done = run_isolated(args, timeout_s)
+    returncode, stdout, stderr = done.returncode, done.stdout, done.stderr
     if returncode != 0:
         why = f"timed out after {timeout_s:.0f} s" if returncode is None else f"failed ({returncode})"
         pytest.fail(f"{' '.join(args)} {why}:\n{stdout[-3000:]}\n{stderr[-6000:]}")
-    return subprocess.CompletedProcess(proc.args, returncode, stdout, stderr)
+    return done

@@ -8,12 +8,16 @@ Iron and newer). Both set a domain id of their own, so parallel runs do not see 
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import glob
 import os
 import random
 import shutil
+import signal
 import subprocess
+import sys
+import tempfile
 
 
 def loopback_env(domain_id: int | None = None, base: dict | None = None) -> dict:
@@ -41,6 +45,29 @@ def isolated(argv: list[str]) -> list[str]:
     if not can_unshare():
         return list(argv)
     return ["unshare", "-n", "sh", "-c", 'ip link set lo up && exec "$@"', "ambulo-loopback", *argv]
+
+
+def run_isolated(args: list[str], timeout_s: float) -> subprocess.CompletedProcess:
+    """``python args...`` in a loopback-only network namespace (``isolated``) on a domain id of its own
+    (``loopback_env``); ``returncode`` None if it outlived ``timeout_s``.
+
+    Output goes to files, not pipes: a pipe stays open while any descendant lives, so a hung
+    grandchild would hold the caller until the timeout even after the script has exited. The
+    script runs in a session of its own, killed whole at the end."""
+    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
+        proc = subprocess.Popen(isolated([sys.executable, *args]), env=loopback_env(), stdout=out, stderr=err,
+                                text=True, start_new_session=True)
+        try:
+            returncode = proc.wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            returncode = None
+        finally:
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+        out.seek(0)
+        err.seek(0)
+        return subprocess.CompletedProcess(proc.args, returncode, out.read(), err.read())
 
 
 def clean_dead_fastdds_segments(shm_dir: str = "/dev/shm") -> int:
