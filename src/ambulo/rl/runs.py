@@ -88,6 +88,20 @@ def resolve_run(run: str | os.PathLike, root: str | os.PathLike = "runs") -> Pat
                             f"({', '.join(envs.names())})")
 
 
+def note_kept_settings(info: dict[str, Any], **given: Any) -> None:
+    """One line when a resume was given settings that differ from the run's: a resumed run
+    keeps its run.json (its networks, batch and RNG streams continue), as --env-cfg does.
+    ``num_envs`` is the learner's (the ``ppo`` or ``offpolicy`` section, by ``algo``)."""
+    learner = info["ppo"] if info.get("algo", "ppo") == "ppo" else info["offpolicy"]
+    kept = {"num_envs": learner["num_envs"], "seed": info["seed"], "device": info["device"]}
+    differ = {k: v for k, v in given.items() if v is not None and v != kept[k]}
+    if differ:
+        asked = ", ".join(f"{k} {v}" for k, v in differ.items())
+        theirs = ", ".join(f"{k} {kept[k]}" for k in differ)
+        print(f"resume keeps the run's {theirs} (run.json), not {asked}; start a new run to "
+              "change them")
+
+
 def make_env_for_run(info: dict[str, Any], *, num_envs: int, seed: int | None = None,
                      device: str | None = None, play: bool = False, **overrides: Any) -> envs.RLEnv:
     """The run's task env with its training overrides, resized to ``num_envs``; ``play``

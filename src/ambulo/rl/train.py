@@ -114,18 +114,6 @@ def _make_runner(env, ppo, run_dir: Path, rank: distributed.Rank, episodes: Epis
     return runner
 
 
-def _note_kept_settings(info: dict[str, Any], **given: Any) -> None:
-    """One line when a resume was given settings that differ from the run's: a resumed run
-    keeps its run.json (its networks, batch and RNG streams continue), as --env-cfg does."""
-    kept = {"num_envs": info["ppo"]["num_envs"], "seed": info["seed"], "device": info["device"]}
-    differ = {k: v for k, v in given.items() if v is not None and v != kept[k]}
-    if differ:
-        asked = ", ".join(f"{k} {v}" for k, v in differ.items())
-        theirs = ", ".join(f"{k} {kept[k]}" for k in differ)
-        print(f"resume keeps the run's {theirs} (run.json), not {asked}; start a new run to "
-              "change them")
-
-
 def _resume_point(task: str | None, resume: str | os.PathLike | bool,
                   log_root: str | os.PathLike) -> tuple[Path, Path]:
     """The run folder to resume and its newest readable checkpoint, found before anything is
@@ -214,7 +202,7 @@ def train(task: str | None = None, *, num_envs: int | None = None,
         run_dir, checkpoint = resume_point
         info = runs.read_run_info(run_dir)
         if rank.is_main:
-            _note_kept_settings(info, num_envs=num_envs, seed=seed, device=device)
+            runs.note_kept_settings(info, num_envs=num_envs, seed=seed, device=device)
         if rank.is_main and remove_partial_files(run_dir):
             print(f"removed the partial files a killed run left in {run_dir}", file=sys.stderr)
         if max_iterations is not None:

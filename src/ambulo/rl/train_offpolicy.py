@@ -53,11 +53,7 @@ def train_offpolicy(task: str | None, *, algo: str, num_envs: int | None = None,
     if resume_point is not None:
         run_dir, checkpoint = resume_point
         info = runs.read_run_info(run_dir)
-        kept = {"num_envs": info["offpolicy"]["num_envs"], "seed": info["seed"], "device": info["device"]}
-        differ = {k: v for k, v in dict(num_envs=num_envs, seed=seed, device=device).items()
-                  if v is not None and v != kept[k]}
-        if differ:
-            print(f"resume keeps the run's {kept} (run.json), not {differ}")
+        runs.note_kept_settings(info, num_envs=num_envs, seed=seed, device=device)
         if remove_partial_files(run_dir):
             print(f"removed the partial files a killed run left in {run_dir}", file=sys.stderr)
         if max_iterations is not None:
