@@ -75,7 +75,7 @@ class DrawPool:
 # -- in the worker processes ------------------------------------------------------------------
 
 def _start_worker(payload: bytes, parent_pid: int, barrier) -> None:
-    # exit when the parent process dies. Not PR_SET_PDEATHSIG (``processes``): that fires when the
+    # exit when the parent process dies. Not PR_SET_PDEATHSIG (as ros2.publisher uses): that fires when the
     # parent *thread* that spawned this process ends, and a pool may be started from any thread
     threading.Thread(target=_exit_with, args=(parent_pid,), daemon=True).start()
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's
