@@ -112,14 +112,21 @@ def _two_boxes():
     return model, data
 
 
-def test_a_checker_box_has_the_rasterizers_colour_in_the_path_tier():
-    model, data = _two_boxes()
+def _raster_and_path(model, data):
+    """Camera "c" at 96x72: the rasterizer's colours and geom ids, and the path tier's colours
+    (16 spp, not denoised), as float images."""
     with OffscreenRenderer(model, 96, 72) as raster:
         raster.update(model, data, 0, data.cam_xpos[0], data.cam_xmat[0].reshape(3, 3))
         expected = raster.render_rgb().astype(float)
         ids, _ = raster.render_ids(want_depth=False)
     path = PathTracer(model, PathTracerCfg(width=96, height=72, spp=16, denoise=False, variant="llvm_ad_rgb")
                       ).render(data, "c").astype(float)
+    return expected, ids, path
+
+
+def test_a_checker_box_has_the_rasterizers_colour_in_the_path_tier():
+    model, data = _two_boxes()
+    expected, ids, path = _raster_and_path(model, data)
     for geom in (0, 1):
         mean_path, mean_raster = path[ids == geom].mean(0), expected[ids == geom].mean(0)
         assert np.all(np.abs(mean_path - mean_raster) <= 3.0), (geom, mean_path, mean_raster)
@@ -192,12 +199,7 @@ def test_a_png_textured_sphere_and_cylinder_have_the_rasterizers_colours_in_the_
     assert model.tex_colorspace[0] == mujoco.mjtColorSpace.mjCOLORSPACE_LINEAR
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
-    with OffscreenRenderer(model, 96, 72) as raster:
-        raster.update(model, data, 0, data.cam_xpos[0], data.cam_xmat[0].reshape(3, 3))
-        expected = raster.render_rgb().astype(float)
-        ids, _ = raster.render_ids(want_depth=False)
-    path = PathTracer(model, PathTracerCfg(width=96, height=72, spp=16, denoise=False, variant="llvm_ad_rgb")
-                      ).render(data, "c").astype(float)
+    expected, ids, path = _raster_and_path(model, data)
     from scipy.ndimage import binary_erosion
 
     for geom in (0, 1):
