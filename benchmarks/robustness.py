@@ -6,7 +6,13 @@ full episode per env of the task's play variant, deterministic actions) with one
 ``envs.transfer.TransferCfg`` on top: nominal, each term alone, the issue's three together, and
 ``transfer_cfg_wide`` (all terms). The nominal row is the ceiling the others are read against.
 
+``--set corners`` evaluates the issue's three terms at the corners of their ranges instead of drawn
+within them: every joint's kp and kd at 0.8 or 1.2, the action latency at 0 or 20 ms, the pelvis
+and torso CoM at (+-3, +-3, +3) cm (z up: a raised CoM is the harder one), 16 corners, beside the
+nominal row and the random draws of the three (``issue_three``).
+
     python benchmarks/robustness.py --shipped humanoid-walk --num-episodes 100
+    python benchmarks/robustness.py --shipped humanoid-walk --set corners --num-episodes 32
     python benchmarks/robustness.py --run runs/humanoid-walk/<run> --device cuda --num-episodes 1000
 
 Ends with one ``RESULT {json}``: each row's fall rate, velocity error and ``walks``; ``ratio`` is
@@ -16,6 +22,7 @@ the worst row's ``walks``-passing share of the rows (1.0 when every row walks).
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 
 from ambulo import envs
@@ -37,6 +44,19 @@ CONDITIONS = {
                                action_latency_range_s=(0.0, 0.02), com_offset_m=0.03),
     "wide": transfer_cfg_wide(),
 }
+
+
+def corner_conditions() -> dict[str, TransferCfg]:
+    """Nominal, the random draws of the issue's three terms, and their 16 corners (module docstring)."""
+    rows = {"nominal": CONDITIONS["nominal"], "issue_three": CONDITIONS["issue_three"]}
+    for gain in (0.8, 1.2):
+        for latency_s in (0.0, 0.02):
+            for x, y in itertools.product((-0.03, 0.03), repeat=2):
+                com = (x, y, 0.03)
+                name = f"gains{gain:g}_lat{latency_s * 1e3:.0f}ms_com{x * 100:+.0f}{y * 100:+.0f}+3cm"
+                rows[name] = TransferCfg(kp_scale_range=(gain, gain), kd_scale_range=(gain, gain),
+                                         action_latency_range_s=(latency_s, latency_s), com_offset_box_m=(com, com))
+    return rows
 
 
 def policy_maker(args):
@@ -72,24 +92,27 @@ def main():
     parser.add_argument("--num-episodes", type=int, default=100)
     parser.add_argument("--episode-length-s", type=float, default=None)
     parser.add_argument("--seed", type=int, default=12345)
+    parser.add_argument("--set", choices=("terms", "corners"), default="terms",
+                        help="terms: each transfer term alone and together; corners: the issue's three at their corners")
     parser.add_argument("--only", default=None, help="comma-separated condition names")
     args = parser.parse_args()
     task, make_env, make_policy = policy_maker(args)
     spec = envs.spec(task)
-    names = args.only.split(",") if args.only else list(CONDITIONS)
+    conditions = CONDITIONS if args.set == "terms" else corner_conditions()
+    names = args.only.split(",") if args.only else list(conditions)
     rows = {}
     for name in names:
-        env = make_env(args.num_episodes, args.seed, transfer=CONDITIONS[name],
+        env = make_env(args.num_episodes, args.seed, transfer=conditions[name],
                        episode_length_s=eval_episode_length_s(spec, args.episode_length_s))
         policy = make_policy(env)
         measured = run_episodes(env, RslRlVecEnv(env), policy, spec, desc=name, quiet=True)
         rows[name] = {k: measured[k] for k in ("fall_rate", "mean_abs_vel_error_m_s", *measured["criteria"])
                       if k in measured}
-        print(f"{name:16s} " + "  ".join(f"{k}={v:.3f}" if isinstance(v, float) else f"{k}={v}"
+        print(f"{name:34s} " + "  ".join(f"{k}={v:.3f}" if isinstance(v, float) else f"{k}={v}"
                                          for k, v in rows[name].items()), flush=True)
     walks = [bool(r.get("walks", False)) for r in rows.values()]
     result = {"task": task, "policy": args.run or f"shipped {args.shipped}", "device": args.device or "cpu",
-              "episodes": args.num_episodes, "rows": rows, "ratio": round(sum(walks) / len(walks), 3)}
+              "episodes": args.num_episodes, "set": args.set, "seed": args.seed, "rows": rows, "ratio": round(sum(walks) / len(walks), 3)}
     print("RESULT " + json.dumps(result))
 
 

@@ -4,7 +4,7 @@ Per world, on the engine's device, through the one randomization layer (``core.r
 
 - at start (Isaac Lab's "startup" events): PD gains (``kp``, ``kd`` scales per joint), motor
   strength (a torque scale per joint), joint friction (Coulomb ``frictionloss`` added, N m) and
-  armature (reflected rotor inertia, scaled), centre-of-mass offsets of chosen bodies;
+  armature (reflected rotor inertia, scaled), centre-of-mass offsets of chosen bodies (in a +-c cube or a given box, a fixed corner included);
 - per episode, at each reset: action latency (0-20 ms: the joint targets a world's physics sees
   lag the policy's by a whole number of physics steps) and observation delay (the actor reads
   observations a whole number of policy steps old; the critic reads current ones).
@@ -43,12 +43,32 @@ class TransferCfg(Checked):
     """Factor on each joint's armature (rotor inertia)."""
     com_offset_m: float | None = None
     """Each of ``com_bodies``' centres of mass moves by up to +-this along x, y and z, m."""
+    com_offset_box_m: tuple[tuple[float, float, float], tuple[float, float, float]] | None = None
+    """((x, y, z) low, (x, y, z) high): each of ``com_bodies``' centres of mass moves by a draw in
+    this box, m; low = high fixes the offset (a corner of the +-3 cm cube, for the robustness
+    table's corner rows). Exclusive with ``com_offset_m``, its symmetric shorthand."""
     com_bodies: tuple[str, ...] = ("pelvis", "torso")
     action_latency_range_s: tuple[float, float] | None = field(default=None, metadata=rule(minimum=0.0))
     """Delay between the policy's action and the drives, s, drawn per episode and rounded to
     whole physics steps (0-20 ms is 0-4 steps of 5 ms)."""
     observation_delay_range_steps: tuple[int, int] | None = None
     """Policy steps the actor's observations lag by, drawn per episode (both ends included)."""
+
+    def __post_init__(self):
+        box = self.com_offset_box_m
+        if box is not None and self.com_offset_m is not None:
+            raise ValueError("TransferCfg: set com_offset_m (+-c on every axis) or com_offset_box_m, not both")
+        if box is not None and any(lo > hi for lo, hi in zip(*box)):
+            raise ValueError(f"TransferCfg.com_offset_box_m is {box}: each low must be <= its high; "
+                             "pass ((x, y, z) low, (x, y, z) high) in m")
+        super().__post_init__()
+
+    def com_offset_bounds_m(self) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
+        """The (low, high) (x, y, z) box the CoM offsets are drawn from, m; None: no offset."""
+        if self.com_offset_m is not None:
+            c = self.com_offset_m
+            return (-c, -c, -c), (c, c, c)
+        return self.com_offset_box_m
 
 
 def transfer_cfg_wide() -> TransferCfg:
@@ -106,11 +126,11 @@ class TransferRandomization:
         if cfg.armature_scale_range is not None:
             self.factors["armature_scale"] = randomize.joint_dof_field(
                 robot, "dof_armature", uniform(*cfg.armature_scale_range), gen, operation="scale")
-        if cfg.com_offset_m is not None:
-            c = cfg.com_offset_m
+        com_box = cfg.com_offset_bounds_m()
+        if com_box is not None:
             self.factors["com_w"] = randomize.body_com_offset(
-                robot, uniform((-c, -c, -c), (c, c, c)), gen, bodies=list(cfg.com_bodies))
-        if cfg.com_offset_m is not None or cfg.armature_scale_range is not None:
+                robot, uniform(*com_box), gen, bodies=list(cfg.com_bodies))
+        if com_box is not None or cfg.armature_scale_range is not None:
             env.engine.set_const()
 
     def reset(self, rows: torch.Tensor | None) -> None:
