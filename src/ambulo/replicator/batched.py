@@ -129,6 +129,8 @@ class BatchedFrameProducer:
         self.draws = draws
         """Processes that draw the randomizations a batch ahead (``draw_pool.DrawPool`` of this
         config; the producer closes it), or None: drawn on this thread."""
+        self.device_draws = None
+        """The in-memory mode's ``device_draws.DeviceDraws``, made on first use."""
 
     @property
     def gl_renderer(self) -> str:
@@ -158,8 +160,7 @@ class BatchedFrameProducer:
     def _chunks(self, seed: int, indices: list[int]):
         """(chunk, drawn) for each launch's frames; with a draw pool, the next chunk's draws are
         submitted before this one is rendered, so they run while it renders and is consumed."""
-        indices = list(indices)
-        chunks = [indices[start:start + self.num_worlds] for start in range(0, len(indices), self.num_worlds)]
+        chunks = _split(indices, self.num_worlds)
         ahead = self.draws.submit(seed, chunks[0]) if self.draws is not None and chunks else None
         for i, chunk in enumerate(chunks):
             drawn = ahead
@@ -189,10 +190,15 @@ class BatchedFrameProducer:
             for w, (index, log) in enumerate(zip(chunk, logs)):
                 yield index, log, self.capture(w, host, k_matrix)
 
-    def batches(self, seed: int, indices: list[int]):
+    def batches(self, seed: int, indices: list[int], device_draws: bool = False):
         """The in-memory mode: yield one dict of device tensors per ``num_worlds`` frames, for a
         training loop that never touches the disk. The tensors are the camera's buffers and are
         overwritten by the next batch (clone what must outlive it).
+
+        ``device_draws``: the randomizers draw and apply on the device (``device_draws.DeviceDraws``:
+        all worlds at once, no host work per frame and no host sync, so the GPU never waits for the
+        CPU), with their own seeded streams: frames of the same (seed, index) are the same in every
+        run, but not the CPU path's or the disk mode's scenes. Else the CPU path's host draws.
 
         Keys: ``index`` (B,) int64 frame indices; ``rgb`` (B, H, W, 3) uint8; ``depth`` (B, H, W)
         float32 m, +inf for no hit; ``instances`` (B, H, W) int32 instance ids (0 background);
@@ -202,33 +208,57 @@ class BatchedFrameProducer:
         """
         dev = self.engine.device
         semantic = torch.as_tensor(self.table.semantic_ids[1:], dtype=torch.int64, device=dev)
-        for chunk, drawn in self._chunks(seed, indices):
-            _, (instances, boxes, pixels) = self._render_chunk(seed, chunk, drawn)
-            out, count = self.camera.data.output, len(chunk)
+        chunks = ((chunk, None) for chunk in _split(indices, self.num_worlds)) if device_draws \
+            else self._chunks(seed, indices)
+        for chunk, drawn in chunks:
             # through pinned memory: a plain copy to the GPU would wait for the batch's render
             index = torch.as_tensor(chunk, dtype=torch.int64)
             index = index.pin_memory().to(dev, non_blocking=True) if dev.type == "cuda" else index
+            if device_draws:
+                self.randomize_on_device(seed, index)
+                self.render()
+                instances, boxes, pixels = self.labels(len(chunk))
+            else:
+                _, (instances, boxes, pixels) = self._render_chunk(seed, chunk, drawn)
+            out, count = self.camera.data.output, len(chunk)
             yield {"index": index, "rgb": out["rgb"][:count],
                    "depth": out["depth"][:count, ..., 0], "instances": instances, "boxes": boxes, "pixels": pixels,
                    "semantic_ids": semantic}
+
+    def randomize_on_device(self, seed: int, index: torch.Tensor) -> None:
+        """World w gets a scene drawn on the device for frame ``index[w]`` ((B,) int64 on the
+        engine's device): the state reset, then ``DeviceDraws`` (made on first use)."""
+        if self.device_draws is None:
+            from .device_draws import DeviceDraws
+
+            self.device_draws = DeviceDraws(self.config.randomizers, self.engine, self.camera, self.model)
+        self.sim.reset(forward=False)
+        self.camera.reset_pose()
+        self.device_draws.apply(seed, index)
+        self.camera._outdated = True
 
     def _render_chunk(self, seed: int, chunk: list[int], drawn: list | None = None) -> tuple[list[dict], tuple]:
         """World w shows frame ``chunk[w]``: reset, randomize, one kinematics pass, one render.
         Returns the frame logs and the device labels of the chunk's worlds (``labels``)."""
         logs = self.randomize(seed, chunk, drawn)
+        self.render()
+        return logs, self.labels(len(chunk))
+
+    def render(self) -> None:
+        """One kinematics pass and one render of every world, as the worlds' fields now stand."""
         if self._compiled:
             self.kinematics()
             self.camera.render()
-        else:  # the first launch compiles (or loads) the kernels: minutes when cold, so say so
-            from ambulo.engine.gpu import _Ticker  # the engine's own progress lines for a first compile
+            return
+        from ambulo.engine.gpu import _Ticker  # the engine's own progress lines for a first compile
 
-            with _Ticker("compiling MuJoCo Warp's kinematics and render kernels"):
-                self.kinematics()
-                self.camera.render()
-                if self.engine.device.type == "cuda":
-                    torch.cuda.synchronize(self.engine.device)
-            self._compiled = True
-        return logs, self.labels(len(chunk))
+        # the first launch compiles (or loads) the kernels: minutes when cold, so say so
+        with _Ticker("compiling MuJoCo Warp's kinematics and render kernels"):
+            self.kinematics()
+            self.camera.render()
+            if self.engine.device.type == "cuda":
+                torch.cuda.synchronize(self.engine.device)
+        self._compiled = True
 
     def labels(self, count: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Instance ids (B, H, W), tight boxes (B, K, 4) and pixel counts (B, K) of the first
@@ -303,6 +333,12 @@ class BatchedFrameProducer:
         if self.draws is not None:
             self.draws.close()
             self.draws = None
+
+
+def _split(indices, size: int) -> list[list[int]]:
+    """``indices`` in launches of ``size`` frames (the last may be short)."""
+    indices = list(indices)
+    return [indices[start:start + size] for start in range(0, len(indices), size)]
 
 
 __all__ = ["BatchedFrameProducer", "IMAGE_SOURCE", "device_tight_boxes", "tiled_camera_cfg"]

@@ -1,0 +1,405 @@
+"""The in-memory mode's randomization: every world's draws made and applied on the device at once.
+
+``BatchedFrameProducer.batches(..., device_draws=True)`` hands a training loop frames that never
+touch the disk, so they need not equal the CPU path's frames number for number; what they need is
+to be cheap. The host draws (``HostWorlds``, ``draw_pool``) follow the CPU path's NumPy streams
+frame by frame and cost ~0.6 ms of CPU a frame, twenty times the GPU's work. ``DeviceDraws``
+makes the same kinds of draws for all worlds of a batch as tensor operations on the engine's device
+and writes them straight into the engine's fields: no host work per frame and no host sync.
+
+The numbers come from a counter-based hash (``uniforms``): draw s of randomizer k for frame i is a
+function of (seed, k, i // every_n_frames, s) alone, so a frame is the same whatever batch,
+position or device renders it (bit for bit between Warp's CPU device and CUDA), and a run is
+reproducible. Each bundled randomizer has its device twin (``_TWINS``); a config with any other
+randomizer is refused with a message (its host draws still work, ``device_draws=False``).
+
+``Scatter2D``'s placement differs from the CPU path's by design: instead of MuJoCo's collision
+detection on the exact shapes (a few ms of Python a frame), each object is a footprint circle
+(its upright bounding box, any yaw) and the static scenery (walls, shelves, the robot at its
+initial pose) axis-aligned boxes in the plane; objects are placed one after the other, each at
+the first of ``max_tries`` candidate poses that overlaps nothing placed before, in every world at
+once, and parked under the floor if none does. Circles are conservative: placed objects never
+interpenetrate, though they keep a little more space between them than the CPU path's.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+import torch
+
+from ambulo.core import match_names
+from ambulo.core.randomize.distributions import Choice, Constant, Distribution, Normal, Uniform, UniformInt
+
+from .randomizers import (
+    CameraJitter,
+    ColorRandomizer,
+    JointRandomizer,
+    LightRandomizer,
+    MaterialRandomizer,
+    Randomizer,
+)
+from .scatter import Scatter2D, _geom_pos_in_root, _geom_rot_in_root
+
+_MASK32 = 0xFFFFFFFF
+
+
+def _mul32(x: torch.Tensor, c: int) -> torch.Tensor:
+    """``x * c mod 2**32`` for int64 ``x`` in [0, 2**32): in 16-bit halves of ``c``, so no product
+    leaves int64's range (a signed overflow would be undefined on the host)."""
+    lo, hi = c & 0xFFFF, c >> 16
+    return (x * lo + ((x * hi) & 0xFFFF) * 65536) & _MASK32
+
+
+def mix32(x: torch.Tensor) -> torch.Tensor:
+    """A 32-bit integer hash (Wellons' lowbias32) of int64 ``x`` in [0, 2**32): what turns a
+    counter into random bits."""
+    x = x ^ (x >> 16)
+    x = _mul32(x, 0x7FEB352D)
+    x = x ^ (x >> 15)
+    x = _mul32(x, 0x846CA68B)
+    return x ^ (x >> 16)
+
+
+def _mix32_int(x: int) -> int:
+    """``mix32`` of one Python int (the host part of a key: no tensor, no copy to the device)."""
+    return int(mix32(torch.tensor([x & _MASK32], dtype=torch.int64))[0])
+
+
+def stream_keys(seed: int, k: int, blocks: torch.Tensor) -> torch.Tensor:
+    """(B,) int64 keys of randomizer ``k``'s draws for frame blocks ``blocks`` (B,) of ``seed``."""
+    key = _mix32_int((seed & _MASK32) ^ 0x9E3779B9)
+    key = _mix32_int(key ^ ((seed >> 32) & _MASK32))
+    key = _mix32_int(key ^ (k & _MASK32))
+    return mix32((blocks & _MASK32) ^ key)
+
+
+def uniforms(keys: torch.Tensor, first: int, count: int) -> torch.Tensor:
+    """(B, count) float32 uniforms in [0, 1): draws ``first .. first + count - 1`` of each key's
+    stream (24 bits each: float32's mantissa, so every value is exact)."""
+    slots = mix32(torch.arange(first, first + count, dtype=torch.int64, device=keys.device) + 0x632BE5AB)
+    bits = mix32(keys[:, None] ^ slots[None, :])
+    return (bits >> 8).to(torch.float32) * (1.0 / (1 << 24))
+
+
+class Stream:
+    """One randomizer's draws for a batch of frames: consecutive slots of ``uniforms``."""
+
+    def __init__(self, seed: int, k: int, blocks: torch.Tensor):
+        self.keys = stream_keys(seed, k, blocks)
+        self.used = 0
+
+    def take(self, count: int) -> torch.Tensor:
+        out = uniforms(self.keys, self.used, count)
+        self.used += count
+        return out
+
+
+def _params(given, dist, device: torch.device, cache: dict):
+    """``dist``'s parameters as float32 tensors on ``device``, made once per distribution (``given``:
+    the randomizer's own object, a distribution or a number, keys ``cache``): a copy to a GPU from
+    pageable memory each batch would wait for the device."""
+    key = id(given)
+    hit = cache.get(key)
+    if hit is not None and hit[0] is given:
+        return hit[1]
+    if isinstance(dist, Uniform | Normal):
+        a, c = (np.asarray(p, np.float64) for p in
+                ((dist.low, dist.high) if isinstance(dist, Uniform) else (dist.mean, dist.std)))
+        shape = np.broadcast_shapes(a.shape, c.shape)
+        params = tuple(torch.as_tensor(np.broadcast_to(p, shape).copy(), dtype=torch.float32, device=device)
+                       for p in (a, c)) + (shape,)
+    elif isinstance(dist, Choice):
+        weights = np.ones(len(dist.options)) if dist.weights is None else np.asarray(dist.weights, np.float64)
+        params = (torch.as_tensor(np.asarray(dist.options, np.float64), dtype=torch.float32, device=device),
+                  torch.as_tensor(np.cumsum(weights) / weights.sum(), dtype=torch.float32, device=device))
+    elif isinstance(dist, Constant):
+        params = torch.as_tensor(np.asarray(dist.value, np.float64), dtype=torch.float32, device=device)
+    else:
+        params = None
+    cache[key] = (given, params)
+    return params
+
+
+def sample(dist, stream: Stream, num: int, cache: dict | None = None) -> torch.Tensor:
+    """(B, num, *S) float32 draws of ``dist`` (a ``core.randomize`` distribution or a number) for
+    every frame of ``stream``; ``UniformInt`` gives int64. ``cache`` keeps the parameters' tensors."""
+    given, dist = dist, dist if isinstance(dist, Distribution) else Constant(dist)
+    b = len(stream.keys)
+    params = _params(given, dist, stream.keys.device, {} if cache is None else cache)
+    if isinstance(dist, Uniform | Normal):
+        a, c, shape = params
+        size = num * math.prod(shape)
+        if isinstance(dist, Uniform):
+            u = stream.take(size).view(b, num, *shape)
+            return a + (c - a) * u
+        u = stream.take(2 * size).view(b, 2, num, *shape)  # Box-Muller: two uniforms a value
+        z = torch.sqrt(-2.0 * torch.log1p(-u[:, 0])) * torch.cos((2.0 * math.pi) * u[:, 1])
+        return a + c * z
+    if isinstance(dist, UniformInt):
+        span = int(dist.high) - int(dist.low) + 1
+        return int(dist.low) + torch.floor(stream.take(num) * span).long().clamp_(max=span - 1)
+    if isinstance(dist, Choice):
+        options, edges = params
+        index = torch.searchsorted(edges, stream.take(num), right=True).clamp_(max=len(edges) - 1)
+        return options[index]
+    if isinstance(dist, Constant):
+        return params.expand(b, num, *params.shape)
+    raise ValueError(f"no device sampler for {type(dist).__name__}; use uniform, normal, uniform_int, choice "
+                     "or constant, or draw on the host (device_draws=False)")
+
+
+def hsv_to_rgb(hsv: torch.Tensor) -> torch.Tensor:
+    """(..., 3) HSV in [0, 1] -> (..., 3) RGB: ``randomizers.hsv_to_rgb`` on tensors."""
+    h, s, v = hsv.unbind(-1)
+    sector = torch.floor(h * 6.0)
+    f = h * 6.0 - sector
+    p, q, t = v * (1 - s), v * (1 - s * f), v * (1 - s * (1 - f))
+    table = torch.stack([torch.stack(c, -1) for c in
+                         ((v, t, p), (q, v, p), (p, v, t), (p, q, v), (t, p, v), (v, p, q))], -2)
+    index = torch.remainder(sector.long(), 6)[..., None, None].expand(*h.shape, 1, 3)
+    return table.gather(-2, index)[..., 0, :]
+
+
+def rotvec_to_mat(rotvec: torch.Tensor) -> torch.Tensor:
+    """(..., 3) rotation vectors (axis * angle, rad) -> (..., 3, 3) (Rodrigues), as
+    ``utils.rotations.rot_about_axes`` on tensors."""
+    angle = rotvec.norm(dim=-1, keepdim=True)
+    axis = rotvec / angle.clamp_min(1e-30)
+    x, y, z = axis.unbind(-1)
+    zero = torch.zeros_like(x)
+    k = torch.stack((zero, -z, y, z, zero, -x, -y, x, zero), -1).view(*x.shape, 3, 3)
+    sin, cos = torch.sin(angle)[..., None], torch.cos(angle)[..., None]
+    eye = torch.eye(3, dtype=rotvec.dtype, device=rotvec.device)
+    return eye + sin * k + (1 - cos) * (k @ k)
+
+
+@dataclass
+class Footprints:
+    """What a batch's scatterers avoid, in the plane (m): static boxes and the circles placed so far."""
+
+    boxes: torch.Tensor
+    """(O, 4) centre x, y and half extents x, y of the static scenery's boxes."""
+    placed: torch.Tensor
+    """(B, M, 3) x, y, radius of each object placed this frame (radius 0: a free slot)."""
+    count: int = 0
+
+    def overlaps(self, xy: torch.Tensor, radius: float) -> torch.Tensor:
+        """(B, T) whether a circle of ``radius`` at candidates ``xy`` (B, T, 2) overlaps anything."""
+        centre, half = self.boxes[:, :2], self.boxes[:, 2:]
+        gap = ((xy[:, :, None, :] - centre).abs() - half).clamp_min(0.0)  # (B, T, O, 2)
+        hit = ((gap * gap).sum(-1) < radius * radius).any(-1)
+        if self.count:
+            placed = self.placed[:, None, :self.count]  # (B, 1, M, 3)
+            d = xy[:, :, None, :] - placed[..., :2]
+            reach = placed[..., 2] + radius
+            hit |= (((d * d).sum(-1) < reach * reach) & (placed[..., 2] > 0)).any(-1)
+        return hit
+
+
+class _Twin:
+    """A randomizer's device twin: ``apply(stream, rows, ctx)`` draws and writes worlds ``rows``."""
+
+    def __init__(self, r: Randomizer, engine, camera, model: mujoco.MjModel):
+        self.r, self.engine, self.camera, self.model = r, engine, camera, model
+        self.device = engine.device
+        self._cache: dict = {}
+
+    def sample(self, dist, stream: Stream, num: int) -> torch.Tensor:
+        return sample(dist, stream, num, self._cache)
+
+    def tensor(self, values, dtype=torch.int64) -> torch.Tensor:
+        return torch.as_tensor(np.asarray(values), dtype=dtype, device=self.device)
+
+
+class _Joints(_Twin):
+    def __init__(self, *args):
+        super().__init__(*args)
+        self.adr = self.tensor(self.r._qpos_adr)
+        self.low, self.high = (self.tensor(v, torch.float32) for v in (self.r._low, self.r._high))
+
+    def apply(self, stream, count, footprints):
+        u = stream.take(len(self.adr))
+        self.engine.qpos[:count, self.adr] = self.low + (self.high - self.low) * u
+
+
+class _Colors(_Twin):
+    def __init__(self, *args):
+        super().__init__(*args)
+        t = self.r._targets
+        self.targets, self.owner, self.bodies = self.tensor(t.targets), self.tensor(t.owner), len(t.bodies)
+
+    def apply(self, stream, count, footprints):
+        r = self.r
+        hsv = torch.stack([self.sample(d, stream, self.bodies) for d in (r.hue, r.saturation, r.value)], -1)
+        rgb = hsv_to_rgb(hsv)[:, self.owner]  # (B, geoms, 3)
+        rgba = torch.cat((rgb, torch.ones_like(rgb[..., :1])), -1)
+        self.engine.model_field("geom_rgba")[:count, self.targets] = rgba
+
+
+class _Materials(_Twin):
+    def __init__(self, *args):
+        super().__init__(*args)
+        t = self.r._targets
+        self.targets, self.owner, self.bodies = self.tensor(t.targets), self.tensor(t.owner), len(t.bodies)
+        self.mat_ids = self.tensor(self.r._mat_ids)
+        self.base = self.tensor(self.r._base[t.targets])
+
+    def apply(self, stream, count, footprints):
+        u = stream.take(2 * self.bodies).view(-1, self.bodies, 2)
+        n = len(self.mat_ids)
+        pick = torch.floor(u[..., 1] * n).long().clamp_(max=n - 1)
+        pick = torch.where(u[..., 0] < self.r.untextured_probability, -1, pick)[:, self.owner]
+        value = torch.where(pick < 0, self.base, self.mat_ids[pick.clamp_min(0)])
+        field = self.engine.model_field("geom_matid")
+        field[:count, self.targets] = value.to(field.dtype)
+
+
+class _Lights(_Twin):
+    def __init__(self, *args):
+        super().__init__(*args)
+        self.ids = self.tensor(self.r._ids)
+
+    def apply(self, stream, count, footprints):
+        r, n = self.r, len(self.ids)
+        intensity, ambient, az_deg, el_deg = (self.sample(d, stream, n).reshape(-1, n)
+                                              for d in (r.intensity, r.ambient, r.azimuth_deg, r.elevation_deg))
+        color = self.sample(r.color, stream, n).reshape(len(intensity), n, -1).expand(-1, n, 3)
+        az, el = torch.deg2rad(az_deg), torch.deg2rad(el_deg)
+        direction = torch.stack((torch.cos(el) * torch.cos(az), torch.cos(el) * torch.sin(az), -torch.sin(el)), -1)
+        e = self.engine
+        e.model_field("light_diffuse")[:count, self.ids] = intensity[..., None] * color
+        e.model_field("light_ambient")[:count, self.ids] = ambient[..., None].expand(-1, n, 3)
+        e.model_field("light_dir")[:count, self.ids] = direction
+
+
+class _Jitter(_Twin):
+    def __init__(self, *args):
+        super().__init__(*args)
+        pos, rot = self.camera._default_offset
+        self.base_pos, self.base_rot = pos.to(self.device, torch.float32), rot.to(self.device, torch.float32)
+
+    def apply(self, stream, count, footprints):
+        r = self.r
+        position = self.sample(r.position_m, stream, 1).reshape(-1, 3)
+        rotation = torch.deg2rad(self.sample(r.rotation_deg, stream, 1).reshape(-1, 3))
+        cam = self.camera
+        cam._offset_pos[:count] = self.base_pos + position
+        cam._offset_rot_gl[:count] = rotvec_to_mat(rotation) @ self.base_rot
+
+
+class _Scatter(_Twin):
+    def __init__(self, *args):
+        super().__init__(*args)
+        r, m = self.r, self.model
+        self.n = len(r._bodies)
+        self.free_index = self.tensor(r._free_index)  # (n, 7) qpos addresses
+        self.rest_z = self.tensor(r._rest_z_m, torch.float32)
+        self.park = self.tensor(r._park_values.reshape(-1, 7), torch.float32)
+        self.radius = [footprint_radius(m, b, g) for b, g in zip(r._bodies, r._geoms)]
+        (x0, y0), (x1, y1) = r.region
+        self.low = self.tensor([x0, y0], torch.float32)
+        self.span = self.tensor([x1 - x0, y1 - y0], torch.float32)
+
+    def apply(self, stream, count, footprints):
+        r, n = self.r, self.n
+        b = len(stream.keys)
+        if r.count is None:
+            active = torch.ones((b, n), dtype=torch.bool, device=self.device)
+        else:
+            wanted = self.sample(r.count, stream, 1).reshape(-1, 1).long().clamp(0, n)
+            rank = stream.take(n).argsort(-1).argsort(-1)  # a random order of the bodies, per world
+            active = rank < wanted
+        tries = max(1, r.max_tries)
+        free = self.park.expand(b, n, 7).clone()
+        for j in range(n):
+            xy = self.low + self.span * stream.take(2 * tries).view(b, tries, 2)
+            yaw = self.sample(r.yaw_rad, stream, tries).reshape(b, tries)
+            ok = ~footprints.overlaps(xy, self.radius[j]) if r.check_collisions else torch.ones_like(yaw, dtype=bool)
+            first = ok.to(torch.uint8).argmax(-1, keepdim=True)  # the first candidate that fits (0 if none)
+            placed = ok.any(-1) & active[:, j]
+            xy, yaw = xy.gather(1, first[..., None].expand(b, 1, 2))[:, 0], yaw.gather(1, first)[:, 0]
+            pose = torch.stack((xy[:, 0], xy[:, 1], self.rest_z[j].expand(b), torch.cos(0.5 * yaw),
+                                torch.zeros_like(yaw), torch.zeros_like(yaw), torch.sin(0.5 * yaw)), -1)
+            free[:, j] = torch.where(placed[:, None], pose, free[:, j])
+            slot = footprints.placed[:, footprints.count]
+            slot[:, :2] = xy
+            slot[:, 2] = torch.where(placed, self.radius[j], 0.0)
+            footprints.count += 1
+        self.engine.qpos[:count, self.free_index.reshape(-1)] = free.reshape(b, -1)
+
+
+def footprint_radius(model: mujoco.MjModel, body: int, geoms) -> float:
+    """Radius (m) of the circle about ``body``'s origin that holds its upright bounding box at any yaw."""
+    radius = 0.0
+    for g, (centre, half) in zip(geoms, model.geom_aabb[geoms].reshape(-1, 2, 3)):
+        corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * half + centre
+        xy = (corners @ _geom_rot_in_root(model, g, body).T + _geom_pos_in_root(model, g, body))[:, :2]
+        radius = max(radius, float(np.linalg.norm(xy, axis=1).max()))
+    return radius
+
+
+def static_boxes(model: mujoco.MjModel, qpos: np.ndarray, scatterers: list[Scatter2D]) -> np.ndarray:
+    """(O, 4) plane boxes (centre x, y, half x, y) of every geom the scatterers must avoid: all but
+    their own bodies' and their surfaces' geoms and planes, posed at ``qpos``, that reach below the
+    tallest object's top above the surfaces (a lamp overhead is not in the way)."""
+    data = mujoco.MjData(model)
+    data.qpos[:] = qpos
+    mujoco.mj_kinematics(model, data)
+    movers = {int(g) for r in scatterers for geoms in r._geoms for g in geoms}
+    names = [model.geom(g).name for g in range(model.ngeom)]
+    surfaces = {int(g) for r in scatterers for g in match_names(names, r.surface)}
+    top = max(r.surface_z_m + 2 * float(model.geom_aabb[g, 5]) for r in scatterers for gs in r._geoms for g in gs)
+    bottom = min(r.surface_z_m for r in scatterers)
+    out = []
+    for g in range(model.ngeom):
+        if g in movers or g in surfaces or model.geom_type[g] == mujoco.mjtGeom.mjGEOM_PLANE:
+            continue
+        rot = data.geom_xmat[g].reshape(3, 3)
+        centre = data.geom_xpos[g] + rot @ model.geom_aabb[g, :3]
+        half = np.abs(rot) @ model.geom_aabb[g, 3:]
+        if centre[2] - half[2] < top and centre[2] + half[2] > bottom + 1e-3:
+            out.append([centre[0], centre[1], half[0], half[1]])
+    return np.asarray(out, np.float64).reshape(-1, 4)
+
+
+_TWINS = {JointRandomizer: _Joints, ColorRandomizer: _Colors, MaterialRandomizer: _Materials,
+          LightRandomizer: _Lights, CameraJitter: _Jitter, Scatter2D: _Scatter}
+"""Each bundled randomizer's device twin (subclasses use their base's: ``Distractors`` is a ``Scatter2D``)."""
+
+
+class DeviceDraws:
+    """Draws and applies a config's randomizers for all worlds of a batch on the engine's device
+    (see the module docstring). Built from a ``BatchedFrameProducer``'s engine and camera."""
+
+    def __init__(self, randomizers: list[Randomizer], engine, camera, model: mujoco.MjModel):
+        self.randomizers = list(randomizers)
+        self.twins = []
+        for r in self.randomizers:
+            twin = next((t for kind, t in _TWINS.items() if isinstance(r, kind)), None)
+            if twin is None:
+                raise ValueError(f"randomizer {r.name or type(r).__name__!r} ({type(r).__name__}) has no device "
+                                 "twin; batches(device_draws=True) supports "
+                                 f"{', '.join(k.__name__ for k in _TWINS)}: draw on the host (device_draws=False)")
+            self.twins.append(twin(r, engine, camera, model))
+        scatterers = [r for r in self.randomizers if isinstance(r, Scatter2D)]
+        boxes = static_boxes(model, engine.initial_state["qpos"][0].detach().cpu().double().numpy(), scatterers) \
+            if scatterers else np.zeros((0, 4))
+        self._boxes = torch.as_tensor(boxes, dtype=torch.float32, device=engine.device)
+        self._movers = sum(len(r._bodies) for r in scatterers)
+        self.engine = engine
+
+    def apply(self, seed: int, index: torch.Tensor) -> None:
+        """World w gets frame ``index[w]``'s draws ((B,) int64 on the engine's device), written into
+        the engine's fields and the camera's offsets; after ``Simulation.reset`` of the state."""
+        count = len(index)
+        footprints = Footprints(self._boxes, torch.zeros((count, self._movers, 3), device=index.device))
+        for k, (r, twin) in enumerate(zip(self.randomizers, self.twins)):
+            twin.apply(Stream(seed, k, index // max(1, r.every_n_frames)), count, footprints)
+
+
+__all__ = ["DeviceDraws", "Footprints", "Stream", "footprint_radius", "hsv_to_rgb", "mix32", "rotvec_to_mat",
+           "sample", "static_boxes", "stream_keys", "uniforms"]
