@@ -1,6 +1,6 @@
 """Footstep planner: weighted A* over a footstep lattice on a ``GridMap``, with alternating feet,
 the walker's step limits, sole-shaped collision checks, exact body clearance, step up/down limits, an admissible
-heuristic, goal tolerances, a time budget that returns the best partial plan, and an explicit
+heuristic, goal tolerances, an expansion budget that returns the best partial plan, and an explicit
 failure reason (``PlanStatus``).
 
 Search. A node is a footstep (x, y, yaw, side) with its exact continuous pose, so every step of a
@@ -120,11 +120,16 @@ class FootstepPlannerCfg(Checked):
     """The goal is reached when the midpoint of the last two feet is this close to it."""
     goal_tolerance_yaw_rad: float = 0.20
     """... and their mean yaw this close to the goal yaw."""
-    time_budget_s: float = 1.0
-    """Wall time of one query, s; then the best partial plan comes back (``BUDGET_EXHAUSTED``).
-    Most plans take a small part of it (``benchmarks/footstep_maps.py``)."""
-    max_expansions: int | None = None
-    """Stop after this many expansions as well (deterministic budgets for tests); None: time only."""
+    max_expansions: int = 1000
+    """Budget of one query in lattice expansions; then the best partial plan comes back
+    (``BUDGET_EXHAUSTED``). A count, not a time, so that a plan is a function of the map and the
+    query alone: the same on a quiet machine and a loaded one, on any host (a navigation episode
+    replayed elsewhere took other decisions under the former 0.3 s wall-time budget). About 1 s on
+    one core of a 2-core VM (1,300 expansions/s on a door map at w = 1); most plans need 0-90
+    (``benchmarks/footstep_maps.py``)."""
+    time_budget_s: float | None = None
+    """A wall-time limit of one query on top of ``max_expansions``, s (``ambulo plan --budget-ms``);
+    None: none, so the plan does not depend on the machine's speed or load."""
     heuristic_weight: float = 8.0
     """w in f = g + w h (weighted A*; 1 is A*). Over lattice steps, a plan costs at most w times
     the best plan the pruning leaves. humanoid_navigation's ARA* starts at 8
@@ -195,15 +200,16 @@ def check_footstep_cfg(cfg: FootstepPlannerCfg) -> None:
     if not lo_w <= cfg.start_width_m <= hi_w:
         raise InvalidValueError("start_width_m", cfg.start_width_m, f"it must lie in [{lo_w:g}, {hi_w:g}]",
                                 "start and goal stances must be reachable stances")
-    for name in ("goal_tolerance_m", "goal_tolerance_yaw_rad", "time_budget_s", "state_resolution_m",
+    for name in ("goal_tolerance_m", "goal_tolerance_yaw_rad", "state_resolution_m",
                  "max_step_up_m", "max_step_down_m", "max_foothold_spread_m"):
         check_positive(name, getattr(cfg, name), "pass a positive number")
+    if cfg.time_budget_s is not None:
+        check_positive("time_budget_s", cfg.time_budget_s, "pass None or seconds, e.g. 0.5")
     if not cfg.heuristic_weight >= 1.0:
         raise InvalidValueError("heuristic_weight", cfg.heuristic_weight, "it must be >= 1",
                                 "1 is A*; larger values trade plan cost for speed")
     check_int("state_yaw_bins", cfg.state_yaw_bins, "e.g. 64", minimum=1)
-    if cfg.max_expansions is not None:
-        check_int("max_expansions", cfg.max_expansions, "pass None or a positive count", minimum=1)
+    check_int("max_expansions", cfg.max_expansions, "pass a positive count, e.g. 1000", minimum=1)
 
 
 class PlanStatus(enum.Enum):
@@ -218,7 +224,7 @@ class PlanStatus(enum.Enum):
     """No path of body cells joins start and goal (found before searching), or every reachable
     footstep was expanded; the plan is the best partial one."""
     BUDGET_EXHAUSTED = "budget_exhausted"
-    """Time (or expansion) budget spent; the plan is the best partial one: it ends at the expanded
+    """Expansion (or time) budget spent; the plan is the best partial one: it ends at the expanded
     footstep with the smallest heuristic."""
 
 
@@ -312,6 +318,7 @@ class FootstepPlanner:
         stances = _stance_sides(stance_side)
         budget_s = cfg.time_budget_s if time_budget_s is None else check_positive(
             "time_budget_s", time_budget_s, "pass seconds, e.g. 0.1")
+        budget_s = math.inf if budget_s is None else budget_s
         self._pool = pool = _Pool()
         # per root: node 2k moves first, node 2k + 1 (the root) is the stance foot
         roots = []
@@ -360,7 +367,7 @@ class FootstepPlanner:
                 heapq.heappush(open_list, (pool.f[root], 0.0, root, root + 1))
         best = (math.inf, math.inf, roots[0])  # (h, g, node) of the expanded footstep closest to the goal
         last_walk_xy = start_mid  # where the last walk along the body path started (the feet's midpoint)
-        expansions, max_expansions, state = 0, cfg.max_expansions or math.inf, self._state
+        expansions, max_expansions, state = 0, cfg.max_expansions, self._state
         try:
             while open_list:
                 _, _, pos, end = heapq.heappop(open_list)
@@ -384,7 +391,7 @@ class FootstepPlanner:
                         if prefix_end is not None and self._open_node(prefix_end):
                             heapq.heappush(open_list, (pool.f[prefix_end], -pool.g[prefix_end], prefix_end,
                                                        prefix_end + 1))
-                if expansions >= max_expansions or time.perf_counter() - t0 > budget_s:
+                if expansions >= max_expansions or (budget_s < math.inf and time.perf_counter() - t0 > budget_s):
                     return result(PlanStatus.BUDGET_EXHAUSTED, best[2], expansions=expansions,
                                   detail=f"budget spent after {expansions} expansions; best partial plan")
                 expansions += 1
