@@ -1,0 +1,101 @@
+"""humanoid-footsteps: the plan sampler keeps the planner's limits, touchdowns score and advance the
+targets, and the task trains and evaluates on the CPU."""
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+import ambulo.envs as envs
+from ambulo.envs.footstep_sampler import FootstepSampler, FootstepSamplerCfg, relative_xyyaw, start_feet_xyyaw_w
+from ambulo.nav.footstep_lattice import relative, steps_within_limits
+
+
+def sampled_plans(num_plans=256, num_steps=60, seed=0):
+    """(P, S + 2, 3) plans in the planner's layout (rows 0, 1 the start feet, row 1 the first
+    stance) and (P, S + 2) sides, drawn by the sampler."""
+    gen = torch.Generator().manual_seed(seed)
+    sampler = FootstepSampler(FootstepSamplerCfg(), gen, torch.device("cpu"))
+    base = torch.zeros(num_plans, 3)
+    base[:, 2] = torch.rand(num_plans, generator=gen) * 2 * math.pi - math.pi
+    feet = start_feet_xyyaw_w(base, 0.03, 0.18)
+    first = torch.where(torch.rand(num_plans, generator=gen) < 0.5, 1.0, -1.0)  # side moving first
+    stance = torch.where((first < 0)[:, None], feet[:, 0], feet[:, 1])
+    swing = torch.where((first > 0)[:, None], feet[:, 0], feet[:, 1])
+    poses, sides = [swing, stance], [first, -first]
+    segments = sampler.draw_segments(num_plans)
+    for _ in range(num_steps):
+        new, segments = sampler.next_footstep(poses[-1], sides[-1], segments)
+        poses.append(new)
+        sides.append(-sides[-1])
+    return torch.stack(poses, dim=1).double().numpy(), torch.stack(sides, dim=1).numpy()
+
+
+def test_sampled_plans_keep_the_planner_limits_and_vary():
+    plans, sides = sampled_plans()
+    limits = FootstepSamplerCfg().limits
+    stance, swing = plans[:, 1:-1].reshape(-1, 3), plans[:, 2:].reshape(-1, 3)
+    rel = relative(stance, swing)  # the planner's own frames and limit check
+    assert steps_within_limits(rel, sides[:, 1:-1].reshape(-1), limits).all()
+    assert np.all(sides[:, 1:] == -sides[:, :-1])  # alternating feet
+    # straight walks, turns both ways, forward, in place and backward steps, several widths
+    assert (np.abs(rel[:, 2]) < 0.05).mean() > 0.3 and (rel[:, 2] > 0.2).any() and (rel[:, 2] < -0.2).any()
+    assert (rel[:, 0] > 0.2).any() and (np.abs(rel[:, 0]) < 0.02).any() and (rel[:, 0] < -0.05).any()
+    assert np.ptp(np.abs(rel[:, 1])) > 0.1
+
+
+def test_touchdowns_score_advance_and_respect_the_swing_foot():
+    env = envs.make("humanoid-footsteps", num_envs=3, seed=0, num_threads=1, play=True)
+    targets = torch.tensor([[1.0, 0.0, 0.0], [1.2, 0.2, 0.0]])
+    env.targets_xyyaw_w[:] = targets
+    env.target_sides[:] = torch.tensor([-1.0, 1.0])  # the right foot swings
+    env.placement_error_m.fill_(0.5)
+    soles = torch.tensor([[0.9, 0.2, 0.0], [1.03, 0.0, 0.1]]).expand(3, 2, 3).clone()
+    # world 0: the right foot lands after 0.3 s in the air; world 1: only the left (stance) foot
+    # lands; world 2: the right foot lands after 0.01 s (chatter)
+    first_contact = torch.tensor([[False, True], [True, False], [False, True]])
+    air_s = torch.tensor([[0.0, 0.3], [0.3, 0.0], [0.0, 0.01]])
+    env.update_plan(soles, first_contact, air_s)
+    assert env.touchdown.tolist() == [True, False, False]
+    assert env.touchdown_error_m[0].item() == pytest.approx(0.03, abs=1e-6)
+    assert env.touchdown_yaw_error_rad[0].item() == pytest.approx(0.1, abs=1e-6)
+    assert env.placement_error_m.tolist() == pytest.approx([0.03, 0.5, 0.5], abs=1e-6)
+    assert env.steps_taken.tolist() == [1, 0, 0]
+    # world 0 advanced: its second target is first, a left-foot step follows it within the limits
+    torch.testing.assert_close(env.targets_xyyaw_w[0, 0], targets[1])
+    assert env.target_sides[0].tolist() == [1.0, -1.0]
+    step = relative_xyyaw(env.targets_xyyaw_w[0, 0], env.targets_xyyaw_w[0, 1]).double().numpy()[None]
+    assert steps_within_limits(step, np.array([1]), FootstepSamplerCfg().limits).all()
+    torch.testing.assert_close(env.targets_xyyaw_w[1:], targets.expand(2, 2, 3))
+    rewards = env._get_rewards()
+    expected = math.exp(-(0.03 / env.cfg.placement_std_m) ** 2)
+    assert rewards["foot_placement"].tolist() == pytest.approx([expected, 0.0, 0.0], abs=1e-6)
+    assert rewards["foot_yaw"][0].item() == pytest.approx(math.exp(-(0.1 / env.cfg.yaw_std_rad) ** 2), abs=1e-6)
+    # the swing foot of world 1 (right, at 0.03 m from its target) is where progress counts from
+    assert env._swing_distance_m[1].item() == pytest.approx(0.03, abs=1e-6)
+
+
+def test_command_is_the_two_targets_in_the_heading_frame():
+    env = envs.make("humanoid-footsteps", num_envs=2, seed=1, num_threads=1, play=True)
+    base = env._base_xyyaw_w()
+    cmd = env.footstep_command().reshape(2, 2, 5)
+    back = torch.cat([cmd[..., :2], torch.atan2(cmd[..., 3], cmd[..., 2])[..., None]], dim=-1)
+    from ambulo.envs.footstep_sampler import compose_xyyaw
+
+    torch.testing.assert_close(compose_xyyaw(base[:, None].expand(-1, 2, -1), back), env.targets_xyyaw_w,
+                               atol=1e-5, rtol=0)
+    torch.testing.assert_close(cmd[..., 4], env.target_sides)
+    # the first target is the first swing foot's first step: within reach of the start stance
+    assert (torch.linalg.vector_norm(cmd[:, 0, :2], dim=-1) < 0.45).all()
+
+
+def test_trains_and_evaluates_on_the_cpu(tmp_path):
+    from ambulo.rl import evaluate, train
+
+    run = train("humanoid-footsteps", num_envs=8, max_iterations=2, seed=0, log_root=tmp_path,
+                ppo_overrides={"num_steps_per_env": 8})
+    result = evaluate(run, num_episodes=4, episode_length_s=1.0, quiet=True)
+    assert result["criteria"] == ["places_feet"] and isinstance(result["places_feet"], bool)
+    assert math.isfinite(result["mean_placement_error_m"]) and result["mean_placement_error_m"] > 0
+    assert "mean_touchdowns_per_s" in result
