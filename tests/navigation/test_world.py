@@ -72,6 +72,7 @@ def test_a_touching_obstacle_is_one_collision_event_not_one_per_step(room):
     world = NavWorld.from_file(room, start_pose=(1.0, 1.95 - 0.22, 0.0), cfg=NavWorldCfg(record_gyro=False))
     _stand(world, 1.0)
     assert [name for _, name in world.collisions] == ["wall_north"]
+    assert len(world.collision_parts) == 1 and "left" in world.collision_parts[0], world.collision_parts
     assert not world.fell
     world.close()
     free = NavWorld.from_file(room, start_pose=(0.0, 0.0, 0.0), cfg=NavWorldCfg(record_gyro=False))

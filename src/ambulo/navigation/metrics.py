@@ -124,6 +124,9 @@ def result_of(nav: Navigator, *, geodesic_m: float, wall_s: float, apartment_see
     extras = {"replan_reasons": [r.reason for r in nav.replans],
               "footstep_statuses": [r.footstep_status for r in nav.replans],
               "refusals": [r.refused for r in nav.replans if r.refused],
+              "replan_times_s": [round(r.time_s - nav._start_time_s, 3) for r in nav.replans],
+              "collision_events": [{"time_s": round(t - nav._start_time_s, 3), "body": body, "robot": part}
+                                   for (t, body), part in zip(w.collisions, w.collision_parts)],
               "pushes": len(w.randomizer.pushes),
               "frame_wall_s_median": float(np.median(nav.frame_wall_s)) if nav.frame_wall_s else 0.0}
     tilts = np.asarray(nav.floor_tilts_rad)

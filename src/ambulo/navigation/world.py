@@ -190,6 +190,9 @@ class NavWorld:
         """Whether the pelvis ever dropped below ``cfg.fall_height_m``."""
         self.collisions: list[tuple[float, str]] = []
         """One (time s, name of the environment's body) per collision event (module docstring)."""
+        self.collision_parts: list[str] = []
+        """Per collision event, the robot's bodies in that contact (names joined by "+"): which part
+        touched (a forearm swung in a turn, a shin walking into clutter) tells the causes apart."""
         self._last_touch_s: dict[int, float] = {}
         self._steps = 0
         self.gyro.reset()
@@ -225,11 +228,16 @@ class NavWorld:
                 rob = np.where(robot[mixed][:, 0], g[:, 0], g[:, 1])
                 other = np.where(robot[mixed][:, 0], g[:, 1], g[:, 0])
                 hits = ~self._sole_geom[rob]
-                touching = {int(b) for b in self.model.geom_bodyid[other[hits]]}
+                parts: dict[int, set[int]] = {}
+                for env_body, robot_body in zip(self.model.geom_bodyid[other[hits]], self.model.geom_bodyid[rob[hits]]):
+                    parts.setdefault(int(env_body), set()).add(int(robot_body))
+                touching = set(parts)
         now = self.time_s
         for body in touching:
             if now - self._last_touch_s.get(body, -np.inf) > self.cfg.collision_gap_s:
                 self.collisions.append((now, self.model.body(body).name or f"body {body}"))
+                self.collision_parts.append("+".join(sorted(self.model.body(b).name or f"body {b}"
+                                                            for b in parts[body])))
             self._last_touch_s[body] = now
 
     # -- sensors ------------------------------------------------------------------------------
