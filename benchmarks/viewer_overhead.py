@@ -1,29 +1,37 @@
-"""What the web viewer costs the training run it watches (issue 29: at most 5 % slower).
+"""What the web viewer costs the training run it watches (issue 29: at most 5 % slower), and the
+frame rate its page gets.
 
     python benchmarks/viewer_overhead.py [--task humanoid-walk] [--device cpu] [--num-envs 64]
-                                         [--rounds 4] [--iterations-per-round 2] [--warmup 2]
-    python benchmarks/viewer_overhead.py --device cuda --num-envs 4096 --rounds 5
+                                         [--rounds 4] [--round-s 5] [--warmup 2] [--in-process]
+    python benchmarks/viewer_overhead.py --device cuda --num-envs 4096 --rounds 4 --round-s 6
 
 Runs ``ambulo train TASK`` (``ambulo.rl.train``, what the command runs: PPO's collection and
 update, metrics.csv, TensorBoard, the progress bar) once, and inside that one run alternates
-rounds of ``--iterations-per-round`` iterations without a viewer (A) and with one (B), A/B/A/B...,
-so the machine's load swings hit both alike. A B round is ``ambulo train --viewer web``: a viewer
-(``ambulo.viewer.serve(env)``) watching world ``num_envs // 2`` of the batch, fed the iteration's
-curves (``add_scalars``), followed by a page: a separate process connected to the viewer's
-websocket as a browser is, reading everything it streams (the browser's own drawing happens on
-the user's machine, not the simulation's). The viewer is opened and closed between iterations,
-through ``train``'s ``watch`` hook and its per-iteration scalars; an iteration is timed from the
-end of the previous one (after the switch) to its own end, so opening and closing cost nothing
-here (they cost a command once). The first ``--warmup`` iterations (kernel compile, allocation)
-are not counted.
+rounds without a viewer (A) and with one (B), A/B/A/B..., so the machine's load swings hit both
+alike. A round is whole iterations until it has lasted ``--round-s`` wall seconds (steady state:
+the viewer's start-up, a page's first scene, weigh little). A B round is ``ambulo train --viewer
+web``: a viewer (``ambulo.viewer.serve(env)``, its server in its own process unless
+``--in-process``) watching world ``num_envs // 2``, fed the iteration's curves (``add_scalars``),
+followed by a page: a separate process connected to the viewer's websocket as a browser is,
+decoding everything it gets and timing each pose update of the watched world (the browser's own
+drawing happens on the user's machine). The viewer is opened and closed between iterations,
+through ``train``'s ``watch`` hook; an iteration is timed from the end of the previous one (after
+the switch) to its own end, so opening and closing are not counted (they cost a command once).
+The first ``--warmup`` iterations (kernel compile, allocation) are not counted.
 
-- ``env_steps_per_s_without`` / ``_with_viewer``: the median round's env-steps per wall second;
-  ``ratio`` = with / without (1.0: free; 0.95: 5 % slower; the ceiling is the run without viewer);
-- ``stream_hz``: pose frames the viewer actually sent per wall second during B rounds, for the one
-  selected world among ``num_envs`` (capped at ``--rate-hz`` and at one per policy step);
-- ``cpu_s_per_env_step_ratio``: CPU time of every thread of the process per env-step, without /
-  with (what the viewer takes from a busy machine, less sensitive to its load than wall time), and
-  ``stream_thread_cpu_share``: the viewer's streaming thread's part of the B rounds' CPU time.
+- ``env_steps_per_s_without`` / ``_with_viewer``: env-steps per wall second over all rounds of
+  each kind (median round in ``*_rounds``); ``ratio`` = with / without (the ceiling is the run
+  without viewer; 0.95: 5 % slower);
+- ``train_thread_cpu_ratio``: CPU time of the training thread per env step, without / with (what
+  the viewer adds to the thread that steps: hooks, copies, and GIL waits that spin; less sensitive
+  to the machine's load than wall time); ``process_cpu_ratio`` the same for every thread of the
+  training process; ``pump_cpu_share``: the viewer's thread in the training process, and
+  ``server_cpu_share``: its server process, as parts of the training process's CPU in B rounds;
+- ``page_hz``: pose updates of the watched world the page received per wall second of B rounds,
+  timed at the page; ``page_hz_while_stepping``: the same over the stretches the simulation
+  stepped (gaps between updates under ``STEPPING_GAP_S``; PPO's update phase steps nothing, so
+  ``page_hz`` is at most the cap times the collection's share of an iteration); ``stream_hz``:
+  frames the viewer sent per second, counted at the viewer.
 
 Prints ``RESULT {json}``.
 """
@@ -37,22 +45,33 @@ import statistics
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 
+STEPPING_GAP_S = 0.2
+"""Two page updates further apart than this bracket a stretch without simulation steps."""
+
 READER = """
-import sys, time
-import viser
+import json, sys, time
+import msgspec, viser, zstandard
 from websockets.sync.client import connect
-messages = 0
+updates, decompress = [], zstandard.ZstdDecompressor()
 with connect(sys.argv[1], subprotocols=["viser-v" + viser.__version__], max_size=None) as ws:
     print("connected", flush=True)
     while True:
         try:
-            ws.recv(timeout=float(sys.argv[2]))
+            raw = ws.recv(timeout=float(sys.argv[2]))
         except Exception:  # the viewer closed (or went quiet)
             break
-        messages += 1
-print(messages, flush=True)
+        now = time.perf_counter()
+        size, packed = int.from_bytes(raw[:8], "little"), int.from_bytes(raw[8:16], "little")
+        inner = msgspec.msgpack.decode(decompress.decompress(raw[16:16 + packed], max_output_size=size))
+        counts = {}
+        for m in inner["messages"]:  # a frame sets each moving body of the watched world (slot 0) once
+            if m.get("type") == "SetPositionMessage" and m.get("name", "").startswith("/w0/b"):
+                counts[m["name"]] = counts.get(m["name"], 0) + 1
+        updates += [now] * max(counts.values(), default=0)
+print(json.dumps(updates), flush=True)
 """
 
 
@@ -65,91 +84,130 @@ class Page:
         if self.process.stdout.readline().strip() != "connected":
             raise RuntimeError("the page process did not connect to the viewer")
 
-    def messages(self) -> int:
-        """Messages read, once the viewer has closed (the process then ends)."""
+    def updates(self) -> list[float]:
+        """perf_counter times of the pose updates it got, once the viewer has closed (it then ends)."""
         out, _ = self.process.communicate(timeout=120)
-        return int(out.split()[-1])
+        return json.loads(out.strip().splitlines()[-1])
+
+
+def page_rates(updates: list[float], wall_s: float) -> tuple[float, float]:
+    """(updates per wall second, updates per second over the stretches the simulation stepped)."""
+    gaps = [b - a for a, b in zip(updates, updates[1:])]
+    stepping = [g for g in gaps if g < STEPPING_GAP_S]
+    return len(updates) / wall_s, (len(stepping) / sum(stepping) if sum(stepping) > 0 else 0.0)
 
 
 class Rounds:
     """``train``'s ``watch``: receives every iteration's scalars and switches the viewer on and off
     between rounds (A: none, B: viewer + page), timing each iteration under the state it ran in."""
 
-    def __init__(self, warmup: int, per_round: int, steps_per_iteration: int, rate_hz: float):
-        self.warmup, self.per_round, self.rate_hz = warmup, per_round, rate_hz
-        self.steps_per_iteration = steps_per_iteration
+    def __init__(self, warmup: int, round_s: float, rounds: int, steps_per_iteration: int, rate_hz: float,
+                 in_process: bool):
+        self.warmup, self.round_s, self.rounds, self.rate_hz = warmup, round_s, rounds, rate_hz
+        self.steps_per_iteration, self.in_process = steps_per_iteration, in_process
         self.env = self.viewer = self.page = None
-        self.wall_s = {"A": [], "B": []}  # per round: summed iteration seconds
-        self.cpu_s = {"A": [], "B": []}
-        self.stream_hz: list[float] = []
-        self.stream_cpu_share: list[float] = []
-        self.page_messages: list[int] = []
-        self._iteration = 0
-        self._round_wall = self._round_cpu = 0.0
-        self._t, self._cpu = time.perf_counter(), time.process_time()
+        self.done = threading.Event()
+        self.rows = {"A": [], "B": []}  # per round: (env steps, wall s, train thread cpu s, process cpu s)
+        self.viewer_rows: list[dict] = []
+        self._iteration, self._state, self._finished = 0, None, 0
+        self._round = [0, 0.0, 0.0, 0.0]
+        self._mark()
 
     def __call__(self, env):  # the watch hook: called once, with the training env
         self.env = env
         return self
 
-    @property
-    def state(self) -> str | None:
-        """The state of the iteration under way: None in warm-up, else A or B by round."""
-        k = self._iteration - self.warmup
-        return None if k < 0 else "AB"[(k // self.per_round) % 2]
+    def _mark(self) -> None:
+        self._t, self._thread_cpu, self._cpu = time.perf_counter(), time.thread_time(), time.process_time()
 
     def add_scalars(self, iteration: int, scalars: dict[str, float]) -> None:
         if "env steps/s" not in scalars:  # an evaluation's scalars, not an iteration's end
             return
-        now, cpu = time.perf_counter(), time.process_time()
-        state = self.state
+        now, thread_cpu, cpu = time.perf_counter(), time.thread_time(), time.process_time()
         if self.viewer is not None:
             self.viewer.add_scalars(iteration, scalars)  # what `ambulo train --viewer web` does
-        if state is not None:
-            self._round_wall += now - self._t
-            self._round_cpu += cpu - self._cpu
         self._iteration += 1
-        if state is not None and self.state != state:  # the round ended
-            self._end_round(state, now)
-        if self.state == "B" and self.viewer is None:
+        if self._state is not None:
+            r = self._round
+            r[0] += self.steps_per_iteration
+            r[1] += now - self._t
+            r[2] += thread_cpu - self._thread_cpu
+            r[3] += cpu - self._cpu
+            if r[1] >= self.round_s:
+                self._end_round(now)
+        if self._iteration >= self.warmup and self._state is None and not self.done.is_set():
+            self._state = "A"
+        if self._state == "B" and self.viewer is None:
             self._open()
-        self._t, self._cpu = time.perf_counter(), time.process_time()
+        if self.done.is_set():
+            raise _Done
+        self._mark()
 
     def _open(self) -> None:
         import ambulo.viewer
 
-        self.viewer = ambulo.viewer.serve(self.env, port=8800, rate_hz=self.rate_hz, announce=False)
+        self.viewer = ambulo.viewer.serve(self.env, port=8800, rate_hz=self.rate_hz, announce=False,
+                                          process=not self.in_process)
         self.viewer.watch(self.env.num_envs // 2)
         self.page = Page(self.viewer.port)
-        self._frames0, self._stream_cpu0, self._opened = (self.viewer.frames_sent, self.viewer.stream_cpu_s,
-                                                          time.perf_counter())
+        self._opened = time.perf_counter()
+        self._viewer0 = (self.viewer.frames_sent, self.viewer.stream_cpu_s, self._server_cpu())
 
-    def _end_round(self, state: str, now: float) -> None:
-        self.wall_s[state].append(self._round_wall)
-        self.cpu_s[state].append(self._round_cpu)
+    def _server_cpu(self) -> float:
+        return 0.0 if self.viewer.link is None else self.viewer.link.server_cpu_s()
+
+    def _end_round(self, now: float) -> None:
+        state = self._state
+        self.rows[state].append(tuple(self._round))
         if state == "B":
-            self.stream_hz.append((self.viewer.frames_sent - self._frames0) / (now - self._opened))
-            self.stream_cpu_share.append((self.viewer.stream_cpu_s - self._stream_cpu0) / self._round_cpu)
+            frames0, pump0, server0 = self._viewer0
+            wall_s = now - self._opened
+            row = {"stream_hz": (self.viewer.frames_sent - frames0) / wall_s,
+                   "pump_cpu_share": (self.viewer.stream_cpu_s - pump0) / self._round[3],
+                   "server_cpu_share": (self._server_cpu() - server0) / self._round[3]}
             self.close()
-        self._round_wall = self._round_cpu = 0.0
+            row["page_hz"], row["page_hz_while_stepping"] = page_rates(
+                [t for t in self._updates if t >= self._opened], wall_s)
+            self.viewer_rows.append(row)
+            self._finished += 1
+        self._round = [0, 0.0, 0.0, 0.0]
+        self._state = "B" if state == "A" else "A"
+        if self._finished >= self.rounds:
+            self.done.set()
 
     def close(self) -> None:
+        self._updates = []
         if self.viewer is not None:
             self.viewer.close()
-            self.page_messages.append(self.page.messages())
+            self._updates = self.page.updates()
             self.viewer = self.page = None
 
     def result(self) -> dict:
-        steps = self.per_round * self.steps_per_iteration
-        rate = {s: [steps / w for w in self.wall_s[s]] for s in "AB"}
-        cpu = {s: statistics.median(c / steps for c in self.cpu_s[s]) for s in "AB"}
-        a, b = statistics.median(rate["A"]), statistics.median(rate["B"])
-        return {"env_steps_per_s_without": round(a), "env_steps_per_s_with_viewer": round(b),
-                "ratio": round(b / a, 3), "stream_hz": round(statistics.median(self.stream_hz), 1),
-                "cpu_s_per_env_step_ratio": round(cpu["A"] / cpu["B"], 3),
-                "stream_thread_cpu_share": round(statistics.median(self.stream_cpu_share), 4),
-                "without_rounds": [round(x) for x in rate["A"]], "with_rounds": [round(x) for x in rate["B"]],
-                "stream_hz_rounds": [round(x, 1) for x in self.stream_hz], "page_messages_per_round": self.page_messages}
+        a, b = (self.rows[s][:len(self.rows["B"])] for s in "AB")  # as many A rounds as B rounds
+
+        def per_s(rows, k):  # env steps per unit of column k over all rounds
+            return sum(r[0] for r in rows) / sum(r[k] for r in rows)
+
+        def median(key):
+            return round(statistics.median(r[key] for r in self.viewer_rows), 4)
+
+        return {"env_steps_per_s_without": round(per_s(a, 1)), "env_steps_per_s_with_viewer": round(per_s(b, 1)),
+                "ratio": round(per_s(b, 1) / per_s(a, 1), 3),
+                "train_thread_cpu_ratio": round(per_s(b, 2) / per_s(a, 2), 3),
+                "process_cpu_ratio": round(per_s(b, 3) / per_s(a, 3), 3),
+                "pump_cpu_share": median("pump_cpu_share"), "server_cpu_share": median("server_cpu_share"),
+                "page_hz": round(statistics.median(r["page_hz"] for r in self.viewer_rows), 1),
+                "page_hz_while_stepping": round(statistics.median(r["page_hz_while_stepping"]
+                                                                  for r in self.viewer_rows), 1),
+                "stream_hz": round(statistics.median(r["stream_hz"] for r in self.viewer_rows), 1),
+                "without_rounds": [round(r[0] / r[1]) for r in a], "with_rounds": [round(r[0] / r[1]) for r in b],
+                "round_wall_s": [round(r[1], 1) for r in a + b],
+                "page_hz_rounds": [round(r["page_hz"], 1) for r in self.viewer_rows],
+                "page_hz_while_stepping_rounds": [round(r["page_hz_while_stepping"], 1) for r in self.viewer_rows]}
+
+
+class _Done(Exception):
+    """Raised from the watch hook once every round ran: ends training early, as Ctrl-C would."""
 
 
 def main() -> None:
@@ -158,30 +216,32 @@ def main() -> None:
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--num-envs", type=int, default=None, help="default: 64 on the CPU, 4096 on a GPU")
     parser.add_argument("--rounds", type=int, default=4, help="rounds of each kind (A and B)")
-    parser.add_argument("--iterations-per-round", type=int, default=2)
+    parser.add_argument("--round-s", type=float, default=5.0, help="wall seconds of whole iterations per round")
     parser.add_argument("--warmup", type=int, default=2, help="first iterations not counted")
     parser.add_argument("--rate-hz", type=float, default=30.0)
+    parser.add_argument("--in-process", action="store_true", help="the viewer's server on threads of the run")
     args = parser.parse_args()
-    if min(args.rounds, args.iterations_per_round) < 1 or args.warmup < 0:
-        parser.error("--rounds and --iterations-per-round must be >= 1, --warmup >= 0")
+    if args.rounds < 1 or args.round_s <= 0 or args.warmup < 0:
+        parser.error("--rounds must be >= 1, --round-s > 0, --warmup >= 0")
     num_envs = args.num_envs or (64 if args.device == "cpu" else 4096)
 
     from ambulo.rl import train
     from ambulo.rl.config import ppo_cfg
 
     ppo = ppo_cfg(args.task, num_envs=num_envs)
-    rounds = Rounds(args.warmup, args.iterations_per_round, ppo.num_steps_per_env * num_envs, args.rate_hz)
-    iterations = args.warmup + 2 * args.rounds * args.iterations_per_round
+    rounds = Rounds(args.warmup, args.round_s, args.rounds, ppo.num_steps_per_env * num_envs, args.rate_hz,
+                    args.in_process)
     started = time.perf_counter()
     with tempfile.TemporaryDirectory() as root, contextlib.ExitStack() as stack:
         stack.callback(rounds.close)
-        train(args.task, num_envs=num_envs, max_iterations=iterations, device=args.device, log_root=root,
-              watch=rounds)
+        with contextlib.suppress(_Done):
+            train(args.task, num_envs=num_envs, max_iterations=10**6, device=args.device, log_root=root,
+                  watch=rounds)
     print("RESULT " + json.dumps({
         "task": args.task, "device": args.device, "num_envs": num_envs, "watched_world": num_envs // 2,
-        "rounds": args.rounds, "iterations_per_round": args.iterations_per_round,
-        "env_steps_per_iteration": rounds.steps_per_iteration, "rate_cap_hz": args.rate_hz, **rounds.result(),
-        "wall_s": round(time.perf_counter() - started, 1),
+        "server": "in process" if args.in_process else "own process", "rounds": args.rounds,
+        "round_s": args.round_s, "env_steps_per_iteration": rounds.steps_per_iteration,
+        "rate_cap_hz": args.rate_hz, **rounds.result(), "wall_s": round(time.perf_counter() - started, 1),
     }))
 
 

@@ -41,9 +41,9 @@ def test_add_scalars_draws_one_curve_per_name_from_another_thread():
     world.scene.add_default_ground_plane()
     world.scene.add(DynamicCuboid(prim_path="/World/Box", position=[0.0, 0.0, 1.0], size=0.2))
     world.reset()
-    viewer = ambulo.viewer.serve(world, port=free_port(), announce=False)
+    viewer = ambulo.viewer.serve(world, port=free_port(), announce=False, process=False)
     try:
-        plots = viewer._curves.plots
+        plots = viewer.page._curves.plots
 
         def drawn(n: int) -> bool:
             return set(plots) == {"reward", "episode_length"} and all(len(p.data[0]) == n for p in plots.values())

@@ -30,7 +30,7 @@ def free_port() -> int:
 
 def nodes(viewer) -> dict:
     """viser's server-side scene graph: node name -> handle."""
-    return viewer.server.scene._handle_from_node_name
+    return viewer.page.server.scene._handle_from_node_name
 
 
 def step_until(world, condition, what: str) -> None:
@@ -57,18 +57,18 @@ def world():
 
 @pytest.fixture
 def viewer(world):
-    v = ambulo.viewer.serve(world, port=free_port(), announce=False, grid=4)
+    v = ambulo.viewer.serve(world, port=free_port(), announce=False, grid=4, process=False)
     v.controls.speed = None
     yield v
     v.close()
 
 
 def box_body(viewer) -> int:
-    return viewer._follow_body
+    return viewer.page._follow_body
 
 
 def test_grid_draws_each_world_at_its_offset(world, viewer):
-    grid = viewer.grid
+    grid = viewer.page.grid
     step_until(world, lambda: len(grid.slots) == 4 and viewer.frames_sent > 2, "a grid of 4 worlds")
     expected = grid_offsets_w(4, grid.spacing_m)
     assert grid.spacing_m >= 2.0 and np.allclose(expected[0], 0.0)
@@ -85,7 +85,7 @@ def test_grid_draws_each_world_at_its_offset(world, viewer):
 
 
 def test_contact_arrows_carry_the_box_weight(world, viewer):
-    viewer.overlays.contacts.value = True
+    viewer.page.overlays.contacts.value = True
     name = "/overlay/contacts"
     step_until(world, lambda: name in nodes(viewer) and nodes(viewer)[name].visible, "contact arrows")
     arrows = np.asarray(nodes(viewer)[name].points, dtype=float)  # (K, 2, 3) start, end
@@ -95,12 +95,12 @@ def test_contact_arrows_carry_the_box_weight(world, viewer):
     weight_n = float(viewer._model.body_mass[box_body(viewer)]) * 9.81
     total_n = (end - start).sum(axis=0) / 1e-3  # FORCE_SCALE_M_PER_N
     np.testing.assert_allclose(total_n, [0.0, 0.0, weight_n], atol=0.02 * weight_n)
-    viewer.overlays.contacts.value = False
+    viewer.page.overlays.contacts.value = False
     step_until(world, lambda: not nodes(viewer)[name].visible, "the arrows hidden")
 
 
 def test_balance_points_of_a_resting_box(world, viewer):
-    viewer.overlays.balance.value = True
+    viewer.page.overlays.balance.value = True
     names = [f"/overlay/balance/{k}" for k in ("com", "zmp", "capture_point")]
     step_until(world, lambda: all(n in nodes(viewer) for n in names), "the balance points")
     com, zmp, cp = (np.asarray(nodes(viewer)[n].position) for n in names)
@@ -124,7 +124,7 @@ def test_fed_layers_are_drawn_where_given(world, viewer):
     viewer.show_image("front", image)
     viewer.show_detections("front", (np.array([[10, 5, 30, 25]]), ["chair"], np.array([0.9])))
     want = ["/overlay/plan", "/overlay/path", "/overlay/footsteps", "/overlay/map", "/overlay/points/lidar"]
-    step_until(world, lambda: all(n in nodes(viewer) for n in want) and "front" in viewer.overlays._image_handles,
+    step_until(world, lambda: all(n in nodes(viewer) for n in want) and "front" in viewer.page.overlays._image_handles,
                "the fed layers")
     segments = np.asarray(nodes(viewer)["/overlay/plan"].points)
     np.testing.assert_allclose(segments[:, 0, :2], plan[:-1], atol=1e-6)
@@ -135,7 +135,7 @@ def test_fed_layers_are_drawn_where_given(world, viewer):
     np.testing.assert_allclose(yaw, steps[:, 2], atol=1e-5)
     np.testing.assert_allclose(nodes(viewer)["/overlay/map"].position[:2], (-1.0 + 1.5, -2.0 + 1.0), atol=1e-6)
     np.testing.assert_allclose(nodes(viewer)["/overlay/points/lidar"].points, cloud, atol=1e-6)
-    shown = viewer.overlays._image_handles["front"].image
+    shown = viewer.page.overlays._image_handles["front"].image
     assert shown[5, 20].tolist() != [0, 0, 0] and shown[15, 20].tolist() == [0, 0, 0]  # the box's edge, not inside
 
 
@@ -161,9 +161,9 @@ def test_camera_overlay_renders_a_world_camera_on_the_streaming_thread():
     w.scene.add(Camera("/World/cam", position=[0.0, 0.0, 3.0], orientation=[0.7071068, 0.0, 0.7071068, 0.0],
                        resolution=(64, 48)))
     w.reset()
-    v = ambulo.viewer.serve(w, port=free_port(), announce=False)
+    v = ambulo.viewer.serve(w, port=free_port(), announce=False, process=False)
     try:
-        overlays = v.overlays
+        overlays = v.page.overlays
         assert overlays.camera_name.options == ("/World/cam",)
         overlays.camera_kind.value = "depth"
         overlays.camera.value = True
@@ -176,3 +176,34 @@ def test_camera_overlay_renders_a_world_camera_on_the_streaming_thread():
         v.close()
         World.clear_instance()
     assert overlays._renders is None  # freed by the streaming thread that owned its GL context
+
+
+def test_a_lidars_last_scan_is_drawn_without_feeding_it():
+    from ambulo.sensors import Lidar, LidarCfg
+
+    World.clear_instance()
+    w = World(physics_dt=0.005)
+    w.scene.add_default_ground_plane()
+    w.scene.add(DynamicCuboid(prim_path="/World/Box", position=[*BOX_XY_M, BOX_HALF_M + 0.002], size=2 * BOX_HALF_M))
+    # 12 rays 30 deg below the horizon from 0.6 m up: they meet the floor 0.6 / tan 30 deg away
+    lidar = Lidar(LidarCfg(prim_path="/World/Box", offset_pos=(0.0, 0.0, 0.5), elevations_deg=(-30.0,),
+                           horizontal_resolution_deg=30.0))
+    w.scene.add(lidar)
+    w.reset()
+    v = ambulo.viewer.serve(w, port=free_port(), announce=False, process=False)
+    name = "/overlay/points/lidar_World_Box"
+    try:
+        v.controls.speed = None
+        step_until(w, lambda: v.frames_sent > 3, "a few frames")
+        assert name not in nodes(v)  # no scan yet: the viewer casts no rays of its own
+        scan = lidar.get_current_frame()
+        step_until(w, lambda: name in nodes(v), "the lidar's points")
+        points = np.asarray(nodes(v)[name].points, dtype=float)
+        origin = scan.points_w[0, 0].numpy() - scan.points_s[0, 0].numpy()  # (a level box: no rotation)
+        assert points.shape == (12, 3)
+        np.testing.assert_allclose(points[:, 2], 0.0, atol=1e-3)
+        np.testing.assert_allclose(np.hypot(*(points[:, :2] - origin[:2]).T), origin[2] / np.tan(np.radians(30.0)),
+                                   atol=1e-3)
+    finally:
+        v.close()
+        World.clear_instance()

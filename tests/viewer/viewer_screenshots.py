@@ -28,8 +28,8 @@ WAIT_MS = 300_000
 
 def look(viewer, eye_w, target_w) -> None:
     """Put every page's camera at ``eye_w`` looking at ``target_w`` (follow off)."""
-    viewer.panel.follow.value = False
-    for client in viewer.server.get_clients().values():
+    viewer.page.panel.follow.value = False
+    for client in viewer.page.server.get_clients().values():
         with client.atomic():
             client.camera.up_direction = (0.0, 0.0, 1.0)
             client.camera.position = tuple(eye_w)
@@ -69,12 +69,12 @@ def grid(out: Path) -> None:
 
     env = envs.make("humanoid-walk", num_envs=9, seed=0)
     policy = load_policy()
-    viewer = ambulo.viewer.serve(env, port=8097, grid=9)
+    viewer = ambulo.viewer.serve(env, port=8097, grid=9, process=False)
     obs = env.get_observations()
     for _ in range(150):  # 3 s of walking at 50 Hz
         with torch.inference_mode():
             obs, *_ = env.step(policy(obs))
-    spacing = viewer.grid.spacing_m
+    spacing = viewer.page.grid.spacing_m
     centre = np.array([spacing, spacing, 0.5])
     try:
         screenshot(viewer, out / "viewer_grid.png",
@@ -96,9 +96,9 @@ def overlays(out: Path) -> None:
     apt = apartment(3)
     ep = apt.sample_start_goal(0, cfg.min_geodesic_m, cfg.max_geodesic_m, humanoid.BODY_RADIUS_M)
     world = NavWorld.from_apartment(apt, tuple(ep.start_pose), world_cfg)
-    viewer = ambulo.viewer.serve(world, port=8098)
+    viewer = ambulo.viewer.serve(world, port=8098, process=False)
     viewer.controls.speed = None
-    for box in (viewer.overlays.contacts, viewer.overlays.balance, viewer.overlays.camera):
+    for box in (viewer.page.overlays.contacts, viewer.page.overlays.balance, viewer.page.overlays.camera):
         box.value = True
     nav = Navigator(world, cfg.navigator, walker=make_walker("policy"))
     nav.add_observer(viewer.navigator_observer, images=False)

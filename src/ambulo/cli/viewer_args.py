@@ -43,17 +43,8 @@ def web_watch(args: argparse.Namespace, *, real_time: bool = False) -> Callable[
 
         viewer = serve(world_or_env, port=args.viewer_port)
         if real_time:
-            _open_at_real_time(viewer)
+            viewer.set_speed(1.0)
         return viewer
 
     return watch
 
-
-def _open_at_real_time(viewer) -> None:
-    """Set the viewer's speed to 1x, on the page's Speed field too (its callback sets the speed)."""
-    if viewer.panel is None:  # the panel is built with the model, at this speed
-        viewer.controls.speed = 1.0
-    else:
-        from ambulo.viewer.gui import speed_label
-
-        viewer.panel.speed.value = speed_label(1.0)

@@ -135,6 +135,11 @@ class Lidar(Sensor):
         self._gen = torch.Generator(device=engine.device).manual_seed(self.cfg.seed)
         self._data = None
 
+    @property
+    def last_frame(self) -> LidarData | None:
+        """The last scan (None before the first) without scanning: what a watcher shows at no cost."""
+        return getattr(self, "_data", None)
+
     def get_current_frame(self) -> LidarData:
         self._require_initialized()
         if self._data is not None and not bool(self._due().any()):

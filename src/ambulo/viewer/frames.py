@@ -19,7 +19,8 @@ import torch
 
 @dataclass
 class Frame:
-    """The drawn worlds' state at one instant, as the streaming thread reads it.
+    """The drawn worlds' state at one instant, as the streaming thread reads it: CPU tensors (pinned,
+    copied off a GPU) in the watched process, host arrays in the page's own (``remote``).
 
     Attributes:
       worlds: the world indices drawn (the watched one first; more for a grid).
@@ -32,11 +33,11 @@ class Frame:
     """
 
     worlds: list[int]
-    time_s: torch.Tensor
-    xpos_w: torch.Tensor
-    xquat_w: torch.Tensor
-    extras: dict[str, torch.Tensor]
-    state: dict[str, torch.Tensor] = field(default_factory=dict)
+    time_s: torch.Tensor | np.ndarray
+    xpos_w: torch.Tensor | np.ndarray
+    xquat_w: torch.Tensor | np.ndarray
+    extras: dict[str, torch.Tensor | np.ndarray]
+    state: dict[str, torch.Tensor | np.ndarray] = field(default_factory=dict)
     ready: torch.cuda.Event | None = None
     paused: bool = False
     """Copied while the simulation thread was held by the page's pause (the state is frozen)."""
@@ -50,12 +51,12 @@ class Frame:
         """(time_s, xpos_w, xquat_w, extras) as host values; waits for a GPU copy to land."""
         if self.ready is not None:
             self.ready.synchronize()
-        return (float(self.time_s), self.xpos_w.numpy(), self.xquat_w.numpy(),
-                {k: v.numpy() for k, v in self.extras.items()})
+        return (float(self.time_s), np.asarray(self.xpos_w), np.asarray(self.xquat_w),
+                {k: np.asarray(v) for k, v in self.extras.items()})
 
     def state_numpy(self) -> dict[str, np.ndarray]:
         """The watched world's copied state rows as host arrays (after ``numpy``)."""
-        return {k: v.numpy() for k, v in self.state.items()}
+        return {k: np.asarray(v) for k, v in self.state.items()}
 
 
 def copy_world(worlds, time_s: torch.Tensor, xpos_w: torch.Tensor, xquat_w: torch.Tensor,
