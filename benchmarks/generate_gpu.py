@@ -13,22 +13,27 @@ The tutorial dataset (``replicator.example_config``, the warehouse bay) at ``--s
   capture (loose and 3D boxes), and encoding and writing a frame's files on one thread;
 - **raw** (the ceiling): ``TiledCamera.render`` alone (BVH refit, ray cast, unpack) of the batch
   just randomized, repeated: the renderer's own speed;
-- **memory**: ``BatchedFrameProducer.batches``, what a training loop gets: every frame
-  randomized with the CPU path's draws (on ``--draw-workers`` processes, a batch ahead),
-  rendered, instance ids, tight boxes and pixel counts on the device; nothing copied to the host;
-- **disk**: ``ambulo generate --device``'s ``run_frames`` with this producer (and its draw
-  processes) and ``--writer-threads`` encoders, then the COCO merge, into a fresh folder;
-- **disk, processes**: ``--processes`` producers on the same device (``ProducerPool``, what
-  ``--num-gpus`` runs, one process per GPU), each with cores / processes encoders: the host work
-  (draws, captures, encoding) then runs on all cores. Warmed up first (each process builds its
-  producer and renders a batch, loading the kernels from the cache), then timed on
-  ``--process-frames`` frames. 0 skips it.
+- **memory** (the in-memory mode): ``BatchedFrameProducer.batches(device_draws=True)``, what a
+  training loop gets: every world randomized on the device (``device_draws``), rendered, instance
+  ids, tight boxes and pixel counts on the device; nothing copied to the host, no host sync;
+- **memory, host draws**: ``batches`` with the CPU path's draws (on ``--draw-workers`` processes,
+  a batch ahead), the dataset's scenes: what the disk modes render;
+- **disk** (``ambulo generate --device --draw-workers N [--image-format jpg]``):
+  ``batched_disk.run_batched_frames`` with this producer's draw processes writing the files from
+  shared memory, RGB as PNG and, where torchvision's nvjpeg runs, as JPEG encoded on the GPU,
+  then the COCO merge, into a fresh folder each;
+- **disk, threads** (the earlier disk mode, for comparison): ``run_frames`` with
+  ``--writer-threads`` encoders in this process;
+- **disk, processes** (``--processes``, default 0: skipped): that many producers on the same
+  device (``ProducerPool``, what ``--num-gpus`` runs), each with cores / processes encoders.
 
     python benchmarks/generate_gpu.py --device cuda --size 640x480 --num-worlds 256 --frames 2048
     python benchmarks/generate_gpu.py --device cpu --size 64x48 --num-worlds 4 --frames 8 --processes 0
 
 ``--device cpu`` is Warp's CPU device: a smoke test of the same code, not a measurement.
-Ends with one ``RESULT {json}`` line: frames/s of each and its ratio to the raw render.
+Ends with one ``RESULT {json}`` line: frames/s of each and its ratio to the raw render, and the
+device's ms a frame of the in-memory mode's stages (device draws, kinematics, render, labels):
+the render is the ceiling of every mode.
 Issue 25's targets on one H100: >= 2,000 annotated 640x480 frames/s to disk, >= 50,000 in memory.
 """
 
@@ -39,6 +44,7 @@ import collections
 import contextlib
 import dataclasses
 import datetime
+import functools
 import gc
 import json
 import shutil
@@ -52,8 +58,10 @@ import torch
 
 from ambulo import replicator as rep
 from ambulo.replicator.batched import BatchedFrameProducer
+from ambulo.replicator.batched_disk import run_batched_frames
 from ambulo.replicator.coco import merge_coco
 from ambulo.replicator.draw_pool import DrawPool
+from ambulo.replicator.encode import jpeg_available
 from ambulo.replicator.processes import ProducerPool, usable_cpus
 from ambulo.replicator.producer import run_frames
 from ambulo.replicator.writers import FrameWriter, prepare_dirs, write_frame_files
@@ -133,6 +141,36 @@ def profile_batch(producer: BatchedFrameProducer, device: str, seed: int, chunk:
     return ms
 
 
+def profile_device_draws(producer: BatchedFrameProducer, device: str, chunk: list[int]) -> dict:
+    """The in-memory mode's batch stage by stage, synced around each: device ms a frame."""
+    index = torch.as_tensor(chunk, dtype=torch.int64, device=producer.engine.device)
+    stages = {}
+    for name, fn in (("device_draws", lambda: producer.randomize_on_device(1, index)),
+                     ("kinematics", producer.kinematics), ("render", producer.camera.render),
+                     ("labels", lambda: producer.labels(len(chunk)))):
+        sync(device)
+        start = time.perf_counter()
+        fn()
+        sync(device)
+        stages[name] = round(1e3 * (time.perf_counter() - start) / len(chunk), 4)
+    stages["total"] = round(sum(stages.values()), 4)
+    stages["render_fraction"] = round(stages["render"] / stages["total"], 3)
+    return stages
+
+
+def disk_run(config, out: Path, frames: list[int], categories, write) -> dict:
+    """``write(out)`` into a fresh dataset folder, then the COCO merge: frames/s and MB a frame."""
+    prepare_dirs(out, config.writer)
+    start = time.perf_counter()
+    write(out)
+    merged = merge_coco(out / "frames", len(frames), categories, {"seed": 2})
+    (out / "annotations.json").write_text(json.dumps(merged))
+    fps = len(frames) / (time.perf_counter() - start)
+    size_mb = sum(f.stat().st_size for f in out.rglob("*") if f.is_file()) / 1e6
+    shutil.rmtree(out, ignore_errors=True)
+    return {"fps": round(fps, 1), "mb_per_frame": round(size_mb / len(frames), 3)}
+
+
 def warm_process(producer, count: int) -> float:
     """In a pool process: one batch, so its kernels are loaded and its graphs captured."""
     start = time.perf_counter()
@@ -149,10 +187,11 @@ def main() -> None:
     p.add_argument("--frames", type=int, default=2048, help="frames of each timed run")
     p.add_argument("--writer-threads", type=int, default=None, help="encoders of the disk run (default: cores)")
     p.add_argument("--draw-workers", type=int, default=None,
-                   help="processes drawing the randomizations for the memory and disk runs (default: cores - 2 "
-                        "on CUDA, 0 on Warp's CPU device)")
-    p.add_argument("--processes", type=int, default=None,
-                   help="producers on the device for the second disk run (default: cores // 2, at most 8; 0 skips)")
+                   help="processes drawing the randomizations (and writing the disk modes' files) (default: "
+                        "cores - 2 on CUDA, 1 on Warp's CPU device)")
+    p.add_argument("--processes", type=int, default=0,
+                   help="producers on the device for a disk run of several processes (default 0: skipped)")
+    p.add_argument("--no-threads-run", action="store_true", help="skip the earlier disk mode (writer threads)")
     p.add_argument("--outputs", default=None,
                    help="writers of the disk runs, comma-separated (default: the config's, coco,depth,masks); "
                         "'coco' alone writes the rgb PNGs, COCO RLE masks and records")
@@ -164,10 +203,12 @@ def main() -> None:
     width, height = (int(v) for v in args.size.lower().split("x"))
     cpus = usable_cpus()
     writer_threads = args.writer_threads or cpus
-    processes = min(8, max(1, cpus // 2)) if args.processes is None else args.processes
+    processes = args.processes
     draw_workers = args.draw_workers
-    if draw_workers is None:
-        draw_workers = max(0, cpus - 2) if args.device.startswith("cuda") else 0
+    if draw_workers is None:  # the disk modes write on these processes: at least one
+        draw_workers = max(1, cpus - 2) if args.device.startswith("cuda") else 1
+    if draw_workers < 1:
+        p.error("--draw-workers must be >= 1: the disk modes write on the draw processes")
     args.process_frames = args.process_frames or 2 * args.frames
     config = rep.example_config(width, height)
     writer = config.writer
@@ -229,28 +270,47 @@ def main() -> None:
         raw_fps = repeats * n / (time.perf_counter() - start)
         say(f"raw render: {raw_fps:.0f} frames/s")
 
-        # -- memory: the whole in-memory path --------------------------------------------------
+        # -- memory: the in-memory mode, draws on the device -----------------------------------
+        say("in-memory mode (device draws): first batch builds the draws' tensors")
+        next(producer.batches(1, frames[:n], device_draws=True))
+        device_ms = profile_device_draws(producer, dev, frames[:n])
+        say("device ms a frame: " + ", ".join(f"{k} {v}" for k, v in device_ms.items()))
+        sync(dev)
         start = time.perf_counter()
         count = 0
-        for batch in producer.batches(1, frames):
+        for batch in producer.batches(1, frames, device_draws=True):
             count += len(batch["index"])
         sync(dev)
         memory_fps = count / (time.perf_counter() - start)
         say(f"in memory: {memory_fps:.0f} frames/s ({memory_fps / raw_fps:.3f} of raw)")
 
-        # -- disk: run_frames with this producer, then the COCO merge ---------------------------
-        out = root / "disk"
-        prepare_dirs(out, config.writer)
+        # -- memory with the CPU path's draws (what the disk modes render) -----------------------
         start = time.perf_counter()
-        run_frames(config, out, 2, frames, producer=producer, writer_threads=writer_threads)
+        count = 0
+        for batch in producer.batches(1, frames):
+            count += len(batch["index"])
+        sync(dev)
+        memory_host_fps = count / (time.perf_counter() - start)
+        say(f"in memory, host draws: {memory_host_fps:.0f} frames/s ({memory_host_fps / raw_fps:.3f} of raw)")
+
+        # -- disk: the draw processes write from shared memory (PNG, and JPEG where it runs) ------
         categories = instance_table(producer.model).categories
-        merged = merge_coco(out / "frames", len(frames), categories, {"seed": 2})
-        (out / "annotations.json").write_text(json.dumps(merged))
-        disk_fps = len(frames) / (time.perf_counter() - start)
-        size_mb = sum(f.stat().st_size for f in out.rglob("*") if f.is_file()) / 1e6
-        shutil.rmtree(out, ignore_errors=True)
-        say(f"to disk: {disk_fps:.0f} frames/s ({disk_fps / raw_fps:.3f} of raw), {size_mb / len(frames):.2f} "
-            f"MB a frame, {writer_threads} encoder threads")
+        formats = ["png"] + (["jpg"] if jpeg_available(dev) else [])
+        disk = {}
+        for fmt in formats:
+            disk[fmt] = disk_run(config, root / f"disk_{fmt}", frames, categories,
+                                 functools.partial(run_batched_frames, config, seed=2, frames=frames,
+                                                   producer=producer, image_format=fmt))
+            say(f"to disk, {fmt}, {draw_workers} processes writing: {disk[fmt]['fps']:.0f} frames/s "
+                f"({disk[fmt]['fps'] / raw_fps:.3f} of raw), {disk[fmt]['mb_per_frame']:.3f} MB a frame")
+        if not args.no_threads_run:  # the earlier disk mode: encoders on threads of this process
+            disk["png_threads"] = disk_run(config, root / "disk_threads", frames, categories,
+                                           functools.partial(run_frames, config, seed=2, frames=frames,
+                                                             producer=producer, writer_threads=writer_threads))
+            say(f"to disk, png, {writer_threads} threads: {disk['png_threads']['fps']:.0f} frames/s")
+        for entry in disk.values():
+            entry["of_raw"] = round(entry["fps"] / raw_fps, 3)
+        disk_fps = max(disk[fmt]["fps"] for fmt in formats)
         producer.close()
         del producer
         if dev.startswith("cuda"):  # give the device memory back before the processes take theirs
@@ -281,6 +341,7 @@ def main() -> None:
         shutil.rmtree(root, ignore_errors=True)
 
     best_disk = max(disk_fps, procs["fps"] if procs else 0.0)
+    jpg_note = None if "jpg" in disk else "torchvision's JPEG encoder did not run on this device: PNG only"
     result = {
         "benchmark": "generate_gpu", "date": datetime.date.today().isoformat(), "device": dev, "gpu": gpu,
         "cpus": cpus, "size": [width, height], "num_worlds": n, "frames": args.frames,
@@ -289,9 +350,13 @@ def main() -> None:
                    "other_paths_s": round(warm_paths_s, 1)},
         "profile_ms_per_frame": profile,
         "raw_render_fps": round(raw_fps, 1),
+        "device_ms_per_frame": device_ms,
         "memory_fps": round(memory_fps, 1), "memory_of_raw": round(memory_fps / raw_fps, 3),
-        "disk_fps": round(disk_fps, 1), "disk_of_raw": round(disk_fps / raw_fps, 3),
-        "outputs": list(config.writer.outputs), "fsync": config.writer.fsync, "writer_threads": writer_threads, "draw_workers": draw_workers, "disk_processes": procs, "dataset_mb_per_frame": round(size_mb / len(frames), 3),
+        "memory_draws": "device",
+        "memory_host_draws_fps": round(memory_host_fps, 1), "memory_host_draws_of_raw": round(memory_host_fps / raw_fps, 3),
+        "disk_fps": round(disk_fps, 1), "disk_of_raw": round(disk_fps / raw_fps, 3), "disk": disk, "jpeg": jpg_note,
+        "outputs": list(config.writer.outputs), "fsync": config.writer.fsync, "writer_threads": writer_threads,
+        "draw_workers": draw_workers, "disk_processes": procs,
         "targets": {"disk_fps": 2000, "memory_fps": 50000, "size": [640, 480]},
         "meets_targets": {"disk": best_disk >= 2000, "memory": memory_fps >= 50000} if (width, height) == (640, 480)
         else None,

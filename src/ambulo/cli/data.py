@@ -87,8 +87,18 @@ def generate(args: argparse.Namespace) -> int:
     if args.draw_workers < 0 or (args.draw_workers and (args.device is None or args.num_gpus > 1)):
         raise CliError(f"--draw-workers {args.draw_workers} feeds the one-GPU batched path",
                        "give --device cuda (one GPU) with it, or drop it")
+    if args.image_format == "jpg":
+        from ambulo.replicator.encode import jpeg_available
+
+        if args.device is None or args.num_gpus > 1:
+            raise CliError("--image-format jpg encodes the RGB images on the GPU of the batched path",
+                           "give --device cuda (one GPU) with it, or drop it (PNG)")
+        if not jpeg_available(args.device):
+            raise CliError(f"--image-format jpg needs torchvision's JPEG encoder on {args.device}",
+                           "install the torchvision built for this torch, or drop --image-format (PNG)")
     watch = web_watch(args)
-    if watch is not None and (args.workers not in (None, 1) or args.ray or args.num_gpus > 1):
+    if watch is not None and (args.image_format == "jpg" or args.workers not in (None, 1) or args.ray
+                              or args.num_gpus > 1):
         raise CliError("--viewer web watches the frames rendered in this process; --workers, --ray and "
                        "--num-gpus render in other processes", "drop them (one process renders), or drop --viewer")
     config = load_config(args.config, args.width, args.height, args.renderer)
@@ -103,7 +113,8 @@ def generate(args: argparse.Namespace) -> int:
             path = rep.generate(config, args.out, num_frames=args.frames, seed=args.seed, workers=args.workers,
                                 show_progress=not args.quiet, backend="ray" if args.ray else "auto",
                                 overwrite=args.overwrite, device=args.device, num_worlds=args.num_worlds,
-                                num_gpus=args.num_gpus, watch=watch, draw_workers=args.draw_workers)
+                                num_gpus=args.num_gpus, watch=watch, draw_workers=args.draw_workers,
+                                image_format=args.image_format)
     except DatasetFolderError as err:
         raise CliError(err.problem, err.fix) from None
     except OSError as err:
@@ -180,6 +191,9 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--draw-workers", type=int, default=0,
                    help="with --device and one GPU: sample the randomizers in this many processes, a batch ahead of "
                         "the render (the same numbers; default 0: in this process)")
+    p.add_argument("--image-format", choices=("png", "jpg"), default="png",
+                   help="RGB images as PNG (default) or, with --device (one GPU), JPEG encoded on the GPU (nvjpeg, "
+                        "needs torchvision); the draw processes then write every file")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_viewer_args(p)  # the scene of each frame as it is generated (one process)
     p.set_defaults(func=generate)

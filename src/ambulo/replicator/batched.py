@@ -267,16 +267,19 @@ class BatchedFrameProducer:
         instances = self._instance_of_geom[(geom_ids + 1).long()]
         return (instances, *device_tight_boxes(instances, self.table.num_instances))
 
-    def to_host(self, count: int, instances: torch.Tensor, boxes: torch.Tensor, pixels: torch.Tensor) -> dict:
+    def to_host(self, count: int, instances: torch.Tensor, boxes: torch.Tensor, pixels: torch.Tensor,
+                images: bool = True) -> dict:
         """Everything the first ``count`` worlds' captures read, as NumPy arrays of the whole batch:
         one copy each, queued together (pinned buffers) and waited for once. New arrays every
-        batch: the writer threads may still be encoding the last batch's frames."""
+        batch: the writer threads may still be encoding the last batch's frames. ``images=False``:
+        the boxes and poses alone (``batched_disk`` moves the images itself)."""
         cam = self.camera
         out = cam.data.output
         device = {
-            "rgb": out["rgb"][:count], "depth": out["depth"][:count],
-            "geom_ids": out["instance_segmentation"][:count, ..., 0], "instances": instances,
-            "semantic": out["semantic_segmentation"][:count, ..., 0], "boxes": boxes, "pixels": pixels,
+            **({"rgb": out["rgb"][:count], "depth": out["depth"][:count],
+                "geom_ids": out["instance_segmentation"][:count, ..., 0], "instances": instances,
+                "semantic": out["semantic_segmentation"][:count, ..., 0]} if images else {}),
+            "boxes": boxes, "pixels": pixels,
             "pos_w": cam.data.pos_w[:count], "rot_gl": cam.data.rot_w_gl[:count],
             **{name: field[:count] for name, field in self._fields.items()},
         }
@@ -295,38 +298,7 @@ class BatchedFrameProducer:
 
     def capture(self, w: int, host: dict, k_matrix: np.ndarray) -> dict:
         """World ``w``'s frame of a batch (``to_host``) in ``Camera.capture``'s form."""
-        cfg, table, names = self.camera.cfg, self.table, self._annotators
-        pos, rot_gl = host["pos_w"][w], host["rot_gl"][w]
-        extr = _extrinsics(pos[None], rot_gl[None])[0]
-        out: dict = {"camera": {"intrinsics": k_matrix, "extrinsics_cw": extr, "pos_w": pos,
-                                "quat_w_opengl": mat_to_quat(rot_gl), "width": cfg.width, "height": cfg.height},
-                     "rgb": host["rgb"][w], "geom_ids": host["geom_ids"][w]}
-        if "depth" in names:
-            out["depth"] = host["depth"][w, ..., 0]
-        if "instance_segmentation" in names:
-            out["instance_segmentation"] = host["instances"][w]
-        if "semantic_segmentation" in names:
-            out["semantic_segmentation"] = host["semantic"][w]
-        boxes, pixels = host["boxes"][w], host["pixels"][w]
-        visible = np.flatnonzero(pixels > 0)
-        if "bounding_box_2d_tight" in names:
-            out["bounding_box_2d_tight"] = {"instance_id": visible + 1, "semantic_id": table.semantic_ids[visible + 1],
-                                            "box": boxes[visible], "pixels": pixels[visible]}
-        geom_pos, geom_rot = host["geom_xpos"][w], host["geom_xmat"][w].reshape(-1, 3, 3)
-        if "bounding_box_2d_loose" in names:
-            loose = ann.loose_boxes(table, self.model, geom_pos, geom_rot, extr, k_matrix, cfg.width, cfg.height,
-                                    cfg.clipping_range_m[0])
-            ids = np.array([i for i, b in enumerate(loose) if b is not None], np.int64)
-            out["bounding_box_2d_loose"] = {"instance_id": ids + 1, "semantic_id": table.semantic_ids[ids + 1],
-                                            "box": np.array([loose[i] for i in ids]).reshape(-1, 4)}
-        if "bounding_box_3d" in names:
-            center_w, rot_w, half = ann.instance_boxes_3d(table, self.model, host["xpos"][w],
-                                                          host["xmat"][w].reshape(-1, 3, 3), geom_pos, geom_rot)
-            out["bounding_box_3d"] = {
-                "instance_id": np.arange(1, table.num_instances + 1), "semantic_id": table.semantic_ids[1:],
-                "center_w": center_w, "rot_w": rot_w, "half_extent": half,
-                "center_c": center_w @ extr[:3, :3].T + extr[:3, 3], "rot_c": extr[:3, :3] @ rot_w}
-        return out
+        return frame_capture(w, host, k_matrix, self.camera.cfg, self.table, self.model, self._annotators)
 
     def close(self) -> None:
         """Stop the draw processes (the engine and camera buffers are freed with the producer)."""
@@ -335,10 +307,49 @@ class BatchedFrameProducer:
             self.draws = None
 
 
+def frame_capture(w: int, host: dict, k_matrix: np.ndarray, cfg: TiledCameraCfg, table, model, annotators) -> dict:
+    """World ``w``'s frame of a batch's host arrays (``BatchedFrameProducer.to_host``) in
+    ``Camera.capture``'s form, for camera ``cfg`` and ``annotators`` (a set of names). An image
+    missing from ``host`` is missing from the capture (the disk mode's writers get the images
+    already converted on the device)."""
+    names = annotators
+    pos, rot_gl = host["pos_w"][w], host["rot_gl"][w]
+    extr = _extrinsics(pos[None], rot_gl[None])[0]
+    out: dict = {"camera": {"intrinsics": k_matrix, "extrinsics_cw": extr, "pos_w": pos,
+                            "quat_w_opengl": mat_to_quat(rot_gl), "width": cfg.width, "height": cfg.height}}
+    out |= {name: host[name][w] for name in ("rgb", "geom_ids") if name in host}
+    if "depth" in names and "depth" in host:
+        out["depth"] = host["depth"][w, ..., 0]
+    if "instance_segmentation" in names:
+        out["instance_segmentation"] = host["instances"][w]
+    if "semantic_segmentation" in names and "semantic" in host:
+        out["semantic_segmentation"] = host["semantic"][w]
+    boxes, pixels = host["boxes"][w], host["pixels"][w]
+    visible = np.flatnonzero(pixels > 0)
+    if "bounding_box_2d_tight" in names:
+        out["bounding_box_2d_tight"] = {"instance_id": visible + 1, "semantic_id": table.semantic_ids[visible + 1],
+                                        "box": boxes[visible], "pixels": pixels[visible]}
+    geom_pos, geom_rot = host["geom_xpos"][w], host["geom_xmat"][w].reshape(-1, 3, 3)
+    if "bounding_box_2d_loose" in names:
+        loose = ann.loose_boxes(table, model, geom_pos, geom_rot, extr, k_matrix, cfg.width, cfg.height,
+                                cfg.clipping_range_m[0])
+        ids = np.array([i for i, b in enumerate(loose) if b is not None], np.int64)
+        out["bounding_box_2d_loose"] = {"instance_id": ids + 1, "semantic_id": table.semantic_ids[ids + 1],
+                                        "box": np.array([loose[i] for i in ids]).reshape(-1, 4)}
+    if "bounding_box_3d" in names:
+        center_w, rot_w, half = ann.instance_boxes_3d(table, model, host["xpos"][w],
+                                                      host["xmat"][w].reshape(-1, 3, 3), geom_pos, geom_rot)
+        out["bounding_box_3d"] = {
+            "instance_id": np.arange(1, table.num_instances + 1), "semantic_id": table.semantic_ids[1:],
+            "center_w": center_w, "rot_w": rot_w, "half_extent": half,
+            "center_c": center_w @ extr[:3, :3].T + extr[:3, 3], "rot_c": extr[:3, :3] @ rot_w}
+    return out
+
+
 def _split(indices, size: int) -> list[list[int]]:
     """``indices`` in launches of ``size`` frames (the last may be short)."""
     indices = list(indices)
     return [indices[start:start + size] for start in range(0, len(indices), size)]
 
 
-__all__ = ["BatchedFrameProducer", "IMAGE_SOURCE", "device_tight_boxes", "tiled_camera_cfg"]
+__all__ = ["BatchedFrameProducer", "IMAGE_SOURCE", "device_tight_boxes", "frame_capture", "tiled_camera_cfg"]

@@ -49,6 +49,11 @@ class DrawPool:
         return [(start, self._pool.submit(_draw, seed, indices[start:start + size]))
                 for start in range(0, len(indices), size)]
 
+    def submit_call(self, fn, *args):
+        """Run ``fn(*args)`` (a module-level function) on one of the processes; returns its future.
+        What ``batched_disk`` writes a batch's files with: the processes hold the scene already."""
+        return self._pool.submit(fn, *args)
+
     def warm(self) -> None:
         """Build every process's producer now (spawn, imports, scene: seconds), not on the first batch.
         One process first: with a cold Warp cache it compiles the render context's CPU kernels

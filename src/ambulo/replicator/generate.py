@@ -23,8 +23,10 @@ from ambulo.core import compile_scene
 from ambulo.utils.atomic import atomic_write_json, remove_partial_files
 
 from .batched import IMAGE_SOURCE, BatchedFrameProducer
+from .batched_disk import SUPPORTED_OUTPUTS, run_batched_frames, supports
 from .coco import merge_coco
 from .config import DatasetConfig
+from .encode import IMAGE_FORMATS, JPEG_QUALITY, jpeg_available
 from .io import PNG_DEFLATE
 from .manifest import open_dataset
 from .processes import default_workers, run_on_processes
@@ -47,7 +49,8 @@ BACKENDS = ("auto", "processes", "ray")
 def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int = 0, workers: int | None = 1,
              show_progress: bool = True, backend: str = "auto", overwrite: bool = False,
              device: str | None = None, num_worlds: int = 64, writer_threads: int | None = None,
-             num_gpus: int = 1, watch: Callable[[Any], Any] | None = None, draw_workers: int = 0) -> Path:
+             num_gpus: int = 1, watch: Callable[[Any], Any] | None = None, draw_workers: int = 0,
+             image_format: str = "png") -> Path:
     """Write (or finish) a dataset of ``num_frames`` frames in ``out``; returns annotations.json.
 
     ``out`` must be new, empty, or a dataset of the same config and seed (``dataset.json``):
@@ -67,7 +70,10 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
     over that many processes, one per GPU (``cuda:0`` ... of ``device``'s type), whole launches each.
     ``draw_workers`` > 0 (one GPU) samples the randomizers' draws in that many processes, a batch ahead
     of the render (``draw_pool.DrawPool``; the same numbers): the host-side draws otherwise bound a
-    GPU's rate.
+    GPU's rate; those processes then also write the files (``batched_disk``: the same files).
+    ``image_format`` 'jpg' (``--device``, one GPU) writes the RGB images as JPEG encoded on the GPU
+    (nvjpeg through torchvision, which must be installed), on ``draw_workers`` processes (default:
+    one per CPU but two); the fingerprint records it.
 
     ``watch`` (``ambulo generate --viewer web``) is called with the producer, in this process (so
     one worker, one GPU), before the first frame; what it returns joins the producer's
@@ -93,6 +99,19 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
     if draw_workers < 0 or (draw_workers and (device is None or num_gpus > 1)):
         raise ValueError(f"--draw-workers {draw_workers} feeds the one-GPU batched path: give --device and one GPU, "
                          "or drop it")
+    if image_format not in IMAGE_FORMATS:
+        raise ValueError(f"--image-format must be one of {IMAGE_FORMATS}, got {image_format!r}")
+    if image_format == "jpg":
+        if device is None or num_gpus > 1 or watch is not None:
+            raise ValueError("--image-format jpg encodes on the GPU of the batched path: give --device and one GPU "
+                             "(and no viewer)")
+        if not supports(config.writer):
+            raise ValueError(f"--image-format jpg writes {sorted(SUPPORTED_OUTPUTS)} with png16 depth, not "
+                             f"{list(config.writer.outputs)}")
+        if not jpeg_available(device):
+            raise ValueError(f"--image-format jpg needs torchvision built for this torch with JPEG encoding on "
+                             f"{device}; install it or write PNG")
+        draw_workers = draw_workers or max(1, (os.cpu_count() or 3) - 2)
     if watch is not None and (workers not in (None, 1) or num_gpus > 1 or backend == "ray"):
         raise ValueError("watching a dataset's generation needs its producer in this process: one worker, "
                          "one GPU, no Ray")
@@ -108,8 +127,9 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
 
             draws = DrawPool(config, draw_workers)
         producer = BatchedFrameProducer(config, num_worlds, device, draws=draws)
-    open_dataset(out, config, seed, model, num_frames, overwrite,
-                 image_source=IMAGE_SOURCE if device is not None else None)
+    source = None if device is None else IMAGE_SOURCE if image_format == "png" else f"{IMAGE_SOURCE}, rgb jpeg " \
+        f"q{JPEG_QUALITY}"
+    open_dataset(out, config, seed, model, num_frames, overwrite, image_source=source)
     prepare_dirs(out, config.writer)
     remove_partial_files(out, *(out / sub for sub in frame_subdirs(config.writer)))
     todo = sorted(set(range(num_frames)) - done_frames(out, num_frames))
@@ -139,6 +159,8 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
             renderer = run_on_ray(config, out, seed, todo, workers, bar.update)
         elif workers > 1:
             renderer = run_on_processes(config, out, seed, todo, workers, bar.update)
+        elif batched and producer.draws is not None and watch is None and supports(config.writer):
+            renderer = run_batched_frames(config, out, seed, todo, producer, bar.update, image_format)
         else:
             renderer = run_frames(config, out, seed, todo, progress, producer=producer,
                                   writer_threads=writer_threads if batched else 1)

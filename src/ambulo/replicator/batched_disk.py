@@ -1,0 +1,300 @@
+"""The GPU path's disk mode: a batch's pixels prepared on the device, its files written on every core.
+
+``run_frames`` with writer threads (the batched path's first disk mode) leaves a frame's host
+work (loose and 3D boxes, COCO RLE, four PNG encodes, the record: ~20 ms of CPU a 640x480 frame)
+to threads of the producer's process, and much of it holds the GIL. ``run_batched_frames`` encodes
+the RGB images on the device when ``image_format='jpg'`` (``encode``: nvjpeg, a third of the PNG
+work gone) and moves the rest to the draw processes (``draw_pool.DrawPool``, which already hold
+the scene): each batch's images (ids as 16 bits) are copied once into a shared-memory block
+(page-locked for the GPU's copy when CUDA allows), and each process writes a contiguous part of
+the batch's frames from there (``writers.write_frame_files``) and hands back their records. The records are
+written here, a batch at a time after one flush of the batch's files (``FrameWriter``), so a record
+on disk still always points to data on disk; two blocks alternate, so the device renders batch
+i+1 while the processes write batch i.
+
+The files are the ``run_frames`` path's, byte for byte, with PNG RGB (tested); with JPEG the RGB
+file is ``rgb/NNNNNN.jpg`` and the record's ``file_name`` says so (``write_jpeg_frame``). Writers supported: coco, depth (png16), masks, kitti; others (raw, npy
+depth) take ``run_frames``.
+"""
+
+from __future__ import annotations
+
+import collections
+import contextlib
+import mmap
+import os
+import pickle
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from ambulo.utils.atomic import atomic_write_bytes
+
+from . import draw_pool
+from .batched import BatchedFrameProducer, frame_capture, tiled_camera_cfg
+from .coco import frame_annotations
+from .encode import IMAGE_FORMATS, as_u16_bits, encode_jpegs
+from .io import depth_to_mm_u16, encode_png
+from .writers import FrameWriter, frame_stem, kitti_lines, write_frame_files
+
+SUPPORTED_OUTPUTS = {"coco", "depth", "masks", "kitti"}
+
+
+def supports(writer_cfg) -> bool:
+    """Whether ``run_batched_frames`` writes this writer config (else ``run_frames`` does)."""
+    return set(writer_cfg.outputs) <= SUPPORTED_OUTPUTS and writer_cfg.depth_format == "png16"
+
+
+class SharedBatch:
+    """One batch's images in a memory-mapped file that the writer processes map too: named NumPy
+    arrays over it, page-locked for CUDA copies when the driver agrees (else the copies go through
+    pageable memory). The file lives in ``/dev/shm`` when that has room for it (a container's is
+    often 64 MB), else in the temporary folder (the page cache holds it)."""
+
+    def __init__(self, layout: dict[str, tuple[tuple[int, ...], str]], pin: bool):
+        self.layout = layout
+        offsets, size = {}, 0
+        for name, (shape, dtype) in layout.items():
+            offsets[name] = size
+            size += -(-int(np.prod(shape)) * np.dtype(dtype).itemsize // 64) * 64
+        self.offsets, self.size = offsets, max(size, 64)
+        fd, self.path = tempfile.mkstemp(prefix="ambulo-batch-", dir=_block_dir(self.size))
+        try:
+            os.ftruncate(fd, self.size)
+            self._map = mmap.mmap(fd, self.size)
+        finally:
+            os.close(fd)
+        self.arrays = _arrays(self._map, layout, offsets)
+        self._pinned = None
+        if pin:
+            pointer = np.frombuffer(self._map, np.uint8, count=1).ctypes.data
+            if int(torch.cuda.cudart().cudaHostRegister(pointer, self.size, 0)) == 0:
+                self._pinned = pointer
+
+    @property
+    def spec(self) -> tuple[str, dict, dict]:
+        """What a process needs to map the block: its file, the layout and the offsets."""
+        return self.path, self.layout, self.offsets
+
+    def close(self) -> None:
+        if self._pinned is not None:
+            torch.cuda.cudart().cudaHostUnregister(self._pinned)
+            self._pinned = None
+        self.arrays.clear()
+        with contextlib.suppress(BufferError):  # a view still alive: the mapping goes with it
+            self._map.close()
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(self.path)
+
+
+def _block_dir(size: int) -> str | None:
+    """``/dev/shm`` when it has room for two blocks and some to spare, else the temporary folder."""
+    try:
+        stat = os.statvfs("/dev/shm")
+    except OSError:
+        return None
+    return "/dev/shm" if stat.f_bavail * stat.f_frsize > 3 * size else None
+
+
+def _arrays(buffer, layout: dict, offsets: dict) -> dict:
+    return {name: np.ndarray(shape, dtype, buffer=buffer, offset=offsets[name]) for name, (shape, dtype) in layout.items()}
+
+
+def batch_layout(num_worlds: int, height: int, width: int, jpeg: bool) -> dict:
+    """The arrays a batch's block holds: depth (m), instance and semantic ids (16 bits), and the RGB
+    images, raw or as the batch's JPEG files end to end (``jpeg_bytes``, with their offsets)."""
+    image = (num_worlds, height, width)
+    layout = {"depth": ((*image, 1), "<f4"), "instances": (image, "<u2"), "semantic": (image, "<u2")}
+    if jpeg:  # a JPEG larger than its raw pixels does not occur at the quality used
+        layout["jpeg_bytes"] = ((num_worlds * height * width * 3,), "u1")
+    else:
+        layout["rgb"] = ((*image, 3), "u1")
+    return layout
+
+
+def run_batched_frames(config, out: Path, seed: int, frames: list[int], producer: BatchedFrameProducer,
+                       progress=None, image_format: str = "png") -> str:
+    """Render and write ``frames`` (see the module docstring); returns the renderer's name.
+    ``producer.draws`` (a ``DrawPool`` of this config) draws the scenes and writes the files."""
+    if image_format not in IMAGE_FORMATS:
+        raise ValueError(f"image format must be one of {IMAGE_FORMATS}, got {image_format!r}")
+    if not supports(config.writer):
+        raise ValueError(f"the batched disk mode writes {sorted(SUPPORTED_OUTPUTS)} with png16 depth; "
+                         f"got outputs {list(config.writer.outputs)}, depth {config.writer.depth_format!r}")
+    pool = producer.draws
+    if pool is None:
+        raise ValueError("run_batched_frames writes on the producer's draw processes: give it a DrawPool")
+    out = Path(out)
+    jpeg = image_format == "jpg"
+    cfg = producer.camera.cfg
+    cuda = producer.engine.device.type == "cuda"
+    writer = FrameWriter(out, config.writer, batch=producer.num_worlds)
+    layout = batch_layout(producer.num_worlds, cfg.height, cfg.width, jpeg)
+    blocks = [SharedBatch(layout, pin=cuda) for _ in range(2)]
+    free = collections.deque(blocks)
+    in_flight: collections.deque = collections.deque()  # (block, futures) in batch order
+
+    def settle() -> None:
+        block, futures = in_flight.popleft()
+        try:
+            for future in futures:
+                for index, record in future.result():
+                    writer.add(index, record)
+                    if progress is not None:
+                        progress(1)
+        finally:
+            free.append(block)
+
+    try:
+        for chunk, drawn in producer._chunks(seed, frames):
+            logs, (instances, boxes, pixels) = producer._render_chunk(seed, chunk, drawn)
+            count = len(chunk)
+            images = producer.camera.data.output
+            device = {"depth": images["depth"][:count], "instances": as_u16_bits(instances),
+                      "semantic": as_u16_bits(images["semantic_segmentation"][:count, ..., 0])}
+            sizes = None
+            if jpeg:
+                files = encode_jpegs(images["rgb"][:count])
+                sizes = [int(f.numel()) for f in files]
+                device["jpeg_bytes"] = torch.cat(files)
+            else:
+                device["rgb"] = images["rgb"][:count]
+            if not free:
+                settle()
+            block = free.popleft()
+            for name, tensor in device.items():
+                target = block.arrays[name].reshape(-1)[:tensor.numel()].view(_NUMPY[tensor.dtype])
+                torch.from_numpy(target).view(tensor.shape).copy_(tensor, non_blocking=cuda)
+            small = producer.to_host(count, instances, boxes, pixels, images=False)  # syncs the stream
+            in_flight.append((block, _submit_parts(pool, block, chunk, logs, small, sizes, out, config.writer,
+                                                   image_format, writer.fsync_files)))
+        while in_flight:
+            settle()
+    finally:
+        for _, futures in in_flight:  # an error: keep the frames already written, drop the rest
+            for future in futures:
+                if not future.cancel():
+                    with contextlib.suppress(Exception):
+                        for index, record in future.result():
+                            writer.add(index, record)
+        writer.flush()
+        for block in blocks:
+            block.close()
+    return producer.gl_renderer
+
+
+_NUMPY = {torch.int16: np.int16, torch.uint8: np.uint8, torch.float32: np.float32}
+"""The NumPy view of a block's bytes that a device tensor is copied into (the same bits)."""
+
+
+def _submit_parts(pool, block: SharedBatch, chunk, logs, small: dict, sizes, out, writer_cfg, image_format: str,
+                  fsync_files: bool) -> list:
+    """The batch's frames in one contiguous part per process, each written there (``_write_part``)."""
+    count = len(chunk)
+    size = -(-count // pool.workers)
+    ends = np.cumsum(sizes) if sizes is not None else None
+    futures = []
+    for start in range(0, count, size):
+        stop = min(count, start + size)
+        part_small = {name: array[start:stop] for name, array in small.items()}
+        jpeg_spans = None if ends is None else [(int(ends[w] - sizes[w]), int(ends[w])) for w in range(start, stop)]
+        futures.append(pool.submit_call(_write_part, block.spec, start, chunk[start:stop], logs[start:stop],
+                                        part_small, jpeg_spans, os.fspath(out), pickle.dumps(writer_cfg),
+                                        image_format, fsync_files))
+    return futures
+
+
+# -- in the draw processes ----------------------------------------------------------------------
+
+_blocks: dict[str, tuple] = {}
+
+
+def _attach(spec) -> dict:
+    """The arrays of a batch block (mapped once per process; the mappings of earlier runs' blocks,
+    whose files are gone, are dropped)."""
+    path, layout, offsets = spec
+    hit = _blocks.get(path)
+    if hit is None:
+        for old in [p for p in _blocks if not os.path.exists(p)]:
+            mapping, arrays = _blocks.pop(old)
+            arrays.clear()
+            with contextlib.suppress(BufferError):
+                mapping.close()
+        with open(path, "r+b") as f:
+            mapping = mmap.mmap(f.fileno(), 0)
+        hit = _blocks[path] = (mapping, _arrays(mapping, layout, offsets))
+    return hit[1]
+
+
+def _frame_context() -> tuple:
+    """(camera cfg at the dataset's size, its K, table, model, annotators) of this process's config."""
+    ctx = draw_pool._worker.get("frame_context")
+    if ctx is None:
+        producer = draw_pool._producer()  # the scene at 8x8: the model and the instance table
+        config = pickle.loads(draw_pool._worker["payload"])
+        cfg = tiled_camera_cfg(config.camera)
+        ctx = draw_pool._worker["frame_context"] = (cfg, cfg.intrinsics_matrix(), producer.table, producer.model,
+                                                     set(config.camera.annotators))
+    return ctx
+
+
+def _write_part(spec, start: int, indices: list[int], logs: list[dict], small: dict, jpeg_spans, out: str,
+                writer_payload: bytes, image_format: str, fsync_files: bool) -> list[tuple[int, dict]]:
+    """Write frames ``indices`` (worlds ``start``... of the block ``spec``); returns their records."""
+    arrays = _attach(spec)
+    cfg, k_matrix, table, model, annotators = _frame_context()
+    writer_cfg = pickle.loads(writer_payload)
+    records = []
+    part = slice(start, start + len(indices))
+    host = {**small, "instances": arrays["instances"][part], "semantic": arrays["semantic"][part],
+            "depth": arrays["depth"][part]}
+    if jpeg_spans is None:
+        host["rgb"] = arrays["rgb"][part]
+    for i, (index, log) in enumerate(zip(indices, logs)):
+        capture = frame_capture(i, host, k_matrix, cfg, table, model, annotators)
+        if jpeg_spans is None:
+            record = write_frame_files(Path(out), index, capture, table, log, writer_cfg, fsync_files)
+        else:
+            lo, hi = jpeg_spans[i]
+            record = write_jpeg_frame(out, index, capture, table, log, writer_cfg, fsync_files,
+                                      arrays["jpeg_bytes"][lo:hi])
+        records.append((index, record))
+    return records
+
+
+def write_jpeg_frame(out: str, index: int, capture: dict, table, log: dict, cfg, fsync: bool, jpeg) -> dict:
+    """``writers.write_frame_files`` with the RGB image as ``rgb/NNNNNN.jpg`` (``jpeg``: the file's
+    bytes, encoded on the device); the other files and the record as there."""
+    stem = frame_stem(index)
+    level = cfg.png_compress_level
+    files: dict[str, int] = {}
+
+    def put(relpath: str, data) -> None:
+        files[relpath] = atomic_write_bytes(os.path.join(out, relpath), data, fsync=fsync)
+
+    rgb_file = f"rgb/{stem}.jpg"
+    put(rgb_file, jpeg)
+    if "depth" in cfg.outputs:
+        put(f"depth/{stem}.png", encode_png(depth_to_mm_u16(capture["depth"], ">"), level))
+    if "masks" in cfg.outputs:
+        put(f"instance/{stem}.png", encode_png(capture["instance_segmentation"].astype(">u2"), level))
+        if "semantic_segmentation" in capture:
+            put(f"semantic/{stem}.png", encode_png(capture["semantic_segmentation"].astype(">u2"), level))
+    annotations = frame_annotations(capture, table.semantic_ids, table.names, cfg.min_visible_pixels)
+    if "kitti" in cfg.outputs:
+        put(f"kitti/{stem}.txt", kitti_lines(annotations, table.categories, capture).encode())
+    cam = capture["camera"]
+    return {
+        "frame": index, "file_name": rgb_file, "width": int(cam["width"]), "height": int(cam["height"]),
+        "annotations": annotations,
+        "camera": {"intrinsics": cam["intrinsics"].tolist(), "extrinsics_cw": cam["extrinsics_cw"].tolist(),
+                   "pos_w": cam["pos_w"].tolist(), "quat_w_opengl": cam["quat_w_opengl"].tolist()},
+        "randomization": log,
+        "files": files,
+    }
+
+
+__all__ = ["SUPPORTED_OUTPUTS", "SharedBatch", "batch_layout", "run_batched_frames", "supports",
+           "write_jpeg_frame"]

@@ -1,0 +1,103 @@
+"""``batched_disk``: the GPU path's disk mode, files written on the draw processes from shared memory.
+
+Moving the writing to other processes must change no file: the PNG dataset equals ``run_frames``'s
+byte for byte (slow on Warp's CPU device: each process builds the scene). The JPEG mode needs CUDA
+and torchvision: its labels equal the PNG dataset's and its images decode to nearly the same pixels.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from ambulo import replicator as rep
+from ambulo.replicator.batched_disk import SharedBatch, batch_layout, run_batched_frames, supports
+from ambulo.replicator.encode import jpeg_available
+
+
+def test_shared_batch_holds_the_layouts_arrays_and_is_removed_on_close():
+    import mmap
+    import os
+
+    layout = batch_layout(3, 4, 5, jpeg=False)
+    block = SharedBatch(layout, pin=False)
+    assert {k: (a.shape, a.dtype.str) for k, a in block.arrays.items()} == {
+        "depth": ((3, 4, 5, 1), "<f4"), "instances": ((3, 4, 5), "<u2"), "semantic": ((3, 4, 5), "<u2"),
+        "rgb": ((3, 4, 5, 3), "|u1")}
+    for i, array in enumerate(block.arrays.values()):
+        array[...] = i + 1
+    path, _, offsets = block.spec
+    with open(path, "r+b") as f:  # what a writer process maps
+        other = mmap.mmap(f.fileno(), 0)
+    view = {k: np.ndarray(shape, dtype, buffer=other, offset=offsets[k]) for k, (shape, dtype) in layout.items()}
+    for i, key in enumerate(layout):
+        assert (view[key] == i + 1).all(), key  # no two arrays overlap
+    del view
+    other.close()
+    block.close()
+    assert not os.path.exists(path)
+    assert batch_layout(2, 4, 5, jpeg=True)["jpeg_bytes"] == ((2 * 4 * 5 * 3,), "u1")
+
+
+def test_the_disk_mode_refuses_what_it_cannot_write(tmp_path):
+    config = rep.example_config(64, 48)
+    assert supports(config.writer)
+    raw = dataclasses.replace(config.writer, outputs=("coco", "raw"))
+    assert not supports(raw) and not supports(dataclasses.replace(config.writer, depth_format="npy"))
+    with pytest.raises(ValueError, match="image format"):
+        run_batched_frames(config, tmp_path, 0, [0], producer=None, image_format="webp")
+    with pytest.raises(ValueError, match="raw"):
+        run_batched_frames(dataclasses.replace(config, writer=raw), tmp_path, 0, [0], producer=None)
+    with pytest.raises(ValueError, match="jpg"):  # JPEG is the batched GPU path's
+        rep.generate(config, tmp_path / "d", 1, image_format="jpg", show_progress=False)
+
+
+def _tree(root) -> dict:
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+@pytest.mark.slow
+def test_files_written_on_the_draw_processes_equal_run_frames_files(tmp_path):
+    from ambulo.replicator.batched import BatchedFrameProducer
+    from ambulo.replicator.draw_pool import DrawPool
+    from ambulo.replicator.producer import run_frames
+    from ambulo.replicator.writers import prepare_dirs
+
+    config = rep.example_config(64, 48)
+    config = dataclasses.replace(config, writer=dataclasses.replace(config.writer,
+                                                                    outputs=("coco", "depth", "masks", "kitti")))
+    # 3 worlds for 7 frames: two full launches and a partial one, two blocks in turn
+    producer = BatchedFrameProducer(config, num_worlds=3, device="cpu", draws=DrawPool(config, 2))
+    try:
+        for name in ("pool", "threads"):
+            prepare_dirs(tmp_path / name, config.writer)
+        run_batched_frames(config, tmp_path / "pool", 2, list(range(7)), producer)
+        run_frames(config, tmp_path / "threads", 2, list(range(7)), producer=producer, writer_threads=2)
+    finally:
+        producer.close()
+    pool, threads = _tree(tmp_path / "pool"), _tree(tmp_path / "threads")
+    assert len(pool) >= 7 * 5 and sorted(pool) == sorted(threads)
+    for name in pool:
+        assert pool[name] == threads[name], name
+
+
+@pytest.mark.skipif(not (torch.cuda.is_available() and jpeg_available("cuda")), reason="needs CUDA and torchvision")
+def test_a_jpeg_dataset_has_the_png_datasets_labels_and_nearly_its_pixels(tmp_path):
+    from PIL import Image
+
+    config = rep.example_config(160, 120)
+    paths = {fmt: rep.generate(config, tmp_path / fmt, 6, seed=3, show_progress=False, device="cuda", num_worlds=4,
+                               draw_workers=2, image_format=fmt) for fmt in ("png", "jpg")}
+    png, jpg = (json.loads(paths[fmt].read_text()) for fmt in ("png", "jpg"))
+    assert [i["file_name"] for i in jpg["images"]] == [f"rgb/{i:06d}.jpg" for i in range(6)]
+    assert jpg["annotations"] == png["annotations"]
+    fingerprint = json.loads((tmp_path / "jpg" / "dataset.json").read_text())["fingerprint"]
+    assert "jpeg" in fingerprint["image_source"]
+    for i in range(6):
+        a = np.asarray(Image.open(tmp_path / "png" / f"rgb/{i:06d}.png"), np.float64)
+        b = np.asarray(Image.open(tmp_path / "jpg" / f"rgb/{i:06d}.jpg"), np.float64)
+        assert a.shape == b.shape and np.abs(a - b).mean() < 3.0
