@@ -207,3 +207,23 @@ def test_a_lidars_last_scan_is_drawn_without_feeding_it():
     finally:
         v.close()
         World.clear_instance()
+
+
+def test_balance_ground_is_the_floor_not_every_fixed_geom():
+    import mujoco
+
+    from ambulo.viewer.physics_overlay import BalanceProbe
+
+    model = mujoco.MjModel.from_xml_string("""
+    <mujoco><worldbody>
+      <geom name="floor" type="plane" size="5 5 0.1"/>
+      <geom name="rug" type="box" size="0.5 0.5 0.005" pos="1 0 0.005"/>
+      <geom name="wall" type="box" size="0.05 2 1.2" pos="2 0 1.2"/>
+      <geom name="table" type="box" size="0.4 0.4 0.02" pos="-1 0 0.75"/>
+      <geom name="picture" type="plane" size="0.3 0.3 0.1" pos="1.9 0 1.5" zaxis="-1 0 0"/>
+      <body name="robot" pos="0 0 0.5"><freejoint/><geom name="foot" type="box" size="0.1 0.1 0.1"/></body>
+    </worldbody></mujoco>""")
+    robot = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "robot")
+    probe = BalanceProbe(model, robot, [robot])
+    names = {mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, int(g)) for g in probe.cop.ground_geom_ids}
+    assert names == {"floor", "rug"} and probe.cop.ground_height_m == 0.0

@@ -7,7 +7,8 @@ floats) when the streaming thread asks; here a private ``MjData`` is filled from
 The forces are those of a forward pass at that state (the solver starts cold), which match the
 step's to the solver's tolerance. The balance quantities are ``locomotion.balance``'s: the CoP of
 the robot's contacts with the world's geoms (``CenterOfPressure``, the measured ZMP) and the
-instantaneous capture point (``capture_point``) of its subtree CoM.
+instantaneous capture point (``capture_point``) of its subtree CoM; the ground is the floor's
+geoms only (``ground_geoms``), not every geom welded to the world.
 """
 
 from __future__ import annotations
@@ -85,18 +86,45 @@ class BalancePoints:
     """(3,) instantaneous capture point, on the ground (at the ZMP's ground height)."""
 
 
+GROUND_STEP_M = 0.05
+"""A world-fixed geom is ground when its top is at most this far above the floor (a rug, a door
+sill); walls, furniture, a table or door frame the robot touches are not (their pushes are not the
+ground's, and the measured ZMP lies on the floor)."""
+
+
+def ground_geoms(model: mujoco.MjModel) -> tuple[np.ndarray, float]:
+    """The geoms a robot stands on, and the floor's height, m: the first upward-facing plane welded to
+    the world (the ground plane, added first by scenes; else the lowest top of a world-fixed geom), and
+    every world-fixed geom whose top is within ``GROUND_STEP_M`` of it. Raises ``ValueError`` when
+    nothing is welded to the world."""
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+    tops, floor_m = {}, None
+    for g in np.flatnonzero(model.body_weldid[model.geom_bodyid] == 0):
+        rot = data.geom_xmat[g].reshape(3, 3)
+        if int(model.geom_type[g]) == mujoco.mjtGeom.mjGEOM_PLANE:
+            if rot[2, 2] > 0.99:  # facing up: a floor (walls' and pictures' planes face sideways)
+                tops[g] = float(data.geom_xpos[g][2])
+                floor_m = tops[g] if floor_m is None else floor_m
+            continue
+        box = model.geom_aabb[g]  # centre, half sizes in the geom's frame
+        tops[g] = float(((box[:3] + corners * box[3:]) @ rot.T + data.geom_xpos[g])[:, 2].max())
+    if not tops:
+        raise ValueError("balance overlay: no geom is welded to the world (no ground)")
+    floor_m = min(tops.values()) if floor_m is None else floor_m
+    return np.array([g for g, top in tops.items() if top <= floor_m + GROUND_STEP_M]), floor_m
+
+
 class BalanceProbe:
     """``BalancePoints`` of the robot whose root body is ``root_body``: every geom of its subtree
-    (``robot_bodies``) counts as a foot, every geom welded to the world (a ground plane, a floor
-    box, walls) as ground, at the height of the first (the ground plane, added first by scenes).
-    Raises ``ValueError`` for a scene with no such geom (nothing to stand on)."""
+    (``robot_bodies``) counts as a foot, the floor's geoms (``ground_geoms``) as ground. Raises
+    ``ValueError`` for a scene with nothing to stand on."""
 
     def __init__(self, model: mujoco.MjModel, root_body: int, robot_bodies: list[int]):
         self.root_body = root_body
-        ground = np.flatnonzero(model.body_weldid[model.geom_bodyid] == 0)
-        if len(ground) == 0:
-            raise ValueError("balance overlay: no geom is welded to the world (no ground)")
-        self.cop = CenterOfPressure(model, robot_bodies, ground_geoms=ground.tolist())
+        ground, floor_m = ground_geoms(model)
+        self.cop = CenterOfPressure(model, robot_bodies, ground_geoms=ground.tolist(), ground_height_m=floor_m)
 
     def __call__(self, data: mujoco.MjData) -> BalancePoints:
         com_w = np.asarray(data.subtree_com[self.root_body], dtype=float).copy()
