@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 from .errors import CliError, check_seconds
+from .viewer_args import add_viewer_args, viewer_kind
 
 _KINDS = (".xml", ".urdf", ".usd", ".usda", ".usdc", ".usdz")
 
@@ -189,6 +190,13 @@ def _navigate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _serve(world, args: argparse.Namespace):
+    """``--viewer web``: the scene in a browser (and the detector's frames, ``ShownDetector``)."""
+    from ambulo.viewer import serve
+
+    return serve(world, port=args.viewer_port)
+
+
 def run(args: argparse.Namespace) -> int:
     if args.navigate and not args.recover:
         if args.target is None:
@@ -222,6 +230,11 @@ def run(args: argparse.Namespace) -> int:
     from ambulo.ros2 import BridgeCfg, Ros2Bridge
 
     world = _world(args.target, args)
+    viewer = _serve(world, args) if viewer_kind(args) else None
+    if viewer is not None and detector is not None:  # the page shows each detected frame with its boxes
+        from ambulo.viewer.detections import ShownDetector
+
+        detector = ShownDetector(detector, viewer)
     cfg = BridgeCfg(namespace=args.namespace, frame_prefix=args.frame_prefix, camera_qos=args.camera_qos,
                     camera_rate_hz=args.camera_rate, record=str(bag) if bag else None,
                     foxglove_port=args.foxglove_port if args.foxglove else None)
@@ -229,6 +242,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         bridge = Ros2Bridge(world, cfg, detector=detector)
     except ValueError as err:  # the detector cannot take the scene's camera (check_detector)
+        if viewer is not None:
+            viewer.close()
         if detector is None:
             raise
         raise CliError(f"--detector: {str(err).split('; ')[0]}", str(err).split("; ", 1)[-1]) from None
@@ -250,6 +265,8 @@ def run(args: argparse.Namespace) -> int:
                     time.sleep(ahead)
     finally:
         bridge.close()
+        if viewer is not None:
+            viewer.close()
         wall = time.perf_counter() - start
         print(f"simulated {done * dt:.2f} s in {wall:.2f} s wall; published "
               + ", ".join(f"{t} {n}" for t, n in sorted(bridge.published.items()))
@@ -289,6 +306,7 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
                    "(vision_msgs/Detection2DArray) and /detections/segmentation (mono16, models with masks), "
                    "stamped like the image. Inference runs in the camera path on the physics thread: it costs "
                    "--camera-rate inferences of CPU per simulated second and slows the simulation by as much")
+    add_viewer_args(p)  # the scene live, and with --detector each detected frame with its boxes
     nav = p.add_argument_group("navigator", "`ambulo bridge apartment|WORLD --navigate`: the humanoid navigator "
                                "as a ROS 2 node: goals on /goal_pose (RViz's 2D Goal Pose); /plan, /footsteps, /map, "
                                "/costmap, /odom, /tf (map -> odom -> base_link), /navigate/status out")
