@@ -99,3 +99,46 @@ def test_trains_and_evaluates_on_the_cpu(tmp_path):
     assert result["criteria"] == ["places_feet"] and isinstance(result["places_feet"], bool)
     assert math.isfinite(result["mean_placement_error_m"]) and result["mean_placement_error_m"] > 0
     assert "mean_touchdowns_per_s" in result
+
+
+def test_follows_given_plans_then_the_sampler():
+    env = envs.make("humanoid-footsteps", num_envs=2, seed=2, num_threads=1, play=True)
+    feet = env.soles_xyyaw_w()  # rows 0, 1 of the plan: where the robot stands, left first to move
+    rows = [feet[:, 0], feet[:, 1]]
+    for k in range(4):  # 4 steps of 0.1 m straight ahead, left, right, left, right
+        rows.append(relative_to_world(rows[-1], torch.tensor([0.1, 0.18 if k % 2 == 0 else -0.18, 0.0])))
+    plans = torch.stack(rows, dim=1)
+    sides = torch.tensor([1.0, -1.0, 1.0, -1.0, 1.0, -1.0]).expand(2, 6)
+    with pytest.raises(ValueError, match="alternate"):
+        env.follow_plans(plans, torch.ones(2, 6), torch.tensor([4, 4]))
+    obs = env.follow_plans(plans, sides, torch.tensor([4, 3]))
+    assert torch.equal(obs, env.obs_buf) and env.steps_taken.tolist() == [0, 0]
+    torch.testing.assert_close(env.targets_xyyaw_w, plans[:, 2:4])
+    assert env.target_sides.tolist() == [[1.0, -1.0]] * 2
+    never = torch.zeros(2, 2, dtype=torch.bool)
+    for k in range(3):  # the swing foot lands exactly on its target each time
+        soles = env.soles_xyyaw_w().clone()
+        swing = env._swing_index()
+        soles[torch.arange(2), swing] = env.targets_xyyaw_w[:, 0]
+        first_contact = never.clone()
+        first_contact[torch.arange(2), swing] = True
+        env.update_plan(soles, first_contact, torch.full((2, 2), 0.4))
+        assert env.touchdown_error_m.tolist() == pytest.approx([0.0, 0.0], abs=1e-5)
+        if k == 0:
+            torch.testing.assert_close(env.targets_xyyaw_w, plans[:, 3:5])
+        if k == 1:  # world 1's plan has 3 steps: on its last (row 4), the sampler draws the next
+            torch.testing.assert_close(env.targets_xyyaw_w[:, 0], plans[:, 4])
+            torch.testing.assert_close(env.targets_xyyaw_w[0, 1], plans[0, 5])
+            assert not torch.allclose(env.targets_xyyaw_w[1, 1], plans[1, 5])
+    # world 0's plan has 4 steps: after 3 touchdowns it is on step 4 (row 5)
+    torch.testing.assert_close(env.targets_xyyaw_w[0, 0], plans[0, 5])
+    assert env.steps_taken.tolist() == [3, 3]
+    # a reset ends the plan: the sampler draws the new episode's targets
+    env.reset(torch.tensor([0]))
+    assert env._plan_rows.tolist() == [0, 5]
+
+
+def relative_to_world(pose, rel):
+    from ambulo.envs.footstep_sampler import compose_xyyaw
+
+    return compose_xyyaw(pose, rel.expand_as(pose))

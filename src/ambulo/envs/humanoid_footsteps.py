@@ -130,6 +130,9 @@ class HumanoidFootstepsEnv(HumanoidWalkEnv):
         """(N,) planar distance of the swing sole to its target after the last step, m."""
         self._progress_m = torch.zeros(n, **f32)
         """(N,) how much closer the swing sole came to its target in the last step, m."""
+        self._plan_xyyaw_w: torch.Tensor | None = None  # given plans (``follow_plans``), (N, K, 3)
+        self._plan_rows = torch.zeros(n, dtype=torch.long, device=dev)  # rows of each given plan, 0: none
+        self._plan_next = torch.zeros(n, dtype=torch.long, device=dev)  # its row the next new target takes
 
     # -- plan state ---------------------------------------------------------------------------
     def soles_xyyaw_w(self) -> torch.Tensor:
@@ -146,10 +149,53 @@ class HumanoidFootstepsEnv(HumanoidWalkEnv):
         data = self.robot.data
         return torch.cat([data.root_pos_w[:, :2], data.heading_w[:, None]], dim=-1).float()
 
+    def follow_plans(self, footsteps_xyyaw_w: torch.Tensor, foot_sides: torch.Tensor,
+                     num_steps: torch.Tensor) -> torch.Tensor:
+        """Follow given footstep plans from now on, in place of the drawn ones; return the
+        observations (N, num_obs), recomputed for the new targets.
+
+        ``footsteps_xyyaw_w`` (N, K, 3): each world's plan in the planner's layout
+        (``FootstepPlan.footsteps_xyyaw_w``, padded to K rows): rows 0 and 1 the start feet where
+        the robot stands (row 0 the first to move), row i >= 2 step i - 1; ``foot_sides`` (N, K)
+        their sides (``FootstepPlan.foot_sides``: +1 left, -1 right, alternating); ``num_steps``
+        (N,) int: each plan's steps (>= 2).
+        The targets become rows 2 and 3 and advance through the plan; past its end the sampler
+        continues it. ``steps_taken`` restarts at 0, so touchdown k <= num_steps lands on step k.
+        A reset ends a world's plan."""
+        n = self.num_envs
+        if footsteps_xyyaw_w.shape[0] != n or footsteps_xyyaw_w.shape[2] != 3 or footsteps_xyyaw_w.shape[1] < 4:
+            raise ValueError(f"footsteps_xyyaw_w has shape {tuple(footsteps_xyyaw_w.shape)}; pass ({n}, K >= 4, 3): "
+                             "one plan per world in the planner's layout")
+        steps = torch.as_tensor(num_steps, device=self.device).long()
+        if bool((steps < 2).any()) or bool((steps + 2 > footsteps_xyyaw_w.shape[1]).any()):
+            raise ValueError("num_steps must be >= 2 and fit the plans' rows (K - 2)")
+        plans = footsteps_xyyaw_w.to(device=self.device, dtype=torch.float32)
+        sides = torch.as_tensor(foot_sides, device=self.device).float()
+        if bool((sides[:, 1:] != -sides[:, :-1]).any()):
+            raise ValueError("foot_sides must alternate (+1 left, -1 right) along each plan, padding included")
+        first_side = sides[:, 2]
+        self._plan_xyyaw_w = plans
+        self._plan_rows, self._plan_next = steps + 2, torch.full_like(steps, 4)
+        self.targets_xyyaw_w.copy_(plans[:, 2:4])
+        self.target_sides.copy_(torch.stack([first_side, -first_side], dim=-1))
+        soles = self.soles_xyyaw_w()
+        self._swing_distance_m = torch.linalg.vector_norm(
+            _pick(soles, self._swing_index())[:, :2] - self.targets_xyyaw_w[:, 0, :2], dim=-1)
+        self.placement_error_m.copy_(self._swing_distance_m)
+        self.steps_taken.zero_()
+        self.obs_buf = self._compute_observations()
+        return self.obs_buf
+
     def _advance(self, mask: torch.Tensor) -> None:
-        """Where ``mask`` (N,) holds: the second target becomes the first, a new one follows it."""
+        """Where ``mask`` (N,) holds: the second target becomes the first, a new one follows it
+        (the next row of a given plan, else a drawn footstep)."""
         stance, stance_side = self.targets_xyyaw_w[:, 1], self.target_sides[:, 1]
         new, segments = self.sampler.next_footstep(stance, stance_side, self._segments)
+        if self._plan_xyyaw_w is not None:
+            row = self._plan_next.clamp(max=self._plan_xyyaw_w.shape[1] - 1)
+            planned = _pick(self._plan_xyyaw_w, row)
+            new = torch.where((self._plan_next < self._plan_rows)[:, None], planned, new)
+            self._plan_next += mask
         m = mask[:, None]
         self.targets_xyyaw_w.copy_(torch.where(m[..., None], torch.stack([stance, new], dim=1), self.targets_xyyaw_w))
         self.target_sides.copy_(torch.where(m, torch.stack([stance_side, -stance_side], dim=1), self.target_sides))
@@ -248,7 +294,7 @@ class HumanoidFootstepsEnv(HumanoidWalkEnv):
                            (self.yaw_error_rad, start[:, 2:].abs())):
             put_rows(buf[:, None], slice(None), value, rows)
         for buf in (self.touchdown, self.touchdown_error_m, self.touchdown_yaw_error_rad, self._progress_m,
-                    self.steps_taken):
+                    self.steps_taken, self._plan_rows):
             fill_rows(buf, rows, 0)
 
 

@@ -1,0 +1,145 @@
+"""Foot placement of a humanoid-footsteps policy: the median error of the touchdowns themselves.
+
+``ambulo eval`` judges ``places_feet`` on the step-averaged error of each world's latest touchdown
+(``envs.humanoid_footsteps``); the issue's bar is the median foot placement error (<= 5 cm). This
+runs the same evaluation (``rl.run_episodes``: one episode per env of the play variant,
+deterministic actions) and also records every touchdown of every world's first episode: the
+sole-centre-to-target distance and the yaw error, from which it reports the median, mean and 90th
+percentile, the touchdowns per second and the fall (or lost-plan) rate.
+
+``--plans planner`` gives every world a plan of the footstep planner (``nav.footsteps``, on an
+empty 10 m map) from the feet where the robot stands to a goal 1.5-3 m away in a random direction
+within +-90 degrees of its heading, facing within +-90 degrees of it (``env.follow_plans``); only
+the touchdowns on planned steps count. Default ``sampler``: the task's own drawn plans.
+
+    python benchmarks/footstep_placement.py --run runs/humanoid-footsteps/<run> --num-episodes 64
+    python benchmarks/footstep_placement.py --run <run> --device cuda --num-episodes 1000 --plans planner
+
+Ends with one ``RESULT {json}``; ``ratio`` = 5 cm / the median error (>= 1 meets the bar).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import numpy as np
+import torch
+
+from ambulo import envs
+from ambulo.nav.footsteps import FootstepPlanner
+from ambulo.nav.grid_map import GridMap
+from ambulo.rl import runs
+from ambulo.rl.evaluate import eval_episode_length_s, run_episodes
+
+BAR_M = 0.05
+
+
+class TouchdownLog:
+    """Wraps a policy: before each action it records the touchdowns of the step just taken, in
+    worlds still in their first episode (a world whose step counter went back was reset)."""
+
+    def __init__(self, env, policy, plans=None):
+        self.env, self.policy, self.plans = env, policy, plans
+        self.num_steps = None
+        """(N,) steps of each world's planner plan (``--plans planner``), None for drawn plans."""
+        self.first_episode = torch.ones(env.num_envs, dtype=torch.bool, device=env.device)
+        self._last_length = env.episode_length_buf.clone()
+        self.errors_m: list[torch.Tensor] = []
+        self.yaw_errors_rad: list[torch.Tensor] = []
+
+    def __call__(self, obs):
+        env = self.env
+        if self.plans is not None and self.num_steps is None:  # after the first reset: where the feet stand
+            with torch.inference_mode(False):  # the env's plan state is updated in place, outside the policy's mode
+                footsteps, sides, self.num_steps = self.plans(env)
+                env.follow_plans(footsteps, sides, self.num_steps)
+            obs = self.plans.vec_env.get_observations()
+        self.first_episode &= env.episode_length_buf >= self._last_length
+        self._last_length = env.episode_length_buf.clone()
+        keep = env.touchdown & self.first_episode
+        if self.num_steps is not None:
+            keep &= env.steps_taken <= self.num_steps
+        self.errors_m.append(env.touchdown_error_m[keep])
+        self.yaw_errors_rad.append(env.touchdown_yaw_error_rad[keep])
+        return self.policy(obs)
+
+
+class PlannerPlans:
+    """``(env) -> (footsteps (N, K, 3), sides (N, K), num_steps (N,))``: one plan of the footstep
+    planner per world from its feet (module docstring), padded to K rows with alternating sides."""
+
+    def __init__(self, vec_env, seed: int):
+        self.vec_env, self.rng = vec_env, np.random.default_rng(seed)
+
+    def __call__(self, env):
+        grid = GridMap.from_array(np.zeros((200, 200), dtype=bool), origin_xy_m=(-5.0, -5.0), resolution_m=0.05)
+        planner = FootstepPlanner(grid)
+        feet = env.soles_xyyaw_w().double().cpu().numpy()
+        plans = []
+        for i in range(env.num_envs):
+            body = feet[i].mean(axis=0)
+            heading = float(np.angle(np.exp(1j * feet[i, :, 2]).sum()))
+            distance, bearing = self.rng.uniform(1.5, 3.0), heading + self.rng.uniform(-np.pi / 2, np.pi / 2)
+            goal = (body[0] + distance * np.cos(bearing), body[1] + distance * np.sin(bearing),
+                    heading + self.rng.uniform(-np.pi / 2, np.pi / 2))
+            plan = planner.plan(goal_xyyaw_w=goal, start_feet_xyyaw_w=feet[i, :, :], time_budget_s=5.0)
+            if plan.status.name != "SUCCESS" or plan.num_steps < 2:
+                raise RuntimeError(f"world {i}: the planner gave {plan.status.name} ({plan.detail}) on an empty map")
+            plans.append(plan)
+        rows = max(len(p.footsteps_xyyaw_w) for p in plans)
+        footsteps = np.zeros((env.num_envs, rows, 3))
+        sides = np.zeros((env.num_envs, rows))
+        for i, p in enumerate(plans):
+            k = len(p.footsteps_xyyaw_w)
+            footsteps[i, :k], footsteps[i, k:] = p.footsteps_xyyaw_w, p.footsteps_xyyaw_w[-1]
+            sides[i] = p.foot_sides[0] * (-1.0) ** np.arange(rows)  # alternating, the padding too
+            assert np.array_equal(sides[i, :k], p.foot_sides)
+        steps = torch.tensor([p.num_steps for p in plans], device=env.device)
+        return torch.from_numpy(footsteps), torch.from_numpy(sides), steps
+
+
+def summary(values: torch.Tensor) -> dict[str, float]:
+    if values.numel() == 0:
+        return {"median": None, "mean": None, "p90": None}
+    v = values.double()
+    return {"median": float(v.median()), "mean": float(v.mean()), "p90": float(torch.quantile(v, 0.9))}
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--run", required=True, help="a humanoid-footsteps run folder or checkpoint")
+    parser.add_argument("--log-root", default="runs")
+    parser.add_argument("--device", default=None, help="default: the run's")
+    parser.add_argument("--num-episodes", type=int, default=64)
+    parser.add_argument("--episode-length-s", type=float, default=None)
+    parser.add_argument("--seed", type=int, default=12345)
+    parser.add_argument("--plans", choices=("sampler", "planner"), default="sampler",
+                        help="the task's drawn plans, or the footstep planner's (module docstring)")
+    args = parser.parse_args()
+    run_dir, ckpt = runs.resolve_policy(args.run, None, args.log_root)
+    info = runs.read_run_info(run_dir)
+    spec = envs.spec(info["task"])
+    env = runs.make_env_for_run(info, num_envs=args.num_episodes, seed=args.seed, play=True, device=args.device,
+                                episode_length_s=eval_episode_length_s(spec, args.episode_length_s))
+    runner = runs.load_runner(run_dir, env, ckpt)
+    plans = PlannerPlans(runner.env, args.seed) if args.plans == "planner" else None
+    log = TouchdownLog(env, runner.get_inference_policy(device=str(env.device)), plans)
+    measured = run_episodes(env, runner.env, log, spec, desc="footsteps", quiet=True)
+    errors, yaw = torch.cat(log.errors_m), torch.cat(log.yaw_errors_rad)
+    position = summary(errors)
+    result = {
+        "task": info["task"], "run": str(run_dir), "checkpoint": ckpt.name, "device": str(env.device),
+        "episodes": args.num_episodes, "episode_length_s": measured["episode_length_s"], "plans": args.plans,
+        "planned_steps": None if log.num_steps is None else int(log.num_steps.sum()),
+        "touchdowns": int(errors.numel()),
+        "placement_error_m": position, "yaw_error_rad": summary(yaw),
+        "median_within_5cm": position["median"] is not None and position["median"] <= BAR_M,
+        "eval": {k: v for k, v in measured.items() if k not in ("task", "episodes", "episode_length_s")},
+        "ratio": round(BAR_M / position["median"], 3) if position["median"] else None,
+    }
+    print("RESULT " + json.dumps(result))
+
+
+if __name__ == "__main__":
+    main()
