@@ -6,6 +6,8 @@ frees the port. Waits are on conditions with generous limits; nothing asserts a 
 from __future__ import annotations
 
 import socket
+import subprocess
+import sys
 import threading
 import time
 
@@ -117,6 +119,41 @@ def test_close_frees_the_port_and_leaves_the_simulation(world):
     with socket.socket() as s:
         assert s.connect_ex(("127.0.0.1", port)) != 0
     world.step(render=False)  # the simulation goes on without it
+
+
+KILLED_SCRIPT = """
+import sys
+import ambulo.viewer
+from ambulo.sim import World
+w = World(physics_dt=0.01)
+w.scene.add_default_ground_plane()
+w.reset()
+v = ambulo.viewer.serve(w, port=int(sys.argv[1]), announce=False)
+print(v.port, v.link.process.pid, flush=True)
+while True:
+    w.step(render=False)
+"""
+
+
+def test_a_killed_process_leaves_no_server_behind():
+    """The page's server runs in its own process (``remote``): SIGKILL of the watched one (no
+    ``close``, no atexit) must still free the port."""
+    watched = subprocess.Popen([sys.executable, "-c", KILLED_SCRIPT, str(free_port())], stdout=subprocess.PIPE,
+                               text=True)
+    try:
+        port, server_pid = (int(v) for v in watched.stdout.readline().split())
+        assert server_pid != watched.pid
+        with socket.socket() as s:
+            assert s.connect_ex(("127.0.0.1", port)) == 0
+    finally:
+        watched.kill()
+        watched.wait()
+
+    def port_free() -> bool:
+        with socket.socket() as s:
+            return s.connect_ex(("127.0.0.1", port)) != 0
+
+    wait_until(port_free, "the server process to leave with the watched one")
 
 
 def test_env_gets_the_pages_command_and_reset():

@@ -79,7 +79,8 @@ class PageProcess:
         # user's script; a new session: Ctrl-C in the terminal goes to the watched process only
         self.process = subprocess.Popen(
             [sys.executable, "-c", f"from ambulo.viewer.remote import serve; serve({theirs.fileno()})"],
-            pass_fds=(theirs.fileno(),), start_new_session=True)
+            pass_fds=(theirs.fileno(),), start_new_session=True,
+            stdout=subprocess.DEVNULL)  # viser's banner; the URL is ours to print (errors go to stderr)
         theirs.close()
         self.conn = Connection(mine.detach())
         self.send = _Sender(self.conn)
