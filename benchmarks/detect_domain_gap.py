@@ -3,6 +3,7 @@ randomization never seen in training, (c) another renderer; report the drop.
 
     python benchmarks/detect_domain_gap.py --frames 1000 --width 160 --height 120 --epochs 15 --out runs/gap
     python benchmarks/detect_domain_gap.py --checkpoint runs/det/checkpoint.pt --train-data data/ --out runs/gap
+    python benchmarks/detect_domain_gap.py --frames 10000 --width 320 --height 240 --generate-only --out runs/gap
     ambulo generate benchmarks/detect_domain_gap.py --frames 500 --out unseen/     # split (b) alone
 
 This file is also an ``ambulo generate`` CONFIG: ``config()`` is split (b), the example scene
@@ -102,7 +103,7 @@ def make(cfg: rep.DatasetConfig, out: Path, frames: int, seed: int, workers: int
 
 
 def main() -> None:
-    from ambulo.detection import TrainCfg, evaluate_checkpoint, train
+    from ambulo.detection import AugmentCfg, TrainCfg, evaluate_checkpoint, geometry_only, train
 
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", default="runs/domain_gap", help="datasets, run and result.json go here")
@@ -119,6 +120,12 @@ def main() -> None:
     parser.add_argument("--checkpoint", default=None, help="score this checkpoint instead of training one")
     parser.add_argument("--train-data", default=None, help="the dataset --checkpoint was trained on")
     parser.add_argument("--no-pbr", action="store_true", help="leave out split (c), the Filament renderer")
+    parser.add_argument("--augment", choices=("full", "geometry"), default="full",
+                        help="training augmentations: full (ambulo.detection.augment's defaults) or geometry only")
+    parser.add_argument("--max-minutes", type=float, default=0.0, help="training budget (TrainCfg.max_minutes)")
+    parser.add_argument("--generate-only", action="store_true",
+                        help="make the datasets in --out and stop (a later run with the same --out and sizes reuses "
+                             "them: `ambulo generate` finishes a dataset, it does not redo it)")
     args = parser.parse_args()
     out = Path(args.out)
     held_out_fraction = 0.1
@@ -131,16 +138,22 @@ def main() -> None:
         pbr = rep.example_config(args.width, args.height)
         pbr = dataclasses.replace(pbr, camera=dataclasses.replace(pbr.camera, renderer="pbr"))
         splits["pbr_renderer"] = make(pbr, out / "pbr", eval_frames, 2, args.workers)
-    summary: dict = {"frames": args.frames, "size": [args.width, args.height], "device": args.device}
+    if args.generate_only:
+        return
+    summary: dict = {"frames": args.frames, "size": [args.width, args.height], "device": args.device,
+                     "augment": args.augment}
     checkpoint = args.checkpoint
     if checkpoint is None:
         cfg = TrainCfg(model=args.model, epochs=args.epochs, batch_size=args.batch_size, learning_rate=args.lr,
                        device=args.device, num_workers=args.workers, held_out_fraction=held_out_fraction,
-                       eval_every_epochs=max(1, args.epochs // 5))
+                       eval_every_epochs=max(1, args.epochs // 5), max_minutes=args.max_minutes,
+                       augment=AugmentCfg() if args.augment == "full" else geometry_only())
         start = time.perf_counter()
         result = train(train_data, out / "run", cfg)
         summary["train"] = {"epochs": args.epochs, "steps": result.step, "seconds": round(time.perf_counter() - start),
-                            "curve": [{k: e[k] for k in ("epoch", "step", "mAP", "mAP50")} for e in result.evaluations]}
+                            "stopped": result.stopped, "model": args.model, "batch_size": args.batch_size,
+                            "curve": [{k: e[k] for k in ("epoch", "step", "elapsed_s", "mAP", "mAP50")}
+                                      for e in result.evaluations]}
         checkpoint = out / "run" / "checkpoint.pt"
     scores = {"held_out_seeds": evaluate_checkpoint(checkpoint, train_data, held_out_fraction, device=args.device)}
     for name, folder in splits.items():

@@ -3,11 +3,15 @@ throughput and accuracy on a dataset (CUDA).
 
     python benchmarks/detector.py [--threads 2] [--model centernet-small]
     python benchmarks/detector.py --train data/ --device cuda --epochs 30 [--batch-size 64]
+    python benchmarks/detector.py --checkpoint runs/det/checkpoint.pt --gpu-size 640 480
 
 Inference: the issue's target is >= 10 frames/s at 320x240 on 2 CPU cores, the exported model at
 batch 1. ONNX Runtime runs the exported graph (network + NMS-free decoding); the ceiling is the
 fastest of ONNX Runtime and torch (eager, no grad) on the same graph; ``ratio`` = ours / ceiling.
 Speed does not depend on the weights, so an untrained model is timed unless ``--checkpoint``.
+
+GPU (``--gpu-size W H``): the issue's >= 60 frames/s at 640x480 at batch 1, timed from a uint8 frame
+in host memory to detections in host memory (``gpu_inference``).
 
 Training (``--train``): ``ambulo.detection.train`` on the dataset, then ``steps_per_s`` against the
 ceiling of the same model's forward + backward + step (masks included) on a batch already on the
@@ -18,6 +22,7 @@ device (no reading, no augmentation): ``train_ratio``. The model has the instanc
 from __future__ import annotations
 
 import argparse
+import copy
 import json
 import os
 import tempfile
@@ -29,7 +34,7 @@ import torch
 
 from ambulo.detection import ModelCfg, build_model, load_trained
 from ambulo.detection.export import export_model
-from ambulo.detection.loss import centernet_loss
+from ambulo.detection.loss import centernet_loss, mask_cells
 from ambulo.detection.model import ExportedDetector
 
 CANVAS_320x240 = (256, 320)
@@ -68,28 +73,81 @@ def inference(model, threads: int, repeats: int) -> dict:
             "ratio": round(fastest / ort_s, 3), "target_fps": 10, "threads": threads}
 
 
+def gpu_inference(model, canvas_hw: tuple[int, int], repeats: int, device: str = "cuda") -> dict:
+    """Frames/s at batch 1 on the GPU of a (H, W, 3) uint8 frame in host memory to boxes, scores, classes
+    (and mask probabilities) in host memory: the ``Detector``'s path (float32, eager) against bfloat16
+    autocast with channels-last tensors and against a CUDA graph of the float32 model, the fastest being
+    the ceiling (``ratio`` = the Detector's path over it)."""
+    frame = torch.from_numpy(np.random.default_rng(0).integers(0, 256, (*canvas_hw, 3), dtype=np.uint8)).pin_memory()
+    graph = ExportedDetector(model.to(device).eval())
+
+    def prepare() -> torch.Tensor:
+        return frame.to(device, non_blocking=True).permute(2, 0, 1)[None].float() / 255
+
+    def run(fn) -> float:
+        def call():
+            with torch.no_grad():
+                out = fn(prepare())
+                [t.cpu() for t in out]  # the host copy synchronises
+        return 1 / time_calls(call, repeats, warmup=10)
+
+    graph_bf16 = copy.deepcopy(graph).to(memory_format=torch.channels_last)
+
+    def bf16(x):
+        with torch.autocast("cuda", dtype=torch.bfloat16):
+            return graph_bf16(x.contiguous(memory_format=torch.channels_last))
+
+    fps = {"float32": run(graph), "bfloat16_channels_last": run(bf16)}
+    failed = {}
+    try:  # a capture failure is reported, not fatal: the other two figures stand without it
+        static_in = prepare()
+        stream = torch.cuda.Stream()
+        stream.wait_stream(torch.cuda.current_stream())
+        with torch.cuda.stream(stream), torch.no_grad():
+            for _ in range(3):
+                graph(static_in)
+        torch.cuda.current_stream().wait_stream(stream)
+        cuda_graph = torch.cuda.CUDAGraph()
+        with torch.cuda.graph(cuda_graph), torch.no_grad():
+            static_out = graph(static_in)
+
+        def replay(x):
+            static_in.copy_(x)
+            cuda_graph.replay()
+            return static_out
+
+        fps["cuda_graph_float32"] = run(replay)
+    except RuntimeError as err:
+        failed["cuda_graph_error"] = str(err)[:300]
+    ceiling = max(fps.values())
+    return {"size": [canvas_hw[1], canvas_hw[0]], **{k: round(v, 1) for k, v in fps.items()}, **failed,
+            "detector_fps": round(fps["float32"], 1), "ratio": round(fps["float32"] / ceiling, 3), "target_fps": 60,
+            "gpu": torch.cuda.get_device_name(0)}
+
+
 def training_ceiling(model_name: str, num_classes: int, canvas_hw, batch_size: int, device: str, steps: int,
                      mask_prototypes: int = 8) -> float:
     """Steps/s of forward + loss + backward + AdamW step on one resident batch (bf16 autocast on CUDA)."""
     model = build_model(ModelCfg(name=model_name, num_classes=num_classes, mask_prototypes=mask_prototypes))
-    model = model.to(device).train()
+    cuda = device.startswith("cuda")
+    memory_format = torch.channels_last if cuda else torch.contiguous_format  # as train() runs it
+    model = model.to(device).train().to(memory_format=memory_format)
     optimizer = torch.optim.AdamW(model.parameters(), lr=1e-3)
-    images = torch.rand(batch_size, 3, *canvas_hw, device=device)
-    boxes = [torch.tensor([[10.0, 10.0, 60.0, 50.0], [80.0, 40.0, 120.0, 100.0]])] * batch_size
-    classes = [torch.tensor([0, num_classes - 1])] * batch_size
-    masks = torch.zeros(2, *canvas_hw, dtype=torch.bool)  # the boxes filled: the mask loss's cost, not its values
-    masks[0, 10:50, 10:60] = True
-    masks[1, 40:100, 80:120] = True
-    masks = [masks] * batch_size
+    images = torch.rand(batch_size, 3, *canvas_hw, device=device).contiguous(memory_format=memory_format)
+    boxes = torch.tensor([[10.0, 10.0, 60.0, 50.0], [80.0, 40.0, 120.0, 100.0]], device=device).repeat(batch_size, 1, 1)
+    classes = torch.tensor([0, num_classes - 1], device=device).repeat(batch_size, 1)
+    instances = torch.zeros(batch_size, *canvas_hw, dtype=torch.uint8, device=device)  # the boxes filled
+    instances[:, 10:50, 10:60], instances[:, 40:100, 80:120] = 1, 2
 
     def step():
-        with torch.autocast(torch.device(device).type, dtype=torch.bfloat16, enabled=device.startswith("cuda")):
+        with torch.autocast(torch.device(device).type, dtype=torch.bfloat16, enabled=cuda):
             maps = model(images)
+        masks = mask_cells(instances, 2) if mask_prototypes else None
         loss = centernet_loss(maps, boxes, classes, masks)["total"]
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
         optimizer.step()
-        if device.startswith("cuda"):
+        if cuda:
             torch.cuda.synchronize()
 
     return 1 / time_calls(step, steps)
@@ -108,6 +166,8 @@ def main() -> None:
     parser.add_argument("--batch-size", type=int, default=32)
     parser.add_argument("--workers", type=int, default=min(8, os.cpu_count() or 1))
     parser.add_argument("--out", default=None, help="run folder for --train (default: a temporary one)")
+    parser.add_argument("--gpu-size", type=int, nargs=2, default=None, metavar=("W", "H"),
+                        help="also time batch-1 inference on the GPU at this size (the issue's: 640 480)")
     args = parser.parse_args()
     summary: dict = {"model": args.model, "mask_prototypes": args.mask_prototypes, "cpus": os.cpu_count()}
     if args.train:
@@ -139,6 +199,13 @@ def main() -> None:
     print(f"320x240 batch 1 on {args.threads} CPU threads: ONNX Runtime {i['onnxruntime_fps']} frames/s, torch "
           f"{i['torch_eager_fps']} frames/s (target 10); ratio to the fastest {i['ratio']}")
     summary["ratio"] = i["ratio"]
+    if args.gpu_size:
+        w, h = args.gpu_size
+        if w % 32 or h % 32:
+            parser.error(f"--gpu-size {w} {h}: both must be multiples of 32 (the model's stride)")
+        gpu = summary["inference_gpu"] = gpu_inference(model, (h, w), args.repeats)
+        print(f"{w}x{h} batch 1 on {gpu['gpu']}: the Detector's path {gpu['detector_fps']} frames/s (target 60), "
+              f"bf16 {gpu['bfloat16_channels_last']}, CUDA graph {gpu.get('cuda_graph_float32')}; ratio {gpu['ratio']}")
     print("RESULT " + json.dumps(summary))
 
 

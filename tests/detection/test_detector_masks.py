@@ -1,11 +1,12 @@
-"""Instance masks: the mask head learns shapes that differ from their boxes, masks move with the
-pixels under augmentation, ``paste_masks`` by hand, and pycocotools scores masks ('segm')."""
+"""Instance masks: the mask head learns shapes that differ from their boxes, ``paste_masks`` by hand,
+and pycocotools scores masks ('segm'); masks under augmentation: test_detector_augment.py."""
 
 import torch
 
 from ambulo.detection import TrainCfg, load_trained, no_augment, train
-from ambulo.detection.dataset import AugmentCfg, CocoFrames, augment_sample, collate, load_coco
+from ambulo.detection.dataset import CocoFrames, collate, load_coco
 from ambulo.detection.evaluate import evaluate_all, predict_coco
+from ambulo.detection.frames import pad_rows
 from ambulo.detection.loss import targets
 from ambulo.detection.model import paste_masks
 
@@ -19,10 +20,11 @@ def mask_ious_at_true_centres(model, root) -> dict[int, list[float]]:
     with torch.no_grad():
         maps = model(images)
     p, h, w = maps["proto"].shape[1:]
-    _, per_image = targets([t["boxes"] for t in truth], [t["labels"] - 1 for t in truth], 2, (h, w),
-                           torch.device("cpu"))
+    classes = pad_rows([t["labels"] - 1 for t in truth], -1)
+    _, boxes = targets(pad_rows([t["boxes"] for t in truth], 0.0), classes, 2, (h, w))
     ious: dict[int, list[float]] = {1: [], 2: []}
-    for i, ((cell, _, _), t) in enumerate(zip(per_image, truth)):
+    for i, t in enumerate(truth):
+        cell = boxes["cell"][i, :len(t["boxes"])]
         coef = maps["coef"][i, :, cell[:, 1], cell[:, 0]].T
         probability = torch.sigmoid(coef @ maps["proto"][i].reshape(p, -1)).reshape(-1, h, w)
         for predicted, true, category in zip(paste_masks(probability, t["boxes"], (64, 64)), t["masks"],
@@ -38,31 +40,6 @@ def test_mask_head_learns_discs_and_squares(trained_shapes):
     mean = {category: sum(v) / len(v) for category, v in ious.items()}
     # a disc filling its box scores pi/4 = 0.785: above that, the mask has the disc's shape
     assert mean[1] > 0.85 and mean[2] > 0.75, ious
-
-
-def test_masks_move_with_the_pixels():
-    rgb = torch.zeros(3, 20, 30)
-    rgb[:, 4:10, 2:8] = 1.0
-    masks = torch.zeros(1, 20, 30, dtype=torch.bool)
-    masks[0, 4:10, 2:8] = True
-    boxes, labels = torch.tensor([[2.0, 4.0, 8.0, 10.0]]), torch.tensor([1])
-    g = torch.Generator().manual_seed(0)
-    for cfg in (AugmentCfg(flip_probability=1.0, scale_range=(1.0, 1.0), brightness_fraction=0.0),
-                AugmentCfg(flip_probability=0.0, scale_range=(0.5, 0.5), brightness_fraction=0.0),
-                AugmentCfg(flip_probability=1.0, scale_range=(1.5, 1.5), brightness_fraction=0.0)):
-        out, out_boxes, _, out_masks = augment_sample(rgb, boxes, labels, cfg, g, masks)
-        assert out.shape == (3, 20, 30) and out_masks.shape == (len(out_boxes), 20, 30)
-        if len(out_boxes):
-            assert torch.equal(out_masks[0], out[0] > 0.5)
-            ys, xs = torch.nonzero(out_masks[0], as_tuple=True)
-            assert abs(xs.min().item() - out_boxes[0, 0].item()) <= 1 and abs(xs.max().item() + 1 - out_boxes[0, 2].item()) <= 1
-    # a box cut away by the crop takes its mask with it
-    far = torch.zeros(1, 20, 30, dtype=torch.bool)
-    far[0, 0:3, 27:30] = True
-    _, kept, _, kept_masks = augment_sample(rgb, torch.tensor([[27.0, 0.0, 30.0, 3.0]]), labels,
-                                            AugmentCfg(flip_probability=0.0, scale_range=(2.0, 2.0),
-                                                       brightness_fraction=0.0), torch.Generator().manual_seed(1), far)
-    assert len(kept) == len(kept_masks)
 
 
 def test_paste_masks_by_hand():

@@ -1,5 +1,5 @@
 """Training on a generated dataset: the loss falls, pycocotools reads the predictions, a resume
-continues from the checkpoint's step; the decoding and the augmentations' box arithmetic by hand."""
+continues from the checkpoint's step, a time budget stops and anneals a run; the decoding by hand."""
 
 import json
 
@@ -7,7 +7,7 @@ import torch
 from pycocotools.coco import COCO
 
 from ambulo.detection import TrainCfg, coco_metrics, decode, load_trained, no_augment, predict_coco, train
-from ambulo.detection.dataset import AugmentCfg, CocoFrames, augment_sample, collate, load_coco, split_image_ids
+from ambulo.detection.dataset import CocoFrames, collate, load_coco, split_image_ids
 from ambulo.detection.model import STRIDE_OUT
 
 
@@ -73,19 +73,19 @@ def test_decode_reads_a_peak_as_its_box():
     assert scores[0, 1] < 1e-4  # the neighbours of a peak are no peaks
 
 
-def test_flip_and_scale_move_boxes_with_the_pixels():
-    rgb = torch.zeros(3, 20, 30)
-    rgb[:, 4:10, 2:8] = 1.0  # an object at x 2..8, y 4..10
-    boxes, labels = torch.tensor([[2.0, 4.0, 8.0, 10.0]]), torch.tensor([1])
-    g = torch.Generator().manual_seed(0)
-    flipped, fb, _, _ = augment_sample(rgb, boxes, labels, AugmentCfg(flip_probability=1.0, scale_range=(1.0, 1.0),
-                                                                   brightness_fraction=0.0), g)
-    assert torch.equal(fb, torch.tensor([[22.0, 4.0, 28.0, 10.0]]))
-    assert flipped[0, 4:10, 22:28].min() == 1 and flipped[0].sum() == 36
-    # scale 0.5: the halved image lands somewhere in a black window of the input's size; the box moves with it
-    scaled, sb, sl, _ = augment_sample(rgb, boxes, labels, AugmentCfg(flip_probability=0.0, scale_range=(0.5, 0.5),
-                                                                   brightness_fraction=0.0), g)
-    x0, y0, x1, y1 = sb[0].round().int().tolist()
-    inside = scaled[0, y0:y1, x0:x1]
-    assert (x1 - x0, y1 - y0) == (3, 3) and inside.min() == 1 and scaled[0].sum() == inside.sum() == 9
-    assert sl.tolist() == [1]
+def test_time_budget_stops_evaluates_and_a_pause_resumes(tiny_dataset, tmp_path):
+    # a budget ends the run inside its epochs, with the final evaluation (masks too) and an annealed rate
+    budget = train(tiny_dataset, tmp_path / "budget", tiny_cfg(epochs=10_000, max_minutes=0.02, warmup_steps=0),
+                   show_progress=False)
+    assert budget.stopped == "budget" and budget.epoch < 9_999 and budget.elapsed_s >= 1.2
+    assert budget.evaluations[-1]["step"] == budget.step and "mask" in budget.evaluations[-1]
+    _, state = load_trained(tmp_path / "budget" / "checkpoint.pt")
+    assert state["optimizer"]["param_groups"][0]["lr"] < 0.2 * 3e-3
+    # a pause checkpoints without evaluating; the resume counts the time already spent
+    paused = train(tiny_dataset, tmp_path / "pause", tiny_cfg(epochs=10_000, max_minutes=10.0,
+                                                             pause_after_minutes=0.01), show_progress=False)
+    assert paused.stopped == "pause" and paused.evaluations == []
+    resumed = train(tiny_dataset, tmp_path / "pause", tiny_cfg(epochs=paused.epoch + 2, max_minutes=10.0),
+                    resume=True, show_progress=False)
+    assert resumed.stopped == "epochs" and resumed.losses[0][0] == paused.step + 1
+    assert resumed.elapsed_s > paused.elapsed_s and resumed.evaluations[-1]["elapsed_s"] >= paused.elapsed_s

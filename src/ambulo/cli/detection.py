@@ -3,6 +3,7 @@
 
     ambulo generate --frames 2000 --out data/ --seed 0
     ambulo train-detector data/ --epochs 30 --device cuda --out runs/det     # --resume continues it
+    ambulo train-detector data/ --epochs 1000 --max-minutes 12 --device cuda --workers 16 --out runs/det
     ambulo export-detector runs/det/checkpoint.pt --out runs/det/model.onnx
     ambulo evaluate-detector runs/det/checkpoint.pt other_data/               # mAP on another dataset
     tensorboard --logdir runs/det
@@ -22,7 +23,9 @@ MODEL_NAMES = ("centernet-small", "centernet-medium")
 def train_detector(args: argparse.Namespace) -> int:
     import torch
 
-    from ambulo.detection import CHECKPOINT, DatasetError, TrainCfg, train
+    from ambulo.detection import CHECKPOINT, AugmentCfg, DatasetError, TrainCfg, geometry_only, no_augment, train
+
+    AUGMENTS = {"full": AugmentCfg, "geometry": geometry_only, "none": no_augment}
 
     for flag in ("epochs", "batch_size"):
         if getattr(args, flag) < 1:
@@ -33,9 +36,14 @@ def train_detector(args: argparse.Namespace) -> int:
         raise CliError(f"{args.out} already holds a training run", "give --resume to continue it, or another --out")
     if args.mask_prototypes < 0:
         raise CliError(f"--mask-prototypes {args.mask_prototypes} is negative", "give 0 (boxes only) or more")
+    for flag in ("max_minutes", "pause_after_minutes", "eval_every_minutes"):
+        if getattr(args, flag) < 0:
+            raise CliError(f"--{flag.replace('_', '-')} {getattr(args, flag)} is negative", "give 0 (none) or more")
     cfg = TrainCfg(model=args.model, epochs=args.epochs, batch_size=args.batch_size, device=args.device,
                    eval_every_epochs=args.eval_every, num_workers=args.workers, learning_rate=args.lr,
-                   seed=args.seed, mask_prototypes=args.mask_prototypes)
+                   seed=args.seed, mask_prototypes=args.mask_prototypes, data=args.data,
+                   max_minutes=args.max_minutes, pause_after_minutes=args.pause_after_minutes,
+                   eval_every_minutes=args.eval_every_minutes, augment=AUGMENTS[args.augment]())
     try:
         result = train(args.dataset, args.out, cfg, resume=args.resume, show_progress=not args.quiet)
     except DatasetError as err:
@@ -48,6 +56,10 @@ def train_detector(args: argparse.Namespace) -> int:
             masks = last["mask"]
             classes = ", ".join(f"{name} {ap:.3f}" for name, ap in masks["per_class"].items())
             print(f"held-out masks:  mAP {masks['mAP']:.3f}, mAP50 {masks['mAP50']:.3f} ({classes})")
+    if result.stopped == "pause":
+        print(f"paused after {result.elapsed_s / 60:.1f} min of training; continue with the same command and --resume")
+    elif result.stopped == "budget":
+        print(f"stopped at the {args.max_minutes:g}-minute budget in epoch {result.epoch + 1}")
     print(f"trained {result.step} steps; checkpoint {Path(args.out) / CHECKPOINT}; TensorBoard: "
           f"tensorboard --logdir {args.out}")
     return 0
@@ -103,7 +115,20 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--batch-size", type=int, default=16, help="frames per step (default 16)")
     p.add_argument("--lr", type=float, default=2e-3, help="AdamW peak learning rate (default 2e-3)")
     p.add_argument("--eval-every", type=int, default=5, help="COCO evaluation of held-out frames every N epochs")
-    p.add_argument("--workers", type=int, default=2, help="image-reading processes (default 2)")
+    p.add_argument("--eval-every-minutes", type=float, default=0.0,
+                   help="also evaluate after the first epoch this long after the last evaluation (default 0: off)")
+    p.add_argument("--max-minutes", type=float, default=0.0,
+                   help="training budget across resumes: stop, evaluate and checkpoint at it; the learning rate "
+                        "anneals over it (default 0: the epochs decide)")
+    p.add_argument("--pause-after-minutes", type=float, default=0.0,
+                   help="stop this call after this long with a checkpoint, to --resume later (default 0: never)")
+    p.add_argument("--data", choices=("resident", "stream"), default="resident",
+                   help="resident: decode the training frames once into the device's memory (default); stream: "
+                        "decode each batch in --workers processes (datasets larger than memory)")
+    p.add_argument("--augment", choices=("full", "geometry", "none"), default="full",
+                   help="full: geometric, occlusion and photometric augmentations on the device (default); "
+                        "geometry: flips and scale jitter only; none")
+    p.add_argument("--workers", type=int, default=2, help="image-decoding processes (default 2)")
     p.add_argument("--seed", type=int, default=0, help="initialisation and shuffling seed (default 0)")
     p.add_argument("--mask-prototypes", type=int, default=8,
                    help="instance masks from the dataset's segmentation with this many prototypes (0: boxes only)")

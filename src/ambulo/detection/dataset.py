@@ -1,4 +1,4 @@
-"""An ``ambulo generate`` dataset as detection samples: COCO boxes and labels, a held-out split, augmentations.
+"""An ``ambulo generate`` dataset as detection samples: COCO boxes and labels, a held-out split.
 
 The dataset folder is the one ``replicator.writers`` documents: ``annotations.json`` (COCO instances,
 categories 1..C, one image per frame, ``bbox`` in pixel edges x, y, w, h) and ``rgb/NNNNNN.png``.
@@ -11,23 +11,21 @@ A sample is ``(image, target)``: image float32 (3, H, W) in [0, 1] on a canvas o
 right), target ``{"boxes": (N, 4) float32 x0 y0 x1 y1 px, "labels": (N,) int64 COCO category ids,
 "image_id": int}`` and, with ``masks``, ``"masks": (N, H, W) bool`` on the canvas (decoded from
 each annotation's ``segmentation``, RLE or polygons). Boxes stay in the canvas's pixels, which are
-the image's pixels (padding is only ever added after the image's last row and column).
+the image's pixels (padding is only ever added after the image's last row and column). These
+samples are what evaluation and inference read; training reads ``frames``' uint8 records and
+augments them on the device (``augment``).
 """
 
 from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass
 from pathlib import Path
 
 import imageio.v3 as iio
 import numpy as np
 import torch
-import torch.nn.functional as F
 from pycocotools import mask as mask_utils
-
-from ambulo.utils.validate import Checked
 
 
 class DatasetError(Exception):
@@ -36,23 +34,6 @@ class DatasetError(Exception):
     def __init__(self, problem: str, fix: str):
         self.problem, self.fix = problem, fix
         super().__init__(f"{problem}; {fix}")
-
-
-@dataclass(kw_only=True)
-class AugmentCfg(Checked):
-    """Training-time augmentations (none at evaluation)."""
-
-    flip_probability: float = 0.5
-    """Horizontal flip: the scenes have no left-right meaning."""
-    scale_range: tuple[float, float] = (0.75, 1.25)
-    """Scale jitter: the image is resized by a factor drawn here, then cropped or padded back to the
-    canvas, so objects are seen at sizes between the camera heights of the data."""
-    brightness_fraction: float = 0.25
-    """Colour jitter: brightness, contrast and saturation each multiplied by 1 +- this."""
-
-
-def no_augment() -> AugmentCfg:
-    return AugmentCfg(flip_probability=0.0, scale_range=(1.0, 1.0), brightness_fraction=0.0)
 
 
 def load_coco(root: str | Path) -> dict:
@@ -88,8 +69,8 @@ class CocoFrames(torch.utils.data.Dataset):
     """The frames ``image_ids`` of dataset ``root`` as (image, target) samples (module docstring)."""
 
     def __init__(self, root: str | Path, coco: dict, image_ids: list[int], canvas_hw: tuple[int, int],
-                 augment: AugmentCfg | None = None, seed: int = 0, masks: bool = False):
-        self.root, self.canvas_hw, self.augment, self.masks = Path(root), canvas_hw, augment, masks
+                 masks: bool = False):
+        self.root, self.canvas_hw, self.masks = Path(root), canvas_hw, masks
         images = {im["id"]: im for im in coco["images"]}
         self.images = [images[i] for i in image_ids]
         by_image: dict[int, list[dict]] = {i: [] for i in image_ids}
@@ -97,8 +78,6 @@ class CocoFrames(torch.utils.data.Dataset):
             if ann["image_id"] in by_image and not ann.get("iscrowd", 0):
                 by_image[ann["image_id"]].append(ann)
         self.annotations = [by_image[i] for i in image_ids]
-        self.seed = seed
-        self._draws = 0
 
     def __len__(self) -> int:
         return len(self.images)
@@ -114,13 +93,6 @@ class CocoFrames(torch.utils.data.Dataset):
                              dtype=torch.float32).reshape(-1, 4)
         labels = torch.tensor([a["category_id"] for a in anns], dtype=torch.int64)
         masks = instance_masks(anns, rgb.shape[1], rgb.shape[2]) if self.masks else None
-        if self.augment is not None:
-            # one generator per draw: workers and epochs see different draws, a seed repeats them
-            self._draws += 1
-            worker = torch.utils.data.get_worker_info()
-            key = np.random.SeedSequence([self.seed, index, self._draws, 0 if worker is None else worker.id + 1])
-            g = torch.Generator().manual_seed(int(key.generate_state(1)[0]))
-            rgb, boxes, labels, masks = augment_sample(rgb, boxes, labels, self.augment, g, masks)
         canvas = torch.zeros(3, *self.canvas_hw)
         h, w = min(rgb.shape[1], self.canvas_hw[0]), min(rgb.shape[2], self.canvas_hw[1])
         canvas[:, :h, :w] = rgb[:, :h, :w]
@@ -147,54 +119,6 @@ def instance_masks(annotations: list[dict], height: int, width: int) -> torch.Te
         rle = mask_utils.frPyObjects(seg, height, width)
         rles.append(mask_utils.merge(rle) if isinstance(rle, list) else rle)  # polygons: one RLE per part
     return torch.from_numpy(mask_utils.decode(rles).transpose(2, 0, 1).astype(bool))
-
-
-def augment_sample(rgb: torch.Tensor, boxes: torch.Tensor, labels: torch.Tensor, cfg: AugmentCfg,
-                   g: torch.Generator, masks: torch.Tensor | None = None
-                   ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor | None]:
-    """Flip, scale jitter (resize, then crop or pad back to the input's size) and colour jitter of one
-    image (3, H, W) in [0, 1], its boxes (N, 4) x0 y0 x1 y1 px and masks (N, H, W) bool (or None);
-    boxes cut to under a quarter of their area, or under 2 px a side, are dropped with their labels
-    and masks. The masks ride through the flip, resize and crop as extra channels of the image, so
-    they move exactly as its pixels do (resized bilinearly, then thresholded at one half)."""
-    _, h, w = rgb.shape
-    if masks is not None:
-        rgb = torch.cat([rgb, masks.float()])
-    u = torch.rand(6, generator=g).tolist()
-    if u[0] < cfg.flip_probability:
-        rgb = rgb.flip(-1)
-        boxes = torch.stack([w - boxes[:, 2], boxes[:, 1], w - boxes[:, 0], boxes[:, 3]], dim=1)
-    lo, hi = cfg.scale_range
-    scale = lo + (hi - lo) * u[1]
-    if scale != 1.0:
-        sh, sw = max(1, round(h * scale)), max(1, round(w * scale))
-        rgb = F.interpolate(rgb[None], size=(sh, sw), mode="bilinear", align_corners=False)[0]
-        boxes = boxes * torch.tensor([sw / w, sh / h, sw / w, sh / h])
-        # a window of the input's size: anywhere inside a larger image, the image anywhere inside a larger window
-        x0, y0 = round((sw - w) * u[2]), round((sh - h) * u[3])
-        out = torch.zeros(rgb.shape[0], h, w)
-        src = rgb[:, max(0, y0):max(0, y0) + h, max(0, x0):max(0, x0) + w]
-        dy, dx = max(0, -y0), max(0, -x0)
-        out[:, dy:dy + src.shape[1], dx:dx + src.shape[2]] = src[:, :h - dy, :w - dx]
-        rgb = out
-        area = (boxes[:, 2] - boxes[:, 0]) * (boxes[:, 3] - boxes[:, 1])
-        boxes = boxes - torch.tensor([x0, y0, x0, y0], dtype=torch.float32)
-        boxes = torch.stack([boxes[:, 0].clamp(0, w), boxes[:, 1].clamp(0, h),
-                             boxes[:, 2].clamp(0, w), boxes[:, 3].clamp(0, h)], dim=1)
-        bw, bh = boxes[:, 2] - boxes[:, 0], boxes[:, 3] - boxes[:, 1]
-        keep = (bw >= 2) & (bh >= 2) & (bw * bh >= 0.25 * area)
-        boxes, labels = boxes[keep], labels[keep]
-        if masks is not None:
-            rgb = torch.cat([rgb[:3], rgb[3:][keep]])
-    if masks is not None:
-        rgb, masks = rgb[:3], rgb[3:] > 0.5
-    if cfg.brightness_fraction > 0:
-        b, c, s = (1 + cfg.brightness_fraction * (2 * v - 1) for v in u[3:6])
-        gray = (0.299 * rgb[0] + 0.587 * rgb[1] + 0.114 * rgb[2])[None]
-        rgb = gray + s * (rgb - gray)  # saturation
-        rgb = rgb.mean() + c * (rgb - rgb.mean())  # contrast
-        rgb = (b * rgb).clamp(0, 1)
-    return rgb, boxes, labels, masks
 
 
 def collate(batch: list[tuple[torch.Tensor, dict]]) -> tuple[torch.Tensor, list[dict]]:

@@ -26,18 +26,19 @@ def predict_coco(model: CenterNet, loader, device: torch.device, category_ids: l
     results = []
     for images, batch_targets in loader:
         maps = model(images.to(device))
-        if with_masks:
-            boxes, scores, classes, masks = (t.cpu() for t in decode_masks(maps, model.cfg.max_detections))
+        if with_masks:  # masks are pasted on the device: a GPU's evaluation does not wait on the CPU
+            boxes, scores, classes, masks = decode_masks(maps, model.cfg.max_detections)
         else:
-            boxes, scores, classes = (t.cpu() for t in decode(maps, model.cfg.max_detections))
+            boxes, scores, classes = decode(maps, model.cfg.max_detections)
+        boxes_cpu, scores, classes = boxes.cpu(), scores.cpu(), classes.cpu()
         for n, target in enumerate(batch_targets):
             image_id = int(target["image_id"])
-            b = boxes[n]
+            b = boxes_cpu[n]
             xywh = torch.cat([b[:, :2], b[:, 2:] - b[:, :2]], dim=1)
             entries = [{"image_id": image_id, "category_id": category_ids[cls], "bbox": box, "score": score}
                        for box, score, cls in zip(xywh.tolist(), scores[n].tolist(), classes[n].tolist())]
             if with_masks:
-                binary = paste_masks(masks[n], b, image_sizes[image_id]).numpy()
+                binary = paste_masks(masks[n], boxes[n], image_sizes[image_id]).cpu().numpy()
                 rles = mask_utils.encode(np.asfortranarray(binary.transpose(1, 2, 0).astype(np.uint8)))
                 for entry, rle in zip(entries, rles):
                     entry["segmentation"] = {"size": [int(v) for v in rle["size"]], "counts": rle["counts"].decode()}

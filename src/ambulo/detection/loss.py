@@ -26,29 +26,27 @@ OFFSET_WEIGHT = 1.0
 MASK_WEIGHT = 1.0
 
 
-def targets(boxes_px: list[torch.Tensor], classes: list[torch.Tensor], num_classes: int,
-            hw_cells: tuple[int, int], device: torch.device) -> tuple[torch.Tensor, list[tuple]]:
-    """(heat target (B, C, h, w), per image (centre cells (N, 2) int yx, size (N, 2) cells, offset (N, 2) cells))."""
+def targets(boxes_px: torch.Tensor, classes: torch.Tensor, num_classes: int, hw_cells: tuple[int, int]
+            ) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
+    """(heat target (B, C, h, w), per box ``{"cell": (B, M, 2) int64 x y, "size": (B, M, 2) cells,
+    "offset": (B, M, 2) cells, "valid": (B, M) bool}``) of padded boxes (B, M, 4) px and classes
+    (B, M), -1 for no box."""
     h, w = hw_cells
-    heat = torch.zeros(len(boxes_px), num_classes, h, w, device=device)
+    device = boxes_px.device
+    valid = classes >= 0
+    box = boxes_px.float() / STRIDE_OUT
+    centre = torch.stack([(box[..., 0] + box[..., 2]) / 2, (box[..., 1] + box[..., 3]) / 2], dim=-1)  # x, y cells
+    size = torch.stack([box[..., 2] - box[..., 0], box[..., 3] - box[..., 1]], dim=-1)
+    cell = torch.minimum(centre.floor().clamp(min=0), torch.tensor([w - 1.0, h - 1.0], device=device))
     ys = torch.arange(h, device=device, dtype=torch.float32)[:, None]
     xs = torch.arange(w, device=device, dtype=torch.float32)[None, :]
-    per_image = []
-    for i, (box, cls) in enumerate(zip(boxes_px, classes)):
-        box, cls = box.to(device).float() / STRIDE_OUT, cls.to(device)
-        centre = torch.stack([(box[:, 0] + box[:, 2]) / 2, (box[:, 1] + box[:, 3]) / 2], dim=1)  # x, y cells
-        size = torch.stack([box[:, 2] - box[:, 0], box[:, 3] - box[:, 1]], dim=1)
-        cell = centre.floor().clamp(min=0)
-        cell[:, 0].clamp_(max=w - 1)
-        cell[:, 1].clamp_(max=h - 1)
-        if len(box):
-            sigma = (GAUSSIAN_ALPHA * size / 6).clamp(min=0.5)
-            g = torch.exp(-((xs[None] - cell[:, 0, None, None]) ** 2) / (2 * sigma[:, 0, None, None] ** 2)
-                          - ((ys[None] - cell[:, 1, None, None]) ** 2) / (2 * sigma[:, 1, None, None] ** 2))
-            index = cls[:, None, None].expand_as(g)
-            heat[i].scatter_reduce_(0, index, g, reduce="amax")
-        per_image.append((cell.long(), size, centre - cell))
-    return heat, per_image
+    sigma = (GAUSSIAN_ALPHA * size / 6).clamp(min=0.5)
+    g = torch.exp(-((xs - cell[..., 0, None, None]) ** 2) / (2 * sigma[..., 0, None, None] ** 2)
+                  - ((ys - cell[..., 1, None, None]) ** 2) / (2 * sigma[..., 1, None, None] ** 2))  # (B, M, h, w)
+    g = g * valid[..., None, None]
+    heat = torch.zeros(len(box), num_classes, h, w, device=device)
+    heat.scatter_reduce_(1, classes.clamp(min=0)[..., None, None].expand_as(g), g, reduce="amax")
+    return heat, {"cell": cell.long(), "size": size, "offset": centre - cell, "valid": valid}
 
 
 def focal_loss(logits: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
@@ -60,50 +58,55 @@ def focal_loss(logits: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     return pos.sum() + neg.sum()
 
 
-def mask_loss(proto: torch.Tensor, coef: torch.Tensor, per_image: list[tuple], masks: list[torch.Tensor]
+def at_cells(map_: torch.Tensor, cell: torch.Tensor) -> torch.Tensor:
+    """(B, M, K) values of a map (B, K, h, w) at cells (B, M, 2) x y."""
+    b, k, h, w = map_.shape
+    index = (cell[..., 1] * w + cell[..., 0])[:, None, :].expand(b, k, cell.shape[1])
+    return map_.float().reshape(b, k, h * w).gather(2, index).transpose(1, 2)
+
+
+def mask_cells(instances: torch.Tensor, num_boxes: int) -> torch.Tensor:
+    """(B, M, h, w) mask targets: box k's pixels (instance id k + 1 of the maps (B, H, W)) averaged over
+    each ``STRIDE_OUT`` x ``STRIDE_OUT`` cell."""
+    ids = torch.arange(1, num_boxes + 1, device=instances.device)[None, :, None, None]
+    return F.avg_pool2d((instances[:, None] == ids).float(), STRIDE_OUT)
+
+
+def mask_loss(proto: torch.Tensor, coef: torch.Tensor, boxes: dict[str, torch.Tensor], masks: torch.Tensor
               ) -> torch.Tensor:
     """Sum over boxes of the box-cropped, area-normalised BCE of their masks (module docstring);
-    ``per_image`` is ``targets``' (so each box's centre cell), ``masks`` (N, H, W) bool per image."""
-    total = proto.new_zeros((), dtype=torch.float32)
+    ``boxes`` is ``targets``' second output, ``masks`` the (B, M, h, w) cell targets (``mask_cells``)."""
     b, p, h, w = proto.shape
-    ys = torch.arange(h, device=proto.device)[None, :, None]
-    xs = torch.arange(w, device=proto.device)[None, None, :]
-    for i, ((cell, size, offset), mask) in enumerate(zip(per_image, masks)):
-        if not len(cell):
-            continue
-        c = coef[i, :, cell[:, 1], cell[:, 0]].float().T  # (N, P)
-        logits = (c @ proto[i].float().reshape(p, h * w)).reshape(-1, h, w)
-        target = F.avg_pool2d(mask.to(proto.device, torch.float32)[:, None], STRIDE_OUT)[:, 0]
-        centre = cell.float() + offset
-        lo = (centre - size / 2).floor() - 1  # the box in cells, one cell wider on each side
-        hi = (centre + size / 2).ceil() + 1
-        inside = ((xs >= lo[:, 0, None, None]) & (xs < hi[:, 0, None, None])
-                  & (ys >= lo[:, 1, None, None]) & (ys < hi[:, 1, None, None])).float()
-        bce = F.binary_cross_entropy_with_logits(logits, target, reduction="none")
-        total = total + ((bce * inside).sum(dim=(1, 2)) / inside.sum(dim=(1, 2)).clamp(min=1)).sum()
-    return total
+    coef_at = at_cells(coef, boxes["cell"])  # (B, M, P)
+    logits = torch.bmm(coef_at, proto.float().reshape(b, p, h * w)).reshape(b, -1, h, w)
+    ys = torch.arange(h, device=proto.device)[None, None, :, None]
+    xs = torch.arange(w, device=proto.device)[None, None, None, :]
+    centre = boxes["cell"].float() + boxes["offset"]
+    lo = (centre - boxes["size"] / 2).floor() - 1  # the box in cells, one cell wider on each side
+    hi = (centre + boxes["size"] / 2).ceil() + 1
+    inside = ((xs >= lo[..., 0, None, None]) & (xs < hi[..., 0, None, None])
+              & (ys >= lo[..., 1, None, None]) & (ys < hi[..., 1, None, None])).float()
+    bce = F.binary_cross_entropy_with_logits(logits, masks, reduction="none")
+    per_box = (bce * inside).sum(dim=(2, 3)) / inside.sum(dim=(2, 3)).clamp(min=1)
+    return (per_box * boxes["valid"]).sum()
 
 
-def centernet_loss(maps: dict[str, torch.Tensor], boxes_px: list[torch.Tensor], classes: list[torch.Tensor],
-                   masks: list[torch.Tensor] | None = None) -> dict[str, torch.Tensor]:
+def centernet_loss(maps: dict[str, torch.Tensor], boxes_px: torch.Tensor, classes: torch.Tensor,
+                   masks: torch.Tensor | None = None) -> dict[str, torch.Tensor]:
     """``{"heat", "size", "offset", "total"}`` losses of one batch, plus ``"mask"`` when ``masks``
-    (N, H, W) bool per image are given and the model has a mask branch; ``classes`` are 0-based."""
+    (B, M, h, w) cell targets (``mask_cells``) are given and the model has a mask branch; boxes
+    (B, M, 4) px and 0-based classes (B, M) are padded with class -1."""
     b, c, h, w = maps["heat"].shape
-    heat_target, per_image = targets(boxes_px, classes, c, (h, w), maps["heat"].device)
+    heat_target, boxes = targets(boxes_px, classes, c, (h, w))
     # a box's own centre cell is exactly 1 (the Gaussian's peak), the positives of the focal loss
-    n = max(1, sum(len(cell) for cell, _, _ in per_image))
-    size_loss = maps["size"].new_zeros((), dtype=torch.float32)
-    offset_loss = size_loss.clone()
-    for i, (cell, size, offset) in enumerate(per_image):
-        if len(cell):
-            size_loss = size_loss + F.l1_loss(maps["size"][i, :, cell[:, 1], cell[:, 0]].float().T, size, reduction="sum")
-            offset_loss = offset_loss + F.l1_loss(maps["offset"][i, :, cell[:, 1], cell[:, 0]].float().T, offset,
-                                                  reduction="sum")
+    valid = boxes["valid"][..., None]
+    n = boxes["valid"].sum().clamp(min=1)
+    size_loss = ((at_cells(maps["size"], boxes["cell"]) - boxes["size"]).abs() * valid).sum() / n
+    offset_loss = ((at_cells(maps["offset"], boxes["cell"]) - boxes["offset"]).abs() * valid).sum() / n
     heat = focal_loss(maps["heat"], heat_target) / n
-    size_loss, offset_loss = size_loss / n, offset_loss / n
     out = {"heat": heat, "size": size_loss, "offset": offset_loss,
            "total": heat + SIZE_WEIGHT * size_loss + OFFSET_WEIGHT * offset_loss}
     if masks is not None and "proto" in maps:
-        out["mask"] = mask_loss(maps["proto"], maps["coef"], per_image, masks) / n
+        out["mask"] = mask_loss(maps["proto"], maps["coef"], boxes, masks) / n
         out["total"] = out["total"] + MASK_WEIGHT * out["mask"]
     return out

@@ -103,7 +103,9 @@ class CenterNet(nn.Module):
             top = self.smooth[i](top)
         pyramid = top
         top = self.head(top)
-        maps = {"heat": self.heat(top), "size": F.relu(self.size(top)), "offset": self.offset(top)}
+        # softplus, not ReLU: a ReLU whose input starts negative at every cell never learns that side's
+        # size (seen: box heights stuck at 0 after one unlucky initialisation)
+        maps = {"heat": self.heat(top), "size": F.softplus(self.size(top)), "offset": self.offset(top)}
         if self.cfg.mask_prototypes:
             maps["proto"], maps["coef"] = self.proto(pyramid), self.coef(top)
         return maps
@@ -154,11 +156,11 @@ def paste_masks(masks_cells: torch.Tensor, boxes_px: torch.Tensor, out_hw: tuple
     crops the same way: the box branch is sharper than a stride-4 mask at an object's edge)."""
     k, h, w = masks_cells.shape
     if k == 0:
-        return torch.zeros(0, *out_hw, dtype=torch.bool)
+        return torch.zeros(0, *out_hw, dtype=torch.bool, device=masks_cells.device)
     full = F.interpolate(masks_cells[None].float(), size=(h * STRIDE_OUT, w * STRIDE_OUT), mode="bilinear",
                          align_corners=False)[0, :, :out_hw[0], :out_hw[1]]
-    ys = torch.arange(out_hw[0], dtype=torch.float32)[None, :, None] + 0.5
-    xs = torch.arange(out_hw[1], dtype=torch.float32)[None, None, :] + 0.5
+    ys = torch.arange(out_hw[0], dtype=torch.float32, device=masks_cells.device)[None, :, None] + 0.5
+    xs = torch.arange(out_hw[1], dtype=torch.float32, device=masks_cells.device)[None, None, :] + 0.5
     b = boxes_px.float()
     inside = ((xs >= b[:, 0, None, None].floor()) & (xs <= b[:, 2, None, None].ceil())
               & (ys >= b[:, 1, None, None].floor()) & (ys <= b[:, 3, None, None].ceil()))

@@ -1,0 +1,216 @@
+"""Training augmentations of a whole batch on the training device: torch ops on (B, ...) tensors, no
+per-image Python, so a GPU augments as fast as it trains.
+
+The augmentations are generic camera and scene changes, not the randomizer ranges of any one
+dataset (a detector trained on them is scored on randomization it never saw:
+``benchmarks/detect_domain_gap.py``):
+
+- geometric: horizontal flip, scale jitter with a random crop (or a black margin when the scale is
+  below 1), one affine ``grid_sample`` of the pixels (bilinear) and of the instance map (nearest);
+- occlusion: rectangles of random colour over the frame (random erasing), standing in for clutter;
+  an object left with under ``min_visible_fraction`` of its pixels is dropped;
+- photometric: exposure (a gain), gamma, contrast, per-channel gains (white balance), saturation
+  and hue (a rotation in YIQ's chroma plane), sometimes grey, sometimes blurred, sensor noise.
+
+Boxes move with the pixels exactly (flip and scale keep them axis-aligned); a box cut to under a
+quarter of its area, or under 2 px a side, is dropped (its class becomes -1).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import torch
+import torch.nn.functional as F
+
+from ambulo.utils.validate import Checked
+
+RGB_TO_YIQ = torch.tensor([[0.299, 0.587, 0.114], [0.596, -0.274, -0.322], [0.211, -0.523, 0.312]])
+YIQ_TO_RGB = torch.linalg.inv(RGB_TO_YIQ)
+
+
+@dataclass(kw_only=True)
+class AugmentCfg(Checked):
+    """Training-time augmentations (none at evaluation); each factor is drawn per image."""
+
+    flip_probability: float = 0.5
+    """Horizontal flip: the scenes have no left-right meaning."""
+    scale_range: tuple[float, float] = (0.6, 1.5)
+    """Scale jitter: objects seen nearer and farther than the data's camera put them."""
+    exposure_range: tuple[float, float] = (0.5, 1.8)
+    """Brightness gain, drawn log-uniformly (a darker and a brighter exposure are equally likely)."""
+    gamma_range: tuple[float, float] = (0.6, 1.6)
+    """Tone curve x ** gamma, log-uniform."""
+    contrast_range: tuple[float, float] = (0.6, 1.4)
+    channel_gain_fraction: float = 0.15
+    """White balance: each channel's gain in 1 +- this."""
+    saturation_range: tuple[float, float] = (0.4, 1.6)
+    hue_fraction: float = 0.1
+    """Hue rotation: up to this fraction of a full turn either way."""
+    grey_probability: float = 0.05
+    blur_probability: float = 0.3
+    blur_sigma_range_px: tuple[float, float] = (0.3, 1.5)
+    noise_std_range: tuple[float, float] = (0.0, 0.04)
+    """Additive Gaussian noise; each image's standard deviation is drawn here."""
+    erase_probability: float = 0.5
+    """Chance of each of ``erase_count`` rectangles being drawn on an image."""
+    erase_count: int = 3
+    erase_size_range: tuple[float, float] = (0.05, 0.3)
+    """Each rectangle's side as a fraction of the image's."""
+    min_visible_fraction: float = 0.3
+    """An object covered by rectangles beyond this is dropped: no evidence is left to find it by."""
+
+
+def no_augment() -> AugmentCfg:
+    return AugmentCfg(flip_probability=0.0, scale_range=(1.0, 1.0), exposure_range=(1.0, 1.0), gamma_range=(1.0, 1.0),
+                      contrast_range=(1.0, 1.0), channel_gain_fraction=0.0, saturation_range=(1.0, 1.0),
+                      hue_fraction=0.0, grey_probability=0.0, blur_probability=0.0, noise_std_range=(0.0, 0.0),
+                      erase_probability=0.0)
+
+
+def geometry_only(flip_probability: float = 0.5, scale_range: tuple[float, float] = (0.75, 1.25)) -> AugmentCfg:
+    """Flips and scale jitter, no photometric change or occlusion (the augmentations before issue 27's
+    domain-gap work, kept to measure what the others add)."""
+    return dataclasses.replace(no_augment(), flip_probability=flip_probability, scale_range=scale_range)
+
+
+def _uniform(lo: float, hi: float, shape: tuple[int, ...], g: torch.Generator, device) -> torch.Tensor:
+    return lo + (hi - lo) * torch.rand(shape, generator=g, device=device)
+
+
+def _log_uniform(lo: float, hi: float, shape: tuple[int, ...], g: torch.Generator, device) -> torch.Tensor:
+    return torch.exp(_uniform(math.log(lo), math.log(hi), shape, g, device))
+
+
+def geometric(images: torch.Tensor, instances: torch.Tensor, boxes: torch.Tensor, classes: torch.Tensor,
+              cfg: AugmentCfg, g: torch.Generator) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Flip and scale-crop of images (B, 3, h, w) float, instance maps (B, h, w) uint8, boxes (B, M, 4)
+    px and classes (B, M) (module docstring). Output pixel x comes from input pixel (x - t) / s, or
+    w - (x - t) / s flipped, with t = (1 - s) * extent * u: a window inside a larger image, or the
+    image inside a larger window."""
+    b, _, h, w = images.shape
+    dev = images.device
+    flip = torch.rand(b, generator=g, device=dev) < cfg.flip_probability
+    s = _uniform(*cfg.scale_range, (b,), g, dev)
+    tx = (1 - s) * w * torch.rand(b, generator=g, device=dev)
+    ty = (1 - s) * h * torch.rand(b, generator=g, device=dev)
+    # the inverse map in grid_sample's normalised coordinates (align_corners=False: x_n = 2 x / w - 1)
+    sign = 1.0 - 2.0 * flip.float()
+    theta = torch.zeros(b, 2, 3, device=dev)
+    theta[:, 0, 0] = sign / s
+    theta[:, 0, 2] = sign * (1 / s - 2 * tx / (w * s) - 1)
+    theta[:, 1, 1] = 1 / s
+    theta[:, 1, 2] = 1 / s - 2 * ty / (h * s) - 1
+    grid = F.affine_grid(theta, [b, 1, h, w], align_corners=False)
+    images = F.grid_sample(images, grid, mode="bilinear", padding_mode="zeros", align_corners=False)
+    instances = F.grid_sample(instances[:, None].float(), grid, mode="nearest", padding_mode="zeros",
+                              align_corners=False)[:, 0].round().to(torch.uint8)
+    x0 = torch.where(flip[:, None], w - boxes[..., 2], boxes[..., 0])
+    x1 = torch.where(flip[:, None], w - boxes[..., 0], boxes[..., 2])
+    moved = torch.stack([x0, boxes[..., 1], x1, boxes[..., 3]], dim=-1) * s[:, None, None]
+    moved = moved + torch.stack([tx, ty, tx, ty], dim=-1)[:, None, :]
+    area = (moved[..., 2] - moved[..., 0]) * (moved[..., 3] - moved[..., 1])
+    limit = torch.tensor([w, h, w, h], dtype=moved.dtype, device=dev)
+    moved = torch.minimum(moved.clamp(min=0), limit)
+    bw, bh = moved[..., 2] - moved[..., 0], moved[..., 3] - moved[..., 1]
+    keep = (bw >= 2) & (bh >= 2) & (bw * bh >= 0.25 * area)
+    return images, instances, moved, torch.where(keep, classes, -1)
+
+
+def erase(images: torch.Tensor, instances: torch.Tensor, classes: torch.Tensor, cfg: AugmentCfg,
+          g: torch.Generator) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Random-colour rectangles over images (B, 3, h, w) float; their pixels leave the instance maps,
+    and objects with under ``cfg.min_visible_fraction`` of their pixels left lose their class."""
+    b, _, h, w = images.shape
+    r, dev = cfg.erase_count, images.device
+    if r == 0 or cfg.erase_probability == 0:
+        return images, instances, classes
+    drawn = torch.rand(b, r, generator=g, device=dev) < cfg.erase_probability
+    half_w = _uniform(*cfg.erase_size_range, (b, r), g, dev) * w / 2
+    half_h = _uniform(*cfg.erase_size_range, (b, r), g, dev) * h / 2
+    cx, cy = _uniform(0, w, (b, r), g, dev), _uniform(0, h, (b, r), g, dev)
+    colour = torch.rand(b, r, 3, generator=g, device=dev)
+    xs = torch.arange(w, device=dev) + 0.5
+    ys = torch.arange(h, device=dev) + 0.5
+    inside = ((xs - cx[..., None]).abs() <= half_w[..., None])[:, :, None, :] \
+        & ((ys - cy[..., None]).abs() <= half_h[..., None])[:, :, :, None] & drawn[..., None, None]  # (B, R, h, w)
+    # the last rectangle drawn is on top
+    top = torch.where(inside, torch.arange(1, r + 1, device=dev)[None, :, None, None], 0).amax(dim=1)  # (B, h, w)
+    covered = top > 0
+    paint = colour.gather(1, (top - 1).clamp(min=0).flatten(1)[..., None].expand(-1, -1, 3))  # (B, h*w, 3)
+    images = torch.where(covered[:, None], paint.transpose(1, 2).reshape(b, 3, h, w), images)
+    m = classes.shape[1]
+    before = _pixels_per_instance(instances, m)
+    instances = torch.where(covered, 0, instances)
+    after = _pixels_per_instance(instances, m)
+    hidden = (before > 0) & (after < cfg.min_visible_fraction * before)
+    return images, instances, torch.where(hidden, -1, classes)
+
+
+def _pixels_per_instance(instances: torch.Tensor, m: int) -> torch.Tensor:
+    """(B, m) pixel counts of instances 1..m of each map (B, h, w)."""
+    b = instances.shape[0]
+    index = instances.long() + 256 * torch.arange(b, device=instances.device)[:, None, None]
+    counts = torch.bincount(index.flatten(), minlength=256 * b).reshape(b, 256)
+    return counts[:, 1:m + 1]
+
+
+def photometric(images: torch.Tensor, cfg: AugmentCfg, g: torch.Generator) -> torch.Tensor:
+    """Exposure, gamma, contrast, white balance, saturation, hue, grey, blur and noise of images
+    (B, 3, h, w) in [0, 1] (module docstring); the result is in [0, 1]."""
+    b, _, h, w = images.shape
+    dev = images.device
+    x = images * _log_uniform(*cfg.exposure_range, (b, 1, 1, 1), g, dev)
+    x = x.clamp(0, 1) ** _log_uniform(*cfg.gamma_range, (b, 1, 1, 1), g, dev)
+    mean = x.mean(dim=(1, 2, 3), keepdim=True)
+    x = mean + _uniform(*cfg.contrast_range, (b, 1, 1, 1), g, dev) * (x - mean)
+    # white balance, saturation and hue as one 3x3 colour matrix per image: RGB -> YIQ, scale and
+    # rotate the chroma plane (I, Q), back to RGB
+    angle = _uniform(-cfg.hue_fraction, cfg.hue_fraction, (b,), g, dev) * 2 * math.pi
+    saturation = _uniform(*cfg.saturation_range, (b,), g, dev)
+    saturation = torch.where(torch.rand(b, generator=g, device=dev) < cfg.grey_probability, 0.0, saturation)
+    chroma = torch.zeros(b, 3, 3, device=dev)
+    chroma[:, 0, 0] = 1.0
+    chroma[:, 1, 1], chroma[:, 1, 2] = saturation * torch.cos(angle), -saturation * torch.sin(angle)
+    chroma[:, 2, 1], chroma[:, 2, 2] = saturation * torch.sin(angle), saturation * torch.cos(angle)
+    gains = 1 + _uniform(-cfg.channel_gain_fraction, cfg.channel_gain_fraction, (b, 3), g, dev)
+    colour = YIQ_TO_RGB.to(dev) @ chroma @ RGB_TO_YIQ.to(dev) * gains[:, None, :]  # gains act on the input's channels
+    x = torch.einsum("bij,bjhw->bihw", colour, x)
+    if cfg.blur_probability > 0:
+        x = _blur(x, cfg, g)
+    noise_std = _uniform(*cfg.noise_std_range, (b, 1, 1, 1), g, dev)
+    x = x + noise_std * torch.randn(x.shape, generator=g, device=dev)
+    return x.clamp(0, 1)
+
+
+def _blur(x: torch.Tensor, cfg: AugmentCfg, g: torch.Generator) -> torch.Tensor:
+    """Gaussian blur of the images drawn with ``cfg.blur_probability``: one separable convolution of
+    the whole batch with a kernel per image (the others' kernel is a unit impulse)."""
+    b, c, h, w = x.shape
+    dev = x.device
+    radius = math.ceil(3 * cfg.blur_sigma_range_px[1])
+    sigma = _uniform(*cfg.blur_sigma_range_px, (b,), g, dev)
+    taps = torch.arange(-radius, radius + 1, device=dev, dtype=x.dtype)
+    kernel = torch.exp(-0.5 * (taps / sigma[:, None]) ** 2)
+    kernel = kernel / kernel.sum(dim=1, keepdim=True)
+    impulse = (taps == 0).to(x.dtype)
+    kernel = torch.where((torch.rand(b, generator=g, device=dev) < cfg.blur_probability)[:, None], kernel, impulse)
+    kernel = kernel.repeat_interleave(c, dim=0)  # (B * 3, taps): the same for an image's channels
+    flat = F.pad(x.reshape(1, b * c, h, w), (radius, radius, radius, radius), mode="replicate")
+    flat = F.conv2d(flat, kernel[:, None, None, :], groups=b * c)
+    flat = F.conv2d(flat, kernel[:, None, :, None], groups=b * c)
+    return flat.reshape(b, c, h, w)
+
+
+def augment_batch(batch: dict[str, torch.Tensor], cfg: AugmentCfg, g: torch.Generator) -> dict[str, torch.Tensor]:
+    """A padded batch (``frames.pad_collate``: uint8 images and instance maps, boxes, classes) on one
+    device -> the same with float images in [0, 1], augmented (module docstring)."""
+    images = batch["images"].float() / 255
+    images, instances, boxes, classes = geometric(images, batch["instances"], batch["boxes"], batch["classes"], cfg, g)
+    images, instances, classes = erase(images, instances, classes, cfg, g)
+    return {"images": photometric(images, cfg, g), "instances": instances, "boxes": boxes, "classes": classes}
+
+
+__all__ = ["AugmentCfg", "augment_batch", "erase", "geometric", "geometry_only", "no_augment", "photometric"]

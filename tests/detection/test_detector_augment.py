@@ -1,0 +1,121 @@
+"""Batch augmentations on the device: boxes and instance maps move exactly with the pixels, erased
+objects are dropped, the photometric changes stay in range and are the identity when off; the padded
+loss ignores padding; resident and streamed frames are the same records."""
+
+import dataclasses
+
+import pytest
+import torch
+
+from ambulo.detection import AugmentCfg, load_coco, no_augment
+from ambulo.detection.augment import erase, geometric, photometric
+from ambulo.detection.frames import FrameRecords, ResidentFrames, pad_collate, pad_rows
+from ambulo.detection.loss import centernet_loss, mask_cells
+
+
+def block_batch():
+    """One 20 x 30 frame with a white object at x 2..8, y 4..10 (instance 1) and a padded box slot."""
+    images = torch.zeros(1, 3, 20, 30)
+    images[:, :, 4:10, 2:8] = 1.0
+    instances = torch.zeros(1, 20, 30, dtype=torch.uint8)
+    instances[0, 4:10, 2:8] = 1
+    boxes = torch.tensor([[[2.0, 4.0, 8.0, 10.0], [0.0, 0.0, 0.0, 0.0]]])
+    return images, instances, boxes, torch.tensor([[3, -1]])
+
+
+def geometry(flip: float, scale: float) -> AugmentCfg:
+    return dataclasses.replace(no_augment(), flip_probability=flip, scale_range=(scale, scale))
+
+
+def test_flip_and_scale_move_boxes_and_masks_with_the_pixels():
+    images, instances, boxes, classes = block_batch()
+    g = torch.Generator().manual_seed(0)
+    out, inst, out_boxes, out_classes = geometric(images, instances, boxes, classes, geometry(1.0, 1.0), g)
+    assert torch.equal(out_boxes[0, 0], torch.tensor([22.0, 4.0, 28.0, 10.0]))
+    assert out[0, 0, 4:10, 22:28].min() == 1 and out[0, 0].sum() == 36 and torch.equal(inst[0] == 1, out[0, 0] > 0.5)
+    assert out_classes.tolist() == [[3, -1]]  # the padded slot stays padding
+    # a central object: no window of a 1.5x zoom cuts it
+    images, instances = images.roll((3, 10), dims=(-2, -1)), instances.roll((3, 10), dims=(-2, -1))
+    boxes = boxes + torch.tensor([10.0, 3.0, 10.0, 3.0]) * (classes >= 0)[..., None]
+    for scale in (0.5, 1.5):
+        out, inst, out_boxes, out_classes = geometric(images, instances, boxes, classes, geometry(0.0, scale), g)
+        x0, y0, x1, y1 = out_boxes[0, 0].tolist()
+        ys, xs = torch.nonzero(inst[0] == 1, as_tuple=True)
+        assert out_classes[0, 0] == 3 and (x1 - x0, y1 - y0) == pytest.approx((6 * scale, 6 * scale), abs=1e-4)
+        # the mask's pixels fill the box (to the nearest pixel) and the image's bright pixels are the mask's
+        assert abs(xs.min().item() - x0) <= 1 and abs(xs.max().item() + 1 - x1) <= 1
+        assert abs(ys.min().item() - y0) <= 1 and abs(ys.max().item() + 1 - y1) <= 1
+        bright, mask = out[0, 0] > 0.5, inst[0] == 1  # bilinear pixels and nearest ids differ at the edge only
+        assert (bright & mask).sum() >= 0.6 * (bright | mask).sum()
+    # an object cut away by the crop is dropped: it sat in the corner a 3x zoom leaves out
+    corner = torch.tensor([[[27.0, 0.0, 30.0, 3.0]]])
+    kept = [geometric(images, instances, corner, torch.tensor([[1]]), geometry(0.0, 3.0), g)[3].item()
+            for _ in range(20)]
+    assert -1 in kept and 1 in kept  # cut away by most windows, kept by those that hold the corner
+
+
+def test_erasing_drops_the_objects_it_hides():
+    images, instances, boxes, classes = block_batch()
+    images, instances = images.repeat(64, 1, 1, 1), instances.repeat(64, 1, 1)
+    classes = classes.repeat(64, 1)
+    cfg = dataclasses.replace(no_augment(), erase_probability=1.0, erase_count=1, erase_size_range=(0.4, 0.6))
+    out, inst, out_classes = erase(images, instances, classes, cfg, torch.Generator().manual_seed(0))
+    visible = (inst == 1).flatten(1).sum(1).float() / 36
+    assert torch.equal(out_classes[:, 0] == 3, visible >= cfg.min_visible_fraction)
+    assert (out_classes[:, 0] == -1).any() and (out_classes[:, 0] == 3).any() and (out_classes[:, 1] == -1).all()
+    painted = (out != images).any(dim=1)
+    assert painted.any() and not (painted & (inst > 0)).any()  # erased pixels left the instance map
+
+
+def test_photometric_is_the_identity_when_off_and_stays_in_range():
+    images = torch.rand(8, 3, 12, 16, generator=torch.Generator().manual_seed(0))
+    same = photometric(images, no_augment(), torch.Generator().manual_seed(1))
+    assert torch.allclose(same, images, atol=1e-5)
+    changed = photometric(images, AugmentCfg(), torch.Generator().manual_seed(1))
+    assert changed.min() >= 0 and changed.max() <= 1
+    # each image its own draw: the per-image mean brightness ratios differ
+    ratios = changed.mean(dim=(1, 2, 3)) / images.mean(dim=(1, 2, 3))
+    assert ratios.std() > 0.05
+    grey = photometric(images, dataclasses.replace(no_augment(), grey_probability=1.0), torch.Generator())
+    assert torch.allclose(grey[:, 0], grey[:, 1], atol=1e-5) and torch.allclose(grey[:, 1], grey[:, 2], atol=1e-5)
+
+
+def test_the_loss_ignores_padding_and_sums_over_images():
+    torch.manual_seed(0)
+    maps = {"heat": torch.randn(2, 3, 8, 10), "size": torch.rand(2, 2, 8, 10) * 4, "offset": torch.rand(2, 2, 8, 10),
+            "proto": torch.randn(2, 4, 8, 10), "coef": torch.randn(2, 4, 8, 10)}
+    boxes = [torch.tensor([[4.0, 4.0, 20.0, 14.0], [22.0, 10.0, 34.0, 30.0]]), torch.tensor([[1.0, 2.0, 9.0, 12.0]])]
+    classes = [torch.tensor([0, 2]), torch.tensor([1])]
+    instances = torch.zeros(2, 32, 40, dtype=torch.uint8)
+    instances[0, 4:14, 4:20], instances[0, 10:30, 22:34], instances[1, 2:12, 1:9] = 1, 2, 1
+
+    def loss(width: int) -> dict:
+        return centernet_loss(maps, pad_rows(boxes, 0.0, width), pad_rows(classes, -1, width),
+                              mask_cells(instances, width))
+
+    narrow, wide = loss(2), loss(5)
+    assert all(torch.allclose(narrow[k], wide[k]) for k in narrow)
+    # the batch's loss is its images' losses weighted by their box counts (normalised by all boxes)
+    single = [centernet_loss({k: v[i:i + 1] for k, v in maps.items()}, boxes[i][None], classes[i][None],
+                             mask_cells(instances[i:i + 1], len(boxes[i]))) for i in range(2)]
+    assert torch.allclose(narrow["total"], (2 * single[0]["total"] + single[1]["total"]) / 3)
+
+
+def test_resident_frames_are_the_streamed_records(tiny_dataset):
+    coco = load_coco(tiny_dataset)
+    ids = [im["id"] for im in coco["images"]]
+    records = FrameRecords(tiny_dataset, coco, ids, {c["id"]: k for k, c in enumerate(coco["categories"])})
+    resident = ResidentFrames(records, torch.device("cpu"), chunk=3)
+    index = torch.tensor([5, 0, 7])
+    got = resident.batch(index)
+    want = pad_collate([records[i] for i in index.tolist()])
+    m = want["boxes"].shape[1]
+    assert torch.equal(got["images"], want["images"]) and torch.equal(got["instances"], want["instances"])
+    assert torch.equal(got["boxes"][:, :m], want["boxes"]) and torch.equal(got["classes"][:, :m], want["classes"])
+    assert (got["classes"][:, m:] == -1).all()
+    # every annotation is an instance of the map, with its box around it
+    record = records[0]
+    for k, box in enumerate(record["boxes"]):
+        ys, xs = torch.nonzero(record["instances"] == k + 1, as_tuple=True)
+        if len(xs):
+            assert xs.min() >= box[0] - 1 and xs.max() + 1 <= box[2] + 1 and ys.min() >= box[1] - 1
