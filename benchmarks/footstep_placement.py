@@ -1,6 +1,6 @@
 """Foot placement of a humanoid-footsteps policy: the median error of the touchdowns themselves.
 
-``ambulo eval`` judges ``places_feet`` on the step-averaged error of each world's latest touchdown
+``ambulo eval`` judges ``places_feet`` on each world's latest touchdown error held over the steps
 (``envs.humanoid_footsteps``); the issue's bar is the median foot placement error (<= 5 cm). This
 runs the same evaluation (``rl.run_episodes``: one episode per env of the play variant,
 deterministic actions) and also records every touchdown of every world's first episode: the

@@ -98,7 +98,21 @@ def test_trains_and_evaluates_on_the_cpu(tmp_path):
     result = evaluate(run, num_episodes=4, episode_length_s=1.0, quiet=True)
     assert result["criteria"] == ["places_feet"] and isinstance(result["places_feet"], bool)
     assert math.isfinite(result["mean_placement_error_m"]) and result["mean_placement_error_m"] > 0
-    assert "mean_touchdowns_per_s" in result
+    assert 0.0 <= result["mean_placement_miss_5cm"] <= 1.0 and "mean_touchdowns_per_s" in result
+
+
+def test_places_feet_is_the_median_of_the_held_errors():
+    from ambulo.envs.humanoid_footsteps import PLACES_FEET
+
+    walks = {"fall_rate": 0.0, "mean_touchdowns_per_s": 1.8}
+    assert PLACES_FEET.holds({**walks, "mean_placement_miss_5cm": 0.4})  # most steps within 5 cm
+    assert not PLACES_FEET.holds({**walks, "mean_placement_miss_5cm": 0.6})
+    assert not PLACES_FEET.holds({**walks, "mean_placement_miss_5cm": 0.0, "fall_rate": 0.1})
+    assert not PLACES_FEET.holds({**walks, "mean_placement_miss_5cm": 0.0, "mean_touchdowns_per_s": 0.2})
+    env = envs.make("humanoid-footsteps", num_envs=3, seed=0, num_threads=1, play=True)
+    env.placement_error_m[:] = torch.tensor([0.01, 0.049, 0.06])
+    miss = envs.spec("humanoid-footsteps").step_metrics(env)["placement_miss_5cm"]
+    assert miss.tolist() == [0.0, 0.0, 1.0]
 
 
 def test_follows_given_plans_then_the_sampler():

@@ -18,10 +18,12 @@ the targets' mean yaw; humanoid-walk's stability terms stay. An episode fails wh
 falls or loses the plan (its next target more than ``max_target_distance_m`` from the base).
 
 Evaluation: ``placement_error_m`` is each world's latest touchdown error (before the first, the
-start distance of the swing foot to its target), averaged over every step: ``places_feet`` asks
-that mean to be at most 5 cm, no more falls than 5 % and at least 0.5 touchdowns per second. For
-right-skewed errors the mean bounds the median the issue names from above;
-``benchmarks/footstep_placement.py`` reports the median of the touchdowns themselves.
+start distance of the swing foot to its target), held until the next; ``ambulo eval`` averages
+step metrics over every step, so it reports the mean of that and ``placement_miss_5cm``, the share
+of steps whose latest touchdown missed by more than 5 cm. ``places_feet`` asks that share to be at
+most one half (the median of the held errors, each touchdown weighted by how long it is held, at
+most 5 cm: the issue's bar), no more than 5 % falls or lost plans and at least 0.5 touchdowns per
+second. ``benchmarks/footstep_placement.py`` reports the plain median of the touchdowns.
 Everything else (physics, actions, pushes, randomization, transfer) is humanoid-walk's.
 """
 
@@ -298,15 +300,19 @@ class HumanoidFootstepsEnv(HumanoidWalkEnv):
             fill_rows(buf, rows, 0)
 
 
-PLACES_FEET = Criterion("places_feet", max_values={"fall_rate": 0.05, "mean_placement_error_m": 0.05},
+PLACEMENT_BAR_M = 0.05
+"""The issue's bar on the median foot placement error, m."""
+
+PLACES_FEET = Criterion("places_feet", max_values={"fall_rate": 0.05, "mean_placement_miss_5cm": 0.5},
                         min_values={"mean_touchdowns_per_s": 0.5})
-"""Feet on the footsteps (module docstring: the mean of the held touchdown error, <= 5 cm), no
-more than 5 % falls or lost plans, and stepping (at least one touchdown every 2 s)."""
+"""Feet on the footsteps (module docstring: the median held touchdown error <= 5 cm), no more
+than 5 % falls or lost plans, and stepping (at least one touchdown every 2 s)."""
 
 
 def humanoid_footsteps_metrics(env: HumanoidFootstepsEnv) -> dict[str, torch.Tensor]:
-    return {"placement_error_m": env.placement_error_m, "yaw_error_rad": env.yaw_error_rad,
-            "touchdowns_per_s": env.touchdown.float() / env.step_dt_s}
+    return {"placement_error_m": env.placement_error_m,
+            "placement_miss_5cm": (env.placement_error_m > PLACEMENT_BAR_M).float(),
+            "yaw_error_rad": env.yaw_error_rad, "touchdowns_per_s": env.touchdown.float() / env.step_dt_s}
 
 
 register(TaskSpec(
@@ -321,5 +327,5 @@ register(TaskSpec(
     criteria=(PLACES_FEET,),
 ))
 
-__all__ = ["HumanoidFootstepsCfg", "HumanoidFootstepsEnv", "PLACES_FEET", "humanoid_footsteps_cfg",
+__all__ = ["HumanoidFootstepsCfg", "HumanoidFootstepsEnv", "PLACEMENT_BAR_M", "PLACES_FEET", "humanoid_footsteps_cfg",
            "humanoid_footsteps_play_cfg"]
