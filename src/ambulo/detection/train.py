@@ -46,7 +46,8 @@ from .model import STRIDE_MAX, ModelCfg, build_model
 
 CHECKPOINT = "checkpoint.pt"
 LOG_EVERY_STEPS = 20
-"""Losses are copied off the device (a synchronisation) once per this many steps."""
+"""Losses are copied off the device (a synchronisation) once per this many steps; TensorBoard gets
+their mean over those steps."""
 
 
 @dataclass(kw_only=True)
@@ -183,12 +184,12 @@ def train(dataset_dir: str | Path, run_dir: str | Path, cfg: TrainCfg, resume: b
     def flush(bar) -> None:
         if not pending:
             return
-        values = torch.stack([torch.stack(list(loss.values())) for _, loss in pending]).tolist()
+        values = torch.stack([torch.stack(list(loss.values())) for _, loss in pending])
         names = list(pending[0][1])
-        for (s, _), row in zip(pending, values):
-            losses.append((s, row[names.index("total")]))
-            for name, v in zip(names, row):
-                writer.add_scalar(f"loss/{name}", v, s)
+        for (s, _), total in zip(pending, values[:, names.index("total")].tolist()):
+            losses.append((s, total))
+        for name, v in zip(names, values.mean(dim=0).tolist()):  # the window's mean: a short event file
+            writer.add_scalar(f"loss/{name}", v, pending[-1][0])
         bar.set_postfix(loss=f"{losses[-1][1]:.3f}")
         pending.clear()
 
