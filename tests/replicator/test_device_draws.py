@@ -20,24 +20,33 @@ from ambulo.replicator.randomizers import hsv_to_rgb
 from ambulo.utils.rotations import rot_about_axes
 
 
+def _stream(seed: int, k: int, blocks: torch.Tensor, prefetch: int = 0) -> dd.Stream:
+    return dd.Stream(dd.stream_keys(seed, k, blocks), prefetch)
+
+
 def test_uniforms_depend_on_seed_randomizer_and_block_only():
     blocks = torch.tensor([0, 1, 2, 3, 1000])
-    u = dd.Stream(5, 2, blocks).take(64)
+    u = _stream(5, 2, blocks).take(64)
     assert u.shape == (5, 64) and u.dtype == torch.float32
     assert float(u.min()) >= 0.0 and float(u.max()) < 1.0
     # block 2 alone, in another position, and later slots continue the same stream
-    again = dd.Stream(5, 2, torch.tensor([2, 0]))
+    again = _stream(5, 2, torch.tensor([2, 0]))
     np.testing.assert_array_equal(again.take(10)[0].numpy(), u[2, :10].numpy())
     np.testing.assert_array_equal(again.take(54)[1].numpy(), u[0, 10:].numpy())
-    for other in (dd.Stream(6, 2, blocks), dd.Stream(5, 3, blocks)):
+    for other in (_stream(6, 2, blocks), _stream(5, 3, blocks)):
         assert not torch.equal(other.take(64), u)
     assert len({tuple(row.tolist()) for row in u}) == 5  # every block its own stream
-    many = dd.Stream(1, 0, torch.arange(256)).take(4096)
+    many = _stream(1, 0, torch.arange(256)).take(4096)
+    # drawn up front or take by take, past the prefetch too: the same numbers
+    ahead = _stream(5, 2, blocks, prefetch=40)
+    np.testing.assert_array_equal(torch.cat([ahead.take(30), ahead.take(34)], 1).numpy(), u.numpy())
+    x = torch.tensor([0, 1, 0xFFFFFFFF, 123456789])
+    assert dd.mix32(x).tolist() == [dd._mix32_int(v) for v in x.tolist()]
     assert abs(float(many.mean()) - 0.5) < 0.002 and abs(float(many.std()) - math.sqrt(1 / 12)) < 0.002
 
 
 def test_device_samplers_stay_in_their_distributions():
-    stream = dd.Stream(3, 0, torch.arange(512))
+    stream = _stream(3, 0, torch.arange(512))
     u = dd.sample(uniform((0.0, -2.0), (1.0, -1.0)), stream, 8)
     assert u.shape == (512, 8, 2)
     assert float(u[..., 0].min()) >= 0 and float(u[..., 1].max()) < -1.0 and float(u[..., 1].min()) >= -2.0

@@ -65,37 +65,57 @@ def mix32(x: torch.Tensor) -> torch.Tensor:
 
 
 def _mix32_int(x: int) -> int:
-    """``mix32`` of one Python int (the host part of a key: no tensor, no copy to the device)."""
-    return int(mix32(torch.tensor([x & _MASK32], dtype=torch.int64))[0])
+    """``mix32`` of one Python int: the host part of a key, with no tensor op."""
+    x &= _MASK32
+    x ^= x >> 16
+    x = (x * 0x7FEB352D) & _MASK32
+    x ^= x >> 15
+    x = (x * 0x846CA68B) & _MASK32
+    return x ^ (x >> 16)
+
+
+def key_base(seed: int, k: int) -> int:
+    """The host part of randomizer ``k``'s keys for ``seed`` (``stream_keys`` mixes in the block)."""
+    key = _mix32_int((seed & _MASK32) ^ 0x9E3779B9)
+    key = _mix32_int(key ^ ((seed >> 32) & _MASK32))
+    return _mix32_int(key ^ (k & _MASK32))
 
 
 def stream_keys(seed: int, k: int, blocks: torch.Tensor) -> torch.Tensor:
     """(B,) int64 keys of randomizer ``k``'s draws for frame blocks ``blocks`` (B,) of ``seed``."""
-    key = _mix32_int((seed & _MASK32) ^ 0x9E3779B9)
-    key = _mix32_int(key ^ ((seed >> 32) & _MASK32))
-    key = _mix32_int(key ^ (k & _MASK32))
-    return mix32((blocks & _MASK32) ^ key)
+    return mix32((blocks & _MASK32) ^ key_base(seed, k))
+
+
+_SLOTS: dict[tuple, torch.Tensor] = {}
 
 
 def uniforms(keys: torch.Tensor, first: int, count: int) -> torch.Tensor:
     """(B, count) float32 uniforms in [0, 1): draws ``first .. first + count - 1`` of each key's
     stream (24 bits each: float32's mantissa, so every value is exact)."""
-    slots = mix32(torch.arange(first, first + count, dtype=torch.int64, device=keys.device) + 0x632BE5AB)
+    cache_key = (keys.device, first, count)  # the same few slot ranges every batch: hashed once
+    slots = _SLOTS.get(cache_key)
+    if slots is None:
+        slots = _SLOTS[cache_key] = mix32(torch.arange(first, first + count, dtype=torch.int64,
+                                                       device=keys.device) + 0x632BE5AB)
     bits = mix32(keys[:, None] ^ slots[None, :])
     return (bits >> 8).to(torch.float32) * (1.0 / (1 << 24))
 
 
 class Stream:
-    """One randomizer's draws for a batch of frames: consecutive slots of ``uniforms``."""
+    """One randomizer's draws for a batch of frames: consecutive slots of ``uniforms``. ``keys``:
+    ``stream_keys``'s (B,); ``prefetch``: slots drawn at once up front (the count the randomizer
+    took last batch: one hash pass instead of one per ``take``; the same numbers either way)."""
 
-    def __init__(self, seed: int, k: int, blocks: torch.Tensor):
-        self.keys = stream_keys(seed, k, blocks)
+    def __init__(self, keys: torch.Tensor, prefetch: int = 0):
+        self.keys = keys
         self.used = 0
+        self._drawn = uniforms(keys, 0, prefetch) if prefetch else None
 
     def take(self, count: int) -> torch.Tensor:
-        out = uniforms(self.keys, self.used, count)
-        self.used += count
-        return out
+        start, self.used = self.used, self.used + count
+        if self._drawn is not None and self.used <= self._drawn.shape[1]:
+            return self._drawn[:, start:self.used]
+        return uniforms(self.keys, start, count)
 
 
 def _params(given, dist, device: torch.device, cache: dict):
@@ -187,17 +207,20 @@ class Footprints:
     """(B, M, 3) x, y, radius of each object placed this frame (radius 0: a free slot)."""
     count: int = 0
 
-    def overlaps(self, xy: torch.Tensor, radius: float) -> torch.Tensor:
-        """(B, T) whether a circle of ``radius`` at candidates ``xy`` (B, T, 2) overlaps anything."""
+    def static_overlaps(self, xy: torch.Tensor, radius: torch.Tensor) -> torch.Tensor:
+        """(...) whether circles of ``radius`` (broadcast to ``xy[..., 0]``) at ``xy`` (..., 2)
+        overlap the static boxes."""
         centre, half = self.boxes[:, :2], self.boxes[:, 2:]
-        gap = ((xy[:, :, None, :] - centre).abs() - half).clamp_min(0.0)  # (B, T, O, 2)
-        hit = ((gap * gap).sum(-1) < radius * radius).any(-1)
-        if self.count:
-            placed = self.placed[:, None, :self.count]  # (B, 1, M, 3)
-            d = xy[:, :, None, :] - placed[..., :2]
-            reach = placed[..., 2] + radius
-            hit |= (((d * d).sum(-1) < reach * reach) & (placed[..., 2] > 0)).any(-1)
-        return hit
+        gap = ((xy[..., None, :] - centre).abs() - half).clamp_min(0.0)  # (..., O, 2)
+        return ((gap * gap).sum(-1) < (radius * radius)[..., None]).any(-1)
+
+    def placed_overlaps(self, xy: torch.Tensor, radius: float) -> torch.Tensor:
+        """(B, T) whether a circle of ``radius`` at candidates ``xy`` (B, T, 2) overlaps a circle
+        placed before."""
+        placed = self.placed[:, None, :self.count]  # (B, 1, M, 3)
+        d = xy[:, :, None, :] - placed[..., :2]
+        reach = placed[..., 2] + radius
+        return (((d * d).sum(-1) < reach * reach) & (placed[..., 2] > 0)).any(-1)
 
 
 class _Twin:
@@ -207,6 +230,8 @@ class _Twin:
         self.r, self.engine, self.camera, self.model = r, engine, camera, model
         self.device = engine.device
         self._cache: dict = {}
+        self.slots_used = 0
+        """Uniforms the last ``apply`` took: drawn at once the next time (``Stream``'s prefetch)."""
 
     def sample(self, dist, stream: Stream, num: int) -> torch.Tensor:
         return sample(dist, stream, num, self._cache)
@@ -300,6 +325,7 @@ class _Scatter(_Twin):
         self.rest_z = self.tensor(r._rest_z_m, torch.float32)
         self.park = self.tensor(r._park_values.reshape(-1, 7), torch.float32)
         self.radius = [footprint_radius(m, b, g) for b, g in zip(r._bodies, r._geoms)]
+        self.radii = self.tensor(self.radius, torch.float32)
         (x0, y0), (x1, y1) = r.region
         self.low = self.tensor([x0, y0], torch.float32)
         self.span = self.tensor([x1 - x0, y1 - y0], torch.float32)
@@ -314,21 +340,32 @@ class _Scatter(_Twin):
             rank = stream.take(n).argsort(-1).argsort(-1)  # a random order of the bodies, per world
             active = rank < wanted
         tries = max(1, r.max_tries)
-        free = self.park.expand(b, n, 7).clone()
-        for j in range(n):
-            xy = self.low + self.span * stream.take(2 * tries).view(b, tries, 2)
-            yaw = self.sample(r.yaw_rad, stream, tries).reshape(b, tries)
-            ok = ~footprints.overlaps(xy, self.radius[j]) if r.check_collisions else torch.ones_like(yaw, dtype=bool)
+        # every candidate pose of every body in two draws: (B, n, tries) positions and yaws
+        xy = self.low + self.span * stream.take(2 * n * tries).view(b, n, tries, 2)
+        yaw = self.sample(r.yaw_rad, stream, n * tries).reshape(b, n, tries)
+        blocked = footprints.static_overlaps(xy, self.radii[:, None]) if r.check_collisions \
+            else torch.zeros_like(yaw, dtype=torch.bool)
+        picks, placed = [], []
+        for j in range(n):  # in order: each body avoids those placed before it
+            hit = blocked[:, j]
+            if r.check_collisions and footprints.count:
+                hit = hit | footprints.placed_overlaps(xy[:, j], self.radius[j])
+            ok = ~hit
             first = ok.to(torch.uint8).argmax(-1, keepdim=True)  # the first candidate that fits (0 if none)
-            placed = ok.any(-1) & active[:, j]
-            xy, yaw = xy.gather(1, first[..., None].expand(b, 1, 2))[:, 0], yaw.gather(1, first)[:, 0]
-            pose = torch.stack((xy[:, 0], xy[:, 1], self.rest_z[j].expand(b), torch.cos(0.5 * yaw),
-                                torch.zeros_like(yaw), torch.zeros_like(yaw), torch.sin(0.5 * yaw)), -1)
-            free[:, j] = torch.where(placed[:, None], pose, free[:, j])
+            fits = ok.any(-1) & active[:, j]
             slot = footprints.placed[:, footprints.count]
-            slot[:, :2] = xy
-            slot[:, 2] = torch.where(placed, self.radius[j], 0.0)
+            slot[:, :2] = xy[:, j].gather(1, first[..., None].expand(b, 1, 2))[:, 0]
+            slot[:, 2] = torch.where(fits, self.radius[j], 0.0)
             footprints.count += 1
+            picks.append(first)
+            placed.append(fits)
+        first, fits = torch.stack(picks, 1), torch.stack(placed, 1)  # (B, n, 1), (B, n)
+        xy = xy.gather(2, first[..., None].expand(b, n, 1, 2))[:, :, 0]
+        yaw = yaw.gather(2, first)[..., 0]
+        zero = torch.zeros_like(yaw)
+        pose = torch.stack((xy[..., 0], xy[..., 1], self.rest_z.expand(b, n), torch.cos(0.5 * yaw), zero, zero,
+                            torch.sin(0.5 * yaw)), -1)
+        free = torch.where(fits[..., None], pose, self.park)
         self.engine.qpos[:count, self.free_index.reshape(-1)] = free.reshape(b, -1)
 
 
@@ -397,8 +434,13 @@ class DeviceDraws:
         the engine's fields and the camera's offsets; after ``Simulation.reset`` of the state."""
         count = len(index)
         footprints = Footprints(self._boxes, torch.zeros((count, self._movers, 3), device=index.device))
-        for k, (r, twin) in enumerate(zip(self.randomizers, self.twins)):
-            twin.apply(Stream(seed, k, index // max(1, r.every_n_frames)), count, footprints)
+        # every randomizer's keys in one hash pass: (R, B), row k from (seed, k, frame block)
+        blocks = [index if r.every_n_frames <= 1 else index // r.every_n_frames for r in self.randomizers]
+        keys = mix32(torch.stack([(b & _MASK32) ^ key_base(seed, k) for k, b in enumerate(blocks)]))
+        for k, twin in enumerate(self.twins):
+            stream = Stream(keys[k], prefetch=twin.slots_used)
+            twin.apply(stream, count, footprints)
+            twin.slots_used = stream.used
 
 
 __all__ = ["DeviceDraws", "Footprints", "Stream", "footprint_radius", "hsv_to_rgb", "mix32", "rotvec_to_mat",
