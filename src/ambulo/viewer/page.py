@@ -28,6 +28,7 @@ from .geometry import body_name, geom_shapes, root_bodies, subtree
 from .gui import Panel, speed_label
 from .layout import scene_spacing_m
 from .overlays import Overlays
+from .pace import Ticks
 from .scene import GridScene
 from .sensor_feeds import feed_scans
 
@@ -65,9 +66,12 @@ class PageServer:
     """A viser server on ``host:port`` drawing the frames of ``exchange`` (see the module)."""
 
     def __init__(self, controls: Controls, exchange: FrameExchange, feed: OverlayFeed, scalars: ScalarLog, *,
-                 port: int, rate_hz: float, host: str = "127.0.0.1"):
+                 port: int, rate_hz: float, host: str = "127.0.0.1", paced: bool = True):
         self.controls, self.exchange, self.feed, self.scalars = controls, exchange, feed, scalars
         self.period_s = 1.0 / rate_hz
+        self.paced = paced
+        """Hold each loop of the streaming thread to ``period_s``; not when the frames arrive already
+        paced (``remote``: pacing twice, at one rate, would drop a frame whenever they drift)."""
         self.server = viser.ViserServer(host=host, port=port, label="ambulo", verbose=False)
         self.server.scene.set_up_direction("+z")
         # flat lights, no shadows or image-based lighting: colours read as MuJoCo's, and a software
@@ -164,6 +168,7 @@ class PageServer:
 
     def _stream_frames(self) -> None:
         sequence, next_readout, next_curves = 0, 0.0, 0.0
+        ticks = Ticks(self.period_s)
         while not self._stop.is_set():
             started, cpu0 = time.perf_counter(), time.thread_time()
             if started >= next_curves:  # curves are fed by the caller, not the simulation: drawn even while paused
@@ -182,7 +187,8 @@ class PageServer:
                 if started >= next_readout:
                     next_readout = started + READOUT_PERIOD_S
             self.stream_cpu_s += time.thread_time() - cpu0
-            self._stop.wait(max(0.0, self.period_s - (time.perf_counter() - started)))
+            if self.paced:
+                ticks.wait(self._stop)
 
     def _send(self, frame, readout: bool) -> None:
         time_s, xpos_w, xquat_w, extras = frame.numpy()

@@ -31,6 +31,7 @@ import numpy as np
 from .controls import Controls
 from .feed import OverlayFeed
 from .frames import Frame, FrameExchange
+from .pace import Ticks
 
 log = logging.getLogger(__name__)
 
@@ -145,9 +146,9 @@ class PageProcess:
 
     def _stream(self) -> None:
         """Ask for a frame, send it, at most once per ``period_s`` (the page's server draws each as it comes)."""
-        sequence = 0
+        sequence, ticks = 0, Ticks(self.period_s)
         while not self._stop.is_set():
-            started, cpu0 = time.perf_counter(), time.thread_time()
+            cpu0 = time.thread_time()
             self.exchange.request()
             sequence, frame = self.exchange.latest(sequence, timeout_s=self.period_s)
             if frame is not None:
@@ -157,7 +158,7 @@ class PageProcess:
             if self.send.broken:
                 log.warning("web viewer: the page's server process ended; the simulation goes on unwatched")
                 return
-            self._stop.wait(max(0.0, self.period_s - (time.perf_counter() - started)))
+            ticks.wait(self._stop)
 
     def _read(self) -> None:
         while True:
@@ -252,7 +253,7 @@ def serve(fd: int) -> None:
     controls = _PageControls(send, hello["num_worlds"], hello["speed"], hello["shown"])
     exchange, feed, scalars = _PageExchange(send), OverlayFeed(), ScalarLog()
     page = PageServer(controls, exchange, feed, scalars, port=hello["port"], rate_hz=hello["rate_hz"],
-                      host=hello["host"])
+                      host=hello["host"], paced=False)  # the pump paces the frames
     exchange.page = page
     send(("ready", page.port))
     try:
