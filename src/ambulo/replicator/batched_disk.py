@@ -5,26 +5,27 @@ work (loose and 3D boxes, COCO RLE, four PNG encodes, the record: ~20 ms of CPU 
 to threads of the producer's process, and much of it holds the GIL. ``run_batched_frames`` encodes
 the RGB images on the device when ``image_format='jpg'`` (``encode``: nvjpeg, a third of the PNG
 work gone) and moves the rest to the draw processes (``draw_pool.DrawPool``, which already hold
-the scene): each batch's images (ids as 16 bits) are copied once into a shared-memory block
-(page-locked for the GPU's copy when CUDA allows), and each process writes a contiguous part of
-the batch's frames from there (``writers.write_frame_files``) and hands back their records. The records are
-written here, a batch at a time after one flush of the batch's files (``FrameWriter``), so a record
-on disk still always points to data on disk; two blocks alternate, so the device renders batch
-i+1 while the processes write batch i.
+the scene): each batch's images (ids as 16 bits) are copied once into a memory-mapped block
+(``SharedBatch``, page-locked for the GPU's copy when CUDA allows), and each process writes a
+contiguous part of the batch's frames from there (``writers.write_frame_files``) and hands back
+their records. A thread here writes the records, a batch at a time after one flush of the batch's
+files (``FrameWriter``), so a record on disk still always points to data on disk; two blocks
+alternate, so the device renders batch i+1 while the processes write batch i.
 
 The files are the ``run_frames`` path's, byte for byte, with PNG RGB (tested); with JPEG the RGB
-file is ``rgb/NNNNNN.jpg`` and the record's ``file_name`` says so (``write_jpeg_frame``). Writers supported: coco, depth (png16), masks, kitti; others (raw, npy
-depth) take ``run_frames``.
+file is ``rgb/NNNNNN.jpg`` and the record's ``file_name`` says so (``write_jpeg_frame``). Writers
+supported: coco, depth (png16), masks, kitti; others (raw, npy depth) take ``run_frames``.
 """
 
 from __future__ import annotations
 
-import collections
 import contextlib
 import mmap
 import os
 import pickle
+import queue
 import tempfile
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -60,7 +61,8 @@ class SharedBatch:
             offsets[name] = size
             size += -(-int(np.prod(shape)) * np.dtype(dtype).itemsize // 64) * 64
         self.offsets, self.size = offsets, max(size, 64)
-        fd, self.path = tempfile.mkstemp(prefix="ambulo-batch-", dir=_block_dir(self.size))
+        folder = _block_dir(self.size)
+        fd, self.path = tempfile.mkstemp(prefix="ambulo-batch-", dir=folder)
         try:
             os.ftruncate(fd, self.size)
             self._map = mmap.mmap(fd, self.size)
@@ -68,10 +70,12 @@ class SharedBatch:
             os.close(fd)
         self.arrays = _arrays(self._map, layout, offsets)
         self._pinned = None
-        if pin:
+        if pin and folder is not None:  # shared memory pins; a file's pages may not (Linux refuses long pins)
             pointer = np.frombuffer(self._map, np.uint8, count=1).ctypes.data
-            if int(torch.cuda.cudart().cudaHostRegister(pointer, self.size, 0)) == 0:
+            if int(torch.cuda.cudart().cudaHostRegister(pointer, self.size, 1)) == 0:  # 1: portable
                 self._pinned = pointer
+            else:
+                _clear_cuda_error()
 
     @property
     def spec(self) -> tuple[str, dict, dict]:
@@ -87,6 +91,14 @@ class SharedBatch:
             self._map.close()
         with contextlib.suppress(FileNotFoundError):
             os.unlink(self.path)
+
+
+def _clear_cuda_error() -> None:
+    """A failed ``cudaHostRegister`` leaves its error as the CUDA runtime's last error, which torch's
+    next kernel-launch check would raise as its own: one throwaway launch takes it."""
+    with contextlib.suppress(RuntimeError):
+        torch.ones(1, device="cuda").add_(1)
+        torch.cuda.synchronize()
 
 
 def _block_dir(size: int) -> str | None:
@@ -133,20 +145,30 @@ def run_batched_frames(config, out: Path, seed: int, frames: list[int], producer
     writer = FrameWriter(out, config.writer, batch=producer.num_worlds)
     layout = batch_layout(producer.num_worlds, cfg.height, cfg.width, jpeg)
     blocks = [SharedBatch(layout, pin=cuda) for _ in range(2)]
-    free = collections.deque(blocks)
-    in_flight: collections.deque = collections.deque()  # (block, futures) in batch order
+    free: queue.Queue = queue.Queue()
+    for block in blocks:
+        free.put(block)
+    written: queue.Queue = queue.Queue()  # (block, futures) in batch order, then None
+    failed: list[BaseException] = []
 
     def settle() -> None:
-        block, futures = in_flight.popleft()
-        try:
-            for future in futures:
-                for index, record in future.result():
-                    writer.add(index, record)
-                    if progress is not None:
-                        progress(1)
-        finally:
-            free.append(block)
+        """On a thread: each batch's records, as its processes finish (the batch flushes, the
+        records' writes), while this thread renders the next; then its block is free again."""
+        while (item := written.get()) is not None:
+            block, futures = item
+            try:
+                for future in futures:
+                    for index, record in future.result():
+                        writer.add(index, record)
+                        if progress is not None:
+                            progress(1)
+            except BaseException as err:  # the frames of the other parts are kept; the run stops
+                failed.append(err)
+            finally:
+                free.put(block)
 
+    settler = threading.Thread(target=settle, name="ambulo-records", daemon=True)
+    settler.start()
     try:
         for chunk, drawn in producer._chunks(seed, frames):
             logs, (instances, boxes, pixels) = producer._render_chunk(seed, chunk, drawn)
@@ -161,27 +183,23 @@ def run_batched_frames(config, out: Path, seed: int, frames: list[int], producer
                 device["jpeg_bytes"] = torch.cat(files)
             else:
                 device["rgb"] = images["rgb"][:count]
-            if not free:
-                settle()
-            block = free.popleft()
+            block = free.get()  # the batch before last has been written
+            if failed:
+                raise failed[0]
             for name, tensor in device.items():
                 target = block.arrays[name].reshape(-1)[:tensor.numel()].view(_NUMPY[tensor.dtype])
                 torch.from_numpy(target).view(tensor.shape).copy_(tensor, non_blocking=cuda)
             small = producer.to_host(count, instances, boxes, pixels, images=False)  # syncs the stream
-            in_flight.append((block, _submit_parts(pool, block, chunk, logs, small, sizes, out, config.writer,
-                                                   image_format, writer.fsync_files)))
-        while in_flight:
-            settle()
+            written.put((block, _submit_parts(pool, block, chunk, logs, small, sizes, out, config.writer,
+                                              image_format, writer.fsync_files)))
     finally:
-        for _, futures in in_flight:  # an error: keep the frames already written, drop the rest
-            for future in futures:
-                if not future.cancel():
-                    with contextlib.suppress(Exception):
-                        for index, record in future.result():
-                            writer.add(index, record)
+        written.put(None)  # the batches submitted are written and their records kept, whatever happened
+        settler.join()
         writer.flush()
         for block in blocks:
             block.close()
+    if failed:
+        raise failed[0]
     return producer.gl_renderer
 
 

@@ -29,7 +29,7 @@ from .config import DatasetConfig
 from .encode import IMAGE_FORMATS, JPEG_QUALITY, jpeg_available
 from .io import PNG_DEFLATE
 from .manifest import open_dataset
-from .processes import default_workers, run_on_processes
+from .processes import default_workers, run_on_processes, usable_cpus
 from .producer import FrameProducer, run_frames
 from .ray_workers import run_on_ray
 from .writers import frame_is_complete, frame_subdirs, prepare_dirs
@@ -111,7 +111,7 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
         if not jpeg_available(device):
             raise ValueError(f"--image-format jpg needs torchvision built for this torch with JPEG encoding on "
                              f"{device}; install it or write PNG")
-        draw_workers = draw_workers or max(1, (os.cpu_count() or 3) - 2)
+        draw_workers = draw_workers or max(1, usable_cpus() - 2)
     if watch is not None and (workers not in (None, 1) or num_gpus > 1 or backend == "ray"):
         raise ValueError("watching a dataset's generation needs its producer in this process: one worker, "
                          "one GPU, no Ray")
