@@ -101,3 +101,41 @@ def test_a_jpeg_dataset_has_the_png_datasets_labels_and_nearly_its_pixels(tmp_pa
         a = np.asarray(Image.open(tmp_path / "png" / f"rgb/{i:06d}.png"), np.float64)
         b = np.asarray(Image.open(tmp_path / "jpg" / f"rgb/{i:06d}.jpg"), np.float64)
         assert a.shape == b.shape and np.abs(a - b).mean() < 3.0
+
+
+def test_a_jpeg_frame_has_the_png_frames_files_and_record_but_its_rgb_file(tmp_path):
+    import io
+
+    from PIL import Image
+
+    from ambulo.replicator.batched import BatchedFrameProducer
+    from ambulo.replicator.batched_disk import write_jpeg_frame
+    from ambulo.replicator.writers import prepare_dirs, write_frame_files
+
+    config = rep.example_config(64, 48)
+    config = dataclasses.replace(config, writer=dataclasses.replace(config.writer,
+                                                                    outputs=("coco", "depth", "masks", "kitti")))
+    producer = BatchedFrameProducer(config, num_worlds=2, device="cpu")
+    try:
+        (index, log, capture), = list(producer.frames(5, [3]))
+        table = producer.table
+    finally:
+        producer.close()
+    buffer = io.BytesIO()
+    Image.fromarray(capture["rgb"]).save(buffer, format="JPEG", quality=95)
+    for name in ("png", "jpg"):
+        prepare_dirs(tmp_path / name, config.writer)
+    want = write_frame_files(tmp_path / "png", index, capture, table, log, config.writer, fsync_files=False)
+    got = write_jpeg_frame(str(tmp_path / "jpg"), index, capture, table, log, config.writer, False,
+                           np.frombuffer(buffer.getvalue(), np.uint8))
+    assert got["file_name"] == "rgb/000003.jpg" and (tmp_path / "jpg" / got["file_name"]).read_bytes() == buffer.getvalue()
+    assert {k: v for k, v in got.items() if k not in ("file_name", "files")} == \
+        {k: v for k, v in want.items() if k not in ("file_name", "files")}
+    others = sorted(f for f in want["files"] if not f.startswith("rgb/"))
+    assert others == sorted(f for f in got["files"] if not f.startswith("rgb/")) and len(others) >= 3
+    for name in others:  # the same pixels (a PNG's row filter and deflate may differ) and the same text
+        a, b = (tmp_path / fmt / name for fmt in ("jpg", "png"))
+        if name.endswith(".png"):
+            np.testing.assert_array_equal(np.asarray(Image.open(a)), np.asarray(Image.open(b)), err_msg=name)
+        else:
+            assert a.read_bytes() == b.read_bytes(), name
