@@ -13,7 +13,7 @@ the viewer's start-up, a page's first scene, weigh little). A B round is ``ambul
 web``: a viewer (``ambulo.viewer.serve(env)``, its server in its own process unless
 ``--in-process``) watching world ``num_envs // 2``, fed the iteration's curves (``add_scalars``),
 followed by a page: a separate process connected to the viewer's websocket as a browser is,
-decoding everything it gets and timing each pose update of the watched world (the browser's own
+decoding everything it gets and timing each pose update of the drawn world (the browser's own
 drawing happens on the user's machine). The viewer is opened and closed between iterations,
 through ``train``'s ``watch`` hook; an iteration is timed from the end of the previous one (after
 the switch) to its own end, so opening and closing are not counted (they cost a command once).
@@ -67,8 +67,9 @@ with connect(sys.argv[1], subprotocols=["viser-v" + viser.__version__], max_size
         size, packed = int.from_bytes(raw[:8], "little"), int.from_bytes(raw[8:16], "little")
         inner = msgspec.msgpack.decode(decompress.decompress(raw[16:16 + packed], max_output_size=size))
         counts = {}
-        for m in inner["messages"]:  # a frame sets each moving body of the watched world (slot 0) once
-            if m.get("type") == "SetPositionMessage" and m.get("name", "").startswith("/w0/b"):
+        for m in inner["messages"]:  # a frame poses each moving geom's instances once (viewer.scene)
+            if (m.get("type") == "SceneNodeUpdateMessage" and m.get("name", "").startswith("/worlds/g")
+                    and "batched_positions" in m.get("updates", {})):
                 counts[m["name"]] = counts.get(m["name"], 0) + 1
         updates += [now] * max(counts.values(), default=0)
 print(json.dumps(updates), flush=True)

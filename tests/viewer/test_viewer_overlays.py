@@ -15,6 +15,7 @@ import pytest
 pytest.importorskip("viser")
 import ambulo.viewer
 from ambulo.sim import DynamicCuboid, World
+from ambulo.viewer.geometry import is_ground
 from ambulo.viewer.layout import grid_offsets_w
 
 LIMIT_S = 120.0
@@ -69,19 +70,20 @@ def box_body(viewer) -> int:
 
 def test_grid_draws_each_world_at_its_offset(world, viewer):
     grid = viewer.page.grid
-    step_until(world, lambda: len(grid.slots) == 4 and viewer.frames_sent > 2, "a grid of 4 worlds")
+    step_until(world, lambda: grid.count == 4 and viewer.frames_sent > 2, "a grid of 4 worlds")
     expected = grid_offsets_w(4, grid.spacing_m)
     assert grid.spacing_m >= 2.0 and np.allclose(expected[0], 0.0)
     box = box_body(viewer)
-    for k in range(4):
-        slot = nodes(viewer)[f"/w{k}"]
-        np.testing.assert_allclose(slot.position, expected[k], atol=1e-6)
-        # the box's frame inside the slot holds its world pose: drawn at offset + pose
-        np.testing.assert_allclose(grid.slots[k][box].position[:2], BOX_XY_M, atol=0.01)
-    assert f"/w1/b{box}" in nodes(viewer) and not any(n.startswith("/w1/b0/") for n in nodes(viewer))  # one floor
-    viewer.controls.show(1)  # back to one world: the other slots leave the scene
-    step_until(world, lambda: len(grid.slots) == 1, "one world")
-    assert "/w1" not in nodes(viewer) and "/w0" in nodes(viewer)
+    (geom,) = [g for g in grid.geoms if int(grid.model.geom_bodyid[g]) == box]
+    # one mesh for the 4 worlds: each instance at its world's offset + the box's pose in that world
+    drawn = grid.instance_positions_w(geom)
+    assert drawn.shape == (4, 3)
+    np.testing.assert_allclose(drawn[:, :2] - expected[:, :2], np.tile(BOX_XY_M, (4, 1)), atol=0.01)
+    (floor,) = [s for s in grid.shapes if is_ground(s)]  # drawn once, with its grid, not per world
+    assert f"/ground/b{floor.body_id}/g{floor.geom_id}" in nodes(viewer) and floor.geom_id not in grid.geoms
+    viewer.controls.show(1)  # back to one world: one instance each
+    step_until(world, lambda: grid.count == 1 and len(grid.instance_positions_w(geom)) == 1, "one world")
+    np.testing.assert_allclose(grid.instance_positions_w(geom)[0, :2], BOX_XY_M, atol=0.01)
 
 
 def test_contact_arrows_carry_the_box_weight(world, viewer):

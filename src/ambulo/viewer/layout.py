@@ -1,6 +1,6 @@
 """Where a grid of worlds is drawn: every world of a batch sits at the same place in the simulation
 (``mujoco.batch`` and MuJoCo Warp keep N copies of one model, no env spacing), so the viewer
-offsets each drawn world's copy of the scene in the page, on a near-square grid.
+offsets each drawn world in the page, on a near-square grid.
 
 Slot 0 (the watched world) stays at the origin, so its bodies and every overlay are drawn where
 the simulation says; slot k sits at column k % cols, row k // cols, ``spacing_m`` apart along +x
