@@ -139,3 +139,15 @@ def test_a_jpeg_frame_has_the_png_frames_files_and_record_but_its_rgb_file(tmp_p
             np.testing.assert_array_equal(np.asarray(Image.open(a)), np.asarray(Image.open(b)), err_msg=name)
         else:
             assert a.read_bytes() == b.read_bytes(), name
+
+
+def test_generate_cli_refuses_jpeg_without_the_gpu_path(tmp_path, capsys):
+    from ambulo.cli import main
+
+    assert main(["generate", "--frames", "2", "--out", str(tmp_path / "a"), "--image-format", "jpg"]) != 0
+    assert "--image-format jpg encodes the RGB images on the GPU" in capsys.readouterr().err
+    if not jpeg_available("cpu"):
+        assert main(["generate", "--frames", "2", "--out", str(tmp_path / "b"), "--device", "cpu",
+                     "--image-format", "jpg"]) != 0
+        assert "needs torchvision's JPEG encoder on cpu" in capsys.readouterr().err
+    assert not any((tmp_path / d).exists() for d in "ab")  # nothing written
