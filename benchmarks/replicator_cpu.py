@@ -12,10 +12,12 @@ For each image size and worker count P, in the same run:
   summed over the processes. It is no slower than what ``generate`` renders:
   the same two passes of scenes made by the producer into its own buffers
   cost the same CPU (results/cpu-2026-11-28-replicator-producer.md).
-- annotated: what ``ambulo generate --workers P`` does in steady state:
-  randomize, render both passes, instance/semantic maps, 2D/3D boxes, COCO RLE,
-  PNG rgb + 16-bit depth + instance/semantic PNGs and the frame record, all
-  written atomically into ``--dir`` (default: the system's temporary folder).
+- annotated: what ``ambulo generate --workers P`` does in steady state with the
+  example config: randomize, render both passes, instance/semantic maps, 2D/3D
+  boxes, COCO RLE, PNG rgb + 16-bit depth + instance PNGs (no semantic PNG: the
+  default annotators, as Replicator's BasicWriter, ask for none) and the frame
+  record, all written atomically into ``--dir`` (default: the system's temporary
+  folder).
   P = 1 runs in this process (llvmpipe's default threads), P > 1 on
   ``ProducerPool`` (spawned processes, llvmpipe inline).
 
@@ -27,7 +29,7 @@ and shown as ``end_to_end_fps_320x240``: the wall-clock rate of one whole
 ``generate`` call (start-up and the COCO merge included). Floor and annotated
 runs alternate and the best of each is kept, which damps noise from other
 load; the table shows every run's range. ``file_create_ms`` is the CPU cost of
-creating one file in ``--dir`` (five a frame): on an ext4 without journal it
+creating one file in ``--dir`` (four a frame): on an ext4 without journal it
 grows with the files deleted there in the last ~50 min. Shadows and MSAA off
 (the defaults). Ends with one line ``RESULT {json}``; "ratio" is annotated /
 floor at 320x240 for the RESULT's worker count (the most measured);

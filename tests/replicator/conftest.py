@@ -1,4 +1,5 @@
 import dataclasses
+import json
 import os
 import subprocess
 import sys
@@ -6,6 +7,7 @@ import time
 import types
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from ambulo import replicator as rep
@@ -14,9 +16,30 @@ SIZE = (160, 120)
 SRC = str(Path(rep.__file__).resolve().parents[2])
 
 
-def file_tree(root: Path) -> dict[str, bytes]:
-    """Every file under ``root`` by relative path, with its bytes."""
-    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+def file_tree(root: Path) -> dict[str, object]:
+    """Every file under ``root`` by relative path, with what a dataset promises of it: a PNG's decoded
+    pixels (the deflate may give other bytes for the same pixels: ``replicator.io``), a frame record's
+    values with the PNGs' sizes left out (they follow the bytes), any other file's bytes."""
+    return {str(p.relative_to(root)): _content(p, root) for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def _content(path: Path, root: Path):
+    if path.suffix == ".png":
+        from PIL import Image, UnidentifiedImageError
+
+        try:
+            pixels = np.asarray(Image.open(path))
+        except UnidentifiedImageError:  # a user's file, or a damaged frame: its bytes
+            return path.read_bytes()
+        return "png", pixels.dtype.str, pixels.shape, pixels.tobytes()
+    if path.suffix == ".json" and path.parent == root / "frames":
+        try:
+            record = json.loads(path.read_bytes())
+            record["files"] = {k: (None if k.endswith(".png") else v) for k, v in record["files"].items()}
+        except (ValueError, KeyError, TypeError, AttributeError):
+            return path.read_bytes()  # a damaged record: its bytes
+        return record
+    return path.read_bytes()
 
 
 def generate_argv(out: Path, frames: int, *extra: str) -> list[str]:

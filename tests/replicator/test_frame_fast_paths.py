@@ -6,6 +6,8 @@ PNG: each is checked against the computation it replaced, on the example scene a
 chosen to hit the edges (32-bit words, absent ids).
 """
 
+import dataclasses
+
 import mujoco
 import numpy as np
 import pytest
@@ -18,7 +20,10 @@ from ambulo.sensors import annotators as ann
 
 @pytest.fixture(name="producer", scope="module")
 def small_producer():
-    producer = rep.FrameProducer(rep.example_config(64, 48))
+    """The example scene at 64x48, with the semantic image the default annotators leave out."""
+    config = rep.example_config(64, 48)
+    camera = dataclasses.replace(config.camera, annotators=(*config.camera.annotators, "semantic_segmentation"))
+    producer = rep.FrameProducer(dataclasses.replace(config, camera=camera))
     yield producer
     producer.close()
 

@@ -44,11 +44,11 @@ def test_generate_with_pbr_writes_the_raster_annotations_and_other_colours(tmp_p
         assert ours == theirs, image_id  # boxes, RLE masks, areas, categories, ids: all equal
         for a in ours:  # and the masks decode to the same pixels
             assert np.array_equal(raster.annToMask(a), lit.annToMask(a))
-    for name in ("instance", "semantic", "depth"):
+    for name in ("instance", "depth"):
         files = sorted((outs["raster"] / name).glob("*.png"))
         assert len(files) == FRAMES, name
-        for f in files:
-            assert f.read_bytes() == (outs["pbr"] / name / f.name).read_bytes(), f
+        for f in files:  # the same pixels (the deflate promises no more than that)
+            assert np.array_equal(np.asarray(Image.open(f)), np.asarray(Image.open(outs["pbr"] / name / f.name))), f
     differences = []
     for f in sorted((outs["raster"] / "rgb").glob("*.png")):
         a = np.asarray(Image.open(f), int)

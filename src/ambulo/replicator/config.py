@@ -14,8 +14,10 @@ from ambulo.utils.validate import Checked
 from .randomizers import Randomizer
 from .writers import WriterCfg, default_writer_cfg
 
-# The annotators every dataset frame needs for COCO, masks, KITTI and the record.
-DATASET_ANNOTATORS = ("rgb", "depth", "instance_segmentation", "semantic_segmentation",
+# The annotators every dataset frame needs for COCO, masks, KITTI and the record. Not
+# semantic_segmentation: as Replicator's BasicWriter, a semantic image is written only when asked
+# (add it to a camera's annotators); ``manifest.semantic_image`` derives it from the instance image.
+DATASET_ANNOTATORS = ("rgb", "depth", "instance_segmentation",
                       "bounding_box_2d_tight", "bounding_box_2d_loose", "bounding_box_3d")
 
 

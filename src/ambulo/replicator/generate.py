@@ -20,7 +20,7 @@ import mujoco
 from tqdm import tqdm
 
 from ambulo.core import compile_scene
-from ambulo.utils.atomic import atomic_write_json, remove_partial_files
+from ambulo.utils.atomic import atomic_write_bytes, atomic_write_json, remove_partial_files
 
 from .batched import IMAGE_SOURCE, BatchedFrameProducer
 from .batched_disk import SUPPORTED_OUTPUTS, run_batched_frames, supports
@@ -32,7 +32,7 @@ from .manifest import open_dataset
 from .processes import default_workers, run_on_processes, usable_cpus
 from .producer import FrameProducer, run_frames
 from .ray_workers import run_on_ray
-from .writers import frame_is_complete, frame_subdirs, prepare_dirs
+from .writers import frame_is_complete, frame_subdirs, json_bytes, prepare_dirs
 
 
 def done_frames(out: Path, num_frames: int) -> set[int]:
@@ -130,8 +130,8 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
     source = None if device is None else IMAGE_SOURCE if image_format == "png" else f"{IMAGE_SOURCE}, rgb jpeg " \
         f"q{JPEG_QUALITY}"
     open_dataset(out, config, seed, model, num_frames, overwrite, image_source=source)
-    prepare_dirs(out, config.writer)
-    remove_partial_files(out, *(out / sub for sub in frame_subdirs(config.writer)))
+    prepare_dirs(out, config.writer, config.camera.annotators)
+    remove_partial_files(out, *(out / sub for sub in frame_subdirs(config.writer, config.camera.annotators)))
     todo = sorted(set(range(num_frames)) - done_frames(out, num_frames))
     batched = producer is not None
     workers = 1 if batched or watch is not None else (
@@ -181,7 +181,7 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
     info = {"description": config.name, "version": "1.0", "gl_renderer": renderer, "seed": seed}
     coco = merge_coco(out / "frames", num_frames, categories, info)
     path = out / "annotations.json"
-    atomic_write_json(path, coco, fsync=fsync)
+    atomic_write_bytes(path, json_bytes(coco), fsync=fsync)
     return path
 
 

@@ -1,14 +1,15 @@
-"""A small, fast, deterministic PNG encoder and depth-image encoding.
+"""A small, fast PNG encoder and depth-image encoding.
 
-PNG deflate is zlib-ng's (the ``zlib-ng`` package, in the ``data`` extra) when it is installed,
-else the standard library's ``zlib``: at level 1 zlib-ng takes a third of zlib's time for files
-~30% larger (``benchmarks/results/cpu-2026-11-28-replicator.md``), and like zlib it gives the
-same bytes for the same pixels every time. ``AMBULO_PNG_DEFLATE`` picks one: ``zlib-ng``,
-``zlib``, or ``isal`` (ISA-L, faster still, but once in ~60,000 encodes it produced different
-bytes for the same pixels (issue #7's measurement), and ambulo promises byte-identical datasets
-for a seed, so it is opt-in). The one in use is ``PNG_DEFLATE``, recorded in each dataset. All
-release the GIL, so a writer thread overlaps with rendering. Files are written with
-``ambulo.utils.atomic``.
+PNG deflate is ISA-L's (the ``isal`` package, in the ``data`` extra) when it is installed, else
+zlib-ng's (``zlib-ng``), else the standard library's ``zlib``. On a frame's four images at level 1
+ISA-L took 0.57 ms for 47 kB, zlib-ng 0.85 ms for 63 kB and zlib 2.58 ms for 48 kB
+(``benchmarks/results/cpu-2026-11-28-replicator.md``). ISA-L once in ~60,000 encodes gave other
+(equally valid) bytes for the same pixels (issue #7's measurement): a dataset promises the same
+decoded pixels and annotations for a seed, not the same file bytes, so that costs nothing
+(``tests/replicator/test_png_format.py`` decodes every deflate and row filter back to the pixels).
+``AMBULO_PNG_DEFLATE`` picks one: ``isal``, ``zlib-ng`` or ``zlib``. The one in use is
+``PNG_DEFLATE``, recorded in each dataset's metadata. All release the GIL, so a writer thread
+overlaps with rendering. Files are written with ``ambulo.utils.atomic``.
 """
 
 from __future__ import annotations
@@ -21,24 +22,18 @@ import numpy as np
 
 from ambulo.utils.checks import InvalidValueError
 
-DEFLATES = ("zlib-ng", "zlib", "isal")
+DEFLATES = ("isal", "zlib-ng", "zlib")
+"""Fastest first: '' (the default) takes the first one installed."""
 
 
 def _pick_deflate(wanted: str):
     """(name and version, compress function, zlib-level mapping) of the deflate ``wanted``
-    ('' = zlib-ng when installed, else zlib); an unavailable one falls back to zlib."""
+    ('' = the first of ``DEFLATES`` installed); an unavailable one falls back to zlib."""
     wanted = wanted.lower()
     if wanted not in ("", *DEFLATES):
         raise InvalidValueError("AMBULO_PNG_DEFLATE", wanted, "not a deflate ambulo knows",
                                 f"set it to one of {', '.join(DEFLATES)}, or unset it")
-    if wanted in ("", "zlib-ng"):
-        try:
-            from zlib_ng import zlib_ng
-        except ImportError:
-            pass
-        else:
-            return f"zlib-ng {zlib_ng.ZLIBNG_VERSION}", zlib_ng.compress, lambda level: level
-    if wanted == "isal":
+    if wanted in ("", "isal"):
         try:
             from isal import __version__ as isal_version
             from isal import isal_zlib
@@ -47,6 +42,13 @@ def _pick_deflate(wanted: str):
         else:
             # ISA-L has levels 0-3: zlib's 1-3, 4-6 and 7-9 map to 1, 2 and 3
             return f"isal {isal_version}", isal_zlib.compress, lambda level: min(3, (level + 2) // 3)
+    if wanted in ("", "zlib-ng"):
+        try:
+            from zlib_ng import zlib_ng
+        except ImportError:
+            pass
+        else:
+            return f"zlib-ng {zlib_ng.ZLIBNG_VERSION}", zlib_ng.compress, lambda level: level
     return f"zlib {zlib.ZLIB_RUNTIME_VERSION}", zlib.compress, lambda level: level
 
 
@@ -82,26 +84,40 @@ def _chunk(kind: bytes, data: bytes) -> bytes:
     return b"".join((struct.pack(">I", len(data)), kind, data, struct.pack(">I", crc & 0xFFFFFFFF)))
 
 
-def encode_png(image: np.ndarray, compress_level: int = 1) -> bytes:
+ROW_FILTERS = {"none": 0, "sub": 1, "up": 2}
+"""PNG's row filters that ``encode_png`` writes (one for every row), by name: their type byte."""
+
+
+def encode_png(image: np.ndarray, compress_level: int = 1, row_filter: str = "up") -> bytes:
     """PNG bytes of (H, W) grey or (H, W, 3|4) colour, uint8 or uint16.
 
-    Rows use the "Up" filter (difference to the row above), computed with
-    NumPy; it compresses rendered images and depth far better than no filter
-    at the same level. The bytes are a pure function of the image, the level
-    and ``PNG_DEFLATE``. A big-endian uint16 image (``>u2``, PNG's order) is
-    used as it is, without the byte-swapped copy a native one needs.
+    ``row_filter`` (``ROW_FILTERS``), computed with NumPy: "up" (difference to the row above) suits
+    most images; "sub" (difference to the pixel on the left) depth, whose rows change smoothly
+    (at ISA-L level 1: 19 kB and 0.27 ms for a 320x240 depth image, "up" 25 kB and 0.34 ms);
+    "none" flat-shaded renders and id images (rendered rgb 17 kB, 0.22 ms; "up" 18 kB, 0.25 ms).
+    A decoder gives back the same pixels whichever filter and deflate. A big-endian uint16 image
+    (``>u2``, PNG's order) is used as it is, without the byte-swapped copy a native one needs.
     """
     if image.dtype.kind != "u" or image.dtype.itemsize not in (1, 2):
         raise ValueError(f"encode_png needs uint8 or uint16, got {image.dtype}")
+    if row_filter not in ROW_FILTERS:
+        raise ValueError(f"row_filter must be one of {sorted(ROW_FILTERS)}, got {row_filter!r}")
     h, w = image.shape[:2]
     channels = 1 if image.ndim == 2 else image.shape[2]
     color_type = {1: 0, 3: 2, 4: 6}[channels]
     bit_depth = 8 * image.dtype.itemsize
     rows = np.ascontiguousarray(image, dtype=image.dtype.newbyteorder(">")).view(np.uint8).reshape(h, -1)
     filtered = np.empty((h, rows.shape[1] + 1), np.uint8)
-    filtered[:, 0] = 2  # filter type Up
-    filtered[0, 1:] = rows[0]
-    np.subtract(rows[1:], rows[:-1], out=filtered[1:, 1:])
+    filtered[:, 0] = ROW_FILTERS[row_filter]
+    if row_filter == "up":
+        filtered[0, 1:] = rows[0]
+        np.subtract(rows[1:], rows[:-1], out=filtered[1:, 1:])
+    elif row_filter == "sub":  # bytes minus those one pixel to the left (PNG's "bpp")
+        step = channels * image.dtype.itemsize
+        filtered[:, 1:1 + step] = rows[:, :step]
+        np.subtract(rows[:, step:], rows[:, :-step], out=filtered[:, 1 + step:])
+    else:
+        filtered[:, 1:] = rows
     header = struct.pack(">IIBBBBB", w, h, bit_depth, color_type, 0, 0, 0)
     return b"".join([
         b"\x89PNG\r\n\x1a\n", _chunk(b"IHDR", header),

@@ -1,11 +1,15 @@
 """``dataset.json``: what a dataset folder's frames were made with, so a resume never mixes datasets.
 
 It is written (atomically, flushed) before the first frame and holds a fingerprint of
-everything that decides a frame's bytes: seed, resolution, annotators, writer settings,
-camera, randomizers, a hash of the compiled scene (MuJoCo's binary model: the same bytes in
-every process and run of one MuJoCo version), the MuJoCo version and the PNG deflate. A
-folder is resumed only when the fingerprint is the same; otherwise ``DatasetFolderError``
-names each difference. ``open_dataset`` also refuses to write into, or delete from, a folder
+everything that decides a frame's pixels, annotations and files: seed, resolution, annotators,
+writer settings, camera, randomizers, a hash of the compiled scene (MuJoCo's binary model: the
+same bytes in every process and run of one MuJoCo version) and the MuJoCo version. A folder is
+resumed only when the fingerprint is the same; otherwise ``DatasetFolderError`` names each
+difference. What changes only a file's bytes is left out (the PNG deflate and row filters: a
+decoder gives the same pixels), so a dataset started with another deflate, or by an ambulo that
+wrote its fingerprint with one (``_BYTES_ONLY``), is resumed. Besides the fingerprint it holds
+each instance's category id (``instance_categories``), from which ``semantic_image`` makes a
+frame's semantic image out of its instance image. ``open_dataset`` also refuses to write into, or delete from, a folder
 that is not an ambulo dataset (a non-empty folder without an ambulo ``dataset.json``, even with
 ``overwrite``), and ``overwrite`` deletes only the names ambulo writes: a user's files stay.
 """
@@ -25,8 +29,7 @@ import numpy as np
 from ambulo.utils.atomic import atomic_write_json, fsync_dir, is_partial_file
 
 from .config import DatasetConfig
-from .io import PNG_DEFLATE
-from .writers import FRAME_FILE, SUBDIRS, check_writer_cfg
+from .writers import FRAME_FILE, SUBDIRS, check_writer_cfg, frame_stem
 
 MANIFEST = "dataset.json"
 FORMAT = "ambulo dataset"
@@ -35,6 +38,9 @@ TOP_FILES = (MANIFEST, "metadata.json", "annotations.json")
 """The files ambulo writes at a dataset's top level (besides the ``SUBDIRS``)."""
 _FIX = ("resume with the same settings, start afresh with --overwrite (overwrite=True), "
         "or give another output folder")
+_BYTES_ONLY = ("png_deflate",)
+"""Keys that fingerprints written before 2026-11-29 hold, which decide only files' bytes: ignored."""
+_SEMANTIC = "semantic_segmentation"
 
 
 class DatasetFolderError(Exception):
@@ -46,7 +52,8 @@ class DatasetFolderError(Exception):
 
 
 def fingerprint(config: DatasetConfig, seed: int, model: mujoco.MjModel, image_source: str | None = None) -> dict:
-    """Everything that decides the dataset's bytes, as JSON data (``num_frames`` aside: more frames extend it).
+    """Everything that decides the dataset's pixels, annotations and files, as JSON data (``num_frames``
+    aside: more frames extend it; the PNG deflate aside: it changes bytes, not pixels).
     ``image_source`` names a renderer other than the CPU camera's (the batched GPU path); absent
     for CPU datasets, whose fingerprints it leaves as they were."""
     camera = describe(config.camera)
@@ -58,7 +65,7 @@ def fingerprint(config: DatasetConfig, seed: int, model: mujoco.MjModel, image_s
         "annotators": camera.pop("annotators"), "visible_fraction": config.visible_fraction,
         "name": config.name, "camera": camera, "writer": writer,
         "randomizers": {name: describe(r) for name, r in zip(names, config.randomizers)},
-        "scene_sha256": model_sha256(model), "mujoco_version": mujoco.__version__, "png_deflate": PNG_DEFLATE,
+        "scene_sha256": model_sha256(model), "mujoco_version": mujoco.__version__,
         **({"image_source": image_source} if image_source else {}),
     })
 
@@ -114,7 +121,9 @@ def open_dataset(out: Path, config: DatasetConfig, seed: int, model: mujoco.MjMo
     try:
         out.mkdir(parents=True, exist_ok=True)
         atomic_write_json(out / MANIFEST, {"format": FORMAT, "version": 1, "num_frames": num_frames,
-                                           "fingerprint": wanted}, indent=2, fsync=True)
+                                           "fingerprint": wanted,
+                                           "instance_categories": _instance_categories(model)},
+                          indent=2, fsync=True)
         fsync_dir(out)
     except OSError as err:
         raise DatasetFolderError(f"can't write to output folder {str(out)!r}: {err.strerror or err}",
@@ -131,16 +140,56 @@ def read_manifest(out: Path) -> dict | None:
 
 
 def _check_resumable(out: Path, existing: dict, wanted: dict, num_frames: int) -> None:
-    differences = _differences(existing.get("fingerprint", {}), wanted)
+    old = existing.get("fingerprint", {})
+    old = {k: v for k, v in old.items() if k not in _BYTES_ONLY} if isinstance(old, dict) else old
+    differences = _differences(old, wanted)
     if differences:
         listed = "; ".join(f"{key} {_short(old)} (now {_short(new)})" for key, old, new in differences)
-        raise DatasetFolderError(f"{str(out)!r} holds a dataset made with other settings: {listed}", _FIX)
+        raise DatasetFolderError(f"{str(out)!r} holds a dataset made with other settings: {listed}",
+                                 _fix_for(differences))
     beyond = sorted(int(p.stem) for p in (out / "frames").glob("*.json") if p.stem.isdigit()
                     and int(p.stem) >= num_frames)
     if beyond:
         raise DatasetFolderError(
             f"{str(out)!r} already holds frames {beyond[0]}-{beyond[-1]}, beyond the {num_frames} asked for",
             f"give --frames {beyond[-1] + 1} or more to resume it, or --overwrite to start afresh")
+
+
+def _fix_for(differences: list[tuple[str, object, object]]) -> str:
+    """``_FIX``, naming the annotator to add when the dataset had semantic images and this config not
+    (ambulo's default annotators had semantic_segmentation until 2026-11-29)."""
+    for key, old, new in differences:
+        if (key == "annotators" and isinstance(old, list) and isinstance(new, list)
+                and set(old) - set(new) == {_SEMANTIC}):
+            return (f"add {_SEMANTIC!r} to the camera's annotators (CameraCfg.annotators in a config file) to "
+                    "resume it with its semantic images, start afresh with --overwrite (overwrite=True), or give "
+                    "another output folder")
+    return _FIX
+
+
+def _instance_categories(model: mujoco.MjModel) -> list[int]:
+    """Category id (COCO's, 0 = background) of each instance id 0..K of ``model``'s labelled bodies."""
+    from ambulo.sensors.annotators import instance_table
+
+    return instance_table(model).semantic_ids.tolist()
+
+
+def semantic_image(out: Path, index: int) -> np.ndarray:
+    """Frame ``index``'s semantic image (H, W) uint16 category ids of dataset ``out``: its
+    ``semantic/`` PNG when it was written, else its instance image looked up in the dataset's
+    ``instance_categories`` (the same pixels: both come from the id pass)."""
+    from PIL import Image
+
+    out, stem = Path(out), frame_stem(index)
+    written = out / "semantic" / f"{stem}.png"
+    if written.is_file():
+        return np.asarray(Image.open(written)).astype(np.uint16)
+    manifest = read_manifest(out)
+    if manifest is None or "instance_categories" not in manifest:
+        raise DatasetFolderError(f"{str(out)!r} has no semantic/{stem}.png and no instance categories in its "
+                                 f"{MANIFEST}", "generate it with 'semantic_segmentation' among the annotators")
+    categories = np.asarray(manifest["instance_categories"], np.uint16)
+    return categories[np.asarray(Image.open(out / "instance" / f"{stem}.png"))]
 
 
 def _differences(old, new, key: str = "") -> list[tuple[str, object, object]]:
