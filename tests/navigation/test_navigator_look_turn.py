@@ -71,3 +71,24 @@ def test_a_robot_that_cannot_turn_on_the_spot_walks_on_down_the_route(room):
     end = nav.plan.footsteps_xyyaw_w[-2:, :2].mean(axis=0)
     assert np.linalg.norm(end - np.array([-1.1, 0.25])) > 0.3  # it walks on along the route
     world.close()
+
+
+def test_a_robot_that_looked_here_walks_on_instead_of_looking_again(room):
+    # apartment 19 (full mode): a walk-on turned the robot off the route's bearing, the next replan
+    # turned it back to look, the walk-on turned it away again: 16 s in one place. Looked once
+    # here, it walks on, facing where it looked; 0.3 m on, it may look again.
+    world, nav = _navigator_on(room, lambda cx, cy: np.where(cx > -0.6, UNKNOWN, FREE),
+                               (-1.0, 0.0, math.pi), (2.5, 0.0))
+    nav._replan(world.time_s, np.array([-1.0, 0.0, math.pi]), "test")
+    assert nav._look_by_heading, nav.replans[-1]  # the first look turns
+    nav._steer_look(np.array([-1.0, 0.0, 0.0]))  # faced: the turn ends
+    turned_away = np.array([-1.0, 0.02, 1.2])  # then something turned it off the route again
+    nav._replan(world.time_s, turned_away, "period")
+    record = nav.replans[-1]
+    assert "(looked: walk on)" in record.reason and record.footstep_status == "success", record
+    assert not nav._look_by_heading and nav.walker.tracker.path is not None  # it walks...
+    end_yaw = nav.plan.footsteps_xyyaw_w[-2:, 2]
+    assert abs(math.atan2(np.sin(end_yaw).sum(), np.cos(end_yaw).sum())) < 0.25  # ... to face down the route
+    nav._replan(world.time_s, np.array([-0.65, 0.0, 1.2]), "period")  # 0.35 m on: a look turn again
+    assert nav._look_by_heading and "walk on" not in nav.replans[-1].reason, nav.replans[-1]
+    world.close()

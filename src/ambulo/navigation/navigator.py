@@ -87,6 +87,14 @@ class NavigatorCfg(Checked):
     spot towards the route, so the camera sees where the robot is to go, m."""
     look_ahead_m: float = 0.6
     """A look turn faces the route point this far along it; a robot already facing it walks there, m."""
+    look_again_m: float = 0.3
+    """A robot that turned to look (or already faced the route) within this of where it stands, and
+    is not turning now, walks on down the route instead of turning to look again, m. Looking again
+    from the same spot shows the same floor: the camera sees it from ~1.6 m ahead, and the route
+    through unseen (optimistic) cells swings as each turn shows walls, so look turns and plans
+    that turned the robot away again alternated for the whole 20 s stuck window (full mode,
+    apartment 71: look, walk, look, ... 1.2 m walked; 19: 16 s turning between -1.9 and -2.8 rad
+    0.87 m from the goal)."""
     look_done_rad: float = 0.2
     """A look turn is renewed early (the "subgoal" trigger) only once the robot faces within this of
     its heading; the period and map triggers still renew it, rad."""
@@ -230,6 +238,8 @@ class Navigator:
         """The heading the current plan turns the robot to on the spot (a look turn), else None."""
         self._look_by_heading = False
         """The look turn is steered by the heading (``_steer_look``), the walker standing and turning."""
+        self._looked_xy_m: np.ndarray | None = None
+        """Where the robot last turned to look or faced the route already (``look_again_m``), estimate frame."""
         self.replans: list[ReplanRecord] = []
         self.status = "idle"
         """idle | walking | lost (waiting) | arrived | fell | lost_timeout | stuck | timeout | no_route"""
@@ -273,6 +283,7 @@ class Navigator:
         self.done = False
         self.status = "walking"
         self._replan_reason = "new goal"
+        self._looked_xy_m = None
         self._start_time_s = self.world.time_s
         self._progress_mark = (self.world.time_s, self.world.true_pose()[:2])
 
@@ -588,6 +599,7 @@ class Navigator:
             else:
                 goal_xy, yaw = path[k], route_heading(path, k)
             look = not final and np.linalg.norm(goal_xy - est[:2]) < self.cfg.look_radius_m
+            looked = False
             if look:
                 # nothing observed along the route ahead: turn on the spot to look down it
                 s = np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))
@@ -595,6 +607,8 @@ class Navigator:
                 d = path[j] - est[:2]
                 goal_xy, yaw = est[:2].copy(), float(math.atan2(d[1], d[0]))
                 reason = reason + " (look)"
+                looked = (self._look_yaw_rad is None and self._looked_xy_m is not None
+                          and np.linalg.norm(est[:2] - self._looked_xy_m) < self.cfg.look_again_m)
             plan = self._plan_footsteps(grid, version, optimistic, est, route, k, final, goal_xy, yaw)
             if look and plan.status == PlanStatus.GOAL_IN_COLLISION and not optimistic:
                 # the body's cells (yaw-free) are clear, the turned soles touch cells never seen
@@ -603,8 +617,11 @@ class Navigator:
                 plan = self._plan_footsteps(grid, version, True, est, route, k, final, goal_xy, yaw)
                 reason = reason + " (unseen free)"
                 self._blind_zone(est)
-            faced = look and plan.status == PlanStatus.SUCCESS and plan.num_steps < 1
+            facing = look and plan.status == PlanStatus.SUCCESS and plan.num_steps < 1
+            faced = facing or (look and plan.status == PlanStatus.SUCCESS and looked)
             cornered = look and plan.status == PlanStatus.GOAL_IN_COLLISION
+            if facing:  # facing the route already: as good as a look turn here
+                self._looked_xy_m = est[:2].copy()
             if faced or cornered:
                 # already facing down the route: the camera cannot see the floor this near (it sees
                 # from ~1.6 m), so turning shows nothing new; walk on along the route instead (a
@@ -620,9 +637,12 @@ class Navigator:
                                                              self.cfg.goal_shift_m)
                     walk_yaw = self.goal_yaw_rad if self.goal_yaw_rad is not None else route_heading(path, j)
                 else:
-                    walk_xy, walk_yaw = path[j], route_heading(path, j)
+                    # facing where it looked: the route's heading at a bend there turned the robot
+                    # away from it while it walked (apartment 19), and the next replan looked back
+                    walk_xy, walk_yaw = path[j], yaw
                 plan = self._plan_footsteps(grid, version, optimistic, est, route, j, final, walk_xy, walk_yaw)
-                reason = reason + (" (faced: walk on)" if faced else " (cornered: walk on)")
+                reason = reason + (" (faced: walk on)" if facing else " (looked: walk on)" if faced
+                                   else " (cornered: walk on)")
                 if plan.status == PlanStatus.GOAL_IN_COLLISION and not optimistic:
                     # the walk-on stance touches cells the camera never saw: a door jamb's shadow
                     # beside the route just past a door, which the head camera (floor in view from
@@ -643,6 +663,8 @@ class Navigator:
                 if refused is None:
                     self.plan, self.plan_final = plan, final
                     turn = look and not (faced or cornered)
+                    if turn and self._look_yaw_rad is None:
+                        self._looked_xy_m = est[:2].copy()  # a new look turn starts here
                     self._look_yaw_rad = yaw if turn else None
                     self._look_by_heading = turn and hasattr(self.walker, "scan")
                     if self._look_by_heading:
