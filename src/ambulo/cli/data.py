@@ -190,7 +190,8 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
                    help="with --device cuda: one process per GPU (cuda:0 ...), each rendering whole launches")
     p.add_argument("--draw-workers", type=int, default=0,
                    help="with --device and one GPU: sample the randomizers in this many processes, a batch ahead of "
-                        "the render (the same numbers; default 0: in this process)")
+                        "the render (the same numbers), which also write the files (the same files; default 0: "
+                        "draws and encoder threads in this process)")
     p.add_argument("--image-format", choices=("png", "jpg"), default="png",
                    help="RGB images as PNG (default) or, with --device (one GPU), JPEG encoded on the GPU (nvjpeg, "
                         "needs torchvision); the draw processes then write every file")
