@@ -156,3 +156,24 @@ def relative_to_world(pose, rel):
     from ambulo.envs.footstep_sampler import compose_xyyaw
 
     return compose_xyyaw(pose, rel.expand_as(pose))
+
+
+def test_advance_by_mask_as_by_indices():
+    """A GPU selects the touchdown worlds with a mask (``core.rows``), the CPU with indices: the
+    targets move alike (the drawn footsteps differ only by how many rows were drawn)."""
+    pair = [envs.make("humanoid-footsteps", num_envs=3, seed=4, num_threads=1, play=True) for _ in range(2)]
+    feet = pair[0].soles_xyyaw_w()
+    rows = [feet[:, 0], feet[:, 1]]
+    for k in range(3):
+        rows.append(relative_to_world(rows[-1], torch.tensor([0.15, 0.18 if k % 2 == 0 else -0.18, 0.1])))
+    plans, sides = torch.stack(rows, dim=1), torch.tensor([1.0, -1.0, 1.0, -1.0, 1.0]).expand(3, 5)
+    for env in pair:
+        env.follow_plans(plans, sides, torch.tensor([3, 3, 3]))
+    before = pair[0].targets_xyyaw_w.clone()
+    pair[0]._advance(torch.tensor([0, 2]))
+    pair[1]._advance(torch.tensor([True, False, True]))
+    for env in pair:
+        torch.testing.assert_close(env.targets_xyyaw_w[[0, 2]], plans[[0, 2], 3:5])  # the plan's next row
+        torch.testing.assert_close(env.targets_xyyaw_w[1], before[1])  # untouched
+        assert env.steps_taken.tolist() == [1, 0, 1] and env._plan_next.tolist() == [5, 4, 5]
+        assert env.target_sides.tolist() == [[-1.0, 1.0], [1.0, -1.0], [-1.0, 1.0]]

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 
 import torch
 
-from ambulo.core.rows import fill_rows, num_rows, put_rows, take_rows
+from ambulo.core.rows import fill_rows, num_rows, put_rows, select_rows, take_rows
 from ambulo.robots import humanoid
 from ambulo.utils.validate import rule
 
@@ -188,21 +188,23 @@ class HumanoidFootstepsEnv(HumanoidWalkEnv):
         self.obs_buf = self._compute_observations()
         return self.obs_buf
 
-    def _advance(self, mask: torch.Tensor) -> None:
-        """Where ``mask`` (N,) holds: the second target becomes the first, a new one follows it
-        (the next row of a given plan, else a drawn footstep)."""
-        stance, stance_side = self.targets_xyyaw_w[:, 1], self.target_sides[:, 1]
-        new, segments = self.sampler.next_footstep(stance, stance_side, self._segments)
+    def _advance(self, rows: torch.Tensor | None) -> None:
+        """In the worlds ``rows`` selects (``core.rows``: indices on the CPU, so only touchdowns
+        draw; a mask on a GPU): the second target becomes the first, a new one follows it (the
+        next row of a given plan, else a drawn footstep)."""
+        if rows is None:
+            return
+        stance, stance_side = take_rows(self.targets_xyyaw_w[:, 1], rows), take_rows(self.target_sides[:, 1], rows)
+        new, segments = self.sampler.next_footstep(stance, stance_side, take_rows(self._segments, rows))
         if self._plan_xyyaw_w is not None:
-            row = self._plan_next.clamp(max=self._plan_xyyaw_w.shape[1] - 1)
-            planned = _pick(self._plan_xyyaw_w, row)
-            new = torch.where((self._plan_next < self._plan_rows)[:, None], planned, new)
-            self._plan_next += mask
-        m = mask[:, None]
-        self.targets_xyyaw_w.copy_(torch.where(m[..., None], torch.stack([stance, new], dim=1), self.targets_xyyaw_w))
-        self.target_sides.copy_(torch.where(m, torch.stack([stance_side, -stance_side], dim=1), self.target_sides))
-        self._segments.copy_(torch.where(m, segments, self._segments))
-        self.steps_taken += mask
+            next_row = take_rows(self._plan_next, rows)
+            planned = _pick(take_rows(self._plan_xyyaw_w, rows), next_row.clamp(max=self._plan_xyyaw_w.shape[1] - 1))
+            new = torch.where((next_row < take_rows(self._plan_rows, rows))[:, None], planned, new)
+            put_rows(self._plan_next[:, None], slice(None), next_row[:, None] + 1, rows)
+        put_rows(self.targets_xyyaw_w.view(self.num_envs, 6), slice(None), torch.cat([stance, new], dim=-1), rows)
+        put_rows(self.target_sides, slice(None), torch.stack([stance_side, -stance_side], dim=-1), rows)
+        put_rows(self._segments, slice(None), segments, rows)
+        put_rows(self.steps_taken[:, None], slice(None), take_rows(self.steps_taken, rows)[:, None] + 1, rows)
 
     def _post_physics(self) -> None:
         super()._post_physics()
@@ -228,7 +230,7 @@ class HumanoidFootstepsEnv(HumanoidWalkEnv):
         self.touchdown_yaw_error_rad = torch.where(touchdown, yaw_error, zero)
         self.placement_error_m = torch.where(touchdown, distance, self.placement_error_m)
         self.yaw_error_rad = torch.where(touchdown, yaw_error, self.yaw_error_rad)
-        self._advance(touchdown)
+        self._advance(select_rows(touchdown))
         # progress counts from here: after a touchdown, towards the new target
         new_swing = _pick(soles, self._swing_index())
         self._swing_distance_m = torch.linalg.vector_norm(new_swing[:, :2] - self.targets_xyyaw_w[:, 0, :2], dim=-1)
