@@ -272,17 +272,22 @@ def main() -> None:
 
         # -- memory: the in-memory mode, draws on the device -----------------------------------
         say("in-memory mode (device draws): first batch builds the draws' tensors")
-        next(producer.batches(1, frames[:n], device_draws=True))
-        device_ms = profile_device_draws(producer, dev, frames[:n])
-        say("device ms a frame: " + ", ".join(f"{k} {v}" for k, v in device_ms.items()))
-        sync(dev)
-        start = time.perf_counter()
-        count = 0
-        for batch in producer.batches(1, frames, device_draws=True):
-            count += len(batch["index"])
-        sync(dev)
-        memory_fps = count / (time.perf_counter() - start)
-        say(f"in memory: {memory_fps:.0f} frames/s ({memory_fps / raw_fps:.3f} of raw)")
+        memory_error, device_ms, memory_fps = None, None, 0.0
+        try:
+            next(producer.batches(1, frames[:n], device_draws=True))
+            device_ms = profile_device_draws(producer, dev, frames[:n])
+            say("device ms a frame: " + ", ".join(f"{k} {v}" for k, v in device_ms.items()))
+            sync(dev)
+            start = time.perf_counter()
+            count = 0
+            for batch in producer.batches(1, frames, device_draws=True):
+                count += len(batch["index"])
+            sync(dev)
+            memory_fps = count / (time.perf_counter() - start)
+            say(f"in memory: {memory_fps:.0f} frames/s ({memory_fps / raw_fps:.3f} of raw)")
+        except Exception as err:  # reported; the other modes still run
+            memory_error = f"{type(err).__name__}: {err}"[:500]
+            say(f"in memory (device draws): FAILED {memory_error}")
 
         # -- memory with the CPU path's draws (what the disk modes render) -----------------------
         start = time.perf_counter()
@@ -298,9 +303,14 @@ def main() -> None:
         formats = ["png"] + (["jpg"] if jpeg_available(dev) else [])
         disk = {}
         for fmt in formats:
-            disk[fmt] = disk_run(config, root / f"disk_{fmt}", frames, categories,
-                                 functools.partial(run_batched_frames, config, seed=2, frames=frames,
-                                                   producer=producer, image_format=fmt))
+            try:
+                disk[fmt] = disk_run(config, root / f"disk_{fmt}", frames, categories,
+                                     functools.partial(run_batched_frames, config, seed=2, frames=frames,
+                                                       producer=producer, image_format=fmt))
+            except Exception as err:  # one mode's failure is reported, and the others still run
+                disk[fmt] = {"fps": 0.0, "error": f"{type(err).__name__}: {err}"[:500]}
+                say(f"to disk, {fmt}: FAILED {disk[fmt]['error']}")
+                continue
             say(f"to disk, {fmt}, {draw_workers} processes writing: {disk[fmt]['fps']:.0f} frames/s "
                 f"({disk[fmt]['fps'] / raw_fps:.3f} of raw), {disk[fmt]['mb_per_frame']:.3f} MB a frame")
         if not args.no_threads_run:  # the earlier disk mode: encoders on threads of this process
@@ -352,7 +362,7 @@ def main() -> None:
         "raw_render_fps": round(raw_fps, 1),
         "device_ms_per_frame": device_ms,
         "memory_fps": round(memory_fps, 1), "memory_of_raw": round(memory_fps / raw_fps, 3),
-        "memory_draws": "device",
+        "memory_draws": "device", "memory_error": memory_error,
         "memory_host_draws_fps": round(memory_host_fps, 1), "memory_host_draws_of_raw": round(memory_host_fps / raw_fps, 3),
         "disk_fps": round(disk_fps, 1), "disk_of_raw": round(disk_fps / raw_fps, 3), "disk": disk, "jpeg": jpg_note,
         "outputs": list(config.writer.outputs), "fsync": config.writer.fsync, "writer_threads": writer_threads,

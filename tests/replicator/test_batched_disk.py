@@ -41,6 +41,7 @@ def test_shared_batch_holds_the_layouts_arrays_and_is_removed_on_close():
     block.close()
     assert not os.path.exists(path)
     assert batch_layout(2, 4, 5, jpeg=True)["jpeg_bytes"] == ((2 * 4 * 5 * 3,), "u1")
+    assert "semantic" not in batch_layout(2, 4, 5, jpeg=True, semantic=False)  # not asked for: not copied
 
 
 def test_the_disk_mode_refuses_what_it_cannot_write(tmp_path):

@@ -38,7 +38,7 @@ from .batched import BatchedFrameProducer, frame_capture, tiled_camera_cfg
 from .coco import frame_annotations
 from .encode import IMAGE_FORMATS, as_u16_bits, encode_jpegs
 from .io import depth_to_mm_u16, encode_png
-from .writers import FrameWriter, frame_stem, kitti_lines, write_frame_files
+from .writers import PNG_ROW_FILTERS, FrameWriter, frame_stem, kitti_lines, write_frame_files
 
 SUPPORTED_OUTPUTS = {"coco", "depth", "masks", "kitti"}
 
@@ -114,11 +114,14 @@ def _arrays(buffer, layout: dict, offsets: dict) -> dict:
     return {name: np.ndarray(shape, dtype, buffer=buffer, offset=offsets[name]) for name, (shape, dtype) in layout.items()}
 
 
-def batch_layout(num_worlds: int, height: int, width: int, jpeg: bool) -> dict:
-    """The arrays a batch's block holds: depth (m), instance and semantic ids (16 bits), and the RGB
-    images, raw or as the batch's JPEG files end to end (``jpeg_bytes``, with their offsets)."""
+def batch_layout(num_worlds: int, height: int, width: int, jpeg: bool, semantic: bool = True) -> dict:
+    """The arrays a batch's block holds: depth (m), instance ids and, when the camera's annotators ask
+    for them (``semantic``), semantic ids (16 bits), and the RGB images, raw or as the batch's JPEG
+    files end to end (``jpeg_bytes``, with their offsets)."""
     image = (num_worlds, height, width)
-    layout = {"depth": ((*image, 1), "<f4"), "instances": (image, "<u2"), "semantic": (image, "<u2")}
+    layout = {"depth": ((*image, 1), "<f4"), "instances": (image, "<u2")}
+    if semantic:
+        layout["semantic"] = (image, "<u2")
     if jpeg:  # a JPEG larger than its raw pixels does not occur at the quality used
         layout["jpeg_bytes"] = ((num_worlds * height * width * 3,), "u1")
     else:
@@ -143,7 +146,8 @@ def run_batched_frames(config, out: Path, seed: int, frames: list[int], producer
     cfg = producer.camera.cfg
     cuda = producer.engine.device.type == "cuda"
     writer = FrameWriter(out, config.writer, batch=producer.num_worlds)
-    layout = batch_layout(producer.num_worlds, cfg.height, cfg.width, jpeg)
+    semantic = "semantic_segmentation" in config.camera.annotators
+    layout = batch_layout(producer.num_worlds, cfg.height, cfg.width, jpeg, semantic)
     blocks = [SharedBatch(layout, pin=cuda) for _ in range(2)]
     free: queue.Queue = queue.Queue()
     for block in blocks:
@@ -174,8 +178,9 @@ def run_batched_frames(config, out: Path, seed: int, frames: list[int], producer
             logs, (instances, boxes, pixels) = producer._render_chunk(seed, chunk, drawn)
             count = len(chunk)
             images = producer.camera.data.output
-            device = {"depth": images["depth"][:count], "instances": as_u16_bits(instances),
-                      "semantic": as_u16_bits(images["semantic_segmentation"][:count, ..., 0])}
+            device = {"depth": images["depth"][:count], "instances": as_u16_bits(instances)}
+            if semantic:
+                device["semantic"] = as_u16_bits(images["semantic_segmentation"][:count, ..., 0])
             sizes = None
             if jpeg:
                 files = encode_jpegs(images["rgb"][:count])
@@ -266,8 +271,7 @@ def _write_part(spec, start: int, indices: list[int], logs: list[dict], small: d
     writer_cfg = pickle.loads(writer_payload)
     records = []
     part = slice(start, start + len(indices))
-    host = {**small, "instances": arrays["instances"][part], "semantic": arrays["semantic"][part],
-            "depth": arrays["depth"][part]}
+    host = {**small, **{name: arrays[name][part] for name in ("instances", "semantic", "depth") if name in arrays}}
     if jpeg_spans is None:
         host["rgb"] = arrays["rgb"][part]
     for i, (index, log) in enumerate(zip(indices, logs)):
@@ -295,11 +299,13 @@ def write_jpeg_frame(out: str, index: int, capture: dict, table, log: dict, cfg,
     rgb_file = f"rgb/{stem}.jpg"
     put(rgb_file, jpeg)
     if "depth" in cfg.outputs:
-        put(f"depth/{stem}.png", encode_png(depth_to_mm_u16(capture["depth"], ">"), level))
+        put(f"depth/{stem}.png", encode_png(depth_to_mm_u16(capture["depth"], ">"), level, PNG_ROW_FILTERS["depth"]))
     if "masks" in cfg.outputs:
-        put(f"instance/{stem}.png", encode_png(capture["instance_segmentation"].astype(">u2"), level))
+        put(f"instance/{stem}.png",
+            encode_png(capture["instance_segmentation"].astype(">u2"), level, PNG_ROW_FILTERS["instance"]))
         if "semantic_segmentation" in capture:
-            put(f"semantic/{stem}.png", encode_png(capture["semantic_segmentation"].astype(">u2"), level))
+            put(f"semantic/{stem}.png",
+                encode_png(capture["semantic_segmentation"].astype(">u2"), level, PNG_ROW_FILTERS["semantic"]))
     annotations = frame_annotations(capture, table.semantic_ids, table.names, cfg.min_visible_pixels)
     if "kitti" in cfg.outputs:
         put(f"kitti/{stem}.txt", kitti_lines(annotations, table.categories, capture).encode())
