@@ -42,6 +42,18 @@ def test_shared_batch_holds_the_layouts_arrays_and_is_removed_on_close():
     assert not os.path.exists(path)
     assert batch_layout(2, 4, 5, jpeg=True)["jpeg_bytes"] == ((2 * 4 * 5 * 3,), "u1")
     assert "semantic" not in batch_layout(2, 4, 5, jpeg=True, semantic=False)  # not asked for: not copied
+    assert batch_layout(2, 4, 5, jpeg=True)["depth_mm"] == ((2, 4, 5), "<u2")  # the JPEG writer's depth
+
+
+def test_device_depth_in_mm_is_the_hosts():
+    from ambulo.replicator.encode import depth_mm
+    from ambulo.replicator.io import depth_to_mm_u16
+
+    rng = np.random.default_rng(1)
+    depth = rng.uniform(-1.0, 70.0, (7, 9)).astype(np.float32)
+    depth.flat[:8] = [np.inf, -np.inf, np.nan, 0.0, 0.0005, 0.0015, 65.535, 65.5355]  # edges and ties
+    got = depth_mm(torch.as_tensor(depth)).numpy().view(np.uint16)
+    np.testing.assert_array_equal(got, depth_to_mm_u16(depth))
 
 
 def test_the_disk_mode_refuses_what_it_cannot_write(tmp_path):
@@ -61,8 +73,25 @@ def _tree(root) -> dict:
     return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
 
 
+def _pillow_jpegs(rgb: torch.Tensor) -> list[torch.Tensor]:
+    """``encode.encode_jpegs`` with Pillow: the JPEG mode's plumbing without torchvision."""
+    import io
+
+    from PIL import Image
+
+    out = []
+    for image in rgb.cpu().numpy():
+        buffer = io.BytesIO()
+        Image.fromarray(image).save(buffer, format="JPEG", quality=95)
+        out.append(torch.frombuffer(bytearray(buffer.getvalue()), dtype=torch.uint8))
+    return out
+
+
 @pytest.mark.slow
-def test_files_written_on_the_draw_processes_equal_run_frames_files(tmp_path):
+def test_files_written_on_the_draw_processes_equal_run_frames_files(tmp_path, monkeypatch):
+    from PIL import Image
+
+    from ambulo.replicator import batched_disk
     from ambulo.replicator.batched import BatchedFrameProducer
     from ambulo.replicator.draw_pool import DrawPool
     from ambulo.replicator.producer import run_frames
@@ -73,17 +102,31 @@ def test_files_written_on_the_draw_processes_equal_run_frames_files(tmp_path):
                                                                     outputs=("coco", "depth", "masks", "kitti")))
     # 3 worlds for 7 frames: two full launches and a partial one, two blocks in turn
     producer = BatchedFrameProducer(config, num_worlds=3, device="cpu", draws=DrawPool(config, 2))
+    monkeypatch.setattr(batched_disk, "encode_jpegs", _pillow_jpegs)
     try:
-        for name in ("pool", "threads"):
+        for name in ("pool", "threads", "jpg"):
             prepare_dirs(tmp_path / name, config.writer)
         run_batched_frames(config, tmp_path / "pool", 2, list(range(7)), producer)
         run_frames(config, tmp_path / "threads", 2, list(range(7)), producer=producer, writer_threads=2)
+        run_batched_frames(config, tmp_path / "jpg", 2, list(range(7)), producer, image_format="jpg")
     finally:
         producer.close()
     pool, threads = _tree(tmp_path / "pool"), _tree(tmp_path / "threads")
     assert len(pool) >= 7 * 5 and sorted(pool) == sorted(threads)
     for name in pool:
         assert pool[name] == threads[name], name
+    # JPEG: each frame's files at their places, the same record but for the RGB file, the same pixels
+    for i in range(7):
+        png, jpg = (json.loads((tmp_path / d / f"frames/{i:06d}.json").read_text()) for d in ("pool", "jpg"))
+        assert jpg["file_name"] == f"rgb/{i:06d}.jpg"
+        assert {k: v for k, v in jpg.items() if k not in ("file_name", "files")} == \
+            {k: v for k, v in png.items() if k not in ("file_name", "files")}
+        a = np.asarray(Image.open(tmp_path / "jpg" / jpg["file_name"]), np.float64)
+        # JPEG's loss on a small textured image: a few levels; another frame's picture: tens
+        assert np.abs(a - np.asarray(Image.open(tmp_path / "pool" / png["file_name"]), np.float64)).mean() < 6.0
+        for name in png["files"]:
+            if not name.startswith("rgb/"):
+                assert (tmp_path / "jpg" / name).read_bytes() == (tmp_path / "pool" / name).read_bytes(), name
 
 
 @pytest.mark.skipif(not (torch.cuda.is_available() and jpeg_available("cuda")), reason="needs CUDA and torchvision")
@@ -101,7 +144,7 @@ def test_a_jpeg_dataset_has_the_png_datasets_labels_and_nearly_its_pixels(tmp_pa
     for i in range(6):
         a = np.asarray(Image.open(tmp_path / "png" / f"rgb/{i:06d}.png"), np.float64)
         b = np.asarray(Image.open(tmp_path / "jpg" / f"rgb/{i:06d}.jpg"), np.float64)
-        assert a.shape == b.shape and np.abs(a - b).mean() < 3.0
+        assert a.shape == b.shape and np.abs(a - b).mean() < 6.0
 
 
 def test_a_jpeg_frame_has_the_png_frames_files_and_record_but_its_rgb_file(tmp_path):
@@ -111,6 +154,7 @@ def test_a_jpeg_frame_has_the_png_frames_files_and_record_but_its_rgb_file(tmp_p
 
     from ambulo.replicator.batched import BatchedFrameProducer
     from ambulo.replicator.batched_disk import write_jpeg_frame
+    from ambulo.replicator.io import depth_to_mm_u16
     from ambulo.replicator.writers import prepare_dirs, write_frame_files
 
     config = rep.example_config(64, 48)
@@ -128,7 +172,7 @@ def test_a_jpeg_frame_has_the_png_frames_files_and_record_but_its_rgb_file(tmp_p
         prepare_dirs(tmp_path / name, config.writer)
     want = write_frame_files(tmp_path / "png", index, capture, table, log, config.writer, fsync_files=False)
     got = write_jpeg_frame(str(tmp_path / "jpg"), index, capture, table, log, config.writer, False,
-                           np.frombuffer(buffer.getvalue(), np.uint8))
+                           np.frombuffer(buffer.getvalue(), np.uint8), depth_to_mm_u16(capture["depth"]))
     assert got["file_name"] == "rgb/000003.jpg" and (tmp_path / "jpg" / got["file_name"]).read_bytes() == buffer.getvalue()
     assert {k: v for k, v in got.items() if k not in ("file_name", "files")} == \
         {k: v for k, v in want.items() if k not in ("file_name", "files")}

@@ -36,8 +36,8 @@ from ambulo.utils.atomic import atomic_write_bytes
 from . import draw_pool
 from .batched import BatchedFrameProducer, frame_capture, tiled_camera_cfg
 from .coco import frame_annotations
-from .encode import IMAGE_FORMATS, as_u16_bits, encode_jpegs
-from .io import depth_to_mm_u16, encode_png
+from .encode import IMAGE_FORMATS, as_u16_bits, depth_mm, encode_jpegs
+from .io import encode_png
 from .writers import PNG_ROW_FILTERS, FrameWriter, frame_stem, kitti_lines, write_frame_files
 
 SUPPORTED_OUTPUTS = {"coco", "depth", "masks", "kitti"}
@@ -119,7 +119,9 @@ def batch_layout(num_worlds: int, height: int, width: int, jpeg: bool, semantic:
     for them (``semantic``), semantic ids (16 bits), and the RGB images, raw or as the batch's JPEG
     files end to end (``jpeg_bytes``, with their offsets)."""
     image = (num_worlds, height, width)
-    layout = {"depth": ((*image, 1), "<f4"), "instances": (image, "<u2")}
+    # the JPEG mode's own writer takes the depth in mm (converted on the device: half the bytes)
+    layout = {"depth_mm": (image, "<u2")} if jpeg else {"depth": ((*image, 1), "<f4")}
+    layout["instances"] = (image, "<u2")
     if semantic:
         layout["semantic"] = (image, "<u2")
     if jpeg:  # a JPEG larger than its raw pixels does not occur at the quality used
@@ -178,7 +180,9 @@ def run_batched_frames(config, out: Path, seed: int, frames: list[int], producer
             logs, (instances, boxes, pixels) = producer._render_chunk(seed, chunk, drawn)
             count = len(chunk)
             images = producer.camera.data.output
-            device = {"depth": images["depth"][:count], "instances": as_u16_bits(instances)}
+            device = {"depth_mm": depth_mm(images["depth"][:count, ..., 0])} if jpeg \
+                else {"depth": images["depth"][:count]}
+            device["instances"] = as_u16_bits(instances)
             if semantic:
                 device["semantic"] = as_u16_bits(images["semantic_segmentation"][:count, ..., 0])
             sizes = None
@@ -281,14 +285,16 @@ def _write_part(spec, start: int, indices: list[int], logs: list[dict], small: d
         else:
             lo, hi = jpeg_spans[i]
             record = write_jpeg_frame(out, index, capture, table, log, writer_cfg, fsync_files,
-                                      arrays["jpeg_bytes"][lo:hi])
+                                      arrays["jpeg_bytes"][lo:hi], arrays["depth_mm"][start + i])
         records.append((index, record))
     return records
 
 
-def write_jpeg_frame(out: str, index: int, capture: dict, table, log: dict, cfg, fsync: bool, jpeg) -> dict:
+def write_jpeg_frame(out: str, index: int, capture: dict, table, log: dict, cfg, fsync: bool, jpeg,
+                     depth_mm_u16: np.ndarray) -> dict:
     """``writers.write_frame_files`` with the RGB image as ``rgb/NNNNNN.jpg`` (``jpeg``: the file's
-    bytes, encoded on the device); the other files and the record as there."""
+    bytes, encoded on the device) and the depth given in uint16 mm (``io.depth_to_mm_u16``'s,
+    converted on the device); the other files and the record as there."""
     stem = frame_stem(index)
     level = cfg.png_compress_level
     files: dict[str, int] = {}
@@ -299,7 +305,7 @@ def write_jpeg_frame(out: str, index: int, capture: dict, table, log: dict, cfg,
     rgb_file = f"rgb/{stem}.jpg"
     put(rgb_file, jpeg)
     if "depth" in cfg.outputs:
-        put(f"depth/{stem}.png", encode_png(depth_to_mm_u16(capture["depth"], ">"), level, PNG_ROW_FILTERS["depth"]))
+        put(f"depth/{stem}.png", encode_png(depth_mm_u16.astype(">u2"), level, PNG_ROW_FILTERS["depth"]))
     if "masks" in cfg.outputs:
         put(f"instance/{stem}.png",
             encode_png(capture["instance_segmentation"].astype(">u2"), level, PNG_ROW_FILTERS["instance"]))

@@ -2,8 +2,8 @@
 
 What a batch of frames needs before its files can be written, computed where the pixels are, for
 all worlds at once: the RGB images as JPEG through torchvision's nvjpeg binding
-(``torchvision.io.encode_jpeg`` of a list of CUDA tensors: one batched call). The 16-bit id
-images travel as int16 (the same bits: torch's unsigned 16-bit type lacks kernels) and are read
+(``torchvision.io.encode_jpeg`` of a list of CUDA tensors: one batched call), and for the JPEG
+mode's depth PNGs the uint16 millimetres of ``io.depth_to_mm_u16``. The 16-bit images travel as int16 (the same bits: torch's unsigned 16-bit type lacks kernels) and are read
 back as uint16, half the bytes of the int32 ids.
 
 torchvision is optional (it must match the CUDA build of torch, so it is not a dependency):
@@ -45,9 +45,18 @@ def encode_jpegs(rgb: torch.Tensor, quality: int = JPEG_QUALITY) -> list[torch.T
     return encode_jpeg(list(rgb.permute(0, 3, 1, 2).contiguous()), quality=quality)
 
 
+def depth_mm(depth_m: torch.Tensor) -> torch.Tensor:
+    """Depth (m, float32) as uint16 millimetres held in int16: ``io.depth_to_mm_u16``'s numbers
+    (rounded half to even in float32; 0 for no return, NaN, negative or beyond 65.535 m), at half
+    the bytes of the metres to copy."""
+    mm = torch.round(depth_m * 1000.0)
+    good = (mm >= 0) & (mm <= 65535)
+    return torch.where(good, mm, 0.0).to(torch.int32).to(torch.int16)
+
+
 def as_u16_bits(ids: torch.Tensor) -> torch.Tensor:
     """Integer ids in [0, 65535] as int16 with uint16's bits (what a 16-bit PNG holds)."""
     return ids.to(torch.int32).to(torch.int16)
 
 
-__all__ = ["IMAGE_FORMATS", "JPEG_QUALITY", "as_u16_bits", "encode_jpegs", "jpeg_available"]
+__all__ = ["IMAGE_FORMATS", "JPEG_QUALITY", "as_u16_bits", "depth_mm", "encode_jpegs", "jpeg_available"]
