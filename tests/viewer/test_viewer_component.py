@@ -156,6 +156,53 @@ def test_a_killed_process_leaves_no_server_behind():
     wait_until(port_free, "the server process to leave with the watched one")
 
 
+def page_messages(port: int):
+    """Each message a page gets from the viewer's websocket, decoded as viser's client does."""
+    import msgspec
+    import viser
+    import zstandard
+    from websockets.sync.client import connect
+
+    decompress = zstandard.ZstdDecompressor()
+    with connect(f"ws://127.0.0.1:{port}", subprotocols=["viser-v" + viser.__version__], max_size=None) as ws:
+        while True:
+            raw = ws.recv(timeout=LIMIT_S)
+            size, packed = int.from_bytes(raw[:8], "little"), int.from_bytes(raw[8:16], "little")
+            yield from msgspec.msgpack.decode(decompress.decompress(raw[16:16 + packed], max_output_size=size))[
+                "messages"]
+
+
+def test_the_server_process_draws_what_is_shown_and_the_poses(world):
+    """What crosses the pipe (``remote``): a fed layer and the frames reach the page from the server's process."""
+    viewer = world.viewer
+    assert viewer.link is not None and viewer.link.process.pid != threading.get_native_id()
+    viewer.controls.speed = None
+    viewer.show_points("probe", np.array([[1.0, 2.0, 0.5], [2.0, 1.0, 0.3]]))
+    stop = threading.Event()
+
+    def loop():
+        while not stop.is_set():
+            world.step(render=False)
+
+    runner = threading.Thread(target=loop, daemon=True)
+    runner.start()
+    try:
+        points, pose_updates, deadline = None, 0, time.monotonic() + LIMIT_S
+        for message in page_messages(viewer.port):
+            assert time.monotonic() < deadline, f"the page got {pose_updates} pose updates, points: {points}"
+            if message.get("type") == "PointCloudMessage" and message["name"] == "/overlay/points/probe":
+                points = message
+            updates = message.get("updates", {}) if message.get("type") == "SceneNodeUpdateMessage" else {}
+            if message.get("name", "").startswith("/worlds/g") and "batched_positions" in updates:
+                pose_updates += 1
+            if points is not None and pose_updates >= 3:
+                break
+    finally:
+        stop.set()
+        runner.join(timeout=LIMIT_S)
+    assert points is not None and pose_updates >= 3
+
+
 def test_env_gets_the_pages_command_and_reset():
     from ambulo import envs
 

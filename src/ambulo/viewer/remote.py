@@ -5,7 +5,8 @@ the capped rate (``FrameExchange``, as the in-process streaming thread does), wa
 off the device and writes its host arrays to the pipe: a few hundred floats, tens of microseconds
 of this process's time per frame. A reader thread applies what the page asks (pause, step, reset,
 the watched world, the command, the speed) to the simulation's ``Controls``. Features' overlays
-(``show_*``) and curves (``add_scalars``) go down the same pipe from whatever thread calls them.
+(``show_*``) and curves (``add_scalars``) go down the same pipe from whatever thread calls them;
+a writer thread does the writing (``_Outbox``), so no caller waits on the pipe.
 
 Child (``serve``): the ``page.PageServer`` (viser, its
 event loop and the streaming thread), with a ``Controls`` whose writes travel back up the pipe. It
@@ -24,6 +25,7 @@ import subprocess
 import sys
 import threading
 import time
+from collections import OrderedDict
 from multiprocessing.connection import Connection
 
 import numpy as np
@@ -58,16 +60,54 @@ class _Sender:
             self.broken = True
 
 
+class _Outbox:
+    """Messages to the page's process, written by a thread of their own: a caller (the simulation
+    thread showing a map, the pump with a frame) never waits on the pipe, even while the server is
+    busy building an apartment's meshes. A message with a ``key`` replaces an unsent one of the
+    same key (only the newest frame, or layer, matters) and goes after those queued since."""
+
+    def __init__(self, send: _Sender):
+        self._send, self._ready = send, threading.Condition()
+        self._pending: OrderedDict[object, tuple] = OrderedDict()
+        self._count, self._closed = 0, False
+        self._thread = threading.Thread(target=self._write, name="ambulo-viewer-pipe", daemon=True)
+        self._thread.start()
+
+    def __call__(self, message: tuple, key=None) -> None:
+        with self._ready:
+            self._count += 1
+            key = ("once", self._count) if key is None else key
+            self._pending.pop(key, None)
+            self._pending[key] = message
+            self._ready.notify()
+
+    def close(self) -> None:
+        """Send what is queued, then stop."""
+        with self._ready:
+            self._closed = True
+            self._ready.notify()
+        self._thread.join(timeout=CLOSE_LIMIT_S)
+
+    def _write(self) -> None:
+        while True:
+            with self._ready:
+                self._ready.wait_for(lambda: self._pending or self._closed)
+                if not self._pending:
+                    return
+                _, message = self._pending.popitem(last=False)
+            self._send(message)
+
+
 class _ForwardingFeed(OverlayFeed):
     """The overlay feed of the watched process: keeps the latest value per layer (``get``) and sends it."""
 
-    def __init__(self, send: _Sender):
+    def __init__(self, outbox: _Outbox):
         super().__init__()
-        self._send = send
+        self._outbox = outbox
 
     def put(self, layer: str, value) -> None:
         super().put(layer, value)
-        self._send(("feed", layer, value))
+        self._outbox(("feed", layer, value), key=("feed", layer))
 
 
 class PageProcess:
@@ -96,7 +136,8 @@ class PageProcess:
             raise RuntimeError(f"the web viewer's server process did not start (exit code {self.process.poll()}); "
                                "its error is printed above")
         self.port = int(ready[1])
-        self.feed = _ForwardingFeed(self.send)
+        self.outbox = _Outbox(self.send)
+        self.feed = _ForwardingFeed(self.outbox)
         self.frames_sent = 0
         self.stream_cpu_s = 0.0
         """CPU time of the pump thread, s (this process's share of the viewer)."""
@@ -111,13 +152,13 @@ class PageProcess:
         return self._wants
 
     def set_model(self, model, info) -> None:
-        self.send(("model", model, info))
+        self.outbox(("model", model, info))
 
     def add_scalars(self, step: float, scalars: dict[str, float]) -> None:
-        self.send(("scalars", float(step), {str(k): float(v) for k, v in scalars.items()}))
+        self.outbox(("scalars", float(step), {str(k): float(v) for k, v in scalars.items()}))
 
     def show_speed(self, speed: float | None) -> None:
-        self.send(("speed", speed))
+        self.outbox(("speed", speed), key="speed")
 
     def server_cpu_s(self) -> float:
         """CPU time the server's process has used so far, s (Linux ``/proc``; 0 elsewhere)."""
@@ -132,7 +173,8 @@ class PageProcess:
         self._stop.set()
         if self._pump is not threading.current_thread():
             self._pump.join(timeout=CLOSE_LIMIT_S)
-        self.send(("close",))
+        self.outbox(("close",))
+        self.outbox.close()
         self._end_child()
         self.conn.close()
         self._reader.join(timeout=CLOSE_LIMIT_S)
@@ -152,7 +194,7 @@ class PageProcess:
             self.exchange.request()
             sequence, frame = self.exchange.latest(sequence, timeout_s=self.period_s)
             if frame is not None:
-                self.send(("frame", host_frame(frame)))
+                self.outbox(("frame", host_frame(frame)), key="frame")
                 self.frames_sent += 1
             self.stream_cpu_s += time.thread_time() - cpu0
             if self.send.broken:
