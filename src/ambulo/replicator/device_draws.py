@@ -224,7 +224,8 @@ class Footprints:
 
 
 class _Twin:
-    """A randomizer's device twin: ``apply(stream, rows, ctx)`` draws and writes worlds ``rows``."""
+    """A randomizer's device twin: ``apply(stream, count, footprints)`` draws from ``stream`` and
+    writes worlds ``[0, count)`` of the engine's fields (scatterers also read and add ``footprints``)."""
 
     def __init__(self, r: Randomizer, engine, camera, model: mujoco.MjModel):
         self.r, self.engine, self.camera, self.model = r, engine, camera, model
@@ -443,5 +444,5 @@ class DeviceDraws:
             twin.slots_used = stream.used
 
 
-__all__ = ["DeviceDraws", "Footprints", "Stream", "footprint_radius", "hsv_to_rgb", "mix32", "rotvec_to_mat",
-           "sample", "static_boxes", "stream_keys", "uniforms"]
+__all__ = ["DeviceDraws", "Footprints", "Stream", "footprint_radius", "hsv_to_rgb", "key_base", "mix32",
+           "rotvec_to_mat", "sample", "static_boxes", "stream_keys", "uniforms"]
