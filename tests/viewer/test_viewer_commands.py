@@ -256,6 +256,8 @@ def test_run_says_when_a_script_showed_nothing(tmp_path, capsys):
     (["generate", "--out", "x", "--workers", "2", "--viewer", "web"], "--viewer web watches the frames rendered"),
     (["play", "cartpole", "--out", "x.mp4", "--viewer", "web"], "--viewer web shows the rollout live"),
     (["train", "cartpole", "--viewer", "web", "--viewer-port", "0"], "--viewer-port 0 is not a TCP port"),
+    (["bridge", "apartment", "--navigate", "--viewer", "web"], "the navigator's node (--navigate) is not watched"),
+    (["bridge", "jetbot", "--viewer", "web", "--viewer-port", "0"], "--viewer-port 0 is not a TCP port"),
 ])
 def test_viewer_flags_that_cannot_apply_are_one_line_errors(capsys, argv, problem, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)

@@ -201,6 +201,9 @@ def run(args: argparse.Namespace) -> int:
     if args.navigate and not args.recover:
         if args.target is None:
             raise CliError("no world given", "e.g. `ambulo bridge apartment --seed 3 --navigate`")
+        if getattr(args, "viewer", "none") != "none":
+            raise CliError("--viewer web watches a bridged robot; the navigator's node (--navigate) is not watched",
+                           "watch a navigation with `ambulo navigate ... --viewer web`, or leave out --viewer")
         return _navigate(args)
     if args.recover:
         _require("rosbags", "rosbags", "--recover")
@@ -220,6 +223,7 @@ def run(args: argparse.Namespace) -> int:
         _require("foxglove", "foxglove-sdk", "--foxglove")
     if args.detector and args.no_camera:
         raise CliError("--detector needs the camera that --no-camera removes", "leave out one of the two")
+    web = viewer_kind(args)  # bad viewer flags fail before the world is built
     from ambulo.ros2.runtime import Ros2Unavailable, import_rclpy
 
     try:
@@ -230,7 +234,7 @@ def run(args: argparse.Namespace) -> int:
     from ambulo.ros2 import BridgeCfg, Ros2Bridge
 
     world = _world(args.target, args)
-    viewer = _serve(world, args) if viewer_kind(args) else None
+    viewer = _serve(world, args) if web else None
     if viewer is not None and detector is not None:  # the page shows each detected frame with its boxes
         from ambulo.viewer.detections import ShownDetector
 
