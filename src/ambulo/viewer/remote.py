@@ -132,6 +132,7 @@ class PageProcess:
         except (EOFError, OSError):
             ready = None
         if not (isinstance(ready, tuple) and ready[0] == "ready"):
+            self.conn.close()  # the child, if it hangs, sees its pipe close
             self._end_child()
             raise RuntimeError(f"the web viewer's server process did not start (exit code {self.process.poll()}); "
                                "its error is printed above")
