@@ -52,3 +52,26 @@ def test_a_heap_the_caller_froze_stays_frozen(tmp_path, monkeypatch, small_produ
         assert gc.get_freeze_count() >= frozen * 0.9  # not unfrozen by the run (a few frozen objects died)
     finally:
         gc.unfreeze()
+
+
+def test_a_camera_jitter_sets_the_whole_pose_so_skipping_the_reset_changes_no_frame(small_producer):
+    """The producer skips the camera's pose reset when a CameraJitter of it sets the pose every frame:
+    frames made in any order with and without the reset have the same camera pose (pixels follow it)."""
+    producer = small_producer
+    assert producer._jitter_sets_pose  # the example config jitters its camera
+    cam_pos, cam_quat = producer.engine.model_field("cam_pos"), producer.engine.model_field("cam_quat")
+    poses = {}
+    for reset in (False, True):
+        producer._jitter_sets_pose = not reset
+        try:
+            for index in (3, 0, 3, 7, 1):  # out of order: each frame after a different one
+                producer.randomize(2, index)
+                camera = producer.capture()["camera"]
+                pose = (camera["pos_w"].tolist(), camera["quat_w_opengl"].tolist(),
+                        cam_pos[0, producer.camera.cam_id].tolist(), cam_quat[0, producer.camera.cam_id].tolist())
+                poses.setdefault(index, []).append(pose)
+        finally:
+            producer._jitter_sets_pose = True
+    for index, seen in poses.items():
+        assert all(pose == seen[0] for pose in seen), index
+    assert poses[3][0] != poses[0][0]  # the jitter moved the camera between frames

@@ -23,7 +23,7 @@ from ambulo.core import Simulation
 from ambulo.sensors import Camera
 
 from .config import DatasetConfig
-from .randomizers import SceneContext
+from .randomizers import CameraJitter, SceneContext
 from .writers import FrameWriter, write_frame_files
 
 _MAX_PENDING_WRITES = 4  # frames queued for the writer thread; bounds memory
@@ -52,6 +52,10 @@ class FrameProducer:
         self.ctx = SceneContext(model=self.model, engine=self.engine, cameras={self.camera.name: self.camera})
         self._names = names
         self._cache: dict[int, tuple[int, dict]] = {}
+        # a CameraJitter of this camera sets its whole pose from the configured offset every frame
+        # (cached draws are applied again too): resetting the pose first would only be overwritten
+        self._jitter_sets_pose = any(type(r) is CameraJitter and r.camera == self.camera.name
+                                     for r in config.randomizers)
 
     @property
     def table(self):
@@ -65,10 +69,12 @@ class FrameProducer:
     def randomize(self, seed: int, index: int) -> dict:
         """Reset world 0 and apply every randomizer for frame ``index``; returns the frame log.
 
-        No kinematics pass here: the camera's capture runs the only one, on the final state.
+        No kinematics pass here: the camera's capture runs the only one, on the final state. The
+        camera's pose is reset to its offset unless a ``CameraJitter`` of it sets the whole pose anyway.
         """
         self.sim.reset(forward=False)
-        self.camera.reset_pose()
+        if not self._jitter_sets_pose:
+            self.camera.reset_pose()
         return apply_randomizers(self.config.randomizers, self._names, self._cache, self.ctx, seed, index)
 
     def replay(self, log: dict) -> None:
