@@ -153,7 +153,6 @@ def test_a_jpeg_frame_has_the_png_frames_files_and_record_but_its_rgb_file(tmp_p
     from PIL import Image
 
     from ambulo.replicator.batched import BatchedFrameProducer
-    from ambulo.replicator.batched_disk import write_jpeg_frame
     from ambulo.replicator.io import depth_to_mm_u16
     from ambulo.replicator.writers import prepare_dirs, write_frame_files
 
@@ -171,8 +170,9 @@ def test_a_jpeg_frame_has_the_png_frames_files_and_record_but_its_rgb_file(tmp_p
     for name in ("png", "jpg"):
         prepare_dirs(tmp_path / name, config.writer)
     want = write_frame_files(tmp_path / "png", index, capture, table, log, config.writer, fsync_files=False)
-    got = write_jpeg_frame(str(tmp_path / "jpg"), index, capture, table, log, config.writer, False,
-                           np.frombuffer(buffer.getvalue(), np.uint8), depth_to_mm_u16(capture["depth"]))
+    got = write_frame_files(tmp_path / "jpg", index, capture, table, log, config.writer, fsync_files=False,
+                            rgb_jpeg=np.frombuffer(buffer.getvalue(), np.uint8),
+                            depth_mm_u16=depth_to_mm_u16(capture["depth"]))
     assert got["file_name"] == "rgb/000003.jpg" and (tmp_path / "jpg" / got["file_name"]).read_bytes() == buffer.getvalue()
     assert {k: v for k, v in got.items() if k not in ("file_name", "files")} == \
         {k: v for k, v in want.items() if k not in ("file_name", "files")}

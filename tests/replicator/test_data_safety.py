@@ -87,7 +87,9 @@ def test_overwrite_deletes_only_the_datasets_own_files(tmp_path, clean, gen):
     users = {"rgb/keep.png": b"my picture", "README.md": b"my notes", "frames/notes.json": b"{}"}
     for name, data in users.items():
         (out / name).write_bytes(data)
+    (out / "rgb" / "000007.jpg").write_bytes(b"\xff\xd8")  # a JPEG frame of the GPU writer's: the dataset's own
     make(config(), out, 2, seed=2, overwrite=True)
+    assert not (out / "rgb" / "000007.jpg").exists()
     fresh = make(config(), tmp_path / "fresh", 2, seed=2)
     tree = gen.file_tree(out)
     assert {name: tree.get(name) for name in users} == users

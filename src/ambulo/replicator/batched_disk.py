@@ -13,7 +13,7 @@ files (``FrameWriter``), so a record on disk still always points to data on disk
 alternate, so the device renders batch i+1 while the processes write batch i.
 
 The files are the ``run_frames`` path's, byte for byte, with PNG RGB (tested); with JPEG the RGB
-file is ``rgb/NNNNNN.jpg`` and the record's ``file_name`` says so (``write_jpeg_frame``). Writers
+file is ``rgb/NNNNNN.jpg`` and the record's ``file_name`` says so (``writers.write_frame_files`` with ``rgb_jpeg``). Writers
 supported: coco, depth (png16), masks, kitti; others (raw, npy depth) take ``run_frames``.
 """
 
@@ -31,14 +31,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from ambulo.utils.atomic import atomic_write_bytes
-
 from . import draw_pool
 from .batched import BatchedFrameProducer, frame_capture, tiled_camera_cfg
-from .coco import frame_annotations
 from .encode import IMAGE_FORMATS, as_u16_bits, depth_mm, encode_jpegs
-from .io import encode_png
-from .writers import PNG_ROW_FILTERS, FrameWriter, frame_stem, kitti_lines, write_frame_files
+from .writers import FrameWriter, write_frame_files
 
 SUPPORTED_OUTPUTS = {"coco", "depth", "masks", "kitti"}
 
@@ -284,47 +280,10 @@ def _write_part(spec, start: int, indices: list[int], logs: list[dict], small: d
             record = write_frame_files(Path(out), index, capture, table, log, writer_cfg, fsync_files)
         else:
             lo, hi = jpeg_spans[i]
-            record = write_jpeg_frame(out, index, capture, table, log, writer_cfg, fsync_files,
-                                      arrays["jpeg_bytes"][lo:hi], arrays["depth_mm"][start + i])
+            record = write_frame_files(Path(out), index, capture, table, log, writer_cfg, fsync_files,
+                                       rgb_jpeg=arrays["jpeg_bytes"][lo:hi], depth_mm_u16=arrays["depth_mm"][start + i])
         records.append((index, record))
     return records
 
 
-def write_jpeg_frame(out: str, index: int, capture: dict, table, log: dict, cfg, fsync: bool, jpeg,
-                     depth_mm_u16: np.ndarray) -> dict:
-    """``writers.write_frame_files`` with the RGB image as ``rgb/NNNNNN.jpg`` (``jpeg``: the file's
-    bytes, encoded on the device) and the depth given in uint16 mm (``io.depth_to_mm_u16``'s,
-    converted on the device); the other files and the record as there."""
-    stem = frame_stem(index)
-    level = cfg.png_compress_level
-    files: dict[str, int] = {}
-
-    def put(relpath: str, data) -> None:
-        files[relpath] = atomic_write_bytes(os.path.join(out, relpath), data, fsync=fsync)
-
-    rgb_file = f"rgb/{stem}.jpg"
-    put(rgb_file, jpeg)
-    if "depth" in cfg.outputs:
-        put(f"depth/{stem}.png", encode_png(depth_mm_u16.astype(">u2"), level, PNG_ROW_FILTERS["depth"]))
-    if "masks" in cfg.outputs:
-        put(f"instance/{stem}.png",
-            encode_png(capture["instance_segmentation"].astype(">u2"), level, PNG_ROW_FILTERS["instance"]))
-        if "semantic_segmentation" in capture:
-            put(f"semantic/{stem}.png",
-                encode_png(capture["semantic_segmentation"].astype(">u2"), level, PNG_ROW_FILTERS["semantic"]))
-    annotations = frame_annotations(capture, table.semantic_ids, table.names, cfg.min_visible_pixels)
-    if "kitti" in cfg.outputs:
-        put(f"kitti/{stem}.txt", kitti_lines(annotations, table.categories, capture).encode())
-    cam = capture["camera"]
-    return {
-        "frame": index, "file_name": rgb_file, "width": int(cam["width"]), "height": int(cam["height"]),
-        "annotations": annotations,
-        "camera": {"intrinsics": cam["intrinsics"].tolist(), "extrinsics_cw": cam["extrinsics_cw"].tolist(),
-                   "pos_w": cam["pos_w"].tolist(), "quat_w_opengl": cam["quat_w_opengl"].tolist()},
-        "randomization": log,
-        "files": files,
-    }
-
-
-__all__ = ["SUPPORTED_OUTPUTS", "SharedBatch", "batch_layout", "run_batched_frames", "supports",
-           "write_jpeg_frame"]
+__all__ = ["SUPPORTED_OUTPUTS", "SharedBatch", "batch_layout", "run_batched_frames", "supports"]

@@ -85,7 +85,7 @@ def frame_stem(index: int) -> str:
 
 SUBDIRS = ("rgb", "depth", "instance", "semantic", "kitti", "raw", "frames")
 """Every folder a dataset may have; ``frame_subdirs`` says which ones a writer config uses."""
-FRAME_FILE = re.compile(r"\d{6,}(_[a-z_]+)?\.(png|npy|txt|json)")
+FRAME_FILE = re.compile(r"\d{6,}(_[a-z_]+)?\.(png|jpg|npy|txt|json)")
 """The whole name of every file ``write_frame`` makes (``000012.png``, ``000012_depth.npy``)."""
 
 
@@ -199,10 +199,15 @@ def write_frame(out: Path, index: int, capture: dict, table, log: dict, cfg: Wri
 
 
 def write_frame_files(out: Path, index: int, capture: dict, table, log: dict, cfg: WriterCfg,
-                      fsync_files: bool | None = None) -> dict:
+                      fsync_files: bool | None = None, rgb_jpeg: bytes | np.ndarray | None = None,
+                      depth_mm_u16: np.ndarray | None = None) -> dict:
     """Write the data files of frame ``index``; returns its record, which lists every file with its
     size in bytes, for the caller to write last. Each file is flushed to disk before its rename when
-    ``fsync_files`` (default: ``cfg.fsync``); ``FrameWriter`` may flush a whole batch at once instead."""
+    ``fsync_files`` (default: ``cfg.fsync``); ``FrameWriter`` may flush a whole batch at once instead.
+
+    The GPU path hands over what it converted on the device: ``rgb_jpeg``, the colour image's JPEG
+    bytes (written as ``rgb/NNNNNN.jpg`` instead of the PNG), and ``depth_mm_u16``, the depth already
+    in ``io.depth_to_mm_u16``'s uint16 millimetres (H, W)."""
     fsync = cfg.fsync if fsync_files is None else fsync_files
     stem = frame_stem(index)
     level = cfg.png_compress_level
@@ -217,10 +222,16 @@ def write_frame_files(out: Path, index: int, capture: dict, table, log: dict, cf
             files[relpath] = atomic_write_bytes(path, data, fsync=fsync)
 
     row_filter = PNG_ROW_FILTERS
-    put(f"rgb/{stem}.png", encode_png(capture["rgb"], level, row_filter["rgb"]))
+    if rgb_jpeg is None:
+        rgb_file = f"rgb/{stem}.png"
+        put(rgb_file, encode_png(capture["rgb"], level, row_filter["rgb"]))
+    else:  # bytes or a uint8 view of the shared block: written as they are, never as .npy
+        rgb_file = f"rgb/{stem}.jpg"
+        files[rgb_file] = atomic_write_bytes(os.path.join(root, rgb_file), rgb_jpeg, fsync=fsync)
     if "depth" in cfg.outputs:
         if cfg.depth_format == "png16":
-            put(f"depth/{stem}.png", encode_png(depth_to_mm_u16(capture["depth"], ">"), level, row_filter["depth"]))
+            depth_mm = depth_to_mm_u16(capture["depth"], ">") if depth_mm_u16 is None else depth_mm_u16.astype(">u2")
+            put(f"depth/{stem}.png", encode_png(depth_mm, level, row_filter["depth"]))
         else:
             put(f"depth/{stem}.npy", capture["depth"])
     if "masks" in cfg.outputs:
@@ -239,7 +250,7 @@ def write_frame_files(out: Path, index: int, capture: dict, table, log: dict, cf
                 put(f"raw/{stem}_{name}.npy", capture[name])
     cam = capture["camera"]
     return {
-        "frame": index, "file_name": f"rgb/{stem}.png", "width": int(cam["width"]), "height": int(cam["height"]),
+        "frame": index, "file_name": rgb_file, "width": int(cam["width"]), "height": int(cam["height"]),
         "annotations": annotations,
         "camera": {"intrinsics": cam["intrinsics"].tolist(), "extrinsics_cw": cam["extrinsics_cw"].tolist(),
                    "pos_w": cam["pos_w"].tolist(), "quat_w_opengl": cam["quat_w_opengl"].tolist()},
