@@ -20,6 +20,7 @@ import signal
 import socket
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -76,6 +77,27 @@ def canvas_image(page) -> tuple[np.ndarray, dict]:
                         "return {x: r.x, y: r.y, width: r.width, height: r.height}; })()")
     png = page.screenshot(clip=box, timeout=WAIT_MS, animations="disabled")
     return np.asarray(Image.open(io.BytesIO(png)).convert("RGB")), box
+
+
+def differs(a: np.ndarray, b: np.ndarray, width_px: int) -> np.ndarray:
+    """Where two canvas images differ in the scene (left of ``width_px``: the panel floats over the rest)."""
+    mask = np.abs(a.astype(int) - b.astype(int)).sum(axis=2) > 30
+    mask[:, width_px:] = False
+    return mask
+
+
+def settled_canvas(page, width_px: int, unlike: np.ndarray) -> np.ndarray:
+    """The canvas once a change the page was asked for has been drawn (a toggle travels to the server
+    and back before the page redraws): two screenshots alike, and unlike ``unlike`` in the scene."""
+    deadline = time.monotonic() + WAIT_MS / 1000
+    previous = None
+    while True:
+        image, _ = canvas_image(page)
+        if (previous is not None and not differs(image, previous, width_px).any()
+                and differs(image, unlike, width_px).any()):
+            return image
+        assert time.monotonic() < deadline, "the canvas did not change as the page asked"
+        previous = image
 
 
 def set_shown(page, bodies: dict[str, bool]) -> None:
@@ -157,16 +179,15 @@ def test_demo_page_draws_robots_where_simulated_and_teleoperates(demo):
         # each robot alone against the empty scene: a crate or the other robot in front cannot hide it
         roots = [m.group(1) for m in re.finditer(r"show (\S+)", page_text(page))]
         set_shown(page, dict.fromkeys(roots, False))
-        empty, _ = canvas_image(page)
+        empty = settled_canvas(page, scene_width_px, shown)
         for body, xy in zip((HUMANOID, JETBOT), pixels):
             assert 0 <= xy[0] < scene_width_px and 0 <= xy[1] < shown.shape[0], f"{body} is off the visible scene"
             set_shown(page, {body: True})
-            alone, _ = canvas_image(page)
+            alone = settled_canvas(page, scene_width_px, empty)  # fails if showing it draws nothing
             set_shown(page, {body: False})
+            settled_canvas(page, scene_width_px, alone)  # hidden again before the next one shows
             save(f"alone_{body.split('/')[2]}.png", alone)
-            mask = np.abs(alone.astype(int) - empty.astype(int)).sum(axis=2) > 30
-            mask[:, scene_width_px:] = False  # the panel's own boxes changed
-            assert mask.any(), f"hiding {body} changed nothing on the canvas: it was not drawn"
+            mask = differs(alone, empty, scene_width_px)
             # the root body's origin is inside its drawn shape (pelvis capsule, chassis box): within a few pixels
             assert near_mask(mask, xy, radius_px=int(6 * scale)), \
                 f"{body} at {xy} px is not where the page draws it (drawn pixels span " \
