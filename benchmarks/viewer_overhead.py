@@ -29,8 +29,8 @@ The first ``--warmup`` iterations (kernel compile, allocation) are not counted.
   ``server_cpu_share``: its server process, as parts of the training process's CPU in B rounds;
 - ``page_hz``: pose updates of the watched world the page received per wall second of B rounds,
   timed at the page; ``page_hz_while_stepping``: the same over the stretches the simulation
-  stepped (gaps between updates under ``STEPPING_GAP_S``; PPO's update phase steps nothing, so
-  ``page_hz`` is at most the cap times the collection's share of an iteration); ``stream_hz``:
+  stepped (gaps under ``STEPPING_GAP_PERIODS`` periods of the cap; PPO's update phase steps
+  nothing, so ``page_hz`` is at most the cap times the collection's share of an iteration); ``stream_hz``:
   frames the viewer sent per second, counted at the viewer.
 
 Prints ``RESULT {json}``.
@@ -48,8 +48,9 @@ import tempfile
 import threading
 import time
 
-STEPPING_GAP_S = 0.2
-"""Two page updates further apart than this bracket a stretch without simulation steps."""
+STEPPING_GAP_PERIODS = 2.5
+"""Two page updates further apart than this many periods of the cap bracket a stretch without
+simulation steps (PPO's update); meaningful when the simulation steps faster than the cap."""
 
 READER = """
 import json, sys, time
@@ -91,10 +92,10 @@ class Page:
         return json.loads(out.strip().splitlines()[-1])
 
 
-def page_rates(updates: list[float], wall_s: float) -> tuple[float, float]:
+def page_rates(updates: list[float], wall_s: float, rate_hz: float) -> tuple[float, float]:
     """(updates per wall second, updates per second over the stretches the simulation stepped)."""
     gaps = [b - a for a, b in zip(updates, updates[1:])]
-    stepping = [g for g in gaps if g < STEPPING_GAP_S]
+    stepping = [g for g in gaps if g < STEPPING_GAP_PERIODS / rate_hz]
     return len(updates) / wall_s, (len(stepping) / sum(stepping) if sum(stepping) > 0 else 0.0)
 
 
@@ -168,7 +169,7 @@ class Rounds:
                    "server_cpu_share": (self._server_cpu() - server0) / self._round[3]}
             self.close()
             row["page_hz"], row["page_hz_while_stepping"] = page_rates(
-                [t for t in self._updates if t >= self._opened], wall_s)
+                [t for t in self._updates if t >= self._opened], wall_s, self.rate_hz)
             self.viewer_rows.append(row)
             self._finished += 1
         self._round = [0, 0.0, 0.0, 0.0]
