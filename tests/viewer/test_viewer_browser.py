@@ -25,6 +25,8 @@ import time
 import numpy as np
 import pytest
 
+from ports import free_port
+
 playwright_api = pytest.importorskip("playwright.sync_api")
 pytest.importorskip("viser")
 CHROMIUM = shutil.which("chromium")
@@ -39,11 +41,6 @@ CHROMIUM_ARGS = ["--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--us
 POSITION = r"`{name}` \((-?[\d.]+), (-?[\d.]+), (-?[\d.]+)\) m"
 HUMANOID, JETBOT = "/World/Humanoid/pelvis", "/World/Jetbot/chassis"
 
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def page_text(page) -> str:

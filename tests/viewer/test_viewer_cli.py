@@ -11,12 +11,7 @@ import pytest
 pytest.importorskip("viser")
 from ambulo.cli import main
 from ambulo.sim import World
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+from ports import free_port
 
 
 def test_view_serves_the_scene_for_its_seconds_then_frees_the_port(capsys):

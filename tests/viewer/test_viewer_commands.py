@@ -18,12 +18,7 @@ pytest.importorskip("rsl_rl")
 import ambulo.viewer
 from ambulo.cli import main
 from ambulo.sim import World
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+from ports import free_port
 
 
 class PageProbe:

@@ -20,14 +20,9 @@ import ambulo.viewer
 from ambulo.sim import DynamicCuboid, World
 from ambulo.sim.viewers import open_viewer
 from ambulo.utils.checks import InvalidValueError
+from ports import free_port
 
 LIMIT_S = 120.0
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def wait_until(condition, what: str) -> None:

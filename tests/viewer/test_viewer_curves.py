@@ -3,7 +3,6 @@ waiting; long runs are thinned, not truncated. Read from viser's server-side GUI
 
 from __future__ import annotations
 
-import socket
 import threading
 import time
 
@@ -14,14 +13,10 @@ pytest.importorskip("viser")
 import ambulo.viewer
 from ambulo.sim import DynamicCuboid, World
 from ambulo.viewer.curves import ScalarLog
+from ports import free_port
 
 LIMIT_S = 120.0
 
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def test_log_thins_by_half_keeping_the_ends_and_drops_non_finite():

@@ -4,7 +4,6 @@ outlined. Read from viser's server-side GUI (no browser); waits are on condition
 
 from __future__ import annotations
 
-import socket
 import time
 
 import numpy as np
@@ -15,14 +14,10 @@ import ambulo.viewer
 from ambulo.detection.detector import Detections
 from ambulo.sim import DynamicCuboid, World
 from ambulo.viewer.detections import IMAGE_NAME, ShownDetector
+from ports import free_port
 
 LIMIT_S = 120.0
 
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 class BoxFinder:

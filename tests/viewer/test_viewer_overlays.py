@@ -6,7 +6,6 @@ Waits are on conditions with generous limits; nothing asserts a duration."""
 
 from __future__ import annotations
 
-import socket
 import time
 
 import numpy as np
@@ -17,16 +16,12 @@ import ambulo.viewer
 from ambulo.sim import DynamicCuboid, World
 from ambulo.viewer.geometry import is_ground
 from ambulo.viewer.layout import grid_offsets_w
+from ports import free_port
 
 LIMIT_S = 120.0
 BOX_XY_M = (0.5, 0.2)
 BOX_HALF_M = 0.1
 
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def nodes(viewer) -> dict:
