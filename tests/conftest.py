@@ -25,10 +25,11 @@ class _TickClock:
 
 @pytest.fixture(autouse=True, scope="session")
 def _planner_clock():
-    # The footstep planner stops at a wall-time budget (FootstepPlannerCfg.time_budget_s, 0.1 s by
-    # default): a test reading the real clock passes or fails with the machine's load. 1 ms a
-    # reading is about one expansion on a quiet 2-core machine. Session scope: module fixtures
-    # that plan run before any function-scoped one.
+    # The footstep planner's budget is a count of expansions; a wall-time limit applies only where a
+    # caller asks for one (FootstepPlannerCfg.time_budget_s, e.g. the tests that pass one). Such a
+    # test reading the real clock would pass or fail with the machine's load: 1 ms a reading is
+    # about one expansion on a quiet 2-core machine. Session scope: module fixtures that plan run
+    # before any function-scoped one.
     import types
 
     from ambulo.nav import footsteps
