@@ -104,7 +104,15 @@ def _modes(text: str, many: bool) -> list[str]:
 
 
 def run_one(args: argparse.Namespace) -> int:
-    """One episode (module docstring)."""
+    """One episode (module docstring), with torch and OpenCV on one thread as in the benchmark's
+    workers, so that an episode of ``--episodes N`` replays alike on its own."""
+    from ..navigation.benchmark import pinned_threads
+
+    with pinned_threads():
+        return _run_one(args)
+
+
+def _run_one(args: argparse.Namespace) -> int:
     watch = viewer_kind(args)
     kind = _world_kind(args.world)
     mode = _modes(args.mode, many=False)[0]

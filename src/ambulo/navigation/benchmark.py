@@ -27,6 +27,7 @@ their summary. ``ambulo navigate --episodes N`` and ``benchmarks/navigate.py`` b
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import importlib.util
 import json
@@ -159,17 +160,40 @@ def run_spec(spec: EpisodeSpec, out_dir: str | None, base: EpisodeCfg | None = N
     return data
 
 
-def _init_worker() -> None:
+def pin_threads() -> None:
+    """torch and OpenCV on one thread, as in every benchmark worker: one episode per core, and a
+    single ``ambulo navigate`` episode sums in the same order as the benchmark's (a different thread
+    count can change a float reduction, and with it an episode's decisions)."""
     import torch
 
-    # one episode per core: threads would only fight over the cores (OpenCV's pool is as wide as the
-    # machine: 64 threads per worker on a 64-core host running 62 workers)
+    # threads would only fight over the cores (OpenCV's pool is as wide as the machine: 64 threads
+    # per worker on a 64-core host running 62 workers)
     torch.set_num_threads(1)
     try:
         import cv2  # perception extra (full mode's odometry)
     except ImportError:
         return
     cv2.setNumThreads(1)
+
+
+@contextlib.contextmanager
+def pinned_threads():
+    """``pin_threads`` for a block, then the thread counts as they were (``ambulo navigate`` run
+    in a process that goes on, e.g. a test session)."""
+    import torch
+
+    try:
+        import cv2
+    except ImportError:
+        cv2 = None
+    before = torch.get_num_threads(), (cv2.getNumThreads() if cv2 is not None else None)
+    pin_threads()
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before[0])
+        if cv2 is not None:
+            cv2.setNumThreads(before[1])
 
 
 def episode_path(out_dir: str | os.PathLike, spec: EpisodeSpec) -> Path:
@@ -220,7 +244,7 @@ def run_benchmark(specs: Iterable[EpisodeSpec], out_dir: str | os.PathLike, *, w
         log(f"resuming: {run.resumed} of {len(specs)} episodes already done in {out / 'episodes'}")
     pool = None
     if workers > 1 and sum(len(v) for v in todo.values()) > 1:
-        pool = ProcessPoolExecutor(max_workers=workers, mp_context=get_context("spawn"), initializer=_init_worker)
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=get_context("spawn"), initializer=pin_threads)
     try:
         for group, group_specs in todo.items():
             t0 = time.perf_counter()
