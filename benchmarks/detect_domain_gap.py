@@ -146,7 +146,10 @@ def main() -> None:
     if checkpoint is None:
         cfg = TrainCfg(model=args.model, epochs=args.epochs, batch_size=args.batch_size, learning_rate=args.lr,
                        device=args.device, num_workers=args.workers, held_out_fraction=held_out_fraction,
-                       eval_every_epochs=max(1, args.epochs // 5), max_minutes=args.max_minutes,
+                       # a time budget evaluates on the clock (its epochs count is only a ceiling), else 5 times
+                       eval_every_epochs=0 if args.max_minutes > 0 else max(1, args.epochs // 5),
+                       eval_every_minutes=args.max_minutes / 6 if args.max_minutes > 0 else 0.0,
+                       max_minutes=args.max_minutes,
                        augment=AugmentCfg() if args.augment == "full" else geometry_only())
         start = time.perf_counter()
         result = train(train_data, out / "run", cfg)
