@@ -27,7 +27,12 @@ def test_cli_trains_exports_and_onnx_matches_torch(tiny_dataset, tmp_path, capsy
     assert diff["boxes_px"] < 1e-3 and diff["scores"] < 1e-5 and diff["masks"] < 1e-4, diff
     by_onnx, by_torch = Detector(onnx_path, 0.0)(frame), Detector(run / "checkpoint.pt", 0.0)(frame)
     assert len(by_onnx.scores) == len(by_torch.scores) == 100
-    assert np.allclose(np.sort(by_onnx.scores), np.sort(by_torch.scores), atol=1e-5)
+    # near-flat heatmaps: a peak tied with a neighbour to float rounding is kept once or twice on the
+    # runtime's last bit (as compare_detections' `unmatched`), so each score needs a partner in the
+    # other list, not a sorted pairing; at most 5 % may lack one
+    for a, b in ((by_onnx.scores, by_torch.scores), (by_torch.scores, by_onnx.scores)):
+        partnered = (np.abs(a[:, None] - b[None, :]) <= 1e-5).any(axis=1)
+        assert partnered.mean() >= 0.95, np.sort(a[~partnered])
     assert by_onnx.boxes_px.shape == (100, 4) and (by_onnx.boxes_px[:, 2] <= 160).all()
     assert set(by_onnx.labels) <= {"ball", "box", "can", "cone"}
     # the masks of the same detections, pasted to the frame: equal but for pixels at the threshold
@@ -45,6 +50,9 @@ def test_comparison_sees_a_moved_box():
     moved = boxes.copy()
     moved[0, 1, 0] += 0.005
     assert compare_detections([boxes, scores, classes], [moved, scores, classes])["boxes_px"] == pytest.approx(0.005, abs=1e-6)
+    nudged = scores.copy()
+    nudged[0, 0] += 5e-5  # a matched box's score, within the matching tolerance
+    assert compare_detections([boxes, scores, classes], [boxes, nudged, classes])["scores"] == pytest.approx(5e-5, abs=1e-7)
     moved[0, 1, 0] += 4.0  # a cell away
     assert compare_detections([boxes, scores, classes], [moved, scores, classes])["unmatched"] == 1
 

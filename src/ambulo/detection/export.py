@@ -79,7 +79,8 @@ def compare_detections(expected: list[np.ndarray], got: list[np.ndarray], score_
                        box_tol_px: float = 0.01) -> dict:
     """Order-free agreement of two (boxes, scores, classes[, masks]) outputs of batch 1.
 
-    ``scores``: the largest difference of the sorted scores. Each expected box whose score stands
+    ``scores``: the largest score difference between matched boxes (a box below the cut-off may
+    enter or leave the K best on the runtime's last bit, so sorted lists are not compared). Each expected box whose score stands
     clear of the K-th (ties at the cut-off may be broken either way) is ``compared`` with the boxes of
     ``got`` of its class and score; ``boxes_px`` is the largest distance (largest coordinate) to the
     nearest of them among the boxes that have one within ``box_tol_px``, ``unmatched`` counts those
@@ -88,18 +89,19 @@ def compare_detections(expected: list[np.ndarray], got: list[np.ndarray], score_
     by one 4 px cell). That happens on flat, untrained heatmaps; a trained model's peaks stand clear.
     With masks, ``masks`` is the largest probability difference between the masks of matched boxes."""
     (eb, es, ec, *em), (gb, gs, gc, *gm) = ([a[0] for a in out] for out in (expected, got))
-    score_diff = float(np.abs(np.sort(es) - np.sort(gs)).max())
     inner = np.flatnonzero(es > es.min() + score_tol)
-    worst, unmatched, worst_mask = 0.0, 0, 0.0
+    worst, unmatched, worst_mask, score_diff = 0.0, 0, 0.0, 0.0
     for i in inner:
         same = np.flatnonzero((gc == ec[i]) & (np.abs(gs - es[i]) <= score_tol))
         distances = np.abs(gb[same] - eb[i]).max(axis=1) if len(same) else np.array([np.inf])
         if distances.min() > box_tol_px:
             unmatched += 1
             continue
+        match = same[distances.argmin()]
         worst = max(worst, float(distances.min()))
+        score_diff = max(score_diff, float(abs(gs[match] - es[i])))
         if em:
-            worst_mask = max(worst_mask, float(np.abs(gm[0][same[distances.argmin()]] - em[0][i]).max()))
+            worst_mask = max(worst_mask, float(np.abs(gm[0][match] - em[0][i]).max()))
     out = {"scores": score_diff, "boxes_px": worst, "compared": int(len(inner)), "unmatched": unmatched}
     if em:
         out["masks"] = worst_mask
