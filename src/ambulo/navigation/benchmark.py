@@ -180,20 +180,21 @@ def pin_threads() -> None:
 def pinned_threads():
     """``pin_threads`` for a block, then the thread counts as they were (``ambulo navigate`` run
     in a process that goes on, e.g. a test session)."""
-    import torch
+    from ..perception.torch_threads import one_torch_thread
 
     try:
-        import cv2
+        import cv2  # perception extra (full mode's odometry)
     except ImportError:
         cv2 = None
-    before = torch.get_num_threads(), (cv2.getNumThreads() if cv2 is not None else None)
-    pin_threads()
+    cv2_threads = cv2.getNumThreads() if cv2 is not None else None
+    if cv2 is not None:
+        cv2.setNumThreads(1)
     try:
-        yield
+        with one_torch_thread("cpu"):
+            yield
     finally:
-        torch.set_num_threads(before[0])
         if cv2 is not None:
-            cv2.setNumThreads(before[1])
+            cv2.setNumThreads(cv2_threads)
 
 
 def episode_path(out_dir: str | os.PathLike, spec: EpisodeSpec) -> Path:
