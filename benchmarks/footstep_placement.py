@@ -27,12 +27,11 @@ import numpy as np
 import torch
 
 from ambulo import envs
+from ambulo.envs.humanoid_footsteps import PLACEMENT_BAR_M
 from ambulo.nav.footsteps import FootstepPlanner
 from ambulo.nav.grid_map import GridMap
 from ambulo.rl import runs
 from ambulo.rl.evaluate import eval_episode_length_s, run_episodes
-
-BAR_M = 0.05
 
 
 class TouchdownLog:
@@ -134,9 +133,9 @@ def main():
         "planned_steps": None if log.num_steps is None else int(log.num_steps.sum()),
         "touchdowns": int(errors.numel()),
         "placement_error_m": position, "yaw_error_rad": summary(yaw),
-        "median_within_5cm": position["median"] is not None and position["median"] <= BAR_M,
+        "median_within_5cm": position["median"] is not None and position["median"] <= PLACEMENT_BAR_M,
         "eval": {k: v for k, v in measured.items() if k not in ("task", "episodes", "episode_length_s")},
-        "ratio": round(BAR_M / position["median"], 3) if position["median"] else None,
+        "ratio": round(PLACEMENT_BAR_M / position["median"], 3) if position["median"] else None,
     }
     print("RESULT " + json.dumps(result))
 

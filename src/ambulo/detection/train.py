@@ -98,7 +98,7 @@ class TrainResult:
     """What ended this call: the last epoch, ``max_minutes`` or ``pause_after_minutes``."""
 
 
-def _batches(cfg: TrainCfg, records: FrameRecords, resident: ResidentFrames | None, loader, epoch: int,
+def _batches(cfg: TrainCfg, resident: ResidentFrames | None, loader, epoch: int,
              device: torch.device):
     """The training batches of one epoch on ``device`` (uint8 images, padded boxes)."""
     if resident is not None:
@@ -199,7 +199,7 @@ def train(dataset_dir: str | Path, run_dir: str | Path, cfg: TrainCfg, resume: b
             model.train()
             bar = tqdm(total=steps_per_epoch, desc=f"epoch {epoch + 1}/{cfg.epochs}", unit="batch",
                        disable=not show_progress)
-            for i, batch in enumerate(_batches(cfg, records, resident, loader, epoch, device)):
+            for i, batch in enumerate(_batches(cfg, resident, loader, epoch, device)):
                 if i >= steps_per_epoch:
                     break
                 batch = augment_batch(batch, cfg.augment, g)

@@ -160,6 +160,15 @@ def run_spec(spec: EpisodeSpec, out_dir: str | None, base: EpisodeCfg | None = N
     return data
 
 
+def _cv2():
+    """OpenCV, or None without the perception extra (full mode's odometry uses it)."""
+    try:
+        import cv2
+    except ImportError:
+        return None
+    return cv2
+
+
 def pin_threads() -> None:
     """torch and OpenCV on one thread, as in every benchmark worker: one episode per core, and a
     single ``ambulo navigate`` episode sums in the same order as the benchmark's (a different thread
@@ -169,11 +178,8 @@ def pin_threads() -> None:
     # threads would only fight over the cores (OpenCV's pool is as wide as the machine: 64 threads
     # per worker on a 64-core host running 62 workers)
     torch.set_num_threads(1)
-    try:
-        import cv2  # perception extra (full mode's odometry)
-    except ImportError:
-        return
-    cv2.setNumThreads(1)
+    if (cv2 := _cv2()) is not None:
+        cv2.setNumThreads(1)
 
 
 @contextlib.contextmanager
@@ -182,10 +188,7 @@ def pinned_threads():
     in a process that goes on, e.g. a test session)."""
     from ..perception.torch_threads import one_torch_thread
 
-    try:
-        import cv2  # perception extra (full mode's odometry)
-    except ImportError:
-        cv2 = None
+    cv2 = _cv2()
     cv2_threads = cv2.getNumThreads() if cv2 is not None else None
     if cv2 is not None:
         cv2.setNumThreads(1)

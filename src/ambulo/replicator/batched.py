@@ -235,7 +235,6 @@ class BatchedFrameProducer:
         self.sim.reset(forward=False)
         self.camera.reset_pose()
         self.device_draws.apply(seed, index)
-        self.camera._outdated = True
 
     def _render_chunk(self, seed: int, chunk: list[int], drawn: list | None = None) -> tuple[list[dict], tuple]:
         """World w shows frame ``chunk[w]``: reset, randomize, one kinematics pass, one render.

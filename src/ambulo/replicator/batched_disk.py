@@ -196,7 +196,7 @@ def run_batched_frames(config, out: Path, seed: int, frames: list[int], producer
                 torch.from_numpy(target).view(tensor.shape).copy_(tensor, non_blocking=cuda)
             small = producer.to_host(count, instances, boxes, pixels, images=False)  # syncs the stream
             written.put((block, _submit_parts(pool, block, chunk, logs, small, sizes, out, config.writer,
-                                              image_format, writer.fsync_files)))
+                                              writer.fsync_files)))
     finally:
         written.put(None)  # the batches submitted are written and their records kept, whatever happened
         settler.join()
@@ -212,7 +212,7 @@ _NUMPY = {torch.int16: np.int16, torch.uint8: np.uint8, torch.float32: np.float3
 """The NumPy view of a block's bytes that a device tensor is copied into (the same bits)."""
 
 
-def _submit_parts(pool, block: SharedBatch, chunk, logs, small: dict, sizes, out, writer_cfg, image_format: str,
+def _submit_parts(pool, block: SharedBatch, chunk, logs, small: dict, sizes, out, writer_cfg,
                   fsync_files: bool) -> list:
     """The batch's frames in one contiguous part per process, each written there (``_write_part``)."""
     count = len(chunk)
@@ -225,7 +225,7 @@ def _submit_parts(pool, block: SharedBatch, chunk, logs, small: dict, sizes, out
         jpeg_spans = None if ends is None else [(int(ends[w] - sizes[w]), int(ends[w])) for w in range(start, stop)]
         futures.append(pool.submit_call(_write_part, block.spec, start, chunk[start:stop], logs[start:stop],
                                         part_small, jpeg_spans, os.fspath(out), pickle.dumps(writer_cfg),
-                                        image_format, fsync_files))
+                                        fsync_files))
     return futures
 
 
@@ -264,7 +264,7 @@ def _frame_context() -> tuple:
 
 
 def _write_part(spec, start: int, indices: list[int], logs: list[dict], small: dict, jpeg_spans, out: str,
-                writer_payload: bytes, image_format: str, fsync_files: bool) -> list[tuple[int, dict]]:
+                writer_payload: bytes, fsync_files: bool) -> list[tuple[int, dict]]:
     """Write frames ``indices`` (worlds ``start``... of the block ``spec``); returns their records."""
     arrays = _attach(spec)
     cfg, k_matrix, table, model, annotators = _frame_context()

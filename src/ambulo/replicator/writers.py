@@ -221,26 +221,25 @@ def write_frame_files(out: Path, index: int, capture: dict, table, log: dict, cf
         else:
             files[relpath] = atomic_write_bytes(path, data, fsync=fsync)
 
-    row_filter = PNG_ROW_FILTERS
     if rgb_jpeg is None:
         rgb_file = f"rgb/{stem}.png"
-        put(rgb_file, encode_png(capture["rgb"], level, row_filter["rgb"]))
+        put(rgb_file, encode_png(capture["rgb"], level, PNG_ROW_FILTERS["rgb"]))
     else:  # bytes or a uint8 view of the shared block: written as they are, never as .npy
         rgb_file = f"rgb/{stem}.jpg"
         files[rgb_file] = atomic_write_bytes(os.path.join(root, rgb_file), rgb_jpeg, fsync=fsync)
     if "depth" in cfg.outputs:
         if cfg.depth_format == "png16":
             depth_mm = depth_to_mm_u16(capture["depth"], ">") if depth_mm_u16 is None else depth_mm_u16.astype(">u2")
-            put(f"depth/{stem}.png", encode_png(depth_mm, level, row_filter["depth"]))
+            put(f"depth/{stem}.png", encode_png(depth_mm, level, PNG_ROW_FILTERS["depth"]))
         else:
             put(f"depth/{stem}.npy", capture["depth"])
     if "masks" in cfg.outputs:
         # straight to PNG's big-endian uint16: one conversion, not a cast and then a byte swap
         put(f"instance/{stem}.png",
-            encode_png(capture["instance_segmentation"].astype(_PNG_U16), level, row_filter["instance"]))
+            encode_png(capture["instance_segmentation"].astype(_PNG_U16), level, PNG_ROW_FILTERS["instance"]))
         if "semantic_segmentation" in capture:  # asked for (the camera's annotators), as Replicator's BasicWriter
             put(f"semantic/{stem}.png",
-                encode_png(capture["semantic_segmentation"].astype(_PNG_U16), level, row_filter["semantic"]))
+                encode_png(capture["semantic_segmentation"].astype(_PNG_U16), level, PNG_ROW_FILTERS["semantic"]))
     annotations = frame_annotations(capture, table.semantic_ids, table.names, cfg.min_visible_pixels)
     if "kitti" in cfg.outputs:
         put(f"kitti/{stem}.txt", kitti_lines(annotations, table.categories, capture).encode())
