@@ -10,7 +10,7 @@ import time
 from pathlib import Path
 
 from .errors import CliError, check_seconds
-from .viewer_args import add_viewer_args, viewer_kind
+from .viewer_args import add_viewer_args, web_watch
 
 _KINDS = (".xml", ".urdf", ".usd", ".usda", ".usdc", ".usdz")
 
@@ -190,13 +190,6 @@ def _navigate(args: argparse.Namespace) -> int:
     return 0
 
 
-def _serve(world, args: argparse.Namespace):
-    """``--viewer web``: the scene in a browser (and the detector's frames, ``ShownDetector``)."""
-    from ambulo.viewer import serve
-
-    return serve(world, port=args.viewer_port)
-
-
 def run(args: argparse.Namespace) -> int:
     if args.navigate and not args.recover:
         if args.target is None:
@@ -223,7 +216,7 @@ def run(args: argparse.Namespace) -> int:
         _require("foxglove", "foxglove-sdk", "--foxglove")
     if args.detector and args.no_camera:
         raise CliError("--detector needs the camera that --no-camera removes", "leave out one of the two")
-    web = viewer_kind(args)  # bad viewer flags fail before the world is built
+    watch = web_watch(args)  # bad viewer flags fail before the world is built
     from ambulo.ros2.runtime import Ros2Unavailable, import_rclpy
 
     try:
@@ -234,7 +227,7 @@ def run(args: argparse.Namespace) -> int:
     from ambulo.ros2 import BridgeCfg, Ros2Bridge
 
     world = _world(args.target, args)
-    viewer = _serve(world, args) if web else None
+    viewer = watch(world) if watch else None
     if viewer is not None and detector is not None:  # the page shows each detected frame with its boxes
         from ambulo.viewer.detections import ShownDetector
 
