@@ -21,7 +21,7 @@ from ambulo.utils.rotations import rot_about_axes
 
 
 def _stream(seed: int, k: int, blocks: torch.Tensor, prefetch: int = 0) -> dd.Stream:
-    return dd.Stream(dd.stream_keys(seed, k, blocks), prefetch)
+    return dd.Stream(dd.stream_keys(seed, [k], [blocks])[0], prefetch)
 
 
 def test_uniforms_depend_on_seed_randomizer_and_block_only():

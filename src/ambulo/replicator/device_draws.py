@@ -81,9 +81,10 @@ def key_base(seed: int, k: int) -> int:
     return _mix32_int(key ^ (k & _MASK32))
 
 
-def stream_keys(seed: int, k: int, blocks: torch.Tensor) -> torch.Tensor:
-    """(B,) int64 keys of randomizer ``k``'s draws for frame blocks ``blocks`` (B,) of ``seed``."""
-    return mix32((blocks & _MASK32) ^ key_base(seed, k))
+def stream_keys(seed: int, ks, blocks) -> torch.Tensor:
+    """(R, B) int64 keys of randomizers ``ks`` (R ints) for their frame blocks ``blocks`` (R tensors
+    (B,) int64) of ``seed``, in one hash pass: row r is randomizer ``ks[r]``'s."""
+    return mix32(torch.stack([(b & _MASK32) ^ key_base(seed, k) for k, b in zip(ks, blocks, strict=True)]))
 
 
 _SLOTS: dict[tuple, torch.Tensor] = {}
@@ -103,7 +104,7 @@ def uniforms(keys: torch.Tensor, first: int, count: int) -> torch.Tensor:
 
 class Stream:
     """One randomizer's draws for a batch of frames: consecutive slots of ``uniforms``. ``keys``:
-    ``stream_keys``'s (B,); ``prefetch``: slots drawn at once up front (the count the randomizer
+    a row of ``stream_keys``, (B,); ``prefetch``: slots drawn at once up front (the count the randomizer
     took last batch: one hash pass instead of one per ``take``; the same numbers either way)."""
 
     def __init__(self, keys: torch.Tensor, prefetch: int = 0):
@@ -437,7 +438,7 @@ class DeviceDraws:
         footprints = Footprints(self._boxes, torch.zeros((count, self._movers, 3), device=index.device))
         # every randomizer's keys in one hash pass: (R, B), row k from (seed, k, frame block)
         blocks = [index if r.every_n_frames <= 1 else index // r.every_n_frames for r in self.randomizers]
-        keys = mix32(torch.stack([(b & _MASK32) ^ key_base(seed, k) for k, b in enumerate(blocks)]))
+        keys = stream_keys(seed, range(len(blocks)), blocks)
         for k, twin in enumerate(self.twins):
             stream = Stream(keys[k], prefetch=twin.slots_used)
             twin.apply(stream, count, footprints)
