@@ -65,32 +65,46 @@ def canvas_size(coco: dict, stride: int) -> tuple[int, int]:
     return -(-h // stride) * stride, -(-w // stride) * stride
 
 
+def frames_and_annotations(coco: dict, image_ids: list[int]) -> tuple[list[dict], list[list[dict]]]:
+    """The image records of ``image_ids`` and, for each, its annotations (crowd ones left out)."""
+    images = {im["id"]: im for im in coco["images"]}
+    by_image: dict[int, list[dict]] = {i: [] for i in image_ids}
+    for ann in coco["annotations"]:
+        if ann["image_id"] in by_image and not ann.get("iscrowd", 0):
+            by_image[ann["image_id"]].append(ann)
+    return [images[i] for i in image_ids], [by_image[i] for i in image_ids]
+
+
+def read_rgb(root: Path, image_info: dict) -> np.ndarray:
+    """The frame's colour image (H, W, 3) uint8; a missing file is a one-line ``DatasetError``."""
+    path = root / image_info["file_name"]
+    if not path.is_file():
+        raise DatasetError(f"{path} is missing", "run `ambulo generate` again with the same command to repair it")
+    return iio.imread(path)[..., :3]
+
+
+def boxes_xyxy(annotations: list[dict]) -> torch.Tensor:
+    """(N, 4) float32 x0 y0 x1 y1 px of COCO ``bbox`` (x, y, w, h) annotations."""
+    return torch.tensor([[x, y, x + w, y + h] for x, y, w, h in (a["bbox"] for a in annotations)],
+                        dtype=torch.float32).reshape(-1, 4)
+
+
 class CocoFrames(torch.utils.data.Dataset):
     """The frames ``image_ids`` of dataset ``root`` as (image, target) samples (module docstring)."""
 
     def __init__(self, root: str | Path, coco: dict, image_ids: list[int], canvas_hw: tuple[int, int],
                  masks: bool = False):
         self.root, self.canvas_hw, self.masks = Path(root), canvas_hw, masks
-        images = {im["id"]: im for im in coco["images"]}
-        self.images = [images[i] for i in image_ids]
-        by_image: dict[int, list[dict]] = {i: [] for i in image_ids}
-        for ann in coco["annotations"]:
-            if ann["image_id"] in by_image and not ann.get("iscrowd", 0):
-                by_image[ann["image_id"]].append(ann)
-        self.annotations = [by_image[i] for i in image_ids]
+        self.images, self.annotations = frames_and_annotations(coco, image_ids)
 
     def __len__(self) -> int:
         return len(self.images)
 
     def __getitem__(self, index: int) -> tuple[torch.Tensor, dict]:
         image_info = self.images[index]
-        path = self.root / image_info["file_name"]
-        if not path.is_file():
-            raise DatasetError(f"{path} is missing", "run `ambulo generate` again with the same command to repair it")
-        rgb = torch.from_numpy(np.ascontiguousarray(iio.imread(path)[..., :3])).permute(2, 0, 1).float() / 255.0
+        rgb = torch.from_numpy(np.ascontiguousarray(read_rgb(self.root, image_info))).permute(2, 0, 1).float() / 255.0
         anns = self.annotations[index]
-        boxes = torch.tensor([[x, y, x + w, y + h] for x, y, w, h in (a["bbox"] for a in anns)],
-                             dtype=torch.float32).reshape(-1, 4)
+        boxes = boxes_xyxy(anns)
         labels = torch.tensor([a["category_id"] for a in anns], dtype=torch.int64)
         masks = instance_masks(anns, rgb.shape[1], rgb.shape[2]) if self.masks else None
         canvas = torch.zeros(3, *self.canvas_hw)

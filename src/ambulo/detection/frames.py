@@ -19,11 +19,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import imageio.v3 as iio
 import numpy as np
 import torch
 
-from .dataset import DatasetError, instance_masks
+from .dataset import DatasetError, boxes_xyxy, frames_and_annotations, instance_masks, read_rgb
 
 MAX_INSTANCES = 255
 """Annotations a frame may have: the instance map is one byte a pixel."""
@@ -44,18 +43,12 @@ class FrameRecords(torch.utils.data.Dataset):
 
     def __init__(self, root: str | Path, coco: dict, image_ids: list[int], class_of: dict[int, int]):
         self.root, self.class_of = Path(root), class_of
-        images = {im["id"]: im for im in coco["images"]}
-        self.images = [images[i] for i in image_ids]
+        self.images, self.annotations = frames_and_annotations(coco, image_ids)
         sizes = {(im["height"], im["width"]) for im in self.images}
         if len(sizes) > 1:
             raise DatasetError(f"{root} has frames of {len(sizes)} sizes {sorted(sizes)}",
                                "train on frames of one size (one `ambulo generate` run)")
         self.hw = sizes.pop()
-        by_image: dict[int, list[dict]] = {i: [] for i in image_ids}
-        for ann in coco["annotations"]:
-            if ann["image_id"] in by_image and not ann.get("iscrowd", 0):
-                by_image[ann["image_id"]].append(ann)
-        self.annotations = [by_image[i] for i in image_ids]
         self.max_boxes = max((len(a) for a in self.annotations), default=0)
         if self.max_boxes > MAX_INSTANCES:
             raise DatasetError(f"a frame of {root} has {self.max_boxes} annotations",
@@ -65,19 +58,14 @@ class FrameRecords(torch.utils.data.Dataset):
         return len(self.images)
 
     def __getitem__(self, index: int) -> dict[str, torch.Tensor]:
-        image_info = self.images[index]
-        path = self.root / image_info["file_name"]
-        if not path.is_file():
-            raise DatasetError(f"{path} is missing", "run `ambulo generate` again with the same command to repair it")
-        rgb = np.ascontiguousarray(iio.imread(path)[..., :3].transpose(2, 0, 1))
+        rgb = np.ascontiguousarray(read_rgb(self.root, self.images[index]).transpose(2, 0, 1))
         anns = self.annotations[index]
         h, w = self.hw
         instances = np.zeros((h, w), np.uint8)
         if anns and any(a.get("segmentation") for a in anns):
             for k, mask in enumerate(instance_masks(anns, h, w).numpy()):
                 instances[mask] = k + 1
-        boxes = torch.tensor([[x, y, x + bw, y + bh] for x, y, bw, bh in (a["bbox"] for a in anns)],
-                             dtype=torch.float32).reshape(-1, 4)
+        boxes = boxes_xyxy(anns)
         classes = torch.tensor([self.class_of[a["category_id"]] for a in anns], dtype=torch.int64)
         return {"image": torch.from_numpy(rgb), "instances": torch.from_numpy(instances), "boxes": boxes,
                 "classes": classes}
