@@ -3,6 +3,7 @@ continues from the checkpoint's step, a time budget stops and anneals a run; the
 
 import json
 
+import pytest
 import torch
 from pycocotools.coco import COCO
 
@@ -89,3 +90,23 @@ def test_time_budget_stops_evaluates_and_a_pause_resumes(tiny_dataset, tmp_path)
                     resume=True, show_progress=False)
     assert resumed.stopped == "epochs" and resumed.losses[0][0] == paused.step + 1
     assert resumed.elapsed_s > paused.elapsed_s and resumed.evaluations[-1]["elapsed_s"] >= paused.elapsed_s
+
+
+def test_a_missing_frame_file_is_one_line_in_both_readers(tiny_dataset, tmp_path):
+    import shutil
+
+    from ambulo.detection.dataset import DatasetError
+    from ambulo.detection.frames import FrameRecords
+
+    data = tmp_path / "data"
+    shutil.copytree(tiny_dataset, data)
+    coco = load_coco(data)
+    first = coco["images"][0]
+    (data / first["file_name"]).unlink()
+    readers = (CocoFrames(data, coco, [first["id"]], (128, 160)),
+               FrameRecords(data, coco, [first["id"]], {c["id"]: k for k, c in enumerate(coco["categories"])}))
+    for reader in readers:
+        with pytest.raises(DatasetError) as err:
+            reader[0]
+        message = str(err.value)
+        assert "\n" not in message and first["file_name"] in message and "ambulo generate" in message
