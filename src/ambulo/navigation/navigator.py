@@ -204,12 +204,11 @@ class Navigator:
         self.walker = walker or PolicyWalker()
         self.routes = RoutePlanner(cfg.planning)
         self.footsteps_stage = FootstepStage(cfg.planning)
-        self._stage = self.footsteps_stage
-        """The footstep stage of the replan under way (the narrow one after a narrow route)."""
-        self._narrow = None
+        self._narrow_routes = self._narrow_stage = None  # NavigatorCfg.narrow_clearance_m
         if cfg.narrow_clearance_m is not None:
             narrow = dataclasses.replace(cfg.planning, route_clearance_m=cfg.narrow_clearance_m)
-            self._narrow = (narrow, RoutePlanner(narrow), FootstepStage(narrow, body_clearance_m=cfg.narrow_clearance_m))
+            self._narrow_routes = RoutePlanner(narrow)
+            self._narrow_stage = FootstepStage(narrow, body_clearance_m=cfg.narrow_clearance_m)
         self._step_out_stage = FootstepStage(cfg.planning, body_clearance_m=cfg.step_out_clearance_m)
         self._observers: list[tuple[Callable[[NavSnapshot], None], bool]] = []
         self.walker.bind(world)
@@ -599,17 +598,16 @@ class Navigator:
         self._last_plan_s = now
         grid, version, optimistic = self.mapper.grid, self.mapper.version, self.mapper.optimistic
         route = self.routes.route(grid, version, est[:2], self.goal_xy_m)
-        planning, self._stage = self.cfg.planning, self.footsteps_stage
-        if not route.found and self._narrow is not None:  # NavigatorCfg.narrow_clearance_m
-            narrow = self._narrow[1].route(grid, version, est[:2], self.goal_xy_m)
+        planning, stage = self.cfg.planning, self.footsteps_stage
+        if not route.found and self._narrow_routes is not None:
+            narrow = self._narrow_routes.route(grid, version, est[:2], self.goal_xy_m)
             if narrow.found:
                 route, reason = narrow, reason + " (narrow)"
                 # subgoals inside the passage: choose_subgoal asks a cell more than the route's
                 # clearance, which the passage's cells (the route's minimum) lack; route points are
                 # cell centres, which the narrow footstep stage tests as they are
-                planning = dataclasses.replace(self._narrow[0],
-                                               route_clearance_m=self._narrow[0].route_clearance_m - grid.resolution_m)
-                self._stage = self._narrow[2]
+                stage = self._narrow_stage
+                planning = dataclasses.replace(stage.cfg, route_clearance_m=stage.cfg.route_clearance_m - grid.resolution_m)
         status, steps, final, refused = "no_route", 0, False, None
         if route.found:
             self.route = route
@@ -633,12 +631,12 @@ class Navigator:
                 reason = reason + " (look)"
                 looked = (self._look_yaw_rad is None and self._looked_xy_m is not None
                           and np.linalg.norm(est[:2] - self._looked_xy_m) < self.cfg.look_again_m)
-            plan = self._plan_footsteps(grid, version, optimistic, est, route, k, final, goal_xy, yaw)
+            plan = self._plan_footsteps(stage, grid, version, optimistic, est, route, k, final, goal_xy, yaw)
             if look and plan.status == PlanStatus.GOAL_IN_COLLISION and not optimistic:
                 # the body's cells (yaw-free) are clear, the turned soles touch cells never seen
                 # beside it: turning on the spot there is what the robot's own cells allow
                 # (apartment 200: 82 refused look turns, stuck)
-                plan = self._plan_footsteps(grid, version, True, est, route, k, final, goal_xy, yaw)
+                plan = self._plan_footsteps(stage, grid, version, True, est, route, k, final, goal_xy, yaw)
                 reason = reason + " (unseen free)"
                 self._blind_zone(est)
             facing = look and plan.status == PlanStatus.SUCCESS and plan.num_steps < 1
@@ -664,7 +662,7 @@ class Navigator:
                     # facing where it looked: the route's heading at a bend there turned the robot
                     # away from it while it walked (apartment 19), and the next replan looked back
                     walk_xy, walk_yaw = path[j], yaw
-                plan = self._plan_footsteps(grid, version, optimistic, est, route, j, final, walk_xy, walk_yaw)
+                plan = self._plan_footsteps(stage, grid, version, optimistic, est, route, j, final, walk_xy, walk_yaw)
                 reason = reason + (" (faced: walk on)" if facing else " (looked: walk on)" if faced
                                    else " (cornered: walk on)")
                 if plan.status == PlanStatus.GOAL_IN_COLLISION and not optimistic:
@@ -675,7 +673,7 @@ class Navigator:
                     # refused walk-ons). So this short step (``look_ahead_m``, inside the blind
                     # zone) counts unseen cells free; seen obstacles still block it, and the cells
                     # the body crosses are marked free (``mark_body``).
-                    plan = self._plan_footsteps(grid, version, True, est, route, j, final, walk_xy, walk_yaw)
+                    plan = self._plan_footsteps(stage, grid, version, True, est, route, j, final, walk_xy, walk_yaw)
                     reason = reason + " (unseen free)"
                     self._blind_zone(est)
             status, steps = plan.status.value, plan.num_steps
@@ -705,13 +703,14 @@ class Navigator:
                                          refused))
 
 
-    def _plan_footsteps(self, grid, version, optimistic, est, route, k, final, goal_xy, yaw) -> FootstepPlan:
+    def _plan_footsteps(self, stage: FootstepStage, grid, version, optimistic, est, route, k, final, goal_xy,
+                        yaw) -> FootstepPlan:
         """Footsteps from the robot to route point ``k``. Two recoveries: a goal stance that touches
         an obstacle at the route's heading is tried at three other headings and then moved back
         along the route (up to ``goal_backoff_m``, inside the success radius); a start stance that
         touches one (the robot brushed close to something) starts from the nearest route point
-        ahead whose stance is clear, within the walker's start offset."""
-        stage = self._stage
+        ahead whose stance is clear, within the walker's start offset. ``stage``: the footstep
+        stage of this replan (the narrow one after a narrow route)."""
         self._stepping_out = False
         feet = self.walker.start_feet() if hasattr(self.walker, "start_feet") else None
         if feet is not None:  # a walker that steps on the footholds: plan from its feet
