@@ -180,9 +180,7 @@ class HumanoidFootstepsEnv(HumanoidWalkEnv):
         self._plan_rows, self._plan_next = steps + 2, torch.full_like(steps, 4)
         self.targets_xyyaw_w.copy_(plans[:, 2:4])
         self.target_sides.copy_(torch.stack([first_side, -first_side], dim=-1))
-        soles = self.soles_xyyaw_w()
-        self._swing_distance_m = torch.linalg.vector_norm(
-            _pick(soles, self._swing_index())[:, :2] - self.targets_xyyaw_w[:, 0, :2], dim=-1)
+        self._swing_distance_m = self._swing_to_target_m(self.soles_xyyaw_w())
         self.placement_error_m.copy_(self._swing_distance_m)
         self.steps_taken.zero_()
         self.obs_buf = self._compute_observations()
@@ -232,8 +230,12 @@ class HumanoidFootstepsEnv(HumanoidWalkEnv):
         self.yaw_error_rad = torch.where(touchdown, yaw_error, self.yaw_error_rad)
         self._advance(select_rows(touchdown))
         # progress counts from here: after a touchdown, towards the new target
-        new_swing = _pick(soles, self._swing_index())
-        self._swing_distance_m = torch.linalg.vector_norm(new_swing[:, :2] - self.targets_xyyaw_w[:, 0, :2], dim=-1)
+        self._swing_distance_m = self._swing_to_target_m(soles)
+
+    def _swing_to_target_m(self, soles_xyyaw_w: torch.Tensor) -> torch.Tensor:
+        """(N,) distance from the swing sole (of (N, 2, 3) ``soles_xyyaw_w``) to the next target, m."""
+        swing = _pick(soles_xyyaw_w, self._swing_index())
+        return torch.linalg.vector_norm(swing[:, :2] - self.targets_xyyaw_w[:, 0, :2], dim=-1)
 
     # -- RLEnv hooks ----------------------------------------------------------------------------
     def footstep_command(self) -> torch.Tensor:
