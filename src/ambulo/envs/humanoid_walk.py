@@ -32,7 +32,7 @@ from .base import EnvCfg, RLEnv
 from .commands import VelocityCommand, VelocityCommandCfg
 from .ppo import PpoCfg
 from .registry import Criterion, TaskSpec, register
-from .transfer import TransferCfg, TransferRandomization
+from .transfer import PLAY_KEEPS, TransferCfg, TransferRandomization, transfer_cfg_wide
 
 
 @dataclass(kw_only=True)
@@ -75,10 +75,11 @@ class HumanoidWalkCfg(EnvCfg):
     """The range widens while the running mean of the linear tracking kernel is above this."""
     curriculum_rate_per_s: float = 0.02
     """How fast the range share grows while tracking is good, per second of simulated time."""
-    transfer: TransferCfg = field(default_factory=TransferCfg)
+    transfer: TransferCfg = field(default_factory=TransferCfg, metadata={PLAY_KEEPS: True})
     """Transfer randomization (gains, strength, joint friction, armature, CoM, action latency,
     observation delay; ``envs.transfer``); off by default, ``transfer_cfg_wide()`` for the
-    issue's robustness ranges."""
+    issue's robustness ranges (the humanoid-walk-robust task). Training-only: a run's
+    ``--env-cfg transfer.*`` does not reach its play/eval env (``rl.runs.play_overrides``)."""
 
 
 def humanoid_walk_cfg() -> HumanoidWalkCfg:
@@ -133,6 +134,17 @@ def as_play(cfg: HumanoidWalkCfg) -> HumanoidWalkCfg:
 
 def humanoid_walk_play_cfg() -> HumanoidWalkCfg:
     return as_play(humanoid_walk_cfg())
+
+
+def humanoid_walk_robust_cfg() -> HumanoidWalkCfg:
+    """humanoid-walk trained under the issue's transfer ranges (``transfer_cfg_wide``: gains
+    +-20 %, strength +-10 %, joint friction, armature, CoM +-3 cm, 0-20 ms latency, 0-1 step of
+    observation delay). Its own task name, so its runs, its shipped policy and ``ambulo eval``
+    never mix with humanoid-walk's; the play variant is humanoid-walk's (nominal: ``walks`` means
+    the same), the robustness table (``benchmarks/robustness.py``) adds the terms back."""
+    cfg = humanoid_walk_cfg()
+    cfg.transfer = transfer_cfg_wide()
+    return cfg
 
 
 def humanoid_walk_ppo() -> PpoCfg:
@@ -329,6 +341,18 @@ register(TaskSpec(
     play_cfg_fn=humanoid_walk_play_cfg,
     ppo_cfg_fn=humanoid_walk_ppo,
     description="21-DoF humanoid tracks commanded (vx, vy, yaw rate) through joint PD targets",
+    step_metrics=humanoid_walk_metrics,
+    criteria=(WALKS,),
+))
+
+register(TaskSpec(
+    name="humanoid-walk-robust",
+    env_cls=HumanoidWalkEnv,
+    cfg_fn=humanoid_walk_robust_cfg,
+    play_cfg_fn=humanoid_walk_play_cfg,
+    ppo_cfg_fn=humanoid_walk_ppo,
+    description="humanoid-walk trained under the transfer randomization (gains, strength, friction, armature, "
+                "CoM, latency, observation delay); evaluated nominal",
     step_metrics=humanoid_walk_metrics,
     criteria=(WALKS,),
 ))

@@ -26,6 +26,11 @@ from ambulo.utils.validate import Checked, rule
 
 from .delay import DelayBuffer
 
+PLAY_KEEPS = "play_keeps"
+"""Field metadata key: a task config's ``transfer`` field carries ``metadata={PLAY_KEEPS: True}``:
+a training-only setting that play and evaluation envs keep at the play variant's value whatever
+the run trained with (``rl.runs.play_overrides``), also where the training default equals it."""
+
 
 @dataclass(kw_only=True)
 class TransferCfg(Checked):
@@ -188,4 +193,4 @@ class TransferRandomization:
         return self.obs_delay.read()
 
 
-__all__ = ["TransferCfg", "TransferRandomization", "transfer_cfg_wide"]
+__all__ = ["PLAY_KEEPS", "TransferCfg", "TransferRandomization", "transfer_cfg_wide"]

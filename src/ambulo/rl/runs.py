@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from ambulo import envs
+from ambulo.envs.transfer import PLAY_KEEPS
 from ambulo.utils.atomic import atomic_write_json
 from ambulo.utils.overrides import replace_dotted
 
@@ -102,11 +103,38 @@ def note_kept_settings(info: dict[str, Any], **given: Any) -> None:
               "change them")
 
 
+def play_overrides(task: str, env_overrides: dict[str, Any]) -> dict[str, Any]:
+    """The training overrides ``env_overrides`` that a play env of ``task`` takes: not those of a
+    setting the play variant sets itself (its value there differs from the training default:
+    pushes, noise, friction and mass ranges, the episode length, humanoid-rough's terrain levels;
+    or its field is marked ``envs.transfer.PLAY_KEEPS``: ``transfer``). So a run trained with
+    ``--env-cfg transfer.com_offset_m=0.05`` or ``friction_range=...`` is evaluated, played and
+    confirmed on the CPU engine nominal, as ``ambulo eval`` defines it, while an override the
+    policy depends on (``action_scale``, ``terrain.spacing_m``, the command ranges) carries over."""
+    spec = envs.spec(task)
+    train, play = spec.cfg_fn(), spec.play_cfg()
+    marked = {f.name for f in dataclasses.fields(play) if f.metadata.get(PLAY_KEEPS)}
+    return {k: v for k, v in env_overrides.items()
+            if k.split(".")[0] not in marked and _setting(play, k) == _setting(train, k)}
+
+
+def _setting(cfg: Any, key: str) -> Any:
+    """The value at dotted ``key`` of config ``cfg`` (dataclass fields, dict entries; None when a
+    dict has no such entry)."""
+    for part in key.split("."):
+        cfg = cfg.get(part) if isinstance(cfg, dict) else getattr(cfg, part)
+    return cfg
+
+
 def make_env_for_run(info: dict[str, Any], *, num_envs: int, seed: int | None = None,
                      device: str | None = None, play: bool = False, **overrides: Any) -> envs.RLEnv:
     """The run's task env with its training overrides, resized to ``num_envs``; ``play``
-    starts from the task's play variant (no pushes or observation noise)."""
+    starts from the task's play variant (no pushes, observation noise or transfer
+    randomization), with the training overrides ``play_overrides`` keeps. ``overrides`` (the
+    caller's: an evaluation's episode length, the robustness table's ``transfer``) apply last."""
     env_overrides = dict(info.get("env_overrides", {}))
+    if play:
+        env_overrides = play_overrides(info["task"], env_overrides)
     env_overrides.update({k: v for k, v in overrides.items() if v is not None})
     return envs.make(info["task"], num_envs=num_envs, device=device or info["device"],
                      seed=info["seed"] if seed is None else seed, play=play, **env_overrides)
@@ -152,5 +180,5 @@ def load_runner(run_dir: Path, env: envs.RLEnv, checkpoint: Path):
 
 __all__ = ["RUN_FILE", "CheckpointError", "RunError", "atomic_torch_save", "checkpoints",
            "find_checkpoint", "latest_checkpoint", "latest_valid_checkpoint", "load_runner",
-           "make_env_for_run", "new_run_dir", "ppo_from_info", "read_run_info", "resolve_policy",
-           "resolve_run", "write_run_info"]
+           "make_env_for_run", "new_run_dir", "play_overrides", "ppo_from_info", "read_run_info",
+           "resolve_policy", "resolve_run", "write_run_info"]
