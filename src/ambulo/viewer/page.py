@@ -130,6 +130,10 @@ class PageServer:
         for client in self.server.get_clients().values():
             self._place_camera(client)
 
+    def add_scalars(self, step: float, scalars: dict[str, float]) -> None:
+        """Queue ``scalars`` for the curve panel at x = ``step`` (``WebViewer.add_scalars``)."""
+        self.scalars.add(step, scalars)
+
     def show_speed(self, speed: float | None) -> None:
         """Show ``speed`` in the page's Speed field (its callback sets the controls' speed)."""
         if self.panel is None:

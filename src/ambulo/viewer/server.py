@@ -59,21 +59,23 @@ class WebViewer(FeedApi):
         self.controls.show(grid)
         self._pace = Pace()
         self.exchange = FrameExchange()
-        self.scalars = ScalarLog()
         self._engine = None
         self._model: mujoco.MjModel | None = None
         self._closed = False
         self.page: PageServer | None = None
+        """The in-process server (``process=False``; tests inspect its widgets), else None."""
         self.link: PageProcess | None = None
+        """The link to the server's own process (the default), else None."""
         if process:
             self.link = PageProcess(self.controls, self.exchange, port=port, rate_hz=rate_hz, host=host)
             self.feed: OverlayFeed = self.link.feed
-            self.port = self.link.port
         else:
             self.feed = OverlayFeed()
-            self.page = PageServer(self.controls, self.exchange, self.feed, self.scalars, port=port,
+            self.page = PageServer(self.controls, self.exchange, self.feed, ScalarLog(), port=port,
                                    rate_hz=rate_hz, host=host)
-            self.port = self.page.port
+        self.server: PageServer | PageProcess = self.link or self.page
+        """Whichever of the two serves the page: both answer the calls below the same way."""
+        self.port = self.server.port
         self.url = f"http://{host}:{self.port}"
         self.sensor_feeds = SensorFeeds()
         sim.add(self)
@@ -90,10 +92,7 @@ class WebViewer(FeedApi):
         if engine.model is not self._model:
             self._model = engine.model
             info = self._model_info(engine)
-            if self.link is not None:
-                self.link.set_model(engine.model, info)
-            else:
-                self.page.set_model(engine.model, info)
+            self.server.set_model(engine.model, info)
             self.sensor_feeds.set_sensors(self.target.sim.components.values())
         self.exchange.publish(self._copy())
 
@@ -120,13 +119,13 @@ class WebViewer(FeedApi):
     @property
     def frames_sent(self) -> int:
         """Pose frames handed to the page's server so far."""
-        return (self.link or self.page).frames_sent
+        return self.server.frames_sent
 
     @property
     def stream_cpu_s(self) -> float:
         """CPU time this process's streaming thread has used, s (what the viewer takes from the watched
         process; with ``process``, the server's own process's time is ``link.server_cpu_s()``)."""
-        return (self.link or self.page).stream_cpu_s
+        return self.server.stream_cpu_s
 
     def velocity_command(self, default) -> np.ndarray:
         """The page's (vx m/s, vy m/s, yaw rate rad/s) while it teleoperates, else ``default``."""
@@ -137,10 +136,7 @@ class WebViewer(FeedApi):
         """Plot ``scalars`` ({name: value}, e.g. mean reward, episode length, a task's criteria) at
         x = ``step`` (a training iteration), one curve per name beside the scene. Safe from any
         thread and cheap: it queues the values; the streaming side draws them (5 times a second)."""
-        if self.link is not None:
-            self.link.add_scalars(step, scalars)
-        else:
-            self.scalars.add(step, scalars)
+        self.server.add_scalars(step, scalars)
 
     def watch(self, world: int) -> None:
         """Show world ``world`` (as the page's World field does)."""
@@ -150,10 +146,7 @@ class WebViewer(FeedApi):
         """Hold the simulation to ``speed`` simulated s per wall s (None: as fast as it runs), as the
         page's Speed field does (the field shows it)."""
         self.controls.speed = speed
-        if self.link is not None:
-            self.link.show_speed(speed)
-        else:
-            self.page.show_speed(speed)
+        self.server.show_speed(speed)
 
     def close(self) -> None:
         """Stop streaming, free a paused simulation, leave the simulation and stop the server."""
@@ -162,7 +155,7 @@ class WebViewer(FeedApi):
         self._closed = True
         self.controls.close()
         self.target.sim.components.pop(COMPONENT_NAME, None)
-        (self.link or self.page).close()
+        self.server.close()
 
     def __enter__(self):
         return self
@@ -179,7 +172,7 @@ class WebViewer(FeedApi):
 
     def _copy(self, paused: bool = False):
         e, worlds = self._engine, self.controls.worlds()
-        with_state, with_cameras = (self.link or self.page).wants_state()
+        with_state, with_cameras = self.server.wants_state()
         state = None
         if with_state:
             state = {f: e.field(f) for f in STATE_ROWS}
