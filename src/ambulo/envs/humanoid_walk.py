@@ -80,6 +80,10 @@ class HumanoidWalkCfg(EnvCfg):
     observation delay; ``envs.transfer``); off by default, ``transfer_cfg_wide()`` for the
     issue's robustness ranges (the humanoid-walk-robust task). Training-only: a run's
     ``--env-cfg transfer.*`` does not reach its play/eval env (``rl.runs.play_overrides``)."""
+    transfer_blocks: tuple[TransferCfg, ...] = field(default=(), metadata={PLAY_KEEPS: True})
+    """Evaluation layouts: the worlds split into this many contiguous equal blocks, block b under
+    ``transfer_blocks[b]`` in place of ``transfer`` (the robustness table's rows in one env,
+    ``benchmarks/robustness.py``); empty: every world under ``transfer``."""
 
 
 def humanoid_walk_cfg() -> HumanoidWalkCfg:
@@ -192,7 +196,7 @@ class HumanoidWalkEnv(RLEnv):
         self._randomize_physics()
         self._targets = self.robot.default_joint_pos.expand(n, -1).clone()
         """(N, J) joint targets of the last action, rad (the drives get them in ``_simulate``)."""
-        self.transfer = TransferRandomization(cfg.transfer, self)
+        self.transfer = TransferRandomization(cfg.transfer, self, blocks=cfg.transfer_blocks)
 
     def _randomize_physics(self) -> None:
         """Per-env friction and base mass, drawn once at start (Isaac Lab's "startup" events)

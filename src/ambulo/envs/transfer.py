@@ -16,12 +16,13 @@ the new ones, so the engine steps one physics step at a time while any latency i
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import torch
 
 from ambulo.core import randomize
-from ambulo.core.rows import num_rows, put_rows, select_rows
+from ambulo.core.rows import num_rows, put_rows, select_rows, take_rows
 from ambulo.utils.validate import Checked, rule
 
 from .delay import DelayBuffer
@@ -92,63 +93,102 @@ class TransferRandomization:
     observations.
     """
 
-    def __init__(self, cfg: TransferCfg, env):
+    def __init__(self, cfg: TransferCfg, env, blocks: Sequence[TransferCfg] = ()):
+        """``blocks``: evaluation layouts (the env's ``transfer_blocks``): the worlds split into
+        ``len(blocks)`` contiguous equal blocks, block b under ``blocks[b]`` instead of ``cfg``;
+        empty: every world under ``cfg``."""
         self.cfg, self.env = cfg, env
         n, dev = env.num_envs, env.device
+        if blocks and n % len(blocks):
+            raise ValueError(f"transfer_blocks: {len(blocks)} blocks do not split {n} worlds evenly; "
+                             f"give num_envs a multiple of {len(blocks)}")
+        per = n // max(len(blocks), 1)
+        self.blocks: list[tuple[torch.Tensor | None, TransferCfg]] = (
+            [(None, cfg)] if not blocks else
+            [(torch.arange(b * per, (b + 1) * per, device=dev), block) for b, block in enumerate(blocks)])
+        """(world ids or None for all, the ``TransferCfg`` they run under), one per block."""
         dt = env.physics_dt_s
-        latency = cfg.action_latency_range_s or (0.0, 0.0)
-        self.latency_steps = tuple(int(round(t / dt)) for t in latency)
-        """(low, high) action latency in physics steps."""
-        self.obs_delay_steps = cfg.observation_delay_range_steps or (0, 0)
+        latency = [tuple(int(round(t / dt)) for t in (c.action_latency_range_s or (0.0, 0.0))) for _, c in self.blocks]
+        obs_delay = [tuple(c.observation_delay_range_steps or (0, 0)) for _, c in self.blocks]
+        self.latency_steps = (min(lo for lo, _ in latency), max(hi for _, hi in latency))
+        """(low, high) action latency in physics steps (over every block)."""
+        self.obs_delay_steps = (min(lo for lo, _ in obs_delay), max(hi for _, hi in obs_delay))
+        self._bounds = None if not blocks else {
+            name: tuple(torch.tensor(ends, device=dev).repeat_interleave(per) for ends in zip(*pairs))
+            for name, pairs in (("latency", latency), ("obs_delay", obs_delay))}
+        """Per-world (N,) low and high delays by term, in block mode (else the ranges above hold)."""
         self.action_delay = DelayBuffer(self.latency_steps[1], n, (env.robot.num_joints,), device=dev,
                                         dtype=env.engine.dtype) if self.latency_steps[1] > 0 else None
         self.obs_delay: DelayBuffer | None = None  # sized by the first observation
         self._obs_delay = torch.zeros(n, dtype=torch.long, device=dev)
         """(N,) policy steps each world's actor observations lag by (the obs buffer's ``delay``)."""
         self.factors: dict[str, torch.Tensor] = {}
-        """The startup draws by term name, (N, k) each (for tests and logs)."""
+        """The startup draws by term name, (N, k) each (for tests and logs); in block mode the
+        rows of a block without the term are NaN."""
         self.started = False
         self._observed_this_step = False
 
     def startup(self) -> None:
         """Draw and write the start terms, once. Gains scale what the drives hold now (world 0's,
         the same in every world before this): a task may set its gains after compiling (g1-walk
-        from its URDF), so the env calls this at its first reset, after its whole setup."""
+        from its URDF), so the env calls this at its first reset, after its whole setup. Blocks
+        are written last to first, so world 0 still holds the nominal gains the others read."""
         if self.started:
             return
         self.started = True
-        cfg, env, gen = self.cfg, self.env, self.env.generator
+        const = False
+        for rows, cfg in reversed(self.blocks):
+            const |= self._start_terms(cfg, rows)
+        if const:
+            self.env.engine.set_const()
+
+    def _start_terms(self, cfg: TransferCfg, rows: torch.Tensor | None) -> bool:
+        """Write ``cfg``'s start terms for the worlds ``rows`` (None: all); whether derived model
+        constants need recomputing (``set_const``)."""
+        env, gen = self.env, self.env.generator
         robot = env.robot
         uniform = randomize.uniform
-        self.factors.update(randomize.drive_gains(
+        drawn = dict(randomize.drive_gains(
             robot, gen, kp_scale=None if cfg.kp_scale_range is None else uniform(*cfg.kp_scale_range),
             kd_scale=None if cfg.kd_scale_range is None else uniform(*cfg.kd_scale_range),
             strength=None if cfg.motor_strength_range is None else uniform(*cfg.motor_strength_range),
-            nominal_world=0))
+            rows=rows, nominal_world=0))
         if cfg.joint_friction_range_n_m is not None:
-            self.factors["joint_friction_n_m"] = randomize.joint_dof_field(
-                robot, "dof_frictionloss", uniform(*cfg.joint_friction_range_n_m), gen, operation="add")
+            drawn["joint_friction_n_m"] = randomize.joint_dof_field(
+                robot, "dof_frictionloss", uniform(*cfg.joint_friction_range_n_m), gen, rows=rows, operation="add")
         if cfg.armature_scale_range is not None:
-            self.factors["armature_scale"] = randomize.joint_dof_field(
-                robot, "dof_armature", uniform(*cfg.armature_scale_range), gen, operation="scale")
+            drawn["armature_scale"] = randomize.joint_dof_field(
+                robot, "dof_armature", uniform(*cfg.armature_scale_range), gen, rows=rows, operation="scale")
         com_box = cfg.com_offset_bounds_m()
         if com_box is not None:
-            self.factors["com_w"] = randomize.body_com_offset(
-                robot, uniform(*com_box), gen, bodies=list(cfg.com_bodies))
-        if com_box is not None or cfg.armature_scale_range is not None:
-            env.engine.set_const()
+            drawn["com_w"] = randomize.body_com_offset(robot, uniform(*com_box), gen, rows=rows,
+                                                       bodies=list(cfg.com_bodies))
+        for name, values in drawn.items():
+            if rows is None:
+                self.factors[name] = values
+                continue
+            if name not in self.factors:
+                self.factors[name] = torch.full((env.num_envs, *values.shape[1:]), torch.nan, dtype=values.dtype,
+                                                device=values.device)
+            self.factors[name][rows.to(values.device)] = values
+        return com_box is not None or cfg.armature_scale_range is not None
 
     def reset(self, rows: torch.Tensor | None) -> None:
         """Draw the reset worlds' latency and observation delay for their new episode."""
-        env, n = self.env, num_rows(rows, self.env.num_envs)
         if self.action_delay is not None:
-            lo, hi = self.latency_steps
-            delay = torch.randint(lo, hi + 1, (n, 1), generator=env.generator, device=env.device)
-            put_rows(self.action_delay.delay[:, None], slice(None), delay, rows)
+            put_rows(self.action_delay.delay[:, None], slice(None), self._draw("latency", self.latency_steps, rows),
+                     rows)
         if self.obs_delay_steps[1] > 0:
-            lo, hi = self.obs_delay_steps
-            delay = torch.randint(lo, hi + 1, (n, 1), generator=env.generator, device=env.device)
-            put_rows(self._obs_delay[:, None], slice(None), delay, rows)
+            put_rows(self._obs_delay[:, None], slice(None), self._draw("obs_delay", self.obs_delay_steps, rows), rows)
+
+    def _draw(self, term: str, bounds: tuple[int, int], rows: torch.Tensor | None) -> torch.Tensor:
+        """(n, 1) whole delays for the worlds ``rows`` selects, uniform within their (block's) range."""
+        env, n = self.env, num_rows(rows, self.env.num_envs)
+        if self._bounds is None:
+            return torch.randint(bounds[0], bounds[1] + 1, (n, 1), generator=env.generator, device=env.device)
+        low, high = (take_rows(ends, rows) for ends in self._bounds[term])
+        u = torch.rand(n, generator=env.generator, device=env.device)
+        return (low + torch.minimum((u * (high - low + 1)).long(), high - low))[:, None]
 
     def simulate(self, targets: torch.Tensor, decimation: int) -> torch.Tensor:
         """Step the engine ``decimation`` physics steps driving the joints to ``targets`` (N, J)

@@ -28,10 +28,15 @@ from . import runs
 
 
 def run_episodes(env: envs.RLEnv, vec_env, policy: Callable, task: envs.TaskSpec, *,
-                 desc: str = "eval", quiet: bool = True) -> dict:
+                 desc: str = "eval", quiet: bool = True, blocks: int = 1) -> dict:
     """Run one episode in each env of ``env`` (wrapped by ``vec_env``, an ``RslRlVecEnv``)
     with ``policy`` (TensorDict observations -> (N, num_actions) actions) from a full reset;
-    return the metrics and criteria (see the module docstring)."""
+    return the metrics and criteria (see the module docstring). ``blocks`` > 1: the envs are
+    that many contiguous equal blocks evaluated side by side (humanoid-walk's
+    ``transfer_blocks``: one condition each), and ``result["blocks"]`` holds each one's result
+    (the same keys) beside the whole's."""
+    if blocks < 1 or env.num_envs % blocks:
+        raise ValueError(f"blocks={blocks} does not split {env.num_envs} envs evenly")
     n, dev = env.num_envs, env.device
     running = torch.ones(n, dtype=torch.bool, device=dev)
     failed = torch.zeros(n, dtype=torch.bool, device=dev)
@@ -59,21 +64,28 @@ def run_episodes(env: envs.RLEnv, vec_env, policy: Callable, task: envs.TaskSpec
         failed |= ended & extras["terminated"] & ~succeeded
         running &= ~dones.bool()
 
-    steps = lengths.clamp(min=1.0)
-    result = {
-        "task": task.name,
-        "episodes": n,
-        "episode_length_s": env.max_episode_length * env.step_dt_s,
-        "fall_rate": float(failed.double().mean()),
-        "success_rate": float(succeeded.double().mean()),
-        "mean_return": float(returns.mean()),
-        "mean_episode_length_s": float(lengths.mean() * env.step_dt_s),
-    }
-    for name, total in metric_sums.items():
-        result[f"mean_{name}"] = float((total / steps).mean())
-    result["criteria"] = [c.name for c in task.criteria]
-    for criterion in task.criteria:
-        result[criterion.name] = criterion.holds(result)
+    def summary(rows: slice) -> dict:
+        steps = lengths[rows].clamp(min=1.0)
+        result = {
+            "task": task.name,
+            "episodes": int(lengths[rows].numel()),
+            "episode_length_s": env.max_episode_length * env.step_dt_s,
+            "fall_rate": float(failed[rows].double().mean()),
+            "success_rate": float(succeeded[rows].double().mean()),
+            "mean_return": float(returns[rows].mean()),
+            "mean_episode_length_s": float(lengths[rows].mean() * env.step_dt_s),
+        }
+        for name, total in metric_sums.items():
+            result[f"mean_{name}"] = float((total[rows] / steps).mean())
+        result["criteria"] = [c.name for c in task.criteria]
+        for criterion in task.criteria:
+            result[criterion.name] = criterion.holds(result)
+        return result
+
+    result = summary(slice(None))
+    if blocks > 1:
+        per = n // blocks
+        result["blocks"] = [summary(slice(b * per, (b + 1) * per)) for b in range(blocks)]
     return result
 
 
