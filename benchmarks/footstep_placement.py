@@ -115,12 +115,15 @@ def main():
     parser.add_argument("--seed", type=int, default=12345)
     parser.add_argument("--plans", choices=("sampler", "planner"), default="sampler",
                         help="the task's drawn plans, or the footstep planner's (module docstring)")
+    parser.add_argument("--num-threads", type=int, default=None,
+                        help="CPU engine threads (default: the env's, every CPU); a shared machine wants fewer")
     args = parser.parse_args()
     run_dir, ckpt = runs.resolve_policy(args.run, None, args.log_root)
     info = runs.read_run_info(run_dir)
     spec = envs.spec(info["task"])
     env = runs.make_env_for_run(info, num_envs=args.num_episodes, seed=args.seed, play=True, device=args.device,
-                                episode_length_s=eval_episode_length_s(spec, args.episode_length_s))
+                                episode_length_s=eval_episode_length_s(spec, args.episode_length_s),
+                                num_threads=args.num_threads)
     runner = runs.load_runner(run_dir, env, ckpt)
     plans = PlannerPlans(runner.env, args.seed) if args.plans == "planner" else None
     log = TouchdownLog(env, runner.get_inference_policy(device=str(env.device)), plans)

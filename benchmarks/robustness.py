@@ -30,6 +30,7 @@ the worst row's ``walks``-passing share of the rows (1.0 when every row walks).
 from __future__ import annotations
 
 import argparse
+import functools
 import itertools
 import json
 
@@ -103,6 +104,8 @@ def main():
     parser.add_argument("--set", choices=("terms", "corners"), default="terms",
                         help="terms: each transfer term alone and together; corners: the issue's three at their corners")
     parser.add_argument("--only", default=None, help="comma-separated condition names")
+    parser.add_argument("--num-threads", type=int, default=None,
+                        help="CPU engine threads (default: the env's, every CPU); a shared machine wants fewer")
     parser.add_argument("--batched", action="store_true",
                         help="every row in one env, side by side (one rollout; for the GPU)")
     args = parser.parse_args()
@@ -114,6 +117,8 @@ def main():
     if unknown:
         parser.error(f"--only: no condition {', '.join(unknown)} in --set {args.set}; conditions: {', '.join(conditions)}")
     length_s = eval_episode_length_s(spec, args.episode_length_s)
+    if args.num_threads is not None:
+        make_env = functools.partial(make_env, num_threads=args.num_threads)
     rows = {}
 
     def report(name: str, measured: dict) -> None:
