@@ -5,6 +5,7 @@ the difference named; damaged frames are made again; files are flushed before th
 bad --out, bad numbers and SIGINT/SIGTERM/SIGKILL each leave the disk as it was, or resumable.
 """
 
+import contextlib
 import dataclasses
 import errno
 import os
@@ -162,23 +163,50 @@ def test_truncated_images_and_empty_records_are_made_again_byte_identical(tmp_pa
     assert gen.file_tree(out) == gen.file_tree(clean)
 
 
+def test_a_frame_made_again_loses_its_record_before_its_files_are_rewritten(tmp_path, clean, gen, monkeypatch):
+    """Files are written in place (no temporary and rename): a run cut short while it rewrites a
+    damaged frame must leave that frame without a record, never its old record over files half
+    rewritten; the next run then makes it whole."""
+    from ambulo.replicator import writers
+
+    out = copy_of(clean, tmp_path)
+    png = out / "rgb" / "000001.png"
+    png.write_bytes(png.read_bytes()[:100])
+    write_file = writers.write_file
+
+    def cut_short(path, data, fsync=False):
+        if path.endswith(os.path.join("depth", "000001.png")):
+            raise OSError(errno.EIO, "cut short")
+        return write_file(path, data, fsync)
+
+    monkeypatch.setattr(writers, "write_file", cut_short)
+    with pytest.raises(OSError, match="cut short"):
+        make(config(), out, FRAMES)
+    assert not (out / "frames" / "000001.json").exists()
+    assert not writers.frame_is_complete(out, 1)
+    monkeypatch.setattr(writers, "write_file", write_file)
+    make(config(), out, FRAMES)
+    assert gen.file_tree(out) == gen.file_tree(clean)
+
+
 @pytest.mark.parametrize("flush", ["syncfs", "fsync"])
 def test_frame_files_reach_the_disk_before_their_record(tmp_path, monkeypatch, flush):
-    """Every data file is flushed to disk before its record is written: with ``syncfs`` (Linux) one
-    flush of the file system after the batch's renames; else each file before its rename and its
-    folder after it."""
+    """Every data file is written and flushed to disk before its record is written: with ``syncfs``
+    (Linux) one flush of the file system after the batch's files; else each file before it is
+    closed and its folder after it. A file counts as written when it is closed."""
     from ambulo.utils import atomic
 
     events = []
-    fsync, replace, syncfs = os.fsync, os.replace, atomic._syncfs
+    fsync, close, syncfs = os.fsync, os.close, atomic._syncfs
 
     def logged_fsync(fd):
         events.append(("fsync", os.readlink(f"/proc/self/fd/{fd}")))
         fsync(fd)
 
-    def logged_replace(src, dst):
-        events.append(("replace", str(dst)))
-        replace(src, dst)
+    def logged_close(fd):
+        with contextlib.suppress(OSError):
+            events.append(("close", os.readlink(f"/proc/self/fd/{fd}")))
+        close(fd)
 
     def logged_syncfs(fd):
         events.append(("syncfs", os.readlink(f"/proc/self/fd/{fd}")))
@@ -189,27 +217,28 @@ def test_frame_files_reach_the_disk_before_their_record(tmp_path, monkeypatch, f
     if flush == "syncfs" and syncfs is None:
         pytest.skip("no syncfs in this C library")
     monkeypatch.setattr(os, "fsync", logged_fsync)
-    monkeypatch.setattr(os, "replace", logged_replace)
+    monkeypatch.setattr(os, "close", logged_close)
     monkeypatch.setattr(atomic, "_syncfs", logged_syncfs if flush == "syncfs" else None)
     out = make(config(), tmp_path / "d", 2).resolve()
     import json
 
     for index in range(2):
-        record_at = events.index(("replace", str(out / "frames" / f"{index:06d}.json")))
-        files = json.loads((out / "frames" / f"{index:06d}.json").read_text())["files"]
+        record = out / "frames" / f"{index:06d}.json"
+        record_at = max(i for i, e in enumerate(events) if e == ("close", str(record)))
+        files = json.loads(record.read_text())["files"]
         assert len(files) == 3  # rgb, depth, instance (no semantic image unless asked)
         for relpath in files:
             path = out / relpath
-            renamed = events.index(("replace", str(path)))
-            if flush == "syncfs":  # the whole file system, after the rename and before the record
-                assert any(renamed < i < record_at for i, (kind, p) in enumerate(events)
+            written = max(i for i, e in enumerate(events) if e == ("close", str(path)))
+            assert written < record_at, relpath
+            if flush == "syncfs":  # the whole file system, after the file and before the record
+                assert any(written < i < record_at for i, (kind, p) in enumerate(events)
                            if kind == "syncfs" and out.is_relative_to(p)), relpath
                 continue
-            flushed = [i for i, (kind, p) in enumerate(events) if kind == "fsync" and Path(p).name.startswith(
-                f".{path.name}{TMP_MARK}") and Path(p).parent == path.parent]
+            flushed = [i for i, e in enumerate(events) if e == ("fsync", str(path))]
             folder = [i for i, e in enumerate(events) if e == ("fsync", str(path.parent))]
-            assert flushed and flushed[-1] < renamed, relpath
-            assert any(renamed < i < record_at for i in folder), relpath
+            assert flushed and flushed[-1] < written, relpath
+            assert any(written < i < record_at for i in folder), relpath
 
 
 # -- the command line: bad --out, bad numbers, the success line ------------------------------------
