@@ -26,7 +26,7 @@ def test_shared_batch_holds_the_layouts_arrays_and_is_removed_on_close():
     layout = batch_layout(3, 4, 5, jpeg=False)
     block = SharedBatch(layout, pin=False)
     assert {k: (a.shape, a.dtype.str) for k, a in block.arrays.items()} == {
-        "depth": ((3, 4, 5, 1), "<f4"), "instances": ((3, 4, 5), "<u2"), "semantic": ((3, 4, 5), "<u2"),
+        "instances": ((3, 4, 5), "<u2"), "depth_mm": ((3, 4, 5), "<u2"), "semantic": ((3, 4, 5), "<u2"),
         "rgb": ((3, 4, 5, 3), "|u1")}
     for i, array in enumerate(block.arrays.values()):
         array[...] = i + 1
@@ -42,7 +42,8 @@ def test_shared_batch_holds_the_layouts_arrays_and_is_removed_on_close():
     assert not os.path.exists(path)
     assert batch_layout(2, 4, 5, jpeg=True)["jpeg_bytes"] == ((2 * 4 * 5 * 3,), "u1")
     assert "semantic" not in batch_layout(2, 4, 5, jpeg=True, semantic=False)  # not asked for: not copied
-    assert batch_layout(2, 4, 5, jpeg=True)["depth_mm"] == ((2, 4, 5), "<u2")  # the JPEG writer's depth
+    assert batch_layout(2, 4, 5, jpeg=True)["depth_mm"] == ((2, 4, 5), "<u2")  # converted on the device
+    assert set(batch_layout(2, 4, 5, jpeg=True, semantic=False, depth=False)) == {"instances", "jpeg_bytes"}
 
 
 def test_device_depth_in_mm_is_the_hosts():

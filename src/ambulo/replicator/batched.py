@@ -131,6 +131,9 @@ class BatchedFrameProducer:
         config; the producer closes it), or None: drawn on this thread."""
         self.device_draws = None
         """The in-memory mode's ``device_draws.DeviceDraws``, made on first use."""
+        self.disk_blocks = None
+        """The disk mode's shared batch blocks, kept between runs: ((layout, pinned), blocks)
+        (``batched_disk.shared_blocks``)."""
 
     @property
     def gl_renderer(self) -> str:
@@ -300,10 +303,19 @@ class BatchedFrameProducer:
         return frame_capture(w, host, k_matrix, self.camera.cfg, self.table, self.model, self._annotators)
 
     def close(self) -> None:
-        """Stop the draw processes (the engine and camera buffers are freed with the producer)."""
+        """Stop the draw processes and free the disk mode's blocks (the engine and camera buffers
+        are freed with the producer)."""
         if self.draws is not None:
             self.draws.close()
             self.draws = None
+        self.close_disk_blocks()
+
+    def close_disk_blocks(self) -> None:
+        """Free the disk mode's shared blocks (their files and page locks), if any."""
+        if self.disk_blocks is not None:
+            for block in self.disk_blocks[1]:
+                block.close()
+            self.disk_blocks = None
 
 
 def frame_capture(w: int, host: dict, k_matrix: np.ndarray, cfg: TiledCameraCfg, table, model, annotators) -> dict:

@@ -1,31 +1,36 @@
 """The GPU path's disk mode: a batch's pixels prepared on the device, its files written on every core.
 
 ``run_frames`` with writer threads (the batched path's first disk mode) leaves a frame's host
-work (loose and 3D boxes, COCO RLE, four PNG encodes, the record: ~20 ms of CPU a 640x480 frame)
-to threads of the producer's process, and much of it holds the GIL. ``run_batched_frames`` encodes
-the RGB images on the device when ``image_format='jpg'`` (``encode``: nvjpeg, a third of the PNG
-work gone) and moves the rest to the draw processes (``draw_pool.DrawPool``, which already hold
-the scene): each batch's images (ids as 16 bits) are copied once into a memory-mapped block
-(``SharedBatch``, page-locked for the GPU's copy when CUDA allows), and each process writes a
-contiguous part of the batch's frames from there (``writers.write_frame_files``) and hands back
-their records. A thread here writes the records, a batch at a time after one flush of the batch's
-files (``FrameWriter``), so a record on disk still always points to data on disk; two blocks
-alternate, so the device renders batch i+1 while the processes write batch i.
+work (loose and 3D boxes, COCO RLE, the PNG encodes, the record) to threads of the producer's
+process, and much of it holds the GIL. ``run_batched_frames`` does the per-pixel conversions on
+the device for all worlds at once (``encode``: the RGB images as JPEG through nvjpeg with
+``image_format='jpg'``, the depth as uint16 mm, the ids as 16 bits) and moves the rest to the draw
+processes (``draw_pool.DrawPool``, which already hold the scene): each batch's images are copied
+once into a memory-mapped block (``SharedBatch``, page-locked for the GPU's copy where CUDA allows;
+two per producer, kept between runs: ``shared_blocks``), holding only what the dataset's writers
+read (``batch_layout``), and each process writes a contiguous part of the batch's frames from
+there (``writers.write_frame_files``) and hands back their records. ``commits.BatchCommits``
+frees a batch's block as soon as its files are written and writes its records after one flush
+of the files (a flush per group of batches, off the render's path), so a record on disk still
+always points to data on disk; the device renders batch i+1 while the processes write batch i.
 
 The files are the ``run_frames`` path's, byte for byte, with PNG RGB (tested); with JPEG the RGB
-file is ``rgb/NNNNNN.jpg`` and the record's ``file_name`` says so (``writers.write_frame_files`` with ``rgb_jpeg``). Writers
-supported: coco, depth (png16), masks, kitti; others (raw, npy depth) take ``run_frames``.
+file is ``rgb/NNNNNN.jpg`` and the record's ``file_name`` says so (``writers.write_frame_files`` with
+``rgb_jpeg``). Writers supported: coco, depth (png16), masks, kitti; others (raw, npy depth) take
+``run_frames``. ``STAGES`` says where a run's time went.
 """
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import mmap
 import os
 import pickle
 import queue
+import sys
 import tempfile
-import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -33,6 +38,7 @@ import torch
 
 from . import draw_pool
 from .batched import BatchedFrameProducer, frame_capture, tiled_camera_cfg
+from .commits import BatchCommits
 from .encode import IMAGE_FORMATS, as_u16_bits, depth_mm, encode_jpegs
 from .writers import FrameWriter, write_frame_files
 
@@ -110,14 +116,17 @@ def _arrays(buffer, layout: dict, offsets: dict) -> dict:
     return {name: np.ndarray(shape, dtype, buffer=buffer, offset=offsets[name]) for name, (shape, dtype) in layout.items()}
 
 
-def batch_layout(num_worlds: int, height: int, width: int, jpeg: bool, semantic: bool = True) -> dict:
-    """The arrays a batch's block holds: depth (m), instance ids and, when the camera's annotators ask
-    for them (``semantic``), semantic ids (16 bits), and the RGB images, raw or as the batch's JPEG
-    files end to end (``jpeg_bytes``, with their offsets)."""
+def batch_layout(num_worlds: int, height: int, width: int, jpeg: bool, semantic: bool = True,
+                 depth: bool = True) -> dict:
+    """The arrays a batch's block holds: the instance ids (16 bits: the COCO masks are made from
+    them), the depth in uint16 mm (converted on the device, ``encode.depth_mm``: a third of the
+    float's bytes to copy and no host conversion) when the dataset writes ``depth``, the semantic
+    ids when its masks include them (``semantic``), and the RGB images, raw or as the batch's JPEG
+    files end to end (``jpeg_bytes``, with their offsets). Nothing a writer does not read is copied."""
     image = (num_worlds, height, width)
-    # the JPEG mode's own writer takes the depth in mm (converted on the device: half the bytes)
-    layout = {"depth_mm": (image, "<u2")} if jpeg else {"depth": ((*image, 1), "<f4")}
-    layout["instances"] = (image, "<u2")
+    layout = {"instances": (image, "<u2")}
+    if depth:
+        layout["depth_mm"] = (image, "<u2")
     if semantic:
         layout["semantic"] = (image, "<u2")
     if jpeg:  # a JPEG larger than its raw pixels does not occur at the quality used
@@ -127,10 +136,23 @@ def batch_layout(num_worlds: int, height: int, width: int, jpeg: bool, semantic:
     return layout
 
 
+STAGES = ("render_s", "device_prep_s", "wait_block_s", "copy_s", "submit_s", "wait_writes_s", "commit_s",
+          "part_capture_s", "part_write_s")
+"""What ``run_batched_frames(stats=...)`` adds up, in seconds: on the main thread the batch's draws
+collected, randomize and render (``render_s``), the device's JPEG/depth/id conversions
+(``device_prep_s``), waiting for a free block (``wait_block_s``: the processes are behind), the copy
+into it and the boxes' and poses' to the host (``copy_s``), handing out the parts (``submit_s``);
+on the records thread waiting for the processes (``wait_writes_s``); on the commit thread the
+file system's flushes and the records' writes (``commit_s``); and summed over
+the processes, the captures (loose and 3D boxes) and the files' encode and write with the COCO
+RLE (``part_capture_s``, ``part_write_s``): CPU seconds, to divide by the processes."""
+
+
 def run_batched_frames(config, out: Path, seed: int, frames: list[int], producer: BatchedFrameProducer,
-                       progress=None, image_format: str = "png") -> str:
+                       progress=None, image_format: str = "png", stats: dict | None = None) -> str:
     """Render and write ``frames`` (see the module docstring); returns the renderer's name.
-    ``producer.draws`` (a ``DrawPool`` of this config) draws the scenes and writes the files."""
+    ``producer.draws`` (a ``DrawPool`` of this config) draws the scenes and writes the files.
+    ``stats``: a dict that gets each of ``STAGES``' seconds added (and ``commits``, the flushes)."""
     if image_format not in IMAGE_FORMATS:
         raise ValueError(f"image format must be one of {IMAGE_FORMATS}, got {image_format!r}")
     if not supports(config.writer):
@@ -143,42 +165,27 @@ def run_batched_frames(config, out: Path, seed: int, frames: list[int], producer
     jpeg = image_format == "jpg"
     cfg = producer.camera.cfg
     cuda = producer.engine.device.type == "cuda"
-    writer = FrameWriter(out, config.writer, batch=producer.num_worlds)
-    semantic = "semantic_segmentation" in config.camera.annotators
-    layout = batch_layout(producer.num_worlds, cfg.height, cfg.width, jpeg, semantic)
-    blocks = [SharedBatch(layout, pin=cuda) for _ in range(2)]
+    # records are held until a commit's flush: the commit thread flushes explicitly
+    writer = FrameWriter(out, config.writer, batch=sys.maxsize)
+    semantic = "semantic_segmentation" in config.camera.annotators and "masks" in config.writer.outputs
+    layout = batch_layout(producer.num_worlds, cfg.height, cfg.width, jpeg, semantic,
+                          depth="depth" in config.writer.outputs)
+    blocks = shared_blocks(producer, layout, pin=cuda)
     free: queue.Queue = queue.Queue()
     for block in blocks:
         free.put(block)
-    written: queue.Queue = queue.Queue()  # (block, futures) in batch order, then None
-    failed: list[BaseException] = []
-
-    def settle() -> None:
-        """On a thread: each batch's records, as its processes finish (the batch flushes, the
-        records' writes), while this thread renders the next; then its block is free again."""
-        while (item := written.get()) is not None:
-            block, futures = item
-            try:
-                for future in futures:
-                    for index, record in future.result():
-                        writer.add(index, record)
-                        if progress is not None:
-                            progress(1)
-            except BaseException as err:  # the frames of the other parts are kept; the run stops
-                failed.append(err)
-            finally:
-                free.put(block)
-
-    settler = threading.Thread(target=settle, name="ambulo-records", daemon=True)
-    settler.start()
+    commits = BatchCommits(writer, free, progress)
+    times = commits.times
     try:
         for chunk, drawn in producer._chunks(seed, frames):
+            start = time.perf_counter()
             logs, (instances, boxes, pixels) = producer._render_chunk(seed, chunk, drawn)
+            mark = _lap(times, "render_s", start)
             count = len(chunk)
             images = producer.camera.data.output
-            device = {"depth_mm": depth_mm(images["depth"][:count, ..., 0])} if jpeg \
-                else {"depth": images["depth"][:count]}
-            device["instances"] = as_u16_bits(instances)
+            device = {"instances": as_u16_bits(instances)}
+            if "depth_mm" in layout:
+                device["depth_mm"] = depth_mm(images["depth"][:count, ..., 0])
             if semantic:
                 device["semantic"] = as_u16_bits(images["semantic_segmentation"][:count, ..., 0])
             sizes = None
@@ -188,28 +195,52 @@ def run_batched_frames(config, out: Path, seed: int, frames: list[int], producer
                 device["jpeg_bytes"] = torch.cat(files)
             else:
                 device["rgb"] = images["rgb"][:count]
+            mark = _lap(times, "device_prep_s", mark)
             block = free.get()  # the batch before last has been written
-            if failed:
-                raise failed[0]
+            mark = _lap(times, "wait_block_s", mark)
+            if commits.failed:
+                raise commits.failed[0]
             for name, tensor in device.items():
                 target = block.arrays[name].reshape(-1)[:tensor.numel()].view(_NUMPY[tensor.dtype])
                 torch.from_numpy(target).view(tensor.shape).copy_(tensor, non_blocking=cuda)
             small = producer.to_host(count, instances, boxes, pixels, images=False)  # syncs the stream
-            written.put((block, _submit_parts(pool, block, chunk, logs, small, sizes, out, config.writer,
-                                              writer.fsync_files)))
+            mark = _lap(times, "copy_s", mark)
+            commits.put(block, _submit_parts(pool, block, chunk, logs, small, sizes, out, config.writer,
+                                             writer.fsync_files))
+            _lap(times, "submit_s", mark)
     finally:
-        written.put(None)  # the batches submitted are written and their records kept, whatever happened
-        settler.join()
-        writer.flush()
-        for block in blocks:
-            block.close()
-    if failed:
-        raise failed[0]
+        commits.close()  # the batches submitted are written and their records committed, whatever happened
+        if stats is not None:
+            for name, seconds in times.items():
+                stats[name] = stats.get(name, 0) + seconds
+    if commits.failed:
+        raise commits.failed[0]
     return producer.gl_renderer
+
+
+def _lap(times: collections.Counter, name: str, start: float) -> float:
+    """Add the seconds since ``start`` to ``times[name]``; returns now. No device sync is added: a
+    stage's time is its host time and what it waited for (an encode waits for the render)."""
+    now = time.perf_counter()
+    times[name] += now - start
+    return now
 
 
 _NUMPY = {torch.int16: np.int16, torch.uint8: np.uint8, torch.float32: np.float32}
 """The NumPy view of a block's bytes that a device tensor is copied into (the same bits)."""
+
+
+def shared_blocks(producer: BatchedFrameProducer, layout: dict, pin: bool) -> list[SharedBatch]:
+    """The two blocks of ``layout`` for ``producer``'s batches, kept on the producer from one run to
+    the next (``producer.disk_blocks``; closed with it): making and page-locking two blocks of a
+    few hundred MB costs more than a thousand frames' copies, and a run may be a few batches."""
+    held = producer.disk_blocks
+    if held is not None and held[0] == (layout, pin):
+        return held[1]
+    producer.close_disk_blocks()
+    blocks = [SharedBatch(layout, pin=pin) for _ in range(2)]
+    producer.disk_blocks = ((layout, pin), blocks)
+    return blocks
 
 
 def _submit_parts(pool, block: SharedBatch, chunk, logs, small: dict, sizes, out, writer_cfg,
@@ -224,8 +255,7 @@ def _submit_parts(pool, block: SharedBatch, chunk, logs, small: dict, sizes, out
         part_small = {name: array[start:stop] for name, array in small.items()}
         jpeg_spans = None if ends is None else [(int(ends[w] - sizes[w]), int(ends[w])) for w in range(start, stop)]
         futures.append(pool.submit_call(_write_part, block.spec, start, chunk[start:stop], logs[start:stop],
-                                        part_small, jpeg_spans, os.fspath(out), pickle.dumps(writer_cfg),
-                                        fsync_files))
+                                        part_small, jpeg_spans, os.fspath(out), writer_cfg, fsync_files))
     return futures
 
 
@@ -264,26 +294,31 @@ def _frame_context() -> tuple:
 
 
 def _write_part(spec, start: int, indices: list[int], logs: list[dict], small: dict, jpeg_spans, out: str,
-                writer_payload: bytes, fsync_files: bool) -> list[tuple[int, dict]]:
-    """Write frames ``indices`` (worlds ``start``... of the block ``spec``); returns their records."""
+                writer_cfg, fsync_files: bool) -> tuple[list[tuple[int, dict]], dict]:
+    """Write frames ``indices`` (worlds ``start``... of the block ``spec``); returns their records
+    and this part's seconds of captures and of file writing (``STAGES``)."""
     arrays = _attach(spec)
     cfg, k_matrix, table, model, annotators = _frame_context()
-    writer_cfg = pickle.loads(writer_payload)
     records = []
     part = slice(start, start + len(indices))
-    host = {**small, **{name: arrays[name][part] for name in ("instances", "semantic", "depth") if name in arrays}}
-    if jpeg_spans is None:
-        host["rgb"] = arrays["rgb"][part]
+    host = {**small, **{name: arrays[name][part] for name in ("instances", "semantic", "rgb") if name in arrays}}
+    depth = arrays.get("depth_mm")
+    capture_s = write_s = 0.0
     for i, (index, log) in enumerate(zip(indices, logs)):
+        begin = time.perf_counter()
         capture = frame_capture(i, host, k_matrix, cfg, table, model, annotators)
-        if jpeg_spans is None:
-            record = write_frame_files(Path(out), index, capture, table, log, writer_cfg, fsync_files)
-        else:
+        middle = time.perf_counter()
+        rgb_jpeg = None
+        if jpeg_spans is not None:
             lo, hi = jpeg_spans[i]
-            record = write_frame_files(Path(out), index, capture, table, log, writer_cfg, fsync_files,
-                                       rgb_jpeg=arrays["jpeg_bytes"][lo:hi], depth_mm_u16=arrays["depth_mm"][start + i])
+            rgb_jpeg = arrays["jpeg_bytes"][lo:hi]
+        record = write_frame_files(Path(out), index, capture, table, log, writer_cfg, fsync_files, rgb_jpeg=rgb_jpeg,
+                                   depth_mm_u16=None if depth is None else depth[start + i])
         records.append((index, record))
-    return records
+        end = time.perf_counter()
+        capture_s += middle - begin
+        write_s += end - middle
+    return records, {"part_capture_s": capture_s, "part_write_s": write_s}
 
 
-__all__ = ["SUPPORTED_OUTPUTS", "SharedBatch", "batch_layout", "run_batched_frames", "supports"]
+__all__ = ["STAGES", "SUPPORTED_OUTPUTS", "SharedBatch", "batch_layout", "run_batched_frames", "shared_blocks", "supports"]
