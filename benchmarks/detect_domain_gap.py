@@ -3,6 +3,7 @@ randomization never seen in training, (c) another renderer; report the drop.
 
     python benchmarks/detect_domain_gap.py --frames 1000 --width 160 --height 120 --epochs 15 --out runs/gap
     python benchmarks/detect_domain_gap.py --checkpoint runs/det/checkpoint.pt --train-data data/ --out runs/gap
+    python benchmarks/detect_domain_gap.py --checkpoint CK --width 320 --height 240 --eval-frames 200 --factors --no-pbr
     python benchmarks/detect_domain_gap.py --frames 10000 --width 320 --height 240 --generate-only --out runs/gap
     ambulo generate benchmarks/detect_domain_gap.py --frames 500 --out unseen/     # split (b) alone
 
@@ -43,24 +44,58 @@ import numpy as np
 from ambulo import replicator as rep
 from ambulo.core.randomize import uniform, uniform_int
 
+MOVED = {
+    "object_materials": lambda r: dataclasses.replace(r, palette_seed=1001, untextured_probability=0.0),
+    "lights": lambda r: dataclasses.replace(r, intensity=uniform(0.9, 1.3), ambient=uniform(0.3, 0.45),
+                                            elevation_deg=uniform(10.0, 30.0)),
+    "distractors": lambda r: dataclasses.replace(r, pool_seed=1002, pool_size=12, count=uniform_int(6, 10),
+                                                 size_m=(0.1, 0.35)),
+    "camera_jitter": lambda r: dataclasses.replace(r, position_m=uniform((-0.01, -0.01, 0.25),
+                                                                         (0.01, 0.01, 0.45))),
+}
+"""Split (b)'s change of each randomizer of the example config, by the randomizer's name."""
+FACTORS = {"textures": "object_materials", "lighting": "lights", "clutter": "distractors",
+           "camera_height": "camera_jitter"}
+"""The four factors of split (b) (module docstring), each the randomizer it moves."""
 
-def config(width: int = 320, height: int = 240) -> rep.DatasetConfig:
-    """Split (b): the example dataset with its randomization moved outside the training ranges."""
+
+def config(width: int = 320, height: int = 240, factors: tuple[str, ...] = tuple(FACTORS)) -> rep.DatasetConfig:
+    """Split (b): the example dataset with its randomization moved outside the training ranges; with
+    ``factors`` (names of ``FACTORS``), only those moved (the split's cost factor by factor)."""
     base = rep.example_config(width, height)
-    moved = {
-        "object_materials": lambda r: dataclasses.replace(r, palette_seed=1001, untextured_probability=0.0),
-        "lights": lambda r: dataclasses.replace(r, intensity=uniform(0.9, 1.3), ambient=uniform(0.3, 0.45),
-                                                elevation_deg=uniform(10.0, 30.0)),
-        "distractors": lambda r: dataclasses.replace(r, pool_seed=1002, pool_size=12, count=uniform_int(6, 10),
-                                                     size_m=(0.1, 0.35)),
-        "camera_jitter": lambda r: dataclasses.replace(r, position_m=uniform((-0.01, -0.01, 0.25),
-                                                                             (0.01, 0.01, 0.45))),
-    }
+    moved = {FACTORS[f]: MOVED[FACTORS[f]] for f in factors}
     names = {r.name for r in base.randomizers}
-    if not set(moved) <= names:  # the example config changed: this split must follow it
-        raise RuntimeError(f"example_config has no randomizers {sorted(set(moved) - names)}")
+    if not set(MOVED) <= names:  # the example config changed: this split must follow it
+        raise RuntimeError(f"example_config has no randomizers {sorted(set(MOVED) - names)}")
     randomizers = [moved[r.name](r) if r.name in moved else r for r in base.randomizers]
-    return dataclasses.replace(base, name="ambulo_warehouse_unseen", randomizers=randomizers)
+    suffix = "" if set(factors) == set(FACTORS) else "_" + "_".join(factors)
+    return dataclasses.replace(base, name="ambulo_warehouse_unseen" + suffix, randomizers=randomizers)
+
+
+def training_config(width: int = 320, height: int = 240) -> rep.DatasetConfig:
+    """The example dataset with generic, Replicator-style variety added for training (``--train-config
+    generic``): more distinct things that are not objects, and more textures, each within the example
+    config's own ranges, none of them split (b)'s (its palette, distractor pool, sizes and counts,
+    lights and camera heights stay outside: the split remains a test of the unknown).
+
+    - distractors: a pool of 32 primitives instead of 8 (same sizes 0.05-0.25 m, same 2-6 a frame), each
+      recoloured every frame (HSV) and textured from their own palette (seed 7) 70 % of the time: the
+      detector cannot learn the clutter by heart, it must learn what the objects are;
+    - object textures: a palette of 24 procedural textures (seed 0, 30 % untextured as before) instead of 8.
+    """
+    base = rep.example_config(width, height)
+    varied = {
+        "distractors": lambda r: dataclasses.replace(r, pool_size=32),
+        "object_materials": lambda r: dataclasses.replace(r, palette_size=24),
+    }
+    randomizers = [varied[r.name](r) if r.name in varied else r for r in base.randomizers]
+    randomizers += [rep.ColorRandomizer(name="distractor_colors", prims="/World/distractors/*"),
+                    rep.MaterialRandomizer(name="distractor_materials", prims="/World/distractors/*", palette_seed=7)]
+    return dataclasses.replace(base, name="ambulo_warehouse_generic", randomizers=randomizers)
+
+
+TRAIN_CONFIGS = {"example": rep.example_config, "generic": training_config}
+"""Training data of ``--train-config``: the example dataset as it is, or with ``training_config``'s variety."""
 
 
 PALETTE = np.array([[230, 25, 75], [60, 180, 75], [255, 225, 25], [0, 130, 200], [245, 130, 48], [145, 30, 180]],
@@ -103,7 +138,7 @@ def make(cfg: rep.DatasetConfig, out: Path, frames: int, seed: int, workers: int
 
 
 def main() -> None:
-    from ambulo.detection import AugmentCfg, TrainCfg, evaluate_checkpoint, geometry_only, train
+    from ambulo.detection import AugmentCfg, TrainCfg, evaluate_checkpoint, generic, geometry_only, train
 
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", default="runs/domain_gap", help="datasets, run and result.json go here")
@@ -118,10 +153,18 @@ def main() -> None:
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--workers", type=int, default=min(4, os.cpu_count() or 1), help="generation and loading")
     parser.add_argument("--checkpoint", default=None, help="score this checkpoint instead of training one")
-    parser.add_argument("--train-data", default=None, help="the dataset --checkpoint was trained on")
+    parser.add_argument("--train-data", default=None,
+                        help="the dataset --checkpoint was trained on (without it, split (a) is --eval-frames "
+                             "frames of the example config drawn with a seed training never used)")
+    parser.add_argument("--train-config", choices=tuple(TRAIN_CONFIGS), default="example",
+                        help="training data: the example config, or it with generic variety (training_config)")
+    parser.add_argument("--factors", action="store_true",
+                        help="also score split (b)'s factors one at a time (lighting, textures, clutter, camera "
+                             "height only; same seed and size): which one costs the most")
     parser.add_argument("--no-pbr", action="store_true", help="leave out split (c), the Filament renderer")
-    parser.add_argument("--augment", choices=("full", "geometry"), default="full",
-                        help="training augmentations: full (ambulo.detection.augment's defaults) or geometry only")
+    parser.add_argument("--augment", choices=("full", "generic", "geometry"), default="full",
+                        help="training augmentations: full (ambulo.detection.augment's defaults), generic (those "
+                             "plus clutter-like occluders and uneven light: augment.generic) or geometry only")
     parser.add_argument("--max-minutes", type=float, default=0.0, help="training budget (TrainCfg.max_minutes)")
     parser.add_argument("--generate-only", action="store_true",
                         help="make the datasets in --out and stop (a later run with the same --out and sizes reuses "
@@ -130,10 +173,17 @@ def main() -> None:
     out = Path(args.out)
     held_out_fraction = 0.1
     eval_frames = args.eval_frames or max(1, round(args.frames * held_out_fraction))
-    train_data = Path(args.train_data) if args.train_data else make(
-        rep.example_config(args.width, args.height), out / "train", args.frames, 0, args.workers)
+    fresh_held_out = args.checkpoint is not None and args.train_data is None
+    if fresh_held_out:  # seed 3: no training run here drew it
+        train_data = make(rep.example_config(args.width, args.height), out / "held_out", eval_frames, 3, args.workers)
+    else:
+        train_data = Path(args.train_data) if args.train_data else make(
+            TRAIN_CONFIGS[args.train_config](args.width, args.height), out / "train", args.frames, 0, args.workers)
     splits = {"unseen_randomization": make(config(args.width, args.height), out / "unseen", eval_frames, 1,
                                            args.workers)}
+    for factor in FACTORS if args.factors else ():
+        splits[f"unseen_{factor}_only"] = make(config(args.width, args.height, (factor,)),
+                                               out / f"unseen_{factor}", eval_frames, 1, args.workers)
     if not args.no_pbr:
         pbr = rep.example_config(args.width, args.height)
         pbr = dataclasses.replace(pbr, camera=dataclasses.replace(pbr.camera, renderer="pbr"))
@@ -141,7 +191,7 @@ def main() -> None:
     if args.generate_only:
         return
     summary: dict = {"frames": args.frames, "size": [args.width, args.height], "device": args.device,
-                     "augment": args.augment}
+                     "augment": args.augment, "train_config": args.train_config}
     checkpoint = args.checkpoint
     if checkpoint is None:
         cfg = TrainCfg(model=args.model, epochs=args.epochs, batch_size=args.batch_size, learning_rate=args.lr,
@@ -150,7 +200,7 @@ def main() -> None:
                        eval_every_epochs=0 if args.max_minutes > 0 else max(1, args.epochs // 5),
                        eval_every_minutes=args.max_minutes / 6 if args.max_minutes > 0 else 0.0,
                        max_minutes=args.max_minutes,
-                       augment=AugmentCfg() if args.augment == "full" else geometry_only())
+                       augment={"full": AugmentCfg, "generic": generic, "geometry": geometry_only}[args.augment]())
         start = time.perf_counter()
         result = train(train_data, out / "run", cfg)
         summary["train"] = {"epochs": args.epochs, "steps": result.step, "seconds": round(time.perf_counter() - start),
@@ -158,7 +208,8 @@ def main() -> None:
                             "curve": [{k: e[k] for k in ("epoch", "step", "elapsed_s", "mAP", "mAP50")}
                                       for e in result.evaluations]}
         checkpoint = out / "run" / "checkpoint.pt"
-    scores = {"held_out_seeds": evaluate_checkpoint(checkpoint, train_data, held_out_fraction, device=args.device)}
+    scores = {"held_out_seeds": evaluate_checkpoint(checkpoint, train_data, None if fresh_held_out else held_out_fraction,
+                                                    device=args.device)}
     for name, folder in splits.items():
         scores[name] = evaluate_checkpoint(checkpoint, folder, device=args.device)
     base = scores["held_out_seeds"]

@@ -67,6 +67,39 @@ def test_erasing_drops_the_objects_it_hides():
     assert painted.any() and not (painted & (inst > 0)).any()  # erased pixels left the instance map
 
 
+def test_occluders_are_ellipses_or_rectangles_shaded_across():
+    blank = torch.zeros(64, 3, 40, 40), torch.zeros(64, 40, 40, dtype=torch.uint8)
+    classes = torch.full((64, 1), -1)
+    base = dataclasses.replace(no_augment(), erase_probability=1.0, erase_count=1, erase_size_range=(0.5, 0.9))
+    fill = {}
+    for ellipse in (0.0, 1.0):
+        cfg = dataclasses.replace(base, erase_ellipse_probability=ellipse, erase_shading=0.4)
+        out, _, _ = erase(*blank, classes, cfg, torch.Generator().manual_seed(0))
+        painted = (out > 0).any(dim=1)
+        whole = [i for i in range(64) if painted[i].any() and not (painted[i, 0].any() or painted[i, -1].any()
+                                                                    or painted[i, :, 0].any() or painted[i, :, -1].any())]
+        # the share of its bounding box a shape fills: 1 for a rectangle, pi / 4 for an ellipse
+        shares = [painted[i].sum().item() / ((painted[i].any(1).sum() * painted[i].any(0).sum()).item())
+                  for i in whole]
+        fill[ellipse] = sum(shares) / len(shares)
+        # shaded: a shape's pixels are not one colour (its brightness changes across it)
+        spread = torch.tensor([out[i][:, painted[i]].std(dim=1).max().item() for i in whole])
+        assert spread.median() > 0.01
+    assert fill[0.0] > 0.97 and abs(fill[1.0] - torch.pi / 4) < 0.06, fill
+
+
+def test_uneven_light_is_a_gain_ramp_within_its_range():
+    flat = torch.full((32, 3, 30, 40), 0.25)
+    cfg = dataclasses.replace(no_augment(), light_gradient=0.5)
+    out = photometric(flat, cfg, torch.Generator().manual_seed(0))
+    corners = torch.stack([out[:, 0, 0, 0], out[:, 0, 0, -1], out[:, 0, -1, 0], out[:, 0, -1, -1]], dim=1)
+    log_ratio = (corners.amax(1) / corners.amin(1)).log()
+    assert log_ratio.max() <= 2 * 0.5 + 1e-4 and log_ratio.max() > 0.5  # corners differ, at most e ** 1
+    # a ramp: the gain's log is a plane, so opposite corners' logs average to the centre's
+    centre = out[:, 0, 14:16, 19:21].mean(dim=(1, 2)).log()
+    assert torch.allclose((corners[:, 0].log() + corners[:, 3].log()) / 2, centre, atol=0.05)
+
+
 def test_photometric_is_the_identity_when_off_and_stays_in_range():
     images = torch.rand(8, 3, 12, 16, generator=torch.Generator().manual_seed(0))
     same = photometric(images, no_augment(), torch.Generator().manual_seed(1))

@@ -26,7 +26,9 @@ def test_loss_falls_and_pycocotools_evaluates_the_predictions(tiny_dataset, tmp_
     evaluation = result.evaluations[-1]
     categories = {c["name"] for c in load_coco(tiny_dataset)["categories"]}
     assert set(evaluation["per_class"]) <= categories and 0.0 <= evaluation["mAP"] <= evaluation["mAP50"] <= 1.0
-    assert json.loads((tmp_path / "metrics.json").read_text())[-1]["step"] == result.step
+    logged = json.loads((tmp_path / "metrics.json").read_text())[-1]
+    assert logged["step"] == result.step
+    assert logged["train_loss"] == pytest.approx(sum(losses) / len(losses), abs=1e-4)  # one evaluation: every step
     # the predictions are a COCO results list pycocotools loads, every one on a held-out frame
     coco = load_coco(tiny_dataset)
     _, held = split_image_ids(coco, 0.25)

@@ -23,9 +23,10 @@ MODEL_NAMES = ("centernet-small", "centernet-medium")
 def train_detector(args: argparse.Namespace) -> int:
     import torch
 
-    from ambulo.detection import CHECKPOINT, AugmentCfg, DatasetError, TrainCfg, geometry_only, no_augment, train
+    from ambulo.detection import CHECKPOINT, AugmentCfg, DatasetError, TrainCfg, generic, geometry_only, no_augment
+    from ambulo.detection import train as train_run
 
-    AUGMENTS = {"full": AugmentCfg, "geometry": geometry_only, "none": no_augment}
+    AUGMENTS = {"full": AugmentCfg, "generic": generic, "geometry": geometry_only, "none": no_augment}
 
     for flag in ("epochs", "batch_size"):
         if getattr(args, flag) < 1:
@@ -45,7 +46,7 @@ def train_detector(args: argparse.Namespace) -> int:
                    max_minutes=args.max_minutes, pause_after_minutes=args.pause_after_minutes,
                    eval_every_minutes=args.eval_every_minutes, augment=AUGMENTS[args.augment]())
     try:
-        result = train(args.dataset, args.out, cfg, resume=args.resume, show_progress=not args.quiet)
+        result = train_run(args.dataset, args.out, cfg, resume=args.resume, show_progress=not args.quiet)
     except DatasetError as err:
         raise CliError(err.problem, err.fix) from None
     last = result.evaluations[-1] if result.evaluations else None
@@ -125,8 +126,9 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--data", choices=("resident", "stream"), default="resident",
                    help="resident: decode the training frames once into the device's memory (default); stream: "
                         "decode each batch in --workers processes (datasets larger than memory)")
-    p.add_argument("--augment", choices=("full", "geometry", "none"), default="full",
+    p.add_argument("--augment", choices=("full", "generic", "geometry", "none"), default="full",
                    help="full: geometric, occlusion and photometric augmentations on the device (default); "
+                        "generic: those plus clutter-like occluders and uneven light (augment.generic); "
                         "geometry: flips and scale jitter only; none")
     p.add_argument("--workers", type=int, default=2, help="image-decoding processes (default 2)")
     p.add_argument("--seed", type=int, default=0, help="initialisation and shuffling seed (default 0)")

@@ -7,10 +7,13 @@ dataset (a detector trained on them is scored on randomization it never saw:
 
 - geometric: horizontal flip, scale jitter with a random crop (or a black margin when the scale is
   below 1), one affine ``grid_sample`` of the pixels (bilinear) and of the instance map (nearest);
-- occlusion: rectangles of random colour over the frame (random erasing), standing in for clutter;
-  an object left with under ``min_visible_fraction`` of its pixels is dropped;
-- photometric: exposure (a gain), gamma, contrast, per-channel gains (white balance), saturation
-  and hue (a rotation in YIQ's chroma plane), sometimes grey, sometimes blurred, sensor noise.
+- occlusion: flat "flying distractors" over the frame, rectangles or ellipses of a random colour
+  shaded across (a lit surface) and speckled (a texture): random erasing made to look like clutter,
+  unlabelled, so that things of no class's look are learnt as background; an object left with under
+  ``min_visible_fraction`` of its pixels is dropped;
+- photometric: exposure (a gain), uneven light (a gain that falls off across the frame in a random
+  direction: a low or off-centre light), gamma, contrast, per-channel gains (white balance),
+  saturation and hue (a rotation in YIQ's chroma plane), sometimes grey, sometimes blurred, sensor noise.
 
 Boxes move with the pixels exactly (flip and scale keep them axis-aligned); a box cut to under a
 quarter of its area, or under 2 px a side, is dropped (its class becomes -1).
@@ -59,6 +62,15 @@ class AugmentCfg(Checked):
     erase_count: int = 3
     erase_size_range: tuple[float, float] = (0.05, 0.3)
     """Each rectangle's side as a fraction of the image's."""
+    erase_ellipse_probability: float = 0.0
+    """Chance of each drawn rectangle being the ellipse inscribed in it instead."""
+    erase_shading: float = 0.0
+    """Each shape's brightness varies by up to +- this across it, in a random direction (a lit surface)."""
+    erase_speckle: float = 0.0
+    """Per-pixel brightness noise of each shape (standard deviation, relative): a texture, not a flat colour."""
+    light_gradient: float = 0.0
+    """Uneven light: the log gain changes by up to +- this from the frame's centre to its corners along a
+    random direction (0.5: a corner up to e ** 1 = 2.7 times brighter than the opposite one)."""
     min_visible_fraction: float = 0.3
     """An object covered by rectangles beyond this is dropped: no evidence is left to find it by."""
 
@@ -74,6 +86,12 @@ def geometry_only(flip_probability: float = 0.5, scale_range: tuple[float, float
     """Flips and scale jitter, no photometric change or occlusion (the augmentations before issue 27's
     domain-gap work, kept to measure what the others add)."""
     return dataclasses.replace(no_augment(), flip_probability=flip_probability, scale_range=scale_range)
+
+
+def generic() -> AugmentCfg:
+    """The defaults plus clutter-like occluders (ellipses and rectangles, shaded, speckled) and uneven
+    light: the generic sim-to-real set (``--augment generic``)."""
+    return AugmentCfg(erase_ellipse_probability=0.5, erase_shading=0.4, erase_speckle=0.08, light_gradient=0.5)
 
 
 def _uniform(lo: float, hi: float, shape: tuple[int, ...], g: torch.Generator, device) -> torch.Tensor:
@@ -121,8 +139,9 @@ def geometric(images: torch.Tensor, instances: torch.Tensor, boxes: torch.Tensor
 
 def erase(images: torch.Tensor, instances: torch.Tensor, classes: torch.Tensor, cfg: AugmentCfg,
           g: torch.Generator) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """Random-colour rectangles over images (B, 3, h, w) float; their pixels leave the instance maps,
-    and objects with under ``cfg.min_visible_fraction`` of their pixels left lose their class."""
+    """Random-colour rectangles or ellipses (shaded, speckled: ``AugmentCfg``) over images (B, 3, h, w)
+    float; their pixels leave the instance maps, and objects with under ``cfg.min_visible_fraction`` of
+    their pixels left lose their class."""
     b, _, h, w = images.shape
     r, dev = cfg.erase_count, images.device
     if r == 0 or cfg.erase_probability == 0:
@@ -132,15 +151,26 @@ def erase(images: torch.Tensor, instances: torch.Tensor, classes: torch.Tensor, 
     half_h = _uniform(*cfg.erase_size_range, (b, r), g, dev) * h / 2
     cx, cy = _uniform(0, w, (b, r), g, dev), _uniform(0, h, (b, r), g, dev)
     colour = torch.rand(b, r, 3, generator=g, device=dev)
-    xs = torch.arange(w, device=dev) + 0.5
-    ys = torch.arange(h, device=dev) + 0.5
-    inside = ((xs - cx[..., None]).abs() <= half_w[..., None])[:, :, None, :] \
-        & ((ys - cy[..., None]).abs() <= half_h[..., None])[:, :, :, None] & drawn[..., None, None]  # (B, R, h, w)
-    # the last rectangle drawn is on top
+    ellipse = torch.rand(b, r, generator=g, device=dev) < cfg.erase_ellipse_probability
+    angle = _uniform(0, 2 * math.pi, (b, r), g, dev)
+    shading = _uniform(-cfg.erase_shading, cfg.erase_shading, (b, r), g, dev)
+    u = ((torch.arange(w, device=dev) + 0.5) - cx[..., None]) / half_w[..., None]  # (B, R, w): -1..1 across
+    v = ((torch.arange(h, device=dev) + 0.5) - cy[..., None]) / half_h[..., None]  # (B, R, h)
+    in_box = (u.abs() <= 1)[:, :, None, :] & (v.abs() <= 1)[:, :, :, None]
+    in_ellipse = u[:, :, None, :] ** 2 + v[:, :, :, None] ** 2 <= 1
+    inside = torch.where(ellipse[..., None, None], in_ellipse, in_box) & drawn[..., None, None]  # (B, R, h, w)
+    # the last shape drawn is on top
     top = torch.where(inside, torch.arange(1, r + 1, device=dev)[None, :, None, None], 0).amax(dim=1)  # (B, h, w)
     covered = top > 0
-    paint = colour.gather(1, (top - 1).clamp(min=0).flatten(1)[..., None].expand(-1, -1, 3))  # (B, h*w, 3)
-    images = torch.where(covered[:, None], paint.transpose(1, 2).reshape(b, 3, h, w), images)
+    index = (top - 1).clamp(min=0)
+    paint = colour.gather(1, index.flatten(1)[..., None].expand(-1, -1, 3)).transpose(1, 2).reshape(b, 3, h, w)
+    if cfg.erase_shading > 0:  # brightness 1 + shading * (position along the shape's light direction)
+        along = torch.cos(angle)[..., None, None] * u[:, :, None, :] + torch.sin(angle)[..., None, None] * v[:, :, :, None]
+        shade = 1 + (shading[..., None, None] * along.clamp(-1, 1)).gather(1, index[:, None])[:, 0]  # (B, h, w)
+        paint = paint * shade[:, None]
+    if cfg.erase_speckle > 0:
+        paint = paint * (1 + cfg.erase_speckle * torch.randn((b, 1, h, w), generator=g, device=dev))
+    images = torch.where(covered[:, None], paint.clamp(0, 1), images)
     m = classes.shape[1]
     before = _pixels_per_instance(instances, m)
     instances = torch.where(covered, 0, instances)
@@ -163,6 +193,13 @@ def photometric(images: torch.Tensor, cfg: AugmentCfg, g: torch.Generator) -> to
     b, _, h, w = images.shape
     dev = images.device
     x = images * _log_uniform(*cfg.exposure_range, (b, 1, 1, 1), g, dev)
+    if cfg.light_gradient > 0:
+        angle = _uniform(0, 2 * math.pi, (b, 1, 1), g, dev)
+        slope = _uniform(-cfg.light_gradient, cfg.light_gradient, (b, 1, 1), g, dev)
+        u = (torch.arange(w, device=dev) + 0.5) / w * 2 - 1  # -1..1 across the frame
+        v = (torch.arange(h, device=dev) + 0.5) / h * 2 - 1
+        along = (torch.cos(angle) * u[None, None, :] + torch.sin(angle) * v[None, :, None]) / math.sqrt(2)
+        x = x * torch.exp(slope * along)[:, None]
     x = x.clamp(0, 1) ** _log_uniform(*cfg.gamma_range, (b, 1, 1, 1), g, dev)
     mean = x.mean(dim=(1, 2, 3), keepdim=True)
     x = mean + _uniform(*cfg.contrast_range, (b, 1, 1, 1), g, dev) * (x - mean)
@@ -213,4 +250,5 @@ def augment_batch(batch: dict[str, torch.Tensor], cfg: AugmentCfg, g: torch.Gene
     return {"images": photometric(images, cfg, g), "instances": instances, "boxes": boxes, "classes": classes}
 
 
-__all__ = ["AugmentCfg", "augment_batch", "erase", "geometric", "geometry_only", "no_augment", "photometric"]
+__all__ = ["AugmentCfg", "augment_batch", "erase", "generic", "geometric", "geometry_only", "no_augment",
+           "photometric"]

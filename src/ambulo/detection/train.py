@@ -14,7 +14,8 @@ checkpoint (no evaluation) for a ``resume`` to continue: a budget split across c
 
 The run folder holds ``checkpoint.pt`` (model, optimizer, scheduler, epoch, step, elapsed seconds,
 the configs and category names: all a resume or an export needs), ``metrics.json`` (every
-evaluation) and the TensorBoard events (``loss/*``, ``lr``, ``eval/mAP``, ``eval/mAP50``,
+evaluation, with ``train_loss``: the mean total loss of the steps since the one before; ``curve.py``
+draws it) and the TensorBoard events (``loss/*``, ``lr``, ``eval/mAP``, ``eval/mAP50``,
 ``eval_ap/<class>``, and for a model with masks ``eval/mask_mAP``, ``eval/mask_mAP50``,
 ``eval_mask_ap/<class>``; evaluations before the last score boxes only, to stay short). A resumed
 run starts at the epoch after the checkpoint's, at its step, with its optimizer state.
@@ -237,7 +238,11 @@ def train(dataset_dir: str | Path, run_dir: str | Path, cfg: TrainCfg, resume: b
                 sizes = image_sizes if last else None
                 metrics = evaluate_all(coco, held_ids, predict_coco(model, eval_loader, device, category_ids, sizes))
                 last_eval_s = elapsed()
-                evaluations.append({"epoch": epoch, "step": step, "elapsed_s": round(last_eval_s, 1), **metrics})
+                since = evaluations[-1]["step"] if evaluations else 0
+                window = [total for s, total in losses if s > since]  # this call's steps since the last one
+                train_loss = {"train_loss": round(sum(window) / len(window), 4)} if window else {}
+                evaluations.append({"epoch": epoch, "step": step, "elapsed_s": round(last_eval_s, 1), **train_loss,
+                                    **metrics})
                 for prefix, m in (("", metrics), ("mask_", metrics.get("mask"))):
                     if m is None:
                         continue
