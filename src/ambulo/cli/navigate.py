@@ -242,6 +242,10 @@ def run_many(args: argparse.Namespace) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.object is not None:  # an object goal ("walk to the chair"): navigate_object
+        from .navigate_object import run_object
+
+        return run_object(args, parse_start=parse_start, check_point=check_point)
     if args.episodes is not None and getattr(args, "viewer", "none") != "none":
         raise CliError("--viewer web watches one episode; --episodes runs many in worker processes",
                        "leave out --episodes (or --viewer)")
@@ -280,6 +284,11 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
                    "benchmark's episodes/ and summary.json (default out/navigate)")
     p.add_argument("--time-limit", type=float, metavar="S",
                    help="simulated seconds before the episode ends (default 30 + 6 per metre of geodesic)")
+    p.add_argument("--object", metavar="NAME", help="an object goal instead of --goal: search the apartment for "
+                   "it with the detector and stop within 1 m facing it (chair, bed, sofa, table, desk, shelf, "
+                   "cabinet, plant)")
+    p.add_argument("--detector", metavar="MODEL.onnx", help="the detector for --object (default: the shipped "
+                   "apartment-objects detector)")
     p.add_argument("--episodes", type=int, metavar="N", help="run a benchmark of N apartments per mode")
     p.add_argument("--workers", type=int, default=1, help="processes for --episodes (default 1)")
     p.set_defaults(func=run)
