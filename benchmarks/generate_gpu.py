@@ -20,20 +20,27 @@ The tutorial dataset (``replicator.example_config``, the warehouse bay) at ``--s
   a batch ahead), the dataset's scenes: what the disk modes render;
 - **disk** (``ambulo generate --device --draw-workers N [--image-format jpg]``):
   ``batched_disk.run_batched_frames`` with this producer's draw processes writing the files from
-  shared memory, RGB as PNG and, where torchvision's nvjpeg runs, as JPEG encoded on the GPU,
-  then the COCO merge, into a fresh folder each;
-- **disk, threads** (the earlier disk mode, for comparison): ``run_frames`` with
+  shared memory and the records committed after a flush of the files, then the COCO merge and its
+  file, as ``generate`` ends, ``--disk-frames`` frames into a fresh folder each (``DISK_RUNS``):
+  the **headline** is the default annotation set (RGB, as JPEG encoded on the GPU where
+  torchvision's nvjpeg runs, and the COCO records: boxes and RLE masks) flushed to ``--out``'s
+  disk; then with the depth PNGs, with depth and the id PNGs, with PNG RGB, and two that locate the
+  cost (no flushes; into ``/dev/shm``). Each run prints its stages' ms a frame
+  (``batched_disk.STAGES``: the main thread's, the commit thread's, and the processes' CPU);
+- **disk ceiling**: the headline's file count and bytes written and flushed with nothing else
+  (no render, no encode): the storage's own rate, the ceiling of every disk run;
+- **disk, threads** (``--threads-run``, the first disk mode, for comparison): ``run_frames`` with
   ``--writer-threads`` encoders in this process;
 - **disk, processes** (``--processes``, default 0: skipped): that many producers on the same
   device (``ProducerPool``, what ``--num-gpus`` runs), each with cores / processes encoders.
 
     python benchmarks/generate_gpu.py --device cuda --size 640x480 --num-worlds 256 --frames 2048
-    python benchmarks/generate_gpu.py --device cpu --size 64x48 --num-worlds 4 --frames 8 --processes 0
+    python benchmarks/generate_gpu.py --device cpu --size 64x48 --num-worlds 4 --frames 8 --disk-frames 12
 
 ``--device cpu`` is Warp's CPU device: a smoke test of the same code, not a measurement.
-Ends with one ``RESULT {json}`` line: frames/s of each and its ratio to the raw render, and the
-device's ms a frame of the in-memory mode's stages (device draws, kinematics, render, labels):
-the render is the ceiling of every mode.
+Ends with one ``RESULT {json}`` line: frames/s of each and its ratio to the raw render (and of the
+disk runs to the disk ceiling), and the device's ms a frame of the in-memory mode's stages (device
+draws, kinematics, render, labels): the render is the ceiling of every mode.
 Issue 25's targets on one H100: >= 2,000 annotated 640x480 frames/s to disk, >= 50,000 in memory.
 """
 
@@ -41,12 +48,14 @@ from __future__ import annotations
 
 import argparse
 import collections
+import concurrent.futures as cf
 import contextlib
 import dataclasses
 import datetime
 import functools
 import gc
 import json
+import os
 import shutil
 import sys
 import tempfile
@@ -58,14 +67,15 @@ import torch
 
 from ambulo import replicator as rep
 from ambulo.replicator.batched import BatchedFrameProducer
-from ambulo.replicator.batched_disk import run_batched_frames
+from ambulo.replicator.batched_disk import STAGES, run_batched_frames
 from ambulo.replicator.coco import merge_coco
 from ambulo.replicator.draw_pool import DrawPool
 from ambulo.replicator.encode import jpeg_available
 from ambulo.replicator.processes import ProducerPool, usable_cpus
 from ambulo.replicator.producer import run_frames
-from ambulo.replicator.writers import FrameWriter, prepare_dirs, write_frame_files
+from ambulo.replicator.writers import FrameWriter, json_bytes, prepare_dirs, write_frame_files
 from ambulo.sensors.annotators import instance_table
+from ambulo.utils.atomic import atomic_write_bytes, can_sync_filesystem, sync_filesystem
 
 ENCODE_SAMPLE = 32
 """Frames of the profiled batch encoded and written on one thread."""
@@ -159,16 +169,79 @@ def profile_device_draws(producer: BatchedFrameProducer, device: str, chunk: lis
 
 
 def disk_run(config, out: Path, frames: list[int], categories, write) -> dict:
-    """``write(out)`` into a fresh dataset folder, then the COCO merge: frames/s and MB a frame."""
+    """``write(out, stats)`` into a fresh dataset folder, then the COCO merge and its file as
+    ``generate`` writes them: frames/s, MB and files a frame, and the write's stage seconds."""
     prepare_dirs(out, config.writer)
+    stats: dict = {}
     start = time.perf_counter()
-    write(out)
+    write(out, stats=stats)
+    written = time.perf_counter()
     merged = merge_coco(out / "frames", len(frames), categories, {"seed": 2})
-    (out / "annotations.json").write_text(json.dumps(merged))
-    fps = len(frames) / (time.perf_counter() - start)
-    size_mb = sum(f.stat().st_size for f in out.rglob("*") if f.is_file()) / 1e6
+    atomic_write_bytes(out / "annotations.json", json_bytes(merged), fsync=config.writer.fsync)
+    seconds = time.perf_counter() - start
+    files = [f for f in out.rglob("*") if f.is_file()]
+    size_mb = sum(f.stat().st_size for f in files) / 1e6
     shutil.rmtree(out, ignore_errors=True)
-    return {"fps": round(fps, 1), "mb_per_frame": round(size_mb / len(frames), 3)}
+    per_frame = {name: round(1e3 * stats.get(name, 0.0) / len(frames), 3) for name in STAGES}
+    per_frame["coco_merge"] = round(1e3 * (start + seconds - written) / len(frames), 3)
+    return {"fps": round(len(frames) / seconds, 1), "fps_before_merge": round(len(frames) / (written - start), 1), "mb_per_frame": round(size_mb / len(frames), 4),
+            "files_per_frame": round(len(files) / len(frames), 2), "commits": stats.get("commits", 0),
+            "ms_per_frame": per_frame}
+
+
+def disk_ceiling(out: Path, frames: int, files_per_frame: float, mb_per_frame: float, threads: int) -> float:
+    """Frames/s of the disk alone: as many files of the same mean size as ``frames`` frames make,
+    written atomically from ``threads`` threads (the writes release the GIL) and flushed with one
+    ``syncfs``, as the disk mode's commits do. No encode, no render: the storage's ceiling."""
+    count = max(1, round(frames * files_per_frame))
+    size = max(1, int(mb_per_frame * 1e6 / files_per_frame))
+    payload = os.urandom(size)  # incompressible, as encoded images are
+    out.mkdir(parents=True, exist_ok=True)
+    start = time.perf_counter()
+    with cf.ThreadPoolExecutor(threads) as pool:
+        list(pool.map(lambda i: atomic_write_bytes(os.path.join(out, f"{i:07d}.bin"), payload), range(count)))
+    if can_sync_filesystem():
+        sync_filesystem(out)
+    fps = frames / (time.perf_counter() - start)
+    shutil.rmtree(out, ignore_errors=True)
+    return fps
+
+
+DISK_RUNS = {
+    "headline": (("coco",), True, "disk"),
+    "with_depth": (("coco", "depth"), True, "disk"),
+    "with_depth_masks": (("coco", "depth", "masks"), True, "disk"),
+    "png": (("coco",), True, "disk"),
+    "headline_no_fsync": (("coco",), False, "disk"),
+    "headline_shm": (("coco",), True, "shm"),
+}
+"""Each disk run: (writers, fsync, where). The headline is the default annotation set (RGB and the
+COCO records: boxes and RLE masks) flushed to ``--out``'s disk; depth (uint16 PNG) and the id PNGs
+(masks) are measured on top of it; ``png`` is the headline with lossless RGB (the RGB format of
+the others is JPEG where nvjpeg runs); the last two locate the cost: the headline without the
+flushes, and into ``/dev/shm`` (memory: the CPU's rate with no storage under it)."""
+
+
+def disk_runs(args, jpeg_ok: bool, root: Path) -> list[tuple]:
+    """(name, image format, outputs, fsync, folder) of each of ``--runs``."""
+    fmt = "jpg" if jpeg_ok else "png"
+    runs = []
+    for name in args.runs.split(","):
+        outputs, fsync, where = DISK_RUNS[name]
+        if name == "png" and not jpeg_ok:
+            continue  # the headline is PNG already
+        folder = root
+        if where == "shm":
+            if not os.path.isdir("/dev/shm"):
+                continue
+            folder = Path("/dev/shm")
+        runs.append((name, "png" if name == "png" else fmt, outputs, fsync, folder))
+    return runs
+
+
+def _threads_run(config, out, stats=None, **kwargs):
+    """``run_frames`` as ``disk_run`` calls a writer (it keeps no stage times)."""
+    return run_frames(config, out, **kwargs)
 
 
 def warm_process(producer, count: int) -> float:
@@ -191,13 +264,12 @@ def main() -> None:
                         "cores - 2 on CUDA, 1 on Warp's CPU device)")
     p.add_argument("--processes", type=int, default=0,
                    help="producers on the device for a disk run of several processes (default 0: skipped)")
-    p.add_argument("--no-threads-run", action="store_true", help="skip the earlier disk mode (writer threads)")
+    p.add_argument("--threads-run", action="store_true", help="also the first disk mode (writer threads, PNG)")
+    p.add_argument("--disk-frames", type=int, default=4096, help="frames of each disk run")
+    p.add_argument("--runs", default=",".join(DISK_RUNS),
+                   help=f"disk runs, comma-separated, of {', '.join(DISK_RUNS)} (default: all)")
     p.add_argument("--memory-only", action="store_true",
                    help="raw render and the in-memory modes only (no disk run): e.g. many worlds a launch")
-    p.add_argument("--outputs", default=None,
-                   help="writers of the disk runs, comma-separated (default: the config's, coco,depth,masks); "
-                        "'coco' alone writes the rgb PNGs, COCO RLE masks and records")
-    p.add_argument("--no-fsync", action="store_true", help="skip the flushes to disk (WriterCfg.fsync=False)")
     p.add_argument("--process-frames", type=int, default=None,
                    help="frames of the processes' disk run (default: 2 x --frames, two launches each at the defaults)")
     p.add_argument("--out", default=None, help="parent folder of the disk runs' datasets (default: a temporary one)")
@@ -212,11 +284,10 @@ def main() -> None:
     if draw_workers < 1:
         p.error("--draw-workers must be >= 1: the disk modes write on the draw processes")
     args.process_frames = args.process_frames or 2 * args.frames
+    unknown = set(args.runs.split(",")) - set(DISK_RUNS)
+    if unknown:
+        p.error(f"unknown --runs {sorted(unknown)}: choose from {', '.join(DISK_RUNS)}")
     config = rep.example_config(width, height)
-    writer = config.writer
-    if args.outputs:
-        writer = dataclasses.replace(writer, outputs=tuple(args.outputs.split(",")))
-    config = dataclasses.replace(config, writer=dataclasses.replace(writer, fsync=writer.fsync and not args.no_fsync))
     n, dev = args.num_worlds, args.device
     frames = list(range(args.frames))
     root = Path(tempfile.mkdtemp(prefix="ambulo-gen-gpu-", dir=args.out))
@@ -300,29 +371,46 @@ def main() -> None:
         memory_host_fps = count / (time.perf_counter() - start)
         say(f"in memory, host draws: {memory_host_fps:.0f} frames/s ({memory_host_fps / raw_fps:.3f} of raw)")
 
-        # -- disk: the draw processes write from shared memory (PNG, and JPEG where it runs) ------
+        # -- disk: the draw processes write from shared memory -------------------------------------
         categories = instance_table(producer.model).categories
-        formats = [] if args.memory_only else ["png"] + (["jpg"] if jpeg_available(dev) else [])
-        disk = {}
-        for fmt in formats:
+        jpeg_ok = jpeg_available(dev)
+        disk, disk_ceiling_fps = {}, None
+        disk_frames = list(range(args.disk_frames))
+        for name, fmt, outputs, fsync, folder in [] if args.memory_only else disk_runs(args, jpeg_ok, root):
+            writer_cfg = dataclasses.replace(config.writer, outputs=outputs, fsync=fsync)
+            run_config = dataclasses.replace(config, writer=writer_cfg)
+            where = Path(tempfile.mkdtemp(prefix=f"ambulo-gen-{name}-", dir=folder))
             try:
-                disk[fmt] = disk_run(config, root / f"disk_{fmt}", frames, categories,
-                                     functools.partial(run_batched_frames, config, seed=2, frames=frames,
-                                                       producer=producer, image_format=fmt))
+                disk[name] = disk_run(run_config, where / "d", disk_frames, categories,
+                                      functools.partial(run_batched_frames, run_config, seed=2, frames=disk_frames,
+                                                        producer=producer, image_format=fmt))
             except Exception as err:  # one mode's failure is reported, and the others still run
-                disk[fmt] = {"fps": 0.0, "error": f"{type(err).__name__}: {err}"[:500]}
-                say(f"to disk, {fmt}: FAILED {disk[fmt]['error']}")
+                disk[name] = {"fps": 0.0, "error": f"{type(err).__name__}: {err}"[:500]}
+                say(f"to disk, {name}: FAILED {disk[name]['error']}")
                 continue
-            say(f"to disk, {fmt}, {draw_workers} processes writing: {disk[fmt]['fps']:.0f} frames/s "
-                f"({disk[fmt]['fps'] / raw_fps:.3f} of raw), {disk[fmt]['mb_per_frame']:.3f} MB a frame")
-        if not (args.no_threads_run or args.memory_only):  # the earlier disk mode: encoders on threads of this process
+            finally:
+                shutil.rmtree(where, ignore_errors=True)
+            disk[name].update(format=fmt, outputs=list(outputs), fsync=fsync, folder=str(folder))
+            say(f"to disk, {name} ({fmt}, {'+'.join(outputs)}, fsync {fsync}, in {folder}): {disk[name]['fps']:.0f} "
+                f"frames/s ({disk[name]['fps'] / raw_fps:.3f} of raw), {disk[name]['mb_per_frame']:.3f} MB and "
+                f"{disk[name]['files_per_frame']} files a frame, {disk[name]['commits']} commits")
+            say("  ms a frame: " + ", ".join(f"{k} {v}" for k, v in disk[name]["ms_per_frame"].items()) +
+                f" (part_* are CPU ms summed over {draw_workers} processes)")
+        head = disk.get("headline")
+        if head and "error" not in head:  # the storage alone, with the headline's files
+            disk_ceiling_fps = disk_ceiling(root / "ceiling", args.disk_frames, head["files_per_frame"],
+                                            head["mb_per_frame"], cpus)
+            say(f"disk ceiling (the headline's files, written and flushed, no encode): {disk_ceiling_fps:.0f} frames/s")
+        if args.threads_run and not args.memory_only:  # the first disk mode: encoders on threads of this process
             disk["png_threads"] = disk_run(config, root / "disk_threads", frames, categories,
-                                           functools.partial(run_frames, config, seed=2, frames=frames,
+                                           functools.partial(_threads_run, config, seed=2, frames=frames,
                                                              producer=producer, writer_threads=writer_threads))
             say(f"to disk, png, {writer_threads} threads: {disk['png_threads']['fps']:.0f} frames/s")
         for entry in disk.values():
             entry["of_raw"] = round(entry["fps"] / raw_fps, 3)
-        disk_fps = max((disk[fmt]["fps"] for fmt in formats), default=None)
+            if disk_ceiling_fps:
+                entry["of_disk_ceiling"] = round(entry["fps"] / disk_ceiling_fps, 3)
+        disk_fps = head["fps"] if head else None
         producer.close()
         del producer
         if dev.startswith("cuda"):  # give the device memory back before the processes take theirs
@@ -353,7 +441,7 @@ def main() -> None:
         shutil.rmtree(root, ignore_errors=True)
 
     best_disk = max(disk_fps or 0.0, procs["fps"] if procs else 0.0)
-    jpg_note = None if "jpg" in disk or args.memory_only else \
+    jpg_note = None if jpeg_ok or args.memory_only else \
         "torchvision's JPEG encoder did not run on this device: PNG only"
     result = {
         "benchmark": "generate_gpu", "date": datetime.date.today().isoformat(), "device": dev, "gpu": gpu,
@@ -368,8 +456,11 @@ def main() -> None:
         "memory_draws": "device", "memory_error": memory_error,
         "memory_host_draws_fps": round(memory_host_fps, 1), "memory_host_draws_of_raw": round(memory_host_fps / raw_fps, 3),
         "disk_fps": disk_fps and round(disk_fps, 1), "disk_of_raw": disk_fps and round(disk_fps / raw_fps, 3),
-        "disk": disk, "jpeg": jpg_note,
-        "outputs": list(config.writer.outputs), "fsync": config.writer.fsync, "writer_threads": writer_threads,
+        "disk_headline": "RGB (JPEG where nvjpeg runs) + COCO boxes and RLE masks, fsync, on --out's disk, "
+                         "the COCO merge included (fps_before_merge without it)",
+        "disk_ceiling_fps": disk_ceiling_fps and round(disk_ceiling_fps, 1), "disk_frames": args.disk_frames,
+        "disk": disk, "jpeg_note": jpg_note, "jpeg_available": jpeg_ok,
+        "writer_threads": writer_threads,
         "draw_workers": draw_workers, "disk_processes": procs,
         "targets": {"disk_fps": 2000, "memory_fps": 50000, "size": [640, 480]},
         "meets_targets": {"disk": None if args.memory_only else best_disk >= 2000, "memory": memory_fps >= 50000} if (width, height) == (640, 480)

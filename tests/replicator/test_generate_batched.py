@@ -51,15 +51,20 @@ def _by_instance(annotations: dict) -> dict:
     return {(a["image_id"], a["instance_id"]): (a["bbox"], a["area"]) for a in annotations["annotations"]}
 
 
-@pytest.mark.parametrize("device", DEVICES)
-def test_batched_dataset_has_the_cpu_paths_labels_and_resumes(device, tmp_path):
+@pytest.mark.parametrize("device, draw_workers", [
+    *(pytest.param(p.values[0], 0, marks=p.marks, id=p.id) for p in DEVICES),
+    # the disk mode: files written on the draw processes, records committed after a flush (batched_disk)
+    pytest.param("cuda", 2, marks=pytest.mark.skipif(not torch.cuda.is_available(), reason="needs CUDA"),
+                 id="cuda-disk-mode"),
+])
+def test_batched_dataset_has_the_cpu_paths_labels_and_resumes(device, draw_workers, tmp_path):
     from pycocotools.coco import COCO
 
     frames, seed = 6, 3
     cpu = generate(rep.example_config(160, 120), tmp_path / "cpu", frames, seed=seed, show_progress=False)
     # 4 worlds for 6 frames: a full batch and a partial one
     gpu = generate(rep.example_config(160, 120), tmp_path / "gpu", frames, seed=seed, show_progress=False,
-                   device=device, num_worlds=4)
+                   device=device, num_worlds=4, draw_workers=draw_workers)
     a, b = COCO(str(cpu)), COCO(str(gpu))  # pycocotools reads both
     assert sorted(a.getImgIds()) == sorted(b.getImgIds()) == list(range(1, frames + 1))
     want, got = _by_instance(json.loads(cpu.read_text())), _by_instance(json.loads(gpu.read_text()))
@@ -77,7 +82,7 @@ def test_batched_dataset_has_the_cpu_paths_labels_and_resumes(device, tmp_path):
     # resumable: a finished dataset is kept as it is, and more frames extend it
     before = (tmp_path / "gpu" / "frames" / "000002.json").read_bytes()
     generate(rep.example_config(160, 120), tmp_path / "gpu", frames + 2, seed=seed, show_progress=False,
-             device=device, num_worlds=4)
+             device=device, num_worlds=4, draw_workers=draw_workers)
     assert (tmp_path / "gpu" / "frames" / "000002.json").read_bytes() == before
     assert len(COCO(str(tmp_path / "gpu" / "annotations.json")).getImgIds()) == frames + 2
     # never mixed: the CPU path refuses to add rasterized frames to a ray-cast dataset

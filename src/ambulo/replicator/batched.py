@@ -147,18 +147,29 @@ class BatchedFrameProducer:
         return apply_randomizers(self.config.randomizers, self._names, self._cache, self.ctx, seed, index)
 
     def randomize(self, seed: int, chunk: list[int], drawn: list | None = None) -> list[dict]:
-        """World w gets frame ``chunk[w]``'s scene: the device reset, every world's draws applied
-        on the host, then one copy per written field (``HostWorlds``); returns the frame logs.
-        With a draw pool the draws come from its processes (``drawn``: the chunk's submission,
-        made here if not given)."""
-        self.sim.reset(forward=False)
+        """World w gets frame ``chunk[w]``'s scene: every world's draws applied on the host
+        (``draw_on_host``), then the device reset and one copy per written field (``upload_draws``);
+        returns the frame logs. With a draw pool the draws come from its processes (``drawn``: the
+        chunk's submission, made here if not given)."""
+        logs = self.draw_on_host(seed, chunk, drawn)
+        self.upload_draws(len(chunk))
+        return logs
+
+    def draw_on_host(self, seed: int, chunk: list[int], drawn: list | None = None) -> list[dict]:
+        """``randomize``'s host half: the host copies (``self.host``) get the chunk's draws; the
+        device is not touched, so this may run while it still renders the batch before (the
+        randomizers apply to the host copies alone, and nothing a device reset does is read)."""
         self.host.begin()
         if self.draws is None:
-            logs = [self.randomize_world(w, seed, index) for w, index in enumerate(chunk)]
-        else:
-            logs = self.draws.collect(self.draws.submit(seed, chunk) if drawn is None else drawn, self.host)
-        self.host.upload(len(chunk))
-        return logs
+            return [self.randomize_world(w, seed, index) for w, index in enumerate(chunk)]
+        return self.draws.collect(self.draws.submit(seed, chunk) if drawn is None else drawn, self.host)
+
+    def upload_draws(self, count: int) -> None:
+        """``randomize``'s device half: the state reset, then the host copies' first ``count``
+        worlds written to the device (queued on its stream behind the batch before's work; the
+        host copies may be rewritten as soon as this returns: ``host_worlds._copy_rows``)."""
+        self.sim.reset(forward=False)
+        self.host.upload(count)
 
     def _chunks(self, seed: int, indices: list[int]):
         """(chunk, drawn) for each launch's frames; with a draw pool, the next chunk's draws are

@@ -136,11 +136,13 @@ def batch_layout(num_worlds: int, height: int, width: int, jpeg: bool, semantic:
     return layout
 
 
-STAGES = ("render_s", "device_prep_s", "wait_block_s", "copy_s", "submit_s", "wait_writes_s", "commit_s",
+STAGES = ("render_s", "draws_s", "jpeg_s", "wait_block_s", "copy_s", "submit_s", "wait_writes_s", "commit_s",
           "part_capture_s", "part_write_s")
-"""What ``run_batched_frames(stats=...)`` adds up, in seconds: on the main thread the batch's draws
-collected, randomize and render (``render_s``), the device's JPEG/depth/id conversions
-(``device_prep_s``), waiting for a free block (``wait_block_s``: the processes are behind), the copy
+"""What ``run_batched_frames(stats=...)`` adds up, in seconds: on the main thread the upload of the
+batch's draws and the launches of its render and conversions (``render_s``: host time, the device
+works on), the next batch's draws collected and applied to the host copies meanwhile
+(``draws_s``: includes waiting for the draw processes), the JPEG encode (``jpeg_s``: it waits for
+the render), waiting for a free block (``wait_block_s``: the processes are behind), the copy
 into it and the boxes' and poses' to the host (``copy_s``), handing out the parts (``submit_s``);
 on the records thread waiting for the processes (``wait_writes_s``); on the commit thread the
 file system's flushes and the records' writes (``commit_s``); and summed over
@@ -176,18 +178,28 @@ def run_batched_frames(config, out: Path, seed: int, frames: list[int], producer
         free.put(block)
     commits = BatchCommits(writer, free, progress)
     times = commits.times
+    chunks = producer._chunks(seed, frames)  # each chunk's draws submitted one chunk ahead
     try:
-        for chunk, drawn in producer._chunks(seed, frames):
+        ahead = next(chunks, None)
+        ahead_logs = None if ahead is None else producer.draw_on_host(seed, *ahead)
+        while ahead is not None:
             start = time.perf_counter()
-            logs, (instances, boxes, pixels) = producer._render_chunk(seed, chunk, drawn)
-            mark = _lap(times, "render_s", start)
-            count = len(chunk)
+            chunk, logs, count = ahead[0], ahead_logs, len(ahead[0])
+            producer.upload_draws(count)  # queued behind the last batch's copies: its images are read
+            producer.render()
+            instances, boxes, pixels = producer.labels(count)
             images = producer.camera.data.output
             device = {"instances": as_u16_bits(instances)}
             if "depth_mm" in layout:
                 device["depth_mm"] = depth_mm(images["depth"][:count, ..., 0])
             if semantic:
                 device["semantic"] = as_u16_bits(images["semantic_segmentation"][:count, ..., 0])
+            mark = _lap(times, "render_s", start)
+            # the next chunk's draws applied to the host copies while the device renders this one
+            ahead = next(chunks, None)
+            if ahead is not None:
+                ahead_logs = producer.draw_on_host(seed, *ahead)
+            mark = _lap(times, "draws_s", mark)
             sizes = None
             if jpeg:
                 files = encode_jpegs(images["rgb"][:count])
@@ -195,7 +207,7 @@ def run_batched_frames(config, out: Path, seed: int, frames: list[int], producer
                 device["jpeg_bytes"] = torch.cat(files)
             else:
                 device["rgb"] = images["rgb"][:count]
-            mark = _lap(times, "device_prep_s", mark)
+            mark = _lap(times, "jpeg_s", mark)
             block = free.get()  # the batch before last has been written
             mark = _lap(times, "wait_block_s", mark)
             if commits.failed:
