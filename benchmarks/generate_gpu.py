@@ -21,7 +21,8 @@ The tutorial dataset (``replicator.example_config``, the warehouse bay) at ``--s
 - **disk** (``ambulo generate --device --draw-workers N [--image-format jpg]``):
   ``batched_disk.run_batched_frames`` with this producer's draw processes writing the files from
   shared memory and the records committed after a flush of the files, then the COCO merge and its
-  file, as ``generate`` ends, ``--disk-frames`` frames into a fresh folder each (``DISK_RUNS``):
+  file, as ``generate`` ends, ``--disk-frames`` frames into a fresh folder each, after one untimed
+  batch (the run's shared blocks made and page-locked: once per dataset in ``generate``) (``DISK_RUNS``):
   the **headline** is the default annotation set (RGB, as JPEG encoded on the GPU where
   torchvision's nvjpeg runs, and the COCO records: boxes and RLE masks) flushed to ``--out``'s
   disk; then with the depth PNGs, with depth and the id PNGs, with PNG RGB, and two that locate the
@@ -381,6 +382,10 @@ def main() -> None:
             run_config = dataclasses.replace(config, writer=writer_cfg)
             where = Path(tempfile.mkdtemp(prefix=f"ambulo-gen-{name}-", dir=folder))
             try:
+                # one batch first, not timed: the run's shared blocks are made and page-locked once
+                # per producer and layout (what a long generate pays once), the processes map them
+                prepare_dirs(where / "warm", writer_cfg)
+                run_batched_frames(run_config, where / "warm", 2, frames[:n], producer, image_format=fmt)
                 disk[name] = disk_run(run_config, where / "d", disk_frames, categories,
                                       functools.partial(run_batched_frames, run_config, seed=2, frames=disk_frames,
                                                         producer=producer, image_format=fmt))
