@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from ambulo import replicator as rep
-from ambulo.replicator.processes import _chunks, default_workers
+from ambulo.replicator.processes import _MAX_CHUNK, _MIN_CHUNK, _chunks, default_workers
 from ambulo.utils.atomic import TMP_MARK
 
 
@@ -42,7 +42,11 @@ def test_default_workers_and_chunks():
     assert 1 <= default_workers(100_000) <= os.cpu_count()
     frames = list(range(3, 1000))
     chunks = _chunks(frames, 2)
-    assert [i for c in chunks for i in c] == frames and max(map(len, chunks)) <= 32
+    sizes = [len(c) for c in chunks]
+    assert [i for c in chunks for i in c] == frames and max(sizes) <= _MAX_CHUNK
+    # few tasks (each drains the render/write pipeline), shrinking so the processes end together
+    assert len(chunks) <= 10 and sizes == sorted(sizes, reverse=True) and sizes[-2] == _MIN_CHUNK
+    assert [len(c) for c in _chunks(list(range(40)), 2)] == [20, 16, 4]
 
 
 def _children(pid: int) -> list[int]:
