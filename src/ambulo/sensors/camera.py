@@ -380,9 +380,13 @@ class Camera(Sensor):
         self._pending = None
         if wants_ids:
             # instance and semantic ids straight from the id pass (the same values as instance_map
-            # and a lookup of the instances, at a third of the cost)
-            geom_ids, depth, (instances, semantic) = self.renderer.read_ids(
-                want_depth, per_geom=(self.table.geom_instance, self._geom_semantic))
+            # and a lookup of the instances, at a third of the cost); the semantic map only when
+            # asked for (a lookup of every pixel, ~1 % of a frame the default annotators never read)
+            tables = (self.table.geom_instance,)
+            if "semantic_segmentation" in names:
+                tables += (self._geom_semantic,)
+            geom_ids, depth, (instances, *semantic) = self.renderer.read_ids(want_depth, per_geom=tables)
+            semantic = semantic[0] if semantic else None
             out["geom_ids"] = geom_ids
             cam = out["camera"]
             self._annotate(out, names, instances, depth, cam["intrinsics"], cam["extrinsics_cw"], data, semantic)
