@@ -240,6 +240,8 @@ class LegVoLocalizer:
         "map" (the pose the fix was taken at) or the match's reason for not being confident."""
         self._last_fix: tuple[RgbdFrame, np.ndarray] | None = None
         self._verified_s = world.time_s
+        self._refuted = False
+        """``refute_bridge`` since the last fix."""
 
     def on_step(self) -> None:
         """Every physics step (after ``world.step()``): the legs move on."""
@@ -253,6 +255,17 @@ class LegVoLocalizer:
         """(m walked by the legs, s) since the last accepted VO fix."""
         return self.legs.distance_m - self._fix_distance_m, self.world.time_s - self._fix_time_s
 
+    def refute_bridge(self) -> None:
+        """The legs' pose since the last fix is wrong (the navigator found the body inside an
+        obstacle of the map there): until the next fix the legs no longer gate the VO, as past the
+        bridge's limits (an agreeing fix is taken, a disagreeing one when the map confirms it), and
+        a lost VO's frames are checked against the map."""
+        self._refuted = True
+
+    def _bridged(self, since_m: float, since_s: float) -> bool:
+        """Whether the legs' bridge is within its limits and not refuted."""
+        return not self._refuted and since_m <= self.bridge_max_m and since_s <= self.bridge_max_s
+
     def on_frame(self, frame: RgbdFrame) -> PoseEstimate:
         legs_cam = self._legs_camera()
         motion = np.linalg.inv(self._prior_from) @ legs_cam if self.cfg.motion_prior else None
@@ -262,7 +275,7 @@ class LegVoLocalizer:
         predicted = self.pose()
         c = self.cfg
         if not est.tracked:
-            bridged = since_m <= self.bridge_max_m and since_s <= self.bridge_max_s
+            bridged = self._bridged(since_m, since_s)
             self._lost_run += 1
             if (self.map_source is not None and (not bridged or since_s >= c.lost_check_after_s)
                     and self._lost_run % c.check_rejected_every == 1):
@@ -276,7 +289,7 @@ class LegVoLocalizer:
         self._lost_run = 0
         est.pose_wc = _planar_matrix(self._map_vo) @ est.pose_wc  # the VO's frame -> the map's
         est.xyyaw = self._pelvis_of(est.pose_wc)
-        bridged = since_m <= self.bridge_max_m and since_s <= self.bridge_max_s
+        bridged = self._bridged(since_m, since_s)
         off = relative(predicted, est.xyyaw)
         gate_m = c.outlier_gate_m + c.outlier_gate_fraction * since_m
         agrees = math.hypot(off[0], off[1]) <= gate_m and abs(math.degrees(off[2])) <= c.outlier_gate_yaw_deg
@@ -360,6 +373,7 @@ class LegVoLocalizer:
 
     def _take_fix(self, est: PoseEstimate, frame: RgbdFrame) -> None:
         self._rejected_run = 0
+        self._refuted = False
         self._anchor(est.xyyaw, frame.time_s)
         self.legs.anchor(est.pose_wc[:3, :3] @ self._pose_imu_cam[:3, :3].T)
         bias = getattr(getattr(self.visual.vo, "gyro", None), "bias_rad_s", None)

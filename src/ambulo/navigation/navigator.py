@@ -112,6 +112,26 @@ class NavigatorCfg(Checked):
     are (a column is occupied when any band voxel over it is), so a corridor the ground truth
     leaves 0.6 m wide can read 0.5 m: full mode apartment 43 stood 15 s with 81 "no_route"
     replans before a corridor its goal lay in (routes found at 0.20 m, none at 0.22 m)."""
+    roomy_clearance_m: float | None = 0.35
+    """Footsteps keep this much clearance where the map allows (the start, the subgoal and the way
+    between), else ``planning.route_clearance_m`` (0.25 m); None: never. The arms reach 0.30-0.33 m
+    from the pelvis in a turn (``benchmarks/turn_on_the_spot.py``) and the online map misses the
+    near, low part of furniture the camera sees only from afar: plans at the 0.25 m limit walked
+    the body 0.11-0.16 m from an armchair and a wall the map put 0.25-0.3 m away (full mode
+    apartment 89: the body passed 0.11-0.16 m from an armchair the map put 0.27-0.32 m away, a
+    forearm on it; 49: 0.18 m from a wall; 16 of the 27 contacts of the 100-apartment run were
+    forearms on walls and table tops), m."""
+    roomy_max_expansions: int = 150
+    """Lattice expansions of a roomy plan before the usual one is planned instead (most roomy
+    plans are the straight walk along the body path: none), so that a replan costs at most this
+    much more."""
+    pose_conflict_m: float | None = 0.1
+    """A leg-odometry bridge that puts the pelvis this near to a cell the map holds occupied is
+    wrong (the body cannot stand inside furniture): the bridge ends there and the robot stands and
+    scans until a camera fix (which the map confirms when it disagrees with the legs) relocalises
+    it, instead of walking its plan on a pose it is not at (full mode apartment 74: 1.08 m of
+    bridged error, every replan "start_in_collision", the old plan walked on: 10 contacts of the
+    thighs with a bed); None: never, m."""
     start_snap_m: float = 0.35
     """A start stance that touches an obstacle moves to the nearest clear cell within this, m."""
     step_out_clearance_m: float = 0.2
@@ -210,6 +230,9 @@ class Navigator:
             self._narrow_routes = RoutePlanner(narrow)
             self._narrow_stage = FootstepStage(narrow, body_clearance_m=cfg.narrow_clearance_m)
         self._step_out_stage = FootstepStage(cfg.planning, body_clearance_m=cfg.step_out_clearance_m)
+        self._roomy_stage = None if cfg.roomy_clearance_m is None else FootstepStage(
+            dataclasses.replace(cfg.planning, footstep_max_expansions=cfg.roomy_max_expansions),
+            body_clearance_m=cfg.roomy_clearance_m)
         self._observers: list[tuple[Callable[[NavSnapshot], None], bool]] = []
         self.walker.bind(world)
         if hasattr(self.localizer, "bind_map") and self.mapper.needs_images:
@@ -263,6 +286,8 @@ class Navigator:
         self._last_plan_s = -math.inf
         self._replan_reason: str | None = None
         self._lost_since: float | None = None
+        self._bridge_refuted = False
+        """The map refuted the legs' bridge (``_pose_conflict``): no bridge until the next fix."""
         self._settled_since: float | None = None
         self._start_time_s = w.time_s
         self.times_s: list[float] = []
@@ -360,6 +385,8 @@ class Navigator:
         else:
             est = PoseEstimate(self.localizer.pose(), True, w.time_s, None if frame is None else frame.pose_wc.numpy())
         self.frames += 1
+        if est.tracked:
+            self._bridge_refuted = False  # a fix: the next bridge starts from it
         usable = est.tracked or self._bridges(est)
         source = est.source if usable else "none"
         self.frames_by_source[source] = self.frames_by_source.get(source, 0) + 1
@@ -411,7 +438,8 @@ class Navigator:
     def _bridges(self, est: PoseEstimate) -> bool:
         """Whether an untracked estimate is a leg-odometry bridge within the limits (module docstring)."""
         c = self.cfg
-        return est.source == "legs" and est.since_fix_m <= c.bridge_max_m and est.since_fix_s <= c.bridge_max_s
+        return (est.source == "legs" and not self._bridge_refuted and est.since_fix_m <= c.bridge_max_m
+                and est.since_fix_s <= c.bridge_max_s)
 
     @property
     def localized(self) -> bool:
@@ -442,12 +470,7 @@ class Navigator:
             self.estimate = PoseEstimate(self.localizer.pose(), self.estimate.tracked, now, None, self.estimate.state,
                                          self.estimate.source, since_m, since_s)
             if not self.localized:  # the bridge ran out between frames
-                self._lost_since = now
-                self.estimate = PoseEstimate(self.estimate.xyyaw, False, now, None, "bridge ended", "none",
-                                             since_m, since_s)
-                self.walker.stand()
-                if not self.done and self.status == "walking":
-                    self.status = "lost"
+                self._end_bridge(now, "bridge ended")
         if self.estimate.tracked and self.estimate.source != "legs":
             self._mark_body()
         felt = getattr(self.walker, "felt_xy_m", ())
@@ -507,7 +530,38 @@ class Navigator:
             self._steer_look(est)
         reason = self._replan_reason or self._replan_trigger(now, est, map_changed)
         if reason is not None:
+            if self._pose_conflict(est):
+                return self._end_bridge(now, "pose conflict")
             self._replan(now, est, reason)
+
+    def _pose_conflict(self, est: np.ndarray) -> bool:
+        """Whether the estimate is a leg-odometry bridge that puts the pelvis within
+        ``pose_conflict_m`` of a cell the map holds occupied (``NavigatorCfg.pose_conflict_m``). A
+        camera fix's pose is not tested: the cells under the body are marked free at each fix."""
+        c = self.cfg
+        if c.pose_conflict_m is None or self.estimate.tracked or self.estimate.source != "legs":
+            return False
+        grid = self.mapper.grid
+        iy, ix = grid.cell_of(est[:2])
+        ny, nx = grid.shape
+        return bool(0 <= iy < ny and 0 <= ix < nx
+                    and footstep_clearance(grid, optimistic=True)[iy, ix] < c.pose_conflict_m)
+
+    def _end_bridge(self, now: float, why: str) -> None:
+        """Stop walking on the legs' bridge (it ran out, or ``_pose_conflict``): untracked from here,
+        the robot stands (then scans) until a fix; a refuted bridge no longer gates the camera's
+        fixes either (``LegVoLocalizer.refute_bridge``)."""
+        if why != "bridge ended":
+            self._bridge_refuted = True
+            refute = getattr(self.localizer, "refute_bridge", None)
+            if refute is not None:
+                refute()
+        self._lost_since = now
+        e = self.estimate
+        self.estimate = PoseEstimate(e.xyyaw, False, now, None, why, "none", e.since_fix_m, e.since_fix_s)
+        self.walker.stand()
+        if not self.done and self.status == "walking":
+            self.status = "lost"
 
     def _replan_trigger(self, now: float, est: np.ndarray, map_changed: bool) -> str | None:
         c = self.cfg
@@ -631,12 +685,13 @@ class Navigator:
                 reason = reason + " (look)"
                 looked = (self._look_yaw_rad is None and self._looked_xy_m is not None
                           and np.linalg.norm(est[:2] - self._looked_xy_m) < self.cfg.look_again_m)
-            plan = self._plan_footsteps(stage, grid, version, optimistic, est, route, k, final, goal_xy, yaw)
+            plan = self._plan_footsteps(stage, grid, version, optimistic, est, route, k, final, goal_xy, yaw,
+                                        roomy=not look)
             if look and plan.status == PlanStatus.GOAL_IN_COLLISION and not optimistic:
                 # the body's cells (yaw-free) are clear, the turned soles touch cells never seen
                 # beside it: turning on the spot there is what the robot's own cells allow
                 # (apartment 200: 82 refused look turns, stuck)
-                plan = self._plan_footsteps(stage, grid, version, True, est, route, k, final, goal_xy, yaw)
+                plan = self._plan_footsteps(stage, grid, version, True, est, route, k, final, goal_xy, yaw, roomy=False)
                 reason = reason + " (unseen free)"
                 self._blind_zone(est)
             facing = look and plan.status == PlanStatus.SUCCESS and plan.num_steps < 1
@@ -704,8 +759,9 @@ class Navigator:
 
 
     def _plan_footsteps(self, stage: FootstepStage, grid, version, optimistic, est, route, k, final, goal_xy,
-                        yaw) -> FootstepPlan:
-        """Footsteps from the robot to route point ``k``. Two recoveries: a goal stance that touches
+                        yaw, roomy: bool = True) -> FootstepPlan:
+        """Footsteps from the robot to route point ``k``: first with ``roomy_clearance_m`` where the
+        map allows it (``roomy``, the usual stage; ``_roomy_plan``), else as follows. Two recoveries: a goal stance that touches
         an obstacle at the route's heading is tried at three other headings and then moved back
         along the route (up to ``goal_backoff_m``, inside the success radius); a start stance that
         touches one (the robot brushed close to something) starts from the nearest route point
@@ -713,6 +769,10 @@ class Navigator:
         stage of this replan (the narrow one after a narrow route)."""
         self._stepping_out = False
         feet = self.walker.start_feet() if hasattr(self.walker, "start_feet") else None
+        if roomy and stage is self.footsteps_stage:
+            plan = self._roomy_plan(grid, version, optimistic, est, goal_xy, yaw, feet)
+            if plan is not None:
+                return plan
         if feet is not None:  # a walker that steps on the footholds: plan from its feet
             plan = stage.plan(grid, version, optimistic, est, (goal_xy[0], goal_xy[1], yaw),
                               start_feet=feet[0], stance_side=feet[1])
@@ -747,6 +807,23 @@ class Navigator:
                 if retry.status != PlanStatus.GOAL_IN_COLLISION:
                     return retry
         return plan
+
+    def _roomy_plan(self, grid, version, optimistic, est, goal_xy, yaw, feet) -> FootstepPlan | None:
+        """A plan that keeps ``roomy_clearance_m`` all the way, or None (none asked, the robot or
+        the goal lacks that room on the map: no search then, or the search did not end at the
+        goal within ``roomy_max_expansions``)."""
+        need = self.cfg.roomy_clearance_m
+        if self._roomy_stage is None:
+            return None
+        clr = footstep_clearance(grid, optimistic)
+        iy, ix = grid.cells_of(np.array([est[:2], goal_xy[:2]], float))
+        ny, nx = grid.shape
+        if not (((iy >= 0) & (iy < ny) & (ix >= 0) & (ix < nx)).all() and (clr[iy, ix] >= need).all()):
+            return None
+        goal = (goal_xy[0], goal_xy[1], yaw)
+        start = {} if feet is None else {"start_feet": feet[0], "stance_side": feet[1]}
+        plan = self._roomy_stage.plan(grid, version, optimistic, est, goal, **start)
+        return plan if plan.status == PlanStatus.SUCCESS else None
 
 
 __all__ = ["MODES", "NavSnapshot", "Navigator", "NavigatorCfg"]
