@@ -9,7 +9,8 @@ processes (``draw_pool.DrawPool``, which already hold the scene): each batch's i
 once into a memory-mapped block (``SharedBatch``, page-locked for the GPU's copy where CUDA allows;
 two per producer, kept between runs: ``shared_blocks``), holding only what the dataset's writers
 read (``batch_layout``), and each process writes a contiguous part of the batch's frames from
-there (``writers.write_frame_files``) and hands back their records. ``commits.BatchCommits``
+there (``writers.write_frame_files``) and hands back their records. The COCO masks' run lengths
+of the whole batch are found on the device too (``device_rle``); a process only compresses them. ``commits.BatchCommits``
 frees a batch's block as soon as its files are written and writes its records after one flush
 of the files (a flush per group of batches, off the render's path), so a record on disk still
 always points to data on disk; the device renders batch i+1 while the processes write batch i.
@@ -24,6 +25,7 @@ from __future__ import annotations
 
 import collections
 import contextlib
+import functools
 import mmap
 import os
 import pickle
@@ -39,6 +41,7 @@ import torch
 from . import draw_pool
 from .batched import BatchedFrameProducer, frame_capture, tiled_camera_cfg
 from .commits import BatchCommits
+from .device_rle import frame_rles, rle_counts
 from .encode import IMAGE_FORMATS, as_u16_bits, depth_mm, encode_jpegs
 from .writers import FrameWriter, write_frame_files
 
@@ -136,14 +139,14 @@ def batch_layout(num_worlds: int, height: int, width: int, jpeg: bool, semantic:
     return layout
 
 
-STAGES = ("render_s", "draws_s", "jpeg_s", "wait_block_s", "copy_s", "submit_s", "wait_writes_s", "commit_s",
+STAGES = ("render_s", "draws_s", "jpeg_s", "rle_s", "wait_block_s", "copy_s", "submit_s", "wait_writes_s", "commit_s",
           "part_capture_s", "part_write_s")
 """What ``run_batched_frames(stats=...)`` adds up, in seconds: on the main thread the upload of the
 batch's draws and the launches of its render and conversions (``render_s``: host time, the device
 works on), the next batch's draws collected and applied to the host copies meanwhile
 (``draws_s``: includes waiting for the draw processes), the JPEG encode (``jpeg_s``: it waits for
-the render), waiting for a free block (``wait_block_s``: the processes are behind), the copy
-into it and the boxes' and poses' to the host (``copy_s``), handing out the parts (``submit_s``);
+the render), the COCO masks' run lengths found on the device and copied (``rle_s``), waiting for a
+free block (``wait_block_s``: the processes are behind), the copy into it and the boxes' and poses' to the host (``copy_s``), handing out the parts (``submit_s``);
 on the records thread waiting for the processes (``wait_writes_s``); on the commit thread the
 file system's flushes and the records' writes (``commit_s``); and summed over
 the processes, the captures (loose and 3D boxes) and the files' encode and write with the COCO
@@ -208,6 +211,9 @@ def run_batched_frames(config, out: Path, seed: int, frames: list[int], producer
             else:
                 device["rgb"] = images["rgb"][:count]
             mark = _lap(times, "jpeg_s", mark)
+            # the COCO masks' run lengths of every frame (one sync; the host compresses its frames')
+            rle = tuple(t.cpu().numpy() for t in rle_counts(instances, producer.table.num_instances))
+            mark = _lap(times, "rle_s", mark)
             block = free.get()  # the batch before last has been written
             mark = _lap(times, "wait_block_s", mark)
             if commits.failed:
@@ -217,7 +223,7 @@ def run_batched_frames(config, out: Path, seed: int, frames: list[int], producer
                 torch.from_numpy(target).view(tensor.shape).copy_(tensor, non_blocking=cuda)
             small = producer.to_host(count, instances, boxes, pixels, images=False)  # syncs the stream
             mark = _lap(times, "copy_s", mark)
-            commits.put(block, _submit_parts(pool, block, chunk, logs, small, sizes, out, config.writer,
+            commits.put(block, _submit_parts(pool, block, chunk, logs, small, sizes, rle, out, config.writer,
                                              writer.fsync_files))
             _lap(times, "submit_s", mark)
     finally:
@@ -255,19 +261,24 @@ def shared_blocks(producer: BatchedFrameProducer, layout: dict, pin: bool) -> li
     return blocks
 
 
-def _submit_parts(pool, block: SharedBatch, chunk, logs, small: dict, sizes, out, writer_cfg,
+def _submit_parts(pool, block: SharedBatch, chunk, logs, small: dict, sizes, rle: tuple, out, writer_cfg,
                   fsync_files: bool) -> list:
     """The batch's frames in one contiguous part per process, each written there (``_write_part``)."""
     count = len(chunk)
     size = -(-count // pool.workers)
     ends = np.cumsum(sizes) if sizes is not None else None
+    counts, offsets, lengths = rle
+    per_image = len(offsets) // count  # instances
     futures = []
     for start in range(0, count, size):
         stop = min(count, start + size)
         part_small = {name: array[start:stop] for name, array in small.items()}
         jpeg_spans = None if ends is None else [(int(ends[w] - sizes[w]), int(ends[w])) for w in range(start, stop)]
+        first, last = start * per_image, stop * per_image  # the part's images' groups, contiguous
+        lo, hi = int(offsets[first]), int(offsets[last - 1] + lengths[last - 1])
+        part_rle = (counts[lo:hi], offsets[first:last] - lo, lengths[first:last])
         futures.append(pool.submit_call(_write_part, block.spec, start, chunk[start:stop], logs[start:stop],
-                                        part_small, jpeg_spans, os.fspath(out), writer_cfg, fsync_files))
+                                        part_small, jpeg_spans, part_rle, os.fspath(out), writer_cfg, fsync_files))
     return futures
 
 
@@ -305,10 +316,13 @@ def _frame_context() -> tuple:
     return ctx
 
 
-def _write_part(spec, start: int, indices: list[int], logs: list[dict], small: dict, jpeg_spans, out: str,
-                writer_cfg, fsync_files: bool) -> tuple[list[tuple[int, dict]], dict]:
+def _write_part(spec, start: int, indices: list[int], logs: list[dict], small: dict, jpeg_spans, rle: tuple,
+                out: str, writer_cfg, fsync_files: bool) -> tuple[list[tuple[int, dict]], dict]:
     """Write frames ``indices`` (worlds ``start``... of the block ``spec``); returns their records
-    and this part's seconds of captures and of file writing (``STAGES``)."""
+    and this part's seconds of captures and of file writing (``STAGES``). Each capture carries
+    ``coco_rles``: its masks' RLEs from the device's run lengths (``device_rle.frame_rles``, the
+    bytes of ``coco.instance_rles``), for ``coco.frame_annotations`` to take instead of finding
+    the runs again on the host."""
     arrays = _attach(spec)
     cfg, k_matrix, table, model, annotators = _frame_context()
     records = []
@@ -319,6 +333,8 @@ def _write_part(spec, start: int, indices: list[int], logs: list[dict], small: d
     for i, (index, log) in enumerate(zip(indices, logs)):
         begin = time.perf_counter()
         capture = frame_capture(i, host, k_matrix, cfg, table, model, annotators)
+        capture["coco_rles"] = functools.partial(frame_rles, *rle, i, table.num_instances, height=cfg.height,
+                                                 width=cfg.width)
         middle = time.perf_counter()
         rgb_jpeg = None
         if jpeg_spans is not None:
