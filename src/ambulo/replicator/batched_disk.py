@@ -10,10 +10,11 @@ once into a memory-mapped block (``SharedBatch``, page-locked for the GPU's copy
 two per producer, kept between runs: ``shared_blocks``), holding only what the dataset's writers
 read (``batch_layout``), and each process writes a contiguous part of the batch's frames from
 there (``writers.write_frame_files``) and hands back their records. The COCO masks' run lengths
-of the whole batch are found on the device too (``device_rle``); a process only compresses them. ``commits.BatchCommits``
-frees a batch's block as soon as its files are written and writes its records after one flush
-of the files (a flush per group of batches, off the render's path), so a record on disk still
-always points to data on disk; the device renders batch i+1 while the processes write batch i.
+of the whole batch are found on the device too (``device_rle``); a process only compresses them.
+``commits.BatchCommits`` frees a batch's block as soon as its files are written and writes its
+records after one flush of the files (a flush per group of batches, off the render's path), so a
+record on disk still always points to data on disk. The device renders batch i+1 while the
+processes write batch i, and the host applies batch i+1's draws while the device renders batch i.
 
 The files are the ``run_frames`` path's, byte for byte, with PNG RGB (tested); with JPEG the RGB
 file is ``rgb/NNNNNN.jpg`` and the record's ``file_name`` says so (``writers.write_frame_files`` with
@@ -122,8 +123,8 @@ def _arrays(buffer, layout: dict, offsets: dict) -> dict:
 def batch_layout(num_worlds: int, height: int, width: int, jpeg: bool, semantic: bool = True,
                  depth: bool = True) -> dict:
     """The arrays a batch's block holds: the instance ids (16 bits: the COCO masks are made from
-    them), the depth in uint16 mm (converted on the device, ``encode.depth_mm``: a third of the
-    float's bytes to copy and no host conversion) when the dataset writes ``depth``, the semantic
+    them), the depth in uint16 mm (converted on the device, ``encode.depth_mm``: half the float's
+    bytes to copy and no host conversion) when the dataset writes ``depth``, the semantic
     ids when its masks include them (``semantic``), and the RGB images, raw or as the batch's JPEG
     files end to end (``jpeg_bytes``, with their offsets). Nothing a writer does not read is copied."""
     image = (num_worlds, height, width)
@@ -146,11 +147,12 @@ batch's draws and the launches of its render and conversions (``render_s``: host
 works on), the next batch's draws collected and applied to the host copies meanwhile
 (``draws_s``: includes waiting for the draw processes), the JPEG encode (``jpeg_s``: it waits for
 the render), the COCO masks' run lengths found on the device and copied (``rle_s``), waiting for a
-free block (``wait_block_s``: the processes are behind), the copy into it and the boxes' and poses' to the host (``copy_s``), handing out the parts (``submit_s``);
-on the records thread waiting for the processes (``wait_writes_s``); on the commit thread the
-file system's flushes and the records' writes (``commit_s``); and summed over
-the processes, the captures (loose and 3D boxes) and the files' encode and write with the COCO
-RLE (``part_capture_s``, ``part_write_s``): CPU seconds, to divide by the processes."""
+free block (``wait_block_s``: the processes are behind), the copy into it and the boxes' and
+poses' to the host (``copy_s``), handing out the parts (``submit_s``); on the settle thread
+waiting for the processes (``wait_writes_s``); on the commit thread the file system's flushes and
+the records' writes (``commit_s``); and summed over the processes, the captures (loose and 3D
+boxes) and the files' encode and write with the COCO annotations (``part_capture_s``,
+``part_write_s``): CPU seconds, to divide by the processes."""
 
 
 def run_batched_frames(config, out: Path, seed: int, frames: list[int], producer: BatchedFrameProducer,
