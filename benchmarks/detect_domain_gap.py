@@ -130,6 +130,25 @@ def draw_detections(checkpoint: Path, frames: list[Path], out: Path, score_thres
     return out
 
 
+def score(checkpoint: Path, splits: dict[str, tuple[Path, float | None, bool]], device: str,
+          processes: int) -> dict[str, dict]:
+    """``evaluate_checkpoint`` of each split {name: (folder, held-out fraction or None, with masks)}, in
+    ``processes`` processes at once (spawned: each its own CUDA context) or one after the other."""
+    from ambulo.detection import evaluate_checkpoint
+
+    def job(folder, fraction, masks):
+        return dict(checkpoint=checkpoint, dataset_dir=folder, held_out_fraction=fraction, device=device, masks=masks)
+
+    if processes <= 1:
+        return {name: evaluate_checkpoint(**job(*split)) for name, split in splits.items()}
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(processes, mp_context=multiprocessing.get_context("spawn")) as pool:
+        futures = {name: pool.submit(evaluate_checkpoint, **job(*split)) for name, split in splits.items()}
+        return {name: future.result() for name, future in futures.items()}
+
+
 def make(cfg: rep.DatasetConfig, out: Path, frames: int, seed: int, workers: int) -> Path:
     start = time.perf_counter()
     rep.generate(cfg, out, num_frames=frames, seed=seed, workers=workers, show_progress=False)
@@ -138,7 +157,7 @@ def make(cfg: rep.DatasetConfig, out: Path, frames: int, seed: int, workers: int
 
 
 def main() -> None:
-    from ambulo.detection import AugmentCfg, TrainCfg, evaluate_checkpoint, generic, geometry_only, train
+    from ambulo.detection import AugmentCfg, TrainCfg, generic, geometry_only, train
 
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", default="runs/domain_gap", help="datasets, run and result.json go here")
@@ -166,6 +185,8 @@ def main() -> None:
                         help="training augmentations: full (ambulo.detection.augment's defaults), generic (those "
                              "plus clutter-like occluders and uneven light: augment.generic) or geometry only")
     parser.add_argument("--max-minutes", type=float, default=0.0, help="training budget (TrainCfg.max_minutes)")
+    parser.add_argument("--score-processes", type=int, default=1,
+                        help="score the splits in this many processes at once (a GPU machine's spare cores)")
     parser.add_argument("--generate-only", action="store_true",
                         help="make the datasets in --out and stop (a later run with the same --out and sizes reuses "
                              "them: `ambulo generate` finishes a dataset, it does not redo it)")
@@ -208,10 +229,10 @@ def main() -> None:
                             "curve": [{k: e[k] for k in ("epoch", "step", "elapsed_s", "mAP", "mAP50")}
                                       for e in result.evaluations]}
         checkpoint = out / "run" / "checkpoint.pt"
-    scores = {"held_out_seeds": evaluate_checkpoint(checkpoint, train_data, None if fresh_held_out else held_out_fraction,
-                                                    device=args.device)}
-    for name, folder in splits.items():
-        scores[name] = evaluate_checkpoint(checkpoint, folder, device=args.device)
+    # the factor splits score boxes only: they say which factor costs the most, the whole split (b) says how much
+    jobs = {"held_out_seeds": (train_data, None if fresh_held_out else held_out_fraction, True)}
+    jobs.update({name: (folder, None, not name.endswith("_only")) for name, folder in splits.items()})
+    scores = score(Path(checkpoint), jobs, args.device, args.score_processes)
     base = scores["held_out_seeds"]
     summary["splits"] = scores
     summary["drop_mAP50_points"] = {name: round(100 * (base["mAP50"] - s["mAP50"]), 1) for name, s in scores.items()
@@ -221,7 +242,7 @@ def main() -> None:
     summary["ratio"] = round(scores["unseen_randomization"]["mAP50"] / base["mAP50"], 3) if base["mAP50"] else None
     for name, s in scores.items():
         masks = f", masks mAP {s['mask']['mAP']:.3f} mAP50 {s['mask']['mAP50']:.3f}" if "mask" in s else ""
-        print(f"{name:>22}: {s['frames']} frames, boxes mAP {s['mAP']:.3f} mAP50 {s['mAP50']:.3f}{masks}")
+        print(f"{name:>26}: {s['frames']} frames, boxes mAP {s['mAP']:.3f} mAP50 {s['mAP50']:.3f}{masks}")
     unseen_frames = sorted((splits["unseen_randomization"] / "rgb").glob("*.png"))[:4]
     summary["image"] = str(draw_detections(Path(checkpoint), unseen_frames, out / "detections_unseen.png"))
     (out / "result.json").write_text(json.dumps(summary, indent=1))

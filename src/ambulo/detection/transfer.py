@@ -20,8 +20,9 @@ from .train import load_trained
 
 
 def evaluate_checkpoint(checkpoint: str | Path, dataset_dir: str | Path, held_out_fraction: float | None = None,
-                        batch_size: int = 16, device: str = "cpu", num_workers: int = 0) -> dict:
-    """``evaluate_all`` (boxes, and masks for a model with them) of ``checkpoint`` on the frames of
+                        batch_size: int = 16, device: str = "cpu", num_workers: int = 0, masks: bool = True) -> dict:
+    """``evaluate_all`` (boxes, and masks for a model with them unless ``masks`` is False: pasting and
+    encoding every detection's mask is most of a CPU's scoring time) of ``checkpoint`` on the frames of
     ``dataset_dir``: all of them, or with ``held_out_fraction`` only the last fraction (the split
     training holds out), plus ``"frames"``: how many were scored."""
     model, state = load_trained(checkpoint, device)
@@ -46,7 +47,7 @@ def evaluate_checkpoint(checkpoint: str | Path, dataset_dir: str | Path, held_ou
     coco["annotations"] = [a for a in coco["annotations"] if a["category_id"] in category_ids]
     loader = torch.utils.data.DataLoader(CocoFrames(dataset_dir, coco, image_ids, canvas_hw), batch_size=batch_size,
                                          num_workers=num_workers, collate_fn=collate)
-    sizes = {im["id"]: (im["height"], im["width"]) for im in coco["images"]}
+    sizes = {im["id"]: (im["height"], im["width"]) for im in coco["images"]} if masks else None
     results = predict_coco(model, loader, torch.device(device), category_ids, sizes)
     return {**evaluate_all(coco, image_ids, results), "frames": len(image_ids)}
 
