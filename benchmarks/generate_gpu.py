@@ -210,17 +210,18 @@ def disk_ceiling(out: Path, frames: int, files_per_frame: float, mb_per_frame: f
 
 DISK_RUNS = {
     "headline": (("coco",), True, "disk"),
+    "headline_no_fsync": (("coco",), False, "disk"),
+    "headline_shm": (("coco",), True, "shm"),
     "with_depth": (("coco", "depth"), True, "disk"),
     "with_depth_masks": (("coco", "depth", "masks"), True, "disk"),
     "png": (("coco",), True, "disk"),
-    "headline_no_fsync": (("coco",), False, "disk"),
-    "headline_shm": (("coco",), True, "shm"),
 }
 """Each disk run: (writers, fsync, where). The headline is the default annotation set (RGB and the
 COCO records: boxes and RLE masks) flushed to ``--out``'s disk; depth (uint16 PNG) and the id PNGs
 (masks) are measured on top of it; ``png`` is the headline with lossless RGB (the RGB format of
-the others is JPEG where nvjpeg runs); the last two locate the cost: the headline without the
-flushes, and into ``/dev/shm`` (memory: the CPU's rate with no storage under it)."""
+the others is JPEG where nvjpeg runs); the two after the headline locate its cost: without the
+flushes, and into ``/dev/shm`` (memory: the CPU's rate with no storage under it). Each run prints a
+``RUN {json}`` line as it ends (a run cut short by a time limit still leaves the ones before)."""
 
 
 def disk_runs(args, jpeg_ok: bool, root: Path) -> list[tuple]:
@@ -401,11 +402,14 @@ def main() -> None:
                 f"{disk[name]['files_per_frame']} files a frame, {disk[name]['commits']} commits")
             say("  ms a frame: " + ", ".join(f"{k} {v}" for k, v in disk[name]["ms_per_frame"].items()) +
                 f" (part_* are CPU ms summed over {draw_workers} processes)")
+            if name == "headline":  # the storage alone, with the headline's files
+                disk_ceiling_fps = disk_ceiling(root / "ceiling", args.disk_frames, disk[name]["files_per_frame"],
+                                                disk[name]["mb_per_frame"], cpus)
+                say(f"disk ceiling (the headline's files, written and flushed, no encode): "
+                    f"{disk_ceiling_fps:.0f} frames/s")
+                print("RUN " + json.dumps({"disk_ceiling_fps": round(disk_ceiling_fps, 1)}), flush=True)
+            print("RUN " + json.dumps({name: disk[name], "raw_render_fps": round(raw_fps, 1)}), flush=True)
         head = disk.get("headline")
-        if head and "error" not in head:  # the storage alone, with the headline's files
-            disk_ceiling_fps = disk_ceiling(root / "ceiling", args.disk_frames, head["files_per_frame"],
-                                            head["mb_per_frame"], cpus)
-            say(f"disk ceiling (the headline's files, written and flushed, no encode): {disk_ceiling_fps:.0f} frames/s")
         if args.threads_run and not args.memory_only:  # the first disk mode: encoders on threads of this process
             disk["png_threads"] = disk_run(config, root / "disk_threads", frames, categories,
                                            functools.partial(_threads_run, config, seed=2, frames=frames,
