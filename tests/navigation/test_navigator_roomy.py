@@ -41,6 +41,7 @@ def test_a_plan_keeps_the_roomy_clearance_where_the_map_has_room(room, roomy_cle
     nav._replan(world.time_s, np.array([-1.0, 0.0, 0.0]), "test")
     record = nav.replans[-1]
     assert record.footstep_status == "success" and record.refused is None, record
+    assert ("(roomy)" in record.reason) == (roomy_clearance_m is not None), record
     grid = nav.mapper.grid
     clr = footstep_clearance(grid, optimistic=False)
     path = body_path(nav.plan)
@@ -63,6 +64,7 @@ def test_no_roomy_plan_where_the_robot_lacks_the_room_the_usual_one_instead(room
     nav._replan(world.time_s, np.array([-1.0, 0.0, 0.0]), "test")
     record = nav.replans[-1]
     assert record.footstep_status == "success" and record.refused is None and record.final, record
+    assert "(roomy)" not in record.reason, record
     world.close()
 
 

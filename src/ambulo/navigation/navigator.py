@@ -286,6 +286,8 @@ class Navigator:
         self._last_plan_s = -math.inf
         self._replan_reason: str | None = None
         self._lost_since: float | None = None
+        self._roomy: FootstepPlan | None = None
+        """This replan's plan that keeps ``roomy_clearance_m``, if any (its reason says so)."""
         self._bridge_refuted = False
         """The map refuted the legs' bridge (``_pose_conflict``): no bridge until the next fix."""
         self._settled_since: float | None = None
@@ -731,6 +733,9 @@ class Navigator:
                     plan = self._plan_footsteps(stage, grid, version, True, est, route, j, final, walk_xy, walk_yaw)
                     reason = reason + " (unseen free)"
                     self._blind_zone(est)
+            if plan is self._roomy:
+                reason = reason + " (roomy)"
+            self._roomy = None
             status, steps = plan.status.value, plan.num_steps
             usable = plan.status == PlanStatus.SUCCESS or (plan.num_steps >= 2 and plan.status in (
                 PlanStatus.BUDGET_EXHAUSTED, PlanStatus.GOAL_UNREACHABLE))
@@ -823,7 +828,10 @@ class Navigator:
         goal = (goal_xy[0], goal_xy[1], yaw)
         start = {} if feet is None else {"start_feet": feet[0], "stance_side": feet[1]}
         plan = self._roomy_stage.plan(grid, version, optimistic, est, goal, **start)
-        return plan if plan.status == PlanStatus.SUCCESS else None
+        if plan.status != PlanStatus.SUCCESS:
+            return None
+        self._roomy = plan
+        return plan
 
 
 __all__ = ["MODES", "NavSnapshot", "Navigator", "NavigatorCfg"]
