@@ -18,6 +18,11 @@ training data has moved outside its training range:
 - clutter: another pool of distractor shapes and colours, 6-10 of them (training 2-6) and larger;
 - camera height: the head camera 0.25-0.45 m above its mount (training: 1 cm standard deviation).
 
+``--factors`` also scores split (b) with one factor moved at a time (``config(factors=...)``): which
+one costs the most. ``--train-config generic`` trains on ``training_config()``: the example config
+with generic variety added (a larger distractor pool, recoloured and textured every frame; more
+object textures), all within the example config's own ranges, so split (b) stays unseen.
+
 Split (c) is the example config drawn by MuJoCo 4's Filament renderer (``--renderer pbr``: PBR
 materials and image-based lighting) instead of the raster renderer it was trained on; leave it out
 with ``--no-pbr`` where Filament (Vulkan) is missing.

@@ -1,0 +1,50 @@
+"""The domain-gap benchmark's configs: each factor split moves only its randomizer, and the generic
+training config adds variety without reaching into split (b)'s ranges (the split must stay unseen)."""
+
+import dataclasses
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+from ambulo import replicator as rep
+
+GAP_FILE = Path(__file__).resolve().parents[2] / "benchmarks" / "detect_domain_gap.py"
+
+
+@pytest.fixture(scope="module")
+def gap():
+    spec = importlib.util.spec_from_file_location("detect_domain_gap", GAP_FILE)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def by_name(cfg: rep.DatasetConfig) -> dict:
+    return {r.name: r for r in cfg.randomizers}
+
+
+def test_each_factor_split_moves_only_its_randomizer(gap):
+    example, unseen = by_name(rep.example_config(64, 48)), by_name(gap.config(64, 48))
+    for factor, moved in gap.FACTORS.items():
+        one = by_name(gap.config(64, 48, (factor,)))
+        assert one.keys() == example.keys()
+        assert [n for n in one if one[n] != example[n]] == [moved], factor
+        assert one[moved] == unseen[moved]
+    assert [n for n in unseen if unseen[n] != example[n]] == sorted(gap.FACTORS.values(), key=list(unseen).index)
+
+
+def test_generic_training_data_stays_outside_the_unseen_split(gap):
+    train, example, unseen = by_name(gap.training_config(64, 48)), by_name(rep.example_config(64, 48)), \
+        by_name(gap.config(64, 48))
+    # lights and camera exactly the example's: split (b)'s lighting and heights stay unseen
+    assert train["lights"] == example["lights"] and train["camera_jitter"] == example["camera_jitter"]
+    # distractors: more of the same kind, not split (b)'s pool, sizes or counts
+    d, e, u = train["distractors"], example["distractors"], unseen["distractors"]
+    assert d.pool_size > e.pool_size and d.pool_seed == e.pool_seed != u.pool_seed
+    assert d.size_m == e.size_m and d.count == e.count and d.size_m[1] < u.size_m[1]
+    assert dataclasses.replace(d, pool_size=e.pool_size) == e
+    # textures: a larger palette of the training seed, never split (b)'s
+    seeds = {r.palette_seed for r in train.values() if isinstance(r, rep.MaterialRandomizer)}
+    assert unseen["object_materials"].palette_seed not in seeds
+    assert train["object_materials"].untextured_probability == example["object_materials"].untextured_probability
