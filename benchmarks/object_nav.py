@@ -86,6 +86,8 @@ def main() -> None:
     ap.add_argument("--out", default="out/bench_object_nav")
     ap.add_argument("--ceiling", action="store_true", help="also the known-object episodes (no detection, no search)")
     ap.add_argument("--detector", default=None, help="ONNX detector (default: the shipped one)")
+    ap.add_argument("--summarize", action="store_true",
+                    help="run nothing: summarize the episodes already under --out (after a run was cut short)")
     args = ap.parse_args()
     from ambulo.navigation.object_episode import DETECTOR_PATH
 
@@ -99,8 +101,10 @@ def main() -> None:
         for i in range(args.episodes):
             seed = args.first_seed + i
             f = folder / f"apartment_{seed:04d}.json"
+            if args.summarize and not f.exists():
+                continue
             files.setdefault((mode, known), []).append(f)
-            if not f.exists():
+            if not f.exists() and not args.summarize:
                 tasks.append((seed, mode, known, detector, str(f)))
     t0 = time.perf_counter()
     if tasks:

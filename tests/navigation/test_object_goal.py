@@ -93,3 +93,16 @@ def test_the_stance_is_free_within_range_on_the_robots_side_and_faces_the_object
     assert abs(math.atan2(obj[1] - goal[1], obj[0] - goal[0]) - yaw) < 1e-9
     iy, ix = grid.cell_of(goal)
     assert not occ[max(iy - 5, 0):iy + 6, max(ix - 5, 0):ix + 6].any()  # 0.25 m of room all round
+
+
+def test_apartment_furniture_labels_and_goal_names():
+    from ambulo.scenes.apartment_labels import canonical_label, furniture_label
+
+    assert furniture_label("/World/apartment/room_2/armchair_3") == "armchair"
+    assert furniture_label("/World/apartment/room_2/round_table_1/top") == "table"
+    assert furniture_label("/World/apartment/room_2/table_4/leg_0") is None  # the top carries the label
+    assert furniture_label("/World/apartment/room_2/lamp_5/pole") is None
+    assert furniture_label("/World/apartment/walls/wall_3") is None
+    assert canonical_label("Chair") == "armchair" and canonical_label("potted plant") == "plant"
+    with pytest.raises(ValueError, match="known"):
+        canonical_label("piano")

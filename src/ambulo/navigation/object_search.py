@@ -216,12 +216,12 @@ class ObjectSearch:
     def look_around(self) -> None:
         """Turn on the spot by ``scan_turn_rad`` (stopping early once a track of the label is confirmed)."""
         nav, c = self.nav, self.cfg
-        turned = [0.0, float(nav.world.true_pose()[2])]
+        turned = [0.0, float(nav.estimate.xyyaw[2])]
         t_cap = nav.world.time_s + 1.5 * c.scan_turn_rad / c.scan_rate_rad_s
 
         def going() -> bool:
             nav.walker.scan(c.scan_rate_rad_s)
-            yaw = float(nav.world.true_pose()[2])  # progress of the turn only, never a position
+            yaw = float(nav.estimate.xyyaw[2])  # held while untracked: the time cap ends the turn then
             turned[0] += abs(wrap_rad(yaw - turned[1]))
             turned[1] = yaw
             return turned[0] < c.scan_turn_rad and nav.world.time_s < t_cap and not self.objects.confirmed(self.label)

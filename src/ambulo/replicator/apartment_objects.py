@@ -36,7 +36,7 @@ from ambulo.sensors import CameraCfg
 
 from .config import DATASET_ANNOTATORS, DatasetConfig
 from .generate import generate
-from .randomizers import CameraJitter, LightRandomizer, Randomizer
+from .randomizers import CameraJitter, Randomizer
 from .writers import WriterCfg
 
 NAV_FOCAL_PX_AT_640 = 525.0
@@ -50,9 +50,19 @@ def labelled_solids(apt: Apartment) -> list[tuple[str, str]]:
     return [(s.name, label) for s in apt.solids if (label := furniture_label(s.name)) is not None]
 
 
-def build_labelled_apartment(apt: Apartment, robot_pose=(0.0, 0.0, 0.0)) -> mujoco.MjSpec:
-    """The apartment's scene with the humanoid and its furniture labelled (``scenes.apartment_labels``)."""
+NAV_HEAD_LAMP = 0.8
+"""The navigator's head lamp (``NavWorldCfg.head_lamp``: MuJoCo's headlight, diffuse; ambient 0.1): the
+apartments' own lights leave the head camera's view at ~40/255, so the robot carries a lamp, and
+frames without it were half as bright as any the detector is shown on the robot."""
+
+
+def build_labelled_apartment(apt: Apartment, robot_pose=(0.0, 0.0, 0.0), head_lamp: float = NAV_HEAD_LAMP) -> mujoco.MjSpec:
+    """The apartment's scene with the humanoid, its head lamp and its furniture labelled (``scenes.apartment_labels``)."""
     spec = apt.build(robot_pose=robot_pose)
+    if head_lamp > 0:
+        spec.visual.headlight.active = 1
+        spec.visual.headlight.diffuse = [head_lamp] * 3
+        spec.visual.headlight.ambient = [0.1] * 3
     for name, label in labelled_solids(apt):
         set_semantic_label(spec, name, label)
     return spec
@@ -131,7 +141,9 @@ class RobotPlacement(Randomizer):
 
 
 def apartment_objects_config(apartment_seed: int, width: int = 160, height: int = 120) -> DatasetConfig:
-    """One apartment's dataset (module docstring): placement, aim jitter and mild lighting changes."""
+    """One apartment's dataset (module docstring): placement and aim jitter. The lighting is the
+    apartment's own (seeded, varied across apartments), as the navigator sees it: a light randomizer
+    that redraws every light from one range made frames darker than any apartment the robot walks in."""
     apt = apartment(apartment_seed)
     return DatasetConfig(
         name=f"ambulo_apartment_{apartment_seed}_objects",
@@ -142,8 +154,6 @@ def apartment_objects_config(apartment_seed: int, width: int = 160, height: int 
             CameraJitter(name="camera_jitter", camera=humanoid.HEAD_CAMERA_PRIM,
                          position_m=uniform((-0.02, -0.02, -0.02), (0.02, 0.02, 0.02)),
                          rotation_deg=uniform((-3.0, -6.0, -4.0), (3.0, 6.0, 4.0))),
-            LightRandomizer(name="lights", lights="/World/apartment/*", intensity=uniform(0.15, 0.5),
-                            ambient=uniform(0.15, 0.4), elevation_deg=uniform(40.0, 85.0)),
         ],
         writer=WriterCfg(outputs=("coco",), fsync=False),  # a detector reads RGB and COCO; a lost frame is regenerated
     )
@@ -156,22 +166,34 @@ class MergedDataset:
     categories: list[str] = field(default_factory=list)
 
 
+def _generate_one(task: tuple) -> str:
+    seed, out, frames, width, height = task
+    return str(generate(apartment_objects_config(seed, width, height), out, frames, seed=0, workers=1,
+                        show_progress=False))
+
+
 def generate_apartments(out: str | Path, apartment_seeds: Iterable[int], frames_per_apartment: int, *,
-                        width: int = 160, height: int = 120, workers: int = 1, min_area_px: int = 20,
-                        show_progress: bool = False) -> MergedDataset:
-    """One dataset per apartment under ``out/apartment_<seed>`` (resumable) and ``out/annotations.json``
-    over all of them in seed order: categories by name (``object_labels``), image and
-    annotation ids renumbered, file names relative to ``out``. Slivers under ``min_area_px`` (a piece at
-    the frame's edge) are marked crowd: neither taught nor scored."""
+                        width: int = 160, height: int = 120, processes: int = 1, min_area_px: int = 20) -> MergedDataset:
+    """One dataset per apartment under ``out/apartment_<seed>`` (resumable; ``processes`` apartments at a
+    time, one process each) and ``out/annotations.json`` over all of them in seed order: categories by
+    name (``object_labels``), image and annotation ids renumbered, file names relative to ``out``.
+    Slivers under ``min_area_px`` (a piece at the frame's edge) are marked crowd: neither taught nor scored."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    seeds = [int(s) for s in apartment_seeds]
+    tasks = [(seed, out / f"apartment_{seed:04d}", frames_per_apartment, width, height) for seed in seeds]
+    if processes > 1:
+        import multiprocessing as mp
+
+        with mp.get_context("spawn").Pool(processes) as pool:
+            paths = pool.map(_generate_one, tasks, chunksize=1)
+    else:
+        paths = [_generate_one(t) for t in tasks]
     categories = object_labels()
     cat_id = {name: k + 1 for k, name in enumerate(categories)}
     images, annotations = [], []
-    for seed in apartment_seeds:
-        sub = f"apartment_{int(seed):04d}"
-        path = generate(apartment_objects_config(int(seed), width, height), out / sub, frames_per_apartment, seed=0,
-                        workers=workers, show_progress=show_progress)
+    for seed, path in zip(seeds, paths):
+        sub = f"apartment_{seed:04d}"
         coco = json.loads(Path(path).read_text())
         names = {c["id"]: c["name"] for c in coco["categories"]}
         new_id = {}
@@ -199,13 +221,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--frames-per-apartment", type=int, default=60)
     p.add_argument("--width", type=int, default=160)
     p.add_argument("--height", type=int, default=120)
-    p.add_argument("--workers", type=int, default=1)
+    p.add_argument("--processes", type=int, default=1, help="apartments rendered at a time (one process each)")
     args = p.parse_args(argv)
     text = args.apartments
     seeds = range(int(text.split("-")[0]), int(text.split("-")[1]) + 1) if "-" in text else \
         [int(s) for s in text.split(",")]
     merged = generate_apartments(args.out, seeds, args.frames_per_apartment, width=args.width, height=args.height,
-                                 workers=args.workers)
+                                 processes=args.processes)
     print(f"{merged.frames} frames, categories {merged.categories}: {merged.annotations_path}")
     return 0
 
