@@ -115,12 +115,12 @@ class NavigatorCfg(Checked):
     roomy_clearance_m: float | None = 0.35
     """Footsteps keep this much clearance where the map allows (the start, the subgoal and the way
     between), else ``planning.route_clearance_m`` (0.25 m); None: never. The arms reach 0.30-0.33 m
-    from the pelvis in a turn (``benchmarks/turn_on_the_spot.py``) and the online map misses the
-    near, low part of furniture the camera sees only from afar: plans at the 0.25 m limit walked
-    the body 0.11-0.16 m from an armchair and a wall the map put 0.25-0.3 m away (full mode
-    apartment 89: the body passed 0.11-0.16 m from an armchair the map put 0.27-0.32 m away, a
-    forearm on it; 49: 0.18 m from a wall; 16 of the 27 contacts of the 100-apartment run were
-    forearms on walls and table tops), m."""
+    from the pelvis in a turn (``benchmarks/turn_on_the_spot.py``), and a walk that cuts a corner
+    keeps only the 0.25 m limit: in full mode the body passed door jambs 0.20-0.21 m away by the
+    ground truth (0.25 m by the map; apartments 49, 55) and an armchair 0.11-0.16 m away whose near
+    face the map placed 0.15 m short (89), a forearm on each; 16 of the 27 contacts of the
+    100-apartment run were forearms on walls and table tops. In those three a roomy plan was not
+    possible (the subgoal or the door lacked the room), m."""
     roomy_max_expansions: int = 150
     """Lattice expansions of a roomy plan before the usual one is planned instead (most roomy
     plans are the straight walk along the body path: none), so that a replan costs at most this
