@@ -207,6 +207,9 @@ def main() -> None:
             TRAIN_CONFIGS[args.train_config](args.width, args.height), out / "train", args.frames, 0, args.workers)
     splits = {"unseen_randomization": make(config(args.width, args.height), out / "unseen", eval_frames, 1,
                                            args.workers)}
+    if args.train_config != "example":  # the example dataset's own frames (seed 3: unused), to compare with its runs
+        splits["example_config"] = make(rep.example_config(args.width, args.height), out / "example", eval_frames, 3,
+                                         args.workers)
     for factor in FACTORS if args.factors else ():
         splits[f"unseen_{factor}_only"] = make(config(args.width, args.height, (factor,)),
                                                out / f"unseen_{factor}", eval_frames, 1, args.workers)
