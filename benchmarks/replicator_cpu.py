@@ -13,10 +13,10 @@ For each image size and worker count P, in the same run:
   the same two passes of scenes made by the producer into its own buffers
   cost the same CPU (results/cpu-2026-11-28-replicator-producer.md).
 - annotated: what ``ambulo generate --workers P`` does in steady state with the
-  example config: randomize, render both passes, instance/semantic maps, 2D/3D
+  example config: randomize, render both passes, the instance map, 2D/3D
   boxes, COCO RLE, PNG rgb + 16-bit depth + instance PNGs (no semantic PNG: the
   default annotators, as Replicator's BasicWriter, ask for none) and the frame
-  record, all written atomically into ``--dir`` (default: the system's temporary
+  record (after the files), written into ``--dir`` (default: the system's temporary
   folder).
   P = 1 runs in this process (llvmpipe's default threads), P > 1 on
   ``ProducerPool`` (spawned processes, llvmpipe inline).

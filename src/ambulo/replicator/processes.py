@@ -5,8 +5,9 @@ a process that may hold a GL context. Each one renders with the software
 rasterizer inline (``LP_NUM_THREADS=0``): the processes already occupy the
 cores, and llvmpipe's own threads would only add hand-offs between them.
 Frame ``i`` depends only on (config, seed, i), so which process renders it
-does not change its files; every file is written atomically, so a worker or
-parent killed at any instant leaves no partial file behind (``generate``).
+does not change its files; a frame counts once its record is written, after its
+files, so a worker or parent killed at any instant leaves frames the next run
+makes again, never a record of a partial file (``writers``).
 """
 
 from __future__ import annotations
