@@ -112,19 +112,22 @@ class NavigatorCfg(Checked):
     are (a column is occupied when any band voxel over it is), so a corridor the ground truth
     leaves 0.6 m wide can read 0.5 m: full mode apartment 43 stood 15 s with 81 "no_route"
     replans before a corridor its goal lay in (routes found at 0.20 m, none at 0.22 m)."""
-    roomy_clearance_m: float | None = 0.35
-    """Footsteps keep this much clearance where the map allows (the start, the subgoal and the way
-    between), else ``planning.route_clearance_m`` (0.25 m); None: never. The arms reach 0.30-0.33 m
-    from the pelvis in a turn (``benchmarks/turn_on_the_spot.py``), and a walk that cuts a corner
-    keeps only the 0.25 m limit: in full mode the body passed door jambs 0.20-0.21 m away by the
-    ground truth (0.25 m by the map; apartments 49, 55) and an armchair 0.11-0.16 m away whose near
-    face the map placed 0.15 m short (89), a forearm on each; 16 of the 27 contacts of the
-    100-apartment run were forearms on walls and table tops. In those three a roomy plan was not
-    possible (the subgoal or the door lacked the room), m."""
-    roomy_max_expansions: int = 150
-    """Lattice expansions of a roomy plan before the usual one is planned instead (most roomy
-    plans are the straight walk along the body path: none), so that a replan costs at most this
-    much more."""
+    roomy_clearance_m: tuple[float, ...] = (0.35, 0.3)
+    """Footsteps keep the first of these clearances the map allows (at the start, the subgoal and on
+    the way between), else ``planning.route_clearance_m`` (0.25 m); (): never. The arms reach
+    0.30-0.33 m from the pelvis in a turn (``benchmarks/turn_on_the_spot.py``), and a walk that
+    cuts a corner keeps only the 0.25 m limit: in full mode the body passed door jambs 0.20-0.21 m
+    away by the ground truth (0.25 m by the map; apartments 49, 55) and an armchair 0.11-0.16 m away
+    whose near face the map placed 0.15 m short (89), a forearm on each; 16 of the 27 contacts of
+    the 100-apartment run were forearms on walls and table tops. 0.35 m there was not possible
+    (the subgoal or the door lacked it); 0.3 m is what ``choose_subgoal`` gives a subgoal (a cell
+    more than the route's clearance) and what a 0.8 m door leaves when the map thickens its jambs
+    by a cell, m."""
+    roomy_max_expansions: int = 60
+    """Lattice expansions of each roomy plan before the next (then the usual one) is planned
+    instead: most roomy plans are the straight walk along the body path (no expansion), and one
+    that needs a search is in a tight spot a roomy plan is not for; so a replan costs at most
+    about this much more per roomy clearance (~45 ms each on a busy 2-core VM)."""
     pose_conflict_m: float | None = 0.1
     """A leg-odometry bridge that puts the pelvis this near to a cell the map holds occupied is
     wrong (the body cannot stand inside furniture): the bridge ends there and the robot stands and
@@ -230,9 +233,8 @@ class Navigator:
             self._narrow_routes = RoutePlanner(narrow)
             self._narrow_stage = FootstepStage(narrow, body_clearance_m=cfg.narrow_clearance_m)
         self._step_out_stage = FootstepStage(cfg.planning, body_clearance_m=cfg.step_out_clearance_m)
-        self._roomy_stage = None if cfg.roomy_clearance_m is None else FootstepStage(
-            dataclasses.replace(cfg.planning, footstep_max_expansions=cfg.roomy_max_expansions),
-            body_clearance_m=cfg.roomy_clearance_m)
+        roomy = dataclasses.replace(cfg.planning, footstep_max_expansions=cfg.roomy_max_expansions)
+        self._roomy_stages = [FootstepStage(roomy, body_clearance_m=r) for r in cfg.roomy_clearance_m]
         self._observers: list[tuple[Callable[[NavSnapshot], None], bool]] = []
         self.walker.bind(world)
         if hasattr(self.localizer, "bind_map") and self.mapper.needs_images:
@@ -766,12 +768,12 @@ class Navigator:
     def _plan_footsteps(self, stage: FootstepStage, grid, version, optimistic, est, route, k, final, goal_xy,
                         yaw, roomy: bool = True) -> FootstepPlan:
         """Footsteps from the robot to route point ``k``: first with ``roomy_clearance_m`` where the
-        map allows it (``roomy``, the usual stage; ``_roomy_plan``), else as follows. Two recoveries: a goal stance that touches
-        an obstacle at the route's heading is tried at three other headings and then moved back
-        along the route (up to ``goal_backoff_m``, inside the success radius); a start stance that
-        touches one (the robot brushed close to something) starts from the nearest route point
-        ahead whose stance is clear, within the walker's start offset. ``stage``: the footstep
-        stage of this replan (the narrow one after a narrow route)."""
+        map allows it (``roomy``, the usual stage; ``_roomy_plan``), else as follows. Two
+        recoveries: a goal stance that touches an obstacle at the route's heading is tried at three
+        other headings and then moved back along the route (up to ``goal_backoff_m``, inside the
+        success radius); a start stance that touches one (the robot brushed close to something)
+        starts from the nearest route point ahead whose stance is clear, within the walker's start
+        offset. ``stage``: the footstep stage of this replan (the narrow one after a narrow route)."""
         self._stepping_out = False
         feet = self.walker.start_feet() if hasattr(self.walker, "start_feet") else None
         if roomy and stage is self.footsteps_stage:
@@ -814,24 +816,27 @@ class Navigator:
         return plan
 
     def _roomy_plan(self, grid, version, optimistic, est, goal_xy, yaw, feet) -> FootstepPlan | None:
-        """A plan that keeps ``roomy_clearance_m`` all the way, or None (none asked, the robot or
-        the goal lacks that room on the map: no search then, or the search did not end at the
+        """A plan that keeps the first of ``roomy_clearance_m`` it can all the way, or None (the
+        robot or the goal lacks each on the map: no search then, or each search did not end at the
         goal within ``roomy_max_expansions``)."""
-        need = self.cfg.roomy_clearance_m
-        if self._roomy_stage is None:
+        if not self._roomy_stages:
             return None
         clr = footstep_clearance(grid, optimistic)
         iy, ix = grid.cells_of(np.array([est[:2], goal_xy[:2]], float))
         ny, nx = grid.shape
-        if not (((iy >= 0) & (iy < ny) & (ix >= 0) & (ix < nx)).all() and (clr[iy, ix] >= need).all()):
+        if not ((iy >= 0) & (iy < ny) & (ix >= 0) & (ix < nx)).all():
             return None
+        room = float(clr[iy, ix].min())
         goal = (goal_xy[0], goal_xy[1], yaw)
         start = {} if feet is None else {"start_feet": feet[0], "stance_side": feet[1]}
-        plan = self._roomy_stage.plan(grid, version, optimistic, est, goal, **start)
-        if plan.status != PlanStatus.SUCCESS:
-            return None
-        self._roomy = plan
-        return plan
+        for stage in self._roomy_stages:
+            if room < stage.footstep_cfg.body_clearance_m:
+                continue
+            plan = stage.plan(grid, version, optimistic, est, goal, **start)
+            if plan.status == PlanStatus.SUCCESS:
+                self._roomy = plan
+                return plan
+        return None
 
 
 __all__ = ["MODES", "NavSnapshot", "Navigator", "NavigatorCfg"]
