@@ -35,7 +35,8 @@ def frame_annotations(capture: dict, semantic_ids: np.ndarray, instance_names: l
     ids = tight["instance_id"][keep]
     if len(ids) == 0:
         return []
-    rles = instance_rles(capture["instance_segmentation"], ids)
+    # the GPU path hands the masks' run lengths found on the device (``device_rle``): the same bytes
+    rles = capture["coco_rles"](ids) if "coco_rles" in capture else instance_rles(capture["instance_segmentation"], ids)
     # every array to Python numbers once (not one small conversion per annotation and field)
     boxes = mask_utils.toBbox(rles).tolist()
     areas = mask_utils.area(rles).tolist()
