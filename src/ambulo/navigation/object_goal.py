@@ -142,14 +142,14 @@ class ObjectMap:
 
 
 def standoff_goal(object_xy_m, robot_xy_m, grid: Grid2D, *, distance_range_m=(0.45, 0.8), clearance_m: float = 0.3,
-                  reachable: np.ndarray | None = None) -> tuple[np.ndarray, float] | None:
+                  reachable: np.ndarray | None = None, avoid_unknown: bool = True) -> tuple[np.ndarray, float] | None:
     """Where to stand to face an object at ``object_xy_m`` (its visible surface's point) and the yaw
     that faces it: the known-free cell of ``grid`` with ``clearance_m`` to any occupied or unknown
     cell, ``distance_range_m`` from the object, nearest to the robot (the side it was seen from);
     ``reachable`` (H, W) bool limits the cells further. None when there is none."""
     from scipy import ndimage
 
-    occupied = grid.occupied() | grid.unknown()
+    occupied = grid.occupied() | grid.unknown() if avoid_unknown else grid.occupied()
     clear = ndimage.distance_transform_edt(~occupied) * grid.resolution_m - grid.resolution_m / 2
     ok = clear >= clearance_m
     if reachable is not None:

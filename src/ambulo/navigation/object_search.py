@@ -273,6 +273,9 @@ class ObjectSearch:
                                     - bad[:, None, None])) > 0.3
             stance = standoff_goal(point, self.nav.estimate.xyyaw[:2], grid, distance_range_m=c.standoff_range_m,
                                    clearance_m=c.explore_clearance_m, reachable=reach)
+            if stance is None:  # an online map that has not seen the floor by the object: plan through the unknown
+                stance = standoff_goal(point, self.nav.estimate.xyyaw[:2], grid, distance_range_m=c.standoff_range_m,
+                                       clearance_m=c.explore_clearance_m, reachable=reach, avoid_unknown=False)
             if stance is None:
                 return "no_stance"
             goal, yaw = stance
