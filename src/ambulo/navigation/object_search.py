@@ -56,6 +56,10 @@ class ObjectSearchCfg(Checked):
     """An exploration goal or stance has this much room to occupied cells, m."""
     explore_min_distance_m: float = 1.5
     """Exploration goals nearer than this are not worth a walk, m."""
+    near_seen_m: float = 1.0
+    """After a look-around the cells this close to the robot count as seen: the camera (pitched down,
+    ~49 deg of view) misses the floor within ~1.6 m but shows anything 0.3 m tall beyond ~0.8 m, so
+    without this the ring around every place looked from stayed "unseen" and drew the next goal back, m."""
     explore_unseen_min: int = 12
     """A frontier cell needs this many unseen cells within 0.25 m (not one stray cell)."""
     leg_time_s: float = 40.0
@@ -228,9 +232,17 @@ class ObjectSearch:
 
         self._steps_while(going)
         nav.walker.stand()
+        if turned[0] >= c.scan_turn_rad:
+            g = self._geometry
+            xy = nav.estimate.xyyaw[:2]
+            cx, cy = g.cell_center_xy_m(*np.indices(self.seen.shape))
+            self.seen |= np.hypot(cx - xy[0], cy - xy[1]) <= c.near_seen_m
 
     def _walk(self, goal_xy, yaw, kind: str, until=None) -> str:
         nav = self.nav
+        # the walker's "arrived" latch of the last goal would end this walk at once (Navigator.set_goal keeps
+        # the walker's plan): an empty plan clears it, and the new goal plans afresh
+        nav.walker.set_plan(None, final=False)
         nav.set_goal(goal_xy, yaw)
         limit = min(self.cfg.leg_time_s, self._time_left())
         status = nav.run(until=until, max_time_s=max(limit, 0.0))
@@ -316,6 +328,8 @@ class ObjectSearch:
                 break
             leg = self._walk(goal, None, "explore", until=lambda n: bool(
                 [t for t in self.objects.confirmed(self.label) if t not in given_up]))
+            if leg == "arrived" and float(np.linalg.norm(nav.estimate.xyyaw[:2] - goal)) > 0.6:
+                self._failed_xy.append(goal)  # stopped short (a stance the navigator moved): not there again
             if leg in ("arrived",):
                 self.look_around()
             elif not [t for t in self.objects.confirmed(self.label) if t not in given_up]:
