@@ -97,3 +97,43 @@ def test_an_untracked_pose_is_never_fused_nor_steered_on(room):
     # tracked again: walking resumes
     assert by_index[max(lost) + 3][0] and by_index[max(lost) + 3][4] == "walking"
     world.close()
+
+
+
+class _LatchingWalker:
+    """The policy walker as ``walkers.Walker`` allows it to be: ``arrived`` (at the end of a final plan)
+    stays True until a new plan is set (``latch()``: it has just arrived)."""
+
+    def __init__(self):
+        from ambulo.navigation.walkers import PolicyWalker
+        self.inner, self.latched = PolicyWalker(), False
+
+    def __getattr__(self, name):
+        return getattr(self.inner, name)
+
+    @property
+    def arrived(self) -> bool:
+        return self.latched or self.inner.arrived
+
+    def set_plan(self, plan, *, final: bool) -> None:
+        self.latched = False
+        self.inner.set_plan(plan, final=final)
+
+    def latch(self) -> None:
+        self.latched = True
+
+
+def test_a_second_goal_after_an_arrival_is_walked_to(room):
+    """A new goal after an arrival (a second goal on /goal_pose, an object search's next leg) is
+    walked to: the last goal's arrival (a walker still "arrived" on its old plan, the settle timer)
+    does not end it at once where the robot stands."""
+    world = NavWorld.from_file(room, start_pose=(-1.0, 0.0, 0.0), cfg=NavWorldCfg(record_gyro=False))
+    walker = _LatchingWalker()
+    nav = Navigator(world, NavigatorCfg(mode="oracle", time_limit_s=30.0), walker=walker)
+    nav.set_goal((-0.3, 0.0))
+    assert nav.run() == "arrived"
+    walker.latch()
+    nav.set_goal((0.7, 0.0))
+    assert nav.run() == "arrived"
+    assert np.hypot(*(world.true_pose()[:2] - (0.7, 0.0))) <= nav.cfg.goal_tolerance_m
+    world.close()

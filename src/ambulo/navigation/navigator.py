@@ -321,6 +321,12 @@ class Navigator:
         """Where the robot stands for the goal (``planning.roomy_goal``, renewed with the map at each
         final plan)."""
         self.goal_yaw_rad = None if yaw_rad is None else float(yaw_rad)
+        # the last goal's arrival must not end this one at once (a second goal on /goal_pose, an
+        # object search's next leg): its plan, with the walker's "arrived" latch, and the settle
+        # timer go; the first replan plans for this goal
+        self.walker.set_plan(None, final=False)
+        self.plan, self.plan_final = None, False
+        self._settled_since = None
         self.done = False
         self.status = "walking"
         self._replan_reason = "new goal"

@@ -240,9 +240,6 @@ class ObjectSearch:
 
     def _walk(self, goal_xy, yaw, kind: str, until=None) -> str:
         nav = self.nav
-        # the walker's "arrived" latch of the last goal would end this walk at once (Navigator.set_goal keeps
-        # the walker's plan): an empty plan clears it, and the new goal plans afresh
-        nav.walker.set_plan(None, final=False)
         nav.set_goal(goal_xy, yaw)
         limit = min(self.cfg.leg_time_s, self._time_left())
         status = nav.run(until=until, max_time_s=max(limit, 0.0))
