@@ -46,3 +46,22 @@ def room_nav(room):
     yield make
     for world in worlds:
         world.close()
+
+
+@pytest.fixture
+def fix_map():
+    """``fix_map(nav, occ_of)``: the navigator plans on the map ``occ_of(cx, cy)`` (cell centres, m ->
+    ``maps`` codes) on its own grid, kept fixed (no frame is fused into it)."""
+    import numpy as np
+
+    from ambulo.maps import Grid2D
+
+    def fix(nav, occ_of) -> None:
+        g = nav.mapper.grid
+        iy, ix = np.mgrid[0:g.shape[0], 0:g.shape[1]]
+        cx, cy = g.cell_center_xy_m(iy, ix)
+        nav.mapper.grid = Grid2D(occupancy=occ_of(cx, cy).astype(np.int8), origin_xy_m=g.origin_xy_m,
+                                 resolution_m=g.resolution_m)
+        nav.mapper.refresh = lambda time_s, xy=None: False
+
+    return fix

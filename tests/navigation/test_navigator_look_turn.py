@@ -8,30 +8,25 @@ import math
 import numpy as np
 import pytest
 
-from ambulo.maps import FREE, OCCUPIED, UNKNOWN, Grid2D
+from ambulo.maps import FREE, OCCUPIED, UNKNOWN
 from ambulo.navigation import Navigator, NavigatorCfg, NavWorld, NavWorldCfg
 
 pytest.importorskip("onnxruntime")
 
 
-def _navigator_on(room, occ_of, start_pose, goal_xy):
+def _navigator_on(room, fix_map, occ_of, start_pose, goal_xy):
     """A mapping-mode navigator in the test room whose map is ``occ_of(cx, cy)`` (kept fixed)."""
     world = NavWorld.from_file(room, start_pose=start_pose,
                                cfg=NavWorldCfg(camera_width=64, camera_height=48, record_gyro=False))
     nav = Navigator(world, NavigatorCfg(mode="mapping"))
     nav.set_goal(goal_xy)
-    g = nav.mapper.grid
-    iy, ix = np.mgrid[0:g.shape[0], 0:g.shape[1]]
-    cx, cy = g.cell_center_xy_m(iy, ix)
-    nav.mapper.grid = Grid2D(occupancy=occ_of(cx, cy).astype(np.int8), origin_xy_m=g.origin_xy_m,
-                             resolution_m=g.resolution_m)
-    nav.mapper.refresh = lambda time_s, xy=None: False  # keep this map (no frame is fused here)
+    fix_map(nav, occ_of)
     return world, nav
 
 
-def test_a_look_turn_is_steered_by_the_heading_until_the_robot_faces_the_route(room):
+def test_a_look_turn_is_steered_by_the_heading_until_the_robot_faces_the_route(room, fix_map):
     # facing away from the goal; the floor from 0.4 m ahead of the robot (down the route) unseen
-    world, nav = _navigator_on(room, lambda cx, cy: np.where(cx > -0.6, UNKNOWN, FREE),
+    world, nav = _navigator_on(room, fix_map, lambda cx, cy: np.where(cx > -0.6, UNKNOWN, FREE),
                                (-1.0, 0.0, math.pi), (2.5, 0.0))
     nav._replan(world.time_s, np.array([-1.0, 0.0, math.pi]), "test")
     record = nav.replans[-1]
@@ -54,7 +49,7 @@ def test_a_look_turn_is_steered_by_the_heading_until_the_robot_faces_the_route(r
     world.close()
 
 
-def test_a_robot_that_cannot_turn_on_the_spot_walks_on_down_the_route(room):
+def test_a_robot_that_cannot_turn_on_the_spot_walks_on_down_the_route(room, fix_map):
     # the robot faces along -y, 0.17 m from a seen sideboard before it (its soles clear it); turned
     # to face +x, down the route, its soles would come within a cell of it; the floor from 0.5 m
     # ahead along the route is unseen
@@ -62,7 +57,7 @@ def test_a_robot_that_cannot_turn_on_the_spot_walks_on_down_the_route(room):
         out = np.where(cx > -0.6, UNKNOWN, FREE)
         return np.where((cx > -1.6) & (cx < -0.7) & (cy < 0.08), OCCUPIED, out)
 
-    world, nav = _navigator_on(room, occ, (-1.1, 0.25, -math.pi / 2), (2.5, 0.6))
+    world, nav = _navigator_on(room, fix_map, occ, (-1.1, 0.25, -math.pi / 2), (2.5, 0.6))
     nav._replan(world.time_s, np.array([-1.1, 0.25, -math.pi / 2]), "test")
     record = nav.replans[-1]
     assert "(cornered: walk on)" in record.reason, record
@@ -73,11 +68,11 @@ def test_a_robot_that_cannot_turn_on_the_spot_walks_on_down_the_route(room):
     world.close()
 
 
-def test_a_robot_that_looked_here_walks_on_instead_of_looking_again(room):
+def test_a_robot_that_looked_here_walks_on_instead_of_looking_again(room, fix_map):
     # apartment 19 (full mode): a walk-on turned the robot off the route's bearing, the next replan
     # turned it back to look, the walk-on turned it away again: 16 s in one place. Looked once
     # here, it walks on, facing where it looked; 0.3 m on, it may look again.
-    world, nav = _navigator_on(room, lambda cx, cy: np.where(cx > -0.6, UNKNOWN, FREE),
+    world, nav = _navigator_on(room, fix_map, lambda cx, cy: np.where(cx > -0.6, UNKNOWN, FREE),
                                (-1.0, 0.0, math.pi), (2.5, 0.0))
     nav._replan(world.time_s, np.array([-1.0, 0.0, math.pi]), "test")
     assert nav._look_by_heading, nav.replans[-1]  # the first look turns

@@ -6,7 +6,7 @@ waits for a camera fix) instead of walking its plan on a pose it is not at."""
 import numpy as np
 import pytest
 
-from ambulo.maps import FREE, OCCUPIED, Grid2D
+from ambulo.maps import FREE, OCCUPIED
 from ambulo.navigation import Navigator, NavigatorCfg, NavWorld, NavWorldCfg
 from ambulo.navigation.localization import PoseEstimate
 from ambulo.navigation.planning import footstep_clearance
@@ -15,17 +15,12 @@ from ambulo.navigation.walkers import body_path
 pytest.importorskip("onnxruntime")
 
 
-def _navigator_on(room, occ_of, mode="mapping", **cfg):
+def _navigator_on(room, fix_map, occ_of, mode="mapping", **cfg):
     """A navigator at (-1, 0) facing +x in the test room whose map is ``occ_of(cx, cy)`` (kept fixed)."""
     world = NavWorld.from_file(room, start_pose=(-1.0, 0.0, 0.0),
                                cfg=NavWorldCfg(camera_width=64, camera_height=48, record_gyro=mode == "full"))
     nav = Navigator(world, NavigatorCfg(mode=mode, **cfg))
-    g = nav.mapper.grid
-    iy, ix = np.mgrid[0:g.shape[0], 0:g.shape[1]]
-    cx, cy = g.cell_center_xy_m(iy, ix)
-    nav.mapper.grid = Grid2D(occupancy=occ_of(cx, cy).astype(np.int8), origin_xy_m=g.origin_xy_m,
-                             resolution_m=g.resolution_m)
-    nav.mapper.refresh = lambda time_s, xy=None: False  # keep this map (no frame is fused here)
+    fix_map(nav, occ_of)
     return world, nav
 
 
@@ -35,8 +30,8 @@ def _box(cx, cy):
 
 
 @pytest.mark.parametrize("roomy_clearance_m", [(0.35, 0.3), ()])
-def test_a_plan_keeps_the_roomy_clearance_where_the_map_has_room(room, roomy_clearance_m):
-    world, nav = _navigator_on(room, _box, roomy_clearance_m=roomy_clearance_m)
+def test_a_plan_keeps_the_roomy_clearance_where_the_map_has_room(room, fix_map, roomy_clearance_m):
+    world, nav = _navigator_on(room, fix_map, _box, roomy_clearance_m=roomy_clearance_m)
     nav.set_goal((1.5, 0.0))
     nav._replan(world.time_s, np.array([-1.0, 0.0, 0.0]), "test")
     record = nav.replans[-1]
@@ -57,9 +52,9 @@ def test_a_plan_keeps_the_roomy_clearance_where_the_map_has_room(room, roomy_cle
     world.close()
 
 
-def test_no_roomy_plan_where_the_robot_lacks_the_room_the_usual_one_instead(room):
+def test_no_roomy_plan_where_the_robot_lacks_the_room_the_usual_one_instead(room, fix_map):
     # a corridor 0.55 m wide: the 0.25 m plan passes, the roomy ones (0.35 m, 0.3 m) cannot
-    world, nav = _navigator_on(room, lambda cx, cy: np.where(np.abs(cy) > 0.27, OCCUPIED, FREE))
+    world, nav = _navigator_on(room, fix_map, lambda cx, cy: np.where(np.abs(cy) > 0.27, OCCUPIED, FREE))
     nav.set_goal((1.5, 0.0))
     nav._replan(world.time_s, np.array([-1.0, 0.0, 0.0]), "test")
     record = nav.replans[-1]
@@ -68,9 +63,9 @@ def test_no_roomy_plan_where_the_robot_lacks_the_room_the_usual_one_instead(room
     world.close()
 
 
-def test_a_bridge_inside_an_obstacle_of_the_map_ends_and_the_robot_stands(room):
+def test_a_bridge_inside_an_obstacle_of_the_map_ends_and_the_robot_stands(room, fix_map):
     # the map holds a box where the legs put the robot (at its start, (-1, 0))
-    world, nav = _navigator_on(room, lambda cx, cy: np.where(np.hypot(cx + 1.0, cy - 0.1) < 0.12, OCCUPIED, FREE),
+    world, nav = _navigator_on(room, fix_map, lambda cx, cy: np.where(np.hypot(cx + 1.0, cy - 0.1) < 0.12, OCCUPIED, FREE),
                                mode="full")
     nav.set_goal((1.5, 0.0))
     est = world.true_pose()
@@ -89,9 +84,9 @@ def test_a_bridge_inside_an_obstacle_of_the_map_ends_and_the_robot_stands(room):
 
 
 @pytest.mark.parametrize("roomy_clearance_m", [(0.35, 0.3), (0.35,)])
-def test_a_door_too_narrow_for_the_first_roomy_clearance_is_passed_with_the_next(room, roomy_clearance_m):
+def test_a_door_too_narrow_for_the_first_roomy_clearance_is_passed_with_the_next(room, fix_map, roomy_clearance_m):
     # a wall across the way with a door 0.65 m wide: no room for 0.35 m, 0.3 m with room to spare
-    world, nav = _navigator_on(room, lambda cx, cy: np.where((cx > 0.0) & (cx < 0.2) & (np.abs(cy) > 0.32),
+    world, nav = _navigator_on(room, fix_map, lambda cx, cy: np.where((cx > 0.0) & (cx < 0.2) & (np.abs(cy) > 0.32),
                                                              OCCUPIED, FREE), roomy_clearance_m=roomy_clearance_m)
     nav.set_goal((1.5, 0.0))
     nav._replan(world.time_s, np.array([-1.0, 0.0, 0.0]), "test")
