@@ -82,6 +82,16 @@ def test_bad_inputs_give_one_line_with_the_fix(capsys, tmp_path):
     assert "--time-limit" in err
     err = _error_line(capsys, ["navigate", "--episodes", "2", "--goal", "1,1", "--out", str(tmp_path)])
     assert "--goal applies to one episode" in err
+    # object goals: an unknown class, a class the apartment lacks, a missing detector, a goal beside the object
+    err = _error_line(capsys, ["navigate", "apartment", "--seed", "5", "--object", "unicorn", "--out", str(tmp_path)])
+    assert "no apartment object is called 'unicorn'" in err and "--object" in err
+    err = _error_line(capsys, ["navigate", "apartment", "--seed", "5", "--object", "table", "--out", str(tmp_path)])
+    assert "apartment 5 has no table; it has armchair" in err and "another --seed" in err
+    err = _error_line(capsys, ["navigate", "apartment", "--seed", "5", "--object", "sofa", "--detector",
+                               str(tmp_path / "none.onnx"), "--out", str(tmp_path)])
+    assert "no detector at" in err
+    err = _error_line(capsys, [*base, "--object", "sofa", "--goal", GOAL])
+    assert "--goal does not go with --object" in err
 
 
 def test_zmp_walker_refused_with_one_line_while_its_adapter_is_missing(capsys, tmp_path, monkeypatch):

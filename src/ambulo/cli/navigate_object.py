@@ -50,6 +50,7 @@ def _run_object(args: argparse.Namespace, parse_start, check_point) -> int:
     from ..navigation.object_episode import DETECTOR_PATH, ObjectEpisodeCfg, run_object_episode
     from ..navigation.video import EpisodeVideo
     from ..scenes.apartment import apartment
+    from ..scenes.apartment_labels import object_instances
     from ..utils.atomic import atomic_write_json
 
     path = Path(args.detector).expanduser() if args.detector else DETECTOR_PATH
@@ -68,6 +69,10 @@ def _run_object(args: argparse.Namespace, parse_start, check_point) -> int:
     cfg = ObjectEpisodeCfg(navigator=type(nav_cfg.navigator)(**{**nav_cfg.navigator.__dict__, "time_limit_s": 60.0}),
                            world=world_cfg, time_limit_s=args.time_limit or base.time_limit_s)
     apt = apartment(args.seed)
+    if not object_instances(apt, label):
+        raise CliError(f"apartment {args.seed} has no {label}; it has "
+                       f"{', '.join(sorted({i.label for i in object_instances(apt)}))}",
+                       "give one of those to --object, or another --seed")
     video = EpisodeVideo(args.video, map_png=out / "map.png", title=f"apartment {args.seed}  {mode}  {label}",
                          view_xy_m=apt.occupancy.extent_xy_m())
     start = None
