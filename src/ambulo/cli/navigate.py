@@ -130,6 +130,7 @@ def _run_one(args: argparse.Namespace) -> int:
 
     from ..navigation import Navigator, NavigatorCfg, NavWorld, result_of  # heavy imports only when run
     from ..navigation.benchmark import EpisodeSpec, episode_cfg, make_walker, with_perception_device
+    from ..navigation.metrics import episode_world_cfg
     from ..navigation.planning import PlanningCfg, RoutePlanner
     from ..navigation.video import EpisodeVideo
     from ..robots import humanoid
@@ -139,7 +140,7 @@ def _run_one(args: argparse.Namespace) -> int:
     spec = EpisodeSpec(args.seed, args.episode_seed, mode, args.walker, args.randomize)
     walker = make_walker(args.walker)
     cfg = episode_cfg(spec, with_perception_device(args.perception_device))
-    world_cfg = cfg.world if mode == "full" else type(cfg.world)(**{**cfg.world.__dict__, "record_gyro": False})
+    world_cfg = episode_world_cfg(cfg.world, mode)
     radius = humanoid.BODY_RADIUS_M
     if kind == "apartment":
         apt = apartment(args.seed)

@@ -64,10 +64,8 @@ def _run_object(args: argparse.Namespace, parse_start, check_point) -> int:
     mode = args.mode
     spec = EpisodeSpec(args.seed, args.episode_seed, mode, "policy", args.randomize)
     nav_cfg = episode_cfg(spec, with_perception_device(args.perception_device))
-    world_cfg = nav_cfg.world if mode == "full" else type(nav_cfg.world)(**{**nav_cfg.world.__dict__,
-                                                                             "record_gyro": False})
     cfg = ObjectEpisodeCfg(navigator=type(nav_cfg.navigator)(**{**nav_cfg.navigator.__dict__, "time_limit_s": 60.0}),
-                           world=world_cfg, time_limit_s=args.time_limit or base.time_limit_s)
+                           world=nav_cfg.world, time_limit_s=args.time_limit or base.time_limit_s)
     apt = apartment(args.seed)
     if not object_instances(apt, label):
         raise CliError(f"apartment {args.seed} has no {label}; it has "

@@ -168,6 +168,14 @@ class EpisodeCfg(Checked):
     """The episode's time limit: base + this per metre of geodesic, s (0.5 m/s walking needs 2 s/m)."""
 
 
+def episode_world_cfg(world: NavWorldCfg, mode: str) -> NavWorldCfg:
+    """``world`` for an episode in ``mode``: the gyro is recorded only in full mode (the legs' and the
+    VO's odometry read it; the other modes know the pose)."""
+    if mode == "full" or not world.record_gyro:
+        return world
+    return NavWorldCfg(**{**world.__dict__, "record_gyro": False})
+
+
 def run_episode(apartment_seed: int, episode_seed: int, cfg: EpisodeCfg | None = None, *, walker=None,
                 observer=None) -> EpisodeResult:
     """Navigate in ``apartment(apartment_seed)`` from a start to a goal drawn with ``episode_seed``
@@ -176,10 +184,7 @@ def run_episode(apartment_seed: int, episode_seed: int, cfg: EpisodeCfg | None =
     apt = apartment(apartment_seed)
     ep = apt.sample_start_goal(episode_seed, cfg.min_geodesic_m, cfg.max_geodesic_m, humanoid.BODY_RADIUS_M)
     t0 = time.perf_counter()
-    world_cfg = cfg.world
-    if cfg.navigator.mode != "full" and world_cfg.record_gyro:
-        world_cfg = NavWorldCfg(**{**world_cfg.__dict__, "record_gyro": False})
-    world = NavWorld.from_apartment(apt, ep.start_pose, world_cfg)
+    world = NavWorld.from_apartment(apt, ep.start_pose, episode_world_cfg(cfg.world, cfg.navigator.mode))
     limit = cfg.time_limit_base_s + cfg.time_limit_per_m_s * ep.geodesic_m
     nav_cfg = NavigatorCfg(**{**cfg.navigator.__dict__, "time_limit_s": limit})
     nav = Navigator(world, nav_cfg, walker=walker)
@@ -194,5 +199,5 @@ def run_episode(apartment_seed: int, episode_seed: int, cfg: EpisodeCfg | None =
                      apartment_seed=apartment_seed, episode_seed=episode_seed)
 
 
-__all__ = ["EpisodeCfg", "EpisodeResult", "is_stuck", "p95", "path_length_m", "result_of", "run_episode", "spl",
+__all__ = ["EpisodeCfg", "EpisodeResult", "episode_world_cfg", "is_stuck", "p95", "path_length_m", "result_of", "run_episode", "spl",
            "succeeded"]

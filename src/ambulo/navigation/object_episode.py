@@ -29,6 +29,7 @@ from ..scenes.apartment import Apartment, apartment
 from ..scenes.apartment_labels import ObjectInstance, object_instances
 from ..scenes.apartment_paths import path_length_m
 from ..utils.validate import Checked
+from .metrics import episode_world_cfg, spl
 from .navigator import Navigator, NavigatorCfg
 from .object_search import ObjectSearch, ObjectSearchCfg
 from .world import NavWorld, NavWorldCfg
@@ -146,10 +147,7 @@ def run_object_episode(apartment_seed: int, episode_seed: int, label: str | None
         raise ValueError(f"apartment {apartment_seed} has no {label}; it has "
                          f"{sorted({i.label for i in object_instances(apt)})}")
     t0 = time.perf_counter()
-    world_cfg = cfg.world
-    if cfg.navigator.mode != "full" and world_cfg.record_gyro:
-        world_cfg = NavWorldCfg(**{**world_cfg.__dict__, "record_gyro": False})
-    world = NavWorld.from_apartment(apt, start_pose, world_cfg)
+    world = NavWorld.from_apartment(apt, start_pose, episode_world_cfg(cfg.world, cfg.navigator.mode))
     nav = Navigator(world, cfg.navigator, walker=walker)
     search = ObjectSearch(nav, detector, label, cfg.search)
     if known_object:
@@ -178,7 +176,7 @@ def run_object_episode(apartment_seed: int, episode_seed: int, label: str | None
     return {
         "apartment_seed": apartment_seed, "episode_seed": episode_seed, "mode": cfg.navigator.mode, "label": label,
         "start_pose": [float(v) for v in start_pose], "status": res.status, "success": ok,
-        "spl": float(geodesic / max(walked, geodesic)) if ok and math.isfinite(geodesic) else 0.0,
+        "spl": spl(ok, geodesic, walked),
         "geodesic_m": geodesic, "path_length_m": walked, "distance_to_object_m": min(dists), "facing": faces,
         "fell": bool(world.fell), "collisions": len(world.collisions), "time_s": res.time_s, "wall_s": wall_s,
         "object_xy_m": None if res.object_xy_m is None else [float(v) for v in res.object_xy_m],
