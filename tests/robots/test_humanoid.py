@@ -51,6 +51,21 @@ def test_named_elements_exist_in_the_compiled_model(model):
     assert humanoid.head_camera_prim("/World/X") == "/World/X/head_camera_mount/camera"
 
 
+def test_the_head_camera_looks_forward_and_down_with_525_px_at_640():
+    from ambulo.utils.rotations import quat_to_mat
+
+    for width, height in ((640, 480), (160, 120)):
+        cfg = humanoid.head_camera_cfg(width, height)
+        k = cfg.intrinsics_matrix()
+        assert k[0, 0] == k[1, 1] == pytest.approx(525.0 * width / 640)
+        assert cfg.prim_path == humanoid.HEAD_CAMERA_PRIM
+    # the optical axis (x of the 'world' convention) in the mount frame: ahead, 18 deg below the horizon
+    axis = quat_to_mat(np.array(cfg.offset_quat)) @ np.array([1.0, 0.0, 0.0])
+    pitch = np.radians(humanoid.HEAD_CAMERA_PITCH_DEG)
+    np.testing.assert_allclose(axis, [np.cos(pitch), 0.0, -np.sin(pitch)], atol=1e-12)
+    assert humanoid.head_camera_cfg(320, 240, pitch_deg=0.0).offset_quat == (1.0, 0.0, 0.0, 0.0)
+
+
 def test_pelvis_height_and_sole_offsets_agree_with_the_model_geometry(model):
     base, (left, right) = model.body(humanoid.BASE_BODY).id, (model.site(s).id for s in humanoid.SOLE_SITES)
     # the initial state (all joints 0): standing straight-legged, soles on z = 0
@@ -94,6 +109,9 @@ RESTATEMENTS = {
     "the head-camera mount": r"""["'][^"'\s]*head_camera_mount""",  # in a string, not a docstring's prose
     # a module constant or a World's step (the training task's own PhysicsCfg is where the step comes from)
     "the policy's physics dt": r"""(DT_S\s*=\s*0\.005\b|World\(physics_dt\s*=\s*0\.005\b)""",
+    # in code (an assignment or a product), not a docstring's "525 px"
+    "the head camera's focal length": r"""(=\s*525\b|\b525(\.0)?\s*\*)""",
+    "the head lamp": r"""headlight\.diffuse\s*=""",
 }
 ALLOWED = {
     # RobotCfg's default prim path, for any robot (core/ cannot import robots/: robots/ builds on it)

@@ -33,7 +33,7 @@ from ..perception.frames import RgbdFrame
 from ..perception.sources.gyro import GyroStream
 from ..robots import humanoid
 from ..scenes.apartment import Apartment, apartment
-from ..sensors import Camera, CameraCfg, Imu, ImuCfg
+from ..sensors import Camera, Imu, ImuCfg
 from ..sensors.imu_noise import ImuNoiseCfg, euroc_adis16448
 from ..utils.checks import InvalidValueError, check_vector
 from ..utils.math import quat_from_yaw
@@ -48,15 +48,14 @@ class NavWorldCfg(Checked):
 
     camera_width: int = 320
     camera_height: int = 240
-    camera_pitch_deg: float = 18.0
+    camera_pitch_deg: float = humanoid.HEAD_CAMERA_PITCH_DEG
     """Head camera pitched down, deg: the floor from ~1.6 m ahead is in view."""
     focal_length_px: float | None = None
-    """None: TUM RGB-D's 525 px at 640 px wide, scaled to ``camera_width``."""
+    """None: the head camera's (``humanoid.head_camera_focal_px``: 525 px at 640 px wide, scaled to
+    ``camera_width``)."""
     depth_range_m: tuple[float, float] = (0.1, 20.0)
-    head_lamp: float = 0.8
-    """Diffuse intensity of a lamp on the camera (MuJoCo's headlight; 0: off). The apartments are lit
-    for their overview and read ~28/255 with a contrast of ~5 levels from the head camera facing a
-    wall: too dark for the odometry's corners; a robot's head lamp is the usual fix."""
+    head_lamp: float = humanoid.HEAD_LAMP_DIFFUSE
+    """Diffuse intensity of the robot's head lamp (``humanoid.add_head_lamp``; 0: off)."""
     imu_noise: ImuNoiseCfg = field(default_factory=euroc_adis16448)
     """Noise of the head gyro (Kalibr model; EuRoC's ADIS16448)."""
     record_gyro: bool = True
@@ -93,17 +92,11 @@ class NavWorld:
         """The apartment this world was built from, or None for a user's world."""
         self.randomizer = Randomizer(cfg.randomization, cfg.seed)
         self.randomizer.edit_spec(spec, humanoid.PRIM_PATH)
-        if cfg.head_lamp > 0:
-            spec.visual.headlight.active = 1
-            spec.visual.headlight.diffuse = [cfg.head_lamp] * 3
-            spec.visual.headlight.ambient = [0.1] * 3
+        humanoid.add_head_lamp(spec, cfg.head_lamp)
         self.sim = Simulation(spec, PhysicsCfg(timestep_s=humanoid.POLICY_PHYSICS_DT_S), num_threads=1)
-        pitch = math.radians(cfg.camera_pitch_deg)
-        self.camera = self.sim.add(Camera(CameraCfg(
-            prim_path=humanoid.HEAD_CAMERA_PRIM, width=cfg.camera_width, height=cfg.camera_height,
-            focal_length_px=cfg.focal_length_px or 525.0 * cfg.camera_width / 640,
-            offset_quat=(math.cos(pitch / 2), 0.0, math.sin(pitch / 2), 0.0), annotators=("rgb", "depth"),
-            clipping_range_m=cfg.depth_range_m)))
+        self.camera = self.sim.add(Camera(humanoid.head_camera_cfg(
+            cfg.camera_width, cfg.camera_height, pitch_deg=cfg.camera_pitch_deg, focal_length_px=cfg.focal_length_px,
+            annotators=("rgb", "depth"), clipping_range_m=cfg.depth_range_m)))
         self.imu = self.sim.add(Imu(ImuCfg(prim_path=humanoid.HEAD_CAMERA_PRIM.rsplit("/", 1)[0])))
         """Clean gyro at the camera's mount; ``gyro`` adds ``cfg.imu_noise``."""
         self.engine = self.sim.start()

@@ -10,9 +10,9 @@ by ``replicator.generate``, so resumable) and writes one COCO file over all of t
 are in apartment order: the detector's held-out split (the last frames) is then whole apartments
 it never saw.
 
-The camera is the navigator's (``navigation.world.NavWorldCfg``: 525 px focal at 640 px wide, pitched
-18 deg down), at any resolution with the same field of view; head height and aim jitter as a
-walking robot's do.
+The camera is the navigator's (``humanoid.head_camera_cfg``: 525 px focal at 640 px wide, pitched
+18 deg down), at any resolution with the same field of view, under the robot's head lamp; head height
+and aim jitter as a walking robot's do.
 """
 
 from __future__ import annotations
@@ -39,30 +39,19 @@ from .generate import generate
 from .randomizers import CameraJitter, Randomizer
 from .writers import WriterCfg
 
-NAV_FOCAL_PX_AT_640 = 525.0
-"""The navigator's head camera focal length at 640 px wide (``NavWorldCfg.focal_length_px``)."""
-NAV_CAMERA_PITCH_DEG = 18.0
-"""The navigator's head camera pitch down (``NavWorldCfg.camera_pitch_deg``)."""
-
 
 def labelled_solids(apt: Apartment) -> list[tuple[str, str]]:
     """(solid name, label) of the apartment's labelled furniture."""
     return [(s.name, label) for s in apt.solids if (label := furniture_label(s.name)) is not None]
 
 
-NAV_HEAD_LAMP = 0.8
-"""The navigator's head lamp (``NavWorldCfg.head_lamp``: MuJoCo's headlight, diffuse; ambient 0.1): the
-apartments' own lights leave the head camera's view at ~40/255, so the robot carries a lamp, and
-frames without it were half as bright as any the detector is shown on the robot."""
-
-
-def build_labelled_apartment(apt: Apartment, robot_pose=(0.0, 0.0, 0.0), head_lamp: float = NAV_HEAD_LAMP) -> mujoco.MjSpec:
-    """The apartment's scene with the humanoid, its head lamp and its furniture labelled (``scenes.apartment_labels``)."""
+def build_labelled_apartment(apt: Apartment, robot_pose=(0.0, 0.0, 0.0),
+                             head_lamp: float = humanoid.HEAD_LAMP_DIFFUSE) -> mujoco.MjSpec:
+    """The apartment's scene with the humanoid, its head lamp (``humanoid.add_head_lamp``: the
+    apartments' own lights leave the head camera's view dark, and frames without it were half as bright
+    as any the detector is shown on the robot) and its furniture labelled (``scenes.apartment_labels``)."""
     spec = apt.build(robot_pose=robot_pose)
-    if head_lamp > 0:
-        spec.visual.headlight.active = 1
-        spec.visual.headlight.diffuse = [head_lamp] * 3
-        spec.visual.headlight.ambient = [0.1] * 3
+    humanoid.add_head_lamp(spec, head_lamp)
     for name, label in labelled_solids(apt):
         set_semantic_label(spec, name, label)
     return spec
@@ -70,10 +59,7 @@ def build_labelled_apartment(apt: Apartment, robot_pose=(0.0, 0.0, 0.0), head_la
 
 def head_camera(width: int, height: int) -> CameraCfg:
     """The navigator's head camera at ``width`` x ``height`` (the same field of view at any size)."""
-    pitch = math.radians(NAV_CAMERA_PITCH_DEG)
-    return CameraCfg(prim_path=humanoid.HEAD_CAMERA_PRIM, width=width, height=height,
-                     focal_length_px=NAV_FOCAL_PX_AT_640 * width / 640,
-                     offset_quat=(math.cos(pitch / 2), 0.0, math.sin(pitch / 2), 0.0), annotators=DATASET_ANNOTATORS)
+    return humanoid.head_camera_cfg(width, height, annotators=DATASET_ANNOTATORS)
 
 
 @dataclass(kw_only=True)

@@ -9,6 +9,7 @@ walking policy's physics step is read from its contract, not restated.
 from __future__ import annotations
 
 import json
+import math
 
 from .. import assets
 
@@ -33,8 +34,8 @@ IMU_SITE = "imu"
 
 HEAD_CAMERA_SITE = "head_camera_mount"
 """The head's camera mount (site on the ``head`` body, 0.095 m ahead of and 0.09 m above its origin;
-x forward, z up). The camera's pose on it and its intrinsics are each app's choice (a ``CameraCfg``
-``offset_quat`` and focal length / field of view)."""
+x forward, z up). The camera on it is ``head_camera_cfg``: pitched ``HEAD_CAMERA_PITCH_DEG`` down, 525 px focal at
+640 px wide; an app may pitch it otherwise (``pitch_deg``)."""
 HEAD_CAMERA_LEAF = "camera"
 """A head camera's prim is the mount site's prim plus this leaf."""
 
@@ -46,6 +47,49 @@ def head_camera_prim(prim_path: str = PRIM_PATH) -> str:
 
 HEAD_CAMERA_PRIM = head_camera_prim()
 """``/World/robot/head_camera_mount/camera``: the head camera on the humanoid at ``PRIM_PATH``."""
+HEAD_CAMERA_FOCAL_PX_AT_640 = 525.0
+"""The head camera's focal length at 640 px wide, px (TUM RGB-D's Kinect: 525 px at 640x480): the
+same field of view at any size (``head_camera_focal_px``)."""
+HEAD_CAMERA_PITCH_DEG = 18.0
+"""The head camera pitched down on its mount, deg: the navigator's floor is in view from ~1.6 m ahead
+(``NavWorldCfg.camera_pitch_deg``; the apartment-objects dataset sees what the navigator sees)."""
+HEAD_LAMP_DIFFUSE = 0.8
+"""The head lamp's diffuse intensity (MuJoCo's headlight, ``add_head_lamp``). The apartments are lit for
+their overview and read ~28/255 with a contrast of ~5 levels from the head camera facing a wall: too
+dark for the odometry's corners, and dataset frames without it were half as bright as the robot's."""
+HEAD_LAMP_AMBIENT = 0.1
+"""The head lamp's ambient term (MuJoCo's headlight ambient)."""
+
+
+def head_camera_focal_px(width: int) -> float:
+    """The head camera's focal length at ``width`` px wide, px (``HEAD_CAMERA_FOCAL_PX_AT_640`` scaled)."""
+    return HEAD_CAMERA_FOCAL_PX_AT_640 * width / 640
+
+
+def head_camera_cfg(width: int, height: int, *, pitch_deg: float = HEAD_CAMERA_PITCH_DEG,
+                    focal_length_px: float | None = None, **camera):
+    """The head camera's ``CameraCfg`` at ``width`` x ``height`` on the humanoid at ``PRIM_PATH``:
+    pitched ``pitch_deg`` down about the mount's y axis, ``focal_length_px`` (None:
+    ``head_camera_focal_px(width)``); ``camera`` holds the app's other ``CameraCfg`` fields (annotators,
+    clipping range)."""
+    # sensors is imported here, not at the top: the facts above are read by light modules (2 s of
+    # torch and renderer imports for a prim path is too much)
+    from ..sensors import CameraCfg
+
+    half_pitch = math.radians(pitch_deg) / 2
+    return CameraCfg(prim_path=HEAD_CAMERA_PRIM, width=width, height=height,
+                     focal_length_px=focal_length_px or head_camera_focal_px(width),
+                     offset_quat=(math.cos(half_pitch), 0.0, math.sin(half_pitch), 0.0), **camera)
+
+
+def add_head_lamp(spec, diffuse: float = HEAD_LAMP_DIFFUSE) -> None:
+    """Light ``spec`` (an ``mujoco.MjSpec``) with the robot's head lamp: MuJoCo's headlight, which rides
+    the rendering camera, ``diffuse`` grey (0: leave the scene's headlight as it is)."""
+    if diffuse > 0:
+        spec.visual.headlight.active = 1
+        spec.visual.headlight.diffuse = [diffuse] * 3
+        spec.visual.headlight.ambient = [HEAD_LAMP_AMBIENT] * 3
+
 
 SOLE_LENGTH_M = 0.22
 SOLE_WIDTH_M = 0.09
@@ -88,8 +132,10 @@ POLICY_PHYSICS_DT_S = float(json.loads(POLICY_CONTRACT_FILE.read_text())["physic
 a World that runs the policy steps this."""
 
 __all__ = [
-    "ASSET", "BASE_BODY", "FOOT_BODIES", "HEAD_CAMERA_LEAF", "HEAD_CAMERA_PRIM", "HEAD_CAMERA_SITE", "IMU_SITE",
-    "LEG_JOINTS", "PELVIS_HEIGHT_M", "POLICY_CONTRACT_FILE", "POLICY_PHYSICS_DT_S", "POLICY_TASK", "PRIM_PATH",
-    "SOLE_LENGTH_M", "SOLE_SITES", "SOLE_WIDTH_M", "SOLE_X_M", "STAGE_PRIM_PATH", "STANCE_WIDTH_M", "WALK_MAX_STEP_YAW_RAD",
-    "WALK_STEP_LENGTH_RANGE_M", "WALK_STEP_WIDTH_RANGE_M", "head_camera_prim",
+    "ASSET", "BASE_BODY", "FOOT_BODIES", "HEAD_CAMERA_FOCAL_PX_AT_640", "HEAD_CAMERA_LEAF", "HEAD_CAMERA_PITCH_DEG",
+    "HEAD_CAMERA_PRIM", "HEAD_CAMERA_SITE", "HEAD_LAMP_AMBIENT", "HEAD_LAMP_DIFFUSE", "IMU_SITE", "LEG_JOINTS",
+    "PELVIS_HEIGHT_M", "POLICY_CONTRACT_FILE", "POLICY_PHYSICS_DT_S", "POLICY_TASK", "PRIM_PATH", "SOLE_LENGTH_M",
+    "SOLE_SITES", "SOLE_WIDTH_M", "SOLE_X_M", "STAGE_PRIM_PATH", "STANCE_WIDTH_M", "WALK_MAX_STEP_YAW_RAD",
+    "WALK_STEP_LENGTH_RANGE_M", "WALK_STEP_WIDTH_RANGE_M", "add_head_lamp", "head_camera_cfg", "head_camera_focal_px",
+    "head_camera_prim",
 ]

@@ -26,10 +26,10 @@ import numpy as np
 import torch
 
 from ambulo.core import PhysicsCfg, Simulation
-from ambulo.robots.humanoid import HEAD_CAMERA_PRIM, PELVIS_HEIGHT_M, POLICY_PHYSICS_DT_S
+from ambulo.robots.humanoid import HEAD_CAMERA_PRIM, PELVIS_HEIGHT_M, POLICY_PHYSICS_DT_S, head_camera_cfg
 from ambulo.robots.humanoid import PRIM_PATH as ROBOT_PRIM
 from ambulo.scenes.indoor import IndoorScene, build_indoor_scene
-from ambulo.sensors import Camera, CameraCfg, Imu, ImuCfg
+from ambulo.sensors import Camera, Imu, ImuCfg
 from ambulo.sensors.imu_noise import ImuNoiseCfg, euroc_adis16448
 from ambulo.utils.rotations import mat_to_quat, quat_to_mat
 from ambulo.utils.validate import Checked
@@ -215,12 +215,8 @@ def head_camera(walk: WalkCfg, width: int, height: int, focal_length_px: float |
     """The RGB-D camera on the humanoid's ``head_camera_mount`` site, pitched down by
     ``walk.camera_pitch_deg``; ``focal_length_px`` defaults to TUM RGB-D's 525 px at 640x480,
     scaled with the width."""
-    pitch = math.radians(walk.camera_pitch_deg)
-    return Camera(CameraCfg(
-        prim_path=HEAD_CAMERA_PRIM, width=width, height=height,
-        focal_length_px=focal_length_px or 525.0 * width / 640,
-        offset_quat=(math.cos(pitch / 2), 0.0, math.sin(pitch / 2), 0.0), annotators=("rgb", "depth"),
-        clipping_range_m=(0.1, 20.0)))
+    return Camera(head_camera_cfg(width, height, pitch_deg=walk.camera_pitch_deg, focal_length_px=focal_length_px,
+                                  annotators=("rgb", "depth"), clipping_range_m=(0.1, 20.0)))
 
 
 def capture_frame(camera: Camera, t_s: float) -> RgbdFrame:
