@@ -47,10 +47,9 @@ def _run_object(args: argparse.Namespace, parse_start, check_point) -> int:
 
     from ..detection import Detector
     from ..navigation.benchmark import EpisodeSpec, episode_cfg, with_perception_device
-    from ..navigation.object_episode import DETECTOR_PATH, ObjectEpisodeCfg, run_object_episode
+    from ..navigation.object_episode import DETECTOR_PATH, ObjectEpisodeCfg, goal_instances, run_object_episode
     from ..navigation.video import EpisodeVideo
     from ..scenes.apartment import apartment
-    from ..scenes.apartment_labels import object_instances
     from ..utils.atomic import atomic_write_json
 
     path = Path(args.detector).expanduser() if args.detector else DETECTOR_PATH
@@ -67,10 +66,10 @@ def _run_object(args: argparse.Namespace, parse_start, check_point) -> int:
     cfg = ObjectEpisodeCfg(navigator=type(nav_cfg.navigator)(**{**nav_cfg.navigator.__dict__, "time_limit_s": 60.0}),
                            world=nav_cfg.world, time_limit_s=args.time_limit or base.time_limit_s)
     apt = apartment(args.seed)
-    if not object_instances(apt, label):
-        raise CliError(f"apartment {args.seed} has no {label}; it has "
-                       f"{', '.join(sorted({i.label for i in object_instances(apt)}))}",
-                       "give one of those to --object, or another --seed")
+    try:
+        goal_instances(apt, label)
+    except ValueError as err:
+        raise CliError(str(err), "give one of those to --object, or another --seed") from None
     video = EpisodeVideo(args.video, map_png=out / "map.png", title=f"apartment {args.seed}  {mode}  {label}",
                          view_xy_m=apt.occupancy.extent_xy_m())
     start = None

@@ -65,6 +65,16 @@ def draw_label(apt: Apartment, start_xy_m, rng: np.random.Generator, min_distanc
     return ok[int(rng.integers(len(ok)))]
 
 
+def goal_instances(apt: Apartment, label: str) -> list[ObjectInstance]:
+    """The instances of ``label`` in ``apt``: an object goal's targets. ValueError, in one line naming the
+    classes ``apt`` has, when it has none (``run_object_episode`` and ``ambulo navigate --object`` both ask here)."""
+    instances = object_instances(apt, label)
+    if not instances:
+        raise ValueError(f"apartment {apt.seed} has no {label}; it has "
+                         f"{', '.join(sorted({i.label for i in object_instances(apt)}))}")
+    return instances
+
+
 def facing(pose_xyyaw, inst: ObjectInstance, tolerance_rad: float, ray_m: float) -> bool:
     """Whether a robot at ``pose_xyyaw`` faces ``inst`` (module docstring)."""
     x, y, yaw = (float(v) for v in pose_xyyaw)
@@ -142,10 +152,7 @@ def run_object_episode(apartment_seed: int, episode_seed: int, label: str | None
     if label is None:
         label = draw_label(apt, start_pose[:2], np.random.default_rng([episode_seed, apartment_seed, 7]),
                            cfg.min_start_distance_m)
-    instances = object_instances(apt, label)
-    if not instances:
-        raise ValueError(f"apartment {apartment_seed} has no {label}; it has "
-                         f"{sorted({i.label for i in object_instances(apt)})}")
+    instances = goal_instances(apt, label)
     t0 = time.perf_counter()
     world = NavWorld.from_apartment(apt, start_pose, episode_world_cfg(cfg.world, cfg.navigator.mode))
     nav = Navigator(world, cfg.navigator, walker=walker)
@@ -189,4 +196,5 @@ def run_object_episode(apartment_seed: int, episode_seed: int, label: str | None
     }
 
 
-__all__ = ["DETECTOR_PATH", "KnownObjects", "ObjectEpisodeCfg", "draw_label", "facing", "nearest_point", "run_object_episode", "success_geodesic_m"]
+__all__ = ["DETECTOR_PATH", "KnownObjects", "ObjectEpisodeCfg", "draw_label", "facing", "goal_instances", "nearest_point",
+           "run_object_episode", "success_geodesic_m"]
