@@ -53,9 +53,9 @@ def test_touchdowns_score_advance_and_respect_the_swing_foot():
     env.placement_error_m.fill_(0.5)
     soles = torch.tensor([[0.9, 0.2, 0.0], [1.03, 0.0, 0.1]]).expand(3, 2, 3).clone()
     # world 0: the right foot lands after 0.3 s in the air; world 1: only the left (stance) foot
-    # lands; world 2: the right foot lands after 0.01 s (chatter)
+    # lands; world 2: the right foot lands after 0.1 s (a shuffle, shorter than min_air_time_s)
     first_contact = torch.tensor([[False, True], [True, False], [False, True]])
-    air_s = torch.tensor([[0.0, 0.3], [0.3, 0.0], [0.0, 0.01]])
+    air_s = torch.tensor([[0.0, 0.3], [0.3, 0.0], [0.0, 0.1]])
     env.update_plan(soles, first_contact, air_s)
     assert env.touchdown.tolist() == [True, False, False]
     assert env.touchdown_error_m[0].item() == pytest.approx(0.03, abs=1e-6)
@@ -74,6 +74,32 @@ def test_touchdowns_score_advance_and_respect_the_swing_foot():
     assert rewards["foot_yaw"][0].item() == pytest.approx(math.exp(-(0.1 / env.cfg.yaw_std_rad) ** 2), abs=1e-6)
     # the swing foot of world 1 (right, at 0.03 m from its target) is where progress counts from
     assert env._swing_distance_m[1].item() == pytest.approx(0.03, abs=1e-6)
+
+
+def test_a_missed_touchdown_is_scored_and_the_same_foot_steps_again():
+    env = envs.make("humanoid-footsteps", num_envs=2, seed=0, num_threads=1, play=True)
+    targets = torch.tensor([[1.0, 0.0, 0.0], [1.2, 0.2, 0.0]])
+    env.targets_xyyaw_w[:] = targets
+    env.target_sides[:] = torch.tensor([-1.0, 1.0])  # the right foot swings
+    # the right sole lands 0.15 m (world 0: within advance_radius_m) and 0.3 m (world 1) from its target
+    soles = torch.tensor([[[0.9, 0.2, 0.0], [0.85, 0.0, 0.0]], [[0.9, 0.2, 0.0], [0.7, 0.0, 0.0]]])
+    env.update_plan(soles, torch.tensor([[False, True]] * 2), torch.tensor([[0.0, 0.4]] * 2))
+    assert env.touchdown.tolist() == [True, True]
+    assert env.touchdown_error_m.tolist() == pytest.approx([0.15, 0.3], abs=1e-6)
+    assert env.steps_taken.tolist() == [1, 0]
+    torch.testing.assert_close(env.targets_xyyaw_w[0, 0], targets[1])  # advanced
+    torch.testing.assert_close(env.targets_xyyaw_w[1], targets)  # the miss: same targets, same swing foot
+    assert env.target_sides[1].tolist() == [-1.0, 1.0]
+
+
+def test_shuffles_cost_and_strides_earn_whatever_the_command():
+    env = envs.make("humanoid-footsteps", num_envs=2, seed=0, num_threads=1, play=True)
+    threshold = env.cfg.air_time_threshold_s
+    env.feet.data.first_contact[:] = torch.tensor([[False, True], [True, False]])
+    env.feet.data.last_air_time_s[:] = torch.tensor([[0.0, threshold + 0.2], [threshold - 0.3, 0.0]])
+    env.commands.command.zero_()  # as in training: humanoid-walk's term would pay nothing at a zero command
+    reward = env._get_rewards()["step_air_time"]
+    assert reward.tolist() == pytest.approx([0.2, -0.3], abs=1e-6)
 
 
 def test_command_is_the_two_targets_in_the_heading_frame():

@@ -11,7 +11,8 @@ plan never runs out.
 
 A *touchdown* is the swing foot (the side of the first target) landing after at least
 ``min_air_time_s`` in the air. It scores the placement (sole centre to target distance, yaw
-error), and the targets advance: the second becomes the first, a new footstep is drawn after it.
+error); when it landed within ``advance_radius_m`` of its target the targets advance (the second
+becomes the first, a new footstep is drawn after it), else the same foot steps again.
 The placement kernels reward the touchdown; ``swing_progress`` rewards the swing foot closing on
 its target (a potential: moving away and back earns nothing); ``heading`` keeps the body facing
 the targets' mean yaw; humanoid-walk's stability terms stay. An episode fails when the robot
@@ -38,6 +39,7 @@ from ambulo.robots import humanoid
 from ambulo.utils.validate import rule
 
 from ..utils.math import yaw_from_quat
+from . import rewards
 from .commands import VelocityCommandCfg, wrap_to_pi
 from .footstep_sampler import FootstepSampler, FootstepSamplerCfg, relative_xyyaw, start_feet_xyyaw_w
 from .humanoid_walk import HumanoidWalkCfg, HumanoidWalkEnv, as_play, humanoid_walk_cfg, humanoid_walk_ppo
@@ -58,9 +60,13 @@ class HumanoidFootstepsCfg(HumanoidWalkCfg):
     start_stance_width_m: float = humanoid.STANCE_WIDTH_M
     """Distance between the soles at the initial state, m."""
     plans: FootstepSamplerCfg = field(default_factory=FootstepSamplerCfg)
-    min_air_time_s: float = field(default=0.05, metadata=rule(minimum=0.0))
-    """A swing foot landing counts as a touchdown after this long in the air (contact chatter
-    does not advance the plan)."""
+    min_air_time_s: float = field(default=0.15, metadata=rule(minimum=0.0))
+    """A swing foot landing counts as a touchdown after this long in the air: contact chatter and
+    shuffles do not advance the plan (at 0.05 s a policy learned 9 stutter steps a second)."""
+    advance_radius_m: float = field(default=0.2, metadata=rule(minimum=0.0))
+    """A touchdown farther than this from its target is a miss: scored, but the target stays, so
+    the swing foot steps again. The plan waits for the robot instead of running away from it
+    (misses that advanced it left the robot behind its plan, lost, within ~3 s)."""
     placement_std_m: float = 0.08
     """Width of the touchdown position kernel exp(-(error / std)^2), m."""
     yaw_std_rad: float = 0.25
@@ -79,13 +85,17 @@ def humanoid_footsteps_cfg() -> HumanoidFootstepsCfg:
     The velocity command stays zero (every env "standing"): humanoid-walk's command machinery
     runs but nothing reads it. Weights per second of simulated time: a touchdown lasts one
     policy step (0.02 s), so its weight 40 pays 0.8 for a perfect placement, about what
-    ``swing_progress`` (weight 2) pays for the 0.4 m a swing foot covers in a 0.2 m step."""
+    ``swing_progress`` (weight 2) pays for the 0.4 m a swing foot covers in a 0.2 m step.
+    ``step_air_time`` is humanoid-walk's ``feet_air_time`` (its ``air_time_threshold_s``) paid at
+    every landing, without that term's gate on the velocity command, which is zero here: strides
+    earn, shuffles cost (without it a policy learned 9 stutter steps a second)."""
     walk = humanoid_walk_cfg()
     cfg = HumanoidFootstepsCfg(**{name: getattr(walk, name) for name in walk.__dataclass_fields__})
     cfg.commands = VelocityCommandCfg(standing_fraction=1.0, heading_fraction=0.0)
     cfg.curriculum_start_scale = None
     weights = {k: v for k, v in walk.reward_weights.items() if k not in UNUSED_WALK_TERMS}
-    cfg.reward_weights = dict(foot_placement=40.0, foot_yaw=10.0, swing_progress=2.0, heading=0.5, **weights)
+    cfg.reward_weights = dict(foot_placement=40.0, foot_yaw=10.0, swing_progress=2.0, heading=0.5, step_air_time=1.0,
+                              **weights)
     return cfg
 
 
@@ -228,7 +238,8 @@ class HumanoidFootstepsEnv(HumanoidWalkEnv):
         self.touchdown_yaw_error_rad = torch.where(touchdown, yaw_error, zero)
         self.placement_error_m = torch.where(touchdown, distance, self.placement_error_m)
         self.yaw_error_rad = torch.where(touchdown, yaw_error, self.yaw_error_rad)
-        self._advance(select_rows(touchdown))
+        # only a touchdown on (or near) its target moves the plan on; a miss is scored above
+        self._advance(select_rows(touchdown & (distance <= cfg.advance_radius_m)))
         # progress counts from here: after a touchdown, towards the new target
         self._swing_distance_m = self._swing_to_target_m(soles)
 
@@ -272,12 +283,16 @@ class HumanoidFootstepsEnv(HumanoidWalkEnv):
         mean_yaw = torch.atan2(torch.sin(yaw).sum(dim=1), torch.cos(yaw).sum(dim=1))
         heading_error = wrap_to_pi(mean_yaw - self.robot.data.heading_w.float())
         touchdown = self.touchdown.float()
+        feet = self.feet.data
+        always_stepping = torch.ones(self.num_envs, 1, device=self.device)  # passes feet_air_time's command gate
         return {
             **terms,
             "foot_placement": touchdown * torch.exp(-torch.square(self.touchdown_error_m / cfg.placement_std_m)),
             "foot_yaw": touchdown * torch.exp(-torch.square(self.touchdown_yaw_error_rad / cfg.yaw_std_rad)),
             "swing_progress": self._progress_m / self.step_dt_s,
             "heading": torch.exp(-torch.square(heading_error / cfg.heading_std_rad)),
+            "step_air_time": rewards.feet_air_time(feet.last_air_time_s, feet.first_contact, cfg.air_time_threshold_s,
+                                                   always_stepping),
         }
 
     def _reset_idx(self, rows: torch.Tensor) -> None:
