@@ -96,14 +96,20 @@ class GridScene:
         k = min(len(xpos_w), self.count)
         if k == 0:
             return
-        for geom, node in self.geoms.items():
-            b = int(self.model.geom_bodyid[geom])
-            if self._static[b] and self._sent_static:
-                continue
-            positions, wxyzs = node.batched_positions.copy(), node.batched_wxyzs.copy()
-            positions[:k] = xpos_w[:k, b] + self.offsets_w[:k]
-            wxyzs[:k] = xquat_w[:k, b]
-            node.batched_positions, node.batched_wxyzs = positions, wxyzs
+        moving = [(geom, node) for geom, node in self.geoms.items()
+                  if not (self._sent_static and self._static[self.model.geom_bodyid[geom]])]
+        if moving:
+            # one gather for all geoms, cast once to viser's float32: (k, G, 3) and (k, G, 4). viser copies
+            # what it is given and sends a whole array per property (unchanged ones not at all), so a
+            # column view is enough; only when fewer worlds than instances came are the others' rows kept
+            bodies = self.model.geom_bodyid[[geom for geom, _ in moving]]
+            positions = (xpos_w[:k, bodies] + self.offsets_w[:k, None]).astype(np.float32)
+            wxyzs = xquat_w[:k, bodies].astype(np.float32)
+            for j, (_, node) in enumerate(moving):
+                p, q = positions[:, j], wxyzs[:, j]
+                if k < self.count:
+                    p, q = np.concatenate([p, node.batched_positions[k:]]), np.concatenate([q, node.batched_wxyzs[k:]])
+                node.batched_positions, node.batched_wxyzs = p, q
         if not self._sent_static:
             for b, frame in self.ground.items():
                 frame.position, frame.wxyz = tuple(xpos_w[0, b]), tuple(xquat_w[0, b])
