@@ -120,20 +120,17 @@ class Stream:
 
 
 def _params(given, dist, device: torch.device, cache: dict):
-    """``dist``'s parameters as float32 tensors on ``device``, made once per distribution (``given``:
-    the randomizer's own object, a distribution or a number, keys ``cache``): a copy to a GPU from
-    pageable memory each batch would wait for the device."""
+    """``dist``'s parameters as float32 tensors on ``device``, made once per distribution: a copy to a
+    GPU from pageable memory each batch would wait for the device. A uniform's or a normal's are the
+    distribution's own (``param_tensors``: (low, high) or (mean, std), and the value shape); the others'
+    are kept in ``cache`` by ``given`` (the randomizer's own object, a distribution or a number)."""
+    if isinstance(dist, Uniform | Normal):
+        return dist.param_tensors(device, torch.float32)
     key = id(given)
     hit = cache.get(key)
     if hit is not None and hit[0] is given:
         return hit[1]
-    if isinstance(dist, Uniform | Normal):
-        a, c = (np.asarray(p, np.float64) for p in
-                ((dist.low, dist.high) if isinstance(dist, Uniform) else (dist.mean, dist.std)))
-        shape = np.broadcast_shapes(a.shape, c.shape)
-        params = tuple(torch.as_tensor(np.broadcast_to(p, shape).copy(), dtype=torch.float32, device=device)
-                       for p in (a, c)) + (shape,)
-    elif isinstance(dist, Choice):
+    if isinstance(dist, Choice):
         weights = np.ones(len(dist.options)) if dist.weights is None else np.asarray(dist.weights, np.float64)
         params = (torch.as_tensor(np.asarray(dist.options, np.float64), dtype=torch.float32, device=device),
                   torch.as_tensor(np.cumsum(weights) / weights.sum(), dtype=torch.float32, device=device))

@@ -55,7 +55,8 @@ class Distribution:
 
 @dataclass(frozen=True)
 class _Pair(Distribution):
-    """Two broadcast parameters (bounds, or mean and std), as tensors cached per (device, dtype)."""
+    """Two broadcast parameters (bounds, or mean and std), as tensors cached per (device, dtype) on the
+    distribution itself: every sampler of it (``sample``, the replicator's device draws) reads them here."""
 
     _cache: dict = field(default_factory=dict, init=False, repr=False, compare=False, hash=False)
 
@@ -65,20 +66,31 @@ class _Pair(Distribution):
     _span = False
     """Whether the second tensor is the difference of the two parameters (a uniform's width)."""
 
-    def _tensors(self, device: torch.device, dtype: torch.dtype):
-        """The two parameters (or, with ``_span``, the first and the difference) as Python floats
-        for scalars, else as tensors of the value shape in ``dtype``; and the value shape. The
-        arithmetic is that of ``a + (b - a) * u`` on floats or on ``dtype`` tensors."""
-        key = (device, dtype)
+    def param_tensors(self, device: torch.device, dtype: torch.dtype):
+        """The two parameters as tensors of the value shape ``S`` in ``dtype`` on ``device`` (0-d for
+        scalars), and ``S``: made once per (device, dtype), so a GPU caller does not copy them from
+        pageable memory each time (``replicator.device_draws`` samples with them)."""
+        key = ("params", device, dtype)
         hit = self._cache.get(key)
         if hit is None:
             a, b = (np.asarray(p, np.float64) for p in self._params())
             shape = np.broadcast_shapes(a.shape, b.shape)
-            if not shape:
-                first, second = float(a), float(b)
+            hit = self._cache[key] = (
+                *(torch.as_tensor(np.broadcast_to(x, shape).copy(), dtype=dtype, device=device) for x in (a, b)), shape)
+        return hit
+
+    def _tensors(self, device: torch.device, dtype: torch.dtype):
+        """The two parameters (or, with ``_span``, the first and the difference) as Python floats
+        for scalars, else as ``param_tensors``; and the value shape. The arithmetic is that of
+        ``a + (b - a) * u`` on floats or on ``dtype`` tensors."""
+        key = (device, dtype)
+        hit = self._cache.get(key)
+        if hit is None:
+            a, b = (np.asarray(p, np.float64) for p in self._params())
+            if not np.broadcast_shapes(a.shape, b.shape):
+                first, second, shape = float(a), float(b), ()  # float64 arithmetic, whatever dtype
             else:
-                first, second = (torch.as_tensor(np.broadcast_to(x, shape).copy(), dtype=dtype, device=device)
-                                 for x in (a, b))
+                first, second, shape = self.param_tensors(device, dtype)
             hit = first, (second - first) if self._span else second, shape
             self._cache[key] = hit
         return hit
