@@ -42,7 +42,7 @@ from .randomizers import (
     MaterialRandomizer,
     Randomizer,
 )
-from .scatter import Scatter2D, _geom_pos_in_root, _geom_rot_in_root
+from .scatter import Scatter2D, footprint_radius
 
 _MASK32 = 0xFFFFFFFF
 
@@ -368,16 +368,6 @@ class _Scatter(_Twin):
         self.engine.qpos[:count, self.free_index.reshape(-1)] = free.reshape(b, -1)
 
 
-def footprint_radius(model: mujoco.MjModel, body: int, geoms) -> float:
-    """Radius (m) of the circle about ``body``'s origin that holds its upright bounding box at any yaw."""
-    radius = 0.0
-    for g, (centre, half) in zip(geoms, model.geom_aabb[geoms].reshape(-1, 2, 3)):
-        corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * half + centre
-        xy = (corners @ _geom_rot_in_root(model, g, body).T + _geom_pos_in_root(model, g, body))[:, :2]
-        radius = max(radius, float(np.linalg.norm(xy, axis=1).max()))
-    return radius
-
-
 def static_boxes(model: mujoco.MjModel, qpos: np.ndarray, scatterers: list[Scatter2D]) -> np.ndarray:
     """(O, 4) plane boxes (centre x, y, half x, y) of every geom the scatterers must avoid: all but
     their own bodies' and their surfaces' geoms and planes, posed at ``qpos``, that reach below the
@@ -442,5 +432,5 @@ class DeviceDraws:
             twin.slots_used = stream.used
 
 
-__all__ = ["DeviceDraws", "Footprints", "Stream", "footprint_radius", "hsv_to_rgb", "key_base", "mix32",
+__all__ = ["DeviceDraws", "Footprints", "Stream", "hsv_to_rgb", "key_base", "mix32",
            "rotvec_to_mat", "sample", "static_boxes", "stream_keys", "uniforms"]

@@ -34,7 +34,8 @@ from ambulo.utils.rotations import quat_to_mat
 
 from .randomizers import Randomizer
 
-__all__ = ["CollisionChecker", "Distractors", "Scatter2D", "park_z"]
+__all__ = ["CollisionChecker", "Distractors", "Scatter2D", "bottom_offset", "box_corners_in_root", "footprint_radius",
+           "park_z"]
 
 
 @dataclass(kw_only=True)
@@ -75,7 +76,7 @@ class Scatter2D(Randomizer):
         # the checker makes only the contacts of these objects' geoms: the rest never decide a redraw
         self._checker = CollisionChecker(m, surface, movers=np.concatenate(self._geoms)) \
             if self.check_collisions else None
-        self._bottom = [self._bottom_offset(m, b, g) for b, g in zip(self._bodies, self._geoms)]
+        self._bottom = [bottom_offset(m, b, g) for b, g in zip(self._bodies, self._geoms)]
         # (bodies, 7) qpos addresses of each free joint, and the height (m) its origin rests at
         self._free_index = np.asarray(self._qadr, np.int64)[:, None] + np.arange(7)
         self._rest_z_m = self.surface_z_m + np.asarray(self._bottom)
@@ -84,21 +85,6 @@ class Scatter2D(Randomizer):
         (x0, y0), (x1, y1) = self.region
         self._place = Columns((uniform(x0, x1), uniform(y0, y1), self.yaw_rad))  # x, y, yaw of each object
         self._park_values = np.concatenate([[0.0, 0.0, park_z(b), 1, 0, 0, 0] for b in self._bodies])
-
-    @staticmethod
-    def _bottom_offset(m, body, geoms) -> float:
-        """Depth (m) of the body's lowest bounding-box corner below its origin, when upright.
-
-        Yaw does not change heights, so one number per body sets its resting z.
-        """
-        aabb = m.geom_aabb[geoms].reshape(-1, 2, 3)
-        lowest = np.inf
-        for g, (center, half) in zip(geoms, aabb):
-            rot = _geom_rot_in_root(m, g, body)
-            pos = _geom_pos_in_root(m, g, body)
-            corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * half + center
-            lowest = min(lowest, float((corners @ rot.T + pos)[:, 2].min()))
-        return -lowest
 
     def sample(self, rng, ctx):
         g, n = self.generator(rng), len(self._bodies)
@@ -163,6 +149,32 @@ class Scatter2D(Randomizer):
 
     def _park_all(self, qpos: np.ndarray) -> None:
         qpos[self._park_index] = self._park_values
+
+
+_BOX_CORNERS = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+"""(8, 3) the corners of the unit cube [-1, 1]^3."""
+
+
+def box_corners_in_root(m: mujoco.MjModel, body: int, geoms) -> np.ndarray:
+    """(8 G, 3) the corners of ``geoms``' bounding boxes (``geom_aabb``) in ``body``'s frame, m: the
+    geometry an upright object is placed by (``bottom_offset``, ``footprint_radius``)."""
+    boxes = m.geom_aabb[geoms].reshape(-1, 2, 3)  # (G, 2, 3): centre and half sizes in the geom's frame
+    return np.concatenate([(_BOX_CORNERS * half + centre) @ _geom_rot_in_root(m, g, body).T
+                           + _geom_pos_in_root(m, g, body) for g, (centre, half) in zip(geoms, boxes)]
+                          or [np.zeros((0, 3))])
+
+
+def bottom_offset(m: mujoco.MjModel, body: int, geoms) -> float:
+    """Depth (m) of the body's lowest bounding-box corner below its origin, when upright.
+
+    Yaw does not change heights, so one number per body sets its resting z.
+    """
+    return -float(box_corners_in_root(m, body, geoms)[:, 2].min(initial=np.inf))
+
+
+def footprint_radius(m: mujoco.MjModel, body: int, geoms) -> float:
+    """Radius (m) of the circle about ``body``'s origin that holds its upright bounding box at any yaw."""
+    return float(np.linalg.norm(box_corners_in_root(m, body, geoms)[:, :2], axis=1).max(initial=0.0))
 
 
 def _geom_rot_in_root(m, geom: int, root: int) -> np.ndarray:
