@@ -69,12 +69,12 @@ import torch
 from ambulo import replicator as rep
 from ambulo.replicator.batched import BatchedFrameProducer
 from ambulo.replicator.batched_disk import STAGES, run_batched_frames
-from ambulo.replicator.coco import merge_coco
+from ambulo.replicator.coco_file import write_annotations
 from ambulo.replicator.draw_pool import DrawPool
 from ambulo.replicator.encode import jpeg_available
 from ambulo.replicator.processes import ProducerPool, usable_cpus
 from ambulo.replicator.producer import run_frames
-from ambulo.replicator.writers import FrameWriter, json_bytes, prepare_dirs, write_frame_files
+from ambulo.replicator.writers import FrameWriter, prepare_dirs, write_frame_files
 from ambulo.sensors.annotators import instance_table
 from ambulo.utils.atomic import atomic_write_bytes, can_sync_filesystem, sync_filesystem
 
@@ -174,11 +174,12 @@ def disk_run(config, out: Path, frames: list[int], categories, write) -> dict:
     ``generate`` writes them: frames/s, MB and files a frame, and the write's stage seconds."""
     prepare_dirs(out, config.writer)
     stats: dict = {}
+    pieces: dict = {}  # the COCO pieces of the frames committed, as generate gathers them
     start = time.perf_counter()
-    write(out, stats=stats)
+    write(out, stats=stats, pieces=pieces)
     written = time.perf_counter()
-    merged = merge_coco(out / "frames", len(frames), categories, {"seed": 2})
-    atomic_write_bytes(out / "annotations.json", json_bytes(merged), fsync=config.writer.fsync)
+    write_annotations(out / "annotations.json", out / "frames", len(frames), categories, {"seed": 2},
+                      pieces=pieces, fsync=config.writer.fsync)
     seconds = time.perf_counter() - start
     files = [f for f in out.rglob("*") if f.is_file()]
     size_mb = sum(f.stat().st_size for f in files) / 1e6
@@ -187,6 +188,7 @@ def disk_run(config, out: Path, frames: list[int], categories, write) -> dict:
     per_frame["coco_merge"] = round(1e3 * (start + seconds - written) / len(frames), 3)
     return {"fps": round(len(frames) / seconds, 1), "fps_before_merge": round(len(frames) / (written - start), 1), "mb_per_frame": round(size_mb / len(frames), 4),
             "files_per_frame": round(len(files) / len(frames), 2), "commits": stats.get("commits", 0),
+            "coco_pieces": len(pieces),  # frames whose annotations came as pieces, not from the records
             "ms_per_frame": per_frame}
 
 
@@ -241,8 +243,9 @@ def disk_runs(args, jpeg_ok: bool, root: Path) -> list[tuple]:
     return runs
 
 
-def _threads_run(config, out, stats=None, **kwargs):
-    """``run_frames`` as ``disk_run`` calls a writer (it keeps no stage times)."""
+def _threads_run(config, out, stats=None, pieces=None, **kwargs):
+    """``run_frames`` as ``disk_run`` calls a writer (it keeps no stage times and makes no COCO
+    pieces: the merge reads its records)."""
     return run_frames(config, out, **kwargs)
 
 

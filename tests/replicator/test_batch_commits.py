@@ -21,11 +21,12 @@ from ambulo.replicator.writers import FrameWriter, WriterCfg, prepare_dirs
 
 
 def _batch(indices, error=None) -> list[cf.Future]:
-    """One part's future: the (index, record) pairs a draw process hands back, or its error."""
+    """One part's future: the (index, record) pairs a draw process hands back, its seconds and its
+    frames' COCO pieces (here, a stand-in naming the frame), or its error."""
     future = cf.Future()
     if error is None:
         future.set_result(([(i, {"frame": i, "files": {f"rgb/{i:06d}.jpg": 3}}) for i in indices],
-                           {"part_write_s": 0.5}))
+                           {"part_write_s": 0.5}, {i: f"piece {i}" for i in indices}))
     else:
         future.set_exception(error)
     return [future]
@@ -60,11 +61,11 @@ def flushes(monkeypatch):
     return state
 
 
-def _commits(root, progress=None):
+def _commits(root, progress=None, pieces=None):
     cfg = WriterCfg(outputs=("coco",), fsync=True)
     prepare_dirs(root, cfg)
     free: queue.Queue = queue.Queue()
-    return BatchCommits(FrameWriter(root, cfg, batch=sys.maxsize), free, progress), free
+    return BatchCommits(FrameWriter(root, cfg, batch=sys.maxsize), free, progress, pieces), free
 
 
 def test_records_follow_their_flush_and_blocks_are_freed_before_it(tmp_path, flushes):
@@ -107,3 +108,35 @@ def test_a_failed_part_keeps_the_other_batches(tmp_path, flushes):
     commits.close()
     assert isinstance(commits.failed[0], RuntimeError) and _records(tmp_path) == {1, 2}
     assert free.qsize() == 2
+
+
+def test_pieces_are_kept_for_the_committed_frames_only(tmp_path, flushes):
+    # annotations.json takes a frame's piece instead of reading its record: only a frame whose
+    # record was written may have one (a resumed run reads the others' records)
+    pieces = {}
+    commits, _ = _commits(tmp_path, pieces=pieces)
+    commits.put("block0", _batch([0, 1]))
+    _wait(lambda: len(flushes["seen"]) == 1)
+    assert pieces == {}  # not before its records are on disk
+    flushes["gate"].set()
+    _wait(lambda: _records(tmp_path) == {0, 1})
+    _wait(lambda: len(pieces) == 2)
+    flushes["fail"] = OSError(5, "Input/output error")
+    commits.put("block1", _batch([2]))
+    commits.close()
+    assert commits.failed and _records(tmp_path) == {0, 1} and pieces == {0: "piece 0", 1: "piece 1"}
+
+
+def test_encoded_records_are_written_as_they_are(tmp_path, flushes):
+    # the GPU disk mode's processes encode each record (writers.encode_record): the bytes written
+    # are json_bytes(record), and a flush without syncfs flushes the folders it lists
+    flushes["gate"].set()
+    record = {"frame": 4, "files": {"rgb/000004.jpg": 3, "depth/000004.png": 5}, "x": [0.1, 1 / 3]}
+    encoded = writers.encode_record(record)
+    assert encoded.folders == ("depth", "rgb")
+    future = cf.Future()
+    future.set_result(([(4, encoded)], {}, {}))
+    commits, _ = _commits(tmp_path)
+    commits.put("block0", [future])
+    commits.close()
+    assert (tmp_path / "frames" / "000004.json").read_bytes() == writers.json_bytes(record)

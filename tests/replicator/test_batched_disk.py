@@ -16,7 +16,10 @@ import torch
 
 from ambulo import replicator as rep
 from ambulo.replicator.batched_disk import SharedBatch, batch_layout, run_batched_frames, supports
+from ambulo.replicator.coco import merge_coco
 from ambulo.replicator.encode import jpeg_available
+from ambulo.replicator.writers import json_bytes
+from ambulo.sensors.annotators import instance_table
 
 
 def test_shared_batch_holds_the_layouts_arrays_and_is_removed_on_close():
@@ -197,3 +200,55 @@ def test_generate_cli_refuses_jpeg_without_the_gpu_path(tmp_path, capsys):
                      "--image-format", "jpg"]) != 0
         assert "needs torchvision's JPEG encoder on cpu" in capsys.readouterr().err
     assert not any((tmp_path / d).exists() for d in "ab")  # nothing written
+
+
+def test_an_interrupted_disk_mode_run_resumes_to_the_straight_runs_files(tmp_path, monkeypatch, gen):
+    # annotations.json is made from the COCO pieces the processes hand back with the frames this
+    # run commits, and from the records of the frames an earlier run made: a run cut short after
+    # some commits (one frame's record lost, another's file torn, as a kill leaves them) and
+    # resumed must give the straight run's files, annotations.json byte for byte
+    import importlib
+
+    from ambulo.replicator import coco_file
+    from ambulo.replicator.batched import BatchedFrameProducer
+    from ambulo.replicator.draw_pool import DrawPool
+
+    gen_module = importlib.import_module("ambulo.replicator.generate")  # the module, not its function
+    config = rep.example_config(64, 48)
+    # one producer and pool for the three runs (each would build its own: seconds of the test)
+    producer = BatchedFrameProducer(config, num_worlds=3, device="cpu", draws=DrawPool(config, 1))
+    monkeypatch.setattr(gen_module, "BatchedFrameProducer", lambda *a, draws=None, **k: draws.close() or producer)
+    monkeypatch.setattr(producer, "close", lambda: None)
+    made, write = {}, coco_file.write_annotations
+    monkeypatch.setattr(gen_module, "write_annotations",
+                        lambda path, *args, pieces=None, **kw: made.update({path.parent.name: set(pieces or ())})
+                        or write(path, *args, pieces=pieces, **kw))
+    run, cut = gen_module.run_batched_frames, {"at": None}
+
+    def cut_short(config, out, seed, frames, *args, **kwargs):
+        if cut["at"] is None:
+            return run(config, out, seed, frames, *args, **kwargs)
+        run(config, out, seed, frames[:cut["at"]], *args, **kwargs)
+        (out / "frames" / "000001.json").unlink()  # its batch's commit never happened
+        (out / "rgb" / "000004.png").write_bytes(b"torn")  # a file cut short after its record
+        raise KeyboardInterrupt("killed")
+
+    monkeypatch.setattr(gen_module, "run_batched_frames", cut_short)
+    frames, options = 8, {"seed": 3, "show_progress": False, "device": "cpu", "num_worlds": 3, "draw_workers": 1}
+    try:
+        rep.generate(config, tmp_path / "straight", frames, **options)
+        cut["at"] = 6
+        with pytest.raises(KeyboardInterrupt):
+            rep.generate(config, tmp_path / "resumed", frames, **options)
+        assert not (tmp_path / "resumed" / "annotations.json").exists()
+        cut["at"] = None
+        rep.generate(config, tmp_path / "resumed", frames, **options)
+    finally:
+        producer.draws.close()
+    assert made == {"straight": set(range(frames)), "resumed": {1, 4, 6, 7}}  # the others from records
+    assert gen.file_tree(tmp_path / "resumed") == gen.file_tree(tmp_path / "straight")
+    straight = (tmp_path / "straight" / "annotations.json").read_bytes()
+    assert (tmp_path / "resumed" / "annotations.json").read_bytes() == straight
+    assert straight == json_bytes(merge_coco(tmp_path / "straight" / "frames", frames,
+                                             instance_table(producer.model).categories,
+                                             json.loads(straight)["info"]))

@@ -41,10 +41,11 @@ import torch
 
 from . import draw_pool
 from .batched import BatchedFrameProducer, frame_capture, tiled_camera_cfg
+from .coco_file import frame_piece
 from .commits import BatchCommits
 from .device_rle import frame_rles, rle_counts
 from .encode import IMAGE_FORMATS, as_u16_bits, depth_mm, encode_jpegs
-from .writers import FrameWriter, write_frame_files
+from .writers import EncodedRecord, FrameWriter, encode_record, write_frame_files
 
 SUPPORTED_OUTPUTS = {"coco", "depth", "masks", "kitti"}
 
@@ -151,15 +152,18 @@ free block (``wait_block_s``: the processes are behind), the copy into it and th
 poses' to the host (``copy_s``), handing out the parts (``submit_s``); on the settle thread
 waiting for the processes (``wait_writes_s``); on the commit thread the file system's flushes and
 the records' writes (``commit_s``); and summed over the processes, the captures (loose and 3D
-boxes) and the files' encode and write with the COCO annotations (``part_capture_s``,
-``part_write_s``): CPU seconds, to divide by the processes."""
+boxes) and the files' encode and write with the COCO annotations, the record's JSON and the
+frame's COCO piece (``part_capture_s``, ``part_write_s``): CPU seconds, to divide by the processes."""
 
 
 def run_batched_frames(config, out: Path, seed: int, frames: list[int], producer: BatchedFrameProducer,
-                       progress=None, image_format: str = "png", stats: dict | None = None) -> str:
+                       progress=None, image_format: str = "png", stats: dict | None = None,
+                       pieces: dict | None = None) -> str:
     """Render and write ``frames`` (see the module docstring); returns the renderer's name.
     ``producer.draws`` (a ``DrawPool`` of this config) draws the scenes and writes the files.
-    ``stats``: a dict that gets each of ``STAGES``' seconds added (and ``commits``, the flushes)."""
+    ``stats``: a dict that gets each of ``STAGES``' seconds added (and ``commits``, the flushes).
+    ``pieces``: a dict that gets each committed frame's COCO piece (``coco_file.FramePiece``, made
+    on the processes with its record), for ``coco_file.write_annotations``."""
     if image_format not in IMAGE_FORMATS:
         raise ValueError(f"image format must be one of {IMAGE_FORMATS}, got {image_format!r}")
     if not supports(config.writer):
@@ -181,7 +185,7 @@ def run_batched_frames(config, out: Path, seed: int, frames: list[int], producer
     free: queue.Queue = queue.Queue()
     for block in blocks:
         free.put(block)
-    commits = BatchCommits(writer, free, progress)
+    commits = BatchCommits(writer, free, progress, pieces)
     times = commits.times
     chunks = producer._chunks(seed, frames)  # each chunk's draws submitted one chunk ahead
     try:
@@ -319,15 +323,18 @@ def _frame_context() -> tuple:
 
 
 def _write_part(spec, start: int, indices: list[int], logs: list[dict], small: dict, jpeg_spans, rle: tuple,
-                out: str, writer_cfg, fsync_files: bool) -> tuple[list[tuple[int, dict]], dict]:
+                out: str, writer_cfg, fsync_files: bool) -> tuple[list[tuple[int, EncodedRecord]], dict, dict]:
     """Write frames ``indices`` (worlds ``start``... of the block ``spec``); returns their records
-    and this part's seconds of captures and of file writing (``STAGES``). Each capture carries
+    (encoded here: the main process only writes them), this part's seconds of captures and of
+    file writing (``STAGES``), and the frames' COCO pieces (``coco_file.frame_piece``: the
+    annotations file's parts made here, in parallel, rather than from the records at the end;
+    a frame whose piece can't be made is read from its record then). Each capture carries
     ``coco_rles``: its masks' RLEs from the device's run lengths (``device_rle.frame_rles``, the
     bytes of ``coco.instance_rles``), for ``coco.frame_annotations`` to take instead of finding
     the runs again on the host."""
     arrays = _attach(spec)
     cfg, k_matrix, table, model, annotators = _frame_context()
-    records = []
+    records, pieces = [], {}
     part = slice(start, start + len(indices))
     host = {**small, **{name: arrays[name][part] for name in ("instances", "semantic", "rgb") if name in arrays}}
     depth = arrays.get("depth_mm")
@@ -344,11 +351,14 @@ def _write_part(spec, start: int, indices: list[int], logs: list[dict], small: d
             rgb_jpeg = arrays["jpeg_bytes"][lo:hi]
         record = write_frame_files(Path(out), index, capture, table, log, writer_cfg, fsync_files, rgb_jpeg=rgb_jpeg,
                                    depth_mm_u16=None if depth is None else depth[start + i])
-        records.append((index, record))
+        records.append((index, encode_record(record)))
+        piece = frame_piece(index, record)
+        if piece is not None:
+            pieces[index] = piece
         end = time.perf_counter()
         capture_s += middle - begin
         write_s += end - middle
-    return records, {"part_capture_s": capture_s, "part_write_s": write_s}
+    return records, {"part_capture_s": capture_s, "part_write_s": write_s}, pieces
 
 
 __all__ = ["STAGES", "SUPPORTED_OUTPUTS", "SharedBatch", "batch_layout", "run_batched_frames", "shared_blocks", "supports"]

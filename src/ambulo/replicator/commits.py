@@ -15,7 +15,8 @@ mode) put every flush on the render's path: the device waited for the storage on
   wait overlaps the next batches' rendering and writing).
 
 A crash at any point leaves records only for frames whose files were flushed: a resumed run
-makes the others again.
+makes the others again. Each part may hand back its frames' COCO pieces too (``coco_file``): they
+are kept (``pieces``) only for frames whose records were written, for ``annotations.json``.
 """
 
 from __future__ import annotations
@@ -31,21 +32,23 @@ class BatchCommits:
     """Settles and commits batches (see the module docstring). ``writer``: a ``FrameWriter`` whose
     batch never fills (only ``flush`` writes records); ``free``: where a batch's block goes back
     once its processes are done; ``progress(n)``: called with each commit's frame count.
-    ``times`` gets ``wait_writes_s``, ``commit_s``, ``commits`` and the parts' own seconds."""
+    ``times`` gets ``wait_writes_s``, ``commit_s``, ``commits`` and the parts' own seconds.
+    ``pieces`` (a dict, or None: not kept) gets each committed frame's ``coco_file.FramePiece``."""
 
-    def __init__(self, writer, free: queue.Queue, progress=None):
-        self.writer, self.free, self.progress = writer, free, progress
+    def __init__(self, writer, free: queue.Queue, progress=None, pieces: dict | None = None):
+        self.writer, self.free, self.progress, self.pieces = writer, free, progress, pieces
         self.times: collections.Counter = collections.Counter()
         self.failed: list[BaseException] = []
         self._written: queue.Queue = queue.Queue()  # (block, futures) in batch order, then None
-        self._done: queue.Queue = queue.Queue()  # each batch's (index, record)s, then None
+        self._done: queue.Queue = queue.Queue()  # each batch's ((index, record)s, pieces), then None
         self._threads = [threading.Thread(target=self._settle, name="ambulo-settle", daemon=True),
                          threading.Thread(target=self._commit, name="ambulo-commit", daemon=True)]
         for thread in self._threads:
             thread.start()
 
     def put(self, block, futures) -> None:
-        """A batch handed to the processes: ``futures`` give (records, seconds) each."""
+        """A batch handed to the processes: ``futures`` give (records, seconds, pieces) each:
+        [(index, record)] (a dict or ``writers.EncodedRecord``), {stage: seconds}, {index: piece}."""
         self._written.put((block, futures))
 
     def close(self) -> None:
@@ -58,17 +61,19 @@ class BatchCommits:
         while (item := self._written.get()) is not None:
             block, futures = item
             records: list = []
+            pieces: dict = {}
             start = time.perf_counter()
             try:
                 for future in futures:
-                    part, seconds = future.result()
+                    part, seconds, part_pieces = future.result()
                     records.extend(part)
+                    pieces.update(part_pieces)
                     self.times.update(seconds)
             except BaseException as err:  # the other parts' frames are kept; the run stops
                 self.failed.append(err)
             finally:
                 self.times["wait_writes_s"] += time.perf_counter() - start
-                self._done.put(records)
+                self._done.put((records, pieces))
                 self.free.put(block)
         self._done.put(None)
 
@@ -80,7 +85,8 @@ class BatchCommits:
                 while True:  # the batches that finished during the last flush: one flush for all
                     batches.append(self._done.get_nowait())
             finished = batches[-1] is None
-            records = [record for batch in batches if batch is not None for record in batch]
+            batches = [batch for batch in batches if batch is not None]
+            records = [record for batch, _ in batches for record in batch]
             if not records or broken:  # after a failed flush nothing more is committed (see below)
                 continue
             for index, record in records:
@@ -97,6 +103,9 @@ class BatchCommits:
             finally:
                 self.times["commit_s"] += time.perf_counter() - start
             self.times["commits"] += 1
+            if self.pieces is not None:  # the records are written: their pieces stand for them
+                for _, pieces in batches:
+                    self.pieces.update(pieces)
             if self.progress is not None:
                 self.progress(len(records))
 

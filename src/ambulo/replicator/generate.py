@@ -20,11 +20,11 @@ import mujoco
 from tqdm import tqdm
 
 from ambulo.core import compile_scene
-from ambulo.utils.atomic import atomic_write_bytes, atomic_write_json, remove_partial_files
+from ambulo.utils.atomic import atomic_write_json, remove_partial_files
 
 from .batched import IMAGE_SOURCE, BatchedFrameProducer
 from .batched_disk import SUPPORTED_OUTPUTS, run_batched_frames, supports
-from .coco import merge_coco
+from .coco_file import write_annotations
 from .config import DatasetConfig
 from .encode import IMAGE_FORMATS, JPEG_QUALITY, jpeg_available
 from .io import PNG_DEFLATE
@@ -32,7 +32,7 @@ from .manifest import open_dataset
 from .processes import default_workers, run_on_processes, usable_cpus
 from .producer import FrameProducer, run_frames
 from .ray_workers import run_on_ray
-from .writers import frame_is_complete, frame_subdirs, json_bytes, prepare_dirs
+from .writers import frame_is_complete, frame_subdirs, prepare_dirs
 
 
 def done_frames(out: Path, num_frames: int) -> set[int]:
@@ -140,6 +140,7 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
     bar = tqdm(total=num_frames, initial=num_frames - len(todo), desc="frames", unit="frame",
                disable=not show_progress)
     progress, watcher = bar.update, None
+    pieces: dict = {}  # annotations.json's parts of the frames this run commits, where its path makes them
     if watch is not None and todo:
         producer = producer or FrameProducer(config)
         watcher = watch(producer)
@@ -160,7 +161,8 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
         elif workers > 1:
             renderer = run_on_processes(config, out, seed, todo, workers, bar.update)
         elif batched and producer.draws is not None and watch is None and supports(config.writer):
-            renderer = run_batched_frames(config, out, seed, todo, producer, bar.update, image_format)
+            renderer = run_batched_frames(config, out, seed, todo, producer, bar.update, image_format,
+                                          pieces=pieces)
         else:
             renderer = run_frames(config, out, seed, todo, progress, producer=producer,
                                   writer_threads=writer_threads if batched else 1)
@@ -179,9 +181,8 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
                 "categories": categories, "annotators": list(config.camera.annotators)}
     atomic_write_json(out / "metadata.json", metadata, fsync=fsync)
     info = {"description": config.name, "version": "1.0", "gl_renderer": renderer, "seed": seed}
-    coco = merge_coco(out / "frames", num_frames, categories, info)
     path = out / "annotations.json"
-    atomic_write_bytes(path, json_bytes(coco), fsync=fsync)
+    write_annotations(path, out / "frames", num_frames, categories, info, pieces=pieces, fsync=fsync)
     return path
 
 

@@ -118,6 +118,24 @@ def prepare_dirs(out: Path, cfg: WriterCfg, annotators=None) -> None:
         (out / sub).mkdir(parents=True, exist_ok=True)
 
 
+@dataclass(frozen=True, slots=True)
+class EncodedRecord:
+    """A frame record as the bytes ``FrameWriter.flush`` writes (``json_bytes``), and the folders of
+    its files (what a flush without ``syncfs`` flushes)."""
+
+    data: bytes
+    folders: tuple[str, ...]
+
+
+def record_folders(record: dict) -> tuple[str, ...]:
+    """The dataset folders that hold the files ``record`` lists."""
+    return tuple(sorted({relpath.split("/")[0] for relpath in record["files"]}))
+
+
+def encode_record(record: dict) -> EncodedRecord:
+    return EncodedRecord(json_bytes(record), record_folders(record))
+
+
 class FrameWriter:
     """Writes frames' files into dataset ``out``, and their records in batches.
 
@@ -156,11 +174,13 @@ class FrameWriter:
         self.add(index, write_frame_files(self.out, index, capture, table, log, self.cfg,
                                           fsync_files=self.fsync_files))
 
-    def add(self, index: int, record: dict) -> None:
+    def add(self, index: int, record: dict | EncodedRecord) -> None:
         """Hold back the record of frame ``index``, whose files ``write_frame_files`` wrote (on any
-        thread), until the next batch flush."""
+        thread), until the next batch flush; ``record`` as a dict or already encoded
+        (``encode_record``: on the process that wrote the files, off this one's GIL)."""
         self._records.append((index, record))
-        self._folders |= {relpath.split("/")[0] for relpath in record["files"]}
+        folders = record.folders if isinstance(record, EncodedRecord) else record_folders(record)
+        self._folders.update(folders)
         if len(self._records) >= self.batch:
             self.flush()
 
@@ -173,7 +193,8 @@ class FrameWriter:
                 fsync_dir(self.out / folder)
         frames = os.path.join(os.fspath(self.out), "frames")
         for index, record in self._records:
-            write_file(os.path.join(frames, f"{frame_stem(index)}.json"), json_bytes(record))
+            data = record.data if isinstance(record, EncodedRecord) else json_bytes(record)
+            write_file(os.path.join(frames, f"{frame_stem(index)}.json"), data)
         self._records.clear()
         self._folders.clear()
 
