@@ -541,20 +541,26 @@ def test_the_walks_body_track_test_is_exactly_the_crossed_cells():
     assert 30 < sum(outcomes) < 270
 
 
+def plans_a_narrow_passage_within(seed: int, index: int, max_expansions: int) -> None:
+    """Problem ``index`` of the footstep benchmark's narrow_passages category as drawn with ``seed`` is
+    planned (valid footsteps) within ``max_expansions`` expansions (and 60 s: a budget, not a timing)."""
+    rng = np.random.default_rng([seed, BENCH.CATEGORIES.index("narrow_passages")])
+    problem = [BENCH.make_problem("narrow_passages", k, rng) for k in range(index + 1)][index]
+    grid = GridMap.from_array(problem["occupied"], origin_xy_m=problem["origin_xy_m"], resolution_m=0.05)
+    plan = FootstepPlanner(grid, humanoid_footstep_cfg(max_expansions=max_expansions, time_budget_s=60.0)).plan(
+        goal_xyyaw_w=problem["goal"], start_feet_xyyaw_w=problem["start_feet"], stance_side=problem["stance_side"])
+    assert plan.status is PlanStatus.SUCCESS, plan.detail
+    assert 0 < plan.expansions <= max_expansions
+    assert_valid(plan, grid, goal=problem["goal"], start_feet=problem["start_feet"],
+                 stance_side=problem["stance_side"])
+
+
 def test_a_bent_corridor_is_planned_with_few_expansions():
     # a benchmark corridor with two right-angle bends 0.65 m wide (the body's channel is 3 cells),
     # the robot facing away: the walk along the body path stalls in the bend and the lattice search
     # takes over; a heuristic weight of 8 gets through in tens of expansions where 3 spread over
     # every turn near the start (hundreds; a deterministic budget, not a timing)
-    rng = np.random.default_rng([0, BENCH.CATEGORIES.index("narrow_passages")])
-    problem = [BENCH.make_problem("narrow_passages", index, rng) for index in range(3)][2]
-    grid = GridMap.from_array(problem["occupied"], origin_xy_m=problem["origin_xy_m"], resolution_m=0.05)
-    plan = FootstepPlanner(grid, humanoid_footstep_cfg(max_expansions=150, time_budget_s=60.0)).plan(
-        goal_xyyaw_w=problem["goal"], start_feet_xyyaw_w=problem["start_feet"], stance_side=problem["stance_side"])
-    assert plan.status is PlanStatus.SUCCESS, plan.detail
-    assert 0 < plan.expansions <= 150
-    assert_valid(plan, grid, goal=problem["goal"], start_feet=problem["start_feet"],
-                 stance_side=problem["stance_side"])
+    plans_a_narrow_passage_within(seed=0, index=2, max_expansions=150)
 
 
 def test_progress_table_is_the_sum_of_its_per_step_bounds():
@@ -610,12 +616,4 @@ def test_a_corridor_bending_away_from_the_goal_is_searched_along_the_corridor():
     # turn into it face away from the straight line to the goal. The weight multiplies only the
     # path part of the heuristic, not that turning bound, so the search goes down the corridor in
     # a handful of expansions (it took 1,531 when the weight multiplied both; a budget, not a timing)
-    rng = np.random.default_rng([3, BENCH.CATEGORIES.index("narrow_passages")])
-    problem = [BENCH.make_problem("narrow_passages", index, rng) for index in range(13)][12]
-    grid = GridMap.from_array(problem["occupied"], origin_xy_m=problem["origin_xy_m"], resolution_m=0.05)
-    plan = FootstepPlanner(grid, humanoid_footstep_cfg(max_expansions=100, time_budget_s=60.0)).plan(
-        goal_xyyaw_w=problem["goal"], start_feet_xyyaw_w=problem["start_feet"], stance_side=problem["stance_side"])
-    assert plan.status is PlanStatus.SUCCESS, plan.detail
-    assert 0 < plan.expansions <= 100
-    assert_valid(plan, grid, goal=problem["goal"], start_feet=problem["start_feet"],
-                 stance_side=problem["stance_side"])
+    plans_a_narrow_passage_within(seed=3, index=12, max_expansions=100)
