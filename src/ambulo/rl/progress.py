@@ -101,6 +101,14 @@ class TrainingProgress:
         self.bar.close()
 
 
+def end_training(progress: TrainingProgress, *others) -> None:
+    """Close ``progress``, then each of ``others`` (the viewer, the env, writers, the periodic
+    evaluation; None is skipped), in order: what every trainer does after learning, however it ended."""
+    for thing in (progress, *others):
+        if thing is not None:
+            thing.close()
+
+
 def training_scalars(mean_reward: float | None, mean_episode_length_s: float | None,
                      steps_per_s: float) -> dict[str, float]:
     """An iteration's curves: the mean return and episode length (s) of the last 100 episodes
@@ -123,4 +131,4 @@ def evaluation_scalars(result: dict[str, Any]) -> dict[str, float]:
     return scalars
 
 
-__all__ = ["CriterionReached", "TrainingProgress", "evaluation_scalars", "training_scalars"]
+__all__ = ["CriterionReached", "TrainingProgress", "end_training", "evaluation_scalars", "training_scalars"]

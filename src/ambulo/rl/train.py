@@ -27,7 +27,7 @@ from .log_writer import ProgressWriter
 from .logger import EpisodeLogger
 from .periodic_eval import PeriodicEval, resume_evals
 from .ppo import AmbuloPPO
-from .progress import CriterionReached, TrainingProgress
+from .progress import CriterionReached, TrainingProgress, end_training
 from .sampling import SyncFreeGaussian
 from .vecenv import RslRlVecEnv
 
@@ -270,12 +270,7 @@ def train(task: str | None = None, *, num_envs: int | None = None,
     except CriterionReached:
         pass
     finally:
-        progress.close()
-        if watcher is not None:
-            watcher.close()
-        env.close()
-        if periodic is not None:
-            periodic.close()
+        end_training(progress, watcher, env, periodic)
     if periodic is not None:
         _report_time_to_criterion(periodic)
     if not rank.is_main:

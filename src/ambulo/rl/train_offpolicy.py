@@ -30,7 +30,7 @@ from .episodes import EpisodeStats
 from .offpolicy import OffPolicyRunner, offpolicy_cfg
 from .offpolicy.config import cfg_from_info
 from .periodic_eval import PeriodicEval, resume_evals
-from .progress import CriterionReached, TrainingProgress
+from .progress import CriterionReached, TrainingProgress, end_training
 
 
 def train_offpolicy(task: str | None, *, algo: str, num_envs: int | None = None,
@@ -110,13 +110,7 @@ def train_offpolicy(task: str | None, *, algo: str, num_envs: int | None = None,
     except CriterionReached:
         pass
     finally:
-        progress.close()
-        if watcher is not None:
-            watcher.close()
-        env.close()
-        writer.close()
-        if periodic is not None:
-            periodic.close()
+        end_training(progress, watcher, env, writer, periodic)
     if periodic is not None and report is not None:
         report(periodic)
     print(f"checkpoints and TensorBoard logs in {run_dir} (tensorboard --logdir {run_dir})")
