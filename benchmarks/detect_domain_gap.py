@@ -48,6 +48,7 @@ import numpy as np
 
 from ambulo import replicator as rep
 from ambulo.core.randomize import uniform, uniform_int
+from ambulo.replicator.hard_negatives import HardNegatives, distractor_pool
 
 MOVED = {
     "object_materials": lambda r: dataclasses.replace(r, palette_seed=1001, untextured_probability=0.0),
@@ -99,8 +100,38 @@ def training_config(width: int = 320, height: int = 240) -> rep.DatasetConfig:
     return dataclasses.replace(base, name="ambulo_warehouse_generic", randomizers=randomizers)
 
 
-TRAIN_CONFIGS = {"example": rep.example_config, "generic": training_config}
-"""Training data of ``--train-config``: the example dataset as it is, or with ``training_config``'s variety."""
+def split_b_pools() -> list[list[tuple[str, tuple]]]:
+    """The distractor pool split (b) draws (``MOVED["distractors"]`` on the example config's
+    ``Distractors``): the shapes training must never see."""
+    base = next(r for r in rep.example_config().randomizers if r.name == "distractors")
+    moved = MOVED["distractors"](base)
+    return [distractor_pool(moved.pool_seed, moved.pool_size, moved.size_m)]
+
+
+def hard_negative_config(width: int = 320, height: int = 240) -> rep.DatasetConfig:
+    """The example dataset plus hard negatives (``--train-config hardneg``): 2-5 a frame of a pool of 32
+    boxes, spheres, cylinders and ellipsoids (the classes' families) whose sizes are more than 25 %
+    from every class's in some dimension (``replicator.hard_negatives``), coloured and textured as the
+    objects are (same hue range, same palette seed) so that only geometry tells them apart.
+
+    Split (b) stays unseen: the pool's seed (2027) is none of split (b)'s, and any drawn shape within
+    25 % of one of split (b)'s 12 distractor shapes (``split_b_pools``) is redrawn; split (b)'s
+    palette, lights and camera heights are untouched."""
+    base = rep.example_config(width, height)
+    region = next(r for r in base.randomizers if r.name == "distractors").region
+    prims = "/World/hard_negatives/*"
+    negatives = [HardNegatives(name="hard_negatives", prims=prims, region=region, surface="/World/floor/*",
+                               count=uniform_int(2, 5), excluded_pools=split_b_pools()),
+                 rep.ColorRandomizer(name="hard_negative_colors", prims=prims),
+                 rep.MaterialRandomizer(name="hard_negative_materials", prims=prims)]
+    at = [r.name for r in base.randomizers].index("distractors") + 1  # placed after the clutter, before colours
+    randomizers = base.randomizers[:at] + negatives[:1] + base.randomizers[at:] + negatives[1:]
+    return dataclasses.replace(base, name="ambulo_warehouse_hardneg", randomizers=randomizers)
+
+
+TRAIN_CONFIGS = {"example": rep.example_config, "generic": training_config, "hardneg": hard_negative_config}
+"""Training data of ``--train-config``: the example dataset as it is, with ``training_config``'s variety, or
+with ``hard_negative_config``'s hard negatives."""
 
 
 PALETTE = np.array([[230, 25, 75], [60, 180, 75], [255, 225, 25], [0, 130, 200], [245, 130, 48], [145, 30, 180]],
@@ -118,7 +149,9 @@ def draw_detections(checkpoint: Path, frames: list[Path], out: Path, score_thres
     tiles = []
     for path in frames:
         rgb = iio.imread(path)[..., :3]
-        found = detector(rgb)
+        # an rgbd detector: the frame's depth PNG (mm, replicator.writers' layout)
+        depth_m = iio.imread(path.parent.parent / "depth" / path.name) / 1000.0 if detector.needs_depth else None
+        found = detector(rgb, depth_m)
         shown = rgb.astype(np.float32)
         classes = [detector.categories.index(label) for label in found.labels]
         for k in np.argsort(found.scores) if found.masks is not None else []:
@@ -189,6 +222,9 @@ def main() -> None:
     parser.add_argument("--augment", choices=("full", "generic", "geometry"), default="full",
                         help="training augmentations: full (ambulo.detection.augment's defaults), generic (those "
                              "plus clutter-like occluders and uneven light: augment.generic) or geometry only")
+    parser.add_argument("--inputs", choices=("rgb", "rgbd"), default="rgb",
+                        help="the model's input: colour, or colour and depth (TrainCfg.inputs)")
+    parser.add_argument("--seed", type=int, default=0, help="training seed (initialisation, shuffling, augmentation)")
     parser.add_argument("--max-minutes", type=float, default=0.0, help="training budget (TrainCfg.max_minutes)")
     parser.add_argument("--score-processes", type=int, default=1,
                         help="score the splits in this many processes at once (a GPU machine's spare cores)")
@@ -220,7 +256,8 @@ def main() -> None:
     if args.generate_only:
         return
     summary: dict = {"frames": args.frames, "size": [args.width, args.height], "device": args.device,
-                     "augment": args.augment, "train_config": args.train_config}
+                     "augment": args.augment, "train_config": args.train_config, "inputs": args.inputs,
+                     "seed": args.seed}
     checkpoint = args.checkpoint
     if checkpoint is None:
         cfg = TrainCfg(model=args.model, epochs=args.epochs, batch_size=args.batch_size, learning_rate=args.lr,
@@ -228,7 +265,7 @@ def main() -> None:
                        # a time budget evaluates on the clock (its epochs count is only a ceiling), else 5 times
                        eval_every_epochs=0 if args.max_minutes > 0 else max(1, args.epochs // 5),
                        eval_every_minutes=args.max_minutes / 6 if args.max_minutes > 0 else 0.0,
-                       max_minutes=args.max_minutes,
+                       max_minutes=args.max_minutes, inputs=args.inputs, seed=args.seed,
                        augment={"full": AugmentCfg, "generic": generic, "geometry": geometry_only}[args.augment]())
         start = time.perf_counter()
         result = train(train_data, out / "run", cfg)

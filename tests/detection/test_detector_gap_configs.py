@@ -5,6 +5,7 @@ import dataclasses
 import importlib.util
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from ambulo import replicator as rep
@@ -48,3 +49,33 @@ def test_generic_training_data_stays_outside_the_unseen_split(gap):
     seeds = {r.palette_seed for r in train.values() if isinstance(r, rep.MaterialRandomizer)}
     assert unseen["object_materials"].palette_seed not in seeds
     assert train["object_materials"].untextured_probability == example["object_materials"].untextured_probability
+
+
+def test_hard_negatives_are_class_families_outside_the_classes_and_split_b(gap):
+    from ambulo.replicator.hard_negatives import FAMILIES, class_shapes, distractor_pool, shape_key, too_close
+
+    train, example, unseen = by_name(gap.hard_negative_config(64, 48)), by_name(rep.example_config(64, 48)), \
+        by_name(gap.config(64, 48))
+    # the example scene's randomizers untouched: lights, camera heights, clutter and palette stay unseen ones
+    assert all(train[name] == r for name, r in example.items())
+    negatives = train["hard_negatives"]
+    pool = negatives.pool()
+    assert len(pool) == negatives.pool_size and {kind for kind, _ in pool} == set(FAMILIES)
+    # split (b)'s pool is what its Distractors build: the shapes it draws, read back from the scene
+    b = unseen["distractors"]
+    built = rep.build_warehouse_scene()
+    b.build(built)
+    model = built.compile()
+    sizes = [model.geom_size[model.body(f"/World/distractors/distractor_{i}").geomadr[0]] for i in range(b.pool_size)]
+    assert np.allclose([s for _, s in distractor_pool(b.pool_seed, b.pool_size, b.size_m)], sizes)
+    assert negatives.excluded_pools == gap.split_b_pools()
+    avoid = class_shapes() + gap.split_b_pools()[0]
+    for kind, size in pool:
+        assert not too_close(kind, size, avoid, negatives.margin), (kind, size)
+        # some dimension more than the margin away from each class of its family (a check by hand)
+        for other_kind, other in class_shapes():
+            if other_kind == kind:
+                ratio = [max(a / c, c / a) for a, c in zip(shape_key(kind, size), shape_key(kind, other))]
+                assert max(ratio) >= 1 + negatives.margin
+    # the classes themselves are too close to themselves: the check can say no
+    assert all(too_close(kind, size, class_shapes(), 0.25) for kind, size in class_shapes())
