@@ -44,7 +44,8 @@ def train_detector(args: argparse.Namespace) -> int:
                    eval_every_epochs=args.eval_every, num_workers=args.workers, learning_rate=args.lr,
                    seed=args.seed, mask_prototypes=args.mask_prototypes, data=args.data,
                    max_minutes=args.max_minutes, pause_after_minutes=args.pause_after_minutes,
-                   eval_every_minutes=args.eval_every_minutes, augment=AUGMENTS[args.augment]())
+                   eval_every_minutes=args.eval_every_minutes, augment=AUGMENTS[args.augment](),
+                   inputs=args.inputs)
     try:
         result = train_run(args.dataset, args.out, cfg, resume=args.resume, show_progress=not args.quiet)
     except DatasetError as err:
@@ -130,6 +131,9 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
                    help="full: geometric, occlusion and photometric augmentations on the device (default); "
                         "generic: those plus clutter-like occluders and uneven light (augment.generic); "
                         "geometry: flips and scale jitter only; none")
+    p.add_argument("--inputs", choices=("rgb", "rgbd"), default="rgb",
+                   help="rgb: colour frames (default); rgbd: colour and the dataset's depth PNGs as a 4th channel "
+                        "(the model can measure metric size; its Detector then needs depth with every frame)")
     p.add_argument("--workers", type=int, default=2, help="image-decoding processes (default 2)")
     p.add_argument("--seed", type=int, default=0, help="initialisation and shuffling seed (default 0)")
     p.add_argument("--mask-prototypes", type=int, default=8,

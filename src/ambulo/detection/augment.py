@@ -17,6 +17,14 @@ dataset (a detector trained on them is scored on randomization it never saw:
 
 Boxes move with the pixels exactly (flip and scale keep them axis-aligned); a box cut to under a
 quarter of its area, or under 2 px a side, is dropped (its class becomes -1).
+
+Depth (a 4th image channel, ``model.depth_channel``'s encoding, for ``inputs="rgbd"`` models) stays
+consistent with the pixels: the geometric warp moves it with them (nearest sampling: a bilinear blend
+of an object's and the floor's depth at its edge would be a depth nothing has), and a zoom by s divides
+it by s (a pinhole camera sees a thing s times larger when it is s times nearer: with the depth left
+as it was, a zoomed object would measure s times its size, and metric size is what depth is for);
+an occluder gets a flat depth of its own (0.4-4 m, nearer than most of the floor); the photometric
+changes leave it.
 """
 
 from __future__ import annotations
@@ -29,6 +37,8 @@ import torch
 import torch.nn.functional as F
 
 from ambulo.utils.validate import Checked
+
+from .model import depth_channel
 
 RGB_TO_YIQ = torch.tensor([[0.299, 0.587, 0.114], [0.596, -0.274, -0.322], [0.211, -0.523, 0.312]])
 YIQ_TO_RGB = torch.linalg.inv(RGB_TO_YIQ)
@@ -104,7 +114,8 @@ def _log_uniform(lo: float, hi: float, shape: tuple[int, ...], g: torch.Generato
 
 def geometric(images: torch.Tensor, instances: torch.Tensor, boxes: torch.Tensor, classes: torch.Tensor,
               cfg: AugmentCfg, g: torch.Generator) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
-    """Flip and scale-crop of images (B, 3, h, w) float, instance maps (B, h, w) uint8, boxes (B, M, 4)
+    """Flip and scale-crop of images (B, 3 or 4, h, w) float (the 4th channel a depth: module
+    docstring), instance maps (B, h, w) uint8, boxes (B, M, 4)
     px and classes (B, M) (module docstring). Output pixel x comes from input pixel (x - t) / s, or
     w - (x - t) / s flipped, with t = (1 - s) * extent * u: a window inside a larger image, or the
     image inside a larger window."""
@@ -122,7 +133,11 @@ def geometric(images: torch.Tensor, instances: torch.Tensor, boxes: torch.Tensor
     theta[:, 1, 1] = 1 / s
     theta[:, 1, 2] = 1 / s - 2 * ty / (h * s) - 1
     grid = F.affine_grid(theta, [b, 1, h, w], align_corners=False)
-    images = F.grid_sample(images, grid, mode="bilinear", padding_mode="zeros", align_corners=False)
+    colour = F.grid_sample(images[:, :3], grid, mode="bilinear", padding_mode="zeros", align_corners=False)
+    if images.shape[1] > 3:  # depth: nearest, and nearer by the zoom (module docstring)
+        depth = F.grid_sample(images[:, 3:], grid, mode="nearest", padding_mode="zeros", align_corners=False)
+        colour = torch.cat([colour, (depth / s[:, None, None, None]).clamp(0, 1)], dim=1)
+    images = colour
     instances = F.grid_sample(instances[:, None].float(), grid, mode="nearest", padding_mode="zeros",
                               align_corners=False)[:, 0].round().to(torch.uint8)
     x0 = torch.where(flip[:, None], w - boxes[..., 2], boxes[..., 0])
@@ -139,8 +154,8 @@ def geometric(images: torch.Tensor, instances: torch.Tensor, boxes: torch.Tensor
 
 def erase(images: torch.Tensor, instances: torch.Tensor, classes: torch.Tensor, cfg: AugmentCfg,
           g: torch.Generator) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """Random-colour rectangles or ellipses (shaded, speckled: ``AugmentCfg``) over images (B, 3, h, w)
-    float; their pixels leave the instance maps, and objects with under ``cfg.min_visible_fraction`` of
+    """Random-colour rectangles or ellipses (shaded, speckled: ``AugmentCfg``) over images (B, 3 or 4, h, w)
+    float (a depth channel gets each shape's own flat depth, 0.4-4 m); their pixels leave the instance maps, and objects with under ``cfg.min_visible_fraction`` of
     their pixels left lose their class."""
     b, _, h, w = images.shape
     r, dev = cfg.erase_count, images.device
@@ -170,6 +185,10 @@ def erase(images: torch.Tensor, instances: torch.Tensor, classes: torch.Tensor, 
         paint = paint * shade[:, None]
     if cfg.erase_speckle > 0:
         paint = paint * (1 + cfg.erase_speckle * torch.randn((b, 1, h, w), generator=g, device=dev))
+    if images.shape[1] > 3:
+        depth = depth_channel(_uniform(0.4, 4.0, (b, r), g, dev))
+        depth = depth.gather(1, index.flatten(1)).reshape(b, 1, h, w)
+        paint = torch.cat([paint.clamp(0, 1), depth], dim=1)
     images = torch.where(covered[:, None], paint.clamp(0, 1), images)
     m = classes.shape[1]
     before = _pixels_per_instance(instances, m)
@@ -241,14 +260,25 @@ def _blur(x: torch.Tensor, cfg: AugmentCfg, g: torch.Generator) -> torch.Tensor:
     return flat.reshape(b, c, h, w)
 
 
-def augment_batch(batch: dict[str, torch.Tensor], cfg: AugmentCfg, g: torch.Generator) -> dict[str, torch.Tensor]:
-    """A padded batch (``frames.pad_collate``: uint8 images and instance maps, boxes, classes) on one
-    device -> the same with float images in [0, 1], augmented (module docstring)."""
+def batch_images(batch: dict[str, torch.Tensor]) -> torch.Tensor:
+    """The model's input (B, 3, h, w) float in [0, 1] of a padded batch's uint8 images, with its
+    ``depths`` (B, h, w) int16 mm (``frames``) as a 4th channel (``model.depth_channel``) when it has them."""
     images = batch["images"].float() / 255
+    if "depths" in batch:
+        images = torch.cat([images, depth_channel(batch["depths"].float()[:, None] / 1000.0)], dim=1)
+    return images
+
+
+def augment_batch(batch: dict[str, torch.Tensor], cfg: AugmentCfg, g: torch.Generator) -> dict[str, torch.Tensor]:
+    """A padded batch (``frames.pad_collate``: uint8 images and instance maps, boxes, classes, maybe depths)
+    on one device -> the same with float images in [0, 1] (B, 3, h, w), or (B, 4, h, w) with the depth
+    channel for a batch with depths, augmented (module docstring)."""
+    images = batch_images(batch)
     images, instances, boxes, classes = geometric(images, batch["instances"], batch["boxes"], batch["classes"], cfg, g)
     images, instances, classes = erase(images, instances, classes, cfg, g)
-    return {"images": photometric(images, cfg, g), "instances": instances, "boxes": boxes, "classes": classes}
+    images = torch.cat([photometric(images[:, :3], cfg, g), images[:, 3:]], dim=1)  # depth: unchanged
+    return {"images": images, "instances": instances, "boxes": boxes, "classes": classes}
 
 
-__all__ = ["AugmentCfg", "augment_batch", "erase", "generic", "geometric", "geometry_only", "no_augment",
+__all__ = ["AugmentCfg", "augment_batch", "batch_images", "erase", "generic", "geometric", "geometry_only", "no_augment",
            "photometric"]

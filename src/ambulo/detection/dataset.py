@@ -6,7 +6,8 @@ The split is by frame: the last ``held_out_fraction`` of the frames are never tr
 differ by randomization seed stream, so held-out frames are unseen poses, textures and lighting of
 the training distribution (the issue's split (a)).
 
-A sample is ``(image, target)``: image float32 (3, H, W) in [0, 1] on a canvas of the fixed
+A sample is ``(image, target)``: image float32 (3, H, W) in [0, 1] (with ``depth``: (4, H, W), the 4th
+channel the frame's ``depth/`` PNG as ``model.depth_channel`` encodes it) on a canvas of the fixed
 ``canvas_hw`` (the dataset's size rounded up to the model's stride; padding is black, bottom and
 right), target ``{"boxes": (N, 4) float32 x0 y0 x1 y1 px, "labels": (N,) int64 COCO category ids,
 "image_id": int}`` and, with ``masks``, ``"masks": (N, H, W) bool`` on the canvas (decoded from
@@ -26,6 +27,8 @@ import imageio.v3 as iio
 import numpy as np
 import torch
 from pycocotools import mask as mask_utils
+
+from .model import depth_channel
 
 
 class DatasetError(Exception):
@@ -83,6 +86,24 @@ def read_rgb(root: Path, image_info: dict) -> np.ndarray:
     return iio.imread(path)[..., :3]
 
 
+def depth_path(root: Path, image_info: dict) -> Path:
+    """The frame's depth PNG (``replicator.writers``: ``depth/`` beside ``rgb/``, the same stem)."""
+    return root / "depth" / (Path(image_info["file_name"]).stem + ".png")
+
+
+def read_depth_mm(root: Path, image_info: dict) -> np.ndarray:
+    """The frame's depth (H, W) uint16 mm (0: no return); a missing file is a one-line ``DatasetError``."""
+    path = depth_path(root, image_info)
+    if not path.is_file():
+        raise DatasetError(f"{path} is missing", "train an rgb model (inputs 'rgb'), or give a dataset "
+                           "generated with the 'depth' output in png16 (the default)")
+    depth = iio.imread(path)
+    if depth.dtype != np.uint16 or depth.ndim != 2:
+        raise DatasetError(f"{path} is {depth.dtype} {depth.shape}, not a (H, W) uint16 depth in mm",
+                           "generate the dataset with depth_format 'png16'")
+    return depth
+
+
 def boxes_xyxy(annotations: list[dict]) -> torch.Tensor:
     """(N, 4) float32 x0 y0 x1 y1 px of COCO ``bbox`` (x, y, w, h) annotations."""
     return torch.tensor([[x, y, x + w, y + h] for x, y, w, h in (a["bbox"] for a in annotations)],
@@ -93,8 +114,8 @@ class CocoFrames(torch.utils.data.Dataset):
     """The frames ``image_ids`` of dataset ``root`` as (image, target) samples (module docstring)."""
 
     def __init__(self, root: str | Path, coco: dict, image_ids: list[int], canvas_hw: tuple[int, int],
-                 masks: bool = False):
-        self.root, self.canvas_hw, self.masks = Path(root), canvas_hw, masks
+                 masks: bool = False, depth: bool = False):
+        self.root, self.canvas_hw, self.masks, self.depth = Path(root), canvas_hw, masks, depth
         self.images, self.annotations = frames_and_annotations(coco, image_ids)
 
     def __len__(self) -> int:
@@ -107,7 +128,10 @@ class CocoFrames(torch.utils.data.Dataset):
         boxes = boxes_xyxy(anns)
         labels = torch.tensor([a["category_id"] for a in anns], dtype=torch.int64)
         masks = instance_masks(anns, rgb.shape[1], rgb.shape[2]) if self.masks else None
-        canvas = torch.zeros(3, *self.canvas_hw)
+        if self.depth:
+            depth_m = torch.from_numpy(read_depth_mm(self.root, image_info).astype(np.float32)) / 1000.0
+            rgb = torch.cat([rgb, depth_channel(depth_m)[None]])
+        canvas = torch.zeros(len(rgb), *self.canvas_hw)
         h, w = min(rgb.shape[1], self.canvas_hw[0]), min(rgb.shape[2], self.canvas_hw[1])
         canvas[:, :h, :w] = rgb[:, :h, :w]
         target = {"boxes": boxes, "labels": labels, "image_id": image_info["id"]}

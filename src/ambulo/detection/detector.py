@@ -2,6 +2,7 @@
 
     detector = Detector("runs/det/model.onnx")          # or "runs/det/checkpoint.pt"
     result = detector(rgb)                              # rgb: (H, W, 3) uint8, H, W <= the canvas
+    result = detector(rgb, depth_m)                     # an rgbd model (``inputs``): depth (H, W) m too
     result.boxes_px, result.labels, result.scores, result.masks   # masks: (N, H, W) bool, or None
 
 A frame smaller than the training canvas is padded black at the bottom and right (as in training),
@@ -45,6 +46,7 @@ class Detector:
             meta = read_sidecar(self.path)
             self._session = ort.InferenceSession(str(self.path), providers=["CPUExecutionProvider"])
             names = meta.get("outputs", ["boxes", "scores", "classes"])
+            self.inputs: str = meta.get("inputs", "rgb")  # exports before RGB-D models were rgb
             self._run = lambda x: self._session.run(names, {"images": x})
         else:
             import torch
@@ -53,6 +55,7 @@ class Detector:
             from .train import load_trained
 
             model, meta = load_trained(self.path, device)
+            self.inputs = model.cfg.inputs
             graph = ExportedDetector(model).eval()
 
             def run(x: np.ndarray):
@@ -64,7 +67,14 @@ class Detector:
         self.category_ids = np.asarray(meta["category_ids"], np.int64)
         self.canvas_hw: tuple[int, int] = tuple(meta["canvas_hw"])
 
-    def __call__(self, rgb: np.ndarray) -> Detections:
+    @property
+    def needs_depth(self) -> bool:
+        """Whether frames must come with their depth (a model trained with ``inputs="rgbd"``)."""
+        return self.inputs == "rgbd"
+
+    def __call__(self, rgb: np.ndarray, depth_m: np.ndarray | None = None) -> Detections:
+        """Detections in ``rgb`` (H, W, 3) uint8; ``depth_m`` (H, W) float depth to the image plane (m;
+        0 or NaN: no return), the same camera's, required by an rgbd model and ignored by an rgb one."""
         if rgb.ndim != 3 or rgb.shape[2] < 3 or rgb.dtype != np.uint8:
             raise ValueError(f"a frame must be (H, W, 3) uint8, got {rgb.shape} {rgb.dtype}")
         h, w = rgb.shape[:2]
@@ -72,8 +82,18 @@ class Detector:
         if h > ch or w > cw:
             raise ValueError(f"a {w}x{h} frame is larger than the detector's {cw}x{ch} canvas; resize it or "
                              "train on frames of that size")
-        canvas = np.zeros((1, 3, ch, cw), np.float32)
-        canvas[0, :, :h, :w] = rgb[..., :3].transpose(2, 0, 1) / np.float32(255)
+        canvas = np.zeros((1, 4 if self.needs_depth else 3, ch, cw), np.float32)
+        canvas[0, :3, :h, :w] = rgb[..., :3].transpose(2, 0, 1) / np.float32(255)
+        if self.needs_depth:
+            if depth_m is None or np.shape(depth_m)[:2] != (h, w):
+                raise ValueError(f"{self.path} is an RGB-D detector: give each frame's depth (H, W) in m as well, "
+                                 f"the frame's size {w}x{h} (got {None if depth_m is None else np.shape(depth_m)})")
+            import torch
+
+            from .model import depth_channel
+
+            depth = np.asarray(depth_m, np.float32).reshape(h, w)
+            canvas[0, 3, :h, :w] = depth_channel(torch.from_numpy(depth)).numpy()
         boxes, scores, classes, *masks = (a[0] for a in self._run(canvas))
         keep = scores >= self.score_threshold
         boxes = boxes[keep].astype(np.float32)

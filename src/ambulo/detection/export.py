@@ -1,6 +1,8 @@
 """ONNX export of a trained detector (model + NMS-free decoding in one graph), checked with ONNX Runtime.
 
-The graph takes ``images`` (1, 3, H, W) float32 in [0, 1] at the checkpoint's canvas size and returns
+The graph takes ``images`` (1, 3, H, W) float32 in [0, 1] at the checkpoint's canvas size ((1, 4, H, W)
+for an ``inputs="rgbd"`` model, the 4th channel ``model.depth_channel``'s; the sidecar's ``inputs`` says
+which) and returns
 ``boxes`` (1, K, 4) x0 y0 x1 y1 px, ``scores`` (1, K) and ``classes`` (1, K) int64 (0-based; the
 category names are in ``<file>.json`` beside it); a model with masks also returns ``masks`` (1, K,
 H/4, W/4) float32, each detection's mask probabilities at stride 4 (``model.paste_masks`` makes
@@ -19,7 +21,7 @@ import torch
 
 from ambulo.utils.atomic import atomic_write_json
 
-from .model import CenterNet, ExportedDetector
+from .model import INPUT_CHANNELS, CenterNet, ExportedDetector
 from .train import load_trained
 
 OUTPUTS = ("boxes", "scores", "classes")
@@ -37,7 +39,7 @@ def export_onnx(checkpoint: str | Path, out: str | Path, opset: int = 17) -> Pat
     atomic_write_json(sidecar(out), {"categories": state["categories"], "category_ids": state["category_ids"],
                                      "canvas_hw": list(state["canvas_hw"]),
                                      "max_detections": model.cfg.max_detections,
-                                     "outputs": output_names(model)})
+                                     "outputs": output_names(model), "inputs": model.cfg.inputs})
     return out
 
 
@@ -45,7 +47,7 @@ def export_model(model: CenterNet, canvas_hw: tuple[int, int], out: str | Path, 
     """Write the ONNX graph of ``model`` + decoding for images of ``canvas_hw`` (H, W) to ``out``."""
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    example = torch.rand(1, 3, *canvas_hw)
+    example = torch.rand(1, INPUT_CHANNELS[model.cfg.inputs], *canvas_hw)
     # the TorchScript exporter: the graph is static (one canvas size), and it needs no onnxscript
     with warnings.catch_warnings():  # the trace's shape arithmetic is constant for one canvas size
         warnings.simplefilter("ignore", torch.jit.TracerWarning)
@@ -60,14 +62,14 @@ def sidecar(onnx_path: str | Path) -> Path:
 
 def check_onnx(checkpoint: str | Path, onnx_path: str | Path, image: np.ndarray | None = None,
                seed: int = 0) -> dict:
-    """``compare_detections`` of torch and ONNX Runtime on one image (1, 3, H, W) float32 in [0, 1] at
-    the canvas size (a random one by default)."""
+    """``compare_detections`` of torch and ONNX Runtime on one image (1, C, H, W) float32 in [0, 1] at
+    the canvas size (C: 3, or 4 for an rgbd model; a random one by default)."""
     import onnxruntime as ort
 
     model, state = load_trained(checkpoint)
     h, w = state["canvas_hw"]
     if image is None:
-        image = np.random.default_rng(seed).random((1, 3, h, w), dtype=np.float32)
+        image = np.random.default_rng(seed).random((1, INPUT_CHANNELS[model.cfg.inputs], h, w), dtype=np.float32)
     with torch.no_grad():
         expected = [t.numpy() for t in ExportedDetector(model)(torch.from_numpy(image))]
     session = ort.InferenceSession(str(onnx_path), providers=["CPUExecutionProvider"])

@@ -2,8 +2,11 @@
 
 A record is one frame of an ``ambulo generate`` dataset: ``image`` (3, h, w) uint8, ``instances``
 (h, w) uint8 (0: no object, k + 1: the frame's k-th annotation), ``boxes`` (M, 4) float32 x0 y0 x1 y1
-px and ``classes`` (M,) int64, 0-based. A batch (``pad_collate``) pads every frame to the most boxes
-of the batch: boxes (B, M, 4), classes (B, M) with -1 for no box. The augmentations
+px and ``classes`` (M,) int64, 0-based; with ``depth``, also ``depth`` (h, w) int16 mm (the
+dataset's uint16 mm clipped to 32.767 m, far beyond ``model.DEPTH_MAX_M``: int16 has torch kernels,
+uint16 few). A batch (``pad_collate``) pads every frame to the most boxes
+of the batch: boxes (B, M, 4), classes (B, M) with -1 for no box, and ``depths`` (B, h, w) int16 mm
+when the records have depth. The augmentations
 (``augment.augment_batch``) then run on the whole batch on the training device.
 
 Why one instance map and not a mask per object: one byte a pixel whatever the object count (10,000
@@ -22,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from .dataset import DatasetError, boxes_xyxy, frames_and_annotations, instance_masks, read_rgb
+from .dataset import DatasetError, boxes_xyxy, frames_and_annotations, instance_masks, read_depth_mm, read_rgb
 
 MAX_INSTANCES = 255
 """Annotations a frame may have: the instance map is one byte a pixel."""
@@ -39,10 +42,12 @@ def pad_rows(rows: list[torch.Tensor], fill: float, width: int | None = None) ->
 
 class FrameRecords(torch.utils.data.Dataset):
     """The frames ``image_ids`` of dataset ``root`` as records (module docstring); ``class_of`` maps
-    a COCO category id to its 0-based class. Every frame must have the same size."""
+    a COCO category id to its 0-based class; ``depth``: records carry the frame's depth. Every frame
+    must have the same size."""
 
-    def __init__(self, root: str | Path, coco: dict, image_ids: list[int], class_of: dict[int, int]):
-        self.root, self.class_of = Path(root), class_of
+    def __init__(self, root: str | Path, coco: dict, image_ids: list[int], class_of: dict[int, int],
+                 depth: bool = False):
+        self.root, self.class_of, self.depth = Path(root), class_of, depth
         self.images, self.annotations = frames_and_annotations(coco, image_ids)
         sizes = {(im["height"], im["width"]) for im in self.images}
         if len(sizes) > 1:
@@ -67,16 +72,23 @@ class FrameRecords(torch.utils.data.Dataset):
                 instances[mask] = k + 1
         boxes = boxes_xyxy(anns)
         classes = torch.tensor([self.class_of[a["category_id"]] for a in anns], dtype=torch.int64)
-        return {"image": torch.from_numpy(rgb), "instances": torch.from_numpy(instances), "boxes": boxes,
-                "classes": classes}
+        record = {"image": torch.from_numpy(rgb), "instances": torch.from_numpy(instances), "boxes": boxes,
+                  "classes": classes}
+        if self.depth:
+            mm = read_depth_mm(self.root, self.images[index]).clip(max=np.iinfo(np.int16).max)
+            record["depth"] = torch.from_numpy(mm.astype(np.int16))
+        return record
 
 
 def pad_collate(records: list[dict[str, torch.Tensor]]) -> dict[str, torch.Tensor]:
     """Records stacked into a batch, boxes padded (classes -1) to the batch's most boxes."""
-    return {"images": torch.stack([r["image"] for r in records]),
-            "instances": torch.stack([r["instances"] for r in records]),
-            "boxes": pad_rows([r["boxes"] for r in records], 0.0),
-            "classes": pad_rows([r["classes"] for r in records], -1)}
+    batch = {"images": torch.stack([r["image"] for r in records]),
+             "instances": torch.stack([r["instances"] for r in records]),
+             "boxes": pad_rows([r["boxes"] for r in records], 0.0),
+             "classes": pad_rows([r["classes"] for r in records], -1)}
+    if "depth" in records[0]:
+        batch["depths"] = torch.stack([r["depth"] for r in records])
+    return batch
 
 
 class ResidentFrames:
@@ -89,6 +101,7 @@ class ResidentFrames:
         self.instances = torch.empty(n, h, w, dtype=torch.uint8, device=device)
         self.boxes = torch.zeros(n, m, 4, device=device)
         self.classes = torch.full((n, m), -1, dtype=torch.int64, device=device)
+        self.depths = torch.empty(n, h, w, dtype=torch.int16, device=device) if records.depth else None
         loader = torch.utils.data.DataLoader(records, batch_size=chunk, num_workers=num_workers,
                                              collate_fn=pad_collate)
         start = 0
@@ -98,14 +111,19 @@ class ResidentFrames:
             self.instances[start:end] = batch["instances"].to(device)
             self.boxes[start:end, :k] = batch["boxes"].to(device)
             self.classes[start:end, :k] = batch["classes"].to(device)
+            if self.depths is not None:
+                self.depths[start:end] = batch["depths"].to(device)
             start = end
 
     def __len__(self) -> int:
         return len(self.images)
 
     def batch(self, index: torch.Tensor) -> dict[str, torch.Tensor]:
-        return {"images": self.images[index], "instances": self.instances[index], "boxes": self.boxes[index],
-                "classes": self.classes[index]}
+        batch = {"images": self.images[index], "instances": self.instances[index], "boxes": self.boxes[index],
+                 "classes": self.classes[index]}
+        if self.depths is not None:
+            batch["depths"] = self.depths[index]
+        return batch
 
 
 __all__ = ["MAX_INSTANCES", "FrameRecords", "ResidentFrames", "pad_collate", "pad_rows"]

@@ -7,7 +7,8 @@ torch the project installs by default; and their box decoding ends in NMS, an op
 slowly on CPU. CenterNet decodes with a 3x3 max-pool and top-k, plain ops that export to ONNX and
 need no NMS; it trains from random weights (nothing is downloaded).
 
-Frames: input images (B, 3, H, W) float in [0, 1], H and W multiples of ``STRIDE_OUT * 8``;
+Frames: input images (B, 3, H, W) float in [0, 1] (``inputs="rgbd"``: (B, 4, H, W), the 4th channel
+the depth as ``depth_channel`` encodes it), H and W multiples of ``STRIDE_OUT * 8``;
 outputs at stride ``STRIDE_OUT`` (4 px): a heatmap per class (object centres), box size (w, h) in
 output cells and the centre's sub-cell offset. ``decode`` turns them into the ``max_detections``
 best boxes (B, K, 4) x0 y0 x1 y1 in input pixels, scores (B, K) and 0-based class indices (B, K).
@@ -42,6 +43,16 @@ MODELS: dict[str, tuple[int, ...]] = {
 }
 """Channels at strides 2, 4, 8, 16, 32 of each named model: 'small' runs > 10 frames/s at 320x240 on
 two CPU cores (benchmarks/detector.py), 'medium' is for a GPU."""
+DEPTH_MAX_M = 8.0
+"""The depth channel is depth / DEPTH_MAX_M clipped to [0, 1]: the example scenes' rooms end within
+~8 m, and an input in [0, 1] is what the colour channels are."""
+INPUT_CHANNELS = {"rgb": 3, "rgbd": 4}
+
+
+def depth_channel(depth_m: torch.Tensor) -> torch.Tensor:
+    """The model's depth input of depth (m) to the image plane, any shape: depth / ``DEPTH_MAX_M``
+    clipped to [0, 1]; no return (0, NaN, as the datasets' 0 mm) is 0."""
+    return torch.nan_to_num(depth_m, nan=0.0, posinf=0.0).clamp(0, DEPTH_MAX_M) / DEPTH_MAX_M
 
 
 @dataclass(kw_only=True)
@@ -54,6 +65,9 @@ class ModelCfg(Checked):
     head_channels: int = 32
     mask_prototypes: int = 8
     """Prototype masks of the instance-mask branch (0: boxes only)."""
+    inputs: Literal["rgb", "rgbd"] = "rgb"
+    """Colour only, or colour and depth (``depth_channel``) as a 4th input channel: with depth the
+    model can measure an object's metric size, which tells a class from clutter of its shape (issue 27)."""
 
 
 def _conv(c_in: int, c_out: int, stride: int = 1) -> nn.Sequential:
@@ -67,7 +81,8 @@ class CenterNet(nn.Module):
         super().__init__()
         self.cfg = cfg
         widths = MODELS[cfg.name]
-        stages, c_in = [], 3
+        c_in0 = INPUT_CHANNELS[cfg.inputs]
+        stages, c_in = [], c_in0
         for i, c in enumerate(widths):  # the stride-2 stem is one conv: most pixels, least to see
             stages.append(_conv(c_in, c, 2) if i == 0 else nn.Sequential(_conv(c_in, c, 2), _conv(c, c)))
             c_in = c
@@ -86,11 +101,13 @@ class CenterNet(nn.Module):
             self.coef = nn.Conv2d(d, cfg.mask_prototypes, 1)
         # the heatmap starts at p = 0.1 everywhere (CenterNet's focal-loss prior), not 0.5
         nn.init.constant_(self.heat.bias, -math.log((1 - 0.1) / 0.1))
-        self.register_buffer("mean", torch.tensor([0.485, 0.456, 0.406]).view(1, 3, 1, 1), persistent=False)
-        self.register_buffer("std", torch.tensor([0.229, 0.224, 0.225]).view(1, 3, 1, 1), persistent=False)
+        # ImageNet's colour statistics; the depth channel's are the example scene's rough ones (0.5-8 m)
+        mean, std = [0.485, 0.456, 0.406, 0.4][:c_in0], [0.229, 0.224, 0.225, 0.2][:c_in0]
+        self.register_buffer("mean", torch.tensor(mean).view(1, -1, 1, 1), persistent=False)
+        self.register_buffer("std", torch.tensor(std).view(1, -1, 1, 1), persistent=False)
 
     def forward(self, images: torch.Tensor) -> dict[str, torch.Tensor]:
-        """Raw maps at stride 4: ``heat`` logits (B, C, h, w), ``size`` (B, 2, h, w) in cells, ``offset``
+        """Raw maps of images (B, 3 or 4, H, W) at stride 4: ``heat`` logits (B, C, h, w), ``size`` (B, 2, h, w) in cells, ``offset``
         (B, 2, h, w) in cells; with masks also ``proto`` (B, P, h, w) and ``coef`` (B, P, h, w)."""
         x = (images - self.mean) / self.std
         features = []
@@ -168,7 +185,7 @@ def paste_masks(masks_cells: torch.Tensor, boxes_px: torch.Tensor, out_hw: tuple
 
 
 class ExportedDetector(nn.Module):
-    """The model plus ``decode``: images (B, 3, H, W) in [0, 1] -> (boxes, scores, classes) and, for a
+    """The model plus ``decode``: images (B, 3 or 4, H, W) in [0, 1] -> (boxes, scores, classes) and, for a
     model with masks, ``decode_masks``' stride-4 mask probabilities; the graph ONNX export traces."""
 
     def __init__(self, model: CenterNet):

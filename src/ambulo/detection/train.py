@@ -56,6 +56,8 @@ class TrainCfg(Checked):
     model: Literal["centernet-small", "centernet-medium"] = "centernet-small"
     mask_prototypes: int = 8
     """Instance masks from the dataset's segmentation (``ModelCfg.mask_prototypes``; 0: boxes only)."""
+    inputs: Literal["rgb", "rgbd"] = "rgb"
+    """The model's input (``ModelCfg.inputs``): colour, or colour and the dataset's depth PNGs."""
     epochs: int = 30
     batch_size: int = 16
     learning_rate: float = 2e-3
@@ -128,7 +130,8 @@ def train(dataset_dir: str | Path, run_dir: str | Path, cfg: TrainCfg, resume: b
     train_ids, held_ids = split_image_ids(coco, cfg.held_out_fraction)
     canvas = canvas_size(coco, STRIDE_MAX)
     with_masks = cfg.mask_prototypes > 0
-    records = FrameRecords(dataset_dir, coco, train_ids, class_of)
+    with_depth = cfg.inputs == "rgbd"
+    records = FrameRecords(dataset_dir, coco, train_ids, class_of, depth=with_depth)
     resident, loader = None, None
     if cfg.data == "resident":
         resident = ResidentFrames(records, device, cfg.num_workers)
@@ -139,11 +142,12 @@ def train(dataset_dir: str | Path, run_dir: str | Path, cfg: TrainCfg, resume: b
                                              persistent_workers=cfg.num_workers > 0, pin_memory=device.type == "cuda",
                                              generator=torch.Generator().manual_seed(cfg.seed))
         batches_per_epoch = len(loader)
-    eval_set = CocoFrames(dataset_dir, coco, held_ids, canvas)
+    eval_set = CocoFrames(dataset_dir, coco, held_ids, canvas, depth=with_depth)
     image_sizes = {im["id"]: (im["height"], im["width"]) for im in coco["images"]}
     eval_loader = torch.utils.data.DataLoader(eval_set, batch_size=cfg.batch_size, num_workers=cfg.num_workers,
                                               collate_fn=collate)
-    model_cfg = ModelCfg(name=cfg.model, num_classes=len(categories), mask_prototypes=cfg.mask_prototypes)
+    model_cfg = ModelCfg(name=cfg.model, num_classes=len(categories), mask_prototypes=cfg.mask_prototypes,
+                         inputs=cfg.inputs)
     torch.manual_seed(cfg.seed)  # here: the initialisation does not depend on what loading the data drew
     model = build_model(model_cfg).to(device)
     use_amp = cfg.amp and device.type == "cuda"
