@@ -5,6 +5,7 @@ frees the port. Waits are on conditions with generous limits; nothing asserts a 
 
 from __future__ import annotations
 
+import contextlib
 import socket
 import subprocess
 import sys
@@ -30,6 +31,26 @@ def wait_until(condition, what: str) -> None:
     while not condition():
         assert time.monotonic() < deadline, f"timed out waiting for {what}"
         time.sleep(0.01)
+
+
+@contextlib.contextmanager
+def stepping(world):
+    """Step ``world`` on a thread of its own (the simulation the viewer watches) while the block runs;
+    at its end the viewer is unpaused, so a step held by a pause returns and the thread ends."""
+    stop = threading.Event()
+
+    def loop():
+        while not stop.is_set():
+            world.step(render=False)
+
+    runner = threading.Thread(target=loop, daemon=True)
+    runner.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        world.viewer.controls.set_paused(False)
+        runner.join(timeout=LIMIT_S)
 
 
 @pytest.fixture
@@ -74,15 +95,7 @@ def test_frames_are_copied_only_when_the_stream_asks(world):
 def test_pause_holds_the_simulation_and_step_lets_one_through(world):
     viewer, controls = world.viewer, world.viewer.controls
     controls.speed = None
-    stop = threading.Event()
-
-    def loop():
-        while not stop.is_set():
-            world.step(render=False)
-
-    runner = threading.Thread(target=loop, daemon=True)
-    runner.start()
-    try:
+    with stepping(world):
         controls.set_paused(True)
         sequence, frame = 0, None
         while frame is None or not frame.paused:  # a frame copied by the held simulation thread
@@ -98,10 +111,6 @@ def test_pause_holds_the_simulation_and_step_lets_one_through(world):
         assert world.current_time == pytest.approx(held_at + world.physics_dt)
         controls.set_paused(False)
         wait_until(lambda: world.current_time > held_at + 0.5, "the resumed simulation")
-    finally:
-        stop.set()
-        controls.set_paused(False)
-        runner.join(timeout=LIMIT_S)
 
 
 def test_close_frees_the_port_and_leaves_the_simulation(world):
@@ -173,15 +182,7 @@ def test_the_server_process_draws_what_is_shown_and_the_poses(world):
     assert viewer.link is not None and viewer.link.process.pid != threading.get_native_id()
     viewer.controls.speed = None
     viewer.show_points("probe", np.array([[1.0, 2.0, 0.5], [2.0, 1.0, 0.3]]))
-    stop = threading.Event()
-
-    def loop():
-        while not stop.is_set():
-            world.step(render=False)
-
-    runner = threading.Thread(target=loop, daemon=True)
-    runner.start()
-    try:
+    with stepping(world):
         points, pose_updates, deadline = None, 0, time.monotonic() + LIMIT_S
         for message in page_messages(viewer.port):
             assert time.monotonic() < deadline, f"the page got {pose_updates} pose updates, points: {points}"
@@ -192,9 +193,6 @@ def test_the_server_process_draws_what_is_shown_and_the_poses(world):
                 pose_updates += 1
             if points is not None and pose_updates >= 3:
                 break
-    finally:
-        stop.set()
-        runner.join(timeout=LIMIT_S)
     assert points is not None and pose_updates >= 3
 
 
