@@ -169,9 +169,34 @@ def profile_device_draws(producer: BatchedFrameProducer, device: str, chunk: lis
     return stages
 
 
-def disk_run(config, out: Path, frames: list[int], categories, write) -> dict:
+def jpeg_check(producer: BatchedFrameProducer, out: Path, seed: int, frames: list[int], sample: int = 64) -> dict:
+    """How far a sample of a run's JPEG files, decoded, is from the same frames rendered again in
+    memory (the dataset's draws): mean absolute difference per frame, 0-255. A q95 JPEG of the frame
+    is about one level off; one encoded from an unfinished or overwritten image (a stream-ordering
+    fault in the JPEG thread, ``jpeg_stage``) tens, or it does not decode."""
+    import numpy as np
+    from PIL import Image
+
+    picked = frames[::max(1, len(frames) // sample)][:sample]
+    diffs, broken = [], 0
+    for batch in producer.batches(seed, picked):
+        rgb = batch["rgb"].cpu().numpy().astype(np.float64)
+        for row, index in enumerate(batch["index"].tolist()):
+            try:
+                decoded = np.asarray(Image.open(out / "rgb" / f"{index:06d}.jpg").convert("RGB"), np.float64)
+            except OSError:
+                broken += 1
+                continue
+            diffs.append(float(np.abs(decoded - rgb[row]).mean()))
+    return {"frames": len(picked), "undecodable": broken, "mean_abs_diff": round(float(np.mean(diffs)), 3) if diffs
+            else None, "max_abs_diff": round(max(diffs), 3) if diffs else None,
+            "ok": broken == 0 and bool(diffs) and max(diffs) < 8.0}
+
+
+def disk_run(config, out: Path, frames: list[int], categories, write, check=None) -> dict:
     """``write(out, stats)`` into a fresh dataset folder, then the COCO merge and its file as
-    ``generate`` writes them: frames/s, MB and files a frame, and the write's stage seconds."""
+    ``generate`` writes them: frames/s, MB and files a frame, and the write's stage seconds.
+    ``check(out)``, untimed, before the folder is deleted: its result is the run's ``check``."""
     prepare_dirs(out, config.writer)
     stats: dict = {}
     pieces: dict = {}  # the COCO pieces of the frames committed, as generate gathers them
@@ -181,6 +206,7 @@ def disk_run(config, out: Path, frames: list[int], categories, write) -> dict:
     write_annotations(out / "annotations.json", out / "frames", len(frames), categories, {"seed": 2},
                       pieces=pieces, fsync=config.writer.fsync)
     seconds = time.perf_counter() - start
+    checked = None if check is None else check(out)
     files = [f for f in out.rglob("*") if f.is_file()]
     size_mb = sum(f.stat().st_size for f in files) / 1e6
     shutil.rmtree(out, ignore_errors=True)
@@ -189,7 +215,7 @@ def disk_run(config, out: Path, frames: list[int], categories, write) -> dict:
     return {"fps": round(len(frames) / seconds, 1), "fps_before_merge": round(len(frames) / (written - start), 1), "mb_per_frame": round(size_mb / len(frames), 4),
             "files_per_frame": round(len(files) / len(frames), 2), "commits": stats.get("commits", 0),
             "coco_pieces": len(pieces),  # frames whose annotations came as pieces, not from the records
-            "ms_per_frame": per_frame}
+            "ms_per_frame": per_frame, **({"check": checked} if check is not None else {})}
 
 
 def disk_ceiling(out: Path, frames: int, files_per_frame: float, mb_per_frame: float, threads: int) -> float:
@@ -390,9 +416,10 @@ def main() -> None:
                 # per producer and layout (what a long generate pays once), the processes map them
                 prepare_dirs(where / "warm", writer_cfg)
                 run_batched_frames(run_config, where / "warm", 2, frames[:n], producer, image_format=fmt)
+                check = functools.partial(jpeg_check, producer, seed=2, frames=disk_frames) if fmt == "jpg" else None
                 disk[name] = disk_run(run_config, where / "d", disk_frames, categories,
                                       functools.partial(run_batched_frames, run_config, seed=2, frames=disk_frames,
-                                                        producer=producer, image_format=fmt))
+                                                        producer=producer, image_format=fmt), check=check)
             except Exception as err:  # one mode's failure is reported, and the others still run
                 disk[name] = {"fps": 0.0, "error": f"{type(err).__name__}: {err}"[:500]}
                 say(f"to disk, {name}: FAILED {disk[name]['error']}")
@@ -405,6 +432,8 @@ def main() -> None:
                 f"{disk[name]['files_per_frame']} files a frame, {disk[name]['commits']} commits")
             say("  ms a frame: " + ", ".join(f"{k} {v}" for k, v in disk[name]["ms_per_frame"].items()) +
                 f" (part_* are CPU ms summed over {draw_workers} processes)")
+            if "check" in disk[name]:
+                say(f"  JPEG files vs the frames rendered again: {disk[name]['check']}")
             if name == "headline":  # the storage alone, with the headline's files
                 disk_ceiling_fps = disk_ceiling(root / "ceiling", args.disk_frames, disk[name]["files_per_frame"],
                                                 disk[name]["mb_per_frame"], cpus)
@@ -468,6 +497,7 @@ def main() -> None:
         "memory_draws": "device", "memory_error": memory_error,
         "memory_host_draws_fps": round(memory_host_fps, 1), "memory_host_draws_of_raw": round(memory_host_fps / raw_fps, 3),
         "disk_fps": disk_fps and round(disk_fps, 1), "disk_of_raw": disk_fps and round(disk_fps / raw_fps, 3),
+        "disk_jpeg_check": head.get("check") if head else None,
         "disk_headline": "RGB (JPEG where nvjpeg runs) + COCO boxes and RLE masks, fsync, on --out's disk, "
                          "the COCO merge included (fps_before_merge without it)",
         "disk_ceiling_fps": disk_ceiling_fps and round(disk_ceiling_fps, 1), "disk_frames": args.disk_frames,

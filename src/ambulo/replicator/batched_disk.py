@@ -14,7 +14,10 @@ of the whole batch are found on the device too (``device_rle``); a process only 
 ``commits.BatchCommits`` frees a batch's block as soon as its files are written and writes its
 records after one flush of the files (a flush per group of batches, off the render's path), so a
 record on disk still always points to data on disk. The device renders batch i+1 while the
-processes write batch i, and the host applies batch i+1's draws while the device renders batch i.
+processes write batch i, and the host applies batch i+1's draws while the device renders batch i;
+with JPEG, a thread of its own encodes batch i while batch i+1 renders (``jpeg_stage``: three
+blocks then). The processes also make each frame's COCO piece (``coco_file``), so the dataset's
+``annotations.json`` is a concatenation at the end rather than a pass over every record.
 
 The files are the ``run_frames`` path's, byte for byte, with PNG RGB (tested); with JPEG the RGB
 file is ``rgb/NNNNNN.jpg`` and the record's ``file_name`` says so (``writers.write_frame_files`` with
@@ -45,6 +48,7 @@ from .coco_file import frame_piece
 from .commits import BatchCommits
 from .device_rle import frame_rles, rle_counts
 from .encode import IMAGE_FORMATS, as_u16_bits, depth_mm, encode_jpegs
+from .jpeg_stage import JpegStage
 from .writers import EncodedRecord, FrameWriter, encode_record, write_frame_files
 
 SUPPORTED_OUTPUTS = {"coco", "depth", "masks", "kitti"}
@@ -61,21 +65,17 @@ class SharedBatch:
     pageable memory). The file lives in ``/dev/shm`` when that has room for it (a container's is
     often 64 MB), else in the temporary folder (the page cache holds it)."""
 
-    def __init__(self, layout: dict[str, tuple[tuple[int, ...], str]], pin: bool):
+    def __init__(self, layout: dict[str, tuple[tuple[int, ...], str]], pin: bool, folder: str | None | bool = True):
         self.layout = layout
-        offsets, size = {}, 0
-        for name, (shape, dtype) in layout.items():
-            offsets[name] = size
-            size += -(-int(np.prod(shape)) * np.dtype(dtype).itemsize // 64) * 64
-        self.offsets, self.size = offsets, max(size, 64)
-        folder = _block_dir(self.size)
+        self.offsets, self.size = _offsets(layout)
+        folder = _block_dir(self.size) if folder is True else folder
         fd, self.path = tempfile.mkstemp(prefix="ambulo-batch-", dir=folder)
         try:
             os.ftruncate(fd, self.size)
             self._map = mmap.mmap(fd, self.size)
         finally:
             os.close(fd)
-        self.arrays = _arrays(self._map, layout, offsets)
+        self.arrays = _arrays(self._map, layout, self.offsets)
         self._pinned = None
         if pin and folder is not None:  # shared memory pins; a file's pages may not (Linux refuses long pins)
             pointer = np.frombuffer(self._map, np.uint8, count=1).ctypes.data
@@ -108,13 +108,22 @@ def _clear_cuda_error() -> None:
         torch.cuda.synchronize()
 
 
-def _block_dir(size: int) -> str | None:
-    """``/dev/shm`` when it has room for two blocks and some to spare, else the temporary folder."""
+def _offsets(layout: dict) -> tuple[dict[str, int], int]:
+    """Each array's byte offset in a block of ``layout`` (64-byte aligned), and the block's size."""
+    offsets, size = {}, 0
+    for name, (shape, dtype) in layout.items():
+        offsets[name] = size
+        size += -(-int(np.prod(shape)) * np.dtype(dtype).itemsize // 64) * 64
+    return offsets, max(size, 64)
+
+
+def _block_dir(size: int, blocks: int = 2) -> str | None:
+    """``/dev/shm`` when it has room for ``blocks`` blocks and one to spare, else the temporary folder."""
     try:
         stat = os.statvfs("/dev/shm")
     except OSError:
         return None
-    return "/dev/shm" if stat.f_bavail * stat.f_frsize > 3 * size else None
+    return "/dev/shm" if stat.f_bavail * stat.f_frsize > (blocks + 1) * size else None
 
 
 def _arrays(buffer, layout: dict, offsets: dict) -> dict:
@@ -141,15 +150,17 @@ def batch_layout(num_worlds: int, height: int, width: int, jpeg: bool, semantic:
     return layout
 
 
-STAGES = ("render_s", "draws_s", "jpeg_s", "rle_s", "wait_block_s", "copy_s", "submit_s", "wait_writes_s", "commit_s",
-          "part_capture_s", "part_write_s")
+STAGES = ("render_s", "draws_s", "jpeg_s", "rle_s", "wait_block_s", "copy_s", "submit_s", "jpeg_encode_s",
+          "wait_writes_s", "commit_s", "part_capture_s", "part_write_s")
 """What ``run_batched_frames(stats=...)`` adds up, in seconds: on the main thread the upload of the
 batch's draws and the launches of its render and conversions (``render_s``: host time, the device
 works on), the next batch's draws collected and applied to the host copies meanwhile
-(``draws_s``: includes waiting for the draw processes), the JPEG encode (``jpeg_s``: it waits for
-the render), the COCO masks' run lengths found on the device and copied (``rle_s``), waiting for a
-free block (``wait_block_s``: the processes are behind), the copy into it and the boxes' and
-poses' to the host (``copy_s``), handing out the parts (``submit_s``); on the settle thread
+(``draws_s``: includes waiting for the draw processes), the copy of the RGB images for the JPEG
+thread (``jpeg_s``), the COCO masks' run lengths found on the device and copied (``rle_s``: it
+waits for the render), waiting for a free block (``wait_block_s``: the processes or the JPEG
+thread are behind), the copy into it and the boxes' and poses' to the host (``copy_s``), handing
+out the parts (``submit_s``); on the JPEG thread its encode and copy into the block
+(``jpeg_encode_s``: ``jpeg_stage``); on the settle thread
 waiting for the processes (``wait_writes_s``); on the commit thread the file system's flushes and
 the records' writes (``commit_s``); and summed over the processes, the captures (loose and 3D
 boxes) and the files' encode and write with the COCO annotations, the record's JSON and the
@@ -181,65 +192,88 @@ def run_batched_frames(config, out: Path, seed: int, frames: list[int], producer
     semantic = "semantic_segmentation" in config.camera.annotators and "masks" in config.writer.outputs
     layout = batch_layout(producer.num_worlds, cfg.height, cfg.width, jpeg, semantic,
                           depth="depth" in config.writer.outputs)
-    blocks = shared_blocks(producer, layout, pin=cuda)
+    blocks = shared_blocks(producer, layout, pin=cuda, count=3 if jpeg else 2)
     free: queue.Queue = queue.Queue()
     for block in blocks:
         free.put(block)
     commits = BatchCommits(writer, free, progress, pieces)
     times = commits.times
+    # the JPEG encode a batch behind, on its own thread (and the render on its own stream)
+    stage = JpegStage(producer.engine.device, encode_jpegs) if jpeg else None
     chunks = producer._chunks(seed, frames)  # each chunk's draws submitted one chunk ahead
     try:
-        ahead = next(chunks, None)
-        ahead_logs = None if ahead is None else producer.draw_on_host(seed, *ahead)
-        while ahead is not None:
-            start = time.perf_counter()
-            chunk, logs, count = ahead[0], ahead_logs, len(ahead[0])
-            producer.upload_draws(count)  # queued behind the last batch's copies: its images are read
-            producer.render()
-            instances, boxes, pixels = producer.labels(count)
-            images = producer.camera.data.output
-            device = {"instances": as_u16_bits(instances)}
-            if "depth_mm" in layout:
-                device["depth_mm"] = depth_mm(images["depth"][:count, ..., 0])
-            if semantic:
-                device["semantic"] = as_u16_bits(images["semantic_segmentation"][:count, ..., 0])
-            mark = _lap(times, "render_s", start)
-            # the next chunk's draws applied to the host copies while the device renders this one
-            ahead = next(chunks, None)
-            if ahead is not None:
-                ahead_logs = producer.draw_on_host(seed, *ahead)
-            mark = _lap(times, "draws_s", mark)
-            sizes = None
-            if jpeg:
-                files = encode_jpegs(images["rgb"][:count])
-                sizes = [int(f.numel()) for f in files]
-                device["jpeg_bytes"] = torch.cat(files)
-            else:
-                device["rgb"] = images["rgb"][:count]
-            mark = _lap(times, "jpeg_s", mark)
-            # the COCO masks' run lengths of every frame (one sync; the host compresses its frames')
-            rle = tuple(t.cpu().numpy() for t in rle_counts(instances, producer.table.num_instances))
-            mark = _lap(times, "rle_s", mark)
-            block = free.get()  # the batch before last has been written
-            mark = _lap(times, "wait_block_s", mark)
-            if commits.failed:
-                raise commits.failed[0]
-            for name, tensor in device.items():
-                target = block.arrays[name].reshape(-1)[:tensor.numel()].view(_NUMPY[tensor.dtype])
-                torch.from_numpy(target).view(tensor.shape).copy_(tensor, non_blocking=cuda)
-            small = producer.to_host(count, instances, boxes, pixels, images=False)  # syncs the stream
-            mark = _lap(times, "copy_s", mark)
-            commits.put(block, _submit_parts(pool, block, chunk, logs, small, sizes, rle, out, config.writer,
-                                             writer.fsync_files))
-            _lap(times, "submit_s", mark)
+        with stage.rendering() if stage is not None else contextlib.nullcontext():
+            _render_batches(producer, seed, chunks, layout, semantic, stage, free, commits, pool, out, config.writer,
+                            writer.fsync_files)
     finally:
+        if stage is not None:  # every batch handed to the stage is encoded and submitted (or its block freed)
+            stage.close()
+            times["jpeg_encode_s"] += stage.encode_s
         commits.close()  # the batches submitted are written and their records committed, whatever happened
         if stats is not None:
             for name, seconds in times.items():
                 stats[name] = stats.get(name, 0) + seconds
-    if commits.failed:
-        raise commits.failed[0]
+    for failed in (commits.failed, stage.failed if stage is not None else []):
+        if failed:
+            raise failed[0]
     return producer.gl_renderer
+
+
+def _render_batches(producer, seed: int, chunks, layout: dict, semantic: bool, stage: JpegStage | None,
+                    free: queue.Queue, commits: BatchCommits, pool, out: Path, writer_cfg, fsync_files: bool) -> None:
+    """``run_batched_frames``' loop on the render's thread: each batch rendered, converted, copied
+    into a free block and handed to the processes (through ``stage``, which encodes its JPEGs first)."""
+    cuda = producer.engine.device.type == "cuda"
+    times = commits.times
+    ahead = next(chunks, None)
+    ahead_logs = None if ahead is None else producer.draw_on_host(seed, *ahead)
+    while ahead is not None:
+        start = time.perf_counter()
+        chunk, logs, count = ahead[0], ahead_logs, len(ahead[0])
+        producer.upload_draws(count)  # queued behind the last batch's copies: its images are read
+        producer.render()
+        instances, boxes, pixels = producer.labels(count)
+        images = producer.camera.data.output
+        device = {"instances": as_u16_bits(instances)}
+        if "depth_mm" in layout:
+            device["depth_mm"] = depth_mm(images["depth"][:count, ..., 0])
+        if semantic:
+            device["semantic"] = as_u16_bits(images["semantic_segmentation"][:count, ..., 0])
+        mark = _lap(times, "render_s", start)
+        # the next chunk's draws applied to the host copies while the device renders this one
+        ahead = next(chunks, None)
+        if ahead is not None:
+            ahead_logs = producer.draw_on_host(seed, *ahead)
+        mark = _lap(times, "draws_s", mark)
+        if stage is not None:  # copied before the next render overwrites the camera's images
+            taken = stage.take(images["rgb"][:count])
+        else:
+            device["rgb"] = images["rgb"][:count]
+        mark = _lap(times, "jpeg_s", mark)
+        # the COCO masks' run lengths of every frame (one sync; the host compresses its frames')
+        rle = tuple(t.cpu().numpy() for t in rle_counts(instances, producer.table.num_instances))
+        mark = _lap(times, "rle_s", mark)
+        block = free.get()  # the batch before last has been written
+        mark = _lap(times, "wait_block_s", mark)
+        for failed in (commits.failed, stage.failed if stage is not None else []):
+            if failed:
+                free.put(block)
+                raise failed[0]
+        for name, tensor in device.items():
+            target = block.arrays[name].reshape(-1)[:tensor.numel()].view(_NUMPY[tensor.dtype])
+            torch.from_numpy(target).view(tensor.shape).copy_(tensor, non_blocking=cuda)
+        small = producer.to_host(count, instances, boxes, pixels, images=False)  # syncs the stream
+        mark = _lap(times, "copy_s", mark)
+        submit = functools.partial(_submit_parts, pool, block, chunk, logs, small, rle=rle, out=out,
+                                   writer_cfg=writer_cfg, fsync_files=fsync_files)
+        if stage is None:
+            commits.put(block, submit(None))
+        else:
+            jpeg_bytes = block.arrays["jpeg_bytes"]
+            stage.put(taken, lambda size, a=jpeg_bytes: a[:size],
+                      then=lambda sizes, block=block, submit=submit: commits.put(block, submit(sizes)),
+                      drop=functools.partial(free.put, block))
+        _lap(times, "submit_s", mark)
 
 
 def _lap(times: collections.Counter, name: str, start: float) -> float:
@@ -254,20 +288,23 @@ _NUMPY = {torch.int16: np.int16, torch.uint8: np.uint8, torch.float32: np.float3
 """The NumPy view of a block's bytes that a device tensor is copied into (the same bits)."""
 
 
-def shared_blocks(producer: BatchedFrameProducer, layout: dict, pin: bool) -> list[SharedBatch]:
-    """The two blocks of ``layout`` for ``producer``'s batches, kept on the producer from one run to
-    the next (``producer.disk_blocks``; closed with it): making and page-locking two blocks of a
-    few hundred MB costs more than a thousand frames' copies, and a run may be a few batches."""
+def shared_blocks(producer: BatchedFrameProducer, layout: dict, pin: bool, count: int = 2) -> list[SharedBatch]:
+    """``count`` blocks of ``layout`` for ``producer``'s batches (all in one folder), kept on the
+    producer from one run to the next (``producer.disk_blocks``; closed with it): making and
+    page-locking blocks of a few hundred MB costs more than a thousand frames' copies, and a run
+    may be a few batches. Two let the processes write one batch while the next is copied; the JPEG
+    mode takes three (one more is being encoded: ``jpeg_stage``)."""
     held = producer.disk_blocks
-    if held is not None and held[0] == (layout, pin):
+    if held is not None and held[0] == (layout, pin, count):
         return held[1]
     producer.close_disk_blocks()
-    blocks = [SharedBatch(layout, pin=pin) for _ in range(2)]
-    producer.disk_blocks = ((layout, pin), blocks)
+    folder = _block_dir(_offsets(layout)[1], count)
+    blocks = [SharedBatch(layout, pin=pin, folder=folder) for _ in range(count)]
+    producer.disk_blocks = ((layout, pin, count), blocks)
     return blocks
 
 
-def _submit_parts(pool, block: SharedBatch, chunk, logs, small: dict, sizes, rle: tuple, out, writer_cfg,
+def _submit_parts(pool, block: SharedBatch, chunk, logs, small: dict, sizes, *, rle: tuple, out, writer_cfg,
                   fsync_files: bool) -> list:
     """The batch's frames in one contiguous part per process, each written there (``_write_part``)."""
     count = len(chunk)
