@@ -14,11 +14,11 @@ from ambulo.navigation import Navigator, NavigatorCfg, NavWorld, NavWorldCfg
 pytest.importorskip("onnxruntime")
 
 
-def _navigator_on(room, fix_map, occ_of, start_pose, goal_xy):
+def _navigator_on(room, fix_map, occ_of, start_pose, goal_xy, **navigator_kw):
     """A mapping-mode navigator in the test room whose map is ``occ_of(cx, cy)`` (kept fixed)."""
     world = NavWorld.from_file(room, start_pose=start_pose,
                                cfg=NavWorldCfg(camera_width=64, camera_height=48, record_gyro=False))
-    nav = Navigator(world, NavigatorCfg(mode="mapping"))
+    nav = Navigator(world, NavigatorCfg(mode="mapping", **navigator_kw))
     nav.set_goal(goal_xy)
     fix_map(nav, occ_of)
     return world, nav
@@ -57,7 +57,8 @@ def test_a_robot_that_cannot_turn_on_the_spot_walks_on_down_the_route(room, fix_
         out = np.where(cx > -0.6, UNKNOWN, FREE)
         return np.where((cx > -1.6) & (cx < -0.7) & (cy < 0.08), OCCUPIED, out)
 
-    world, nav = _navigator_on(room, fix_map, occ, (-1.1, 0.25, -math.pi / 2), (2.5, 0.6))
+    # (arm_reach_m off: with it the robot first steps back to arm room, test_navigator_arm_room)
+    world, nav = _navigator_on(room, fix_map, occ, (-1.1, 0.25, -math.pi / 2), (2.5, 0.6), arm_reach_m=None)
     nav._replan(world.time_s, np.array([-1.1, 0.25, -math.pi / 2]), "test")
     record = nav.replans[-1]
     assert "(cornered: walk on)" in record.reason, record

@@ -128,6 +128,22 @@ class NavigatorCfg(Checked):
     instead: most roomy plans are the straight walk along the body path (no expansion), and one
     that needs a search is in a tight spot a roomy plan is not for; so a replan costs at most
     about this much more per roomy clearance (~45 ms each on a busy 2-core VM)."""
+    arm_reach_m: float | None = 0.35
+    """A turn on the spot (a look turn) or a cornered walk-on (which turns at once) first moves the
+    pelvis, standing, to where the map's occupied cells are this far from its cell (edge to edge;
+    ``planning.footstep_clearance``), or as far as it can within ``arm_shift_m`` over free cells;
+    None: never. The forearms reach 0.30-0.33 m from the pelvis in a turn, and the footstep planner
+    tests the turned soles and the body's 0.25 m only: in full mode apartment 3 turned to look three
+    times by a wall it had seen (a right forearm on it at 9.7, 10.7 and 11.4 s), and 8 turned at its
+    start towards a wall it then saw, cornered, and walked on from where it stood (a forearm on the
+    wall at 3.8 s), m."""
+    arm_shift_m: float = 0.15
+    """The farthest the pelvis moves for ``arm_reach_m``, m (a step of the hold, not a walk)."""
+    arm_back_off_s: float = 2.0
+    """A move for ``arm_reach_m`` ends when the estimate is within ``arm_done_m`` of its target or after
+    this long, s (then the robot replans from where it stands)..."""
+    arm_done_m: float = 0.03
+    """... m."""
     pose_conflict_m: float | None = 0.1
     """A leg-odometry bridge that puts the pelvis this near to a cell the map holds occupied is
     wrong (the body cannot stand inside furniture): the bridge ends there and the robot stands and
@@ -288,6 +304,10 @@ class Navigator:
         self._last_plan_s = -math.inf
         self._replan_reason: str | None = None
         self._lost_since: float | None = None
+        self._arm_back_off: tuple[np.ndarray, float] | None = None
+        """(target xy m, start time s) of the move to arm room under way (``arm_reach_m``), or None."""
+        self._arm_backed_from_xy: np.ndarray | None = None
+        """Where the last move to arm room started: not again from within ``arm_done_m`` of it."""
         self._roomy: FootstepPlan | None = None
         """This replan's plan that keeps ``roomy_clearance_m``, if any (its reason says so)."""
         self._bridge_refuted = False
@@ -331,6 +351,7 @@ class Navigator:
         self.status = "walking"
         self._replan_reason = "new goal"
         self._looked_xy_m = None
+        self._arm_back_off = None
         self._start_time_s = self.world.time_s
         self._progress_mark = (self.world.time_s, self.world.true_pose()[:2])
 
@@ -536,6 +557,12 @@ class Navigator:
                 self._settled_since = None
             return
         self._settled_since = None
+        if self._arm_back_off is not None:
+            target, since = self._arm_back_off
+            if np.linalg.norm(est[:2] - target) > c.arm_done_m and now - since < c.arm_back_off_s:
+                return  # standing, the hold moves the pelvis there; no replan meanwhile
+            self._arm_back_off = None
+            self._replan_reason = "arm room"
         if self._look_by_heading:
             self._steer_look(est)
         reason = self._replan_reason or self._replan_trigger(now, est, map_changed)
@@ -748,7 +775,19 @@ class Navigator:
             usable = plan.status == PlanStatus.SUCCESS or (plan.num_steps >= 2 and plan.status in (
                 PlanStatus.BUDGET_EXHAUSTED, PlanStatus.GOAL_UNREACHABLE))
             final = final and plan.status == PlanStatus.SUCCESS and not self._stepping_out
-            if usable:
+            arm_xy = None
+            if usable and look and not faced:  # a turn on the spot, or a walk-on that turns at once
+                arm_xy = self._arm_room_xy(grid, est)
+            if arm_xy is not None:
+                # stand and move to arm room first (``arm_reach_m``); the replan after it plans the turn
+                reason = reason + " (arm room)"
+                self._arm_backed_from_xy = est[:2].copy()
+                self._arm_back_off = (arm_xy, now)
+                self.plan, self.plan_final = None, False
+                self._look_yaw_rad, self._look_by_heading = None, False
+                self.walker.set_plan(None, final=False)
+                self.walker.stand_at(arm_xy)
+            elif usable:
                 refused = self.walker.refuse(plan)
                 if refused is None:
                     self.plan, self.plan_final = plan, final
@@ -770,6 +809,37 @@ class Navigator:
         self.replans.append(ReplanRecord(now, time.perf_counter() - t0, reason, route.found, status, steps, final,
                                          refused))
 
+    def _arm_room_xy(self, grid: Grid2D, est: np.ndarray) -> np.ndarray | None:
+        """(2,) where to stand before turning on the spot (``NavigatorCfg.arm_reach_m``): the free cell
+        centre within ``arm_shift_m`` with the most clearance from occupied cells (capped at
+        ``arm_reach_m``; the nearest among equals), the cell halfway to it free too; None when the
+        robot's own cell has that reach, nothing nearby has more, the walker cannot stand at a
+        point, or it moved for arm room from here already."""
+        c = self.cfg
+        if c.arm_reach_m is None or not hasattr(self.walker, "stand_at"):
+            return None
+        if self._arm_backed_from_xy is not None and np.linalg.norm(est[:2] - self._arm_backed_from_xy) < c.arm_done_m:
+            return None
+        clr = footstep_clearance(grid, optimistic=True)
+        iy, ix = grid.cell_of(est[:2])
+        ny, nx = grid.shape
+        if not (0 <= iy < ny and 0 <= ix < nx) or clr[iy, ix] >= c.arm_reach_m:
+            return None
+        k = int(math.ceil(c.arm_shift_m / grid.resolution_m))
+        y0, y1, x0, x1 = max(0, iy - k), min(ny, iy + k + 1), max(0, ix - k), min(nx, ix + k + 1)
+        yy, xx = (a.ravel() for a in np.mgrid[y0:y1, x0:x1])
+        cx, cy = grid.cell_center_xy_m(yy, xx)
+        d = np.hypot(cx - est[0], cy - est[1])
+        free = grid.free()
+        my, mx = grid.cells_of(np.stack([(cx + est[0]) / 2, (cy + est[1]) / 2], -1))
+        ok = (d <= c.arm_shift_m) & free[yy, xx] & free[np.clip(my, 0, ny - 1), np.clip(mx, 0, nx - 1)]
+        if not ok.any():
+            return None
+        room = np.minimum(clr[yy, xx], c.arm_reach_m)[ok]
+        best = np.lexsort((d[ok], -room))[0]
+        if room[best] <= clr[iy, ix]:
+            return None
+        return np.array([cx[ok][best], cy[ok][best]])
 
     def _plan_footsteps(self, stage: FootstepStage, grid, version, optimistic, est, route, k, final, goal_xy,
                         yaw, roomy: bool = True) -> FootstepPlan:

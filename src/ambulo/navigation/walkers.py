@@ -251,6 +251,15 @@ class PolicyWalker:
         self._scan_rate = 0.0
         self.command = (0.0, 0.0, 0.0)
 
+    def stand_at(self, xy_m) -> None:
+        """Stand, the position hold moving the pelvis to ``xy_m`` (x m, y m, the pose estimate's frame;
+        a few cm: ``StandHoldCfg.max_speed_m_s``) at the heading it has now: room for the arms before a
+        turn on the spot (``NavigatorCfg.arm_reach_m``). Without a hold it just stands."""
+        self.stand()
+        if self.hold is not None:
+            self.hold.release()
+            self.hold.hold_xyyaw = np.array([float(xy_m[0]), float(xy_m[1]), float(self._pose[2])])
+
     def scan(self, yaw_rate_rad_s: float) -> None:
         """Stand and turn on the spot at ``yaw_rate_rad_s`` (its heading open loop; the position
         held on the estimate, ``PositionHold.turn_command``): a lost camera sweeps for texture to
