@@ -15,16 +15,10 @@ import mujoco
 import numpy as np
 import pytest
 
-from ambulo.render.path import NoPathTracerError, PathTracer, PathTracerCfg, _mitsuba
+from ambulo.render.path import PathTracer, PathTracerCfg, _mitsuba
 from ambulo.render.scene_description import roughness_from_shininess
 
-
-@pytest.fixture(scope="module", autouse=True)
-def _needs_mitsuba():
-    try:
-        _mitsuba("llvm_ad_rgb")
-    except NoPathTracerError as e:
-        pytest.skip(str(e))
+pytestmark = pytest.mark.usefixtures("needs_mitsuba")  # tests/render/conftest.py
 
 
 def _cfg(**kw) -> PathTracerCfg:

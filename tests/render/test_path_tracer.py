@@ -16,16 +16,10 @@ import mujoco
 import numpy as np
 import pytest
 
-from ambulo.render.path import NoPathTracerError, PathTracer, PathTracerCfg, _mitsuba
+from ambulo.render.path import PathTracer, PathTracerCfg
 from ambulo.render.scene_description import srgb_to_linear
 
-
-@pytest.fixture(scope="module", autouse=True)
-def _needs_mitsuba():
-    try:
-        _mitsuba("llvm_ad_rgb")
-    except NoPathTracerError as e:
-        pytest.skip(str(e))
+pytestmark = pytest.mark.usefixtures("needs_mitsuba")  # tests/render/conftest.py
 
 
 def _model(body: str, visual: str = '<headlight active="0" ambient="0 0 0" diffuse="0 0 0"/>') -> mujoco.MjModel:

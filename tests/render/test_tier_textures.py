@@ -21,17 +21,11 @@ import numpy as np
 import pytest
 
 from ambulo.render import OffscreenRenderer, pbr
-from ambulo.render.path import NoPathTracerError, PathTracer, PathTracerCfg, _mitsuba
+from ambulo.render.path import PathTracer, PathTracerCfg
 from ambulo.render.scene_description import srgb_to_linear
 from ambulo.sensors.frames import look_at_gl
 
-
-@pytest.fixture(scope="module", autouse=True)
-def _needs_llvm():
-    try:
-        _mitsuba("llvm_ad_rgb")
-    except NoPathTracerError as e:
-        pytest.skip(str(e))
+pytestmark = pytest.mark.usefixtures("needs_mitsuba")  # tests/render/conftest.py
 
 
 W = 64
