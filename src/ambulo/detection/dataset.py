@@ -111,7 +111,12 @@ def boxes_xyxy(annotations: list[dict]) -> torch.Tensor:
 
 
 class CocoFrames(torch.utils.data.Dataset):
-    """The frames ``image_ids`` of dataset ``root`` as (image, target) samples (module docstring)."""
+    """The frames ``image_ids`` of dataset ``root`` as (image, target) samples (module docstring): a
+    torch ``Dataset`` (batch it with ``collate``) for the held-out evaluations (``train``,
+    ``transfer``) or a user's own training loop. ``masks``: each target also holds ``"masks"``, the
+    objects' (N, H, W) bool masks on the canvas (their COCO segmentation, ``instance_masks``), as
+    torchvision-style instance segmentation takes them; ambulo's own training reads masks from the
+    one instance map a frame of ``frames`` holds instead."""
 
     def __init__(self, root: str | Path, coco: dict, image_ids: list[int], canvas_hw: tuple[int, int],
                  masks: bool = False, depth: bool = False):
