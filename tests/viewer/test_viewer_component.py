@@ -18,7 +18,7 @@ import torch
 
 pytest.importorskip("viser")
 import ambulo.viewer
-from ambulo.sim import DynamicCuboid, World
+from ambulo.sim import World
 from ambulo.sim.viewers import open_viewer
 from ambulo.utils.checks import InvalidValueError
 from ports import free_port
@@ -54,11 +54,8 @@ def stepping(world):
 
 
 @pytest.fixture
-def world():
-    World.clear_instance()
-    w = World(physics_dt=0.01, viewer="web", viewer_port=free_port())
-    w.scene.add_default_ground_plane()
-    w.scene.add(DynamicCuboid(prim_path="/World/Box", position=[0.0, 0.0, 1.0], size=0.2))
+def world(box_world):
+    w = box_world((0.0, 0.0, 1.0), physics_dt=0.01, viewer="web", viewer_port=free_port())
     w.reset()
     yield w
     w.viewer.close()

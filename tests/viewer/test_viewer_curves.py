@@ -11,7 +11,7 @@ import pytest
 
 pytest.importorskip("viser")
 import ambulo.viewer
-from ambulo.sim import DynamicCuboid, World
+from ambulo.sim import World
 from ambulo.viewer.curves import ScalarLog
 from ports import free_port
 
@@ -30,11 +30,8 @@ def test_log_thins_by_half_keeping_the_ends_and_drops_non_finite():
     assert log.names == ["reward"]
 
 
-def test_add_scalars_draws_one_curve_per_name_from_another_thread():
-    World.clear_instance()
-    world = World(physics_dt=0.01)
-    world.scene.add_default_ground_plane()
-    world.scene.add(DynamicCuboid(prim_path="/World/Box", position=[0.0, 0.0, 1.0], size=0.2))
+def test_add_scalars_draws_one_curve_per_name_from_another_thread(box_world):
+    world = box_world((0.0, 0.0, 1.0), physics_dt=0.01)
     world.reset()
     viewer = ambulo.viewer.serve(world, port=free_port(), announce=False, process=False)
     try:

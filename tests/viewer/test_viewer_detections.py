@@ -12,7 +12,7 @@ import pytest
 pytest.importorskip("viser")
 import ambulo.viewer
 from ambulo.detection.detector import Detections
-from ambulo.sim import DynamicCuboid, World
+from ambulo.sim import World
 from ambulo.viewer.detections import IMAGE_NAME, ShownDetector
 from ports import free_port
 
@@ -31,11 +31,8 @@ class BoxFinder:
         return Detections(boxes_px=boxes, labels=["box"], category_ids=np.array([1]), scores=np.array([0.9], np.float32))
 
 
-def test_each_detected_frame_is_shown_with_its_boxes():
-    World.clear_instance()
-    world = World(physics_dt=0.01)
-    world.scene.add_default_ground_plane()
-    world.scene.add(DynamicCuboid(prim_path="/World/Box", position=[0.0, 0.0, 0.1], size=0.2))
+def test_each_detected_frame_is_shown_with_its_boxes(box_world):
+    world = box_world((0.0, 0.0, 0.1), physics_dt=0.01)
     world.reset()
     viewer = ambulo.viewer.serve(world, port=free_port(), announce=False, process=False)
     try:

@@ -13,7 +13,7 @@ import pytest
 
 pytest.importorskip("viser")
 import ambulo.viewer
-from ambulo.sim import DynamicCuboid, World
+from ambulo.sim import World
 from ambulo.viewer.geometry import is_ground
 from ambulo.viewer.layout import grid_offsets_w
 from ports import free_port
@@ -39,11 +39,8 @@ def step_until(world, condition, what: str) -> None:
 
 
 @pytest.fixture
-def world():
-    World.clear_instance()
-    w = World(physics_dt=0.005, num_worlds=4)
-    w.scene.add_default_ground_plane()
-    w.scene.add(DynamicCuboid(prim_path="/World/Box", position=[*BOX_XY_M, BOX_HALF_M + 0.002], size=2 * BOX_HALF_M))
+def world(box_world):
+    w = box_world((*BOX_XY_M, BOX_HALF_M + 0.002), 2 * BOX_HALF_M, physics_dt=0.005, num_worlds=4)
     w.reset()
     for _ in range(200):  # 1 s: the box settles on the floor
         w.step(render=False)
@@ -146,13 +143,10 @@ def test_map_image_puts_the_largest_y_on_top_and_unknown_clear():
     assert rgba[0, 0, 3] == 0 and rgba[0, 1, 3] > 0  # top-left unknown: clear
 
 
-def test_camera_overlay_renders_a_world_camera_on_the_streaming_thread():
+def test_camera_overlay_renders_a_world_camera_on_the_streaming_thread(box_world):
     from ambulo.sim.camera import Camera
 
-    World.clear_instance()
-    w = World(physics_dt=0.005)
-    w.scene.add_default_ground_plane()
-    w.scene.add(DynamicCuboid(prim_path="/World/Box", position=[0.0, 0.0, 0.1], size=0.2))
+    w = box_world((0.0, 0.0, 0.1), physics_dt=0.005)
     # looking straight down (Isaac's camera axes: +X forward, turned +90 deg about y): the sensor puts
     # this pose into the world's own row of the model's cameras, which the viewer must copy
     w.scene.add(Camera("/World/cam", position=[0.0, 0.0, 3.0], orientation=[0.7071068, 0.0, 0.7071068, 0.0],
@@ -175,13 +169,10 @@ def test_camera_overlay_renders_a_world_camera_on_the_streaming_thread():
     assert overlays._renders is None  # freed by the streaming thread that owned its GL context
 
 
-def test_a_lidars_last_scan_is_drawn_without_feeding_it():
+def test_a_lidars_last_scan_is_drawn_without_feeding_it(box_world):
     from ambulo.sensors import Lidar, LidarCfg
 
-    World.clear_instance()
-    w = World(physics_dt=0.005)
-    w.scene.add_default_ground_plane()
-    w.scene.add(DynamicCuboid(prim_path="/World/Box", position=[*BOX_XY_M, BOX_HALF_M + 0.002], size=2 * BOX_HALF_M))
+    w = box_world((*BOX_XY_M, BOX_HALF_M + 0.002), 2 * BOX_HALF_M, physics_dt=0.005)
     # 12 rays 30 deg below the horizon from 0.6 m up: they meet the floor 0.6 / tan 30 deg away
     lidar = Lidar(LidarCfg(prim_path="/World/Box", offset_pos=(0.0, 0.0, 0.5), elevations_deg=(-30.0,),
                            horizontal_resolution_deg=30.0))
