@@ -20,6 +20,7 @@ the caller's), and the files are read after torchvision's copies on the default 
 from __future__ import annotations
 
 import contextlib
+import functools
 import queue
 import threading
 import time
@@ -36,9 +37,9 @@ class JpegStage:
     def __init__(self, device: torch.device, encode: Callable[[torch.Tensor], list[torch.Tensor]]):
         self.device, self.encode = torch.device(device), encode
         self.cuda = self.device.type == "cuda"
-        self.stream = torch.cuda.Stream(self.device) if self.cuda else None
-        self.render_stream = torch.cuda.Stream(self.device) if self.cuda else None
-        """The stream the render's thread runs on while this stage is open (``rendering``)."""
+        self.stream, self.render_stream = _streams(self.device) if self.cuda else (None, None)
+        """This thread's stream, and the one the render's thread runs on while the stage is open
+        (``rendering``)."""
         self.failed: list[BaseException] = []
         self.encode_s = 0.0
         """Seconds the thread spent encoding and copying the files (its own wall time)."""
@@ -63,8 +64,10 @@ class JpegStage:
 
     def take(self, rgb: torch.Tensor) -> tuple[torch.Tensor, torch.cuda.Event | None]:
         """A copy of (B, H, W, 3) ``rgb`` for ``put``, queued on the current stream, and the event
-        that marks it done (None off CUDA, where the copy is done on return)."""
-        copy = rgb.clone()
+        that marks it done (None off CUDA, where the copy is done on return). The copy is laid out
+        as the encoder reads it (channels first): ``encode.encode_jpegs`` copies nothing more, so
+        nvjpeg reads only memory this event covers."""
+        copy = rgb.permute(0, 3, 1, 2).contiguous().permute(0, 2, 3, 1)
         if not self.cuda:
             return copy, None
         ready = torch.cuda.Event()
@@ -118,6 +121,14 @@ class JpegStage:
             if self.cuda:
                 self.stream.synchronize()  # the files are in the block before the processes read it
         return sizes
+
+
+@functools.cache
+def _streams(device: torch.device) -> tuple[torch.cuda.Stream, torch.cuda.Stream]:
+    """(this thread's stream, the render's), made once per process: torch hands out its pool's
+    streams in turn, so new ones every run would in time be the encoder's own. The render's is of
+    high priority (another pool than torchvision's encoder stream), so its kernels go first."""
+    return torch.cuda.Stream(device), torch.cuda.Stream(device, priority=-1)
 
 
 __all__ = ["JpegStage"]
