@@ -426,7 +426,10 @@ def main() -> None:
                 continue
             finally:
                 shutil.rmtree(where, ignore_errors=True)
-            disk[name].update(format=fmt, outputs=list(outputs), fsync=fsync, folder=str(folder))
+            held = producer.disk_blocks[1] if producer.disk_blocks else []
+            disk[name].update(format=fmt, outputs=list(outputs), fsync=fsync, folder=str(folder),
+                              blocks={"count": len(held), "folder": os.path.dirname(held[0].path) if held else None,
+                                      "pinned": all(b._pinned is not None for b in held) if held else False})
             say(f"to disk, {name} ({fmt}, {'+'.join(outputs)}, fsync {fsync}, in {folder}): {disk[name]['fps']:.0f} "
                 f"frames/s ({disk[name]['fps'] / raw_fps:.3f} of raw), {disk[name]['mb_per_frame']:.3f} MB and "
                 f"{disk[name]['files_per_frame']} files a frame, {disk[name]['commits']} commits")

@@ -252,3 +252,34 @@ def test_an_interrupted_disk_mode_run_resumes_to_the_straight_runs_files(tmp_pat
     assert straight == json_bytes(merge_coco(tmp_path / "straight" / "frames", frames,
                                              instance_table(producer.model).categories,
                                              json.loads(straight)["info"]))
+
+
+def test_the_jpeg_modes_third_block_is_dropped_rather_than_leave_shared_memory(monkeypatch):
+    # three blocks (one being encoded) where /dev/shm holds them and one to spare; where it holds
+    # only two and one to spare, two there (page-locked copies) rather than three in a file's pages
+    import os
+    import types
+
+    from ambulo.replicator import batched_disk
+
+    layout = batch_layout(2, 4, 5, jpeg=True)
+    size = batched_disk._offsets(layout)[1]
+    room = {"blocks": 4}
+    monkeypatch.setattr(batched_disk.os, "statvfs", lambda path: types.SimpleNamespace(
+        f_bavail=room["blocks"] * size + 1, f_frsize=1))
+    for blocks, want in ((4, (3, "/dev/shm")), (3, (2, "/dev/shm")), (2, (3, tempfile_dir()))):
+        room["blocks"] = blocks
+        producer = types.SimpleNamespace(disk_blocks=None, close_disk_blocks=lambda: None)
+        made = batched_disk.shared_blocks(producer, layout, pin=False, count=3)
+        try:
+            assert (len(made), os.path.dirname(made[0].path)) == want, blocks
+            assert len({b.path for b in made}) == len(made)
+        finally:
+            for block in made:
+                block.close()
+
+
+def tempfile_dir() -> str:
+    import tempfile
+
+    return tempfile.gettempdir()

@@ -293,13 +293,17 @@ def shared_blocks(producer: BatchedFrameProducer, layout: dict, pin: bool, count
     producer from one run to the next (``producer.disk_blocks``; closed with it): making and
     page-locking blocks of a few hundred MB costs more than a thousand frames' copies, and a run
     may be a few batches. Two let the processes write one batch while the next is copied; the JPEG
-    mode takes three (one more is being encoded: ``jpeg_stage``)."""
+    mode asks for three (one more is being encoded: ``jpeg_stage``), and gets two where only two fit
+    in ``/dev/shm`` (page-locked copies matter more than the third)."""
     held = producer.disk_blocks
     if held is not None and held[0] == (layout, pin, count):
         return held[1]
     producer.close_disk_blocks()
-    folder = _block_dir(_offsets(layout)[1], count)
-    blocks = [SharedBatch(layout, pin=pin, folder=folder) for _ in range(count)]
+    size, made = _offsets(layout)[1], count
+    folder = _block_dir(size, count)
+    if folder is None and count > 2 and _block_dir(size, 2) is not None:
+        folder, made = _block_dir(size, 2), 2
+    blocks = [SharedBatch(layout, pin=pin, folder=folder) for _ in range(made)]
     producer.disk_blocks = ((layout, pin, count), blocks)
     return blocks
 
