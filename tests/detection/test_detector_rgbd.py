@@ -3,6 +3,7 @@ the colour and warped with it by the augmentations (nearer by a zoom), ONNX Runt
 and a tiny training that learns what only depth tells: two squares of one look at two depths."""
 
 import dataclasses
+import functools
 import json
 
 import imageio.v3 as iio
@@ -22,20 +23,20 @@ NEAR_M, FAR_M, FLOOR_M = 1.0, 3.0, 5.0
 
 def write_depth_twins(root, num_frames: int = 4, size_px: int = 64, seed: int = 0):
     """A COCO dataset with depth PNGs (mm): each frame one 'near' (1 m) and one 'far' (3 m) grey square
-    of the same size and colour on a floor 5 m away, so only the depth tells their classes apart."""
+    of the same size and colour on a floor 5 m away, one in each half of the frame (which one where: a
+    coin), so only the depth tells their classes apart."""
     rng = np.random.default_rng(seed)
     (root / "rgb").mkdir(parents=True, exist_ok=True)
     (root / "depth").mkdir(parents=True, exist_ok=True)
     images, annotations = [], []
+    side = 16
     for index in range(num_frames):
         rgb = np.full((size_px, size_px, 3), 60, np.uint8)
         depth_mm = np.full((size_px, size_px), int(FLOOR_M * 1000), np.uint16)
-        half = size_px // 2
-        for category_id, (x_lo, depth_m) in ((1, (0, NEAR_M)), (2, (half, FAR_M))):
-            if rng.random() < 0.5:  # the near one left or right: the side tells nothing
-                x_lo = half - x_lo
-            side = 12
-            x0, y0 = int(rng.integers(x_lo + 2, x_lo + half - side - 2)), int(rng.integers(2, size_px - side - 2))
+        near_left = rng.random() < 0.5
+        for category_id, depth_m in ((1, NEAR_M), (2, FAR_M)):
+            x_lo = 8 if (category_id == 1) == near_left else size_px // 2 + 8
+            x0, y0 = x_lo + int(rng.integers(0, 4)), 24 + int(rng.integers(0, 4))
             rgb[y0:y0 + side, x0:x0 + side] = 200
             depth_mm[y0:y0 + side, x0:x0 + side] = int(depth_m * 1000)
             annotations.append({"id": len(annotations) + 1, "image_id": index + 1, "category_id": category_id,
@@ -117,15 +118,16 @@ def test_depth_is_read_aligned_and_warped_with_the_pixels(tmp_path):
 def test_rgbd_training_learns_what_only_depth_tells_and_onnx_agrees(tmp_path):
     root = write_depth_twins(tmp_path / "twins", num_frames=8)
     fresh = write_depth_twins(tmp_path / "fresh", num_frames=8, seed=1)  # frames training never saw
-    cfg = TrainCfg(epochs=40, batch_size=8, learning_rate=5e-3, warmup_steps=0, num_workers=0, eval_every_epochs=0,
+    cfg = TrainCfg(epochs=40, batch_size=8, learning_rate=3e-3, warmup_steps=10, num_workers=0, eval_every_epochs=0,
                    held_out_fraction=0.0, augment=no_augment(), mask_prototypes=0, inputs="rgbd")
     rgbd = train(root, tmp_path / "rgbd", cfg, show_progress=False)
     losses = [loss for _, loss in rgbd.losses]
     assert sum(losses[-5:]) / 5 < 0.5 * sum(losses[:5]) / 5, losses
-    # the same squares, told apart by depth alone (an rgb model can only guess which is which: on frames
-    # it never saw it scored mAP50 0.52 here): the rgbd model finds each class as itself on new frames
+    # the same squares, told apart by depth alone: on frames it never saw, the rgbd model finds each as
+    # its class (mAP50 1.0, 0.91, 1.0 with seeds 0-2); the same training of an rgb model, which can only
+    # guess which square is which, scored 0.62
     by_depth = evaluate_checkpoint(tmp_path / "rgbd" / "checkpoint.pt", fresh)
-    assert by_depth["mAP50"] > 0.7, by_depth
+    assert by_depth["mAP50"] > 0.85, by_depth
     # ONNX export of the 4-channel graph: the runtime agrees with torch on a real frame with its depth
     checkpoint = tmp_path / "rgbd" / "checkpoint.pt"
     onnx_path = export_onnx(checkpoint, tmp_path / "rgbd.onnx")
@@ -140,3 +142,47 @@ def test_rgbd_training_learns_what_only_depth_tells_and_onnx_agrees(tmp_path):
         assert sorted(found.labels[:2]) == ["far", "near"], found
         with pytest.raises(ValueError, match="depth"):
             detector(rgb_frame)
+
+
+def test_the_bridges_camera_path_gives_an_rgbd_detector_the_frames_depth():
+    """``PhysicsPublisher._publish_camera`` with a detector that needs depth captures the camera's depth
+    (even with publish_depth off) and hands it over with the very frame; an rgb detector gets none."""
+    from types import SimpleNamespace
+
+    from ambulo.detection import Detections
+    from ambulo.ros2.bridge_publishing import PhysicsPublisher
+    from ambulo.viewer.detections import ShownDetector
+
+    rgb = np.random.default_rng(0).integers(0, 255, (6, 8, 3), dtype=np.uint8)
+    depth = np.random.default_rng(1).random((6, 8, 1)).astype(np.float32)
+    camera = SimpleNamespace(captured=[])
+
+    def capture(env, annotators):
+        camera.captured.append(tuple(annotators))
+        return {"rgb": rgb, "depth": depth, "camera": {"width": 8, "height": 6, "intrinsics": np.eye(3)}}
+
+    camera.capture = capture
+
+    def publish(needs_depth: bool) -> list:
+        calls = []
+
+        def detector(frame, depth_m=None):
+            calls.append((frame, depth_m))
+            return Detections(np.zeros((0, 4), np.float32), [], np.zeros(0, np.int64), np.zeros(0, np.float32))
+
+        detector.needs_depth = needs_depth
+        viewer = SimpleNamespace(show_image=lambda *a: None, show_detections=lambda *a: None)
+        shown = ShownDetector(detector, viewer)  # the bridge's --viewer wrapper passes depth on as well
+        fake = SimpleNamespace(cfg=SimpleNamespace(publish_depth=False), scene=SimpleNamespace(sensor_frame={
+            id(camera): "cam"}), detector=shown, _publish_frame=lambda *a: None, _publish=lambda *a: None,
+            _serialize=lambda msg: b"")
+        fake._publish_detections = functools.partial(PhysicsPublisher._publish_detections, fake)
+        PhysicsPublisher._publish_camera(fake, 0, camera, 0.5, 500_000_000)
+        return calls
+
+    calls = publish(needs_depth=True)
+    assert camera.captured[-1] == ("rgb", "depth")
+    assert len(calls) == 1 and np.array_equal(calls[0][0], rgb) and calls[0][1] is depth
+    calls = publish(needs_depth=False)
+    assert camera.captured[-1] == ("rgb",)
+    assert len(calls) == 1 and np.array_equal(calls[0][0], rgb) and calls[0][1] is None

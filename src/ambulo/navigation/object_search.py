@@ -131,7 +131,12 @@ class ObjectSearch:
         rgb = frame.rgb.numpy()
         f = self._scale(rgb.shape)
         small = rgb if f == 1 else rgb.reshape(rgb.shape[0] // f, f, rgb.shape[1] // f, f, 3).mean((1, 3)).astype(np.uint8)
-        det = self.detector(small)
+        if getattr(self.detector, "needs_depth", False):  # an RGB-D detector: the depth at the same scale,
+            # one pixel of each f x f block (a block's mean would blend an object's depth with the floor's)
+            small_depth = depth if f == 1 else depth[f // 2::f, f // 2::f][:small.shape[0], :small.shape[1]]
+            det = self.detector(small, small_depth)
+        else:
+            det = self.detector(small)
         for j, (label, score) in enumerate(zip(det.labels, det.scores)):
             if label != self.label or score < self.cfg.score_threshold:
                 continue

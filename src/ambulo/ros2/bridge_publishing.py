@@ -214,14 +214,16 @@ class PhysicsPublisher:
                                np.diag([gyro_var] * 3).ravel(), acc[0].cpu().numpy(), np.diag([acc_var] * 3).ravel()])
 
     def _publish_camera(self, i: int, camera, now: float, ns: int) -> None:
-        wanted = ("rgb", "depth") if self.cfg.publish_depth else ("rgb",)
+        # an RGB-D detector (Detector.needs_depth) takes the same camera's depth with each frame
+        detector_depth = self.detector is not None and getattr(self.detector, "needs_depth", False)
+        wanted = ("rgb", "depth") if self.cfg.publish_depth or detector_depth else ("rgb",)
         out = camera.capture(0, annotators=wanted)
         frame = self.scene.sensor_frame[id(camera)]
         rgb = np.ascontiguousarray(out["rgb"][..., :3])
         height, width = rgb.shape[:2]
         self._publish_frame(f"rgb{i}", ns, frame, "rgb8", rgb)
         if self.detector is not None:
-            self._publish_detections(i, rgb, now, ns, frame)
+            self._publish_detections(i, rgb, now, ns, frame, out["depth"] if detector_depth else None)
         if self.cfg.publish_depth:  # REP 118: 32FC1, metres along the optical axis
             self._publish_frame(f"depth{i}", ns, frame, "32FC1", np.ascontiguousarray(out["depth"], "<f4"))
         cam = out["camera"]
@@ -244,12 +246,14 @@ class PhysicsPublisher:
             self.process.send(("advertise", key, typename, topic, kind))
             self._topic[key] = topic if topic.startswith("/") else f"{self.cfg.namespace.rstrip('/')}/{topic}"
 
-    def _publish_detections(self, i: int, rgb: np.ndarray, now: float, ns: int, frame: str) -> None:
-        """The detector on camera ``i``'s frame, here on the physics thread (it costs the camera rate's
-        inferences a simulated second of CPU), stamped and framed like the image."""
+    def _publish_detections(self, i: int, rgb: np.ndarray, now: float, ns: int, frame: str,
+                            depth_m: np.ndarray | None = None) -> None:
+        """The detector on camera ``i``'s frame (and its depth (H, W) m, for an RGB-D detector), here on the
+        physics thread (it costs the camera rate's inferences a simulated second of CPU), stamped and
+        framed like the image."""
         from .detections import detection_array_cdr, segmentation_of
 
-        found = self.detector(rgb)
+        found = self.detector(rgb) if depth_m is None else self.detector(rgb, depth_m)
         self._publish(f"det{i}", detection_array_cdr(now, frame, found.boxes_px, found.labels, found.scores), ns)
         image = segmentation_of(found)
         if image is not None:

@@ -22,8 +22,9 @@ class ShownDetector:
     def __init__(self, detector, viewer, name: str = IMAGE_NAME):
         self.detector, self.viewer, self.name = detector, viewer, name
 
-    def __call__(self, rgb: np.ndarray):
-        found = self.detector(rgb)
+    def __call__(self, rgb: np.ndarray, depth_m: np.ndarray | None = None):
+        """``depth_m``: the frame's depth (H, W) m, passed on to an RGB-D detector (``needs_depth``)."""
+        found = self.detector(rgb) if depth_m is None else self.detector(rgb, depth_m)
         self.viewer.show_image(self.name, rgb)
         self.viewer.show_detections(self.name, found)
         return found
