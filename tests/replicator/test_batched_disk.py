@@ -47,6 +47,8 @@ def test_shared_batch_holds_the_layouts_arrays_and_is_removed_on_close():
     assert "semantic" not in batch_layout(2, 4, 5, jpeg=True, semantic=False)  # not asked for: not copied
     assert batch_layout(2, 4, 5, jpeg=True)["depth_mm"] == ((2, 4, 5), "<u2")  # converted on the device
     assert set(batch_layout(2, 4, 5, jpeg=True, semantic=False, depth=False)) == {"instances", "jpeg_bytes"}
+    # RGB and COCO alone: the JPEG files are all a block holds (the masks' runs come from the device)
+    assert set(batch_layout(2, 4, 5, jpeg=True, semantic=False, depth=False, instances=False)) == {"jpeg_bytes"}
 
 
 def test_device_depth_in_mm_is_the_hosts():
@@ -213,8 +215,13 @@ def test_an_interrupted_disk_mode_run_resumes_to_the_straight_runs_files(tmp_pat
     from ambulo.replicator.batched import BatchedFrameProducer
     from ambulo.replicator.draw_pool import DrawPool
 
+    from ambulo.replicator.producer import run_frames
+    from ambulo.replicator.writers import prepare_dirs
+
     gen_module = importlib.import_module("ambulo.replicator.generate")  # the module, not its function
     config = rep.example_config(64, 48)
+    # RGB and COCO alone (the headline dataset): the processes get no instance image, only run lengths
+    config = dataclasses.replace(config, writer=dataclasses.replace(config.writer, outputs=("coco",)))
     # one producer and pool for the three runs (each would build its own: seconds of the test)
     producer = BatchedFrameProducer(config, num_worlds=3, device="cpu", draws=DrawPool(config, 1))
     monkeypatch.setattr(gen_module, "BatchedFrameProducer", lambda *a, draws=None, **k: draws.close() or producer)
@@ -243,8 +250,13 @@ def test_an_interrupted_disk_mode_run_resumes_to_the_straight_runs_files(tmp_pat
         assert not (tmp_path / "resumed" / "annotations.json").exists()
         cut["at"] = None
         rep.generate(config, tmp_path / "resumed", frames, **options)
+        prepare_dirs(tmp_path / "threads", config.writer)  # the first disk mode: every file in this process
+        run_frames(config, tmp_path / "threads", 3, list(range(frames)), producer=producer, writer_threads=1)
     finally:
         producer.draws.close()
+    threads = gen.file_tree(tmp_path / "threads")
+    assert threads == {k: v for k, v in gen.file_tree(tmp_path / "straight").items() if k in threads}
+    assert len(threads) == 2 * frames
     assert made == {"straight": set(range(frames)), "resumed": {1, 4, 6, 7}}  # the others from records
     assert gen.file_tree(tmp_path / "resumed") == gen.file_tree(tmp_path / "straight")
     straight = (tmp_path / "straight" / "annotations.json").read_bytes()

@@ -333,7 +333,8 @@ def frame_capture(w: int, host: dict, k_matrix: np.ndarray, cfg: TiledCameraCfg,
     """World ``w``'s frame of a batch's host arrays (``BatchedFrameProducer.to_host``) in
     ``Camera.capture``'s form, for camera ``cfg`` and ``annotators`` (a set of names). An image
     missing from ``host`` is missing from the capture (the disk mode's writers get the images
-    already converted on the device)."""
+    already converted on the device, and the instance ids only for their PNGs: its COCO masks come
+    with the capture's ``coco_rles``)."""
     names = annotators
     pos, rot_gl = host["pos_w"][w], host["rot_gl"][w]
     extr = _extrinsics(pos[None], rot_gl[None])[0]
@@ -342,7 +343,7 @@ def frame_capture(w: int, host: dict, k_matrix: np.ndarray, cfg: TiledCameraCfg,
     out |= {name: host[name][w] for name in ("rgb", "geom_ids") if name in host}
     if "depth" in names and "depth" in host:
         out["depth"] = host["depth"][w, ..., 0]
-    if "instance_segmentation" in names:
+    if "instance_segmentation" in names and "instances" in host:
         out["instance_segmentation"] = host["instances"][w]
     if "semantic_segmentation" in names and "semantic" in host:
         out["semantic_segmentation"] = host["semantic"][w]

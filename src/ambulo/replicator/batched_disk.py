@@ -131,14 +131,16 @@ def _arrays(buffer, layout: dict, offsets: dict) -> dict:
 
 
 def batch_layout(num_worlds: int, height: int, width: int, jpeg: bool, semantic: bool = True,
-                 depth: bool = True) -> dict:
-    """The arrays a batch's block holds: the instance ids (16 bits: the COCO masks are made from
-    them), the depth in uint16 mm (converted on the device, ``encode.depth_mm``: half the float's
-    bytes to copy and no host conversion) when the dataset writes ``depth``, the semantic
-    ids when its masks include them (``semantic``), and the RGB images, raw or as the batch's JPEG
-    files end to end (``jpeg_bytes``, with their offsets). Nothing a writer does not read is copied."""
+                 depth: bool = True, instances: bool = True) -> dict:
+    """The arrays a batch's block holds: the instance ids (16 bits) when the dataset writes their
+    PNGs (``instances``: its ``masks``; the COCO masks come from the device's run lengths,
+    ``device_rle``), the depth in uint16 mm (converted on the device, ``encode.depth_mm``: half the
+    float's bytes to copy and no host conversion) when it writes ``depth``, the semantic ids when
+    its masks include them (``semantic``), and the RGB images, raw or as the batch's JPEG files end
+    to end (``jpeg_bytes``, with their offsets). Nothing a writer does not read is copied: the
+    headline dataset (RGB and COCO) copies its JPEG files alone."""
     image = (num_worlds, height, width)
-    layout = {"instances": (image, "<u2")}
+    layout = {"instances": (image, "<u2")} if instances else {}
     if depth:
         layout["depth_mm"] = (image, "<u2")
     if semantic:
@@ -191,7 +193,7 @@ def run_batched_frames(config, out: Path, seed: int, frames: list[int], producer
     writer = FrameWriter(out, config.writer, batch=sys.maxsize)
     semantic = "semantic_segmentation" in config.camera.annotators and "masks" in config.writer.outputs
     layout = batch_layout(producer.num_worlds, cfg.height, cfg.width, jpeg, semantic,
-                          depth="depth" in config.writer.outputs)
+                          depth="depth" in config.writer.outputs, instances="masks" in config.writer.outputs)
     blocks = shared_blocks(producer, layout, pin=cuda, count=3 if jpeg else 2)
     free: queue.Queue = queue.Queue()
     for block in blocks:
@@ -234,7 +236,7 @@ def _render_batches(producer, seed: int, chunks, layout: dict, semantic: bool, s
         producer.render()
         instances, boxes, pixels = producer.labels(count)
         images = producer.camera.data.output
-        device = {"instances": as_u16_bits(instances)}
+        device = {"instances": as_u16_bits(instances)} if "instances" in layout else {}
         if "depth_mm" in layout:
             device["depth_mm"] = depth_mm(images["depth"][:count, ..., 0])
         if semantic:
