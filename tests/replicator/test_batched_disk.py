@@ -214,7 +214,6 @@ def test_an_interrupted_disk_mode_run_resumes_to_the_straight_runs_files(tmp_pat
     from ambulo.replicator import coco_file
     from ambulo.replicator.batched import BatchedFrameProducer
     from ambulo.replicator.draw_pool import DrawPool
-
     from ambulo.replicator.producer import run_frames
     from ambulo.replicator.writers import prepare_dirs
 
@@ -295,3 +294,21 @@ def tempfile_dir() -> str:
     import tempfile
 
     return tempfile.gettempdir()
+
+
+def test_the_render_thread_waiting_for_a_block_raises_a_later_failure():
+    # a batch whose hand-over failed on the JPEG thread may never give its block back: the render's
+    # thread, waiting for a free block, must raise that error rather than wait for ever
+    import queue
+    import threading
+    import types
+
+    from ambulo.replicator import batched_disk
+
+    stage, commits = types.SimpleNamespace(failed=[]), types.SimpleNamespace(failed=[])
+    threading.Timer(0.3, lambda: stage.failed.append(RuntimeError("process pool broken"))).start()
+    with pytest.raises(RuntimeError, match="pool broken"):
+        batched_disk._free_block(queue.Queue(), commits, stage)
+    free = queue.Queue()
+    free.put("block")
+    assert batched_disk._free_block(free, types.SimpleNamespace(failed=[]), None) == "block"

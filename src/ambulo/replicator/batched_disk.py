@@ -255,12 +255,8 @@ def _render_batches(producer, seed: int, chunks, layout: dict, semantic: bool, s
         # the COCO masks' run lengths of every frame (one sync; the host compresses its frames')
         rle = tuple(t.cpu().numpy() for t in rle_counts(instances, producer.table.num_instances))
         mark = _lap(times, "rle_s", mark)
-        block = free.get()  # the batch before last has been written
+        block = _free_block(free, commits, stage)  # the batch before last has been written
         mark = _lap(times, "wait_block_s", mark)
-        for failed in (commits.failed, stage.failed if stage is not None else []):
-            if failed:
-                free.put(block)
-                raise failed[0]
         for name, tensor in device.items():
             target = block.arrays[name].reshape(-1)[:tensor.numel()].view(_NUMPY[tensor.dtype])
             torch.from_numpy(target).view(tensor.shape).copy_(tensor, non_blocking=cuda)
@@ -276,6 +272,19 @@ def _render_batches(producer, seed: int, chunks, layout: dict, semantic: bool, s
                       then=lambda sizes, block=block, submit=submit: commits.put(block, submit(sizes)),
                       drop=functools.partial(free.put, block))
         _lap(times, "submit_s", mark)
+
+
+def _free_block(free: queue.Queue, commits: BatchCommits, stage: JpegStage | None) -> SharedBatch:
+    """The next free block; raises the first error of the commits or the JPEG thread instead (a
+    batch whose hand-over failed there may never give its block back: the wait checks again)."""
+    while True:
+        for failed in (commits.failed, stage.failed if stage is not None else []):
+            if failed:
+                raise failed[0]
+        try:
+            return free.get(timeout=0.5)
+        except queue.Empty:
+            continue
 
 
 def _lap(times: collections.Counter, name: str, start: float) -> float:
