@@ -4,7 +4,8 @@ The disk mode commits records after a flush of their files and makes ``annotatio
 COCO pieces of the frames it commits and the records of the frames an earlier run made
 (``coco_file``): a run killed with SIGKILL mid-run and run again must leave the uninterrupted run's
 files, ``annotations.json`` byte for byte. On CUDA it is the headline mode (JPEG from nvjpeg); on
-Warp's CPU device (slow: each run builds the scene and its processes) PNG.
+Warp's CPU device (slow: each run builds the scene and its processes) PNG. The CUDA run is long
+enough (2,000 frames) not to end between the first records and the kill.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ import torch
 from ambulo.utils.atomic import TMP_MARK
 
 DEVICES = [
-    pytest.param("cuda", "jpg", 16, 400, marks=pytest.mark.skipif(not torch.cuda.is_available(), reason="needs CUDA"),
+    pytest.param("cuda", "jpg", 16, 2000, marks=pytest.mark.skipif(not torch.cuda.is_available(), reason="needs CUDA"),
                  id="cuda-jpg"),
     pytest.param("cpu", "png", 4, 48, marks=pytest.mark.slow, id="warp-cpu-png"),
 ]
