@@ -35,7 +35,7 @@ import torch
 from ambulo.detection import ModelCfg, build_model, load_trained
 from ambulo.detection.export import export_model
 from ambulo.detection.loss import centernet_loss, mask_cells
-from ambulo.detection.model import ExportedDetector
+from ambulo.detection.model import INPUT_CHANNELS, ExportedDetector, depth_channel
 
 CANVAS_320x240 = (256, 320)
 """240 rows rounded up to the model's stride of 32."""
@@ -57,7 +57,7 @@ def inference(model, threads: int, repeats: int) -> dict:
     import onnxruntime as ort
 
     torch.set_num_threads(threads)
-    image = np.random.default_rng(0).random((1, 3, *CANVAS_320x240), dtype=np.float32)
+    image = np.random.default_rng(0).random((1, INPUT_CHANNELS[model.cfg.inputs], *CANVAS_320x240), dtype=np.float32)
     with tempfile.TemporaryDirectory() as tmp:
         path = export_model(model, CANVAS_320x240, Path(tmp) / "det.onnx")
         options = ort.SessionOptions()
@@ -79,10 +79,15 @@ def gpu_inference(model, canvas_hw: tuple[int, int], repeats: int, device: str =
     autocast with channels-last tensors and against a CUDA graph of the float32 model, the fastest being
     the ceiling (``ratio`` = the Detector's path over it)."""
     frame = torch.from_numpy(np.random.default_rng(0).integers(0, 256, (*canvas_hw, 3), dtype=np.uint8)).pin_memory()
+    # an RGB-D model's frame comes with its depth (H, W) float32 m, encoded on the device as well
+    depth_m = torch.from_numpy(np.random.default_rng(1).uniform(0.5, 8.0, canvas_hw).astype(np.float32)).pin_memory()
     graph = ExportedDetector(model.to(device).eval())
 
     def prepare() -> torch.Tensor:
-        return frame.to(device, non_blocking=True).permute(2, 0, 1)[None].float() / 255
+        rgb = frame.to(device, non_blocking=True).permute(2, 0, 1)[None].float() / 255
+        if model.cfg.inputs == "rgbd":
+            return torch.cat([rgb, depth_channel(depth_m.to(device, non_blocking=True))[None, None]], dim=1)
+        return rgb
 
     def run(fn) -> float:
         def call():
