@@ -73,3 +73,17 @@ def test_arm_room_is_sought_only_where_it_helps(room, fix_map):
     nav.cfg.arm_reach_m = None
     assert nav._arm_room_xy(grid(_wall_map(cx, cy)), start) is None
     world.close()
+
+
+def test_the_first_motion_of_a_goal_moves_to_arm_room_first(room, fix_map):
+    # facing the goal down seen free floor (no look turn), a seen wall 0.25 m beside the robot's cell:
+    # the goal's first plan moves it away from the wall first; a later plan from there walks
+    start = np.array([-1.0, 0.0, 0.0])
+    world, nav = _navigator(room, fix_map, lambda cx, cy: np.where(cy > 0.28, OCCUPIED, FREE), tuple(start))
+    nav._replan(world.time_s, start, "new goal")
+    assert nav.replans[-1].reason == "new goal (arm room)" and nav._arm_back_off is not None, nav.replans[-1]
+    assert nav._arm_back_off[0][1] <= -0.09
+    nav._arm_back_off = None
+    nav._replan(world.time_s, start, "period")  # not a turn nor a first motion: it walks from where it is
+    assert nav.replans[-1].reason == "period" and nav.walker.tracker.path is not None, nav.replans[-1]
+    world.close()

@@ -129,14 +129,16 @@ class NavigatorCfg(Checked):
     that needs a search is in a tight spot a roomy plan is not for; so a replan costs at most
     about this much more per roomy clearance (~45 ms each on a busy 2-core VM)."""
     arm_reach_m: float | None = 0.35
-    """A turn on the spot (a look turn) or a cornered walk-on (which turns at once) first moves the
+    """A turn on the spot (a look turn), a cornered walk-on (which turns at once) or a goal's first
+    motion (the start: apartment 50 touched a shelf 0.56 s in, in full and oracle mode) first moves the
     pelvis, standing, to where the map's occupied cells are this far from its cell (edge to edge;
     ``planning.footstep_clearance``), or as far as it can within ``arm_shift_m`` over free cells;
-    None: never. The forearms reach 0.30-0.33 m from the pelvis in a turn, and the footstep planner
-    tests the turned soles and the body's 0.25 m only: in full mode apartment 3 turned to look three
-    times by a wall it had seen (a right forearm on it at 9.7, 10.7 and 11.4 s), and 8 turned at its
-    start towards a wall it then saw, cornered, and walked on from where it stood (a forearm on the
-    wall at 3.8 s), m."""
+    None: never. The forearms reach 0.30-0.33 m from the pelvis in a turn (0.27 m to the side when
+    walking, at 0.2 and 0.55 m/s alike: slowing down would not narrow them), and the footstep planner
+    tests the turned soles and the body's 0.25 m only: full mode apartment 8 turned at its start towards
+    a wall it then saw, cornered, and walked on from where it stood (a forearm on the wall at 3.8 s;
+    none with this); on the VM, 38 and 39 (five forearm contacts with walls, by look turns and walk-ons)
+    had none with this and the grazing-face slice rule, m."""
     arm_shift_m: float = 0.15
     """The farthest the pelvis moves for ``arm_reach_m``, m (a step of the hold, not a walk)."""
     arm_back_off_s: float = 2.0
@@ -685,6 +687,7 @@ class Navigator:
 
     def _replan(self, now: float, est: np.ndarray, reason: str) -> None:
         t0 = time.perf_counter()
+        first = reason == "new goal"  # the goal's first motion (``arm_reach_m``)
         self._replan_reason = None
         self._last_plan_s = now
         grid, version, optimistic = self.mapper.grid, self.mapper.version, self.mapper.optimistic
@@ -776,8 +779,8 @@ class Navigator:
                 PlanStatus.BUDGET_EXHAUSTED, PlanStatus.GOAL_UNREACHABLE))
             final = final and plan.status == PlanStatus.SUCCESS and not self._stepping_out
             arm_xy = None
-            if usable and look and not faced:  # a turn on the spot, or a walk-on that turns at once
-                arm_xy = self._arm_room_xy(grid, est)
+            if usable and ((look and not faced) or first):  # a turn on the spot, a walk-on that turns at
+                arm_xy = self._arm_room_xy(grid, est)      # once, or the goal's first motion
             if arm_xy is not None:
                 # stand and move to arm room first (``arm_reach_m``); the replan after it plans the turn
                 reason = reason + " (arm room)"
