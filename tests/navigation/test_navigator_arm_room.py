@@ -69,6 +69,10 @@ def test_arm_room_is_sought_only_where_it_helps(room, fix_map):
     # the room lies behind unseen floor: it moves over free cells only
     unseen = np.where(cy < -0.02, UNKNOWN, _wall_map(cx, cy))
     assert nav._arm_room_xy(grid(unseen), start) is None
+    # free floor (the body's disc) but unseen cells 0.2 m behind it: not nearer to them than it stands
+    assert nav._arm_room_xy(grid(np.where(cy < -0.2, UNKNOWN, _wall_map(cx, cy))), start) is None
+    far = nav._arm_room_xy(grid(np.where(cy < -0.5, UNKNOWN, _wall_map(cx, cy))), start)
+    assert far is not None and far[1] <= -0.09  # 0.5 m behind: room to move
     # off (None), or a walker that cannot stand at a point: no move
     nav.cfg.arm_reach_m = None
     assert nav._arm_room_xy(grid(_wall_map(cx, cy)), start) is None

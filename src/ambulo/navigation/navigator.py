@@ -815,7 +815,8 @@ class Navigator:
     def _arm_room_xy(self, grid: Grid2D, est: np.ndarray) -> np.ndarray | None:
         """(2,) where to stand before turning on the spot (``NavigatorCfg.arm_reach_m``): the free cell
         centre within ``arm_shift_m`` with the most clearance from occupied cells (capped at
-        ``arm_reach_m``; the nearest among equals), the cell halfway to it free too; None when the
+        ``arm_reach_m``; the nearest among equals), the cell halfway to it free too, no nearer to unseen
+        cells than the route's clearance or than the robot's own cell is; None when the
         robot's own cell has that reach, nothing nearby has more, the walker cannot stand at a
         point, or it moved for arm room from here already."""
         c = self.cfg
@@ -836,6 +837,10 @@ class Navigator:
         free = grid.free()
         my, mx = grid.cells_of(np.stack([(cx + est[0]) / 2, (cy + est[1]) / 2], -1))
         ok = (d <= c.arm_shift_m) & free[yy, xx] & free[np.clip(my, 0, ny - 1), np.clip(mx, 0, nx - 1)]
+        # not nearer to unseen cells than the footsteps' body clearance (or than it stands now): a wall the
+        # camera has not seen (beside or behind the robot at its start) may be there
+        seen = footstep_clearance(grid, self.mapper.optimistic)
+        ok &= seen[yy, xx] >= min(float(seen[iy, ix]), self.cfg.planning.route_clearance_m)
         if not ok.any():
             return None
         room = np.minimum(clr[yy, xx], c.arm_reach_m)[ok]
