@@ -91,3 +91,36 @@ def test_the_first_motion_of_a_goal_moves_to_arm_room_first(room, fix_map):
     nav._replan(world.time_s, start, "period")  # not a turn nor a first motion: it walks from where it is
     assert nav.replans[-1].reason == "period" and nav.walker.tracker.path is not None, nav.replans[-1]
     world.close()
+
+
+def test_a_plan_the_tracker_starts_by_turning_on_the_spot_moves_to_arm_room_first(room, fix_map):
+    # seen free floor all the way (no look turn), the goal behind the robot: the plan's tracker turns on
+    # the spot first (apartment 3: a forearm on a door jamb at 9.5 s); by a wall, it moves to arm room
+    start = np.array([-1.0, 0.0, math.pi])
+    world, nav = _navigator(room, fix_map, lambda cx, cy: np.where(cy > 0.28, OCCUPIED, FREE), tuple(start))
+    nav._replan(world.time_s, start, "period")
+    assert nav.replans[-1].reason == "period (arm room)" and nav._arm_back_off is not None, nav.replans[-1]
+    # the plan's own start: facing its carrot (the tracker's look-ahead point) it walks at once
+    plan = _plan_from(nav, world, start)
+    carrot = _carrot(plan, nav.walker.tracker.cfg.lookahead_m)
+    facing = math.atan2(carrot[1] - start[1], carrot[0] - start[0])
+    assert nav._starts_turning(plan, start)
+    assert not nav._starts_turning(plan, np.array([start[0], start[1], facing]))
+    assert not nav._starts_turning(plan, np.array([start[0], start[1], facing + 0.6]))  # within 0.75 rad
+    world.close()
+
+
+def _plan_from(nav, world, pose):
+    """The footstep plan a replan from ``pose`` makes with arm room off (restored after)."""
+    reach, nav.cfg.arm_reach_m = nav.cfg.arm_reach_m, None
+    nav._replan(world.time_s, pose, "probe")
+    nav.cfg.arm_reach_m = reach
+    return nav.plan
+
+
+def _carrot(plan, lookahead_m):
+    from ambulo.navigation.walkers import body_path
+
+    path = body_path(plan)
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
+    return np.array([np.interp(lookahead_m, s, path[:, 0]), np.interp(lookahead_m, s, path[:, 1])])

@@ -129,8 +129,10 @@ class NavigatorCfg(Checked):
     that needs a search is in a tight spot a roomy plan is not for; so a replan costs at most
     about this much more per roomy clearance (~45 ms each on a busy 2-core VM)."""
     arm_reach_m: float | None = 0.35
-    """A turn on the spot (a look turn), a cornered walk-on (which turns at once) or a goal's first
-    motion (the start: apartment 50 touched a shelf 0.56 s in, in full and oracle mode) first moves the
+    """Before a turn on the spot (a look turn; a plan the tracker starts by turning on the spot: apartment
+    3 at 9.5 s, 0.26-0.28 m from a door jamb's end the map placed a cell farther, a forearm on it), a
+    cornered walk-on (which turns at once) or a goal's first motion (apartment 50 touched a shelf 0.56 s
+    in, in full and oracle mode), the robot first moves its
     pelvis, standing, to where the map's occupied cells are this far from its cell (edge to edge;
     ``planning.footstep_clearance``), or as far as it can within ``arm_shift_m`` over free cells;
     None: never. The forearms reach 0.30-0.33 m from the pelvis in a turn (0.27 m to the side when
@@ -779,8 +781,10 @@ class Navigator:
                 PlanStatus.BUDGET_EXHAUSTED, PlanStatus.GOAL_UNREACHABLE))
             final = final and plan.status == PlanStatus.SUCCESS and not self._stepping_out
             arm_xy = None
-            if usable and ((look and not faced) or first):  # a turn on the spot, a walk-on that turns at
-                arm_xy = self._arm_room_xy(grid, est)      # once, or the goal's first motion
+            # a turn on the spot (a look turn, a plan the tracker starts by turning on the spot), a walk-on
+            # that turns at once, or the goal's first motion
+            if usable and ((look and not faced) or first or self._starts_turning(plan, est)):
+                arm_xy = self._arm_room_xy(grid, est)
             if arm_xy is not None:
                 # stand and move to arm room first (``arm_reach_m``); the replan after it plans the turn
                 reason = reason + " (arm room)"
@@ -811,6 +815,22 @@ class Navigator:
                         self.walker.set_plan(plan, final=final)
         self.replans.append(ReplanRecord(now, time.perf_counter() - t0, reason, route.found, status, steps, final,
                                          refused))
+
+    def _starts_turning(self, plan: FootstepPlan, est: np.ndarray) -> bool:
+        """Whether the walker's path tracker turns on the spot before it walks ``plan``: the body path's
+        point its look-ahead on (arc length, as the tracker's carrot) lies more than the tracker's
+        ``turn_in_place_rad`` off the heading."""
+        tracker = getattr(self.walker, "tracker", None)
+        if tracker is None or plan.num_steps < 1:
+            return False
+        path = body_path(plan)
+        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
+        if s[-1] < 1e-6:
+            return False
+        carrot = np.array([np.interp(min(tracker.cfg.lookahead_m, s[-1]), s, path[:, i]) for i in (0, 1)])
+        d = carrot - est[:2]
+        err = math.atan2(d[1], d[0]) - est[2]
+        return bool(np.linalg.norm(d) > 1e-6 and abs(math.atan2(math.sin(err), math.cos(err))) > tracker.cfg.turn_in_place_rad)
 
     def _arm_room_xy(self, grid: Grid2D, est: np.ndarray) -> np.ndarray | None:
         """(2,) where to stand before turning on the spot (``NavigatorCfg.arm_reach_m``): the free cell
