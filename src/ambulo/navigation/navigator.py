@@ -148,10 +148,6 @@ class NavigatorCfg(Checked):
     this long, s (then the robot replans from where it stands)..."""
     arm_done_m: float = 0.03
     """... m."""
-    arm_again_m: float = 0.3
-    """No move for ``arm_reach_m`` within this of where the last one went, m: the robot moved for room
-    here already, and moving again from a turn's or a look's few cm of drift only shuffled it (VM,
-    apartment 50: 13 moves, the path 1.6 m longer, SPL 0.81 -> 0.66)."""
     pose_conflict_m: float | None = 0.1
     """A leg-odometry bridge that puts the pelvis this near to a cell the map holds occupied is
     wrong (the body cannot stand inside furniture): the bridge ends there and the robot stands and
@@ -314,8 +310,8 @@ class Navigator:
         self._lost_since: float | None = None
         self._arm_back_off: tuple[np.ndarray, float] | None = None
         """(target xy m, start time s) of the move to arm room under way (``arm_reach_m``), or None."""
-        self._arm_target_xy: np.ndarray | None = None
-        """Where the last move to arm room went: no other move within ``arm_again_m`` of it."""
+        self._arm_backed_from_xy: np.ndarray | None = None
+        """Where the last move to arm room started: not again from within ``arm_done_m`` of it."""
         self._roomy: FootstepPlan | None = None
         """This replan's plan that keeps ``roomy_clearance_m``, if any (its reason says so)."""
         self._bridge_refuted = False
@@ -792,7 +788,7 @@ class Navigator:
             if arm_xy is not None:
                 # stand and move to arm room first (``arm_reach_m``); the replan after it plans the turn
                 reason = reason + " (arm room)"
-                self._arm_target_xy = arm_xy
+                self._arm_backed_from_xy = est[:2].copy()
                 self._arm_back_off = (arm_xy, now)
                 self.plan, self.plan_final = None, False
                 self._look_yaw_rad, self._look_by_heading = None, False
@@ -842,11 +838,11 @@ class Navigator:
         ``arm_reach_m``; the nearest among equals), the cell halfway to it free too, no nearer to unseen
         cells than the route's clearance or than the robot's own cell is; None when the
         robot's own cell has that reach, nothing nearby has more, the walker cannot stand at a
-        point, or it moved for arm room to within ``arm_again_m`` of here already."""
+        point, or it moved for arm room from here already."""
         c = self.cfg
         if c.arm_reach_m is None or not hasattr(self.walker, "stand_at"):
             return None
-        if self._arm_target_xy is not None and np.linalg.norm(est[:2] - self._arm_target_xy) < c.arm_again_m:
+        if self._arm_backed_from_xy is not None and np.linalg.norm(est[:2] - self._arm_backed_from_xy) < c.arm_done_m:
             return None
         clr = footstep_clearance(grid, optimistic=True)
         iy, ix = grid.cell_of(est[:2])
