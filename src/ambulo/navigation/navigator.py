@@ -129,8 +129,7 @@ class NavigatorCfg(Checked):
     that needs a search is in a tight spot a roomy plan is not for; so a replan costs at most
     about this much more per roomy clearance (~45 ms each on a busy 2-core VM)."""
     arm_reach_m: float | None = 0.35
-    """Before a turn on the spot (a look turn; a plan the tracker starts by turning on the spot: apartment
-    3 at 9.5 s, 0.26-0.28 m from a door jamb's end the map placed a cell farther, a forearm on it), a
+    """Before a turn on the spot (a look turn; a plan the tracker starts by turning on the spot), a
     cornered walk-on (which turns at once) or a goal's first motion (apartment 50 touched a shelf 0.56 s
     in, in full and oracle mode), the robot first moves its
     pelvis, standing, to where the map's occupied cells are this far from its cell (edge to edge;
@@ -140,7 +139,9 @@ class NavigatorCfg(Checked):
     tests the turned soles and the body's 0.25 m only: full mode apartment 8 turned at its start towards
     a wall it then saw, cornered, and walked on from where it stood (a forearm on the wall at 3.8 s;
     none with this); on the VM, 38 and 39 (five forearm contacts with walls, by look turns and walk-ons)
-    had none with this and the grazing-face slice rule, m."""
+    had none with this. Not caught: a turn by an obstacle the map reads free (apartment 3 turned at 9.5 s
+    and in look turns 0.26-0.28 m from a door jamb's end the camera never saw, which the body's disc,
+    ``OnlineMapperCfg.body_free_radius_m``, had freed: three forearm contacts), m."""
     arm_shift_m: float = 0.15
     """The farthest the pelvis moves for ``arm_reach_m``, m (a step of the hold, not a walk)."""
     arm_back_off_s: float = 2.0
