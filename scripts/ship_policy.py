@@ -31,6 +31,7 @@ def contract_for(run_dir: Path, checkpoint: str, info: dict, cpu_eval: dict) -> 
     cfg = env.cfg
     scales = {"velocity_commands": list(cfg.obs_scale_command), "joint_vel": cfg.obs_scale_joint_vel,
               "base_ang_vel": cfg.obs_scale_ang_vel}
+    spec = envs.spec(info["task"])
     robot = env.robot
     contract = {
         "task": info["task"],
@@ -41,6 +42,9 @@ def contract_for(run_dir: Path, checkpoint: str, info: dict, cpu_eval: dict) -> 
         "observation_notes": {
             "projected_gravity": "gravity direction (unit) in the base frame",
             "velocity_commands": "(vx, vy) m/s in the heading frame and yaw rate rad/s, times scale",
+            "footsteps": "the next two footsteps (the swing foot's target first) in the base's heading frame: "
+                         "per footstep sole centre x, y m, cos and sin of its yaw relative to the heading, "
+                         "side (+1 left, -1 right)",
             "joint_pos_rel": "joint positions minus default_joint_pos, rad, joint_names order",
             "joint_vel": "joint velocities rad/s, times scale",
             "base_ang_vel": "base angular velocity in the base frame rad/s, times scale",
@@ -54,15 +58,18 @@ def contract_for(run_dir: Path, checkpoint: str, info: dict, cpu_eval: dict) -> 
         "action_scale": cfg.action_scale,
         "control_dt_s": env.step_dt_s,
         "physics_dt_s": cfg.physics.timestep_s,
-        "command_ranges": {"lin_vel_x_m_s": list(cfg.commands.lin_vel_x_m_s),
-                           "lin_vel_y_m_s": list(cfg.commands.lin_vel_y_m_s),
-                           "yaw_rate_rad_s": list(cfg.commands.yaw_rate_rad_s)},
         "trained": {"run": run_dir.name, "checkpoint": checkpoint, "device": info["device"],
                     "seed": info["seed"], "num_envs": info["ppo"]["num_envs"], "commit": None},
-        "eval_cpu": {k: cpu_eval[k] for k in ("device", "episodes", "episode_length_s", "fall_rate",
-                                              "mean_abs_vel_error_m_s", "mean_abs_yaw_rate_error_rad_s",
-                                              "walks") if k in cpu_eval},
+        # the task's own step metrics (means over the episodes) and each of its criteria
+        "eval_cpu": {k: v for k, v in cpu_eval.items()
+                     if k in ("device", "episodes", "episode_length_s", "fall_rate")
+                     or (k.startswith("mean_") and k != "mean_return")
+                     or k in {c.name for c in spec.criteria}},
     }
+    if "velocity_commands" in terms:  # a velocity-command policy: the ranges it was trained on
+        contract["command_ranges"] = {"lin_vel_x_m_s": list(cfg.commands.lin_vel_x_m_s),
+                                      "lin_vel_y_m_s": list(cfg.commands.lin_vel_y_m_s),
+                                      "yaw_rate_rad_s": list(cfg.commands.yaw_rate_rad_s)}
     reached = run_dir / "time_to_criterion.json"
     if reached.is_file():
         r = json.loads(reached.read_text())
