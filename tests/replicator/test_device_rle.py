@@ -83,7 +83,8 @@ def test_each_process_gets_its_frames_run_lengths():
     pool = _Pool()
     block = type("Block", (), {"spec": None})()
     small = {"boxes": np.zeros((5, 5, 4))}
-    batched_disk._submit_parts(pool, block, list(range(5)), [{}] * 5, small, None, rle, "out", None, False)
+    batched_disk._submit_parts(pool, block, list(range(5)), [{}] * 5, small, None, rle=rle, out="out", writer_cfg=None,
+                               fsync_files=False)
     assert [call[1] for call in pool.calls] == [0, 2, 4]  # each part's first world
     for call in pool.calls:
         start, part_rle = call[1], call[6]
