@@ -318,6 +318,8 @@ def main() -> None:
           "| ratio")
     # Everything written stays until the end: deleting thousands of files makes ext4 slow to create
     # new ones for a while (it skips recently freed inodes), which would tax the cases after it.
+    if args.dir is not None:  # a folder that does not exist yet is made, as --out folders are
+        args.dir.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=args.dir) as tmp:
         create_ms = file_create_ms(Path(tmp) / "create_probe")
         for width, height in sizes:
