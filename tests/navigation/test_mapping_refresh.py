@@ -62,8 +62,9 @@ def frames():
 @pytest.mark.parametrize("floor_seen_m", [None, 0.3])
 def test_each_refresh_equals_the_slice_of_the_whole_map(frames, floor_seen_m):
     truth = Grid2D(occupancy=np.zeros((80, 120), np.int8), origin_xy_m=(-3.0, -2.0), resolution_m=0.05)
-    # start_blind_radius_m 0: the strict slice everywhere, as the whole map's slice below is cut
-    mapper = OnlineMapper(OnlineMapperCfg(update_hz=1e6, floor_seen_m=floor_seen_m, start_blind_radius_m=0.0))
+    # start_blind_radius_m and start_seen_low_radius_m 0: one slice everywhere, as the whole map's slice below is cut
+    mapper = OnlineMapper(OnlineMapperCfg(update_hz=1e6, floor_seen_m=floor_seen_m, start_blind_radius_m=0.0,
+                                          start_seen_low_radius_m=0.0))
     mapper.reset(types.SimpleNamespace(occupancy=truth, start_pose=(-2.0, 0.0, 0.0)))
     changes = 0
     for i, frame in enumerate(frames):

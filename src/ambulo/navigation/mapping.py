@@ -7,7 +7,9 @@
   (``perception.slices.occupancy_slice``) is cut and written into a fixed map covering the world
   (cells aligned with the TSDF's voxel columns, so the slice lands cell for cell). Cells the robot's
   body stood on (a disc of ``body_free_radius_m`` around each estimated pose) are free when the
-  slice has not seen them: the robot was there. Each refresh re-slices only the voxel columns the
+  slice has not seen them: the robot was there. Near the start, a cell reads free only where the band
+  was seen free low (``start_seen_low_m``: furniture beside the start, seen only by rays passing over
+  it at head height, is unknown, not free). Each refresh re-slices only the voxel columns the
   frames fused since the last one changed (the box of the TSDF blocks they updated, and one column
   around it, whose surface test looks at its neighbours), densifying the blocks that meet that box
   grown by a column more: so the map is, cell for cell, the slice of the whole TSDF (the tests
@@ -92,6 +94,19 @@ class OnlineMapperCfg(Checked):
     """Within this of the start, where the head camera (floor in view from ~1.6 m ahead) cannot see
     the floor before the robot moves, a cell reads free when any band voxel over it was seen free
     (rays passed over it), as if ``floor_seen_m`` were None, m."""
+    start_seen_low_m: float | None = 0.9
+    """Within ``start_seen_low_radius_m`` of the start, a cell reads free only where a band voxel within
+    this of the band's bottom (centres up to 0.94 m) was seen free (``floor_seen_m`` there); None: off.
+    Furniture beside or behind the start is what the head camera never sees at its own height (it
+    sees that height from ~0.7 m ahead), and rays passing over it at head height made it free: a bed
+    (0.45-0.6 m) and a table top (0.7-0.78 m) met 0.1-0.4 m into the walk (device, full mode:
+    apartment 72, a thigh on a bed seen free only at 1.35-1.55 m; 11, a forearm on a table top seen
+    free only from 1.05 m up; VM: both walks without a contact). Everywhere (``floor_seen_m`` 0.9) it
+    left more floor unknown ahead and cost look turns (VM: apartment 0 stuck, 8's SPL 0.72 -> 0.50), m."""
+    start_seen_low_radius_m: float = 0.6
+    """See ``start_seen_low_m``; 0: off. 1.0 m sent apartment 0's robot round its start's unknown
+    cells (VM: SPL 0.82 -> 0.64, 9.6 -> 12.3 m walked); 0.6 m kept 0.83 and still covered the
+    contacts of 72 and 11 (benchmarks/results/vm-2026-11-29-s8-nav-seen-low.md), m."""
     update_hz: float = 2.0
     """Slices per second of simulated time."""
     body_free_radius_m: float = 0.4
@@ -240,6 +255,8 @@ class OnlineMapper:
             near = np.hypot(centres[..., 0] - self._start_xy[0],
                             centres[..., 1] - self._start_xy[1]) <= c.start_blind_radius_m
             data = np.where(near & (data == SLICE_UNKNOWN) & (loose != SLICE_UNKNOWN), loose, data)
+        if c.start_seen_low_m is not None and c.start_seen_low_radius_m > 0:
+            data = self._seen_low_near_start(dense, sl, data)
         sx, sy = int(dense.origin_index[0]), int(dense.origin_index[1])  # the slice's cell [0, 0] is this column
         ny, nx = occ.shape
         # the changed columns, clipped to the slice and to this map, in this map's cells
@@ -251,6 +268,19 @@ class OnlineMapper:
         part = data[gy0 + self._k0[1] - sy:gy1 + self._k0[1] - sy + 1, gx0 + self._k0[0] - sx:gx1 + self._k0[0] - sx + 1]
         occ[gy0:gy1 + 1, gx0:gx1 + 1] = np.where(part == SLICE_OCCUPIED, OCCUPIED,
                                                  np.where(part == SLICE_UNKNOWN, UNKNOWN, FREE))
+
+    def _seen_low_near_start(self, dense, sl: Slice2D, data: np.ndarray) -> np.ndarray:
+        """``data`` (the slice ``sl`` of ``dense``, (H, W) slice codes) with the free cells within
+        ``start_seen_low_radius_m`` of the start that were not seen free low (``start_seen_low_m``)
+        made unknown."""
+        c = self.cfg
+        centres = sl.cell_centers_xy_m()
+        near = np.hypot(centres[..., 0] - self._start_xy[0],
+                        centres[..., 1] - self._start_xy[1]) <= c.start_seen_low_radius_m
+        if not near.any():
+            return data
+        low = occupancy_slice(dense, *c.band_m, floor_seen_m=c.start_seen_low_m).data.cpu().numpy()
+        return np.where(near & (data != SLICE_OCCUPIED) & (low == SLICE_UNKNOWN), SLICE_UNKNOWN, data)
 
 
 __all__ = ["OnlineMapper", "OnlineMapperCfg", "OracleMapper", "costmap_of"]
