@@ -35,8 +35,12 @@ def _grid(columns: list[tuple[float | None, float]]) -> DenseGrid:
                      torch.zeros(3, dtype=torch.int64), VOXEL_M, TRUNCATION_M)
 
 
+SEEN_LOW_M = 0.9
+"""The rule's height (off by default): what the device run measured."""
+
+
 def test_the_start_slice_calls_a_column_seen_free_only_at_head_height_unknown():
-    cfg = OnlineMapperCfg()
+    cfg = OnlineMapperCfg(start_seen_low_m=SEEN_LOW_M)
     grid = _grid([
         (None, 1.35),  # apartment 72: rays passed over a 0.55 m bed at 1.35-1.55 m only; a thigh met it
         (None, 1.05),  # apartment 11: over a 0.75 m table top, seen free from 1.05 m up; a forearm met it
@@ -71,7 +75,7 @@ def test_a_bed_beside_the_start_under_the_camera_view_is_not_free():
     poses = np.array([_camera_at(0.0, yaw) for yaw in np.linspace(-0.3, 0.3, 5)])
     frames = raycast_frames([bed, wall], poses, k, width, height, noise_seed=1)
     truth = Grid2D(occupancy=np.zeros((80, 100), np.int8), origin_xy_m=(-1.0, -2.0), resolution_m=0.05)
-    mapper = OnlineMapper(OnlineMapperCfg(update_hz=1e6))
+    mapper = OnlineMapper(OnlineMapperCfg(update_hz=1e6, start_seen_low_m=SEEN_LOW_M))
     mapper.reset(types.SimpleNamespace(occupancy=truth, start_pose=(0.0, 0.0, 0.0)))
     for frame in frames:
         mapper.fuse(frame, frame.pose_wc.numpy())
