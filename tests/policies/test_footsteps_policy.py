@@ -52,3 +52,18 @@ def test_steps_on_a_given_straight_plan():
 def test_meets_places_feet_in_ambulo_eval_on_the_cpu_engine():
     result = evaluate_shipped(TASK, num_episodes=8, episode_length_s=6.0, device="cpu", quiet=True)
     assert result["places_feet"] and result["fall_rate"] == 0.0
+
+
+def test_the_figure_script_draws_a_walk(tmp_path):
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "scripts" / "footsteps_figure.py"
+    spec = importlib.util.spec_from_file_location("footsteps_figure", path)
+    figure = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(figure)
+    out = figure.main(["--seconds", "3", "--out", str(tmp_path / "walk.png")])
+    assert out.stat().st_size > 10_000
+    result = figure.walk((1.0, 0.0, 0.0), 3.0)
+    hits = result["errors"][result["errors"] <= result["advance_radius_m"]]
+    assert not result["fell"] and len(hits) >= 3 and np.median(hits) <= 0.05

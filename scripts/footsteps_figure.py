@@ -1,0 +1,136 @@
+"""Draw the shipped footstep policy walking a footstep planner's plan: planned soles vs where its feet landed.
+
+    python scripts/footsteps_figure.py [--goal 2.4 0.9 60] [--seconds 14] [--out docs/images/footsteps_policy.png]
+
+One humanoid-footsteps world on the CPU engine: the footstep planner (``nav.footsteps``, an empty map) plans from
+the feet where the robot stands to ``--goal`` (x m, y m ahead/left of the stance centre, yaw deg); the shipped policy
+(``assets/data/policies/humanoid_footsteps``) follows it (``env.follow_plans``). Drawn top down: the planned soles
+(outlines, left blue, right orange, numbered), every touchdown of the swing foot on a planned step (filled: where
+the sole landed; one counted a miss, > ``advance_radius_m`` from its target, in red), and the pelvis path. The title
+gives the median and largest touchdown error. Most red ones are not misplaced steps: the policy's gait has a flight
+phase (both feet in the air), so the stance foot lands 1-2 policy steps after the swing foot has advanced the plan,
+and that landing counts as the next swing foot's touchdown, far from its next target. ``tests/policies/test_footsteps_policy.py`` runs it; the committed PNG is its
+default output.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+import numpy as np
+import torch
+
+import ambulo.envs as envs
+from ambulo.nav.footsteps import FootstepPlanner
+from ambulo.nav.grid_map import GridMap
+from ambulo.policies.shipped import load_policy
+from ambulo.robots.humanoid import SOLE_LENGTH_M, SOLE_WIDTH_M
+
+ROOT = Path(__file__).resolve().parents[1]
+TASK = "humanoid-footsteps"
+SIDE_COLOURS = {1.0: "tab:blue", -1.0: "tab:orange"}
+
+
+def walk(goal_rel: tuple[float, float, float], seconds: float, seed: int = 0) -> dict:
+    """Plan to ``goal_rel`` (x m, y m, yaw rad in the stance centre's frame) and follow the plan; returns the plan's
+    soles (K, 3) and sides (K,), the touchdowns' landed soles (T, 3), their errors (T,) and step indices (T,), the
+    pelvis path (S, 2) and whether the robot fell."""
+    env = envs.make(TASK, num_envs=1, seed=seed, num_threads=1, play=True)
+    env.reset()
+    feet = env.soles_xyyaw_w().double().numpy()[0]
+    centre, yaw = feet.mean(axis=0), float(np.angle(np.exp(1j * feet[:, 2]).sum()))
+    c, s = math.cos(yaw), math.sin(yaw)
+    goal = (centre[0] + c * goal_rel[0] - s * goal_rel[1], centre[1] + s * goal_rel[0] + c * goal_rel[1],
+            yaw + goal_rel[2])
+    grid = GridMap.from_array(np.zeros((200, 200), dtype=bool), origin_xy_m=(-5.0, -5.0), resolution_m=0.05)
+    plan = FootstepPlanner(grid).plan(goal_xyyaw_w=goal, start_feet_xyyaw_w=feet, time_budget_s=5.0)
+    if plan.status.name != "SUCCESS":
+        raise SystemExit(f"the planner gave {plan.status.name} ({plan.detail}) for goal {goal_rel}")
+    soles, sides = np.asarray(plan.footsteps_xyyaw_w), np.asarray(plan.foot_sides, float)
+    obs = env.follow_plans(torch.from_numpy(soles)[None], torch.from_numpy(sides)[None],
+                           torch.tensor([plan.num_steps]))
+    policy = load_policy(TASK)
+    landed, errors, steps, path, fell = [], [], [], [], False
+    for _ in range(int(seconds / env.step_dt_s)):
+        step = int(env.steps_taken[0]) + 1  # the planned step the swing foot is aiming at
+        obs, _, done, _ = env.step(policy(obs))
+        fell |= bool(done[0])
+        path.append(env.robot.data.root_pos_w[0, :2].double().numpy().copy())
+        if bool(env.touchdown[0]) and step <= plan.num_steps:
+            swing = env._swing_index()[0] if int(env.steps_taken[0]) + 1 == step else 1 - env._swing_index()[0]
+            landed.append(env.soles_xyyaw_w()[0, int(swing)].double().numpy().copy())
+            errors.append(float(env.touchdown_error_m[0]))
+            steps.append(step)
+        if int(env.steps_taken[0]) >= plan.num_steps or fell:
+            break
+    return {"soles": soles, "sides": sides, "landed": np.array(landed).reshape(-1, 3), "errors": np.array(errors),
+            "steps": np.array(steps, int), "path": np.array(path), "fell": fell,
+            "advance_radius_m": env.cfg.advance_radius_m}
+
+
+def _sole(ax, pose, **style) -> None:
+    """A sole rectangle (SOLE_LENGTH_M x SOLE_WIDTH_M) at (x, y, yaw)."""
+    from matplotlib.patches import Rectangle
+    from matplotlib.transforms import Affine2D
+
+    x, y, yaw = pose
+    rect = Rectangle((-SOLE_LENGTH_M / 2, -SOLE_WIDTH_M / 2), SOLE_LENGTH_M, SOLE_WIDTH_M, **style)
+    rect.set_transform(Affine2D().rotate(yaw).translate(x, y) + ax.transData)
+    ax.add_patch(rect)
+
+
+def draw(result: dict, out: Path) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 6), dpi=110)
+    for k, (pose, side) in enumerate(zip(result["soles"], result["sides"])):
+        _sole(ax, pose, fill=False, lw=1.6, ec=SIDE_COLOURS[side], ls="--" if k < 2 else "-")
+        if k >= 2:
+            ax.annotate(str(k - 1), pose[:2], ha="center", va="center", fontsize=7, color=SIDE_COLOURS[side])
+    for pose, error, step in zip(result["landed"], result["errors"], result["steps"]):
+        side = result["sides"][step + 1]
+        miss = error > result["advance_radius_m"]
+        _sole(ax, pose, fill=True, alpha=0.35, lw=0, fc="tab:red" if miss else SIDE_COLOURS[side])
+    if len(result["path"]):
+        ax.plot(*result["path"].T, color="0.3", lw=1.0, label="pelvis")
+    errors = result["errors"]
+    title = (f"shipped humanoid-footsteps policy on a footstep planner's plan ({len(result['soles']) - 2} steps)\n"
+             f"touchdowns {len(errors)}: median error {100 * np.median(errors):.1f} cm, "
+             f"largest {100 * errors.max():.1f} cm{'; FELL' if result['fell'] else ''}" if len(errors) else "no touchdowns")
+    ax.set_title(title, fontsize=9)
+    ax.set_aspect("equal")
+    ax.autoscale_view()
+    ax.margins(0.15)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.legend(handles=[plt.Line2D([], [], color="tab:blue", label="planned, left (outline) / landed (filled)"),
+                       plt.Line2D([], [], color="tab:orange", label="planned, right / landed"),
+                       plt.Line2D([], [], color="tab:red", label="counted a miss (mostly the stance foot landing after a flight)"),
+                       plt.Line2D([], [], color="0.3", label="pelvis path")], fontsize=7, loc="best")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.tight_layout()
+    fig.savefig(out)
+    plt.close(fig)
+    return out
+
+
+def main(argv: list[str] | None = None) -> Path:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--goal", type=float, nargs=3, default=(2.4, 0.9, 60.0), metavar=("X_M", "Y_M", "YAW_DEG"))
+    parser.add_argument("--seconds", type=float, default=14.0)
+    parser.add_argument("--out", type=Path, default=ROOT / "docs" / "images" / "footsteps_policy.png")
+    args = parser.parse_args(argv)
+    result = walk((args.goal[0], args.goal[1], math.radians(args.goal[2])), args.seconds)
+    out = draw(result, args.out)
+    print(f"{out}: {len(result['errors'])} touchdowns on planned steps, median error "
+          f"{100 * np.median(result['errors']):.1f} cm" if len(result["errors"]) else f"{out}: no touchdowns")
+    return out
+
+
+if __name__ == "__main__":
+    main()
