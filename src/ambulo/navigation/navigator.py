@@ -818,20 +818,12 @@ class Navigator:
                                          refused))
 
     def _starts_turning(self, plan: FootstepPlan, est: np.ndarray) -> bool:
-        """Whether the walker's path tracker turns on the spot before it walks ``plan``: the body path's
-        point its look-ahead on (arc length, as the tracker's carrot) lies more than the tracker's
-        ``turn_in_place_rad`` off the heading."""
+        """Whether the walker's path tracker turns on the spot before it walks ``plan``'s body path
+        (``PathTracker.starts_turning``)."""
         tracker = getattr(self.walker, "tracker", None)
         if tracker is None or plan.num_steps < 1:
             return False
-        path = body_path(plan)
-        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
-        if s[-1] < 1e-6:
-            return False
-        carrot = np.array([np.interp(min(tracker.cfg.lookahead_m, s[-1]), s, path[:, i]) for i in (0, 1)])
-        d = carrot - est[:2]
-        err = math.atan2(d[1], d[0]) - est[2]
-        return bool(np.linalg.norm(d) > 1e-6 and abs(math.atan2(math.sin(err), math.cos(err))) > tracker.cfg.turn_in_place_rad)
+        return tracker.starts_turning(body_path(plan), est)
 
     def _arm_room_xy(self, grid: Grid2D, est: np.ndarray) -> np.ndarray | None:
         """(2,) where to stand before turning on the spot (``NavigatorCfg.arm_reach_m``): the free cell

@@ -105,6 +105,18 @@ class PathTracker:
         k = int(np.searchsorted(self._s, self.progress_m, side="right"))
         return np.concatenate([[self.point_at(self.progress_m)], self.path[k:]])
 
+    def starts_turning(self, path_xy: np.ndarray, pose_xyyaw: np.ndarray) -> bool:
+        """Whether ``command`` would turn on the spot before walking ``path_xy`` (K, 2) m from its start at
+        ``pose_xyyaw``: the carrot ``lookahead_m`` along it (its end if shorter) more than
+        ``turn_in_place_rad`` off the heading. The path this tracker follows is not changed."""
+        probe = PathTracker(self.cfg)
+        probe.set_path(path_xy, final=False)
+        if probe.path is None or probe.length_m < 1e-6:
+            return False
+        alpha = _bearing_error(probe.point_at(self.cfg.lookahead_m), np.asarray(pose_xyyaw[:2], float),
+                               float(pose_xyyaw[2]))
+        return alpha is not None and abs(alpha) > self.cfg.turn_in_place_rad
+
     def _project(self, xy: np.ndarray) -> None:
         """Update progress: nearest point on the segments within [-0.3, +1.0] m of the last progress."""
         if len(self.path) == 1:
@@ -158,12 +170,9 @@ class PathTracker:
         target = self.point_at(self.progress_m + c.lookahead_m)
         if self.remaining_m < c.lookahead_m:
             target = end
-        to_target = target - xy
-        dist = float(np.linalg.norm(to_target))
-        if dist < 1e-6:
+        alpha = _bearing_error(target, xy, yaw)
+        if alpha is None:
             return 0.0, 0.0, 0.0
-        alpha = math.atan2(to_target[1], to_target[0]) - yaw
-        alpha = math.atan2(math.sin(alpha), math.cos(alpha))
         yaw_rate = float(np.clip(c.yaw_gain_per_s * alpha, -c.max_yaw_rate_rad_s, c.max_yaw_rate_rad_s))
         if self._turning and abs(alpha) < c.resume_walk_rad:
             self._turning = False
@@ -178,6 +187,16 @@ class PathTracker:
         # short of a final goal (or a path's end), keep a walking pace so the gait does not stall
         speed = max(speed, c.min_speed_m_s if (not self.final or to_end > c.stop_radius_m) else 0.0)
         return float(speed), 0.0, yaw_rate
+
+
+def _bearing_error(target_xy: np.ndarray, xy: np.ndarray, yaw: float) -> float | None:
+    """Bearing of ``target_xy`` from ``xy`` relative to the heading ``yaw``, wrapped to [-pi, pi] rad;
+    None when the target is where the robot is."""
+    to_target = target_xy - xy
+    if float(np.linalg.norm(to_target)) < 1e-6:
+        return None
+    alpha = math.atan2(to_target[1], to_target[0]) - yaw
+    return math.atan2(math.sin(alpha), math.cos(alpha))
 
 
 __all__ = ["PathTracker", "TrackerCfg"]
