@@ -55,12 +55,12 @@ def walk(goal_rel: tuple[float, float, float], seconds: float, seed: int = 0) ->
     landed, errors, steps, path, fell = [], [], [], [], False
     for _ in range(int(seconds / env.step_dt_s)):
         step = int(env.steps_taken[0]) + 1  # the planned step the swing foot is aiming at
+        swing = int(env._swing_index()[0])  # a touchdown in this step is this foot's (the plan advances after)
         obs, _, done, _ = env.step(policy(obs))
         fell |= bool(done[0])
         path.append(env.robot.data.root_pos_w[0, :2].double().numpy().copy())
         if bool(env.touchdown[0]) and step <= plan.num_steps:
-            swing = env._swing_index()[0] if int(env.steps_taken[0]) + 1 == step else 1 - env._swing_index()[0]
-            landed.append(env.soles_xyyaw_w()[0, int(swing)].double().numpy().copy())
+            landed.append(env.soles_xyyaw_w()[0, swing].double().numpy().copy())
             errors.append(float(env.touchdown_error_m[0]))
             steps.append(step)
         if int(env.steps_taken[0]) >= plan.num_steps or fell:
