@@ -140,14 +140,19 @@ def coco_categories(categories: list[str]) -> list[dict]:
     return [{"id": i + 1, "name": name, "supercategory": "object"} for i, name in enumerate(categories)]
 
 
+def coco_image(index: int, record: dict) -> dict:
+    """Frame ``index``'s COCO image entry from its record (id: the frame index + 1)."""
+    return {"id": index + 1, "file_name": record["file_name"], "width": record["width"],
+            "height": record["height"], "frame": index}
+
+
 def merge_coco(frames_dir: Path, num_frames: int, categories: list[str], info: dict) -> dict:
     """The COCO dict of frames 0..num_frames-1 from their per-frame records."""
     images, annotations = [], []
     for index in range(num_frames):
         record = read_json((Path(frames_dir) / f"{index:06d}.json").read_bytes())
         image_id = index + 1
-        images.append({"id": image_id, "file_name": record["file_name"], "width": record["width"],
-                       "height": record["height"], "frame": index})
+        images.append(coco_image(index, record))
         for ann in record["annotations"]:
             annotations.append({**ann, "id": len(annotations) + 1, "image_id": image_id})
     return {"info": info, "licenses": [], "categories": coco_categories(categories),

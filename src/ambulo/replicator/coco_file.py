@@ -24,7 +24,7 @@ from pathlib import Path
 
 from ambulo.utils.atomic import atomic_open
 
-from .coco import coco_categories, merge_coco, read_json
+from .coco import coco_categories, coco_image, merge_coco, read_json
 from .writers import frame_stem, json_bytes
 
 try:  # as writers.json_bytes: without msgspec every file is json's, so no piece is made
@@ -51,8 +51,7 @@ def frame_piece(index: int, record: dict) -> FramePiece | None:
     if _encode is None:
         return None
     try:
-        image = _encode({"id": index + 1, "file_name": record["file_name"], "width": record["width"],
-                         "height": record["height"], "frame": index})
+        image = _encode(coco_image(index, record))
         annotations = []
         for ann in record["annotations"]:
             if not ann or "id" in ann or "image_id" in ann:
