@@ -51,6 +51,7 @@ def test_touchdowns_score_advance_and_respect_the_swing_foot():
     env.targets_xyyaw_w[:] = targets
     env.target_sides[:] = torch.tensor([-1.0, 1.0])  # the right foot swings
     env.placement_error_m.fill_(0.5)
+    env.since_advance_s.fill_(1.0)  # the plan has waited 1 s: the feet below took off after it last moved
     soles = torch.tensor([[0.9, 0.2, 0.0], [1.03, 0.0, 0.1]]).expand(3, 2, 3).clone()
     # world 0: the right foot lands after 0.3 s in the air; world 1: only the left (stance) foot
     # lands; world 2: the right foot lands after 0.1 s (a shuffle, shorter than min_air_time_s)
@@ -81,6 +82,7 @@ def test_a_missed_touchdown_is_scored_and_the_same_foot_steps_again():
     targets = torch.tensor([[1.0, 0.0, 0.0], [1.2, 0.2, 0.0]])
     env.targets_xyyaw_w[:] = targets
     env.target_sides[:] = torch.tensor([-1.0, 1.0])  # the right foot swings
+    env.since_advance_s.fill_(1.0)
     # the right sole lands 0.15 m (world 0: within advance_radius_m) and 0.3 m (world 1) from its target
     soles = torch.tensor([[[0.9, 0.2, 0.0], [0.85, 0.0, 0.0]], [[0.9, 0.2, 0.0], [0.7, 0.0, 0.0]]])
     env.update_plan(soles, torch.tensor([[False, True]] * 2), torch.tensor([[0.0, 0.4]] * 2))
@@ -96,10 +98,79 @@ def test_shuffles_cost_and_strides_earn_whatever_the_command():
     env = envs.make("humanoid-footsteps", num_envs=2, seed=0, num_threads=1, play=True)
     threshold = env.cfg.air_time_threshold_s
     env.feet.data.first_contact[:] = torch.tensor([[False, True], [True, False]])
-    env.feet.data.last_air_time_s[:] = torch.tensor([[0.0, threshold + 0.2], [threshold - 0.3, 0.0]])
+    env.last_support_air_s[:] = torch.tensor([[0.0, threshold + 0.2], [threshold - 0.3, 0.0]])
     env.commands.command.zero_()  # as in training: humanoid-walk's term would pay nothing at a zero command
     reward = env._get_rewards()["step_air_time"]
     assert reward.tolist() == pytest.approx([0.2, -0.3], abs=1e-6)
+
+
+def test_a_flight_phase_earns_no_air_time_reward():
+    """Both worlds lift the right foot for 25 policy steps (0.5 s) and land it in the 26th: world 0
+    walks (the left foot stands throughout), world 1 runs (the left foot leaves for the last 10
+    steps and lands after the right). The sensor's air time is 26 x 0.02 = 0.52 s in both; the
+    reward counts the right foot's 26 steps in world 0 and its 15 before the flight in world 1
+    (the landing step too had the left foot up), and the left foot's 2 steps after the right landed."""
+    env = envs.make("humanoid-footsteps", num_envs=2, seed=0, num_threads=1, play=True)
+    dt, threshold = env.step_dt_s, env.cfg.air_time_threshold_s
+    assert dt == pytest.approx(0.02)
+    no = torch.zeros(2, 2, dtype=torch.bool)
+    for k in range(25):  # (left, right) in contact: the right foot swings; world 1's left leaves at k = 15
+        env.update_support_air(torch.tensor([[True, False], [k < 15, False]]), no)
+    right_lands = torch.tensor([[False, True], [False, True]])
+    env.update_support_air(torch.tensor([[True, True], [False, True]]), right_lands)
+    torch.testing.assert_close(env.last_support_air_s[:, 1], torch.tensor([26 * dt, 15 * dt]))
+    env.feet.data.first_contact[:] = right_lands
+    env.feet.data.last_air_time_s[:] = 26 * dt  # what the contact sensor measured, flight included
+    reward = env._get_rewards()["step_air_time"]
+    assert reward.tolist() == pytest.approx([26 * dt - threshold, 15 * dt - threshold], abs=1e-5)
+    # world 1's left foot lands a step later: 2 steps in the air over a standing right foot
+    env.update_support_air(torch.tensor([[True, True], [True, True]]), torch.tensor([[False, False], [True, False]]))
+    assert env.last_support_air_s[1, 0].item() == pytest.approx(2 * dt, abs=1e-6)
+    assert env._support_air_s.abs().max().item() == 0.0  # both feet down: the timers restart
+
+
+def test_a_landing_from_before_the_advance_is_not_a_touchdown():
+    """After a flight the stance foot lands just after the swing foot advanced the plan: not a
+    touchdown (not scored, the plan stays), even on its new target; its next step is one."""
+    env = envs.make("humanoid-footsteps", num_envs=2, seed=0, num_threads=1, play=True)
+    dt = env.step_dt_s
+    targets = torch.tensor([[1.0, 0.0, 0.0], [1.2, 0.2, 0.0]])
+    env.targets_xyyaw_w[:] = targets
+    env.target_sides[:] = torch.tensor([-1.0, 1.0])  # the right foot swings
+    env.since_advance_s.fill_(1.0)
+    soles = torch.tensor([[0.9, 0.2, 0.0], [1.0, 0.0, 0.0]]).expand(2, 2, 3).clone()
+    right, left, none = (torch.tensor([[False, True]] * 2), torch.tensor([[True, False]] * 2),
+                         torch.zeros(2, 2, dtype=torch.bool))
+    env.update_plan(soles, right, torch.full((2, 2), 0.3))  # the right foot lands on its target: advance
+    assert env.touchdown.tolist() == [True, True] and env.steps_taken.tolist() == [1, 1]
+    soles[:, 0] = targets[1]  # the left sole on its (new) target
+    # one step later world 0's left foot lands from a 0.32 s flight: it took off 0.3 s before the
+    # advance; world 1's stays in the air
+    env.update_plan(soles, torch.tensor([[True, False], [False, False]]), torch.tensor([[0.32, 0.0]] * 2))
+    assert env.touchdown.tolist() == [False, False] and env.flight_landing.tolist() == [True, False]
+    assert env.steps_taken.tolist() == [1, 1] and env.touchdown_error_m.tolist() == [0.0, 0.0]
+    torch.testing.assert_close(env.targets_xyyaw_w[:, 0], targets[1].expand(2, 3))  # still its target
+    for _ in range(7):
+        env.update_plan(soles, none, torch.zeros(2, 2))
+    # 9 steps (0.18 s) after the advance the left foot lands after 0.16 s in the air (world 0: it
+    # took off after the advance, a step) or 0.2 s (world 1: in the air since before it)
+    assert env.since_advance_s.tolist() == pytest.approx([8 * dt] * 2, abs=1e-6)
+    env.update_plan(soles, left, torch.tensor([[0.16, 0.0], [0.2, 0.0]]))
+    assert env.touchdown.tolist() == [True, False] and env.flight_landing.tolist() == [False, True]
+    assert env.steps_taken.tolist() == [2, 1] and env.since_advance_s[0].item() == 0.0
+
+
+def test_swing_touchdown_counts_a_take_off_after_the_advance():
+    from ambulo.envs.footstep_gait import swing_touchdown
+
+    dt = 0.02
+    since = torch.tensor([0.2, 0.2, 0.2, 0.2, 0.1])  # s since the plan advanced (10 steps; 5 in the last)
+    air = torch.tensor([0.2, 0.22, 0.16, 0.14, 0.1])  # the landing foot's flight, s
+    landed = torch.tensor([True, True, True, True, False])
+    touchdown, flight = swing_touchdown(landed, air, since, 0.15, dt)
+    # lifted in the step after the advance (counted); one step before it (not); a short shuffle; no landing
+    assert touchdown.tolist() == [True, False, True, False, False]
+    assert flight.tolist() == [False, True, False, False, False]
 
 
 def test_command_is_the_two_targets_in_the_heading_frame():
@@ -162,6 +233,7 @@ def test_follows_given_plans_then_the_sampler():
         soles[torch.arange(2), swing] = env.targets_xyyaw_w[:, 0]
         first_contact = never.clone()
         first_contact[torch.arange(2), swing] = True
+        env.since_advance_s.fill_(0.5)  # it took off after the last advance
         env.update_plan(soles, first_contact, torch.full((2, 2), 0.4))
         assert env.touchdown_error_m.tolist() == pytest.approx([0.0, 0.0], abs=1e-5)
         if k == 0:

@@ -10,12 +10,16 @@ and widths, all within the planner's walker limits) and extended one footstep pe
 plan never runs out.
 
 A *touchdown* is the swing foot (the side of the first target) landing after at least
-``min_air_time_s`` in the air. It scores the placement (sole centre to target distance, yaw
-error); when it landed within ``advance_radius_m`` of its target the targets advance (the second
+``min_air_time_s`` in the air, from a take-off after the plan's last advance
+(``footstep_gait.swing_touchdown``: a foot already in the air when the plan moved on, as the
+stance foot is after a flight phase, is not stepping to the new target). It scores the
+placement (sole centre to target distance, yaw error); when it landed within ``advance_radius_m`` of its target the targets advance (the second
 becomes the first, a new footstep is drawn after it), else the same foot steps again.
 The placement kernels reward the touchdown; ``swing_progress`` rewards the swing foot closing on
 its target (a potential: moving away and back earns nothing); ``heading`` keeps the body facing
-the targets' mean yaw; humanoid-walk's stability terms stay. An episode fails when the robot
+the targets' mean yaw; ``step_air_time`` pays humanoid-walk's air-time term on a foot's time in
+the air while the other foot stood (``footstep_gait.support_air_time``): flight earns nothing;
+humanoid-walk's stability terms stay. An episode fails when the robot
 falls or loses the plan (its next target more than ``max_target_distance_m`` from the base).
 
 Evaluation: ``placement_error_m`` is each world's latest touchdown error (before the first, the
@@ -41,6 +45,7 @@ from ambulo.utils.validate import rule
 from ..utils.math import yaw_from_quat
 from . import rewards
 from .commands import VelocityCommandCfg, wrap_to_pi
+from .footstep_gait import support_air_time, swing_touchdown
 from .footstep_sampler import FootstepSampler, FootstepSamplerCfg, relative_xyyaw, start_feet_xyyaw_w
 from .humanoid_walk import HumanoidWalkCfg, HumanoidWalkEnv, as_play, humanoid_walk_cfg, humanoid_walk_ppo
 from .registry import Criterion, TaskSpec, register
@@ -88,7 +93,9 @@ def humanoid_footsteps_cfg() -> HumanoidFootstepsCfg:
     ``swing_progress`` (weight 2) pays for the 0.4 m a swing foot covers in a 0.2 m step.
     ``step_air_time`` is humanoid-walk's ``feet_air_time`` (its ``air_time_threshold_s``) paid at
     every landing, without that term's gate on the velocity command, which is zero here: strides
-    earn, shuffles cost (without it a policy learned 9 stutter steps a second)."""
+    earn, shuffles cost (without it a policy learned 9 stutter steps a second). It counts a foot's
+    air time only while the other foot stood, so a flight phase earns nothing (the policy of
+    session 8 learned one: both feet in the air for >= 0.15 s every step)."""
     walk = humanoid_walk_cfg()
     cfg = HumanoidFootstepsCfg(**{name: getattr(walk, name) for name in walk.__dataclass_fields__})
     cfg.commands = VelocityCommandCfg(standing_fraction=1.0, heading_fraction=0.0)
@@ -115,7 +122,11 @@ class HumanoidFootstepsEnv(HumanoidWalkEnv):
     Attributes (all (N, ...) on the env's device, float32 unless said):
       targets_xyyaw_w: (N, 2, 3) the next two footsteps, sole centre x, y m and yaw rad, world frame.
       target_sides: (N, 2) their sides, +1 left, -1 right (the first is the swing foot's).
-      touchdown: (N,) bool, the swing foot touched down in the last step (the targets advanced).
+      touchdown: (N,) bool, the swing foot touched down in the last step (``footstep_gait.swing_touchdown``).
+      flight_landing: (N,) bool, the swing foot landed in the last step from a take-off before the
+        plan's last advance (not a touchdown: not scored, the plan stays).
+      since_advance_s: (N,) time since the targets last advanced (or the plan started), s.
+      last_support_air_s: (N, 2) per foot, its last flight's time while the other foot stood, s.
       touchdown_error_m, touchdown_yaw_error_rad: (N,) that touchdown's placement errors (0 elsewhere).
       placement_error_m, yaw_error_rad: (N,) the latest touchdown's errors, held.
       steps_taken: (N,) int64 touchdowns this episode.
@@ -133,6 +144,10 @@ class HumanoidFootstepsEnv(HumanoidWalkEnv):
         self.target_sides = torch.ones(n, 2, **f32)
         self._segments = torch.zeros(n, 4, **f32)
         self.touchdown = torch.zeros(n, dtype=torch.bool, device=dev)
+        self.flight_landing = torch.zeros(n, dtype=torch.bool, device=dev)
+        self.since_advance_s = torch.zeros(n, **f32)
+        self._support_air_s = torch.zeros(n, 2, **f32)  # ``footstep_gait.support_air_time``'s timers
+        self.last_support_air_s = torch.zeros(n, 2, **f32)
         self.touchdown_error_m = torch.zeros(n, **f32)
         self.touchdown_yaw_error_rad = torch.zeros(n, **f32)
         self.placement_error_m = torch.zeros(n, **f32)
@@ -193,6 +208,7 @@ class HumanoidFootstepsEnv(HumanoidWalkEnv):
         self._swing_distance_m = self._swing_to_target_m(self.soles_xyyaw_w())
         self.placement_error_m.copy_(self._swing_distance_m)
         self.steps_taken.zero_()
+        self.since_advance_s.zero_()  # the plan starts now: a foot in the air is not stepping to it
         self.obs_buf = self._compute_observations()
         return self.obs_buf
 
@@ -218,6 +234,14 @@ class HumanoidFootstepsEnv(HumanoidWalkEnv):
         super()._post_physics()
         feet = self.feet.data
         self.update_plan(self.soles_xyyaw_w(), feet.first_contact, feet.last_air_time_s)
+        self.update_support_air(feet.in_contact, feet.first_contact)
+
+    def update_support_air(self, in_contact: torch.Tensor, first_contact: torch.Tensor) -> None:
+        """Advance the single-support air timers given the feet's (N, 2) ``in_contact`` and
+        ``first_contact``; the env calls it after every step (a test, with contacts set by hand)."""
+        self._support_air_s, landed_s = support_air_time(self._support_air_s, in_contact, first_contact,
+                                                         self.step_dt_s)
+        self.last_support_air_s = torch.where(first_contact, landed_s, self.last_support_air_s)
 
     def update_plan(self, soles_xyyaw_w: torch.Tensor, first_contact: torch.Tensor,
                     last_air_time_s: torch.Tensor) -> None:
@@ -230,7 +254,9 @@ class HumanoidFootstepsEnv(HumanoidWalkEnv):
         distance = torch.linalg.vector_norm(error[:, :2], dim=-1)
         limit = cfg.max_progress_m_s * self.step_dt_s
         self._progress_m = (self._swing_distance_m - distance).clamp(-limit, limit)
-        touchdown = _pick(first_contact, swing) & (_pick(last_air_time_s, swing) >= cfg.min_air_time_s)
+        self.since_advance_s += self.step_dt_s
+        touchdown, self.flight_landing = swing_touchdown(_pick(first_contact, swing), _pick(last_air_time_s, swing),
+                                                         self.since_advance_s, cfg.min_air_time_s, self.step_dt_s)
         yaw_error = error[:, 2].abs()
         zero = torch.zeros_like(distance)
         self.touchdown = touchdown
@@ -239,7 +265,9 @@ class HumanoidFootstepsEnv(HumanoidWalkEnv):
         self.placement_error_m = torch.where(touchdown, distance, self.placement_error_m)
         self.yaw_error_rad = torch.where(touchdown, yaw_error, self.yaw_error_rad)
         # only a touchdown on (or near) its target moves the plan on; a miss is scored above
-        self._advance(select_rows(touchdown & (distance <= cfg.advance_radius_m)))
+        advanced = touchdown & (distance <= cfg.advance_radius_m)
+        self._advance(select_rows(advanced))
+        self.since_advance_s = torch.where(advanced, zero, self.since_advance_s)
         # progress counts from here: after a touchdown, towards the new target
         self._swing_distance_m = self._swing_to_target_m(soles)
 
@@ -291,8 +319,8 @@ class HumanoidFootstepsEnv(HumanoidWalkEnv):
             "foot_yaw": touchdown * torch.exp(-torch.square(self.touchdown_yaw_error_rad / cfg.yaw_std_rad)),
             "swing_progress": self._progress_m / self.step_dt_s,
             "heading": torch.exp(-torch.square(heading_error / cfg.heading_std_rad)),
-            "step_air_time": rewards.feet_air_time(feet.last_air_time_s, feet.first_contact, cfg.air_time_threshold_s,
-                                                   always_stepping),
+            "step_air_time": rewards.feet_air_time(self.last_support_air_s, feet.first_contact,
+                                                   cfg.air_time_threshold_s, always_stepping),
         }
 
     def _reset_idx(self, rows: torch.Tensor) -> None:
@@ -314,8 +342,9 @@ class HumanoidFootstepsEnv(HumanoidWalkEnv):
         for buf, value in ((self._swing_distance_m, distance), (self.placement_error_m, distance),
                            (self.yaw_error_rad, start[:, 2:].abs())):
             put_rows(buf[:, None], slice(None), value, rows)
-        for buf in (self.touchdown, self.touchdown_error_m, self.touchdown_yaw_error_rad, self._progress_m,
-                    self.steps_taken, self._plan_rows):
+        for buf in (self.touchdown, self.flight_landing, self.touchdown_error_m, self.touchdown_yaw_error_rad,
+                    self._progress_m, self.steps_taken, self._plan_rows, self.since_advance_s, self._support_air_s,
+                    self.last_support_air_s):
             fill_rows(buf, rows, 0)
 
 
