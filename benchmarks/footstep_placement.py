@@ -5,7 +5,11 @@
 runs the same evaluation (``rl.run_episodes``: one episode per env of the play variant,
 deterministic actions) and also records every touchdown of every world's first episode: the
 sole-centre-to-target distance and the yaw error, from which it reports the median, mean and 90th
-percentile, the touchdowns per second and the fall (or lost-plan) rate.
+percentile, the touchdowns per second and the fall (or lost-plan) rate. A touchdown is the env's
+(``envs.footstep_gait.swing_touchdown``, through ``env.touchdown``): a swing-foot landing from a
+take-off after the plan's last advance; ``flight_landings`` counts the landings it leaves out (the
+stance foot landing after a flight phase, which the env scored as a touchdown before 2026-11-29
+session 9).
 
 ``--plans planner`` gives every world a plan of the footstep planner (``nav.footsteps``, on an
 empty 10 m map) from the feet where the robot stands to a goal 1.5-3 m away in a random direction
@@ -46,6 +50,8 @@ class TouchdownLog:
         self._last_length = env.episode_length_buf.clone()
         self.errors_m: list[torch.Tensor] = []
         self.yaw_errors_rad: list[torch.Tensor] = []
+        self.flight_landings = torch.zeros((), dtype=torch.long, device=env.device)
+        """Landings of the swing foot that are not touchdowns: from a take-off before the plan's last advance."""
 
     def __call__(self, obs):
         env = self.env
@@ -56,9 +62,11 @@ class TouchdownLog:
             obs = self.plans.vec_env.get_observations()
         self.first_episode &= env.episode_length_buf >= self._last_length
         self._last_length = env.episode_length_buf.clone()
-        keep = env.touchdown & self.first_episode
+        counted = self.first_episode.clone()
         if self.num_steps is not None:
-            keep &= env.steps_taken <= self.num_steps
+            counted &= env.steps_taken <= self.num_steps
+        keep = env.touchdown & counted
+        self.flight_landings += (env.flight_landing & counted).sum()
         self.errors_m.append(env.touchdown_error_m[keep])
         self.yaw_errors_rad.append(env.touchdown_yaw_error_rad[keep])
         return self.policy(obs)
@@ -134,7 +142,7 @@ def main():
         "task": info["task"], "run": str(run_dir), "checkpoint": ckpt.name, "device": str(env.device),
         "episodes": args.num_episodes, "episode_length_s": measured["episode_length_s"], "plans": args.plans,
         "planned_steps": None if log.num_steps is None else int(log.num_steps.sum()),
-        "touchdowns": int(errors.numel()),
+        "touchdowns": int(errors.numel()), "flight_landings": int(log.flight_landings),
         "placement_error_m": position, "yaw_error_rad": summary(yaw),
         "median_within_5cm": position["median"] is not None and position["median"] <= PLACEMENT_BAR_M,
         "eval": {k: v for k, v in measured.items() if k not in ("task", "episodes", "episode_length_s")},

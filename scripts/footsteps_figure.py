@@ -6,11 +6,12 @@ One humanoid-footsteps world on the CPU engine: the footstep planner (``nav.foot
 the feet where the robot stands to ``--goal`` (x m, y m ahead/left of the stance centre, yaw deg); the shipped policy
 (``assets/data/policies/humanoid_footsteps``) follows it (``env.follow_plans``). Drawn top down: the planned soles
 (outlines, left blue, right orange, numbered), every touchdown of the swing foot on a planned step (filled: where
-the sole landed; one counted a miss, > ``advance_radius_m`` from its target, in red), and the pelvis path. The title
-gives the median and largest touchdown error. Most red ones are not misplaced steps: the policy's gait has a flight
-phase (both feet in the air), so the stance foot lands 1-2 policy steps after the swing foot has advanced the plan,
-and that landing counts as the next swing foot's touchdown, far from its next target. ``tests/policies/test_footsteps_policy.py`` runs it; the committed PNG is its
-default output.
+the sole landed; one counted a miss, > ``advance_radius_m`` from its target, in red), the landings that are not
+touchdowns (grey outlines: ``env.flight_landing``, the swing foot landing from a take-off before the plan's last
+advance, as the stance foot does after a flight phase; ``envs.footstep_gait.swing_touchdown`` decides, for the env,
+the placement benchmark and this figure), and the pelvis path. The title gives the median and largest touchdown
+error and the number of flight landings. ``tests/policies/test_footsteps_policy.py`` runs it; the committed PNG is
+its default output.
 """
 
 from __future__ import annotations
@@ -52,7 +53,7 @@ def walk(goal_rel: tuple[float, float, float], seconds: float, seed: int = 0) ->
     obs = env.follow_plans(torch.from_numpy(soles)[None], torch.from_numpy(sides)[None],
                            torch.tensor([plan.num_steps]))
     policy = load_policy(TASK)
-    landed, errors, steps, path, fell = [], [], [], [], False
+    landed, errors, steps, path, fell, flights = [], [], [], [], False, []
     for _ in range(int(seconds / env.step_dt_s)):
         step = int(env.steps_taken[0]) + 1  # the planned step the swing foot is aiming at
         swing = int(env._swing_index()[0])  # a touchdown in this step is this foot's (the plan advances after)
@@ -63,10 +64,13 @@ def walk(goal_rel: tuple[float, float, float], seconds: float, seed: int = 0) ->
             landed.append(env.soles_xyyaw_w()[0, swing].double().numpy().copy())
             errors.append(float(env.touchdown_error_m[0]))
             steps.append(step)
+        if bool(env.flight_landing[0]) and step <= plan.num_steps:  # not a touchdown: the plan stays
+            flights.append(env.soles_xyyaw_w()[0, swing].double().numpy().copy())
         if int(env.steps_taken[0]) >= plan.num_steps or fell:
             break
     return {"soles": soles, "sides": sides, "landed": np.array(landed).reshape(-1, 3), "errors": np.array(errors),
             "steps": np.array(steps, int), "path": np.array(path), "fell": fell,
+            "flight_landings": np.array(flights).reshape(-1, 3),
             "advance_radius_m": env.cfg.advance_radius_m}
 
 
@@ -96,12 +100,15 @@ def draw(result: dict, out: Path) -> Path:
         side = result["sides"][step + 1]
         miss = error > result["advance_radius_m"]
         _sole(ax, pose, fill=True, alpha=0.35, lw=0, fc="tab:red" if miss else SIDE_COLOURS[side])
+    for pose in result["flight_landings"]:
+        _sole(ax, pose, fill=False, lw=1.0, ec="0.55", ls=":")
     if len(result["path"]):
         ax.plot(*result["path"].T, color="0.3", lw=1.0, label="pelvis")
     errors = result["errors"]
     title = (f"shipped humanoid-footsteps policy on a footstep planner's plan ({len(result['soles']) - 2} steps)\n"
              f"touchdowns {len(errors)}: median error {100 * np.median(errors):.1f} cm, "
-             f"largest {100 * errors.max():.1f} cm{'; FELL' if result['fell'] else ''}" if len(errors) else "no touchdowns")
+             f"largest {100 * errors.max():.1f} cm; {len(result['flight_landings'])} landings after a flight, not counted"
+             f"{'; FELL' if result['fell'] else ''}" if len(errors) else "no touchdowns")
     ax.set_title(title, fontsize=9)
     ax.set_aspect("equal")
     ax.autoscale_view()
@@ -110,7 +117,8 @@ def draw(result: dict, out: Path) -> Path:
     ax.set_ylabel("y (m)")
     ax.legend(handles=[plt.Line2D([], [], color="tab:blue", label="planned, left (outline) / landed (filled)"),
                        plt.Line2D([], [], color="tab:orange", label="planned, right / landed"),
-                       plt.Line2D([], [], color="tab:red", label="counted a miss (mostly the stance foot landing after a flight)"),
+                       plt.Line2D([], [], color="tab:red", label="a miss (> advance radius from its target)"),
+                       plt.Line2D([], [], color="0.55", ls=":", label="landed after a flight (not a touchdown)"),
                        plt.Line2D([], [], color="0.3", label="pelvis path")], fontsize=7, loc="best")
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.tight_layout()
