@@ -1,8 +1,10 @@
-"""How much of split (b)'s clutter cost no detector can avoid: 3 of its 12 distractors are spheres within 25 %
+"""How much of split (b)'s clutter cost no detector could avoid: 3 of its 12 distractors were spheres within 25 %
 of a ball's radius (0.147, 0.175, 0.181 m; the balls are 0.12 and 0.18 m), balls by geometry. This scores
 checkpoints on the clutter-only factor split as ``detect_domain_gap.py --factors`` draws it, and on the same
 split with those spheres shrunk to 1 cm (same seed, the rest of the pool and every draw unchanged): the
-difference is what the ball-sized spheres cost.
+difference is what the ball-sized spheres cost. Since session 9 split (b) redraws them
+(``ClassFreeDistractors``); this script rebuilds the old pool (plain ``Distractors``) for both its splits, so
+its figures stay those of the old split.
 
     python benchmarks/detect_gap_ball_twins.py --width 160 --height 120 --frames 100 --out /tmp/twins \
         --checkpoint runs/a/checkpoint.pt runs/b/checkpoint.pt
@@ -48,12 +50,18 @@ class NoBallSpheres(Distractors):
             body.add_geom(type=getattr(mujoco.mjtGeom, f"mjGEOM_{kind.upper()}"), size=size, rgba=rgba)
 
 
-def no_ball_spheres_config(width: int, height: int):
-    """Split (b)'s clutter-only factor with its ball-sized spheres shrunk (module docstring)."""
+def old_clutter_config(width: int, height: int, kind: type[Distractors] = Distractors, suffix: str = "_old_pool"):
+    """The old split (b)'s clutter-only factor (before session 9: the pool as ``Distractors`` draws it, ball-sized
+    spheres included), its distractors built by ``kind``."""
     base = config(width, height, ("clutter",))
-    randomizers = [NoBallSpheres(**{f.name: getattr(r, f.name) for f in dataclasses.fields(r)})
+    randomizers = [kind(**{f.name: getattr(r, f.name) for f in dataclasses.fields(kind)})
                    if r.name == "distractors" else r for r in base.randomizers]
-    return dataclasses.replace(base, name=base.name + "_no_ball_spheres", randomizers=randomizers)
+    return dataclasses.replace(base, name=base.name + suffix, randomizers=randomizers)
+
+
+def no_ball_spheres_config(width: int, height: int):
+    """The old split (b)'s clutter-only factor with its ball-sized spheres shrunk (module docstring)."""
+    return old_clutter_config(width, height, NoBallSpheres, "_no_ball_spheres")
 
 
 def main() -> None:
@@ -70,7 +78,7 @@ def main() -> None:
     args = parser.parse_args()
     out = Path(args.out)
     # seed 1: detect_domain_gap's split (b) and its factors
-    splits = {"clutter_only": make(config(args.width, args.height, ("clutter",)), out / "clutter", args.frames, 1,
+    splits = {"clutter_only": make(old_clutter_config(args.width, args.height), out / "clutter", args.frames, 1,
                                    args.workers),
               "clutter_only_no_ball_spheres": make(no_ball_spheres_config(args.width, args.height),
                                                    out / "clutter_no_ball_spheres", args.frames, 1, args.workers)}

@@ -52,7 +52,7 @@ def test_generic_training_data_stays_outside_the_unseen_split(gap):
 
 
 def test_hard_negatives_are_class_families_outside_the_classes_and_split_b(gap):
-    from ambulo.replicator.hard_negatives import FAMILIES, class_shapes, distractor_pool, shape_key, too_close
+    from ambulo.replicator.hard_negatives import FAMILIES, class_shapes, shape_key, too_close
 
     train, example, unseen = by_name(gap.hard_negative_config(64, 48)), by_name(rep.example_config(64, 48)), \
         by_name(gap.config(64, 48))
@@ -67,7 +67,7 @@ def test_hard_negatives_are_class_families_outside_the_classes_and_split_b(gap):
     b.build(built)
     model = built.compile()
     sizes = [model.geom_size[model.body(f"/World/distractors/distractor_{i}").geomadr[0]] for i in range(b.pool_size)]
-    assert np.allclose([s for _, s in distractor_pool(b.pool_seed, b.pool_size, b.size_m)], sizes)
+    assert np.allclose([s for _, s, _ in b.pool()], sizes)
     assert negatives.excluded_pools == gap.split_b_pools()
     avoid = class_shapes() + gap.split_b_pools()[0]
     for kind, size in pool:
@@ -79,3 +79,35 @@ def test_hard_negatives_are_class_families_outside_the_classes_and_split_b(gap):
                 assert max(ratio) >= 1 + negatives.margin
     # the classes themselves are too close to themselves: the check can say no
     assert all(too_close(kind, size, class_shapes(), 0.25) for kind, size in class_shapes())
+
+
+def built_pool(distractors) -> list[tuple[str, tuple, tuple]]:
+    """(kind, size, rgb) of each geom ``distractors`` builds into the warehouse scene, read back from the model."""
+    import mujoco
+
+    spec = rep.build_warehouse_scene()
+    distractors.build(spec)
+    model = spec.compile()
+    kinds = {int(getattr(mujoco.mjtGeom, f"mjGEOM_{k.upper()}")): k
+             for k in ("box", "sphere", "cylinder", "capsule", "ellipsoid")}
+    geoms = [model.body(f"/World/distractors/distractor_{i}").geomadr[0] for i in range(distractors.pool_size)]
+    return [(kinds[int(model.geom_type[g])], tuple(model.geom_size[g]), tuple(model.geom_rgba[g][:3])) for g in geoms]
+
+
+def test_split_b_clutter_holds_no_class_geometry(gap):
+    """A split (b) distractor within 25 % of a class's geometry (the ball-sized spheres the old split drew) is
+    redrawn: it would be a class by geometry, not clutter; every other shape and every colour stay as drawn."""
+    from ambulo.replicator.hard_negatives import class_shapes, too_close
+    from ambulo.replicator.scatter import Distractors
+
+    b = by_name(gap.config(64, 48))["distractors"]
+    as_distractors = Distractors(**{f.name: getattr(b, f.name) for f in dataclasses.fields(Distractors)})
+    drawn, kept = built_pool(as_distractors), built_pool(b)
+    twins = [i for i, (kind, size, _) in enumerate(drawn) if too_close(kind, size, class_shapes(), 0.25)]
+    assert len(twins) == 3 and all(drawn[i][0] == "sphere" for i in twins)  # radii 0.147, 0.175, 0.181 m
+    for i, ((kind, size, rgb), (kind_kept, size_kept, rgb_kept)) in enumerate(zip(drawn, kept)):
+        assert kind_kept == kind and np.allclose(rgb_kept, rgb)
+        assert not too_close(kind_kept, size_kept, class_shapes(), 0.25), (i, size_kept)
+        assert np.allclose(size_kept, size) == (i not in twins)
+        if kind == "sphere":  # by hand: > 25 % from both balls' radii
+            assert all(max(size_kept[0] / r, r / size_kept[0]) >= 1.25 for r in (0.12, 0.18))
