@@ -199,7 +199,7 @@ def make(cfg: rep.DatasetConfig, out: Path, frames: int, seed: int, workers: int
 
 
 def main() -> None:
-    from ambulo.detection import AugmentCfg, TrainCfg, generic, geometry_only, train
+    from ambulo.detection import AugmentCfg, TrainCfg, generic, geometry_only, train, viewpoint
 
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", default="runs/domain_gap", help="datasets, run and result.json go here")
@@ -223,9 +223,10 @@ def main() -> None:
                         help="also score split (b)'s factors one at a time (lighting, textures, clutter, camera "
                              "height only; same seed and size): which one costs the most")
     parser.add_argument("--no-pbr", action="store_true", help="leave out split (c), the Filament renderer")
-    parser.add_argument("--augment", choices=("full", "generic", "geometry"), default="full",
+    parser.add_argument("--augment", choices=("full", "generic", "geometry", "viewpoint"), default="full",
                         help="training augmentations: full (ambulo.detection.augment's defaults), generic (those "
-                             "plus clutter-like occluders and uneven light: augment.generic) or geometry only")
+                             "plus clutter-like occluders and uneven light: augment.generic), viewpoint (the "
+                             "defaults plus the camera pitched and rolled: augment.viewpoint) or geometry only")
     parser.add_argument("--inputs", choices=("rgb", "rgbd"), default="rgb",
                         help="the model's input: colour, or colour and depth (TrainCfg.inputs)")
     parser.add_argument("--seed", type=int, default=0, help="training seed (initialisation, shuffling, augmentation)")
@@ -270,7 +271,8 @@ def main() -> None:
                        eval_every_epochs=0 if args.max_minutes > 0 else max(1, args.epochs // 5),
                        eval_every_minutes=args.max_minutes / 6 if args.max_minutes > 0 else 0.0,
                        max_minutes=args.max_minutes, inputs=args.inputs, seed=args.seed,
-                       augment={"full": AugmentCfg, "generic": generic, "geometry": geometry_only}[args.augment]())
+                       augment={"full": AugmentCfg, "generic": generic, "geometry": geometry_only,
+                                "viewpoint": viewpoint}[args.augment]())
         start = time.perf_counter()
         result = train(train_data, out / "run", cfg)
         summary["train"] = {"epochs": args.epochs, "steps": result.step, "seconds": round(time.perf_counter() - start),

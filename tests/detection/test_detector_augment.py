@@ -152,3 +152,52 @@ def test_resident_frames_are_the_streamed_records(tiny_dataset):
         ys, xs = torch.nonzero(record["instances"] == k + 1, as_tuple=True)
         if len(xs):
             assert xs.min() >= box[0] - 1 and xs.max() + 1 <= box[2] + 1 and ys.min() >= box[1] - 1
+
+
+def test_view_rotation_moves_points_depths_and_boxes_as_a_turned_pinhole_camera_sees_them():
+    """A blob at the projection of a 3D point P (old camera frame) lands where the turned camera projects R P,
+    its depth becomes (R P)_z, and its box holds its warped mask; no turn is the identity."""
+    from ambulo.detection.augment import rotate_view, view_rotation
+    from ambulo.detection.model import depth_channel
+
+    h, w, focal = 48, 64, 40.0
+    point = torch.tensor([0.6, -0.5, 2.0])  # m, x right, y down, z forward
+    u, v = focal * point[0] / point[2] + w / 2, focal * point[1] / point[2] + h / 2  # (44, 14) px
+    images = torch.zeros(1, 4, h, w)
+    instances = torch.zeros(1, h, w, dtype=torch.uint8)
+    rows, cols = slice(int(v) - 2, int(v) + 2), slice(int(u) - 2, int(u) + 2)  # a 4 x 4 px blob centred on (u, v)
+    images[0, :3, rows, cols], images[0, 3, rows, cols], instances[0, rows, cols] = 1.0, depth_channel(point[2]), 1
+    boxes, classes = torch.tensor([[[u - 2, v - 2, u + 2, v + 2]]]), torch.tensor([[2]])
+    same = rotate_view(images, instances, boxes, classes, torch.eye(3)[None], focal)
+    assert torch.allclose(same[0], images, atol=1e-5) and torch.equal(same[1], instances)
+    assert torch.allclose(same[2], boxes, atol=1e-4) and same[3].tolist() == [[2]]
+    for pitch_deg, roll_deg in ((10.0, 0.0), (-8.0, 5.0)):
+        rotation = view_rotation(torch.deg2rad(torch.tensor([pitch_deg])), torch.deg2rad(torch.tensor([roll_deg])))
+        assert torch.allclose(rotation[0] @ rotation[0].T, torch.eye(3), atol=1e-6)
+        out, inst, out_boxes, out_classes = rotate_view(images, instances, boxes, classes, rotation, focal)
+        turned = rotation[0] @ point
+        u1, v1 = focal * turned[0] / turned[2] + w / 2, focal * turned[1] / turned[2] + h / 2
+        ys, xs = torch.nonzero(inst[0] == 1, as_tuple=True)
+        assert (xs.float() + 0.5).mean().item() == pytest.approx(u1.item(), abs=0.6)
+        assert (ys.float() + 0.5).mean().item() == pytest.approx(v1.item(), abs=0.6)
+        assert (v1 < v) == (pitch_deg > 0)  # turned down: the scene moves up the frame
+        assert out[0, 3][inst[0] == 1].mean().item() == pytest.approx(depth_channel(turned[2]).item(), rel=0.005)
+        assert abs(turned[2] / point[2] - 1) > 0.02  # 6 % and 2.5 % nearer / farther: the check can say no
+        x0, y0, x1, y1 = out_boxes[0, 0].tolist()
+        assert out_classes.tolist() == [[2]] and x0 <= xs.min() + 0.5 and xs.max() + 0.5 <= x1
+        assert y0 <= ys.min() + 0.5 and ys.max() + 0.5 <= y1 and (x1 - x0) * (y1 - y0) < 1.6 * 16
+
+
+def test_viewpoint_augmentation_is_off_by_default_and_on_in_its_preset():
+    from ambulo.detection import AugmentCfg, augment_batch, viewpoint
+
+    images, instances, boxes, classes = block_batch()
+    batch = {"images": (images[:, :3] * 255).to(torch.uint8), "instances": instances, "boxes": boxes,
+             "classes": classes}
+    off = dataclasses.replace(no_augment(), view_pitch_deg=0.0)
+    on = dataclasses.replace(no_augment(), view_pitch_deg=15.0, view_roll_deg=5.0)
+    assert AugmentCfg().view_pitch_deg == 0 and viewpoint().view_pitch_deg > 0 and viewpoint().view_roll_deg > 0
+    same = augment_batch(batch, off, torch.Generator().manual_seed(0))
+    assert torch.equal(same["boxes"], boxes)
+    moved = augment_batch(batch, on, torch.Generator().manual_seed(0))
+    assert not torch.allclose(moved["boxes"][0, 0], boxes[0, 0])

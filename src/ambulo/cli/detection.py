@@ -23,10 +23,20 @@ MODEL_NAMES = ("centernet-small", "centernet-medium")
 def train_detector(args: argparse.Namespace) -> int:
     import torch
 
-    from ambulo.detection import CHECKPOINT, AugmentCfg, DatasetError, TrainCfg, generic, geometry_only, no_augment
+    from ambulo.detection import (
+        CHECKPOINT,
+        AugmentCfg,
+        DatasetError,
+        TrainCfg,
+        generic,
+        geometry_only,
+        no_augment,
+        viewpoint,
+    )
     from ambulo.detection import train as train_run
 
-    AUGMENTS = {"full": AugmentCfg, "generic": generic, "geometry": geometry_only, "none": no_augment}
+    AUGMENTS = {"full": AugmentCfg, "generic": generic, "geometry": geometry_only, "none": no_augment,
+                "viewpoint": viewpoint}
 
     for flag in ("epochs", "batch_size"):
         if getattr(args, flag) < 1:
@@ -127,10 +137,11 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--data", choices=("resident", "stream"), default="resident",
                    help="resident: decode the training frames once into the device's memory (default); stream: "
                         "decode each batch in --workers processes (datasets larger than memory)")
-    p.add_argument("--augment", choices=("full", "generic", "geometry", "none"), default="full",
+    p.add_argument("--augment", choices=("full", "generic", "geometry", "none", "viewpoint"), default="full",
                    help="full: geometric, occlusion and photometric augmentations on the device (default); "
                         "generic: those plus clutter-like occluders and uneven light (augment.generic); "
-                        "geometry: flips and scale jitter only; none")
+                        "geometry: flips and scale jitter only; none; viewpoint: full plus the camera pitched and "
+                        "rolled (augment.viewpoint)")
     p.add_argument("--inputs", choices=("rgb", "rgbd"), default="rgb",
                    help="rgb: colour frames (default); rgbd: colour and the dataset's depth PNGs as a 4th channel "
                         "(the model can measure metric size; its Detector then needs depth with every frame)")

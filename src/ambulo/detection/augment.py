@@ -5,6 +5,12 @@ The augmentations are generic camera and scene changes, not the randomizer range
 dataset (a detector trained on them is scored on randomization it never saw:
 ``benchmarks/detect_domain_gap.py``):
 
+- viewpoint (``view_pitch_deg``, ``view_roll_deg``; off by default, on in ``viewpoint()``): the frame as a
+  camera turned about its optical centre would see it, a homography K R K^-1 of a pinhole camera (focal
+  ``view_focal_fraction`` of the image height): exact for every 3D point, depth included, so the objects stand
+  where another camera pitch or height would put them in the frame (a higher camera sees a thing lower in the
+  frame and the floor's horizon elsewhere; the zoom already makes it smaller); boxes become the axis-aligned
+  box of their warped corners;
 - geometric: horizontal flip, scale jitter with a random crop (or a black margin when the scale is
   below 1), one affine ``grid_sample`` of the pixels (bilinear) and of the instance map (nearest);
 - occlusion: flat "flying distractors" over the frame, rectangles or ellipses of a random colour
@@ -83,6 +89,13 @@ class AugmentCfg(Checked):
     random direction (0.5: a corner up to e ** 1 = 2.7 times brighter than the opposite one)."""
     min_visible_fraction: float = 0.3
     """An object covered by rectangles beyond this is dropped: no evidence is left to find it by."""
+    view_pitch_deg: float = 0.0
+    """Viewpoint: the camera turned up or down by up to +- this (deg) about its optical centre (0: off)."""
+    view_roll_deg: float = 0.0
+    """Viewpoint: the camera rolled about its optical axis by up to +- this (deg)."""
+    view_focal_fraction: float = 0.866
+    """The pinhole focal length of the viewpoint warp, as a fraction of the image height (0.866: 60 deg
+    vertical field of view, the example dataset's head camera; a wrong value bends straight lines a little)."""
 
 
 def no_augment() -> AugmentCfg:
@@ -102,6 +115,13 @@ def generic() -> AugmentCfg:
     """The defaults plus clutter-like occluders (ellipses and rectangles, shaded, speckled) and uneven
     light: the generic sim-to-real set (``--augment generic``)."""
     return AugmentCfg(erase_ellipse_probability=0.5, erase_shading=0.4, erase_speckle=0.08, light_gradient=0.5)
+
+
+def viewpoint(pitch_deg: float = 12.0, roll_deg: float = 5.0) -> AugmentCfg:
+    """The defaults plus the viewpoint warp (``--augment viewpoint``): the camera pitched by up to
+    +- ``pitch_deg`` and rolled by up to +- ``roll_deg``, so that where things stand in the frame (and,
+    with depth, how far the floor is at each row) stops telling the camera's pose the training data had."""
+    return AugmentCfg(view_pitch_deg=pitch_deg, view_roll_deg=roll_deg)
 
 
 def _uniform(lo: float, hi: float, shape: tuple[int, ...], g: torch.Generator, device) -> torch.Tensor:
@@ -150,6 +170,60 @@ def geometric(images: torch.Tensor, instances: torch.Tensor, boxes: torch.Tensor
     bw, bh = moved[..., 2] - moved[..., 0], moved[..., 3] - moved[..., 1]
     keep = (bw >= 2) & (bh >= 2) & (bw * bh >= 0.25 * area)
     return images, instances, moved, torch.where(keep, classes, -1)
+
+
+def view_rotation(pitch_rad: torch.Tensor, roll_rad: torch.Tensor) -> torch.Tensor:
+    """(B, 3, 3) the rotations of a camera (x right, y down, z forward: the optical frame) pitched down by
+    ``pitch_rad`` (B,) (a positive pitch moves the scene up the frame), then rolled by ``roll_rad`` (B,)
+    about z; they map a point's coordinates in the old camera's frame to the new one's."""
+    cp, sp, cr, sr = torch.cos(pitch_rad), torch.sin(pitch_rad), torch.cos(roll_rad), torch.sin(roll_rad)
+    one, zero = torch.ones_like(cp), torch.zeros_like(cp)
+    # the new camera's z axis is the old (0, sin, cos) (turned down): old-frame point p -> new-frame Rx p
+    pitch = torch.stack([one, zero, zero, zero, cp, -sp, zero, sp, cp], dim=-1).reshape(-1, 3, 3)
+    roll = torch.stack([cr, -sr, zero, sr, cr, zero, zero, zero, one], dim=-1).reshape(-1, 3, 3)
+    return roll @ pitch
+
+
+def rotate_view(images: torch.Tensor, instances: torch.Tensor, boxes: torch.Tensor, classes: torch.Tensor,
+                rotation: torch.Tensor, focal_px: float
+                ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+    """The frames a pinhole camera (focal ``focal_px``, principal point the image centre) turned by
+    ``rotation`` (B, 3, 3), old camera frame -> new, about its optical centre would see: images (B, 3 or 4,
+    h, w) (colour bilinear; depth nearest, each pixel's z scaled to the new camera's: z' = z (R K^-1 q)_z),
+    instance maps (B, h, w) nearest, boxes (B, M, 4) px the axis-aligned box of their warped corners, cut to the
+    frame (a box left under a quarter of its warped area, or under 2 px a side, loses its class)."""
+    b, _, h, w = images.shape
+    dev, dtype = images.device, images.dtype
+    k = torch.tensor([[focal_px, 0.0, w / 2], [0.0, focal_px, h / 2], [0.0, 0.0, 1.0]], device=dev, dtype=dtype)
+    forward = k @ rotation.to(dtype) @ torch.linalg.inv(k)  # (B, 3, 3): old pixel -> new pixel (homogeneous)
+    inverse = torch.linalg.inv(forward)
+    ys, xs = torch.meshgrid(torch.arange(h, device=dev, dtype=dtype) + 0.5,
+                            torch.arange(w, device=dev, dtype=dtype) + 0.5, indexing="ij")
+    pixels = torch.stack([xs, ys, torch.ones_like(xs)], dim=-1).reshape(1, -1, 3)  # (1, h w, 3) new pixel centres
+    source = pixels @ inverse.transpose(1, 2)  # (B, h w, 3) homogeneous old pixels
+    source_xy = source[..., :2] / source[..., 2:]
+    grid = torch.stack([2 * source_xy[..., 0] / w - 1, 2 * source_xy[..., 1] / h - 1], dim=-1).reshape(b, h, w, 2)
+    warped = F.grid_sample(images[:, :3], grid, mode="bilinear", padding_mode="zeros", align_corners=False)
+    if images.shape[1] > 3:
+        depth = F.grid_sample(images[:, 3:], grid, mode="nearest", padding_mode="zeros", align_corners=False)
+        # a point z K^-1 q of the old camera has the new z (R z K^-1 q)_z = z (R K^-1 q)_z; rays through the
+        # image stay in front of a camera turned by less than half the field of view
+        ray = torch.cat([source_xy, torch.ones_like(source_xy[..., :1])], dim=-1) @ torch.linalg.inv(k).T
+        factor = (ray @ rotation.to(dtype)[:, 2:].transpose(1, 2)).reshape(b, 1, h, w)
+        warped = torch.cat([warped, (depth * factor).clamp(0, 1)], dim=1)
+    instances = F.grid_sample(instances[:, None].float(), grid, mode="nearest", padding_mode="zeros",
+                              align_corners=False)[:, 0].round().to(torch.uint8)
+    corners = torch.stack([boxes[..., [0, 1]], boxes[..., [2, 1]], boxes[..., [0, 3]], boxes[..., [2, 3]]], dim=2)
+    corners = torch.cat([corners, torch.ones_like(corners[..., :1])], dim=-1)  # (B, M, 4, 3)
+    moved = corners @ forward[:, None].transpose(2, 3)
+    moved = moved[..., :2] / moved[..., 2:]
+    moved = torch.cat([moved.amin(dim=2), moved.amax(dim=2)], dim=-1)  # (B, M, 4) x0 y0 x1 y1
+    area = (moved[..., 2] - moved[..., 0]) * (moved[..., 3] - moved[..., 1])
+    limit = torch.tensor([w, h, w, h], dtype=moved.dtype, device=dev)
+    moved = torch.minimum(moved.clamp(min=0), limit)
+    bw, bh = moved[..., 2] - moved[..., 0], moved[..., 3] - moved[..., 1]
+    keep = (bw >= 2) & (bh >= 2) & (bw * bh >= 0.25 * area)
+    return warped, instances, moved, torch.where(keep, classes, -1)
 
 
 def erase(images: torch.Tensor, instances: torch.Tensor, classes: torch.Tensor, cfg: AugmentCfg,
@@ -273,12 +347,18 @@ def augment_batch(batch: dict[str, torch.Tensor], cfg: AugmentCfg, g: torch.Gene
     """A padded batch (``frames.pad_collate``: uint8 images and instance maps, boxes, classes, maybe depths)
     on one device -> the same with float images in [0, 1] (B, 3, h, w), or (B, 4, h, w) with the depth
     channel for a batch with depths, augmented (module docstring)."""
-    images = batch_images(batch)
-    images, instances, boxes, classes = geometric(images, batch["instances"], batch["boxes"], batch["classes"], cfg, g)
+    images, instances, boxes, classes = batch_images(batch), batch["instances"], batch["boxes"], batch["classes"]
+    if cfg.view_pitch_deg > 0 or cfg.view_roll_deg > 0:  # off: the draws of the other augmentations as before
+        b, dev = images.shape[0], images.device
+        pitch = torch.deg2rad(_uniform(-cfg.view_pitch_deg, cfg.view_pitch_deg, (b,), g, dev))
+        roll = torch.deg2rad(_uniform(-cfg.view_roll_deg, cfg.view_roll_deg, (b,), g, dev))
+        images, instances, boxes, classes = rotate_view(images, instances, boxes, classes, view_rotation(pitch, roll),
+                                                        cfg.view_focal_fraction * images.shape[2])
+    images, instances, boxes, classes = geometric(images, instances, boxes, classes, cfg, g)
     images, instances, classes = erase(images, instances, classes, cfg, g)
     images = torch.cat([photometric(images[:, :3], cfg, g), images[:, 3:]], dim=1)  # depth: unchanged
     return {"images": images, "instances": instances, "boxes": boxes, "classes": classes}
 
 
 __all__ = ["AugmentCfg", "augment_batch", "batch_images", "erase", "generic", "geometric", "geometry_only", "no_augment",
-           "photometric"]
+           "photometric", "rotate_view", "view_rotation", "viewpoint"]
