@@ -8,7 +8,15 @@
 ``gymnasium.vector.VectorEnv``.
 """
 
-from . import cartpole, g1_walk, humanoid_footsteps, humanoid_rough, humanoid_walk, jetbot_goal  # noqa: F401  (each registers its task)
+from . import (  # noqa: F401  (each registers its task)
+    cartpole,
+    g1_walk,
+    humanoid_footsteps,
+    humanoid_footsteps_stairs,
+    humanoid_rough,
+    humanoid_walk,
+    jetbot_goal,
+)
 from .base import EnvCfg, RLEnv
 from .ppo import PpoCfg
 from .registry import Criterion, TaskSpec, make, make_cfg, names, register, registry, spec

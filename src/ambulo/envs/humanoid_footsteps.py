@@ -122,6 +122,8 @@ class HumanoidFootstepsEnv(HumanoidWalkEnv):
     Attributes (all (N, ...) on the env's device, float32 unless said):
       targets_xyyaw_w: (N, 2, 3) the next two footsteps, sole centre x, y m and yaw rad, world frame.
       target_sides: (N, 2) their sides, +1 left, -1 right (the first is the swing foot's).
+      targets_z_m: (N, 2) the ground height under each target's sole centre, world z, m (0 on flat
+        ground; a given plan's ``foot_z_m``; on terrain, ``_footstep_z_m``).
       touchdown: (N,) bool, the swing foot touched down in the last step (``footstep_gait.swing_touchdown``).
       flight_landing: (N,) bool, the swing foot landed in the last step from a take-off before the
         plan's last advance (not a touchdown: not scored, the plan stays).
@@ -142,6 +144,7 @@ class HumanoidFootstepsEnv(HumanoidWalkEnv):
         f32 = dict(dtype=torch.float32, device=dev)
         self.targets_xyyaw_w = torch.zeros(n, 2, 3, **f32)
         self.target_sides = torch.ones(n, 2, **f32)
+        self.targets_z_m = torch.zeros(n, 2, **f32)
         self._segments = torch.zeros(n, 4, **f32)
         self.touchdown = torch.zeros(n, dtype=torch.bool, device=dev)
         self.flight_landing = torch.zeros(n, dtype=torch.bool, device=dev)
@@ -158,6 +161,7 @@ class HumanoidFootstepsEnv(HumanoidWalkEnv):
         self._progress_m = torch.zeros(n, **f32)
         """(N,) how much closer the swing sole came to its target in the last step, m."""
         self._plan_xyyaw_w: torch.Tensor | None = None  # given plans (``follow_plans``), (N, K, 3)
+        self._plan_z_m: torch.Tensor | None = None  # their foot heights, (N, K)
         self._plan_rows = torch.zeros(n, dtype=torch.long, device=dev)  # rows of each given plan, 0: none
         self._plan_next = torch.zeros(n, dtype=torch.long, device=dev)  # its row the next new target takes
 
@@ -176,8 +180,24 @@ class HumanoidFootstepsEnv(HumanoidWalkEnv):
         data = self.robot.data
         return torch.cat([data.root_pos_w[:, :2], data.heading_w[:, None]], dim=-1).float()
 
+    # -- footsteps on the ground: hooks a terrain variant (``humanoid_footsteps_stairs``) overrides
+    def _next_footstep(self, stance_xyyaw_w: torch.Tensor, stance_side: torch.Tensor,
+                       segments: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """The drawn footstep after stance feet (B, 3) of sides (B,): (B, 3) pose, (B,) the ground
+        height under it (m) and (B, 4) the segments after it (``FootstepSampler.next_footstep``)."""
+        pose, segments = self.sampler.next_footstep(stance_xyyaw_w, stance_side, segments)
+        return pose, self._footstep_z_m(pose[:, :2]), segments
+
+    def _footstep_z_m(self, xy_w: torch.Tensor) -> torch.Tensor:
+        """(...) ground height (m) under (..., 2) world points: 0, flat ground."""
+        return torch.zeros_like(xy_w[..., 0])
+
+    def _spawn(self, rows) -> None:
+        """Place the robots ``rows`` selects before their plans are drawn (flat ground: where
+        humanoid-walk's reset put them)."""
+
     def follow_plans(self, footsteps_xyyaw_w: torch.Tensor, foot_sides: torch.Tensor,
-                     num_steps: torch.Tensor) -> torch.Tensor:
+                     num_steps: torch.Tensor, foot_z_m: torch.Tensor | None = None) -> torch.Tensor:
         """Follow given footstep plans from now on, in place of the drawn ones; return the
         observations (N, num_obs), recomputed for the new targets.
 
@@ -185,7 +205,8 @@ class HumanoidFootstepsEnv(HumanoidWalkEnv):
         (``FootstepPlan.footsteps_xyyaw_w``, padded to K rows): rows 0 and 1 the start feet where
         the robot stands (row 0 the first to move), row i >= 2 step i - 1; ``foot_sides`` (N, K)
         their sides (``FootstepPlan.foot_sides``: +1 left, -1 right, alternating); ``num_steps``
-        (N,) int: each plan's steps (>= 2).
+        (N,) int: each plan's steps (>= 2); ``foot_z_m`` (N, K) the ground height under each
+        footstep (``FootstepPlan.foot_z_m``, m), None: the env's ground (``_footstep_z_m``).
         The targets become rows 2 and 3 and advance through the plan; past its end the sampler
         continues it. ``steps_taken`` restarts at 0, so touchdown k <= num_steps lands on step k.
         A reset ends a world's plan."""
@@ -202,6 +223,12 @@ class HumanoidFootstepsEnv(HumanoidWalkEnv):
             raise ValueError("foot_sides must alternate (+1 left, -1 right) along each plan, padding included")
         first_side = sides[:, 2]
         self._plan_xyyaw_w = plans
+        self._plan_z_m = (self._footstep_z_m(plans[..., :2]) if foot_z_m is None
+                          else torch.as_tensor(foot_z_m, device=self.device, dtype=torch.float32))
+        if self._plan_z_m.shape != plans.shape[:2]:
+            raise ValueError(f"foot_z_m has shape {tuple(self._plan_z_m.shape)}; pass {tuple(plans.shape[:2])}: "
+                             "one height per footstep")
+        self.targets_z_m.copy_(self._plan_z_m[:, 2:4])
         self._plan_rows, self._plan_next = steps + 2, torch.full_like(steps, 4)
         self.targets_xyyaw_w.copy_(plans[:, 2:4])
         self.target_sides.copy_(torch.stack([first_side, -first_side], dim=-1))
@@ -219,13 +246,17 @@ class HumanoidFootstepsEnv(HumanoidWalkEnv):
         if rows is None:
             return
         stance, stance_side = take_rows(self.targets_xyyaw_w[:, 1], rows), take_rows(self.target_sides[:, 1], rows)
-        new, segments = self.sampler.next_footstep(stance, stance_side, take_rows(self._segments, rows))
+        new, new_z, segments = self._next_footstep(stance, stance_side, take_rows(self._segments, rows))
         if self._plan_xyyaw_w is not None:
             next_row = take_rows(self._plan_next, rows)
-            planned = _pick(take_rows(self._plan_xyyaw_w, rows), next_row.clamp(max=self._plan_xyyaw_w.shape[1] - 1))
-            new = torch.where((next_row < take_rows(self._plan_rows, rows))[:, None], planned, new)
+            row = next_row.clamp(max=self._plan_xyyaw_w.shape[1] - 1)
+            in_plan = next_row < take_rows(self._plan_rows, rows)
+            new = torch.where(in_plan[:, None], _pick(take_rows(self._plan_xyyaw_w, rows), row), new)
+            new_z = torch.where(in_plan, _pick(take_rows(self._plan_z_m, rows), row), new_z)
             put_rows(self._plan_next[:, None], slice(None), next_row[:, None] + 1, rows)
         put_rows(self.targets_xyyaw_w.view(self.num_envs, 6), slice(None), torch.cat([stance, new], dim=-1), rows)
+        put_rows(self.targets_z_m, slice(None), torch.stack([take_rows(self.targets_z_m[:, 1], rows), new_z], dim=-1),
+                 rows)
         put_rows(self.target_sides, slice(None), torch.stack([stance_side, -stance_side], dim=-1), rows)
         put_rows(self._segments, slice(None), segments, rows)
         put_rows(self.steps_taken[:, None], slice(None), take_rows(self.steps_taken, rows)[:, None] + 1, rows)
@@ -325,6 +356,7 @@ class HumanoidFootstepsEnv(HumanoidWalkEnv):
 
     def _reset_idx(self, rows: torch.Tensor) -> None:
         super()._reset_idx(rows)  # the root's yaw and the joints are drawn there
+        self._spawn(rows)
         cfg, n = self.cfg, num_rows(rows, self.num_envs)
         feet = start_feet_xyyaw_w(take_rows(self._base_xyyaw_w(), rows), cfg.start_sole_x_m, cfg.start_stance_width_m)
         # (n,) side of the first foot to move, +1 left
@@ -332,9 +364,10 @@ class HumanoidFootstepsEnv(HumanoidWalkEnv):
         left_first = (first > 0)[:, None]
         swing_start, stance = torch.where(left_first, feet[:, 0], feet[:, 1]), torch.where(left_first, feet[:, 1], feet[:, 0])
         segments = self.sampler.draw_segments(n)
-        target0, segments = self.sampler.next_footstep(stance, -first, segments)
-        target1, segments = self.sampler.next_footstep(target0, first, segments)
+        target0, z0, segments = self._next_footstep(stance, -first, segments)
+        target1, z1, segments = self._next_footstep(target0, first, segments)
         put_rows(self.targets_xyyaw_w.view(self.num_envs, 6), slice(None), torch.cat([target0, target1], dim=-1), rows)
+        put_rows(self.targets_z_m, slice(None), torch.stack([z0, z1], dim=-1), rows)
         put_rows(self.target_sides, slice(None), torch.stack([first, -first], dim=-1), rows)
         put_rows(self._segments, slice(None), segments, rows)
         start = relative_xyyaw(target0, swing_start)

@@ -1,0 +1,191 @@
+"""humanoid-footsteps-stairs: humanoid-footsteps over 0.10 m stairs, targets with heights, a height scan.
+
+humanoid-footsteps (its plans, touchdown rule, rewards and ``places_feet``) on humanoid-rough's
+terrain (``scenes.terrain``): a grid of tiles, one column each of flat ground, stairs up (a pit
+the robot climbs out of) and stairs down (a summit), levels of risers from 0.05 m to the issue's
+0.10 m (treads 0.30 m). Robots start on their tile's flat centre platform, at random, and keep
+their tile (no curriculum: a footstep plan asks for no distance, so legged_gym's "walked far"
+rule has nothing to read); play and evaluation put every robot on the 0.10 m level.
+
+Plans are drawn as on flat ground, then each footstep moves along its step to lie flat on a tread
+(``footstep_terrain.TreadSnap``); a target's height is the ground under its sole centre
+(``targets_z_m``; a planner plan's ``foot_z_m`` through ``follow_plans``). The actor's command
+grows to 12 values: per target x, y (m, heading frame), z (m, the target's height over the
+ground under the base), cos and sin of its yaw relative to the heading, side. After it, as on
+humanoid-rough, a 17 x 11 height scan around the base (``HeightScanCfg``, +-5 cm noise in
+training). The critic also sees each foot's height over the ground under it. Foot contacts are
+against the terrain geom; falls count against the ground under the base, so a robot on a tread
+0.5 m up is not fallen. A new task rather than an option of humanoid-footsteps: the shipped flat
+policy keeps its 79 observations.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import torch
+
+from ambulo.core.rows import take_rows
+from ambulo.scenes.terrain import (
+    HeightScan,
+    HeightScanCfg,
+    TerrainCfg,
+    TerrainCurriculum,
+    TerrainCurriculumCfg,
+    TerrainHeights,
+    add_terrain,
+    generate,
+)
+from ambulo.sensors import ContactSensor, ContactSensorCfg
+
+from .footstep_sampler import relative_xyyaw
+from .footstep_terrain import TreadSnap, TreadSnapCfg
+from .humanoid_footsteps import (
+    PLACES_FEET,
+    HumanoidFootstepsCfg,
+    HumanoidFootstepsEnv,
+    humanoid_footsteps_cfg,
+    humanoid_footsteps_metrics,
+)
+from .humanoid_walk import as_play, humanoid_walk_ppo
+from .registry import TaskSpec, register
+
+STAIR_RISER_M = 0.10
+"""The issue's step height (issue 30 item 4: footsteps "over 0.10 m steps"), m."""
+
+
+def stairs_terrain_cfg() -> TerrainCfg:
+    """Flat, stairs-up and stairs-down columns; 4 levels of risers 0.05 .. 0.10 m; 8 m tiles
+    (10 treads of 0.30 m from the 2 m platform to the edge); 10 m of flat border (a plan walks
+    at most ~0.5 m/s, 10 m in an episode, and a tile holds most of it)."""
+    return TerrainCfg(kinds=("flat", "stairs_up", "stairs_down"), num_levels=4,
+                      stair_riser_range_m=(0.05, STAIR_RISER_M), border_m=10.0)
+
+
+@dataclass(kw_only=True)
+class HumanoidFootstepsStairsCfg(HumanoidFootstepsCfg):
+    """humanoid-footsteps settings and the terrain's."""
+
+    terrain: TerrainCfg = field(default_factory=stairs_terrain_cfg)
+    levels: TerrainCurriculumCfg = field(default_factory=lambda: TerrainCurriculumCfg(enabled=False,
+                                                                                       max_init_level=3))
+    """Which level (riser) each robot gets: uniform over the levels, kept (``enabled`` False)."""
+    height_scan: HeightScanCfg = field(default_factory=lambda: HeightScanCfg(height_offset_m=0.9))
+    treads: TreadSnapCfg = field(default_factory=TreadSnapCfg)
+    spawn_radius_m: float = 0.3
+    """Robots start uniformly within +-this of their tile's centre along x and y, m."""
+    terrain_friction: float = 1.0
+    """Sliding friction of the terrain geom before randomization."""
+
+
+def humanoid_footsteps_stairs_cfg() -> HumanoidFootstepsStairsCfg:
+    """humanoid-footsteps' settings on the stairs terrain, scan noise +-5 cm (humanoid-rough's)."""
+    flat = humanoid_footsteps_cfg()
+    cfg = HumanoidFootstepsStairsCfg(**{name: getattr(flat, name) for name in flat.__dataclass_fields__})
+    cfg.ground = None  # the terrain is the ground
+    cfg.observation_noise = dict(cfg.observation_noise, height_scan=0.05)
+    return cfg
+
+
+def humanoid_footsteps_stairs_play_cfg() -> HumanoidFootstepsStairsCfg:
+    """Play and evaluation: no pushes, noise or randomization, every robot on the 0.10 m level."""
+    cfg = as_play(humanoid_footsteps_stairs_cfg())
+    cfg.levels = TerrainCurriculumCfg(enabled=False, init_level=-1)
+    return cfg
+
+
+class HumanoidFootstepsStairsEnv(HumanoidFootstepsEnv):
+    """Footstep following over stairs; see the module docstring."""
+
+    cfg: HumanoidFootstepsStairsCfg
+
+    def _design_scene(self, spec) -> None:
+        cfg = self.cfg
+        if cfg.ground is not None:
+            raise ValueError("humanoid-footsteps-stairs' ground is its terrain; set ground=None")
+        self.terrain = generate(cfg.terrain)
+        geom = add_terrain(spec, self.terrain, friction=cfg.terrain_friction)
+        feet = tuple(f"{cfg.robot.prim_path}/{foot}" for foot in cfg.feet_bodies)
+        self.feet = self.sim.add(ContactSensor(ContactSensorCfg(
+            name="feet_contact", prim_paths=feet, include_subtree=True, against=geom.name)))
+
+    def _setup(self) -> None:
+        n, dev, cfg = self.num_envs, self.device, self.cfg
+        # the plan hooks read these from the first reset on, which super()._setup() may run
+        self.heights = TerrainHeights(self.terrain, dev)
+        self.tiles = TerrainCurriculum(cfg.levels, self.terrain, n, self.generator, dev)
+        self.scanner = HeightScan(cfg.height_scan, self.heights)
+        super()._setup()  # draws the first plans? no: the resets come after every setup
+        self.treads = TreadSnap(cfg.treads, self.heights.height_at, self.sampler, dev)
+        self._default_root_z = self.robot.data.root_pos_w[:, 2].float().clone()  # the initial state's
+
+    # -- terrain ------------------------------------------------------------------------------
+    def ground_height_m(self, xy_w: torch.Tensor) -> torch.Tensor:
+        """Terrain heights (m) under (..., 2) world points."""
+        return self.heights.height_at(xy_w)
+
+    def _footstep_z_m(self, xy_w: torch.Tensor) -> torch.Tensor:
+        return self.heights.height_at(xy_w)
+
+    def _next_footstep(self, stance_xyyaw_w, stance_side, segments):
+        pose, segments = self.sampler.next_footstep(stance_xyyaw_w, stance_side, segments)
+        pose, z = self.treads.snap(stance_xyyaw_w, pose)
+        return pose, z, segments
+
+    def _spawn(self, rows) -> None:
+        n, dt = self._num_rows(rows), self.engine.dtype
+        r = self.cfg.spawn_radius_m
+        xy = take_rows(self.tiles.origins_w[:, :2], rows) + self._uniform((n, 2), -r, r)
+        z = self.heights.height_at(xy) + take_rows(self._default_root_z, rows)
+        self.robot.write_root_pose(pos_w=torch.cat([xy, z[:, None]], dim=-1).to(dt), env_ids=rows)
+
+    def base_height_over_ground_m(self) -> torch.Tensor:
+        """(N,) base height over the terrain under it, m."""
+        root = self.robot.data.root_pos_w
+        return root[:, 2].float() - self.heights.height_at(root[:, :2])
+
+    # -- RLEnv hooks ----------------------------------------------------------------------------
+    def footstep_command(self) -> torch.Tensor:
+        """(N, 12) the actor's command: per target x, y (m, heading frame), z (m: its height over
+        the ground under the base), cos, sin of the yaw relative to the heading, side (+1 left)."""
+        rel = relative_xyyaw(self._base_xyyaw_w()[:, None].expand(-1, 2, -1), self.targets_xyyaw_w)
+        ground = self.heights.height_at(self.robot.data.root_pos_w[:, :2])
+        z = self.targets_z_m - ground[:, None]
+        cmd = torch.cat([rel[..., :2], z[..., None], torch.cos(rel[..., 2:]), torch.sin(rel[..., 2:]),
+                         self.target_sides[..., None]], dim=-1)
+        return cmd.reshape(self.num_envs, 12)
+
+    def _height_scan(self) -> torch.Tensor:
+        data = self.robot.data
+        return self.scanner.scan(data.root_pos_w, data.heading_w)
+
+    def _policy_terms(self) -> dict[str, torch.Tensor]:
+        return {**super()._policy_terms(), "height_scan": self._height_scan()}
+
+    def _privileged_terms(self) -> dict[str, torch.Tensor]:
+        terms = super()._privileged_terms()
+        feet_w = self.robot.data.body_pos_w[:, self.feet_body_ids]
+        terms["feet_height_over_ground"] = feet_w[..., 2].float() - self.heights.height_at(feet_w[..., :2])
+        return terms
+
+    def _get_terminations(self) -> dict[str, torch.Tensor]:
+        terms = super()._get_terminations()  # humanoid-walk's (z over 0) and the lost plan
+        fell_height = self.base_height_over_ground_m() < self.cfg.min_base_height_m
+        self._fell = fell_height | terms["tilt"] | terms["lost_plan"]
+        return {**terms, "base_height": fell_height}
+
+
+register(TaskSpec(
+    name="humanoid-footsteps-stairs",
+    env_cls=HumanoidFootstepsStairsEnv,
+    cfg_fn=humanoid_footsteps_stairs_cfg,
+    play_cfg_fn=humanoid_footsteps_stairs_play_cfg,
+    ppo_cfg_fn=humanoid_walk_ppo,
+    description="humanoid-footsteps over stairs of 0.05-0.10 m risers (and flat tiles): targets with heights, "
+                "drawn on the treads, and a height scan",
+    step_metrics=humanoid_footsteps_metrics,
+    criteria=(PLACES_FEET,),
+))
+
+__all__ = ["STAIR_RISER_M", "HumanoidFootstepsStairsCfg", "HumanoidFootstepsStairsEnv", "humanoid_footsteps_stairs_cfg",
+           "humanoid_footsteps_stairs_play_cfg", "stairs_terrain_cfg"]
