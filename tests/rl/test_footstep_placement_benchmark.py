@@ -19,12 +19,13 @@ def fake_env(n):
 
 
 class FakePlans:
-    """Plans of 1 and 2 steps; the observations after ``follow_plans``."""
+    """Plans of 1 and 2 steps (no poses or heights: the fake env ignores them); the observations after
+    ``follow_plans``."""
 
     vec_env = SimpleNamespace(get_observations=lambda: "planned obs")
 
     def __call__(self, env):
-        return None, None, torch.tensor([1, 2])
+        return None, None, torch.tensor([1, 2]), None  # poses, sides, steps, heights
 
 
 def step(env, touchdown, error_m, reset=(), flight=None):

@@ -111,11 +111,10 @@ class HumanoidFootstepsStairsEnv(HumanoidFootstepsEnv):
 
     def _setup(self) -> None:
         n, dev, cfg = self.num_envs, self.device, self.cfg
-        # the plan hooks read these from the first reset on, which super()._setup() may run
+        super()._setup()  # the sampler; the first reset (spawn, plans) comes after every setup
         self.heights = TerrainHeights(self.terrain, dev)
         self.tiles = TerrainCurriculum(cfg.levels, self.terrain, n, self.generator, dev)
         self.scanner = HeightScan(cfg.height_scan, self.heights)
-        super()._setup()  # draws the first plans? no: the resets come after every setup
         self.treads = TreadSnap(cfg.treads, self.heights.height_at, self.sampler, dev)
         self._default_root_z = self.robot.data.root_pos_w[:, 2].float().clone()  # the initial state's
 
