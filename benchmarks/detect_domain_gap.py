@@ -148,6 +148,7 @@ def draw_detections(checkpoint: Path, frames: list[Path], out: Path, score_thres
     from PIL import Image, ImageDraw
 
     from ambulo.detection import Detector
+    from ambulo.detection.dataset import read_height_m
 
     detector = Detector(checkpoint, score_threshold)
     tiles = []
@@ -155,7 +156,10 @@ def draw_detections(checkpoint: Path, frames: list[Path], out: Path, score_thres
         rgb = iio.imread(path)[..., :3]
         # an rgbd detector: the frame's depth PNG (mm, replicator.writers' layout)
         depth_m = iio.imread(path.parent.parent / "depth" / path.name) / 1000.0 if detector.needs_depth else None
-        found = detector(rgb, depth_m)
+        # an rgbdh detector: each pixel's height above the floor, from that depth and the frame record's camera
+        height_m = read_height_m(path.parent.parent, {"file_name": path.name}, depth_m * 1000.0) \
+            if detector.needs_height else None
+        found = detector(rgb, depth_m, height_m)
         shown = rgb.astype(np.float32)
         classes = [detector.categories.index(label) for label in found.labels]
         for k in np.argsort(found.scores) if found.masks is not None else []:
@@ -227,8 +231,9 @@ def main() -> None:
                         help="training augmentations: full (ambulo.detection.augment's defaults), generic (those "
                              "plus clutter-like occluders and uneven light: augment.generic), viewpoint (the "
                              "defaults plus the camera pitched and rolled: augment.viewpoint) or geometry only")
-    parser.add_argument("--inputs", choices=("rgb", "rgbd"), default="rgb",
-                        help="the model's input: colour, or colour and depth (TrainCfg.inputs)")
+    parser.add_argument("--inputs", choices=("rgb", "rgbd", "rgbdh"), default="rgb",
+                        help="the model's input: colour, or colour and depth, or those and the height above the "
+                             "floor (TrainCfg.inputs)")
     parser.add_argument("--seed", type=int, default=0, help="training seed (initialisation, shuffling, augmentation)")
     parser.add_argument("--max-minutes", type=float, default=0.0, help="training budget (TrainCfg.max_minutes)")
     parser.add_argument("--score-processes", type=int, default=1,

@@ -142,9 +142,11 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
                         "generic: those plus clutter-like occluders and uneven light (augment.generic); "
                         "geometry: flips and scale jitter only; none; viewpoint: full plus the camera pitched and "
                         "rolled (augment.viewpoint)")
-    p.add_argument("--inputs", choices=("rgb", "rgbd"), default="rgb",
+    p.add_argument("--inputs", choices=("rgb", "rgbd", "rgbdh"), default="rgb",
                    help="rgb: colour frames (default); rgbd: colour and the dataset's depth PNGs as a 4th channel "
-                        "(the model can measure metric size; its Detector then needs depth with every frame)")
+                        "(the model can measure metric size; its Detector then needs depth with every frame); "
+                        "rgbdh: those and each pixel's height above the floor, from the depth and the frame "
+                        "records' camera poses (the same from any camera height; the Detector needs it too)")
     p.add_argument("--workers", type=int, default=2, help="image-decoding processes (default 2)")
     p.add_argument("--seed", type=int, default=0, help="initialisation and shuffling seed (default 0)")
     p.add_argument("--mask-prototypes", type=int, default=8,

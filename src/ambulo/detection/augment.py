@@ -30,7 +30,10 @@ of an object's and the floor's depth at its edge would be a depth nothing has), 
 it by s (a pinhole camera sees a thing s times larger when it is s times nearer: with the depth left
 as it was, a zoomed object would measure s times its size, and metric size is what depth is for);
 an occluder gets a flat depth of its own (0.4-4 m, nearer than most of the floor); the photometric
-changes leave it.
+changes leave it. A height-above-floor channel (the 5th, ``model.height_channel``, ``inputs="rgbdh"``) is a
+property of the world, not of the view: the warps move it with the pixels (nearest) and change nothing else
+(no zoom or turn of the camera changes how high a thing is); an occluder gets a flat height of its own
+(0-1.5 m).
 """
 
 from __future__ import annotations
@@ -44,7 +47,7 @@ import torch.nn.functional as F
 
 from ambulo.utils.validate import Checked
 
-from .model import depth_channel
+from .model import depth_channel, height_channel
 
 RGB_TO_YIQ = torch.tensor([[0.299, 0.587, 0.114], [0.596, -0.274, -0.322], [0.211, -0.523, 0.312]])
 YIQ_TO_RGB = torch.linalg.inv(RGB_TO_YIQ)
@@ -154,9 +157,9 @@ def geometric(images: torch.Tensor, instances: torch.Tensor, boxes: torch.Tensor
     theta[:, 1, 2] = 1 / s - 2 * ty / (h * s) - 1
     grid = F.affine_grid(theta, [b, 1, h, w], align_corners=False)
     colour = F.grid_sample(images[:, :3], grid, mode="bilinear", padding_mode="zeros", align_corners=False)
-    if images.shape[1] > 3:  # depth: nearest, and nearer by the zoom (module docstring)
-        depth = F.grid_sample(images[:, 3:], grid, mode="nearest", padding_mode="zeros", align_corners=False)
-        colour = torch.cat([colour, (depth / s[:, None, None, None]).clamp(0, 1)], dim=1)
+    if images.shape[1] > 3:  # depth: nearest, and nearer by the zoom; height: nearest (module docstring)
+        extra = F.grid_sample(images[:, 3:], grid, mode="nearest", padding_mode="zeros", align_corners=False)
+        colour = torch.cat([colour, (extra[:, :1] / s[:, None, None, None]).clamp(0, 1), extra[:, 1:]], dim=1)
     images = colour
     instances = F.grid_sample(instances[:, None].float(), grid, mode="nearest", padding_mode="zeros",
                               align_corners=False)[:, 0].round().to(torch.uint8)
@@ -205,12 +208,12 @@ def rotate_view(images: torch.Tensor, instances: torch.Tensor, boxes: torch.Tens
     grid = torch.stack([2 * source_xy[..., 0] / w - 1, 2 * source_xy[..., 1] / h - 1], dim=-1).reshape(b, h, w, 2)
     warped = F.grid_sample(images[:, :3], grid, mode="bilinear", padding_mode="zeros", align_corners=False)
     if images.shape[1] > 3:
-        depth = F.grid_sample(images[:, 3:], grid, mode="nearest", padding_mode="zeros", align_corners=False)
-        # a point z K^-1 q of the old camera has the new z (R z K^-1 q)_z = z (R K^-1 q)_z; rays through the
+        extra = F.grid_sample(images[:, 3:], grid, mode="nearest", padding_mode="zeros", align_corners=False)
+        # a height (a 5th channel) is the world's, unchanged; a point z K^-1 q of the old camera has the new z (R z K^-1 q)_z = z (R K^-1 q)_z; rays through the
         # image stay in front of a camera turned by less than half the field of view
         ray = torch.cat([source_xy, torch.ones_like(source_xy[..., :1])], dim=-1) @ torch.linalg.inv(k).T
         factor = (ray @ rotation.to(dtype)[:, 2:].transpose(1, 2)).reshape(b, 1, h, w)
-        warped = torch.cat([warped, (depth * factor).clamp(0, 1)], dim=1)
+        warped = torch.cat([warped, (extra[:, :1] * factor).clamp(0, 1), extra[:, 1:]], dim=1)
     instances = F.grid_sample(instances[:, None].float(), grid, mode="nearest", padding_mode="zeros",
                               align_corners=False)[:, 0].round().to(torch.uint8)
     corners = torch.stack([boxes[..., [0, 1]], boxes[..., [2, 1]], boxes[..., [0, 3]], boxes[..., [2, 3]]], dim=2)
@@ -263,6 +266,9 @@ def erase(images: torch.Tensor, instances: torch.Tensor, classes: torch.Tensor, 
         depth = depth_channel(_uniform(0.4, 4.0, (b, r), g, dev))
         depth = depth.gather(1, index.flatten(1)).reshape(b, 1, h, w)
         paint = torch.cat([paint.clamp(0, 1), depth], dim=1)
+    if images.shape[1] > 4:  # a height channel: each shape's own flat height
+        height = height_channel(_uniform(0.0, 1.5, (b, r), g, dev))
+        paint = torch.cat([paint, height.gather(1, index.flatten(1)).reshape(b, 1, h, w)], dim=1)
     images = torch.where(covered[:, None], paint.clamp(0, 1), images)
     m = classes.shape[1]
     before = _pixels_per_instance(instances, m)
@@ -336,10 +342,13 @@ def _blur(x: torch.Tensor, cfg: AugmentCfg, g: torch.Generator) -> torch.Tensor:
 
 def batch_images(batch: dict[str, torch.Tensor]) -> torch.Tensor:
     """The model's input (B, 3, h, w) float in [0, 1] of a padded batch's uint8 images, with its
-    ``depths`` (B, h, w) int16 mm (``frames``) as a 4th channel (``model.depth_channel``) when it has them."""
+    ``depths`` (B, h, w) int16 mm (``frames``) as a 4th channel (``model.depth_channel``) when it has them,
+    and its ``heights`` (B, h, w) int16 mm as a 5th (``model.height_channel``)."""
     images = batch["images"].float() / 255
     if "depths" in batch:
         images = torch.cat([images, depth_channel(batch["depths"].float()[:, None] / 1000.0)], dim=1)
+    if "heights" in batch:
+        images = torch.cat([images, height_channel(batch["heights"].float()[:, None] / 1000.0)], dim=1)
     return images
 
 

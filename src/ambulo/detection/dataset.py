@@ -7,7 +7,9 @@ differ by randomization seed stream, so held-out frames are unseen poses, textur
 the training distribution (the issue's split (a)).
 
 A sample is ``(image, target)``: image float32 (3, H, W) in [0, 1] (with ``depth``: (4, H, W), the 4th
-channel the frame's ``depth/`` PNG as ``model.depth_channel`` encodes it) on a canvas of the fixed
+channel the frame's ``depth/`` PNG as ``model.depth_channel`` encodes it; with ``height`` too: (5, H, W),
+the 5th each pixel's height above the floor from that depth and the frame record's camera
+(``height.height_above_floor_m``, ``model.height_channel``)) on a canvas of the fixed
 ``canvas_hw`` (the dataset's size rounded up to the model's stride; padding is black, bottom and
 right), target ``{"boxes": (N, 4) float32 x0 y0 x1 y1 px, "labels": (N,) int64 COCO category ids,
 "image_id": int}`` and, with ``masks``, ``"masks": (N, H, W) bool`` on the canvas (decoded from
@@ -28,7 +30,8 @@ import numpy as np
 import torch
 from pycocotools import mask as mask_utils
 
-from .model import depth_channel
+from .height import camera_of_record, height_above_floor_m
+from .model import depth_channel, height_channel
 
 
 class DatasetError(Exception):
@@ -110,6 +113,18 @@ def boxes_xyxy(annotations: list[dict]) -> torch.Tensor:
                         dtype=torch.float32).reshape(-1, 4)
 
 
+def read_height_m(root: Path, image_info: dict, depth_mm: np.ndarray) -> np.ndarray:
+    """The frame's height above the floor (H, W) float32 m (``height``) from its depth (H, W) mm and the camera
+    its record (``frames/NNNNNN.json``, ``replicator.writers``) holds; a missing record is a ``DatasetError``."""
+    frame = image_info.get("frame", int(Path(image_info["file_name"]).stem))
+    path = Path(root) / "frames" / f"{frame:06d}.json"
+    if not path.is_file():
+        raise DatasetError(f"{path}: no frame record (the camera's pose) for the height channel",
+                           "train inputs 'rgbdh' on an `ambulo generate` dataset with its frames/ records")
+    intrinsics, extrinsics_cw = camera_of_record(json.loads(path.read_text()))
+    return height_above_floor_m(depth_mm.astype(np.float32) / 1000.0, intrinsics, extrinsics_cw)
+
+
 class CocoFrames(torch.utils.data.Dataset):
     """The frames ``image_ids`` of dataset ``root`` as (image, target) samples (module docstring): a
     torch ``Dataset`` (batch it with ``collate``) for the held-out evaluations (``train``,
@@ -119,8 +134,8 @@ class CocoFrames(torch.utils.data.Dataset):
     one instance map a frame of ``frames`` holds instead."""
 
     def __init__(self, root: str | Path, coco: dict, image_ids: list[int], canvas_hw: tuple[int, int],
-                 masks: bool = False, depth: bool = False):
-        self.root, self.canvas_hw, self.masks, self.depth = Path(root), canvas_hw, masks, depth
+                 masks: bool = False, depth: bool = False, height: bool = False):
+        self.root, self.canvas_hw, self.masks, self.depth, self.height = Path(root), canvas_hw, masks, depth, height
         self.images, self.annotations = frames_and_annotations(coco, image_ids)
 
     def __len__(self) -> int:
@@ -133,9 +148,11 @@ class CocoFrames(torch.utils.data.Dataset):
         boxes = boxes_xyxy(anns)
         labels = torch.tensor([a["category_id"] for a in anns], dtype=torch.int64)
         masks = instance_masks(anns, rgb.shape[1], rgb.shape[2]) if self.masks else None
-        if self.depth:
-            depth_m = torch.from_numpy(read_depth_mm(self.root, image_info).astype(np.float32)) / 1000.0
-            rgb = torch.cat([rgb, depth_channel(depth_m)[None]])
+        if self.depth or self.height:
+            mm = read_depth_mm(self.root, image_info)
+            rgb = torch.cat([rgb, depth_channel(torch.from_numpy(mm.astype(np.float32)) / 1000.0)[None]])
+        if self.height:
+            rgb = torch.cat([rgb, height_channel(torch.from_numpy(read_height_m(self.root, image_info, mm)))[None]])
         canvas = torch.zeros(len(rgb), *self.canvas_hw)
         h, w = min(rgb.shape[1], self.canvas_hw[0]), min(rgb.shape[2], self.canvas_hw[1])
         canvas[:, :h, :w] = rgb[:, :h, :w]

@@ -3,6 +3,8 @@
     detector = Detector("runs/det/model.onnx")          # or "runs/det/checkpoint.pt"
     result = detector(rgb)                              # rgb: (H, W, 3) uint8, H, W <= the canvas
     result = detector(rgb, depth_m)                     # an rgbd model (``inputs``): depth (H, W) m too
+    result = detector(rgb, depth_m, height_m)           # an rgbdh model: and the height above the floor (H, W) m
+                                                        # (``height.height_above_floor_m(depth_m, K, T_cw)``)
     result.boxes_px, result.labels, result.scores, result.masks   # masks: (N, H, W) bool, or None
 
 A frame smaller than the training canvas is padded black at the bottom and right (as in training),
@@ -69,12 +71,20 @@ class Detector:
 
     @property
     def needs_depth(self) -> bool:
-        """Whether frames must come with their depth (a model trained with ``inputs="rgbd"``)."""
-        return self.inputs == "rgbd"
+        """Whether frames must come with their depth (a model trained with ``inputs="rgbd"`` or ``"rgbdh"``)."""
+        return self.inputs in ("rgbd", "rgbdh")
 
-    def __call__(self, rgb: np.ndarray, depth_m: np.ndarray | None = None) -> Detections:
+    @property
+    def needs_height(self) -> bool:
+        """Whether frames must come with their height above the floor too (``inputs="rgbdh"``)."""
+        return self.inputs == "rgbdh"
+
+    def __call__(self, rgb: np.ndarray, depth_m: np.ndarray | None = None,
+                 height_m: np.ndarray | None = None) -> Detections:
         """Detections in ``rgb`` (H, W, 3) uint8; ``depth_m`` (H, W) float depth to the image plane (m;
-        0 or NaN: no return), the same camera's, required by an rgbd model and ignored by an rgb one."""
+        0 or NaN: no return), the same camera's, required by an rgbd model and ignored by an rgb one;
+        ``height_m`` (H, W) each pixel's height above the floor (m; ``height.height_above_floor_m`` of that
+        depth and the camera's pose), required by an rgbdh model and ignored by the others."""
         if rgb.ndim != 3 or rgb.shape[2] < 3 or rgb.dtype != np.uint8:
             raise ValueError(f"a frame must be (H, W, 3) uint8, got {rgb.shape} {rgb.dtype}")
         h, w = rgb.shape[:2]
@@ -82,7 +92,7 @@ class Detector:
         if h > ch or w > cw:
             raise ValueError(f"a {w}x{h} frame is larger than the detector's {cw}x{ch} canvas; resize it or "
                              "train on frames of that size")
-        canvas = np.zeros((1, 4 if self.needs_depth else 3, ch, cw), np.float32)
+        canvas = np.zeros((1, 3 + self.needs_depth + self.needs_height, ch, cw), np.float32)
         canvas[0, :3, :h, :w] = rgb[..., :3].transpose(2, 0, 1) / np.float32(255)
         if self.needs_depth:
             if depth_m is None or np.shape(depth_m)[:2] != (h, w):
@@ -94,6 +104,18 @@ class Detector:
 
             depth = np.asarray(depth_m, np.float32).reshape(h, w)
             canvas[0, 3, :h, :w] = depth_channel(torch.from_numpy(depth)).numpy()
+        if self.needs_height:
+            if height_m is None or np.shape(height_m)[:2] != (h, w):
+                raise ValueError(f"{self.path} is an RGB-D-height detector: give each frame's height above the floor "
+                                 f"(H, W) in m as well (ambulo.detection.height.height_above_floor_m of its depth and "
+                                 f"the camera's pose), the frame's size {w}x{h} "
+                                 f"(got {None if height_m is None else np.shape(height_m)})")
+            import torch
+
+            from .model import height_channel
+
+            height = np.asarray(height_m, np.float32).reshape(h, w)
+            canvas[0, 4, :h, :w] = height_channel(torch.from_numpy(height)).numpy()
         boxes, scores, classes, *masks = (a[0] for a in self._run(canvas))
         keep = scores >= self.score_threshold
         boxes = boxes[keep].astype(np.float32)

@@ -1,8 +1,8 @@
 """ONNX export of a trained detector (model + NMS-free decoding in one graph), checked with ONNX Runtime.
 
 The graph takes ``images`` (1, 3, H, W) float32 in [0, 1] at the checkpoint's canvas size ((1, 4, H, W)
-for an ``inputs="rgbd"`` model, the 4th channel ``model.depth_channel``'s; the sidecar's ``inputs`` says
-which) and returns
+for an ``inputs="rgbd"`` model, the 4th channel ``model.depth_channel``'s; (1, 5, H, W) for ``"rgbdh"``, the
+5th ``model.height_channel``'s; the sidecar's ``inputs`` says which) and returns
 ``boxes`` (1, K, 4) x0 y0 x1 y1 px, ``scores`` (1, K) and ``classes`` (1, K) int64 (0-based; the
 category names are in ``<file>.json`` beside it); a model with masks also returns ``masks`` (1, K,
 H/4, W/4) float32, each detection's mask probabilities at stride 4 (``model.paste_masks`` makes

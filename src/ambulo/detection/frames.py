@@ -4,9 +4,10 @@ A record is one frame of an ``ambulo generate`` dataset: ``image`` (3, h, w) uin
 (h, w) uint8 (0: no object, k + 1: the frame's k-th annotation), ``boxes`` (M, 4) float32 x0 y0 x1 y1
 px and ``classes`` (M,) int64, 0-based; with ``depth``, also ``depth`` (h, w) int16 mm (the
 dataset's uint16 mm clipped to 32.767 m, far beyond ``model.DEPTH_MAX_M``: int16 has torch kernels,
-uint16 few). A batch (``pad_collate``) pads every frame to the most boxes
-of the batch: boxes (B, M, 4), classes (B, M) with -1 for no box, and ``depths`` (B, h, w) int16 mm
-when the records have depth. The augmentations
+uint16 few); with ``height``, also ``height`` (h, w) int16 mm above the floor (``dataset.read_height_m``).
+A batch (``pad_collate``) pads every frame to the most boxes
+of the batch: boxes (B, M, 4), classes (B, M) with -1 for no box, and ``depths`` / ``heights`` (B, h, w)
+int16 mm when the records have them. The augmentations
 (``augment.augment_batch``) then run on the whole batch on the training device.
 
 Why one instance map and not a mask per object: one byte a pixel whatever the object count (10,000
@@ -25,7 +26,15 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from .dataset import DatasetError, boxes_xyxy, frames_and_annotations, instance_masks, read_depth_mm, read_rgb
+from .dataset import (
+    DatasetError,
+    boxes_xyxy,
+    frames_and_annotations,
+    instance_masks,
+    read_depth_mm,
+    read_height_m,
+    read_rgb,
+)
 
 MAX_INSTANCES = 255
 """Annotations a frame may have: the instance map is one byte a pixel."""
@@ -42,12 +51,12 @@ def pad_rows(rows: list[torch.Tensor], fill: float, width: int | None = None) ->
 
 class FrameRecords(torch.utils.data.Dataset):
     """The frames ``image_ids`` of dataset ``root`` as records (module docstring); ``class_of`` maps
-    a COCO category id to its 0-based class; ``depth``: records carry the frame's depth. Every frame
-    must have the same size."""
+    a COCO category id to its 0-based class; ``depth``: records carry the frame's depth; ``height``: its
+    height above the floor too. Every frame must have the same size."""
 
     def __init__(self, root: str | Path, coco: dict, image_ids: list[int], class_of: dict[int, int],
-                 depth: bool = False):
-        self.root, self.class_of, self.depth = Path(root), class_of, depth
+                 depth: bool = False, height: bool = False):
+        self.root, self.class_of, self.depth, self.height = Path(root), class_of, depth or height, height
         self.images, self.annotations = frames_and_annotations(coco, image_ids)
         sizes = {(im["height"], im["width"]) for im in self.images}
         if len(sizes) > 1:
@@ -77,6 +86,9 @@ class FrameRecords(torch.utils.data.Dataset):
         if self.depth:
             mm = read_depth_mm(self.root, self.images[index]).clip(max=np.iinfo(np.int16).max)
             record["depth"] = torch.from_numpy(mm.astype(np.int16))
+        if self.height:
+            height_mm = np.round(read_height_m(self.root, self.images[index], mm) * 1000.0).clip(-32768, 32767)
+            record["height"] = torch.from_numpy(height_mm.astype(np.int16))
         return record
 
 
@@ -88,6 +100,8 @@ def pad_collate(records: list[dict[str, torch.Tensor]]) -> dict[str, torch.Tenso
              "classes": pad_rows([r["classes"] for r in records], -1)}
     if "depth" in records[0]:
         batch["depths"] = torch.stack([r["depth"] for r in records])
+    if "height" in records[0]:
+        batch["heights"] = torch.stack([r["height"] for r in records])
     return batch
 
 
@@ -102,6 +116,7 @@ class ResidentFrames:
         self.boxes = torch.zeros(n, m, 4, device=device)
         self.classes = torch.full((n, m), -1, dtype=torch.int64, device=device)
         self.depths = torch.empty(n, h, w, dtype=torch.int16, device=device) if records.depth else None
+        self.heights = torch.empty(n, h, w, dtype=torch.int16, device=device) if records.height else None
         loader = torch.utils.data.DataLoader(records, batch_size=chunk, num_workers=num_workers,
                                              collate_fn=pad_collate)
         start = 0
@@ -113,6 +128,8 @@ class ResidentFrames:
             self.classes[start:end, :k] = batch["classes"].to(device)
             if self.depths is not None:
                 self.depths[start:end] = batch["depths"].to(device)
+            if self.heights is not None:
+                self.heights[start:end] = batch["heights"].to(device)
             start = end
 
     def __len__(self) -> int:
@@ -123,6 +140,8 @@ class ResidentFrames:
                  "classes": self.classes[index]}
         if self.depths is not None:
             batch["depths"] = self.depths[index]
+        if self.heights is not None:
+            batch["heights"] = self.heights[index]
         return batch
 
 

@@ -8,7 +8,8 @@ slowly on CPU. CenterNet decodes with a 3x3 max-pool and top-k, plain ops that e
 need no NMS; it trains from random weights (nothing is downloaded).
 
 Frames: input images (B, 3, H, W) float in [0, 1] (``inputs="rgbd"``: (B, 4, H, W), the 4th channel
-the depth as ``depth_channel`` encodes it), H and W multiples of ``STRIDE_OUT * 8``;
+the depth as ``depth_channel`` encodes it; ``inputs="rgbdh"``: (B, 5, H, W), the 5th the height above the
+floor as ``height_channel`` encodes it), H and W multiples of ``STRIDE_OUT * 8``;
 outputs at stride ``STRIDE_OUT`` (4 px): a heatmap per class (object centres), box size (w, h) in
 output cells and the centre's sub-cell offset. ``decode`` turns them into the ``max_detections``
 best boxes (B, K, 4) x0 y0 x1 y1 in input pixels, scores (B, K) and 0-based class indices (B, K).
@@ -46,13 +47,22 @@ two CPU cores (benchmarks/detector.py), 'medium' is for a GPU."""
 DEPTH_MAX_M = 8.0
 """The depth channel is depth / DEPTH_MAX_M clipped to [0, 1]: the example scenes' rooms end within
 ~8 m, and an input in [0, 1] is what the colour channels are."""
-INPUT_CHANNELS = {"rgb": 3, "rgbd": 4}
+HEIGHT_MAX_M = 2.0
+"""The height channel is height above the floor / HEIGHT_MAX_M clipped to [0, 1]: the objects stand under
+~0.6 m, and above 2 m is walls and racks."""
+INPUT_CHANNELS = {"rgb": 3, "rgbd": 4, "rgbdh": 5}
 
 
 def depth_channel(depth_m: torch.Tensor) -> torch.Tensor:
     """The model's depth input of depth (m) to the image plane, any shape: depth / ``DEPTH_MAX_M``
     clipped to [0, 1]; no return (0, NaN, as the datasets' 0 mm) is 0."""
     return torch.nan_to_num(depth_m, nan=0.0, posinf=0.0).clamp(0, DEPTH_MAX_M) / DEPTH_MAX_M
+
+
+def height_channel(height_m: torch.Tensor) -> torch.Tensor:
+    """The model's height input of heights above the floor (m; ``height.height_above_floor_m``), any shape:
+    height / ``HEIGHT_MAX_M`` clipped to [0, 1] (below the floor, NaN: 0)."""
+    return torch.nan_to_num(height_m, nan=0.0, posinf=0.0).clamp(0, HEIGHT_MAX_M) / HEIGHT_MAX_M
 
 
 @dataclass(kw_only=True)
@@ -65,9 +75,11 @@ class ModelCfg(Checked):
     head_channels: int = 32
     mask_prototypes: int = 8
     """Prototype masks of the instance-mask branch (0: boxes only)."""
-    inputs: Literal["rgb", "rgbd"] = "rgb"
+    inputs: Literal["rgb", "rgbd", "rgbdh"] = "rgb"
     """Colour only, or colour and depth (``depth_channel``) as a 4th input channel: with depth the
-    model can measure an object's metric size, which tells a class from clutter of its shape (issue 27)."""
+    model can measure an object's metric size, which tells a class from clutter of its shape (issue 27);
+    ``rgbdh`` adds each pixel's height above the floor (``height_channel``, from depth and the camera's
+    pose: ``height``), which does not change with the camera's height or pitch."""
 
 
 def _conv(c_in: int, c_out: int, stride: int = 1) -> nn.Sequential:
@@ -101,8 +113,9 @@ class CenterNet(nn.Module):
             self.coef = nn.Conv2d(d, cfg.mask_prototypes, 1)
         # the heatmap starts at p = 0.1 everywhere (CenterNet's focal-loss prior), not 0.5
         nn.init.constant_(self.heat.bias, -math.log((1 - 0.1) / 0.1))
-        # ImageNet's colour statistics; the depth channel's are the example scene's rough ones (0.5-8 m)
-        mean, std = [0.485, 0.456, 0.406, 0.4][:c_in0], [0.229, 0.224, 0.225, 0.2][:c_in0]
+        # ImageNet's colour statistics; the depth and height channels' are the example scene's rough ones
+        # (0.5-8 m; mostly floor at 0, objects under 0.6 m, walls above 2 m)
+        mean, std = [0.485, 0.456, 0.406, 0.4, 0.15][:c_in0], [0.229, 0.224, 0.225, 0.2, 0.3][:c_in0]
         self.register_buffer("mean", torch.tensor(mean).view(1, -1, 1, 1), persistent=False)
         self.register_buffer("std", torch.tensor(std).view(1, -1, 1, 1), persistent=False)
 

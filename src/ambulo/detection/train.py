@@ -56,8 +56,9 @@ class TrainCfg(Checked):
     model: Literal["centernet-small", "centernet-medium"] = "centernet-small"
     mask_prototypes: int = 8
     """Instance masks from the dataset's segmentation (``ModelCfg.mask_prototypes``; 0: boxes only)."""
-    inputs: Literal["rgb", "rgbd"] = "rgb"
-    """The model's input (``ModelCfg.inputs``): colour, or colour and the dataset's depth PNGs."""
+    inputs: Literal["rgb", "rgbd", "rgbdh"] = "rgb"
+    """The model's input (``ModelCfg.inputs``): colour, or colour and the dataset's depth PNGs, or those and
+    each pixel's height above the floor (from the depth and the frame records' camera poses)."""
     epochs: int = 30
     batch_size: int = 16
     learning_rate: float = 2e-3
@@ -130,8 +131,8 @@ def train(dataset_dir: str | Path, run_dir: str | Path, cfg: TrainCfg, resume: b
     train_ids, held_ids = split_image_ids(coco, cfg.held_out_fraction)
     canvas = canvas_size(coco, STRIDE_MAX)
     with_masks = cfg.mask_prototypes > 0
-    with_depth = cfg.inputs == "rgbd"
-    records = FrameRecords(dataset_dir, coco, train_ids, class_of, depth=with_depth)
+    with_depth, with_height = cfg.inputs in ("rgbd", "rgbdh"), cfg.inputs == "rgbdh"
+    records = FrameRecords(dataset_dir, coco, train_ids, class_of, depth=with_depth, height=with_height)
     resident, loader = None, None
     if cfg.data == "resident":
         resident = ResidentFrames(records, device, cfg.num_workers)
@@ -142,7 +143,7 @@ def train(dataset_dir: str | Path, run_dir: str | Path, cfg: TrainCfg, resume: b
                                              persistent_workers=cfg.num_workers > 0, pin_memory=device.type == "cuda",
                                              generator=torch.Generator().manual_seed(cfg.seed))
         batches_per_epoch = len(loader)
-    eval_set = CocoFrames(dataset_dir, coco, held_ids, canvas, depth=with_depth)
+    eval_set = CocoFrames(dataset_dir, coco, held_ids, canvas, depth=with_depth, height=with_height)
     image_sizes = {im["id"]: (im["height"], im["width"]) for im in coco["images"]}
     eval_loader = torch.utils.data.DataLoader(eval_set, batch_size=cfg.batch_size, num_workers=cfg.num_workers,
                                               collate_fn=collate)

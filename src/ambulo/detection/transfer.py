@@ -46,7 +46,8 @@ def evaluate_checkpoint(checkpoint: str | Path, dataset_dir: str | Path, held_ou
     coco = {**coco, "categories": [c for c in coco["categories"] if c["id"] in category_ids]}
     coco["annotations"] = [a for a in coco["annotations"] if a["category_id"] in category_ids]
     loader = torch.utils.data.DataLoader(CocoFrames(dataset_dir, coco, image_ids, canvas_hw,
-                                                    depth=model.cfg.inputs == "rgbd"), batch_size=batch_size,
+                                                    depth=model.cfg.inputs in ("rgbd", "rgbdh"),
+                                                    height=model.cfg.inputs == "rgbdh"), batch_size=batch_size,
                                          num_workers=num_workers, collate_fn=collate)
     sizes = {im["id"]: (im["height"], im["width"]) for im in coco["images"]} if masks else None
     results = predict_coco(model, loader, torch.device(device), category_ids, sizes)

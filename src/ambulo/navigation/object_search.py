@@ -134,7 +134,14 @@ class ObjectSearch:
         if getattr(self.detector, "needs_depth", False):  # an RGB-D detector: the depth at the same scale,
             # one pixel of each f x f block (a block's mean would blend an object's depth with the floor's)
             small_depth = depth if f == 1 else depth[f // 2::f, f // 2::f][:small.shape[0], :small.shape[1]]
-            det = self.detector(small, small_depth)
+            if getattr(self.detector, "needs_height", False):  # and the height above the floor, the same pixels
+                from ambulo.detection.height import height_above_floor_m
+
+                height = height_above_floor_m(depth, k, np.linalg.inv(pose_wc))
+                small_height = height if f == 1 else height[f // 2::f, f // 2::f][:small.shape[0], :small.shape[1]]
+                det = self.detector(small, small_depth, small_height)
+            else:
+                det = self.detector(small, small_depth)
         else:
             det = self.detector(small)
         for j, (label, score) in enumerate(zip(det.labels, det.scores)):

@@ -214,8 +214,10 @@ class PhysicsPublisher:
                                np.diag([gyro_var] * 3).ravel(), acc[0].cpu().numpy(), np.diag([acc_var] * 3).ravel()])
 
     def _publish_camera(self, i: int, camera, now: float, ns: int) -> None:
-        # an RGB-D detector (Detector.needs_depth) takes the same camera's depth with each frame
+        # an RGB-D detector (Detector.needs_depth) takes the same camera's depth with each frame, an RGB-D-height
+        # one (needs_height) also each pixel's height above the floor, from that depth and the camera's pose
         detector_depth = self.detector is not None and getattr(self.detector, "needs_depth", False)
+        detector_height = detector_depth and getattr(self.detector, "needs_height", False)
         wanted = ("rgb", "depth") if self.cfg.publish_depth or detector_depth else ("rgb",)
         out = camera.capture(0, annotators=wanted)
         frame = self.scene.sensor_frame[id(camera)]
@@ -223,7 +225,14 @@ class PhysicsPublisher:
         height, width = rgb.shape[:2]
         self._publish_frame(f"rgb{i}", ns, frame, "rgb8", rgb)
         if self.detector is not None:
-            self._publish_detections(i, rgb, now, ns, frame, out["depth"] if detector_depth else None)
+            height_m = None
+            if detector_height:
+                from ambulo.sensors.floor_height import height_above_floor_m
+
+                cam = out["camera"]
+                height_m = height_above_floor_m(np.asarray(out["depth"]).reshape(height, width), cam["intrinsics"],
+                                                cam["extrinsics_cw"])
+            self._publish_detections(i, rgb, now, ns, frame, out["depth"] if detector_depth else None, height_m)
         if self.cfg.publish_depth:  # REP 118: 32FC1, metres along the optical axis
             self._publish_frame(f"depth{i}", ns, frame, "32FC1", np.ascontiguousarray(out["depth"], "<f4"))
         cam = out["camera"]
@@ -247,13 +256,15 @@ class PhysicsPublisher:
             self._topic[key] = topic if topic.startswith("/") else f"{self.cfg.namespace.rstrip('/')}/{topic}"
 
     def _publish_detections(self, i: int, rgb: np.ndarray, now: float, ns: int, frame: str,
-                            depth_m: np.ndarray | None = None) -> None:
-        """The detector on camera ``i``'s frame (and its depth (H, W) m, for an RGB-D detector), here on the
+                            depth_m: np.ndarray | None = None, height_m: np.ndarray | None = None) -> None:
+        """The detector on camera ``i``'s frame (and its depth (H, W) m, for an RGB-D detector; and its height
+        above the floor (H, W) m, for an RGB-D-height one), here on the
         physics thread (it costs the camera rate's inferences a simulated second of CPU), stamped and
         framed like the image."""
         from .detections import detection_array_cdr, segmentation_of
 
-        found = self.detector(rgb) if depth_m is None else self.detector(rgb, depth_m)
+        extra = () if depth_m is None else (depth_m,) if height_m is None else (depth_m, height_m)
+        found = self.detector(rgb, *extra)
         self._publish(f"det{i}", detection_array_cdr(now, frame, found.boxes_px, found.labels, found.scores), ns)
         image = segmentation_of(found)
         if image is not None:

@@ -22,9 +22,11 @@ class ShownDetector:
     def __init__(self, detector, viewer, name: str = IMAGE_NAME):
         self.detector, self.viewer, self.name = detector, viewer, name
 
-    def __call__(self, rgb: np.ndarray, depth_m: np.ndarray | None = None):
-        """``depth_m``: the frame's depth (H, W) m, passed on to an RGB-D detector (``needs_depth``)."""
-        found = self.detector(rgb) if depth_m is None else self.detector(rgb, depth_m)
+    def __call__(self, rgb: np.ndarray, depth_m: np.ndarray | None = None, height_m: np.ndarray | None = None):
+        """``depth_m``: the frame's depth (H, W) m, passed on to an RGB-D detector (``needs_depth``);
+        ``height_m``: its height above the floor (H, W) m, passed on to an RGB-D-height one (``needs_height``)."""
+        extra = () if depth_m is None else (depth_m,) if height_m is None else (depth_m, height_m)
+        found = self.detector(rgb, *extra)
         self.viewer.show_image(self.name, rgb)
         self.viewer.show_detections(self.name, found)
         return found
