@@ -85,11 +85,14 @@ def test_the_first_motion_of_a_goal_moves_to_arm_room_first(room, fix_map):
     start = np.array([-1.0, 0.0, 0.0])
     world, nav = _navigator(room, fix_map, lambda cx, cy: np.where(cy > 0.28, OCCUPIED, FREE), tuple(start))
     nav._replan(world.time_s, start, "new goal")
-    assert nav.replans[-1].reason == "new goal (arm room)" and nav._arm_back_off is not None, nav.replans[-1]
+    # (its plan, dropped for the move, may be a roomy one from a cell beside it: roomy_start_shift_m)
+    reason = nav.replans[-1].reason
+    assert reason.startswith("new goal") and reason.endswith("(arm room)") and nav._arm_back_off is not None, reason
     assert nav._arm_back_off[0][1] <= -0.09
     nav._arm_back_off = None
     nav._replan(world.time_s, start, "period")  # not a turn nor a first motion: it walks from where it is
-    assert nav.replans[-1].reason == "period" and nav.walker.tracker.path is not None, nav.replans[-1]
+    reason = nav.replans[-1].reason
+    assert reason.startswith("period") and "(arm room)" not in reason and nav.walker.tracker.path is not None, reason
     world.close()
 
 
@@ -99,7 +102,8 @@ def test_a_plan_the_tracker_starts_by_turning_on_the_spot_moves_to_arm_room_firs
     start = np.array([-1.0, 0.0, math.pi])
     world, nav = _navigator(room, fix_map, lambda cx, cy: np.where(cy > 0.28, OCCUPIED, FREE), tuple(start))
     nav._replan(world.time_s, start, "period")
-    assert nav.replans[-1].reason == "period (arm room)" and nav._arm_back_off is not None, nav.replans[-1]
+    reason = nav.replans[-1].reason  # its plan may be a roomy one from a cell beside it (roomy_start_shift_m)
+    assert reason.startswith("period") and reason.endswith("(arm room)") and nav._arm_back_off is not None, reason
     # the plan's own start: facing its carrot (the tracker's look-ahead point) it walks at once
     plan = _plan_from(nav, world, start)
     carrot = _carrot(plan, nav.walker.tracker.cfg.lookahead_m)

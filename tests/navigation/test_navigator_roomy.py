@@ -94,3 +94,57 @@ def test_a_door_too_narrow_for_the_first_roomy_clearance_is_passed_with_the_next
     assert record.footstep_status == "success" and record.refused is None, record
     assert ("(roomy)" in record.reason) == (0.3 in roomy_clearance_m), record
     world.close()
+
+
+@pytest.mark.parametrize("shift_m", [0.1, None])
+def test_a_robot_by_a_wall_plans_the_roomy_way_from_a_cell_beside_it(room, fix_map, shift_m):
+    # a wall along the way 0.25-0.3 m north of the robot (short of the roomy 0.3 m where it stands),
+    # open floor south: the roomy plan starts from the nearest cell with 0.3 m (within 0.1 m) and keeps
+    # it all the way; without the shift the usual plan walks the 0.25 m way along the wall
+    world, nav = _navigator_on(room, fix_map, lambda cx, cy: np.where(cy > 0.27, OCCUPIED, FREE),
+                               roomy_start_shift_m=shift_m)
+    est = np.array([-1.0, 0.0, 0.0])
+    grid = nav.mapper.grid
+    clr = footstep_clearance(grid, optimistic=False)
+    iy, ix = grid.cell_of(est[:2])
+    assert 0.25 <= clr[iy, ix] < 0.3  # the robot's own cell lacks the roomy clearance
+    nav.set_goal((1.5, -0.1))
+    nav._replan(world.time_s, est, "test")
+    record = nav.replans[-1]
+    assert record.footstep_status == "success" and record.refused is None, record
+    assert ("(roomy)" in record.reason) == (shift_m is not None), record
+    path = body_path(nav.plan)
+    t = np.linspace(0.0, 1.0, 10)[:, None, None]
+    dense = (path[:-1][None] * (1 - t) + path[1:][None] * t).reshape(-1, 2)
+    py, px = grid.cells_of(dense)
+    least = float(clr[py, px].min())
+    if shift_m is None:
+        assert least < 0.3, least
+    else:
+        assert least >= 0.3, least
+        assert np.linalg.norm(path[0] - est[:2]) <= shift_m + 0.06  # it starts beside the robot (a foot's offset)
+    world.close()
+
+
+@pytest.mark.parametrize(("final", "shift_m"), [(False, 0.1), (True, 0.1), (False, None)])
+def test_a_subgoal_by_a_wall_moves_to_room_for_the_roomy_plan(room, fix_map, final, shift_m):
+    # a wall 0.25-0.3 m north of a subgoal at (0.5, 0): the roomy plan ends at the nearest cell within
+    # 0.1 m that has 0.3 m; the goal itself (final) keeps its stance (``roomy_goal``'s), and so does a
+    # subgoal without the shift: no roomy plan then
+    world, nav = _navigator_on(room, fix_map, lambda cx, cy: np.where((cy > 0.27) & (cx > 0.0), OCCUPIED, FREE),
+                               roomy_subgoal_shift_m=shift_m)
+    grid = nav.mapper.grid
+    clr = footstep_clearance(grid, optimistic=False)
+    goal = np.array([0.5, 0.0])
+    gy, gx = grid.cell_of(goal)
+    assert 0.25 <= clr[gy, gx] < 0.3
+    est = np.array([-1.0, 0.0, 0.0])
+    plan = nav._roomy_plan(grid, nav.mapper.version, False, est, goal, 0.0, None, final)
+    if final or shift_m is None:
+        assert plan is None
+    else:
+        assert plan is not None and plan.status.value == "success"
+        end = body_path(plan)[-1]
+        ey, ex = grid.cell_of(end)
+        assert clr[ey, ex] >= 0.3 - 1e-9 and np.linalg.norm(end - goal) <= shift_m + 0.06, (end, clr[ey, ex])
+    world.close()

@@ -123,6 +123,17 @@ class NavigatorCfg(Checked):
     (the subgoal or the door lacked it); 0.3 m is what ``choose_subgoal`` gives a subgoal (a cell
     more than the route's clearance) and what a 0.8 m door leaves when the map thickens its jambs
     by a cell, m."""
+    roomy_start_shift_m: float | None = 0.1
+    """A robot that lacks a roomy clearance where it stands plans that clearance's footsteps from the
+    nearest cell centre within this that has it (the policy walker walks to a plan's start, up to
+    ``PolicyWalkerCfg.max_start_offset_m``), instead of the 0.25 m plan from where it stands; None:
+    never (a walker that steps from its feet never does). A robot 0.21-0.25 m from a wall (a bend
+    walked close, a look turn's stance) otherwise planned the 0.25 m way along it: full mode
+    apartments 77 and 80 (device) walked on from 0.25 m with the usual plan and a forearm met the
+    wall 0.5 s later, m."""
+    roomy_subgoal_shift_m: float | None = 0.1
+    """A subgoal (not the goal: its stance is ``roomy_goal``'s) that lacks a roomy clearance moves to the
+    nearest cell centre within this that has it, for that clearance's plan; None: never, m."""
     roomy_max_expansions: int = 60
     """Lattice expansions of each roomy plan before the next (then the usual one) is planned
     instead: most roomy plans are the straight walk along the body path (no expansion), and one
@@ -874,7 +885,7 @@ class Navigator:
         self._stepping_out = False
         feet = self.walker.start_feet() if hasattr(self.walker, "start_feet") else None
         if roomy and stage is self.footsteps_stage:
-            plan = self._roomy_plan(grid, version, optimistic, est, goal_xy, yaw, feet)
+            plan = self._roomy_plan(grid, version, optimistic, est, goal_xy, yaw, feet, final)
             if plan is not None:
                 return plan
         if feet is not None:  # a walker that steps on the footholds: plan from its feet
@@ -912,10 +923,11 @@ class Navigator:
                     return retry
         return plan
 
-    def _roomy_plan(self, grid, version, optimistic, est, goal_xy, yaw, feet) -> FootstepPlan | None:
+    def _roomy_plan(self, grid, version, optimistic, est, goal_xy, yaw, feet, final: bool = True) -> FootstepPlan | None:
         """A plan that keeps the first of ``roomy_clearance_m`` it can all the way, or None (the
-        robot or the goal lacks each on the map: no search then, or each search did not end at the
-        goal within ``roomy_max_expansions``)."""
+        robot or the goal lacks each on the map within ``roomy_start_shift_m`` (a subgoal, not
+        ``final``: within ``roomy_subgoal_shift_m``): no search then, or each search did not end at
+        the goal within ``roomy_max_expansions``)."""
         if not self._roomy_stages:
             return None
         clr = footstep_clearance(grid, optimistic)
@@ -923,17 +935,46 @@ class Navigator:
         ny, nx = grid.shape
         if not ((iy >= 0) & (iy < ny) & (ix >= 0) & (ix < nx)).all():
             return None
-        room = float(clr[iy, ix].min())
-        goal = (goal_xy[0], goal_xy[1], yaw)
+        start_room, goal_room = float(clr[iy[0], ix[0]]), float(clr[iy[1], ix[1]])
         start = {} if feet is None else {"start_feet": feet[0], "stance_side": feet[1]}
         for stage in self._roomy_stages:
-            if room < stage.footstep_cfg.body_clearance_m:
-                continue
-            plan = stage.plan(grid, version, optimistic, est, goal, **start)
+            need = stage.footstep_cfg.body_clearance_m
+            goal = (goal_xy[0], goal_xy[1], yaw)
+            if goal_room < need:
+                near = None if final else self._room_near(grid, clr, goal_xy, need, self.cfg.roomy_subgoal_shift_m)
+                if near is None:
+                    continue
+                goal = (near[0], near[1], yaw)
+            from_xyyaw = est
+            if start_room < need:
+                near = None if feet is not None else self._room_near(grid, clr, est, need, self.cfg.roomy_start_shift_m)
+                from_xyyaw = None if near is None else np.array([near[0], near[1], est[2]])
+                if from_xyyaw is None:
+                    continue
+            plan = stage.plan(grid, version, optimistic, from_xyyaw, goal, **start)
             if plan.status == PlanStatus.SUCCESS:
                 self._roomy = plan
                 return plan
         return None
+
+    @staticmethod
+    def _room_near(grid: Grid2D, clr: np.ndarray, xy, need_m: float, shift_m: float | None) -> np.ndarray | None:
+        """(2,) the nearest cell centre within ``shift_m`` of ``xy`` whose clearance ``clr`` is at least
+        ``need_m`` (x m, y m); None: none, or ``shift_m`` None."""
+        if shift_m is None:
+            return None
+        iy, ix = grid.cell_of(xy)
+        k = int(math.ceil(shift_m / grid.resolution_m))
+        ny, nx = grid.shape
+        y0, y1, x0, x1 = max(0, iy - k), min(ny, iy + k + 1), max(0, ix - k), min(nx, ix + k + 1)
+        yy, xx = (a.ravel() for a in np.mgrid[y0:y1, x0:x1])
+        cx, cy = grid.cell_center_xy_m(yy, xx)
+        d = np.hypot(cx - xy[0], cy - xy[1])
+        ok = (d <= shift_m) & (clr[yy, xx] >= need_m)
+        if not ok.any():
+            return None
+        j = int(np.argmin(np.where(ok, d, np.inf)))
+        return np.array([cx[j], cy[j]])
 
 
 __all__ = ["MODES", "NavSnapshot", "Navigator", "NavigatorCfg"]
