@@ -69,9 +69,15 @@ class TreadSnap:
 
     def spread_m(self, soles_xyyaw_w: torch.Tensor) -> torch.Tensor:
         """(...) max - min ground height under each (..., 3) sole pose (widened by the margin), m."""
-        pts = torch.cat([self.sole_points_m, torch.zeros_like(self.sole_points_m[:, :1])], dim=-1)
-        world = compose_xyyaw(soles_xyyaw_w[..., None, :].expand(*soles_xyyaw_w.shape[:-1], len(pts), 3), pts)
-        h = self.height_at(world[..., :2])
+        return self._spread_m(soles_xyyaw_w[..., None, :2], soles_xyyaw_w[..., 2])[..., 0]
+
+    def _spread_m(self, centers_xy_w: torch.Tensor, yaw: torch.Tensor) -> torch.Tensor:
+        """(..., C) spread under soles at (..., C, 2) centres that share each (...) yaw, rad: the
+        sample offsets are rotated once per yaw, not per candidate (the snap's C is ~400)."""
+        c, s = torch.cos(yaw)[..., None], torch.sin(yaw)[..., None]
+        px, py = self.sole_points_m[:, 0], self.sole_points_m[:, 1]
+        offsets = torch.stack([c * px - s * py, s * px + c * py], dim=-1)  # (..., P, 2)
+        h = self.height_at(centers_xy_w[..., :, None, :] + offsets[..., None, :, :])  # (..., C, P)
         return h.amax(dim=-1) - h.amin(dim=-1)
 
     def snap(self, stance_xyyaw_w: torch.Tensor, step_xyyaw_w: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -86,7 +92,7 @@ class TreadSnap:
         valid[:, 0] = True  # the sampler's own step is valid
         cand = torch.stack([length, torch.sign(rel[:, 1:2]) * width, rel[:, 2:].expand(-1, 1 + g)], dim=-1)
         poses = compose_xyyaw(stance_xyyaw_w[:, None].expand(-1, 1 + g, 3), cand)  # (B, 1 + G, 3)
-        spread = self.spread_m(poses)
+        spread = self._spread_m(poses[..., :2], poses[:, 0, 2])
         flat = valid & (spread <= self.cfg.max_spread_m)
         # a flat candidate nearest the drawn step; none flat: the flattest valid one (metres of
         # spread outweigh any shift within the limits)
