@@ -35,7 +35,7 @@ import torch
 from ambulo.detection import ModelCfg, build_model, load_trained
 from ambulo.detection.export import export_model
 from ambulo.detection.loss import centernet_loss, mask_cells
-from ambulo.detection.model import INPUT_CHANNELS, ExportedDetector, depth_channel
+from ambulo.detection.model import INPUT_CHANNELS, ExportedDetector, depth_channel, height_channel
 
 CANVAS_320x240 = (256, 320)
 """240 rows rounded up to the model's stride of 32."""
@@ -81,12 +81,17 @@ def gpu_inference(model, canvas_hw: tuple[int, int], repeats: int, device: str =
     frame = torch.from_numpy(np.random.default_rng(0).integers(0, 256, (*canvas_hw, 3), dtype=np.uint8)).pin_memory()
     # an RGB-D model's frame comes with its depth (H, W) float32 m, encoded on the device as well
     depth_m = torch.from_numpy(np.random.default_rng(1).uniform(0.5, 8.0, canvas_hw).astype(np.float32)).pin_memory()
+    # an RGB-D-height model's also with its height above the floor (H, W) m (computed on the host: the Detector's)
+    height_m = torch.from_numpy(np.random.default_rng(2).uniform(0.0, 2.0, canvas_hw).astype(np.float32)).pin_memory()
     graph = ExportedDetector(model.to(device).eval())
 
     def prepare() -> torch.Tensor:
         rgb = frame.to(device, non_blocking=True).permute(2, 0, 1)[None].float() / 255
         if model.cfg.inputs == "rgbd":
             return torch.cat([rgb, depth_channel(depth_m.to(device, non_blocking=True))[None, None]], dim=1)
+        if model.cfg.inputs == "rgbdh":
+            return torch.cat([rgb, depth_channel(depth_m.to(device, non_blocking=True))[None, None],
+                              height_channel(height_m.to(device, non_blocking=True))[None, None]], dim=1)
         return rgb
 
     def run(fn) -> float:
