@@ -7,7 +7,9 @@ command, in the base's heading frame: per target x, y (m), cos and sin of its ya
 heading, and its side (+1 left, -1 right): 10 values. Plans are drawn per world on the device
 (``envs.footstep_sampler``: straight walks, turns, in-place and backward steps, changing lengths
 and widths, all within the planner's walker limits) and extended one footstep per touchdown, so a
-plan never runs out.
+plan never runs out. On flat ground a target's height (``targets_z_m``) is 0; a terrain variant
+(``humanoid_footsteps_stairs``) overrides the hooks ``_next_footstep``, ``_footstep_z_m`` and
+``_spawn``.
 
 A *touchdown* is the swing foot (the side of the first target) landing after at least
 ``min_air_time_s`` in the air, from a take-off after the plan's last advance
