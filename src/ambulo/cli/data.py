@@ -87,6 +87,17 @@ def generate(args: argparse.Namespace) -> int:
     if args.draw_workers < 0 or (args.draw_workers and (args.device is None or args.num_gpus > 1)):
         raise CliError(f"--draw-workers {args.draw_workers} feeds the one-GPU batched path",
                        "give --device cuda (one GPU) with it, or drop it")
+    share = None
+    if args.cpu_jpeg_share is not None:
+        from ambulo.replicator.cpu_jpeg import share_fraction
+
+        if args.image_format != "jpg":
+            raise CliError("--cpu-jpeg-share splits the JPEG encode", "give --image-format jpg with it, or drop it")
+        try:
+            share = share_fraction(args.cpu_jpeg_share)
+        except (ValueError, ZeroDivisionError):
+            raise CliError(f"--cpu-jpeg-share {args.cpu_jpeg_share} is not a share from 0 to 1",
+                           "give e.g. 1/3, 0.25 or 0") from None
     if args.image_format == "jpg":
         from ambulo.replicator.encode import jpeg_available
 
@@ -114,7 +125,8 @@ def generate(args: argparse.Namespace) -> int:
                                 show_progress=not args.quiet, backend="ray" if args.ray else "auto",
                                 overwrite=args.overwrite, device=args.device, num_worlds=args.num_worlds,
                                 num_gpus=args.num_gpus, watch=watch, draw_workers=args.draw_workers,
-                                image_format=args.image_format)
+                                image_format=args.image_format,
+                                **({} if share is None else {"cpu_jpeg_share": share}))
     except DatasetFolderError as err:
         raise CliError(err.problem, err.fix) from None
     except OSError as err:
@@ -195,6 +207,11 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--image-format", choices=("png", "jpg"), default="png",
                    help="RGB images as PNG (default) or, with --device (one GPU), JPEG encoded on the GPU (nvjpeg, "
                         "needs torchvision); the draw processes then write every file")
+    p.add_argument("--cpu-jpeg-share", default=None,
+                   help="with --image-format jpg: the share of the frames (0 to 1, e.g. 1/3 or 0.25; by frame "
+                        "index, so a resumed run writes the same bytes) whose JPEG the draw processes encode on "
+                        "the CPU (libjpeg-turbo) while nvjpeg encodes the rest; nvjpeg alone bounds the disk rate "
+                        "(default 1/3, for a 16-core host; 0: nvjpeg only)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_viewer_args(p)  # the scene of each frame as it is generated (one process)
     p.set_defaults(func=generate)

@@ -16,12 +16,15 @@ records after one flush of the files (a flush per group of batches, off the rend
 record on disk still always points to data on disk. The device renders batch i+1 while the
 processes write batch i, and the host applies batch i+1's draws while the device renders batch i;
 with JPEG, a thread of its own encodes batch i while batch i+1 renders (``jpeg_stage``: three
-blocks then). The processes also make each frame's COCO piece (``coco_file``), so the dataset's
+blocks then); a share of each batch's frames (``cpu_jpeg_share``, by frame index: ``cpu_jpeg``) is
+copied raw instead and encoded on the processes (libjpeg-turbo), at the same time as nvjpeg encodes
+the rest. The processes also make each frame's COCO piece (``coco_file``), so the dataset's
 ``annotations.json`` is a concatenation at the end rather than a pass over every record.
 
 The files are the ``run_frames`` path's, byte for byte, with PNG RGB (tested); with JPEG the RGB
 file is ``rgb/NNNNNN.jpg`` and the record's ``file_name`` says so (``writers.write_frame_files`` with
-``rgb_jpeg``). Writers supported: coco, depth (png16), masks, kitti; others (raw, npy depth) take
+``rgb_jpeg``; the frames of the CPU's share decode to the same picture, not the same bytes, as
+nvjpeg's would). Writers supported: coco, depth (png16), masks, kitti; others (raw, npy depth) take
 ``run_frames``. ``STAGES`` says where a run's time went.
 """
 
@@ -43,9 +46,10 @@ import numpy as np
 import torch
 
 from . import draw_pool
-from .batched import BatchedFrameProducer, frame_capture, tiled_camera_cfg
+from .batched import BatchedFrameProducer, _split, frame_capture, tiled_camera_cfg
 from .coco_file import frame_piece
 from .commits import BatchCommits
+from .cpu_jpeg import DEFAULT_CPU_JPEG_SHARE, cpu_worlds, encode_jpeg_cpu, share_fraction
 from .device_rle import frame_rles, rle_counts
 from .encode import IMAGE_FORMATS, as_u16_bits, depth_mm, encode_jpegs
 from .jpeg_stage import JpegStage
@@ -131,14 +135,16 @@ def _arrays(buffer, layout: dict, offsets: dict) -> dict:
 
 
 def batch_layout(num_worlds: int, height: int, width: int, jpeg: bool, semantic: bool = True,
-                 depth: bool = True, instances: bool = True) -> dict:
+                 depth: bool = True, instances: bool = True, cpu_rgb: int = 0) -> dict:
     """The arrays a batch's block holds: the instance ids (16 bits) when the dataset writes their
     PNGs (``instances``: its ``masks``; the COCO masks come from the device's run lengths,
     ``device_rle``), the depth in uint16 mm (converted on the device, ``encode.depth_mm``: half the
     float's bytes to copy and no host conversion) when it writes ``depth``, the semantic ids when
     its masks include them (``semantic``), and the RGB images, raw or as the batch's JPEG files end
-    to end (``jpeg_bytes``, with their offsets). Nothing a writer does not read is copied: the
-    headline dataset (RGB and COCO) copies its JPEG files alone."""
+    to end (``jpeg_bytes``, with their offsets), and with JPEG the raw RGB images of up to ``cpu_rgb``
+    frames that the processes encode (``rgb_cpu``: the CPU's share, ``cpu_jpeg``; sized for the
+    share, not the batch). Nothing a writer does not read is copied: the headline dataset (RGB and
+    COCO) copies its JPEG files and the CPU share's pixels alone."""
     image = (num_worlds, height, width)
     layout = {"instances": (image, "<u2")} if instances else {}
     if depth:
@@ -147,6 +153,8 @@ def batch_layout(num_worlds: int, height: int, width: int, jpeg: bool, semantic:
         layout["semantic"] = (image, "<u2")
     if jpeg:  # a JPEG larger than its raw pixels does not occur at the quality used
         layout["jpeg_bytes"] = ((num_worlds * height * width * 3,), "u1")
+        if cpu_rgb:
+            layout["rgb_cpu"] = ((cpu_rgb, height, width, 3), "u1")
     else:
         layout["rgb"] = ((*image, 3), "u1")
     return layout
@@ -160,23 +168,25 @@ works on), the next batch's draws collected and applied to the host copies meanw
 (``draws_s``: includes waiting for the draw processes), the copy of the RGB images for the JPEG
 thread (``jpeg_s``), the COCO masks' run lengths found on the device and copied (``rle_s``: it
 waits for the render), waiting for a free block (``wait_block_s``: the processes or the JPEG
-thread are behind), the copy into it and the boxes' and poses' to the host (``copy_s``), handing
-out the parts (``submit_s``); on the JPEG thread its encode and copy into the block
-(``jpeg_encode_s``: ``jpeg_stage``); on the settle thread
-waiting for the processes (``wait_writes_s``); on the commit thread the file system's flushes and
-the records' writes (``commit_s``); and summed over the processes, the captures (loose and 3D
-boxes) and the files' encode and write with the COCO annotations, the record's JSON and the
-frame's COCO piece (``part_capture_s``, ``part_write_s``): CPU seconds, to divide by the processes."""
+thread are behind), the copy into it (the CPU share's raw RGB too) and the boxes' and poses' to
+the host (``copy_s``), handing out the parts (``submit_s``); on the JPEG thread its encode and copy
+into the block (``jpeg_encode_s``: ``jpeg_stage``); on the settle thread waiting for the processes
+(``wait_writes_s``); on the commit thread the file system's flushes and the records' writes
+(``commit_s``); and summed over the processes, the captures (loose and 3D boxes) and the files'
+encode (the CPU share's JPEGs included) and write with the COCO annotations, the record's JSON and
+the frame's COCO piece (``part_capture_s``, ``part_write_s``): CPU seconds, to divide by the processes."""
 
 
 def run_batched_frames(config, out: Path, seed: int, frames: list[int], producer: BatchedFrameProducer,
                        progress=None, image_format: str = "png", stats: dict | None = None,
-                       pieces: dict | None = None) -> str:
+                       pieces: dict | None = None, cpu_jpeg_share=DEFAULT_CPU_JPEG_SHARE) -> str:
     """Render and write ``frames`` (see the module docstring); returns the renderer's name.
     ``producer.draws`` (a ``DrawPool`` of this config) draws the scenes and writes the files.
     ``stats``: a dict that gets each of ``STAGES``' seconds added (and ``commits``, the flushes).
     ``pieces``: a dict that gets each committed frame's COCO piece (``coco_file.FramePiece``, made
-    on the processes with its record), for ``coco_file.write_annotations``."""
+    on the processes with its record), for ``coco_file.write_annotations``. ``cpu_jpeg_share`` (0 to
+    1, JPEG only): the share of the frames, by index, whose JPEG the processes encode instead of
+    nvjpeg (``cpu_jpeg``; 0: none)."""
     if image_format not in IMAGE_FORMATS:
         raise ValueError(f"image format must be one of {IMAGE_FORMATS}, got {image_format!r}")
     if not supports(config.writer):
@@ -187,13 +197,18 @@ def run_batched_frames(config, out: Path, seed: int, frames: list[int], producer
         raise ValueError("run_batched_frames writes on the producer's draw processes: give it a DrawPool")
     out = Path(out)
     jpeg = image_format == "jpg"
+    share = share_fraction(cpu_jpeg_share) if jpeg else share_fraction(0)
+    # the most frames of any batch of this run that the CPU encodes: the block's rgb_cpu rows (a
+    # resumed run's sparse frames may put more of a batch there than the share's ceiling)
+    cpu_rgb = max((len(cpu_worlds(chunk, share)) for chunk in _split(frames, producer.num_worlds)), default=0)
     cfg = producer.camera.cfg
     cuda = producer.engine.device.type == "cuda"
     # records are held until a commit's flush: the commit thread flushes explicitly
     writer = FrameWriter(out, config.writer, batch=sys.maxsize)
     semantic = "semantic_segmentation" in config.camera.annotators and "masks" in config.writer.outputs
     layout = batch_layout(producer.num_worlds, cfg.height, cfg.width, jpeg, semantic,
-                          depth="depth" in config.writer.outputs, instances="masks" in config.writer.outputs)
+                          depth="depth" in config.writer.outputs, instances="masks" in config.writer.outputs,
+                          cpu_rgb=cpu_rgb)
     blocks = shared_blocks(producer, layout, pin=cuda, count=3 if jpeg else 2)
     free: queue.Queue = queue.Queue()
     for block in blocks:
@@ -206,7 +221,7 @@ def run_batched_frames(config, out: Path, seed: int, frames: list[int], producer
     try:
         with stage.rendering() if stage is not None else contextlib.nullcontext():
             _render_batches(producer, seed, chunks, layout, semantic, stage, free, commits, pool, out, config.writer,
-                            writer.fsync_files)
+                            writer.fsync_files, share)
     finally:
         if stage is not None:  # every batch handed to the stage is encoded and submitted (or its block freed)
             stage.close()
@@ -222,9 +237,11 @@ def run_batched_frames(config, out: Path, seed: int, frames: list[int], producer
 
 
 def _render_batches(producer, seed: int, chunks, layout: dict, semantic: bool, stage: JpegStage | None,
-                    free: queue.Queue, commits: BatchCommits, pool, out: Path, writer_cfg, fsync_files: bool) -> None:
+                    free: queue.Queue, commits: BatchCommits, pool, out: Path, writer_cfg, fsync_files: bool,
+                    share=0) -> None:
     """``run_batched_frames``' loop on the render's thread: each batch rendered, converted, copied
-    into a free block and handed to the processes (through ``stage``, which encodes its JPEGs first)."""
+    into a free block and handed to the processes (through ``stage``, which encodes its JPEGs first,
+    but for the frames of the CPU's ``share``: their raw RGB goes into the block)."""
     cuda = producer.engine.device.type == "cuda"
     times = commits.times
     ahead = next(chunks, None)
@@ -247,8 +264,14 @@ def _render_batches(producer, seed: int, chunks, layout: dict, semantic: bool, s
         if ahead is not None:
             ahead_logs = producer.draw_on_host(seed, *ahead)
         mark = _lap(times, "draws_s", mark)
+        cpu = cpu_worlds(chunk, share) if stage is not None else []
         if stage is not None:  # copied before the next render overwrites the camera's images
-            taken = stage.take(images["rgb"][:count])
+            rgb = images["rgb"][:count]
+            if cpu:  # (n, H, W, 3) gathers: the CPU's frames raw into the block, the others to nvjpeg
+                gpu = sorted(set(range(count)) - set(cpu))
+                device["rgb_cpu"] = rgb[_world_index(cpu, rgb.device)]
+                rgb = rgb[_world_index(gpu, rgb.device)]
+            taken = stage.take(rgb)
         else:
             device["rgb"] = images["rgb"][:count]
         mark = _lap(times, "jpeg_s", mark)
@@ -263,7 +286,7 @@ def _render_batches(producer, seed: int, chunks, layout: dict, semantic: bool, s
         small = producer.to_host(count, instances, boxes, pixels, images=False)  # syncs the stream
         mark = _lap(times, "copy_s", mark)
         submit = functools.partial(_submit_parts, pool, block, chunk, logs, small, rle=rle, out=out,
-                                   writer_cfg=writer_cfg, fsync_files=fsync_files)
+                                   writer_cfg=writer_cfg, fsync_files=fsync_files, cpu=cpu)
         if stage is None:
             commits.put(block, submit(None))
         else:
@@ -272,6 +295,15 @@ def _render_batches(producer, seed: int, chunks, layout: dict, semantic: bool, s
                       then=lambda sizes, block=block, submit=submit: commits.put(block, submit(sizes)),
                       drop=functools.partial(free.put, block))
         _lap(times, "submit_s", mark)
+
+
+def _world_index(worlds: list[int], device: torch.device) -> torch.Tensor:
+    """(n,) int64 ``worlds`` on ``device``; to CUDA from page-locked memory, so the upload does not
+    wait for the render queued before it (a pageable one syncs the stream)."""
+    index = torch.as_tensor(worlds, dtype=torch.int64)
+    if device.type != "cuda":
+        return index
+    return index.pin_memory().to(device, non_blocking=True)
 
 
 def _free_block(free: queue.Queue, commits: BatchCommits, stage: JpegStage | None) -> SharedBatch:
@@ -320,18 +352,29 @@ def shared_blocks(producer: BatchedFrameProducer, layout: dict, pin: bool, count
 
 
 def _submit_parts(pool, block: SharedBatch, chunk, logs, small: dict, sizes, *, rle: tuple, out, writer_cfg,
-                  fsync_files: bool) -> list:
-    """The batch's frames in one contiguous part per process, each written there (``_write_part``)."""
+                  fsync_files: bool, cpu: list[int] = ()) -> list:
+    """The batch's frames in one contiguous part per process, each written there (``_write_part``).
+    ``sizes``: the JPEG files' bytes of the worlds not in ``cpu`` (in world order), end to end in the
+    block's ``jpeg_bytes``; the worlds in ``cpu`` are rows of its ``rgb_cpu``, in that order."""
     count = len(chunk)
     size = -(-count // pool.workers)
-    ends = np.cumsum(sizes) if sizes is not None else None
+    spans = None
+    if sizes is not None:  # each world's (start, stop) in jpeg_bytes, or its rgb_cpu row (an int)
+        spans, rows, ends = [], {w: row for row, w in enumerate(cpu)}, np.cumsum(sizes)
+        gpu = 0
+        for w in range(count):
+            if w in rows:
+                spans.append(rows[w])
+            else:
+                spans.append((int(ends[gpu] - sizes[gpu]), int(ends[gpu])))
+                gpu += 1
     counts, offsets, lengths = rle
     per_image = len(offsets) // count  # instances
     futures = []
     for start in range(0, count, size):
         stop = min(count, start + size)
         part_small = {name: array[start:stop] for name, array in small.items()}
-        jpeg_spans = None if ends is None else [(int(ends[w] - sizes[w]), int(ends[w])) for w in range(start, stop)]
+        jpeg_spans = None if spans is None else spans[start:stop]
         first, last = start * per_image, stop * per_image  # the part's images' groups, contiguous
         lo, hi = int(offsets[first]), int(offsets[last - 1] + lengths[last - 1])
         part_rle = (counts[lo:hi], offsets[first:last] - lo, lengths[first:last])
@@ -383,7 +426,8 @@ def _write_part(spec, start: int, indices: list[int], logs: list[dict], small: d
     a frame whose piece can't be made is read from its record then). Each capture carries
     ``coco_rles``: its masks' RLEs from the device's run lengths (``device_rle.frame_rles``, the
     bytes of ``coco.instance_rles``), for ``coco.frame_annotations`` to take instead of finding
-    the runs again on the host."""
+    the runs again on the host. ``jpeg_spans`` (JPEG): per frame its file's (start, stop) in the
+    block's ``jpeg_bytes``, or its row of ``rgb_cpu`` to encode here (``cpu_jpeg``)."""
     arrays = _attach(spec)
     cfg, k_matrix, table, model, annotators = _frame_context()
     records, pieces = [], {}
@@ -399,8 +443,11 @@ def _write_part(spec, start: int, indices: list[int], logs: list[dict], small: d
         middle = time.perf_counter()
         rgb_jpeg = None
         if jpeg_spans is not None:
-            lo, hi = jpeg_spans[i]
-            rgb_jpeg = arrays["jpeg_bytes"][lo:hi]
+            span = jpeg_spans[i]
+            if isinstance(span, int):  # the CPU's share: encoded here, on this process's core
+                rgb_jpeg = encode_jpeg_cpu(arrays["rgb_cpu"][span])
+            else:
+                rgb_jpeg = arrays["jpeg_bytes"][span[0]:span[1]]
         record = write_frame_files(Path(out), index, capture, table, log, writer_cfg, fsync_files, rgb_jpeg=rgb_jpeg,
                                    depth_mm_u16=None if depth is None else depth[start + i])
         records.append((index, encode_record(record)))

@@ -26,6 +26,7 @@ from .batched import IMAGE_SOURCE, BatchedFrameProducer
 from .batched_disk import SUPPORTED_OUTPUTS, run_batched_frames, supports
 from .coco_file import write_annotations
 from .config import DatasetConfig
+from .cpu_jpeg import DEFAULT_CPU_JPEG_SHARE, share_fraction
 from .encode import IMAGE_FORMATS, JPEG_QUALITY, jpeg_available
 from .io import PNG_DEFLATE
 from .manifest import open_dataset
@@ -50,7 +51,7 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
              show_progress: bool = True, backend: str = "auto", overwrite: bool = False,
              device: str | None = None, num_worlds: int = 64, writer_threads: int | None = None,
              num_gpus: int = 1, watch: Callable[[Any], Any] | None = None, draw_workers: int = 0,
-             image_format: str = "png") -> Path:
+             image_format: str = "png", cpu_jpeg_share=DEFAULT_CPU_JPEG_SHARE) -> Path:
     """Write (or finish) a dataset of ``num_frames`` frames in ``out``; returns annotations.json.
 
     ``out`` must be new, empty, or a dataset of the same config and seed (``dataset.json``):
@@ -73,7 +74,12 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
     GPU's rate; those processes then also write the files (``batched_disk``: the same files).
     ``image_format`` 'jpg' (``--device``, one GPU) writes the RGB images as JPEG encoded on the GPU
     (nvjpeg through torchvision, which must be installed), on ``draw_workers`` processes (default:
-    one per CPU but two); the fingerprint records it.
+    one per CPU but two); the fingerprint records it. ``cpu_jpeg_share`` (0 to 1, default 1/3): the
+    share of those frames, by index, that the draw processes encode on the CPU instead (libjpeg-turbo,
+    same quality and chroma: ``cpu_jpeg``) while nvjpeg encodes the rest, whose one-at-a-time encode
+    otherwise bounds the rate; 0: nvjpeg alone. A resumed run writes the same bytes as a straight one
+    with the same share; another share changes which encoder wrote a frame, not its picture (the
+    fingerprint does not record it).
 
     ``watch`` (``ambulo generate --viewer web``) is called with the producer, in this process (so
     one worker, one GPU), before the first frame; what it returns joins the producer's
@@ -101,6 +107,7 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
                          "or drop it")
     if image_format not in IMAGE_FORMATS:
         raise ValueError(f"--image-format must be one of {IMAGE_FORMATS}, got {image_format!r}")
+    share = share_fraction(cpu_jpeg_share)  # raises out of range
     if image_format == "jpg":
         if device is None or num_gpus > 1 or watch is not None:
             raise ValueError("--image-format jpg encodes on the GPU of the batched path: give --device and one GPU "
@@ -162,7 +169,7 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
             renderer = run_on_processes(config, out, seed, todo, workers, bar.update)
         elif batched and producer.draws is not None and watch is None and supports(config.writer):
             renderer = run_batched_frames(config, out, seed, todo, producer, bar.update, image_format,
-                                          pieces=pieces)
+                                          pieces=pieces, cpu_jpeg_share=share)
         else:
             renderer = run_frames(config, out, seed, todo, progress, producer=producer,
                                   writer_threads=writer_threads if batched else 1)

@@ -78,7 +78,8 @@ class JpegStage:
             drop: Callable[[], None]) -> None:
         """Encode ``take``'s images on the thread, write the files end to end into
         ``target(total bytes)`` (a NumPy uint8 array), then call ``then(file sizes)``; after an
-        error, ``drop()`` instead."""
+        error, ``drop()`` instead. No images (a batch all of whose frames the
+        CPU encodes): ``then([])``, in its turn."""
         self._queue.put((taken, target, then, drop))
 
     def close(self) -> None:
@@ -108,6 +109,8 @@ class JpegStage:
     def _encode(self, images: torch.Tensor, ready, target) -> list[int]:
         if ready is not None:
             ready.synchronize()  # the copy is done before nvjpeg's stream reads it (see the module docstring)
+        if len(images) == 0:  # every frame of the batch is the CPU's (``cpu_jpeg``): nothing to encode
+            return []
         with torch.cuda.stream(self.stream) if self.cuda else contextlib.nullcontext():
             files = self.encode(images)
             if self.cuda:  # torchvision copies each file out on the legacy default stream
