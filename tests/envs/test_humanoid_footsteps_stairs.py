@@ -14,6 +14,7 @@ import torch
 
 import ambulo.envs as envs
 from ambulo.envs.humanoid_footsteps_stairs import STAIR_RISER_M
+from script_loader import ROOT, load_script
 
 STAIRS = {"terrain.kinds": ("stairs_up", "stairs_down"), "terrain.num_levels": 2, "terrain.border_m": 2.0}
 """Only stairs tiles (the play variant: 0.10 m risers), a small grid."""
@@ -89,6 +90,21 @@ def test_command_carries_the_targets_heights_over_the_ground_under_the_base():
     torch.testing.assert_close(env.targets_z_m, heights[:, 2:4])
     env._advance(torch.tensor([0]))
     torch.testing.assert_close(env.targets_z_m[0], heights[0, 3:5])
+
+
+def test_planner_plans_over_the_terrain_keep_every_sole_on_a_tread():
+    """The placement benchmark's planner map (``terrain_map``) on the terrain's sample cells:
+    every planned sole of 4 plans over 0.10 m stairs lies flat on a tread, its ``foot_z_m`` the
+    tread's height (with the map's cells at another offset, a fifth of the soles reach a ramp)."""
+    bench = load_script(ROOT / "benchmarks" / "footstep_placement.py")
+    env = make(4)
+    footsteps, _, steps, foot_z = bench.PlannerPlans(None, seed=0)(env)
+    planned = torch.arange(footsteps.shape[1])[None] < steps[:, None] + 2
+    soles = footsteps.float()[planned]
+    assert len(soles) > 40 and (env.treads.spread_m(soles) <= 1e-3).all()
+    torch.testing.assert_close(foot_z.float()[planned], env.ground_height_m(soles[:, :2]))
+    climbed = foot_z.max(dim=1).values - foot_z.min(dim=1).values
+    assert (climbed >= 2 * STAIR_RISER_M - 1e-6).all()  # every plan crosses two risers or more
 
 
 @pytest.mark.slow  # ~60 s on a shared 2-core machine: 2 PPO iterations, then the benchmark on planner plans
