@@ -26,10 +26,14 @@ The tutorial dataset (``replicator.example_config``, the warehouse bay) at ``--s
   the **headline** is the default annotation set (RGB, as JPEG encoded on the GPU where
   torchvision's nvjpeg runs, and the COCO records: boxes and RLE masks) flushed to ``--out``'s
   disk; then with the depth PNGs, with depth and the id PNGs, with PNG RGB, and two that locate the
-  cost (no flushes; into ``/dev/shm``). Each run prints its stages' ms a frame
+  cost (no flushes; into ``/dev/shm``); the JPEG runs encode ``--cpu-jpeg-share`` of the frames on
+  the draw processes' cores (``replicator.cpu_jpeg``; 0: nvjpeg alone). Each run prints its stages' ms a frame
   (``batched_disk.STAGES``: the main thread's, the commit thread's, and the processes' CPU);
 - **disk ceiling**: the headline's file count and bytes written and flushed with nothing else
   (no render, no encode): the storage's own rate, the ceiling of every disk run;
+- **CPU JPEG encoders**: ms to encode one rendered frame at the dataset's quality on one core, with
+  Pillow (libjpeg-turbo, 4:4:4: what the CPU share uses) and torchvision's CPU ``encode_jpeg``
+  (4:2:0) where it imports;
 - **disk, threads** (``--threads-run``, the first disk mode, for comparison): ``run_frames`` with
   ``--writer-threads`` encoders in this process;
 - **disk, processes** (``--processes``, default 0: skipped): that many producers on the same
@@ -70,8 +74,9 @@ from ambulo import replicator as rep
 from ambulo.replicator.batched import BatchedFrameProducer
 from ambulo.replicator.batched_disk import STAGES, run_batched_frames
 from ambulo.replicator.coco_file import write_annotations
+from ambulo.replicator.cpu_jpeg import DEFAULT_CPU_JPEG_SHARE, encode_jpeg_cpu, share_fraction
 from ambulo.replicator.draw_pool import DrawPool
-from ambulo.replicator.encode import jpeg_available
+from ambulo.replicator.encode import JPEG_QUALITY, jpeg_available
 from ambulo.replicator.processes import ProducerPool, usable_cpus
 from ambulo.replicator.producer import run_frames
 from ambulo.replicator.writers import FrameWriter, prepare_dirs, write_frame_files
@@ -169,28 +174,64 @@ def profile_device_draws(producer: BatchedFrameProducer, device: str, chunk: lis
     return stages
 
 
-def jpeg_check(producer: BatchedFrameProducer, out: Path, seed: int, frames: list[int], sample: int = 64) -> dict:
+def jpeg_check(producer: BatchedFrameProducer, out: Path, seed: int, frames: list[int], sample: int = 64,
+               share=None) -> dict:
     """How far a sample of a run's JPEG files, decoded, is from the same frames rendered again in
     memory (the dataset's draws): mean absolute difference per frame, 0-255. A q95 JPEG of the frame
     is about one level off; one encoded from an unfinished or overwritten image (a stream-ordering
-    fault in the JPEG thread, ``jpeg_stage``) tens, or it does not decode."""
+    fault in the JPEG thread, ``jpeg_stage``) tens, or it does not decode. ``chroma``: the files'
+    chroma samplings (Pillow's ``get_sampling``: 0 is 4:4:4, 2 is 4:2:0), nvjpeg's and the CPU
+    share's alike (``cpu_jpeg``), and the ms a frame off nvjpeg's and off the CPU's."""
     import numpy as np
-    from PIL import Image
+    from PIL import Image, JpegImagePlugin
 
-    picked = frames[::max(1, len(frames) // sample)][:sample]
-    diffs, broken = [], 0
+    from ambulo.replicator.cpu_jpeg import on_cpu
+
+    # a seeded random sample: an even stride could miss every frame of the CPU's share (1/3: i % 3 == 2)
+    picked = sorted(np.random.default_rng(0).choice(frames, min(sample, len(frames)), replace=False).tolist())
+    diffs, broken, chroma, by_encoder = [], 0, set(), {"gpu": [], "cpu": []}
     for batch in producer.batches(seed, picked):
         rgb = batch["rgb"].cpu().numpy().astype(np.float64)
         for row, index in enumerate(batch["index"].tolist()):
             try:
-                decoded = np.asarray(Image.open(out / "rgb" / f"{index:06d}.jpg").convert("RGB"), np.float64)
+                image = Image.open(out / "rgb" / f"{index:06d}.jpg")
+                chroma.add(JpegImagePlugin.get_sampling(image))
+                decoded = np.asarray(image.convert("RGB"), np.float64)
             except OSError:
                 broken += 1
                 continue
             diffs.append(float(np.abs(decoded - rgb[row]).mean()))
+            by_encoder["cpu" if share and on_cpu(index, share) else "gpu"].append(diffs[-1])
     return {"frames": len(picked), "undecodable": broken, "mean_abs_diff": round(float(np.mean(diffs)), 3) if diffs
             else None, "max_abs_diff": round(max(diffs), 3) if diffs else None,
-            "ok": broken == 0 and bool(diffs) and max(diffs) < 8.0}
+            "ok": broken == 0 and bool(diffs) and max(diffs) < 8.0, "chroma": sorted(chroma),
+            **{f"mean_abs_diff_{k}": round(float(np.mean(v)), 3) for k, v in by_encoder.items() if v}}
+
+
+def cpu_jpeg_encoders(rgb, repeats: int = 20) -> dict:
+    """ms to encode ``rgb`` ((H, W, 3) uint8, a rendered frame) as JPEG on this thread: Pillow
+    (``cpu_jpeg.encode_jpeg_cpu``, 4:4:4) and torchvision's CPU ``encode_jpeg`` (libjpeg's default
+    4:2:0; absent where torchvision does not import), best of ``repeats``, with the files' bytes."""
+    import numpy as np
+
+    rgb = np.ascontiguousarray(rgb)
+    encoders = {"pillow_444": lambda: encode_jpeg_cpu(rgb)}
+    try:
+        from torchvision.io import encode_jpeg
+
+        chw = torch.from_numpy(rgb).permute(2, 0, 1).contiguous()
+        encoders["torchvision_cpu_420"] = lambda: encode_jpeg(chw, quality=JPEG_QUALITY)
+    except Exception:  # not installed or built for another torch
+        pass
+    result = {}
+    for name, encode in encoders.items():
+        best = float("inf")
+        for _ in range(repeats):
+            start = time.perf_counter()
+            data = encode()
+            best = min(best, time.perf_counter() - start)
+        result[name] = {"ms": round(1e3 * best, 3), "bytes": len(data)}
+    return result
 
 
 def disk_run(config, out: Path, frames: list[int], categories, write, check=None) -> dict:
@@ -303,6 +344,9 @@ def main() -> None:
                    help="raw render and the in-memory modes only (no disk run): e.g. many worlds a launch")
     p.add_argument("--process-frames", type=int, default=None,
                    help="frames of the processes' disk run (default: 2 x --frames, two launches each at the defaults)")
+    p.add_argument("--cpu-jpeg-share", default=str(DEFAULT_CPU_JPEG_SHARE),
+                   help="share of the JPEG runs' frames (0 to 1, e.g. 1/3; by index) encoded on the draw processes' "
+                        f"cores instead of nvjpeg (default {DEFAULT_CPU_JPEG_SHARE}; 0: nvjpeg alone)")
     p.add_argument("--out", default=None, help="parent folder of the disk runs' datasets (default: a temporary one)")
     args = p.parse_args()
     width, height = (int(v) for v in args.size.lower().split("x"))
@@ -315,6 +359,10 @@ def main() -> None:
     if draw_workers < 1:
         p.error("--draw-workers must be >= 1: the disk modes write on the draw processes")
     args.process_frames = args.process_frames or 2 * args.frames
+    try:
+        share = share_fraction(args.cpu_jpeg_share)
+    except (ValueError, ZeroDivisionError):
+        p.error(f"--cpu-jpeg-share {args.cpu_jpeg_share}: give a share from 0 to 1, e.g. 1/3 or 0")
     unknown = set(args.runs.split(",")) - set(DISK_RUNS)
     if unknown:
         p.error(f"unknown --runs {sorted(unknown)}: choose from {', '.join(DISK_RUNS)}")
@@ -324,7 +372,7 @@ def main() -> None:
     root = Path(tempfile.mkdtemp(prefix="ambulo-gen-gpu-", dir=args.out))
     gpu = torch.cuda.get_device_name(dev) if dev.startswith("cuda") else None
     say(f"generate_gpu: {width}x{height}, {n} worlds a launch, {args.frames} frames, device {dev} ({gpu}), "
-        f"{cpus} cores")
+        f"{cpus} cores, CPU JPEG share {share}")
 
     try:
         # -- warm-up: not in any rate ------------------------------------------------------
@@ -415,11 +463,14 @@ def main() -> None:
                 # one batch first, not timed: the run's shared blocks are made and page-locked once
                 # per producer and layout (what a long generate pays once), the processes map them
                 prepare_dirs(where / "warm", writer_cfg)
-                run_batched_frames(run_config, where / "warm", 2, frames[:n], producer, image_format=fmt)
-                check = functools.partial(jpeg_check, producer, seed=2, frames=disk_frames) if fmt == "jpg" else None
+                run_batched_frames(run_config, where / "warm", 2, frames[:n], producer, image_format=fmt,
+                                   cpu_jpeg_share=share)
+                check = functools.partial(jpeg_check, producer, seed=2, frames=disk_frames,
+                                          share=share) if fmt == "jpg" else None
                 disk[name] = disk_run(run_config, where / "d", disk_frames, categories,
                                       functools.partial(run_batched_frames, run_config, seed=2, frames=disk_frames,
-                                                        producer=producer, image_format=fmt), check=check)
+                                                        producer=producer, image_format=fmt, cpu_jpeg_share=share),
+                                      check=check)
             except Exception as err:  # one mode's failure is reported, and the others still run
                 disk[name] = {"fps": 0.0, "error": f"{type(err).__name__}: {err}"[:500]}
                 say(f"to disk, {name}: FAILED {disk[name]['error']}")
@@ -428,6 +479,7 @@ def main() -> None:
                 shutil.rmtree(where, ignore_errors=True)
             held = producer.disk_blocks[1] if producer.disk_blocks else []
             disk[name].update(format=fmt, outputs=list(outputs), fsync=fsync, folder=str(folder),
+                              cpu_jpeg_share=str(share) if fmt == "jpg" else None,
                               blocks={"count": len(held), "folder": os.path.dirname(held[0].path) if held else None,
                                       "pinned": all(b._pinned is not None for b in held) if held else False})
             say(f"to disk, {name} ({fmt}, {'+'.join(outputs)}, fsync {fsync}, in {folder}): {disk[name]['fps']:.0f} "
@@ -455,6 +507,10 @@ def main() -> None:
             if disk_ceiling_fps:
                 entry["of_disk_ceiling"] = round(entry["fps"] / disk_ceiling_fps, 3)
         disk_fps = head["fps"] if head else None
+        # one rendered frame encoded on this thread by each CPU JPEG encoder
+        rendered = next(producer.batches(1, frames[:n]))["rgb"][0].cpu().numpy()
+        cpu_jpeg_ms = cpu_jpeg_encoders(rendered)
+        say(f"CPU JPEG encoders, one {width}x{height} frame on one core: {cpu_jpeg_ms}")
         producer.close()
         del producer
         if dev.startswith("cuda"):  # give the device memory back before the processes take theirs
@@ -505,6 +561,7 @@ def main() -> None:
                          "the COCO merge included (fps_before_merge without it)",
         "disk_ceiling_fps": disk_ceiling_fps and round(disk_ceiling_fps, 1), "disk_frames": args.disk_frames,
         "disk": disk, "jpeg_note": jpg_note, "jpeg_available": jpeg_ok,
+        "cpu_jpeg_share": str(share), "cpu_jpeg_encoders": cpu_jpeg_ms,
         "writer_threads": writer_threads,
         "draw_workers": draw_workers, "disk_processes": procs,
         "targets": {"disk_fps": 2000, "memory_fps": 50000, "size": [640, 480]},
