@@ -31,6 +31,7 @@ from ambulo.scenes.terrain import (
     TerrainHeights,
     add_terrain,
     generate,
+    sphere_soles,
 )
 from ambulo.sensors import ContactSensor, ContactSensorCfg
 
@@ -52,6 +53,10 @@ class HumanoidRoughCfg(HumanoidWalkCfg):
     """Robots start uniformly within +-this of their tile's centre along x and y, m."""
     terrain_friction: float = 1.0
     """Sliding friction of the terrain geom before randomization."""
+    sole_sphere_radius_m: float | None = 0.02
+    """The feet touch the terrain through four spheres of this radius at their soles' corners
+    (``scenes.terrain.sphere_soles``: MuJoCo Warp's box-heightfield contacts push resting feet
+    down); None: through their boxes (right on the CPU engine only)."""
 
 
 def humanoid_rough_cfg() -> HumanoidRoughCfg:
@@ -88,6 +93,8 @@ class HumanoidRoughEnv(HumanoidWalkEnv):
         self.terrain = generate(cfg.terrain)
         geom = add_terrain(spec, self.terrain, friction=cfg.terrain_friction)
         feet = tuple(f"{cfg.robot.prim_path}/{foot}" for foot in cfg.feet_bodies)
+        if cfg.sole_sphere_radius_m is not None:  # the humanoid's foot geoms are named as its foot bodies
+            sphere_soles(spec, feet, cfg.sole_sphere_radius_m)
         self.feet = self.sim.add(ContactSensor(ContactSensorCfg(
             name="feet_contact", prim_paths=feet, include_subtree=True, against=geom.name)))
 

@@ -6,13 +6,17 @@
   and ``add_terrain`` (into a scene spec as one hfield geom, for the CPU and GPU engines);
 - ``heights``: ``TerrainHeights`` (the same samples interpolated on the device) and
   ``HeightScan`` (the actor's grid of ground heights around the base);
-- ``curriculum``: ``TerrainCurriculum`` (legged_gym's level moves, vectorized over worlds).
+- ``curriculum``: ``TerrainCurriculum`` (legged_gym's level moves, vectorized over worlds);
+- ``soles``: ``sphere_soles`` (feet touch the hfield through corner spheres: MuJoCo Warp's
+  box-hfield contacts are wrong for flat soles).
 """
 
 from .curriculum import TerrainCurriculum, TerrainCurriculumCfg
 from .generator import TERRAIN_PRIM_PATH, TerrainCfg, TerrainGrid, add_terrain, difficulties, generate
 from .heights import HeightScan, HeightScanCfg, TerrainHeights
+from .soles import sphere_soles
 from .subterrains import KINDS
 
 __all__ = ["KINDS", "TERRAIN_PRIM_PATH", "HeightScan", "HeightScanCfg", "TerrainCfg", "TerrainCurriculum",
-           "TerrainCurriculumCfg", "TerrainGrid", "TerrainHeights", "add_terrain", "difficulties", "generate"]
+           "TerrainCurriculumCfg", "TerrainGrid", "TerrainHeights", "add_terrain", "difficulties", "generate",
+           "sphere_soles"]
