@@ -5,7 +5,8 @@ still write the straight run's bytes), give the share exactly, and the frames of
 must be encoded on the processes from the rendered pixels at nvjpeg's quality and chroma; share 0
 must leave every frame to the GPU encoder (the files before the share existed). The disk-mode test
 runs on MuJoCo Warp's CPU device with Pillow (4:2:0) standing in for nvjpeg, so which encoder wrote
-a file shows in its bytes.
+a file shows in its bytes, and a thread standing in for the draw process (its start and exit are most
+of a spawned pool's time here; ``test_batched_disk`` runs the real one).
 """
 
 from __future__ import annotations
@@ -65,15 +66,31 @@ def _gpu_standin(rgb: torch.Tensor) -> list[torch.Tensor]:
     return out
 
 
-def test_the_cpu_share_is_encoded_on_the_processes_from_the_rendered_pixels(tmp_path, monkeypatch):
+def _pool_in_this_process(config, monkeypatch):
+    """A ``DrawPool`` whose 'process' is a thread of this one (its worker state here): the same draws
+    and ``_write_part`` over the same shared block, without a spawned interpreter's start and exit
+    (most of this test's time on the shared VM)."""
+    import concurrent.futures as cf
+
+    from ambulo.replicator import batched_disk, draw_pool
+    from ambulo.replicator.processes import _dump_config
+
+    pool = draw_pool.DrawPool(config, 1)
+    pool._pool.shutdown()  # no process started yet: they start on the first submit
+    pool._pool = cf.ThreadPoolExecutor(1)
+    monkeypatch.setattr(draw_pool, "_worker", {"payload": _dump_config(config)})
+    monkeypatch.setattr(batched_disk, "_blocks", {})  # this process's mappings of the blocks
+    return pool
+
+
+def test_the_cpu_share_is_encoded_by_the_writers_from_the_rendered_pixels(tmp_path, monkeypatch):
     from ambulo.replicator import batched_disk
     from ambulo.replicator.batched import BatchedFrameProducer
-    from ambulo.replicator.draw_pool import DrawPool
     from ambulo.replicator.writers import prepare_dirs
 
     config = rep.example_config(64, 48)
     config = dataclasses.replace(config, writer=dataclasses.replace(config.writer, outputs=("coco",)))
-    producer = BatchedFrameProducer(config, num_worlds=3, device="cpu", draws=DrawPool(config, 1))
+    producer = BatchedFrameProducer(config, num_worlds=3, device="cpu", draws=_pool_in_this_process(config, monkeypatch))
     monkeypatch.setattr(batched_disk, "encode_jpegs", _gpu_standin)
     # straight: [0 1 2] [3 4 5] [6], one CPU frame a batch at world 2; resumed-like sparse frames:
     # [1 2 4] (CPU frame 2 at world 1) and [5 8 11] (all three on the CPU: nvjpeg gets no image);
