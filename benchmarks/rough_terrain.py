@@ -10,6 +10,7 @@ and the best of each is kept; CUDA timings are bracketed by synchronizations.
 
     python benchmarks/rough_terrain.py --device cuda --num-envs 4096 --steps 100
     python benchmarks/rough_terrain.py --num-envs 16 --steps 20          # CPU engine
+    python benchmarks/rough_terrain.py --rough-set terrain.spacing_m=0.1  # a lever, on both rough variants
 
 Ends with one ``RESULT {json}`` line: ``ratio`` = rough (as trained) / flat env-steps/s.
 """
@@ -17,6 +18,7 @@ Ends with one ``RESULT {json}`` line: ``ratio`` = rough (as trained) / flat env-
 from __future__ import annotations
 
 import argparse
+import ast
 import json
 import time
 
@@ -29,6 +31,17 @@ TARGET_RATIO = 0.5
 
 def make(task: str, args, **overrides):
     return envs.make(task, num_envs=args.num_envs, device=args.device, seed=0, **overrides)
+
+
+def parse_override(item: str) -> tuple[str, object]:
+    """``"key=value"`` -> (key, the value as a Python literal, else the text)."""
+    key, sep, text = item.partition("=")
+    if not sep or not key:
+        raise SystemExit(f"--rough-set {item!r}: give KEY=VALUE, e.g. terrain.spacing_m=0.1")
+    try:
+        return key, ast.literal_eval(text)
+    except (ValueError, SyntaxError):
+        return key, text
 
 
 def steps_per_s(env, steps: int, warmup: int, generator: torch.Generator) -> float:
@@ -53,18 +66,22 @@ def main():
     parser.add_argument("--steps", type=int, default=50)
     parser.add_argument("--warmup", type=int, default=10)
     parser.add_argument("--repeats", type=int, default=2)
+    parser.add_argument("--rough-set", action="append", default=[], metavar="KEY=VALUE",
+                        help="an envs.make override of both humanoid-rough variants (a Python literal value), "
+                             "e.g. terrain.spacing_m=0.1 or sole_sphere_radius_m=None; repeatable")
     args = parser.parse_args()
+    rough_set = dict(parse_override(item) for item in args.rough_set)
     generator = torch.Generator(device=args.device).manual_seed(0)
     variants = {
         "flat": make("humanoid-walk", args),
-        "rough": make("humanoid-rough", args),
-        "rough_no_latency": make("humanoid-rough", args, **{"transfer.action_latency_range_s": None}),
+        "rough": make("humanoid-rough", args, **rough_set),
+        "rough_no_latency": make("humanoid-rough", args, **rough_set, **{"transfer.action_latency_range_s": None}),
     }
     best = dict.fromkeys(variants, 0.0)
     for _ in range(args.repeats):
         for name, env in variants.items():
             best[name] = max(best[name], steps_per_s(env, args.steps, args.warmup, generator))
-    result = {"device": args.device, "num_envs": args.num_envs, "steps": args.steps,
+    result = {"device": args.device, "num_envs": args.num_envs, "steps": args.steps, "rough_set": args.rough_set,
               "env_steps_per_s": {k: round(v, 1) for k, v in best.items()},
               "ratio": round(best["rough"] / best["flat"], 3),
               "ratio_no_latency": round(best["rough_no_latency"] / best["flat"], 3),
