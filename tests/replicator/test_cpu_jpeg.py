@@ -95,13 +95,16 @@ def test_the_cpu_share_is_encoded_by_the_writers_from_the_rendered_pixels(tmp_pa
     # straight: [0 1 2] [3 4 5] [6], one CPU frame a batch at world 2; resumed-like sparse frames:
     # [1 2 4] (CPU frame 2 at world 1) and [5 8 11] (all three on the CPU: nvjpeg gets no image);
     # share 0: every frame to the GPU encoder
-    runs = {"straight": (list(range(7)), Fraction(1, 3)), "sparse": ([1, 2, 4, 5, 8, 11], Fraction(1, 3)),
+    runs = {"short": ([0, 1], Fraction(1, 3)), "straight": (list(range(7)), Fraction(1, 3)), "sparse": ([1, 2, 4, 5, 8, 11], Fraction(1, 3)),
             "share0": ([0, 1, 2], Fraction(0))}
+    rows = {}  # each run's blocks' raw RGB rows for the CPU's frames, and the blocks themselves
     try:
         for name, (frames, share) in runs.items():
             prepare_dirs(tmp_path / name, config.writer)
             batched_disk.run_batched_frames(config, tmp_path / name, 2, frames, producer, image_format="jpg",
                                             cpu_jpeg_share=share)
+            layout, blocks = producer.disk_blocks
+            rows[name] = (layout[0].get("rgb_cpu", ((0,),))[0][0], blocks)
         rendered = {int(i): rgb.copy() for batch in producer.batches(2, list(range(12)))
                     for i, rgb in zip(batch["index"].tolist(), batch["rgb"].cpu().numpy())}
     finally:
@@ -118,6 +121,11 @@ def test_the_cpu_share_is_encoded_by_the_writers_from_the_rendered_pixels(tmp_pa
             decoded = np.asarray(Image.open(io.BytesIO(data)), np.float64)
             assert np.abs(decoded - pixels).mean() < 6.0, (name, index)  # a few levels on a small textured frame
         assert by_cpu == {i for i in frames if on_cpu(i, share)}, name
+    # sized for the share (a third of 3 worlds: 1 row), not the batch; the same blocks for a short run
+    # (no CPU frame among 0, 1) and a long one, so a run's first batch does not make them again;
+    # more rows only where sparse frames put more of a batch on the CPU; none at share 0
+    assert {name: count for name, (count, _) in rows.items()} == {"short": 1, "straight": 1, "sparse": 3, "share0": 0}
+    assert rows["short"][1] is rows["straight"][1]
 
 
 def test_generate_refuses_a_share_out_of_range_or_without_jpeg(tmp_path, capsys):

@@ -33,6 +33,7 @@ from __future__ import annotations
 import collections
 import contextlib
 import functools
+import math
 import mmap
 import os
 import pickle
@@ -198,9 +199,11 @@ def run_batched_frames(config, out: Path, seed: int, frames: list[int], producer
     out = Path(out)
     jpeg = image_format == "jpg"
     share = share_fraction(cpu_jpeg_share) if jpeg else share_fraction(0)
-    # the most frames of any batch of this run that the CPU encodes: the block's rgb_cpu rows (a
-    # resumed run's sparse frames may put more of a batch there than the share's ceiling)
-    cpu_rgb = max((len(cpu_worlds(chunk, share)) for chunk in _split(frames, producer.num_worlds)), default=0)
+    # the block's rgb_cpu rows: the most CPU frames any num_worlds consecutive frames hold (the same
+    # layout, so the same kept blocks, from one run to the next), or more where a resumed run's
+    # sparse frames put more of a batch there
+    cpu_rgb = max([math.ceil(producer.num_worlds * share)] +
+                  [len(cpu_worlds(chunk, share)) for chunk in _split(frames, producer.num_worlds)])
     cfg = producer.camera.cfg
     cuda = producer.engine.device.type == "cuda"
     # records are held until a commit's flush: the commit thread flushes explicitly
