@@ -123,6 +123,9 @@ def test_a_robot_by_a_wall_plans_the_roomy_way_from_a_cell_beside_it(room, fix_m
     else:
         assert least >= 0.3, least
         assert np.linalg.norm(path[0] - est[:2]) <= shift_m + 0.06  # it starts beside the robot (a foot's offset)
+        # a look turn's walk-on plans without the shift (``_plan_footsteps(shift=False)``): no roomy plan here
+        assert nav._roomy_plan(grid, nav.mapper.version, False, est, np.array([1.5, -0.1]), 0.0, None, True,
+                               shift=False) is None
     world.close()
 
 

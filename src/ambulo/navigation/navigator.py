@@ -127,13 +127,16 @@ class NavigatorCfg(Checked):
     """A robot that lacks a roomy clearance where it stands plans that clearance's footsteps from the
     nearest cell centre within this that has it (the policy walker walks to a plan's start, up to
     ``PolicyWalkerCfg.max_start_offset_m``), instead of the 0.25 m plan from where it stands; None:
-    never (a walker that steps from its feet never does). A robot 0.21-0.25 m from a wall (a bend
-    walked close, a look turn's stance) otherwise planned the 0.25 m way along it: full mode
-    apartments 77 and 80 (device) walked on from 0.25 m with the usual plan and a forearm met the
-    wall 0.5 s later, m."""
+    never (a walker that steps from its feet never does). Not for a look turn's walk-on (a short step
+    into the blind zone, where arm room moves the robot already): with it there, VM apartment 8
+    shuffled between walk-ons and arm-room moves until the stuck window ended. A robot 0.21-0.25 m
+    from a wall otherwise planned the 0.25 m way along it: full mode apartments 77 and 80 (device)
+    walked on with the usual plan (0.25 m of room at those replans on the VM) and a forearm met the
+    wall ~0.5 s later (benchmarks/results/vm-2026-11-29-s9-nav.md), m."""
     roomy_subgoal_shift_m: float | None = 0.1
-    """A subgoal (not the goal: its stance is ``roomy_goal``'s) that lacks a roomy clearance moves to the
-    nearest cell centre within this that has it, for that clearance's plan; None: never, m."""
+    """A subgoal (not the goal: its stance is ``roomy_goal``'s; not a walk-on's) that lacks a roomy
+    clearance moves to the nearest cell centre within this that has it, for that clearance's plan;
+    None: never, m."""
     roomy_max_expansions: int = 60
     """Lattice expansions of each roomy plan before the next (then the usual one) is planned
     instead: most roomy plans are the straight walk along the body path (no expansion), and one
@@ -771,7 +774,8 @@ class Navigator:
                     # facing where it looked: the route's heading at a bend there turned the robot
                     # away from it while it walked (apartment 19), and the next replan looked back
                     walk_xy, walk_yaw = path[j], yaw
-                plan = self._plan_footsteps(stage, grid, version, optimistic, est, route, j, final, walk_xy, walk_yaw)
+                plan = self._plan_footsteps(stage, grid, version, optimistic, est, route, j, final, walk_xy, walk_yaw,
+                                            shift=False)
                 reason = reason + (" (faced: walk on)" if facing else " (looked: walk on)" if faced
                                    else " (cornered: walk on)")
                 if plan.status == PlanStatus.GOAL_IN_COLLISION and not optimistic:
@@ -782,7 +786,8 @@ class Navigator:
                     # refused walk-ons). So this short step (``look_ahead_m``, inside the blind
                     # zone) counts unseen cells free; seen obstacles still block it, and the cells
                     # the body crosses are marked free (``mark_body``).
-                    plan = self._plan_footsteps(stage, grid, version, True, est, route, j, final, walk_xy, walk_yaw)
+                    plan = self._plan_footsteps(stage, grid, version, True, est, route, j, final, walk_xy, walk_yaw,
+                                                shift=False)
                     reason = reason + " (unseen free)"
                     self._blind_zone(est)
             if plan is self._roomy:
@@ -874,7 +879,7 @@ class Navigator:
         return np.array([cx[ok][best], cy[ok][best]])
 
     def _plan_footsteps(self, stage: FootstepStage, grid, version, optimistic, est, route, k, final, goal_xy,
-                        yaw, roomy: bool = True) -> FootstepPlan:
+                        yaw, roomy: bool = True, shift: bool = True) -> FootstepPlan:
         """Footsteps from the robot to route point ``k``: first with ``roomy_clearance_m`` where the
         map allows it (``roomy``, the usual stage; ``_roomy_plan``), else as follows. Two
         recoveries: a goal stance that touches an obstacle at the route's heading is tried at three
@@ -885,7 +890,7 @@ class Navigator:
         self._stepping_out = False
         feet = self.walker.start_feet() if hasattr(self.walker, "start_feet") else None
         if roomy and stage is self.footsteps_stage:
-            plan = self._roomy_plan(grid, version, optimistic, est, goal_xy, yaw, feet, final)
+            plan = self._roomy_plan(grid, version, optimistic, est, goal_xy, yaw, feet, final, shift)
             if plan is not None:
                 return plan
         if feet is not None:  # a walker that steps on the footholds: plan from its feet
@@ -923,7 +928,8 @@ class Navigator:
                     return retry
         return plan
 
-    def _roomy_plan(self, grid, version, optimistic, est, goal_xy, yaw, feet, final: bool = True) -> FootstepPlan | None:
+    def _roomy_plan(self, grid, version, optimistic, est, goal_xy, yaw, feet, final: bool = True,
+                    shift: bool = True) -> FootstepPlan | None:
         """A plan that keeps the first of ``roomy_clearance_m`` it can all the way, or None (the
         robot or the goal lacks each on the map within ``roomy_start_shift_m`` (a subgoal, not
         ``final``: within ``roomy_subgoal_shift_m``): no search then, or each search did not end at
@@ -941,13 +947,15 @@ class Navigator:
             need = stage.footstep_cfg.body_clearance_m
             goal = (goal_xy[0], goal_xy[1], yaw)
             if goal_room < need:
-                near = None if final else self._room_near(grid, clr, goal_xy, need, self.cfg.roomy_subgoal_shift_m)
+                near = None if final or not shift else self._room_near(grid, clr, goal_xy, need,
+                                                                         self.cfg.roomy_subgoal_shift_m)
                 if near is None:
                     continue
                 goal = (near[0], near[1], yaw)
             from_xyyaw = est
             if start_room < need:
-                near = None if feet is not None else self._room_near(grid, clr, est, need, self.cfg.roomy_start_shift_m)
+                near = None if feet is not None or not shift else self._room_near(grid, clr, est, need,
+                                                                                  self.cfg.roomy_start_shift_m)
                 from_xyyaw = None if near is None else np.array([near[0], near[1], est[2]])
                 if from_xyyaw is None:
                     continue
