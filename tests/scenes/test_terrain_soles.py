@@ -50,6 +50,18 @@ def test_spheres_keep_the_sole_plane_outline_and_mass():
     assert (model.geom_contype[ids] == 0).all() and (model.geom_conaffinity[ids] == 1).all()
 
 
+def test_timeconst_sets_the_spheres_solref_only():
+    spec = mujoco.MjSpec()
+    body = spec.worldbody.add_body(name="b")
+    body.add_freejoint()
+    box = body.add_geom(name=FOOT, type=mujoco.mjtGeom.mjGEOM_BOX, size=list(HALF), solref=[0.02, 1.0])
+    names = sphere_soles(spec, (FOOT,), timeconst_s=0.01)
+    model = spec.compile()
+    np.testing.assert_allclose(model.geom_solref[[model.geom(n).id for n in names]], [[0.01, 1.0]] * 4)
+    np.testing.assert_allclose(model.geom_solref[model.geom(FOOT).id], [0.02, 1.0])
+    assert box.name == FOOT
+
+
 def test_bad_geoms_are_refused():
     spec = mujoco.MjSpec()
     spec.worldbody.add_geom(name="ball", type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.1, 0, 0])
