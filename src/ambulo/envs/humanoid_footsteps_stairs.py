@@ -33,10 +33,7 @@ from ambulo.scenes.terrain import (
     TerrainCurriculum,
     TerrainCurriculumCfg,
     TerrainHeights,
-    add_terrain,
-    generate,
 )
-from ambulo.sensors import ContactSensor, ContactSensorCfg
 
 from .footstep_sampler import relative_xyyaw
 from .footstep_terrain import TreadSnap, TreadSnapCfg
@@ -49,6 +46,7 @@ from .humanoid_footsteps import (
 )
 from .humanoid_walk import as_play, humanoid_walk_ppo
 from .registry import TaskSpec, register
+from .terrain_ground import add_terrain_ground
 
 STAIR_RISER_M = 0.10
 """The issue's step height (issue 30 item 4: footsteps "over 0.10 m steps"), m."""
@@ -76,6 +74,11 @@ class HumanoidFootstepsStairsCfg(HumanoidFootstepsCfg):
     """Robots start uniformly within +-this of their tile's centre along x and y, m."""
     terrain_friction: float = 1.0
     """Sliding friction of the terrain geom before randomization."""
+    sole_sphere_radius_m: float | None = 0.02
+    """The feet touch the terrain through spheres at their soles' corners, as on humanoid-rough
+    (``HumanoidRoughCfg.sole_sphere_radius_m``: MuJoCo Warp's box-heightfield contacts); None: boxes."""
+    sole_contact_timeconst_s: float | None = 0.01
+    """The sole spheres' contact time constant, s (``HumanoidRoughCfg.sole_contact_timeconst_s``)."""
 
 
 def humanoid_footsteps_stairs_cfg() -> HumanoidFootstepsStairsCfg:
@@ -100,14 +103,7 @@ class HumanoidFootstepsStairsEnv(HumanoidFootstepsEnv):
     cfg: HumanoidFootstepsStairsCfg
 
     def _design_scene(self, spec) -> None:
-        cfg = self.cfg
-        if cfg.ground is not None:
-            raise ValueError("humanoid-footsteps-stairs' ground is its terrain; set ground=None")
-        self.terrain = generate(cfg.terrain)
-        geom = add_terrain(spec, self.terrain, friction=cfg.terrain_friction)
-        feet = tuple(f"{cfg.robot.prim_path}/{foot}" for foot in cfg.feet_bodies)
-        self.feet = self.sim.add(ContactSensor(ContactSensorCfg(
-            name="feet_contact", prim_paths=feet, include_subtree=True, against=geom.name)))
+        add_terrain_ground(self, spec, "humanoid-footsteps-stairs")
 
     def _setup(self) -> None:
         n, dev, cfg = self.num_envs, self.device, self.cfg

@@ -29,14 +29,11 @@ from ambulo.scenes.terrain import (
     TerrainCurriculum,
     TerrainCurriculumCfg,
     TerrainHeights,
-    add_terrain,
-    generate,
-    sphere_soles,
 )
-from ambulo.sensors import ContactSensor, ContactSensorCfg
 
 from .humanoid_walk import WALKS, HumanoidWalkCfg, HumanoidWalkEnv, as_play, humanoid_walk_cfg, humanoid_walk_ppo
 from .registry import TaskSpec, register
+from .terrain_ground import add_terrain_ground
 from .transfer import transfer_cfg_wide
 
 
@@ -90,16 +87,7 @@ class HumanoidRoughEnv(HumanoidWalkEnv):
     cfg: HumanoidRoughCfg
 
     def _design_scene(self, spec) -> None:
-        cfg = self.cfg
-        if cfg.ground is not None:
-            raise ValueError("humanoid-rough's ground is its terrain; set ground=None")
-        self.terrain = generate(cfg.terrain)
-        geom = add_terrain(spec, self.terrain, friction=cfg.terrain_friction)
-        feet = tuple(f"{cfg.robot.prim_path}/{foot}" for foot in cfg.feet_bodies)
-        if cfg.sole_sphere_radius_m is not None:  # the humanoid's foot geoms are named as its foot bodies
-            sphere_soles(spec, feet, cfg.sole_sphere_radius_m, timeconst_s=cfg.sole_contact_timeconst_s)
-        self.feet = self.sim.add(ContactSensor(ContactSensorCfg(
-            name="feet_contact", prim_paths=feet, include_subtree=True, against=geom.name)))
+        add_terrain_ground(self, spec, "humanoid-rough")
 
     def _setup(self) -> None:
         super()._setup()
