@@ -2,10 +2,12 @@
 
 torchvision's nvjpeg binding encodes a batch's images one at a time under a global lock, waiting
 for the device twice an image: on the H200, 0.45-0.50 ms a 640x480 frame on the JPEG thread
-(``jpeg_stage``), which bounds the disk mode at ~2,000-2,200 frames/s while the host's cores are
-mostly idle (``benchmarks/results``, session 9). ``batched_disk`` therefore hands a share of each
-batch's frames to the draw processes raw (the block's ``rgb_cpu``), and they encode them with
-libjpeg-turbo (Pillow) while nvjpeg encodes the rest.
+(``jpeg_stage``), while the host's cores are mostly idle. ``batched_disk`` therefore hands a share
+of each batch's frames to the draw processes raw (the block's ``rgb_cpu``), and they encode them
+with libjpeg-turbo (Pillow) while nvjpeg encodes the rest. Measured on the H200 in one run
+(``benchmarks/results/h200-2026-11-29-session9.md``): to disk with fsync 1,657 -> 1,783 frames/s at
+1/3; into ``/dev/shm`` ~2,000 either way, so the JPEG thread is one bound among others (the render
+thread's draws, block waits, commits), not the only one.
 
 Which frames go to the CPU depends on the frame index alone (``on_cpu``), never on the batch, the
 host or the timing: a killed and resumed run writes the same bytes as a straight run with the same
@@ -28,9 +30,8 @@ import numpy as np
 from .encode import JPEG_QUALITY
 
 DEFAULT_CPU_JPEG_SHARE = Fraction(1, 3)
-"""The GPU path's default: on a 16-core H200 host nvjpeg then encodes 2/3 of the frames (0.3 ms a
-frame of the JPEG thread's time, a ceiling of ~3,000 frames/s) and the 14 draw processes add ~1 ms
-of CPU a frame on the third they encode (a few ms each, on top of ~1.3 ms a frame they spend now)."""
+"""The GPU path's default: nvjpeg encodes 2/3 of the frames, the draw processes the rest (Pillow
+4:4:4: 1.6-2.2 ms a 640x480 frame on one core of the H200 host); +8 % to disk there (see above)."""
 
 MAX_DENOMINATOR = 64
 """A share is rounded to the nearest fraction with a denominator up to this (1/3 stays exact)."""
