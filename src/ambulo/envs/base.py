@@ -75,6 +75,13 @@ class EnvCfg(Checked):
     observation_noise: dict[str, float] = field(default_factory=dict)
     """Uniform noise half-width per policy observation term (actor only; the critic sees
     clean values), in the term's units after scaling."""
+    diverged_speed_bound: float | None = field(default=1000.0, metadata=rule(minimum=0.0, strict=True))
+    """A world with any velocity entry (``qvel``: joint speeds in rad/s or m/s, a free base's
+    linear m/s and angular rad/s) beyond this after a step is diverged, like the engine's own
+    check (NaN or beyond mjMAXVAL, 1e10): terminated, counted in ``Episode_Termination/diverged``,
+    its reward for that step zeroed. Why: a world that runs away below 1e10 (MuJoCo Warp on
+    humanoid-rough) gave squared-velocity rewards of -1e10 that wrecked PPO's value targets.
+    None: only the engine's check."""
     stats_interval_steps: int = field(default=24, metadata=rule(minimum=1))
     """Episode statistics (``extras["episode"]``) cover the episodes that ended in windows of
     this many policy steps, so the step path needs no host sync to find ended episodes."""
@@ -261,7 +268,7 @@ class RLEnv:
         self.actions.copy_(actions.clamp(-self.cfg.action_clip, self.cfg.action_clip))
         self._apply_action(self.actions)
         self._pre_physics()
-        diverged = self._simulate().to(self.device)
+        diverged = self._simulate().to(self.device) | self._runaway()
         self.episode_length_buf += 1
         self._post_physics()
 
@@ -273,6 +280,8 @@ class RLEnv:
         terms = self._get_rewards()
         # one stack (promoting to the widest dtype) and one conversion, not one per term
         weighted = torch.stack([terms[k] for k in self.reward_names], dim=1).float() * self._reward_weights
+        # a diverged world's terms describe a broken (or already restored) state: they earn nothing
+        weighted = torch.where(diverged[:, None], 0.0, weighted)
         self.episode_sums += weighted
         rewards = weighted.sum(dim=1)
 
@@ -293,6 +302,14 @@ class RLEnv:
         """Release resources (the engine is freed with the env)."""
 
     # -- internals -----------------------------------------------------------------
+    def _runaway(self) -> torch.Tensor:
+        """(N,) bool: worlds whose speeds left ``cfg.diverged_speed_bound`` (NaN included: the
+        comparison is False for it). A mask on the device: no host sync."""
+        bound = self.cfg.diverged_speed_bound
+        if bound is None:
+            return torch.zeros(self.num_envs, dtype=torch.bool, device=self.device)
+        return ~(self.engine.field("qvel").abs() <= bound).all(dim=1).to(self.device)
+
     def _torch_threads(self):
         if self.device.type != "cpu" or self.cfg.torch_threads <= 0:
             return contextlib.nullcontext()

@@ -59,6 +59,10 @@ class HumanoidWalkCfg(EnvCfg):
     """Each env is pushed after a time uniform in this range, then again; None: no pushes."""
     push_velocity_m_s: float = 0.5
     """Pushes add a planar base velocity uniform in +-this, m/s."""
+    diverged_speed_bound: float | None = 100.0
+    """``EnvCfg.diverged_speed_bound`` for a humanoid, rad/s or m/s: twice the fastest joint
+    (a light foot or hand, ~45 rad/s) under PPO's noisiest exploration on the CPU engine, while
+    worlds running away on MuJoCo Warp reach 280 rad/s base spins in one step (humanoid-rough)."""
     initial_joint_noise_rad: float = 0.05
     obs_scale_joint_vel: float = 0.05
     obs_scale_ang_vel: float = 0.25
