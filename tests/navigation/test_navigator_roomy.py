@@ -151,3 +151,26 @@ def test_a_subgoal_by_a_wall_moves_to_room_for_the_roomy_plan(room, fix_map, fin
         ey, ex = grid.cell_of(end)
         assert clr[ey, ex] >= 0.3 - 1e-9 and np.linalg.norm(end - goal) <= shift_m + 0.06, (end, clr[ey, ex])
     world.close()
+
+
+@pytest.mark.parametrize("detour_ratio", [1.5, None])
+def test_a_roomy_plan_that_goes_another_way_round_is_not_taken(room, fix_map, detour_ratio):
+    # a wall across the way 0.5 m ahead with a gap 0.56 m wide (0.28 m of clearance: the usual 0.25 m
+    # plan passes, the roomy 0.3 m one cannot) and ends 0.5 m either side: the roomy search walks round
+    # the wall's end, 3.3 m for a goal 0.7 m away (oracle apartment 70's pinch: 4.4 m walk-ons, stuck)
+    world, nav = _navigator_on(room, fix_map, lambda cx, cy: np.where(
+        (cx > -0.6) & (cx < -0.5) & (np.abs(cy) > 0.28) & (np.abs(cy) < 0.5), OCCUPIED, FREE),
+        roomy_detour_ratio=detour_ratio)
+    grid = nav.mapper.grid
+    est, goal = np.array([-1.0, 0.0, 0.0]), np.array([-0.3, 0.0])
+    plan = nav._roomy_plan(grid, nav.mapper.version, False, est, goal, 0.0, None, False, shift=False)
+    if detour_ratio is None:
+        path = body_path(plan)
+        assert float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum()) > 2.0  # round the wall's end
+    else:
+        assert plan is None  # the usual plan instead: through the gap
+        usual = nav.footsteps_stage.plan(grid, nav.mapper.version, False, est, (goal[0], goal[1], 0.0))
+        path = body_path(usual)
+        assert usual.status.value == "success"
+        assert float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum()) < 1.0
+    world.close()

@@ -137,6 +137,17 @@ class NavigatorCfg(Checked):
     """A subgoal (not the goal: its stance is ``roomy_goal``'s; not a walk-on's) that lacks a roomy
     clearance moves to the nearest cell centre within this that has it, for that clearance's plan;
     None: never, m."""
+    roomy_detour_ratio: float | None = 1.5
+    """A roomy plan whose body path is longer than this times the straight distance from its start to
+    its end, plus ``roomy_detour_m``, is not taken (the usual plan is planned instead); None: any
+    length. A roomy plan is the usual way with more room, not another way: where the route passes a
+    pinch narrower than the roomy clearance (0.28 m by a table's corner, oracle mode apartment 70),
+    the 0.3 m search found a way round the furniture instead, 3.9-4.6 m of body path for a walk-on
+    0.6 m long; the robot turned away down it, the next replan (the usual plan, through the pinch)
+    turned it back, and it shuffled 1.1 m from its goal until the stuck window ended (oracle and
+    full mode alike; VM full mode apartment 8: walk-ons of 1.8 m and 12.3 m for 0.6 m)..."""
+    roomy_detour_m: float = 0.3
+    """... m (a roomy plan round a bend of the route walks its corner)."""
     roomy_max_expansions: int = 60
     """Lattice expansions of each roomy plan before the next (then the usual one) is planned
     instead: most roomy plans are the straight walk along the body path (no expansion), and one
@@ -960,10 +971,21 @@ class Navigator:
                 if from_xyyaw is None:
                     continue
             plan = stage.plan(grid, version, optimistic, from_xyyaw, goal, **start)
-            if plan.status == PlanStatus.SUCCESS:
+            if plan.status == PlanStatus.SUCCESS and not self._detour(plan):
                 self._roomy = plan
                 return plan
         return None
+
+    def _detour(self, plan: FootstepPlan) -> bool:
+        """Whether ``plan``'s body path is longer than ``roomy_detour_ratio`` times the straight
+        distance between its ends plus ``roomy_detour_m`` (a roomy plan that goes another way)."""
+        c = self.cfg
+        if c.roomy_detour_ratio is None:
+            return False
+        path = body_path(plan)  # (K, 2) x m, y m
+        length_m = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
+        straight_m = float(np.linalg.norm(path[-1] - path[0]))
+        return length_m > c.roomy_detour_ratio * straight_m + c.roomy_detour_m
 
     @staticmethod
     def _room_near(grid: Grid2D, clr: np.ndarray, xy, need_m: float, shift_m: float | None) -> np.ndarray | None:
