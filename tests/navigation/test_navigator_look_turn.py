@@ -88,3 +88,26 @@ def test_a_robot_that_looked_here_walks_on_instead_of_looking_again(room, fix_ma
     nav._replan(world.time_s, np.array([-0.65, 0.0, 1.2]), "period")  # 0.35 m on: a look turn again
     assert nav._look_by_heading and "walk on" not in nav.replans[-1].reason, nav.replans[-1]
     world.close()
+
+
+@pytest.mark.parametrize("look_max_s", [8.0, None])
+def test_a_look_turn_that_never_ends_becomes_a_walk_on(room, fix_map, look_max_s):
+    # device apartment 93 (full mode): each period replan renewed the look turn with the heading the
+    # map then gave, and the robot never faced it: 20 s of look turns at its start. After look_max_s
+    # of one turn from the same spot it walks on down the route, as after a look that ended.
+    world, nav = _navigator_on(room, fix_map, lambda cx, cy: np.where(cx > -0.6, UNKNOWN, FREE),
+                               (-1.0, 0.0, math.pi), (2.5, 0.0), look_max_s=look_max_s)
+    t0 = world.time_s
+    nav._replan(t0, np.array([-1.0, 0.0, math.pi]), "test")
+    assert nav._look_by_heading, nav.replans[-1]  # a look turn begins
+    still_turning = np.array([-1.0, 0.02, 2.0])  # it has not faced the route (turned back and forth)
+    nav._replan(t0 + 5.0, still_turning, "period")
+    assert nav._look_by_heading and "walk on" not in nav.replans[-1].reason, nav.replans[-1]
+    nav._replan(t0 + 9.0, still_turning, "period")
+    record = nav.replans[-1]
+    if look_max_s is None:
+        assert nav._look_by_heading and "walk on" not in record.reason, record
+    else:
+        assert "(looked: walk on)" in record.reason and record.footstep_status == "success", record
+        assert not nav._look_by_heading and nav.walker.tracker.path is not None  # it walks
+    world.close()

@@ -96,6 +96,13 @@ class NavigatorCfg(Checked):
     that turned the robot away again alternated for the whole 20 s stuck window (full mode,
     apartment 71: look, walk, look, ... 1.2 m walked; 19: 16 s turning between -1.9 and -2.8 rad
     0.87 m from the goal)."""
+    look_max_s: float | None = 8.0
+    """A look turn still turning this long after it began (renewed by the period and map triggers,
+    each with the heading of the route as the map then has it) counts as done: the robot walks on
+    as it does after a look from where it stands (``look_again_m``); None: never, s. On the device,
+    full mode apartment 93 turned to look from its start for the whole 20 s stuck window (21 look
+    replans, never facing within ``look_done_rad`` / 2: the heading moved with each map); on the
+    100 device apartments (full and randomized) no other look turns for more than 7.7 s."""
     look_done_rad: float = 0.2
     """A look turn is renewed early (the "subgoal" trigger) only once the robot faces within this of
     its heading; the period and map triggers still renew it, rad."""
@@ -323,6 +330,8 @@ class Navigator:
         """The look turn is steered by the heading (``_steer_look``), the walker standing and turning."""
         self._looked_xy_m: np.ndarray | None = None
         """Where the robot last turned to look or faced the route already (``look_again_m``), estimate frame."""
+        self._look_since_s = -math.inf
+        """When the look turn under way began (``look_max_s``), s."""
         self.replans: list[ReplanRecord] = []
         self.status = "idle"
         """idle | walking | lost (waiting) | arrived | fell | lost_timeout | stuck | timeout | no_route"""
@@ -751,8 +760,12 @@ class Navigator:
                 d = path[j] - est[:2]
                 goal_xy, yaw = est[:2].copy(), float(math.atan2(d[1], d[0]))
                 reason = reason + " (look)"
-                looked = (self._look_yaw_rad is None and self._looked_xy_m is not None
-                          and np.linalg.norm(est[:2] - self._looked_xy_m) < self.cfg.look_again_m)
+                # looked here already: a turn that ended, or one that has turned for ``look_max_s``
+                here = (self._looked_xy_m is not None
+                        and np.linalg.norm(est[:2] - self._looked_xy_m) < self.cfg.look_again_m)
+                long_turn = (self._look_yaw_rad is not None and self.cfg.look_max_s is not None
+                             and now - self._look_since_s > self.cfg.look_max_s)
+                looked = here and (self._look_yaw_rad is None or long_turn)
             plan = self._plan_footsteps(stage, grid, version, optimistic, est, route, k, final, goal_xy, yaw,
                                         roomy=not look)
             if look and plan.status == PlanStatus.GOAL_IN_COLLISION and not optimistic:
@@ -829,6 +842,7 @@ class Navigator:
                     turn = look and not (faced or cornered)
                     if turn and self._look_yaw_rad is None:
                         self._looked_xy_m = est[:2].copy()  # a new look turn starts here
+                        self._look_since_s = now
                     self._look_yaw_rad = yaw if turn else None
                     self._look_by_heading = turn and hasattr(self.walker, "scan")
                     if self._look_by_heading:
