@@ -108,6 +108,7 @@ def test_a_look_turn_that_never_ends_becomes_a_walk_on(room, fix_map, look_max_s
     if look_max_s is None:
         assert nav._look_by_heading and "walk on" not in record.reason, record
     else:
-        assert "(looked: walk on)" in record.reason and record.footstep_status == "success", record
+        assert "(long look)" in record.reason and "(looked: walk on)" in record.reason, record
+        assert record.footstep_status == "success", record
         assert not nav._look_by_heading and nav.walker.tracker.path is not None  # it walks
     world.close()

@@ -766,6 +766,8 @@ class Navigator:
                 long_turn = (self._look_yaw_rad is not None and self.cfg.look_max_s is not None
                              and now - self._look_since_s > self.cfg.look_max_s)
                 looked = here and (self._look_yaw_rad is None or long_turn)
+                if looked and self._look_yaw_rad is not None:
+                    reason = reason + " (long look)"
             plan = self._plan_footsteps(stage, grid, version, optimistic, est, route, k, final, goal_xy, yaw,
                                         roomy=not look)
             if look and plan.status == PlanStatus.GOAL_IN_COLLISION and not optimistic:
