@@ -79,6 +79,8 @@ class HumanoidFootstepsStairsCfg(HumanoidFootstepsCfg):
     (``HumanoidRoughCfg.sole_sphere_radius_m``: MuJoCo Warp's box-heightfield contacts); None: boxes."""
     sole_contact_timeconst_s: float | None = 0.01
     """The sole spheres' contact time constant, s (``HumanoidRoughCfg.sole_contact_timeconst_s``)."""
+    warp_hfield_contact_depth_m: float | None = 0.02
+    """MuJoCo Warp's terrain contacts' depth limit, m (``HumanoidRoughCfg.warp_hfield_contact_depth_m``)."""
 
 
 def humanoid_footsteps_stairs_cfg() -> HumanoidFootstepsStairsCfg:

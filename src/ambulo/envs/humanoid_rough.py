@@ -57,6 +57,11 @@ class HumanoidRoughCfg(HumanoidWalkCfg):
     sole_contact_timeconst_s: float | None = 0.01
     """The sole spheres' contact time constant, s (``solref``; None: the foot box's 0.02): stiffer
     soles sink less under stomping exploration, where Warp's sphere-hfield contacts degrade."""
+    warp_hfield_contact_depth_m: float | None = 0.02
+    """On MuJoCo Warp, terrain contacts deeper than this are limited to it, pointing up
+    (``engine.warp_hfield``): once a sole sphere sinks past its radius Warp's contacts are
+    metres deep and sideways, which made robots run away (hundreds of rad/s) and fall. The
+    sphere radius: shallower contacts are right. None: Warp's own contacts."""
 
 
 def humanoid_rough_cfg() -> HumanoidRoughCfg:

@@ -13,7 +13,8 @@ def add_terrain_ground(env, spec, task: str) -> None:
     """Add ``env.cfg.terrain`` to ``spec`` as the ground (``env.terrain``: the generated grid) and the
     feet's contact sensor against it (``env.feet``). Reads the cfg's ``terrain``,
     ``terrain_friction``, ``robot.prim_path``, ``feet_bodies``, ``sole_sphere_radius_m`` (None: the
-    foot boxes touch the terrain) and ``sole_contact_timeconst_s``; ``task`` names the task in the
+    foot boxes touch the terrain), ``sole_contact_timeconst_s`` and, on MuJoCo Warp,
+    ``warp_hfield_contact_depth_m`` (``engine.warp_hfield``); ``task`` names the task in the
     error for a cfg that also asks for a ground plane."""
     cfg = env.cfg
     if cfg.ground is not None:
@@ -23,8 +24,17 @@ def add_terrain_ground(env, spec, task: str) -> None:
     feet = tuple(f"{cfg.robot.prim_path}/{foot}" for foot in cfg.feet_bodies)
     if cfg.sole_sphere_radius_m is not None:  # the humanoid's foot geoms are named as its foot bodies
         sphere_soles(spec, feet, cfg.sole_sphere_radius_m, timeconst_s=cfg.sole_contact_timeconst_s)
+    if _on_warp(cfg):  # process-wide, and set before the engine first steps (graph capture)
+        from ambulo.engine.warp_hfield import limit_hfield_contact_depth
+
+        limit_hfield_contact_depth(cfg.warp_hfield_contact_depth_m)
     env.feet = env.sim.add(ContactSensor(ContactSensorCfg(
         name="feet_contact", prim_paths=feet, include_subtree=True, against=geom.name)))
+
+
+def _on_warp(cfg) -> bool:
+    """Whether the env's engine is MuJoCo Warp (``EnvCfg.engine``: "auto" picks it on CUDA)."""
+    return cfg.engine == "warp" or (cfg.engine == "auto" and str(cfg.device).startswith("cuda"))
 
 
 __all__ = ["add_terrain_ground"]
