@@ -146,3 +146,20 @@ def test_robots_in_the_default_pose_stand_on_the_training_terrain(engine):
         assert not dones.any()
         assert torch.isfinite(rewards).all()
         assert env.engine.field("qvel").abs().max().item() < 10.0
+
+
+@pytest.mark.slow  # ~20 s on a shared 2-core machine
+def test_no_world_runs_away_under_ppo_first_exploration_on_warp():
+    """16 robots as trained, PPO's first actions (unit Gaussian noise) for 100 steps on MuJoCo Warp's
+    CPU device: no joint or base speed past 100 rad/s (the runaway guard is off here, so a runaway
+    would show). Without the terrain contacts' depth limit (``warp_hfield_contact_depth_m=None``)
+    one reached 152 rad/s (3 of 16 with another noise, 104-247 rad/s): a sole sphere sunk past its radius got a metres-deep contact."""
+    cfg = envs.make_cfg("humanoid-rough", num_envs=16, seed=0, num_threads=1, engine="warp",
+                        diverged_speed_bound=None)
+    env = HumanoidRoughEnv(cfg)
+    generator = torch.Generator().manual_seed(0)
+    fastest = 0.0
+    for _ in range(100):
+        env.step(torch.randn(16, env.num_actions, generator=generator))
+        fastest = max(fastest, env.engine.field("qvel").abs().max().item())
+    assert fastest < 100.0
