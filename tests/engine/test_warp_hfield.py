@@ -2,7 +2,8 @@
 
 A 2 cm sphere sunk past its radius into humanoid-rough's terrain gets contacts metres deep with
 sideways normals from MuJoCo Warp 4.0 (MuJoCo's CPU collision: the true 2-4 cm); with the limit
-every terrain contact is at most the limit deep and the deep ones point up."""
+every terrain contact is at most the limit deep and the deep ones point up, from the sphere
+(misfired contact points lay 0.2-3 m off it)."""
 
 import mujoco
 import numpy as np
@@ -40,8 +41,9 @@ def sunk_spheres(n: int) -> tuple[mujoco.MjModel, np.ndarray, np.ndarray]:
     return model, qpos, depth
 
 
-def warp_contacts(model, qpos) -> tuple[np.ndarray, np.ndarray]:
-    """Each contact's depth (dist, m) and normal z after MuJoCo Warp's forward pass on its CPU device."""
+def warp_contacts(model, qpos) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each contact's depth (dist, m), normal z and distance from its sphere's centre (m) after
+    MuJoCo Warp's forward pass on its CPU device."""
     wp.init()
     with wp.ScopedDevice("cpu"):
         m = mjw.put_model(model)
@@ -49,7 +51,9 @@ def warp_contacts(model, qpos) -> tuple[np.ndarray, np.ndarray]:
         d.qpos = wp.array(qpos.astype(np.float32), dtype=float)
         mjw.forward(m, d)
         count = int(d.nacon.numpy()[0])
-        return d.contact.dist.numpy()[:count], d.contact.frame.numpy()[:count].reshape(count, -1)[:, 2]
+        world, pos = d.contact.worldid.numpy()[:count], d.contact.pos.numpy()[:count]
+        off_centre = np.linalg.norm(pos - qpos[world, :3], axis=1)
+        return d.contact.dist.numpy()[:count], d.contact.frame.numpy()[:count].reshape(count, -1)[:, 2], off_centre
 
 
 @pytest.fixture
@@ -67,18 +71,20 @@ def test_warp_misfires_on_spheres_sunk_past_their_radius():
 
     limit_hfield_contact_depth(None)
     model, qpos, _ = sunk_spheres(300)
-    dist, _ = warp_contacts(model, qpos)
+    dist, _, off_centre = warp_contacts(model, qpos)
     assert dist.min() < -0.2  # metres deep, for a sphere 4 cm deep at most
+    assert off_centre.max() > 0.2  # and far from the sphere
 
 
 def test_limited_contacts_are_at_most_the_limit_deep_and_the_deep_ones_point_up(depth_limit):
     model, qpos, _ = sunk_spheres(300)
-    dist, normal_z = warp_contacts(model, qpos)
+    dist, normal_z, off_centre = warp_contacts(model, qpos)
     assert len(dist) >= 300  # every sphere touches
     assert dist.min() >= -LIMIT_M - 1e-6
     deep = dist <= -LIMIT_M + 1e-6
     assert deep.sum() > 50  # the limit was used (the spheres sit 2.5-4 cm deep) ...
     np.testing.assert_allclose(normal_z[deep], 1.0, atol=1e-5)  # ... pushing them up out of the ground
+    assert off_centre.max() <= RADIUS_M + 0.01  # every contact at its sphere (the limited ones at its centre)
 
 
 def test_the_limit_takes_a_positive_depth_or_none():

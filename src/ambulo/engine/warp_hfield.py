@@ -11,7 +11,7 @@ contact into a kick of hundreds of rad/s: humanoid-rough's robots ran away and f
 ``limit_hfield_contact_depth(depth_m)`` wraps MuJoCo Warp's collision stage (the function its
 ``forward`` calls) with one kernel after it: a contact between a heightfield and another geom
 deeper than ``depth_m`` becomes ``depth_m`` deep along the heightfield's up axis (away from the
-terrain, the way the foot came in). True contacts that deep are rare (a sole sinks < 2 cm at
+terrain, the way the foot came in), at the geom's centre (misfired points lie 0.2-3 m off). True contacts that deep are rare (a sole sinks < 2 cm at
 rest) and lose only depth; nonsense ones become a firm push out of the ground. The wrapper is
 process-wide (MuJoCo Warp has one collision function) and a plain kernel launch, so CUDA graph
 capture records it; ``None`` switches it off.
@@ -33,11 +33,13 @@ _max_depth_m: float | None = None
 def _limit_depth(
     nacon: wp.array(dtype=int),
     geom_type: wp.array(dtype=int),
+    geom_xpos: wp.array2d(dtype=wp.vec3),
     geom_xmat: wp.array2d(dtype=wp.mat33),
     contact_geom: wp.array(dtype=wp.vec2i),
     contact_worldid: wp.array(dtype=int),
     max_depth: float,
     contact_dist: wp.array(dtype=float),
+    contact_pos: wp.array(dtype=wp.vec3),
     contact_frame: wp.array(dtype=wp.mat33),
 ):
     i = wp.tid()
@@ -49,15 +51,21 @@ def _limit_depth(
     # the normal points from geom 0 to geom 1: up out of the terrain when it is geom 0
     sign = float(1.0)
     hfield = int(geoms[0])
+    other = int(geoms[1])
     if geom_type[geoms[0]] != _HFIELD:
         if geom_type[geoms[1]] != _HFIELD:
             return
         sign = -1.0
         hfield = geoms[1]
-    rot = geom_xmat[contact_worldid[i], hfield]
+        other = geoms[0]
+    world = contact_worldid[i]
+    rot = geom_xmat[world, hfield]
     up = wp.vec3(rot[0, 2], rot[1, 2], rot[2, 2]) * sign
     contact_dist[i] = -max_depth
     contact_frame[i] = make_frame(up)
+    # the misfired point lies 0.2-3 m off (a lever arm for the push); the geom's centre is on the
+    # push's line through a sphere's true contact point, so the push gets its true moment
+    contact_pos[i] = geom_xpos[world, other]
 
 
 def _collision(m, d, awake_prev=None):
@@ -68,8 +76,9 @@ def _collision(m, d, awake_prev=None):
     if _max_depth_m is None or d.naconmax == 0:
         return
     wp.launch(_limit_depth, dim=d.naconmax,
-              inputs=[d.nacon, m.geom_type, d.geom_xmat, d.contact.geom, d.contact.worldid, float(_max_depth_m)],
-              outputs=[d.contact.dist, d.contact.frame])
+              inputs=[d.nacon, m.geom_type, d.geom_xpos, d.geom_xmat, d.contact.geom, d.contact.worldid,
+                      float(_max_depth_m)],
+              outputs=[d.contact.dist, d.contact.pos, d.contact.frame])
 
 
 def limit_hfield_contact_depth(depth_m: float | None) -> None:
