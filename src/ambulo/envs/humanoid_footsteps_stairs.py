@@ -25,14 +25,10 @@ from dataclasses import dataclass, field
 
 import torch
 
-from ambulo.core.rows import take_rows
 from ambulo.scenes.terrain import (
-    HeightScan,
     HeightScanCfg,
     TerrainCfg,
-    TerrainCurriculum,
     TerrainCurriculumCfg,
-    TerrainHeights,
 )
 
 from .footstep_sampler import relative_xyyaw
@@ -46,7 +42,7 @@ from .humanoid_footsteps import (
 )
 from .humanoid_walk import as_play, humanoid_walk_ppo
 from .registry import TaskSpec, register
-from .terrain_ground import add_terrain_ground
+from .terrain_ground import TerrainGround
 
 STAIR_RISER_M = 0.10
 """The issue's step height (issue 30 item 4: footsteps "over 0.10 m steps"), m."""
@@ -99,28 +95,18 @@ def humanoid_footsteps_stairs_play_cfg() -> HumanoidFootstepsStairsCfg:
     return cfg
 
 
-class HumanoidFootstepsStairsEnv(HumanoidFootstepsEnv):
+class HumanoidFootstepsStairsEnv(TerrainGround, HumanoidFootstepsEnv):
     """Footstep following over stairs; see the module docstring."""
 
     cfg: HumanoidFootstepsStairsCfg
-
-    def _design_scene(self, spec) -> None:
-        add_terrain_ground(self, spec, "humanoid-footsteps-stairs")
+    terrain_task = "humanoid-footsteps-stairs"
 
     def _setup(self) -> None:
-        n, dev, cfg = self.num_envs, self.device, self.cfg
         super()._setup()  # the sampler; the first reset (spawn, plans) comes after every setup
-        self.heights = TerrainHeights(self.terrain, dev)
-        self.tiles = TerrainCurriculum(cfg.levels, self.terrain, n, self.generator, dev)
-        self.scanner = HeightScan(cfg.height_scan, self.heights)
-        self.treads = TreadSnap(cfg.treads, self.heights.height_at, self.sampler, dev)
-        self._default_root_z = self.robot.data.root_pos_w[:, 2].float().clone()  # the initial state's
+        self.tiles = self._setup_terrain(self.cfg.levels)
+        self.treads = TreadSnap(self.cfg.treads, self.heights.height_at, self.sampler, self.device)
 
     # -- terrain ------------------------------------------------------------------------------
-    def ground_height_m(self, xy_w: torch.Tensor) -> torch.Tensor:
-        """Terrain heights (m) under (..., 2) world points."""
-        return self.heights.height_at(xy_w)
-
     def _footstep_z_m(self, xy_w: torch.Tensor) -> torch.Tensor:
         return self.heights.height_at(xy_w)
 
@@ -130,16 +116,7 @@ class HumanoidFootstepsStairsEnv(HumanoidFootstepsEnv):
         return pose, z, segments
 
     def _spawn(self, rows) -> None:
-        n, dt = self._num_rows(rows), self.engine.dtype
-        r = self.cfg.spawn_radius_m
-        xy = take_rows(self.tiles.origins_w[:, :2], rows) + self._uniform((n, 2), -r, r)
-        z = self.heights.height_at(xy) + take_rows(self._default_root_z, rows)
-        self.robot.write_root_pose(pos_w=torch.cat([xy, z[:, None]], dim=-1).to(dt), env_ids=rows)
-
-    def base_height_over_ground_m(self) -> torch.Tensor:
-        """(N,) base height over the terrain under it, m."""
-        root = self.robot.data.root_pos_w
-        return root[:, 2].float() - self.heights.height_at(root[:, :2])
+        self._spawn_on_tiles(rows, self.tiles.origins_w)
 
     # -- RLEnv hooks ----------------------------------------------------------------------------
     def footstep_command(self) -> torch.Tensor:
@@ -152,17 +129,12 @@ class HumanoidFootstepsStairsEnv(HumanoidFootstepsEnv):
                          self.target_sides[..., None]], dim=-1)
         return cmd.reshape(self.num_envs, 12)
 
-    def _height_scan(self) -> torch.Tensor:
-        data = self.robot.data
-        return self.scanner.scan(data.root_pos_w, data.heading_w)
-
     def _policy_terms(self) -> dict[str, torch.Tensor]:
         return {**super()._policy_terms(), "height_scan": self._height_scan()}
 
     def _privileged_terms(self) -> dict[str, torch.Tensor]:
         terms = super()._privileged_terms()
-        feet_w = self.robot.data.body_pos_w[:, self.feet_body_ids]
-        terms["feet_height_over_ground"] = feet_w[..., 2].float() - self.heights.height_at(feet_w[..., :2])
+        terms["feet_height_over_ground"] = self._feet_height_over_ground_m()
         return terms
 
     def _get_terminations(self) -> dict[str, torch.Tensor]:

@@ -21,19 +21,16 @@ from dataclasses import dataclass, field
 
 import torch
 
-from ambulo.core.rows import fill_rows, put_rows, take_rows
+from ambulo.core.rows import fill_rows, put_rows
 from ambulo.scenes.terrain import (
-    HeightScan,
     HeightScanCfg,
     TerrainCfg,
-    TerrainCurriculum,
     TerrainCurriculumCfg,
-    TerrainHeights,
 )
 
 from .humanoid_walk import WALKS, HumanoidWalkCfg, HumanoidWalkEnv, as_play, humanoid_walk_cfg, humanoid_walk_ppo
 from .registry import TaskSpec, register
-from .terrain_ground import add_terrain_ground
+from .terrain_ground import TerrainGround
 from .transfer import transfer_cfg_wide
 
 
@@ -86,37 +83,22 @@ def humanoid_rough_play_cfg() -> HumanoidRoughCfg:
     return cfg
 
 
-class HumanoidRoughEnv(HumanoidWalkEnv):
+class HumanoidRoughEnv(TerrainGround, HumanoidWalkEnv):
     """Velocity tracking over the terrain curriculum; see the module docstring."""
 
     cfg: HumanoidRoughCfg
-
-    def _design_scene(self, spec) -> None:
-        add_terrain_ground(self, spec, "humanoid-rough")
+    terrain_task = "humanoid-rough"
 
     def _setup(self) -> None:
         super()._setup()
         n, dev, cfg = self.num_envs, self.device, self.cfg
-        self.heights = TerrainHeights(self.terrain, dev)
-        self.curriculum = TerrainCurriculum(cfg.curriculum, self.terrain, n, self.generator, dev)
-        self.scanner = HeightScan(cfg.height_scan, self.heights)
+        self.curriculum = self._setup_terrain(cfg.curriculum)
         f32 = dict(dtype=torch.float32, device=dev)
-        self._default_root_z = self.robot.data.root_pos_w[:, 2].float().clone()  # the initial state's
         self._start_xy = torch.zeros(n, 2, **f32)
         self.distance_m = torch.zeros(n, **f32)
         """(N,) horizontal distance of each robot from where its episode started, m."""
         self.command_path_m = torch.zeros(n, **f32)
         """(N,) path length the commands asked for this episode (|v_cmd| integrated), m."""
-
-    # -- terrain ----------------------------------------------------------------------------
-    def ground_height_m(self, xy_w: torch.Tensor) -> torch.Tensor:
-        """Terrain heights (m) under (..., 2) world points."""
-        return self.heights.height_at(xy_w)
-
-    def base_height_over_ground_m(self) -> torch.Tensor:
-        """(N,) base height over the terrain under it, m."""
-        root = self.robot.data.root_pos_w
-        return root[:, 2].float() - self.heights.height_at(root[:, :2])
 
     # -- RLEnv hooks ------------------------------------------------------------------------
     def _post_physics(self) -> None:
@@ -129,11 +111,7 @@ class HumanoidRoughEnv(HumanoidWalkEnv):
         # the curriculum reads how far the ended episodes got before anything is reset
         self.curriculum.update(rows, self.distance_m, self.command_path_m)
         super()._reset_idx(rows)
-        n, dt = self._num_rows(rows), self.engine.dtype
-        xy = take_rows(self.curriculum.origins_w[:, :2], rows) + self._uniform(
-            (n, 2), -self.cfg.spawn_radius_m, self.cfg.spawn_radius_m)
-        z = self.heights.height_at(xy) + take_rows(self._default_root_z, rows)
-        self.robot.write_root_pose(pos_w=torch.cat([xy, z[:, None]], dim=-1).to(dt), env_ids=rows)
+        xy = self._spawn_on_tiles(rows, self.curriculum.origins_w)
         put_rows(self._start_xy, slice(None), xy, rows)
         fill_rows(self.distance_m, rows, 0.0)
         fill_rows(self.command_path_m, rows, 0.0)
@@ -143,10 +121,6 @@ class HumanoidRoughEnv(HumanoidWalkEnv):
         if "episode" in extras:  # every stats window: the curriculum's progress, a device scalar
             extras["episode"]["Curriculum/terrain_level"] = self.curriculum.mean_level()
         return obs, rewards, dones, extras
-
-    def _height_scan(self) -> torch.Tensor:
-        data = self.robot.data
-        return self.scanner.scan(data.root_pos_w, data.heading_w)
 
     def _policy_terms(self) -> dict[str, torch.Tensor]:
         terms = super()._policy_terms()
@@ -158,8 +132,7 @@ class HumanoidRoughEnv(HumanoidWalkEnv):
         terms = super()._privileged_terms()
         if not self.cfg.scan_in_actor:
             terms["height_scan"] = self._height_scan()
-        feet_w = self.robot.data.body_pos_w[:, self.feet_body_ids]
-        terms["feet_height_over_ground"] = feet_w[..., 2].float() - self.heights.height_at(feet_w[..., :2])
+        terms["feet_height_over_ground"] = self._feet_height_over_ground_m()
         return terms
 
     def _get_terminations(self) -> dict[str, torch.Tensor]:

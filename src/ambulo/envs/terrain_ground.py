@@ -5,7 +5,10 @@ contacts push resting feet down: ``scenes.terrain.sphere_soles``)."""
 
 from __future__ import annotations
 
-from ambulo.scenes.terrain import add_terrain, generate, sphere_soles
+import torch
+
+from ambulo.core.rows import take_rows
+from ambulo.scenes.terrain import HeightScan, TerrainCurriculum, TerrainHeights, add_terrain, generate, sphere_soles
 from ambulo.sensors import ContactSensor, ContactSensorCfg
 
 
@@ -37,4 +40,52 @@ def _on_warp(cfg) -> bool:
     return cfg.engine == "warp" or (cfg.engine == "auto" and str(cfg.device).startswith("cuda"))
 
 
-__all__ = ["add_terrain_ground"]
+class TerrainGround:
+    """What a humanoid task on the terrain adds to its base env (a mixin, listed first): the scene
+    (``add_terrain_ground``), the heights, height scan and tiles (``_setup_terrain``), spawning on a
+    tile's centre platform, heights over the ground, and the scan and feet-height terms. The cfg has
+    ``terrain``, ``height_scan``, ``spawn_radius_m`` and what ``add_terrain_ground`` reads."""
+
+    terrain_task = "this task"
+    """The task's name, for errors."""
+
+    def _design_scene(self, spec) -> None:
+        add_terrain_ground(self, spec, self.terrain_task)
+
+    def _setup_terrain(self, tiles_cfg) -> TerrainCurriculum:
+        """The heights on the device, the height scanner and the robot's initial root height; returns
+        the tiles (``TerrainCurriculum`` of ``tiles_cfg``). Call after the base env's setup."""
+        self.heights = TerrainHeights(self.terrain, self.device)
+        self.scanner = HeightScan(self.cfg.height_scan, self.heights)
+        self._default_root_z = self.robot.data.root_pos_w[:, 2].float().clone()  # the initial state's
+        return TerrainCurriculum(tiles_cfg, self.terrain, self.num_envs, self.generator, self.device)
+
+    def ground_height_m(self, xy_w: torch.Tensor) -> torch.Tensor:
+        """Terrain heights (m) under (..., 2) world points."""
+        return self.heights.height_at(xy_w)
+
+    def base_height_over_ground_m(self) -> torch.Tensor:
+        """(N,) base height over the terrain under it, m."""
+        root = self.robot.data.root_pos_w
+        return root[:, 2].float() - self.heights.height_at(root[:, :2])
+
+    def _spawn_on_tiles(self, rows, origins_w: torch.Tensor) -> torch.Tensor:
+        """Put the robots of ``rows`` uniformly within ``spawn_radius_m`` of their tiles' origins
+        (``origins_w`` (N, 3)), at their initial height over the ground there; returns their (n, 2) xy."""
+        n, r = self._num_rows(rows), self.cfg.spawn_radius_m
+        xy = take_rows(origins_w[:, :2], rows) + self._uniform((n, 2), -r, r)
+        z = self.heights.height_at(xy) + take_rows(self._default_root_z, rows)
+        self.robot.write_root_pose(pos_w=torch.cat([xy, z[:, None]], dim=-1).to(self.engine.dtype), env_ids=rows)
+        return xy
+
+    def _height_scan(self) -> torch.Tensor:
+        data = self.robot.data
+        return self.scanner.scan(data.root_pos_w, data.heading_w)
+
+    def _feet_height_over_ground_m(self) -> torch.Tensor:
+        """(N, feet) each foot's height over the ground under it, m (a privileged term)."""
+        feet_w = self.robot.data.body_pos_w[:, self.feet_body_ids]
+        return feet_w[..., 2].float() - self.heights.height_at(feet_w[..., :2])
+
+
+__all__ = ["TerrainGround", "add_terrain_ground"]
