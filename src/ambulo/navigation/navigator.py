@@ -40,6 +40,7 @@ from ..maps import Grid2D
 from ..nav import FootstepPlan, PlanStatus
 from ..perception.costmap import Costmap
 from ..perception.frames import RgbdFrame
+from ..scenes.apartment_paths import path_length_m
 from ..utils.checks import InvalidValueError, check_vector
 from ..utils.validate import Checked
 from .floor_level import FloorLevelCfg, level_on_floor
@@ -885,11 +886,7 @@ class Navigator:
         ny, nx = grid.shape
         if not (0 <= iy < ny and 0 <= ix < nx) or clr[iy, ix] >= c.arm_reach_m:
             return None
-        k = int(math.ceil(c.arm_shift_m / grid.resolution_m))
-        y0, y1, x0, x1 = max(0, iy - k), min(ny, iy + k + 1), max(0, ix - k), min(nx, ix + k + 1)
-        yy, xx = (a.ravel() for a in np.mgrid[y0:y1, x0:x1])
-        cx, cy = grid.cell_center_xy_m(yy, xx)
-        d = np.hypot(cx - est[0], cy - est[1])
+        yy, xx, cx, cy, d = _cells_near(grid, est, c.arm_shift_m)
         free = grid.free()
         my, mx = grid.cells_of(np.stack([(cx + est[0]) / 2, (cy + est[1]) / 2], -1))
         ok = (d <= c.arm_shift_m) & free[yy, xx] & free[np.clip(my, 0, ny - 1), np.clip(mx, 0, nx - 1)]
@@ -999,7 +996,7 @@ class Navigator:
         if c.roomy_detour_ratio is None:
             return False
         path = body_path(plan)  # (K, 2) x m, y m
-        length_m = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())
+        length_m = path_length_m(path)
         straight_m = float(np.linalg.norm(path[-1] - path[0]))
         return length_m > c.roomy_detour_ratio * straight_m + c.roomy_detour_m
 
@@ -1009,18 +1006,25 @@ class Navigator:
         ``need_m`` (x m, y m); None: none, or ``shift_m`` None."""
         if shift_m is None:
             return None
-        iy, ix = grid.cell_of(xy)
-        k = int(math.ceil(shift_m / grid.resolution_m))
-        ny, nx = grid.shape
-        y0, y1, x0, x1 = max(0, iy - k), min(ny, iy + k + 1), max(0, ix - k), min(nx, ix + k + 1)
-        yy, xx = (a.ravel() for a in np.mgrid[y0:y1, x0:x1])
-        cx, cy = grid.cell_center_xy_m(yy, xx)
-        d = np.hypot(cx - xy[0], cy - xy[1])
+        yy, xx, cx, cy, d = _cells_near(grid, xy, shift_m)
         ok = (d <= shift_m) & (clr[yy, xx] >= need_m)
         if not ok.any():
             return None
         j = int(np.argmin(np.where(ok, d, np.inf)))
         return np.array([cx[j], cy[j]])
 
+
+
+def _cells_near(grid: Grid2D, xy, radius_m: float):
+    """The cells of the square window of ``radius_m`` around ``xy``'s cell, clipped to the grid:
+    (yy, xx) flat cell indices, (cx, cy) their centres (m) and d their centres' distances to ``xy`` (m).
+    The caller keeps those with d <= its radius."""
+    iy, ix = grid.cell_of(xy[:2])
+    k = int(math.ceil(radius_m / grid.resolution_m))
+    ny, nx = grid.shape
+    y0, y1, x0, x1 = max(0, iy - k), min(ny, iy + k + 1), max(0, ix - k), min(nx, ix + k + 1)
+    yy, xx = (a.ravel() for a in np.mgrid[y0:y1, x0:x1])
+    cx, cy = grid.cell_center_xy_m(yy, xx)
+    return yy, xx, cx, cy, np.hypot(cx - xy[0], cy - xy[1])
 
 __all__ = ["MODES", "NavSnapshot", "Navigator", "NavigatorCfg"]
