@@ -6,6 +6,7 @@
     result = detector(rgb, depth_m, height_m)           # an rgbdh model: and the height above the floor (H, W) m
                                                         # (``height.height_above_floor_m(depth_m, K, T_cw)``)
     result.boxes_px, result.labels, result.scores, result.masks   # masks: (N, H, W) bool, or None
+    result.semantic_image()                             # (H, W) uint8 category ids, or None
 
 A frame smaller than the training canvas is padded black at the bottom and right (as in training),
 so boxes are in the frame's own pixels; a larger one is an error (resize it, or train on that size).
@@ -31,6 +32,14 @@ class Detections:
     """(N,) float32 in [0, 1], descending."""
     masks: np.ndarray | None = None
     """(N, H, W) bool instance masks in the frame's pixels, for a model trained with masks."""
+
+    def semantic_image(self, threshold: float = 0.0) -> np.ndarray | None:
+        """(H, W) uint8 class ids (0 background, else the COCO category id, highest score on top:
+        ``semantic.semantic_image``) of the detections scoring ``threshold`` or more, or None for a
+        model without masks. The ROS 2 bridge publishes it (it may not import this package)."""
+        from .semantic import semantic_image
+
+        return None if self.masks is None else semantic_image(self, self.masks.shape[1:], threshold)
 
 
 class Detector:

@@ -1,5 +1,6 @@
 """COCO evaluation of a detector on held-out frames with pycocotools: mAP, mAP50 and AP per class,
-of the boxes and, for a model with masks, of the instance masks (iouType 'segm')."""
+of the boxes and, for a model with masks, of the instance masks (iouType 'segm') and of the semantic
+image painted from them (``semantic.semantic_metrics``: mIoU, IoU per class, pixel accuracy)."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ import torch
 from pycocotools import mask as mask_utils
 
 from .model import CenterNet, decode, decode_masks, paste_masks
+from .semantic import semantic_metrics
 
 
 @torch.no_grad()
@@ -79,8 +81,10 @@ def coco_metrics(coco_dict: dict, image_ids: list[int], results: list[dict], iou
 
 
 def evaluate_all(coco_dict: dict, image_ids: list[int], results: list[dict]) -> dict:
-    """``coco_metrics`` of the boxes, with ``"mask"``: the same of the masks when ``results`` have them."""
+    """``coco_metrics`` of the boxes, with ``"mask"``: the same of the masks, and ``"semantic"``:
+    ``semantic_metrics`` (``{"mIoU", "per_class", "pixel_acc"}``), when ``results`` have masks."""
     metrics = coco_metrics(coco_dict, image_ids, results, "bbox")
     if results and "segmentation" in results[0]:
         metrics["mask"] = coco_metrics(coco_dict, image_ids, results, "segm")
+        metrics["semantic"] = semantic_metrics(coco_dict, image_ids, results)
     return metrics
