@@ -1,7 +1,7 @@
 """Run by test_detector_ros2.py in a loopback-only network: one node publishes detections with
 ``DetectionPublisher``, another takes them as any ROS 2 node would (the raw CDR of
 ``vision_msgs/msg/Detection2DArray``, decoded by mcap_ros2 from the .msg texts, and the typed
-``sensor_msgs/Image``), then prints one JSON line of what it received and of the ROS graph."""
+``sensor_msgs/Image``s: instances and semantic), then prints one JSON line of what it received and of the ROS graph."""
 
 from __future__ import annotations
 
@@ -21,6 +21,7 @@ rclpy = import_rclpy()
 from rclpy.executors import SingleThreadedExecutor
 from sensor_msgs.msg import Image
 
+from ambulo.detection.semantic import semantic_image
 from ambulo.ros2.detections import DETECTION_ARRAY, VISION_MSGS, DetectionPublisher, detection_array_class
 
 SHARE = Path(sys.prefix) / "share"
@@ -49,17 +50,20 @@ def main() -> None:
     listener.create_subscription(detection_array_class(), "detections",
                                  lambda raw: got.setdefault("array", raw), 10, raw=True)
     listener.create_subscription(Image, "detections/segmentation", lambda msg: got.setdefault("image", msg), 10)
+    listener.create_subscription(Image, "detections/semantic", lambda msg: got.setdefault("semantic", msg), 10)
     publisher = DetectionPublisher(talker, frame_id="head_camera")
     masks = np.zeros((2, 6, 8), bool)
     masks[0, 1:4, 1:5] = True
     masks[1, 2:6, 3:8] = True  # overlaps detection 0, which scores higher
     found = SimpleNamespace(boxes_px=np.array([[1.0, 1.0, 5.0, 4.0], [3.0, 2.0, 8.0, 6.0]], np.float32),
-                            labels=["box", "cone"], scores=np.array([0.9, 0.6], np.float32), masks=masks)
+                            labels=["box", "cone"], category_ids=np.array([2, 4]),
+                            scores=np.array([0.9, 0.6], np.float32), masks=masks)
+    found.semantic_image = lambda: semantic_image(found, masks.shape[1:])  # as ambulo.detection.Detections
     executor = SingleThreadedExecutor()
     executor.add_node(talker)
     executor.add_node(listener)
     deadline = time.monotonic() + 30.0
-    while len(got) < 2 and time.monotonic() < deadline:
+    while len(got) < 3 and time.monotonic() < deadline:
         publisher.publish(12.25, found)
         executor.spin_once(timeout_sec=0.05)
     graph = {name: types for name, types in listener.get_topic_names_and_types()}
@@ -76,6 +80,12 @@ def main() -> None:
         image = got["image"]
         out["image"] = {"encoding": image.encoding, "shape": [image.height, image.width],
                         "pixels": np.frombuffer(bytes(image.data), "<u2").reshape(image.height, image.width).tolist()}
+    if "semantic" in got:
+        semantic = got["semantic"]
+        out["semantic"] = {"encoding": semantic.encoding, "shape": [semantic.height, semantic.width],
+                           "step": semantic.step, "frame_id": semantic.header.frame_id,
+                           "pixels": np.frombuffer(bytes(semantic.data), np.uint8)
+                           .reshape(semantic.height, semantic.width).tolist()}
     print(json.dumps(out))
     rclpy.shutdown()
 

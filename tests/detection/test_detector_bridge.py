@@ -41,7 +41,7 @@ def _scenario(checkpoint: str) -> None:
     bridge = Ros2Bridge(world, BridgeCfg(camera_rate_hz=50.0, publish_depth=False), detector=detector)
     rclpy.init()
     listener = rclpy.create_node("detections_listener")
-    arrays, images, segmentations = {}, {}, {}
+    arrays, images, segmentations, semantics = {}, {}, {}, {}
 
     def stamp(msg) -> int:
         return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
@@ -56,6 +56,7 @@ def _scenario(checkpoint: str) -> None:
     listener.create_subscription(Image, "camera/image_raw", lambda msg: images.setdefault(stamp(msg), msg), 10)
     listener.create_subscription(Image, "detections/segmentation",
                                  lambda msg: segmentations.setdefault(stamp(msg), msg), 10)
+    listener.create_subscription(Image, "detections/semantic", lambda msg: semantics.setdefault(stamp(msg), msg), 10)
     executor = SingleThreadedExecutor()
     executor.add_node(listener)
     has_masks = detector(np.zeros((48, 64, 3), np.uint8)).masks is not None
@@ -65,7 +66,7 @@ def _scenario(checkpoint: str) -> None:
         world.step(render=False)
         executor.spin_once(timeout_sec=0.005)
         both = sorted(set(arrays) & set(images))
-        if len(both) >= 2 and (not has_masks or set(segmentations) & set(both)):
+        if len(both) >= 2 and (not has_masks or set(segmentations) & set(semantics) & set(both)):
             break
     graph = dict(listener.get_topic_names_and_types())
     out: dict = {"graph": graph, "frames": []}
@@ -73,7 +74,8 @@ def _scenario(checkpoint: str) -> None:
         image, array = images[ns], arrays[ns]
         rgb = np.frombuffer(bytes(image.data), np.uint8).reshape(image.height, image.width, 3)
         again = detector(rgb)  # the detector on the frame the listener got
-        seg = segmentations.get(ns)
+        seg, sem = segmentations.get(ns), semantics.get(ns)
+        expected_semantic = again.semantic_image()
         out["frames"].append({
             "stamp_ns": ns, "image_frame_id": image.header.frame_id, "array_frame_id": array.header.frame_id,
             "shape": [image.height, image.width],
@@ -86,7 +88,11 @@ def _scenario(checkpoint: str) -> None:
             "has_masks": again.masks is not None,
             "segmentation": None if seg is None else {
                 "encoding": seg.encoding, "shape": [seg.height, seg.width], "frame_id": seg.header.frame_id,
-                "max": int(np.frombuffer(bytes(seg.data), "<u2").max(initial=0))}})
+                "max": int(np.frombuffer(bytes(seg.data), "<u2").max(initial=0))},
+            "semantic": None if sem is None else {
+                "encoding": sem.encoding, "shape": [sem.height, sem.width], "frame_id": sem.header.frame_id,
+                "pixels": np.frombuffer(bytes(sem.data), np.uint8).reshape(sem.height, sem.width).tolist()},
+            "expected_semantic": None if expected_semantic is None else expected_semantic.tolist()})
     bridge.close()
     out["published"] = dict(bridge.published)
     print(json.dumps(out))
@@ -121,7 +127,12 @@ def test_bridge_publishes_the_detectors_output_on_each_frame(trained_shapes):
             seg = frame["segmentation"]
             assert seg["encoding"] == "mono16" and seg["shape"] == [h, w]
             assert seg["frame_id"] == frame["image_frame_id"] and seg["max"] <= len(boxes)
+        if frame["has_masks"] and frame["semantic"] is not None:  # the detector's own semantic image of this frame
+            sem = frame["semantic"]
+            assert sem["encoding"] == "mono8" and sem["shape"] == [h, w] and sem["frame_id"] == frame["image_frame_id"]
+            assert sem["pixels"] == frame["expected_semantic"]
     assert any(f["segmentation"] for f in out["frames"]) == any(f["has_masks"] for f in out["frames"])
+    assert any(f["semantic"] for f in out["frames"]) == any(f["has_masks"] for f in out["frames"])
 
 
 def _bridge_cli(*args: str) -> subprocess.CompletedProcess:

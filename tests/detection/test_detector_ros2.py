@@ -1,5 +1,5 @@
 """``ambulo.ros2.detections``: a real rclpy node publishes vision_msgs/msg/Detection2DArray and a
-segmentation image; another node in a loopback-only network receives them."""
+segmentation image and a semantic one; another node in a loopback-only network receives them."""
 
 import json
 from pathlib import Path
@@ -20,6 +20,7 @@ def test_detections_reach_another_node():
     out = json.loads(done.stdout.strip().splitlines()[-1])
     assert out["graph"]["/detections"] == ["vision_msgs/msg/Detection2DArray"]
     assert out["graph"]["/detections/segmentation"] == ["sensor_msgs/msg/Image"]
+    assert out["graph"]["/detections/semantic"] == ["sensor_msgs/msg/Image"]
     array = out["array"]
     assert array["stamp"] == [12, 250_000_000] and array["frame_id"] == "head_camera"
     assert [(d["class_id"], d["id"]) for d in array["detections"]] == [("box", "0"), ("cone", "1")]
@@ -32,6 +33,10 @@ def test_detections_reach_another_node():
     expected[2:6, 3:8] = 2
     expected[1:4, 1:5] = 1  # the higher score is drawn over the overlap
     assert (pixels == expected).all(), pixels
+    semantic = out["semantic"]  # mono8 category ids: box is 2, cone 4; the box scores higher
+    assert semantic["encoding"] == "mono8" and semantic["shape"] == [6, 8] and semantic["step"] == 8
+    assert semantic["frame_id"] == "head_camera"
+    assert (np.array(semantic["pixels"]) == np.array([0, 2, 4])[expected]).all(), semantic["pixels"]
 
 
 def test_instance_image_draws_higher_scores_over_lower():

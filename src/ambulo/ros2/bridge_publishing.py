@@ -241,13 +241,14 @@ class PhysicsPublisher:
 
     def _advertise_detections(self) -> None:
         """Topics of ``detector``'s output for each camera: ``detections`` (one camera) or
-        ``detections/<camera>``, and ``<that>/segmentation``."""
+        ``detections/<camera>``, and ``<that>/segmentation`` and ``<that>/semantic``."""
         from .detections import DETECTION_ARRAY
 
         for i, camera in enumerate(self.cameras):
             topic = "detections" if len(self.cameras) == 1 else f"detections/{leaf(camera.prim_path)}"
             self._advertise(f"det{i}", DETECTION_ARRAY, topic, "data")
             self._advertise(f"seg{i}", "sensor_msgs/msg/Image", f"{topic}/segmentation", "camera")
+            self._advertise(f"sem{i}", "sensor_msgs/msg/Image", f"{topic}/semantic", "camera")
 
     def _advertise(self, key: str, typename: str, topic: str, kind: str) -> None:
         """A publisher added after the process started (QoS ``kind``: data, camera, static)."""
@@ -261,7 +262,7 @@ class PhysicsPublisher:
         above the floor (H, W) m, for an RGB-D-height one), here on the
         physics thread (it costs the camera rate's inferences a simulated second of CPU), stamped and
         framed like the image."""
-        from .detections import detection_array_cdr, segmentation_of
+        from .detections import detection_array_cdr, segmentation_of, semantic_of
 
         extra = () if depth_m is None else (depth_m,) if height_m is None else (depth_m, height_m)
         found = self.detector(rgb, *extra)
@@ -269,6 +270,9 @@ class PhysicsPublisher:
         image = segmentation_of(found)
         if image is not None:
             self._publish_frame(f"seg{i}", ns, frame, "mono16", np.ascontiguousarray(image, "<u2"))
+        semantic = semantic_of(found)
+        if semantic is not None:
+            self._publish_frame(f"sem{i}", ns, frame, "mono8", np.ascontiguousarray(semantic, np.uint8))
 
     def _lidar_msg(self, lidar, now: float):
         data, frame = lidar.get_current_frame(), self.scene.sensor_frame[id(lidar)]

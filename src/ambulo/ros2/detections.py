@@ -5,14 +5,17 @@ vision_msgs 4.1 (the ROS 2 Humble-to-Rolling release) and published as serialize
 ``raw_types.raw_message_class``, as /tf is: a ROS 2 node with vision_msgs installed (rviz2, Isaac
 ROS, Nav2) sees an ordinary ``vision_msgs/msg/Detection2DArray`` publisher (same DDS name, same
 RIHS01 hash). The segmentation image is a ``sensor_msgs/Image`` (``mono16``): 0 is background,
-k + 1 is the pixel's detection, detection k of the array (higher scores drawn over lower ones).
+k + 1 is the pixel's detection, detection k of the array (higher scores drawn over lower ones). The
+semantic image is a ``sensor_msgs/Image`` (``mono8``): 0 is background, else the pixel's COCO category id
+(the dataset's semantic PNG's ids), from the detections' own ``semantic_image()``
+(``ambulo.detection.Detections``: one painter, ``ambulo.detection.semantic``).
 
 This module takes detections duck-typed (``boxes_px`` (N, 4) x0 y0 x1 y1, ``labels``, ``scores``,
-``masks`` (N, H, W) bool or None: ``ambulo.detection.Detections``) and imports nothing of
+``masks`` (N, H, W) bool or None, ``semantic_image()``: ``ambulo.detection.Detections``) and imports nothing of
 ``ambulo.detection``: the two are peers (pyproject's layers).
 
     publisher = DetectionPublisher(node, frame_id="head_camera")
-    publisher.publish(time_s, detector(rgb))       # detections, and detections/segmentation with masks
+    publisher.publish(time_s, detector(rgb))       # detections; with masks detections/segmentation, /semantic
 """
 
 from __future__ import annotations
@@ -91,6 +94,14 @@ def segmentation_of(detections) -> np.ndarray | None:
     return None if masks is None else instance_image(masks, detections.scores)
 
 
+def semantic_of(detections) -> np.ndarray | None:
+    """The (H, W) uint8 semantic image of duck-typed detections (their ``semantic_image()``), or None when
+    they carry no masks or cannot paint one: the one rule for when ``<topic>/semantic`` is published."""
+    if getattr(detections, "masks", None) is None or not hasattr(detections, "semantic_image"):
+        return None
+    return detections.semantic_image()
+
+
 def detections_fit(canvas_hw, width: int, height: int, what: str) -> str | None:
     """Why a detector trained on a ``canvas_hw`` (height, width) canvas cannot take ``what``'s
     ``width`` x ``height`` frames (smaller ones are padded, larger ones are not resized), or None."""
@@ -113,7 +124,8 @@ def instance_image(masks, scores) -> np.ndarray:
 
 class DetectionPublisher:
     """Publishes detections on ``topic`` (Detection2DArray) and, for detections with masks,
-    ``topic``/segmentation (mono16 instance image) from an rclpy ``node``."""
+    ``topic``/segmentation (mono16 instance image) and ``topic``/semantic (mono8 category ids) from an
+    rclpy ``node``."""
 
     def __init__(self, node, topic: str = "detections", frame_id: str = "camera", qos_depth: int = 10):
         from sensor_msgs.msg import Image
@@ -124,21 +136,25 @@ class DetectionPublisher:
         self.boxes = node.create_publisher(detection_array_class(), topic, qos_depth)
         clear_rcutils_error()
         self.segmentation = node.create_publisher(Image, f"{topic}/segmentation", qos_depth)
+        self.semantic = node.create_publisher(Image, f"{topic}/semantic", qos_depth)
 
     def publish(self, time_s: float, detections) -> None:
         self.boxes.publish(detection_array_cdr(time_s, self.frame_id, detections.boxes_px, detections.labels,
                                                detections.scores))
-        image = segmentation_of(detections)
-        if image is not None:
+        for publisher, image, encoding in ((self.segmentation, segmentation_of(detections), "mono16"),
+                                           (self.semantic, semantic_of(detections), "mono8")):
+            if image is None:
+                continue
             from sensor_msgs.msg import Image
 
             from .messages import header
 
+            data = np.ascontiguousarray(image, "<u2" if encoding == "mono16" else np.uint8)
             msg = Image(header=header(time_s, self.frame_id), height=image.shape[0], width=image.shape[1],
-                        encoding="mono16", is_bigendian=0, step=2 * image.shape[1])
-            msg.data = image.astype("<u2").tobytes()
-            self.segmentation.publish(msg)
+                        encoding=encoding, is_bigendian=0, step=data.itemsize * image.shape[1])
+            msg.data = data.tobytes()
+            publisher.publish(msg)
 
 
 __all__ = ["DETECTION_ARRAY", "VISION_MSGS", "DetectionPublisher", "detection_array_cdr", "detection_array_class",
-           "detections_fit", "instance_image", "register_vision_msgs", "segmentation_of"]
+           "detections_fit", "instance_image", "register_vision_msgs", "segmentation_of", "semantic_of"]
