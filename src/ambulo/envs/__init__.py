@@ -10,6 +10,7 @@
 
 from . import (  # noqa: F401  (each registers its task)
     cartpole,
+    g1_rough,
     g1_walk,
     humanoid_footsteps,
     humanoid_footsteps_stairs,

@@ -144,6 +144,11 @@ class G1WalkEnv(HumanoidWalkEnv):
 
     def _design_scene(self, spec) -> None:
         super()._design_scene(spec)
+        self._g1_spec(spec)
+
+    def _g1_spec(self, spec) -> None:
+        """The G1's edits of the compiled scene: rotor armature, and only the feet touch the ground
+        (g1-rough calls it after building its terrain ground)."""
         prefix = self.cfg.robot.prim_path + "/"
         limits = urdf_joint_limits(Path(self.cfg.robot.file))
         for joint in spec.joints:

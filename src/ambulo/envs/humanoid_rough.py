@@ -35,12 +35,14 @@ from .transfer import transfer_cfg_wide
 
 
 @dataclass(kw_only=True)
-class HumanoidRoughCfg(HumanoidWalkCfg):
-    """humanoid-rough settings: humanoid-walk's and the terrain's."""
+class RoughTerrainCfg:
+    """What a walking task on the terrain curriculum adds to its cfg (a dataclass mixin: humanoid-rough
+    and g1-rough list it after their walking cfg)."""
 
     terrain: TerrainCfg = field(default_factory=TerrainCfg)
     curriculum: TerrainCurriculumCfg = field(default_factory=TerrainCurriculumCfg)
     height_scan: HeightScanCfg = field(default_factory=lambda: HeightScanCfg(height_offset_m=0.9))
+    """``height_offset_m``: the robot's nominal base height (the humanoid's 0.9 m)."""
     scan_in_actor: bool = True
     """The actor sees the height scan; False: only the critic does (a blind walker)."""
     spawn_radius_m: float = 0.3
@@ -61,11 +63,15 @@ class HumanoidRoughCfg(HumanoidWalkCfg):
     sphere radius: shallower contacts are right. None: Warp's own contacts."""
 
 
-def humanoid_rough_cfg() -> HumanoidRoughCfg:
-    """humanoid-walk's settings on the terrain grid, with the issue's transfer ranges
-    (``transfer_cfg_wide``) and scan noise of +-5 cm."""
-    walk = humanoid_walk_cfg()
-    cfg = HumanoidRoughCfg(**{name: getattr(walk, name) for name in walk.__dataclass_fields__})
+@dataclass(kw_only=True)
+class HumanoidRoughCfg(HumanoidWalkCfg, RoughTerrainCfg):
+    """humanoid-rough settings: humanoid-walk's and the terrain's."""
+
+
+def as_rough(walk: HumanoidWalkCfg, cls: type) -> HumanoidWalkCfg:
+    """``walk``'s settings in ``cls`` (a walking cfg with ``RoughTerrainCfg``) on the terrain grid,
+    with the issue's transfer ranges (``transfer_cfg_wide``) and scan noise of +-5 cm."""
+    cfg = cls(**{name: getattr(walk, name) for name in walk.__dataclass_fields__})
     cfg.ground = None  # the terrain is the ground
     # a robot on the last row walks out of the grid: 15 m of border holds a 20 s episode at up to
     # 1 m/s from 4 m inside (legged_gym keeps 25 m); past the heightfield's edge it would fall
@@ -75,16 +81,27 @@ def humanoid_rough_cfg() -> HumanoidRoughCfg:
     return cfg
 
 
-def humanoid_rough_play_cfg() -> HumanoidRoughCfg:
-    """Play and evaluation: humanoid-walk's play variant (no pushes, noise or transfer
-    randomization), every robot on the hardest level."""
-    cfg = as_play(humanoid_rough_cfg())
+def as_rough_play(cfg: HumanoidWalkCfg) -> HumanoidWalkCfg:
+    """Play and evaluation of a rough task's ``cfg``: the walking play variant (no pushes, noise or
+    transfer randomization), every robot on the hardest level."""
+    cfg = as_play(cfg)
     cfg.curriculum = TerrainCurriculumCfg(enabled=False, init_level=-1)
     return cfg
 
 
+def humanoid_rough_cfg() -> HumanoidRoughCfg:
+    """humanoid-walk's settings on the terrain grid (``as_rough``)."""
+    return as_rough(humanoid_walk_cfg(), HumanoidRoughCfg)
+
+
+def humanoid_rough_play_cfg() -> HumanoidRoughCfg:
+    """Play and evaluation: every robot on the hardest level (``as_rough_play``)."""
+    return as_rough_play(humanoid_rough_cfg())
+
+
 class HumanoidRoughEnv(TerrainGround, HumanoidWalkEnv):
-    """Velocity tracking over the terrain curriculum; see the module docstring."""
+    """Velocity tracking over the terrain curriculum; see the module docstring. g1-rough puts it
+    before ``G1WalkEnv`` (``envs.g1_rough``): its hooks work on any ``HumanoidWalkEnv``."""
 
     cfg: HumanoidRoughCfg
     terrain_task = "humanoid-rough"
@@ -160,4 +177,5 @@ register(TaskSpec(
     criteria=(WALKS,),
 ))
 
-__all__ = ["HumanoidRoughCfg", "HumanoidRoughEnv", "humanoid_rough_cfg", "humanoid_rough_play_cfg"]
+__all__ = ["HumanoidRoughCfg", "HumanoidRoughEnv", "RoughTerrainCfg", "as_rough", "as_rough_play", "humanoid_rough_cfg",
+           "humanoid_rough_metrics", "humanoid_rough_play_cfg"]

@@ -12,21 +12,23 @@ from ambulo.scenes.terrain import HeightScan, TerrainCurriculum, TerrainHeights,
 from ambulo.sensors import ContactSensor, ContactSensorCfg
 
 
-def add_terrain_ground(env, spec, task: str) -> None:
+def add_terrain_ground(env, spec, task: str, soles=sphere_soles) -> None:
     """Add ``env.cfg.terrain`` to ``spec`` as the ground (``env.terrain``: the generated grid) and the
     feet's contact sensor against it (``env.feet``). Reads the cfg's ``terrain``,
     ``terrain_friction``, ``robot.prim_path``, ``feet_bodies``, ``sole_sphere_radius_m`` (None: the
-    foot boxes touch the terrain), ``sole_contact_timeconst_s`` and, on MuJoCo Warp,
-    ``warp_hfield_contact_depth_m`` (``engine.warp_hfield``); ``task`` names the task in the
-    error for a cfg that also asks for a ground plane."""
+    feet touch the terrain through their own geoms), ``sole_contact_timeconst_s`` and, on MuJoCo
+    Warp, ``warp_hfield_contact_depth_m`` (``engine.warp_hfield``); ``task`` names the task in the
+    error for a cfg that also asks for a ground plane. ``soles(spec, feet, radius_m, timeconst_s)``
+    gives the feet (full body names) their sole spheres: ``sphere_soles`` for box feet named as
+    their bodies (the humanoid's)."""
     cfg = env.cfg
     if cfg.ground is not None:
         raise ValueError(f"{task}'s ground is its terrain; set ground=None")
     env.terrain = generate(cfg.terrain)
     geom = add_terrain(spec, env.terrain, friction=cfg.terrain_friction)
     feet = tuple(f"{cfg.robot.prim_path}/{foot}" for foot in cfg.feet_bodies)
-    if cfg.sole_sphere_radius_m is not None:  # the humanoid's foot geoms are named as its foot bodies
-        sphere_soles(spec, feet, cfg.sole_sphere_radius_m, timeconst_s=cfg.sole_contact_timeconst_s)
+    if cfg.sole_sphere_radius_m is not None:
+        soles(spec, feet, cfg.sole_sphere_radius_m, timeconst_s=cfg.sole_contact_timeconst_s)
     if _on_warp(cfg):  # process-wide, and set before the engine first steps (graph capture)
         from ambulo.engine.warp_hfield import limit_hfield_contact_depth
 
@@ -48,9 +50,11 @@ class TerrainGround:
 
     terrain_task = "this task"
     """The task's name, for errors."""
+    terrain_soles = staticmethod(sphere_soles)
+    """How the feet get their sole spheres (``add_terrain_ground``'s ``soles``)."""
 
     def _design_scene(self, spec) -> None:
-        add_terrain_ground(self, spec, self.terrain_task)
+        add_terrain_ground(self, spec, self.terrain_task, soles=self.terrain_soles)
 
     def _setup_terrain(self, tiles_cfg) -> TerrainCurriculum:
         """The heights on the device, the height scanner and the robot's initial root height; returns
