@@ -298,6 +298,7 @@ def main() -> None:
     summary["ratio"] = round(scores["unseen_randomization"]["mAP50"] / base["mAP50"], 3) if base["mAP50"] else None
     for name, s in scores.items():
         masks = f", masks mAP {s['mask']['mAP']:.3f} mAP50 {s['mask']['mAP50']:.3f}" if "mask" in s else ""
+        masks += f", semantic mIoU {s['semantic']['mIoU']:.3f}" if "semantic" in s else ""
         print(f"{name:>26}: {s['frames']} frames, boxes mAP {s['mAP']:.3f} mAP50 {s['mAP50']:.3f}{masks}")
     unseen_frames = sorted((splits["unseen_randomization"] / "rgb").glob("*.png"))[:4]
     summary["image"] = str(draw_detections(Path(checkpoint), unseen_frames, out / "detections_unseen.png"))

@@ -68,6 +68,7 @@ def train_detector(args: argparse.Namespace) -> int:
             masks = last["mask"]
             classes = ", ".join(f"{name} {ap:.3f}" for name, ap in masks["per_class"].items())
             print(f"held-out masks:  mAP {masks['mAP']:.3f}, mAP50 {masks['mAP50']:.3f} ({classes})")
+        _print_semantic("held-out semantic", last)
     if result.stopped == "pause":
         print(f"paused after {result.elapsed_s / 60:.1f} min of training; continue with the same command and --resume")
     elif result.stopped == "budget":
@@ -113,7 +114,17 @@ def evaluate_detector(args: argparse.Namespace) -> int:
     _print_metrics(f"{metrics['frames']} frames, boxes", metrics)
     if "mask" in metrics:
         _print_metrics(f"{metrics['frames']} frames, masks", metrics["mask"])
+    _print_semantic(f"{metrics['frames']} frames, semantic", metrics)
     return 0
+
+
+def _print_semantic(label: str, metrics: dict) -> None:
+    """The semantic block of an evaluation (mask models only), one line."""
+    sem = metrics.get("semantic")
+    if sem is None:
+        return
+    classes = ", ".join(f"{name} {iou:.3f}" for name, iou in sem["per_class"].items())
+    print(f"{label}: mIoU {sem['mIoU']:.3f}, pixel accuracy {sem['pixel_acc']:.3f} ({classes})")
 
 
 def add_commands(subparsers: argparse._SubParsersAction) -> None:

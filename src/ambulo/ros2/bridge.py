@@ -61,7 +61,8 @@ class Ros2Bridge:
       detector: an ``ambulo.detection.Detector`` (any callable of an (H, W, 3) uint8 frame returning
         ``boxes_px``, ``labels``, ``scores``, ``masks``, with ``canvas_hw``), run on every published camera
         frame on the physics thread: ``detections`` (vision_msgs/msg/Detection2DArray) and, for a model
-        with masks, ``detections/segmentation`` (mono16 instances), stamped and framed like the image.
+        with masks, ``detections/segmentation`` (mono16 instances) and ``detections/semantic`` (mono8
+        category ids, 0 background), stamped and framed like the image.
         A camera larger than its canvas is a ``ValueError``.
     """
 
