@@ -17,7 +17,7 @@ from pycocotools import mask as mask_utils
 from ambulo import replicator as rep
 from ambulo.core import randomize as dist
 from ambulo.core.randomize.fields import geoms_by_body, write_field
-from ambulo.replicator.coco import column_runs, frame_annotations, instance_rles
+from ambulo.replicator.coco import InstanceRuns, column_runs, frame_annotations, instance_rles, runs_tight_boxes
 from ambulo.replicator.io import depth_to_mm_u16
 from ambulo.sensors import annotators as ann
 from ambulo.utils.rotations import quat_to_mat
@@ -71,6 +71,21 @@ def test_tight_boxes_from_runs_equal_each_instances_pixels(seg):
     np.testing.assert_array_equal(boxes, expected_boxes)
     np.testing.assert_array_equal(pixels, expected_pixels)
     assert boxes.dtype == np.int64 and pixels.dtype == np.int64
+
+
+@pytest.mark.parametrize("seg", hand_made_segmentations() + random_segmentations()
+                         + [np.array([[1, 1, 2, 0]], np.int32), np.array([[3], [3], [0]], np.int32)])
+def test_tight_boxes_and_rles_from_one_pass_of_column_runs_equal_each_their_own(seg):
+    """The producer's one pass (``InstanceRuns``): its tight boxes are each instance's pixels' (as
+    ``tight_boxes`` finds them in row order) and its RLEs are those found from the image itself."""
+    runs = InstanceRuns.of(seg)
+    boxes, pixels = runs_tight_boxes(runs, 7)
+    expected_boxes, expected_pixels = boxes_one_by_one(seg, 7)
+    np.testing.assert_array_equal(boxes, expected_boxes)
+    np.testing.assert_array_equal(pixels, expected_pixels)
+    assert boxes.dtype == np.int64 and pixels.dtype == np.int64
+    ids = np.array([3, 1, 9, 2, 6])
+    assert [r["counts"] for r in instance_rles(None, ids, runs=runs)] == [r["counts"] for r in instance_rles(seg, ids)]
 
 
 def test_hand_made_boxes_by_value():

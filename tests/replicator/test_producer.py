@@ -75,3 +75,29 @@ def test_a_camera_jitter_sets_the_whole_pose_so_skipping_the_reset_changes_no_fr
     for index, seen in poses.items():
         assert all(pose == seen[0] for pose in seen), index
     assert poses[3][0] != poses[0][0]  # the jitter moved the camera between frames
+
+
+def test_the_producers_tight_boxes_and_masks_from_column_runs_are_the_cameras_own(small_producer):
+    """The producer asks the camera for everything but the tight boxes and adds them (and the COCO
+    masks) from one pass of column runs: the same boxes, pixel counts, ids and RLEs as the camera's
+    own row-order tight boxes and the RLEs of the instance image."""
+    import numpy as np
+
+    from ambulo.replicator.coco import instance_rles
+
+    producer = small_producer
+    assert producer._boxes_from_runs  # the dataset's annotators: the fast path is on
+    for index in range(6):
+        producer.randomize(4, index)
+        capture = producer.capture()
+        producer.camera.begin_capture(0)  # the camera's own, with its tight boxes, on the same state
+        own = producer.camera.end_capture()
+        np.testing.assert_array_equal(capture["instance_segmentation"], own["instance_segmentation"])
+        got, want = capture["bounding_box_2d_tight"], own["bounding_box_2d_tight"]
+        assert list(got) == list(want)
+        for key in want:
+            np.testing.assert_array_equal(got[key], want[key])
+            assert got[key].dtype == want[key].dtype
+        ids = want["instance_id"]
+        assert [r["counts"] for r in capture["coco_rles"](ids)] == \
+            [r["counts"] for r in instance_rles(own["instance_segmentation"], ids)]

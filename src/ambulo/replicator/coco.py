@@ -9,6 +9,7 @@ shards is the same file.
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -73,26 +74,83 @@ def frame_annotations(capture: dict, semantic_ids: np.ndarray, instance_names: l
     return out
 
 
-def instance_rles(instances: np.ndarray, ids: np.ndarray) -> list[dict]:
+@dataclass(frozen=True, slots=True)
+class InstanceRuns:
+    """The runs of equal ids of one (H, W) instance image in column-major order (COCO's), grouped by id.
+
+    One pass over the image (``column_runs``) that both a frame's tight boxes (``runs_tight_boxes``)
+    and its COCO masks (``instance_rles``) are read from, instead of a pass in row order for the
+    boxes and another in column order for the masks.
+    """
+
+    height: int
+    width: int
+    starts: np.ndarray
+    """(R,) int64 where each run starts (column-major pixel index)."""
+    ids: np.ndarray
+    """(R,) each run's id (0 = background)."""
+    ends: np.ndarray
+    """(R,) int64 where each run ends (exclusive)."""
+    order: np.ndarray
+    """(R,) int64 the runs sorted by id (stable: in image order within an id)."""
+
+    @classmethod
+    def of(cls, instances: np.ndarray) -> InstanceRuns:
+        h, w = instances.shape
+        starts, ids = column_runs(instances)
+        return cls(h, w, starts, ids, np.append(starts[1:], h * w), np.argsort(ids, kind="stable"))
+
+
+def runs_tight_boxes(runs: InstanceRuns, num_instances: int) -> tuple[np.ndarray, np.ndarray]:
+    """``sensors.annotators.tight_boxes`` of the image ``runs`` were found in, from its column runs.
+
+    Returns ``boxes`` (K, 4) int64 [x_min, y_min, x_max, y_max] inclusive (-1 where invisible) and
+    ``pixels`` (K,) int64. A column-major run spans columns c0..c1 and, within a column, rows r0..r1
+    (all rows when it wraps onto the next column): the row-order computation, transposed.
+    """
+    h, k = runs.height, num_instances
+    boxes = np.full((k, 4), -1, np.int64)
+    order = runs.order
+    # background runs (id 0) come first in id order: the foreground is the sorted tail
+    first_fg = int(np.searchsorted(runs.ids[order], 1))
+    fg = order[first_fg:]
+    starts, ends, values = runs.starts[fg], runs.ends[fg], runs.ids[fg]
+    pixels = np.bincount(values, weights=ends - starts, minlength=k + 1)[1:k + 1].astype(np.int64)
+    if len(values) == 0:
+        return boxes, pixels
+    c0, r0 = np.divmod(starts, h)
+    c1, r1 = np.divmod(ends - 1, h)
+    wraps = c1 > c0  # covers the bottom of column c0 and the top of column c1: every row
+    r0[wraps], r1[wraps] = 0, h - 1
+    first = np.flatnonzero(np.concatenate(([True], values[1:] != values[:-1])))
+    rows = values[first] - 1
+    boxes[rows, 0] = np.minimum.reduceat(c0, first)
+    boxes[rows, 1] = np.minimum.reduceat(r0, first)
+    boxes[rows, 2] = np.maximum.reduceat(c1, first)
+    boxes[rows, 3] = np.maximum.reduceat(r1, first)
+    return boxes, pixels
+
+
+def instance_rles(instances: np.ndarray | None, ids: np.ndarray, runs: InstanceRuns | None = None) -> list[dict]:
     """Compressed COCO RLEs of the masks ``instances == id``, one per id of ``ids``.
 
     The same bytes as ``mask_utils.encode`` of the K binary masks, ~5x faster:
     one pass finds the runs of equal ids in column-major order (COCO's), and
-    each instance's RLE counts are the gaps between its runs.
+    each instance's RLE counts are the gaps between its runs. ``runs``: that pass's
+    ``InstanceRuns``, when the caller has them already (then ``instances`` is not read).
     """
-    h, w = instances.shape
+    runs = InstanceRuns.of(instances) if runs is None else runs
+    h, w = runs.height, runs.width
     size = h * w
-    starts, run_ids = column_runs(instances)
-    ends = np.append(starts[1:], size)
-    order = np.argsort(run_ids, kind="stable")  # runs grouped by id, in image order within an id
-    values = run_ids[order]
+    starts, ends, order = runs.starts, runs.ends, runs.order  # runs grouped by id, in image order within one
+    values = runs.ids[order]
     first, last = np.searchsorted(values, ids, "left"), np.searchsorted(values, ids, "right")
     # every kept instance's runs, grouped by instance (in ``ids`` order), in image order within one
     n_runs = last - first
     total = int(n_runs.sum())
     group_start = np.cumsum(n_runs) - n_runs  # where each instance's runs begin in ``runs``
-    runs = order[np.repeat(first - group_start, n_runs) + np.arange(total)]
-    run_start, run_end = starts[runs], ends[runs]
+    picked = order[np.repeat(first - group_start, n_runs) + np.arange(total)]
+    run_start, run_end = starts[picked], ends[picked]
     # one array of every instance's counts, side by side: zeros, ones, ..., zeros, ones, then the
     # zeros after its last run; run j of instance g sits at 2 j + g (each instance before adds a tail)
     group = np.repeat(np.arange(len(ids)), n_runs)

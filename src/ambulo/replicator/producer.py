@@ -13,6 +13,7 @@ from __future__ import annotations
 import collections
 import concurrent.futures as cf
 import contextlib
+import functools
 import gc
 from dataclasses import replace
 from pathlib import Path
@@ -21,7 +22,9 @@ import numpy as np
 
 from ambulo.core import Simulation
 from ambulo.sensors import Camera
+from ambulo.sensors.camera import tight_box_output
 
+from .coco import InstanceRuns, instance_rles, runs_tight_boxes
 from .config import DatasetConfig
 from .randomizers import CameraJitter, SceneContext
 from .writers import FrameWriter, write_frame_files
@@ -56,6 +59,15 @@ class FrameProducer:
         # (cached draws are applied again too): resetting the pose first would only be overwritten
         self._jitter_sets_pose = any(type(r) is CameraJitter and r.camera == self.camera.name
                                      for r in config.randomizers)
+        # the tight boxes and the COCO masks read from one pass over the instance image (``InstanceRuns``):
+        # the camera is asked for everything but the tight boxes, which ``_finish`` adds from that pass
+        # (the camera's own are found in row order, a second pass); not with visible_fraction, which the
+        # camera computes from its tight boxes' pixel counts
+        wanted = self.camera.annotators
+        self._boxes_from_runs = ("instance_segmentation" in wanted and "bounding_box_2d_tight" in wanted
+                                 and "visible_fraction" not in wanted)
+        self._capture_annotators = tuple(a for a in wanted if a != "bounding_box_2d_tight") \
+            if self._boxes_from_runs else None
 
     @property
     def table(self):
@@ -85,7 +97,18 @@ class FrameProducer:
             r.apply(log[name], self.ctx)
 
     def capture(self) -> dict:
-        return self.camera.capture(0)
+        self.camera.begin_capture(0, self._capture_annotators)
+        return self._finish(self.camera.end_capture())
+
+    def _finish(self, capture: dict) -> dict:
+        """The camera's capture with the tight boxes from the instance image's column runs, and the
+        COCO masks' RLEs from the same runs (``coco_rles``, read by ``coco.frame_annotations``)."""
+        if self._boxes_from_runs:
+            runs = InstanceRuns.of(capture["instance_segmentation"])
+            boxes, pixels = runs_tight_boxes(runs, self.table.num_instances)
+            capture["bounding_box_2d_tight"] = tight_box_output(self.table, boxes, pixels)
+            capture["coco_rles"] = functools.partial(instance_rles, None, runs=runs)
+        return capture
 
     def frames(self, seed: int, indices: list[int]):
         """Yield (index, log, capture) for ``indices``, randomizing frame i+1 while frame i's id pass rasterizes."""
@@ -93,13 +116,13 @@ class FrameProducer:
         if not indices:
             return
         log = self.randomize(seed, indices[0])
-        self.camera.begin_capture(0)
+        self.camera.begin_capture(0, self._capture_annotators)
         for k, index in enumerate(indices):
             following = indices[k + 1] if k + 1 < len(indices) else None
             next_log = self.randomize(seed, following) if following is not None else None
-            capture = self.camera.end_capture()
+            capture = self._finish(self.camera.end_capture())
             if following is not None:
-                self.camera.begin_capture(0)
+                self.camera.begin_capture(0, self._capture_annotators)
             yield index, log, capture
             log = next_log
 

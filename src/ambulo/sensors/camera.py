@@ -405,12 +405,11 @@ class Camera(Sensor):
             out["instance_segmentation"] = instances
         if "semantic_segmentation" in names:
             out["semantic_segmentation"] = semantic
-        boxes, pixels = ann.tight_boxes(instances, table.num_instances)
-        visible = np.flatnonzero(pixels > 0)
-        if "bounding_box_2d_tight" in names:
-            out["bounding_box_2d_tight"] = {
-                "instance_id": visible + 1, "semantic_id": table.semantic_ids[visible + 1],
-                "box": boxes[visible], "pixels": pixels[visible]}
+        pixels = None
+        if "bounding_box_2d_tight" in names or "visible_fraction" in names:
+            boxes, pixels = ann.tight_boxes(instances, table.num_instances)
+            if "bounding_box_2d_tight" in names:
+                out["bounding_box_2d_tight"] = tight_box_output(table, boxes, pixels)
         if not {"bounding_box_2d_loose", "bounding_box_3d", "visible_fraction"} & set(names):
             return
         geom_pos = data.geom_xpos
@@ -523,6 +522,14 @@ class Camera(Sensor):
         ids_t = torch.as_tensor(ids, device=cam_pos.device)
         cam_pos[ids_t, self.cam_id] = torch.from_numpy(np.ascontiguousarray(pos)).to(cam_pos)
         cam_quat[ids_t, self.cam_id] = torch.from_numpy(quat).to(cam_quat)
+
+
+def tight_box_output(table: ann.InstanceTable, boxes: np.ndarray, pixels: np.ndarray) -> dict:
+    """The ``bounding_box_2d_tight`` output of ``tight_boxes``' (K, 4) ``boxes`` and (K,) ``pixels``:
+    the visible instances' ids, semantic ids, boxes and pixel counts."""
+    visible = np.flatnonzero(pixels > 0)
+    return {"instance_id": visible + 1, "semantic_id": table.semantic_ids[visible + 1],
+            "box": boxes[visible], "pixels": pixels[visible]}
 
 
 def make_color_renderer(renderer: str, model: mujoco.MjModel, width: int, height: int):
