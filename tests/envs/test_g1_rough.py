@@ -154,3 +154,19 @@ def test_play_puts_every_robot_on_the_hardest_level_without_transfer():
     assert env.curriculum.levels.tolist() == [2, 2, 2, 2]
     env.step(torch.zeros(4, env.num_actions))
     assert env.curriculum.levels.tolist() == [2, 2, 2, 2]
+
+
+@pytest.mark.slow  # ~30 s on a shared 2-core machine, once Warp's kernels are compiled (minutes before)
+def test_no_world_runs_away_under_ppo_first_exploration_on_warp():
+    """16 G1s as trained (full terrain, levels 0-4, wide transfer), unit Gaussian actions for 150
+    steps on MuJoCo Warp's CPU device, runaway guard off: no joint or base speed past 100 rad/s
+    (59.5 here; the CPU engine 68.7). Without the terrain contacts' depth limit one world reached
+    234 rad/s, and with the URDF's 5 mm sole spheres as well 6e7 rad/s (135 terminations, not 44)."""
+    cfg = envs.make_cfg("g1-rough", num_envs=16, seed=0, num_threads=1, engine="warp", diverged_speed_bound=None)
+    env = G1RoughEnv(cfg)
+    generator = torch.Generator().manual_seed(0)
+    fastest = 0.0
+    for _ in range(150):
+        env.step(torch.randn(16, env.num_actions, generator=generator))
+        fastest = max(fastest, env.engine.field("qvel").abs().max().item())
+    assert fastest < 100.0
