@@ -26,7 +26,6 @@ from dataclasses import dataclass, field
 import torch
 
 from ambulo.scenes.terrain import (
-    HeightScanCfg,
     TerrainCfg,
     TerrainCurriculumCfg,
 )
@@ -42,7 +41,7 @@ from .humanoid_footsteps import (
 )
 from .humanoid_walk import as_play, humanoid_walk_ppo
 from .registry import TaskSpec, register
-from .terrain_ground import TerrainGround
+from .terrain_ground import TerrainGround, TerrainGroundCfg
 
 STAIR_RISER_M = 0.10
 """The issue's step height (issue 30 item 4: footsteps "over 0.10 m steps"), m."""
@@ -57,27 +56,14 @@ def stairs_terrain_cfg() -> TerrainCfg:
 
 
 @dataclass(kw_only=True)
-class HumanoidFootstepsStairsCfg(HumanoidFootstepsCfg):
-    """humanoid-footsteps settings and the terrain's."""
+class HumanoidFootstepsStairsCfg(HumanoidFootstepsCfg, TerrainGroundCfg):
+    """humanoid-footsteps settings and the terrain ground's (the stairs grid)."""
 
     terrain: TerrainCfg = field(default_factory=stairs_terrain_cfg)
     levels: TerrainCurriculumCfg = field(default_factory=lambda: TerrainCurriculumCfg(enabled=False,
                                                                                        max_init_level=3))
     """Which level (riser) each robot gets: uniform over the levels, kept (``enabled`` False)."""
-    height_scan: HeightScanCfg = field(default_factory=lambda: HeightScanCfg(height_offset_m=0.9))
     treads: TreadSnapCfg = field(default_factory=TreadSnapCfg)
-    spawn_radius_m: float = 0.3
-    """Robots start uniformly within +-this of their tile's centre along x and y, m."""
-    terrain_friction: float = 1.0
-    """Sliding friction of the terrain geom before randomization."""
-    sole_sphere_radius_m: float | None = 0.02
-    """The feet touch the terrain through spheres at their soles' corners, as on humanoid-rough
-    (``HumanoidRoughCfg.sole_sphere_radius_m``: MuJoCo Warp's box-heightfield contacts); None: boxes."""
-    sole_contact_timeconst_s: float | None = 0.01
-    """The sole spheres' contact time constant, s (``HumanoidRoughCfg.sole_contact_timeconst_s``)."""
-    warp_hfield_contact_depth_m: float | None = 0.02
-    """MuJoCo Warp's terrain contacts' depth limit, m (``HumanoidRoughCfg.warp_hfield_contact_depth_m``)."""
-
 
 def humanoid_footsteps_stairs_cfg() -> HumanoidFootstepsStairsCfg:
     """humanoid-footsteps' settings on the stairs terrain, scan noise +-5 cm (humanoid-rough's)."""

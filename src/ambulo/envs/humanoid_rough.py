@@ -23,44 +23,24 @@ import torch
 
 from ambulo.core.rows import fill_rows, put_rows
 from ambulo.scenes.terrain import (
-    HeightScanCfg,
     TerrainCfg,
     TerrainCurriculumCfg,
 )
 
 from .humanoid_walk import WALKS, HumanoidWalkCfg, HumanoidWalkEnv, as_play, humanoid_walk_cfg, humanoid_walk_ppo
 from .registry import TaskSpec, register
-from .terrain_ground import TerrainGround
+from .terrain_ground import TerrainGround, TerrainGroundCfg
 from .transfer import transfer_cfg_wide
 
 
 @dataclass(kw_only=True)
-class RoughTerrainCfg:
+class RoughTerrainCfg(TerrainGroundCfg):
     """What a walking task on the terrain curriculum adds to its cfg (a dataclass mixin: humanoid-rough
-    and g1-rough list it after their walking cfg)."""
+    and g1-rough list it after their walking cfg): the terrain ground's and the curriculum's."""
 
-    terrain: TerrainCfg = field(default_factory=TerrainCfg)
     curriculum: TerrainCurriculumCfg = field(default_factory=TerrainCurriculumCfg)
-    height_scan: HeightScanCfg = field(default_factory=lambda: HeightScanCfg(height_offset_m=0.9))
-    """``height_offset_m``: the robot's nominal base height (the humanoid's 0.9 m)."""
     scan_in_actor: bool = True
     """The actor sees the height scan; False: only the critic does (a blind walker)."""
-    spawn_radius_m: float = 0.3
-    """Robots start uniformly within +-this of their tile's centre along x and y, m."""
-    terrain_friction: float = 1.0
-    """Sliding friction of the terrain geom before randomization."""
-    sole_sphere_radius_m: float | None = 0.02
-    """The feet touch the terrain through four spheres of this radius at their soles' corners
-    (``scenes.terrain.sphere_soles``: MuJoCo Warp's box-heightfield contacts push resting feet
-    down); None: through their boxes (right on the CPU engine only)."""
-    sole_contact_timeconst_s: float | None = 0.01
-    """The sole spheres' contact time constant, s (``solref``; None: the foot box's 0.02): stiffer
-    soles sink less under stomping exploration, where Warp's sphere-hfield contacts degrade."""
-    warp_hfield_contact_depth_m: float | None = 0.02
-    """On MuJoCo Warp, terrain contacts deeper than this are limited to it, pointing up
-    (``engine.warp_hfield``): once a sole sphere sinks past its radius Warp's contacts are
-    metres deep and sideways, which made robots run away (hundreds of rad/s) and fall. The
-    sphere radius: shallower contacts are right. None: Warp's own contacts."""
 
 
 @dataclass(kw_only=True)

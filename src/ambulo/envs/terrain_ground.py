@@ -5,12 +5,48 @@ contacts push resting feet down: ``scenes.terrain.sphere_soles``)."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import torch
 
 from ambulo.core.rows import take_rows
-from ambulo.scenes.terrain import HeightScan, TerrainCurriculum, TerrainHeights, add_terrain, generate, sphere_soles
+from ambulo.scenes.terrain import (
+    HeightScan,
+    HeightScanCfg,
+    TerrainCfg,
+    TerrainCurriculum,
+    TerrainHeights,
+    add_terrain,
+    generate,
+    sphere_soles,
+)
 from ambulo.sensors import ContactSensor, ContactSensorCfg
 
+
+@dataclass(kw_only=True)
+class TerrainGroundCfg:
+    """What a task on the terrain adds to its cfg (a dataclass mixin listed after the task's own cfg:
+    humanoid-rough, g1-rough and humanoid-footsteps-stairs); ``add_terrain_ground`` reads it."""
+
+    terrain: TerrainCfg = field(default_factory=TerrainCfg)
+    height_scan: HeightScanCfg = field(default_factory=lambda: HeightScanCfg(height_offset_m=0.9))
+    """``height_offset_m``: the robot's nominal base height (the humanoid's 0.9 m)."""
+    spawn_radius_m: float = 0.3
+    """Robots start uniformly within +-this of their tile's centre along x and y, m."""
+    terrain_friction: float = 1.0
+    """Sliding friction of the terrain geom before randomization."""
+    sole_sphere_radius_m: float | None = 0.02
+    """The feet touch the terrain through four spheres of this radius at their soles' corners
+    (``scenes.terrain.sphere_soles``: MuJoCo Warp's box-heightfield contacts push resting feet
+    down); None: through their boxes (right on the CPU engine only)."""
+    sole_contact_timeconst_s: float | None = 0.01
+    """The sole spheres' contact time constant, s (``solref``; None: the foot box's 0.02): stiffer
+    soles sink less under stomping exploration, where Warp's sphere-hfield contacts degrade."""
+    warp_hfield_contact_depth_m: float | None = 0.02
+    """On MuJoCo Warp, terrain contacts deeper than this are limited to it, pointing up
+    (``engine.warp_hfield``): once a sole sphere sinks past its radius Warp's contacts are
+    metres deep and sideways, which made robots run away (hundreds of rad/s) and fall. The
+    sphere radius: shallower contacts are right. None: Warp's own contacts."""
 
 def add_terrain_ground(env, spec, task: str, soles=sphere_soles) -> None:
     """Add ``env.cfg.terrain`` to ``spec`` as the ground (``env.terrain``: the generated grid) and the
