@@ -3,14 +3,20 @@ each published camera frame; a second rclpy node in a loopback-only network rece
 vision_msgs/msg/Detection2DArray (decoded by mcap_ros2, not by the project's serializer) and checks that
 the array is the detector's output on that very image: same stamp, the camera's frame id, the same boxes.
 
+The detector runs on a thread of its own by default (``BridgeCfg.detector_thread``): with fake detectors,
+``--worker`` checks that the simulation goes on while it works, that its detections carry the stamp of
+their frame, that frames arriving meanwhile are dropped but the newest, the inline mode (every frame, on
+the physics thread) and that a detector's exception is one clear error.
+
 Run as a script (by the test, in the isolated network): ``python test_detector_bridge.py CHECKPOINT``
-prints one JSON line of what the listener received."""
+(or ``--worker``) prints one JSON line of what the listener received."""
 
 from __future__ import annotations
 
 import json
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -164,5 +170,206 @@ def test_bridge_cli_refuses_a_camera_larger_than_the_detectors_canvas(trained_sh
     assert len(done.stderr.strip().splitlines()) == 1, done.stderr
 
 
+class _FakeDetections:
+    """What a box-only detector returns: one box whose label is the frame's index (``_number_frames``)."""
+
+    def __init__(self, index: int):
+        self.boxes_px = np.array([[1.0, 2.0, 10.0, 12.0]])
+        self.labels, self.scores, self.masks = [str(index)], np.array([0.9]), None
+
+
+def _frame_index(rgb: np.ndarray) -> int:
+    """The index ``_number_frames`` wrote into pixel (0, 0)."""
+    return int(rgb[0, 0, 0]) + 256 * int(rgb[0, 0, 1])
+
+
+def _number_frames(camera) -> list:
+    """Make ``camera.capture`` write a running frame index into pixel (0, 0) (red + 256 green), so that the
+    detector and the listener each read which frame they got; returns the list of indices captured."""
+    captured: list[int] = []
+    capture = camera.capture
+
+    def numbered(*args, **kwargs):
+        out = capture(*args, **kwargs)
+        k = len(captured)
+        out["rgb"][0, 0, :2] = (k % 256, k // 256)
+        captured.append(k)
+        return out
+
+    camera.capture = numbered
+    return captured
+
+
+class _Detector:
+    """A fake detector of 48x64 frames: records the frame index and thread of each call; ``hold`` (an Event)
+    keeps its first call waiting until set; ``fail`` makes it raise instead."""
+
+    canvas_hw = (48, 64)
+
+    def __init__(self, hold: threading.Event | None = None, fail: bool = False):
+        self.hold, self.fail, self.started = hold, fail, threading.Event()
+        self.calls: list[tuple[int, str]] = []
+
+    def __call__(self, rgb):
+        index = _frame_index(rgb)
+        self.calls.append((index, threading.current_thread().name))
+        self.started.set()
+        if self.fail:
+            raise ValueError(f"no weights for frame {index}")
+        if self.hold is not None and len(self.calls) == 1:
+            self.hold.wait(60.0)
+        return _FakeDetections(index)
+
+
+def _worker_scenario() -> None:
+    """Three bridges on the Jetbot (camera 64x48 at 50 Hz) with fake detectors; prints one JSON line.
+
+    threaded: the detector holds its first frame until the bridge has stepped on and the listener has images
+    stamped later; then it is released and the bridge closed. inline: ``detector_thread=False``. failing: a
+    detector that raises, threaded (raised by a step) and inline, and threaded raised by ``close``."""
+    from ambulo.ros2.runtime import import_rclpy, use_fastdds_profile
+
+    use_fastdds_profile()
+    rclpy = import_rclpy()
+    from rclpy.executors import SingleThreadedExecutor
+    from sensor_msgs.msg import Image
+
+    sys.path.insert(0, str(HERE.parent))
+    from ros2_detections_scenario import decoder
+
+    from ambulo.ros2 import BridgeCfg, Ros2Bridge, SceneCfg, jetbot_world
+    from ambulo.ros2.bridge_detection import DetectorFailed
+    from ambulo.ros2.detections import detection_array_class
+
+    def bridge_with(detector, **cfg):
+        world = jetbot_world(SceneCfg(camera_width=64, camera_height=48))
+        bridge = Ros2Bridge(world, BridgeCfg(camera_rate_hz=50.0, publish_depth=False, **cfg), detector=detector)
+        return world, bridge, _number_frames(bridge.cameras[0])
+
+    out: dict = {}
+    rclpy.init()
+    # -- threaded: the simulation goes on while the detector holds its first frame
+    hold = threading.Event()
+    detector = _Detector(hold)
+    world, bridge, captured = bridge_with(detector)
+    listener = rclpy.create_node("detections_listener")
+    decode = decoder()
+    arrays: dict[int, list] = {}
+    images: dict[int, int] = {}
+
+    def stamp(msg) -> int:
+        return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+
+    def on_array(raw: bytes) -> None:
+        array = decode(raw)
+        arrays[stamp(array)] = [d.results[0].hypothesis.class_id for d in array.detections]
+
+    def on_image(msg) -> None:
+        images[stamp(msg)] = _frame_index(np.frombuffer(bytes(msg.data), np.uint8).reshape(msg.height, msg.width, 3))
+
+    listener.create_subscription(detection_array_class(), "detections", on_array, 10, raw=True)
+    listener.create_subscription(Image, "camera/image_raw", on_image, 50)
+    executor = SingleThreadedExecutor()
+    executor.add_node(listener)
+    deadline = time.monotonic() + 60.0
+    held_at_s = None
+    while time.monotonic() < deadline:
+        world.step(render=False)
+        executor.spin_once(timeout_sec=0.002)
+        if held_at_s is None and detector.started.is_set():
+            held_at_s = world.current_time
+        matched = bridge.subscribers.get(bridge.publishing._topic["det0"], (0, 0.0))[0]
+        if held_at_s is not None and matched and sum(k >= 1 for k in images.values()) >= 5:
+            break
+    out["threaded"] = {"held_at_s": held_at_s, "stepped_to_s": world.current_time,
+                       "indices_received_while_held": sorted(images.values()),
+                       "arrays_while_held": len(arrays), "calls_while_held": len(detector.calls)}
+    frames = len(captured)
+    hold.set()
+    deadline = time.monotonic() + 30.0
+    while time.monotonic() < deadline and (len(arrays) < 2 or not set(arrays) <= set(images)):
+        executor.spin_once(timeout_sec=0.01)
+    bridge.close()
+    out["threaded"].update(frames=frames, calls=detector.calls, dropped=bridge.dropped_detections,
+                           arrays={str(ns): labels for ns, labels in arrays.items()},
+                           images={str(ns): k for ns, k in images.items()})
+    listener.destroy_node()
+    # -- inline: every frame, on the physics thread
+    detector = _Detector()
+    world, bridge, captured = bridge_with(detector, detector_thread=False)
+    for _ in range(30):
+        world.step(render=False)
+    bridge.close()
+    out["inline"] = {"frames": len(captured), "calls": detector.calls, "dropped": bridge.dropped_detections,
+                     "published": dict(bridge.published), "main": threading.current_thread().name}
+    # -- failing: one clear error, raised once
+    out["failing"] = {}
+    for mode, cfg in (("threaded", {}), ("inline", {"detector_thread": False}), ("at_close", {})):
+        world, bridge, captured = bridge_with(_Detector(fail=True), **cfg)
+        raised, deadline = [], time.monotonic() + 30.0
+        try:
+            while time.monotonic() < deadline and not (mode == "at_close" and captured):
+                world.step(render=False)
+        except DetectorFailed as err:
+            raised.append(["step", str(err)])
+        try:
+            bridge.close()
+        except DetectorFailed as err:
+            raised.append(["close", str(err)])
+        out["failing"][mode] = raised
+    print(json.dumps(out))
+    rclpy.shutdown()
+
+
+@pytest.fixture(scope="module")
+def worker_run() -> dict:
+    """What ``_worker_scenario`` saw (one run, in the isolated network, for the three tests below)."""
+    pytest.importorskip("rclpy", reason="needs rclpy: pip install 'ambulo[ros2]'")
+    pytest.importorskip("mcap_ros2")
+    from ambulo.ros2.loopback import run_isolated
+
+    done = run_isolated([str(HERE), "--worker"], timeout_s=180)
+    assert done.returncode == 0, done.stderr[-4000:]
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def test_threaded_detector_keeps_the_simulation_going_and_stamps_its_frames(worker_run):
+    run = worker_run["threaded"]
+    # while the detector held frame 0, simulated time went on and later frames' images came out, no detections
+    assert run["held_at_s"] is not None and run["stepped_to_s"] > run["held_at_s"]
+    assert sum(k >= 1 for k in run["indices_received_while_held"]) >= 5
+    assert run["arrays_while_held"] == 0 and run["calls_while_held"] == 1
+    # released: the held frame, then only the newest of those that arrived meanwhile; the others dropped
+    frames = run["frames"]
+    assert frames >= 6
+    assert [index for index, _ in run["calls"]] == [0, frames - 1]
+    assert all(thread != "MainThread" for _, thread in run["calls"])
+    assert run["dropped"] == frames - 2
+    # each array is stamped with the time of the very frame it was computed on (its image at that stamp)
+    assert len(run["arrays"]) == 2
+    for ns, labels in run["arrays"].items():
+        assert ns in run["images"], (ns, sorted(run["images"]))
+        assert labels == [str(run["images"][ns])]
+    assert sorted(int(labels[0]) for labels in run["arrays"].values()) == [0, frames - 1]
+
+
+def test_inline_detector_detects_every_frame_on_the_physics_thread(worker_run):
+    run = worker_run["inline"]
+    assert run["frames"] >= 10
+    assert run["calls"] == [[k, run["main"]] for k in range(run["frames"])]
+    assert run["dropped"] == 0
+    published = run["published"]
+    assert published["/detections"] == published["/camera/image_raw"] == run["frames"]
+
+
+def test_a_failing_detector_is_one_clear_error_raised_once(worker_run):
+    for mode, where in (("threaded", "step"), ("inline", "step"), ("at_close", "close")):
+        raised = worker_run["failing"][mode]
+        assert [w for w, _ in raised] == [where], (mode, raised)
+        message = raised[0][1]
+        assert message == "the detector failed on camera 0's frame at t=" + message.split("t=")[1]
+        assert "ValueError: no weights for frame 0" in message and "\n" not in message
+
+
 if __name__ == "__main__":
-    _scenario(sys.argv[1])
+    _worker_scenario() if sys.argv[1] == "--worker" else _scenario(sys.argv[1])

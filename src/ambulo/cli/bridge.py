@@ -214,6 +214,8 @@ def run(args: argparse.Namespace) -> int:
         _require("rosbags", "rosbags", "--record")
     if args.foxglove:
         _require("foxglove", "foxglove-sdk", "--foxglove")
+    if args.detector_inline and not args.detector:
+        raise CliError("--detector-inline runs a detector, and none is given", "add --detector RUN")
     if args.detector and args.no_camera:
         raise CliError("--detector needs the camera that --no-camera removes", "leave out one of the two")
     watch = web_watch(args)  # bad viewer flags fail before the world is built
@@ -234,7 +236,8 @@ def run(args: argparse.Namespace) -> int:
         detector = ShownDetector(detector, viewer)
     cfg = BridgeCfg(namespace=args.namespace, frame_prefix=args.frame_prefix, camera_qos=args.camera_qos,
                     camera_rate_hz=args.camera_rate, record=str(bag) if bag else None,
-                    foxglove_port=args.foxglove_port if args.foxglove else None)
+                    foxglove_port=args.foxglove_port if args.foxglove else None,
+                    detector_thread=not args.detector_inline)
     signal.signal(signal.SIGTERM, _interrupt)  # `kill` ends like Ctrl-C: the bag is finished
     try:
         bridge = Ros2Bridge(world, cfg, detector=detector)
@@ -252,23 +255,31 @@ def run(args: argparse.Namespace) -> int:
     dt, start = world.get_physics_dt(), time.perf_counter()
     steps = None if args.seconds is None else int(round(args.seconds / dt))
     done = 0
+    from ambulo.ros2.bridge_detection import DetectorFailed
+
     try:
-        while steps is None or done < steps:
-            world.step(render=False)
-            done += 1
-            if args.real_time:
-                ahead = done * dt - (time.perf_counter() - start)
-                if ahead > 0:
-                    time.sleep(ahead)
-    finally:
-        bridge.close()
-        if viewer is not None:
-            viewer.close()
-        wall = time.perf_counter() - start
-        print(f"simulated {done * dt:.2f} s in {wall:.2f} s wall; published "
-              + ", ".join(f"{t} {n}" for t, n in sorted(bridge.published.items()))
-              + (f"; {len(bridge.rejected)} commands rejected" if bridge.rejected else "")
-              + (f"; bag: {bag}" if bag else ""), flush=True)
+        try:
+            while steps is None or done < steps:
+                world.step(render=False)
+                done += 1
+                if args.real_time:
+                    ahead = done * dt - (time.perf_counter() - start)
+                    if ahead > 0:
+                        time.sleep(ahead)
+        finally:
+            bridge.close()
+            if viewer is not None:
+                viewer.close()
+            wall = time.perf_counter() - start
+            print(f"simulated {done * dt:.2f} s in {wall:.2f} s wall; published "
+                  + ", ".join(f"{t} {n}" for t, n in sorted(bridge.published.items()))
+                  + (f"; {len(bridge.rejected)} commands rejected" if bridge.rejected else "")
+                  + (f"; {bridge.dropped_detections} frames skipped by the detector"
+                     if bridge.dropped_detections else "")
+                  + (f"; bag: {bag}" if bag else ""), flush=True)
+    except DetectorFailed as err:  # one line, not the detector's traceback
+        raise CliError(str(err), "run the detector on such a frame in Python for the traceback, or leave out "
+                       "--detector") from None
     return 0
 
 
@@ -301,8 +312,12 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--detector", metavar="PATH", help="run this detector (a train-detector run folder, its "
                    "checkpoint.pt or exported .onnx) on every published camera frame: /detections "
                    "(vision_msgs/Detection2DArray) and /detections/segmentation (mono16, models with masks), "
-                   "stamped like the image. Inference runs in the camera path on the physics thread: it costs "
-                   "--camera-rate inferences of CPU per simulated second and slows the simulation by as much")
+                   "stamped like the image they were computed on. Inference runs on a thread of its own: the "
+                   "simulation keeps its pace; when the detector is slower than --camera-rate it takes each "
+                   "camera's newest frame and skips the others")
+    p.add_argument("--detector-inline", action="store_true", help="run the detector in the camera path on the "
+                   "physics thread instead: every published frame detected, deterministic, and the simulation "
+                   "slowed by each inference")
     add_viewer_args(p)  # the scene live, and with --detector each detected frame with its boxes
     nav = p.add_argument_group("navigator", "`ambulo bridge apartment|WORLD --navigate`: the humanoid navigator "
                                "as a ROS 2 node: goals on /goal_pose (RViz's 2D Goal Pose); /plan, /footsteps, /map, "

@@ -22,7 +22,8 @@ walking in place until the first Twist; a joint command pauses it until the next
 The bridge owns four parts, one purpose a file: ``scene`` (``bridge_scene.SceneDiscovery``: the robots,
 sensors and frames), ``process`` (``bridge_launch.PublisherProcess``: the node's process, started from
 the spec ``bridge_launch`` builds), ``publishing`` (``bridge_publishing.PhysicsPublisher``: the rate
-schedule and the ring snapshots, on the physics thread) and ``commands``
+schedule and the ring snapshots, on the physics thread; its detector's ``bridge_detection.DetectionWorker``
+on a thread of its own) and ``commands``
 (``bridge_commands.CommandIntake``: checks commands on the listener thread, applies them on the
 physics thread).
 """
@@ -59,11 +60,14 @@ class Ros2Bridge:
         at its physics_dt, ``robots.humanoid.POLICY_PHYSICS_DT_S``; another free-floating robot
         refuses /cmd_vel saying why).
       detector: an ``ambulo.detection.Detector`` (any callable of an (H, W, 3) uint8 frame returning
-        ``boxes_px``, ``labels``, ``scores``, ``masks``, with ``canvas_hw``), run on every published camera
-        frame on the physics thread: ``detections`` (vision_msgs/msg/Detection2DArray) and, for a model
-        with masks, ``detections/segmentation`` (mono16 instances) and ``detections/semantic`` (mono8
-        category ids, 0 background), stamped and framed like the image.
-        A camera larger than its canvas is a ``ValueError``.
+        ``boxes_px``, ``labels``, ``scores``, ``masks``, with ``canvas_hw``), run on the published camera
+        frames on a thread of its own (``bridge_detection.DetectionWorker``; the newest frame of each camera
+        when it is slower than the camera rate, the others counted in ``dropped_detections``), or on every
+        frame on the physics thread (``BridgeCfg.detector_thread=False``): ``detections``
+        (vision_msgs/msg/Detection2DArray) and, for a model with masks, ``detections/segmentation`` (mono16
+        instances) and ``detections/semantic`` (mono8 category ids, 0 background), stamped and framed like the
+        image they were computed on. A camera larger than its canvas is a ``ValueError``; an exception of the
+        detector is raised as ``bridge_detection.DetectorFailed`` on the next physics step (or by ``close``).
     """
 
     def __init__(self, world, cfg: BridgeCfg | None = None, *, cmd_vel_handler: CmdVelHandler | None = None,
@@ -162,9 +166,16 @@ class Ros2Bridge:
         return self.publishing.dropped_frames
 
     @property
+    def dropped_detections(self) -> int:
+        """Camera frames the detector's thread skipped: replaced by a newer frame of the same camera while the
+        detector worked on an earlier one (always 0 with ``BridgeCfg.detector_thread=False``)."""
+        return self.publishing.dropped_detections
+
+    @property
     def on_publish(self):
-        """Optional ``fn(topic, stamp_ns)`` called on the physics thread when a message's state is taken (the
-        snapshot, or the image or scan handed to the publisher process); benchmarks time latency from it."""
+        """Optional ``fn(topic, stamp_ns)`` called when a message's state is taken (the snapshot, or the image
+        or scan handed to the publisher process); benchmarks time latency from it. Called on the physics
+        thread, and for a detector's topics on its thread, one call at a time (under a lock)."""
         return self.publishing.on_publish
 
     @on_publish.setter
@@ -190,16 +201,20 @@ class Ros2Bridge:
     def close(self) -> None:
         """Stop publishing, leave the ROS graph and finish the bag (the publisher process publishes
         every snapshot taken so far first); the World keeps running. ``published`` then holds the
-        publisher process's counts."""
+        publisher process's counts. The detector's pending frames are detected and published first; its
+        exception, if no physics step raised it yet, is raised after everything is closed."""
         if getattr(self, "closed", True):
             return
         self.closed = True
         if self.world.physics_callback_exists("ros2_bridge"):
             self.world.remove_physics_callback("ros2_bridge")
-        self.publishing.release()
-        self.process.close()
-        if self.process.published is not None:
-            self.published.update(self.process.published)
+        try:
+            self.publishing.close_detection()
+        finally:
+            self.publishing.release()
+            self.process.close()
+            if self.process.published is not None:
+                self.published.update(self.process.published)
 
     def __enter__(self) -> Ros2Bridge:
         return self

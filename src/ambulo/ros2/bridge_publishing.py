@@ -5,18 +5,27 @@ the state topics' arrays are copied into the next free slot of the shared-memory
 the only publishing work on the physics thread for them), and the cameras' images (through the frame
 ring) and the lidars' messages are handed to the publisher process. The step path is timed in
 microseconds: it is plain attribute reads and NumPy copies, no per-topic objects.
+
+A detector's frames go to a ``bridge_detection.DetectionWorker`` (its own thread unless
+``BridgeCfg.detector_thread`` is False), which publishes from that thread too. Two threads then send:
+``process.send`` has its own lock; the frame ring (slots used in order, each slot's number sent after it is
+written, so writing a slot and sending its number must not interleave with the other thread's) and
+``on_publish`` callbacks (user code, not thread-safe in general) go under ``_out_lock``, held only for a
+copy and a send, never for an inference.
 """
 
 from __future__ import annotations
 
 import math
 import os
+import threading
 import time
 
 import numpy as np
 
 from . import cdr
 from . import messages as m
+from .bridge_detection import DetectionJob, DetectionWorker, owned
 from .bridge_launch import SnapshotSources, imu_is_clean, state_topics
 from .frames import leaf, xyzw
 from .ring import _FENCE, HEADER_BYTES, IMU0, JOINT_STATES, ODOM, READ, TF, WAITING, WRITTEN
@@ -44,7 +53,8 @@ class PhysicsPublisher:
 
     Attributes: ``dropped`` and ``dropped_frames`` (snapshots and images skipped while the process was
     behind, ``BridgeCfg.drop_when_behind``), ``on_publish`` (optional ``fn(topic, stamp_ns)`` called
-    when a message's state is taken), ``last`` (key -> simulated time it was last due).
+    when a message's state is taken, from the physics thread or the detection worker's, never both at once),
+    ``last`` (key -> simulated time it was last due), ``detection`` (the ``DetectionWorker``, or None).
     """
 
     def __init__(self, world, cfg, scene, process, snapshot: SnapshotSources, serialize, now, detector=None):
@@ -68,9 +78,13 @@ class PhysicsPublisher:
         self.dropped = 0
         self.dropped_frames = 0
         self.on_publish = None
+        self._out_lock = threading.Lock()
+        """Held while a frame ring slot is written and its number sent, and around ``on_publish`` calls."""
         self.detector = detector
+        self.detection = None
         if detector is not None:
             self._advertise_detections()
+            self.detection = DetectionWorker(self._detect_and_publish, len(self.cameras), cfg.detector_thread)
 
     # -- the step path: the rate schedule, then a snapshot into the ring --------------------------
     def step(self) -> None:
@@ -78,6 +92,8 @@ class PhysicsPublisher:
         now = self._now()
         if not self._previous_s <= now < self._next_due_s:
             self.publish_now(now)
+        if self.detection is not None and self.detection.error is not None:
+            self.detection.check()  # the detector's exception, raised once on the physics thread
 
     def publish_now(self, now: float | None = None) -> None:
         """Snapshot every state topic that is due at the current simulated time (``now``, s) for the
@@ -155,9 +171,10 @@ class PhysicsPublisher:
             except BlockingIOError:  # the pipe is full of wake-ups already
                 pass
         if self.on_publish is not None:
-            for bit, key, *_ in self._schedule:
-                if flags & bit:
-                    self.on_publish(self._topic[key], ns)
+            with self._out_lock:
+                for bit, key, *_ in self._schedule:
+                    if flags & bit:
+                        self.on_publish(self._topic[key], ns)
 
     def _snapshot_rest(self, flags: int, sensordata, odom, imus) -> None:
         if flags & ODOM and odom is not None:
@@ -176,28 +193,33 @@ class PhysicsPublisher:
     def _publish(self, key: str, data: bytes, stamp_ns: int) -> None:
         """Send one message built here (images, camera info, lidar) to the publisher process, which
         publishes it after the snapshots taken before it."""
-        if self.on_publish is not None:
-            self.on_publish(self._topic[key], stamp_ns)
-        self.process.send(("raw", key, data, stamp_ns, self._header[WRITTEN]))
+        with self._out_lock:
+            if self.on_publish is not None:
+                self.on_publish(self._topic[key], stamp_ns)
+            self.process.send(("raw", key, data, stamp_ns, self._header[WRITTEN]))
 
     # -- cameras, IMUs and lidars ----------------------------------------------------------------
     def _publish_frame(self, key: str, ns: int, frame_id: str, encoding: str, pixels: np.ndarray) -> None:
         """An Image through the shared-memory frame ring: written once, the slot number sent after the
-        snapshots taken before it. A full ring waits (lossless) or skips the frame (``drop_when_behind``)."""
+        snapshots taken before it. A full ring waits (lossless) or skips the frame (``drop_when_behind``).
+        Called from the physics thread and the detection worker: the slot's write and the send of its number
+        are one step under ``_out_lock`` (the publisher reads slots in the order their numbers arrive)."""
         height, width = pixels.shape[:2]
         prefix = cdr.image_prefix(ns, frame_id, height, width, encoding, pixels.nbytes // height, pixels.nbytes)
-        nbytes = self._frames.put(prefix, pixels)
-        while nbytes is None:
-            if self.cfg.drop_when_behind:
-                self.dropped_frames += 1
-                return
+        while True:
+            with self._out_lock:
+                nbytes = self._frames.put(prefix, pixels)
+                if nbytes is not None:
+                    if self.on_publish is not None:
+                        self.on_publish(self._topic[key], ns)
+                    self.process.send(("frame", key, nbytes, ns, self._header[WRITTEN]))
+                    return
+                if self.cfg.drop_when_behind:
+                    self.dropped_frames += 1
+                    return
             if self._proc.poll() is not None:
                 raise RuntimeError("the ROS 2 publisher process has exited")
-            time.sleep(0.0002)  # a frame takes the publisher ~1 ms: no point spinning
-            nbytes = self._frames.put(prefix, pixels)
-        if self.on_publish is not None:
-            self.on_publish(self._topic[key], ns)
-        self.process.send(("frame", key, nbytes, ns, self._header[WRITTEN]))
+            time.sleep(0.0002)  # a frame takes the publisher ~1 ms: no point spinning (the lock is free meanwhile)
 
     def _imu_values(self, imu) -> np.ndarray:
         """The 37 Imu values of a noisy IMU (or one with gravity removed): its noise model runs here."""
@@ -222,17 +244,10 @@ class PhysicsPublisher:
         out = camera.capture(0, annotators=wanted)
         frame = self.scene.sensor_frame[id(camera)]
         rgb = np.ascontiguousarray(out["rgb"][..., :3])
-        height, width = rgb.shape[:2]
         self._publish_frame(f"rgb{i}", ns, frame, "rgb8", rgb)
-        if self.detector is not None:
-            height_m = None
-            if detector_height:
-                from ambulo.sensors.floor_height import height_above_floor_m
-
-                cam = out["camera"]
-                height_m = height_above_floor_m(np.asarray(out["depth"]).reshape(height, width), cam["intrinsics"],
-                                                cam["extrinsics_cw"])
-            self._publish_detections(i, rgb, now, ns, frame, out["depth"] if detector_depth else None, height_m)
+        if self.detection is not None:  # the capture's arrays are fresh: the worker takes them without a copy
+            self.detection.submit(DetectionJob(i, owned(rgb), owned(out["depth"]) if detector_depth else None,
+                                               out["camera"] if detector_height else None, now, ns, frame))
         if self.cfg.publish_depth:  # REP 118: 32FC1, metres along the optical axis
             self._publish_frame(f"depth{i}", ns, frame, "32FC1", np.ascontiguousarray(out["depth"], "<f4"))
         cam = out["camera"]
@@ -242,8 +257,9 @@ class PhysicsPublisher:
     def _advertise_detections(self) -> None:
         """Topics of ``detector``'s output for each camera: ``detections`` (one camera) or
         ``detections/<camera>``, and ``<that>/segmentation`` and ``<that>/semantic``."""
-        from .detections import DETECTION_ARRAY
+        from .detections import DETECTION_ARRAY, register_vision_msgs
 
+        register_vision_msgs()  # here, once: the typestore is not filled from two threads
         for i, camera in enumerate(self.cameras):
             topic = "detections" if len(self.cameras) == 1 else f"detections/{leaf(camera.prim_path)}"
             self._advertise(f"det{i}", DETECTION_ARRAY, topic, "data")
@@ -256,15 +272,23 @@ class PhysicsPublisher:
             self.process.send(("advertise", key, typename, topic, kind))
             self._topic[key] = topic if topic.startswith("/") else f"{self.cfg.namespace.rstrip('/')}/{topic}"
 
-    def _publish_detections(self, i: int, rgb: np.ndarray, now: float, ns: int, frame: str,
-                            depth_m: np.ndarray | None = None, height_m: np.ndarray | None = None) -> None:
-        """The detector on camera ``i``'s frame (and its depth (H, W) m, for an RGB-D detector; and its height
-        above the floor (H, W) m, for an RGB-D-height one), here on the
-        physics thread (it costs the camera rate's inferences a simulated second of CPU), stamped and
-        framed like the image."""
+    def _detect_and_publish(self, job: DetectionJob) -> None:
+        """The detector on camera ``job.camera``'s frame (and its depth (H, W) m, for an RGB-D detector; and its
+        height above the floor (H, W) m, for an RGB-D-height one, computed here from the depth and the camera's
+        pose), on the detection worker's thread (or the physics thread, ``BridgeCfg.detector_thread=False``),
+        published stamped and framed like the image it was computed on."""
         from .detections import detection_array_cdr, segmentation_of, semantic_of
 
-        extra = () if depth_m is None else (depth_m,) if height_m is None else (depth_m, height_m)
+        i, rgb, now, ns, frame = job.camera, job.rgb, job.time_s, job.stamp_ns, job.frame_id
+        extra = ()
+        if job.depth_m is not None:
+            extra = (job.depth_m,)
+            if job.camera_info is not None:
+                from ambulo.sensors.floor_height import height_above_floor_m
+
+                cam = job.camera_info
+                extra += (height_above_floor_m(np.asarray(job.depth_m).reshape(rgb.shape[:2]), cam["intrinsics"],
+                                               cam["extrinsics_cw"]),)
         found = self.detector(rgb, *extra)
         self._publish(f"det{i}", detection_array_cdr(now, frame, found.boxes_px, found.labels, found.scores), ns)
         image = segmentation_of(found)
@@ -297,6 +321,17 @@ class PhysicsPublisher:
     def last(self) -> dict[str, float]:
         """key (``clock``, ``imu0``, ``camera0``, ``lidar0``, ...) -> simulated time it was last due."""
         return {entry[1]: entry[3] for entry in self._schedule if entry[3] != -_INF}
+
+    @property
+    def dropped_detections(self) -> int:
+        """Camera frames the detector skipped: replaced in their camera's slot by a newer frame while it worked."""
+        return 0 if self.detection is None else self.detection.dropped
+
+    def close_detection(self) -> None:
+        """Detect and publish the pending frames and stop the detection worker (before the process closes);
+        raises the detector's exception if no step raised it yet."""
+        if self.detection is not None:
+            self.detection.close()
 
     def release(self) -> None:
         """Drop the views into the ring, so the process can unmap it (the bridge is closing)."""

@@ -89,6 +89,11 @@ class BridgeCfg(Checked):
     """When the ring is full (the simulation outruns the publisher process, e.g. stepping flat out with
     topics every step): False waits for a free slot, so every message goes out and the bag is complete;
     True skips the snapshot (counted in ``Ros2Bridge.dropped``), so the physics loop never waits."""
+    detector_thread: bool = True
+    """With a detector (``Ros2Bridge(..., detector=)``): True runs it on a thread of its own, so the simulation
+    keeps its pace while it works; a camera frame arriving while it is busy replaces the one waiting (counted in
+    ``Ros2Bridge.dropped_detections``) and detections carry their frame's stamp. False runs it in the camera
+    path on the physics thread: every published frame detected, deterministic (tests, offline evaluation)."""
 
 
 __all__ = ["BridgeCfg", "QosName"]
