@@ -29,6 +29,16 @@ def trained_shapes(tmp_path_factory):
 
 
 @pytest.fixture
+def perfect_results():
+    """A function: a COCO dict's annotations as results of score 1 (boxes and masks), what a perfect
+    detector would return."""
+    def results(coco):
+        return [{"image_id": a["image_id"], "category_id": a["category_id"], "segmentation": a["segmentation"],
+                 "bbox": a["bbox"], "score": 1.0} for a in coco["annotations"]]
+    return results
+
+
+@pytest.fixture
 def shapes_dataset():
     """``write_shapes_dataset``: a function (tests pick the folder and the number of frames)."""
     return write_shapes_dataset

@@ -59,12 +59,11 @@ def test_paste_masks_by_hand():
     assert (ys.min(), ys.max(), xs.min(), xs.max()) == (2, 5, 3, 9) and masks[1].sum() == 4 * 7
 
 
-def test_pycocotools_scores_masks(tmp_path, shapes_dataset):
+def test_pycocotools_scores_masks(tmp_path, shapes_dataset, perfect_results):
     root = shapes_dataset(tmp_path / "shapes", num_frames=3)
     coco = load_coco(root)
     ids = [im["id"] for im in coco["images"]]
-    perfect = [{"image_id": a["image_id"], "category_id": a["category_id"], "segmentation": a["segmentation"],
-                "bbox": a["bbox"], "score": 1.0} for a in coco["annotations"]]
+    perfect = perfect_results(coco)
     metrics = evaluate_all(coco, ids, perfect)
     assert metrics["mask"]["mAP"] > 0.99 and metrics["mAP"] > 0.99
     # the boxes filled in as masks: perfect boxes, imperfect discs

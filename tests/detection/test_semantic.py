@@ -85,14 +85,13 @@ def test_confusion_matrix_metrics():
     assert got["pixel_acc"] == pytest.approx(16 / 19) and got["mIoU"] == pytest.approx((10 / 13 + 6 / 9) / 2)
 
 
-def test_evaluation_reports_semantic_for_masks_only(tmp_path, shapes_dataset):
+def test_evaluation_reports_semantic_for_masks_only(tmp_path, shapes_dataset, perfect_results):
     from ambulo.detection import load_coco
 
     root = shapes_dataset(tmp_path / "shapes", num_frames=3)
     coco = load_coco(root)
     ids = [im["id"] for im in coco["images"]]
-    perfect = [{"image_id": a["image_id"], "category_id": a["category_id"], "segmentation": a["segmentation"],
-                "bbox": a["bbox"], "score": 1.0} for a in coco["annotations"]]
+    perfect = perfect_results(coco)
     metrics = evaluate_all(coco, ids, perfect)
     assert metrics["semantic"]["mIoU"] == 1.0 and metrics["semantic"]["pixel_acc"] == 1.0
     assert metrics["semantic"]["per_class"] == {"background": 1.0, "disc": 1.0, "square": 1.0}
