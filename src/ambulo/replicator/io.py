@@ -131,9 +131,21 @@ def depth_to_mm_u16(depth_m: np.ndarray, byteorder: str = "=") -> np.ndarray:
     ``byteorder`` '>' gives big-endian uint16, what ``encode_png`` writes, in the same pass."""
     mm = np.multiply(depth_m, 1000.0)  # in the input's precision, as numbers times a Python float are
     np.rint(mm, out=mm)
-    # 0 outside [0, 65535], NaN and +-inf (no return) included; one mask, written in place
-    bad = mm <= 65535
-    bad &= mm >= 0
-    np.logical_not(bad, out=bad)
+    # 0 outside [0, 65535], NaN and +-inf (no return) included, found in one comparison: an IEEE float's
+    # bits, read as an unsigned integer, order the floats from +0 up (+inf and NaN above every finite
+    # one) and put every negative (sign bit set) above them, so the numbers in [+0, 65535] are exactly
+    # the bit patterns <= 65535's (-0 falls out too: it is 0 either way); two comparisons, their
+    # conjunction and its negation, four passes over the image, before
+    bits = _FLOAT_BITS.get(mm.dtype)
+    if bits is not None:
+        bad = mm.view(bits[0]) > bits[1]
+    else:  # another float type (float16, longdouble): the straightforward mask
+        bad = ~((mm >= 0) & (mm <= 65535))
     np.copyto(mm, 0, where=bad)
     return mm.astype(np.dtype(np.uint16).newbyteorder(byteorder))
+
+
+_FLOAT_BITS = {np.dtype(f): (np.dtype(u), np.array(65535, f).view(u)[()])
+               for f, u in ((np.float32, np.uint32), (np.float64, np.uint64))}
+"""Float dtype -> (the unsigned integer dtype of its width, 65535.0's bits as that integer): the
+native-order floats whose bits ``depth_to_mm_u16`` compares."""
