@@ -9,7 +9,7 @@ their frame, that frames arriving meanwhile are dropped but the newest, the inli
 the physics thread) and that a detector's exception is one clear error.
 
 Run as a script (by the test, in the isolated network): ``python test_detector_bridge.py CHECKPOINT``
-(or ``--worker``) prints one JSON line of what the listener received."""
+(or ``--worker threaded|inline|failing``) prints one JSON line of what the listener received."""
 
 from __future__ import annotations
 
@@ -221,8 +221,8 @@ class _Detector:
         return _FakeDetections(index)
 
 
-def _worker_scenario() -> None:
-    """Three bridges on the Jetbot (camera 64x48 at 50 Hz) with fake detectors; prints one JSON line.
+def _worker_scenario(part: str) -> None:
+    """``part`` of three: bridges on the Jetbot (camera 64x48 at 50 Hz) with fake detectors; prints one JSON line.
 
     threaded: the detector holds its first frame until the bridge has stepped on and the listener has images
     stamped later; then it is released and the bridge closed. inline: ``detector_thread=False``. failing: a
@@ -248,93 +248,98 @@ def _worker_scenario() -> None:
 
     out: dict = {}
     rclpy.init()
-    # -- threaded: the simulation goes on while the detector holds its first frame
-    hold = threading.Event()
-    detector = _Detector(hold)
-    world, bridge, captured = bridge_with(detector)
-    listener = rclpy.create_node("detections_listener")
-    decode = decoder()
-    arrays: dict[int, list] = {}
-    images: dict[int, int] = {}
+    if part == "threaded":
+        # -- threaded: the simulation goes on while the detector holds its first frame
+        hold = threading.Event()
+        detector = _Detector(hold)
+        world, bridge, captured = bridge_with(detector)
+        listener = rclpy.create_node("detections_listener")
+        decode = decoder()
+        arrays: dict[int, list] = {}
+        images: dict[int, int] = {}
 
-    def stamp(msg) -> int:
-        return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        def stamp(msg) -> int:
+            return msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
 
-    def on_array(raw: bytes) -> None:
-        array = decode(raw)
-        arrays[stamp(array)] = [d.results[0].hypothesis.class_id for d in array.detections]
+        def on_array(raw: bytes) -> None:
+            array = decode(raw)
+            arrays[stamp(array)] = [d.results[0].hypothesis.class_id for d in array.detections]
 
-    def on_image(msg) -> None:
-        images[stamp(msg)] = _frame_index(np.frombuffer(bytes(msg.data), np.uint8).reshape(msg.height, msg.width, 3))
+        def on_image(msg) -> None:
+            images[stamp(msg)] = _frame_index(np.frombuffer(bytes(msg.data), np.uint8).reshape(msg.height, msg.width, 3))
 
-    listener.create_subscription(detection_array_class(), "detections", on_array, 10, raw=True)
-    listener.create_subscription(Image, "camera/image_raw", on_image, 50)
-    executor = SingleThreadedExecutor()
-    executor.add_node(listener)
-    deadline = time.monotonic() + 60.0
-    held_at_s = None
-    while time.monotonic() < deadline:
-        world.step(render=False)
-        executor.spin_once(timeout_sec=0.002)
-        if held_at_s is None and detector.started.is_set():
-            held_at_s = world.current_time
-        matched = bridge.subscribers.get(bridge.publishing._topic["det0"], (0, 0.0))[0]
-        if held_at_s is not None and matched and sum(k >= 1 for k in images.values()) >= 5:
-            break
-    out["threaded"] = {"held_at_s": held_at_s, "stepped_to_s": world.current_time,
-                       "indices_received_while_held": sorted(images.values()),
-                       "arrays_while_held": len(arrays), "calls_while_held": len(detector.calls)}
-    frames = len(captured)
-    hold.set()
-    deadline = time.monotonic() + 30.0
-    while time.monotonic() < deadline and (len(arrays) < 2 or not set(arrays) <= set(images)):
-        executor.spin_once(timeout_sec=0.01)
-    bridge.close()
-    out["threaded"].update(frames=frames, calls=detector.calls, dropped=bridge.dropped_detections,
-                           arrays={str(ns): labels for ns, labels in arrays.items()},
-                           images={str(ns): k for ns, k in images.items()})
-    listener.destroy_node()
-    # -- inline: every frame, on the physics thread
-    detector = _Detector()
-    world, bridge, captured = bridge_with(detector, detector_thread=False)
-    for _ in range(30):
-        world.step(render=False)
-    bridge.close()
-    out["inline"] = {"frames": len(captured), "calls": detector.calls, "dropped": bridge.dropped_detections,
-                     "published": dict(bridge.published), "main": threading.current_thread().name}
-    # -- failing: one clear error, raised once
-    out["failing"] = {}
-    for mode, cfg in (("threaded", {}), ("inline", {"detector_thread": False}), ("at_close", {})):
-        world, bridge, captured = bridge_with(_Detector(fail=True), **cfg)
-        raised, deadline = [], time.monotonic() + 30.0
-        try:
-            while time.monotonic() < deadline and not (mode == "at_close" and captured):
-                world.step(render=False)
-        except DetectorFailed as err:
-            raised.append(["step", str(err)])
-        try:
-            bridge.close()
-        except DetectorFailed as err:
-            raised.append(["close", str(err)])
-        out["failing"][mode] = raised
+        listener.create_subscription(detection_array_class(), "detections", on_array, 10, raw=True)
+        listener.create_subscription(Image, "camera/image_raw", on_image, 50)
+        executor = SingleThreadedExecutor()
+        executor.add_node(listener)
+        deadline = time.monotonic() + 60.0
+        held_at_s = None
+        while time.monotonic() < deadline:
+            world.step(render=False)
+            executor.spin_once(timeout_sec=0.002)
+            if held_at_s is None and captured:  # the worker has frame 0 (not a later one) before frame 1 comes
+                assert detector.started.wait(30.0), "the detector never got frame 0"
+                held_at_s = world.current_time
+            matched = bridge.subscribers.get(bridge.publishing._topic["det0"], (0, 0.0))[0]
+            if held_at_s is not None and matched and sum(k >= 1 for k in images.values()) >= 5:
+                break
+        out["threaded"] = {"held_at_s": held_at_s, "stepped_to_s": world.current_time,
+                           "indices_received_while_held": sorted(images.values()),
+                           "arrays_while_held": len(arrays), "calls_while_held": len(detector.calls)}
+        frames = len(captured)
+        hold.set()
+        deadline = time.monotonic() + 30.0
+        while time.monotonic() < deadline and (len(arrays) < 2 or not set(arrays) <= set(images)):
+            executor.spin_once(timeout_sec=0.01)
+        bridge.close()
+        out["threaded"].update(frames=frames, calls=detector.calls, dropped=bridge.dropped_detections,
+                               arrays={str(ns): labels for ns, labels in arrays.items()},
+                               images={str(ns): k for ns, k in images.items()})
+        listener.destroy_node()
+    if part == "inline":
+        # -- inline: every frame, on the physics thread
+        detector = _Detector()
+        world, bridge, captured = bridge_with(detector, detector_thread=False)
+        for _ in range(30):
+            world.step(render=False)
+        bridge.close()
+        out["inline"] = {"frames": len(captured), "calls": detector.calls, "dropped": bridge.dropped_detections,
+                         "published": dict(bridge.published), "main": threading.current_thread().name}
+    if part == "failing":
+        # -- failing: one clear error, raised once
+        out["failing"] = {}
+        for mode, cfg in (("threaded", {}), ("inline", {"detector_thread": False}), ("at_close", {})):
+            world, bridge, captured = bridge_with(_Detector(fail=True), **cfg)
+            raised, deadline = [], time.monotonic() + 30.0
+            try:
+                if mode == "at_close":  # one camera frame handed over, no step after it: close must say it
+                    bridge.publish_now()
+                while time.monotonic() < deadline and mode != "at_close":
+                    world.step(render=False)
+            except DetectorFailed as err:
+                raised.append(["step", str(err)])
+            try:
+                bridge.close()
+            except DetectorFailed as err:
+                raised.append(["close", str(err)])
+            out["failing"][mode] = raised
     print(json.dumps(out))
     rclpy.shutdown()
 
 
-@pytest.fixture(scope="module")
-def worker_run() -> dict:
-    """What ``_worker_scenario`` saw (one run, in the isolated network, for the three tests below)."""
+def _worker_run(part: str) -> dict:
+    """What ``_worker_scenario(part)`` saw (run in the isolated network)."""
     pytest.importorskip("rclpy", reason="needs rclpy: pip install 'ambulo[ros2]'")
     pytest.importorskip("mcap_ros2")
     from ambulo.ros2.loopback import run_isolated
 
-    done = run_isolated([str(HERE), "--worker"], timeout_s=180)
+    done = run_isolated([str(HERE), "--worker", part], timeout_s=180)
     assert done.returncode == 0, done.stderr[-4000:]
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
-def test_threaded_detector_keeps_the_simulation_going_and_stamps_its_frames(worker_run):
-    run = worker_run["threaded"]
+def test_threaded_detector_keeps_the_simulation_going_and_stamps_its_frames():
+    run = _worker_run("threaded")["threaded"]
     # while the detector held frame 0, simulated time went on and later frames' images came out, no detections
     assert run["held_at_s"] is not None and run["stepped_to_s"] > run["held_at_s"]
     assert sum(k >= 1 for k in run["indices_received_while_held"]) >= 5
@@ -353,8 +358,8 @@ def test_threaded_detector_keeps_the_simulation_going_and_stamps_its_frames(work
     assert sorted(int(labels[0]) for labels in run["arrays"].values()) == [0, frames - 1]
 
 
-def test_inline_detector_detects_every_frame_on_the_physics_thread(worker_run):
-    run = worker_run["inline"]
+def test_inline_detector_detects_every_frame_on_the_physics_thread():
+    run = _worker_run("inline")["inline"]
     assert run["frames"] >= 10
     assert run["calls"] == [[k, run["main"]] for k in range(run["frames"])]
     assert run["dropped"] == 0
@@ -362,9 +367,10 @@ def test_inline_detector_detects_every_frame_on_the_physics_thread(worker_run):
     assert published["/detections"] == published["/camera/image_raw"] == run["frames"]
 
 
-def test_a_failing_detector_is_one_clear_error_raised_once(worker_run):
+def test_a_failing_detector_is_one_clear_error_raised_once():
+    failing = _worker_run("failing")["failing"]
     for mode, where in (("threaded", "step"), ("inline", "step"), ("at_close", "close")):
-        raised = worker_run["failing"][mode]
+        raised = failing[mode]
         assert [w for w, _ in raised] == [where], (mode, raised)
         message = raised[0][1]
         assert message == "the detector failed on camera 0's frame at t=" + message.split("t=")[1]
@@ -372,4 +378,4 @@ def test_a_failing_detector_is_one_clear_error_raised_once(worker_run):
 
 
 if __name__ == "__main__":
-    _worker_scenario() if sys.argv[1] == "--worker" else _scenario(sys.argv[1])
+    _worker_scenario(sys.argv[2]) if sys.argv[1] == "--worker" else _scenario(sys.argv[1])
