@@ -133,6 +133,7 @@ def test_the_bridges_camera_path_gives_an_rgbdh_detector_heights_from_the_camera
     from types import SimpleNamespace
 
     from ambulo.detection import Detections
+    from ambulo.ros2.bridge_detection import DetectionWorker
     from ambulo.ros2.bridge_publishing import PhysicsPublisher
 
     t_cw = camera(1.3, 25.0)
@@ -150,7 +151,8 @@ def test_the_bridges_camera_path_gives_an_rgbdh_detector_heights_from_the_camera
     fake = SimpleNamespace(cfg=SimpleNamespace(publish_depth=False), scene=SimpleNamespace(sensor_frame={
         id(cam): "cam"}), detector=detector, _publish_frame=lambda *a: None, _publish=lambda *a: None,
         _serialize=lambda msg: b"")
-    fake._publish_detections = functools.partial(PhysicsPublisher._publish_detections, fake)
+    fake.detection = DetectionWorker(functools.partial(PhysicsPublisher._detect_and_publish, fake), 1,
+                                     threaded=False)  # inline: the detector runs before _publish_camera returns
     PhysicsPublisher._publish_camera(fake, 0, cam, 0.5, 500_000_000)
     (depth_m, height_m), = calls
     assert depth_m is depth and height_m.shape == (H, W)

@@ -150,6 +150,7 @@ def test_the_bridges_camera_path_gives_an_rgbd_detector_the_frames_depth():
     from types import SimpleNamespace
 
     from ambulo.detection import Detections
+    from ambulo.ros2.bridge_detection import DetectionWorker
     from ambulo.ros2.bridge_publishing import PhysicsPublisher
     from ambulo.viewer.detections import ShownDetector
 
@@ -176,7 +177,8 @@ def test_the_bridges_camera_path_gives_an_rgbd_detector_the_frames_depth():
         fake = SimpleNamespace(cfg=SimpleNamespace(publish_depth=False), scene=SimpleNamespace(sensor_frame={
             id(camera): "cam"}), detector=shown, _publish_frame=lambda *a: None, _publish=lambda *a: None,
             _serialize=lambda msg: b"")
-        fake._publish_detections = functools.partial(PhysicsPublisher._publish_detections, fake)
+        fake.detection = DetectionWorker(functools.partial(PhysicsPublisher._detect_and_publish, fake), 1,
+                                         threaded=False)  # inline: the detector runs before _publish_camera returns
         PhysicsPublisher._publish_camera(fake, 0, camera, 0.5, 500_000_000)
         return calls
 
