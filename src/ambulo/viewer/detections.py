@@ -1,7 +1,8 @@
 """``ShownDetector``: a detector whose every result is also drawn on the web viewer's page.
 
 ``ambulo bridge ... --detector RUN --viewer web`` wraps the bridge's detector in it: the bridge runs
-the detector on each published camera frame (its camera rate, on its physics thread) and the page
+the detector on the published camera frames (on its detector thread, or with --detector-inline on
+its physics thread) and the page
 shows that frame with the boxes, labels and scores (``WebViewer.show_image``/``show_detections``,
 which copy and return at once). The page draws; the detector's cost is the bridge's either way.
 """
