@@ -1,10 +1,10 @@
 """``ShownDetector``: a detector whose every result is also drawn on the web viewer's page.
 
 ``ambulo bridge ... --detector RUN --viewer web`` wraps the bridge's detector in it: the bridge runs
-the detector on the published camera frames (on its detector thread, or with --detector-inline on
-its physics thread) and the page
-shows that frame with the boxes, labels and scores (``WebViewer.show_image``/``show_detections``,
-which copy and return at once). The page draws; the detector's cost is the bridge's either way.
+the detector on the published camera frames (on its detector thread, or with --detector-inline on its
+physics thread) and the page shows each detected frame with the boxes, labels and scores
+(``WebViewer.show_image``/``show_detections``, which copy and return at once, from either thread: the
+viewer's feed is locked). The page draws; the detector's cost is the bridge's either way.
 """
 
 from __future__ import annotations
