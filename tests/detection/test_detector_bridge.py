@@ -14,6 +14,7 @@ Run as a script (by the test, in the isolated network): ``python test_detector_b
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 import threading
@@ -381,5 +382,32 @@ def test_a_failing_detector_is_one_clear_error_raised_once():
         assert "ValueError: no weights for frame 0" in message and "\n" not in message
 
 
+def _cli_with_a_failing_detector(extra: list[str]) -> int:
+    """``ambulo bridge jetbot --detector x`` with a detector (loaded in place of ``x``) that raises."""
+    import ambulo.cli.bridge as cli_bridge
+    from ambulo.cli import main
+
+    cli_bridge._detector = lambda path: _Detector(fail=True)
+    _Detector.canvas_hw = (240, 320)  # the Jetbot's camera
+    return main(["bridge", "jetbot", "--seconds", "0.5", "--detector", "x", *extra])
+
+
+@pytest.mark.parametrize("extra", [[], ["--detector-inline"]])
+def test_bridge_cli_reports_a_failing_detector_in_one_line(extra):
+    pytest.importorskip("rclpy", reason="needs rclpy: pip install 'ambulo[ros2]'")
+    from ambulo.ros2.loopback import run_isolated
+
+    done = run_isolated([str(HERE), "--cli-failing", *extra], timeout_s=120)
+    assert done.returncode == 2 and "Traceback" not in done.stderr, done.stderr
+    assert re.fullmatch(r"ambulo bridge: error: the detector failed on camera 0's frame at t=0\.000 s: ValueError: "
+                        r"no weights for frame \d+; run the detector on such a frame in Python for the traceback, "
+                        r"or leave out --detector", done.stderr.strip()), done.stderr
+
+
 if __name__ == "__main__":
-    _worker_scenario(sys.argv[2]) if sys.argv[1] == "--worker" else _scenario(sys.argv[1])
+    if sys.argv[1] == "--worker":
+        _worker_scenario(sys.argv[2])
+    elif sys.argv[1] == "--cli-failing":
+        sys.exit(_cli_with_a_failing_detector(sys.argv[2:]))
+    else:
+        _scenario(sys.argv[1])
