@@ -31,10 +31,10 @@ drains and the batch's records wait on the file system's flush, with the process
 of 32 frames left ~4 % of the cores idle with 2 processes at 320x240 (CPU ms per frame vs frames/s);
 256 frames of one process is ~2 s at 320x240, often enough for the progress bar. The smallest tasks
 are the run's last: a process that takes the last one leaves the other idle until it is done, so they
-are 4 frames (~35 ms at 320x240), not 16: 600 frames on 2 processes ended [..., 22, 16, 5] with 16,
-the other process idle 50-100 ms at the end in half the runs (of ~1.3 s), and end [..., 11, 5, 4, 1]
-with 4, idle time outside the tasks 16-42 ms a run against 65-111 (two more drains cost less than
-the imbalance they remove)."""
+are 4 frames (~35 ms at 320x240), not 16: 600 frames on 2 processes ended [..., 22, 16, 5] with 16 and
+end [..., 11, 5, 4, 1] with 4; the processes' time outside their tasks (the end's imbalance, the
+drains, the hand-outs) was 33 ms a run on average with 4 (13-74, 8 runs) against 66 with 16 (14-111,
+7 runs), of ~2.6 s of the two cores at 320x240 (alternated, on the loaded 2-core VM)."""
 # A worker process costs ~2 s to start (imports, scene, GL context), ~200 frames of one process at
 # 320x240: below ~400 frames, 2 processes finish later than 1 (measured end to end on 2 cores).
 _FRAMES_PER_WORKER = 200
