@@ -184,7 +184,7 @@ class OffscreenRenderer:
         mujoco.mjr_render(self._rect, self._scene, self._con)
         self._lut = self._segid_to_geom()  # the scene may be reused before the read
 
-    def read_ids(self, want_depth: bool = True, per_geom: tuple[np.ndarray, ...] = ()
+    def read_ids(self, want_depth: bool = True, per_geom: tuple[np.ndarray, ...] = (), geom_ids: bool = True
                  ) -> tuple[np.ndarray, np.ndarray | None] | tuple[np.ndarray, np.ndarray | None, list[np.ndarray]]:
         """Wait for the id pass of ``queue_ids``; same outputs as ``render_ids``.
 
@@ -194,6 +194,8 @@ class OffscreenRenderer:
         with this pass's segment ids: ``np.take`` of uint8 indices costs half a lookup of the
         int32 geom ids (which NumPy first widens to intp). The red channel is copied out once first:
         each lookup then reads contiguous bytes, not every third one of the flipped rows.
+        ``geom_ids`` False (with ``per_geom``, below 256 geoms): the geom ids are not looked up (None in
+        their place), for a caller that reads only the tables' values.
         """
         self._gl.make_current()
         mujoco.mjr_readPixels(self._ids, self._zbuf if want_depth else None, self._rect, self._con)
@@ -201,10 +203,10 @@ class OffscreenRenderer:
         if len(lut) <= 256:
             # fewer than 256 scene geoms: the id lives in the red channel alone
             red = np.ascontiguousarray(self._ids[::-1, :, 0]) if per_geom else self._ids[::-1, :, 0]
-            geom_ids = np.take(lut, red)
+            geom_ids = np.take(lut, red) if geom_ids or not per_geom else None
             values = [np.take(np.take(table, lut + 1), red) for table in per_geom]
         else:
-            ids = self._ids[::-1].astype(np.int32)
+            ids = self._ids[::-1].astype(np.int32)  # the tables need the geom ids here: always looked up
             geom_ids = lut[ids[..., 0] | (ids[..., 1] << 8) | (ids[..., 2] << 16)]
             values = [np.take(table, geom_ids + 1) for table in per_geom]
         depth = self._linear_depth(self._zbuf[::-1]) if want_depth else None

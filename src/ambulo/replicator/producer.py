@@ -35,8 +35,12 @@ _MAX_PENDING_WRITES = 4  # frames queued for the writer thread; bounds memory
 class FrameProducer:
     """Builds the scene once and renders any frame index of a seeded dataset."""
 
-    def __init__(self, config: DatasetConfig):
+    def __init__(self, config: DatasetConfig, geom_ids: bool = False):
+        """``geom_ids``: each capture also holds the (H, W) geom id map (``Camera.begin_capture``),
+        for writers that tell unlabelled geoms from the background (Isaac's BasicWriter); an
+        ``ambulo generate`` dataset reads none, and the lookup is ~2 % of a frame."""
         self.config = config
+        self._geom_ids = geom_ids
         names = [r.name or type(r).__name__ for r in config.randomizers]
         if len(set(names)) != len(names):
             raise ValueError(f"randomizer names must be unique (they key the frame log): {names}")
@@ -97,7 +101,7 @@ class FrameProducer:
             r.apply(log[name], self.ctx)
 
     def capture(self) -> dict:
-        self.camera.begin_capture(0, self._capture_annotators)
+        self.camera.begin_capture(0, self._capture_annotators, geom_ids=self._geom_ids)
         return self._finish(self.camera.end_capture())
 
     def _finish(self, capture: dict) -> dict:
@@ -116,13 +120,13 @@ class FrameProducer:
         if not indices:
             return
         log = self.randomize(seed, indices[0])
-        self.camera.begin_capture(0, self._capture_annotators)
+        self.camera.begin_capture(0, self._capture_annotators, geom_ids=self._geom_ids)
         for k, index in enumerate(indices):
             following = indices[k + 1] if k + 1 < len(indices) else None
             next_log = self.randomize(seed, following) if following is not None else None
             capture = self._finish(self.camera.end_capture())
             if following is not None:
-                self.camera.begin_capture(0, self._capture_annotators)
+                self.camera.begin_capture(0, self._capture_annotators, geom_ids=self._geom_ids)
             yield index, log, capture
             log = next_log
 

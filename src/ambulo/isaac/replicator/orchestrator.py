@@ -50,7 +50,8 @@ class Session:
         needs = ["rgb"] + [a for w in self.writers for a in w.annotators] + [n for a in self.annotators for n in a.needs]
         self.camera_annotators = tuple(dict.fromkeys(needs))
         """What every frame renders: the writers' and the attached annotators' needs."""
-        self.producer = FrameProducer(dataset_config(graph, self.product, self.camera_annotators))
+        # BasicWriter's segmentation tells unlabelled geoms from the background by their geom ids
+        self.producer = FrameProducer(dataset_config(graph, self.product, self.camera_annotators), geom_ids=True)
         self.camera = graph.prim(self.product.camera).extra
         self.seed = graph.seed
 
