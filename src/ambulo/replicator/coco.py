@@ -15,6 +15,8 @@ from pathlib import Path
 import numpy as np
 from pycocotools import mask as mask_utils
 
+from ambulo.sensors.annotators import boxes_of_runs
+
 try:  # a dependency of viser (core) and of the data extra
     from msgspec import DecodeError as _DecodeError
     from msgspec.json import decode as _msgspec_decode
@@ -108,27 +110,10 @@ def runs_tight_boxes(runs: InstanceRuns, num_instances: int) -> tuple[np.ndarray
     ``pixels`` (K,) int64. A column-major run spans columns c0..c1 and, within a column, rows r0..r1
     (all rows when it wraps onto the next column): the row-order computation, transposed.
     """
-    h, k = runs.height, num_instances
-    boxes = np.full((k, 4), -1, np.int64)
     order = runs.order
     # background runs (id 0) come first in id order: the foreground is the sorted tail
-    first_fg = int(np.searchsorted(runs.ids[order], 1))
-    fg = order[first_fg:]
-    starts, ends, values = runs.starts[fg], runs.ends[fg], runs.ids[fg]
-    pixels = np.bincount(values, weights=ends - starts, minlength=k + 1)[1:k + 1].astype(np.int64)
-    if len(values) == 0:
-        return boxes, pixels
-    c0, r0 = np.divmod(starts, h)
-    c1, r1 = np.divmod(ends - 1, h)
-    wraps = c1 > c0  # covers the bottom of column c0 and the top of column c1: every row
-    r0[wraps], r1[wraps] = 0, h - 1
-    first = np.flatnonzero(np.concatenate(([True], values[1:] != values[:-1])))
-    rows = values[first] - 1
-    boxes[rows, 0] = np.minimum.reduceat(c0, first)
-    boxes[rows, 1] = np.minimum.reduceat(r0, first)
-    boxes[rows, 2] = np.maximum.reduceat(c1, first)
-    boxes[rows, 3] = np.maximum.reduceat(r1, first)
-    return boxes, pixels
+    fg = order[int(np.searchsorted(runs.ids[order], 1)):]
+    return boxes_of_runs(runs.starts[fg], runs.ends[fg], runs.ids[fg], runs.height, num_instances, column_major=True)
 
 
 def instance_rles(instances: np.ndarray | None, ids: np.ndarray, runs: InstanceRuns | None = None) -> list[dict]:

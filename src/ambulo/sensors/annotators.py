@@ -110,30 +110,38 @@ def tight_boxes(instances: np.ndarray, num_instances: int) -> tuple[np.ndarray, 
     runs instead of one pass over the pixels per instance.
     """
     h, w = instances.shape
-    k = num_instances
-    boxes = np.full((k, 4), -1, np.int64)
     flat = instances.ravel()
     change = np.flatnonzero(flat[1:] != flat[:-1]) + 1
     starts = np.concatenate(([0], change))
     ends = np.concatenate((change, [flat.size]))
     values = flat[starts]
     fg = values > 0
-    starts, ends, values = starts[fg], ends[fg], values[fg]
-    pixels = np.bincount(values, weights=ends - starts, minlength=k + 1)[1:k + 1].astype(np.int64)
-    if len(values) == 0:
+    order = np.argsort(values[fg], kind="stable")
+    return boxes_of_runs(starts[fg][order], ends[fg][order], values[fg][order], w, num_instances)
+
+
+def boxes_of_runs(starts: np.ndarray, ends: np.ndarray, ids: np.ndarray, line_px: int, num_instances: int,
+                  column_major: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """``tight_boxes`` from an image's runs of equal ids: (R,) ``starts`` and ``ends`` (exclusive) in the
+    flattened image (lines of ``line_px`` pixels: rows, or columns when ``column_major``), ``ids`` > 0,
+    grouped by id (sorted). A run spans lines l0..l1 and, within a line, positions p0..p1 (the whole
+    line when it wraps onto the next); each id's box is the min/max over its runs."""
+    k = num_instances
+    boxes = np.full((k, 4), -1, np.int64)
+    pixels = np.bincount(ids, weights=ends - starts, minlength=k + 1)[1:k + 1].astype(np.int64)
+    if len(ids) == 0:
         return boxes, pixels
-    r0, c0 = np.divmod(starts, w)
-    r1, c1 = np.divmod(ends - 1, w)
-    wraps = r1 > r0  # covers the end of row r0 and the start of row r1: every column
-    c0[wraps], c1[wraps] = 0, w - 1
-    order = np.argsort(values, kind="stable")
-    ordered = values[order]
-    first = np.flatnonzero(np.concatenate(([True], ordered[1:] != ordered[:-1])))
-    rows = ordered[first] - 1
-    boxes[rows, 0] = np.minimum.reduceat(c0[order], first)
-    boxes[rows, 1] = np.minimum.reduceat(r0[order], first)
-    boxes[rows, 2] = np.maximum.reduceat(c1[order], first)
-    boxes[rows, 3] = np.maximum.reduceat(r1[order], first)
+    l0, p0 = np.divmod(starts, line_px)
+    l1, p1 = np.divmod(ends - 1, line_px)
+    wraps = l1 > l0  # covers the end of line l0 and the start of line l1: every position
+    p0[wraps], p1[wraps] = 0, line_px - 1
+    x0, y0, x1, y1 = (l0, p0, l1, p1) if column_major else (p0, l0, p1, l1)
+    first = np.flatnonzero(np.concatenate(([True], ids[1:] != ids[:-1])))
+    rows = ids[first] - 1
+    boxes[rows, 0] = np.minimum.reduceat(x0, first)
+    boxes[rows, 1] = np.minimum.reduceat(y0, first)
+    boxes[rows, 2] = np.maximum.reduceat(x1, first)
+    boxes[rows, 3] = np.maximum.reduceat(y1, first)
     return boxes, pixels
 
 
