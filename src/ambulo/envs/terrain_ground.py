@@ -21,10 +21,11 @@ from ambulo.scenes.terrain import (
     sphere_soles,
 )
 from ambulo.sensors import ContactSensor, ContactSensorCfg
+from ambulo.utils.validate import Checked
 
 
 @dataclass(kw_only=True)
-class TerrainGroundCfg:
+class TerrainGroundCfg(Checked):
     """What a task on the terrain adds to its cfg (a dataclass mixin listed after the task's own cfg:
     humanoid-rough, g1-rough and humanoid-footsteps-stairs); ``add_terrain_ground`` reads it."""
 
