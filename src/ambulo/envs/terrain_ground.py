@@ -49,6 +49,7 @@ class TerrainGroundCfg(Checked):
     metres deep and sideways, which made robots run away (hundreds of rad/s) and fall. The
     sphere radius: shallower contacts are right. None: Warp's own contacts."""
 
+
 def add_terrain_ground(env, spec, task: str, soles=sphere_soles) -> None:
     """Add ``env.cfg.terrain`` to ``spec`` as the ground (``env.terrain``: the generated grid) and the
     feet's contact sensor against it (``env.feet``). Reads the cfg's ``terrain``,

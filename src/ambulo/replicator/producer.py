@@ -101,8 +101,12 @@ class FrameProducer:
             r.apply(log[name], self.ctx)
 
     def capture(self) -> dict:
-        self.camera.begin_capture(0, self._capture_annotators, geom_ids=self._geom_ids)
+        self._begin_capture()
         return self._finish(self.camera.end_capture())
+
+    def _begin_capture(self) -> None:
+        """Render the colour image and queue the id pass, asking the camera for what ``_finish`` does not add."""
+        self.camera.begin_capture(0, self._capture_annotators, geom_ids=self._geom_ids)
 
     def _finish(self, capture: dict) -> dict:
         """The camera's capture with the tight boxes from the instance image's column runs, and the
@@ -120,13 +124,13 @@ class FrameProducer:
         if not indices:
             return
         log = self.randomize(seed, indices[0])
-        self.camera.begin_capture(0, self._capture_annotators, geom_ids=self._geom_ids)
+        self._begin_capture()
         for k, index in enumerate(indices):
             following = indices[k + 1] if k + 1 < len(indices) else None
             next_log = self.randomize(seed, following) if following is not None else None
             capture = self._finish(self.camera.end_capture())
             if following is not None:
-                self.camera.begin_capture(0, self._capture_annotators, geom_ids=self._geom_ids)
+                self._begin_capture()
             yield index, log, capture
             log = next_log
 
