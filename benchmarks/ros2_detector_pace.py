@@ -6,14 +6,18 @@ The Jetbot (320x240 camera at 10 Hz of simulated time, physics 100 Hz, no depth 
 ``--seconds`` of simulated time, with no detector and then two fake box-only detectors of ``--ms`` ms a frame:
 ``sleep`` (a GPU inference: the GIL is free while it waits) and ``numpy`` (a CPU inference: matrix products in
 BLAS). Each with ``BridgeCfg(detector_thread=True)`` and ``False`` (inline). Prints one line a case: wall time,
-steps/s, detections and images published, frames the detector skipped (``Ros2Bridge.dropped_detections``).
+steps/s, detections and images published, frames the detector skipped (``Ros2Bridge.dropped_detections``),
+then ``RESULT {json}``: each case's median wall time and ``ratio``, the no-detector run's wall time (the
+ceiling, measured in the same run) over the case's: the share of the bridge's own pace a detector leaves.
 Needs rclpy; nothing subscribes (a ROS domain id of its own).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
+import statistics
 import time
 
 import numpy as np
@@ -46,7 +50,7 @@ class NumpyDetector(SleepDetector):
         return _Found()
 
 
-def run(detector, threaded: bool, seconds: float) -> str:
+def run(detector, threaded: bool, seconds: float) -> tuple[str, float]:
     from ambulo.ros2 import BridgeCfg, Ros2Bridge, SceneCfg, jetbot_world
 
     world = jetbot_world(SceneCfg())
@@ -60,7 +64,7 @@ def run(detector, threaded: bool, seconds: float) -> str:
     name = "none" if detector is None else type(detector).__name__.removesuffix("Detector").lower()
     return (f"{name:6s} {'thread' if threaded else 'inline'}: {seconds:g} s simulated in {wall:.2f} s wall "
             f"({steps / wall:.0f} steps/s); detections {bridge.published.get('/detections', 0)}, images "
-            f"{bridge.published.get('/camera/image_raw', 0)}, skipped {bridge.dropped_detections}")
+            f"{bridge.published.get('/camera/image_raw', 0)}, skipped {bridge.dropped_detections}"), wall
 
 
 def main() -> None:
@@ -71,11 +75,21 @@ def main() -> None:
     args = parser.parse_args()
     os.environ.setdefault("ROS_DOMAIN_ID", str(100 + os.getpid() % 100))
     run(None, True, args.seconds)  # warm-up: the first World pays for imports and compilation
+    walls: dict[str, list[float]] = {}
     for _ in range(args.repeats):
-        print(run(None, True, args.seconds), flush=True)
-        for detector in (SleepDetector(args.ms), NumpyDetector(args.ms)):
-            for threaded in (False, True):
-                print(run(detector, threaded, args.seconds), flush=True)
+        cases = [("none", None, True)] + [(f"{name}_{'thread' if threaded else 'inline'}", detector, threaded)
+                                          for name, detector in (("sleep", SleepDetector(args.ms)),
+                                                                 ("numpy", NumpyDetector(args.ms)))
+                                          for threaded in (False, True)]
+        for key, detector, threaded in cases:
+            line, wall = run(detector, threaded, args.seconds)
+            print(line, flush=True)
+            walls.setdefault(key, []).append(wall)
+    median = {key: statistics.median(w) for key, w in walls.items()}
+    print("RESULT " + json.dumps({
+        "benchmark": "ros2_detector_pace", "detector_ms": args.ms, "simulated_s": args.seconds,
+        "wall_s": {key: round(w, 3) for key, w in median.items()},
+        "ratio": {key: round(median["none"] / w, 3) for key, w in median.items() if key != "none"}}))
 
 
 if __name__ == "__main__":
