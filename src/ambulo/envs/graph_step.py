@@ -24,8 +24,8 @@ import torch
 
 @dataclass
 class StepOutputs:
-    """One step's device results (N = num_envs). In graph mode these are the graph's static
-    output tensors: the next replay overwrites them."""
+    """One step's device results (N = num_envs). ``GraphStep`` keeps the graph's static outputs
+    as one (the next replay overwrites them) and returns copies."""
 
     obs: torch.Tensor
     """(N, num_obs) float32, after resets."""
@@ -84,9 +84,12 @@ class GraphStep:
         self.graph.replay()
         self.replays += 1
         env.engine.count_steps(self._engine_calls)
-        # a public reset() in between rebinds these; the graph writes its own tensors
-        env.obs_buf, env._critic_buf = self.out.obs, self.out.critic_obs
-        return self.out
+        # fresh tensors, as the eager step returns: the next replay overwrites the graph's, and
+        # callers keep a step's outputs past the next step (rsl-rl's act() keeps the observations
+        # its transition stores after env.step); a few copies against hundreds of launches
+        out = _cloned(self.out)
+        env.obs_buf, env._critic_buf = out.obs, out.critic_obs
+        return out
 
     def _capture(self, actions: torch.Tensor) -> None:
         from ambulo.engine.gpu import capture_torch_graph  # CUDA only: Warp's interop
@@ -99,6 +102,16 @@ class GraphStep:
         self.graph, self._warp_graph, self.out = capture_torch_graph(
             env.device, lambda: env._device_step(self.actions), generators=(env.generator,), stream=self.stream)
         self._engine_calls = engine.steps_in_capture - before
+
+
+def _cloned(out: StepOutputs) -> StepOutputs:
+    def clone(t):
+        return None if t is None else t.clone()
+
+    return StepOutputs(obs=clone(out.obs), rewards=clone(out.rewards), dones=clone(out.dones),
+                       time_outs=clone(out.time_outs), terminated=clone(out.terminated),
+                       terminations={k: v.clone() for k, v in out.terminations.items()},
+                       final_obs=clone(out.final_obs), critic_obs=clone(out.critic_obs))
 
 
 __all__ = ["GraphStep", "StepOutputs"]
