@@ -64,11 +64,15 @@ class GraphStep:
         self._engine_calls = 0
         """``engine.step`` calls per replay (``decimation`` when a latency steps one at a time)."""
         self.replays = 0
+        self._model_version = -1
         self.stream = torch.cuda.Stream(env.device)
         """The side stream of the warm-up steps and the capture."""
 
     def step(self, actions: torch.Tensor) -> StepOutputs:
         env = self.env
+        if self.graph is not None and env.engine.model_version != self._model_version:
+            # a model array was replaced (a per-world field's first use): the graph reads the old one
+            self.graph = self._warp_graph = None
         if self.graph is None:
             if self.warmup_left > 0:
                 # on the stream the capture will use: lazily made handles and workspaces (cuBLAS)
@@ -102,6 +106,7 @@ class GraphStep:
         self.graph, self._warp_graph, self.out = capture_torch_graph(
             env.device, lambda: env._device_step(self.actions), generators=(env.generator,), stream=self.stream)
         self._engine_calls = engine.steps_in_capture - before
+        self._model_version = engine.model_version
 
 
 def _cloned(out: StepOutputs) -> StepOutputs:
