@@ -9,6 +9,7 @@ tests/envs/test_graph_step_gpu.py.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 
 import torch
@@ -99,3 +100,59 @@ def test_tasks_with_python_cursors_refuse_graph_mode():
     env = ambulo.envs.make("humanoid-walk-robust", num_envs=4, device="cpu", seed=0)
     assert "DelayBuffer" in env._graph_unsafe_reason()
     assert make_env()._graph_unsafe_reason() is None
+
+
+class _RunOnReplay:
+    """Stands in for a CUDA graph on the CPU: the capture runs the step once (as capture plus
+    first replay would), each later replay runs it again and writes the results into the
+    capture's output tensors, as a real replay writes the graph's static outputs."""
+
+    def __init__(self, fn):
+        self.fn, self.out, self.first = fn, fn(), True
+
+    def replay(self):
+        if self.first:
+            self.first = False
+            return
+        new = self.fn()
+        for name in ("obs", "rewards", "dones", "time_outs", "terminated", "final_obs", "critic_obs"):
+            if getattr(self.out, name) is not None:
+                getattr(self.out, name).copy_(getattr(new, name))
+        for key, value in self.out.terminations.items():
+            value.copy_(new.terminations[key])
+
+
+def test_graph_step_plumbing_matches_the_eager_step(monkeypatch):
+    # GraphStep's own work (warm-up count, the static input, copies of the outputs, the env's
+    # observation buffers, recapture) on MuJoCo Warp's CPU device with the graph faked
+    import pytest
+
+    pytest.importorskip("mujoco_warp")
+    from ambulo.envs.graph_step import GraphStep
+
+    def capture(self, fn):
+        graph = _RunOnReplay(fn)
+        return graph, None, graph.out
+
+    monkeypatch.setattr(GraphStep, "_side_stream", lambda self: contextlib.nullcontext())
+    monkeypatch.setattr(GraphStep, "_capture_graph", capture)
+    kwargs = dict(num_envs=4, device="cpu", engine="warp", seed=1, episode_length_s=0.1, stats_interval_steps=3)
+    eager, graphed = ambulo.envs.make("humanoid-walk", **kwargs), ambulo.envs.make("humanoid-walk", **kwargs)
+    graphed._graph = GraphStep(graphed)
+    gen = torch.Generator().manual_seed(0)
+    kept = []
+    for i in range(12):  # 5-step episodes: resets after the capture at step 3
+        if i == 8:  # what the step computes changes: the graph is captured again
+            eager.return_final_obs = graphed.return_final_obs = True
+        actions = torch.randn(4, eager.num_actions, generator=gen)
+        a, b = eager.step(actions), graphed.step(actions)
+        for x, y in zip(a[:3], b[:3]):
+            assert torch.equal(x, y)
+        assert a[3].keys() == b[3].keys()
+        assert torch.equal(a[3]["observations"]["critic"], b[3]["observations"]["critic"])
+        for key, value in a[3].get("episode", {}).items():
+            assert torch.equal(value, b[3]["episode"][key]), key
+        assert graphed.get_observations() is b[0]
+        kept.append((b[0], b[0].clone()))
+    assert all(torch.equal(obs, copy) for obs, copy in kept)  # no step's outputs overwritten later
+    assert graphed._graph.captures == 2 and graphed._graph.replays == 12 - 3

@@ -17,6 +17,7 @@ old one), read a device value on the host.
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass
 
 import torch
@@ -64,25 +65,25 @@ class GraphStep:
         self._engine_calls = 0
         """``engine.step`` calls per replay (``decimation`` when a latency steps one at a time)."""
         self.replays = 0
-        self._model_version = -1
-        self.stream = torch.cuda.Stream(env.device)
+        self.captures = 0
+        self._captured_for: tuple[int, bool] | None = None
+        """(engine.model_version, env.return_final_obs) the graph was captured for."""
+        self.stream = torch.cuda.Stream(env.device) if env.device.type == "cuda" else None
         """The side stream of the warm-up steps and the capture."""
 
     def step(self, actions: torch.Tensor) -> StepOutputs:
         env = self.env
-        if self.graph is not None and env.engine.model_version != self._model_version:
-            # a model array was replaced (a per-world field's first use): the graph reads the old one
+        if self.graph is not None and (env.engine.model_version, env.return_final_obs) != self._captured_for:
+            # a model array was replaced (a per-world field's first use: the graph reads the old
+            # one) or the caller changed what the step computes: capture again
             self.graph = self._warp_graph = None
         if self.graph is None:
             if self.warmup_left > 0:
                 # on the stream the capture will use: lazily made handles and workspaces (cuBLAS)
                 # exist for it before the capture, which could not create them
                 self.warmup_left -= 1
-                self.stream.wait_stream(torch.cuda.current_stream(env.device))
-                with torch.cuda.stream(self.stream):
-                    out = env._device_step(actions)
-                torch.cuda.current_stream(env.device).wait_stream(self.stream)
-                return out
+                with self._side_stream():
+                    return env._device_step(actions)
             self._capture(actions)
         self.actions.copy_(actions)
         self.graph.replay()
@@ -95,18 +96,31 @@ class GraphStep:
         env.obs_buf, env._critic_buf = out.obs, out.critic_obs
         return out
 
-    def _capture(self, actions: torch.Tensor) -> None:
+    @contextlib.contextmanager
+    def _side_stream(self):
+        """Run on ``self.stream``, ordered after and before the current stream's work."""
+        current = torch.cuda.current_stream(self.env.device)
+        self.stream.wait_stream(current)
+        with torch.cuda.stream(self.stream):
+            yield
+        current.wait_stream(self.stream)
+
+    def _capture_graph(self, fn):
+        """``(torch graph, Warp graph, fn's outputs)``: ``fn`` captured, not run."""
         from ambulo.engine.gpu import capture_torch_graph  # CUDA only: Warp's interop
 
+        torch.cuda.synchronize(self.env.device)  # every eager launch done before the capture starts
+        return capture_torch_graph(self.env.device, fn, generators=(self.env.generator,), stream=self.stream)
+
+    def _capture(self, actions: torch.Tensor) -> None:
         env, engine = self.env, self.env.engine
         self.actions = actions.clone()
-        torch.cuda.synchronize(env.device)  # every eager launch done before the capture starts
         before = engine.steps_in_capture
         # capturing runs nothing: the state is unchanged until the first replay
-        self.graph, self._warp_graph, self.out = capture_torch_graph(
-            env.device, lambda: env._device_step(self.actions), generators=(env.generator,), stream=self.stream)
+        self.graph, self._warp_graph, self.out = self._capture_graph(lambda: env._device_step(self.actions))
+        self.captures += 1
         self._engine_calls = engine.steps_in_capture - before
-        self._model_version = engine.model_version
+        self._captured_for = (engine.model_version, env.return_final_obs)
 
 
 def _cloned(out: StepOutputs) -> StepOutputs:
