@@ -572,6 +572,9 @@ def capture_torch_graph(device: torch.device, fn: Callable[[], T], generators=()
     ``stream``: the side stream to capture on (a new one if None; pass the one warm-up ran on).
     Nothing runs: the caller replays the graph (``graph.replay()``) to execute it."""
     graph = torch.cuda.CUDAGraph()
+    if generators and not hasattr(graph, "register_generator_state"):
+        raise RuntimeError(f"torch {torch.__version__} cannot advance a custom generator in a CUDA graph "
+                           "(CUDAGraph.register_generator_state, torch >= 2.5); use an eager step")
     for generator in generators:
         graph.register_generator_state(generator)
     stream = torch.cuda.Stream(device) if stream is None else stream
