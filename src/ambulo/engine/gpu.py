@@ -333,7 +333,7 @@ class GpuEngine:
             with wp.ScopedDevice(self.wp_device):
                 yield
             return
-        stream = wp.stream_from_torch(torch.cuda.current_stream(self.device))
+        stream = warp_stream(torch.cuda.current_stream(self.device))
         with wp.ScopedDevice(self.wp_device), wp.ScopedStream(stream, sync_enter=False):
             yield
 
@@ -558,6 +558,21 @@ def capture_graph(device: str, stream: wp.Stream, body: Callable[[], None]):
     return capture.graph
 
 
+_WARP_STREAMS: dict[tuple[int, int], wp.Stream] = {}
+
+
+def warp_stream(stream: torch.cuda.Stream) -> wp.Stream:
+    """The one Warp wrapper of a torch CUDA stream, kept for the process. A wrapper made per
+    call (``wp.stream_from_torch``) unregisters the stream from Warp when it is collected,
+    which also frees Warp's radix-sort scratch of that stream: inside a graph capture that is a
+    free the capture forbids, after it a buffer the graph still uses."""
+    key = (stream.device.index or 0, stream.cuda_stream)
+    wrapper = _WARP_STREAMS.get(key)
+    if wrapper is None:
+        wrapper = _WARP_STREAMS[key] = wp.stream_from_torch(stream)
+    return wrapper
+
+
 def capture_torch_graph(device: torch.device, fn: Callable[[], T], generators=(),
                         stream: torch.cuda.Stream | None = None) -> tuple[object, object, T]:
     """Capture ``fn``'s torch work and Warp launches (an env step: torch ops around MuJoCo Warp's
@@ -581,7 +596,7 @@ def capture_torch_graph(device: torch.device, fn: Callable[[], T], generators=()
     stream.wait_stream(torch.cuda.current_stream(device))
     # one capture mode on both sides, as an external capture must declare it to Warp
     with torch.cuda.graph(graph, stream=stream, capture_error_mode="thread_local"):
-        wp_stream = wp.stream_from_torch(stream)
+        wp_stream = warp_stream(stream)
         with wp.ScopedDevice(warp_device(device)), wp.ScopedStream(wp_stream, sync_enter=False), \
                 wp.ScopedCapture(stream=wp_stream, external=True,
                                  capture_mode=wp.CaptureMode.THREAD_LOCAL) as capture:
