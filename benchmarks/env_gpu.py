@@ -19,12 +19,20 @@ side (no copies, its humanoids falling under the first recorded controls) is rep
 information. Timed loops are bracketed by ``torch.cuda.synchronize``; runs alternate (env, raw,
 env, raw) and the best of each is kept.
 
-    python benchmarks/env_gpu.py [--num-envs 1024,4096,16384] [--steps 100] [--warmup 30]
+    python benchmarks/env_gpu.py [--num-envs 1024,4096,16384] [--steps 100] [--warmup 30] [--modes eager,graph]
     python benchmarks/env_gpu.py --device cpu --num-envs 4 --steps 3 --warmup 2   # Warp's CPU device
+
+Modes (``--modes``): ``eager`` launches the env step's kernels one by one; ``graph`` is
+``EnvCfg.cuda_graph=True`` (``envs.graph_step``: the step's device work replayed as one CUDA
+graph after 3 eager steps), the policy's ``act`` still eager. In graph mode the recording copy
+is captured into the graph as a copy to a staging buffer, copied to its slot after the step:
+graph mode pays two copies of the state per env step where eager mode pays one (a bias against
+the graph, of ~1 copy of a few MB at 4096 worlds).
 
 ratio = env physics-steps/s / raw physics-steps/s (the same as the env-steps/s ratio: both
 sides run ``decimation`` physics steps per env step). Ends with one ``RESULT {json}`` line;
-"ratio" is the smallest over the sizes, ``target`` the bar of issue 25 (>= 0.8 at 4096 envs).
+"ratio" is the smallest over the sizes of the eager mode (``graph_ratio`` of the graph mode),
+``target`` the bar of issue 25 (>= 0.8 at 4096 envs) for each mode.
 """
 
 from __future__ import annotations
@@ -35,6 +43,7 @@ import contextlib
 import datetime
 import gc
 import io
+import itertools
 import json
 import time
 import warnings
@@ -200,15 +209,33 @@ class RawWarp:
 
 # -- the env side ----------------------------------------------------------------------------
 class Recorder:
-    """Wraps ``engine.step`` to copy the state every physics call starts from into a slot."""
+    """Wraps ``engine.step`` to copy the state every physics call starts from into a slot.
 
-    def __init__(self, engine, steps: int):
+    ``staged``: for a step replayed as a CUDA graph, where a Python slot index cannot advance:
+    the wrapper (installed for good, before the capture) copies into one staging buffer, and
+    ``after_step`` copies that into the next slot."""
+
+    def __init__(self, engine, steps: int, staged: bool = False):
         self.engine = engine
         self.live = [engine.field(n) for n in engine.initial_state]
         self.slots = [torch.empty((steps, *t.shape), dtype=t.dtype, device=t.device) for t in self.live]
         self.count = 0
+        self.recording = False
+        self.stage = [torch.empty_like(t) for t in self.live] if staged else None
+        if staged:
+            step = type(engine).step
+
+            def staging(num_substeps: int = 1, refresh: bool = False):
+                torch._foreach_copy_(self.stage, self.live)
+                return step(engine, num_substeps, refresh)
+
+            engine.step = staging
 
     def __enter__(self):
+        self.count = 0
+        self.recording = True
+        if self.stage is not None:
+            return self
         step = type(self.engine).step
 
         def recording(num_substeps: int = 1, refresh: bool = False):
@@ -216,12 +243,19 @@ class Recorder:
             self.count += 1
             return step(self.engine, num_substeps, refresh)
 
-        self.count = 0
         self.engine.step = recording
         return self
 
+    def after_step(self) -> None:
+        """After each env step: the staged copy to its slot (staged mode, while recording)."""
+        if self.stage is not None and self.recording:
+            torch._foreach_copy_([s[self.count] for s in self.slots], self.stage)
+            self.count += 1
+
     def __exit__(self, *exc):
-        del self.engine.step  # the class's method again
+        self.recording = False
+        if self.stage is None:
+            del self.engine.step  # the class's method again
 
 
 def time_env(env, act, step, obs, steps: int, recorder: Recorder | None):
@@ -233,18 +267,25 @@ def time_env(env, act, step, obs, steps: int, recorder: Recorder | None):
         for _ in range(steps):
             obs, dones = step(act(obs))
             ended += dones.sum()
+            if recorder is not None:
+                recorder.after_step()
         sync(env.device)
         seconds = time.perf_counter() - start
     return seconds, obs, int(ended)
 
 
-def measure(num_envs: int, device: str, steps: int, warmup: int, repeats: int) -> dict:
-    env = ambulo.envs.make(TASK, num_envs=num_envs, device=device, engine="warp", seed=0)
+def measure(num_envs: int, device: str, steps: int, warmup: int, repeats: int, mode: str = "eager") -> dict:
+    graph = mode == "graph"
+    env = ambulo.envs.make(TASK, num_envs=num_envs, device=device, engine="warp", seed=0, cuda_graph=graph)
+    if graph and env._graph is None:
+        raise RuntimeError("graph mode needs CUDA (EnvCfg.cuda_graph is ignored elsewhere)")
     decimation = env.cfg.decimation
     act, step, obs, policy = rollout_fns(env)
+    # staged: the recording copy must be in the step when its graph is captured (in the warm-up)
+    recorder = Recorder(env.engine, steps, staged=True) if graph else None
     _, obs, _ = time_env(env, act, step, obs, warmup, None)  # graphs captured, resets under way
     raw = RawWarp(env.engine, decimation)
-    recorder = Recorder(env.engine, steps)
+    recorder = recorder or Recorder(env.engine, steps)
     env_s, replay_s, free_s, ended = [], [], [], 0
     for _ in range(repeats):
         seconds, obs, ended_run = time_env(env, act, step, obs, steps, recorder)
@@ -262,6 +303,7 @@ def measure(num_envs: int, device: str, steps: int, warmup: int, repeats: int) -
     raw_rate = num_envs * steps / min(replay_s)
     row = {
         "num_envs": num_envs,
+        "mode": mode,
         "env_steps_per_s": round(env_rate),
         "physics_steps_per_s": round(env_rate * decimation),
         "raw_physics_steps_per_s": round(raw_rate * decimation),
@@ -291,25 +333,41 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=100, help="env steps per timed run")
     parser.add_argument("--warmup", type=int, default=30, help="env steps before timing")
     parser.add_argument("--repeats", type=int, default=2)
+    parser.add_argument("--modes", default=None,
+                        help="eager and/or graph (EnvCfg.cuda_graph: the env step as one CUDA graph), comma-separated; "
+                             "default both on CUDA, eager elsewhere (graph mode needs CUDA)")
     args = parser.parse_args()
     sizes = [int(s) for arg in args.num_envs for s in arg.split(",") if s]
     device = torch.device(args.device)
+    modes = [m for m in (args.modes or ("eager,graph" if device.type == "cuda" else "eager")).split(",") if m]
+    if set(modes) - {"eager", "graph"}:
+        parser.error(f"--modes: eager and/or graph, got {args.modes!r}")
     rows = []
-    for n in sizes:
-        rows.append(measure(n, args.device, args.steps, args.warmup, args.repeats))
+    for n, mode in itertools.product(sizes, modes):
+        rows.append(measure(n, args.device, args.steps, args.warmup, args.repeats, mode))
         r = rows[-1]
-        print(f"N={n:6d}: env {r['env_steps_per_s']:>9} env-steps/s ({r['env_ms_per_step']:.2f} ms)   raw "
+        print(f"N={n:6d} {mode:>5}: env {r['env_steps_per_s']:>9} env-steps/s ({r['env_ms_per_step']:.2f} ms)   raw "
               f"{r['raw_ms_per_step']:.2f} ms/step (free-running {r['raw_free_ms_per_step']:.2f})   "
               f"ratio {r['ratio']:.3f}   {r['episodes_ended_per_step']} episodes ended/step   "
               f"host syncs/step {None if r['syncs'] is None else r['syncs']['per_step']}", flush=True)
-    at_target = next((r["ratio"] for r in rows if r["num_envs"] == TARGET["num_envs"]), None)
+
+    def at_target(mode):
+        return next((r["ratio"] for r in rows if r["num_envs"] == TARGET["num_envs"] and r["mode"] == mode), None)
+
+    def smallest(mode):
+        ratios = [r["ratio"] for r in rows if r["mode"] == mode]
+        return min(ratios) if ratios else None
+
+    targets = {mode: {**TARGET, "ratio": at_target(mode),
+                      "met": None if at_target(mode) is None else at_target(mode) >= TARGET["min_ratio"]}
+               for mode in modes}
     result = {
         "benchmark": "env_gpu", "task": TASK, "device": device_name(device),
         "decimation": ambulo.envs.make_cfg(TASK).decimation, "steps": args.steps, "policy": rows[0]["policy"],
         "versions": stack_versions(), "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-        "sizes": rows, "ratio": min(r["ratio"] for r in rows),
-        "target": {**TARGET, "ratio": at_target,
-                   "met": None if at_target is None else at_target >= TARGET["min_ratio"]},
+        "sizes": rows, "ratio": smallest("eager"), "graph_ratio": smallest("graph"),
+        "target": targets.get("eager", {**TARGET, "ratio": None, "met": None}),
+        "graph_target": targets.get("graph"),
     }
     print("RESULT " + json.dumps(result), flush=True)
 

@@ -14,6 +14,9 @@ synchronizes once, by design), two more iterations run under torch's sync debug 
   ``update`` (rsl-rl's PPO update reads its losses and the adaptive learning rate's KL with
   ``.item()``), ``Logger.log``, ``save`` and ``init_logging_writer``: once an iteration each.
 
+Both with the eager env step and with ``cuda_graph=True`` (the step's device work replayed as
+one CUDA graph, captured in the warm-up iteration).
+
 Not covered: the engine's overflow check, one host read every ``overflow_check_steps`` (100)
 env steps by design; it is run just before the checked iterations so it does not fall inside.
 The warn pass lists every synchronizing line at once (the error pass stops at the first).
@@ -77,8 +80,8 @@ def _unchecked(fn, part: str):
     return call
 
 
-@pytest.fixture(scope="module")
-def runner(tmp_path_factory):
+@pytest.fixture(scope="module", params=[False, True], ids=["eager", "cuda_graph"])
+def runner(request, tmp_path_factory):
     from ambulo import envs
     from ambulo.rl.config import ppo_cfg
     from ambulo.rl.episodes import EpisodeStats
@@ -86,12 +89,14 @@ def runner(tmp_path_factory):
     from ambulo.rl.vecenv import RslRlVecEnv
 
     torch.manual_seed(0)
-    env = envs.make("humanoid-walk", num_envs=NUM_ENVS, device="cuda", seed=0)
+    # cuda_graph: the env step replayed as one CUDA graph (envs.graph_step), captured in the warm-up
+    env = envs.make("humanoid-walk", num_envs=NUM_ENVS, device="cuda", seed=0, cuda_graph=request.param)
     ppo = ppo_cfg("humanoid-walk", num_envs=NUM_ENVS)
     with contextlib.redirect_stdout(io.StringIO()):
         runner = AmbuloRunner(RslRlVecEnv(env, EpisodeStats(NUM_ENVS, env.device)), runner_cfg(env, ppo),
                               log_dir=str(tmp_path_factory.mktemp("run")), device=str(env.device))
         runner.learn(1, init_at_random_ep_len=True)  # warm-up: compile, captures, first resets
+    assert (env._graph is not None and env._graph.graph is not None) == request.param
     for name in ("compute_returns", "update"):
         setattr(runner.alg, name, _unchecked(getattr(runner.alg, name), name))
     for name in ("log", "init_logging_writer"):

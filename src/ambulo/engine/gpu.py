@@ -33,6 +33,7 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TypeVar
 
 import mujoco
 import mujoco_warp as mjw
@@ -43,6 +44,7 @@ import warp as wp
 from .protocol import STATE_FIELDS
 
 log = logging.getLogger(__name__)
+T = TypeVar("T")
 
 WorldIds = Sequence[int] | np.ndarray | torch.Tensor | None
 
@@ -237,6 +239,8 @@ class GpuEngine:
         self.compile_time_s: float | None = None
         """Seconds the first runs of step and forward took (kernel compile or cache load)."""
         self._warmed: set[tuple] = set()
+        self.steps_in_capture = 0
+        """``step`` calls recorded into torch CUDA graphs so far (see ``count_steps``)."""
 
     def option_differences(self) -> dict[str, tuple[float, float]]:
         """``{name: (MjModel's value, MuJoCo Warp's)}`` of the solver and integrator options that
@@ -329,13 +333,19 @@ class GpuEngine:
             with wp.ScopedDevice(self.wp_device):
                 yield
             return
-        stream = wp.stream_from_torch(torch.cuda.current_stream(self.device))
+        stream = warp_stream(torch.cuda.current_stream(self.device))
         with wp.ScopedDevice(self.wp_device), wp.ScopedStream(stream, sync_enter=False):
             yield
 
     def _run(self, key: tuple, body: Callable[[], None]) -> None:
         """Run ``body`` (Warp launches) as a CUDA graph captured once per ``key``. The first run
         of a key compiles (or loads from Warp's cache) its kernels: timed, with progress lines."""
+        if self.torch_capturing():
+            # inside an env step being captured by torch (``capture_torch_graph``): the kernels go
+            # straight into that graph on the capturing stream (a Warp graph is not nested)
+            with self.warp_scope():
+                body()
+            return
         if key not in self._warmed:
             self._warmed.add(key)
             with _Ticker("compiling MuJoCo Warp kernels") as ticker:
@@ -387,6 +397,9 @@ class GpuEngine:
                 mjw.camlight(m, d)
                 mjw.com_vel(m, d)
 
+        capturing = self.torch_capturing()
+        if capturing and self.divergence_dump_dir is not None:
+            raise RuntimeError("divergence_dump_dir reads the device every step: it cannot run in a CUDA graph")
         before = self._dump_before() if self.divergence_dump_dir is not None else None
         self._run(("step", num_substeps, refresh), body)
         diverged = self._diverged()
@@ -394,10 +407,24 @@ class GpuEngine:
         self._reset_mask(diverged)
         if before is not None:
             self._dump_diverged(diverged, before)
-        self._steps_since_check += 1
+        if capturing:
+            # a Python counter does not advance when the graph replays: whoever replays it
+            # calls ``count_steps`` with this many calls per replay
+            self.steps_in_capture += 1
+        else:
+            self.count_steps(1)
+        return diverged
+
+    def torch_capturing(self) -> bool:
+        """Whether torch is capturing a CUDA graph on the current stream (never on the CPU)."""
+        return self.device.type == "cuda" and torch.cuda.is_current_stream_capturing()
+
+    def count_steps(self, calls: int) -> None:
+        """Count ``calls`` step calls toward the overflow check (one host sync every
+        ``overflow_check_steps``); a captured step's replays are counted here by its owner."""
+        self._steps_since_check += calls
         if self._steps_since_check >= self.overflow_check_steps:
             self.check_overflow()
-        return diverged
 
     def _diverged(self) -> torch.Tensor:
         # |x| <= MAX is False for NaN too, so one comparison catches NaN, inf and huge values
@@ -531,6 +558,53 @@ def capture_graph(device: str, stream: wp.Stream, body: Callable[[], None]):
     return capture.graph
 
 
+_WARP_STREAMS: dict[tuple[int, int], wp.Stream] = {}
+
+
+def warp_stream(stream: torch.cuda.Stream) -> wp.Stream:
+    """The one Warp wrapper of a torch CUDA stream, kept for the process. A wrapper made per
+    call (``wp.stream_from_torch``) unregisters the stream from Warp when it is collected,
+    which also frees Warp's radix-sort scratch of that stream: inside a graph capture that is a
+    free the capture forbids, after it a buffer the graph still uses."""
+    key = (stream.device.index or 0, stream.cuda_stream)
+    wrapper = _WARP_STREAMS.get(key)
+    if wrapper is None:
+        wrapper = _WARP_STREAMS[key] = wp.stream_from_torch(stream)
+    return wrapper
+
+
+def capture_torch_graph(device: torch.device, fn: Callable[[], T], generators=(),
+                        stream: torch.cuda.Stream | None = None) -> tuple[object, object, T]:
+    """Capture ``fn``'s torch work and Warp launches (an env step: torch ops around MuJoCo Warp's
+    kernels) in one torch CUDA graph; returns ``(torch graph, Warp graph, fn's result)``.
+
+    torch opens the capture on a side stream; Warp is told it is capturing there
+    (``ScopedCapture(external=True)``) so the scratch arrays MuJoCo Warp allocates inside a
+    step are kept alive by the Warp graph object, which must live as long as the torch graph.
+    ``GpuEngine`` launches its kernels directly while torch captures (a Warp graph is not
+    nested). ``generators``: custom torch CUDA generators the captured code draws from; their
+    state advances on every replay (``CUDAGraph.register_generator_state``, torch >= 2.5).
+    ``stream``: the side stream to capture on (a new one if None; pass the one warm-up ran on).
+    Nothing runs: the caller replays the graph (``graph.replay()``) to execute it."""
+    graph = torch.cuda.CUDAGraph()
+    if generators and not hasattr(graph, "register_generator_state"):
+        raise RuntimeError(f"torch {torch.__version__} cannot advance a custom generator in a CUDA graph "
+                           "(CUDAGraph.register_generator_state, torch >= 2.5); use an eager step")
+    for generator in generators:
+        graph.register_generator_state(generator)
+    stream = torch.cuda.Stream(device) if stream is None else stream
+    stream.wait_stream(torch.cuda.current_stream(device))
+    # one capture mode on both sides, as an external capture must declare it to Warp
+    with torch.cuda.graph(graph, stream=stream, capture_error_mode="thread_local"):
+        wp_stream = warp_stream(stream)
+        with wp.ScopedDevice(warp_device(device)), wp.ScopedStream(wp_stream, sync_enter=False), \
+                wp.ScopedCapture(stream=wp_stream, external=True,
+                                 capture_mode=wp.CaptureMode.THREAD_LOCAL) as capture:
+            result = fn()
+    torch.cuda.current_stream(device).wait_stream(stream)
+    return graph, capture.graph, result
+
+
 def synchronize(device: torch.device) -> None:
     """Wait for ``device`` (CUDA); nothing on the CPU. For timing loops, never on a step path."""
     if torch.device(device).type == "cuda":
@@ -588,5 +662,5 @@ def contact_capacity(model: mujoco.MjModel, data: mujoco.MjData, max_contacts: i
                                  2 * data.nefc))
 
 
-__all__ = ["GpuEngine", "EngineOverflowError", "capture_graph", "contact_capacity", "stack_versions", "synchronize",
+__all__ = ["GpuEngine", "EngineOverflowError", "capture_graph", "capture_torch_graph", "contact_capacity", "stack_versions", "synchronize",
            "warp_device"]

@@ -32,6 +32,7 @@ from ambulo.utils.checks import check_int, check_real_dtype
 from ambulo.utils.validate import Checked, check_fields, rule
 
 from .episode_stats import EpisodeStats
+from .graph_step import GraphStep, StepOutputs
 
 
 @dataclass(kw_only=True)
@@ -82,6 +83,13 @@ class EnvCfg(Checked):
     its reward for that step zeroed. Why: a world that runs away below 1e10 (MuJoCo Warp on
     humanoid-rough) gave squared-velocity rewards of -1e10 that wrecked PPO's value targets.
     None: only the engine's check."""
+    cuda_graph: bool = False
+    """On CUDA, replay the step's device work (actions, physics, terminations, rewards,
+    statistics, masked resets with their draws, observations) as one CUDA graph captured after
+    ``cuda_graph_warmup_steps`` eager steps (``envs.graph_step``): one launch per step instead
+    of hundreds. Ignored on the CPU. Results equal the eager step's (tests/envs/test_graph_step_gpu.py)."""
+    cuda_graph_warmup_steps: int = field(default=3, metadata=rule(minimum=1))
+    """Eager steps before the capture: they load kernels and allocate every lazily made buffer."""
     stats_interval_steps: int = field(default=24, metadata=rule(minimum=1))
     """Episode statistics (``extras["episode"]``) cover the episodes that ended in windows of
     this many policy steps, so the step path needs no host sync to find ended episodes."""
@@ -156,6 +164,7 @@ class RLEnv:
             raise ValueError(f"observation_noise names unknown observation terms {noisy}; "
                              f"{type(self).__name__} has {self._terms_seen}")
         self._stats = EpisodeStats(self)
+        self._graph = GraphStep(self) if cfg.cuda_graph and self.device.type == "cuda" else None
 
     # -- task interface ----------------------------------------------------------
     def _design_scene(self, spec) -> None:
@@ -217,6 +226,11 @@ class RLEnv:
         """(N,) bool masks of task terminations by name (failure or success, not time-outs)."""
         raise NotImplementedError
 
+    def _graph_unsafe_reason(self) -> str | None:
+        """Why this env's step cannot be replayed as a CUDA graph (``cfg.cuda_graph``), or None.
+        A task whose step keeps Python state that changes from step to step says so here."""
+        return None
+
     def _reset_idx(self, rows: torch.Tensor) -> None:
         """Randomize the envs ``rows`` selects (``ambulo.core.rows``: indices on the CPU, an (N,)
         mask on a GPU) after the engine restored their initial state. Draw ``num_rows(rows)``
@@ -264,6 +278,28 @@ class RLEnv:
 
     def _step(self, actions):
         actions = self._validate_actions(actions)
+        if self._graph is not None:
+            out = self._graph.step(actions)
+        else:
+            out = self._device_step(actions)
+        extras: dict = {"time_outs": out.time_outs, "terminated": out.terminated,
+                        "terminations": out.terminations}
+        if out.final_obs is not None:
+            extras["final_obs"] = out.final_obs
+        stats = self._stats.publish()  # a Python counter: every stats_interval_steps steps
+        if stats is not None:
+            extras["episode"] = stats
+        if out.critic_obs is not None:
+            extras["observations"] = {"critic": out.critic_obs}
+        return out.obs, out.rewards, out.dones, extras
+
+    def _device_step(self, actions: torch.Tensor) -> StepOutputs:
+        """The step's work on the device, from checked (N, A) float32 ``actions``: what a CUDA
+        graph captures (``envs.graph_step``). No host sync and, on a GPU, no Python decision
+        on device values; Python state it changes must be the same every step (a replay does
+        not rerun Python), persistent tensors change in place."""
+        if self.device.type != "cpu":
+            actions = self._sanitize_actions(actions)
         self.prev_actions.copy_(self.actions)
         self.actions.copy_(actions.clamp(-self.cfg.action_clip, self.cfg.action_clip))
         self._apply_action(self.actions)
@@ -285,18 +321,14 @@ class RLEnv:
         self.episode_sums += weighted
         rewards = weighted.sum(dim=1)
 
-        extras: dict = {"time_outs": time_outs, "terminated": terminated, "terminations": terminations}
-        if self.return_final_obs:
-            extras["final_obs"] = self._compute_observations()
+        final_obs = self._compute_observations() if self.return_final_obs else None
         dones = terminated | time_outs
-        stats = self._stats.add(dones, terminations, time_outs, diverged)
-        if stats is not None:
-            extras["episode"] = stats
+        self._stats.add(dones, terminations, time_outs, diverged)
         self._reset_envs(dones)
         self.obs_buf = self._compute_observations()
-        if self._critic_buf is not None:
-            extras["observations"] = {"critic": self._critic_buf}
-        return self.obs_buf, rewards, dones, extras
+        return StepOutputs(obs=self.obs_buf, rewards=rewards, dones=dones, time_outs=time_outs,
+                           terminated=terminated, terminations=terminations, final_obs=final_obs,
+                           critic_obs=self._critic_buf)
 
     def close(self) -> None:
         """Release resources (the engine is freed with the env)."""
@@ -342,6 +374,9 @@ class RLEnv:
                     "check the policy's outputs (e.g. exploding weights) or sanitize with "
                     "torch.nan_to_num before stepping")
             return actions
+        return actions
+
+    def _sanitize_actions(self, actions: torch.Tensor) -> torch.Tensor:
         # on a GPU a check would wait for the device: zero bad actions and count them instead
         finite = torch.isfinite(actions)
         self._nonfinite_actions += (~finite).any(dim=1).sum()

@@ -217,6 +217,11 @@ class HumanoidWalkEnv(RLEnv):
                                 bodies=[cfg.base_body], operation="add", dtype=torch.float32)
             self.engine.set_const()
 
+    def _graph_unsafe_reason(self) -> str | None:
+        if self.transfer.action_delay is not None or self.transfer.obs_delay_steps[1] > 0:
+            return "an action latency or observation delay advances DelayBuffer's Python cursor every step"
+        return None
+
     # -- metrics -----------------------------------------------------------------------
     def velocity_tracking_error(self) -> tuple[torch.Tensor, torch.Tensor]:
         """(N,) |v_cmd - v| of the planar base velocity, m/s, and (N,) |yaw rate error|, rad/s."""

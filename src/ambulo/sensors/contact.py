@@ -120,11 +120,13 @@ class ContactSensor(Sensor):
         was_in_air = self._air > 0.0  # the timer is held at 0 while touching
         self._air += dt_s
         # a touchdown ends a flight: remember how long it was
-        self._first = touching & was_in_air
-        self._last_air = torch.where(self._first, self._air, self._last_air)
-        self._air = torch.where(touching, torch.zeros_like(self._air), self._air)
-        self._contact_time = torch.where(touching, self._contact_time + dt_s,
-                                         torch.zeros_like(self._contact_time))
+        # in place: a CUDA graph of the env step (envs.graph_step) keeps reading and writing the
+        # tensors it captured, so rebinding these would freeze the timers on replay
+        torch.logical_and(touching, was_in_air, out=self._first)
+        self._last_air.copy_(torch.where(self._first, self._air, self._last_air))
+        self._air.masked_fill_(touching, 0.0)
+        self._contact_time.copy_(torch.where(touching, self._contact_time + dt_s,
+                                             torch.zeros_like(self._contact_time)))
         self.data = self._frame(touching, count, force)
 
     def reset(self, world_ids: torch.Tensor | None = None) -> None:
