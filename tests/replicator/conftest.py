@@ -1,5 +1,4 @@
 import dataclasses
-import json
 import os
 import subprocess
 import sys
@@ -11,6 +10,8 @@ import numpy as np
 import pytest
 
 from ambulo import replicator as rep
+from ambulo.replicator import records
+from ambulo.replicator.records import JOURNAL_FILE
 
 SIZE = (160, 120)
 SRC = str(Path(rep.__file__).resolve().parents[2])
@@ -18,9 +19,25 @@ SRC = str(Path(rep.__file__).resolve().parents[2])
 
 def file_tree(root: Path) -> dict[str, object]:
     """Every file under ``root`` by relative path, with what a dataset promises of it: a PNG's decoded
-    pixels (the deflate may give other bytes for the same pixels: ``replicator.io``), a frame record's
-    values with the PNGs' sizes left out (they follow the bytes), any other file's bytes."""
-    return {str(p.relative_to(root)): _content(p, root) for p in sorted(root.rglob("*")) if p.is_file()}
+    pixels (the deflate may give other bytes for the same pixels: ``replicator.io``), the frame records'
+    values with the PNGs' sizes left out (they follow the bytes), any other file's bytes. The journals
+    (``frames/records-<host>-<pid>.jsonl``: their names and the order of their lines follow the processes
+    that wrote them) are one entry, ``frames/records``: each frame's record, how many complete lines the
+    journals hold (one a frame when none is stale) and their torn tails."""
+    tree = {str(p.relative_to(root)): _content(p, root) for p in sorted(root.rglob("*"))
+            if p.is_file() and not (p.parent == root / "frames" and JOURNAL_FILE.fullmatch(p.name))}
+    journals = records.journals(root / "frames")
+    if journals:
+        split = [records.split_journal(path.read_bytes()) for path in journals]
+        tree["frames/records"] = ({i: _record_values(r) for i, r in sorted(records.read_records(root / "frames").items())},
+                                  sum(len(lines) for lines, _ in split), [tail for _, tail in split if tail])
+    return tree
+
+
+def _record_values(record: dict) -> dict:
+    record = dict(record)
+    record["files"] = {k: (None if k.endswith(".png") else v) for k, v in record["files"].items()}
+    return record
 
 
 def _content(path: Path, root: Path):
@@ -32,14 +49,12 @@ def _content(path: Path, root: Path):
         except UnidentifiedImageError:  # a user's file, or a damaged frame: its bytes
             return path.read_bytes()
         return "png", pixels.dtype.str, pixels.shape, pixels.tobytes()
-    if path.suffix == ".json" and path.parent == root / "frames":
-        try:
-            record = json.loads(path.read_bytes())
-            record["files"] = {k: (None if k.endswith(".png") else v) for k, v in record["files"].items()}
-        except (ValueError, KeyError, TypeError, AttributeError):
-            return path.read_bytes()  # a damaged record: its bytes
-        return record
     return path.read_bytes()
+
+
+def frame_records(root: Path) -> dict[int, dict]:
+    """Frame index -> record of dataset ``root`` (its journals)."""
+    return records.read_records(Path(root) / "frames")
 
 
 def generate_argv(out: Path, frames: int, *extra: str) -> list[str]:
@@ -52,12 +67,13 @@ def cli_env() -> dict[str, str]:
     return {**os.environ, "PYTHONPATH": SRC + os.pathsep + os.environ.get("PYTHONPATH", "")}
 
 
-def start_and_wait_for_records(argv: list[str], records: Path, at_least: int = 5) -> subprocess.Popen:
-    """Start ``argv`` and return once ``records`` holds ``at_least`` frame records (still running)."""
+def start_and_wait_for_records(argv: list[str], records_dir: Path, at_least: int = 5) -> subprocess.Popen:
+    """Start ``argv`` and return once ``records_dir`` (a dataset's ``frames/``) holds ``at_least`` frame
+    records (still running)."""
     run = subprocess.Popen(argv, env=cli_env(), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     deadline = time.time() + 120
     while time.time() < deadline and run.poll() is None:
-        if records.is_dir() and len(list(records.glob("*.json"))) >= at_least:
+        if records_dir.is_dir() and records.count_records(records_dir) >= at_least:
             break
         time.sleep(0.02)
     assert run.poll() is None, "the run finished before it could be killed: raise the frame count"
@@ -68,7 +84,7 @@ def start_and_wait_for_records(argv: list[str], records: Path, at_least: int = 5
 def generate_helpers():
     """Helpers of the generate tests: file_tree, generate_argv, cli_env, start_and_wait_for_records."""
     return types.SimpleNamespace(file_tree=file_tree, argv=generate_argv, env=cli_env,
-                                 start=start_and_wait_for_records)
+                                 start=start_and_wait_for_records, records=frame_records)
 
 
 def small_config(outputs=("coco", "depth", "masks")):

@@ -15,9 +15,9 @@ from PIL import Image
 from ambulo import replicator as rep
 from ambulo.cli import main
 from ambulo.replicator import io as rio
-from ambulo.replicator.coco import read_json
 from ambulo.replicator.manifest import MANIFEST, DatasetFolderError, semantic_image
 from ambulo.replicator.producer import FrameProducer
+from ambulo.replicator.records import read_json
 from ambulo.replicator.writers import json_bytes
 
 SEED = 3

@@ -18,7 +18,6 @@ import argparse
 import contextlib
 import dataclasses
 import errno
-import os
 import runpy
 import signal
 import sys
@@ -170,8 +169,11 @@ def _terminate_as_interrupt():
 
 
 def _records(out: Path) -> int:
+    """The frames with a record in ``out`` (lines of the journals in ``frames/``)."""
+    from ambulo.replicator.records import count_records
+
     with contextlib.suppress(OSError):
-        return sum(1 for name in os.listdir(Path(out) / "frames") if name.endswith(".json"))
+        return count_records(Path(out) / "frames")
     return 0
 
 

@@ -1,14 +1,13 @@
 """COCO instance annotations: per-frame records (RLE masks via pycocotools) and the merged file.
 
 Each frame's record is self-contained JSON (image entry, annotations without
-ids, camera, randomization log); ``merge_coco`` numbers images and annotations
-in frame order, so a dataset made by one process, by resumed runs or by Ray
-shards is the same file.
+ids, camera, randomization log), a line of its writer's journal (``records``);
+``merge_coco`` numbers images and annotations in frame order, so a dataset made
+by one process, by resumed runs or by Ray shards is the same file.
 """
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -17,11 +16,7 @@ from pycocotools import mask as mask_utils
 
 from ambulo.sensors.annotators import boxes_of_runs
 
-try:  # a dependency of viser (core) and of the data extra
-    from msgspec import DecodeError as _DecodeError
-    from msgspec.json import decode as _msgspec_decode
-except ImportError:
-    _msgspec_decode = None
+from .records import read_records
 
 
 def frame_annotations(capture: dict, semantic_ids: np.ndarray, instance_names: list[str],
@@ -190,25 +185,17 @@ def coco_image(index: int, record: dict) -> dict:
 
 
 def merge_coco(frames_dir: Path, num_frames: int, categories: list[str], info: dict) -> dict:
-    """The COCO dict of frames 0..num_frames-1 from their per-frame records."""
+    """The COCO dict of frames 0..num_frames-1 from their records (the journals in ``frames_dir``);
+    ``FileNotFoundError`` naming the first frame without one."""
+    records = read_records(frames_dir)
     images, annotations = [], []
     for index in range(num_frames):
-        record = read_json((Path(frames_dir) / f"{index:06d}.json").read_bytes())
+        record = records.get(index)
+        if record is None:
+            raise FileNotFoundError(f"{frames_dir}: no record of frame {index}")
         image_id = index + 1
         images.append(coco_image(index, record))
         for ann in record["annotations"]:
             annotations.append({**ann, "id": len(annotations) + 1, "image_id": image_id})
     return {"info": info, "licenses": [], "categories": coco_categories(categories),
             "images": images, "annotations": annotations}
-
-
-def read_json(data: bytes):
-    """JSON ``data`` as Python values: msgspec's decoder (a fraction of json's time on a dataset's
-    records), json's for what msgspec refuses (NaN and Infinity, which ``writers.json_bytes`` leaves
-    to json)."""
-    if _msgspec_decode is not None:
-        try:
-            return _msgspec_decode(data)
-        except _DecodeError:
-            pass
-    return json.loads(data)

@@ -9,7 +9,7 @@ GPU path's writer processes, in parallel, as the frames are written), and ``writ
 only concatenates: each annotation was encoded without its closing brace, and gets ``"id"`` and
 ``"image_id"`` appended, the last two keys of ``merge_coco``'s ``{**ann, "id": ..., "image_id": ...}``.
 A frame without a piece (made by an earlier, interrupted run, or by the CPU path) gets one from its
-record on disk. The records stay what a dataset is: a piece is only ever a faster reading of the
+record on disk (its journal's line, ``records``: only those lines are decoded). The records stay what a dataset is: a piece is only ever a faster reading of the
 record that was written with it, and a resumed run's file is the same whichever run made a frame.
 
 The bytes are ``writers.json_bytes``' (msgspec's compact JSON) for the same dict; where that falls
@@ -24,8 +24,9 @@ from pathlib import Path
 
 from ambulo.utils.atomic import atomic_open
 
-from .coco import coco_categories, coco_image, merge_coco, read_json
-from .writers import frame_stem, json_bytes
+from .coco import coco_categories, coco_image, merge_coco
+from .records import read_json, record_lines
+from .writers import json_bytes
 
 try:  # as writers.json_bytes: without msgspec every file is json's, so no piece is made
     from msgspec.json import encode as _encode
@@ -64,9 +65,13 @@ def frame_piece(index: int, record: dict) -> FramePiece | None:
     return FramePiece(image, tuple(annotations))
 
 
-def record_piece(frames_dir: Path, index: int) -> FramePiece | None:
-    """Frame ``index``'s piece from its record in ``frames_dir``."""
-    return frame_piece(index, read_json((Path(frames_dir) / f"{frame_stem(index)}.json").read_bytes()))
+def record_piece(frames_dir: Path, index: int, lines: Mapping[int, bytes] | None = None) -> FramePiece | None:
+    """Frame ``index``'s piece from its record in ``frames_dir`` (``lines``: ``records.record_lines`` of
+    it, read once by the caller); ``FileNotFoundError`` when it has none."""
+    lines = record_lines(frames_dir) if lines is None else lines
+    if index not in lines:
+        raise FileNotFoundError(f"{frames_dir}: no record of frame {index}")
+    return frame_piece(index, read_json(lines[index]))
 
 
 def write_annotations(path: Path, frames_dir: Path, num_frames: int, categories: list[str], info: dict,
@@ -77,8 +82,10 @@ def write_annotations(path: Path, frames_dir: Path, num_frames: int, categories:
     pieces = pieces or {}
     head = json_bytes({"info": info, "licenses": [], "categories": coco_categories(categories)})
     ordered = [] if b"null" not in head else None
+    # the journals are read (not decoded) only when some frame has no piece
+    lines = None if ordered is None or all(i in pieces for i in range(num_frames)) else record_lines(frames_dir)
     for index in range(num_frames if ordered is not None else 0):
-        piece = pieces.get(index) or record_piece(frames_dir, index)
+        piece = pieces.get(index) or record_piece(frames_dir, index, lines)
         if piece is None:
             ordered = None
             break

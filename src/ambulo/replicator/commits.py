@@ -2,8 +2,8 @@
 
 The draw processes write a batch's data files (``batched_disk``) and hand back its frame records.
 A frame is done for a resumed run when its record parses and its files have the sizes it lists
-(``writers.frame_is_complete``), so a record must not reach the disk before the data it points
-to: the records are written after a flush of the data (``FrameWriter.flush``: one ``syncfs`` on
+(``records.complete_records``), so a record must not reach the disk before the data it points
+to: the records are appended to the journal after a flush of the data (``FrameWriter.flush``: one ``syncfs`` on
 Linux). Flushing a batch as it finishes and holding its shared block until then (the first disk
 mode) put every flush on the render's path: the device waited for the storage once a batch.
 ``BatchCommits`` takes that off the path with two threads:

@@ -3,7 +3,7 @@
 Frame ``i`` depends only on (config, seed, i): the engine is reset, every
 randomizer draws from ``default_rng([seed, randomizer index, i // every_n])``
 and is applied, then the camera captures. So a killed run resumes by skipping
-frames whose record exists, and N local processes (``processes.py``) or Ray
+frames whose record counts (``records``: a line of a journal in ``frames/``), and N local processes (``processes.py``) or Ray
 workers (``ray_workers.py``, for several machines) produce the same files as one.
 """
 
@@ -33,15 +33,13 @@ from .manifest import open_dataset
 from .processes import default_workers, run_on_processes, usable_cpus
 from .producer import FrameProducer, run_frames
 from .ray_workers import run_on_ray
-from .writers import frame_is_complete, frame_subdirs, prepare_dirs
+from .records import complete_records, prune_records
+from .writers import frame_subdirs, prepare_dirs
 
 
 def done_frames(out: Path, num_frames: int) -> set[int]:
     """The frames of ``out`` that are complete: a record that parses, and every file it lists with its size."""
-    out = Path(out)
-    if not (out / "frames").is_dir():
-        return set()
-    return {i for i in range(num_frames) if frame_is_complete(out, i)}
+    return {i for i in complete_records(out) if i < num_frames}
 
 
 BACKENDS = ("auto", "processes", "ray")
@@ -139,7 +137,8 @@ def generate(config: DatasetConfig, out: str | Path, num_frames: int, seed: int 
     open_dataset(out, config, seed, model, num_frames, overwrite, image_source=source)
     prepare_dirs(out, config.writer, config.camera.annotators)
     remove_partial_files(out, *(out / sub for sub in frame_subdirs(config.writer, config.camera.annotators)))
-    todo = sorted(set(range(num_frames)) - done_frames(out, num_frames))
+    # the records that do not count are dropped before any frame is written again (records module doc)
+    todo = sorted(set(range(num_frames)) - prune_records(out, fsync=config.writer.fsync))
     batched = producer is not None
     workers = 1 if batched or watch is not None else (
         default_workers(len(todo)) if workers is None else min(workers, max(1, len(todo))))

@@ -29,6 +29,7 @@ import numpy as np
 from ambulo.utils.atomic import atomic_write_json, fsync_dir, is_partial_file
 
 from .config import DatasetConfig
+from .records import record_lines
 from .writers import FRAME_FILE, SUBDIRS, check_writer_cfg, frame_stem
 
 MANIFEST = "dataset.json"
@@ -147,8 +148,7 @@ def _check_resumable(out: Path, existing: dict, wanted: dict, num_frames: int) -
         listed = "; ".join(f"{key} {_short(old)} (now {_short(new)})" for key, old, new in differences)
         raise DatasetFolderError(f"{str(out)!r} holds a dataset made with other settings: {listed}",
                                  _fix_for(differences))
-    beyond = sorted(int(p.stem) for p in (out / "frames").glob("*.json") if p.stem.isdigit()
-                    and int(p.stem) >= num_frames)
+    beyond = sorted(index for index in record_lines(out / "frames") if index >= num_frames)
     if beyond:
         raise DatasetFolderError(
             f"{str(out)!r} already holds frames {beyond[0]}-{beyond[-1]}, beyond the {num_frames} asked for",

@@ -1,18 +1,21 @@
 """Per-frame dataset writers: PNG rgb, depth, masks, KITTI labels, raw arrays, and the frame record.
 
-A ``FrameWriter`` runs on the generator's writer thread. The frame record ``frames/NNNNNN.json``
-is written last and lists every file of the frame with its size in bytes: a resumed
-run counts a frame as done only when its record parses and each file has that size
-(``frame_is_complete``), so a truncated image or a zero-byte record is made again.
-With ``WriterCfg.fsync`` the data files and their folders reach the disk before the
-record is written: after a power loss a record never points to data that is not there.
+A ``FrameWriter`` runs on the generator's writer thread. A frame's record lists every file of the
+frame with its size in bytes and is written last, as one line appended to the writer process's
+journal ``frames/records-<host>-<pid>.jsonl`` (``records``): a resumed run counts a frame as done
+only when its record parses and each file has that size (``records.complete_records``), so a
+truncated image or a torn record is made again. With ``WriterCfg.fsync`` the data files and their
+folders reach the disk before the record is appended, and the journal is flushed after it: after a
+power loss a record never points to data that is not there.
 
 The record is what makes a frame's files count, so they are written in place (``write_file``), not
-as a temporary renamed onto the name: a frame's old record is deleted before its files are written
-again, and a record appears only after them (and, with ``fsync``, after they reach the disk). A
-write cut short leaves a frame without a record, which a resumed run makes again over the partial
-files; a torn record (a strict prefix of a JSON object) never parses. The rename of every file cost
-~0.09 ms of CPU each, four a frame, ~3 % of an annotated frame at 320x240.
+as a temporary renamed onto the name: a resumed run drops every record that does not count before
+it writes frames again (``records.prune_records``), and a record appears only after the frame's
+files (and, with ``fsync``, after they reach the disk). A write cut short leaves a frame without a
+record, which a resumed run makes again over the partial files; a torn record (a line without its
+newline, or a strict prefix of a JSON object) never counts. The rename of every file cost ~0.09 ms
+of CPU each, four a frame, ~3 % of an annotated frame at 320x240; a file per record was a fourth
+create a frame (0.47-0.51 ms each on the 2-core VM's aged ext4), which the journal saves.
 
 Layout of a dataset folder::
 
@@ -24,8 +27,10 @@ Layout of a dataset folder::
                             gives it from the instance image and ``dataset.json`` otherwise)
     kitti/000000.txt        KITTI object labels (type, truncation, occlusion, 2D and 3D box)
     raw/000000_<name>.npy   float/int arrays of every annotator
-    frames/000000.json      record: COCO image + annotations, camera K/extrinsics, randomizer log (compact
-                            JSON: ``json_bytes``)
+    frames/records-<host>-<pid>.jsonl
+                            records, one line a frame, of the frames that process wrote: COCO image +
+                            annotations, camera K/extrinsics, randomizer log, files and their sizes
+                            (compact JSON: ``json_bytes``; ``records.read_records`` reads them all)
     annotations.json        COCO instances file (merged at the end)
     metadata.json           GL renderer, versions, seed, categories
     dataset.json            what the frames were made with (``manifest.py``), written first
@@ -33,7 +38,6 @@ Layout of a dataset folder::
 
 from __future__ import annotations
 
-import contextlib
 import json
 import math
 import os
@@ -48,6 +52,7 @@ from ambulo.utils.validate import Checked
 
 from .coco import frame_annotations
 from .io import depth_to_mm_u16, encode_png
+from .records import append_records, complete_records
 
 try:  # a dependency of viser (core) and of the data extra; the standard library's json without it
     from msgspec.json import encode as _msgspec_encode
@@ -73,8 +78,8 @@ class WriterCfg(Checked):
     min_visible_pixels: int = 10
     """Objects with fewer visible pixels get no annotation (they are noise to a detector)."""
     fsync: bool = True
-    """Flush each frame's files and folders to disk before its record is written (survives a power
-    loss); it changes no file's bytes. Measured cost: see ``FrameWriter``."""
+    """Flush each frame's files and folders to disk before its record is appended, and the journal
+    after (survives a power loss); it changes no file's bytes. Measured cost: see ``FrameWriter``."""
 
 
 def default_writer_cfg() -> WriterCfg:
@@ -87,8 +92,9 @@ def frame_stem(index: int) -> str:
 
 SUBDIRS = ("rgb", "depth", "instance", "semantic", "kitti", "raw", "frames")
 """Every folder a dataset may have; ``frame_subdirs`` says which ones a writer config uses."""
-FRAME_FILE = re.compile(r"\d{6,}(_[a-z_]+)?\.(png|jpg|npy|txt|json)")
-"""The whole name of every file ``write_frame`` makes (``000012.png``, ``000012_depth.npy``)."""
+FRAME_FILE = re.compile(r"\d{6,}(_[a-z_]+)?\.(png|jpg|npy|txt|json)|records-[A-Za-z0-9._-]+\.jsonl")
+"""The whole name of every file ``write_frame`` makes (``000012.png``, ``000012_depth.npy``, the journals
+``records-<host>-<pid>.jsonl``; ``000012.json``: a record of a dataset made before the journals)."""
 
 
 def frame_subdirs(cfg: WriterCfg, annotators=None) -> list[str]:
@@ -152,9 +158,10 @@ class FrameWriter:
     committing the journal on its own (``cpu-2026-11-28-replicator-producer.md``). What
     ``syncfs`` costs instead: it also flushes other processes' dirty data on that file system,
     so a neighbour writing gigabytes can hold this writer thread (and, four frames later,
-    rendering) until the disk catches up; ``WriterCfg.fsync=False`` avoids it. A record itself
-    is not flushed: one lost or torn by a crash fails ``frame_is_complete`` and its frame
-    is made again. What it costs a whole ``generate`` call: ``benchmarks/generate_fsync.py``
+    rendering) until the disk catches up; ``WriterCfg.fsync=False`` avoids it. The batch's records
+    are then appended to the journal in one write, and the journal flushed (one ``fsync`` a batch):
+    a record lost or torn by a crash before that fails ``frame_is_complete`` and its frame is made
+    again. What it costs a whole ``generate`` call: ``benchmarks/generate_fsync.py``
     (the writer thread overlaps the flushes with rendering).
     """
 
@@ -191,10 +198,9 @@ class FrameWriter:
         elif self.cfg.fsync:
             for folder in sorted(self._folders):
                 fsync_dir(self.out / folder)
-        frames = os.path.join(os.fspath(self.out), "frames")
-        for index, record in self._records:
-            data = record.data if isinstance(record, EncodedRecord) else json_bytes(record)
-            write_file(os.path.join(frames, f"{frame_stem(index)}.json"), data)
+        lines = [record.data if isinstance(record, EncodedRecord) else json_bytes(record)
+                 for _, record in self._records]
+        append_records(os.path.join(os.fspath(self.out), "frames"), lines, fsync=self.cfg.fsync)
         self._records.clear()
         self._folders.clear()
 
@@ -258,10 +264,8 @@ def write_frame_files(out: Path, index: int, capture: dict, table, log: dict, cf
     level = cfg.png_compress_level
     files: dict[str, int] = {}
     root = os.fspath(out)
-    # a frame made again (its record did not match its files) loses its old record before any of
-    # its files is rewritten in place: files without a record never count (module doc)
-    with contextlib.suppress(FileNotFoundError):
-        os.unlink(os.path.join(root, "frames", f"{stem}.json"))
+    # a frame made again (its record did not count) has no record while its files are rewritten in
+    # place: the run dropped it first (records.prune_records; module doc)
 
     def put(relpath: str, data) -> None:
         # strings: pathlib costs more than the small files' writes
@@ -306,14 +310,10 @@ def write_frame_files(out: Path, index: int, capture: dict, table, log: dict, cf
 
 
 def frame_is_complete(out: Path, index: int) -> bool:
-    """Whether frame ``index`` of dataset ``out`` is whole: its record parses and every file it
-    lists exists with the recorded size (a cheap ``stat``: no file is read but the record)."""
-    try:
-        record = json.loads((out / "frames" / f"{frame_stem(index)}.json").read_bytes())
-        files = record["files"]
-        return all((out / relpath).stat().st_size == size for relpath, size in files.items())
-    except (OSError, ValueError, KeyError, TypeError, AttributeError):
-        return False
+    """Whether frame ``index`` of dataset ``out`` is whole: a record of it parses and every file it
+    lists exists with the recorded size (``records.complete_records``: it reads every journal; for
+    many frames call that once)."""
+    return index in complete_records(out)
 
 
 def kitti_lines(annotations: list[dict], categories: list[str], capture: dict) -> str:
