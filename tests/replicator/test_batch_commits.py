@@ -15,7 +15,7 @@ import time
 
 import pytest
 
-from ambulo.replicator import writers
+from ambulo.replicator import records, writers
 from ambulo.replicator.commits import BatchCommits
 from ambulo.replicator.writers import FrameWriter, WriterCfg, prepare_dirs
 
@@ -33,7 +33,7 @@ def _batch(indices, error=None) -> list[cf.Future]:
 
 
 def _records(root) -> set[int]:
-    return {int(p.stem) for p in (root / "frames").glob("*.json")}
+    return set(records.record_lines(root / "frames"))
 
 
 def _wait(condition) -> None:
@@ -139,4 +139,4 @@ def test_encoded_records_are_written_as_they_are(tmp_path, flushes):
     commits, _ = _commits(tmp_path)
     commits.put("block0", [future])
     commits.close()
-    assert (tmp_path / "frames" / "000004.json").read_bytes() == writers.json_bytes(record)
+    assert records.record_lines(tmp_path / "frames") == {4: writers.json_bytes(record)}

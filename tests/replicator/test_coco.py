@@ -11,6 +11,8 @@ from pycocotools import mask as mask_utils
 from pycocotools.coco import COCO
 from pycocotools.cocoeval import COCOeval
 
+from ambulo.replicator.records import read_records
+
 # pycocotools 2.0.11 calls np.array(copy=False) on its own RLE objects under NumPy 2
 pytestmark = pytest.mark.filterwarnings("ignore:__array__ implementation:DeprecationWarning")
 
@@ -116,10 +118,11 @@ def test_categories_images_and_boxes_are_well_formed(dataset):
 
 def test_masks_match_instance_png_and_occluded_objects_are_left_out(dataset):
     coco = load(dataset)
+    records = read_records(dataset / "frames")
     for img in coco.dataset["images"]:
         stem = img["file_name"].split("/")[-1]
         instances = np.asarray(Image.open(dataset / "instance" / stem))
-        record = json.loads((dataset / "frames" / stem.replace(".png", ".json")).read_text())
+        record = records[img["frame"]]
         anns = coco.loadAnns(coco.getAnnIds(imgIds=img["id"]))
         annotated = {a["instance_id"] for a in anns}
         for ann in anns:

@@ -30,16 +30,20 @@ def _annotation(k: int, iid: int) -> dict:
             "prim_path": f"/World/objects/box_{iid}", "bbox_3d": {"center_w": [0.1 * k, 1 / 3, 2e-7]}}
 
 
-def _records(tmp_path, counts: list[int]) -> list[dict]:
-    """Frame records with ``counts[i]`` annotations each, written as ``FrameWriter`` writes them."""
+def _records(tmp_path, counts: list[int], encode=json_bytes) -> list[dict]:
+    """Frame records with ``counts[i]`` annotations each, written as ``FrameWriter`` writes them
+    (``encode``d) by two writer processes: the even frames in one journal, the odd ones in another,
+    each in descending frame order (the frames' order is the readers' to make)."""
     (tmp_path / "frames").mkdir()
     records = []
     for i, count in enumerate(counts):
-        record = {"frame": i, "file_name": f"rgb/{i:06d}.jpg", "width": 6, "height": 4,
-                  "annotations": [_annotation(i + k, k + 1) for k in range(count)], "camera": {"k": [1.5]},
-                  "randomization": {}, "files": {f"rgb/{i:06d}.jpg": 10}}
-        (tmp_path / "frames" / f"{i:06d}.json").write_bytes(json_bytes(record))
-        records.append(record)
+        records.append({"frame": i, "file_name": f"rgb/{i:06d}.jpg", "width": 6, "height": 4,
+                        "annotations": [_annotation(i + k, k + 1) for k in range(count)], "camera": {"k": [1.5]},
+                        "randomization": {}, "files": {f"rgb/{i:06d}.jpg": 10}})
+    for worker in (0, 1):
+        lines = [encode(record) for record in records[worker::2]][::-1]
+        if lines:
+            (tmp_path / "frames" / f"records-host-{100 + worker}.jsonl").write_bytes(b"\n".join(lines) + b"\n")
     return records
 
 
@@ -61,6 +65,8 @@ def test_the_file_from_pieces_and_records_is_merge_cocos(tmp_path, counts, given
         coco = COCO(str(path))
     assert [a["id"] for a in coco.dataset["annotations"]] == list(range(1, sum(counts) + 1))
     assert sorted(coco.getImgIds()) == list(range(1, len(counts) + 1))
+    # the two journals' records merge in frame order
+    assert [image["frame"] for image in coco.dataset["images"]] == list(range(len(counts)))
 
 
 def test_a_piece_in_memory_is_the_piece_read_back_from_its_record(tmp_path):
@@ -80,9 +86,13 @@ def test_a_piece_is_used_as_it_is(tmp_path):
 
 
 def test_a_nan_gives_jsons_file_as_before(tmp_path):
-    records = _records(tmp_path, [1, 2])
-    records[1]["annotations"][0]["bbox_3d"]["center_w"][0] = float("nan")
-    (tmp_path / "frames" / "000001.json").write_text(json.dumps(records[1]))  # json writes NaN
+    def with_a_nan(record):  # frame 1's, as json writes it (NaN)
+        if record["frame"] != 1:
+            return json_bytes(record)
+        record["annotations"][0]["bbox_3d"]["center_w"][0] = float("nan")
+        return json.dumps(record, separators=(",", ":")).encode()
+
+    records = _records(tmp_path, [1, 2], with_a_nan)
     assert frame_piece(1, records[1]) is None and frame_piece(0, records[0]) is not None
     path = tmp_path / "annotations.json"
     write_annotations(path, tmp_path / "frames", 2, CATEGORIES, INFO, {0: frame_piece(0, records[0])})

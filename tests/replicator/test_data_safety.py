@@ -18,6 +18,7 @@ import pytest
 
 from ambulo import replicator as rep
 from ambulo.cli import main
+from ambulo.replicator import records
 from ambulo.replicator.manifest import DatasetFolderError
 from ambulo.utils.atomic import TMP_MARK, temporary_name
 
@@ -152,11 +153,19 @@ def test_more_frames_extend_a_dataset_and_fewer_are_refused(tmp_path, clean, gen
 
 # -- damaged frames are detected and made again -----------------------------------------------------
 
-def test_truncated_images_and_empty_records_are_made_again_byte_identical(tmp_path, clean, gen):
+def test_truncated_images_and_torn_records_are_made_again_byte_identical(tmp_path, clean, gen):
+    """A record line that does not parse (frame 2's, cut in half but for its newline) is dropped and its
+    frame made again, as the frames whose files lost bytes."""
     out = copy_of(clean, tmp_path)
     png = out / "rgb" / "000001.png"
     png.write_bytes(png.read_bytes()[: png.stat().st_size // 2])
-    (out / "frames" / "000002.json").write_bytes(b"")
+    (journal,) = records.journals(out / "frames")
+    lines = journal.read_bytes().split(b"\n")
+    torn = [i for i, line in enumerate(lines) if records.frame_of_line(line) == 2]
+    assert len(torn) == 1
+    lines[torn[0]] = lines[torn[0]][: len(lines[torn[0]]) // 2]
+    journal.write_bytes(b"\n".join(lines))
+    assert sorted(records.complete_records(out)) == [0, 3]  # frame 1: its rgb image; frame 2: its record
     (out / "depth" / "000003.png").write_bytes(b"")
     (out / "instance" / "000000.png").unlink()
     make(config(), out, FRAMES)
@@ -182,7 +191,7 @@ def test_a_frame_made_again_loses_its_record_before_its_files_are_rewritten(tmp_
     monkeypatch.setattr(writers, "write_file", cut_short)
     with pytest.raises(OSError, match="cut short"):
         make(config(), out, FRAMES)
-    assert not (out / "frames" / "000001.json").exists()
+    assert 1 not in records.record_lines(out / "frames")  # no line of it at all, not its old one
     assert not writers.frame_is_complete(out, 1)
     monkeypatch.setattr(writers, "write_file", write_file)
     make(config(), out, FRAMES)
@@ -191,9 +200,10 @@ def test_a_frame_made_again_loses_its_record_before_its_files_are_rewritten(tmp_
 
 @pytest.mark.parametrize("flush", ["syncfs", "fsync"])
 def test_frame_files_reach_the_disk_before_their_record(tmp_path, monkeypatch, flush):
-    """Every data file is written and flushed to disk before its record is written: with ``syncfs``
-    (Linux) one flush of the file system after the batch's files; else each file before it is
-    closed and its folder after it. A file counts as written when it is closed."""
+    """Every data file is written and flushed to disk before its record is appended to the journal:
+    with ``syncfs`` (Linux) one flush of the file system after the batch's files; else each file
+    before it is closed and its folder after it; and the journal is flushed before it is closed.
+    A file counts as written when it is closed."""
     from ambulo.utils import atomic
 
     events = []
@@ -220,12 +230,12 @@ def test_frame_files_reach_the_disk_before_their_record(tmp_path, monkeypatch, f
     monkeypatch.setattr(os, "close", logged_close)
     monkeypatch.setattr(atomic, "_syncfs", logged_syncfs if flush == "syncfs" else None)
     out = make(config(), tmp_path / "d", 2).resolve()
-    import json
-
+    (journal,) = records.journals(out / "frames")
+    record_at = min(i for i, e in enumerate(events) if e == ("close", str(journal)))  # one append: 2 frames
+    assert ("fsync", str(journal)) in events[:record_at]
+    assert list(records.read_records(out / "frames")) == [0, 1]
     for index in range(2):
-        record = out / "frames" / f"{index:06d}.json"
-        record_at = max(i for i, e in enumerate(events) if e == ("close", str(record)))
-        files = json.loads(record.read_text())["files"]
+        files = records.read_records(out / "frames")[index]["files"]
         assert len(files) == 3  # rgb, depth, instance (no semantic image unless asked)
         for relpath in files:
             path = out / relpath
@@ -324,7 +334,7 @@ def test_a_stopped_run_prints_how_to_resume_and_resumes_to_the_clean_result(tmp_
     assert victim.returncode == 128 + sig, err
     assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
     assert f"stopped by {sig.name}" in err and "run the same command again to resume" in err
-    assert 5 <= len(list((out / "frames").glob("*.json"))) < LONG_RUN
+    assert 5 <= records.count_records(out / "frames") < LONG_RUN
     make(config(), out, LONG_RUN)  # what the command does (test_generate runs it after a SIGKILL)
     assert gen.file_tree(out) == gen.file_tree(clean_long)
 

@@ -20,6 +20,7 @@ from ambulo import replicator as rep
 from ambulo.replicator.batched import device_tight_boxes
 from ambulo.replicator.generate import generate
 from ambulo.replicator.manifest import DatasetFolderError
+from ambulo.replicator.records import read_records, record_lines
 from ambulo.sensors.annotators import tight_boxes
 
 DEVICES = [
@@ -75,15 +76,15 @@ def test_batched_dataset_has_the_cpu_paths_labels_and_resumes(device, draw_worke
         assert key in got, f"object {key} of the CPU dataset is missing from the batched one"
         np.testing.assert_allclose(got[key][0], want[key][0], atol=1.0, err_msg=str(key))
     # the scene per frame is the CPU path's: the same randomization log, frame by frame
+    cpu_records, gpu_records = (read_records(tmp_path / name / "frames") for name in ("cpu", "gpu"))
     for i in range(frames):
-        cpu_log = json.loads((tmp_path / "cpu" / "frames" / f"{i:06d}.json").read_text())["randomization"]
-        gpu_log = json.loads((tmp_path / "gpu" / "frames" / f"{i:06d}.json").read_text())["randomization"]
+        cpu_log, gpu_log = cpu_records[i]["randomization"], gpu_records[i]["randomization"]
         assert gpu_log["objects"] == cpu_log["objects"] and gpu_log["lights"] == cpu_log["lights"]
     # resumable: a finished dataset is kept as it is, and more frames extend it
-    before = (tmp_path / "gpu" / "frames" / "000002.json").read_bytes()
+    before = record_lines(tmp_path / "gpu" / "frames")[2]
     generate(rep.example_config(160, 120), tmp_path / "gpu", frames + 2, seed=seed, show_progress=False,
              device=device, num_worlds=4, draw_workers=draw_workers)
-    assert (tmp_path / "gpu" / "frames" / "000002.json").read_bytes() == before
+    assert record_lines(tmp_path / "gpu" / "frames")[2] == before
     assert len(COCO(str(tmp_path / "gpu" / "annotations.json")).getImgIds()) == frames + 2
     # never mixed: the CPU path refuses to add rasterized frames to a ray-cast dataset
     with pytest.raises(DatasetFolderError, match="image_source"):

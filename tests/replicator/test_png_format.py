@@ -17,7 +17,7 @@ from ambulo.cli import main
 from ambulo.replicator import io as rio
 from ambulo.replicator.manifest import MANIFEST, DatasetFolderError, semantic_image
 from ambulo.replicator.producer import FrameProducer
-from ambulo.replicator.records import read_json
+from ambulo.replicator.records import journals, read_json, read_records, record_lines
 from ambulo.replicator.writers import json_bytes
 
 SEED = 3
@@ -102,7 +102,12 @@ def test_semantic_images_only_when_asked_and_derivable_from_the_instance_image(t
 
 
 def _as_an_older_ambulo_wrote_it(out):
-    """dataset.json as ambulo wrote it before 2026-11-29: the deflate in the fingerprint, no categories."""
+    """dataset.json as ambulo wrote it before 2026-11-29: the deflate in the fingerprint, no categories;
+    and a file per frame record (frames/NNNNNN.json) instead of the journals."""
+    for index, line in record_lines(out / "frames").items():
+        (out / "frames" / f"{index:06d}.json").write_bytes(line)
+    for journal in journals(out / "frames"):
+        journal.unlink()
     manifest = json.loads((out / MANIFEST).read_text())
     manifest["fingerprint"]["png_deflate"] = "zlib-ng 2.3.3"
     del manifest["instance_categories"]
@@ -120,7 +125,7 @@ def test_an_older_default_dataset_is_refused_in_one_line_naming_the_annotator_an
     lines = capsys.readouterr().err.strip().splitlines()
     assert status == 2 and len(lines) == 1, lines
     assert "annotators" in lines[0] and "add 'semantic_segmentation' to the camera's annotators" in lines[0]
-    assert not (out / "frames" / "000002.json").exists()
+    assert 2 not in read_records(out / "frames")
     with pytest.raises(DatasetFolderError, match="semantic_segmentation"):
         _make(rep.example_config(160, 120), out, 3)
     # with the annotator the older dataset is resumed: another deflate decides no pixel
@@ -130,6 +135,8 @@ def test_an_older_default_dataset_is_refused_in_one_line_naming_the_annotator_an
     for sub in ("rgb", "depth", "instance", "semantic"):
         a = np.asarray(Image.open(out / sub / "000002.png"))
         assert np.array_equal(a, np.asarray(Image.open(straight / sub / "000002.png"))), sub
-    resumed = json.loads((out / "frames" / "000002.json").read_bytes())
-    assert resumed["annotations"] == json.loads((straight / "frames" / "000002.json").read_bytes())["annotations"]
+    resumed = read_records(out / "frames")
+    assert sorted(resumed) == [0, 1, 2] and (out / "frames" / "000001.json").is_file()  # the older records count
+    assert resumed[2]["annotations"] == read_records(straight / "frames")[2]["annotations"]
+    assert (out / "annotations.json").read_bytes() == (straight / "annotations.json").read_bytes()
     shutil.rmtree(straight)

@@ -135,7 +135,7 @@ def frame_of_line(line: bytes) -> int | None:
 
 def record_lines(frames_dir: str | os.PathLike) -> dict[int, bytes]:
     """Frame index -> its record's line (undecoded; the last complete one of the frame in the journals
-    by name, else its ``NNNNNN.json``) of every frame with one. Whether a line parses and its files are
+    by name, else its ``NNNNNN.json``) of every frame with one, in frame order. Whether a line parses and its files are
     whole is ``complete_records``' question: in a run's own folder after ``prune_records``, they do."""
     found: dict[int, bytes] = {index: path.read_bytes() for index, path in _legacy_records(frames_dir)}
     for journal in journals(frames_dir):
@@ -144,7 +144,7 @@ def record_lines(frames_dir: str | os.PathLike) -> dict[int, bytes]:
             index = frame_of_line(line)
             if index is not None:
                 found[index] = line
-    return found
+    return dict(sorted(found.items()))
 
 
 def read_json(data: bytes):
@@ -159,7 +159,8 @@ def read_json(data: bytes):
 
 
 def read_records(frames_dir: str | os.PathLike) -> dict[int, dict]:
-    """Frame index -> its record (decoded) of every frame of ``record_lines`` whose line parses."""
+    """Frame index -> its record (decoded) of every frame of ``record_lines`` whose line parses, in
+    frame order."""
     records = {}
     for index, line in record_lines(frames_dir).items():
         with contextlib.suppress(ValueError, UnicodeDecodeError):
