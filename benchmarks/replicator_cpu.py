@@ -16,7 +16,7 @@ For each image size and worker count P, in the same run:
   example config: randomize, render both passes, the instance map, 2D/3D
   boxes, COCO RLE, PNG rgb + 16-bit depth + instance PNGs (no semantic PNG: the
   default annotators, as Replicator's BasicWriter, ask for none) and the frame
-  record (after the files), written into ``--dir`` (default: the system's temporary
+  record (after the files: a line of the process's journal), written into ``--dir`` (default: the system's temporary
   folder).
   P = 1 runs in this process (llvmpipe's default threads), P > 1 on
   ``ProducerPool`` (spawned processes, llvmpipe inline).
@@ -29,7 +29,8 @@ and shown as ``end_to_end_fps_320x240``: the wall-clock rate of one whole
 ``generate`` call (start-up and the COCO merge included). Floor and annotated
 runs alternate and the best of each is kept, which damps noise from other
 load; the table shows every run's range. ``file_create_ms`` is the CPU cost of
-creating one file in ``--dir`` (four a frame): on an ext4 without journal it
+creating one file in ``--dir`` (three a frame: the images; the record is a
+line appended to a journal, ``replicator.records``): on an ext4 without journal it
 grows with the files deleted there in the last ~50 min. Shadows and MSAA off
 (the defaults). Ends with one line ``RESULT {json}``; "ratio" is annotated /
 floor at 320x240 for the RESULT's worker count (the most measured);
@@ -110,8 +111,8 @@ def stage_cpu_ms(producer: FrameProducer, out: str, frames: int) -> dict[str, fl
 
     randomize: ``FrameProducer.randomize``; capture: both passes, the camera's bookkeeping and the
     annotators (``Camera.capture``); write_files: PNG/COCO/KITTI encoding and the atomic data files
-    (``write_frame_files``); records: the batch's flush (``syncfs``) and its frame records, every 8
-    frames. Fresh frame indices, into a folder of this process; the heap frozen as ``run_frames``
+    (``write_frame_files``); records: the batch's flush (``syncfs``), its frame records appended to the
+    journal and the journal's ``fsync``, every 8 frames. Fresh frame indices, into a folder of this process; the heap frozen as ``run_frames``
     does. The stages add up to a little more than an annotated frame's CPU: in ``run_frames`` the
     id pass rasterizes while the next frame is randomized.
     """
