@@ -156,3 +156,34 @@ def test_graph_step_plumbing_matches_the_eager_step(monkeypatch):
         kept.append((b[0], b[0].clone()))
     assert all(torch.equal(obs, copy) for obs, copy in kept)  # no step's outputs overwritten later
     assert graphed._graph.captures == 2 and graphed._graph.replays == 12 - 3
+    # an evaluation's full reset between replays (the graph is kept): the replays still match
+    gen_e, gen_g = eager.generator.get_state(), graphed.generator.get_state()
+    assert torch.equal(gen_e, gen_g)
+    assert torch.equal(eager.reset(), graphed.reset())
+    for _ in range(6):
+        actions = torch.randn(4, eager.num_actions, generator=gen)
+        a, b = eager.step(actions), graphed.step(actions)
+        for x, y in zip(a[:3], b[:3]):
+            assert torch.equal(x, y)
+    assert graphed._graph.captures == 2 and graphed._graph.replays == 12 - 3 + 6
+
+
+def test_a_full_reset_keeps_the_state_a_graph_reads_in_place():
+    # evaluations (``run_episodes``) reset every env before each evaluation, between replays of a
+    # graph captured at the first one: a reset that rebinds a tensor the graph reads freezes it
+    env = make_env()
+    zeros = torch.zeros(env.num_envs, env.num_actions)
+    for _ in range(16):
+        env.step(zeros)
+    before = _tensors(env)
+    env.reset()
+    env.step(zeros)
+    rebound = {key for key, value in _tensors(env).items() if before.get(key) is not value}
+    assert rebound <= WRITTEN_BEFORE_READ
+
+
+def test_use_cuda_graph_is_a_no_op_off_cuda_and_refused_tasks_stay_eager():
+    env = make_env()
+    assert env.use_cuda_graph() is False and env._graph is None
+    robust = ambulo.envs.make("humanoid-walk-robust", num_envs=4, device="cpu", seed=0)
+    assert robust.use_cuda_graph() is False

@@ -82,3 +82,38 @@ def test_graph_replay_equals_eager_steps():
     before = kept.clone()
     graphed.step(actions[-1])
     assert torch.equal(kept, before)
+
+
+def test_an_evaluation_replayed_as_a_graph_measures_what_the_eager_one_does():
+    # ``ambulo eval`` and ``--eval-every`` run their env through ``use_cuda_graph``: the shipped
+    # policy's metrics must not move beyond two eager runs' spread, and a second evaluation of the
+    # same env (the generator restarted, as the periodic evaluation does) must repeat the first
+    from ambulo.policies.shipped import load_policy
+    from ambulo.rl.evaluate import run_episodes
+    from ambulo.rl.vecenv import RslRlVecEnv
+
+    shipped = load_policy("humanoid-walk")
+    spec = ambulo.envs.spec("humanoid-walk")
+
+    def policy(obs):
+        return shipped(obs["policy"])
+
+    def evaluation(env):
+        return run_episodes(env, RslRlVecEnv(env), policy, spec)
+
+    def make_eval():
+        return ambulo.envs.make("humanoid-walk", num_envs=NUM_ENVS, device="cuda", seed=5, play=True,
+                                episode_length_s=3.0)
+
+    eager, graphed = make_eval(), make_eval()
+    assert graphed.use_cuda_graph() and graphed._graph is not None
+    fresh = graphed.generator.get_state()
+    a, b = evaluation(eager), evaluation(graphed)
+    graphed.generator.set_state(fresh)
+    c = evaluation(graphed)
+    assert graphed._graph.captures == 1 and graphed._graph.replays == 2 * graphed.max_episode_length - WARMUP
+    keys = ("fall_rate", "mean_abs_vel_error_m_s", "mean_abs_yaw_rate_error_rad_s", "mean_return")
+    print({k: (a[k], b[k], c[k]) for k in keys})
+    for k in keys:
+        assert abs(a[k] - b[k]) <= 1e-3 * max(1.0, abs(a[k])), (k, a[k], b[k])
+        assert abs(b[k] - c[k]) <= 1e-3 * max(1.0, abs(b[k])), (k, b[k], c[k])

@@ -249,6 +249,15 @@ class RLEnv:
             self.obs_buf = self._compute_observations()
         return self.obs_buf
 
+    def use_cuda_graph(self) -> bool:
+        """From the next step on, replay the step's device work as one CUDA graph (as
+        ``cfg.cuda_graph`` does from the start) if this env runs on CUDA and its task allows it
+        (``_graph_unsafe_reason``); return whether it does. For evaluations: at ~100 worlds a step's
+        hundreds of small kernels cost more to launch than to run, so a replay is what bounds it."""
+        if self._graph is None and self.device.type == "cuda" and self._graph_unsafe_reason() is None:
+            self._graph = GraphStep(self)
+        return self._graph is not None
+
     def get_observations(self) -> torch.Tensor:
         """Observations after the last ``reset``/``step``, (N, num_obs) float32."""
         return self.obs_buf

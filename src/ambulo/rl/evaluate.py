@@ -119,6 +119,7 @@ def evaluate(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = N
     task = envs.spec(info["task"])
     env = runs.make_env_for_run(info, num_envs=num_episodes, seed=seed, play=True, device=device,
                                 episode_length_s=eval_episode_length_s(task, episode_length_s))
+    env.use_cuda_graph()  # on a GPU: 100 worlds are launch-bound, a replayed step is not
     runner = runs.load_runner(run_dir, env, ckpt)
     policy = runner.get_inference_policy(device=str(env.device))
     with watched(env, watch):
@@ -146,6 +147,7 @@ def evaluate_shipped(task: str, *, num_episodes: int = 100, episode_length_s: fl
     spec = envs.spec(task)
     env = envs.make(task, num_envs=num_episodes, device=device, seed=seed, play=True,
                     episode_length_s=eval_episode_length_s(spec, episode_length_s))
+    env.use_cuda_graph()
     with watched(env, watch):
         measured = run_episodes(env, RslRlVecEnv(env), lambda obs: shipped(obs["policy"]), spec,
                                 desc=f"eval shipped {task}", quiet=quiet)

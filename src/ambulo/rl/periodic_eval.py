@@ -117,6 +117,8 @@ class PeriodicEval:
         self.episode_length_s = eval_episode_length_s(self.task, None)
         self.env = runs.make_env_for_run(info, num_envs=num_episodes, seed=seed, play=True,
                                          device=device, episode_length_s=self.episode_length_s)
+        # 100 worlds are launch-bound on a GPU: each evaluation's 1,000 steps replay one CUDA graph
+        self.env.use_cuda_graph()
         self.vec_env = RslRlVecEnv(self.env)
         # each evaluation starts the env's generator where a fresh env's stands, so it draws the
         # episodes `ambulo eval` draws for this seed and device
