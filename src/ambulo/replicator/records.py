@@ -91,19 +91,29 @@ def append_records(frames_dir: str | os.PathLike, lines: list[bytes], fsync: boo
 
 
 def _cut_torn_tail(fd: int, block: int = 1 << 16) -> None:
-    """Truncate the file after its last newline (to nothing without one)."""
+    """Truncate the file after its last newline (to nothing without one). Reads at ``lseek`` offsets
+    (``os.pread`` is not on Windows); the appends that follow go to the end whatever the offset."""
     size = os.fstat(fd).st_size
-    if size == 0 or os.pread(fd, 1, size - 1) == b"\n":
+    if size == 0 or _read_at(fd, size - 1, 1) == b"\n":
         return
     end = size
     while end > 0:
         start = max(0, end - block)
-        newline = os.pread(fd, end - start, start).rfind(b"\n")
+        newline = _read_at(fd, start, end - start).rfind(b"\n")
         if newline >= 0:
             os.ftruncate(fd, start + newline + 1)
             return
         end = start
     os.ftruncate(fd, 0)
+
+
+def _read_at(fd: int, offset: int, count: int) -> bytes:
+    os.lseek(fd, offset, os.SEEK_SET)
+    chunks = []
+    while count > 0 and (chunk := os.read(fd, count)):
+        chunks.append(chunk)
+        count -= len(chunk)
+    return b"".join(chunks)
 
 
 def journals(frames_dir: str | os.PathLike) -> list[Path]:
