@@ -20,7 +20,7 @@ import numpy as np
 import torch
 from mujoco import batch as mj_batch
 
-from .protocol import STATE_FIELDS
+from .protocol import KINEMATIC_FIELDS, STATE_FIELDS
 
 log = logging.getLogger(__name__)
 
@@ -105,6 +105,9 @@ class CpuEngine:
         """Total number of world divergences detected (and reset) so far."""
         self.divergence_dump_dir = None if divergence_dump_dir is None else Path(divergence_dump_dir)
         self._state_before_step: np.ndarray | None = None
+        self.acc_stale: torch.Tensor | None = None
+        """None until a ``forward(kinematics_only=True)``, then (N,) bool: worlds whose fields
+        outside ``KINEMATIC_FIELDS`` (sensordata, contacts, forces, qacc) predate their state."""
 
     # -- fields ---------------------------------------------------------------
     def field(self, name: str) -> torch.Tensor:
@@ -121,6 +124,8 @@ class CpuEngine:
             tensor = _readonly_tensor(array)
             # a newly bound output is zero until the next call: fill it now
             self._batch.forward(stage=mujoco.mjtStage.mjSTAGE_ACC.value)
+            if self.acc_stale is not None:
+                self.acc_stale.zero_()
         self._tensors[name] = tensor
         return tensor
 
@@ -159,6 +164,8 @@ class CpuEngine:
             self._batch.step(nstep=num_substeps, stage=stage.value)
         except mj_batch.SimulationError as err:
             failed = np.asarray(err.ids)
+        if self.acc_stale is not None:
+            self.acc_stale.zero_()  # a step computes every field of every world
         counts = self._divergence_counts()
         if not failed.size and counts.sum() == self._warn_total:
             # the common case: no world's counters moved, nothing to compare per world
@@ -181,10 +188,32 @@ class CpuEngine:
         self._warn_counts, self._warn_total = counts, counts.sum()
         return torch.from_numpy(diverged)
 
-    def forward(self, world_ids: WorldIds = None) -> None:
+    def forward(self, world_ids: WorldIds = None, kinematics_only: bool = False) -> None:
+        """Recompute derived fields of ``world_ids`` (None: all) from their state.
+
+        ``kinematics_only`` updates ``KINEMATIC_FIELDS`` alone (poses, com, com velocities) and
+        marks the worlds in ``acc_stale``; every other bound field keeps its value there. The
+        batch has no kinematics-only stage: it runs up to ``mjSTAGE_VEL`` (``mj_step1``'s stages:
+        collisions too, but no actuation or constraint solve), and since an MjData serves many
+        worlds, the fields it does not compute would come back holding another world's values,
+        so they are put back."""
         ids = _as_ids(world_ids, self.num_worlds)
-        if ids is None or ids.size:
+        if ids is not None and not ids.size:
+            return
+        rows = slice(None) if ids is None else ids
+        if not kinematics_only:
             self._batch.forward(ids)
+            if self.acc_stale is not None:
+                self.acc_stale[rows] = False
+            return
+        kept = {name: tensor[rows].clone() for name, tensor in self._tensors.items()
+                if name not in STATE_FIELDS and name not in KINEMATIC_FIELDS}
+        self._batch.forward(ids, stage=mujoco.mjtStage.mjSTAGE_VEL.value)
+        for name, old in kept.items():
+            self._tensors[name][rows] = old
+        if self.acc_stale is None:
+            self.acc_stale = torch.zeros(self.num_worlds, dtype=torch.bool)
+        self.acc_stale[rows] = True
 
     def reset(self, world_ids: WorldIds = None, forward: bool = True) -> None:
         ids = _as_ids(world_ids, self.num_worlds)
@@ -195,7 +224,7 @@ class CpuEngine:
         else:
             return
         if forward:
-            self._batch.forward(ids)
+            self.forward(ids)
 
     def dump_divergence(self, world_ids: np.ndarray) -> Path:
         """Write the diverged worlds' full physics state before the failing step.

@@ -22,6 +22,18 @@ STATE_FIELDS = (
     "mocap_quat", "time",
 )
 
+# MjData fields that ``forward(kinematics_only=True)`` recomputes: the position stage's
+# kinematics (MuJoCo's mj_fwdKinematics: mj_kinematics, mj_comPos, mj_camlight, mj_flex,
+# mj_tendon; MuJoCo Warp's fwd_kinematics) and the com velocities (mj_comVel). Every other
+# derived field (collisions and contacts, sensordata, actuation, qacc, constraint forces, ...)
+# keeps its previous value there (see ``Engine.forward``).
+KINEMATIC_FIELDS = (
+    "xpos", "xquat", "xmat", "xipos", "ximat", "xanchor", "xaxis", "geom_xpos", "geom_xmat",
+    "site_xpos", "site_xmat", "subtree_com", "cinert", "cdof", "cam_xpos", "cam_xmat",
+    "light_xpos", "light_xdir", "flexvert_xpos", "flexelem_aabb", "flexedge_J", "flexedge_length",
+    "ten_wrapadr", "ten_wrapnum", "ten_J", "ten_length", "wrap_obj", "wrap_xpos", "cvel", "cdof_dot",
+)
+
 
 def sim_time_s(engine: Engine, world: int = 0) -> float:
     """World ``world``'s simulated time, s. MuJoCo Warp keeps time in float32, which drifts
@@ -83,8 +95,15 @@ class Engine(Protocol):
         of worlds that diverged (NaN/instability) and were reset. Derived fields lag one
         substep (as after ``mj_step``) unless ``refresh``."""
 
-    def forward(self, world_ids: Sequence[int] | torch.Tensor | None = None) -> None:
-        """Recompute derived fields from the current state (no time advance)."""
+    acc_stale: torch.Tensor | None
+    """None until a ``forward(kinematics_only=True)``; then (N,) bool on ``device``: the worlds
+    whose fields outside ``KINEMATIC_FIELDS`` (sensordata, contacts, forces, qacc) predate their
+    state. A kinematics-only forward sets its worlds, a full forward clears them, ``step`` clears all."""
+
+    def forward(self, world_ids: Sequence[int] | torch.Tensor | None = None, kinematics_only: bool = False) -> None:
+        """Recompute derived fields from the current state (no time advance). ``kinematics_only``
+        recomputes ``KINEMATIC_FIELDS`` alone (no collision, actuation or constraint solve: a
+        reset's cheap pass, as the next step recomputes everything) and marks ``acc_stale``."""
 
     def reset(self, world_ids: Sequence[int] | torch.Tensor | None = None, forward: bool = True) -> None:
         """Restore worlds to their initial state and, if ``forward``, recompute derived fields

@@ -108,6 +108,15 @@ class ContactSensor(Sensor):
         found = block[..., 0]  # a whole number of contacts, stored as float
         # the sensor reports the force body1 (ours) exerts on body2; we want the reaction
         force = -block[..., 1:4]
+        stale = getattr(self.engine, "acc_stale", None)
+        if stale is not None:
+            # a world forwarded kinematics-only since the last step (a reset with
+            # EnvCfg.reset_forward="kinematics") has no contacts computed for its new state: its
+            # sensordata is the pre-reset one, so it reads "no contact, zero force" until the
+            # next step, as Isaac Lab's ContactSensor.reset zeroes its buffers
+            fresh = ~stale[:, None]
+            found = torch.where(fresh, found, 0.0)
+            force = torch.where(fresh[..., None], force, 0.0)
         touching = found > 0.5
         if self.cfg.force_threshold_n > 0.0:
             touching &= force.norm(dim=-1) >= self.cfg.force_threshold_n
@@ -135,8 +144,9 @@ class ContactSensor(Sensor):
             fill_rows(buf, world_ids, 0)
 
     def get_current_frame(self) -> ContactData:
-        """Contacts read now (current after any state edit and ``engine.forward``), with the
-        timers of the last ``update``."""
+        """Contacts read now (current after any state edit and a full ``engine.forward``; a world
+        forwarded kinematics-only reads no contact until its next step), with the timers of the
+        last ``update``."""
         self._require_initialized()
         return self._frame(*self._read())
 
