@@ -21,6 +21,10 @@ env, raw) and the best of each is kept.
 
     python benchmarks/env_gpu.py [--num-envs 1024,4096,16384] [--steps 100] [--warmup 30] [--modes eager,graph]
     python benchmarks/env_gpu.py --device cpu --num-envs 4 --steps 3 --warmup 2   # Warp's CPU device
+    python benchmarks/env_gpu.py --num-envs 4096 --modes graph --reset-forward kinematics
+
+``--reset-forward`` is ``EnvCfg.reset_forward``: ``full`` (the default: a reset's whole MuJoCo
+forward) or ``kinematics`` (poses and velocities only, the pass a GPU runs every step).
 
 Modes (``--modes``): ``eager`` launches the env step's kernels one by one; ``graph`` is
 ``EnvCfg.cuda_graph=True`` (``envs.graph_step``: the step's device work replayed as one CUDA
@@ -274,9 +278,11 @@ def time_env(env, act, step, obs, steps: int, recorder: Recorder | None):
     return seconds, obs, int(ended)
 
 
-def measure(num_envs: int, device: str, steps: int, warmup: int, repeats: int, mode: str = "eager") -> dict:
+def measure(num_envs: int, device: str, steps: int, warmup: int, repeats: int, mode: str = "eager",
+            reset_forward: str = "full") -> dict:
     graph = mode == "graph"
-    env = ambulo.envs.make(TASK, num_envs=num_envs, device=device, engine="warp", seed=0, cuda_graph=graph)
+    env = ambulo.envs.make(TASK, num_envs=num_envs, device=device, engine="warp", seed=0, cuda_graph=graph,
+                           reset_forward=reset_forward)
     if graph and env._graph is None:
         raise RuntimeError("graph mode needs CUDA (EnvCfg.cuda_graph is ignored elsewhere)")
     decimation = env.cfg.decimation
@@ -304,6 +310,7 @@ def measure(num_envs: int, device: str, steps: int, warmup: int, repeats: int, m
     row = {
         "num_envs": num_envs,
         "mode": mode,
+        "reset_forward": reset_forward,
         "env_steps_per_s": round(env_rate),
         "physics_steps_per_s": round(env_rate * decimation),
         "raw_physics_steps_per_s": round(raw_rate * decimation),
@@ -336,6 +343,8 @@ def main() -> None:
     parser.add_argument("--modes", default=None,
                         help="eager and/or graph (EnvCfg.cuda_graph: the env step as one CUDA graph), comma-separated; "
                              "default both on CUDA, eager elsewhere (graph mode needs CUDA)")
+    parser.add_argument("--reset-forward", choices=("full", "kinematics"), default="full",
+                        help="EnvCfg.reset_forward: a reset's full forward, or its kinematics only (default full)")
     args = parser.parse_args()
     sizes = [int(s) for arg in args.num_envs for s in arg.split(",") if s]
     device = torch.device(args.device)
@@ -344,9 +353,9 @@ def main() -> None:
         parser.error(f"--modes: eager and/or graph, got {args.modes!r}")
     rows = []
     for n, mode in itertools.product(sizes, modes):
-        rows.append(measure(n, args.device, args.steps, args.warmup, args.repeats, mode))
+        rows.append(measure(n, args.device, args.steps, args.warmup, args.repeats, mode, args.reset_forward))
         r = rows[-1]
-        print(f"N={n:6d} {mode:>5}: env {r['env_steps_per_s']:>9} env-steps/s ({r['env_ms_per_step']:.2f} ms)   raw "
+        print(f"N={n:6d} {mode:>5} reset_forward={args.reset_forward}: env {r['env_steps_per_s']:>9} env-steps/s ({r['env_ms_per_step']:.2f} ms)   raw "
               f"{r['raw_ms_per_step']:.2f} ms/step (free-running {r['raw_free_ms_per_step']:.2f})   "
               f"ratio {r['ratio']:.3f}   {r['episodes_ended_per_step']} episodes ended/step   "
               f"host syncs/step {None if r['syncs'] is None else r['syncs']['per_step']}", flush=True)
@@ -364,6 +373,7 @@ def main() -> None:
     result = {
         "benchmark": "env_gpu", "task": TASK, "device": device_name(device),
         "decimation": ambulo.envs.make_cfg(TASK).decimation, "steps": args.steps, "policy": rows[0]["policy"],
+        "reset_forward": args.reset_forward,
         "versions": stack_versions(), "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "sizes": rows, "ratio": smallest("eager"), "graph_ratio": smallest("graph"),
         "target": targets.get("eager", {**TARGET, "ratio": None, "met": None}),
