@@ -30,6 +30,8 @@ import numpy as np
 import torch
 from pycocotools import mask as mask_utils
 
+from ambulo.utils.frame_journal import journals, read_records
+
 from .height import camera_of_record, height_above_floor_m
 from .model import depth_channel, height_channel
 
@@ -115,14 +117,29 @@ def boxes_xyxy(annotations: list[dict]) -> torch.Tensor:
 
 def read_height_m(root: Path, image_info: dict, depth_mm: np.ndarray) -> np.ndarray:
     """The frame's height above the floor (H, W) float32 m (``height``) from its depth (H, W) mm and the camera
-    its record (``frames/NNNNNN.json``, ``replicator.writers``) holds; a missing record is a ``DatasetError``."""
+    its record (a line of the dataset's ``frames/records-*.jsonl`` journals, ``utils.frame_journal``) holds; a
+    missing record is a ``DatasetError``."""
     frame = image_info.get("frame", int(Path(image_info["file_name"]).stem))
-    path = Path(root) / "frames" / f"{frame:06d}.json"
-    if not path.is_file():
-        raise DatasetError(f"{path}: no frame record (the camera's pose) for the height channel",
+    frames = Path(root) / "frames"
+    record = frame_records(frames).get(frame)
+    if record is None:
+        raise DatasetError(f"{frames}: no record of frame {frame} (the camera's pose) for the height channel",
                            "train inputs 'rgbdh' on an `ambulo generate` dataset with its frames/ records")
-    intrinsics, extrinsics_cw = camera_of_record(json.loads(path.read_text()))
+    intrinsics, extrinsics_cw = camera_of_record(record)
     return height_above_floor_m(depth_mm.astype(np.float32) / 1000.0, intrinsics, extrinsics_cw)
+
+
+_RECORDS: dict[Path, tuple[tuple, dict[int, dict]]] = {}
+
+
+def frame_records(frames: Path) -> dict[int, dict]:
+    """Frame index -> record of the dataset folder ``frames``, read once a process (a training reads a frame's
+    camera per sample) and again when a journal changes (its name, size or time)."""
+    key = tuple((p.name, st.st_size, st.st_mtime_ns) for p, st in ((p, p.stat()) for p in journals(frames)))
+    cached = _RECORDS.get(frames)
+    if cached is None or cached[0] != key:
+        cached = _RECORDS[frames] = (key, read_records(frames))
+    return cached[1]
 
 
 class CocoFrames(torch.utils.data.Dataset):

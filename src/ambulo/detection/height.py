@@ -5,7 +5,8 @@ Why: a detector that reads depth learns the floor's depth row by row for the cam
 at; a camera 0.25-0.45 m higher (issue 27's split (b)) changes the depth of everything, and its objects'
 depths at each row. The height of a point above the floor does not depend on where the camera stands or how
 it is pitched: an object's pixels read the same heights from any viewpoint. The robot knows its camera's pose
-(the datasets record it per frame: ``frames/NNNNNN.json``'s ``camera``), so the channel costs one matrix
+(the datasets record it per frame: the ``camera`` of its line in ``frames/records-*.jsonl``), so the channel
+costs one matrix
 product per pixel.
 
 The math is ``sensors.floor_height.height_above_floor_m`` (its conventions: OpenCV camera, K, world ->
