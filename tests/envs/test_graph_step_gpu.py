@@ -13,26 +13,15 @@ CUDA only (skipped elsewhere); the CPU side of the split step: tests/envs/test_g
 
 from __future__ import annotations
 
-import contextlib
-
 import pytest
 import torch
 
 import ambulo.envs
+from cuda_sync import sync_debug
 
 pytestmark = pytest.mark.skipif(not torch.cuda.is_available(), reason="needs CUDA")
 
 NUM_ENVS, STEPS, WARMUP = 64, 50, 3
-
-
-@contextlib.contextmanager
-def sync_debug(mode):
-    previous = torch.cuda.get_sync_debug_mode()
-    torch.cuda.set_sync_debug_mode(mode)
-    try:
-        yield
-    finally:
-        torch.cuda.set_sync_debug_mode(previous)
 
 
 def make(graph: bool):

@@ -11,26 +11,15 @@ is reset inside replays. CUDA only; the CPU checks: tests/envs/test_reset_forwar
 
 from __future__ import annotations
 
-import contextlib
-
 import pytest
 import torch
 
 import ambulo.envs
+from cuda_sync import sync_debug
 
 pytestmark = pytest.mark.skipif(not torch.cuda.is_available(), reason="needs CUDA")
 
 NUM_ENVS, STEPS, WARMUP, NUM_FEET = 64, 40, 3, 2
-
-
-@contextlib.contextmanager
-def sync_debug(mode):
-    previous = torch.cuda.get_sync_debug_mode()
-    torch.cuda.set_sync_debug_mode(mode)
-    try:
-        yield
-    finally:
-        torch.cuda.set_sync_debug_mode(previous)
 
 
 def make(mode: str, graph: bool):

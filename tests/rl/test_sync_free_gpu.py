@@ -32,19 +32,11 @@ import warnings
 import pytest
 import torch
 
+from cuda_sync import sync_debug
+
 pytestmark = pytest.mark.skipif(not torch.cuda.is_available(), reason="needs CUDA")
 
 NUM_ENVS = 64
-
-
-@contextlib.contextmanager
-def sync_debug(mode):
-    previous = torch.cuda.get_sync_debug_mode()
-    torch.cuda.set_sync_debug_mode(mode)
-    try:
-        yield
-    finally:
-        torch.cuda.set_sync_debug_mode(previous)
 
 
 class AllowedSyncs:
