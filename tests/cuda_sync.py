@@ -16,3 +16,13 @@ def sync_debug(mode: str):
         yield
     finally:
         torch.cuda.set_sync_debug_mode(previous)
+
+
+def graph_step(env, actions, step_index: int, warmup: int):
+    """``env.step(actions)`` of a ``cuda_graph`` env as its ``step_index``-th step: the ``warmup`` eager
+    steps and the capture (which synchronizes once, by design) as they are, every replay under sync
+    debug mode "error" (a host sync in the graph mode's step raises)."""
+    if step_index <= warmup:
+        return env.step(actions)
+    with sync_debug("error"):
+        return env.step(actions)

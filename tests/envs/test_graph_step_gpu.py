@@ -17,7 +17,7 @@ import pytest
 import torch
 
 import ambulo.envs
-from cuda_sync import sync_debug
+from cuda_sync import graph_step
 
 pytestmark = pytest.mark.skipif(not torch.cuda.is_available(), reason="needs CUDA")
 
@@ -49,11 +49,7 @@ def test_graph_replay_equals_eager_steps():
     drift, diff, resets = [], [], 0.0
     for i, a in enumerate(actions):
         e, c = outputs(eager.step(a)), outputs(control.step(a))
-        if i <= WARMUP:  # eager warm-up steps and the capture (which synchronizes once, by design)
-            g = outputs(graphed.step(a))
-        else:
-            with sync_debug("error"):
-                g = outputs(graphed.step(a))
+        g = outputs(graph_step(graphed, a, i, WARMUP))
         torch.cuda.synchronize()
         drift.append(max_diff(e, c))
         diff.append(max_diff(e, g))

@@ -15,7 +15,7 @@ import pytest
 import torch
 
 import ambulo.envs
-from cuda_sync import sync_debug
+from cuda_sync import graph_step
 
 pytestmark = pytest.mark.skipif(not torch.cuda.is_available(), reason="needs CUDA")
 
@@ -46,11 +46,7 @@ def test_kinematics_reset_forward_replays_as_a_graph_and_matches_full():
     drift, graph_diff, mode_diff, resets = [], [], [], 0.0
     for i, a in enumerate(actions):
         f, e, c = outputs(full.step(a)), outputs(eager.step(a)), outputs(control.step(a))
-        if i <= WARMUP:  # eager warm-up steps and the capture
-            g = outputs(graphed.step(a))
-        else:
-            with sync_debug("error"):
-                g = outputs(graphed.step(a))
+        g = outputs(graph_step(graphed, a, i, WARMUP))
         torch.cuda.synchronize()
         drift.append(max_diff(e, c))
         graph_diff.append(max_diff(e, g))
