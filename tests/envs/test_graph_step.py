@@ -187,3 +187,12 @@ def test_use_cuda_graph_is_a_no_op_off_cuda_and_refused_tasks_stay_eager():
     assert env.use_cuda_graph() is False and env._graph is None
     robust = ambulo.envs.make("humanoid-walk-robust", num_envs=4, device="cpu", seed=0)
     assert robust.use_cuda_graph() is False
+
+
+def test_graph_mode_is_only_for_audited_task_classes():
+    # a subclass's step is other code: humanoid-footsteps (a HumanoidWalkEnv) rebinds its touchdown
+    # timers each step, which a replay would freeze, so it stays eager until audited itself
+    footsteps = ambulo.envs.make("humanoid-footsteps", num_envs=4, device="cpu", seed=0)
+    assert "not audited" in footsteps._graph_unsafe_reason()
+    assert "not audited" in ambulo.envs.make("jetbot-goal", num_envs=4, device="cpu", seed=0)._graph_unsafe_reason()
+    assert make_env()._graph_unsafe_reason() is None

@@ -239,9 +239,20 @@ class RLEnv:
         """(N,) bool masks of task terminations by name (failure or success, not time-outs)."""
         raise NotImplementedError
 
+    graph_audited: bool = False
+    """Set True on a task class (itself, not inherited: a subclass's step is other code) whose step was
+    checked to keep its state in place: a replay reruns kernels, never Python, so a persistent tensor the
+    step rebinds (``self.timer = self.timer + dt``) is read frozen and the replayed results are silently
+    wrong. The check to copy: tests/envs/test_graph_step.py::test_step_keeps_its_state_in_place. On the CPU
+    this rebinds state in humanoid-footsteps (its touchdown timers and errors) and jetbot-goal (the
+    previous distance its progress reward reads), which stay eager."""
+
     def _graph_unsafe_reason(self) -> str | None:
         """Why this env's step cannot be replayed as a CUDA graph (``cfg.cuda_graph``), or None.
         A task whose step keeps Python state that changes from step to step says so here."""
+        if not type(self).__dict__.get("graph_audited", False):
+            return (f"{type(self).__name__}'s step is not audited for replays (graph_audited: it may rebind "
+                    "the tensors a graph reads)")
         return None
 
     def _reset_idx(self, rows: torch.Tensor) -> None:

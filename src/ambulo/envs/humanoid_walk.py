@@ -217,10 +217,12 @@ class HumanoidWalkEnv(RLEnv):
                                 bodies=[cfg.base_body], operation="add", dtype=torch.float32)
             self.engine.set_const()
 
+    graph_audited = True  # tests/envs/test_graph_step.py
+
     def _graph_unsafe_reason(self) -> str | None:
         if self.transfer.action_delay is not None or self.transfer.obs_delay_steps[1] > 0:
             return "an action latency or observation delay advances DelayBuffer's Python cursor every step"
-        return None
+        return super()._graph_unsafe_reason()
 
     # -- metrics -----------------------------------------------------------------------
     def velocity_tracking_error(self) -> tuple[torch.Tensor, torch.Tensor]:
