@@ -68,6 +68,7 @@ def main() -> None:
     eager, _ = make(False, args.episode_length_s)
     eager_s, eager_metrics = timed_eval(eager, policy)
     eager.close()
+    print(f"eager: {eager_s:.2f} s {eager_metrics}", flush=True)  # kept if a time limit cuts the rest
     steps = eager.max_episode_length
     result = {"benchmark": "eval_gpu", "task": TASK, "device": str(eager.device),
               "gpu": torch.cuda.get_device_name() if eager.device.type == "cuda" else None,
@@ -77,6 +78,7 @@ def main() -> None:
     if on:
         fresh = graphed.generator.get_state()
         first_s, first_metrics = timed_eval(graphed, policy)  # the capture happens in here
+        print(f"graph, first (with the capture): {first_s:.2f} s {first_metrics}", flush=True)
         graphed.generator.set_state(fresh)  # as the periodic evaluation restarts each one
         again_s, again_metrics = timed_eval(graphed, policy)  # a later evaluation of the same env
         sys.path.insert(0, str(Path(__file__).parent))
