@@ -165,3 +165,12 @@ def test_render_tiers_gpu_runs_on_the_cpu():
     assert result["meets_pbr"] == (tiers["pbr"]["fps"] >= 8.0)
     assert result["meets_path"] == (path["fps"] >= 1.0)
     assert tiers["pbr"]["ratio_to_raster"] == pytest.approx(tiers["pbr"]["fps"] / tiers["raster"]["fps"], abs=1e-3)
+
+
+def test_eval_gpu_times_an_evaluation_of_the_shipped_walker():
+    # off CUDA there is no graph: the eager evaluation alone, with the metrics ``ambulo eval`` reports
+    result = run_benchmark("eval_gpu.py", "--num-episodes", "4", "--episode-length-s", "0.5")
+    assert result["device"] == "cpu" and result["steps"] == 25 and result["eager_s"] > 0
+    assert result["eager_metrics"]["fall_rate"] == 0.0  # the shipped walker stands for half a second
+    assert 0.0 < result["eager_metrics"]["mean_abs_vel_error_m_s"] < 1.0
+    assert "graph_s" not in result
