@@ -33,14 +33,8 @@ from .manifest import open_dataset
 from .processes import default_workers, run_on_processes, usable_cpus
 from .producer import FrameProducer, run_frames
 from .ray_workers import run_on_ray
-from .records import complete_records, prune_records
+from .records import prune_records
 from .writers import frame_subdirs, prepare_dirs
-
-
-def done_frames(out: Path, num_frames: int) -> set[int]:
-    """The frames of ``out`` that are complete: a record that parses, and every file it lists with its size."""
-    return {i for i in complete_records(out) if i < num_frames}
-
 
 BACKENDS = ("auto", "processes", "ray")
 

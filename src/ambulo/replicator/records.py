@@ -39,9 +39,9 @@ from ambulo.utils.atomic import atomic_write_bytes
 from ambulo.utils.frame_journal import (
     JOURNAL_FILE,
     LEGACY_RECORD,
-    _legacy_records,
     frame_of_line,
     journals,
+    legacy_records,
     read_json,
     read_record,
     read_records,
@@ -134,7 +134,7 @@ def _whole(out: Path, line: bytes) -> tuple[int, dict] | None:
 def _entries(out: Path) -> Iterator[tuple[Path, bool, list[bytes], bytes]]:
     """(path, is a journal, its complete lines, torn tail) of every record source in ``out/frames``."""
     frames_dir = out / "frames"
-    for _, path in _legacy_records(frames_dir):
+    for _, path in legacy_records(frames_dir):
         yield path, False, [path.read_bytes()], b""
     for journal in journals(frames_dir):
         lines, tail = split_journal(journal.read_bytes())
@@ -170,12 +170,9 @@ def prune_records(out: str | os.PathLike, fsync: bool = True) -> set[int]:
             if whole is not None and whole[0] not in done:
                 done.add(whole[0])
                 kept.append(line)
-        if not is_journal:
-            if not kept:
-                path.unlink()
-        elif not kept:
+        if not kept:
             path.unlink()
-        elif len(kept) < len(lines) or tail:
+        elif is_journal and (len(kept) < len(lines) or tail):
             atomic_write_bytes(path, b"\n".join(kept) + b"\n", fsync=fsync)
     return done
 

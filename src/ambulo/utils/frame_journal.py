@@ -37,7 +37,8 @@ def journals(frames_dir: str | os.PathLike) -> list[Path]:
     return []
 
 
-def _legacy_records(frames_dir: str | os.PathLike) -> list[tuple[int, Path]]:
+def legacy_records(frames_dir: str | os.PathLike) -> list[tuple[int, Path]]:
+    """(frame index, path) of each ``NNNNNN.json`` record (datasets written before the journals), by index."""
     with contextlib.suppress(FileNotFoundError):
         return sorted((int(m.group(1)), Path(entry.path)) for entry in os.scandir(frames_dir)
                       if (m := LEGACY_RECORD.fullmatch(entry.name)) and entry.is_file(follow_symlinks=False))
@@ -60,7 +61,7 @@ def record_lines(frames_dir: str | os.PathLike) -> dict[int, bytes]:
     """Frame index -> its record's line (undecoded; the last complete one of the frame in the journals
     by name, else its ``NNNNNN.json``) of every frame with one, in frame order. Whether a line parses and its files are
     whole is ``complete_records``' question: in a run's own folder after ``prune_records``, they do."""
-    found: dict[int, bytes] = {index: path.read_bytes() for index, path in _legacy_records(frames_dir)}
+    found: dict[int, bytes] = {index: path.read_bytes() for index, path in legacy_records(frames_dir)}
     for journal in journals(frames_dir):
         lines, _ = split_journal(journal.read_bytes())
         for line in lines:
