@@ -428,10 +428,7 @@ class RLEnv:
         for buf in (self.episode_length_buf, self.actions, self.prev_actions, self.episode_sums):
             fill_rows(buf, rows, 0)
         self._reset_idx(rows)
-        if self.cfg.reset_forward == "kinematics":
-            self.engine.forward(rows, kinematics_only=True)
-        else:
-            self.engine.forward(rows)
+        self.engine.forward(rows, kinematics_only=self.cfg.reset_forward == "kinematics")
 
     def _compute_observations(self) -> torch.Tensor:
         terms = self._policy_terms()
