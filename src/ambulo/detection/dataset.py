@@ -30,7 +30,7 @@ import numpy as np
 import torch
 from pycocotools import mask as mask_utils
 
-from ambulo.utils.frame_journal import journals, read_records
+from ambulo.utils.frame_journal import read_records
 
 from .height import camera_of_record, height_above_floor_m
 from .model import depth_channel, height_channel
@@ -115,31 +115,23 @@ def boxes_xyxy(annotations: list[dict]) -> torch.Tensor:
                         dtype=torch.float32).reshape(-1, 4)
 
 
-def read_height_m(root: Path, image_info: dict, depth_mm: np.ndarray) -> np.ndarray:
+def read_height_m(root: Path, records: dict[int, dict], image_info: dict, depth_mm: np.ndarray) -> np.ndarray:
     """The frame's height above the floor (H, W) float32 m (``height``) from its depth (H, W) mm and the camera
-    its record (a line of the dataset's ``frames/records-*.jsonl`` journals, ``utils.frame_journal``) holds; a
-    missing record is a ``DatasetError``."""
+    its record holds (``records``: ``frame_records(root)``, read once a dataset); a missing record is a
+    ``DatasetError``."""
     frame = image_info.get("frame", int(Path(image_info["file_name"]).stem))
-    frames = Path(root) / "frames"
-    record = frame_records(frames).get(frame)
+    record = records.get(frame)
     if record is None:
-        raise DatasetError(f"{frames}: no record of frame {frame} (the camera's pose) for the height channel",
-                           "train inputs 'rgbdh' on an `ambulo generate` dataset with its frames/ records")
+        raise DatasetError(f"{Path(root) / 'frames'}: no record of frame {frame} (the camera's pose) for the height "
+                           "channel", "train inputs 'rgbdh' on an `ambulo generate` dataset with its frames/ records")
     intrinsics, extrinsics_cw = camera_of_record(record)
     return height_above_floor_m(depth_mm.astype(np.float32) / 1000.0, intrinsics, extrinsics_cw)
 
 
-_RECORDS: dict[Path, tuple[tuple, dict[int, dict]]] = {}
-
-
-def frame_records(frames: Path) -> dict[int, dict]:
-    """Frame index -> record of the dataset folder ``frames``, read once a process (a training reads a frame's
-    camera per sample) and again when a journal changes (its name, size or time)."""
-    key = tuple((p.name, st.st_size, st.st_mtime_ns) for p, st in ((p, p.stat()) for p in journals(frames)))
-    cached = _RECORDS.get(frames)
-    if cached is None or cached[0] != key:
-        cached = _RECORDS[frames] = (key, read_records(frames))
-    return cached[1]
+def frame_records(root: str | Path) -> dict[int, dict]:
+    """Frame index -> record of dataset ``root`` (the lines of its ``frames/records-*.jsonl`` journals,
+    ``utils.frame_journal``): read once when a dataset is opened, not per sample."""
+    return read_records(Path(root) / "frames")
 
 
 class CocoFrames(torch.utils.data.Dataset):
@@ -154,6 +146,7 @@ class CocoFrames(torch.utils.data.Dataset):
                  masks: bool = False, depth: bool = False, height: bool = False):
         self.root, self.canvas_hw, self.masks, self.depth, self.height = Path(root), canvas_hw, masks, depth, height
         self.images, self.annotations = frames_and_annotations(coco, image_ids)
+        self.records = frame_records(self.root) if height else {}
 
     def __len__(self) -> int:
         return len(self.images)
@@ -169,7 +162,8 @@ class CocoFrames(torch.utils.data.Dataset):
             mm = read_depth_mm(self.root, image_info)
             rgb = torch.cat([rgb, depth_channel(torch.from_numpy(mm.astype(np.float32)) / 1000.0)[None]])
         if self.height:
-            rgb = torch.cat([rgb, height_channel(torch.from_numpy(read_height_m(self.root, image_info, mm)))[None]])
+            height_m = read_height_m(self.root, self.records, image_info, mm)
+            rgb = torch.cat([rgb, height_channel(torch.from_numpy(height_m))[None]])
         canvas = torch.zeros(len(rgb), *self.canvas_hw)
         h, w = min(rgb.shape[1], self.canvas_hw[0]), min(rgb.shape[2], self.canvas_hw[1])
         canvas[:, :h, :w] = rgb[:, :h, :w]

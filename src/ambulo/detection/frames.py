@@ -29,6 +29,7 @@ import torch
 from .dataset import (
     DatasetError,
     boxes_xyxy,
+    frame_records,
     frames_and_annotations,
     instance_masks,
     read_depth_mm,
@@ -58,6 +59,7 @@ class FrameRecords(torch.utils.data.Dataset):
                  depth: bool = False, height: bool = False):
         self.root, self.class_of, self.depth, self.height = Path(root), class_of, depth or height, height
         self.images, self.annotations = frames_and_annotations(coco, image_ids)
+        self.records = frame_records(self.root) if height else {}
         sizes = {(im["height"], im["width"]) for im in self.images}
         if len(sizes) > 1:
             raise DatasetError(f"{root} has frames of {len(sizes)} sizes {sorted(sizes)}",
@@ -87,7 +89,8 @@ class FrameRecords(torch.utils.data.Dataset):
             mm = read_depth_mm(self.root, self.images[index]).clip(max=np.iinfo(np.int16).max)
             record["depth"] = torch.from_numpy(mm.astype(np.int16))
         if self.height:
-            height_mm = np.round(read_height_m(self.root, self.images[index], mm) * 1000.0).clip(-32768, 32767)
+            height_m = read_height_m(self.root, self.records, self.images[index], mm)
+            height_mm = np.round(height_m * 1000.0).clip(-32768, 32767)
             record["height"] = torch.from_numpy(height_mm.astype(np.int16))
         return record
 
