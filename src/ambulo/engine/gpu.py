@@ -688,9 +688,18 @@ def contact_capacity(model: mujoco.MjModel, data: mujoco.MjData, max_contacts: i
     at least 3x the contacts of the initial state and MuJoCo Warp's own default. Constraints:
     each contact takes up to ``2 (condim - 1)`` rows (pyramidal) or ``condim`` (elliptic),
     plus one per limited joint, friction-loss dof and equality row.
+
+    A model with a heightfield skips MuJoCo Warp's defaults: for any heightfield they guess
+    ``3.5 nv + 45`` contacts and ``40.7 nv + 53`` rows (192 and 1,536 for the 27-dof humanoid),
+    where its heightfield collision writes at most 4 contacts per geom pair, the per-geom bound
+    here (humanoid-rough: at most 16 contacts and 85 rows in a world over 2 x 128 worlds x 150
+    random-action steps with falls, on the training and the hardest tiles). Several solver
+    kernels run over every row of ``njmax`` (``_update_constraint_efc``, the dense ``J^T D J``),
+    so the guess cost humanoid-rough half its physics time on Warp's CPU device.
     """
     collidable = int(np.count_nonzero((model.geom_contype != 0) | (model.geom_conaffinity != 0)))
-    default_con = mjw._src.io._default_nconmax(model, data)
+    hfield = model.nhfield > 0
+    default_con = 0 if hfield else mjw._src.io._default_nconmax(model, data)
     nconmax = max_contacts or max(default_con, 4 * collidable, 3 * data.ncon)
     if max_constraints:
         return int(nconmax), int(max_constraints)
@@ -698,8 +707,8 @@ def contact_capacity(model: mujoco.MjModel, data: mujoco.MjData, max_contacts: i
     rows = condim if model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC else max(1, 2 * (condim - 1))
     other = int(np.count_nonzero(model.jnt_limited)) + int(np.count_nonzero(model.dof_frictionloss)) \
         + 6 * model.neq + model.ntendon
-    return int(nconmax), int(max(mjw._src.io._default_njmax(model, data), rows * nconmax + other,
-                                 2 * data.nefc))
+    default_rows = 0 if hfield else mjw._src.io._default_njmax(model, data)
+    return int(nconmax), int(max(default_rows, rows * nconmax + other, 2 * data.nefc))
 
 
 __all__ = ["GpuEngine", "EngineOverflowError", "capture_graph", "capture_torch_graph", "contact_capacity", "stack_versions", "synchronize",

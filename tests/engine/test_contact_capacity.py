@@ -1,0 +1,68 @@
+"""engine.gpu.contact_capacity: the GPU engine's per-world contact and constraint-row buffers.
+
+A heightfield model is sized from its geoms (MuJoCo Warp's heightfield collision writes at most 4
+contacts per geom pair), not from MuJoCo Warp's default guess for heightfield scenes (192
+contacts and 1,536 rows for the humanoid, where a world of humanoid-rough peaks at 16 contacts
+and 85 rows): several solver kernels run over every row of ``njmax``. The sized buffers must
+still hold what a rollout of falling robots on the terrain makes: the engine raises
+``EngineOverflowError`` when a world overflows them."""
+
+import mujoco
+import numpy as np
+import pytest
+import torch
+
+mjw = pytest.importorskip("mujoco_warp")
+
+from ambulo.engine.gpu import contact_capacity  # noqa: E402
+
+
+def _balls(ground: str) -> mujoco.MjModel:
+    """Three free 5 cm spheres over ``ground`` (an hfield or a plane geom's XML)."""
+    balls = "".join(f'<body pos="{x} 0 0.1"><freejoint/><geom type="sphere" size="0.05"/></body>' for x in (0, 1, 2))
+    asset = '<asset><hfield name="h" nrow="20" ncol="20" size="5 5 0.2 0.1"/></asset>' if "hfield" in ground else ""
+    return mujoco.MjModel.from_xml_string(f"<mujoco>{asset}<worldbody>{ground}{balls}</worldbody></mujoco>")
+
+
+def test_a_heightfield_model_is_sized_per_geom_not_by_mujoco_warps_guess():
+    model = _balls('<geom type="hfield" hfield="h"/>')
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    nconmax, njmax = contact_capacity(model, data, None, None)
+    assert nconmax == 4 * 4  # 4 per collidable geom: the hfield and three spheres
+    assert njmax == 4 * nconmax  # pyramidal condim 3: 4 rows a contact; no limits, friction loss
+    guess_con, guess_rows = mjw._src.io._default_nconmax(model, data), mjw._src.io._default_njmax(model, data)
+    assert guess_con > 4 * nconmax and guess_rows > 4 * njmax  # what it replaces: 128 contacts, 768 rows
+
+
+def test_a_model_without_heightfield_keeps_mujoco_warps_floor():
+    model = _balls('<geom type="plane" size="5 5 0.1"/>')
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    nconmax, njmax = contact_capacity(model, data, None, None)
+    assert nconmax == mjw._src.io._default_nconmax(model, data) == 48  # above 4 per collidable geom (16)
+    assert njmax == 4 * nconmax
+    assert contact_capacity(model, data, 7, 30) == (7, 30)  # given sizes win
+
+
+def test_humanoid_rough_falls_fit_the_sized_buffers_on_warp():
+    """16 humanoids on the hardest tiles under random actions (every one falls, ~2 episodes each)
+    with transfer randomization's joint friction rows: no world overflows (the engine would
+    raise), and the fullest world uses under half of each buffer."""
+    import ambulo.envs as envs
+
+    env = envs.make("humanoid-rough", num_envs=16, device="cpu", engine="warp", seed=3, num_threads=1,
+                    **{"curriculum.enabled": False, "curriculum.init_level": -1})
+    engine, d = env.engine, env.engine.wp_data
+    assert (engine.nconmax, engine.njmax) == (96, 405)  # 24 collidable geoms; MuJoCo Warp guessed 192, 1,536
+    gen = torch.Generator().manual_seed(0)
+    peak_contacts = peak_rows = falls = 0
+    for _ in range(120):
+        _, _, dones, _ = env.step(torch.rand(16, env.num_actions, generator=gen) * 2 - 1)
+        falls += int(dones.sum())
+        worlds = d.contact.worldid.numpy()[:int(d.nacon.numpy()[0])]
+        peak_contacts = max(peak_contacts, int(np.bincount(worlds, minlength=16).max()))
+        peak_rows = max(peak_rows, int(d.nefc.numpy().max()))
+    engine.check_overflow()  # raises EngineOverflowError if any world overflowed
+    assert falls >= 16
+    assert 4 <= peak_contacts < engine.nconmax / 2 and 21 < peak_rows < engine.njmax / 2, (peak_contacts, peak_rows)
