@@ -14,7 +14,7 @@ import torch
 
 mjw = pytest.importorskip("mujoco_warp")
 
-from ambulo.engine.gpu import contact_capacity  # noqa: E402
+from ambulo.engine.gpu import contact_capacity
 
 
 def _balls(ground: str) -> mujoco.MjModel:
