@@ -51,13 +51,13 @@ def test_action_latency_delays_targets_by_exactly_the_drawn_physics_steps():
     assert set(delay.tolist()) <= {0, 1, 2, 3, 4} and len(set(delay.tolist())) > 1
     kp = -env.engine.model_field("actuator_biasprm")[:, env.robot.actuator_idx, 1]
     seen = []
-    step = env.sim.step
+    step = env.engine.step
 
     def spy(n):
         seen.append(env.engine.ctrl[:, env.robot.actuator_idx].clone() / kp)  # the targets physics uses
         return step(n)
 
-    env.sim.step = spy
+    env.engine.step = spy
     generator = torch.Generator().manual_seed(0)
     actions = [torch.rand(6, env.num_actions, generator=generator) * 0.2 for _ in range(2)]
     targets = [env.robot.default_joint_pos + a * env.cfg.action_scale for a in actions]
@@ -69,6 +69,30 @@ def test_action_latency_delays_targets_by_exactly_the_drawn_physics_steps():
         for s in range(4):
             expected = torch.where((s >= delay)[:, None], targets[t], previous[t])
             torch.testing.assert_close(seen[4 * t + s], expected.to(seen[0].dtype))
+
+
+def test_action_latency_leaves_the_feet_sensor_as_one_policy_step():
+    """The latency steps physics one step at a time; the contact sensor still sees each policy
+    step once: with every drawn latency 0 the feet's touchdowns, air and contact times equal
+    the plain batched step's (updated per physics step, a touchdown in the first three physics
+    steps was lost to first_contact, which feet_air_time pays on)."""
+    latency = TransferCfg(action_latency_range_s=(0.0, 0.02))
+    lagged, plain = make(num_envs=12, transfer=latency), make(num_envs=12, transfer=latency)
+    lagged.transfer.action_delay.delay.zero_()
+    plain.transfer.action_delay = None  # the batched path
+    generator = torch.Generator().manual_seed(0)
+    touchdowns = 0
+    for _ in range(15):
+        actions = torch.rand(12, lagged.num_actions, generator=generator) * 2 - 1
+        _, _, dones_lagged, _ = lagged.step(actions)
+        _, _, dones_plain, _ = plain.step(actions)
+        assert not dones_lagged.any() and not dones_plain.any()  # no reset draws a latency
+        a, b = lagged.feet.data, plain.feet.data
+        touchdowns += int(b.first_contact.sum())
+        for name in ("first_contact", "in_contact", "current_air_time_s", "last_air_time_s",
+                     "current_contact_time_s"):
+            torch.testing.assert_close(getattr(a, name), getattr(b, name), msg=name)
+    assert touchdowns >= 10
 
 
 @pytest.mark.parametrize("final_obs", [False, True])

@@ -108,10 +108,16 @@ class Simulation:
         """Advance ``num_substeps`` MuJoCo steps, then update components; returns the (N,)
         bool mask of worlds that diverged and were reset."""
         diverged = self.engine.step(num_substeps, refresh=refresh)
-        dt_s = num_substeps * self.physics.timestep_s
+        self.update(num_substeps * self.physics.timestep_s)
+        return diverged
+
+    def update(self, dt_s: float) -> None:
+        """Update the components after physics advanced ``dt_s`` seconds. ``step`` does it; a
+        caller that advances ``engine.step`` in parts (an action latency, which changes the
+        targets between physics steps) calls it once for the whole, so components see the same
+        updates with and without the parts."""
         for component in self.components.values():
             component.update(dt_s)
-        return diverged
 
     def reset(self, world_ids: torch.Tensor | None = None, forward: bool = True) -> None:
         """Restore ``world_ids`` (None: all) to the initial state and reset components there.

@@ -202,8 +202,12 @@ class TransferRandomization:
         for _ in range(decimation):
             self.action_delay.push(targets)
             env.robot.set_joint_targets(self.action_delay.read())
-            step = env.sim.step(1)
+            step = env.engine.step(1)
             diverged = step if diverged is None else diverged | step
+        # the sensors see the whole policy step once, as without latency: updated after every
+        # physics step, the feet's contact sensor kept only the last one's touchdowns in
+        # first_contact (what feet_air_time pays on) and cost a GPU its kernels four times
+        env.sim.update(decimation * env.physics_dt_s)
         return diverged
 
     def start_episode_targets(self, rows: torch.Tensor | None, targets: torch.Tensor) -> None:
