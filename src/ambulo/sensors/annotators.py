@@ -195,7 +195,24 @@ def loose_boxes(table: InstanceTable, model: mujoco.MjModel, geom_pos_w: np.ndar
     plane are cut there, so boxes partly behind the camera still project correctly.
     ``corners_w``: ``geom_corners_w`` of the instances' geoms, when the caller has them.
     """
-    geoms, owner = table.instance_geoms
+    out: list[np.ndarray | None] = [None] * table.num_instances
+    ids, boxes = loose_box_array(table, model, geom_pos_w, geom_rot_w, extrinsics_cw, k_matrix, width, height,
+                                 near_m, corners_w)
+    for inst, box in zip(ids.tolist(), boxes):
+        out[inst - 1] = box
+    return out
+
+
+def loose_box_array(table: InstanceTable, model: mujoco.MjModel, geom_pos_w: np.ndarray, geom_rot_w: np.ndarray,
+                    extrinsics_cw: np.ndarray, k_matrix: np.ndarray, width: int, height: int,
+                    near_m: float, corners_w: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``loose_boxes`` of the instances in view only, as arrays: their ids (n,) int64, ascending, and
+    boxes (n, 4) float [x_min, y_min, x_max, y_max] (the same numbers). What a dataset frame keeps:
+    no list of K entries to build and turn back into arrays (a Python step per instance)."""
+    starts, ids, _ = table.instance_groups
+    if len(starts) == 0:
+        return np.zeros(0, np.int64), np.zeros((0, 4))
+    geoms, _ = table.instance_geoms
     corners = geom_corners_w(geoms, model, geom_pos_w, geom_rot_w) if corners_w is None else corners_w
     corners_c = corners @ extrinsics_cw[:3, :3].T + extrinsics_cw[:3, 3]
     points, valid = _near_clipped(corners_c, near_m)
@@ -203,18 +220,12 @@ def loose_boxes(table: InstanceTable, model: mujoco.MjModel, geom_pos_w: np.ndar
     uv = points[..., :2] / zs[..., None] * np.diag(k_matrix)[:2] + k_matrix[:2, 2]
     lo = np.where(valid[..., None], uv, np.inf).min(1)
     hi = np.where(valid[..., None], uv, -np.inf).max(1)
-    out: list[np.ndarray | None] = [None] * table.num_instances
-    starts, ids, _ = table.instance_groups
-    if len(starts) == 0:
-        return out
     lo_i = np.minimum.reduceat(lo, starts)
     hi_i = np.maximum.reduceat(hi, starts)
     lo_i = np.maximum(lo_i, -0.5)
     hi_i = np.minimum(hi_i, [width - 0.5, height - 0.5])
     seen = np.all(hi_i > lo_i, 1)
-    for inst, box in zip(ids[seen].tolist(), np.concatenate([lo_i, hi_i], 1)[seen]):
-        out[inst - 1] = box
-    return out
+    return ids[seen].astype(np.int64), np.concatenate([lo_i, hi_i], 1)[seen]
 
 
 def _near_clipped(corners_c: np.ndarray, near_m: float) -> tuple[np.ndarray, np.ndarray]:

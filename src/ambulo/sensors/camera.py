@@ -421,14 +421,15 @@ class Camera(Sensor):
         # the instances' geom box corners in the world, shared by the loose and the 3D boxes
         corners_w = ann.geom_corners_w(table.instance_geoms[0], self.engine.model, geom_pos, geom_rot)
         if "bounding_box_2d_loose" in names or "visible_fraction" in names:
-            loose = self._loose_boxes(geom_pos, geom_rot, k_matrix, extr, corners_w)
-            in_view = np.array([b is not None for b in loose], bool)
+            # the in-view instances' ids (ascending) and boxes as arrays: no per-instance list
+            ids, boxes = ann.loose_box_array(table, self.engine.model, geom_pos, geom_rot, extr, k_matrix,
+                                             self.cfg.width, self.cfg.height, self.renderer.near_far()[0], corners_w)
             if "bounding_box_2d_loose" in names:
-                ids = np.flatnonzero(in_view)
-                out["bounding_box_2d_loose"] = {
-                    "instance_id": ids + 1, "semantic_id": table.semantic_ids[ids + 1],
-                    "box": np.array([loose[i] for i in ids]).reshape(-1, 4)}
+                out["bounding_box_2d_loose"] = {"instance_id": ids, "semantic_id": table.semantic_ids[ids],
+                                                "box": boxes}
             if "visible_fraction" in names:
+                in_view = np.zeros(table.num_instances, bool)
+                in_view[ids - 1] = True
                 out["visible_fraction"] = self._visible_fraction(pixels, in_view)
         if "bounding_box_3d" in names:
             center_w, rot_w, half = ann.instance_boxes_3d(
@@ -437,10 +438,6 @@ class Camera(Sensor):
                 "instance_id": np.arange(1, table.num_instances + 1), "semantic_id": table.semantic_ids[1:],
                 "center_w": center_w, "rot_w": rot_w, "half_extent": half,
                 "center_c": center_w @ extr[:3, :3].T + extr[:3, 3], "rot_c": extr[:3, :3] @ rot_w}
-
-    def _loose_boxes(self, geom_pos, geom_rot, k_matrix, extr, corners_w=None) -> list:
-        return ann.loose_boxes(self.table, self.engine.model, geom_pos, geom_rot, extr, k_matrix,
-                               self.cfg.width, self.cfg.height, self.renderer.near_far()[0], corners_w)
 
     def _visible_fraction(self, pixels: np.ndarray, in_view: np.ndarray) -> np.ndarray:
         """(K,) visible / unoccluded pixels in the image; 0 for objects out of view."""
