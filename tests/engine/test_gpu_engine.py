@@ -175,6 +175,13 @@ def test_diverged_world_is_detected_and_reset_alone():
     assert not engine.step(5).any()
 
 
+def test_a_finite_runaway_counts_as_diverged_as_nan_and_inf_do():
+    engine = _gpu(_box_model(n_boxes=2), 4)
+    engine.qvel[1, 0] = 1e12  # finite, past the engine's 1e10 bound
+    engine.qvel[2, 1] = float("inf")
+    assert engine.step(1).tolist() == [False, True, True, False]
+
+
 def test_contact_overflow_is_an_error_that_names_the_setting():
     model = _box_model(n_boxes=6)
     engine = _gpu(model, 2, max_contacts_per_world=2, overflow_check_steps=1)

@@ -433,11 +433,11 @@ class GpuEngine:
             self.check_overflow()
 
     def _diverged(self) -> torch.Tensor:
-        # |x| <= MAX is False for NaN too, so one comparison catches NaN, inf and huge values
-        ok = (self.field("qpos").abs() <= _MAX_VALUE).all(1)
-        ok &= (self.field("qvel").abs() <= _MAX_VALUE).all(1)
-        ok &= (self.field("qacc").abs() <= _MAX_VALUE).all(1)
-        return ~ok
+        # max |x| <= MAX is False for NaN too (amax propagates NaN on CPU and CUDA), so one
+        # comparison catches NaN, inf and huge values; one row max over the three fields side by
+        # side: 5 kernels a step where a check per field took 12 (an action latency steps 4 times)
+        state = torch.cat([self.field("qpos"), self.field("qvel"), self.field("qacc")], dim=1)
+        return ~(state.abs().amax(dim=1) <= _MAX_VALUE)
 
     @property
     def num_diverged(self) -> int:
@@ -519,7 +519,7 @@ class GpuEngine:
 
     def _reset_mask(self, mask: torch.Tensor) -> None:
         for n, t in self._state.items():
-            t.copy_(torch.where(_rows(mask, t), self.initial_state[n], t))
+            torch.where(_rows(mask, t), self.initial_state[n], t, out=t)  # in place: one kernel, no copy
 
     def capture_initial_state(self, world_ids: WorldIds = None) -> None:
         """Make the worlds' current state the one ``reset`` restores."""
