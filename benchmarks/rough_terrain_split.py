@@ -11,6 +11,11 @@ unsynchronized step). Also: the engine's contact and constraint-row buffers (``n
     python benchmarks/rough_terrain_split.py --device cuda --num-envs 4096 --steps 50
     python benchmarks/rough_terrain_split.py --device cpu --engine warp --num-envs 64 --steps 10
 
+``--kernels N`` (CUDA only) also times MuJoCo Warp's kernels one by one (Warp's CUDA activity
+timing, ``wp.ScopedTimer(cuda_filter=TIMING_KERNEL)``) over ``decimation`` x ``--steps`` raw
+``mujoco_warp.step`` calls from the env's last state (no graph, no resets: robots may fall
+meanwhile) and lists the N costliest per variant, ms per env step.
+
 Ends with one ``RESULT {json}`` line: per variant ms per env step (``env``, ``physics``, ``rest``).
 """
 
@@ -85,6 +90,27 @@ def split(env, steps: int, warmup: int, generator: torch.Generator) -> dict:
     return out
 
 
+def kernel_split(env, steps: int, top: int) -> dict[str, float]:
+    """ms per env step of each of MuJoCo Warp's kernels (the ``top`` costliest), CUDA only."""
+    import collections
+
+    import mujoco_warp as mjw
+    import warp as wp
+
+    engine = env.engine
+    m, d = engine.wp_model, engine.wp_data
+    with wp.ScopedDevice(engine.wp_device):
+        mjw.step(m, d)
+        wp.synchronize()
+        with wp.ScopedTimer("physics", print=False, synchronize=True, cuda_filter=wp.TIMING_KERNEL) as timer:
+            for _ in range(steps * env.cfg.decimation):
+                mjw.step(m, d)
+    ms = collections.Counter()
+    for result in timer.timing_results:
+        ms[result.name.split("_cuda_kernel")[0]] += result.elapsed / steps
+    return {"total": round(sum(ms.values()), 3), **{k: round(v, 3) for k, v in ms.most_common(top)}}
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--device", default="cpu")
@@ -93,6 +119,8 @@ def main():
     parser.add_argument("--steps", type=int, default=20)
     parser.add_argument("--warmup", type=int, default=10)
     parser.add_argument("--variants", default=",".join(VARIANTS))
+    parser.add_argument("--kernels", type=int, default=0, metavar="N",
+                        help="CUDA: also list the N costliest MuJoCo Warp kernels per variant (raw steps)")
     args = parser.parse_args()
     generator = torch.Generator(device=args.device).manual_seed(0)
     results = {}
@@ -105,6 +133,9 @@ def main():
               f"({r['engine_step_calls']} calls), rest {r['rest_ms']:8.2f} ms | "
               + " ".join(f"{k}={r[k]}" for k in ("nconmax", "njmax", "contacts_per_world", "rows_per_world_mean",
                                                   "rows_per_world_max") if k in r), flush=True)
+        if args.kernels and env.device.type == "cuda":
+            r["kernels_ms"] = kernel_split(env, args.steps, args.kernels)
+            print(f"  kernels (ms per env step, raw steps): {r['kernels_ms']}", flush=True)
         del env
     print("RESULT " + json.dumps({"device": args.device, "engine": args.engine, "num_envs": args.num_envs,
                                   "steps": args.steps, "split": results}))
