@@ -23,6 +23,10 @@ ENGINES = ["mujoco", pytest.param("warp", marks=pytest.mark.skipif(
 
 # float32 kernels (MuJoCo Warp) of one state: fwd_kinematics and forward run the same ones
 TOL = {"mujoco": 0.0, "warp": 1e-6}
+# after a step, on a GPU: MuJoCo Warp's constraint solver sums with atomics there, so two identical
+# envs stepped once already differ (qacc, a solver output, by more than 1e-6 on an H200, session 12);
+# the comparison then bounds that nondeterminism, not the kinematics pass
+STEP_TOL = {"mujoco": (0.0, 0.0), "warp": (1e-6, 0.0) if DEVICE == "cpu" else (1e-3, 1e-3)}
 
 
 def _standing_env(engine: str):
@@ -92,7 +96,8 @@ def test_kinematics_forward_computes_the_poses_and_velocities_and_skips_the_rest
     full.step(1)
     assert not bool(kin.acc_stale.any())
     for name in KIN + ACC:
-        torch.testing.assert_close(kin.field(name), full.field(name), atol=TOL[engine], rtol=0, msg=name)
+        atol, rtol = STEP_TOL[engine]
+        torch.testing.assert_close(kin.field(name), full.field(name), atol=atol, rtol=rtol, msg=name)
     assert torch.equal(kin_env.feet.get_current_frame().in_contact, full_env.feet.get_current_frame().in_contact)
 
 
