@@ -182,3 +182,63 @@ def test_no_world_runs_away_under_ppo_first_exploration_on_warp():
     cfg = envs.make_cfg("humanoid-rough", num_envs=16, seed=0, num_threads=1, engine="warp",
                         diverged_speed_bound=None)
     assert fastest_speed_under_noise(HumanoidRoughEnv(cfg), steps=100) < 100.0
+
+
+def test_the_curriculum_compares_the_distance_walked_with_the_commanded_displacement():
+    """The commands are in each robot's heading frame: the env integrates them turned into the world
+    by the robot's heading. Hand values, 10 steps of 0.02 s: (vx, vy) = (1, 0) at yaw 0 asks 0.2 m
+    along +x, at yaw 90 degrees 0.2 m along +y; (0, 0.5) at yaw 0 asks 0.1 m along +y, at 90 degrees
+    0.1 m along -x."""
+    env = make(num_envs=4, **{"curriculum.enabled": False})
+    yaw = torch.tensor([0.0, 0.5 * np.pi, 0.0, 0.5 * np.pi])
+    env.robot.write_root_pose(quat_w=torch.stack([torch.cos(yaw / 2), 0 * yaw, 0 * yaw, torch.sin(yaw / 2)], 1))
+    env.engine.forward()
+    cmd = env.commands
+    cmd.cfg.heading_fraction, cmd.cfg.standing_fraction = 0.0, 0.0
+    cmd.time_left_s.fill_(100.0)  # no resample inside the test
+    cmd.is_heading.fill_(False), cmd.is_standing.fill_(False)
+    cmd.command.copy_(torch.tensor([[1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.5, 0.0], [0.0, 0.5, 0.0]]))
+    env.command_displacement_w.zero_()
+    headings = []
+    for _ in range(10):
+        _, _, dones, _ = env.step(torch.zeros(4, env.num_actions))
+        assert not dones.any()
+        headings.append(env.robot.data.heading_w.clone())
+    # the robots stand (their yaw drifts by little): what the commands asked, to the heading's drift
+    expected = torch.tensor([[0.2, 0.0], [0.0, 0.2], [0.0, 0.1], [-0.1, 0.0]])
+    assert torch.allclose(env.command_displacement_w, expected, atol=5e-3)
+    # exactly: each step's command turned by that step's heading, by hand
+    v = cmd.command[:, :2]
+    exact = sum(torch.stack([torch.cos(h) * v[:, 0] - torch.sin(h) * v[:, 1],
+                             torch.sin(h) * v[:, 0] + torch.cos(h) * v[:, 1]], 1) * env.step_dt_s for h in headings)
+    torch.testing.assert_close(env.command_displacement_w, exact.float(), atol=1e-6, rtol=0)
+
+
+def test_a_robot_that_follows_turning_commands_exactly_is_never_moved_down():
+    """20,000 simulated 20 s episodes of the task's commands (start-of-training ranges, yaw rates,
+    headings, standing envs, resampling), each robot moving exactly as commanded: none may move
+    down a level. Against the path length (|v| integrated) 48 % would (the curriculum then drains
+    to its easiest tiles); the distances here are integrated independently of the env's helper."""
+    from ambulo.envs.commands import VelocityCommand
+    from ambulo.envs.humanoid_rough import commanded_velocity_w
+
+    env = make(num_envs=1)
+    n, dt = 20000, env.step_dt_s
+    commands = VelocityCommand(env.cfg.commands, n, torch.Generator().manual_seed(0), torch.device("cpu"))
+    commands.range_scale.fill_(env.cfg.curriculum_start_scale)
+    commands.resample(None)
+    pos = torch.zeros(n, dtype=torch.complex128)  # the robot in the complex plane: x + iy
+    yaw = torch.zeros(n, dtype=torch.float64)
+    asked, path = torch.zeros(n, 2), torch.zeros(n)
+    for _ in range(round(env.cfg.episode_length_s / dt)):
+        commands.update(dt, yaw.float())
+        c = commands.command.double()
+        asked += commanded_velocity_w(commands.command, yaw.float()) * dt
+        path += torch.linalg.vector_norm(commands.command[:, :2], dim=-1) * dt
+        pos += torch.exp(1j * yaw) * torch.complex(c[:, 0], c[:, 1]) * dt
+        yaw += c[:, 2] * dt
+    distance = pos.abs().float()
+    curriculum = env.curriculum
+    fraction = curriculum.cfg.down_command_fraction
+    assert not (distance < fraction * torch.linalg.vector_norm(asked, dim=-1) - 1e-4).any()
+    assert (distance < fraction * path).float().mean() > 0.3  # what the path-length rule did

@@ -79,6 +79,14 @@ def humanoid_rough_play_cfg() -> HumanoidRoughCfg:
     return as_rough_play(humanoid_rough_cfg())
 
 
+def commanded_velocity_w(command: torch.Tensor, heading_w: torch.Tensor) -> torch.Tensor:
+    """(N, 2) commanded planar velocity in the world frame, m/s: ``command``'s (N, 3) (vx, vy) in
+    the heading frame turned by ``heading_w`` (N,) rad (the yaw rate, column 2, is not used)."""
+    cos, sin = torch.cos(heading_w).float(), torch.sin(heading_w).float()
+    vx, vy = command[:, 0], command[:, 1]
+    return torch.stack([cos * vx - sin * vy, sin * vx + cos * vy], dim=-1)
+
+
 class HumanoidRoughEnv(TerrainGround, HumanoidWalkEnv):
     """Velocity tracking over the terrain curriculum; see the module docstring. g1-rough puts it
     before ``G1WalkEnv`` (``envs.g1_rough``): its hooks work on any ``HumanoidWalkEnv``."""
@@ -94,24 +102,32 @@ class HumanoidRoughEnv(TerrainGround, HumanoidWalkEnv):
         self._start_xy = torch.zeros(n, 2, **f32)
         self.distance_m = torch.zeros(n, **f32)
         """(N,) horizontal distance of each robot from where its episode started, m."""
-        self.command_path_m = torch.zeros(n, **f32)
-        """(N,) path length the commands asked for this episode (|v_cmd| integrated), m."""
+        self.command_displacement_w = torch.zeros(n, 2, **f32)
+        """(N, 2) where the commands would have carried each robot this episode: its commanded
+        (vx, vy), turned from its heading frame into the world by its heading, integrated, m."""
 
     # -- RLEnv hooks ------------------------------------------------------------------------
     def _post_physics(self) -> None:
         super()._post_physics()
         xy = self.robot.data.root_pos_w[:, :2].float()
         self.distance_m = torch.linalg.vector_norm(xy - self._start_xy, dim=-1)
-        self.command_path_m += torch.linalg.vector_norm(self.commands.command[:, :2], dim=-1) * self.step_dt_s
+        self.command_displacement_w += commanded_velocity_w(self.commands.command, self.robot.data.heading_w) \
+            * self.step_dt_s
 
     def _reset_idx(self, rows: torch.Tensor) -> None:
         # the curriculum reads how far the ended episodes got before anything is reset
-        self.curriculum.update(rows, self.distance_m, self.command_path_m)
+        # against the displacement the commands asked for, not their path length: commands turn
+        # (yaw rates, resampled headings) and reverse, so a robot tracking them perfectly ends on
+        # average 2.1 m from its start after a 4.3 m path (start of training, 20,000 simulated
+        # episodes) and a path-length rule moved 48 % of perfect trackers down, so the population
+        # sank to the easiest tiles (session 12: mean level 1.96 -> 0.2 in 540 iterations)
+        asked_m = torch.linalg.vector_norm(self.command_displacement_w, dim=-1)
+        self.curriculum.update(rows, self.distance_m, asked_m)
         super()._reset_idx(rows)
         xy = self._spawn_on_tiles(rows, self.curriculum.origins_w)
         put_rows(self._start_xy, slice(None), xy, rows)
         fill_rows(self.distance_m, rows, 0.0)
-        fill_rows(self.command_path_m, rows, 0.0)
+        fill_rows(self.command_displacement_w, rows, 0.0)
 
     def _step(self, actions):
         obs, rewards, dones, extras = super()._step(actions)

@@ -2,9 +2,10 @@
 
 Every env has a level (a row of the terrain grid) and a kind (a column, fixed: env ``i`` takes
 column ``i % num_kinds``). When an episode ends, its env moves up a level if the robot got farther
-than ``up_distance_fraction`` of a tile from where it started, and down one if it covered less
-than ``down_command_fraction`` of the distance its commands asked for (so robots told to stand
-never move down for standing). A robot that passes the hardest level goes to a random level, so
+than ``up_distance_fraction`` of a tile from where it started, and down one if it ended closer
+to its start than ``down_command_fraction`` of how far its commands would have carried it (their
+displacement, not their path length: commands turn and reverse; robots told to stand never move
+down for standing). A robot that passes the hardest level goes to a random level, so
 the hardest tiles never hold the whole population (legged_gym does the same).
 
 Everything is (N,) tensors written through row selectors (``core.rows``): no per-env loop, no
@@ -34,7 +35,7 @@ class TerrainCurriculumCfg(Checked):
     up_distance_fraction: float = 0.5
     """Move up after walking farther than this share of a tile's edge (legged_gym: a half)."""
     down_command_fraction: float = 0.5
-    """Move down after covering less than this share of the commanded path length."""
+    """Move down after ending closer to the start than this share of the commanded displacement."""
 
 
 class TerrainCurriculum:
@@ -63,16 +64,17 @@ class TerrainCurriculum:
             self.levels = torch.full((num_envs,), level, dtype=torch.long, device=self.device)
         self.origins_w = self.centers_w[self.levels, self.kinds]
 
-    def update(self, rows: torch.Tensor | None, distance_m: torch.Tensor, command_path_m: torch.Tensor) -> None:
+    def update(self, rows: torch.Tensor | None, distance_m: torch.Tensor, command_distance_m: torch.Tensor) -> None:
         """Move the envs ``rows`` selects (their episodes ended) up or down a level.
 
         ``distance_m``: (N,) how far each robot got from its start, m (horizontal);
-        ``command_path_m``: (N,) how far its commands asked it to walk in the episode, m."""
+        ``command_distance_m``: (N,) how far from its start its commands would have carried it
+        (the norm of the commanded velocity integrated in the world frame), m."""
         if not self.cfg.enabled:
             return
         n = num_rows(rows, self.num_envs)
         level = take_rows(self.levels, rows)
-        distance, asked = take_rows(distance_m, rows), take_rows(command_path_m, rows)
+        distance, asked = take_rows(distance_m, rows), take_rows(command_distance_m, rows)
         up = distance > self.cfg.up_distance_fraction * self.tile_size_m
         down = (distance < self.cfg.down_command_fraction * asked) & ~up
         level = level + up.long() - down.long()
