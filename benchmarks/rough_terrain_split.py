@@ -47,14 +47,17 @@ def split(env, steps: int, warmup: int, generator: torch.Generator) -> dict:
     def act():
         return torch.rand(env.num_envs, env.num_actions, generator=generator, device=env.device) * 2 - 1
 
+    def ms_per_step() -> float:
+        sync(env.device)
+        start = time.perf_counter()
+        for _ in range(steps):
+            env.step(act())
+        sync(env.device)
+        return (time.perf_counter() - start) / steps * 1e3
+
     for _ in range(warmup):
         env.step(act())
-    sync(env.device)
-    start = time.perf_counter()
-    for _ in range(steps):
-        env.step(act())
-    sync(env.device)
-    env_ms = (time.perf_counter() - start) / steps * 1e3
+    env_ms = ms_per_step()
 
     engine, physics_s, calls = env.engine, [0.0], [0]
     step = engine.step
@@ -70,12 +73,7 @@ def split(env, steps: int, warmup: int, generator: torch.Generator) -> dict:
 
     engine.step = timed_step
     try:
-        sync(env.device)
-        start = time.perf_counter()
-        for _ in range(steps):
-            env.step(act())
-        sync(env.device)
-        synced_ms = (time.perf_counter() - start) / steps * 1e3
+        synced_ms = ms_per_step()
     finally:
         engine.step = step
     physics_ms = physics_s[0] / steps * 1e3
