@@ -16,6 +16,7 @@ import contextlib
 import json
 import os
 from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
 from typing import Any
 
 import torch
@@ -27,16 +28,114 @@ from ambulo.utils.atomic import atomic_write_json
 from . import runs
 
 
+@dataclass
+class EpisodeRecords:
+    """What each of N complete episodes did; every tensor is (N,) on the env's device.
+
+    ``metric_means``: per step metric, its mean over the steps of each episode (float64)."""
+
+    failed: torch.Tensor
+    succeeded: torch.Tensor
+    returns: torch.Tensor
+    length_steps: torch.Tensor
+    metric_means: dict[str, torch.Tensor]
+
+    def sums(self, rows: slice = slice(None)) -> EpisodeSums:
+        """The totals of the episodes ``rows`` (one device-to-host read)."""
+        parts = [self.length_steps[rows].new_tensor(float(self.length_steps[rows].numel())),
+                 self.failed[rows].double().sum(), self.succeeded[rows].double().sum(),
+                 self.returns[rows].sum(), self.length_steps[rows].sum(),
+                 *(m[rows].sum() for m in self.metric_means.values())]
+        values = torch.stack(parts).cpu().tolist()
+        return EpisodeSums(*values[:5], dict(zip(self.metric_means, values[5:])))
+
+
+@dataclass
+class EpisodeSums:
+    """Totals over a set of complete episodes: what evaluations of disjoint shares of the episodes
+    (on several processes, ``eval_share``) add up to before ``summarize`` divides by the count.
+    Means are merged as sums and counts, never as averages of averages: shares of unequal size
+    weigh by their episodes."""
+
+    episodes: float
+    falls: float
+    successes: float
+    returns: float
+    """Sum of the episodes' returns."""
+    length_steps: float
+    """Sum of the episodes' lengths, policy steps."""
+    metric_means: dict[str, float] = field(default_factory=dict)
+    """Step metric -> sum over the episodes of its per-episode mean."""
+
+    def to_tensor(self) -> torch.Tensor:
+        """(5 + metrics,) float64: the fields in order (metrics in insertion order)."""
+        return torch.tensor([self.episodes, self.falls, self.successes, self.returns, self.length_steps,
+                             *self.metric_means.values()], dtype=torch.float64)
+
+    def like(self, values: torch.Tensor) -> EpisodeSums:
+        """Sums with ``values`` (``to_tensor``'s layout) and this one's metric names."""
+        v = values.cpu().tolist()
+        return EpisodeSums(*v[:5], dict(zip(self.metric_means, v[5:])))
+
+    def __add__(self, other: EpisodeSums) -> EpisodeSums:
+        if list(self.metric_means) != list(other.metric_means):
+            raise ValueError(f"cannot merge episodes measuring {list(self.metric_means)} "
+                             f"and {list(other.metric_means)}")
+        return self.like(self.to_tensor() + other.to_tensor())
+
+
+def summarize(sums: EpisodeSums, task: envs.TaskSpec, *, step_dt_s: float, max_episode_length: int) -> dict:
+    """``run_episodes``' result from the totals of its episodes: the one place metrics are computed,
+    for one process's episodes or the merged shares of several."""
+    n = sums.episodes
+    result = {
+        "task": task.name,
+        "episodes": int(n),
+        "episode_length_s": max_episode_length * step_dt_s,
+        "fall_rate": sums.falls / n,
+        "success_rate": sums.successes / n,
+        "mean_return": sums.returns / n,
+        "mean_episode_length_s": sums.length_steps / n * step_dt_s,
+    }
+    for name, total in sums.metric_means.items():
+        result[f"mean_{name}"] = total / n
+    result["criteria"] = [c.name for c in task.criteria]
+    for criterion in task.criteria:
+        result[criterion.name] = criterion.holds(result)
+    return result
+
+
 def run_episodes(env: envs.RLEnv, vec_env, policy: Callable, task: envs.TaskSpec, *,
-                 desc: str = "eval", quiet: bool = True, blocks: int = 1) -> dict:
+                 desc: str = "eval", quiet: bool = True, blocks: int = 1,
+                 merge: Callable[[EpisodeSums], EpisodeSums] | None = None) -> dict:
     """Run one episode in each env of ``env`` (wrapped by ``vec_env``, an ``RslRlVecEnv``)
     with ``policy`` (TensorDict observations -> (N, num_actions) actions) from a full reset;
     return the metrics and criteria (see the module docstring). ``blocks`` > 1: the envs are
     that many contiguous equal blocks evaluated side by side (humanoid-walk's
     ``transfer_blocks``: one condition each), and ``result["blocks"]`` holds each one's result
-    (the same keys) beside the whole's."""
+    (the same keys) beside the whole's. ``merge``: these episodes are one share of an evaluation
+    split over processes (``eval_share``); it returns the totals of every share, which the
+    result describes."""
     if blocks < 1 or env.num_envs % blocks:
         raise ValueError(f"blocks={blocks} does not split {env.num_envs} envs evenly")
+    if merge is not None and blocks > 1:
+        raise ValueError("an evaluation split over processes has no blocks")
+    records = episode_records(env, vec_env, policy, task, desc=desc, quiet=quiet)
+    sums = records.sums()
+    if merge is not None:
+        sums = merge(sums)
+    shape = {"step_dt_s": env.step_dt_s, "max_episode_length": env.max_episode_length}
+    result = summarize(sums, task, **shape)
+    if blocks > 1:
+        per = env.num_envs // blocks
+        result["blocks"] = [summarize(records.sums(slice(b * per, (b + 1) * per)), task, **shape)
+                            for b in range(blocks)]
+    return result
+
+
+def episode_records(env: envs.RLEnv, vec_env, policy: Callable, task: envs.TaskSpec, *,
+                    desc: str = "eval", quiet: bool = True) -> EpisodeRecords:
+    """Run one episode in each env of ``env`` (see ``run_episodes``); what each one did."""
     n, dev = env.num_envs, env.device
     running = torch.ones(n, dtype=torch.bool, device=dev)
     failed = torch.zeros(n, dtype=torch.bool, device=dev)
@@ -63,30 +162,9 @@ def run_episodes(env: envs.RLEnv, vec_env, policy: Callable, task: envs.TaskSpec
             target |= ended & mask
         failed |= ended & extras["terminated"] & ~succeeded
         running &= ~dones.bool()
-
-    def summary(rows: slice) -> dict:
-        steps = lengths[rows].clamp(min=1.0)
-        result = {
-            "task": task.name,
-            "episodes": int(lengths[rows].numel()),
-            "episode_length_s": env.max_episode_length * env.step_dt_s,
-            "fall_rate": float(failed[rows].double().mean()),
-            "success_rate": float(succeeded[rows].double().mean()),
-            "mean_return": float(returns[rows].mean()),
-            "mean_episode_length_s": float(lengths[rows].mean() * env.step_dt_s),
-        }
-        for name, total in metric_sums.items():
-            result[f"mean_{name}"] = float((total[rows] / steps).mean())
-        result["criteria"] = [c.name for c in task.criteria]
-        for criterion in task.criteria:
-            result[criterion.name] = criterion.holds(result)
-        return result
-
-    result = summary(slice(None))
-    if blocks > 1:
-        per = n // blocks
-        result["blocks"] = [summary(slice(b * per, (b + 1) * per)) for b in range(blocks)]
-    return result
+    steps = lengths.clamp(min=1.0)
+    return EpisodeRecords(failed, succeeded, returns, lengths,
+                          {name: total / steps for name, total in metric_sums.items()})
 
 
 @contextlib.contextmanager

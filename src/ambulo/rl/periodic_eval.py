@@ -24,6 +24,14 @@ commands and resets from torch's CUDA generator, another sample than the CPU's);
 A resume from ``model_N.pt`` runs iterations N+1, N+2, ... again, so ``resume_evals`` first
 drops the rows of iterations > N from ``evals.csv`` (rewritten atomically, as ``metrics.csv``),
 and keeps ``time_to_criterion.json`` only if its iteration is <= N (see there).
+
+In a data-parallel run (``rank``: W processes) every rank owns a ``PeriodicEval`` and evaluates
+its share of the episodes on its own device (``eval_share``: ``num_episodes / W`` worlds, its own
+seed stream); the shares' totals are merged so every rank holds the same result and takes the same
+decision (the CPU-engine confirmation, split the same way, and the criteria). Rank 0 alone saves
+the checkpoint and writes ``evals.csv``, ``time_to_criterion.json`` and TensorBoard. Every rank
+must call it at the same iteration (``progress.TrainingProgress``). One process: rank 0 of 1, the
+episodes ``ambulo eval`` runs.
 """
 
 from __future__ import annotations
@@ -42,6 +50,8 @@ from ambulo.engine import CpuEngine
 from ambulo.utils.atomic import atomic_write_json, atomic_write_text
 
 from . import runs
+from .distributed import Rank
+from .eval_share import eval_share, merge_over_ranks
 from .evaluate import eval_episode_length_s, run_episodes
 from .metrics import truncate_csv
 from .vecenv import RslRlVecEnv
@@ -103,10 +113,12 @@ class PeriodicEval:
 
     def __init__(self, info: dict[str, Any], run_dir: Path, *, every: int, started_s: float,
                  steps_per_iteration: int, num_episodes: int = 100, seed: int = 12345,
-                 device: str | None = None, start: int = 0, confirm_on_cpu_engine: bool = True):
+                 device: str | None = None, start: int = 0, confirm_on_cpu_engine: bool = True,
+                 rank: Rank | None = None):
         """``start`` > 0: the run resumes at that iteration (``resume_evals``).
         ``confirm_on_cpu_engine``: a success on another engine counts only once the CPU engine
-        confirms it (see the module docstring)."""
+        confirms it (see the module docstring). ``rank``: this process's place in a data-parallel
+        run (default: the only one); ``device`` is then this rank's."""
         self.task = envs.spec(info["task"])
         if not self.task.criteria:
             raise ValueError(f"--eval-every: task {info['task']!r} declares no success criterion to "
@@ -115,7 +127,10 @@ class PeriodicEval:
         self.every, self.started_s, self.seed = every, started_s, seed
         self.run_dir, self.steps_per_iteration = Path(run_dir), steps_per_iteration
         self.episode_length_s = eval_episode_length_s(self.task, None)
-        self.env = runs.make_env_for_run(info, num_envs=num_episodes, seed=seed, play=True,
+        self.rank = rank if rank is not None else Rank()
+        self.share = eval_share(num_episodes, seed, self.rank)
+        """This rank's episodes (all of them in one process)."""
+        self.env = runs.make_env_for_run(info, num_envs=self.share.episodes, seed=self.share.seed, play=True,
                                          device=device, episode_length_s=self.episode_length_s)
         # 100 worlds are launch-bound on a GPU: each evaluation's 1,000 steps replay one CUDA graph
         self.env.use_cuda_graph()
@@ -130,7 +145,10 @@ class PeriodicEval:
         """Seconds spent evaluating, inside the timed total (reported, not subtracted)."""
         self._csv = self.run_dir / "evals.csv"
         self.reached: dict[str, Any] | None = None
-        """The first evaluation that met the criteria (``time_to_criterion.json``), if any yet."""
+        """The first evaluation that met the criteria (``time_to_criterion.json``), if any yet;
+        rank 0's is the run's (the others do not read the resumed run's)."""
+        if not self.rank.is_main:
+            return  # rank 0 writes the run folder
         if start > 0:
             self.reached = resume_evals(self.run_dir, start)
         if not self._csv.is_file():
@@ -141,20 +159,35 @@ class PeriodicEval:
 
     def __call__(self, runner, iteration: int) -> dict[str, Any]:
         """Save ``model_<iteration>.pt``, evaluate it (and confirm a success on the CPU engine),
-        log it; return the eval result (``result["cpu_engine"]``: the confirmation, if run)."""
+        log it; return the eval result (``result["cpu_engine"]``: the confirmation, if run).
+        In a data-parallel run: this rank's share, merged with the others' (see the module doc)."""
         checkpoint = self.run_dir / f"model_{iteration}.pt"
-        runner.save(str(checkpoint))
+        if self.rank.is_main:
+            runner.save(str(checkpoint))
         began = time.monotonic()
         self.env.generator.set_state(self._rng_state)  # the same commands and resets every time
         policy = runner.get_inference_policy(device=str(self.env.device))
         try:
-            result = run_episodes(self.env, self.vec_env, policy, self.task)
+            result = run_episodes(self.env, self.vec_env, policy, self.task, **self._merge())
             met = self._met(result)
             cpu = self._cpu_engine_eval(policy) if met and self.confirm else None
         finally:
             runner.alg.train_mode()  # get_inference_policy switched it to eval mode
         self.eval_s += time.monotonic() - began
         wall_s = time.monotonic() - self.started_s
+        confirmed = met and (not self.confirm or self._met(cpu))
+        if cpu is not None:
+            result = {**result, "cpu_engine": cpu}
+        if self.rank.is_main:
+            self._record(runner, iteration, checkpoint, wall_s, result, met, cpu, confirmed)
+        elif confirmed and self.reached is None:
+            self.reached = {"iteration": iteration}
+        return result
+
+    def _record(self, runner, iteration: int, checkpoint: Path, wall_s: float, result: dict[str, Any],
+                met: bool, cpu: dict[str, Any] | None, confirmed: bool) -> None:
+        """Rank 0: the evals.csv row, TensorBoard's scalars, and the first success's record."""
+        result = {k: v for k, v in result.items() if k != "cpu_engine"}
         row = [iteration, f"{wall_s:.1f}", (iteration + 1) * self.steps_per_iteration,
                f"{result['fall_rate']:.3f}", f"{result['mean_episode_length_s']:.2f}",
                f"{result['mean_return']:.2f}", _metrics_text(result), met,
@@ -172,7 +205,6 @@ class PeriodicEval:
             if cpu is not None:
                 for key in ("fall_rate", *_metrics(cpu)):
                     writer.add_scalar(f"eval_cpu_engine/{key}", cpu[key], iteration)
-        confirmed = met and (not self.confirm or self._met(cpu))
         if confirmed and self.reached is None:
             self.reached = {"criteria": [c.name for c in self.task.criteria], "iteration": iteration,
                             "checkpoint": checkpoint.name, "wall_s": round(wall_s, 1),
@@ -181,9 +213,14 @@ class PeriodicEval:
                             "eval_device": str(self.env.device),
                             "eval_cpu_engine": cpu if cpu is not None else result if is_cpu_engine(self.env) else None}
             atomic_write_json(self.run_dir / TIME_FILE, self.reached, indent=2, fsync=True)
-        if cpu is not None:
-            result = {**result, "cpu_engine": cpu}
-        return result
+
+    def _merge(self) -> dict[str, Any]:
+        """``run_episodes``' ``merge`` argument in a data-parallel run (nothing in one process):
+        every share's totals, gathered on this rank's training device (also for the CPU-engine
+        confirmation: NCCL takes GPU tensors only)."""
+        if not self.rank.distributed:
+            return {}
+        return {"merge": lambda sums: merge_over_ranks(sums, self.rank, self.env.device)}
 
     def _met(self, result: dict[str, Any]) -> bool:
         return all(result[c.name] for c in self.task.criteria)
@@ -191,13 +228,14 @@ class PeriodicEval:
     def _cpu_engine_eval(self, policy) -> dict[str, Any]:
         """``policy`` (a copy, on the CPU) over the same episodes on the CPU engine."""
         if self.cpu_env is None:
-            self.cpu_env = runs.make_env_for_run(self.info, num_envs=self.num_episodes, seed=self.seed, play=True,
-                                                 device="cpu", engine="mujoco",
+            self.cpu_env = runs.make_env_for_run(self.info, num_envs=self.share.episodes, seed=self.share.seed,
+                                                 play=True, device="cpu", engine="mujoco",
                                                  episode_length_s=self.episode_length_s)
             self._cpu_vec_env = RslRlVecEnv(self.cpu_env)
             self._cpu_rng_state = self.cpu_env.generator.get_state()
         self.cpu_env.generator.set_state(self._cpu_rng_state)
-        return run_episodes(self.cpu_env, self._cpu_vec_env, CpuPolicy(policy), self.task)
+        return run_episodes(self.cpu_env, self._cpu_vec_env, CpuPolicy(policy), self.task,
+                            **self._merge())
 
     def close(self) -> None:
         self.env.close()

@@ -8,8 +8,9 @@ when rsl-rl's own report prints instead), evaluate when ``periodic`` is due, end
 numbers to ``on_scalars`` (``training_scalars``, ``evaluation_scalars``: the web viewer's curves).
 
 The other ranks (``TrainingProgress.follow``, called by ``ppo.AmbuloPPO`` after each update):
-only the bookkeeping every rank must share, at the same point of the iteration: the stop request,
-and rank 0's decision at an evaluation, so every rank stops at the same iteration.
+only the work every rank must share, at the same point of the iteration: the stop request, their
+share of a due evaluation (``periodic``: each rank has one, ``periodic_eval``), and rank 0's
+decision at an evaluation, so every rank stops at the same iteration.
 """
 
 from __future__ import annotations
@@ -37,6 +38,8 @@ class TrainingProgress:
     Args:
       runner: the ``OnPolicyRunner`` (evaluations read its policy and save its checkpoint).
       episodes: the main rank's ``EpisodeStats`` (None on the other ranks).
+      periodic: this rank's ``PeriodicEval`` (every rank of a data-parallel run has one: each
+        evaluates its share of the episodes), or None without ``--eval-every``.
       start, total: the first iteration this process runs and the run's iteration count.
       step_dt_s: the env's policy step, s (episode lengths in the CSV are in seconds).
       steps_per_iteration: env steps of all ranks in one iteration.
@@ -94,6 +97,8 @@ class TrainingProgress:
         self._next_iteration += 1
         self.stop.check()
         if eval_due(iteration, self.eval_every):
+            if self.periodic is not None:  # this rank's share; the merge meets rank 0's in the same order
+                self.periodic(self.runner, iteration)
             if distributed.agree(False, self.rank, self.device) and self.stop_at_criterion:
                 raise CriterionReached
 

@@ -246,10 +246,10 @@ def train(task: str | None = None, *, num_envs: int | None = None,
         return run_dir
     stop = interrupt.StopRequest()
     periodic = None
-    if eval_every and rank.is_main:
+    if eval_every:  # every rank evaluates its share of the episodes; rank 0 records them
         periodic = PeriodicEval(info, run_dir, every=eval_every, started_s=started_s,
                                 steps_per_iteration=ppo.num_steps_per_env * ppo.num_envs * rank.world_size,
-                                device=str(env.device), start=start)
+                                device=str(env.device), start=start, rank=rank)
     elif resume and rank.is_main:  # evaluations of a crashed run's later iterations go, with or without --eval-every
         resume_evals(run_dir, start)
     watcher = watch(env) if watch is not None and rank.is_main else None
@@ -271,7 +271,7 @@ def train(task: str | None = None, *, num_envs: int | None = None,
         pass
     finally:
         end_training(progress, watcher, env, periodic)
-    if periodic is not None:
+    if periodic is not None and rank.is_main:
         _report_time_to_criterion(periodic)
     if not rank.is_main:
         return run_dir
