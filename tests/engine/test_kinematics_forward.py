@@ -33,7 +33,7 @@ def _standing_env(engine: str):
     """humanoid-walk's 4 worlds after a few steps standing: feet on the ground, qacc and contact
     forces nonzero. Two envs made this way hold the same state (same seed, same steps)."""
     env = envs.make("humanoid-walk", num_envs=4, seed=5, device="cpu" if engine == "mujoco" else DEVICE,
-                    engine=engine, push_interval_s=None)
+                    engine=engine, push_interval_s=None, reset_forward="full")  # the env's own resets: full
     for _ in range(3):
         env.step(torch.zeros(env.num_envs, env.num_actions, device=env.device))
     return env
