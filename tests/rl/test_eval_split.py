@@ -108,3 +108,43 @@ def test_only_rank_0_writes(two_ranks):
     merged = {k: v for k, v in zero["result"].items() if k != "cpu_engine"}
     assert reached["eval"] == merged and reached["eval_cpu_engine"] == zero["result"]["cpu_engine"]
     assert (run / "evals.csv").read_text().count("\n") == 2  # the header and one row
+
+
+@pytest.fixture(scope="module")
+def cartpole_run(tmp_path_factory):
+    from ambulo.rl import train
+
+    return train("cartpole", num_envs=16, max_iterations=2, seed=0, log_root=tmp_path_factory.mktemp("runs"))
+
+
+def test_ambulo_eval_split_over_processes_is_the_union_of_the_shares(cartpole_run):
+    """``ambulo eval --num-gpus 2``'s machinery on CPU processes (gloo): 7 episodes as shares of 4 and 3,
+    each what one process evaluates with that share's worlds and seed, merged episode-weighted."""
+    from ambulo.rl.eval_gpus import evaluate_split
+    from ambulo.rl.evaluate import evaluate
+
+    split = evaluate_split(cartpole_run, processes=2, device="cpu", num_episodes=7, quiet=True)
+    shares = [eval_share(7, SEED, Rank(r, r, 2)) for r in range(2)]
+    alone = [evaluate(cartpole_run, num_episodes=s.episodes, seed=s.seed, quiet=True) for s in shares]
+    assert split["episodes"] == 7 and split["device"] == "cpu x 2"
+    for key in ("fall_rate", "mean_return", "mean_episode_length_s"):
+        weighted = sum(s.episodes * one[key] for s, one in zip(shares, alone)) / 7
+        assert split[key] == pytest.approx(weighted, rel=1e-12), key
+
+
+@pytest.mark.parametrize("flags, message", [
+    (["--num-gpus", "2", "--device", "cpu"], "--num-gpus evaluates on GPUs, but the device is 'cpu': add --device cuda"),
+    (["--num-gpus", "2"], "--num-gpus evaluates on GPUs, but the device is 'cpu'"),  # the run's device
+    (["--num-gpus", "0"], "--num-gpus: '0' is not a whole number above 0"),
+    (["--num-gpus", "64", "--device", "cuda"], "--num-gpus 64 but"),
+])
+def test_ambulo_eval_refuses_a_bad_num_gpus_in_one_line(cartpole_run, capsys, flags, message):
+    from ambulo.cli import main
+
+    try:
+        status = main(["eval", str(cartpole_run), *flags])
+    except SystemExit as exit:  # argparse's own refusal (--num-gpus 0)
+        status = exit.code
+    assert status == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and "\n" not in err

@@ -325,6 +325,8 @@ def evaluate(args: argparse.Namespace) -> int:
     watch = web_watch(args)
     if args.shipped:
         result = _evaluate_shipped(args, watch)
+    elif args.num_gpus is not None:
+        result = _evaluate_on_gpus(args, watch)
     else:
         _check_run(args.run)
         from ambulo.rl import evaluate as run_eval
@@ -337,6 +339,27 @@ def evaluate(args: argparse.Namespace) -> int:
         return 0
     failed = [name for name in result.get("criteria", []) if not result[name]]
     return 1 if failed else 0
+
+
+def _evaluate_on_gpus(args: argparse.Namespace, watch: Callable | None) -> dict:
+    """``ambulo eval RUN --num-gpus N``: the episodes split over N processes, one GPU each."""
+    if args.shipped or watch is not None:
+        raise CliError("--num-gpus evaluates a run folder with no viewer", "drop --shipped / --viewer or --num-gpus")
+    _check_run(args.run)
+    from ambulo.rl import runs
+    from ambulo.rl.eval_gpus import check_num_gpus, evaluate_split
+
+    with _rl_errors("the run folder (eval.json goes there)"):
+        device = args.device or runs.read_run_info(runs.resolve_run(args.run, args.log_root))["device"]
+        try:
+            check_num_gpus(args.num_gpus, device)
+            if args.episodes < args.num_gpus:
+                raise ValueError(f"--episodes {args.episodes} cannot be split over --num-gpus {args.num_gpus}")
+        except ValueError as err:
+            raise CliError(str(err)) from None
+        return evaluate_split(args.run, processes=args.num_gpus, checkpoint=args.checkpoint,
+                              num_episodes=args.episodes, episode_length_s=args.episode_length_s, seed=args.seed,
+                              log_root=args.log_root)
 
 
 def _evaluate_shipped(args: argparse.Namespace, watch: Callable | None) -> dict:
@@ -435,6 +458,9 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--device", help="cpu or cuda[:N] (default: the run's); cpu after GPU training "
                    "is a sim-to-sim check")
     p.add_argument("--log-root", default="runs")
+    p.add_argument("--num-gpus", type=whole_above_zero("--num-gpus 2"), default=None,
+                   help="split the episodes over N processes, one GPU each (cuda:0..N-1), merged into one "
+                        "result (other episodes than one process runs for the seed: each share has its own)")
     p.add_argument("--require-criteria", "--require-walk", dest="require_criteria", action="store_true",
                    help="exit 1 unless every success criterion of the task holds (humanoid-walk's "
                         "'walks': fall rate <= 5%% and velocity error <= 0.2 m/s)")

@@ -17,12 +17,15 @@ task, policy and counts: an equally valid sample, not the identical one).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
 
 from .distributed import Rank
-from .evaluate import EpisodeSums
+
+if TYPE_CHECKING:  # evaluate imports this module
+    from .evaluate import EpisodeSums
 
 
 @dataclass(frozen=True)

@@ -26,6 +26,8 @@ from ambulo import envs
 from ambulo.utils.atomic import atomic_write_json
 
 from . import runs
+from .distributed import Rank
+from .eval_share import eval_share, merge_over_ranks
 
 
 @dataclass
@@ -187,23 +189,33 @@ def eval_episode_length_s(task: envs.TaskSpec, episode_length_s: float | None) -
 def evaluate(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = None,
              num_episodes: int = 100, episode_length_s: float | None = None, seed: int = 12345,
              log_root: str | os.PathLike = "runs", quiet: bool = False, device: str | None = None,
-             watch: Callable[[envs.RLEnv], Any] | None = None) -> dict:
+             watch: Callable[[envs.RLEnv], Any] | None = None, rank: Rank | None = None) -> dict:
     """Evaluate ``run`` and return (and print) a dict of metrics; also written to
     ``<run>/eval.json``. ``device`` (default: the run's) evaluates on another engine: a policy
     trained on a GPU, evaluated with ``device="cpu"``, is a sim-to-sim check. ``watch``: see
-    ``watched`` (the episodes are shown as they run)."""
+    ``watched`` (the episodes are shown as they run). ``rank``: this process runs its share of
+    the episodes in a group of processes (``eval_gpus``; ``device`` is then its own) and gets
+    the merged result; rank 0 alone prints and writes eval.json."""
+    rank = rank if rank is not None else Rank()
     run_dir, ckpt = runs.resolve_policy(run, checkpoint, log_root)
     info = runs.read_run_info(run_dir)
     task = envs.spec(info["task"])
-    env = runs.make_env_for_run(info, num_envs=num_episodes, seed=seed, play=True, device=device,
+    share = eval_share(num_episodes, seed, rank)
+    env = runs.make_env_for_run(info, num_envs=share.episodes, seed=share.seed, play=True, device=device,
                                 episode_length_s=eval_episode_length_s(task, episode_length_s))
     env.use_cuda_graph()  # on a GPU: 100 worlds are launch-bound, a replayed step is not
     runner = runs.load_runner(run_dir, env, ckpt)
     policy = runner.get_inference_policy(device=str(env.device))
     with watched(env, watch):
-        measured = run_episodes(env, runner.env, policy, task, desc=f"eval {info['task']}", quiet=quiet)
+        merge = {} if not rank.distributed else {"merge": lambda sums: merge_over_ranks(sums, rank, env.device)}
+        measured = run_episodes(env, runner.env, policy, task, desc=f"eval {info['task']}",
+                                quiet=quiet or not rank.is_main, **merge)
     result = {"task": info["task"], "run": str(run_dir), "checkpoint": ckpt.name,
-              "device": str(env.device), **measured}
+              "device": str(env.device) if not rank.distributed else f"{env.device.type} x {rank.world_size}",
+              **measured}
+    if not rank.is_main:
+        env.close()
+        return result
     atomic_write_json(run_dir / "eval.json", result, indent=2, sort_keys=False, fsync=True)
     if not quiet:
         print(json.dumps(result, indent=2))
