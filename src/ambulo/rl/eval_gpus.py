@@ -4,7 +4,9 @@ Process r evaluates its share of the episodes on ``cuda:r`` (``eval_share``: its
 stream) and the shares' totals are merged over NCCL as in a data-parallel run's periodic
 evaluation (``eval_share.merge_over_ranks``: the one merge); rank 0 prints the result and writes
 ``eval.json``. The processes are spawned here (no torchrun needed). ``device="cpu"`` runs the same
-over gloo: how the tests check it without GPUs.
+over gloo: how the tests check it without GPUs. For a seed, N processes run the episodes a
+data-parallel run of N ranks evaluates (``--eval-every``): its ``evals.csv`` numbers are what
+``ambulo eval RUN --checkpoint model_<it>.pt --num-gpus N`` prints.
 """
 
 from __future__ import annotations
@@ -37,6 +39,10 @@ def evaluate_split(run: str | os.PathLike, *, processes: int, device: str = "cud
     """``evaluate(run, **kwargs)`` as ``processes`` processes (see the module doc); rank 0's result
     (``eval.json``, as one process writes it). ``device``: ``cuda`` (process r on ``cuda:r``,
     NCCL) or ``cpu`` (gloo)."""
+    if processes == 1:  # nothing to split: this process, as `ambulo eval --device cuda`
+        from .evaluate import evaluate
+
+        return evaluate(run, device=device, **kwargs)
     with socket.socket() as s:  # a free port for the process group's rendezvous
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]

@@ -31,7 +31,7 @@ seed stream); the shares' totals are merged so every rank holds the same result 
 decision (the CPU-engine confirmation, split the same way, and the criteria). Rank 0 alone saves
 the checkpoint and writes ``evals.csv``, ``time_to_criterion.json`` and TensorBoard. Every rank
 must call it at the same iteration (``progress.TrainingProgress``). One process: rank 0 of 1, the
-episodes ``ambulo eval`` runs.
+episodes ``ambulo eval`` runs; W ranks: those ``ambulo eval --num-gpus W`` runs (``eval_gpus``).
 """
 
 from __future__ import annotations
