@@ -12,6 +12,7 @@ from ambulo.envs.humanoid_rough import HumanoidRoughEnv
 from ambulo.envs.transfer import TransferCfg
 from ambulo.robots import humanoid
 from runaway_probe import fastest_speed_under_noise
+from script_loader import ROOT, load_script
 
 SMALL = {"terrain.num_levels": 3, "terrain.tile_size_m": 4.0, "terrain.platform_size_m": 1.0,
          "terrain.border_m": 1.0}
@@ -216,29 +217,12 @@ def test_the_curriculum_compares_the_distance_walked_with_the_commanded_displace
 
 def test_a_robot_that_follows_turning_commands_exactly_is_never_moved_down():
     """20,000 simulated 20 s episodes of the task's commands (start-of-training ranges, yaw rates,
-    headings, standing envs, resampling), each robot moving exactly as commanded: none may move
-    down a level. Against the path length (|v| integrated) 48 % would (the curriculum then drains
-    to its easiest tiles); the distances here are integrated independently of the env's helper."""
-    from ambulo.envs.commands import VelocityCommand
-    from ambulo.envs.humanoid_rough import commanded_velocity_w
-
+    headings, standing envs, resampling), each robot moving exactly as commanded
+    (benchmarks/curriculum_demotions.py): none may move down a level. By the path length (|v|
+    integrated), the rule until session 12, 48 % would (the curriculum then drains to its easiest
+    tiles)."""
+    bench = load_script(ROOT / "benchmarks" / "curriculum_demotions.py")
     env = make(num_envs=1)
-    n, dt = 20000, env.step_dt_s
-    commands = VelocityCommand(env.cfg.commands, n, torch.Generator().manual_seed(0), torch.device("cpu"))
-    commands.range_scale.fill_(env.cfg.curriculum_start_scale)
-    commands.resample(None)
-    pos = torch.zeros(n, dtype=torch.complex128)  # the robot in the complex plane: x + iy
-    yaw = torch.zeros(n, dtype=torch.float64)
-    asked, path = torch.zeros(n, 2), torch.zeros(n)
-    for _ in range(round(env.cfg.episode_length_s / dt)):
-        commands.update(dt, yaw.float())
-        c = commands.command.double()
-        asked += commanded_velocity_w(commands.command, yaw.float()) * dt
-        path += torch.linalg.vector_norm(commands.command[:, :2], dim=-1) * dt
-        pos += torch.exp(1j * yaw) * torch.complex(c[:, 0], c[:, 1]) * dt
-        yaw += c[:, 2] * dt
-    distance = pos.abs().float()
-    curriculum = env.curriculum
-    fraction = curriculum.cfg.down_command_fraction
-    assert not (distance < fraction * torch.linalg.vector_norm(asked, dim=-1) - 1e-4).any()
-    assert (distance < fraction * path).float().mean() > 0.3  # what the path-length rule did
+    result = bench.shares(env, bench.perfect_tracker(env, 20000, env.cfg.curriculum_start_scale, seed=0))
+    assert result["down"] == 0.0
+    assert result["down_by_path_length"] > 0.3
