@@ -5,7 +5,14 @@ import numpy as np
 import torch
 
 from ambulo.utils import rotations
-from ambulo.utils.math import quat_from_axis_angle, quat_rotate, quat_rotate_inverse, yaw_from_quat
+from ambulo.utils.math import (
+    quat_from_axis_angle,
+    quat_rotate,
+    quat_rotate_inverse,
+    rotate_yaw,
+    rotate_yaw_inverse,
+    yaw_from_quat,
+)
 
 
 def test_rotations_match_mujoco():
@@ -49,3 +56,12 @@ def test_numpy_rotations_match_mujoco_and_the_torch_versions():
                                atol=1e-15)
     np.testing.assert_allclose(rotations.rot_about_axes(axis * angle[:, None]), rotations.quat_to_mat(q), atol=1e-12)
     np.testing.assert_array_equal(rotations.rot_about_axes(np.zeros(3)), np.eye(3))
+
+
+def test_rotate_yaw_turns_heading_frame_vectors_into_the_world_and_back():
+    yaw = torch.tensor([0.0, np.pi / 2, np.pi])
+    forward = torch.tensor([1.0, 0.0])  # broadcast against the three yaws
+    torch.testing.assert_close(rotate_yaw(yaw, forward), torch.tensor([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0]]),
+                               atol=1e-6, rtol=0)
+    vec = torch.randn(3, 2, generator=torch.Generator().manual_seed(0))
+    torch.testing.assert_close(rotate_yaw_inverse(yaw, rotate_yaw(yaw, vec)), vec, atol=1e-6, rtol=0)

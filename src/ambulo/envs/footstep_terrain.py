@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import torch
 
+from ambulo.utils.math import rotate_yaw
 from ambulo.utils.validate import Checked, rule
 
 from .footstep_sampler import FootstepSampler, compose_xyyaw, relative_xyyaw
@@ -74,9 +75,7 @@ class TreadSnap:
     def _spread_m(self, centers_xy_w: torch.Tensor, yaw: torch.Tensor) -> torch.Tensor:
         """(..., C) spread under soles at (..., C, 2) centres that share each (...) yaw, rad: the
         sample offsets are rotated once per yaw, not per candidate (the snap's C is ~400)."""
-        c, s = torch.cos(yaw)[..., None], torch.sin(yaw)[..., None]
-        px, py = self.sole_points_m[:, 0], self.sole_points_m[:, 1]
-        offsets = torch.stack([c * px - s * py, s * px + c * py], dim=-1)  # (..., P, 2)
+        offsets = rotate_yaw(yaw[..., None], self.sole_points_m)  # (..., P, 2)
         h = self.height_at(centers_xy_w[..., :, None, :] + offsets[..., None, :, :])  # (..., C, P)
         return h.amax(dim=-1) - h.amin(dim=-1)
 

@@ -26,6 +26,7 @@ from ambulo.scenes.terrain import (
     TerrainCfg,
     TerrainCurriculumCfg,
 )
+from ambulo.utils.math import rotate_yaw
 
 from .humanoid_walk import WALKS, HumanoidWalkCfg, HumanoidWalkEnv, as_play, humanoid_walk_cfg, humanoid_walk_ppo
 from .registry import TaskSpec, register
@@ -82,9 +83,7 @@ def humanoid_rough_play_cfg() -> HumanoidRoughCfg:
 def commanded_velocity_w(command: torch.Tensor, heading_w: torch.Tensor) -> torch.Tensor:
     """(N, 2) commanded planar velocity in the world frame, m/s: ``command``'s (N, 3) (vx, vy) in
     the heading frame turned by ``heading_w`` (N,) rad (the yaw rate, column 2, is not used)."""
-    cos, sin = torch.cos(heading_w).float(), torch.sin(heading_w).float()
-    vx, vy = command[:, 0], command[:, 1]
-    return torch.stack([cos * vx - sin * vy, sin * vx + cos * vy], dim=-1)
+    return rotate_yaw(heading_w.float(), command[:, :2])
 
 
 class HumanoidRoughEnv(TerrainGround, HumanoidWalkEnv):

@@ -70,6 +70,14 @@ def quat_from_yaw(yaw):
     return torch.stack([torch.cos(half), zero, zero, torch.sin(half)], dim=-1)
 
 
+def rotate_yaw(yaw: torch.Tensor, vec_xy: torch.Tensor) -> torch.Tensor:
+    """Turn planar vectors ``vec_xy`` (..., 2) given in the heading frame of ``yaw`` (...,) into the
+    world frame (``rotate_yaw_inverse`` undoes it); the two broadcast against each other."""
+    c, s = torch.cos(yaw), torch.sin(yaw)
+    x, y = vec_xy[..., 0], vec_xy[..., 1]
+    return torch.stack([c * x - s * y, s * x + c * y], dim=-1)
+
+
 def rotate_yaw_inverse(yaw: torch.Tensor, vec_xy: torch.Tensor) -> torch.Tensor:
     """Express world-frame planar vectors ``vec_xy`` (..., 2) in the heading frame of ``yaw`` (...,)."""
     c, s = torch.cos(yaw), torch.sin(yaw)
