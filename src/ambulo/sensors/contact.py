@@ -108,7 +108,7 @@ class ContactSensor(Sensor):
         found = block[..., 0]  # a whole number of contacts, stored as float
         # the sensor reports the force body1 (ours) exerts on body2; we want the reaction
         force = -block[..., 1:4]
-        stale = getattr(self.engine, "acc_stale", None)
+        stale = self.engine.acc_stale
         if stale is not None:
             # a world forwarded kinematics-only since the last step (a reset with
             # EnvCfg.reset_forward="kinematics") has no contacts computed for its new state: its

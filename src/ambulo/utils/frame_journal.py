@@ -17,7 +17,7 @@ import os
 import re
 from pathlib import Path
 
-try:  # msgspec's decoder: a fraction of json's time on a dataset's records (as coco.read_json)
+try:  # msgspec's decoder: a fraction of json's time on a dataset's records
     from msgspec import DecodeError as _DecodeError
     from msgspec.json import decode as _msgspec_decode
 except ImportError:
@@ -29,6 +29,8 @@ LEGACY_RECORD = re.compile(r"(\d{6,})\.json")
 """A record of a dataset written before the journals: ``frames/NNNNNN.json``."""
 _FRAME_PREFIX = re.compile(rb'\{"frame":(\d+)[,}]')
 """A record line's frame index without decoding the line: ``write_frame_files``' dict starts with it."""
+
+
 def journals(frames_dir: str | os.PathLike) -> list[Path]:
     """The journals in ``frames_dir``, by name."""
     with contextlib.suppress(FileNotFoundError):
