@@ -68,10 +68,10 @@ def merge_over_ranks(sums: EpisodeSums, rank: Rank, device: str | torch.device) 
     mine = sums.to_tensor().to(device)
     parts = [torch.empty_like(mine) for _ in range(rank.world_size)]
     torch.distributed.all_gather(parts, mine)
-    total = parts[0].clone()
-    for part in parts[1:]:
-        total += part
-    return sums.like(total)
+    total = sums.like(parts[0])
+    for part in parts[1:]:  # EpisodeSums' own addition (float64), in rank order
+        total = total + sums.like(part)
+    return total
 
 
 __all__ = ["EvalShare", "eval_share", "merge_over_ranks", "share_seed"]
