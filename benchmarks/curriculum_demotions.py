@@ -45,11 +45,11 @@ def perfect_tracker(env, episodes: int, range_scale: float, seed: int) -> dict[s
 
 
 def shares(env, tracked: dict[str, torch.Tensor]) -> dict[str, float]:
-    cfg = env.curriculum.cfg
     distance = tracked["distance"]
-    up = distance > cfg.up_distance_fraction * env.curriculum.tile_size_m
-    down_now = (distance < cfg.down_command_fraction * tracked["displacement"] - 1e-4) & ~up
-    down_path = (distance < cfg.down_command_fraction * tracked["path"]) & ~up
+    # the curriculum's own rules; the commanded displacement less 0.1 mm: the tracker's float64
+    # path and the float32 commanded sum agree to rounding, not to the bit
+    up, down_now = env.curriculum.moves(distance, tracked["displacement"] - 1e-4)
+    _, down_path = env.curriculum.moves(distance, tracked["path"])
     return {"up": round(up.float().mean().item(), 4), "down": round(down_now.float().mean().item(), 4),
             "down_by_path_length": round(down_path.float().mean().item(), 4),
             "mean_distance_m": round(distance.mean().item(), 3), "mean_path_m": round(tracked["path"].mean().item(), 3)}

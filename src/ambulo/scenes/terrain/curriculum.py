@@ -74,9 +74,7 @@ class TerrainCurriculum:
             return
         n = num_rows(rows, self.num_envs)
         level = take_rows(self.levels, rows)
-        distance, asked = take_rows(distance_m, rows), take_rows(command_distance_m, rows)
-        up = distance > self.cfg.up_distance_fraction * self.tile_size_m
-        down = (distance < self.cfg.down_command_fraction * asked) & ~up
+        up, down = self.moves(take_rows(distance_m, rows), take_rows(command_distance_m, rows))
         level = level + up.long() - down.long()
         # always drawn (n values), so the generator's stream does not depend on who passed
         anywhere = torch.randint(0, self.num_levels, (n,), generator=self.generator, device=self.device)
@@ -84,6 +82,14 @@ class TerrainCurriculum:
         put_rows(self.levels[:, None], slice(None), level[:, None], rows)
         origins = self.centers_w[level, take_rows(self.kinds, rows)]
         put_rows(self.origins_w, slice(None), origins, rows)
+
+    def moves(self, distance_m: torch.Tensor, command_distance_m: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(up, down): (n,) bool, which of the episodes that ended ``distance_m`` (n,) from their start,
+        m, after commands that would have carried them ``command_distance_m`` (n,), m, move up a level
+        and which down (the rules of the module docstring)."""
+        up = distance_m > self.cfg.up_distance_fraction * self.tile_size_m
+        down = (distance_m < self.cfg.down_command_fraction * command_distance_m) & ~up
+        return up, down
 
     def mean_level(self) -> torch.Tensor:
         """() float32 mean level over the envs (a device scalar, for logging)."""
