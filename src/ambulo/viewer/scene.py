@@ -62,7 +62,11 @@ class GridScene:
         self.offsets_w = grid_offsets_w(count, self.spacing_m)
         for node in self.geoms.values():
             node.remove()
-        self.geoms, self.count, self._sent_static = {}, count, False
+        # the new meshes are published with their count at the end: a reader on another thread
+        # (a test polling instance_positions_w, the viewer's own page) never sees the new count
+        # beside a half-built dict
+        geoms: dict[int, viser.BatchedMeshHandle] = {}
+        self._sent_static = False
         scene = self.server.scene
         for shape in self.shapes:
             b, rgb = shape.body_id, tuple(int(round(255 * c)) for c in shape.rgba[:3])
@@ -74,11 +78,12 @@ class GridScene:
                     self._add_ground(shape, rgb, opacity)
                 continue
             # placed at the offsets until the first frame poses them
-            self.geoms[shape.geom_id] = scene.add_batched_meshes_simple(
+            geoms[shape.geom_id] = scene.add_batched_meshes_simple(
                 f"/worlds/g{shape.geom_id}", shape.vertices_b, shape.faces,
                 batched_wxyzs=np.tile(IDENTITY_WXYZ, (count, 1)), batched_positions=self.offsets_w.copy(),
                 batched_colors=rgb, opacity=opacity, lod="off", cast_shadow=not shape.is_plane,
                 receive_shadow=True, visible=b not in self._hidden)
+        self.geoms, self.count = geoms, count
 
     def _add_ground(self, shape: GeomShape, rgb: tuple, opacity: float | None) -> None:
         scene, b = self.server.scene, shape.body_id
