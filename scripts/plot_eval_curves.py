@@ -1,0 +1,87 @@
+"""Several runs' periodic evaluations on one time axis: PNG for docs/images.
+
+    python scripts/plot_eval_curves.py --out docs/images/locomotion_curves.png \\
+        "PPO, 2 GPUs=benchmarks/results/h200x2-2026-11-30-s13-ttw-2gpu-evalsplit-evals.csv" \\
+        "FastSAC=benchmarks/results/h200x2-2026-11-30-s13-fast-sac-compile-evals.csv"
+
+Each argument is ``LABEL=EVALS_CSV``: an ``evals.csv`` that ``ambulo train --eval-every`` wrote
+(``wall_s`` from the training process's start, kernel compile and earlier evaluations included;
+``fall_rate``; ``metrics`` as ``name=value`` pairs). Plots the velocity error and the fall rate
+against wall-clock minutes, with the ``walks`` bars (``--max-vel-error``, ``--max-fall-rate``),
+and marks each run's first evaluation that met its criteria (``criteria_met``) on both engines
+when the CSV has the CPU-engine columns filled.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+from pathlib import Path
+
+
+def read_evals(path: Path) -> list[dict]:
+    """The rows of an ``evals.csv``: minutes, fall rate, velocity error m/s and whether the
+    criteria held (on the CPU engine too where it was checked)."""
+    rows = []
+    with open(path, newline="") as f:
+        for raw in csv.DictReader(f):
+            metrics = dict(pair.split("=", 1) for pair in raw["metrics"].split())
+            met = raw["criteria_met"] == "True"
+            if raw.get("cpu_engine_criteria_met"):
+                met = met and raw["cpu_engine_criteria_met"] == "True"
+            rows.append({"minutes": float(raw["wall_s"]) / 60.0, "fall_rate": float(raw["fall_rate"]),
+                         "vel_error_m_s": float(metrics["mean_abs_vel_error_m_s"]), "met": met})
+    if not rows:
+        raise SystemExit(f"{path} has no evaluations")
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("runs", nargs="+", help="LABEL=EVALS_CSV")
+    parser.add_argument("--out", required=True, type=Path)
+    parser.add_argument("--title", default=None)
+    parser.add_argument("--max-vel-error", type=float, default=0.2, help="the walks bar, m/s")
+    parser.add_argument("--max-fall-rate", type=float, default=0.05, help="the walks bar")
+    args = parser.parse_args()
+    runs = []
+    for item in args.runs:
+        label, sep, path = item.partition("=")
+        if not sep or not path:
+            parser.error(f"{item!r}: give LABEL=EVALS_CSV")
+        if not Path(path).is_file():
+            parser.error(f"{path}: no such evals.csv")
+        runs.append((label, read_evals(Path(path))))
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (ax_vel, ax_fall) = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True)
+    for label, rows in runs:
+        minutes = [r["minutes"] for r in rows]
+        met = next((r for r in rows if r["met"]), None)
+        name = f"{label}: walks at {met['minutes']:.1f} min" if met else f"{label}: not yet"
+        line, = ax_vel.plot(minutes, [r["vel_error_m_s"] for r in rows], marker=".", label=name)
+        ax_fall.plot(minutes, [r["fall_rate"] for r in rows], marker=".", color=line.get_color())
+        if met:
+            for ax, key in ((ax_vel, "vel_error_m_s"), (ax_fall, "fall_rate")):
+                ax.plot([met["minutes"]], [met[key]], marker="o", markersize=9, fillstyle="none",
+                        color=line.get_color())
+    ax_vel.axhline(args.max_vel_error, color="k", linestyle="--", linewidth=0.8)
+    ax_fall.axhline(args.max_fall_rate, color="k", linestyle="--", linewidth=0.8)
+    ax_vel.set_ylabel("eval velocity error, m/s")
+    ax_fall.set_ylabel("eval fall rate")
+    ax_fall.set_xlabel("wall-clock minutes from the training process's start (compile and evaluations included)")
+    ax_vel.legend(fontsize=8)
+    if args.title:
+        ax_vel.set_title(args.title, fontsize=10)
+    fig.tight_layout()
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(args.out, dpi=100)
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()

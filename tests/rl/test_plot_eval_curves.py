@@ -1,0 +1,40 @@
+"""scripts/plot_eval_curves.py: reads evals.csv as `ambulo train --eval-every` writes it and marks the
+first evaluation that walks on both engines."""
+
+from __future__ import annotations
+
+from script_loader import ROOT, load_script
+
+plot = load_script(ROOT / "scripts" / "plot_eval_curves.py")
+
+HEADER = ("iteration,wall_s,env_steps,fall_rate,mean_episode_length_s,mean_return,metrics,criteria_met,"
+          "cpu_engine_metrics,cpu_engine_criteria_met\n")
+
+
+def test_rows_are_minutes_and_the_criterion_needs_both_engines(tmp_path):
+    path = tmp_path / "evals.csv"
+    path.write_text(HEADER
+                    + "49,90.0,100,0.300,15.0,10.0,mean_abs_vel_error_m_s=0.5 mean_abs_yaw_rate_error_rad_s=0.4,False,,\n"
+                    + "99,150.0,200,0.000,20.0,30.0,mean_abs_vel_error_m_s=0.19 mean_abs_yaw_rate_error_rad_s=0.2,"
+                      "True,fall_rate=0.000 mean_abs_vel_error_m_s=0.21,False\n"
+                    + "149,210.0,300,0.010,20.0,35.0,mean_abs_vel_error_m_s=0.18 mean_abs_yaw_rate_error_rad_s=0.2,"
+                      "True,fall_rate=0.000 mean_abs_vel_error_m_s=0.19,True\n")
+    rows = plot.read_evals(path)
+    assert [r["minutes"] for r in rows] == [1.5, 2.5, 3.5]
+    assert [r["vel_error_m_s"] for r in rows] == [0.5, 0.19, 0.18]
+    assert [r["fall_rate"] for r in rows] == [0.3, 0.0, 0.01]
+    # met on the GPU but not on the CPU engine is not met
+    assert [r["met"] for r in rows] == [False, False, True]
+
+
+def test_it_writes_a_png(tmp_path):
+    path = tmp_path / "evals.csv"
+    path.write_text(HEADER + "9,30.0,10,0.0,20.0,1.0,mean_abs_vel_error_m_s=0.1,True,,\n")
+    out = tmp_path / "curves.png"
+    import sys
+    argv, sys.argv = sys.argv, ["plot_eval_curves.py", "--out", str(out), f"one run={path}"]
+    try:
+        plot.main()
+    finally:
+        sys.argv = argv
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
