@@ -86,3 +86,22 @@ def test_projection_splits_mass_between_neighbouring_atoms():
     # inside the support the projection keeps the mean: returns + discount * E[z]
     atoms = torch.tensor([0.0, 1.0, 2.0])
     assert expected(target[0], atoms) == pytest.approx(0.5 + 0.5 * 1.3)
+
+
+def test_samples_are_uniform_over_the_written_slots_and_worlds():
+    """Every written (slot, world) pair is drawn about equally often and unwritten slots never:
+    a chi-square statistic over the 3 x 2 written cells, then over the full 5 x 2 ring."""
+    for steps, slots in ((FIRST_FOUR[:3], 3), (FIRST_FOUR + FIRST_FOUR[:2], 5)):  # partly filled, wrapped
+        ring = _ring_after(steps)
+        draws = 60_000
+        batch = ring.sample(draws, 1, GAMMA, torch.Generator().manual_seed(1))
+        # observations are 100 * step + world; a wrapped ring keeps steps 1 .. 5 in slots 0 .. 4
+        steps_seen = (batch.obs[:, 0] // 100).long() - (len(steps) - slots)
+        worlds = (batch.obs[:, 0] % 100).long()
+        assert steps_seen.min() >= 0 and steps_seen.max() < slots, "drew an unwritten or overwritten slot"
+        counts = torch.bincount(steps_seen * 2 + worlds, minlength=2 * slots).double()
+        expected = draws / (2 * slots)
+        chi2 = float(((counts - expected) ** 2 / expected).sum())
+        # chi-square with 2 * slots - 1 <= 9 degrees of freedom: 99.99th percentile < 34; one cell
+        # never drawn adds draws / (2 * slots) >= 6,000
+        assert chi2 < 34.0, (counts.tolist(), chi2)

@@ -2,9 +2,12 @@
 
 One slot holds one env step of all ``num_envs`` worlds (a (capacity, num_envs, ...) tensor per
 field), so adding a step is one indexed copy per field and no Python loop over worlds. Sampling
-draws ``(slot, world)`` pairs with ``torch.randint`` and gathers n-step returns with tensor
-arithmetic: nothing on the path reads a device value back to the host (the write position is a
-host counter, advanced once per step).
+draws ``(slot, world)`` pairs from uniform floats and gathers n-step returns with tensor
+arithmetic: nothing on the path reads a device value back to the host. The write position and
+fill are host counters (``add`` indexes with them) mirrored in 0-dim device tensors that
+``sample`` and ``transitions`` read, so one captured CUDA graph of a sample stays right as the
+ring fills and wraps (``OffPolicyCfg.cuda_graph``); the eager path uses the same formulas, so
+both draw the same batch from one generator state.
 
 n-step returns (the FastTD3 recipe): for a sample at slot ``t`` of world ``e`` the return sums
 ``gamma**j * r[t+j]`` for ``j = 0 .. k``, where ``k`` is the first of: an episode end at ``t+k``
@@ -55,6 +58,10 @@ class ReplayRing:
         """The slot the next step goes to (host counter)."""
         self.size = 0
         """Slots written so far, up to ``capacity``."""
+        self.ptr_device = torch.zeros((), dtype=torch.int64, device=device)
+        self.size_device = torch.zeros((), dtype=torch.int64, device=device)
+        """``ptr`` and ``size`` on the device (``fill_`` from the host counters: a kernel argument,
+        no sync): what sampling reads, so a CUDA graph of it sees the current ring."""
 
     def add(self, obs: torch.Tensor, critic_obs: torch.Tensor | None, actions: torch.Tensor,
             rewards: torch.Tensor, next_obs: torch.Tensor, next_critic_obs: torch.Tensor | None,
@@ -73,16 +80,22 @@ class ReplayRing:
         self.ended[i] = ended
         self.ptr = (i + 1) % self.capacity
         self.size = min(self.size + 1, self.capacity)
+        self.ptr_device.fill_(self.ptr)
+        self.size_device.fill_(self.size)
 
     def sample(self, batch_size: int, n_step: int, gamma: float,
                generator: torch.Generator | None = None) -> Batch:
         """``batch_size`` transitions drawn uniformly over the written slots and worlds, with
         their n-step returns (see the module docstring)."""
-        if self.size == 0:
+        if self.size == 0:  # host counter: under a CUDA graph it was checked at capture
             raise RuntimeError("the replay ring is empty; add steps before sampling")
         dev = self.rewards.device
-        t = torch.randint(0, self.size, (batch_size,), generator=generator, device=dev)
-        e = torch.randint(0, self.num_envs, (batch_size,), generator=generator, device=dev)
+        # floor(u * n) of u ~ U[0, 1): uniform over 0 .. n-1 (to float32's 2**-24 grain); the clamp
+        # catches u * n rounding up to n. n is the device size: no host value is baked into a graph
+        t = (torch.rand(batch_size, generator=generator, device=dev) * self.size_device).long()
+        t = t.clamp_max(self.size_device - 1)
+        e = (torch.rand(batch_size, generator=generator, device=dev) * self.num_envs).long()
+        e = e.clamp_max(self.num_envs - 1)
         return self.transitions(t, e, n_step, gamma)
 
     def transitions(self, t: torch.Tensor, e: torch.Tensor, n_step: int, gamma: float) -> Batch:
@@ -90,7 +103,7 @@ class ReplayRing:
         n-step returns: what ``sample`` returns for the pairs it drew."""
         dev = self.rewards.device
         # slots newer than t: a return never reads past the newest step written
-        age = (self.ptr - 1 - t) % self.capacity
+        age = (self.ptr_device - 1 - t) % self.capacity
         j = torch.arange(n_step, device=dev)
         slots = (t[:, None] + j) % self.capacity  # (B, n)
         worlds = e[:, None].expand(-1, n_step)
