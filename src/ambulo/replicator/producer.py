@@ -13,7 +13,6 @@ from __future__ import annotations
 import collections
 import concurrent.futures as cf
 import contextlib
-import functools
 import gc
 from dataclasses import replace
 from pathlib import Path
@@ -24,8 +23,8 @@ from ambulo.core import Simulation
 from ambulo.sensors import Camera
 from ambulo.sensors.camera import tight_box_output
 
-from .coco import InstanceRuns, instance_rles, runs_tight_boxes
 from .config import DatasetConfig
+from .mask_kernel import instance_masks, warm_up
 from .randomizers import CameraJitter, SceneContext
 from .writers import FrameWriter, write_frame_files
 
@@ -63,7 +62,7 @@ class FrameProducer:
         # (cached draws are applied again too): resetting the pose first would only be overwritten
         self._jitter_sets_pose = any(type(r) is CameraJitter and r.camera == self.camera.name
                                      for r in config.randomizers)
-        # the tight boxes and the COCO masks read from one pass over the instance image (``InstanceRuns``):
+        # the tight boxes and the COCO masks read from one pass over the instance image (``mask_kernel``):
         # the camera is asked for everything but the tight boxes, which ``_finish`` adds from that pass
         # (the camera's own are found in row order, a second pass); not with visible_fraction, which the
         # camera computes from its tight boxes' pixel counts
@@ -72,6 +71,8 @@ class FrameProducer:
                                  and "visible_fraction" not in wanted)
         self._capture_annotators = tuple(a for a in wanted if a != "bounding_box_2d_tight") \
             if self._boxes_from_runs else None
+        if self._boxes_from_runs:
+            warm_up()  # the compiled pass (``mask_kernel``) loaded now, not in the first frame
 
     @property
     def table(self):
@@ -110,12 +111,12 @@ class FrameProducer:
 
     def _finish(self, capture: dict) -> dict:
         """The camera's capture with the tight boxes from the instance image's column runs, and the
-        COCO masks' RLEs from the same runs (``coco_rles``, read by ``coco.frame_annotations``)."""
+        COCO masks' RLEs from the same runs (``coco_rles``, read by ``coco.frame_annotations``): one
+        compiled pass with numba, else NumPy's (``mask_kernel``)."""
         if self._boxes_from_runs:
-            runs = InstanceRuns.of(capture["instance_segmentation"])
-            boxes, pixels = runs_tight_boxes(runs, self.table.num_instances)
-            capture["bounding_box_2d_tight"] = tight_box_output(self.table, boxes, pixels)
-            capture["coco_rles"] = functools.partial(instance_rles, None, runs=runs)
+            masks = instance_masks(capture["instance_segmentation"], self.table.num_instances)
+            capture["bounding_box_2d_tight"] = tight_box_output(self.table, masks.boxes, masks.pixels)
+            capture["coco_rles"] = masks.rles
         return capture
 
     def frames(self, seed: int, indices: list[int]):
