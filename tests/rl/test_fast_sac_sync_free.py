@@ -28,7 +28,7 @@ def _steps_and_updates(algo: str, task: str) -> list[str]:
     with reads:
         for _ in range(3):
             runner._collect()
-            runner.alg.update(runner.ring.sample(cfg.batch_size, cfg.n_step, cfg.gamma, runner.generator))
+            runner.alg.update_from(runner.ring, runner.generator)
     return reads.seen
 
 

@@ -90,6 +90,12 @@ class OffPolicyCfg(Checked):
     """bfloat16 autocast for the networks on CUDA (ignored on the CPU)."""
     compile: bool = False
     """``torch.compile`` the update on CUDA (ignored on the CPU)."""
+    cuda_graph: bool = False
+    """Replay each gradient update (replay sample, critic step, actor/alpha step, Polyak) as one
+    captured CUDA graph: one launch instead of hundreds (``graphs.UpdateGraphs``). Each update
+    kind (critic only; critic + actor) runs 3 eager updates, then is captured once; a resumed run
+    captures again. Optimizers become ``capturable``; combines with ``compile``. A capture that
+    fails raises (no silent eager fall back). Ignored on the CPU."""
 
     def __post_init__(self) -> None:
         super().__post_init__()

@@ -12,6 +12,10 @@ the actor minimizes ``alpha * log pi - Q`` and ``alpha`` is tuned so the policy'
 smoothed by clipped Gaussian noise.
 
 Every loss and statistic stays on the device; ``stats`` sums them for one read per iteration.
+
+``update_from(ring, generator)`` is the runner's entry: a sample and an update, eager, or with
+``cuda_graph`` on CUDA one replayed CUDA graph per update (``graphs.UpdateGraphs``; the
+optimizers are then ``capturable`` and autocast keeps no cast cache).
 """
 
 from __future__ import annotations
@@ -24,8 +28,9 @@ from torch import nn
 
 from . import categorical
 from .config import OffPolicyCfg
+from .graphs import UpdateGraphs
 from .networks import Actor, TwinCategoricalCritic
-from .replay import Batch
+from .replay import Batch, ReplayRing
 
 STAT_NAMES = ("critic_loss", "actor_loss", "alpha", "entropy", "q_mean", "action_std")
 """What ``FastOffPolicy.stats`` accumulates (per update; actor terms per actor update)."""
@@ -51,16 +56,24 @@ class FastOffPolicy(nn.Module):
         self.device = torch.device(device)
         self.atoms = categorical.support(cfg.v_min, cfg.v_max, cfg.num_atoms, self.device)
         self.target_entropy = cfg.target_entropy_per_action * num_actions
-        # fused: the step counts live on the device (the default Adam reads each one back per step)
-        opt = dict(weight_decay=cfg.weight_decay, fused=True)
+        self.graphed = cfg.cuda_graph and self.device.type == "cuda"
+        """Updates replayed as CUDA graphs (``cuda_graph``; CUDA only)."""
+        # fused: the step counts live on the device (the default Adam reads each one back per step);
+        # capturable: what a CUDA graph capture of step() requires (the same fused kernel)
+        opt = dict(weight_decay=cfg.weight_decay, fused=True, capturable=self.graphed)
         self.actor_opt = torch.optim.AdamW(self.actor.parameters(), lr=cfg.actor_lr, **opt)
         self.critic_opt = torch.optim.AdamW(self.critic.parameters(), lr=cfg.critic_lr, **opt)
-        self.alpha_opt = torch.optim.Adam([self.log_alpha], lr=cfg.critic_lr, fused=True)
+        self.alpha_opt = torch.optim.Adam([self.log_alpha], lr=cfg.critic_lr, fused=True, capturable=self.graphed)
         self.num_updates = 0
         """Critic updates so far (host counter: picks the actor's turns)."""
         self.stats = torch.zeros(len(STAT_NAMES) + 2, device=self.device)
         """Sums of ``STAT_NAMES`` and the numbers of critic and actor updates they cover."""
         self.autocast = cfg.amp and self.device.type == "cuda"
+        self._autocast_cache = not self.graphed
+        """Autocast's cache of cast weights: off with CUDA graphs (torch's rule for captures)."""
+        self.graphs: UpdateGraphs | None = None
+        """The CUDA graphs of ``update_from`` (made on its first call, with the caller's generator)."""
+        self._graph_source: tuple | None = None
         self._critic_step = self._critic_update
         self._actor_step = self._actor_update
         if cfg.compile and self.device.type == "cuda":
@@ -88,10 +101,36 @@ class FastOffPolicy(nn.Module):
     # -- learning --------------------------------------------------------------------------------
     def update(self, batch: Batch) -> None:
         """One critic update and, every ``policy_delay`` updates, one actor (and alpha) update."""
-        self._critic_step(batch)
-        if self.num_updates % self.cfg.policy_delay == 0:
-            self._actor_step(batch)
+        self._update(batch, self.num_updates % self.cfg.policy_delay == 0)
         self.num_updates += 1
+
+    def update_from(self, ring: ReplayRing, generator: torch.Generator | None = None) -> None:
+        """``update(ring.sample(...))`` with ``cfg``'s batch size, n-step and gamma, drawn with
+        ``generator``; with ``graphed``, the same work replayed as a CUDA graph (the first
+        ``warmup`` calls of each update kind run eagerly, then the kind is captured)."""
+        cfg = self.cfg
+        with_actor = self.num_updates % cfg.policy_delay == 0
+
+        def step() -> None:
+            self._update(ring.sample(cfg.batch_size, cfg.n_step, cfg.gamma, generator), with_actor)
+
+        if not self.graphed:
+            step()
+        else:
+            source = self._graph_source
+            if self.graphs is None or source is None or source[0] is not ring or source[1] is not generator:
+                # the graphs read this ring's tensors and advance this generator
+                self.graphs = UpdateGraphs(self.device, generators=() if generator is None else (generator,))
+                self._graph_source = (ring, generator)
+            self.graphs(with_actor, step)
+        self.num_updates += 1
+
+    def _update(self, batch: Batch, with_actor: bool) -> None:
+        """A critic update, an actor (and alpha) update if ``with_actor``, the target's Polyak
+        step: device work only (what a CUDA graph captures; no host counter changes)."""
+        self._critic_step(batch)
+        if with_actor:
+            self._actor_step(batch)
         with torch.no_grad():  # Polyak for weights, the normalizer's statistics copied
             target, online = list(self.critic_target.parameters()), list(self.critic.parameters())
             torch._foreach_lerp_(target, online, self.cfg.tau)
@@ -99,7 +138,8 @@ class FastOffPolicy(nn.Module):
 
     def _critic_update(self, batch: Batch) -> None:
         cfg = self.cfg
-        with torch.no_grad(), torch.autocast(self.device.type, torch.bfloat16, enabled=self.autocast):
+        with torch.no_grad(), torch.autocast(self.device.type, torch.bfloat16, enabled=self.autocast,
+                                             cache_enabled=self._autocast_cache):
             if self.sac:
                 next_actions, next_log_prob, _ = self.actor.sample(batch.next_obs)
                 returns = batch.returns - batch.discount * self.log_alpha.exp() * next_log_prob.float()
@@ -113,7 +153,8 @@ class FastOffPolicy(nn.Module):
             means = categorical.expected(next_probs, self.atoms)  # (2, B)
             smaller = torch.where((means[0] <= means[1])[:, None], next_probs[0], next_probs[1])
             target = categorical.project(smaller, returns, batch.discount, cfg.v_min, cfg.v_max)
-        with torch.autocast(self.device.type, torch.bfloat16, enabled=self.autocast):
+        with torch.autocast(self.device.type, torch.bfloat16, enabled=self.autocast,
+                            cache_enabled=self._autocast_cache):
             logits = self.critic(batch.critic_obs, batch.actions).float()
         loss = -(target[None] * torch.log_softmax(logits, dim=-1)).sum(dim=-1).mean(dim=1).sum()
         self.critic_opt.zero_grad(set_to_none=True)
@@ -127,7 +168,8 @@ class FastOffPolicy(nn.Module):
             self.stats[6] += 1.0
 
     def _actor_update(self, batch: Batch) -> None:
-        with torch.autocast(self.device.type, torch.bfloat16, enabled=self.autocast):
+        with torch.autocast(self.device.type, torch.bfloat16, enabled=self.autocast,
+                            cache_enabled=self._autocast_cache):
             if self.sac:
                 actions, log_prob, std = self.actor.sample(batch.obs)
                 log_prob = log_prob.float()
@@ -173,12 +215,16 @@ class FastOffPolicy(nn.Module):
                 "num_updates": self.num_updates}
 
     def load_state(self, saved: dict, *, optimizers: bool = True) -> None:
-        self.load_state_dict(saved["model"])
+        self.load_state_dict(saved["model"])  # copies into the parameters: their addresses stay
         if optimizers:
-            self.actor_opt.load_state_dict(saved["actor_opt"])
-            self.critic_opt.load_state_dict(saved["critic_opt"])
-            self.alpha_opt.load_state_dict(saved["alpha_opt"])
+            for opt, name in ((self.actor_opt, "actor_opt"), (self.critic_opt, "critic_opt"),
+                              (self.alpha_opt, "alpha_opt")):
+                opt.load_state_dict(saved[name])
+                for group in opt.param_groups:  # the saved groups carry the saving run's flag
+                    group["capturable"] = self.graphed
             self.num_updates = int(saved["num_updates"])
+        if self.graphs is not None:  # the optimizers' states are new tensors: capture again
+            self.graphs.reset()
 
 
 __all__ = ["STAT_NAMES", "FastOffPolicy"]

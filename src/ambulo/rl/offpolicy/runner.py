@@ -44,21 +44,29 @@ class FinalCriticObs:
 
     def __init__(self, env: RLEnv):
         self.env, self.calls, self.final = env, 0, None
+        self.captured: torch.Tensor | None = None
+        """The first call's critic buffer of the last step that ran Python: with the env step as a
+        CUDA graph (``EnvCfg.cuda_graph``) that is the capture, and the graph rewrites this tensor
+        (memory of its pool, kept alive here) with the final critic obs on every replay."""
         compute = env._compute_observations
 
         def recorded():
             obs = compute()
             if self.calls == 0:
-                self.final = env._critic_buf
+                self.final = self.captured = env._critic_buf
             self.calls += 1
             return obs
 
         env._compute_observations = recorded
 
     def step(self, step: Callable):
-        """Run ``step()`` (the env's step) and return its result with the final critic obs."""
+        """Run ``step()`` (the env's step) and return its result with the final critic obs (a
+        view the next step overwrites when the env replays a graph: use it before then)."""
         self.calls, self.final = 0, None
-        return step(), self.final
+        result = step()
+        if self.calls == 0:  # a replayed graph ran no Python: its output is the captured buffer
+            self.final = self.captured
+        return result, self.final
 
 
 class InferencePolicy:
@@ -179,7 +187,7 @@ class OffPolicyRunner:
                 collect_s += collected - began
                 if self.env_steps >= cfg.learning_starts:
                     for _ in range(cfg.updates_per_step):
-                        self.alg.update(self.ring.sample(cfg.batch_size, cfg.n_step, cfg.gamma, self.generator))
+                        self.alg.update_from(self.ring, self.generator)
                 learn_s += time.perf_counter() - collected
             if self.device.type == "cuda":  # once an iteration: the times cover the queued work
                 began = time.perf_counter()
