@@ -7,25 +7,18 @@ compression): 0.2-0.45 ms of CPU a 320x240 frame, a twentieth of an annotated fr
 ``data`` extra) ``_masks_kernel`` does all of it in one loop over the pixels and one over the runs.
 Without numba the NumPy path (``coco.InstanceRuns``) gives the same arrays and bytes (tested).
 
-The kernel is compiled on first use and cached (``cache=True``: next to this file in
-``__pycache__``, or, where the package is read-only, in numba's per-user cache; ``NUMBA_CACHE_DIR``
-moves it); ``warm_up`` compiles it in the parent before worker processes start, so they load it.
+The kernel is compiled on first use and cached (``compiled``); ``FrameProducer`` loads it while it
+builds its scene (``warm_up``), not in the first frame.
 """
 
 from __future__ import annotations
 
-import importlib.util
-import os
 from dataclasses import dataclass
 
 import numpy as np
 
 from .coco import InstanceRuns, instance_rles, runs_tight_boxes
-
-# numba is imported when the kernel is first needed (``_kernel``): importing it takes ~0.3-0.5 s,
-# which ``import ambulo.replicator`` (the CLI, a parent that only spawns workers) need not pay.
-# AMBULO_NUMBA=0 takes the NumPy path on purpose (comparisons, debugging).
-HAVE_NUMBA = os.environ.get("AMBULO_NUMBA", "1") != "0" and importlib.util.find_spec("numba") is not None
+from .compiled import HAVE_NUMBA, Kernel
 
 
 @dataclass(frozen=True, slots=True)
@@ -70,13 +63,11 @@ def numpy_masks(instances: np.ndarray, num_instances: int) -> InstanceMasks:
 
 
 def numba_masks(instances: np.ndarray, num_instances: int) -> InstanceMasks:
-    if not HAVE_NUMBA:
-        raise RuntimeError("numba is not installed: pip install 'ambulo[data]' (or numba)")
     h, w = instances.shape
     if h == 0 or w == 0:
         raise ValueError(f"an instance image needs pixels, got shape {instances.shape}")
     # ids outside 0..K (which would index past the kernel's tables) raise ValueError
-    boxes, pixels, chars, offsets = _kernel()(np.ascontiguousarray(instances), int(num_instances))
+    boxes, pixels, chars, offsets = _masks_kernel(np.ascontiguousarray(instances), int(num_instances))
     return InstanceMasks(boxes, pixels, h, w, _chars=chars, _offsets=offsets)
 
 
@@ -90,7 +81,7 @@ def warm_up() -> None:
 
 
 def _masks(instances, num_instances):
-    """The kernel (compiled by ``_kernel``): ((K, 4) boxes, (K,) pixels, (C,) uint8 RLE strings of ids
+    """The kernel (``_masks_kernel`` compiles it): ((K, 4) boxes, (K,) pixels, (C,) uint8 RLE strings of ids
     0..K side by side (the background's empty), (K + 2,) their offsets).
 
     Pass 1 finds where each run of equal ids starts in column-major order (COCO's). Pass 2 walks the runs: each id's pixels and box (a run that wraps onto the next column
@@ -208,14 +199,4 @@ def _masks(instances, num_instances):
     return boxes, pixels, chars[:at], offsets
 
 
-_compiled = None
-
-
-def _kernel():
-    global _compiled
-    if _compiled is None:
-        from numba import njit
-
-        # nogil: a producer's writer thread runs beside it; cache: compiled once per machine, not per process
-        _compiled = njit(cache=True, nogil=True)(_masks)
-    return _compiled
+_masks_kernel = Kernel(_masks)

@@ -23,6 +23,7 @@ from ambulo.core import Simulation
 from ambulo.sensors import Camera
 from ambulo.sensors.camera import tight_box_output
 
+from . import io
 from .config import DatasetConfig
 from .mask_kernel import instance_masks, warm_up
 from .randomizers import CameraJitter, SceneContext
@@ -71,8 +72,10 @@ class FrameProducer:
                                  and "visible_fraction" not in wanted)
         self._capture_annotators = tuple(a for a in wanted if a != "bounding_box_2d_tight") \
             if self._boxes_from_runs else None
+        # the compiled passes (``mask_kernel``, ``io``'s PNG rows) loaded now, not in the first frame
         if self._boxes_from_runs:
-            warm_up()  # the compiled pass (``mask_kernel``) loaded now, not in the first frame
+            warm_up()
+        io.warm_up()
 
     @property
     def table(self):

@@ -51,7 +51,7 @@ from ambulo.utils.atomic import can_sync_filesystem, fsync_dir, sync_filesystem
 from ambulo.utils.validate import Checked
 
 from .coco import frame_annotations
-from .io import depth_to_mm_u16, encode_png
+from .io import encode_depth_png, encode_ids_png, encode_png
 from .records import append_records, complete_records
 
 try:  # a dependency of viser (core) and of the data extra; the standard library's json without it
@@ -60,7 +60,6 @@ except ImportError:
     _msgspec_encode = None
 
 WRITERS = ("coco", "depth", "masks", "kitti", "raw")
-_PNG_U16 = np.dtype(">u2")
 PNG_ROW_FILTERS = {"rgb": "none", "depth": "sub", "instance": "none", "semantic": "none"}
 """``io.encode_png``'s row filter for each image folder: the smallest files for the least time on
 rendered frames (flat-shaded colours and ids: none; depth, smooth along rows: sub)."""
@@ -280,17 +279,17 @@ def write_frame_files(out: Path, index: int, capture: dict, table, log: dict, cf
                                      rgb_jpeg if isinstance(rgb_jpeg, bytes) else memoryview(rgb_jpeg), fsync)
     if "depth" in cfg.outputs:
         if cfg.depth_format == "png16":
-            depth_mm = depth_to_mm_u16(capture["depth"], ">") if depth_mm_u16 is None else depth_mm_u16.astype(">u2")
-            put(f"depth/{stem}.png", encode_png(depth_mm, level, PNG_ROW_FILTERS["depth"]))
+            if depth_mm_u16 is None:  # millimetres and "sub" rows in one pass (PNG_ROW_FILTERS)
+                put(f"depth/{stem}.png", encode_depth_png(capture["depth"], level))
+            else:
+                put(f"depth/{stem}.png", encode_png(depth_mm_u16.astype(">u2"), level, PNG_ROW_FILTERS["depth"]))
         else:
             put(f"depth/{stem}.npy", capture["depth"])
     if "masks" in cfg.outputs:
-        # straight to PNG's big-endian uint16: one conversion, not a cast and then a byte swap
-        put(f"instance/{stem}.png",
-            encode_png(capture["instance_segmentation"].astype(_PNG_U16), level, PNG_ROW_FILTERS["instance"]))
+        # straight to PNG's big-endian uint16 rows ("none": PNG_ROW_FILTERS), one pass
+        put(f"instance/{stem}.png", encode_ids_png(capture["instance_segmentation"], level))
         if "semantic_segmentation" in capture:  # asked for (the camera's annotators), as Replicator's BasicWriter
-            put(f"semantic/{stem}.png",
-                encode_png(capture["semantic_segmentation"].astype(_PNG_U16), level, PNG_ROW_FILTERS["semantic"]))
+            put(f"semantic/{stem}.png", encode_ids_png(capture["semantic_segmentation"], level))
     annotations = frame_annotations(capture, table.semantic_ids, table.names, cfg.min_visible_pixels)
     if "kitti" in cfg.outputs:
         put(f"kitti/{stem}.txt", kitti_lines(annotations, table.categories, capture).encode())
