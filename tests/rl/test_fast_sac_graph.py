@@ -1,8 +1,9 @@
 """FastSAC/FastTD3 updates as replayed CUDA graphs (``OffPolicyCfg.cuda_graph``).
 
 On the CPU: the option is ignored (eager updates, ``update_from`` is ``update`` of a sample), a
-checkpoint's ``capturable`` flag does not leak into the loading run, and ``FinalCriticObs``
-hands out the captured buffer when the env step is a replayed graph. On CUDA (skipped here):
+checkpoint's ``capturable`` flag does not leak into the loading run, ``FinalCriticObs`` hands
+out the captured buffer when the env step is a replayed graph, and ``UpdateGraphs``' warm-ups,
+captures and replays follow their rules (torch.cuda's graph API faked). On CUDA (skipped here):
 
 - graph updates give the parameters of eager updates from the same state and generators, to
   float rounding, not bitwise: both run the same kernels, but ``categorical.project`` adds with
@@ -17,6 +18,7 @@ hands out the captured buffer when the env step is a replayed graph. On CUDA (sk
 
 from __future__ import annotations
 
+import contextlib
 import types
 
 import pytest
@@ -129,6 +131,83 @@ def test_final_critic_obs_of_a_replayed_env_graph_is_the_captured_buffer():
 
     result, before_reset = final.step(replay)
     assert result == "replayed" and before_reset is made[2] and float(before_reset[0, 0]) == 7.0
+
+
+class _FakeCuda:
+    """Stand-ins for torch.cuda's stream and graph API on the CPU: a capture records the function
+    (running nothing, as a real capture runs nothing) and a replay runs it."""
+
+    class CUDAGraph:
+        def __init__(self):
+            self.fn, self.generators = None, []
+
+        def register_generator_state(self, generator):
+            self.generators.append(generator)
+
+        def replay(self):
+            self.fn()
+
+    def __init__(self, fail: bool = False):
+        self.fail, self.capturing, self.graphs = fail, None, []
+
+    def graph(self, graph, stream=None, capture_error_mode="global"):
+        fake = self
+
+        class Capture:
+            def __enter__(self):
+                fake.capturing = graph
+                fake.graphs.append(graph)
+
+            def __exit__(self, *exc):
+                fake.capturing = None
+
+        return Capture()
+
+    def stream(self, stream):
+        return contextlib.nullcontext()
+
+
+def test_update_graphs_warm_up_each_kind_then_capture_once_and_replay(monkeypatch):
+    from ambulo.rl.offpolicy import graphs as graphs_module
+
+    fake = _FakeCuda()
+    for name in ("CUDAGraph", "graph", "stream"):
+        monkeypatch.setattr(graphs_module.torch.cuda, name, getattr(fake, name))
+    monkeypatch.setattr(graphs_module.torch.cuda, "Stream", lambda device: types.SimpleNamespace(
+        wait_stream=lambda other: None))
+    monkeypatch.setattr(graphs_module.torch.cuda, "current_stream", lambda device: types.SimpleNamespace(
+        wait_stream=lambda other: None))
+    generator = torch.Generator()
+    graphs = graphs_module.UpdateGraphs(torch.device("cuda"), warmup=3, generators=(generator,))
+    ran = []
+
+    def update(kind):
+        def fn():
+            if fake.capturing is not None:
+                fake.capturing.fn = fn  # captured, not run
+            else:
+                ran.append(kind)
+        return fn
+
+    kinds = ["actor", "critic"] * 6
+    for kind in kinds:
+        graphs(kind, update(kind))
+    assert ran == kinds  # every call is one update: 3 eager ones per kind, the capturing call replays once
+    assert graphs.captures == 2 and graphs.replays == 6
+    assert [g.generators for g in fake.graphs] == [[generator], [generator]]
+    graphs.reset()  # a load: warm up and capture again
+    for kind in kinds[:8]:
+        graphs(kind, update(kind))
+    assert graphs.captures == 4 and graphs.replays == 8
+
+    def broken():
+        raise ValueError("operation not permitted when stream is capturing")
+
+    graphs.reset()
+    for _ in range(3):
+        graphs("critic", lambda: None)
+    with pytest.raises(RuntimeError, match="cuda_graph: capturing the update failed .*cuda_graph=false"):
+        graphs("critic", broken)
 
 
 # -- CUDA -----------------------------------------------------------------------------------------
