@@ -108,16 +108,15 @@ def test_the_walks_gyro_matches_the_camera_rotation(walk_cls):
     assert worst < (1e-6 if walk_cls is HeadCameraWalk else 0.01)
 
 
-def test_through_a_turn_too_fast_for_the_images_the_gyro_keeps_the_pose():
+def test_through_a_turn_too_fast_for_the_images_the_gyro_keeps_the_pose(rendered_walk):
     """180 deg away and back in 0.4 s (peak 1400 deg/s): the images lose track either way; with the
     walk's noisy gyro (EuRoC's ADIS16448, 0.5 deg/s turn-on bias) the coasted heading stays within
     a degree (measured 0.23) instead of facing the wrong way, and the position error more than
     halves (measured 6.1 cm against 15.5 cm)."""
     errors = {}
     for imu in (False, True):
-        walk = HeadCameraWalk(build_indoor_scene(), WalkCfg(look_away=(2.0, 0.4, math.pi)), width=320, height=240)
+        walk = rendered_walk(320, 240, WalkCfg(look_away=(2.0, 0.4, math.pi)))
         run = run_walk_vo(walk, 102, blackout=(60, 72), loss="motion", imu=imu)
-        walk.close()
         assert TrackState.LOST in run.states[60:72]
         frames = run.recovery_frames(tolerance_m=0.05)
         assert frames is not None and frames <= 30
@@ -126,13 +125,13 @@ def test_through_a_turn_too_fast_for_the_images_the_gyro_keeps_the_pose():
     assert errors[True][1] < 0.08 and errors[True][1] < 0.6 * errors[False][1]
 
 
-def test_after_a_blackout_round_a_corner_a_new_map_keeps_tracking():
+def test_after_a_blackout_round_a_corner_a_new_map_keeps_tracking(rendered_walk):
     """1 s of covered lens while walking into a corner (frames 100-130 at 320x240): the first frames
     after it share too little with any keyframe to relocalise. Without a new map the odometry stays
     lost (the error grows with the walk); with it, tracking goes on within
     ``reinit_after_lost_frames`` and the error stays what the blind second left. With the gyro that
     error starts with the heading right."""
-    walk = HeadCameraWalk(build_indoor_scene(), width=320, height=240)
+    walk = rendered_walk(320, 240)
     stuck = run_walk_vo(walk, 200, VoCfg(reinit_after_lost_frames=10_000), blackout=(100, 130))
     assert all(s == TrackState.LOST for s in stuck.states[100:])  # the case this guards against
     for imu in (False, True):
@@ -145,4 +144,3 @@ def test_after_a_blackout_round_a_corner_a_new_map_keeps_tracking():
         assert err[-1] - err[130 + back] < 0.04  # tracking again: 2.3 s of walk add little
         if imu:
             assert run.rotation_error_deg()[130 + back] < 1.0
-    walk.close()

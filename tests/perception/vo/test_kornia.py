@@ -9,13 +9,11 @@ import numpy as np
 import pytest
 import torch
 
-from ambulo.perception.sources.head_camera_walk import HeadCameraWalk
 from ambulo.perception.vo.config import KorniaFeaturesCfg, TrackState, VoCfg, kornia_vo_cfg
 from ambulo.perception.vo.eval import run_walk_vo
 from ambulo.perception.vo.features import KorniaFeatures, lift_keypoints
 from ambulo.perception.vo.pnp_torch import fit_rigid_batch, ransac_pose_rgbd
 from ambulo.perception.vo.refine import refine_pose_torch, so3_exp
-from ambulo.scenes.indoor import build_indoor_scene
 from ambulo.utils.checks import InvalidValueError
 
 pytest.importorskip("kornia", reason="the perception extra is not installed")
@@ -130,18 +128,11 @@ def test_kornia_config_checks_device_and_names():
     assert cfg.features == "kornia" and cfg.pnp == "torch"
 
 
-@pytest.fixture(scope="module")
-def scene():
-    return build_indoor_scene()
-
-
 @pytest.mark.parametrize("loss", ["covered_lens", "textureless_wall"])
-def test_kornia_tracking_resumes_within_1s_after_a_loss(scene, loss):
+def test_kornia_tracking_resumes_within_1s_after_a_loss(rendered_walk, loss):
     """1 s of black frames without depth, or of a plain grey wall at 0.5 m (depth, no corner):
     lost throughout, then relocalised against the keyframes within 1 s."""
-    walk = HeadCameraWalk(scene, width=320, height=240)
-    run = run_walk_vo(walk, 130, kornia_vo_cfg("cpu"), blackout=(60, 90), loss=loss)
-    walk.close()
+    run = run_walk_vo(rendered_walk(320, 240), 130, kornia_vo_cfg("cpu"), blackout=(60, 90), loss=loss)
     assert all(s == TrackState.LOST for s in run.states[60:90])
     frames = run.recovery_frames(tolerance_m=0.05)
     assert frames is not None and frames <= 30

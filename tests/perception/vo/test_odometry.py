@@ -21,6 +21,8 @@ from ambulo.perception.vo.eval import run_walk_vo
 from ambulo.perception.vo.refine import refine_pose
 from ambulo.scenes.indoor import build_indoor_scene
 
+from .rendered_once import RenderedOnce
+
 pytest.importorskip("cv2", reason="the perception extra is not installed")
 pytest.importorskip("evo", reason="the perception extra is not installed")
 
@@ -55,15 +57,22 @@ def scene():
     return build_indoor_scene()
 
 
+@pytest.fixture(scope="module")
+def walk_640(scene):
+    """The 640x480 kinematic walk, rendered once for [orb] and [kornia] (300 frames, 650 MB: released
+    with this module rather than kept for the package)."""
+    walk = RenderedOnce(HeadCameraWalk(scene, width=640, height=480))
+    yield walk
+    walk.release()
+
+
 @pytest.mark.parametrize("features", ["orb", "kornia"])
-def test_head_camera_vo_meets_ate_and_rpe_on_300_frames(scene, tmp_path, features):
+def test_head_camera_vo_meets_ate_and_rpe_on_300_frames(walk_640, tmp_path, features):
     """640x480 head camera, 300 frames (10 s, 5.4 m) with bob, sway and two moving boxes in the
     room, with OpenCV ORB and with the torch path's kornia features: evo ATE <= 2 cm and RPE <= 1 %
     of a metre, every frame tracked (measured 0.25 / 0.13 cm and 0.37 / 0.17 %; the 600-frame run is
     the slow test below)."""
-    walk = HeadCameraWalk(scene, width=640, height=480)
-    run = run_walk_vo(walk, 300, kornia_vo_cfg("cpu") if features == "kornia" else None)
-    walk.close()
+    run = run_walk_vo(walk_640, 300, kornia_vo_cfg("cpu") if features == "kornia" else None)
     score = run.score(tmp_path)
     assert score.num_poses == 300 and score.path_length_m > 5.0
     assert score.ate_rmse_m <= 0.02
@@ -72,8 +81,8 @@ def test_head_camera_vo_meets_ate_and_rpe_on_300_frames(scene, tmp_path, feature
 
 
 @pytest.mark.parametrize("walk_cls", [HeadCameraWalk, PolicyHeadCameraWalk], ids=["kinematic", "policy"])
-def test_tracking_resumes_within_1s_after_a_covered_lens(scene, walk_cls):
-    walk = walk_cls(scene, width=320, height=240)
+def test_tracking_resumes_within_1s_after_a_covered_lens(scene, rendered_walk, walk_cls):
+    walk = rendered_walk(320, 240) if walk_cls is HeadCameraWalk else walk_cls(scene, width=320, height=240)
     run = run_walk_vo(walk, 130, blackout=(60, 90))  # 1 s of black frames without depth
     walk.close()
     assert all(s == TrackState.LOST for s in run.states[60:90])
@@ -82,11 +91,9 @@ def test_tracking_resumes_within_1s_after_a_covered_lens(scene, walk_cls):
     assert run.states[90 + frames] == TrackState.RECOVERED
 
 
-def test_tracking_resumes_within_1s_after_a_textureless_wall(scene):
+def test_tracking_resumes_within_1s_after_a_textureless_wall(rendered_walk):
     """1 s of a plain wall filling the view at 0.5 m: depth everywhere, not one feature."""
-    walk = HeadCameraWalk(scene, width=320, height=240)
-    run = run_walk_vo(walk, 130, blackout=(60, 90), loss="textureless_wall")
-    walk.close()
+    run = run_walk_vo(rendered_walk(320, 240), 130, blackout=(60, 90), loss="textureless_wall")
     assert all(s == TrackState.LOST for s in run.states[60:90])
     frames = run.recovery_frames(tolerance_m=0.05)
     assert frames is not None and frames <= 30
@@ -103,12 +110,11 @@ def test_a_fast_head_turn_is_tracked_through():
     assert np.linalg.norm(run.estimate_wc[:, :3, 3] - run.truth_wc[:, :3, 3], axis=1).max() < 0.05
 
 
-def test_tracking_resumes_within_1s_after_a_turn_too_fast_to_track():
+def test_tracking_resumes_within_1s_after_a_turn_too_fast_to_track(rendered_walk):
     """180 deg away and back in 0.4 s (peak 1400 deg/s, up to 47 deg between frames: consecutive
     views barely overlap): tracking is lost during the turn and back within 1 s of its end."""
-    walk = HeadCameraWalk(build_indoor_scene(), WalkCfg(look_away=(2.0, 0.4, math.pi)), width=320, height=240)
+    walk = rendered_walk(320, 240, WalkCfg(look_away=(2.0, 0.4, math.pi)))
     run = run_walk_vo(walk, 102, blackout=(60, 72), loss="motion")
-    walk.close()
     assert TrackState.LOST in run.states[60:72]
     frames = run.recovery_frames(tolerance_m=0.05)
     assert frames is not None and frames <= 30

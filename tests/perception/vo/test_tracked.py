@@ -6,20 +6,16 @@ import json
 import numpy as np
 import pytest
 
-from ambulo.perception.sources.head_camera_walk import HeadCameraWalk
 from ambulo.perception.vo.config import TrackState
 from ambulo.perception.vo.eval import run_walk_vo
 from ambulo.perception.vo.odometry import VoResult
-from ambulo.scenes.indoor import build_indoor_scene
 
 pytest.importorskip("cv2", reason="the perception extra is not installed")
 pytest.importorskip("evo", reason="the perception extra is not installed")
 
 
-def test_tracked_is_false_exactly_while_the_lens_is_covered(tmp_path):
-    walk = HeadCameraWalk(build_indoor_scene(), width=320, height=240)
-    run = run_walk_vo(walk, 75, blackout=(30, 45))  # 0.5 s of black frames without depth
-    walk.close()
+def test_tracked_is_false_exactly_while_the_lens_is_covered(tmp_path, rendered_walk):
+    run = run_walk_vo(rendered_walk(320, 240), 75, blackout=(30, 45))  # 0.5 s of black frames without depth
     measured = {TrackState.TRACKING, TrackState.RECOVERED}
     assert run.tracked[0] and run.states[0] == TrackState.INITIALIZED  # the first keyframe: the given pose
     assert all(run.tracked[i] == (run.states[i] in measured) for i in range(1, len(run.states)))

@@ -1,0 +1,32 @@
+"""Shared set-up of the VO tests: kinematic head-camera walks rendered once per walk (size and
+``WalkCfg``) for the whole package and replayed to every test that runs that walk."""
+
+import pytest
+
+from ambulo.perception.sources.head_camera_walk import HeadCameraWalk, WalkCfg
+
+from .rendered_once import RenderedOnce
+
+
+@pytest.fixture(scope="package")
+def rendered_walk():
+    """``rendered_walk(width, height, walk_cfg=None)``: the ``RenderedOnce`` kinematic walk of the
+    default indoor scene, shared by the package's tests (e.g. the 320x240 default walk: 1,195 frames
+    rendered by 8 tests before, 200 now)."""
+    from ambulo.scenes.indoor import build_indoor_scene
+
+    walks: dict[tuple, RenderedOnce] = {}
+    scene = []
+
+    def get(width: int, height: int, walk_cfg: WalkCfg | None = None) -> RenderedOnce:
+        walk_cfg = walk_cfg or WalkCfg()
+        key = (width, height, repr(walk_cfg))
+        if key not in walks:
+            if not scene:
+                scene.append(build_indoor_scene())
+            walks[key] = RenderedOnce(HeadCameraWalk(scene[0], walk_cfg, width=width, height=height))
+        return walks[key]
+
+    yield get
+    for walk in walks.values():
+        walk.release()
