@@ -261,17 +261,21 @@ moves it by about a learning rate's step (1e-3)."""
 def test_graph_updates_give_the_eager_updates_weights(algo, amp):
     ring = _ring("cuda")
     eager = _learner(_cfg(algo=algo, amp=amp), "cuda", ring)
+    again = _learner(_cfg(algo=algo, amp=amp), "cuda", ring)  # eager against eager: the rounding noise
     graphed = _learner(_cfg(algo=algo, amp=amp, cuda_graph=True), "cuda", ring)
     start = _weights(eager)
     n = 12  # 3 eager warm-ups per kind (critic only, critic + actor), then replays of both
     gen_e, gen_g = _run_updates(eager, ring, n, 5), _run_updates(graphed, ring, n, 5)
+    _run_updates(again, ring, n, 5)
     assert graphed.graphs.captures == 2 and graphed.graphs.replays == n - 6
     assert torch.equal(gen_e.get_state(), gen_g.get_state()), "the sampling generator"
-    a, b = _weights(eager), _weights(graphed)
+    a, b, c = _weights(eager), _weights(graphed), _weights(again)
     diffs = {k: float((a[k].float() - b[k].float()).abs().max()) for k in a}
+    noise = max(float((a[k].float() - c[k].float()).abs().max()) for k in a)
     moved = {k: float((a[k].float() - start[k].float()).abs().max()) for k in a}
     worst = max(diffs, key=diffs.get)
-    assert diffs[worst] <= TOLERANCE[amp], f"{worst}: {diffs[worst]:.3g} (all: {diffs})"
+    print(f"{algo} amp={amp}: max |graph - eager| {diffs[worst]:.3g} ({worst}), max |eager - eager| {noise:.3g}")
+    assert diffs[worst] <= TOLERANCE[amp], f"{worst}: {diffs[worst]:.3g}, eager vs eager {noise:.3g} (all: {diffs})"
     # the updates moved the weights far beyond the tolerance: the comparison has teeth
     assert moved["actor.net.0.weight"] > 20 * TOLERANCE[amp] and moved["critic.q1.0.weight"] > 20 * TOLERANCE[amp]
     torch.testing.assert_close(graphed.stats, eager.stats, rtol=1e-3, atol=1e-3)

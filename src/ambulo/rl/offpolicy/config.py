@@ -94,8 +94,9 @@ class OffPolicyCfg(Checked):
     """Replay each gradient update (replay sample, critic step, actor/alpha step, Polyak) as one
     captured CUDA graph: one launch instead of hundreds (``graphs.UpdateGraphs``). Each update
     kind (critic only; critic + actor) runs 3 eager updates, then is captured once; a resumed run
-    captures again. Optimizers become ``capturable``; combines with ``compile``. A capture that
-    fails raises (no silent eager fall back). Ignored on the CPU."""
+    captures again. Optimizers become ``capturable``; may be combined with ``compile`` (the
+    compiled kernels are captured; not yet run on a GPU). A capture that fails raises (no silent
+    eager fall back). Ignored on the CPU."""
 
     def __post_init__(self) -> None:
         super().__post_init__()
