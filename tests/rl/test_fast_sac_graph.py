@@ -304,7 +304,7 @@ def test_resume_captures_again_and_continues_as_eager_updates_do():
 @cuda
 def test_final_critic_obs_with_the_env_step_as_a_graph():
     """The CPU test of test_fast_sac_final_obs on CUDA with ``cuda_graph=True`` env steps: the
-    replays (steps 5 on) must still hand out the critic observations before the resets."""
+    replays (step 4 on) must still hand out the critic observations before the resets."""
     from ambulo import envs
 
     env = envs.make("humanoid-walk", num_envs=3, device="cuda", seed=0, episode_length_s=0.2, cuda_graph=True)
