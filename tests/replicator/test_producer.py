@@ -102,26 +102,3 @@ def test_the_producers_tight_boxes_and_masks_from_column_runs_are_the_cameras_ow
         ids = want["instance_id"]
         assert [r["counts"] for r in capture["coco_rles"](ids)] == \
             [r["counts"] for r in instance_rles(own["instance_segmentation"], ids)]
-
-
-def test_frames_written_in_line_are_the_writer_threads_and_an_interrupted_run_keeps_its_records(
-        tmp_path, monkeypatch, small_producer, gen):
-    """``writer_threads=0`` (what a pool with a process per core uses): the same files and records as
-    the writer thread's; a run stopped at its fourth frame keeps the three frames whose files it wrote."""
-    config = small_producer.config
-    for name, threads in (("thread", 1), ("in_line", 0)):
-        prepare_dirs(tmp_path / name, config.writer)
-        rep.run_frames(config, tmp_path / name, 4, [0, 1, 2, 3, 4], producer=small_producer, writer_threads=threads)
-    assert gen.file_tree(tmp_path / "in_line") == gen.file_tree(tmp_path / "thread")
-    assert sorted(read_records(tmp_path / "in_line" / "frames")) == [0, 1, 2, 3, 4]
-
-    def stop_at_the_fourth(self, index, capture, table, log):
-        if index == 8:
-            raise KeyboardInterrupt("stopped")
-        return FrameWriter.write(self, index, capture, table, log)
-
-    monkeypatch.setattr(producer_module, "FrameWriter", type("Stops", (FrameWriter,), {"write": stop_at_the_fourth}))
-    prepare_dirs(tmp_path / "stopped", config.writer)
-    with pytest.raises(KeyboardInterrupt):
-        rep.run_frames(config, tmp_path / "stopped", 4, [5, 6, 7, 8, 9], producer=small_producer, writer_threads=0)
-    assert sorted(read_records(tmp_path / "stopped" / "frames")) == [5, 6, 7]

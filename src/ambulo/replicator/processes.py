@@ -205,13 +205,7 @@ def _producer():
 
 def _run_chunk(frames: list[int]) -> str:
     producer = _producer()
-    if _worker["device"] is not None:
-        threads = _worker["writer_threads"]
-    else:
-        # a CPU producer writes its frames in line when the pool has a process for every core (the
-        # default): a writer thread would only overlap with another process's work, for ~1 ms more CPU
-        # a frame (producer._run_frames_in_line); with cores to spare its thread overlaps the writes
-        threads = 0 if _worker["barrier"].parties >= usable_cpus() else 1
+    threads = _worker["writer_threads"] if _worker["device"] is not None else 1
     return run_frames(_worker["config"], _worker["out"], _worker["seed"], frames, producer=producer,
                       writer_threads=threads)
 

@@ -188,21 +188,12 @@ def run_frames(config: DatasetConfig, out: Path, seed: int, frames: list[int], p
     (Ctrl-C included) the records of the frames already written are written too, so
     an interrupted run keeps them. ``writer_threads`` > 1 encodes that many frames at once
     (PNG deflate and file writes release the GIL): what a producer rendering many frames
-    per call (``batched``) needs to keep up. ``writer_threads`` 0 writes each frame in line,
-    on this thread, after it renders: no overlap, but ~1 ms less CPU a 320x240 frame than
-    handing it to a thread (``_run_frames_in_line``), what a process gains when every core
-    already has a producer (``processes``).
+    per call (``batched``) needs to keep up.
     """
     out = Path(out)
     owned = producer is None
     producer = producer or FrameProducer(config)
     writer = FrameWriter(out, config.writer)
-    if writer_threads == 0:
-        try:
-            return _run_frames_in_line(seed, frames, progress, producer, writer)
-        finally:
-            if owned:
-                producer.close()
     if writer_threads > 1:
         try:
             return _run_frames_threaded(config, out, seed, frames, progress, producer, writer, writer_threads)
@@ -231,23 +222,6 @@ def run_frames(config: DatasetConfig, out: Path, seed: int, frames: list[int], p
     finally:
         if owned:
             producer.close()
-
-
-def _run_frames_in_line(seed, frames, progress, producer: FrameProducer, writer: FrameWriter) -> str:
-    """``run_frames`` on one thread: each frame's files written (and its record held back) right after
-    it renders. The writer thread's hand-over cost a process ~1 ms of CPU a 320x240 frame (9.5-10.0
-    against 8.3-9.0 ms, one producer, blocks of 120 frames alternated; cpu-2026-11-30-replicator-s13.md):
-    the GIL passed back and forth and the frame's arrays read on another core. On any exit the
-    records of the frames whose files were written are written."""
-    with _heap_frozen():
-        try:
-            for index, log, capture in producer.frames(seed, frames):
-                writer.write(index, capture, producer.table, log)
-                if progress is not None:
-                    progress(1)
-        finally:
-            writer.flush()
-    return producer.gl_renderer
 
 
 def _run_frames_threaded(config, out, seed, frames, progress, producer, writer, threads: int) -> str:
