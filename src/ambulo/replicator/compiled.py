@@ -31,5 +31,8 @@ class Kernel:
                 raise RuntimeError("numba is not installed: pip install 'ambulo[data]' (or numba)")
             from numba import njit
 
-            self._compiled = njit(cache=True, nogil=True)(self.fn)
+            try:
+                self._compiled = njit(cache=True, nogil=True)(self.fn)
+            except RuntimeError:  # no writable cache folder (package, NUMBA_CACHE_DIR, ~/.cache): compile each time
+                self._compiled = njit(cache=False, nogil=True)(self.fn)
         return self._compiled(*args)
