@@ -7,7 +7,7 @@
 Each argument is ``LABEL=EVALS_CSV``: an ``evals.csv`` that ``ambulo train --eval-every`` wrote
 (``wall_s`` from the training process's start, kernel compile and earlier evaluations included;
 ``fall_rate``; ``metrics`` as ``name=value`` pairs). Plots the velocity error and the fall rate
-against wall-clock minutes, with the ``walks`` bars (``--max-vel-error``, ``--max-fall-rate``),
+against wall-clock minutes, with the ``walks`` criterion's bars (``--max-vel-error``, ``--max-fall-rate``),
 and marks each run's first evaluation that met its criteria (``criteria_met``) on both engines
 when the CSV has the CPU-engine columns filled.
 """
@@ -18,6 +18,9 @@ import argparse
 import csv
 from pathlib import Path
 
+from ambulo.envs.humanoid_walk import WALKS
+from ambulo.rl.periodic_eval import metrics_from_text
+
 
 def read_evals(path: Path) -> list[dict]:
     """The rows of an ``evals.csv``: minutes, fall rate, velocity error m/s and whether the
@@ -25,7 +28,7 @@ def read_evals(path: Path) -> list[dict]:
     rows = []
     with open(path, newline="") as f:
         for raw in csv.DictReader(f):
-            metrics = dict(pair.split("=", 1) for pair in raw["metrics"].split())
+            metrics = metrics_from_text(raw["metrics"])
             met = raw["criteria_met"] == "True"
             if raw.get("cpu_engine_criteria_met"):
                 met = met and raw["cpu_engine_criteria_met"] == "True"
@@ -41,8 +44,10 @@ def main() -> None:
     parser.add_argument("runs", nargs="+", help="LABEL=EVALS_CSV")
     parser.add_argument("--out", required=True, type=Path)
     parser.add_argument("--title", default=None)
-    parser.add_argument("--max-vel-error", type=float, default=0.2, help="the walks bar, m/s")
-    parser.add_argument("--max-fall-rate", type=float, default=0.05, help="the walks bar")
+    parser.add_argument("--max-vel-error", type=float, default=WALKS.max_values["mean_abs_vel_error_m_s"],
+                        help="the velocity error bar, m/s (default: the walks criterion's)")
+    parser.add_argument("--max-fall-rate", type=float, default=WALKS.max_values["fall_rate"],
+                        help="the fall rate bar (default: the walks criterion's)")
     args = parser.parse_args()
     runs = []
     for item in args.runs:

@@ -23,6 +23,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
+from ambulo.envs.humanoid_walk import WALKS
+from ambulo.rl.periodic_eval import metrics_from_text
+
 
 def scalars(event_file: Path, tag: str) -> list[tuple[float, int, float]]:
     acc = EventAccumulator(str(event_file), size_guidance={"scalars": 0})
@@ -61,12 +64,12 @@ def main() -> None:
     axes[0].plot(*zip(*reward), color="tab:blue", lw=1)
     axes[0].set_ylabel("mean episode reward")
     minutes = [float(r["wall_s"]) / 60 for r in evals]
-    axes[1].plot(minutes, [float(r["metrics"].split("mean_abs_vel_error_m_s=")[1].split()[0]) for r in evals],
+    axes[1].plot(minutes, [metrics_from_text(r["metrics"])["mean_abs_vel_error_m_s"] for r in evals],
                  "o-", ms=3, color="tab:orange")
-    axes[1].axhline(0.2, color="k", ls="--", lw=0.8)
+    axes[1].axhline(WALKS.max_values["mean_abs_vel_error_m_s"], color="k", ls="--", lw=0.8)
     axes[1].set_ylabel("eval velocity error, m/s")
     axes[2].plot(minutes, [float(r["fall_rate"]) for r in evals], "o-", ms=3, color="tab:red")
-    axes[2].axhline(0.05, color="k", ls="--", lw=0.8)
+    axes[2].axhline(WALKS.max_values["fall_rate"], color="k", ls="--", lw=0.8)
     axes[2].set_ylabel("eval fall rate")
     axes[2].set_xlabel("wall-clock minutes from `ambulo train` starting (kernel compile and evaluations included)")
     if reached:

@@ -1,4 +1,5 @@
-"""scripts/plot_eval_curves.py: reads evals.csv as `ambulo train --eval-every` writes it and marks the
+"""scripts/plot_eval_curves.py: reads evals.csv as `ambulo train --eval-every` writes it (the metrics cells through
+periodic_eval.metrics_from_text, the inverse of what writes them) and marks the
 first evaluation that walks on both engines."""
 
 from __future__ import annotations
@@ -38,3 +39,13 @@ def test_it_writes_a_png(tmp_path):
     finally:
         sys.argv = argv
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_metrics_cells_read_back_what_the_periodic_evaluation_wrote():
+    from ambulo.rl.periodic_eval import _metrics_text, metrics_from_text
+
+    result = {"fall_rate": 0.0, "mean_abs_vel_error_m_s": 0.123456, "mean_abs_yaw_rate_error_rad_s": 0.2,
+              "mean_return": 40.0}
+    assert metrics_from_text(_metrics_text(result)) == {"mean_abs_vel_error_m_s": 0.1235,
+                                                        "mean_abs_yaw_rate_error_rad_s": 0.2}
+    assert metrics_from_text("") == {}

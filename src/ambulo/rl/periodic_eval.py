@@ -265,6 +265,12 @@ def _metrics_text(result: dict[str, Any]) -> str:
     return " ".join(f"{k}={v}" for k, v in _metrics(result).items())
 
 
+def metrics_from_text(text: str) -> dict[str, float]:
+    """An ``evals.csv`` metrics cell (``metrics``, ``cpu_engine_metrics``: ``name=value`` pairs
+    separated by spaces) as a dict; the empty cell of an evaluation not run gives ``{}``."""
+    return {name: float(value) for name, value in (pair.split("=", 1) for pair in text.split())}
+
+
 def summary(result: dict[str, Any], iteration: int, wall_s: float) -> str:
     """One line on an evaluation (and its CPU-engine confirmation), for the console."""
     def one(res: dict[str, Any]) -> str:
