@@ -101,7 +101,7 @@ class FastOffPolicy(nn.Module):
     # -- learning --------------------------------------------------------------------------------
     def update(self, batch: Batch) -> None:
         """One critic update and, every ``policy_delay`` updates, one actor (and alpha) update."""
-        self._update(batch, self.num_updates % self.cfg.policy_delay == 0)
+        self._update(batch, self._actor_turn())
         self.num_updates += 1
 
     def update_from(self, ring: ReplayRing, generator: torch.Generator | None = None) -> None:
@@ -109,21 +109,22 @@ class FastOffPolicy(nn.Module):
         ``generator``; with ``graphed``, the same work replayed as a CUDA graph (the first
         ``warmup`` calls of each update kind run eagerly, then the kind is captured)."""
         cfg = self.cfg
-        with_actor = self.num_updates % cfg.policy_delay == 0
-
-        def step() -> None:
-            self._update(ring.sample(cfg.batch_size, cfg.n_step, cfg.gamma, generator), with_actor)
-
         if not self.graphed:
-            step()
-        else:
-            source = self._graph_source
-            if self.graphs is None or source is None or source[0] is not ring or source[1] is not generator:
-                # the graphs read this ring's tensors and advance this generator
-                self.graphs = UpdateGraphs(self.device, generators=() if generator is None else (generator,))
-                self._graph_source = (ring, generator)
-            self.graphs(with_actor, step)
+            self.update(ring.sample(cfg.batch_size, cfg.n_step, cfg.gamma, generator))
+            return
+        with_actor = self._actor_turn()
+        source = self._graph_source
+        if self.graphs is None or source is None or source[0] is not ring or source[1] is not generator:
+            # the graphs read this ring's tensors and advance this generator
+            self.graphs = UpdateGraphs(self.device, generators=() if generator is None else (generator,))
+            self._graph_source = (ring, generator)
+        self.graphs(with_actor, lambda: self._update(ring.sample(cfg.batch_size, cfg.n_step, cfg.gamma, generator),
+                                                     with_actor))
         self.num_updates += 1
+
+    def _actor_turn(self) -> bool:
+        """Whether the next update also steps the actor (every ``policy_delay`` critic updates)."""
+        return self.num_updates % self.cfg.policy_delay == 0
 
     def _update(self, batch: Batch, with_actor: bool) -> None:
         """A critic update, an actor (and alpha) update if ``with_actor``, the target's Polyak
