@@ -27,13 +27,17 @@ def read_evals(path: Path) -> list[dict]:
     criteria held (on the CPU engine too where it was checked)."""
     rows = []
     with open(path, newline="") as f:
-        for raw in csv.DictReader(f):
-            metrics = metrics_from_text(raw["metrics"])
-            met = raw["criteria_met"] == "True"
-            if raw.get("cpu_engine_criteria_met"):
-                met = met and raw["cpu_engine_criteria_met"] == "True"
-            rows.append({"minutes": float(raw["wall_s"]) / 60.0, "fall_rate": float(raw["fall_rate"]),
-                         "vel_error_m_s": float(metrics["mean_abs_vel_error_m_s"]), "met": met})
+        for line, raw in enumerate(csv.DictReader(f), start=2):
+            try:
+                metrics = metrics_from_text(raw["metrics"])
+                met = raw["criteria_met"] == "True"
+                if raw.get("cpu_engine_criteria_met"):
+                    met = met and raw["cpu_engine_criteria_met"] == "True"
+                rows.append({"minutes": float(raw["wall_s"]) / 60.0, "fall_rate": float(raw["fall_rate"]),
+                             "vel_error_m_s": metrics["mean_abs_vel_error_m_s"], "met": met})
+            except (KeyError, TypeError, ValueError, AttributeError) as error:
+                raise SystemExit(f"{path} line {line}: not an evals.csv row of `ambulo train --eval-every` "
+                                 f"({type(error).__name__}: {error}); pass the run's evals.csv") from None
     if not rows:
         raise SystemExit(f"{path} has no evaluations")
     return rows

@@ -49,3 +49,12 @@ def test_metrics_cells_read_back_what_the_periodic_evaluation_wrote():
     assert metrics_from_text(_metrics_text(result)) == {"mean_abs_vel_error_m_s": 0.1235,
                                                         "mean_abs_yaw_rate_error_rad_s": 0.2}
     assert metrics_from_text("") == {}
+
+
+def test_a_file_that_is_not_an_evals_csv_is_one_line_naming_it(tmp_path):
+    import pytest
+
+    path = tmp_path / "metrics.csv"
+    path.write_text("iteration,env_steps,mean_reward\n0,100,1.0\n")
+    with pytest.raises(SystemExit, match=r"metrics.csv line 2: not an evals.csv row .*KeyError"):
+        plot.read_evals(path)
