@@ -79,6 +79,18 @@ if [ ! -x "$VENV/bin/python" ]; then
 fi
 stamp="$VENV/.ambulo-installed"
 if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
+  # The environment takes ~5 GB (torch, Open3D, Mitsuba, MuJoCo Warp, ROS 2 wheels) plus pip's unpacking
+  # room; a disk that fills mid-install leaves a half-built venv and a pip OSError deep in the output.
+  # (an update of an installed venv, pyproject.toml newer than its stamp, needs far less)
+  if [ -f "$stamp" ]; then default_mb=1500; else default_mb=6500; fi
+  need_mb=${AMBULO_SETUP_FREE_MB:-$default_mb}
+  for dir in "$VENV" "${TMPDIR:-/tmp}"; do
+    free_mb=$(df -Pm "$dir" 2>/dev/null | awk 'NR==2 {print $4}')
+    if [ -n "$free_mb" ] && [ "$free_mb" -lt "$need_mb" ]; then
+      echo "error: set-up needs ~${need_mb} MB free on the disk of $dir, which has ${free_mb} MB; free some space (AMBULO_SETUP_FREE_MB=0 skips this check) and re-run" >&2
+      exit 1
+    fi
+  done
   "$VENV/bin/python" -m pip install -q --upgrade pip
   # the CPU build of torch first, pinned, so nothing pulls a multi-GB CUDA build
   "$VENV/bin/python" -m pip install -q "torch==${TORCH_VERSION:-2.13.0}"
