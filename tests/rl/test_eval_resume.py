@@ -19,7 +19,8 @@ def _write_evals(run_dir, iterations, cut=""):
         writer = csv.writer(f)
         writer.writerow(EVAL_COLUMNS)
         for it in iterations:
-            writer.writerow([it, 1.0 + it, 64 * (it + 1), "0.500", "2.00", "1.00", "", False, "", ""])
+            row = [it, 1.0 + it, 64 * (it + 1), "0.500", "2.00", "1.00", "", False]
+            writer.writerow(row + [""] * (len(EVAL_COLUMNS) - len(row)))  # the CPU-engine and block cells
         f.write(cut)
 
 

@@ -1,6 +1,7 @@
 """A run's training overrides reach its play/eval env only where the play variant does not set the
 setting itself: transfer randomization and the training ranges stay off in evaluation; the robust
-variant (humanoid-walk-robust) trains under the wide transfer ranges and evaluates nominal."""
+variant (humanoid-walk-robust) trains under the wide transfer ranges and evaluates nominal, with the
+transfer corners added as blocks of the evaluation."""
 
 import ambulo.envs as envs
 from ambulo.envs.transfer import transfer_cfg_wide
@@ -27,7 +28,11 @@ def test_the_robust_variant_trains_under_the_wide_ranges_and_evaluates_nominal()
     walk, robust = envs.spec("humanoid-walk"), envs.spec("humanoid-walk-robust")
     assert robust.cfg_fn().transfer == transfer_cfg_wide()
     assert robust.play_cfg() == walk.play_cfg()  # `walks` means what it means for humanoid-walk
-    assert robust.criteria == walk.criteria and robust.ppo_cfg_fn() == walk.ppo_cfg_fn()
+    # ... judged in every block of its evaluation (nominal + the transfer corners: tests/rl/test_eval_blocks.py)
+    (walks,), (walks_robust,) = walk.criteria, robust.criteria
+    assert walks_robust.max_values == walks.max_values and walks_robust.min_values == walks.min_values
+    assert walk.eval_blocks() is None and robust.eval_blocks() is not None
+    assert robust.ppo_cfg_fn() == walk.ppo_cfg_fn()
     trained, wide = robust.cfg_fn(), transfer_cfg_wide()
     walk_cfg = walk.cfg_fn()
     walk_cfg.transfer = wide

@@ -16,11 +16,12 @@ from . import (  # noqa: F401  (each registers its task)
     humanoid_footsteps_stairs,
     humanoid_rough,
     humanoid_walk,
+    humanoid_walk_robust,
     jetbot_goal,
 )
 from .base import EnvCfg, RLEnv
 from .ppo import PpoCfg
-from .registry import Criterion, TaskSpec, make, make_cfg, names, register, registry, spec
+from .registry import Criterion, EvalBlocks, TaskSpec, make, make_cfg, names, register, registry, spec
 
 
 def __getattr__(name: str):
@@ -35,6 +36,7 @@ def __getattr__(name: str):
 __all__ = [
     "Criterion",
     "EnvCfg",
+    "EvalBlocks",
     "PpoCfg",
     "GymVectorEnv",
     "RLEnv",

@@ -32,7 +32,7 @@ from .base import EnvCfg, RLEnv
 from .commands import VelocityCommand, VelocityCommandCfg
 from .ppo import PpoCfg
 from .registry import Criterion, TaskSpec, register
-from .transfer import PLAY_KEEPS, TransferCfg, TransferRandomization, transfer_cfg_wide
+from .transfer import PLAY_KEEPS, TransferCfg, TransferRandomization
 
 
 @dataclass(kw_only=True)
@@ -82,12 +82,12 @@ class HumanoidWalkCfg(EnvCfg):
     transfer: TransferCfg = field(default_factory=TransferCfg, metadata={PLAY_KEEPS: True})
     """Transfer randomization (gains, strength, joint friction, armature, CoM, action latency,
     observation delay; ``envs.transfer``); off by default, ``transfer_cfg_wide()`` for the
-    issue's robustness ranges (the humanoid-walk-robust task). Training-only: a run's
-    ``--env-cfg transfer.*`` does not reach its play/eval env (``rl.runs.play_overrides``)."""
+    issue's robustness ranges (the humanoid-walk-robust task, ``envs.humanoid_walk_robust``).
+    Training-only: a run's ``--env-cfg transfer.*`` does not reach its play/eval env (``rl.runs.play_overrides``)."""
     transfer_blocks: tuple[TransferCfg, ...] = field(default=(), metadata={PLAY_KEEPS: True})
     """Evaluation layouts: the worlds split into this many contiguous equal blocks, block b under
     ``transfer_blocks[b]`` in place of ``transfer`` (the robustness table's rows in one env,
-    ``benchmarks/robustness.py``); empty: every world under ``transfer``."""
+    ``benchmarks/robustness.py``; humanoid-walk-robust's evaluation blocks); empty: every world under ``transfer``."""
 
 
 def humanoid_walk_cfg() -> HumanoidWalkCfg:
@@ -147,17 +147,6 @@ def as_play(cfg: HumanoidWalkCfg) -> HumanoidWalkCfg:
 
 def humanoid_walk_play_cfg() -> HumanoidWalkCfg:
     return as_play(humanoid_walk_cfg())
-
-
-def humanoid_walk_robust_cfg() -> HumanoidWalkCfg:
-    """humanoid-walk trained under the issue's transfer ranges (``transfer_cfg_wide``: gains
-    +-20 %, strength +-10 %, joint friction, armature, CoM +-3 cm, 0-20 ms latency, 0-1 step of
-    observation delay). Its own task name, so its runs, its shipped policy and ``ambulo eval``
-    never mix with humanoid-walk's; the play variant is humanoid-walk's (nominal: ``walks`` means
-    the same), the robustness table (``benchmarks/robustness.py``) adds the terms back."""
-    cfg = humanoid_walk_cfg()
-    cfg.transfer = transfer_cfg_wide()
-    return cfg
 
 
 def humanoid_walk_ppo() -> PpoCfg:
@@ -361,18 +350,6 @@ register(TaskSpec(
     play_cfg_fn=humanoid_walk_play_cfg,
     ppo_cfg_fn=humanoid_walk_ppo,
     description="21-DoF humanoid tracks commanded (vx, vy, yaw rate) through joint PD targets",
-    step_metrics=humanoid_walk_metrics,
-    criteria=(WALKS,),
-))
-
-register(TaskSpec(
-    name="humanoid-walk-robust",
-    env_cls=HumanoidWalkEnv,
-    cfg_fn=humanoid_walk_robust_cfg,
-    play_cfg_fn=humanoid_walk_play_cfg,
-    ppo_cfg_fn=humanoid_walk_ppo,
-    description="humanoid-walk trained under the transfer randomization (gains, strength, friction, armature, "
-                "CoM, latency, observation delay); evaluated nominal",
     step_metrics=humanoid_walk_metrics,
     criteria=(WALKS,),
 ))

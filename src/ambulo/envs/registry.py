@@ -37,6 +37,34 @@ class Criterion:
         return (all(result[k] <= v for k, v in self.max_values.items())
                 and all(result[k] >= v for k, v in self.min_values.items()))
 
+    def load(self, result: dict[str, float]) -> float:
+        """How close ``result`` is to failing: the largest ratio of a metric to its bar (a
+        ``min_values`` bar to its metric); above 1 fails, for bars above 0. Ranks the blocks of
+        an evaluation laid out in blocks (its worst block: the largest load)."""
+        def ratio(value: float, bar: float) -> float:
+            return value / bar if bar > 0 else (0.0 if value <= bar else float("inf"))
+
+        loads = [ratio(result[k], v) for k, v in self.max_values.items()]
+        loads += [ratio(v, result[k]) for k, v in self.min_values.items()]
+        return max(loads, default=0.0)
+
+
+@dataclass(frozen=True)
+class EvalBlocks:
+    """An evaluation laid out in named blocks of worlds, each under its own condition.
+
+    The evaluation env's worlds split into ``len(names)`` contiguous equal blocks, block b
+    under condition ``names[b]`` (humanoid-walk-robust: nominal and the 16 corners of the
+    transfer ranges); each block is summarized on its own and every criterion of the task
+    holds when it holds in every block (``rl.eval_blocks``)."""
+
+    names: tuple[str, ...]
+    env_overrides: dict[str, Any]
+    """Overrides of the play variant's config that lay its worlds out in these blocks (for
+    humanoid-walk: ``transfer_blocks``); they need a number of worlds divisible by the blocks."""
+    episodes_per_block: int
+    """The default evaluation's episodes per block (``ambulo eval``, ``--eval-every``)."""
+
 
 @dataclass(frozen=True)
 class TaskSpec:
@@ -58,9 +86,15 @@ class TaskSpec:
     """Termination names that mean success (a goal reached), not failure."""
     criteria: tuple[Criterion, ...] = field(default=())
     """What "solved" means, checked by ``ambulo eval``."""
+    eval_blocks_fn: Callable[[], EvalBlocks] | None = None
+    """The evaluation's layout in blocks, where the criteria must hold in each (None: one
+    block, the play variant as it is)."""
 
     def play_cfg(self) -> EnvCfg:
         return (self.play_cfg_fn or self.cfg_fn)()
+
+    def eval_blocks(self) -> EvalBlocks | None:
+        return None if self.eval_blocks_fn is None else self.eval_blocks_fn()
 
 
 _REGISTRY: dict[str, TaskSpec] = {}
@@ -122,4 +156,4 @@ def make(name: str, *, num_envs: int | None = None, device: str | None = None,
     return spec(name).env_cls(cfg)
 
 
-__all__ = ["Criterion", "TaskSpec", "make", "make_cfg", "names", "register", "registry", "spec"]
+__all__ = ["Criterion", "EvalBlocks", "TaskSpec", "make", "make_cfg", "names", "register", "registry", "spec"]

@@ -16,6 +16,7 @@ the new ones, so the engine steps one physics step at a time while any latency i
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -83,6 +84,28 @@ def transfer_cfg_wide() -> TransferCfg:
     return TransferCfg(kp_scale_range=(0.8, 1.2), kd_scale_range=(0.8, 1.2), motor_strength_range=(0.9, 1.1),
                        joint_friction_range_n_m=(0.0, 0.5), armature_scale_range=(0.8, 1.2), com_offset_m=0.03,
                        action_latency_range_s=(0.0, 0.02), observation_delay_range_steps=(0, 1))
+
+
+def transfer_corners() -> dict[str, TransferCfg]:
+    """The issue's three terms (gains, action latency, CoM; issue 30: "walks with gains +-20 %,
+    0-20 ms latency and CoM +-3 cm") at the corners of ``transfer_cfg_wide``'s ranges, 16 fixed
+    conditions by name: every joint's kp and kd both at the low or high scale, the latency at
+    its low or high end, the pelvis and torso CoM at (+-c, +-c, +c) (z up: a raised CoM is the
+    harder one; the lowered half would double the count for the easier side). The robustness
+    table's corner rows (``benchmarks/robustness.py --set corners``) and humanoid-walk-robust's
+    evaluation blocks, one definition. Names read like ``gains0.8_lat20ms_com-3+3+3cm``."""
+    wide = transfer_cfg_wide()
+    c = wide.com_offset_m
+    corners = {}
+    for gain in wide.kp_scale_range:
+        for latency_s in wide.action_latency_range_s:
+            for x, y in itertools.product((-c, c), repeat=2):
+                com = (x, y, c)
+                name = f"gains{gain:g}_lat{latency_s * 1e3:.0f}ms_com" + "".join(f"{v * 100:+.0f}" for v in com) + "cm"
+                corners[name] = TransferCfg(kp_scale_range=(gain, gain), kd_scale_range=(gain, gain),
+                                            action_latency_range_s=(latency_s, latency_s),
+                                            com_offset_box_m=(com, com))
+    return corners
 
 
 class TransferRandomization:
@@ -237,4 +260,4 @@ class TransferRandomization:
         return self.obs_delay.read()
 
 
-__all__ = ["PLAY_KEEPS", "TransferCfg", "TransferRandomization", "transfer_cfg_wide"]
+__all__ = ["PLAY_KEEPS", "TransferCfg", "TransferRandomization", "transfer_cfg_wide", "transfer_corners"]

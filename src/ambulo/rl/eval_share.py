@@ -5,7 +5,9 @@
 ``num_episodes % W`` ranks one more) on its own device, and the episodes' totals
 (``evaluate.EpisodeSums``: counts and sums, never means) are gathered and added in rank order, so
 every rank computes the same merged result from the same numbers, bit for bit, and takes the
-same decisions on it (the criteria, the CPU-engine confirmation, stopping).
+same decisions on it (the criteria, the CPU-engine confirmation, stopping). An evaluation laid out
+in blocks (``eval_blocks``: humanoid-walk-robust's corners) splits each block so: every rank runs
+its part of every block, and the blocks' totals merge block by block.
 
 Seeds: rank 0's share draws from the evaluation seed itself (one process: the episodes ``ambulo
 eval`` runs for that seed, unchanged); rank r > 0 from a seed derived from (seed, r) by NumPy's
@@ -35,7 +37,8 @@ class EvalShare:
     episodes: int
     """Worlds (one episode each) this rank runs."""
     first: int
-    """Index of its first episode among all (ranks hold contiguous blocks, rank order)."""
+    """Index of its first episode among all (ranks hold contiguous blocks, rank order); of a
+    blocked evaluation, among each block's."""
     seed: int
     """Seed of its env (its episodes' commands and resets)."""
 
@@ -48,15 +51,23 @@ def share_seed(seed: int, rank: int) -> int:
     return int(np.random.SeedSequence([seed, rank]).generate_state(1)[0] >> 1)
 
 
-def eval_share(num_episodes: int, seed: int, rank: Rank) -> EvalShare:
-    """``rank``'s share of ``num_episodes`` (see the module doc); ValueError when a rank would get none."""
-    if num_episodes < rank.world_size:
-        raise ValueError(f"{num_episodes} evaluation episodes cannot be split over {rank.world_size} processes: "
-                         f"give at least {rank.world_size}")
-    base, extra = divmod(num_episodes, rank.world_size)
+def eval_share(num_episodes: int, seed: int, rank: Rank, *, blocks: int = 1) -> EvalShare:
+    """``rank``'s share of ``num_episodes`` (see the module doc); ValueError when a rank would get none.
+    ``blocks`` > 1: the episodes are that many equal blocks (``eval_blocks``) and each block is
+    shared out so: the rank's env holds its part of every block, as ``blocks`` equal blocks again
+    (``first``: its first episode's index within a block)."""
+    if num_episodes % blocks:
+        raise ValueError(f"{num_episodes} evaluation episodes do not split into {blocks} equal blocks: "
+                         f"give a multiple of {blocks}")
+    per_block = num_episodes // blocks
+    if per_block < rank.world_size:
+        blocked = f" ({blocks} blocks of {per_block})" if blocks > 1 else ""
+        raise ValueError(f"{num_episodes} evaluation episodes{blocked} cannot be split over {rank.world_size} "
+                         f"processes: give at least {rank.world_size * blocks}")
+    base, extra = divmod(per_block, rank.world_size)
     episodes = base + (rank.rank < extra)
     first = rank.rank * base + min(rank.rank, extra)
-    return EvalShare(episodes, first, share_seed(seed, rank.rank))
+    return EvalShare(episodes * blocks, first, share_seed(seed, rank.rank))
 
 
 def merge_over_ranks(sums: EpisodeSums, rank: Rank, device: str | torch.device) -> EpisodeSums:

@@ -15,7 +15,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -27,6 +27,7 @@ from ambulo.utils.atomic import atomic_write_json
 
 from . import runs
 from .distributed import Rank
+from .eval_blocks import blocks_table, eval_layout, judge_blocks
 from .eval_share import eval_share, merge_over_ranks
 
 
@@ -86,9 +87,12 @@ class EpisodeSums:
         return self.like(self.to_tensor() + other.to_tensor())
 
 
-def summarize(sums: EpisodeSums, task: envs.TaskSpec, *, step_dt_s: float, max_episode_length: int) -> dict:
+def summarize(sums: EpisodeSums, task: envs.TaskSpec, *, step_dt_s: float, max_episode_length: int,
+              blocks: list[dict] | None = None) -> dict:
     """``run_episodes``' result from the totals of its episodes: the one place metrics are computed,
-    for one process's episodes or the merged shares of several."""
+    for one process's episodes or the merged shares of several. ``blocks``: the summaries of the
+    blocks these episodes were laid out in (``eval_blocks``): the criteria hold where they hold
+    in every block."""
     n = sums.episodes
     result = {
         "task": task.name,
@@ -104,35 +108,38 @@ def summarize(sums: EpisodeSums, task: envs.TaskSpec, *, step_dt_s: float, max_e
     result["criteria"] = [c.name for c in task.criteria]
     for criterion in task.criteria:
         result[criterion.name] = criterion.holds(result)
+    if blocks is not None:
+        judge_blocks(result, blocks, task)
     return result
 
 
 def run_episodes(env: envs.RLEnv, vec_env, policy: Callable, task: envs.TaskSpec, *,
-                 desc: str = "eval", quiet: bool = True, blocks: int = 1,
+                 desc: str = "eval", quiet: bool = True, blocks: int | Sequence[str] = 1,
                  merge: Callable[[EpisodeSums], EpisodeSums] | None = None) -> dict:
     """Run one episode in each env of ``env`` (wrapped by ``vec_env``, an ``RslRlVecEnv``)
     with ``policy`` (TensorDict observations -> (N, num_actions) actions) from a full reset;
-    return the metrics and criteria (see the module docstring). ``blocks`` > 1: the envs are
-    that many contiguous equal blocks evaluated side by side (humanoid-walk's
-    ``transfer_blocks``: one condition each), and ``result["blocks"]`` holds each one's result
-    (the same keys) beside the whole's. ``merge``: these episodes are one share of an evaluation
-    split over processes (``eval_share``); it returns the totals of every share, which the
-    result describes."""
-    if blocks < 1 or env.num_envs % blocks:
+    return the metrics and criteria (see the module docstring). ``blocks``: the envs are that
+    many contiguous equal blocks evaluated side by side (humanoid-walk's ``transfer_blocks``: one
+    condition each), named ``blocks`` when a sequence of names: ``result["blocks"]`` holds each
+    one's result (the same keys and its ``name``) beside the whole's, whose criteria hold where
+    they hold in every block (``eval_blocks``). ``merge``: these episodes are one share of an
+    evaluation split over processes (``eval_share``); it returns the totals of every share (of
+    each block's, block by block), which the result describes."""
+    names = tuple(blocks) if not isinstance(blocks, int) else (
+        () if blocks == 1 else tuple(f"block {b}" for b in range(blocks)))
+    count = len(names) or 1
+    if count < 1 or env.num_envs % count:
         raise ValueError(f"blocks={blocks} does not split {env.num_envs} envs evenly")
-    if merge is not None and blocks > 1:
-        raise ValueError("an evaluation split over processes has no blocks")
     records = episode_records(env, vec_env, policy, task, desc=desc, quiet=quiet)
-    sums = records.sums()
-    if merge is not None:
-        sums = merge(sums)
+    merged = merge if merge is not None else (lambda sums: sums)
     shape = {"step_dt_s": env.step_dt_s, "max_episode_length": env.max_episode_length}
-    result = summarize(sums, task, **shape)
-    if blocks > 1:
-        per = env.num_envs // blocks
-        result["blocks"] = [summarize(records.sums(slice(b * per, (b + 1) * per)), task, **shape)
-                            for b in range(blocks)]
-    return result
+    if not names:
+        return summarize(merged(records.sums()), task, **shape)
+    per = env.num_envs // count
+    # every rank merges the same blocks in the same order (each merge is one collective)
+    parts = [{"name": name, **summarize(merged(records.sums(slice(b * per, (b + 1) * per))), task, **shape)}
+             for b, name in enumerate(names)]
+    return summarize(merged(records.sums()), task, **shape, blocks=parts)
 
 
 def episode_records(env: envs.RLEnv, vec_env, policy: Callable, task: envs.TaskSpec, *,
@@ -187,11 +194,12 @@ def eval_episode_length_s(task: envs.TaskSpec, episode_length_s: float | None) -
 
 
 def evaluate(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = None,
-             num_episodes: int = 100, episode_length_s: float | None = None, seed: int = 12345,
+             num_episodes: int | None = None, episode_length_s: float | None = None, seed: int = 12345,
              log_root: str | os.PathLike = "runs", quiet: bool = False, device: str | None = None,
              watch: Callable[[envs.RLEnv], Any] | None = None, rank: Rank | None = None) -> dict:
     """Evaluate ``run`` and return (and print) a dict of metrics; also written to
-    ``<run>/eval.json``. ``device`` (default: the run's) evaluates on another engine: a policy
+    ``<run>/eval.json``. ``num_episodes``: default 100, or the task's blocks' default
+    (``eval_blocks``). ``device`` (default: the run's) evaluates on another engine: a policy
     trained on a GPU, evaluated with ``device="cpu"``, is a sim-to-sim check. ``watch``: see
     ``watched`` (the episodes are shown as they run). ``rank``: this process runs its share of
     the episodes in a group of processes (``eval_gpus``; ``device`` is then its own) and gets
@@ -200,16 +208,18 @@ def evaluate(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = N
     run_dir, ckpt = runs.resolve_policy(run, checkpoint, log_root)
     info = runs.read_run_info(run_dir)
     task = envs.spec(info["task"])
-    share = eval_share(num_episodes, seed, rank)
+    layout = eval_layout(task, num_episodes)
+    share = eval_share(layout.num_episodes, seed, rank, blocks=layout.blocks)
     env = runs.make_env_for_run(info, num_envs=share.episodes, seed=share.seed, play=True, device=device,
-                                episode_length_s=eval_episode_length_s(task, episode_length_s))
+                                episode_length_s=eval_episode_length_s(task, episode_length_s),
+                                **layout.env_overrides)
     env.use_cuda_graph()  # on a GPU: 100 worlds are launch-bound, a replayed step is not
     runner = runs.load_runner(run_dir, env, ckpt)
     policy = runner.get_inference_policy(device=str(env.device))
     with watched(env, watch):
         merge = {} if not rank.distributed else {"merge": lambda sums: merge_over_ranks(sums, rank, env.device)}
         measured = run_episodes(env, runner.env, policy, task, desc=f"eval {info['task']}",
-                                quiet=quiet or not rank.is_main, **merge)
+                                quiet=quiet or not rank.is_main, blocks=layout.run_blocks, **merge)
     result = {"task": info["task"], "run": str(run_dir), "checkpoint": ckpt.name,
               "device": str(env.device) if not rank.distributed else f"{env.device.type} x {rank.world_size}",
               **measured}
@@ -218,12 +228,19 @@ def evaluate(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = N
         return result
     atomic_write_json(run_dir / "eval.json", result, indent=2, sort_keys=False, fsync=True)
     if not quiet:
-        print(json.dumps(result, indent=2))
+        print_result(result)
     env.close()
     return result
 
 
-def evaluate_shipped(task: str, *, num_episodes: int = 100, episode_length_s: float | None = None,
+def print_result(result: dict) -> None:
+    """The result as JSON, a blocked evaluation's blocks as a table after it (eval.json keeps them whole)."""
+    print(json.dumps({k: v for k, v in result.items() if k not in ("blocks", "blocks_failed")}, indent=2))
+    if "blocks" in result:
+        print(blocks_table(result))
+
+
+def evaluate_shipped(task: str, *, num_episodes: int | None = None, episode_length_s: float | None = None,
                      seed: int = 12345, device: str = "cpu", quiet: bool = False,
                      watch: Callable[[envs.RLEnv], Any] | None = None) -> dict:
     """Evaluate the policy that ships with ambulo for ``task`` (``ambulo.policies``) as
@@ -235,15 +252,16 @@ def evaluate_shipped(task: str, *, num_episodes: int = 100, episode_length_s: fl
 
     shipped = load_policy(task)
     spec = envs.spec(task)
-    env = envs.make(task, num_envs=num_episodes, device=device, seed=seed, play=True,
-                    episode_length_s=eval_episode_length_s(spec, episode_length_s))
+    layout = eval_layout(spec, num_episodes)
+    env = envs.make(task, num_envs=layout.num_episodes, device=device, seed=seed, play=True,
+                    episode_length_s=eval_episode_length_s(spec, episode_length_s), **layout.env_overrides)
     env.use_cuda_graph()
     with watched(env, watch):
         measured = run_episodes(env, RslRlVecEnv(env), lambda obs: shipped(obs["policy"]), spec,
-                                desc=f"eval shipped {task}", quiet=quiet)
+                                desc=f"eval shipped {task}", quiet=quiet, blocks=layout.run_blocks)
     result = {"task": task, "policy": str(shipped.folder), "checkpoint": shipped.contract["trained"]["checkpoint"],
               "device": str(env.device), **measured}
     if not quiet:
-        print(json.dumps(result, indent=2))
+        print_result(result)
     env.close()
     return result

@@ -7,7 +7,9 @@ on a second env on the training device. Each evaluation saves the checkpoint it 
 a row to ``<run>/evals.csv`` and ``eval/*`` scalars to TensorBoard, and the first one that
 meets every criterion of the task writes ``<run>/time_to_criterion.json``: the wall-clock
 time from the start of ``train`` (env build and kernel compile included) to that moment, so
-"time to walk" is a measurement, not an estimate.
+"time to walk" is a measurement, not an estimate. A task evaluated in blocks (``eval_blocks``:
+humanoid-walk-robust, nominal and 16 transfer corners, 20 episodes each) is measured so here
+too: its criterion holds when it holds in every block, on each engine.
 
 A criterion met only on the engine the policy trained on is not met: when the evaluation env
 is not the CPU engine (MuJoCo C: a GPU run, or MuJoCo Warp on the CPU), an evaluation that meets
@@ -51,16 +53,20 @@ from ambulo.utils.atomic import atomic_write_json, atomic_write_text
 
 from . import runs
 from .distributed import Rank
+from .eval_blocks import eval_layout, worst_block_text
 from .eval_share import eval_share, merge_over_ranks
 from .evaluate import eval_episode_length_s, run_episodes
 from .metrics import truncate_csv
 from .vecenv import RslRlVecEnv
 
 EVAL_COLUMNS = ("iteration", "wall_s", "env_steps", "fall_rate", "mean_episode_length_s",
-                "mean_return", "metrics", "criteria_met", "cpu_engine_metrics", "cpu_engine_criteria_met")
+                "mean_return", "metrics", "criteria_met", "cpu_engine_metrics", "cpu_engine_criteria_met",
+                "worst_block", "cpu_engine_worst_block")
 """``criteria_met``: on the evaluation env's engine (the training device's); ``cpu_engine_*``: the
 same policy on the CPU engine, empty when not run (the evaluation env is the CPU engine, or its
-evaluation did not meet the criteria)."""
+evaluation did not meet the criteria). An evaluation in blocks (``eval_blocks``): ``fall_rate``
+and ``metrics`` pool every block, ``criteria_met`` holds in every block, ``worst_block`` names
+the block nearest to failing and its numbers (empty for a task without blocks)."""
 TIME_FILE = "time_to_criterion.json"
 
 
@@ -112,26 +118,30 @@ class PeriodicEval:
     """Owns the evaluation env; ``__call__(runner, iteration)`` measures the runner's policy."""
 
     def __init__(self, info: dict[str, Any], run_dir: Path, *, every: int, started_s: float,
-                 steps_per_iteration: int, num_episodes: int = 100, seed: int = 12345,
+                 steps_per_iteration: int, num_episodes: int | None = None, seed: int = 12345,
                  device: str | None = None, start: int = 0, confirm_on_cpu_engine: bool = True,
                  rank: Rank | None = None):
         """``start`` > 0: the run resumes at that iteration (``resume_evals``).
         ``confirm_on_cpu_engine``: a success on another engine counts only once the CPU engine
         confirms it (see the module docstring). ``rank``: this process's place in a data-parallel
-        run (default: the only one); ``device`` is then this rank's."""
+        run (default: the only one); ``device`` is then this rank's. ``num_episodes``: default 100,
+        or the task's blocks' default (``eval_blocks``: the criteria are judged in every block)."""
         self.task = envs.spec(info["task"])
         if not self.task.criteria:
             raise ValueError(f"--eval-every: task {info['task']!r} declares no success criterion to "
                              "time; drop --eval-every")
-        self.info, self.num_episodes = info, num_episodes
+        self.layout = eval_layout(self.task, num_episodes)
+        """The evaluation's episodes and blocks (the CPU-engine confirmation's too)."""
+        self.info, self.num_episodes = info, self.layout.num_episodes
         self.every, self.started_s, self.seed = every, started_s, seed
         self.run_dir, self.steps_per_iteration = Path(run_dir), steps_per_iteration
         self.episode_length_s = eval_episode_length_s(self.task, None)
         self.rank = rank if rank is not None else Rank()
-        self.share = eval_share(num_episodes, seed, self.rank)
+        self.share = eval_share(self.num_episodes, seed, self.rank, blocks=self.layout.blocks)
         """This rank's episodes (all of them in one process)."""
         self.env = runs.make_env_for_run(info, num_envs=self.share.episodes, seed=self.share.seed, play=True,
-                                         device=device, episode_length_s=self.episode_length_s)
+                                         device=device, episode_length_s=self.episode_length_s,
+                                         **self.layout.env_overrides)
         # 100 worlds are launch-bound on a GPU: each evaluation's 1,000 steps replay one CUDA graph
         self.env.use_cuda_graph()
         self.vec_env = RslRlVecEnv(self.env)
@@ -168,7 +178,8 @@ class PeriodicEval:
         self.env.generator.set_state(self._rng_state)  # the same commands and resets every time
         policy = runner.get_inference_policy(device=str(self.env.device))
         try:
-            result = run_episodes(self.env, self.vec_env, policy, self.task, **self._merge())
+            result = run_episodes(self.env, self.vec_env, policy, self.task, blocks=self.layout.run_blocks,
+                                  **self._merge())
             met = self._met(result)
             cpu = self._cpu_engine_eval(policy) if met and self.confirm else None
         finally:
@@ -192,7 +203,8 @@ class PeriodicEval:
                f"{result['fall_rate']:.3f}", f"{result['mean_episode_length_s']:.2f}",
                f"{result['mean_return']:.2f}", _metrics_text(result), met,
                "" if cpu is None else f"fall_rate={cpu['fall_rate']:.3f} {_metrics_text(cpu)}",
-               "" if cpu is None else self._met(cpu)]
+               "" if cpu is None else self._met(cpu), worst_block_text(result),
+               "" if cpu is None else worst_block_text(cpu)]
         line = io.StringIO()
         csv.writer(line).writerow(row)
         with open(self._csv, "a") as f:
@@ -202,6 +214,10 @@ class PeriodicEval:
             for key in ("fall_rate", "mean_episode_length_s", *_metrics(result)):
                 writer.add_scalar(f"eval/{key}", result[key], iteration)
             writer.add_scalar("eval/criteria_met", float(met), iteration)
+            if "blocks" in result:  # the block the criteria are nearest to failing in, whichever it is
+                worst = next(b for b in result["blocks"] if b["name"] == result.get("worst_block"))
+                for key in ("fall_rate", *_metrics(worst)):
+                    writer.add_scalar(f"eval/worst_block_{key}", worst[key], iteration)
             if cpu is not None:
                 for key in ("fall_rate", *_metrics(cpu)):
                     writer.add_scalar(f"eval_cpu_engine/{key}", cpu[key], iteration)
@@ -230,12 +246,12 @@ class PeriodicEval:
         if self.cpu_env is None:
             self.cpu_env = runs.make_env_for_run(self.info, num_envs=self.share.episodes, seed=self.share.seed,
                                                  play=True, device="cpu", engine="mujoco",
-                                                 episode_length_s=self.episode_length_s)
+                                                 episode_length_s=self.episode_length_s, **self.layout.env_overrides)
             self._cpu_vec_env = RslRlVecEnv(self.cpu_env)
             self._cpu_rng_state = self.cpu_env.generator.get_state()
         self.cpu_env.generator.set_state(self._cpu_rng_state)
         return run_episodes(self.cpu_env, self._cpu_vec_env, CpuPolicy(policy), self.task,
-                            **self._merge())
+                            blocks=self.layout.run_blocks, **self._merge())
 
     def close(self) -> None:
         self.env.close()
@@ -279,7 +295,11 @@ def summary(result: dict[str, Any], iteration: int, wall_s: float) -> str:
         return (f"fall rate {res['fall_rate']:.2f}, {metrics}; "
                 f"{'meets ' + ', '.join(met) if met else 'criteria not met'}")
 
-    line = f"eval @ it {iteration} ({wall_s / 60:.1f} min): {one(result)}"
+    def one_and_worst(res: dict[str, Any]) -> str:
+        worst = worst_block_text(res)
+        return one(res) + (f"; {worst}" if worst else "")
+
+    line = f"eval @ it {iteration} ({wall_s / 60:.1f} min): {one_and_worst(result)}"
     if "cpu_engine" in result:
-        line += f"; on the CPU engine: {one(result['cpu_engine'])}"
+        line += f"; on the CPU engine: {one_and_worst(result['cpu_engine'])}"
     return line
