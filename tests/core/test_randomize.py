@@ -279,18 +279,37 @@ def test_checker_with_movers_makes_only_their_contacts_exactly_as_before():
     assert dr.CollisionChecker(m, [floor], movers=[c]).colliding_roots(qpos) == {m.body("b").id, m.body("c").id}
 
 
-def test_host_draws_are_the_torch_draws():
-    """``sample_numpy`` gives the numbers ``sample`` gives from the same generator state."""
-    cases = [dr.uniform(2.0, 5.0), dr.normal((0, 1, 2), (0.5, 1.0, 2.0)), dr.uniform((0, -1), (1, 4)),
-             dr.uniform_int(2, 6), dr.constant((1.0, 2.0))]
-    for dist in cases:
+def test_host_draws_are_numpys_draws_with_the_torch_paths_shapes_and_arithmetic():
+    """``sample_host`` draws with NumPy from the generator it is given: low + (high - low) * u,
+    mean + std * z, integers in [low, high], options by index, in the shapes ``sample`` gives."""
+    def rng():
+        return np.random.Generator(np.random.Philox(key=7))
+
+    cases = [(dr.uniform(2.0, 5.0), lambda g, s: 2.0 + 3.0 * g.random(s)),
+             (dr.normal((0, 1, 2), (0.5, 1.0, 2.0)),
+              lambda g, s: np.array([0, 1, 2.0]) + np.array([0.5, 1.0, 2.0]) * g.standard_normal(s)),
+             (dr.uniform((0, -1), (1, 4)), lambda g, s: np.array([0, -1.0]) + np.array([1, 5.0]) * g.random(s)),
+             (dr.uniform_int(2, 6), lambda g, s: g.integers(2, 7, s)),
+             (dr.choice((1.5, 2.5, 9.0)), lambda g, s: np.array([1.5, 2.5, 9.0])[g.choice(3, size=s)]),
+             (dr.choice((1.5, 2.5), (1, 3)), lambda g, s: np.array([1.5, 2.5])[g.choice(2, size=s, p=[0.25, 0.75])]),
+             (dr.constant((1.0, 2.0)), lambda g, s: np.broadcast_to([1.0, 2.0], s))]
+    for dist, numpy_draw in cases:
         for num in (None, 7):
-            a = dist.sample(torch.Generator().manual_seed(3), num, dtype=torch.float64)
-            b = dist.sample_numpy(torch.Generator().manual_seed(3), num)
-            assert b.shape == tuple(a.shape) and np.array_equal(a.numpy(), b), (dist, num)
+            torch_shape = tuple(dist.sample(torch.Generator().manual_seed(3), num).shape)
+            got = dist.sample_host(rng(), num)
+            assert got.shape == torch_shape, (dist, num)
+            np.testing.assert_array_equal(got, numpy_draw(rng(), torch_shape), err_msg=f"{dist} {num}")
     columns = dr.Columns((dr.uniform(0, 1), dr.uniform(-3.0, 2.0), dr.uniform(10, 11)))
+    np.testing.assert_array_equal(columns.sample_host(rng(), 9),
+                                  np.array([0, -3.0, 10]) + np.array([1, 5.0, 1]) * rng().random((9, 3)))
     mixed = dr.Columns((dr.uniform(0, 1), dr.normal(0.0, 2.0), 0.5))
-    for cols in (columns, mixed):
-        a = cols.sample(torch.Generator().manual_seed(5), 9)
-        b = cols.sample_numpy(torch.Generator().manual_seed(5), 9)
-        assert b.shape == (9, 3) and np.array_equal(a.numpy(), b)
+    g = rng()
+    expected = np.stack([g.random(9), 2.0 * g.standard_normal(9), np.full(9, 0.5)], axis=1)
+    np.testing.assert_array_equal(mixed.sample_host(rng(), 9), expected)
+
+    class Twice(dr.Distribution):  # no NumPy draw of its own: a torch generator seeded from the rng
+        def sample(self, generator, num=None, *, dtype=torch.float64):
+            return 2 * torch.rand(() if num is None else (num,), generator=generator, dtype=dtype)
+
+    expected = Twice().sample(dr.as_generator(rng()), 4).numpy()
+    np.testing.assert_array_equal(Twice().sample_host(rng(), 4), expected)

@@ -8,6 +8,7 @@ bad --out, bad numbers and SIGINT/SIGTERM/SIGKILL each leave the disk as it was,
 import contextlib
 import dataclasses
 import errno
+import json
 import os
 import shutil
 import signal
@@ -19,7 +20,7 @@ import pytest
 from ambulo import replicator as rep
 from ambulo.cli import main
 from ambulo.replicator import records
-from ambulo.replicator.manifest import DatasetFolderError
+from ambulo.replicator.manifest import MANIFEST, DatasetFolderError
 from ambulo.utils.atomic import TMP_MARK, temporary_name
 
 SEED = 1
@@ -118,6 +119,28 @@ def test_another_resolution_is_refused_naming_width_and_height(tmp_path, clean, 
     line = one_error_line(err)
     assert status == 2 and "width 160 (now 200)" in line and "height 120 (now 100)" in line
     assert gen.file_tree(out) == before
+
+
+def test_a_dataset_of_the_old_draws_is_refused_in_one_line_naming_the_cause_and_the_fix(tmp_path, clean, capsys,
+                                                                                         gen):
+    """Before 2026-11-30 the fingerprint had no draw scheme (torch draws seeded by default_rng): such a
+    dataset's frames have other numbers, so resuming it would mix two datasets."""
+    out = copy_of(clean, tmp_path)
+    manifest = json.loads((out / MANIFEST).read_text())
+    del manifest["fingerprint"]["draws"]
+    (out / MANIFEST).write_text(json.dumps(manifest, indent=2))
+    before = gen.file_tree(out)
+    status, stdout, err = cli(capsys, "--frames", str(FRAMES + 1), "--out", str(out), "--seed", str(SEED))
+    line = one_error_line(err)
+    assert status == 2 and "wrote" not in stdout
+    assert "drawn by an ambulo from before 2026-11-30" in line
+    assert "the ambulo version that started it" in line and "--overwrite" in line
+    assert gen.file_tree(out) == before
+    # another scheme's name (a later change) is named as the difference, with the same fix
+    manifest["fingerprint"]["draws"] = "some other scheme"
+    (out / MANIFEST).write_text(json.dumps(manifest, indent=2))
+    with pytest.raises(DatasetFolderError, match=r"draws \"some other scheme\".*the ambulo version that started it"):
+        make(config(), out, FRAMES + 1)
 
 
 @pytest.mark.parametrize("change, key", [

@@ -25,7 +25,6 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
-import torch
 
 from ambulo.core import set_semantic_label
 from ambulo.core.randomize import uniform, write_field
@@ -104,7 +103,7 @@ class RobotPlacement(Randomizer):
         self._z0_m = float(model.qpos0[self._qpos_ids[2]])
 
     def sample(self, rng, ctx):
-        u = torch.rand(6, generator=self.generator(rng), dtype=torch.float64).numpy()
+        u = rng.random(6)
         free = self._free_xy_m
         if u[0] < self.aim_probability and len(self._targets_xy_m):
             pieces = self._targets_by_class[min(int(u[1] * len(self._targets_by_class)), len(self._targets_by_class) - 1)]

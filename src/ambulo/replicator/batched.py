@@ -4,7 +4,7 @@
 config, randomizers and writers, but a ``Simulation`` of ``num_worlds`` worlds on the warp engine
 and a ``TiledCamera`` that renders all of them in one launch. Each world gets the frame that
 ``FrameProducer`` would have drawn for its index: randomizer k of frame i samples from
-``default_rng([seed, k, i // every_n])`` on the host exactly as the CPU path does (that is what
+``frame_rng(seed, k, i // every_n)`` on the host exactly as the CPU path does (that is what
 makes the two paths' datasets agree object for object), and applies to its own world
 (``SceneContext.world``) of host copies of the fields, which then reach the device in one copy
 per field (``host_worlds``); the draws may run on other processes, a batch ahead

@@ -1,7 +1,7 @@
 """Make a dataset: frames rendered, annotated and written atomically; resumable; on N processes or Ray.
 
 Frame ``i`` depends only on (config, seed, i): the engine is reset, every
-randomizer draws from ``default_rng([seed, randomizer index, i // every_n])``
+randomizer draws from ``frame_rng(seed, randomizer index, i // every_n)`` (``streams``)
 and is applied, then the camera captures. So a killed run resumes by skipping
 frames whose record counts (``records``: a line of a journal in ``frames/``), and N local processes (``processes.py``) or Ray
 workers (``ray_workers.py``, for several machines) produce the same files as one.

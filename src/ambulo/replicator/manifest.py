@@ -2,8 +2,9 @@
 
 It is written (atomically, flushed) before the first frame and holds a fingerprint of
 everything that decides a frame's pixels, annotations and files: seed, resolution, annotators,
-writer settings, camera, randomizers, a hash of the compiled scene (MuJoCo's binary model: the
-same bytes in every process and run of one MuJoCo version) and the MuJoCo version. A folder is
+writer settings, camera, randomizers, the randomizers' draw scheme (``streams.DRAWS``), a hash of
+the compiled scene (MuJoCo's binary model: the same bytes in every process and run of one MuJoCo
+version) and the MuJoCo version. A folder is
 resumed only when the fingerprint is the same; otherwise ``DatasetFolderError`` names each
 difference. What changes only a file's bytes is left out (the PNG deflate and row filters: a
 decoder gives the same pixels), so a dataset started with another deflate, or by an ambulo that
@@ -30,6 +31,7 @@ from ambulo.utils.atomic import atomic_write_json, fsync_dir, is_partial_file
 
 from .config import DatasetConfig
 from .records import record_lines
+from .streams import DRAWS
 from .writers import FRAME_FILE, SUBDIRS, check_writer_cfg, frame_stem
 
 MANIFEST = "dataset.json"
@@ -65,7 +67,7 @@ def fingerprint(config: DatasetConfig, seed: int, model: mujoco.MjModel, image_s
         "seed": seed, "width": camera.pop("width"), "height": camera.pop("height"),
         "annotators": camera.pop("annotators"), "visible_fraction": config.visible_fraction,
         "name": config.name, "camera": camera, "writer": writer,
-        "randomizers": {name: describe(r) for name, r in zip(names, config.randomizers)},
+        "randomizers": {name: describe(r) for name, r in zip(names, config.randomizers)}, "draws": DRAWS,
         "scene_sha256": model_sha256(model), "mujoco_version": mujoco.__version__,
         **({"image_source": image_source} if image_source else {}),
     })
@@ -145,7 +147,8 @@ def _check_resumable(out: Path, existing: dict, wanted: dict, num_frames: int) -
     old = {k: v for k, v in old.items() if k not in _BYTES_ONLY} if isinstance(old, dict) else old
     differences = _differences(old, wanted)
     if differences:
-        listed = "; ".join(f"{key} {_short(old)} (now {_short(new)})" for key, old, new in differences)
+        listed = "; ".join(_OLD_DRAWS if key == "draws" and old is None else f"{key} {_short(old)} (now {_short(new)})"
+                           for key, old, new in differences)
         raise DatasetFolderError(f"{str(out)!r} holds a dataset made with other settings: {listed}",
                                  _fix_for(differences))
     beyond = sorted(index for index in record_lines(out / "frames") if index >= num_frames)
@@ -155,10 +158,18 @@ def _check_resumable(out: Path, existing: dict, wanted: dict, num_frames: int) -
             f"give --frames {beyond[-1] + 1} or more to resume it, or --overwrite to start afresh")
 
 
+_OLD_DRAWS = ("its frames were drawn by an ambulo from before 2026-11-30 (torch draws seeded by "
+              "default_rng([seed, k, block])), whose random numbers this version does not make")
+
+
 def _fix_for(differences: list[tuple[str, object, object]]) -> str:
     """``_FIX``, naming the annotator to add when the dataset had semantic images and this config not
-    (ambulo's default annotators had semantic_segmentation until 2026-11-29)."""
+    (ambulo's default annotators had semantic_segmentation until 2026-11-29), or the ambulo version to
+    use when the dataset's draws are another scheme's."""
     for key, old, new in differences:
+        if key == "draws":
+            return ("finish it with the ambulo version that started it, start afresh with --overwrite "
+                    "(overwrite=True), or give another output folder")
         if (key == "annotators" and isinstance(old, list) and isinstance(new, list)
                 and set(old) - set(new) == {_SEMANTIC}):
             return (f"add {_SEMANTIC!r} to the camera's annotators (CameraCfg.annotators in a config file) to "

@@ -17,8 +17,6 @@ import gc
 from dataclasses import replace
 from pathlib import Path
 
-import numpy as np
-
 from ambulo.core import Simulation
 from ambulo.sensors import Camera
 from ambulo.sensors.camera import tight_box_output
@@ -27,6 +25,7 @@ from . import io
 from .config import DatasetConfig
 from .mask_kernel import instance_masks, warm_up
 from .randomizers import CameraJitter, SceneContext
+from .streams import frame_rng
 from .writers import FrameWriter, write_frame_files
 
 _MAX_PENDING_WRITES = 4  # frames queued for the writer thread; bounds memory
@@ -145,35 +144,20 @@ class FrameProducer:
 def apply_randomizers(randomizers, names: list[str], cache: dict, ctx: SceneContext, seed: int, index: int) -> dict:
     """Draw and apply every randomizer of frame ``index`` to world ``ctx.world``; returns the frame log.
 
-    Randomizer k of frame i draws from ``default_rng([seed, k, i // every_n_frames])``, so a frame's
-    parameters depend on (config, seed, index) alone; ``cache`` ({k: ((seed, block), params)}) keeps
-    the last draw of each randomizer for the frames of the same block."""
+    Randomizer k of frame i draws from ``frame_rng(seed, k, i // every_n_frames)`` (Philox keyed by
+    the three, ``streams``), so a frame's parameters depend on (config, seed, index) alone; ``cache``
+    ({k: ((seed, block), params)}) keeps the last draw of each randomizer for the frames of the same block."""
     log = {}
     for k, (name, r) in enumerate(zip(names, randomizers)):
         block = index // max(1, r.every_n_frames)
         cached = cache.get(k)
         if cached is None or cached[0] != (seed, block):
-            params = r.sample(np.random.default_rng(_entropy(seed, k, block)), ctx)
+            params = r.sample(frame_rng(seed, k, block), ctx)
             cache[k] = ((seed, block), params)
         params = cache[k][1]
         r.apply(params, ctx)
         log[name] = params
     return log
-
-
-def _entropy(seed: int, k: int, block: int):
-    """``[seed, k, block]`` as ``SeedSequence`` entropy: a uint32 array when each fits in 32 bits.
-
-    ``SeedSequence`` splits every integer into 32-bit words, so both forms seed the same
-    generator; the array skips its per-element conversion (a third of ``default_rng``'s cost,
-    paid by each randomizer every frame).
-    """
-    if 0 <= seed < _WORD and 0 <= k < _WORD and 0 <= block < _WORD:
-        return np.array((seed, k, block), np.uint32)
-    return [seed, k, block]
-
-
-_WORD = 1 << 32
 
 
 def _with_annotators(cfg, annotators):

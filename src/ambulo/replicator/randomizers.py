@@ -6,10 +6,11 @@ logged dict reproduces the frame without drawing anything, which is how a
 single frame is regenerated. ``every_n_frames`` keeps parameters for blocks of
 frames (drawn from the block's own seed, so any frame can still start a run).
 
-The draws and writes are ``ambulo.core.randomize``'s, the layer the RL task events use too:
-``sample`` turns the ``numpy`` generator the producer hands it for (seed, randomizer, frame)
-into a ``torch.Generator`` (``as_generator``) and draws every value of a kind in one batch;
-``apply`` writes each field once (``write_field``), with world ``ctx.world`` as the row.
+The distributions and writes are ``ambulo.core.randomize``'s, the layer the RL task events use too:
+``sample`` draws from the ``numpy`` generator the producer hands it for (seed, randomizer, frame)
+(``streams.frame_rng``) with NumPy (``Distribution.sample_host``: no torch dispatch on the host),
+every value of a kind in one batch; ``apply`` writes each field once (``write_field``), with world
+``ctx.world`` as the row.
 """
 
 from __future__ import annotations
@@ -27,7 +28,6 @@ from ambulo.core.randomize import (
     Columns,
     Distribution,
     as_distribution,
-    as_generator,
     joint_range_box,
     normal,
     uniform,
@@ -90,12 +90,6 @@ class Randomizer(Checked):
     def sample(self, rng: np.random.Generator, ctx: SceneContext) -> dict:
         raise NotImplementedError
 
-    def generator(self, rng: np.random.Generator) -> torch.Generator:
-        """The frame's ``torch.Generator``, seeded from ``rng`` (one generator per randomizer, reseeded)."""
-        if getattr(self, "_generator", None) is None:
-            self._generator = torch.Generator()
-        return as_generator(rng, reuse=self._generator)
-
     def apply(self, params: dict, ctx: SceneContext) -> None:
         raise NotImplementedError
 
@@ -120,11 +114,11 @@ class LightRandomizer(Randomizer):
         self._color = as_distribution(self.color)
 
     def sample(self, rng, ctx):
-        g, n = self.generator(rng), len(self._ids)
+        n = len(self._ids)
         # the four scalar draws of every light in one batch, then the colours; a scene has a few
         # lights, so the rest is plain float arithmetic
-        scalars = self._scalars.sample_numpy(g, n)
-        colors = np.broadcast_to(self._color.sample_numpy(g, n).reshape(n, -1), (n, 3))
+        scalars = self._scalars.sample_host(rng, n)
+        colors = np.broadcast_to(self._color.sample_host(rng, n).reshape(n, -1), (n, 3))
         out = []
         for (intensity, ambient, az_deg, el_deg), color in zip(scalars.tolist(), colors.tolist()):
             az, el = math.radians(az_deg), math.radians(el_deg)
@@ -157,7 +151,7 @@ class ColorRandomizer(Randomizer):
         self._hsv = Columns((self.hue, self.saturation, self.value))
 
     def sample(self, rng, ctx):
-        hsv = self._hsv.sample_numpy(self.generator(rng), len(self._targets.bodies))
+        hsv = self._hsv.sample_host(rng, len(self._targets.bodies))
         return {"rgba": [hsv_to_rgb(h, s, v) + [1.0] for h, s, v in hsv.tolist()]}
 
     def apply(self, params, ctx):
@@ -209,7 +203,7 @@ class MaterialRandomizer(Randomizer):
 
     def sample(self, rng, ctx):
         # per body: untextured with the given probability, else a uniform palette entry
-        u = torch.rand((len(self._targets.bodies), 2), generator=self.generator(rng), dtype=torch.float64).numpy()
+        u = rng.random((len(self._targets.bodies), 2))
         pick = np.minimum((u[:, 1] * len(self._mat_ids)).astype(np.int64), len(self._mat_ids) - 1)
         return {"palette_index": np.where(u[:, 0] < self.untextured_probability, -1, pick).tolist()}
 
@@ -232,11 +226,11 @@ class CameraJitter(Randomizer):
         cameras = [engine.model.camera(i).name for i in range(engine.model.ncam)]
         if self.camera not in cameras:
             raise ValueError(f"{self.name}: no camera {self.camera!r}; cameras: {cameras}")
+        self._position_m, self._rotation_deg = as_distribution(self.position_m), as_distribution(self.rotation_deg)
 
     def sample(self, rng, ctx):
-        g = self.generator(rng)
-        position_m = as_distribution(self.position_m).sample_numpy(g).tolist()
-        return {"position_m": position_m, "rotation_deg": as_distribution(self.rotation_deg).sample_numpy(g).tolist()}
+        position_m = self._position_m.sample_host(rng).tolist()
+        return {"position_m": position_m, "rotation_deg": self._rotation_deg.sample_host(rng).tolist()}
 
     def apply(self, params, ctx):
         cam = ctx.cameras[self.camera]
@@ -269,7 +263,7 @@ class JointRandomizer(Randomizer):
         self._low, self._high = joint_range_box(robot, self.range_fraction, picked)
 
     def sample(self, rng, ctx):
-        u = torch.rand(len(self._qpos_adr), generator=self.generator(rng), dtype=torch.float64).numpy()
+        u = rng.random(len(self._qpos_adr))
         return {"qpos": (self._low + (self._high - self._low) * u).tolist()}
 
     def apply(self, params, ctx):

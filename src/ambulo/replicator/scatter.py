@@ -13,7 +13,6 @@ from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
-import torch
 
 from ambulo.core import EntityNames, match_names
 from ambulo.core.randomize import (
@@ -87,13 +86,13 @@ class Scatter2D(Randomizer):
         self._park_values = np.concatenate([[0.0, 0.0, park_z(b), 1, 0, 0, 0] for b in self._bodies])
 
     def sample(self, rng, ctx):
-        g, n = self.generator(rng), len(self._bodies)
-        count = n if self.count is None else min(max(int(as_distribution(self.count).sample(g)), 0), n)
-        active = sorted(torch.randperm(n, generator=g)[:count].tolist()) if count < n else list(range(n))
+        n = len(self._bodies)
+        count = n if self.count is None else min(max(int(as_distribution(self.count).sample_host(rng)), 0), n)
+        active = sorted(rng.permutation(n)[:count].tolist()) if count < n else list(range(n))
         # every round's poses drawn at once (enough for max_tries full rounds), used row after
         # row: one draw per frame instead of one per round; each row as the object's whole free
         # joint (x, y, z, quaternion), so a round is one copy and one write
-        pool = self._place.sample_numpy(g, self.max_tries * len(active))
+        pool = self._place.sample_host(rng, self.max_tries * len(active))
         pool_free = np.zeros((len(pool), 7))
         pool_free[:, :2] = pool[:, :2]
         half_yaw = 0.5 * pool[:, 2]  # the quaternion of quat_from_yaw: (cos, 0, 0, sin) of half the yaw

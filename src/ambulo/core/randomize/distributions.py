@@ -3,9 +3,10 @@
 Why torch and not numpy: the RL task events draw one value per world on the engine's device
 (a GPU for training); a numpy draw there would need a host-to-device copy, which waits for the
 device, on every reset. A ``torch.Generator`` draws on either device, and the CPU case (the
-replicator's one world) is the N = 1 case of the same code. Callers that hold a
-``numpy.random.Generator`` (the replicator hands one per (seed, randomizer, frame)) turn it
-into a torch one with ``as_generator``, so a frame's values still depend on those alone.
+replicator's one world) is the N = 1 case of the same code. Host callers that hold a
+``numpy.random.Generator`` (the replicator hands one per (seed, randomizer, frame)) draw from it
+with ``sample_host``: NumPy's own draws, not torch's numbers, and a few microseconds cheaper
+a call than a torch draw and its seeding (``as_generator`` still turns one into a torch generator).
 
 Every ``sample`` draws in float64 and only then casts to ``dtype``: the float32 GPU engine and
 the float64 CPU engine see the same numbers from one seed (as ``RLEnv._uniform`` does).
@@ -47,10 +48,12 @@ class Distribution:
                dtype: torch.dtype = torch.float64) -> torch.Tensor:
         raise NotImplementedError
 
-    def sample_numpy(self, generator: torch.Generator, num: int | None = None) -> np.ndarray:
-        """``sample(generator, num)`` in float64 as a NumPy array, the same numbers: for host
-        callers (the replicator) that go on in NumPy or plain floats."""
-        return self.sample(generator, num, dtype=torch.float64).cpu().numpy()
+    def sample_host(self, rng: np.random.Generator, num: int | None = None) -> np.ndarray:
+        """``num`` draws ``(num, *S)`` (``S`` without ``num``) in float64, drawn by NumPy from ``rng``:
+        for host callers (the replicator) that go on in NumPy or plain floats. The same kind of
+        values as ``sample``, not its numbers. This default seeds a torch generator from ``rng``
+        (a distribution without its own NumPy draw still depends on ``rng`` alone)."""
+        return self.sample(as_generator(rng), num, dtype=torch.float64).cpu().numpy()
 
 
 @dataclass(frozen=True)
@@ -95,13 +98,10 @@ class _Pair(Distribution):
             self._cache[key] = hit
         return hit
 
-    def sample_numpy(self, generator, num=None):
-        # the torch path's arithmetic (a + b * u, in float64) on the draw's NumPy view: on the
-        # host, two NumPy operations cost a fraction of two small in-place torch calls
-        if generator.device.type != "cpu":
-            return super().sample_numpy(generator, num)
+    def sample_host(self, rng, num=None):
+        # the arithmetic of ``sample`` (a + b * u, in float64) on NumPy's draw
         first, second, shape = self._host_params()
-        u = self._draw(_shape(num, shape), generator=generator, dtype=torch.float64).numpy()
+        u = self._draw_host(rng, _shape(num, shape))
         u *= second
         u += first
         return u
@@ -123,7 +123,10 @@ class Uniform(_Pair):
     low: Any
     high: Any
     _span = True
-    _draw = staticmethod(torch.rand)
+
+    @staticmethod
+    def _draw_host(rng, shape):
+        return np.asarray(rng.random(shape))  # a 0-d array for shape (): ``*=`` needs an array
 
     def _params(self):
         return self.low, self.high
@@ -140,7 +143,10 @@ class Normal(_Pair):
 
     mean: Any
     std: Any
-    _draw = staticmethod(torch.randn)
+
+    @staticmethod
+    def _draw_host(rng, shape):
+        return np.asarray(rng.standard_normal(shape))
 
     def _params(self):
         return self.mean, self.std
@@ -161,6 +167,9 @@ class UniformInt(Distribution):
     def sample(self, generator, num=None, *, dtype=torch.int64):
         return torch.randint(int(self.low), int(self.high) + 1, _shape(num, ()), generator=generator,
                              device=generator.device)
+
+    def sample_host(self, rng, num=None):
+        return np.asarray(rng.integers(int(self.low), int(self.high) + 1, _shape(num, ()), dtype=np.int64))
 
 
 @dataclass(frozen=True)
@@ -194,6 +203,14 @@ class Choice(Distribution):
         options = torch.as_tensor(np.asarray(self.options, np.float64), dtype=dtype, device=generator.device)
         return options[self.sample_index(generator, num)]
 
+    def sample_index_host(self, rng: np.random.Generator, num: int | None = None) -> np.ndarray:
+        """``sample_index`` drawn by NumPy from ``rng``: ``(num,)`` int64, or 0-d when ``num`` is None."""
+        p = None if self.weights is None else np.asarray(self.weights, np.float64) / float(np.sum(self.weights))
+        return np.asarray(rng.choice(len(self.options), size=_shape(num, ()), p=p), np.int64)
+
+    def sample_host(self, rng, num=None):
+        return np.asarray(self.options, np.float64)[self.sample_index_host(rng, num)]
+
 
 @dataclass(frozen=True)
 class Constant(Distribution):
@@ -204,6 +221,10 @@ class Constant(Distribution):
     def sample(self, generator, num=None, *, dtype=torch.float64):
         value = torch.as_tensor(np.asarray(self.value, np.float64), dtype=dtype, device=generator.device)
         return value if num is None else value.expand(int(num), *value.shape).clone()
+
+    def sample_host(self, rng, num=None):
+        value = np.asarray(self.value, np.float64)
+        return value.copy() if num is None else np.broadcast_to(value, (int(num), *value.shape)).copy()
 
 
 def uniform(low, high) -> Uniform:
@@ -248,6 +269,7 @@ class Columns:
             for d in self.distributions)
         self._bounds = np.array([[float(d.low), float(d.high)] for d in self.distributions]) \
             if self._uniform else None
+        self._bounds_span = self._bounds[:, 1] - self._bounds[:, 0] if self._uniform else None
         self._tensors: dict = {}
 
     def _low_span(self, device, dtype) -> tuple[torch.Tensor, torch.Tensor]:
@@ -270,20 +292,17 @@ class Columns:
         return torch.stack([d.sample(generator, num, dtype=dtype).reshape(int(num)) for d in self.distributions],
                            dim=1)
 
-
-    def sample_numpy(self, generator: torch.Generator, num: int) -> np.ndarray:
-        """``sample(generator, num)`` in float64 as a NumPy array, the same numbers (host callers)."""
-        if self._uniform and generator.device.type == "cpu":
-            host = self._tensors.get("numpy")
-            if host is None:
-                low, span = self._tensors.get((generator.device, torch.float64)) or \
-                    self._low_span(generator.device, torch.float64)
-                host = self._tensors["numpy"] = (low.numpy(), span.numpy())
-            u = torch.rand((int(num), len(self.distributions)), generator=generator, dtype=torch.float64).numpy()
-            u *= host[1]
-            u += host[0]
+    def sample_host(self, rng: np.random.Generator, num: int) -> np.ndarray:
+        """``(num, k)`` float64 drawn by NumPy from ``rng`` (host callers; ``Distribution.sample_host``):
+        all-uniform columns in one ``(num, k)`` draw, row after row, else one column after the other."""
+        if self._uniform:
+            u = rng.random((int(num), len(self.distributions)))
+            u *= self._bounds_span
+            u += self._bounds[:, 0]
             return u
-        return self.sample(generator, num, dtype=torch.float64).cpu().numpy()
+        if not self.distributions:
+            return np.zeros((int(num), 0))
+        return np.stack([d.sample_host(rng, num).reshape(int(num)) for d in self.distributions], axis=1)
 
 
 def sample_columns(generator: torch.Generator, distributions: Sequence, num: int, *,
