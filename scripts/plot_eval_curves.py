@@ -9,7 +9,9 @@ Each argument is ``LABEL=EVALS_CSV``: an ``evals.csv`` that ``ambulo train --eva
 ``fall_rate``; ``metrics`` as ``name=value`` pairs). Plots the velocity error and the fall rate
 against wall-clock minutes, with the ``walks`` criterion's bars (``--max-vel-error``, ``--max-fall-rate``),
 and marks each run's first evaluation that met its criteria (``criteria_met``) on both engines
-when the CSV has the CPU-engine columns filled.
+when the CSV has the CPU-engine columns filled. A run of a task judged in blocks (humanoid-walk-robust:
+nominal and 16 transfer corners) plots its worst block at each evaluation (the ``worst_block`` cell),
+the numbers its criterion is judged on, not the pooled ones.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ import csv
 from pathlib import Path
 
 from ambulo.envs.humanoid_walk import WALKS
-from ambulo.rl.periodic_eval import metrics_from_text
+from ambulo.rl.periodic_eval import metrics_from_text, worst_block_from_text
 
 
 def read_evals(path: Path) -> list[dict]:
@@ -30,10 +32,15 @@ def read_evals(path: Path) -> list[dict]:
         for line, raw in enumerate(csv.DictReader(f), start=2):
             try:
                 metrics = metrics_from_text(raw["metrics"])
+                fall_rate = float(raw["fall_rate"])
+                worst = worst_block_from_text(raw.get("worst_block") or "")
+                if worst is not None:  # judged in blocks: the worst one's numbers decide
+                    metrics = worst[1]
+                    fall_rate = metrics["fall_rate"]
                 met = raw["criteria_met"] == "True"
                 if raw.get("cpu_engine_criteria_met"):
                     met = met and raw["cpu_engine_criteria_met"] == "True"
-                rows.append({"minutes": float(raw["wall_s"]) / 60.0, "fall_rate": float(raw["fall_rate"]),
+                rows.append({"minutes": float(raw["wall_s"]) / 60.0, "fall_rate": fall_rate,
                              "vel_error_m_s": metrics["mean_abs_vel_error_m_s"], "met": met})
             except (KeyError, TypeError, ValueError, AttributeError) as error:
                 raise SystemExit(f"{path} line {line}: not an evals.csv row of `ambulo train --eval-every` "

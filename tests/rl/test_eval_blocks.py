@@ -173,7 +173,10 @@ def test_periodic_evaluation_and_its_cpu_confirmation_run_the_blocks(blocked_gpu
         assert [b["name"] for b in result["blocks"]] == ["left", "right"]
         assert [b["episodes"] for b in result["blocks"]] == [3, 3] and result["upright_or_not"]
     (row,) = csv.DictReader(open(run / "evals.csv"))
-    assert row["worst_block"].startswith("worst block ") and row["cpu_engine_worst_block"].endswith("2 blocks fail")
+    for cell, result in ((row["worst_block"], reached["eval"]), (row["cpu_engine_worst_block"], reached["eval_cpu_engine"])):
+        name, numbers = periodic_eval.worst_block_from_text(cell)
+        worst = next(b for b in result["blocks"] if b["name"] == name == result["worst_block"])
+        assert numbers["fall_rate"] == round(worst["fall_rate"], 4) and numbers["blocks_failed"] == 0
 
 
 @pytest.fixture(scope="module")

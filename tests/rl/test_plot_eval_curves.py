@@ -58,3 +58,24 @@ def test_a_file_that_is_not_an_evals_csv_is_one_line_naming_it(tmp_path):
     path.write_text("iteration,env_steps,mean_reward\n0,100,1.0\n")
     with pytest.raises(SystemExit, match=r"metrics.csv line 2: not an evals.csv row .*KeyError"):
         plot.read_evals(path)
+
+
+def test_a_run_judged_in_blocks_plots_its_worst_block(tmp_path):
+    """humanoid-walk-robust's evals.csv: the pooled cells pass the bars, the worst corner does not."""
+    path = tmp_path / "evals.csv"
+    path.write_text(HEADER.rstrip("\n") + ",worst_block,cpu_engine_worst_block\n"
+                    + "49,90.0,100,0.010,20.0,30.0,mean_abs_vel_error_m_s=0.15,False,,,"
+                      "gains0.8_lat0ms_com-3-3+3cm fall_rate=0.0500 mean_abs_vel_error_m_s=0.246 blocks_failed=6,\n")
+    (row,) = plot.read_evals(path)
+    assert row["vel_error_m_s"] == 0.246 and row["fall_rate"] == 0.05 and not row["met"]
+
+
+def test_the_worst_block_cell_reads_back():
+    from ambulo.rl.periodic_eval import _worst_block_cell, worst_block_from_text
+
+    blocks = [{"name": "nominal", "fall_rate": 0.0, "mean_abs_vel_error_m_s": 0.1},
+              {"name": "gains0.8_lat20ms_com+3+3+3cm", "fall_rate": 0.0625, "mean_abs_vel_error_m_s": 0.123456}]
+    result = {"blocks": blocks, "worst_block": blocks[1]["name"], "blocks_failed": [blocks[1]["name"]]}
+    assert worst_block_from_text(_worst_block_cell(result)) == (
+        "gains0.8_lat20ms_com+3+3+3cm", {"fall_rate": 0.0625, "mean_abs_vel_error_m_s": 0.1235, "blocks_failed": 1.0})
+    assert _worst_block_cell({"fall_rate": 0.0}) == "" and worst_block_from_text("") is None

@@ -65,8 +65,9 @@ EVAL_COLUMNS = ("iteration", "wall_s", "env_steps", "fall_rate", "mean_episode_l
 """``criteria_met``: on the evaluation env's engine (the training device's); ``cpu_engine_*``: the
 same policy on the CPU engine, empty when not run (the evaluation env is the CPU engine, or its
 evaluation did not meet the criteria). An evaluation in blocks (``eval_blocks``): ``fall_rate``
-and ``metrics`` pool every block, ``criteria_met`` holds in every block, ``worst_block`` names
-the block nearest to failing and its numbers (empty for a task without blocks)."""
+and ``metrics`` pool every block, ``criteria_met`` holds in every block, ``worst_block`` is the
+block nearest to failing, its name then ``name=value`` pairs: its fall rate, its metrics and
+``blocks_failed`` (``worst_block_from_text``); empty for a task without blocks."""
 TIME_FILE = "time_to_criterion.json"
 
 
@@ -203,8 +204,8 @@ class PeriodicEval:
                f"{result['fall_rate']:.3f}", f"{result['mean_episode_length_s']:.2f}",
                f"{result['mean_return']:.2f}", _metrics_text(result), met,
                "" if cpu is None else f"fall_rate={cpu['fall_rate']:.3f} {_metrics_text(cpu)}",
-               "" if cpu is None else self._met(cpu), worst_block_text(result),
-               "" if cpu is None else worst_block_text(cpu)]
+               "" if cpu is None else self._met(cpu), _worst_block_cell(result),
+               "" if cpu is None else _worst_block_cell(cpu)]
         line = io.StringIO()
         csv.writer(line).writerow(row)
         with open(self._csv, "a") as f:
@@ -285,6 +286,24 @@ def metrics_from_text(text: str) -> dict[str, float]:
     """An ``evals.csv`` metrics cell (``metrics``, ``cpu_engine_metrics``: ``name=value`` pairs
     separated by spaces) as a dict; the empty cell of an evaluation not run gives ``{}``."""
     return {name: float(value) for name, value in (pair.split("=", 1) for pair in text.split())}
+
+
+def _worst_block_cell(result: dict[str, Any]) -> str:
+    """``evals.csv``'s ``worst_block`` cell of a blocked evaluation's ``result`` ('' without blocks)."""
+    if "blocks" not in result:
+        return ""
+    worst = next(b for b in result["blocks"] if b["name"] == result.get("worst_block"))
+    return (f"{worst['name'].replace(' ', '_')} fall_rate={worst['fall_rate']:.4f} {_metrics_text(worst)} "
+            f"blocks_failed={len(result['blocks_failed'])}")
+
+
+def worst_block_from_text(text: str) -> tuple[str, dict[str, float]] | None:
+    """A ``worst_block`` cell as (the block's name, its ``name=value`` pairs); None for the empty
+    cell of a task without blocks (or of an evaluation not run)."""
+    if not text.strip():
+        return None
+    name, _, pairs = text.strip().partition(" ")
+    return name, metrics_from_text(pairs)
 
 
 def summary(result: dict[str, Any], iteration: int, wall_s: float) -> str:
