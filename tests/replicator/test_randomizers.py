@@ -11,6 +11,7 @@ from PIL import Image
 
 from ambulo import replicator as rep
 from ambulo.replicator.io import depth_to_mm_u16, encode_png
+from ambulo.utils.rotations import rot_about_axes
 
 
 def penetrations(model, qpos, floor_geom):
@@ -99,3 +100,17 @@ def test_png_encoder_round_trips_through_pillow():
         assert decoded.dtype.itemsize == image.dtype.itemsize and np.array_equal(decoded, image)
     depth = np.array([[0.0015, 1.2344, np.inf, 70.0]])
     assert depth_to_mm_u16(depth).tolist() == [[2, 1234, 0, 0]]
+
+
+def test_a_camera_jitter_turns_the_offset_by_its_rotation_vector_and_moves_it_by_its_position(producer):
+    """The pose CameraJitter sets is R(rotation vector) @ R_offset (Rodrigues, ``rot_about_axes``) at
+    offset + position, for zero, small and the largest rotations, whatever the frame before set."""
+    jitter = next(r for r in producer.config.randomizers if isinstance(r, rep.CameraJitter))
+    camera = producer.ctx.cameras[jitter.camera]
+    base_pos, base_rot = (np.asarray(v, np.float64) for v in camera._default_offset)
+    for degrees in ([0.0, 0.0, 0.0], [4.0, -3.0, 2.0], [-4.0, -4.0, -4.0], [1e-9, 0.0, 0.0], [0.0, 0.0, 3.9]):
+        params = {"position_m": [0.01, -0.02, 0.005], "rotation_deg": degrees}
+        jitter.apply(params, producer.ctx)
+        np.testing.assert_allclose(camera._offset_rot_gl[0], rot_about_axes(np.radians(degrees)) @ base_rot,
+                                   rtol=0, atol=1e-12, err_msg=str(degrees))
+        np.testing.assert_allclose(camera._offset_pos[0], base_pos + params["position_m"], rtol=0, atol=1e-15)

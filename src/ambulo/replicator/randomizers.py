@@ -35,7 +35,7 @@ from ambulo.core.randomize import (
 )
 from ambulo.core.randomize.fields import entity_qpos_ids
 from ambulo.robots import humanoid
-from ambulo.utils.rotations import mat_to_quat, rot_about_axes
+from ambulo.utils.rotations import mat_to_quat
 from ambulo.utils.validate import Checked
 
 
@@ -234,12 +234,29 @@ class CameraJitter(Randomizer):
 
     def apply(self, params, ctx):
         cam = ctx.cameras[self.camera]
-        # NumPy on the CPU camera (used as it is), device tensors on the TiledCamera of the batched GPU path
-        base_pos, base_rot = (v if isinstance(v, np.ndarray) and v.dtype == np.float64
-                              else np.asarray(torch.as_tensor(v).cpu(), np.float64) for v in cam._default_offset)
-        rot = rot_about_axes(np.radians(params["rotation_deg"])) @ base_rot
-        cam.set_local_pose(base_pos + np.asarray(params["position_m"]), mat_to_quat(rot),
+        base_pos, base_quat = self._base_offset(cam)
+        # the jitter's rotation (a rotation vector, deg) as a quaternion, composed with the offset's:
+        # q_jitter * q_base is R(rotvec) @ R_base, in a few float operations and one C call (the
+        # matrices' Rodrigues and product were ~50 NumPy calls a frame)
+        rx, ry, rz = (math.radians(a) for a in params["rotation_deg"])
+        angle = math.sqrt(rx * rx + ry * ry + rz * rz)
+        s = math.sin(0.5 * angle) / angle if angle > 0 else 0.5  # sin(a/2)/a -> 1/2 as a -> 0
+        quat = np.empty(4)
+        mujoco.mju_mulQuat(quat, np.array([math.cos(0.5 * angle), rx * s, ry * s, rz * s]), base_quat)
+        pos = params["position_m"]
+        cam.set_local_pose([base_pos[0] + pos[0], base_pos[1] + pos[1], base_pos[2] + pos[2]], quat,
                            convention="opengl", world_ids=[ctx.world])
+
+    def _base_offset(self, cam) -> tuple[list[float], np.ndarray]:
+        """The camera's configured offset: position (m, mount frame) as floats and its OpenGL axes as a
+        (4,) quaternion, from NumPy on the CPU camera or device tensors on the TiledCamera of the
+        batched GPU path; kept while the camera's offset is the same object (arrays and tensors, which
+        pickle with the config, unlike the camera)."""
+        offset, cached = cam._default_offset, getattr(self, "_base", None)
+        if cached is None or cached[0] is not offset:
+            base_pos, base_rot = (np.asarray(torch.as_tensor(v).cpu(), np.float64) for v in offset)
+            cached = self._base = (offset, base_pos.tolist(), mat_to_quat(base_rot))
+        return cached[1], cached[2]
 
 
 @dataclass(kw_only=True)
