@@ -60,9 +60,10 @@ def contract_for(run_dir: Path, checkpoint: str, info: dict, cpu_eval: dict) -> 
         "physics_dt_s": cfg.physics.timestep_s,
         "trained": {"run": run_dir.name, "checkpoint": checkpoint, "device": info["device"],
                     "seed": info["seed"], "num_envs": info["ppo"]["num_envs"], "commit": None},
-        # the task's own step metrics (means over the episodes) and each of its criteria
+        # the task's own step metrics (means over the episodes) and each of its criteria; a task judged in
+        # blocks (humanoid-walk-robust: nominal + 16 transfer corners) adds its worst and failing blocks
         "eval_cpu": {k: v for k, v in cpu_eval.items()
-                     if k in ("device", "episodes", "episode_length_s", "fall_rate")
+                     if k in ("device", "episodes", "episode_length_s", "fall_rate", "worst_block", "blocks_failed")
                      or (k.startswith("mean_") and k != "mean_return")
                      or k in {c.name for c in spec.criteria}},
     }
