@@ -7,7 +7,9 @@ mean). An episode *fails* when it ends by a termination that is not a success (t
 ``step_metrics`` (for humanoid-walk the planar velocity and yaw-rate errors) are averaged
 over every policy step of every episode until it ends, and each of its ``criteria`` is
 reported as a bool. ``run_episodes`` is the measurement itself: ``evaluate`` applies it to a
-saved checkpoint, ``ambulo.rl.periodic_eval`` to the policy under training.
+saved checkpoint, ``ambulo.rl.periodic_eval`` to the policy under training. A task laid out
+in blocks (``eval_blocks``: humanoid-walk-robust's nominal + 16 transfer corners) is summarized
+block by block, and its criteria hold where they hold in every block.
 """
 
 from __future__ import annotations
@@ -125,10 +127,12 @@ def run_episodes(env: envs.RLEnv, vec_env, policy: Callable, task: envs.TaskSpec
     they hold in every block (``eval_blocks``). ``merge``: these episodes are one share of an
     evaluation split over processes (``eval_share``); it returns the totals of every share (of
     each block's, block by block), which the result describes."""
+    if isinstance(blocks, int) and blocks < 1:
+        raise ValueError(f"blocks={blocks}: give 1 or more")
     names = tuple(blocks) if not isinstance(blocks, int) else (
         () if blocks == 1 else tuple(f"block {b}" for b in range(blocks)))
     count = len(names) or 1
-    if count < 1 or env.num_envs % count:
+    if env.num_envs % count:
         raise ValueError(f"blocks={blocks} does not split {env.num_envs} envs evenly")
     records = episode_records(env, vec_env, policy, task, desc=desc, quiet=quiet)
     merged = merge if merge is not None else (lambda sums: sums)
