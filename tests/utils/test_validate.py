@@ -221,3 +221,27 @@ def test_every_registered_task_config_passes_its_own_checks():
         spec = envs.spec(name)
         for cfg in (spec.cfg_fn(), spec.play_cfg(), spec.ppo_cfg_fn()):
             check_fields(cfg)
+
+
+@pytest.mark.parametrize("cfg_path", ["ambulo.envs.ppo:PpoCfg", "ambulo.rl.offpolicy.config:OffPolicyCfg"])
+@pytest.mark.parametrize("name, bad", [("gamma", 1.5), ("gamma", -0.1), ("num_envs", 0)])
+def test_learning_settings_outside_their_meaning_are_refused(cfg_path, name, bad):
+    # a discount above 1 makes returns diverge, and 0 worlds train nothing; both trained silently
+    module, cls_name = cfg_path.split(":")
+    cls = getattr(importlib.import_module(module), cls_name)
+    with pytest.raises(InvalidValueError) as info:
+        cls(**{name: bad})
+    assert name in str(info.value) and "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("name, bad", [("learning_rate", -1.0), ("learning_rate", 0.0), ("lam", 1.2),
+                                       ("clip_param", 0.0), ("desired_kl", -0.01), ("num_mini_batches", 0),
+                                       ("num_learning_epochs", 0), ("entropy_coef", -0.01),
+                                       ("init_noise_std", 0.0), ("max_grad_norm", 0.0)])
+def test_ppo_settings_outside_their_meaning_are_refused(name, bad):
+    # learning_rate=-1 reached torch's optimizer as a traceback; gamma=1.5 and lam=1.2 trained silently
+    from ambulo.envs.ppo import PpoCfg
+
+    with pytest.raises(InvalidValueError) as info:
+        PpoCfg(**{name: bad})
+    assert name in str(info.value) and "\n" not in str(info.value)

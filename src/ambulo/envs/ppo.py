@@ -5,43 +5,44 @@ their PPO settings next to their env config."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Literal
 
-from ..utils.validate import Checked
+from ..utils.validate import Checked, rule
 
 
 @dataclass(kw_only=True)
 class PpoCfg(Checked):
     """PPO with an MLP actor-critic (rsl-rl-lib's ``OnPolicyRunner``)."""
 
-    num_envs: int = 4096
+    num_envs: int = field(default=4096, metadata=rule(minimum=1))
     """Default number of parallel envs for training this task."""
-    max_iterations: int = 1500
-    num_steps_per_env: int = 24
+    max_iterations: int = field(default=1500, metadata=rule(minimum=1))
+    num_steps_per_env: int = field(default=24, metadata=rule(minimum=1))
     """Rollout length per env per iteration: batch = num_envs * num_steps_per_env."""
-    save_interval: int = 50
+    save_interval: int = field(default=50, metadata=rule(minimum=1))
     """Checkpoint every this many iterations (and at the end)."""
     actor_hidden_dims: tuple[int, ...] = (256, 128, 128)
     critic_hidden_dims: tuple[int, ...] = (256, 128, 128)
     activation: Literal["elu", "selu", "relu", "crelu", "lrelu", "tanh", "sigmoid", "softplus", "gelu", "swish",
                         "mish", "identity"] = "elu"
     """Hidden-layer activation (the names rsl-rl-lib resolves)."""
-    init_noise_std: float = 1.0
+    init_noise_std: float = field(default=1.0, metadata=rule(minimum=0.0, strict=True))
     obs_normalization: bool = True
     """Running mean/std normalization of observations (exported with the policy)."""
-    learning_rate: float = 1.0e-3
+    learning_rate: float = field(default=1.0e-3, metadata=rule(minimum=0.0, strict=True))
     schedule: Literal["adaptive", "fixed"] = "adaptive"
     """``adaptive`` scales the learning rate to keep the KL near ``desired_kl``."""
-    desired_kl: float = 0.01
-    num_learning_epochs: int = 5
-    num_mini_batches: int = 4
-    clip_param: float = 0.2
-    gamma: float = 0.99
-    lam: float = 0.95
-    value_loss_coef: float = 1.0
-    entropy_coef: float = 0.01
-    max_grad_norm: float = 1.0
+    desired_kl: float = field(default=0.01, metadata=rule(minimum=0.0, strict=True))
+    num_learning_epochs: int = field(default=5, metadata=rule(minimum=1))
+    num_mini_batches: int = field(default=4, metadata=rule(minimum=1))
+    clip_param: float = field(default=0.2, metadata=rule(minimum=0.0, strict=True))
+    gamma: float = field(default=0.99, metadata=rule(minimum=0.0, maximum=1.0))
+    lam: float = field(default=0.95, metadata=rule(minimum=0.0, maximum=1.0))
+    """GAE lambda."""
+    value_loss_coef: float = field(default=1.0, metadata=rule(minimum=0.0))
+    entropy_coef: float = field(default=0.01, metadata=rule(minimum=0.0))
+    max_grad_norm: float = field(default=1.0, metadata=rule(minimum=0.0, strict=True))
     init_at_random_ep_len: bool = True
     """Start envs at random points of their first episode so resets spread out in time."""
 
