@@ -100,7 +100,7 @@ class Scatter2D(Randomizer):
         pool_free[:, 6] = np.sin(half_yaw)
         used = 0
         last_row = np.zeros(n, np.int64)  # each object's latest pool row: its pose if placed
-        qpos = ctx.engine.qpos[ctx.world].cpu().numpy().copy()
+        qpos = world_qpos(ctx.engine, ctx.world).copy()
         qpos[self._park_index] = self._park_values
         free_index, rest_z_m = self._free_index, self._rest_z_m
 
@@ -133,7 +133,7 @@ class Scatter2D(Randomizer):
         write_field(ctx.engine.qpos, free.reshape(1, -1), rows=ctx.world, index=self._park_index)
         if self._checker is not None:
             # later scatterers (distractors) check against where these objects now are
-            self._checker.data.qpos[:] = ctx.engine.qpos[ctx.world].cpu().numpy()
+            self._checker.data.qpos[:] = world_qpos(ctx.engine, ctx.world)
 
     def _write(self, qpos: np.ndarray, objects, poses, quat_wxyz=None) -> None:
         """Stand ``objects`` (indices, or one index) upright at ``poses`` (k, 3) x, y (m), yaw (rad)
@@ -148,6 +148,13 @@ class Scatter2D(Randomizer):
 
     def _park_all(self, qpos: np.ndarray) -> None:
         qpos[self._park_index] = self._park_values
+
+
+def world_qpos(engine, world: int) -> np.ndarray:
+    """World ``world``'s ``qpos`` (nq,) as NumPy: a view of a host tensor (no torch indexing op, whose
+    dispatch is most of a small read's cost), a copy of a device one."""
+    qpos = engine.qpos
+    return qpos.numpy()[world] if qpos.device.type == "cpu" else qpos[world].cpu().numpy()
 
 
 _BOX_CORNERS = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
