@@ -292,9 +292,16 @@ def test_failure_reasons():
     grid.add_box((1.0, 1.0), (0.3, 0.3))
     grid.add_box((5.0, 3.0), (0.3, 0.3))
     planner = FootstepPlanner(grid)
-    assert planner.plan((1.0, 1.0, 0.0), (3.0, 2.0, 0.0)).status is PlanStatus.START_IN_COLLISION
-    assert planner.plan((3.0, 2.0, 0.0), (5.0, 3.0, 0.0)).status is PlanStatus.GOAL_IN_COLLISION
-    assert planner.plan((3.0, 2.0, 0.0), (9.0, 2.0, 0.0)).status is PlanStatus.GOAL_IN_COLLISION  # off the map
+    start_blocked = planner.plan((1.0, 1.0, 0.0), (3.0, 2.0, 0.0))
+    assert start_blocked.status is PlanStatus.START_IN_COLLISION and "touch an obstacle" in start_blocked.detail
+    on_box = planner.plan((3.0, 2.0, 0.0), (5.0, 3.0, 0.0))
+    assert on_box.status is PlanStatus.GOAL_IN_COLLISION and "touches an obstacle" in on_box.detail
+    # a goal off the map (a typo, another frame) says so, with the map's span, not "an obstacle"
+    off_map = planner.plan((3.0, 2.0, 0.0), (9.0, 2.0, 0.0))
+    assert off_map.status is PlanStatus.GOAL_IN_COLLISION
+    assert "off the map" in off_map.detail and "x 0..6 m, y 0..4 m" in off_map.detail
+    off_start = planner.plan((-1.0, 2.0, 0.0), (3.0, 2.0, 0.0))
+    assert off_start.status is PlanStatus.START_IN_COLLISION and "off the map" in off_start.detail
     # a goal inside a closed 1 m x 1 m room (x 2-3 m, y 2.5-3.5 m): known before any search
     grid.occupied[50:70, 40:42] = grid.occupied[50:70, 58:60] = True
     grid.occupied[50:52, 40:60] = grid.occupied[68:70, 40:60] = True

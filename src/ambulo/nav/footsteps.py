@@ -285,6 +285,17 @@ class FootstepPlanner:
             self._state_array = np.zeros(int(np.prod(self._key_shape)))
         return self._state_array
 
+    def _blocked_detail(self, what: str, feet_xyyaw: np.ndarray, plural: bool = False) -> str:
+        """Why a stance (``feet_xyyaw`` (2, 3), world) is blocked, in words: off the map (a goal
+        typed in the wrong frame or units) reads differently from touching an obstacle."""
+        (ox, oy), r = self.grid.origin_xy_m, self.grid.resolution_m
+        num_y, num_x = self.grid.occupied.shape
+        x0, x1, y0, y1 = ox, ox + num_x * r, oy, oy + num_y * r
+        x, y = feet_xyyaw[:, 0], feet_xyyaw[:, 1]
+        if (x < x0).any() or (x >= x1).any() or (y < y0).any() or (y >= y1).any():
+            return f"{what} {'lie' if plural else 'lies'} off the map, which spans x {x0:g}..{x1:g} m, y {y0:g}..{y1:g} m"
+        return f"{what} {'touch' if plural else 'touches'} an obstacle"
+
     def stance_feet(self, body_xyyaw_w) -> np.ndarray:
         """(2, 3) left and right foot poses of the nominal stance at a body pose (x, y, yaw), world frame."""
         w = self.cfg.start_width_m / 2
@@ -338,9 +349,11 @@ class FootstepPlanner:
 
         start_mid = start_feet[:, :2].mean(axis=0)
         if checks.stance_blocked(start_feet):
-            return result(PlanStatus.START_IN_COLLISION, detail=f"the start feet {start_feet.tolist()} touch an obstacle")
-        if checks.stance_blocked(self.stance_feet(goal)):
-            return result(PlanStatus.GOAL_IN_COLLISION, detail=f"the stance at the goal {goal} touches an obstacle")
+            return result(PlanStatus.START_IN_COLLISION,
+                          detail=self._blocked_detail(f"the start feet {start_feet.tolist()}", start_feet, plural=True))
+        goal_feet = self.stance_feet(goal)
+        if checks.stance_blocked(goal_feet):
+            return result(PlanStatus.GOAL_IN_COLLISION, detail=self._blocked_detail(f"the stance at the goal {goal}", goal_feet))
         if self.heuristic is None or not np.array_equal(self.heuristic.goal, goal):
             # its fields depend on the map and the goal alone: a replan to the same goal on this
             # map (a navigator's, each control period) reuses them, Dijkstra and all
