@@ -118,6 +118,15 @@ def test_argparse_errors_are_one_line(capsys):
     assert len(capsys.readouterr().err.strip().splitlines()) == 1
 
 
+def test_an_unknown_option_is_refused_by_its_command_naming_the_near_one(capsys):
+    # argparse's top-level parser said `see ambulo --help` for `ambulo eval ... --num-episodes 10`
+    line = fails(capsys, ["eval", "humanoid-walk", "--shipped", "--num-episodes", "10"])
+    assert line.startswith("ambulo eval: error: unrecognized arguments: --num-episodes 10")
+    assert "did you mean --episodes?" in line and "see `ambulo eval --help`" in line
+    line = fails(capsys, ["plan", "--bogus-flag"])
+    assert "unrecognized arguments: --bogus-flag; see `ambulo plan --help`" in line and "mean" not in line
+
+
 def test_python_dash_m_runs_the_cli():
     result = subprocess.run([sys.executable, "-m", "ambulo.cli", "generate", "--help"],
                             capture_output=True, text=True, env={**os.environ, "PYTHONPATH": SRC},

@@ -15,6 +15,7 @@ with one line and status 130. Any other exception is a bug and keeps its traceba
 from __future__ import annotations
 
 import argparse
+import difflib
 import sys
 
 from ..utils.overrides import OverrideError, apply_overrides
@@ -35,12 +36,26 @@ def build_parser() -> argparse.ArgumentParser:
         module.add_commands(sub)
     for command in sub.choices.values():  # `ambulo view x --debug` works too
         command.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help=_DEBUG_HELP)
+    parser.commands = sub.choices
     return parser
+
+
+def _unrecognized(parser: argparse.ArgumentParser, args: argparse.Namespace, extra: list[str]) -> None:
+    """Refuse arguments the command does not know in one line from the command's own parser (so it
+    points at `ambulo <command> --help`), naming the nearest option for a misspelt one."""
+    command = parser.commands.get(getattr(args, "command", None), parser)
+    known = [o for action in command._actions for o in action.option_strings]
+    guesses = [f"{o}: did you mean {near[0]}?" for o in extra if o.startswith("-")
+               if (near := difflib.get_close_matches(o.split("=")[0], known, n=1, cutoff=0.75))]
+    command.error(f"unrecognized arguments: {' '.join(extra)}" + (f" ({'; '.join(guesses)})" if guesses else ""))
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run ``ambulo`` with ``argv`` (default ``sys.argv[1:]``); return the exit status."""
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args, extra = parser.parse_known_args(argv)
+    if extra:
+        _unrecognized(parser, args, extra)
     if args.debug:
         return int(args.func(args) or 0)
     try:
