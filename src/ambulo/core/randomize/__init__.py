@@ -1,7 +1,8 @@
 """Domain randomization: one layer under the replicator's randomizers and the RL task events.
 
 - ``distributions``: the value sources (``Uniform``, ``Normal``, ``UniformInt``, ``Choice``,
-  ``Constant``), drawn in batches from a seeded ``torch.Generator`` on the engine's device.
+  ``Constant``), drawn in batches from a seeded ``torch.Generator`` on the engine's device, or
+  with NumPy from a ``numpy.random.Generator`` on the host (``sample_host``: the replicator's frames).
   ``ambulo.replicator`` re-exports them and Isaac's ``rep.distribution`` names wrap them.
 - ``fields``: per-world model-field and state writes for row selectors (``core.rows``), one
   write per field: friction, mass, centre of mass, passive joint properties, colours and
