@@ -154,6 +154,23 @@ def test_unknown_prim_path_suggests_close_names():
         world.reset()
 
 
+def test_a_shell_style_star_in_a_view_expression_names_the_regular_expression_it_meant():
+    # Isaac's view expressions are regular expressions per component: "cube_*" is "cube" and underscores
+    # and matches none of cube_0..2; the error names "cube_.*" and what it matches
+    from ambulo.sim import DynamicCuboid
+    from ambulo.sim.views import RigidPrimView
+
+    world = World()
+    for i in range(3):
+        world.scene.add(DynamicCuboid(prim_path=f"/World/cube_{i}", name=f"cube_{i}", position=np.array([i, 0, 1.0])))
+    with pytest.raises(PrimNotFoundError, match=r"did you mean '/World/cube_\.\*' \(3 prims\)"):
+        RigidPrimView(prim_paths_expr="/World/cube_*", name="cubes")
+    with pytest.raises(PrimNotFoundError) as nothing_close:
+        RigidPrimView(prim_paths_expr="/World/sphere_*", name="spheres")
+    assert "did you mean" not in str(nothing_close.value)
+    assert len(RigidPrimView(prim_paths_expr="/World/cube_.*", name="cubes").prim_paths) == 3
+
+
 def _g1_urdf():
     from ambulo.core.importers.packages import package_search_path
 

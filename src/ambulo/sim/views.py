@@ -87,21 +87,24 @@ class XFormPrimView(XFormPrim):
         self._prims: list = []
         self._paths = self._match_stage()
         if not self._paths:
-            raise PrimNotFoundError(f"no prim matches {prim_paths_expr!r}; create the prims first (add_reference_to_"
-                                    "stage, Dynamic* objects), each path component is a regular expression")
+            raise PrimNotFoundError(f"no prim matches {prim_paths_expr!r}; "
+                                    + (_glob_hint(exprs, self._stage_names()) or "create the prims first (add_reference_to_"
+                                       "stage, Dynamic* objects), each path component is a regular expression"))
         def row(values, k: int):
             return None if values is None else np.asarray(values, dtype=float).reshape(len(self._paths), -1)[k]
 
         for k, path in enumerate(self._paths):
             place_on_stage(path, row(positions, k), row(translations, k), row(orientations, k))
 
-    def _match_stage(self) -> list[str]:
+    def _stage_names(self) -> list[str]:
         world = current_world_or_none()
         if world is None:
             return []
         names = [e.name for group in (world.stage.bodies, world.stage.frames) for e in group]
-        names += [str(p.GetPath()) for p in world.usd.stage.Traverse()]
-        return match_prim_paths(self._exprs, _prefixes(names))
+        return names + [str(p.GetPath()) for p in world.usd.stage.Traverse()]
+
+    def _match_stage(self) -> list[str]:
+        return match_prim_paths(self._exprs, _prefixes(self._stage_names()))
 
     # -- lifecycle -----------------------------------------------------------------
     def initialize(self, world=None, physics_sim_view=None) -> None:
@@ -112,8 +115,9 @@ class XFormPrimView(XFormPrim):
         names = [model.body(i).name for i in range(model.nbody)]
         paths = match_prim_paths(self._exprs, _prefixes(names))
         if not paths:
-            raise PrimNotFoundError(f"no body of the compiled scene matches {self._exprs}; check the expression "
-                                    "against the prim paths (each component is a regular expression)")
+            raise PrimNotFoundError(f"no body of the compiled scene matches {self._exprs}; "
+                                    + (_glob_hint(self._exprs, names) or "check the expression against the prim "
+                                       "paths (each component is a regular expression)"))
         prims = [self._make(path) for path in paths]
         for prim in prims:
             prim.initialize(world)
@@ -478,5 +482,20 @@ class ArticulationView(RigidPrimView):
     def get_default_state(self) -> XFormPrimViewState:
         return XFormPrimView.get_default_state(self)
 
+
+
+def _glob_hint(exprs: list[str], names: list[str]) -> str:
+    """``'cube_*' is a regular expression here: did you mean '/World/cube_.*' (3 prims)?`` when a
+    shell-style ``*`` in ``exprs`` (Isaac's expressions are regular expressions per component, so
+    ``cube_*`` means "cube" and underscores) would match as ``.*``; '' otherwise."""
+    globbed = [re.sub(r"(?<![.\\])\*", ".*", e) for e in exprs]
+    if globbed == exprs:
+        return ""
+    matches = match_prim_paths(globbed, _prefixes(names))
+    if not matches:
+        return ""
+    shown = globbed[0] if len(globbed) == 1 else globbed
+    return (f"each path component is a regular expression, where '*' repeats the character before it: "
+            f"did you mean {shown!r} ({len(matches)} prims)?")
 
 __all__ = ["ArticulationView", "RigidPrimView", "XFormPrimView", "match_prim_paths"]
