@@ -1,9 +1,23 @@
 """``rep.create``: primitives, the camera, lights, render products, groups and colour materials.
 
-Shapes are 1 m across at scale 1 (Replicator's 100 cm primitives on a metre stage), centred on
-their prim: cube = box, sphere = ellipsoid (so non-uniform scale stays exact), cylinder and disk
-(1 mm thick) along z, plane = a 1 mm slab whose top is at its position. A creation argument
-given a distribution is drawn once per run (Replicator evaluates create nodes once).
+Shapes are Replicator's (Kit's mesh primitives, 100 cm across on a centimetre stage) with
+1 m for 100 cm, centred on their prim, axes along z:
+
+============  =============================================  ============================
+primitive     at scale 1 (m)                                 MuJoCo geoms
+============  =============================================  ============================
+cube          1 x 1 x 1                                      box
+sphere        1 across                                       ellipsoid (exact non-uniform)
+cylinder      1 across, 1 tall                               cylinder (x, y scale together)
+cone          1 across the base, 1 tall, apex up             mesh (scale fixed at create)
+torus         ring radius 0.5, tube radius 0.25: 1.5 x 0.5   32 capsules (uniform scale)
+disk          1 across, 1 mm thick                           cylinder
+plane         1 x 1, 1 mm thick, top face at its position    box
+============  =============================================  ============================
+
+``shapes.py`` says why a cone's size is fixed when the scene compiles and how a torus scales per
+frame. A creation argument given a distribution is drawn once per run (Replicator evaluates
+create nodes once).
 """
 
 from __future__ import annotations
@@ -12,12 +26,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .distribution import is_random
+from .distribution import Choice, Normal, Uniform, is_random
 from .errors import Namespace, unsupported
 from .graph import ONCE, Item, Node, PrimDecl, current_graph, paths_of
+from .shapes import FIXED_SIZE, UNIFORM_SCALE
 
 _DEFAULT_COLOR = (0.7, 0.7, 0.7)
-_NOT_A_SHAPE = "ambulo builds cube, sphere, cylinder, disk and plane primitives"
+_NOT_A_SHAPE = "ambulo builds cube, sphere, cylinder, cone, torus, disk and plane primitives"
 _LIGHTS = ("distant", "sphere", "dome")
 
 
@@ -83,9 +98,33 @@ def _set_pose(graph, prim: PrimDecl, position, rotation, scale) -> None:
     prim.position = values["position"] if not is_random(values["position"]) else np.zeros(3)
     prim.rotation_deg = values["rotation"] if not is_random(values["rotation"]) else np.zeros(3)
     prim.scale = values["scale"] if not is_random(values["scale"]) else np.ones(3)
+    check_scale(prim.kind, scale, "create")
     random = {k: v for k, v in values.items() if is_random(v)}
     if random:
         graph.static_nodes.append(_once("pose", [prim.path], random))
+
+
+def check_scale(kind: str, scale, where: str) -> None:
+    """Refuse, in one line, a scale the shape cannot take (``shapes.py`` says why)."""
+    if scale is None:
+        return
+    if kind in FIXED_SIZE and (where == "modify" or is_random(scale)):
+        raise unsupported(f"create.{kind}(scale=<a distribution>)" if where == "create" else
+                          f"modify.pose(scale=...) on a {kind}",
+                          f"a {kind} is a mesh, whose size MuJoCo fixes when the scene compiles: "
+                          f"give rep.create.{kind}(scale=(x, y, z)) with numbers")
+    if kind in UNIFORM_SCALE and not is_uniform(scale):
+        raise ValueError(f"rep.{where}.{'pose' if where == 'modify' else kind}: a {kind} takes one scale for all axes (its tube is round), got {scale!r}")
+
+
+def is_uniform(scale) -> bool:
+    """One number, three equal numbers, or a distribution whose draws are such."""
+    if isinstance(scale, (Uniform, Normal)):
+        return all(np.ndim(v) == 0 for v in vars(scale).values())
+    if isinstance(scale, Choice):
+        return all(np.ndim(c) == 0 or (np.shape(c) == (3,) and c[0] == c[1] == c[2]) for c in scale.choices)
+    value = np.asarray(scale, float)
+    return value.ndim == 0 or (value.shape == (3,) and value[0] == value[1] == value[2])
 
 
 def _once(kind, targets, params) -> Node:
@@ -105,6 +144,18 @@ def sphere(**kwargs) -> Item:
 def cylinder(**kwargs) -> Item:
     """A cylinder 1 m across and 1 m tall, axis along z (scale x and y together)."""
     return _shape("cylinder", **kwargs)
+
+
+def cone(**kwargs) -> Item:
+    """A cone 1 m tall and 1 m across its base, apex up along z, centred on its prim: a mesh, so
+    its ``scale`` is fixed when it is created (numbers, not a distribution)."""
+    return _shape("cone", **kwargs)
+
+
+def torus(**kwargs) -> Item:
+    """A torus around z: tube radius 0.25 m on a 0.5 m ring (1.5 m across, 0.5 m tall), built
+    from 32 capsules; it takes a uniform scale (one number), per frame too."""
+    return _shape("torus", **kwargs)
 
 
 def disk(**kwargs) -> Item:
@@ -248,11 +299,9 @@ def group(items, semantics=None) -> Item:
 
 
 create = Namespace("create", {
-    "cube": cube, "sphere": sphere, "cylinder": cylinder, "disk": disk, "plane": plane, "camera": camera,
+    "cube": cube, "sphere": sphere, "cylinder": cylinder, "cone": cone, "torus": torus, "disk": disk, "plane": plane, "camera": camera,
     "light": light, "material_omnipbr": material_omnipbr, "render_product": render_product, "group": group,
 }, {
-    "cone": f"not supported: {_NOT_A_SHAPE}",
-    "torus": f"not supported: {_NOT_A_SHAPE}",
     "capsule": f"not supported: {_NOT_A_SHAPE}",
     "from_usd": "USD assets are not loaded into Replicator graphs; build the scene from primitives",
     "from_dir": "USD assets are not loaded into Replicator graphs; build the scene from primitives",

@@ -19,8 +19,8 @@ from typing import Any
 
 import numpy as np
 
-SHAPES = ("cube", "sphere", "cylinder", "disk", "plane")
-"""Replicator primitives ambulo builds (1 m across at scale 1, Replicator's 100 cm default)."""
+SHAPES = ("cube", "sphere", "cylinder", "cone", "torus", "disk", "plane")
+"""Replicator primitives ambulo builds (Replicator's 100 cm shapes as 1 m ones; ``shapes.py``)."""
 ONCE = 1 << 62
 """``every_n_frames`` of nodes outside a trigger: drawn once per run, the same on every frame."""
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .create import _look_at, _semantics, _vec3
+from .create import _look_at, _semantics, _vec3, check_scale
 from .distribution import Choice, Normal, Uniform, is_random
 from .errors import Namespace, unsupported
 from .graph import current_graph
@@ -33,6 +33,8 @@ def pose(position=None, rotation=None, rotation_order: str = "XYZ", scale=None, 
         raise unsupported("modify.pose on lights", "lights keep the pose they were created with")
     if look_at is not None and kinds - {"camera"}:
         raise unsupported("modify.pose(look_at=...) on shapes", "aim cameras with look_at; turn shapes with rotation")
+    for kind in kinds:
+        check_scale(kind, scale, "modify")
     if scale is not None and kinds & {"cylinder", "disk"} and not _keeps_round(scale):
         raise ValueError("rep.modify.pose: cylinders and disks scale x and y together; "
                          "give scale one number (or a distribution of one number)")

@@ -29,7 +29,7 @@ from ambulo.sensors.frames import look_at_gl
 from ambulo.utils.rotations import mat_to_quat, quat_to_mat
 
 from .distribution import draw
-from .shapes import euler_xyz_deg_to_mat, geom_size
+from .shapes import euler_xyz_deg_to_mat, geom_parts
 
 _SCATTER_TRIES = 30
 
@@ -97,9 +97,16 @@ class PoseNode(Randomizer, _FreeBodies):
                 quat = mat_to_quat(euler_xyz_deg_to_mat(params["rotation"][i]))
                 qpos[adr + 3:adr + 7] = torch.tensor(quat, dtype=qpos.dtype)
             if "scale" in params:
-                sizes = ctx.engine.model_field("geom_size")
-                size = geom_size(self.kinds[path], params["scale"][i])
-                sizes[ctx.world, self._geoms[path]] = torch.tensor(size, dtype=sizes.dtype)
+                self._apply_scale(ctx, path, params["scale"][i])
+
+    def _apply_scale(self, ctx, path: str, scale) -> None:
+        """Per-world sizes of the prim's geoms; a torus's capsules also move out along its ring."""
+        parts = geom_parts(self.kinds[path], scale)
+        sizes = ctx.engine.model_field("geom_size")
+        sizes[ctx.world, self._geoms[path]] = torch.tensor(np.stack([p.size for p in parts]), dtype=sizes.dtype)
+        if len(parts) > 1:
+            pos = ctx.engine.model_field("geom_pos")
+            pos[ctx.world, self._geoms[path]] = torch.tensor(np.stack([p.pos_m for p in parts]), dtype=pos.dtype)
 
     def _apply_camera(self, i, params, ctx):
         """Aim: this node's look_at or rotation; else the created look_at (re-aimed from a new

@@ -22,7 +22,7 @@ from ambulo.utils.rotations import mat_to_quat
 from .distribution import Choice, draw, is_random
 from .graph import SHAPES, Graph, Node, PrimDecl
 from .nodes import ColorNode, LightNode, PoseNode, ScatterNode, light_level
-from .shapes import euler_xyz_deg_to_mat, geom_offset_z, geom_size, geom_type
+from .shapes import cone_mesh, euler_xyz_deg_to_mat, geom_parts, geom_type
 
 CAMERA_CHILD = "Camera"
 """The camera sensor is ``<camera prim>/Camera``, mounted on the camera prim's body."""
@@ -49,10 +49,7 @@ def build_spec(graph: Graph) -> mujoco.MjSpec:
             body = spec.worldbody.add_body(name=prim.path, pos=prim.position.tolist(),
                                            quat=mat_to_quat(euler_xyz_deg_to_mat(prim.rotation_deg)).tolist())
             body.add_freejoint()
-            rgb = prim.color or (0.7, 0.7, 0.7)
-            body.add_geom(name=f"{prim.path}/{prim.kind.capitalize()}", type=geom_type(prim.kind),
-                          size=geom_size(prim.kind, prim.scale).tolist(), pos=[0, 0, geom_offset_z(prim.kind)],
-                          rgba=[*rgb, 1.0])
+            _add_geoms(spec, body, prim)
             if prim.label is not None:
                 set_semantic_label(spec, prim.path, prim.label)
         elif prim.kind == "camera":
@@ -62,6 +59,21 @@ def build_spec(graph: Graph) -> mujoco.MjSpec:
     if not lights:  # a new Kit stage comes with a distant light
         add_light(spec, DEFAULT_LIGHT, kind="distant", direction=(0.3, 0.2, -1.0), intensity=0.7, ambient=0.25)
     return spec
+
+
+def _add_geoms(spec, body, prim: PrimDecl) -> None:
+    """The primitive's geoms on its body: one geom, a torus's ring of capsules, or a cone's mesh."""
+    rgba = [*(prim.color or (0.7, 0.7, 0.7)), 1.0]
+    name = f"{prim.path}/{prim.kind.capitalize()}"
+    if prim.kind == "cone":  # a mesh per cone: its scale is baked into the vertices
+        verts, faces = cone_mesh(prim.scale)
+        spec.add_mesh(name=f"{name}Mesh", uservert=verts.reshape(-1).tolist(), userface=faces.reshape(-1).tolist())
+        body.add_geom(name=name, type=geom_type("cone"), meshname=f"{name}Mesh", rgba=rgba)
+        return
+    parts = geom_parts(prim.kind, prim.scale)
+    for k, part in enumerate(parts):
+        body.add_geom(name=name if len(parts) == 1 else f"{name}_{k:02d}", type=geom_type(prim.kind),
+                      size=part.size.tolist(), pos=part.pos_m.tolist(), quat=part.quat.tolist(), rgba=rgba)
 
 
 def _add_light(spec, prim: PrimDecl) -> None:
