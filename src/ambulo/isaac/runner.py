@@ -71,6 +71,7 @@ def run_script(path: str | os.PathLike, argv: list[str] | tuple[str, ...] = (), 
             sys.path.insert(0, str(script.resolve().parent))  # as `python script.py` would
             try:
                 namespace = runpy.run_path(str(script), run_name="__main__")
+                _finish_replicator()
             except GymBudgetSpent:
                 namespace, budget_spent = {}, True
             samples = [v for v in namespace.values() if isinstance(v, type) and issubclass(v, BaseSample)
@@ -89,6 +90,15 @@ def run_script(path: str | os.PathLike, argv: list[str] | tuple[str, ...] = (), 
     return RunResult(script=str(script), ran_sample=ran_sample,
                      sim_time_s=0.0 if world is None else world.current_time,
                      physics_steps=0 if world is None else world.current_time_step_index)
+
+
+def _finish_replicator() -> None:
+    """A Replicator script that ended after ``rep.orchestrator.preview()`` gets what Kit's Run
+    button would do (``replicator.orchestrator.finish_script``)."""
+    if "omni.replicator.core" in sys.modules:
+        from .replicator.orchestrator import finish_script
+
+        finish_script()
 
 
 @contextlib.contextmanager

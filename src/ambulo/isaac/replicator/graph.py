@@ -104,6 +104,10 @@ class Graph:
     """Stack of ``with item:`` blocks: the prims modify/randomizer calls act on."""
     frames_done: int = 0
     """Frames the orchestrator has rendered in this run (``step`` continues from here)."""
+    previewed: bool = False
+    """``rep.orchestrator.preview()`` was called (``orchestrator.finish_script``)."""
+    ran: bool = False
+    """``run``/``step`` was called: the script drives its own frames."""
     session: Any = None
     """The running frame producer and writers (``orchestrator.py``), made on the first frame."""
 

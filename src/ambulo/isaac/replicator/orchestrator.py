@@ -5,10 +5,17 @@ here ``run()`` renders them all before it returns (there is no app loop to wait 
 ``wait_until_complete()`` finds nothing left to do. ``step()`` renders one frame, as Isaac's
 standalone workflows call it in their own loop. The first frame builds the scene once
 (``scene.py``) and a ``FrameProducer``; frame ``i`` depends only on (graph, seed, i).
+
+``preview()`` does what Kit's does: it renders one frame of the graph (the next one, its nodes
+evaluated) and hands it to no writer. In Kit the user then presses Run; ``ambulo run`` has no
+UI, so a script that ends after ``preview()`` without any ``run``/``step`` gets what Run would
+do: its triggers' frames rendered and written (``finish_script``, called by the runner), with a
+line on stderr that says so. Replicator's "Hello World" writes its ``_output/`` that way.
 """
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 
 from ambulo.replicator import FrameProducer
@@ -55,9 +62,12 @@ class Session:
         self.camera = graph.prim(self.product.camera).extra
         self.seed = graph.seed
 
-    def render(self, indices: list[int]) -> None:
+    def render(self, indices: list[int], write: bool = True) -> None:
+        """Render frames ``indices``; hand them to the writers and annotators if ``write``."""
         table, model = self.producer.table, self.producer.model
         for _index, _log, capture in self.producer.frames(self.seed, indices):
+            if not write:
+                continue
             for writer in self.writers:
                 writer.write(capture, table, self.camera, model)
             for annotator in self.annotators:
@@ -88,6 +98,7 @@ def run(num_frames: int | None = None, start_timeline: bool = False) -> None:
     graph = current_graph()
     count = _frames_to_run(graph, num_frames)
     session = _session(graph)
+    graph.ran = True
     start = graph.frames_done
     session.render(list(range(start, start + count)))
     graph.frames_done = start + count
@@ -103,8 +114,33 @@ def step(rt_subframes: int = -1, pause_timeline: bool = True, delta_time: float 
     """Render one frame: the triggers' nodes run, then the writers write it."""
     graph = current_graph()
     session = _session(graph)
+    graph.ran = True
     session.render([graph.frames_done])
     graph.frames_done += 1
+
+
+def preview() -> None:
+    """Render the next frame of the graph and write nothing (Kit's preview); ``finish_script``
+    runs the frames at the end of a script that never called ``run``/``step``."""
+    graph = current_graph()
+    graph.previewed = True
+    _session(graph).render([graph.frames_done], write=False)
+
+
+def finish_script() -> None:
+    """What Kit's Run button does after a script that only previewed: run the triggers' frames
+    with the writers. Called when an ``ambulo run`` script ends; nothing for other scripts."""
+    graph = current_graph()
+    if not graph.previewed or graph.frames_done or graph.ran:
+        return
+    counts = [t.num_frames for t in graph.triggers if t.num_frames is not None]
+    if not counts:
+        print("ambulo run: the script ended after rep.orchestrator.preview(); Run would render until stopped, "
+              "so nothing is written: give rep.trigger.on_frame(num_frames=N) to write N frames", file=sys.stderr)
+        return
+    print(f"ambulo run: the script ended after rep.orchestrator.preview(); running its {max(counts)} frames "
+          "with the writers, as Kit's Run button would", file=sys.stderr)
+    run()
 
 
 def wait_until_complete() -> None:
@@ -128,9 +164,8 @@ def set_capture_on_play(value: bool) -> None:
 
 orchestrator = Namespace("orchestrator", {
     "run": run, "run_until_complete": run_until_complete, "step": step, "wait_until_complete": wait_until_complete,
-    "stop": stop, "set_capture_on_play": set_capture_on_play,
+    "stop": stop, "set_capture_on_play": set_capture_on_play, "preview": preview,
 }, {
-    "preview": "render frames with rep.orchestrator.step()",
     "run_async": "use rep.orchestrator.run() (synchronous in ambulo)",
     "step_async": "use rep.orchestrator.step() (synchronous in ambulo)",
 })
