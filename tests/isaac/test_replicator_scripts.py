@@ -194,7 +194,7 @@ def test_created_rotation_and_scale_reach_the_3d_boxes(tmp_path):
 
 
 @pytest.mark.parametrize(("line", "expected"), [
-    ("rep.create.torus()", "torus.*cube, sphere, cylinder, disk and plane"),
+    ("rep.create.capsule()", "capsule.*cube, sphere, cylinder, cone, torus, disk and plane"),
     ("rep.trigger.on_time(interval=1)", "on_time.*on_frame"),
     ("rep.WriterRegistry.get('KittiWriter')", "KittiWriter.*BasicWriter"),
 ])
