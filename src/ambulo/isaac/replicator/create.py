@@ -100,8 +100,8 @@ def _set_pose(graph, prim: PrimDecl, position, rotation, scale) -> None:
     prim.scale = values["scale"] if not is_random(values["scale"]) else np.ones(3)
     check_scale(prim.kind, scale, "create")
     random = {k: v for k, v in values.items() if is_random(v)}
-    if random:
-        graph.static_nodes.append(_once("pose", [prim.path], random))
+    if random:  # drawn once per run, or every frame for a prim created inside a trigger
+        graph.add_node("pose", [prim.path], random)
 
 
 def check_scale(kind: str, scale, where: str) -> None:
@@ -214,37 +214,50 @@ def _look_at(target):
     return np.asarray(target, float).reshape(3)
 
 
-def light(light_type: str = "distant", color=(1.0, 1.0, 1.0), intensity: float = 1000.0, position=None,
+def light(light_type: str = "distant", color=(1.0, 1.0, 1.0), intensity=1000.0, position=None,
           rotation=None, scale=None, count: int = 1, name: str | None = None, texture: str | None = None,
-          **unsupported_args) -> Item:
+          temperature=None, **unsupported_args) -> Item:
     """A light: "distant" (aimed along -z turned by ``rotation``), "sphere" (a point light) or "dome"
     (uniform ambient light; with ``texture``, an HDR environment: image-based lighting in the pbr
     camera tier, ``ambulo.render.ibl``, and its ambient level in the rasterizer).
 
     Replicator intensities are nits; ambulo's rasterizer takes a 0-1 diffuse level, so
     ``intensity`` is scaled to make Replicator's default (1000) ambulo's default sun level (0.7).
+    ``temperature`` (K) tints ``color`` with the blackbody colour (``nodes.blackbody_rgb``), as
+    USD's enableColorTemperature does. ``intensity``, ``color``, ``temperature``, ``position`` and
+    ``rotation`` may be distributions: drawn once per run, or every frame when the light is
+    created inside a trigger (a registered ``sphere_lights`` function, as Replicator's docs do).
+    ambulo's lights are points, so ``scale`` (a sphere light's radius, its shadows' softness) is refused.
     """
     if unsupported_args:
         raise unsupported(f"create.light({next(iter(unsupported_args))}=...)",
-                          "ambulo lights take light_type, color, intensity, position, rotation")
+                          "ambulo lights take light_type, color, intensity, temperature, position, rotation")
     kind = str(light_type).lower()
     if kind not in _LIGHTS:
         raise unsupported(f"create.light(light_type={light_type!r})", f"ambulo has {', '.join(_LIGHTS)} lights")
     if texture is not None and kind != "dome":
         raise unsupported(f"create.light(light_type={light_type!r}, texture=...)", "only a dome light takes a texture")
-    if is_random(color) or is_random(intensity) or is_random(position) or is_random(rotation):
-        raise unsupported("create.light with distributions",
-                          "create the light with values and randomize it with rep.modify.attribute in a trigger")
+    if scale is not None:
+        raise unsupported("create.light(scale=...)", "ambulo's lights are points (a sphere light's radius only "
+                          "softens its shadows in Kit); drop scale")
+    values = {"intensity": intensity, "color": color, "temperature": temperature,
+              "position": _vec3(position, "position", (0, 0, 0)), "rotation": _vec3(rotation, "rotation", (0, 0, 0))}
+    random = {k: v for k, v in values.items() if is_random(v)}
     graph = current_graph()
     paths = []
     for _ in range(int(count)):
         prim = PrimDecl(path=graph.unique_path(f"/Replicator/{name or kind.capitalize() + 'Light'}_Xform"),
                         kind="light", position=np.zeros(3), rotation_deg=np.zeros(3), scale=np.ones(3))
-        prim.extra = {"light_type": kind, "intensity": float(intensity), "color": tuple(float(c) for c in color),
+        prim.extra = {"light_type": kind, "intensity": 1000.0 if is_random(intensity) else float(intensity),
+                      "color": (1.0, 1.0, 1.0) if is_random(color) else tuple(float(c) for c in color),
+                      "temperature": None if temperature is None or is_random(temperature) else float(temperature),
                       "texture": None if texture is None else str(texture)}
-        _set_pose(graph, prim, position, rotation, scale)
+        prim.position = np.zeros(3) if is_random(values["position"]) else values["position"]
+        prim.rotation_deg = np.zeros(3) if is_random(values["rotation"]) else values["rotation"]
         graph.add_prim(prim)
         paths.append(prim.path)
+    if random:  # one node over all ``count`` lights: one draw per light
+        graph.add_node("light", paths, random)
     return Item(paths)
 
 

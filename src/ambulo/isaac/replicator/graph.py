@@ -128,9 +128,11 @@ class Graph:
         if self.session is not None:
             raise RuntimeError("rep.create after the orchestrator started: create every prim before "
                                "rep.orchestrator.run()/step()")
-        if self.trigger is not None:
-            raise RuntimeError("rep.create inside rep.trigger.on_frame would create prims every frame, which "
-                               "ambulo does not do; create them before the trigger and randomize them in it")
+        if self.trigger is not None and prim.kind == "camera":
+            raise RuntimeError("rep.create.camera inside rep.trigger.on_frame: create the camera before the "
+                               "trigger and move it with rep.modify.pose in it")
+        # a shape or light created inside a trigger is created once (Replicator evaluates the
+        # create node's prims once); its distributions become the trigger's nodes, drawn every frame
         prim.layer = self.layer
         self.prims[prim.path] = prim
 

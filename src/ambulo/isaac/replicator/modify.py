@@ -14,7 +14,8 @@ from .errors import Namespace, unsupported
 from .graph import current_graph
 
 _COLOR_ATTRS = ("primvars:displayColor", "displayColor")
-_LIGHT_ATTRS = {"intensity": "intensity", "inputs:intensity": "intensity", "color": "color", "inputs:color": "color"}
+_LIGHT_ATTRS = {"intensity": "intensity", "inputs:intensity": "intensity", "color": "color", "inputs:color": "color",
+                "colorTemperature": "temperature", "inputs:colorTemperature": "temperature"}
 
 
 def pose(position=None, rotation=None, rotation_order: str = "XYZ", scale=None, size=None, pivot=None,
@@ -71,7 +72,7 @@ def attribute(name: str, value, attribute_type=None, input_prims=None):
     if name in _LIGHT_ATTRS and kinds == {"light"}:
         return graph.add_node("light", targets, {_LIGHT_ATTRS[name]: value})
     raise unsupported(f"modify.attribute({name!r})",
-                      "ambulo maps primvars:displayColor of shapes and intensity/color of lights")
+                      "ambulo maps primvars:displayColor of shapes and intensity/color/colorTemperature of lights")
 
 
 def semantics(semantics=None, input_prims=None, mode: str = "add"):

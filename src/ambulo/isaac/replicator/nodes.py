@@ -152,25 +152,45 @@ def light_level(intensity: float) -> float:
     return float(np.clip(0.7 * intensity / 1000.0, 0.0, 1.0))
 
 
+def blackbody_rgb(kelvin) -> np.ndarray:
+    """(..., 3) RGB 0-1 of a blackbody at ``kelvin`` (1000-40000 K), brightest channel 1 near and
+    below 6600 K: Tanner Helland's fit to the Planckian locus in sRGB (within a few % of it),
+    the tint USD's ``colorTemperature`` gives a light."""
+    t = np.clip(np.asarray(kelvin, float), 1000.0, 40000.0) / 100.0
+    warm = t <= 66
+    r = np.where(warm, 255.0, 329.698727446 * np.maximum(t - 60, 1e-9) ** -0.1332047592)
+    g = np.where(warm, 99.4708025861 * np.log(t) - 161.1195681661,
+                 288.1221695283 * np.maximum(t - 60, 1e-9) ** -0.0755148492)
+    b = np.where(t >= 66, 255.0, np.where(t <= 19, 0.0, 138.5177312231 * np.log(np.maximum(t - 10, 1e-9))
+                                           - 305.0447927307))
+    return np.clip(np.stack([r, g, b], -1) / 255.0, 0.0, 1.0)
+
+
 @dataclass(kw_only=True)
 class LightNode(Randomizer):
-    """``rep.modify.attribute("intensity"/"color")`` of lights: per-world light diffuse (ambient for dome)."""
+    """Lights' drawn attributes (``rep.create.light`` with distributions, ``rep.modify.attribute``):
+    per-world light diffuse (ambient for dome), position (``light_pos``) and direction (``light_dir``)."""
 
     targets: list[str]
     base: dict[str, dict]
-    """Per light: light_type, intensity, color as created."""
+    """Per light: light_type, intensity, color, temperature (K or None) as created."""
     intensity: Any = None
     color: Any = None
+    temperature: Any = None
+    position: Any = None
+    rotation: Any = None
 
     def initialize(self, engine):
         self._ids = [engine.model.light(path).id for path in self.targets]
 
     def sample(self, rng, ctx):
         g, n, out = as_generator(rng), len(self.targets), {}
-        if self.intensity is not None:
-            out["intensity"] = np.asarray(draw(self.intensity, g, n), float).reshape(n)
-        if self.color is not None:
-            out["color"] = _rows(draw(self.color, g, n), n, 3)
+        for key in ("intensity", "temperature"):
+            if getattr(self, key) is not None:
+                out[key] = np.asarray(draw(getattr(self, key), g, n), float).reshape(n)
+        for key in ("color", "position", "rotation"):
+            if getattr(self, key) is not None:
+                out[key] = _rows(draw(getattr(self, key), g, n), n, 3)
         return to_json(out)
 
     def apply(self, params, ctx):
@@ -179,8 +199,18 @@ class LightNode(Randomizer):
             base = self.base[path]
             level = light_level(params["intensity"][i] if "intensity" in params else base["intensity"])
             color = np.asarray(params["color"][i] if "color" in params else base["color"], float)
+            kelvin = params["temperature"][i] if "temperature" in params else base.get("temperature")
+            if kelvin is not None:
+                color = color * blackbody_rgb(kelvin)
             field_ = ambient if base["light_type"] == "dome" else diffuse
             field_[ctx.world, lid] = torch.tensor(level * np.clip(color, 0, 1), dtype=field_.dtype)
+            if "position" in params:
+                pos = ctx.engine.model_field("light_pos")
+                pos[ctx.world, lid] = torch.tensor(params["position"][i], dtype=pos.dtype)
+            if "rotation" in params:  # USD lights shine along their -z
+                direction = euler_xyz_deg_to_mat(params["rotation"][i]) @ np.array([0.0, 0.0, -1.0])
+                dir_ = ctx.engine.model_field("light_dir")
+                dir_[ctx.world, lid] = torch.tensor(direction, dtype=dir_.dtype)
 
 
 @dataclass(kw_only=True)

@@ -21,7 +21,7 @@ from ambulo.utils.rotations import mat_to_quat
 
 from .distribution import Choice, draw, is_random
 from .graph import SHAPES, Graph, Node, PrimDecl
-from .nodes import ColorNode, LightNode, PoseNode, ScatterNode, light_level
+from .nodes import ColorNode, LightNode, PoseNode, ScatterNode, blackbody_rgb, light_level
 from .shapes import cone_mesh, euler_xyz_deg_to_mat, geom_parts, geom_type
 
 CAMERA_CHILD = "Camera"
@@ -78,19 +78,28 @@ def _add_geoms(spec, body, prim: PrimDecl) -> None:
 
 def _add_light(spec, prim: PrimDecl) -> None:
     kind, level = prim.extra["light_type"], light_level(prim.extra["intensity"])
+    color = np.asarray(prim.extra["color"], float)
+    if prim.extra.get("temperature") is not None:
+        color = color * blackbody_rgb(prim.extra["temperature"])
     direction = euler_xyz_deg_to_mat(prim.rotation_deg) @ np.array([0.0, 0.0, -1.0])  # USD lights shine along -z
     if kind == "dome":
         add_light(spec, prim.path, kind="distant", intensity=0.0, ambient=level)
         light = spec.light(prim.path)
-        light.ambient = [level * c for c in prim.extra["color"]]
+        light.ambient = (level * color).tolist()
         if prim.extra.get("texture"):
             # the HDR's values x Replicator's nits, scaled so its default 1000 is Filament's default
             # environment intensity (30,000): the 30x that maps 1000 nits to the 0.7 sun of the rasterizer
             add_image_light(spec, prim.extra["texture"], name=f"{prim.path}/texture",
                             intensity=_IBL_PER_NIT * prim.extra["intensity"])
+    elif kind == "sphere":
+        # MuJoCo 4's OpenGL renderer leaves point lights dark; a spot light with a 180 deg cutoff
+        # and no falloff lights every direction, as a USD sphere light does
+        light = add_light(spec, prim.path, kind="spot", position=prim.position.tolist(),
+                          direction=direction.tolist(), intensity=level, color=tuple(color))
+        light.cutoff, light.exponent = 180.0, 0.0
     else:
         add_light(spec, prim.path, kind=kind, position=prim.position.tolist(), direction=direction.tolist(),
-                  intensity=level, color=prim.extra["color"])
+                  intensity=level, color=tuple(color))
 
 
 _IBL_PER_NIT = 30.0
@@ -146,7 +155,8 @@ def _randomizer(graph: Graph, node: Node, k: int, product, palette):
     if node.kind == "light":
         base = {t: graph.prim(t).extra for t in node.targets}
         return LightNode(name=name, every_n_frames=every, targets=node.targets, base=base,
-                         intensity=p.get("intensity"), color=p.get("color"))
+                         intensity=p.get("intensity"), color=p.get("color"), temperature=p.get("temperature"),
+                         position=p.get("position"), rotation=p.get("rotation"))
     if node.kind == "scatter_2d":
         return ScatterNode(name=name, every_n_frames=every, targets=node.targets, surfaces=p["surfaces"],
                            offset=p["offset"], check_for_collisions=p["check_for_collisions"])
