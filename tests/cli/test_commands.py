@@ -127,6 +127,19 @@ def test_an_unknown_option_is_refused_by_its_command_naming_the_near_one(capsys)
     assert "unrecognized arguments: --bogus-flag; see `ambulo plan --help`" in line and "mean" not in line
 
 
+def test_a_coordinate_list_starting_negative_is_a_value_not_an_option():
+    # argparse read `--start -4,-2` as an option "-4,-2" and failed with "expected one argument"
+    from ambulo.cli import _join_negative_values
+
+    parser = build_parser()
+    args = parser.parse_args(_join_negative_values(parser, ["plan", "--start", "-4,-2", "--goal", "-1.5e-1,2,-90"]))
+    assert (args.start, args.goal) == ("-4,-2", "-1.5e-1,2,-90")
+    # a flag takes no value, and `run` hands the rest to the script untouched
+    assert _join_negative_values(parser, ["eval", "x", "--shipped", "-3"])[-2:] == ["--shipped", "-3"]
+    run = ["run", "s.py", "--start", "-4,-2"]
+    assert _join_negative_values(parser, run) == run
+
+
 def test_python_dash_m_runs_the_cli():
     result = subprocess.run([sys.executable, "-m", "ambulo.cli", "generate", "--help"],
                             capture_output=True, text=True, env={**os.environ, "PYTHONPATH": SRC},

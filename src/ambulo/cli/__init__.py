@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import difflib
+import re
 import sys
 
 from ..utils.overrides import OverrideError, apply_overrides
@@ -50,9 +51,33 @@ def _unrecognized(parser: argparse.ArgumentParser, args: argparse.Namespace, ext
     command.error(f"unrecognized arguments: {' '.join(extra)}" + (f" ({'; '.join(guesses)})" if guesses else ""))
 
 
+_NEGATIVE_VALUES = re.compile(r"^-\d*\.?\d+(e-?\d+)?(,-?\d*\.?\d+(e-?\d+)?)*$")
+"""``-4,-2.5`` or ``-1e-3``: a value, not an option, though it starts with '-'."""
+
+
+def _join_negative_values(parser: argparse.ArgumentParser, argv: list[str]) -> list[str]:
+    """``--start -4,-2`` -> ``--start=-4,-2``: argparse reads a token starting with '-' that is not a
+    plain number as an option, so a coordinate list with a negative first value failed with
+    "expected one argument". Only after an option of the command that takes a value; a command
+    that passes the rest on (``run``'s script arguments) is left alone."""
+    name = next((t for t in argv if t in parser.commands), None)
+    command = parser.commands.get(name)
+    if command is None or any(a.nargs == argparse.REMAINDER for a in command._actions):
+        return argv
+    takes_value = {o for a in command._actions for o in a.option_strings if a.nargs != 0}
+    out: list[str] = []
+    for token in argv:
+        if out and out[-1] in takes_value and _NEGATIVE_VALUES.match(token):
+            out[-1] = f"{out[-1]}={token}"
+        else:
+            out.append(token)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run ``ambulo`` with ``argv`` (default ``sys.argv[1:]``); return the exit status."""
     parser = build_parser()
+    argv = _join_negative_values(parser, list(sys.argv[1:] if argv is None else argv))
     args, extra = parser.parse_known_args(argv)
     if extra:
         _unrecognized(parser, args, extra)
