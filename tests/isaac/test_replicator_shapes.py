@@ -125,3 +125,20 @@ def test_a_torus_refuses_a_non_uniform_scale(tmp_path):
                  "t = rep.create.torus()\nwith t:\n    rep.modify.pose(scale=rep.distribution.uniform((1, 1, 1), (2, 2, 2)))\n"):
         with pytest.raises(ValueError, match="torus takes one scale"):
             run_script(write_script(tmp_path, line))
+
+
+@pytest.mark.parametrize("where", ["inside", "outside"])
+def test_a_shape_created_in_a_trigger_draws_its_pose_every_frame(tmp_path, where):
+    create = "rep.create.torus(semantics=[('class', 'torus')], position=rep.distribution.uniform((-1, -1, 0), (1, 1, 0)))"
+    body = ("rp = rep.create.render_product(cam, (16, 16))\n"
+            + (f"{create}\n" if where == "outside" else "")
+            + "with rep.trigger.on_frame(num_frames=3):\n"
+            + (f"    {create}\n" if where == "inside" else "    pass\n")
+            + "w = rep.WriterRegistry.get('BasicWriter')\n"
+            "import sys\nw.initialize(output_dir=sys.argv[1], bounding_box_3d=True)\nw.attach([rp])\n"
+            "rep.orchestrator.run()\n")
+    run_script(write_script(tmp_path, body), [str(tmp_path / "out")])
+    centres = np.array([rows(tmp_path / "out", "bounding_box_3d", i)[TORUS]["transform"][3, :3] for i in range(3)])
+    assert (np.abs(centres[:, :2]) <= 1).all() and np.allclose(centres[:, 2], 0)
+    spread = np.ptp(centres[:, :2], axis=0).max()
+    assert spread > 0.05 if where == "inside" else spread == 0  # created once, drawn every frame / once per run
