@@ -17,7 +17,7 @@ plane         1 x 1, 1 mm thick, top face at its position    box
 
 ``shapes.py`` says why a cone's size is fixed when the scene compiles and how a torus scales per
 frame. A creation argument given a distribution is drawn once per run (Replicator evaluates
-create nodes once).
+create nodes once); for a shape or light created inside a trigger, every frame.
 """
 
 from __future__ import annotations
@@ -114,7 +114,8 @@ def check_scale(kind: str, scale, where: str) -> None:
                           f"a {kind} is a mesh, whose size MuJoCo fixes when the scene compiles: "
                           f"give rep.create.{kind}(scale=(x, y, z)) with numbers")
     if kind in UNIFORM_SCALE and not is_uniform(scale):
-        raise ValueError(f"rep.{where}.{'pose' if where == 'modify' else kind}: a {kind} takes one scale for all axes (its tube is round), got {scale!r}")
+        call = "modify.pose" if where == "modify" else f"create.{kind}"
+        raise ValueError(f"rep.{call}: a {kind} takes one scale for all axes (its tube is round), got {scale!r}")
 
 
 def is_uniform(scale) -> bool:
@@ -217,7 +218,7 @@ def _look_at(target):
 def light(light_type: str = "distant", color=(1.0, 1.0, 1.0), intensity=1000.0, position=None,
           rotation=None, scale=None, count: int = 1, name: str | None = None, texture: str | None = None,
           temperature=None, **unsupported_args) -> Item:
-    """A light: "distant" (aimed along -z turned by ``rotation``), "sphere" (a point light) or "dome"
+    """A light: "distant" (aimed along -z turned by ``rotation``), "sphere" (a point light: ``scene.py``) or "dome"
     (uniform ambient light; with ``texture``, an HDR environment: image-based lighting in the pbr
     camera tier, ``ambulo.render.ibl``, and its ambient level in the rasterizer).
 
