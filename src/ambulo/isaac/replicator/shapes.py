@@ -7,7 +7,8 @@ no torus or cone geom, so:
 - a torus (Kit's: tube radius 25 cm around a 50 cm ring, axis along z: 1.5 m across, 0.5 m tall)
   is a ring of ``TORUS_SEGMENTS`` capsules whose axes are the chords between Kit's 32 ring
   vertices, so its extent along x, y and z is the torus's exactly and its surface lies within
-  ``R (1 - cos(pi/32))`` = 2.4 mm (at scale 1) of the smooth torus. Capsules are primitives, so a
+  ``R (1 - cos(pi/32))`` = 2.4 mm (at scale 1) of the smooth torus; the normals annotator's
+  (the capsules' exact normals) are within 11.2 deg of the smooth torus's. Capsules are primitives, so a
   uniform scale per frame rewrites their sizes and positions (``geom_size``/``geom_pos``, both
   per world on the CPU and mujoco_warp engines); a non-uniform scale would make the tube
   elliptical, which capsules cannot be, and is refused.
