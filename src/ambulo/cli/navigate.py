@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 import time
 from pathlib import Path
 
@@ -164,6 +165,11 @@ def _run_one(args: argparse.Namespace) -> int:
         except CliError:
             world.close()
             raise
+        textured, visible = world.textured_geoms()
+        if mode == "full" and textured == 0:
+            print(f"warning: none of the {visible} surfaces of {Path(args.world).name} has a texture: full mode's "
+                  "visual odometry tracks image features and will lose its pose on plain colours; give the walls "
+                  "and floor textured materials, or use --mode mapping (true pose)", file=sys.stderr)
         # no exact geodesic for a user's world: the navigator's route on its true map (cell path)
         route = RoutePlanner(PlanningCfg(inflation_gain=0.0)).route(world.occupancy, 0, start[:2], goal)
         geodesic_m = route.length_m if route.found else math.inf

@@ -272,6 +272,19 @@ class NavWorld:
         base[:3, 3] = [x, y, 0.0]
         return np.linalg.inv(self.camera_pose_wc()) @ base
 
+    def textured_geoms(self) -> tuple[int, int]:
+        """(textured, all) visible geoms of the world around the robot: full mode's visual odometry
+        tracks image features, which plain-coloured surfaces do not have (a user's MJCF room of
+        rgba-only boxes loses its pose; the same room with textures arrives)."""
+        model = self.model
+        visible = ~self._robot_geom & (model.geom_rgba[:, 3] > 0)
+        matid = model.geom_matid
+        has_texture = np.zeros(model.ngeom, bool)
+        if model.nmat:
+            mat_textured = (model.mat_texid >= 0).any(axis=1)
+            has_texture[matid >= 0] = mat_textured[matid[matid >= 0]]
+        return int((visible & has_texture).sum()), int(visible.sum())
+
     def close(self) -> None:
         self.camera.close()
 
