@@ -81,6 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     args, extra = parser.parse_known_args(argv)
     if extra:
         _unrecognized(parser, args, extra)
+    args.argv = argv  # what a command that re-launches itself passes on (`train --num-gpus`)
     if args.debug:
         return int(args.func(args) or 0)
     try:

@@ -276,6 +276,8 @@ def train(args: argparse.Namespace) -> int:
     if args.stop_at_criterion and not args.eval_every:
         raise CliError("--stop-at-criterion needs --eval-every", "add e.g. --eval-every 50")
     watch = web_watch(args)
+    if args.num_gpus is not None and os.environ.get("LOCAL_RANK") is None:
+        return _train_on_gpus(args, watch)
 
     from ambulo.rl import TrainingInterrupted
     from ambulo.rl import train as run_train
@@ -293,6 +295,28 @@ def train(args: argparse.Namespace) -> int:
         print(f"ambulo train: {stopped}", file=sys.stderr)
         return stopped.exit_status
     return 0
+
+
+def _train_on_gpus(args: argparse.Namespace, watch: Callable | None) -> int:
+    """``ambulo train TASK --num-gpus N``: this command as N torchrun ranks (``rl.launch``)."""
+    from ambulo.rl.eval_gpus import check_num_gpus
+    from ambulo.rl.launch import launch_ranks, without_option
+
+    if watch is not None:
+        raise CliError("--viewer watches one process's training", "drop --viewer or --num-gpus")
+    device = args.device or "cuda"
+    try:
+        check_num_gpus(args.num_gpus, device)
+    except ValueError as err:
+        raise CliError(str(err).replace("evaluates", "trains")) from None
+    if args.num_gpus == 1:
+        args.num_gpus = None
+        args.device = device
+        return train(args)
+    argv = without_option(list(args.argv), "--num-gpus")
+    if args.device is None:
+        argv += ["--device", device]
+    return launch_ranks(argv, args.num_gpus)
 
 
 def play(args: argparse.Namespace) -> int:
@@ -428,6 +452,9 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--stop-at-criterion", action="store_true",
                    help="with --eval-every: end training at the first evaluation that meets them "
                         "(on a GPU: that also meets them on the CPU engine, evaluated then)")
+    p.add_argument("--num-gpus", type=whole_above_zero("--num-gpus 2"), default=None, metavar="N",
+                   help="train on GPUs 0..N-1 as N data-parallel ranks (torchrun's, started for you; "
+                        "--num-envs per GPU)")
     add_viewer_args(p)  # one env of the batch, with the training curves beside it
     p.set_defaults(func=train)
 
