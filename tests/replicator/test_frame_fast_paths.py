@@ -1,8 +1,8 @@
 """This round's per-frame shortcuts give exactly what the steps they replaced gave.
 
-The render state from the position stages alone, instance and semantic maps straight from the id pass, big-endian uint16 images straight to
-PNG: each is checked against the computation it replaced, on the example scene and on numbers
-chosen to hit the edges (32-bit words, absent ids).
+The render state from the position stages alone, instance and semantic maps straight from the id
+pass, big-endian uint16 images straight to PNG: each is checked against the computation it replaced,
+on the example scene and on numbers chosen to hit the edges (absent ids, more than 256 geoms).
 """
 
 import dataclasses
