@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from ambulo.isaac import IsaacNameError, run_script
+from basic_writer_files import load, project
 
 ISAAC_EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "isaac"
 BASICS = ISAAC_EXAMPLES / "replicator_basics.py"
@@ -30,19 +31,8 @@ def basics(tmp_path_factory):
     return run_basics(tmp_path_factory.mktemp("basics"), seed=7)
 
 
-def load(out: Path, stem: str, frame: int, ext: str):
-    path = out / f"{stem}_{frame:04d}.{ext}"
-    return np.load(path) if ext == "npy" else json.loads(path.read_text())
 
 
-def project(points_w: np.ndarray, params: dict) -> np.ndarray:
-    """Pixel (u, v) of world points through Replicator's row-vector view and projection matrices."""
-    view = np.reshape(params["cameraViewTransform"], (4, 4))
-    proj = np.reshape(params["cameraProjection"], (4, 4))
-    clip = np.c_[points_w, np.ones(len(points_w))] @ view @ proj
-    ndc = clip[:, :3] / clip[:, 3:]
-    width, height = params["renderProductResolution"]
-    return np.c_[(ndc[:, 0] + 1) / 2 * width - 0.5, (1 - ndc[:, 1]) / 2 * height - 0.5]
 
 
 def test_frames_are_written_in_basicwriter_layout(basics):

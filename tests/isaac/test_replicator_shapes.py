@@ -1,7 +1,6 @@
 """Replicator's torus and cone: silhouettes, boxes and masks that match their geometry, per-frame
 torus scale, and one-line refusals where MuJoCo cannot follow (examples/isaac/replicator_shapes.py)."""
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -9,6 +8,7 @@ import pytest
 from scipy.spatial import ConvexHull
 
 from ambulo.isaac import IsaacNameError, run_script
+from basic_writer_files import load, project
 
 SHAPES = Path(__file__).resolve().parents[2] / "examples" / "isaac" / "replicator_shapes.py"
 FRAMES, SIZE = 3, (240, 180)
@@ -22,23 +22,12 @@ def shapes(tmp_path_factory):
     return out
 
 
-def load(out: Path, stem: str, frame: int, ext: str):
-    path = out / f"{stem}_{frame:04d}.{ext}"
-    return np.load(path, allow_pickle=True) if ext == "npy" else json.loads(path.read_text())
 
 
 def rows(out: Path, stem: str, frame: int) -> dict:
     return dict(zip(load(out, f"{stem}_prim_paths", frame, "json"), load(out, stem, frame, "npy")))
 
 
-def project(points_w: np.ndarray, params: dict) -> np.ndarray:
-    """Pixel (u, v) (pixel centres at integers) of world points (P, 3) through the camera params."""
-    view = np.reshape(params["cameraViewTransform"], (4, 4))
-    proj = np.reshape(params["cameraProjection"], (4, 4))
-    clip = np.c_[points_w, np.ones(len(points_w))] @ view @ proj
-    ndc = clip[:, :3] / clip[:, 3:]
-    width, height = params["renderProductResolution"]
-    return np.c_[(ndc[:, 0] + 1) / 2 * width - 0.5, (1 - ndc[:, 1]) / 2 * height - 0.5]
 
 
 def to_world(points_local: np.ndarray, transform: np.ndarray) -> np.ndarray:
