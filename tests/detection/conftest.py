@@ -1,8 +1,37 @@
+"""Shared set-up of the detection tests: datasets, a small trained detector, and torch's intra-op
+pool at one thread in this process.
+
+One thread: the tests train small detectors (64x64 frames, batches of 4-8) whose ops are too small
+to split; with torch's default two threads on a 2-core machine that other jobs keep busy, each op
+waits for a descheduled worker (as in tests/rl/conftest.py). Measured at load ~3-4: the rgbd
+training test 33-55 s with 2 threads, 8-10 s with 1; the same training steps and checks. Tests that
+launch ``ambulo`` in a subprocess keep that process's own default."""
+
+import contextlib
 import dataclasses
 
 import pytest
+import torch
 
 from ambulo import replicator as rep
+
+
+@contextlib.contextmanager
+def one_torch_thread():
+    """torch's intra-op pool at 1 thread inside, restored after."""
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
+
+
+@pytest.fixture(autouse=True, scope="package")
+def _one_torch_thread():
+    # package scope: set up after the session fixtures below, which pin the thread themselves
+    with one_torch_thread():
+        yield
 
 
 @pytest.fixture(scope="session")
@@ -11,7 +40,8 @@ def tiny_dataset(tmp_path_factory):
     config = rep.example_config()
     config = dataclasses.replace(config, camera=dataclasses.replace(config.camera, width=160, height=120))
     out = tmp_path_factory.mktemp("detection_data")
-    rep.generate(config, out, num_frames=8, seed=3, workers=1, show_progress=False)
+    with one_torch_thread():
+        rep.generate(config, out, num_frames=8, seed=3, workers=1, show_progress=False)
     return out
 
 
@@ -24,7 +54,8 @@ def trained_shapes(tmp_path_factory):
     run = tmp_path_factory.mktemp("shapes_run")
     cfg = TrainCfg(epochs=40, batch_size=4, learning_rate=5e-3, warmup_steps=0, num_workers=0, eval_every_epochs=0,
                    held_out_fraction=0.0, augment=no_augment())
-    train(root, run, cfg, show_progress=False)
+    with one_torch_thread():  # a session fixture: set up before the package's one-thread fixture
+        train(root, run, cfg, show_progress=False)
     return root, run / "checkpoint.pt"
 
 
