@@ -29,10 +29,40 @@ def _error_line(capsys, argv) -> str:
     return err
 
 
-def test_a_short_oracle_episode_arrives_and_writes_its_json_and_map(tmp_path):
-    out = tmp_path / "ep"
-    assert main(["navigate", "apartment", "--seed", str(SEED), "--start", START, "--goal", GOAL,
-                 "--out", str(out)]) == 0
+@pytest.fixture(scope="module")
+def web_episode(tmp_path_factory):
+    """(out folder, served viewer) of one short oracle episode watched with ``--viewer web``: the two
+    tests below read the same run (each ran it before: 16 s + 19 s). The viewer only observes (an
+    observer of the navigator), so the episode's json and map are what a run without it writes."""
+    import socket
+
+    import ambulo.viewer as viewer_pkg
+
+    served = []
+    real_serve = viewer_pkg.serve
+
+    def serve(world, port, **kw):
+        served.append(real_serve(world, port, announce=False, **kw))
+        # as fast as it runs: held to real time (the page's default) the 3.2 m walk took 15 s more; what
+        # is checked is what reaches the page, not the pacing (tests/viewer cover that)
+        served[-1].set_speed(None)
+        return served[-1]
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    out = tmp_path_factory.mktemp("navigate") / "ep"
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        monkeypatch.setattr(viewer_pkg, "serve", serve)
+        code = main(["navigate", "apartment", "--seed", str(SEED), "--start", START, "--goal", GOAL,
+                     "--out", str(out), "--viewer", "web", "--viewer-port", str(port)])
+    assert code == 0
+    (viewer,) = served
+    return out, viewer
+
+
+def test_a_short_oracle_episode_arrives_and_writes_its_json_and_map(web_episode):
+    out, _ = web_episode
     data = json.loads((out / "episode.json").read_text())
     assert data["success"] and data["status"] == "arrived" and not data["fell"]
     assert data["distance_to_goal_m"] <= 0.3
@@ -136,29 +166,9 @@ def test_a_users_mjcf_world(tmp_path, capsys):
     assert data["world"] == str(world) and "not exact" in data["extras"]["geodesic"]
 
 
-def test_viewer_web_gets_the_navigators_map_plan_footsteps_and_path(tmp_path, monkeypatch):
+def test_viewer_web_gets_the_navigators_map_plan_footsteps_and_path(web_episode):
     """``--viewer web`` feeds the page what the navigator sees: its map, route, footsteps and walk."""
-    import socket
-
-    import ambulo.viewer as viewer_pkg
-
-    served = []
-
-    def serve(world, port, **kw):
-        served.append(real_serve(world, port, announce=False, **kw))
-        # as fast as it runs: held to real time (the page's default) the 3.2 m walk took 15 s more; what
-        # is checked is what reaches the page, not the pacing (tests/viewer cover that)
-        served[-1].set_speed(None)
-        return served[-1]
-
-    real_serve = viewer_pkg.serve
-    monkeypatch.setattr(viewer_pkg, "serve", serve)
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    assert main(["navigate", "apartment", "--seed", str(SEED), "--start", START, "--goal", GOAL,
-                 "--out", str(tmp_path / "ep"), "--viewer", "web", "--viewer-port", str(port)]) == 0
-    (viewer,) = served
+    _, viewer = web_episode
     assert {"map", "plan", "footsteps", "path"} <= set(viewer.feed.layers())
     walked = viewer.feed.get("path")
     goal = np.array([float(v) for v in GOAL.split(",")])
