@@ -82,6 +82,17 @@ def single_process_view() -> Iterator[None]:
             os.environ["WORLD_SIZE"] = saved
 
 
+def leave_group() -> None:
+    """Close the process group once every rank has finished training (a barrier, then
+    ``destroy_process_group``). Left to interpreter exit, a rank whose peer had already gone tore down
+    gloo's pairs in a destructor and aborted ("terminate called without an active exception", exit
+    -6, a 2-rank CPU run of 2 iterations in CI), failing a run that had finished. Call it only where
+    every rank arrives: after a run that did not raise."""
+    if torch.distributed.is_available() and torch.distributed.is_initialized():
+        torch.distributed.barrier()
+        torch.distributed.destroy_process_group()
+
+
 def agree(flag: bool, rank: Rank, device: str) -> bool:
     """Rank 0's ``flag`` on every rank (a broadcast; every rank must call it at the same point)."""
     if not rank.distributed:
@@ -91,4 +102,5 @@ def agree(flag: bool, rank: Rank, device: str) -> bool:
     return bool(value.item())
 
 
-__all__ = ["Rank", "agree", "cpu_group_cfg", "current", "init_cpu_group", "rank_device", "single_process_view"]
+__all__ = ["Rank", "agree", "cpu_group_cfg", "current", "init_cpu_group", "leave_group", "rank_device",
+           "single_process_view"]

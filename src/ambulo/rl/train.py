@@ -271,6 +271,7 @@ def train(task: str | None = None, *, num_envs: int | None = None,
         pass
     finally:
         end_training(progress, watcher, env, periodic)
+    distributed.leave_group()  # every rank gets here together: stop, criterion or the last iteration
     if periodic is not None and rank.is_main:
         _report_time_to_criterion(periodic)
     if not rank.is_main:
