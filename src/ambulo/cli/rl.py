@@ -416,9 +416,10 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
                        "readable)")
 
     p = subparsers.add_parser(
-        "train", help="train a task with PPO (rsl-rl-lib)",
-        description="Train a task with PPO (rsl-rl-lib); checkpoints and TensorBoard logs go to "
-                    "<log-root>/<task>/<time>/. --env-cfg and --ppo-cfg values are read as the "
+        "train", help="train a task with PPO (rsl-rl-lib) or fast-sac / fast-td3, on N GPUs with --num-gpus",
+        description="Train a task with PPO (rsl-rl-lib), or the parallel off-policy fast-sac / fast-td3 "
+                    "(--algo); --num-gpus N trains data-parallel on N GPUs. Checkpoints and TensorBoard logs "
+                    "go to <log-root>/<task>/<time>/. --env-cfg, --ppo-cfg and --algo-cfg values are read as the "
                     "field's type: 10, 0.5, true, cuda:0, 0.1,0.2 or (0.1, 0.2) for tuples, "
                     "{'alive': 1.0} for dicts, none; dotted keys reach nested fields "
                     "(physics.solver_iterations=50) and dict entries (reward_weights.alive=2).",
