@@ -15,12 +15,13 @@ def test_without_option_drops_the_option_and_its_value_in_both_spellings():
 
 def test_the_cli_hands_the_command_less_the_flag_to_the_ranks(monkeypatch, capsys):
     seen = {}
-    monkeypatch.setattr("ambulo.rl.eval_gpus.check_num_gpus", lambda n, device: seen.update(checked=(n, device)))
+    monkeypatch.setattr("ambulo.rl.eval_gpus.check_num_gpus",
+                        lambda n, device, what: seen.update(checked=(n, device, what)))
     monkeypatch.setattr(launch, "launch_ranks", lambda argv, n: seen.update(argv=argv, n=n) or 0)
     monkeypatch.delenv("LOCAL_RANK", raising=False)
     assert main(["train", "cartpole", "--num-gpus", "2", "--max-iterations", "3"]) == 0
     # no --device given: --num-gpus means the GPUs, and every rank is told so
-    assert seen == {"checked": (2, "cuda"), "n": 2,
+    assert seen == {"checked": (2, "cuda", "trains"), "n": 2,
                     "argv": ["train", "cartpole", "--max-iterations", "3", "--device", "cuda"]}
 
 

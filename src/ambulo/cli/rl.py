@@ -306,9 +306,9 @@ def _train_on_gpus(args: argparse.Namespace, watch: Callable | None) -> int:
         raise CliError("--viewer watches one process's training", "drop --viewer or --num-gpus")
     device = args.device or "cuda"
     try:
-        check_num_gpus(args.num_gpus, device)
+        check_num_gpus(args.num_gpus, device, what="trains")
     except ValueError as err:
-        raise CliError(str(err).replace("evaluates", "trains")) from None
+        raise CliError(str(err)) from None
     if args.num_gpus == 1:
         args.num_gpus = None
         args.device = device

@@ -21,12 +21,13 @@ import torch
 from .distributed import Rank
 
 
-def check_num_gpus(num_gpus: int, device: str) -> None:
-    """ValueError in one line unless ``num_gpus`` processes can each have one GPU of ``device``."""
+def check_num_gpus(num_gpus: int, device: str, what: str = "evaluates") -> None:
+    """ValueError in one line unless ``num_gpus`` processes can each have one GPU of ``device``;
+    ``what`` the command does with them, for the message ("evaluates", "trains")."""
     if num_gpus < 1:
         raise ValueError(f"--num-gpus {num_gpus}: give 1 or more")
     if not device.startswith("cuda"):
-        raise ValueError(f"--num-gpus evaluates on GPUs, but the device is {device!r}: add --device cuda")
+        raise ValueError(f"--num-gpus {what} on GPUs, but the device is {device!r}: add --device cuda")
     if device not in ("cuda", "cuda:0"):
         raise ValueError(f"--num-gpus uses GPUs 0..N-1, one per process: give --device cuda, not {device!r}")
     visible = torch.cuda.device_count()
