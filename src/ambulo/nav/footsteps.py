@@ -288,9 +288,7 @@ class FootstepPlanner:
     def _blocked_detail(self, what: str, feet_xyyaw: np.ndarray, plural: bool = False) -> str:
         """Why a stance (``feet_xyyaw`` (2, 3), world) is blocked, in words: off the map (a goal
         typed in the wrong frame or units) reads differently from touching an obstacle."""
-        (ox, oy), r = self.grid.origin_xy_m, self.grid.resolution_m
-        num_y, num_x = self.grid.occupied.shape
-        x0, x1, y0, y1 = ox, ox + num_x * r, oy, oy + num_y * r
+        x0, y0, x1, y1 = self.grid.extent_xy_m()
         x, y = feet_xyyaw[:, 0], feet_xyyaw[:, 1]
         if (x < x0).any() or (x >= x1).any() or (y < y0).any() or (y >= y1).any():
             return f"{what} {'lie' if plural else 'lies'} off the map, which spans x {x0:g}..{x1:g} m, y {y0:g}..{y1:g} m"
