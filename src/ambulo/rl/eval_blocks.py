@@ -99,15 +99,24 @@ def blocks_table(result: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def worst_block(result: dict[str, Any]) -> dict[str, Any] | None:
+    """The block of a blocked evaluation's ``result`` its criteria are nearest to failing in
+    (``judge_blocks``' ``worst_block``); None without blocks."""
+    if "blocks" not in result:
+        return None
+    return next(block for block in result["blocks"] if block["name"] == result.get("worst_block"))
+
+
 def worst_block_text(result: dict[str, Any]) -> str:
     """``worst NAME (fall rate x, metric y, ...), k of n blocks fail`` for a blocked result; ''
     without blocks (one line of the training console and ``evals.csv``)."""
-    if "blocks" not in result:
+    worst = worst_block(result)
+    if worst is None:
         return ""
-    worst = next(block for block in result["blocks"] if block["name"] == result.get("worst_block"))
     metrics = ", ".join(f"{k[len('mean_'):]} {worst[k]:.3f}" for k in worst if k.startswith("mean_abs"))
     return (f"worst block {worst['name']} (fall rate {worst['fall_rate']:.2f}, {metrics}), "
             f"{len(result['blocks_failed'])} of {len(result['blocks'])} blocks fail")
 
 
-__all__ = ["DEFAULT_EPISODES", "EvalLayout", "blocks_table", "eval_layout", "judge_blocks", "worst_block_text"]
+__all__ = ["DEFAULT_EPISODES", "EvalLayout", "blocks_table", "eval_layout", "judge_blocks", "worst_block",
+           "worst_block_text"]

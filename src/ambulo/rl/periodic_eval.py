@@ -53,7 +53,7 @@ from ambulo.utils.atomic import atomic_write_json, atomic_write_text
 
 from . import runs
 from .distributed import Rank
-from .eval_blocks import eval_layout, worst_block_text
+from .eval_blocks import eval_layout, worst_block, worst_block_text
 from .eval_share import eval_share, merge_over_ranks
 from .evaluate import eval_episode_length_s, run_episodes
 from .metrics import truncate_csv
@@ -215,8 +215,8 @@ class PeriodicEval:
             for key in ("fall_rate", "mean_episode_length_s", *_metrics(result)):
                 writer.add_scalar(f"eval/{key}", result[key], iteration)
             writer.add_scalar("eval/criteria_met", float(met), iteration)
-            if "blocks" in result:  # the block the criteria are nearest to failing in, whichever it is
-                worst = next(b for b in result["blocks"] if b["name"] == result.get("worst_block"))
+            worst = worst_block(result)  # the block the criteria are nearest to failing in, whichever it is
+            if worst is not None:
                 for key in ("fall_rate", *_metrics(worst)):
                     writer.add_scalar(f"eval/worst_block_{key}", worst[key], iteration)
             if cpu is not None:
@@ -290,9 +290,9 @@ def metrics_from_text(text: str) -> dict[str, float]:
 
 def _worst_block_cell(result: dict[str, Any]) -> str:
     """``evals.csv``'s ``worst_block`` cell of a blocked evaluation's ``result`` ('' without blocks)."""
-    if "blocks" not in result:
+    worst = worst_block(result)
+    if worst is None:
         return ""
-    worst = next(b for b in result["blocks"] if b["name"] == result.get("worst_block"))
     return (f"{worst['name'].replace(' ', '_')} fall_rate={worst['fall_rate']:.4f} {_metrics_text(worst)} "
             f"blocks_failed={len(result['blocks_failed'])}")
 
