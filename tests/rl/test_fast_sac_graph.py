@@ -240,8 +240,12 @@ def test_a_captured_sample_draws_the_eager_batch_as_the_ring_grows_and_wraps():
     assert ring.size == 16 and ring.ptr == 6
 
 
-def _run_updates(learner: FastOffPolicy, ring: ReplayRing, n: int, seed: int) -> torch.Generator:
-    gen = torch.Generator("cuda").manual_seed(seed)
+def _run_updates(learner: FastOffPolicy, ring: ReplayRing, n: int, seed: int,
+                 gen: torch.Generator | None = None) -> torch.Generator:
+    """``n`` updates drawing from ``gen`` (a new CUDA generator if None) seeded with ``seed``.
+    Passing the generator of an earlier call keeps a graphed learner's ``UpdateGraphs``: a new
+    generator object makes the learner build new graphs for it."""
+    gen = (torch.Generator("cuda") if gen is None else gen).manual_seed(seed)
     torch.cuda.manual_seed(seed + 1)  # the default generator: the actor's and the target's noise
     for _ in range(n):
         learner.update_from(ring, gen)
@@ -289,12 +293,15 @@ def test_resume_captures_again_and_continues_as_eager_updates_do():
     _run_updates(eager, ring, 4, 1)
     saved = eager.state()  # an eager run's checkpoint (capturable False) into a graph run
     graphed = _learner(_cfg(cuda_graph=True), "cuda", ring)
-    _run_updates(graphed, ring, 8, 2)
-    assert graphed.graphs.captures == 2
+    gen = _run_updates(graphed, ring, 8, 2)
+    graphs = graphed.graphs
+    assert graphs.captures == 2
     graphed.load_state(saved)
-    assert graphed.graphs.graphs == {} and all(g["capturable"] for g in graphed.critic_opt.param_groups)
-    _run_updates(graphed, ring, 8, 3)
-    assert graphed.graphs.captures == 4 and graphed.num_updates == 12
+    assert graphs.graphs == {} and all(g["capturable"] for g in graphed.critic_opt.param_groups)
+    # the same generator object: the learner keeps its UpdateGraphs, so only load_state's reset
+    # makes these calls warm up and capture again (a new generator would build new graphs anyway)
+    _run_updates(graphed, ring, 8, 3, gen)
+    assert graphed.graphs is graphs and graphs.captures == 4 and graphed.num_updates == 12
     _run_updates(eager, ring, 8, 3)
     a, b = _weights(eager), _weights(graphed)
     diffs = {k: float((a[k].float() - b[k].float()).abs().max()) for k in a}
