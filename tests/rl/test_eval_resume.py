@@ -3,6 +3,9 @@ checkpoint, and time_to_criterion.json is kept only if it predates it."""
 
 import csv
 import json
+import time
+
+import pytest
 
 from ambulo.rl import train
 from ambulo.rl.periodic_eval import EVAL_COLUMNS, TIME_FILE, resume_evals
@@ -62,3 +65,18 @@ def test_train_resume_with_eval_every_keeps_iterations_unique_and_increasing(tmp
     assert _iterations(run_dir / "metrics.csv") == [0, 1, 2, 3]
     timed = run_dir / TIME_FILE
     assert not timed.exists() or "stale" not in json.loads(timed.read_text())
+
+
+@pytest.mark.parametrize("algo", ["ppo", "fast-td3"])
+def test_a_resumed_run_counts_the_wall_time_of_its_earlier_segments(tmp_path, algo):
+    """A run stopped and resumed reports the time to a criterion of the whole run: the first
+    segment here is made to look 1,000 s long, so the resumed segment's evaluations must say so."""
+    short = {"ppo_overrides": {"save_interval": 100, "num_steps_per_env": 8}} if algo == "ppo" else {}
+    run_dir = train("cartpole", algo=algo, num_envs=16 if algo == "ppo" else 8, max_iterations=2,
+                    log_root=tmp_path, eval_every=1, started_s=time.monotonic() - 1000.0, **short)
+    train("cartpole", resume=run_dir, max_iterations=4, log_root=tmp_path, eval_every=1)
+    rows = list(csv.DictReader(open(run_dir / "evals.csv")))
+    assert [int(r["iteration"]) for r in rows] == [0, 1, 2, 3]
+    walls = [float(r["wall_s"]) for r in rows]
+    assert all(w >= 1000.0 for w in walls), walls
+    assert walls == sorted(walls), walls

@@ -42,6 +42,10 @@ class AmbuloRunner(OnPolicyRunner):
     env: RslRlVecEnv
     episodes: EpisodeStats | None = None
     """The main rank's episode statistics (set by ``train``)."""
+    started_s: float = 0.0
+    """``time.monotonic()`` the run's wall time counts from (set by ``train``); checkpoints keep
+    the time elapsed, and a resume moves this back by it, so evaluations and the time to a
+    criterion count every segment of a run that was stopped and resumed."""
 
     def __init__(self, env: RslRlVecEnv, train_cfg: dict, log_dir: str | None = None, device: str = "cpu"):
         super().__init__(env, train_cfg, log_dir=log_dir, device=device)
@@ -65,6 +69,7 @@ class AmbuloRunner(OnPolicyRunner):
             "torch_rng": torch.get_rng_state(),
             "episode_returns": self.episodes.returns() if self.episodes is not None else [],
             "episode_lengths": self.episodes.lengths() if self.episodes is not None else [],
+            "wall_s": time.monotonic() - self.started_s,
         }
         runs.atomic_torch_save(saved, Path(path))
         self.logger.save_model(path, self.current_learning_iteration)
@@ -78,6 +83,7 @@ class AmbuloRunner(OnPolicyRunner):
             torch.set_rng_state(infos["torch_rng"].cpu())
         if self.episodes is not None:
             self.episodes.restore(infos.get("episode_returns", []), infos.get("episode_lengths", []))
+        self.started_s -= float(infos.get("wall_s", 0.0))  # older checkpoints lack it: this segment only
         self.current_learning_iteration += 1  # the checkpoint's iteration is complete
         return self.current_learning_iteration
 
@@ -232,9 +238,11 @@ def train(task: str | None = None, *, num_envs: int | None = None,
     with contextlib.redirect_stdout(io.StringIO()) if not verbose else contextlib.nullcontext():
         runner = _make_runner(env, ppo, run_dir, rank, episodes, progress_box)
     runner.add_git_repo_to_log(ambulo.__file__)
+    runner.started_s = started_s
     start = 0
     if resume:
         start = runner.load_for_resume(checkpoint)
+        started_s = runner.started_s  # the earlier segments' wall time included
         print(f"resuming {run_dir} from {checkpoint.name} at iteration {start}")
     elif rank.is_main:
         ranks = f" x {rank.world_size} ranks" if rank.distributed else ""

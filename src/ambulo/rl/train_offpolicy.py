@@ -78,9 +78,11 @@ def train_offpolicy(task: str | None, *, algo: str, num_envs: int | None = None,
     progress_box: list[TrainingProgress] = []
     runner = OffPolicyRunner(env, cfg, episodes=episodes, writer=writer, seed=info["seed"], run_dir=run_dir,
                              on_iteration=lambda *args: progress_box[0].iteration_done(*args))
+    runner.started_s = started_s
     start = 0
     if resume_point is not None:
         start = runner.load_for_resume(checkpoint)
+        started_s = runner.started_s  # the earlier segments' wall time included
         print(f"resuming {run_dir} from {checkpoint.name} at iteration {start} (the replay ring refills)")
     else:
         print(f"training {info['task']} with {cfg.algo}, {cfg.num_envs} envs -> {run_dir}")

@@ -112,6 +112,9 @@ class OffPolicyRunner:
         critic_obs = env.num_privileged_obs or env.num_obs
         self.alg = FastOffPolicy(cfg, env.num_obs, critic_obs, env.num_actions, env.device)
         self.current_learning_iteration = 0
+        self.started_s = time.monotonic()
+        """``time.monotonic()`` the run's wall time counts from (``train_offpolicy`` sets it; a
+        resume moves it back by the checkpoint's elapsed time)."""
         self._action_std = 0.0
         self.env_steps = 0
         """Env steps per world collected by this process (host counter)."""
@@ -224,7 +227,8 @@ class OffPolicyRunner:
                  "infos": {**(infos or {}), "env_rng": self.raw_env.generator.get_state(),
                            "torch_rng": torch.get_rng_state(), "sampling_rng": self.generator.get_state(),
                            "episode_returns": self.episodes.returns() if self.episodes is not None else [],
-                           "episode_lengths": self.episodes.lengths() if self.episodes is not None else []}}
+                           "episode_lengths": self.episodes.lengths() if self.episodes is not None else [],
+                           "wall_s": time.monotonic() - self.started_s}}
         atomic_torch_save(saved, Path(path))
 
     def load(self, path: str | Path, *, optimizers: bool = True) -> dict:
@@ -244,6 +248,7 @@ class OffPolicyRunner:
         self.generator.set_state(infos["sampling_rng"].cpu())
         if self.episodes is not None:
             self.episodes.restore(infos.get("episode_returns", []), infos.get("episode_lengths", []))
+        self.started_s -= float(infos.get("wall_s", 0.0))  # the earlier segments' wall time (PPO's runner does too)
         self.current_learning_iteration += 1
         return self.current_learning_iteration
 
