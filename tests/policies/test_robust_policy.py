@@ -6,9 +6,8 @@ humanoid-walk policy tracks 0.30-0.35 m/s off) as it does at nominal."""
 import json
 import sys
 
-from script_loader import ROOT, load_script
-
 from ambulo.policies import policy_dir
+from script_loader import ROOT, load_script
 
 bench = load_script(ROOT / "benchmarks" / "robustness.py")
 HARDEST = ("gains0.8_lat20ms_com-3-3+3cm", "gains0.8_lat20ms_com+3+3+3cm")
