@@ -15,20 +15,20 @@ from ambulo.sim import HumanoidWalkingPolicy, Robot, World, add_reference_to_sta
 pytest.importorskip("onnxruntime")
 
 
-def humanoid_with_policy(physics_dt: float = 0.005):
-    """A World with the bundled humanoid on a ground plane and the shipped policy's runner."""
+def humanoid_with_policy(physics_dt: float = 0.005, task: str = "humanoid-walk"):
+    """A World with the bundled humanoid on a ground plane and ``task``'s shipped policy's runner."""
     world = World(physics_dt=physics_dt, rendering_dt=0.02)
     world.scene.add_default_ground_plane()
     add_reference_to_stage(usd_path=assets.path("humanoid"), prim_path="/World/Humanoid")
     robot = world.scene.add(Robot(prim_path="/World/Humanoid", name="humanoid"))
     world.reset()
-    walker = HumanoidWalkingPolicy(robot)
+    walker = HumanoidWalkingPolicy(robot, task=task)
     walker.initialize()
     return world, robot, walker
 
 
-def walk(command, seconds: float, physics_dt: float = 0.005):
-    world, robot, walker = humanoid_with_policy(physics_dt)
+def walk(command, seconds: float, physics_dt: float = 0.005, task: str = "humanoid-walk"):
+    world, robot, walker = humanoid_with_policy(physics_dt, task)
     world.add_physics_callback("walk", lambda dt: walker.forward(dt, command))
     start = robot.get_world_pose()[0].copy()
     lowest = math.inf
@@ -38,8 +38,9 @@ def walk(command, seconds: float, physics_dt: float = 0.005):
     return robot.get_world_pose()[0] - start, walker.heading_rad, lowest
 
 
-def test_forward_command_walks_forward_without_falling():
-    moved, heading, lowest = walk((0.5, 0.0, 0.0), 4.0)
+@pytest.mark.parametrize("task", ["humanoid-walk", "humanoid-walk-robust"])  # the same observations and joints
+def test_forward_command_walks_forward_without_falling(task):
+    moved, heading, lowest = walk((0.5, 0.0, 0.0), 4.0, task=task)
     # 0.5 m/s for 4 s less the first step or two: the shipped policy tracks within ~0.1 m/s
     assert 1.6 < moved[0] < 2.2
     assert abs(moved[1]) < 0.4 and abs(heading) < 0.3
