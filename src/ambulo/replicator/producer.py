@@ -18,7 +18,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from ambulo.core import Simulation
-from ambulo.sensors import Camera
+from ambulo.sensors import Camera, box_kernel
 from ambulo.sensors.camera import tight_box_output
 
 from . import io
@@ -74,6 +74,8 @@ class FrameProducer:
         # the compiled passes (``mask_kernel``, ``io``'s PNG rows) loaded now, not in the first frame
         if self._boxes_from_runs:
             warm_up()
+        if {"bounding_box_2d_loose", "bounding_box_3d", "visible_fraction"} & set(wanted):
+            box_kernel.warm_up()
         io.warm_up()
 
     @property

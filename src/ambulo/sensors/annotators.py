@@ -18,6 +18,8 @@ import numpy as np
 
 from ambulo.core.semantics import semantic_labels
 
+from . import box_kernel
+
 # Corners of the unit cube [-1, 1]^3 and its 12 edges as corner index pairs.
 _CUBE = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], np.float64)
 _EDGES = np.array([(a, b) for a in range(8) for b in range(a + 1, 8)
@@ -167,8 +169,11 @@ def instance_boxes_3d(table: InstanceTable, model: mujoco.MjModel, body_pos_w: n
     starts, ids, bodies = table.instance_groups
     corners = geom_corners_w(geoms, model, geom_pos_w, geom_rot_w) if corners_w is None else corners_w  # (G, 8, 3)
     local = np.einsum("gcj,gji->gci", corners - body_pos_w[bodies][:, None], body_rot_w[bodies])
-    lo = np.minimum.reduceat(local.min(1), starts)
-    hi = np.maximum.reduceat(local.max(1), starts)
+    if box_kernel.HAVE_NUMBA:  # the same minima and maxima in one compiled loop
+        lo, hi = box_kernel.extents_of_corners(local, starts)
+    else:
+        lo = np.minimum.reduceat(local.min(1), starts)
+        hi = np.maximum.reduceat(local.max(1), starts)
     idx = ids - 1
     b = table.body_ids[idx]
     center_w[idx] = body_pos_w[b] + np.einsum("kij,kj->ki", body_rot_w[b], (lo + hi) / 2)
@@ -215,6 +220,18 @@ def loose_box_array(table: InstanceTable, model: mujoco.MjModel, geom_pos_w: np.
     geoms, _ = table.instance_geoms
     corners = geom_corners_w(geoms, model, geom_pos_w, geom_rot_w) if corners_w is None else corners_w
     corners_c = corners @ extrinsics_cw[:3, :3].T + extrinsics_cw[:3, 3]
+    if box_kernel.HAVE_NUMBA:  # the steps below in one compiled loop, the same floats (box_kernel)
+        boxes = box_kernel.loose_boxes_of_corners(corners_c, starts, near_m, k_matrix, width, height)
+    else:
+        boxes = _loose_boxes_numpy(corners_c, starts, near_m, k_matrix, width, height)
+    seen = np.all(boxes[:, 2:] > boxes[:, :2], 1)
+    return ids[seen].astype(np.int64), boxes[seen]
+
+
+def _loose_boxes_numpy(corners_c: np.ndarray, starts: np.ndarray, near_m: float, k_matrix: np.ndarray,
+                       width: int, height: int) -> np.ndarray:
+    """(n, 4) [x_min, y_min, x_max, y_max] of each instance's geoms' corners (G, 8, 3) in the camera
+    frame (m), cut at the near plane, projected and clipped to the image (``box_kernel`` compiles it)."""
     points, valid = _near_clipped(corners_c, near_m)
     zs = np.where(valid, points[..., 2], 1.0)
     uv = points[..., :2] / zs[..., None] * np.diag(k_matrix)[:2] + k_matrix[:2, 2]
@@ -224,8 +241,7 @@ def loose_box_array(table: InstanceTable, model: mujoco.MjModel, geom_pos_w: np.
     hi_i = np.maximum.reduceat(hi, starts)
     lo_i = np.maximum(lo_i, -0.5)
     hi_i = np.minimum(hi_i, [width - 0.5, height - 0.5])
-    seen = np.all(hi_i > lo_i, 1)
-    return ids[seen].astype(np.int64), np.concatenate([lo_i, hi_i], 1)[seen]
+    return np.concatenate([lo_i, hi_i], 1)
 
 
 def _near_clipped(corners_c: np.ndarray, near_m: float) -> tuple[np.ndarray, np.ndarray]:
