@@ -20,7 +20,8 @@ DEPTH_M = 0.0005  # how far each sole sits in the ground
 def foot_on_terrain(spheres: bool) -> tuple[mujoco.MjModel, np.ndarray]:
     """A free humanoid foot box over a terrain of flat and stairs tiles (so the hfield's elevation
     and base are humanoid-rough's kind, not a degenerate all-zero field); the flat tile's centre."""
-    grid = generate(TerrainCfg(kinds=("flat", "stairs_down"), num_levels=1, tile_size_m=4.0, border_m=0.5))
+    grid = generate(TerrainCfg(kinds=("flat", "stairs_down"), num_levels=1, tile_size_m=4.0, border_m=0.5,
+                               box_tiles=False))  # the hfield: box tiles are in test_terrain_boxes.py
     spec = mujoco.MjSpec()
     add_terrain(spec, grid)
     body = spec.worldbody.add_body(name="foot_body")

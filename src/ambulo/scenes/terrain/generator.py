@@ -10,7 +10,9 @@ samples ``h`` metres apart; ``add_terrain`` builds it into the scene as a single
 ``mujoco_warp/_src/collision_driver.py`` maps every hfield pair to its convex path), and
 ``terrain.heights.TerrainHeights`` interpolates the same array on the device for height scans,
 fall checks and spawning. MuJoCo draws each cell as two triangles and the lookup is bilinear:
-they agree at samples and wherever the cell is planar (treads, slopes, the border).
+they agree at samples and wherever the cell is planar (treads, slopes, the border). With
+``TerrainCfg.box_tiles`` the piecewise-flat tiles collide as static boxes built from the same
+samples (``terrain.boxes``: one contact per resting sphere in both engines).
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ import mujoco
 import numpy as np
 
 from ...utils.validate import Checked, rule
+from .boxes import hfield_heights, terrain_boxes
 from .subterrains import KINDS, TileGrid
 
 TERRAIN_PRIM_PATH = "/World/terrain"
@@ -62,6 +65,11 @@ class TerrainCfg(Checked):
     """How far below the stones the gaps go, m."""
     seed: int = 0
     """Seed of the random sub-terrains (rough heights, stone offsets)."""
+    box_tiles: bool = True
+    """Build the piecewise-flat tiles (flat, stairs up and down) and the border as static boxes,
+    the other kinds in the hfield (``terrain.boxes``: MuJoCo C gives a sphere on a flat hfield one
+    contact per prism it overlaps, MuJoCo Warp one, and a policy trained on Warp fell on MuJoCo C);
+    False: everything in the hfield (before session 15)."""
 
     def __post_init__(self):
         unknown = sorted(set(self.kinds) - set(KINDS))
@@ -154,13 +162,16 @@ _MIN_ELEVATION_M = 1.0e-3
 def add_terrain(spec: mujoco.MjSpec, grid: TerrainGrid, *, friction: float = 1.0,
                 prim_path: str = TERRAIN_PRIM_PATH, base_depth_m: float = 1.0,
                 color=(0.45, 0.47, 0.50)) -> mujoco.MjsGeom:
-    """Add ``grid`` to ``spec`` as one static hfield geom ``<prim_path>/geom``.
+    """Add ``grid`` to ``spec`` as the static body ``<prim_path>``: one hfield geom
+    ``<prim_path>/geom`` (returned) and, with ``grid.cfg.box_tiles``, the box tiles' boxes
+    ``<prim_path>/box<i>`` (``terrain.boxes``; the hfield sinks under them).
 
     MuJoCo stores heights normalized to [0, 1] times the elevation ``size[2]``, above the geom's
     z, rows along y: the geom sits at the lowest height, the elevation is the height range, and the
     data is the transposed, normalized array (so MuJoCo's own normalization leaves it unchanged).
     ``base_depth_m``: thickness of the solid under the lowest point (MuJoCo's ``size[3]``)."""
-    heights = grid.heights_m
+    boxes = terrain_boxes(grid) if grid.cfg.box_tiles else None
+    heights = grid.heights_m if boxes is None else hfield_heights(grid, boxes.mask)
     low, high = float(heights.min()), float(heights.max())
     span = high - low
     data = (heights - low) / span if span > _MIN_ELEVATION_M else np.zeros_like(heights)
@@ -170,11 +181,18 @@ def add_terrain(spec: mujoco.MjSpec, grid: TerrainGrid, *, friction: float = 1.0
                              size=[half[0], half[1], max(span, _MIN_ELEVATION_M), base_depth_m])
     hfield.userdata = data.T.astype(np.float32).ravel().tolist()
     center = grid.origin_xy_m + half
-    body = spec.worldbody.add_body(name=prim_path, pos=[center[0], center[1], low])
-    spec.add_material(name=prim_path + "/material", rgba=[*color, 1.0])
-    return body.add_geom(name=prim_path + "/geom", type=mujoco.mjtGeom.mjGEOM_HFIELD,
-                         hfieldname=prim_path + "/hfield", material=prim_path + "/material",
-                         friction=[friction, 0.005, 0.0001])
+    body_pos = np.array([center[0], center[1], low])
+    body = spec.worldbody.add_body(name=prim_path, pos=body_pos)
+    material = prim_path + "/material"
+    spec.add_material(name=material, rgba=[*color, 1.0])
+    friction3 = [friction, 0.005, 0.0001]
+    geom = body.add_geom(name=prim_path + "/geom", type=mujoco.mjtGeom.mjGEOM_HFIELD,
+                         hfieldname=prim_path + "/hfield", material=material, friction=friction3)
+    if boxes is not None:
+        for i, (c, s) in enumerate(zip(boxes.center_w - body_pos, boxes.half_size_m)):
+            body.add_geom(name=f"{prim_path}/box{i}", type=mujoco.mjtGeom.mjGEOM_BOX, pos=c, size=s,
+                          material=material, friction=friction3)
+    return geom
 
 
 __all__ = ["TERRAIN_PRIM_PATH", "TerrainCfg", "TerrainGrid", "add_terrain", "difficulties", "generate"]
