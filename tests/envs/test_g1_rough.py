@@ -4,6 +4,7 @@ there on their sole spheres without sinking, the curriculum promotes a robot tha
 its tile, and play puts every robot on the hardest level with no transfer randomization."""
 
 import mujoco
+import numpy as np
 import pytest
 import torch
 
@@ -45,7 +46,9 @@ def test_observations_are_g1_walks_and_the_scan():
     assert env.num_privileged_obs == walk.num_privileged_obs + SCAN_POINTS + 2
     model = env.engine.model
     colliding = [g for g in range(model.ngeom) if model.geom_contype[g] or model.geom_conaffinity[g]]
-    assert len(colliding) == 9 and set(colliding) - set(sole_spheres(env)) == {model.geom(env.feet.cfg.against).id}
+    terrain = model.geom_bodyid[model.geom(env.feet.cfg.against).id]  # its hfield and box tiles
+    assert len(set(colliding) - set(np.flatnonzero(model.geom_bodyid == terrain))) == 8
+    assert set(colliding) - set(sole_spheres(env)) == set(np.flatnonzero(model.geom_bodyid == terrain))
 
 
 def test_sole_spheres_grow_keeping_their_lowest_points():
