@@ -2,6 +2,9 @@
 (a dataset is the same with and without numba), on hand-made boxes whose answers are known and on
 random ones crossing the near plane and the image's edges."""
 
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
@@ -75,3 +78,48 @@ def test_extents_are_the_minimum_and_maximum_of_each_instances_corners():
         lo, hi = box_kernel.extents_of_corners(corners, starts)
         assert lo.tobytes() == np.minimum.reduceat(corners.min(1), starts).tobytes()
         assert hi.tobytes() == np.maximum.reduceat(corners.max(1), starts).tobytes()
+
+
+def hand_made_table() -> annotators.InstanceTable:
+    """``hand_made``'s five geoms as four instances (the last two geoms one instance), bodies 1-4."""
+    return annotators.InstanceTable(body_ids=np.array([1, 2, 3, 4]), labels=["a", "b", "c", "d"], categories=["a", "b", "c", "d"],
+                                    semantic_ids=np.array([0, 1, 2, 3, 4]), names=["1", "2", "3", "4"],
+                                    geom_instance=np.array([0, 1, 2, 3, 4, 4], np.int32))
+
+
+@needs_numba
+def test_the_annotators_take_the_kernels_once_warmed_up_with_the_same_outputs(monkeypatch):
+    corners, _ = hand_made()
+    table = hand_made_table()
+    extr = np.eye(4)  # the corners are in the camera frame already
+    rng = np.random.default_rng(3)
+    body_pos, body_rot = rng.normal(size=(5, 3)), np.linalg.qr(rng.normal(size=(5, 3, 3)))[0]
+
+    def boxes():
+        loose = annotators.loose_box_array(table, None, None, None, extr, K_MATRIX, WIDTH, HEIGHT, NEAR_M, corners)
+        return *loose, *annotators.instance_boxes_3d(table, None, body_pos, body_rot, None, None, corners)
+
+    monkeypatch.setattr(box_kernel, "_active", False)
+    numpy_path = boxes()
+    box_kernel.warm_up()
+    assert box_kernel.active()
+    calls = []
+    monkeypatch.setattr(box_kernel, "_loose", lambda *a: calls.append("loose") or box_kernel._loose_py(*a))
+    monkeypatch.setattr(box_kernel, "_extents", lambda *a: calls.append("3d") or box_kernel._extents_py(*a))
+    kernel_path = boxes()
+    assert calls == ["loose", "3d"]
+    np.testing.assert_array_equal(numpy_path[0], [1, 2, 4])  # instance 3 is behind the camera
+    for got, want in zip(kernel_path, numpy_path):
+        assert got.tobytes() == want.tobytes()
+
+
+def test_a_camera_that_never_warmed_the_kernels_does_not_import_numba():
+    code = ("import sys, numpy as np\n"
+            "from ambulo.sensors import annotators\n"
+            "import test_box_kernel as t\n"
+            "corners, _ = t.hand_made()\n"
+            "annotators.loose_box_array(t.hand_made_table(), None, None, None, np.eye(4), t.K_MATRIX, 320, 240, 0.05,"
+            " corners)\n"
+            "assert 'numba' not in sys.modules, 'numba imported'\n")
+    done = subprocess.run([sys.executable, "-c", code], cwd=__file__.rsplit("/", 1)[0], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr

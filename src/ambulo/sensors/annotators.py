@@ -169,7 +169,7 @@ def instance_boxes_3d(table: InstanceTable, model: mujoco.MjModel, body_pos_w: n
     starts, ids, bodies = table.instance_groups
     corners = geom_corners_w(geoms, model, geom_pos_w, geom_rot_w) if corners_w is None else corners_w  # (G, 8, 3)
     local = np.einsum("gcj,gji->gci", corners - body_pos_w[bodies][:, None], body_rot_w[bodies])
-    if box_kernel.HAVE_NUMBA:  # the same minima and maxima in one compiled loop
+    if box_kernel.active():  # the same minima and maxima in one compiled loop
         lo, hi = box_kernel.extents_of_corners(local, starts)
     else:
         lo = np.minimum.reduceat(local.min(1), starts)
@@ -220,7 +220,7 @@ def loose_box_array(table: InstanceTable, model: mujoco.MjModel, geom_pos_w: np.
     geoms, _ = table.instance_geoms
     corners = geom_corners_w(geoms, model, geom_pos_w, geom_rot_w) if corners_w is None else corners_w
     corners_c = corners @ extrinsics_cw[:3, :3].T + extrinsics_cw[:3, 3]
-    if box_kernel.HAVE_NUMBA:  # the steps below in one compiled loop, the same floats (box_kernel)
+    if box_kernel.active():  # the steps below in one compiled loop, the same floats (box_kernel)
         boxes = box_kernel.loose_boxes_of_corners(corners_c, starts, near_m, k_matrix, width, height)
     else:
         boxes = _loose_boxes_numpy(corners_c, starts, near_m, k_matrix, width, height)

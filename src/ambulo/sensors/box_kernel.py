@@ -8,9 +8,11 @@ floats bit for bit (``tests/sensors/test_box_kernel.py``); a dataset is the same
 The matrix products themselves stay NumPy's (``@`` and ``einsum``): BLAS and einsum sum their three
 terms in an order (and with fused multiply-adds) a plain loop does not repeat.
 
-numba is optional (the ``data`` extra): it is imported when a kernel is first called, and
-``AMBULO_NUMBA=0`` takes the NumPy path on purpose, as ``ambulo.replicator.compiled`` does (this layer
-may not import the replicator).
+numba is optional (the ``data`` extra). The annotators take these kernels only once ``warm_up`` has
+loaded them (``active``): a dataset producer calls it while it builds its scene, so a camera used
+elsewhere (a script's few captures) never pays numba's import and a compile (~0.5-2 s) for ~50 us a
+frame. ``AMBULO_NUMBA=0`` takes the NumPy path on purpose, as ``ambulo.replicator.compiled`` does (this
+layer may not import the replicator).
 """
 
 from __future__ import annotations
@@ -137,9 +139,20 @@ def extents_of_corners(local: np.ndarray, starts: np.ndarray) -> tuple[np.ndarra
     return _extents(np.ascontiguousarray(local, np.float64), np.ascontiguousarray(starts, np.int64))
 
 
+_active = False
+
+
+def active() -> bool:
+    """Whether the annotators use the kernels: numba is there and ``warm_up`` has loaded them."""
+    return _active
+
+
 def warm_up() -> None:
-    """Compile the kernels, or load them from numba's cache, now rather than in a first frame."""
+    """Compile the kernels, or load them from numba's cache, now rather than in a first frame; from then on
+    the annotators use them (``active``)."""
+    global _active
     if HAVE_NUMBA:
         corners = np.ones((1, 8, 3))
         loose_boxes_of_corners(corners, np.zeros(1, np.int64), 0.1, np.eye(3), 2, 2)
         extents_of_corners(corners, np.zeros(1, np.int64))
+        _active = True
