@@ -19,6 +19,7 @@ import numpy as np
 
 from ..utils.validate import Checked
 from .gl import create_gl_context, gl_renderer_string
+from .point_lights import light_point_lights
 
 # Geom categories we draw: no decorations (contact points, frames, labels).
 _CATMASK = int(mujoco.mjtCatBit.mjCAT_STATIC) | int(mujoco.mjtCatBit.mjCAT_DYNAMIC)
@@ -128,6 +129,7 @@ class OffscreenRenderer:
         """
         self._camera.fixedcamid = cam_id
         mujoco.mjv_updateScene(model, data, self._option, None, self._camera, _CATMASK, self._scene)
+        light_point_lights(model, self._scene)  # MuJoCo 4's rasterizer leaves point lights dark
         flags = self._scene.flags
         flags[mujoco.mjtRndFlag.mjRND_SHADOW] = self.settings.shadows
         flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = self.settings.reflections
@@ -152,6 +154,7 @@ class OffscreenRenderer:
     def update_view(self, model: mujoco.MjModel, data: mujoco.MjData, camera: mujoco.MjvCamera) -> None:
         """Load a world's geoms seen from a viewer camera (free, tracking or fixed ``MjvCamera``)."""
         mujoco.mjv_updateScene(model, data, self._option, None, camera, _CATMASK, self._scene)
+        light_point_lights(model, self._scene)
         self._scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = self.settings.shadows
         self._scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = self.settings.reflections
 
