@@ -29,10 +29,21 @@ def test_a_heightfield_model_is_sized_per_geom_not_by_mujoco_warps_guess():
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     nconmax, njmax = contact_capacity(model, data, None, None)
-    assert nconmax == 4 * 4  # 4 per collidable geom: the hfield and three spheres
+    assert nconmax == 4 * 3  # 4 per collidable geom that moves: the three spheres (not the static hfield)
     assert njmax == 4 * nconmax  # pyramidal condim 3: 4 rows a contact; no limits, friction loss
     guess_con, guess_rows = mjw._src.io._default_nconmax(model, data), mjw._src.io._default_njmax(model, data)
     assert guess_con > 4 * nconmax and guess_rows > 4 * njmax  # what it replaces: 128 contacts, 768 rows
+
+
+def test_static_geoms_add_no_capacity():
+    """Terrain tiles as static boxes (``scenes.terrain.boxes``: hundreds of them) never touch each
+    other, so they leave the buffers as the heightfield alone does."""
+    boxes = "".join(f'<geom type="box" size="0.5 0.5 0.1" pos="{x} {y} -0.1"/>' for x in range(-4, 5) for y in (-1, 1))
+    hfield = '<geom type="hfield" hfield="h"/>'
+    tiles, plain = _balls(f"{hfield}<body>{boxes}</body>"), _balls(hfield)
+    assert tiles.ngeom == plain.ngeom + 18
+    assert contact_capacity(tiles, mujoco.MjData(tiles), None, None) == \
+        contact_capacity(plain, mujoco.MjData(plain), None, None) == (12, 48)
 
 
 def test_a_model_without_heightfield_keeps_mujoco_warps_floor():
@@ -40,7 +51,7 @@ def test_a_model_without_heightfield_keeps_mujoco_warps_floor():
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     nconmax, njmax = contact_capacity(model, data, None, None)
-    assert nconmax == mjw._src.io._default_nconmax(model, data) == 48  # above 4 per collidable geom (16)
+    assert nconmax == mjw._src.io._default_nconmax(model, data) == 48  # above 4 per moving collidable geom (12)
     assert njmax == 4 * nconmax
     assert contact_capacity(model, data, 7, 30) == (7, 30)  # given sizes win
 
@@ -54,7 +65,7 @@ def test_humanoid_rough_falls_fit_the_sized_buffers_on_warp():
     env = envs.make("humanoid-rough", num_envs=12, device="cpu", engine="warp", seed=3, num_threads=1,
                     **{"curriculum.enabled": False, "curriculum.init_level": -1})
     engine, d = env.engine, env.engine.wp_data
-    assert (engine.nconmax, engine.njmax) == (96, 405)  # 24 collidable geoms; MuJoCo Warp guessed 192, 1,536
+    assert (engine.nconmax, engine.njmax) == (92, 389)  # 23 moving collidable geoms; MuJoCo Warp guessed 192, 1,536
     gen = torch.Generator().manual_seed(0)
     peak_contacts = peak_rows = falls = 0
     for _ in range(90):
@@ -70,7 +81,7 @@ def test_humanoid_rough_falls_fit_the_sized_buffers_on_warp():
 
 def test_humanoid_rough_steps_the_same_with_the_sized_buffers_as_with_mujoco_warps_guess():
     """The sizes change only how much is allocated: 4 humanoids on the hardest tiles under random
-    actions follow bit-identical trajectories with 96/405 and with MuJoCo Warp's 192/1,536 (a
+    actions follow bit-identical trajectories with 92/389 and with MuJoCo Warp's 192/1,536 (a
     buffer too small would drop contacts and part them)."""
     import ambulo.envs as envs
 
@@ -85,5 +96,5 @@ def test_humanoid_rough_steps_the_same_with_the_sized_buffers_as_with_mujoco_war
             env.step(torch.rand(4, env.num_actions, generator=generator) * 2 - 1)
             steps.append(env.engine.field("qpos").clone())
         qpos[sizes] = torch.stack(steps)
-        assert env.engine.njmax == (sizes[1] or 405)
+        assert env.engine.njmax == (sizes[1] or 389)
     torch.testing.assert_close(qpos[(None, None)], qpos[(192, 1536)], atol=0.0, rtol=0.0)

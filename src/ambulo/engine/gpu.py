@@ -684,8 +684,11 @@ def contact_capacity(model: mujoco.MjModel, data: mujoco.MjData, max_contacts: i
                      max_constraints: int | None) -> tuple[int, int]:
     """Per-world contact and constraint buffer sizes (``nconmax``, ``njmax``).
 
-    Contacts: 4 per geom that can collide with something (a box resting on a plane makes 4),
-    at least 3x the contacts of the initial state and MuJoCo Warp's own default. Constraints:
+    Contacts: 4 per geom that can collide with something and moves (a box resting on a plane
+    makes 4; geoms of bodies without dofs never touch each other, in MuJoCo Warp as in MuJoCo, so
+    a terrain of static boxes adds none: ``scenes.terrain.boxes``' 195-488 would have made
+    humanoid-footsteps-stairs' buffers 876 contacts and 3,525 rows), at least 3x the contacts of
+    the initial state and MuJoCo Warp's own default. Constraints:
     each contact takes up to ``2 (condim - 1)`` rows (pyramidal) or ``condim`` (elliptic),
     plus one per limited joint, friction-loss dof and equality row.
 
@@ -697,7 +700,9 @@ def contact_capacity(model: mujoco.MjModel, data: mujoco.MjData, max_contacts: i
     kernels run over every row of ``njmax`` (``_update_constraint_efc``, the dense ``J^T D J``),
     so the guess cost humanoid-rough half its physics time on Warp's CPU device.
     """
-    collidable = int(np.count_nonzero((model.geom_contype != 0) | (model.geom_conaffinity != 0)))
+    weld = model.body_weldid[model.geom_bodyid]
+    moves = (model.body_dofnum[weld] > 0) | (model.body_mocapid[model.geom_bodyid] >= 0)
+    collidable = int(np.count_nonzero(((model.geom_contype != 0) | (model.geom_conaffinity != 0)) & moves))
     hfield = model.nhfield > 0
     default_con = 0 if hfield else mjw._src.io._default_nconmax(model, data)
     nconmax = max_contacts or max(default_con, 4 * collidable, 3 * data.ncon)
