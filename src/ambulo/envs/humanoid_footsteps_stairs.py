@@ -14,7 +14,8 @@ grows to 12 values: per target x, y (m, heading frame), z (m, the target's heigh
 ground under the base), cos and sin of its yaw relative to the heading, side. After it, as on
 humanoid-rough, a 17 x 11 height scan around the base (``HeightScanCfg``, +-5 cm noise in
 training). The critic also sees each foot's height over the ground under it. Foot contacts are
-against the terrain geom; falls count against the ground under the base, so a robot on a tread
+against every geom of the terrain body (its hfield and, with ``box_tiles``, its boxes:
+``terrain_ground.TerrainContactSensor``); falls count against the ground under the base, so a robot on a tread
 0.5 m up is not fallen. A new task rather than an option of humanoid-footsteps: the shipped flat
 policy keeps its 79 observations.
 """
