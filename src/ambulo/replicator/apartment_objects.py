@@ -46,9 +46,10 @@ def labelled_solids(apt: Apartment) -> list[tuple[str, str]]:
 
 def build_labelled_apartment(apt: Apartment, robot_pose=(0.0, 0.0, 0.0),
                              head_lamp: float = humanoid.HEAD_LAMP_DIFFUSE) -> mujoco.MjSpec:
-    """The apartment's scene with the humanoid, its head lamp (``humanoid.add_head_lamp``: the
-    apartments' own lights leave the head camera's view dark, and frames without it were half as bright
-    as any the detector is shown on the robot) and its furniture labelled (``scenes.apartment_labels``)."""
+    """The apartment's scene with the humanoid, its head lamp (``humanoid.add_head_lamp``: added when
+    the apartments' own point lights did not light GL renders (before ``render.point_lights``, 2026-11-30)
+    and frames without it were half as bright as any the detector is shown on the robot; kept, as the
+    navigator's camera has it) and its furniture labelled (``scenes.apartment_labels``)."""
     spec = apt.build(robot_pose=robot_pose)
     humanoid.add_head_lamp(spec, head_lamp)
     for name, label in labelled_solids(apt):
