@@ -46,6 +46,17 @@ def test_static_geoms_add_no_capacity():
         contact_capacity(plain, mujoco.MjData(plain), None, None) == (12, 48)
 
 
+def test_geoms_that_a_mocap_body_carries_count_as_moving():
+    """A mocap body moves, and so do the jointless bodies it carries (their weld ancestor is the
+    world): their geoms can touch the terrain, so they take contacts like the free spheres."""
+    hfield = '<geom type="hfield" hfield="h"/>'
+    carried = '<body mocap="true" pos="0 3 0.2"><geom type="box" size="0.1 0.1 0.1"/>' \
+              '<body pos="0.3 0 0"><geom type="sphere" size="0.05"/></body></body>'
+    model, plain = _balls(hfield + carried), _balls(hfield)
+    assert contact_capacity(model, mujoco.MjData(model), None, None)[0] == \
+        contact_capacity(plain, mujoco.MjData(plain), None, None)[0] + 4 * 2
+
+
 def test_a_model_without_heightfield_keeps_mujoco_warps_floor():
     model = _balls('<geom type="plane" size="5 5 0.1"/>')
     data = mujoco.MjData(model)

@@ -700,8 +700,10 @@ def contact_capacity(model: mujoco.MjModel, data: mujoco.MjData, max_contacts: i
     kernels run over every row of ``njmax`` (``_update_constraint_efc``, the dense ``J^T D J``),
     so the guess cost humanoid-rough half its physics time on Warp's CPU device.
     """
-    weld = model.body_weldid[model.geom_bodyid]
-    moves = (model.body_dofnum[weld] > 0) | (model.body_mocapid[model.geom_bodyid] >= 0)
+    body_moves = np.zeros(model.nbody, dtype=bool)  # joints or mocap on the body or any ancestor
+    for b in range(1, model.nbody):  # MuJoCo orders a parent before its children
+        body_moves[b] = model.body_dofnum[b] > 0 or model.body_mocapid[b] >= 0 or body_moves[model.body_parentid[b]]
+    moves = body_moves[model.geom_bodyid]
     collidable = int(np.count_nonzero(((model.geom_contype != 0) | (model.geom_conaffinity != 0)) & moves))
     hfield = model.nhfield > 0
     default_con = 0 if hfield else mjw._src.io._default_nconmax(model, data)
