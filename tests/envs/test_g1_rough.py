@@ -46,7 +46,7 @@ def test_observations_are_g1_walks_and_the_scan():
     assert env.num_privileged_obs == walk.num_privileged_obs + SCAN_POINTS + 2
     model = env.engine.model
     colliding = [g for g in range(model.ngeom) if model.geom_contype[g] or model.geom_conaffinity[g]]
-    terrain = model.geom_bodyid[model.geom(env.feet.cfg.against).id]  # its hfield and box tiles
+    terrain = model.body(env.feet.cfg.against_body).id  # the terrain body: its hfield and box tiles
     assert len(set(colliding) - set(np.flatnonzero(model.geom_bodyid == terrain))) == 8
     assert set(colliding) - set(sole_spheres(env)) == set(np.flatnonzero(model.geom_bodyid == terrain))
 

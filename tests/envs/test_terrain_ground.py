@@ -8,6 +8,7 @@ import mujoco
 import pytest
 
 import ambulo.envs as envs
+from ambulo.scenes.terrain import TERRAIN_PRIM_PATH
 
 
 @pytest.mark.parametrize("task", ["humanoid-rough", "humanoid-footsteps-stairs"])
@@ -24,4 +25,5 @@ def test_feet_touch_the_terrain_through_sole_spheres_only(task):
         assert all(s >= 0 for s in spheres)
         assert all(model.geom_type[s] == mujoco.mjtGeom.mjGEOM_SPHERE for s in spheres)
         assert all(model.geom_bodyid[s] == model.geom_bodyid[box] for s in spheres)
-    assert env.feet.cfg.against  # the feet's contacts are read against the terrain geom
+    # the feet's contacts are read against the terrain body's geoms (its hfield and box tiles)
+    assert env.feet.cfg.against_body == TERRAIN_PRIM_PATH and env.feet.cfg.against is None

@@ -88,3 +88,36 @@ def test_contact_sensor_names_missing_bodies():
     spec = mujoco.MjSpec.from_file(assets.path("humanoid"))
     with pytest.raises(ValueError, match="no body matches 'left_hoof'"):
         ContactSensor(prim_paths=("left_hoof",)).build(spec)
+
+
+@pytest.mark.parametrize("right_half_body", ["ground", "step"])
+def test_against_body_counts_contacts_with_each_geom_of_that_body_only(right_half_body):
+    """The feet stand on two halves (as a terrain's hfield and boxes): ``against_body`` counts a
+    foot on any geom of that body, and none on another body's; ``against`` one geom counts only the
+    foot on that geom."""
+    spec = mujoco.MjSpec.from_file(assets.path("humanoid"))
+    ground = spec.worldbody.add_body(name="ground")
+    other = ground if right_half_body == "ground" else spec.worldbody.add_body(name=right_half_body)
+    ground.add_geom(name="ground/left", type=mujoco.mjtGeom.mjGEOM_BOX, size=[5, 0.5, 0.1], pos=[0, 0.5, -0.1])
+    other.add_geom(name="ground/right", type=mujoco.mjtGeom.mjGEOM_BOX, size=[5, 0.5, 0.1], pos=[0, -0.5, -0.1])
+    body = ContactSensor(prim_paths=("left_foot", "right_foot"), against_body="ground", name="body")
+    left = ContactSensor(prim_paths=("left_foot", "right_foot"), against="ground/left", name="left")
+    for sensor in (body, left):
+        sensor.build(spec)
+    model = spec.compile()
+    engine = CpuEngine(model, 1, num_threads=1)
+    for sensor in (body, left):
+        sensor.initialize(engine)
+    engine.forward()
+    data = engine.get_data(0)
+    assert data.xpos[model.body("left_foot").id][1] > 0 > data.xpos[model.body("right_foot").id][1]  # halves meet at y = 0
+    for _ in range(5):
+        engine.step()
+    on_body, on_left = body.get_current_frame().in_contact[0], left.get_current_frame().in_contact[0]
+    assert on_body.tolist() == [True, right_half_body == "ground"]
+    assert on_left.tolist() == [True, False]
+
+
+def test_against_and_against_body_together_are_refused_in_one_line():
+    with pytest.raises(ValueError, match="give one of against and against_body"):
+        ContactSensor(prim_paths=("left_foot",), against="ground/left", against_body="ground")

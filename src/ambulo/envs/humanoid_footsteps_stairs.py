@@ -15,7 +15,7 @@ ground under the base), cos and sin of its yaw relative to the heading, side. Af
 humanoid-rough, a 17 x 11 height scan around the base (``HeightScanCfg``, +-5 cm noise in
 training). The critic also sees each foot's height over the ground under it. Foot contacts are
 against every geom of the terrain body (its hfield and, with ``box_tiles``, its boxes:
-``terrain_ground.TerrainContactSensor``); falls count against the ground under the base, so a robot on a tread
+``ContactSensorCfg.against_body``); falls count against the ground under the base, so a robot on a tread
 0.5 m up is not fallen. A new task rather than an option of humanoid-footsteps: the shipped flat
 policy keeps its 79 observations.
 """

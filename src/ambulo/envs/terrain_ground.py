@@ -1,13 +1,13 @@
 """The terrain as a task's ground: one heightfield and the box tiles' boxes
 (``scenes.terrain.boxes``), the feet touching them through sphere soles, and the feet's contact
-sensor against them. humanoid-rough and humanoid-footsteps-stairs build their scenes with it, so both get the same feet on the same terrain (MuJoCo Warp's box-heightfield
-contacts push resting feet down: ``scenes.terrain.sphere_soles``)."""
+sensor against them. humanoid-rough and humanoid-footsteps-stairs build their scenes with it, so
+both get the same feet on the same terrain (MuJoCo Warp's box-heightfield contacts push resting
+feet down: ``scenes.terrain.sphere_soles``)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import mujoco
 import torch
 
 from ambulo.core.rows import take_rows
@@ -72,21 +72,9 @@ def add_terrain_ground(env, spec, task: str, soles=sphere_soles) -> None:
         from ambulo.engine.warp_hfield import limit_hfield_contact_depth
 
         limit_hfield_contact_depth(cfg.warp_hfield_contact_depth_m)
-    env.feet = env.sim.add(TerrainContactSensor(ContactSensorCfg(
-        name="feet_contact", prim_paths=feet, include_subtree=True, against=geom.name)))
-
-
-class TerrainContactSensor(ContactSensor):
-    """A ``ContactSensor`` that counts contacts with every geom of the terrain's body (its hfield
-    and, with ``TerrainCfg.box_tiles``, its boxes: ``scenes.terrain.boxes``), not only with the
-    ``against`` geom: the sensors MuJoCo reads are retargeted to the body of that geom."""
-
-    def build(self, spec: mujoco.MjSpec) -> None:
-        super().build(spec)
-        body = spec.geom(self.cfg.against).parent.name
-        for name in self.body_names:
-            sensor = spec.sensor(f"{self.name}:{name}:contact")
-            sensor.reftype, sensor.refname = mujoco.mjtObj.mjOBJ_BODY, body
+    # every geom of the terrain's body: its hfield and, with ``TerrainCfg.box_tiles``, its boxes
+    env.feet = env.sim.add(ContactSensor(ContactSensorCfg(
+        name="feet_contact", prim_paths=feet, include_subtree=True, against_body=geom.parent.name)))
 
 
 def _on_warp(cfg) -> bool:
@@ -144,4 +132,4 @@ class TerrainGround:
         return feet_w[..., 2].float() - self.heights.height_at(feet_w[..., :2])
 
 
-__all__ = ["TerrainContactSensor", "TerrainGround", "add_terrain_ground"]
+__all__ = ["TerrainGround", "add_terrain_ground"]

@@ -14,6 +14,7 @@ import mujoco
 import torch
 
 from ambulo.core import match_names
+from ambulo.utils.checks import InvalidValueError
 from ambulo.utils.validate import Checked
 
 from ..core.rows import fill_rows
@@ -34,8 +35,17 @@ class ContactSensorCfg(Checked):
     """A body is in contact when a contact exists and the net force exceeds this (N)."""
     against: str | None = None
     """Only count contacts with this geom (its name), e.g. the ground's ``.../geom``."""
+    against_body: str | None = None
+    """Only count contacts with the geoms of this body (its name), e.g. a terrain made of an hfield
+    and boxes (``scenes.terrain.add_terrain``); not together with ``against``."""
     name: str | None = None
     """Component name; defaults to the first prim path."""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.against is not None and self.against_body is not None:
+            raise InvalidValueError("ContactSensorCfg.against_body", self.against_body,
+                                    f"against is {self.against!r} too", "give one of against and against_body")
 
 
 @dataclass
@@ -77,7 +87,12 @@ class ContactSensor(Sensor):
         self.body_names = matched
         self.mount = None
         objtype = mujoco.mjtObj.mjOBJ_XBODY if self.cfg.include_subtree else mujoco.mjtObj.mjOBJ_BODY
-        ref = {} if self.cfg.against is None else {"reftype": mujoco.mjtObj.mjOBJ_GEOM, "refname": self.cfg.against}
+        if self.cfg.against is not None:
+            ref = {"reftype": mujoco.mjtObj.mjOBJ_GEOM, "refname": self.cfg.against}
+        elif self.cfg.against_body is not None:
+            ref = {"reftype": mujoco.mjtObj.mjOBJ_BODY, "refname": self.cfg.against_body}
+        else:
+            ref = {}
         for name in matched:
             spec.add_sensor(name=f"{self.name}:{name}:contact", type=mujoco.mjtSensor.mjSENS_CONTACT,
                             objtype=objtype, objname=name, intprm=[_FOUND | _FORCE, _NETFORCE, 1], **ref)
