@@ -21,8 +21,7 @@ import zlib
 import numpy as np
 
 from ambulo.utils.checks import InvalidValueError
-
-from .compiled import HAVE_NUMBA, Kernel
+from ambulo.utils.compiled import HAVE_NUMBA, Kernel
 
 DEFLATES = ("isal", "zlib-ng", "zlib")
 """Fastest first: '' (the default) takes the first one installed."""

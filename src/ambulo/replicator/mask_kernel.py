@@ -17,8 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ambulo.utils.compiled import HAVE_NUMBA, Kernel
+
 from .coco import InstanceRuns, instance_rles, runs_tight_boxes
-from .compiled import HAVE_NUMBA, Kernel
 
 
 @dataclass(frozen=True, slots=True)

@@ -11,18 +11,15 @@ terms in an order (and with fused multiply-adds) a plain loop does not repeat.
 numba is optional (the ``data`` extra). The annotators take these kernels only once ``warm_up`` has
 loaded them (``active``): a dataset producer calls it while it builds its scene, so a camera used
 elsewhere (a script's few captures) never pays numba's import and a compile (~0.5-2 s) for ~50 us a
-frame. ``AMBULO_NUMBA=0`` takes the NumPy path on purpose, as ``ambulo.replicator.compiled`` does (this
-layer may not import the replicator).
+frame. ``AMBULO_NUMBA=0`` takes the NumPy path on purpose (``utils.compiled``, which compiles these
+kernels as it does the replicator's).
 """
 
 from __future__ import annotations
 
-import importlib.util
-import os
-
 import numpy as np
 
-HAVE_NUMBA = os.environ.get("AMBULO_NUMBA", "1") != "0" and importlib.util.find_spec("numba") is not None
+from ambulo.utils.compiled import HAVE_NUMBA, Kernel
 
 _EDGE_A = np.array([0, 0, 0, 1, 1, 2, 2, 3, 4, 4, 5, 6], np.int64)
 _EDGE_B = np.array([1, 2, 4, 3, 5, 3, 6, 7, 5, 6, 7, 7], np.int64)
@@ -102,26 +99,8 @@ def _extents_py(local, starts):
     return lo, hi
 
 
-class _Kernel:
-    """``fn`` compiled by numba's ``njit`` (``nogil``, cached on disk where it can be) on its first call."""
-
-    def __init__(self, fn):
-        self.fn = fn
-        self._compiled = None
-
-    def __call__(self, *args):
-        if self._compiled is None:
-            from numba import njit
-
-            try:
-                self._compiled = njit(cache=True, nogil=True)(self.fn)
-            except RuntimeError:  # no writable cache folder: compile each time
-                self._compiled = njit(cache=False, nogil=True)(self.fn)
-        return self._compiled(*args)
-
-
-_loose = _Kernel(_loose_py)
-_extents = _Kernel(_extents_py)
+_loose = Kernel(_loose_py)
+_extents = Kernel(_extents_py)
 
 
 def loose_boxes_of_corners(corners_c: np.ndarray, starts: np.ndarray, near_m: float, k_matrix: np.ndarray,

@@ -1,4 +1,6 @@
-"""numba, when installed (the ``data`` extra): kernels compiled on first use and cached on disk.
+"""numba, when installed (the ``data`` extra): kernels compiled on first use and cached on disk, for
+the replicator's passes (``replicator.mask_kernel``, ``replicator.io``) and the annotators' boxes
+(``sensors.box_kernel``).
 
 ``HAVE_NUMBA`` says whether the compiled paths run; every kernel keeps a NumPy path that gives the
 same results without it (their tests run both). numba is imported when a kernel is first compiled,
