@@ -31,6 +31,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
+from scipy.ndimage import binary_erosion
 
 if TYPE_CHECKING:
     from .generator import TerrainGrid
@@ -81,33 +82,30 @@ def rectangles(mask: np.ndarray) -> list[tuple[int, int, int, int]]:
     return out
 
 
-def _stack(heights: np.ndarray, mask: np.ndarray, skip: float | None = None) -> list[tuple]:
-    """``(ix, iy, lx, ly, top, bottom)`` boxes of the samples ``mask`` selects in ``heights``: for
-    each distinct height but ``skip``, the rectangles of the samples at least that high, reaching
-    ``FLOOR_DEPTH_M`` below the lowest."""
-    levels = np.unique(heights[mask])
-    if levels.size == 0:
-        return []
+def _stack(heights: np.ndarray, skip: float) -> list[tuple]:
+    """``(ix, iy, lx, ly, top, bottom)`` boxes of a tile's ``heights``: for each distinct height but
+    ``skip``, the rectangles of the samples at least that high, reaching ``FLOOR_DEPTH_M`` below the
+    lowest."""
+    levels = np.unique(heights)
     floor = float(levels[0]) - FLOOR_DEPTH_M
     return [(ix, iy, lx, ly, float(top), floor)
-            for top in levels if top != skip for ix, iy, lx, ly in rectangles(mask & (heights >= top))]
+            for top in levels if top != skip for ix, iy, lx, ly in rectangles(heights >= top)]
 
 
 def box_mask(grid: TerrainGrid) -> np.ndarray:
     """(nx, ny) bool: the samples of box tiles (``BOX_KINDS``) and of the border."""
-    cfg, h = grid.cfg, grid.spacing_m
-    n, border = int(round(cfg.tile_size_m / h)), int(round(cfg.border_m / h))
+    cfg = grid.cfg
     mask = np.ones(grid.heights_m.shape, dtype=bool)
     for j, kind in enumerate(cfg.kinds):
         if kind not in BOX_KINDS:
-            mask[border:border + cfg.num_levels * n, border + j * n:border + (j + 1) * n] = False
+            for i in range(cfg.num_levels):
+                mask[cfg.tile_slices(i, j)] = False
     return mask
 
 
 def terrain_boxes(grid: TerrainGrid) -> TerrainBoxes:
     """The boxes of ``grid``'s box tiles and border (see the module docstring)."""
     cfg, h, heights = grid.cfg, grid.spacing_m, grid.heights_m
-    n, border = int(round(cfg.tile_size_m / h)), int(round(cfg.border_m / h))
     mask = box_mask(grid)
     # height 0 (the border, flat tiles, every tile's edge ring, a summit's foot) over the whole
     # grid at once: coplanar boxes side by side leave a seam where a sphere within a few mm of it
@@ -116,10 +114,9 @@ def terrain_boxes(grid: TerrainGrid) -> TerrainBoxes:
     for i in range(cfg.num_levels):
         for j, kind in enumerate(cfg.kinds):
             if kind in BOX_KINDS:
-                x0, y0 = border + i * n, border + j * n
-                tile = heights[x0:x0 + n, y0:y0 + n]
-                boxes += [(x0 + ix, y0 + iy, lx, ly, top, bottom) for ix, iy, lx, ly, top, bottom
-                          in _stack(tile, np.ones_like(tile, dtype=bool), skip=0.0)]
+                xs, ys = cfg.tile_slices(i, j)
+                boxes += [(xs.start + ix, ys.start + iy, lx, ly, top, bottom) for ix, iy, lx, ly, top, bottom
+                          in _stack(heights[xs, ys], skip=0.0)]
     b = np.array(boxes, dtype=np.float64).reshape(-1, 6)
     ix, iy, lx, ly, top, bottom = b.T
     # sample i owns [i - 1/2, i + 1/2) spacings from the origin
@@ -133,12 +130,7 @@ def hfield_heights(grid: TerrainGrid, mask: np.ndarray) -> np.ndarray:
     """(nx, ny) heights for the physics hfield: ``grid.heights_m`` with the samples strictly inside
     ``mask`` (all 8 neighbours in it too; the grid's outside counts as in) sunk ``SUNK_M`` below
     the lowest height."""
-    padded = np.pad(mask, 1, constant_values=True)
-    nx, ny = mask.shape
-    inside = np.ones_like(mask)
-    for dx in (0, 1, 2):
-        for dy in (0, 1, 2):
-            inside &= padded[dx:dx + nx, dy:dy + ny]
+    inside = binary_erosion(mask, np.ones((3, 3), dtype=bool), border_value=1)
     heights = grid.heights_m.copy()
     heights[inside] = float(grid.heights_m.min()) - SUNK_M
     return heights

@@ -80,6 +80,22 @@ class TerrainCfg(Checked):
                              f"({self.tile_size_m} m); make the platform smaller")
         super().__post_init__()
 
+    @property
+    def tile_samples(self) -> int:
+        """Samples along a tile's edge."""
+        return int(round(self.tile_size_m / self.spacing_m))
+
+    @property
+    def border_samples(self) -> int:
+        """Samples of the flat border on each side of the tiles."""
+        return int(round(self.border_m / self.spacing_m))
+
+    def tile_slices(self, level: int, kind: int) -> tuple[slice, slice]:
+        """The (x, y) sample slices of tile (``level``, ``kind`` column) in the heights array."""
+        n, border = self.tile_samples, self.border_samples
+        x0, y0 = border + level * n, border + kind * n
+        return slice(x0, x0 + n), slice(y0, y0 + n)
+
 
 @dataclass(frozen=True)
 class TerrainGrid:
@@ -133,8 +149,7 @@ def generate(cfg: TerrainCfg) -> TerrainGrid:
     """The terrain of ``cfg``: each tile's heights from its kind's function at its level's
     difficulty, seeded per tile (a tile is the same whatever the grid's other tiles)."""
     h = cfg.spacing_m
-    n = int(round(cfg.tile_size_m / h))
-    border = int(round(cfg.border_m / h))
+    n, border = cfg.tile_samples, cfg.border_samples
     tile = TileGrid(num=n, spacing_m=h, platform_half=int(round(cfg.platform_size_m / (2 * h))))
     num_kinds = len(cfg.kinds)
     # one sample more than the tiles span: the far border's last sample closes the grid
@@ -143,8 +158,7 @@ def generate(cfg: TerrainCfg) -> TerrainGrid:
     for i, d in enumerate(level_d):
         for j, kind in enumerate(cfg.kinds):
             rng = np.random.default_rng([cfg.seed, i, j])
-            x0, y0 = border + i * n, border + j * n
-            heights[x0:x0 + n, y0:y0 + n] = KINDS[kind](tile, float(d), cfg, rng)
+            heights[cfg.tile_slices(i, j)] = KINDS[kind](tile, float(d), cfg, rng)
     size = (np.array(heights.shape) - 1) * h
     origin = -size / 2.0
     centers = np.zeros((cfg.num_levels, num_kinds, 3))
