@@ -42,13 +42,13 @@ class AmbuloRunner(OnPolicyRunner):
     env: RslRlVecEnv
     episodes: EpisodeStats | None = None
     """The main rank's episode statistics (set by ``train``)."""
-    started_s: float = 0.0
-    """``time.monotonic()`` the run's wall time counts from (set by ``train``); checkpoints keep
-    the time elapsed, and a resume moves this back by it, so evaluations and the time to a
-    criterion count every segment of a run that was stopped and resumed."""
 
     def __init__(self, env: RslRlVecEnv, train_cfg: dict, log_dir: str | None = None, device: str = "cpu"):
         super().__init__(env, train_cfg, log_dir=log_dir, device=device)
+        self.started_s = time.monotonic()
+        """``time.monotonic()`` the run's wall time counts from (``train`` sets the CLI's start);
+        checkpoints keep the time elapsed, and a resume moves this back by it, so evaluations and
+        the time to a criterion count every segment of a run that was stopped and resumed."""
         # rsl-rl's logger reads finished episodes back to the host every step; ambulo's keeps
         # them on the device (``logger.EpisodeLogger``)
         self.logger = EpisodeLogger.adopt(self.logger, env.episodes)
