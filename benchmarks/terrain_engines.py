@@ -119,13 +119,18 @@ def main() -> None:
                    help="MuJoCo Warp's device: cuda[:N], or cpu (Warp's CPU device)")
     args = p.parse_args()
     info = run_dir = ckpt = None
-    if args.run:
-        run_dir, ckpt = runs.resolve_policy(args.run)
-        info = runs.read_run_info(run_dir)
-        args.task = info["task"]
-    if "terrain" not in envs.spec(args.task).cfg_fn().__dataclass_fields__:
-        raise SystemExit(f"terrain_engines.py: task {args.task} has no terrain; give a terrain task "
-                         "(humanoid-rough, g1-rough, humanoid-footsteps-stairs)")
+    try:  # a wrong run, task or tile kind: one line, before anything is built
+        if args.run:
+            run_dir, ckpt = runs.resolve_policy(args.run)
+            info = runs.read_run_info(run_dir)
+            args.task = info["task"]
+        if "terrain" not in envs.spec(args.task).cfg_fn().__dataclass_fields__:
+            raise ValueError(f"task {args.task} has no terrain; give a terrain task "
+                             "(humanoid-rough, g1-rough, humanoid-footsteps-stairs)")
+        envs.make_cfg(args.task, **{"terrain.kinds": tuple(args.kinds.split(","))})
+    except (OSError, ValueError, KeyError) as err:
+        message = err.args[0] if isinstance(err, KeyError) and err.args else err  # a KeyError's str quotes it
+        raise SystemExit(f"terrain_engines.py: {message}") from None
     sides = {"mujoco": ("mujoco", "cpu"), "warp": ("warp", args.warp_device)}
     result = {"task": args.task, "kinds": args.kinds, "seed": args.seed, "warp_device": args.warp_device,
               "contacts": {k: contacts(args, *v, info) for k, v in sides.items()}}

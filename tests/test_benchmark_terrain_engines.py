@@ -2,6 +2,9 @@
 name and counts their contacts as MuJoCo's own contact list has them."""
 
 import argparse
+import sys
+
+import pytest
 
 from script_loader import ROOT, load_script
 
@@ -23,3 +26,13 @@ def test_resting_feet_touch_the_terrain_through_their_sole_spheres_only():
     touching = [c for c in data.contact[:data.ncon] if {int(c.geom1), int(c.geom2)} & terrain]
     assert touching and all({int(c.geom1), int(c.geom2)} & soles for c in touching)
     env.close()
+
+
+def test_a_wrong_run_task_or_tile_kind_is_one_line_before_anything_is_built(monkeypatch):
+    for args, said in ((["--run", "/no/such/run"], "is neither a run folder"),
+                       (["--task", "cartpole"], "task cartpole has no terrain"),
+                       (["--kinds", "flat,bogus"], "unknown ['bogus']")):
+        monkeypatch.setattr(sys, "argv", ["terrain_engines.py", *args])
+        with pytest.raises(SystemExit) as stop:
+            bench.main()
+        assert said in str(stop.value) and "\n" not in str(stop.value)
