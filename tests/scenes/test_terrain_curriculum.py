@@ -54,3 +54,20 @@ def test_disabled_curriculum_and_fixed_first_levels():
     drawn = TerrainCurriculum(TerrainCurriculumCfg(max_init_level=1), GRID, 64, torch.Generator().manual_seed(1),
                               "cpu")
     assert set(drawn.levels.tolist()) == {0, 1}
+
+
+def test_the_command_rule_moves_up_robots_that_covered_what_they_were_asked_without_falling():
+    # tile 4 m: legged_gym's rule needs > 2 m; the command rule 0.8 of an ask of at least 2 m (1.6 m)
+    # env:               0 tracked  1 tracked, fell  2 asked too little  3 short of 0.8  4 exactly 0.8
+    distance_m = torch.tensor([1.8, 1.8, 1.4, 1.5, 1.6])
+    asked_m = torch.tensor([2.0, 2.0, 1.5, 2.0, 2.0])
+    fell = torch.tensor([False, True, False, False, False])
+    c = curriculum([1, 1, 1, 1, 1])
+    c.update(None, distance_m, asked_m, fell)
+    assert c.levels.tolist() == [2, 1, 1, 1, 2]
+    legged_gym = curriculum([1, 1, 1, 1, 1], up_command_fraction=None)
+    legged_gym.update(None, distance_m, asked_m, fell)
+    assert legged_gym.levels.tolist() == [1, 1, 1, 1, 1]
+    no_falls_given = curriculum([1, 1, 1, 1, 1])
+    no_falls_given.update(None, distance_m, asked_m)
+    assert no_falls_given.levels.tolist() == [2, 2, 1, 1, 2]

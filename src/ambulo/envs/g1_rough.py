@@ -1,6 +1,6 @@
 """g1-rough: g1-walk over humanoid-rough's terrain curriculum, with its height scan and transfer randomization.
 
-humanoid-rough's task (commands, rewards, the ``walks`` criterion, the curriculum, falls against
+humanoid-rough's task (commands, rewards, the ``walks_rough`` criterion, the curriculum, falls against
 the ground under the base, the scan in the actor and the feet's heights over the ground in the
 critic, ``transfer_cfg_wide``) on g1-walk's robot (the G1 29-DoF URDF, URDF-derived drive gains,
 rotor armature, only the feet touch the ground). Nothing of either is restated: the cfg is
@@ -28,13 +28,14 @@ import mujoco
 
 from .g1_walk import G1WalkCfg, G1WalkEnv, g1_walk_cfg
 from .humanoid_rough import (
+    WALKS_ROUGH,
     HumanoidRoughEnv,
     RoughTerrainCfg,
     as_rough,
     as_rough_play,
     humanoid_rough_metrics,
 )
-from .humanoid_walk import WALKS, humanoid_walk_ppo
+from .humanoid_walk import humanoid_walk_ppo
 from .registry import TaskSpec, register
 
 G1_SCAN_HEIGHT_M = 0.76
@@ -104,7 +105,7 @@ register(TaskSpec(
     description="g1-walk over humanoid-rough's terrain curriculum (slopes, rough, 0.15 m stairs, stones) with a "
                 "height scan and transfer randomization (robots extra)",
     step_metrics=humanoid_rough_metrics,
-    criteria=(WALKS,),
+    criteria=(WALKS_ROUGH,),
 ))
 
 __all__ = ["G1RoughCfg", "G1RoughEnv", "g1_rough_cfg", "g1_rough_play_cfg", "g1_sole_spheres"]
