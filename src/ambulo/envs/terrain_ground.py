@@ -102,7 +102,15 @@ class TerrainGround:
         self.heights = TerrainHeights(self.terrain, self.device)
         self.scanner = HeightScan(self.cfg.height_scan, self.heights)
         self._default_root_z = self.robot.data.root_pos_w[:, 2].float().clone()  # the initial state's
-        return TerrainCurriculum(tiles_cfg, self.terrain, self.num_envs, self.generator, self.device)
+        self._tiles = TerrainCurriculum(tiles_cfg, self.terrain, self.num_envs, self.generator, self.device)
+        return self._tiles
+
+    def tile_kinds(self) -> tuple[tuple[str, ...], torch.Tensor]:
+        """(the terrain's kind names, in column order; (N,) int64 the column of each env's tile,
+        an index into the names). An evaluation reports each kind's episodes on its own
+        (``rl.eval_kinds``). Read from the tiles at each call: an env's column is fixed, but the
+        tensor is the tiles' own."""
+        return tuple(self.terrain.cfg.kinds), self._tiles.kinds
 
     def ground_height_m(self, xy_w: torch.Tensor) -> torch.Tensor:
         """Terrain heights (m) under (..., 2) world points."""

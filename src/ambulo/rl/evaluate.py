@@ -9,7 +9,8 @@ over every policy step of every episode until it ends, and each of its ``criteri
 reported as a bool. ``run_episodes`` is the measurement itself: ``evaluate`` applies it to a
 saved checkpoint, ``ambulo.rl.periodic_eval`` to the policy under training. A task laid out
 in blocks (``eval_blocks``: humanoid-walk-robust's nominal + 16 transfer corners) is summarized
-block by block, and its criteria hold where they hold in every block.
+block by block, and its criteria hold where they hold in every block. A terrain task's result
+also summarizes each tile kind's episodes alone (``by_kind``: reported, not judged; ``eval_kinds``).
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from ambulo.utils.atomic import atomic_write_json
 from . import runs
 from .distributed import Rank
 from .eval_blocks import blocks_table, eval_layout, judge_blocks
+from .eval_kinds import kinds_table, reported, tile_kinds
 from .eval_share import eval_share, merge_over_ranks
 
 
@@ -53,6 +55,17 @@ class EpisodeRecords:
                  *(m[rows].sum() for m in self.metric_means.values())]
         values = torch.stack(parts).cpu().tolist()
         return EpisodeSums(*values[:5], dict(zip(self.metric_means, values[5:])))
+
+    def sums_by(self, group: torch.Tensor, count: int) -> list[EpisodeSums]:
+        """The totals of the episodes of each of ``count`` groups, ``group`` (N,) int64 the group of
+        each episode, in [0, count) (one device-to-host read). A masked sum rather than
+        ``index_add_``: CUDA's atomic adds would sum in a different order from run to run."""
+        columns = torch.stack([torch.ones_like(self.returns), self.failed.double(), self.succeeded.double(),
+                               self.returns, self.length_steps, *self.metric_means.values()], dim=1)  # (N, C)
+        member = group[None, :] == torch.arange(count, device=group.device)[:, None]  # (count, N)
+        totals = torch.where(member[:, :, None], columns[None], 0.0).sum(dim=1)  # (count, C)
+        names = dict.fromkeys(self.metric_means, 0.0)
+        return [EpisodeSums(0.0, 0.0, 0.0, 0.0, 0.0, names).like(row) for row in totals]
 
 
 @dataclass
@@ -138,12 +151,28 @@ def run_episodes(env: envs.RLEnv, vec_env, policy: Callable, task: envs.TaskSpec
     merged = merge if merge is not None else (lambda sums: sums)
     shape = {"step_dt_s": env.step_dt_s, "max_episode_length": env.max_episode_length}
     if not names:
-        return summarize(merged(records.sums()), task, **shape)
-    per = env.num_envs // count
-    # every rank merges the same blocks in the same order (each merge is one collective)
-    parts = [{"name": name, **summarize(merged(records.sums(slice(b * per, (b + 1) * per))), task, **shape)}
-             for b, name in enumerate(names)]
-    return summarize(merged(records.sums()), task, **shape, blocks=parts)
+        result = summarize(merged(records.sums()), task, **shape)
+    else:
+        per = env.num_envs // count
+        # every rank merges the same blocks in the same order (each merge is one collective)
+        parts = [{"name": name, **summarize(merged(records.sums(slice(b * per, (b + 1) * per))), task, **shape)}
+                 for b, name in enumerate(names)]
+        result = summarize(merged(records.sums()), task, **shape, blocks=parts)
+    kinds = tile_kinds(env)
+    if kinds is not None:
+        result["by_kind"] = summarize_kinds(records, *kinds, task, merged, **shape)
+    return result
+
+
+def summarize_kinds(records: EpisodeRecords, names: Sequence[str], kind: torch.Tensor, task: envs.TaskSpec,
+                    merge: Callable[[EpisodeSums], EpisodeSums], **shape) -> dict[str, dict[str, Any]]:
+    """Each tile kind's episodes summarized alone (``eval_kinds``): kind name -> ``summarize``'s numbers
+    without the criteria (reported, not judged), in the terrain's column order; a kind no episode
+    of any process ran on is left out. ``kind``: (N,) int64 index into ``names`` of each episode's."""
+    # every rank merges every kind in the same order, even one it ran no episode of (one collective each)
+    totals = [merge(sums) for sums in records.sums_by(kind, len(names))]
+    return {name: reported(summarize(sums, task, **shape), task)
+            for name, sums in zip(names, totals) if sums.episodes > 0}
 
 
 def episode_records(env: envs.RLEnv, vec_env, policy: Callable, task: envs.TaskSpec, *,
@@ -238,10 +267,14 @@ def evaluate(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = N
 
 
 def print_result(result: dict) -> None:
-    """The result as JSON, a blocked evaluation's blocks as a table after it (eval.json keeps them whole)."""
-    print(json.dumps({k: v for k, v in result.items() if k not in ("blocks", "blocks_failed")}, indent=2))
+    """The result as JSON, a blocked evaluation's blocks and a terrain task's tile kinds as tables
+    after it (eval.json keeps them whole)."""
+    print(json.dumps({k: v for k, v in result.items() if k not in ("blocks", "blocks_failed", "by_kind")},
+                     indent=2))
     if "blocks" in result:
         print(blocks_table(result))
+    if "by_kind" in result:
+        print(kinds_table(result["by_kind"]))
 
 
 def evaluate_shipped(task: str, *, num_episodes: int | None = None, episode_length_s: float | None = None,

@@ -54,6 +54,7 @@ from ambulo.utils.atomic import atomic_write_json, atomic_write_text
 from . import runs
 from .distributed import Rank
 from .eval_blocks import eval_layout, worst_block, worst_block_text
+from .eval_kinds import kinds_cell, step_metrics
 from .eval_share import eval_share, merge_over_ranks
 from .evaluate import eval_episode_length_s, run_episodes
 from .metrics import truncate_csv
@@ -61,13 +62,16 @@ from .vecenv import RslRlVecEnv
 
 EVAL_COLUMNS = ("iteration", "wall_s", "env_steps", "fall_rate", "mean_episode_length_s",
                 "mean_return", "metrics", "criteria_met", "cpu_engine_metrics", "cpu_engine_criteria_met",
-                "worst_block", "cpu_engine_worst_block")
+                "worst_block", "cpu_engine_worst_block", "by_kind")
 """``criteria_met``: on the evaluation env's engine (the training device's); ``cpu_engine_*``: the
 same policy on the CPU engine, empty when not run (the evaluation env is the CPU engine, or its
 evaluation did not meet the criteria). An evaluation in blocks (``eval_blocks``): ``fall_rate``
 and ``metrics`` pool every block, ``criteria_met`` holds in every block, ``worst_block`` is the
 block nearest to failing, its name then ``name=value`` pairs: its fall rate, its metrics and
-``blocks_failed`` (``worst_block_from_text``); empty for a task without blocks."""
+``blocks_failed`` (``worst_block_from_text``); empty for a task without blocks. ``by_kind``: a
+terrain task's fall rate and first step metric on each tile kind, ``kind:fall/err`` pairs
+(``eval_kinds.kinds_cell``, read by ``kinds_from_text``), reported, not judged; empty without
+terrain. Columns are only ever appended: readers take them by name."""
 TIME_FILE = "time_to_criterion.json"
 
 
@@ -205,7 +209,7 @@ class PeriodicEval:
                f"{result['mean_return']:.2f}", _metrics_text(result), met,
                "" if cpu is None else f"fall_rate={cpu['fall_rate']:.3f} {_metrics_text(cpu)}",
                "" if cpu is None else self._met(cpu), _worst_block_cell(result),
-               "" if cpu is None else _worst_block_cell(cpu)]
+               "" if cpu is None else _worst_block_cell(cpu), kinds_cell(result)]
         line = io.StringIO()
         csv.writer(line).writerow(row)
         with open(self._csv, "a") as f:
@@ -219,6 +223,9 @@ class PeriodicEval:
             if worst is not None:
                 for key in ("fall_rate", *_metrics(worst)):
                     writer.add_scalar(f"eval/worst_block_{key}", worst[key], iteration)
+            for name, kind in result.get("by_kind", {}).items():  # a terrain task's tile kinds, reported
+                for key in ("fall_rate", *step_metrics(kind)):
+                    writer.add_scalar(f"eval_by_kind/{name}/{key}", kind[key], iteration)
             if cpu is not None:
                 for key in ("fall_rate", *_metrics(cpu)):
                     writer.add_scalar(f"eval_cpu_engine/{key}", cpu[key], iteration)
