@@ -63,7 +63,7 @@ class EpisodeRecords:
         columns = torch.stack([torch.ones_like(self.returns), self.failed.double(), self.succeeded.double(),
                                self.returns, self.length_steps, *self.metric_means.values()], dim=1)  # (N, C)
         member = group[None, :] == torch.arange(count, device=group.device)[:, None]  # (count, N)
-        totals = torch.where(member[:, :, None], columns[None], 0.0).sum(dim=1)  # (count, C)
+        totals = torch.where(member[:, :, None], columns[None], 0.0).sum(dim=1).cpu()  # (count, C)
         names = dict.fromkeys(self.metric_means, 0.0)
         return [EpisodeSums(0.0, 0.0, 0.0, 0.0, 0.0, names).like(row) for row in totals]
 
