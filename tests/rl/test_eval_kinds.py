@@ -173,6 +173,13 @@ def test_the_periodic_evaluation_writes_a_readable_by_kind_column(rough_run):
     assert pooled_err == pytest.approx(metrics["mean_abs_vel_error_m_s"], abs=2e-4)
     plot = load_script(ROOT / "scripts" / "plot_eval_curves.py")
     assert len(plot.read_evals(rough_run / "evals.csv")) == 1  # today's reader reads it
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    events = EventAccumulator(str(rough_run))
+    events.Reload()
+    (stones,) = events.Scalars("eval_by_kind/stepping_stones/fall_rate")
+    assert stones.step == 0 and stones.value == pytest.approx(kinds["stepping_stones"][0], abs=1e-3)
+    assert "eval_by_kind/flat/mean_abs_vel_error_m_s" in events.Tags()["scalars"]
 
 
 def test_every_terrain_task_has_tile_kinds_and_others_do_not():
