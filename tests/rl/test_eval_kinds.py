@@ -204,3 +204,11 @@ def test_an_evaluation_split_over_processes_merges_each_kind(rough_run):
     assert split["episodes"] == 14 and [k["episodes"] for k in split["by_kind"].values()] == [2] * 7
     pooled = sum(k["mean_abs_vel_error_m_s"] * 2 for k in split["by_kind"].values()) / 14
     assert pooled == pytest.approx(split["mean_abs_vel_error_m_s"])
+
+
+def test_the_training_console_names_the_kind_with_the_most_falls(monkeypatch):
+    result = run_on(records(), monkeypatch)
+    stairs = sum(VEL[i] for i in range(1, 20, 3)) / 7
+    line = periodic_eval.summary(result, 0, 60.0)
+    assert line.endswith(f"; most falls on stairs_up tiles (fall rate 0.14, abs_vel_error_m_s {stairs:.3f})")
+    assert "most falls" not in periodic_eval.summary(run_on(records(), monkeypatch, terrain=False), 0, 60.0)

@@ -12,7 +12,8 @@ no ``by_kind``.
 
 ``ambulo eval`` prints ``kinds_table`` after its JSON (eval.json holds ``by_kind`` whole);
 ``--eval-every``'s ``evals.csv`` holds ``kinds_cell`` in its ``by_kind`` column
-(``kinds_from_text`` reads it back).
+(``kinds_from_text`` reads it back), and its console line names the kind with the most falls
+(``most_falls_text``).
 """
 
 from __future__ import annotations
@@ -75,6 +76,17 @@ def kinds_cell(result: dict[str, Any]) -> str:
     return " ".join(cells)
 
 
+def most_falls_text(result: dict[str, Any]) -> str:
+    """``most falls on KIND tiles (fall rate x, metric y)`` for a result with tile kinds, the first
+    such kind in column order; '' without them (the training console's evaluation line)."""
+    by_kind = result.get("by_kind")
+    if not by_kind:
+        return ""
+    name, kind = max(by_kind.items(), key=lambda item: item[1]["fall_rate"])
+    metrics = "".join(f", {k.removeprefix('mean_')} {kind[k]:.3f}" for k in step_metrics(kind)[:1])
+    return f"most falls on {name} tiles (fall rate {kind['fall_rate']:.2f}{metrics})"
+
+
 def kinds_from_text(text: str) -> dict[str, tuple[float, ...]]:
     """A ``by_kind`` cell as kind -> (fall rate, first step metric) (just the fall rate for a task
     without step metrics); ``{}`` for the empty cell of a task without terrain."""
@@ -82,5 +94,5 @@ def kinds_from_text(text: str) -> dict[str, tuple[float, ...]]:
             for name, values in (pair.split(":", 1) for pair in text.split())}
 
 
-__all__ = ["POOLED_MEANS", "kinds_cell", "kinds_from_text", "kinds_table", "reported", "step_metrics",
-           "tile_kinds"]
+__all__ = ["POOLED_MEANS", "kinds_cell", "kinds_from_text", "kinds_table", "most_falls_text", "reported",
+           "step_metrics", "tile_kinds"]

@@ -54,7 +54,7 @@ from ambulo.utils.atomic import atomic_write_json, atomic_write_text
 from . import runs
 from .distributed import Rank
 from .eval_blocks import eval_layout, worst_block, worst_block_text
-from .eval_kinds import kinds_cell, step_metrics
+from .eval_kinds import kinds_cell, most_falls_text, step_metrics
 from .eval_share import eval_share, merge_over_ranks
 from .evaluate import eval_episode_length_s, run_episodes
 from .metrics import truncate_csv
@@ -322,8 +322,8 @@ def summary(result: dict[str, Any], iteration: int, wall_s: float) -> str:
                 f"{'meets ' + ', '.join(met) if met else 'criteria not met'}")
 
     def one_and_worst(res: dict[str, Any]) -> str:
-        worst = worst_block_text(res)
-        return one(res) + (f"; {worst}" if worst else "")
+        worst = [text for text in (worst_block_text(res), most_falls_text(res)) if text]
+        return "; ".join([one(res), *worst])
 
     line = f"eval @ it {iteration} ({wall_s / 60:.1f} min): {one_and_worst(result)}"
     if "cpu_engine" in result:
