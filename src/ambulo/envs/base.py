@@ -207,6 +207,11 @@ class RLEnv:
     def _setup(self) -> None:
         """Precompute index tensors and task buffers (after the engine and robot exist)."""
 
+    def action_bounds(self) -> torch.Tensor | None:
+        """(A,) float32 the largest useful |action| of each action, where the task knows it (a joint
+        target task: the farther joint limit from the default pose, in action units); None here."""
+        return None
+
     def _apply_action(self, actions: torch.Tensor) -> None:
         """Write drive targets for the next ``decimation`` physics steps from (N, A) float32 actions."""
         raise NotImplementedError

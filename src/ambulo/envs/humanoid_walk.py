@@ -235,6 +235,19 @@ class HumanoidWalkEnv(RLEnv):
         return vel_yaw, -(gravity_b * data.root_ang_vel_b).sum(dim=-1)
 
     # -- RLEnv hooks ---------------------------------------------------------------------
+    def action_bounds(self) -> torch.Tensor:
+        """(A,) float32: each joint's farther limit from its default position over ``action_scale``
+        (an action past it only presses the target into the limit). humanoid: hip pitch 7.6, knee
+        8.0, ankle roll 1.6; a PPO walker on humanoid-rough's hardest stairs reaches 3.6 at the knee
+        (99th percentile) where FastSAC's one bound of 2.0 stops at 0.5 rad."""
+        limits, default = self.robot.joint_pos_limits, self.robot.default_joint_pos
+        reach = torch.maximum(limits[:, 1] - default, default - limits[:, 0]) / self.cfg.action_scale
+        unlimited = [self.robot.joint_names[j] for j in torch.nonzero(~torch.isfinite(reach)).flatten().tolist()]
+        if unlimited:
+            raise ValueError(f"{self.cfg.robot.file}: joints {unlimited} have no limits, so they bound no action; "
+                             "give them limits or train with one action_bound for all")
+        return reach.float()
+
     def _apply_action(self, actions: torch.Tensor) -> None:
         self._targets = self.robot.default_joint_pos + actions * self.cfg.action_scale
 

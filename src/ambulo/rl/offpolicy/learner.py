@@ -40,12 +40,15 @@ class FastOffPolicy(nn.Module):
     """Networks, optimizers and the update of one off-policy learner (see the module docstring)."""
 
     def __init__(self, cfg: OffPolicyCfg, num_obs: int, num_critic_obs: int, num_actions: int,
-                 device: torch.device | str):
+                 device: torch.device | str, action_bounds: torch.Tensor | None = None):
+        """``action_bounds``: (num_actions,) each action's bound (``cfg.joint_limit_bounds``: the
+        env's ``action_bounds()``); None: ``cfg.action_bound`` for every action."""
         super().__init__()
         self.cfg, self.num_actions = cfg, num_actions
         self.sac = cfg.algo == "fast-sac"
         self.actor = Actor(num_obs, num_actions, cfg.actor_hidden_dims, stochastic=self.sac,
-                           action_bound=cfg.action_bound, log_std_range=cfg.log_std_range,
+                           action_bound=cfg.action_bound if action_bounds is None else action_bounds.float().cpu(),
+                           log_std_range=cfg.log_std_range,
                            obs_normalization=cfg.obs_normalization)
         self.critic = TwinCategoricalCritic(num_critic_obs, num_actions, cfg.critic_hidden_dims, cfg.num_atoms,
                                             layer_norm=cfg.critic_layer_norm,
@@ -91,8 +94,8 @@ class FastOffPolicy(nn.Module):
             else:
                 actions = self.actor(obs)
                 actions = actions + torch.randn_like(actions) * noise_std
-        bound = self.cfg.action_bound
-        return actions.float().clamp(-bound, bound)
+        bound = self.actor.action_bound
+        return torch.clamp(actions.float(), -bound, bound)
 
     def train_mode(self) -> None:
         """What ``PeriodicEval`` calls after evaluating (rsl-rl's name): training mode."""
@@ -148,7 +151,8 @@ class FastOffPolicy(nn.Module):
                 next_actions = self.actor(batch.next_obs)
                 noise = (torch.randn_like(next_actions) * cfg.target_noise_std).clamp(
                     -cfg.target_noise_clip, cfg.target_noise_clip)
-                next_actions = (next_actions + noise).clamp(-cfg.action_bound, cfg.action_bound)
+                bound = self.actor.action_bound
+                next_actions = torch.clamp(next_actions + noise, -bound, bound)
                 returns = batch.returns
             next_probs = torch.softmax(self.critic_target(batch.next_critic_obs, next_actions).float(), dim=-1)
             means = categorical.expected(next_probs, self.atoms)  # (2, B)

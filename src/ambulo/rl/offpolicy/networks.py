@@ -63,11 +63,16 @@ class Actor(nn.Module):
     (squashed into ``log_std_range``); otherwise (fast-td3) only the mean."""
 
     def __init__(self, num_obs: int, num_actions: int, hidden: tuple[int, ...], *, stochastic: bool,
-                 action_bound: float = 1.0, log_std_range: tuple[float, float] = (-5.0, 0.0),
+                 action_bound: float | torch.Tensor = 1.0, log_std_range: tuple[float, float] = (-5.0, 0.0),
                  obs_normalization: bool = True):
         super().__init__()
         self.num_obs, self.num_actions, self.stochastic = num_obs, num_actions, stochastic
-        self.action_bound = float(action_bound)
+        # (A,) bound of each action: one number for all, or each joint's own (joint-limit bounds); not
+        # in the state dict (a checkpoint's actor is rebuilt with the bounds its run's settings give)
+        bound = torch.as_tensor(action_bound, dtype=torch.float32).expand(num_actions).clone()
+        if not bool(torch.isfinite(bound).all() and (bound > 0).all()):
+            raise ValueError(f"Actor action bounds must be finite and > 0; got {bound.tolist()}")
+        self.register_buffer("action_bound", bound, persistent=False)
         self.log_std_min, self.log_std_max = float(log_std_range[0]), float(log_std_range[1])
         self.normalizer = RunningNorm(num_obs, enabled=obs_normalization)
         self.net = mlp(num_obs, hidden, 2 * num_actions if stochastic else num_actions)

@@ -110,7 +110,8 @@ class OffPolicyRunner:
         self.device = env.device
         self.logger = _Logger(writer)
         critic_obs = env.num_privileged_obs or env.num_obs
-        self.alg = FastOffPolicy(cfg, env.num_obs, critic_obs, env.num_actions, env.device)
+        self.alg = FastOffPolicy(cfg, env.num_obs, critic_obs, env.num_actions, env.device,
+                                 action_bounds=joint_limit_bounds(env) if cfg.joint_limit_bounds else None)
         self.current_learning_iteration = 0
         self.started_s = time.monotonic()
         """``time.monotonic()`` the run's wall time counts from (``train_offpolicy`` sets it; a
@@ -147,7 +148,7 @@ class OffPolicyRunner:
             self.alg.critic.normalizer.update(obs if critic_obs is None else critic_obs)
         if self.env_steps < cfg.random_steps:
             actions = (torch.rand(env.num_envs, env.num_actions, generator=self.generator, device=self.device)
-                       * 2.0 - 1.0) * cfg.action_bound
+                       * 2.0 - 1.0) * self.alg.actor.action_bound
         else:
             actions = self.alg.explore(obs, self._noise_std)
         if self._final_critic is not None:
@@ -257,6 +258,16 @@ class OffPolicyRunner:
         return InferencePolicy(self.alg.actor)
 
 
+def joint_limit_bounds(env: RLEnv) -> torch.Tensor:
+    """(A,) the env's own action bounds (``OffPolicyCfg.joint_limit_bounds``); a ValueError in one
+    line for a task that has none."""
+    bounds = env.action_bounds()
+    if bounds is None:
+        raise ValueError(f"{type(env).__name__} gives no per-action bounds (joint_limit_bounds=true); "
+                         "train it with one action_bound for all (--algo-cfg joint_limit_bounds=false)")
+    return bounds
+
+
 def load_runner(info: dict, env: RLEnv, checkpoint: Path) -> OffPolicyRunner:
     """The networks of an off-policy run (its ``run.json`` ``info``) on ``env``, with the weights
     of ``checkpoint``: what ``runs.load_runner`` returns for ``play``, ``eval`` and ``export``."""
@@ -267,4 +278,4 @@ def load_runner(info: dict, env: RLEnv, checkpoint: Path) -> OffPolicyRunner:
     return runner
 
 
-__all__ = ["FinalCriticObs", "InferencePolicy", "OffPolicyRunner", "load_runner"]
+__all__ = ["FinalCriticObs", "InferencePolicy", "OffPolicyRunner", "joint_limit_bounds", "load_runner"]
