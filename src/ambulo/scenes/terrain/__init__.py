@@ -7,19 +7,20 @@
 - ``heights``: ``TerrainHeights`` (the same samples interpolated on the device) and
   ``HeightScan`` (the actor's grid of ground heights around the base);
 - ``curriculum``: ``TerrainCurriculum`` (legged_gym's level moves, vectorized over worlds);
-- ``boxes``: the piecewise-flat tiles (flat, stairs) and the border as static boxes
-  (``TerrainCfg.box_tiles``), so a resting sphere gets one contact in MuJoCo C as in MuJoCo Warp;
+- ``boxes``: the piecewise-flat tiles (flat, stairs; stepping stones on request) and the border as
+  static boxes (``TerrainCfg.box_tiles``, ``box_kinds``), so a resting sphere gets one contact in
+  MuJoCo C as in MuJoCo Warp;
 - ``soles``: ``sphere_soles`` (feet touch the hfield through corner spheres: MuJoCo Warp's
   box-hfield contacts are wrong for flat soles).
 """
 
-from .boxes import BOX_KINDS, TerrainBoxes, terrain_boxes
+from .boxes import BOX_KINDS, PIECEWISE_FLAT_KINDS, TerrainBoxes, terrain_boxes
 from .curriculum import TerrainCurriculum, TerrainCurriculumCfg
 from .generator import TERRAIN_PRIM_PATH, TerrainCfg, TerrainGrid, add_terrain, difficulties, generate
 from .heights import HeightScan, HeightScanCfg, TerrainHeights
 from .soles import sphere_soles
 from .subterrains import KINDS
 
-__all__ = ["BOX_KINDS", "KINDS", "TERRAIN_PRIM_PATH", "HeightScan", "HeightScanCfg", "TerrainCfg", "TerrainCurriculum",
+__all__ = ["BOX_KINDS", "KINDS", "PIECEWISE_FLAT_KINDS", "TERRAIN_PRIM_PATH", "HeightScan", "HeightScanCfg", "TerrainCfg", "TerrainCurriculum",
            "TerrainBoxes", "TerrainCurriculumCfg", "TerrainGrid", "TerrainHeights", "add_terrain", "difficulties", "generate",
            "sphere_soles", "terrain_boxes"]

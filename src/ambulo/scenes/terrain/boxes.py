@@ -1,11 +1,14 @@
-"""Piecewise-flat tiles (flat, stairs, the border) as static boxes; the heightfield keeps the rest.
+"""Piecewise-flat tiles (flat, stairs, the border; stepping stones on request) as static boxes; the
+heightfield keeps the rest.
 
 Why: MuJoCo C collides a sphere with a heightfield prism by prism, so a sole sphere resting on a
 flat hfield gets one contact per prism it overlaps (up to 3 on one sphere: 9 contacts on 4 sole
 spheres, against MuJoCo Warp's 8, one per sphere). A humanoid-footsteps-stairs policy trained on
 MuJoCo Warp fell in 9 of 16 episodes on flat tiles on MuJoCo C (0 on Warp); the same tiles as a
 plane: 0 of 32 (21 of 32 on the hfield). A sphere on a box is one analytic contact in both
-engines. Rough ground and slopes are not piecewise flat and stay in the hfield.
+engines. Rough ground and slopes are not piecewise flat and stay in the hfield. Which kinds are
+boxes is ``TerrainCfg.box_kinds`` (default ``BOX_KINDS``; stepping stones, also piecewise flat, can
+join: a stone is a rectangle of the height-0 slab over a box for the pit's floor).
 
 The boxes reproduce ``TerrainGrid.heights_m``, which stays the one truth for height scans,
 spawning and planners: sample ``(ix, iy)`` owns the square of one spacing centred on it, so a
@@ -15,7 +18,9 @@ bilinear over it, as before). Height 0 (the border, flat tiles, every tile's edg
 slab of rectangles over the whole grid; then per tile each other distinct height ``L`` gets the
 rectangles of ``{samples >= L}``, tops at ``L`` and all reaching the tile's floor: a summit
 (``stairs_down``) is a stack of squares, one box a step; a pit (``stairs_up``) a frame of four
-boxes a step. The boxes overlap below their tops, which no sphere reaches. Where two coplanar
+boxes a step; a stepping-stone tile one box at the pit's depth under the whole tile. The slab
+reaches down to every box tile's next level below 0 (at least ``FLOOR_DEPTH_M``), so no gap opens
+under a stone when the pit is deeper. The boxes overlap below their tops, which no sphere reaches. Where two coplanar
 tops meet (the slab's rectangles, a pit ring's corners) a sphere within a few mm of the seam also
 touches the neighbour's edge (a second, shallower contact, alike in both engines).
 
@@ -36,8 +41,12 @@ from scipy.ndimage import binary_erosion
 if TYPE_CHECKING:
     from .generator import TerrainGrid
 
-BOX_KINDS = frozenset({"flat", "stairs_up", "stairs_down"})
-"""Sub-terrain kinds whose surface is piecewise flat: built as boxes when ``TerrainCfg.box_tiles``."""
+BOX_KINDS = ("flat", "stairs_up", "stairs_down")
+"""The kinds built as boxes by default (``TerrainCfg.box_kinds``): those of session 15."""
+
+PIECEWISE_FLAT_KINDS = (*BOX_KINDS, "stepping_stones")
+"""Sub-terrain kinds whose surface is piecewise flat, so boxes can build them exactly (rough ground
+and slopes cannot)."""
 
 FLOOR_DEPTH_M = 0.5
 """Boxes reach this far below their region's lowest height, m (a floor no contact goes through)."""
@@ -93,11 +102,11 @@ def _stack(heights: np.ndarray, skip: float) -> list[tuple]:
 
 
 def box_mask(grid: TerrainGrid) -> np.ndarray:
-    """(nx, ny) bool: the samples of box tiles (``BOX_KINDS``) and of the border."""
+    """(nx, ny) bool: the samples of box tiles (``TerrainCfg.box_kinds``) and of the border."""
     cfg = grid.cfg
     mask = np.ones(grid.heights_m.shape, dtype=bool)
     for j, kind in enumerate(cfg.kinds):
-        if kind not in BOX_KINDS:
+        if kind not in cfg.box_kinds:
             for i in range(cfg.num_levels):
                 mask[cfg.tile_slices(i, j)] = False
     return mask
@@ -107,17 +116,21 @@ def terrain_boxes(grid: TerrainGrid) -> TerrainBoxes:
     """The boxes of ``grid``'s box tiles and border (see the module docstring)."""
     cfg, h, heights = grid.cfg, grid.spacing_m, grid.heights_m
     mask = box_mask(grid)
-    # height 0 (the border, flat tiles, every tile's edge ring, a summit's foot) over the whole
-    # grid at once: coplanar boxes side by side leave a seam where a sphere within a few mm of it
-    # touches the neighbour's edge too, and one slab over many tiles has few seams
-    boxes = [(ix, iy, lx, ly, 0.0, -FLOOR_DEPTH_M) for ix, iy, lx, ly in rectangles(mask & (heights >= 0.0))]
+    tiles, slab_bottom = [], -FLOOR_DEPTH_M
     for i in range(cfg.num_levels):
         for j, kind in enumerate(cfg.kinds):
-            if kind in BOX_KINDS:
+            if kind in cfg.box_kinds:
                 xs, ys = cfg.tile_slices(i, j)
-                boxes += [(xs.start + ix, ys.start + iy, lx, ly, top, bottom) for ix, iy, lx, ly, top, bottom
-                          in _stack(heights[xs, ys], skip=0.0)]
-    b = np.array(boxes, dtype=np.float64).reshape(-1, 6)
+                tile = heights[xs, ys]
+                tiles += [(xs.start + ix, ys.start + iy, lx, ly, top, bottom) for ix, iy, lx, ly, top, bottom
+                          in _stack(tile, skip=0.0)]
+                below = tile[tile < 0.0]  # the next level down's box covers the tile's height-0 samples
+                slab_bottom = min(slab_bottom, float(below.max())) if below.size else slab_bottom
+    # height 0 (the border, flat tiles, every tile's edge ring, a summit's foot, the stones) over
+    # the whole grid at once: coplanar boxes side by side leave a seam where a sphere within a few
+    # mm of it touches the neighbour's edge too, and one slab over many tiles has few seams
+    slab = [(ix, iy, lx, ly, 0.0, slab_bottom) for ix, iy, lx, ly in rectangles(mask & (heights >= 0.0))]
+    b = np.array(slab + tiles, dtype=np.float64).reshape(-1, 6)
     ix, iy, lx, ly, top, bottom = b.T
     # sample i owns [i - 1/2, i + 1/2) spacings from the origin
     center = np.stack([grid.origin_xy_m[0] + (ix + lx / 2 - 0.5) * h, grid.origin_xy_m[1] + (iy + ly / 2 - 0.5) * h,
@@ -136,5 +149,5 @@ def hfield_heights(grid: TerrainGrid, mask: np.ndarray) -> np.ndarray:
     return heights
 
 
-__all__ = ["BOX_KINDS", "FLOOR_DEPTH_M", "SUNK_M", "TerrainBoxes", "box_mask", "hfield_heights", "rectangles",
+__all__ = ["BOX_KINDS", "FLOOR_DEPTH_M", "PIECEWISE_FLAT_KINDS", "SUNK_M", "TerrainBoxes", "box_mask", "hfield_heights", "rectangles",
            "terrain_boxes"]

@@ -12,7 +12,8 @@ samples ``h`` metres apart; ``add_terrain`` builds it into the scene as a single
 fall checks and spawning. MuJoCo draws each cell as two triangles and the lookup is bilinear:
 they agree at samples and wherever the cell is planar (treads, slopes, the border). With
 ``TerrainCfg.box_tiles`` the piecewise-flat tiles collide as static boxes built from the same
-samples (``terrain.boxes``: one contact per resting sphere in both engines).
+samples (``terrain.boxes``: one contact per resting sphere in both engines); ``box_kinds`` says
+which kinds (flat and stairs by default; stepping stones too on request).
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ import mujoco
 import numpy as np
 
 from ...utils.validate import Checked, rule
-from .boxes import hfield_heights, terrain_boxes
+from .boxes import BOX_KINDS, PIECEWISE_FLAT_KINDS, hfield_heights, terrain_boxes
 from .subterrains import KINDS, TileGrid
 
 TERRAIN_PRIM_PATH = "/World/terrain"
@@ -66,15 +67,22 @@ class TerrainCfg(Checked):
     seed: int = 0
     """Seed of the random sub-terrains (rough heights, stone offsets)."""
     box_tiles: bool = True
-    """Build the piecewise-flat tiles (flat, stairs up and down) and the border as static boxes,
-    the other kinds in the hfield (``terrain.boxes``: MuJoCo C gives a sphere on a flat hfield one
-    contact per prism it overlaps, MuJoCo Warp one, and a policy trained on Warp fell on MuJoCo C);
-    False: everything in the hfield (before session 15)."""
+    """Build the tiles of ``box_kinds`` and the border as static boxes, the other kinds in the
+    hfield (``terrain.boxes``: MuJoCo C gives a sphere on a flat hfield one contact per prism it
+    overlaps, MuJoCo Warp one, and a policy trained on Warp fell on MuJoCo C); False: everything
+    in the hfield (before session 15), whatever ``box_kinds``."""
+    box_kinds: tuple[str, ...] = BOX_KINDS
+    """The kinds built as boxes with ``box_tiles``: some of ``boxes.PIECEWISE_FLAT_KINDS`` (add
+    ``stepping_stones`` for stones as boxes; docs/terrain.md has the costs)."""
 
     def __post_init__(self):
         unknown = sorted(set(self.kinds) - set(KINDS))
         if unknown or not self.kinds:
             raise ValueError(f"TerrainCfg.kinds {list(self.kinds)}: unknown {unknown}; use some of {sorted(KINDS)}")
+        not_flat = sorted(set(self.box_kinds) - set(PIECEWISE_FLAT_KINDS))
+        if not_flat:
+            raise ValueError(f"TerrainCfg.box_kinds {list(self.box_kinds)}: {not_flat} cannot be boxes (not "
+                             f"piecewise flat); use some of {list(PIECEWISE_FLAT_KINDS)}")
         if self.platform_size_m > self.tile_size_m:
             raise ValueError(f"TerrainCfg.platform_size_m {self.platform_size_m} is larger than the tile "
                              f"({self.tile_size_m} m); make the platform smaller")
@@ -177,7 +185,7 @@ def add_terrain(spec: mujoco.MjSpec, grid: TerrainGrid, *, friction: float = 1.0
                 prim_path: str = TERRAIN_PRIM_PATH, base_depth_m: float = 1.0,
                 color=(0.45, 0.47, 0.50)) -> mujoco.MjsGeom:
     """Add ``grid`` to ``spec`` as the static body ``<prim_path>``: one hfield geom
-    ``<prim_path>/geom`` (returned) and, with ``grid.cfg.box_tiles``, the box tiles' boxes
+    ``<prim_path>/geom`` (returned) and, with ``grid.cfg.box_tiles``, the ``box_kinds`` tiles' boxes
     ``<prim_path>/box<i>`` (``terrain.boxes``; the hfield sinks under them).
 
     MuJoCo stores heights normalized to [0, 1] times the elevation ``size[2]``, above the geom's
