@@ -15,12 +15,16 @@ policy trained on MuJoCo Warp falling on the CPU engine even on flat tiles.
 2. Falls (``--run``): the run's policy on the same tiles, same seed, on each engine (``rl.run_episodes``,
    the evaluation ``ambulo eval`` runs; fall rate includes a task's other failures, e.g. a lost plan).
 
+``--box-kinds`` sets which tile kinds are static boxes (``terrain.box_kinds``; default the task's),
+e.g. ``flat,stairs_up,stairs_down,stepping_stones`` for stepping stones as boxes.
 ``--warp-device cpu`` runs MuJoCo Warp on Warp's CPU device (no GPU needed; its first build
 compiles the kernels, minutes). Ends with one ``RESULT {json}``; ``ratio`` = MuJoCo C's contacts
 per touching sphere over Warp's (1.0: the engines agree).
 
     python benchmarks/terrain_engines.py --task humanoid-footsteps-stairs --kinds flat
     python benchmarks/terrain_engines.py --run runs/humanoid-footsteps-stairs/<run> --kinds flat --episodes 16
+    python benchmarks/terrain_engines.py --run runs/humanoid-rough/<run> --kinds stepping_stones \
+        --box-kinds flat,stairs_up,stairs_down,stepping_stones --warp-device cpu
 """
 
 from __future__ import annotations
@@ -73,8 +77,16 @@ def sphere_contact_counts(env) -> np.ndarray:
     return np.array(sorted(counts.values()), dtype=float)
 
 
-def make(args, engine: str, device: str, num_envs: int, info: dict | None):
+def tile_overrides(args) -> dict:
+    """The terrain overrides of ``--kinds`` and ``--box-kinds``."""
     tiles = {"terrain.kinds": tuple(args.kinds.split(","))}
+    if args.box_kinds is not None:
+        tiles["terrain.box_kinds"] = tuple(k for k in args.box_kinds.split(",") if k)
+    return tiles
+
+
+def make(args, engine: str, device: str, num_envs: int, info: dict | None):
+    tiles = tile_overrides(args)
     if info is not None:
         return runs.make_env_for_run(info, num_envs=num_envs, seed=args.seed, play=True, device=device,
                                      engine=engine, episode_length_s=args.episode_length_s, **tiles)
@@ -110,6 +122,8 @@ def main() -> None:
     p.add_argument("--task", default="humanoid-footsteps-stairs", help="a terrain task (ignored with --run)")
     p.add_argument("--run", help="a run folder or checkpoint of a terrain task: also compare its falls")
     p.add_argument("--kinds", default="flat", help="tile kinds, comma-separated (the terrain's `kinds`)")
+    p.add_argument("--box-kinds", help="tile kinds built as static boxes, comma-separated (the terrain's "
+                   "`box_kinds`; default: the task's, flat and stairs)")
     p.add_argument("--worlds", type=int, default=8, help="resting robots for the contact count")
     p.add_argument("--settle-s", type=float, default=0.5, help="seconds standing before the count")
     p.add_argument("--episodes", type=int, default=16, help="policy episodes per engine (--run)")
@@ -127,12 +141,13 @@ def main() -> None:
         if "terrain" not in envs.spec(args.task).cfg_fn().__dataclass_fields__:
             raise ValueError(f"task {args.task} has no terrain; give a terrain task "
                              "(humanoid-rough, g1-rough, humanoid-footsteps-stairs)")
-        envs.make_cfg(args.task, **{"terrain.kinds": tuple(args.kinds.split(","))})
+        envs.make_cfg(args.task, **tile_overrides(args))
     except (OSError, ValueError, KeyError) as err:
         message = err.args[0] if isinstance(err, KeyError) and err.args else err  # a KeyError's str quotes it
         raise SystemExit(f"terrain_engines.py: {message}") from None
     sides = {"mujoco": ("mujoco", "cpu"), "warp": ("warp", args.warp_device)}
-    result = {"task": args.task, "kinds": args.kinds, "seed": args.seed, "warp_device": args.warp_device,
+    result = {"task": args.task, "kinds": args.kinds, "box_kinds": args.box_kinds, "seed": args.seed,
+              "warp_device": args.warp_device,
               "contacts": {k: contacts(args, *v, info) for k, v in sides.items()}}
     for name, c in result["contacts"].items():
         print(f"{name:7s} resting: {c['contacts']} contacts on {c['touching_spheres']} touching sole spheres "
