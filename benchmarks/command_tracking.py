@@ -34,7 +34,7 @@ from ambulo.rl.vecenv import RslRlVecEnv
 
 # the sibling script's one way to load a run's checkpoint or a shipped policy
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from robustness import policy_maker
+from robustness import add_policy_args, policy_maker
 
 
 def track(env, policy, speed_m_s: float, steps: int, settle_steps: int) -> dict:
@@ -65,11 +65,7 @@ def track(env, policy, speed_m_s: float, steps: int, settle_steps: int) -> dict:
 
 def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    source = p.add_mutually_exclusive_group(required=True)
-    source.add_argument("--run", help="a training run folder or checkpoint")
-    source.add_argument("--shipped", help="a task whose shipped policy to evaluate (humanoid-walk)")
-    p.add_argument("--log-root", default="runs")
-    p.add_argument("--device", default=None)
+    add_policy_args(p)
     p.add_argument("--kinds", default=None, help="tile kinds of a terrain task, comma-separated (default: all)")
     p.add_argument("--speeds", default="0.25,0.5,0.75,1.0", help="commanded forward speeds, m/s, comma-separated")
     p.add_argument("--worlds", type=int, default=16)

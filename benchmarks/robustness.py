@@ -85,13 +85,18 @@ def policy_maker(args):
     return args.shipped, make_env, lambda env: (lambda obs: shipped(obs["policy"]))
 
 
-def main():
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def add_policy_args(parser: argparse.ArgumentParser) -> None:
+    """The arguments ``policy_maker`` reads: ``--run`` or ``--shipped``, ``--log-root``, ``--device``."""
     source = parser.add_mutually_exclusive_group(required=True)
     source.add_argument("--run", help="a training run folder or checkpoint")
     source.add_argument("--shipped", help="a task whose shipped policy to evaluate (humanoid-walk)")
     parser.add_argument("--log-root", default="runs")
     parser.add_argument("--device", default=None)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    add_policy_args(parser)
     parser.add_argument("--num-episodes", type=int, default=100)
     parser.add_argument("--episode-length-s", type=float, default=None)
     parser.add_argument("--seed", type=int, default=12345)
