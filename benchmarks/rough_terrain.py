@@ -11,6 +11,9 @@ and the best of each is kept; CUDA timings are bracketed by synchronizations.
     python benchmarks/rough_terrain.py --device cuda --num-envs 4096 --steps 100
     python benchmarks/rough_terrain.py --num-envs 16 --steps 20          # CPU engine
     python benchmarks/rough_terrain.py --rough-set terrain.spacing_m=0.1  # a lever, on both rough variants
+    python benchmarks/rough_terrain.py --engine warp --num-envs 16 --steps 20  # MuJoCo Warp, Warp's CPU device
+    python benchmarks/rough_terrain.py --rough-set \
+        "terrain.box_kinds=('flat','stairs_up','stairs_down','stepping_stones')"  # stones as boxes
 
 Ends with one ``RESULT {json}`` line: ``ratio`` = rough (as trained) / flat env-steps/s.
 """
@@ -30,7 +33,8 @@ TARGET_RATIO = 0.5
 
 
 def make(task: str, args, **overrides):
-    return envs.make(task, num_envs=args.num_envs, device=args.device, seed=0, **overrides)
+    engine = {} if args.engine is None else {"engine": args.engine}
+    return envs.make(task, num_envs=args.num_envs, device=args.device, seed=0, **engine, **overrides)
 
 
 def parse_override(item: str) -> tuple[str, object]:
@@ -63,6 +67,9 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--num-envs", type=int, default=64)
+    parser.add_argument("--engine", choices=("mujoco", "warp"),
+                        help="the physics engine of every variant (default: the device's; warp with --device cpu "
+                             "is MuJoCo Warp on Warp's CPU device)")
     parser.add_argument("--steps", type=int, default=50)
     parser.add_argument("--warmup", type=int, default=10)
     parser.add_argument("--repeats", type=int, default=2)
@@ -81,7 +88,7 @@ def main():
     for _ in range(args.repeats):
         for name, env in variants.items():
             best[name] = max(best[name], steps_per_s(env, args.steps, args.warmup, generator))
-    result = {"device": args.device, "num_envs": args.num_envs, "steps": args.steps, "rough_set": args.rough_set,
+    result = {"device": args.device, "engine": args.engine, "num_envs": args.num_envs, "steps": args.steps, "rough_set": args.rough_set,
               "env_steps_per_s": {k: round(v, 1) for k, v in best.items()},
               "ratio": round(best["rough"] / best["flat"], 3),
               "ratio_no_latency": round(best["rough_no_latency"] / best["flat"], 3),
