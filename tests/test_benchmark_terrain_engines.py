@@ -12,8 +12,8 @@ bench = load_script(ROOT / "benchmarks" / "terrain_engines.py")
 
 
 def test_resting_feet_touch_the_terrain_through_their_sole_spheres_only():
-    args = argparse.Namespace(task="humanoid-footsteps-stairs", kinds="flat", worlds=2, settle_s=0.5, seed=7,
-                              episode_length_s=20.0)
+    args = argparse.Namespace(task="humanoid-footsteps-stairs", kinds="flat", box_kinds=None, worlds=2, settle_s=0.5,
+                              seed=7, episode_length_s=20.0)
     env = bench.make(args, "mujoco", "cpu", args.worlds, None)
     env.reset()
     terrain, soles = bench.geom_ids(env.engine.model)
@@ -31,7 +31,8 @@ def test_resting_feet_touch_the_terrain_through_their_sole_spheres_only():
 def test_a_wrong_run_task_or_tile_kind_is_one_line_before_anything_is_built(monkeypatch):
     for args, said in ((["--run", "/no/such/run"], "is neither a run folder"),
                        (["--task", "cartpole"], "task cartpole has no terrain"),
-                       (["--kinds", "flat,bogus"], "unknown ['bogus']")):
+                       (["--kinds", "flat,bogus"], "unknown ['bogus']"),
+                       (["--box-kinds", "flat,rough"], "['rough'] cannot be boxes")):
         monkeypatch.setattr(sys, "argv", ["terrain_engines.py", *args])
         with pytest.raises(SystemExit) as stop:
             bench.main()
