@@ -148,3 +148,10 @@ def test_heights_and_scans_are_the_same_bytes_with_stones_as_boxes():
     scans = {k: HeightScan(HeightScanCfg(), TerrainHeights(g, "cpu")).scan(root, yaw) for k, g in grids.items()}
     assert scans["on"].numpy().tobytes() == scans["off"].numpy().tobytes()
     assert scans["on"].max() > 0.3  # the scans see pits (the ground 0.5 m lower)
+
+
+def test_box_tiles_off_is_all_hfield_whatever_box_kinds():
+    """``terrain.box_tiles=false`` (older runs' setting) still builds the one hfield alone."""
+    spec = mujoco.MjSpec()
+    add_terrain(spec, generate(dataclasses.replace(ON, box_tiles=False)))
+    assert spec.compile().ngeom == 1
