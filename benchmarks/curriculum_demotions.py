@@ -7,7 +7,8 @@ heading-controlled and standing envs) for ``--episodes`` episodes of the task's 
 start-of-training command scale (``curriculum_start_scale``) and at full ranges, and moves a
 perfect tracker exactly as commanded (position integrated in the complex plane, independently of
 the env's ``commanded_velocity_w``). For each, the share of episodes the curriculum's rules would
-move up (farther than ``up_distance_fraction`` of a tile) and down: by the rule in use (closer to
+move up (farther than ``up_distance_fraction`` of a tile, or, by the command rule, covering
+``up_command_fraction`` of an ask of at least ``up_min_command_m``) and down: by the rule in use (closer to
 the start than ``down_command_fraction`` of the commanded displacement) and by the path-length rule
 used until session 12 (|v| integrated). A perfect tracker should never move down.
 Ends with one line ``RESULT {json}``.
