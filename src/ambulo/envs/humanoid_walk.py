@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Literal
 
 import torch
 
@@ -52,13 +51,6 @@ class HumanoidWalkCfg(EnvCfg):
     tracking_std: float = field(default=0.5, metadata=rule(minimum=0.0, strict=True))
     """Width of the velocity tracking kernels, m/s and rad/s."""
     air_time_threshold_s: float = field(default=0.4, metadata=rule(minimum=0.0))
-    air_time_reward: Literal["legged_gym", "biped"] = "legged_gym"
-    """How ``feet_air_time`` is counted: "legged_gym", each touchdown adds its flight time minus
-    ``air_time_threshold_s`` (a quick step is punished); "biped", single-stance time up to the
-    threshold, never negative (``rewards.feet_air_time_biped``, Isaac Lab's humanoids). The
-    humanoid-rough PPO walker at 24 min stands still under 0.25 m/s commands on flat tiles and
-    under 0.75 m/s at 0.15 m stairs (the flat walkers track 0.25 as 0.28-0.31 m/s): for a slow
-    robot each short step costs more air-time reward than walking gains in tracking reward."""
     friction_range: tuple[float, float] | None = (0.4, 1.2)
     """Per-env friction of every geom, drawn at start; None keeps the model's."""
     added_base_mass_kg: tuple[float, float] | None = field(default=(-2.0, 3.0), metadata=rule(pair=True))
@@ -325,10 +317,7 @@ class HumanoidWalkEnv(RLEnv):
             "joint_pos_limits": rewards.joint_pos_limits(
                 data.joint_pos, robot.soft_joint_pos_limits[:, 0], robot.soft_joint_pos_limits[:, 1]),
             "feet_air_time": rewards.feet_air_time(
-                feet.last_air_time_s, feet.first_contact, cfg.air_time_threshold_s, cmd[:, :2])
-            if cfg.air_time_reward == "legged_gym" else rewards.feet_air_time_biped(
-                feet.current_air_time_s, feet.current_contact_time_s, feet.in_contact, cfg.air_time_threshold_s,
-                cmd[:, :2]),
+                feet.last_air_time_s, feet.first_contact, cfg.air_time_threshold_s, cmd[:, :2]),
             "feet_slide": rewards.feet_slide(data.body_lin_vel_w[:, self.feet_body_ids], feet.in_contact),
             "joint_deviation": rewards.joint_deviation_l1(data.joint_pos_rel[:, self.deviation_joint_ids]),
             "flat_orientation_l2": rewards.flat_orientation_l2(self._gravity_b),

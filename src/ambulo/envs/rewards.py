@@ -67,22 +67,6 @@ def feet_air_time(air_time_s: torch.Tensor, first_contact: torch.Tensor, thresho
     return reward * moving
 
 
-def feet_air_time_biped(air_time_s: torch.Tensor, contact_time_s: torch.Tensor, in_contact: torch.Tensor,
-                        threshold_s: float, command_xy: torch.Tensor, min_command: float = 0.1) -> torch.Tensor:
-    """Reward single stance, never punish a step (Isaac Lab's positive biped air time term).
-
-    While exactly one foot touches the ground, the shorter of the feet's times in their current
-    mode (the stance foot's contact time, the swing foot's air time; (N, F) s each) up to
-    ``threshold_s``; zero in double stance, in flight and while the planar command is below
-    ``min_command`` m/s. Unlike ``feet_air_time`` a short, quick step costs nothing, so walking
-    slowly (or carefully onto a stair) is never worse than standing still: (N,) s."""
-    in_mode_s = torch.where(in_contact, contact_time_s, air_time_s)
-    single = in_contact.sum(dim=-1) == 1
-    reward = torch.where(single, in_mode_s.min(dim=-1).values, 0.0).clamp(max=threshold_s)
-    moving = torch.linalg.vector_norm(command_xy, dim=-1) > min_command
-    return reward * moving
-
-
 def feet_slide(foot_vel_w: torch.Tensor, in_contact: torch.Tensor) -> torch.Tensor:
     """Planar speed of feet that touch the ground, summed: (N, F, 3) m/s, (N, F) bool -> (N,) m/s."""
     speed = torch.linalg.vector_norm(foot_vel_w[..., :2], dim=-1)
