@@ -47,25 +47,25 @@ class EpisodeRecords:
     length_steps: torch.Tensor
     metric_means: dict[str, torch.Tensor]
 
+    def _columns(self) -> list[torch.Tensor]:
+        """Each episode's share of ``EpisodeSums``' fields, in ``to_tensor``'s order: (N,) float64 each
+        (1 for the episode count)."""
+        return [torch.ones_like(self.returns), self.failed.double(), self.succeeded.double(), self.returns,
+                self.length_steps, *self.metric_means.values()]
+
     def sums(self, rows: slice = slice(None)) -> EpisodeSums:
         """The totals of the episodes ``rows`` (one device-to-host read)."""
-        parts = [self.length_steps[rows].new_tensor(float(self.length_steps[rows].numel())),
-                 self.failed[rows].double().sum(), self.succeeded[rows].double().sum(),
-                 self.returns[rows].sum(), self.length_steps[rows].sum(),
-                 *(m[rows].sum() for m in self.metric_means.values())]
-        values = torch.stack(parts).cpu().tolist()
-        return EpisodeSums(*values[:5], dict(zip(self.metric_means, values[5:])))
+        totals = torch.stack([column[rows].sum() for column in self._columns()])
+        return EpisodeSums.from_values(totals, self.metric_means)
 
     def sums_by(self, group: torch.Tensor, count: int) -> list[EpisodeSums]:
         """The totals of the episodes of each of ``count`` groups, ``group`` (N,) int64 the group of
         each episode, in [0, count) (one device-to-host read). A masked sum rather than
         ``index_add_``: CUDA's atomic adds would sum in a different order from run to run."""
-        columns = torch.stack([torch.ones_like(self.returns), self.failed.double(), self.succeeded.double(),
-                               self.returns, self.length_steps, *self.metric_means.values()], dim=1)  # (N, C)
+        columns = torch.stack(self._columns(), dim=1)  # (N, C)
         member = group[None, :] == torch.arange(count, device=group.device)[:, None]  # (count, N)
         totals = torch.where(member[:, :, None], columns[None], 0.0).sum(dim=1).cpu()  # (count, C)
-        names = dict.fromkeys(self.metric_means, 0.0)
-        return [EpisodeSums(0.0, 0.0, 0.0, 0.0, 0.0, names).like(row) for row in totals]
+        return [EpisodeSums.from_values(row, self.metric_means) for row in totals]
 
 
 @dataclass
@@ -90,10 +90,15 @@ class EpisodeSums:
         return torch.tensor([self.episodes, self.falls, self.successes, self.returns, self.length_steps,
                              *self.metric_means.values()], dtype=torch.float64)
 
+    @classmethod
+    def from_values(cls, values: torch.Tensor, metric_names) -> EpisodeSums:
+        """Sums from ``values`` (``to_tensor``'s layout), the metrics named by ``metric_names`` in order."""
+        v = values.cpu().tolist()
+        return cls(*v[:5], dict(zip(metric_names, v[5:])))
+
     def like(self, values: torch.Tensor) -> EpisodeSums:
         """Sums with ``values`` (``to_tensor``'s layout) and this one's metric names."""
-        v = values.cpu().tolist()
-        return EpisodeSums(*v[:5], dict(zip(self.metric_means, v[5:])))
+        return EpisodeSums.from_values(values, self.metric_means)
 
     def __add__(self, other: EpisodeSums) -> EpisodeSums:
         if list(self.metric_means) != list(other.metric_means):
