@@ -105,6 +105,14 @@ class TerrainGround:
         self._tiles = TerrainCurriculum(tiles_cfg, self.terrain, self.num_envs, self.generator, self.device)
         return self._tiles
 
+    def mean_terrain_level(self) -> torch.Tensor | None:
+        """() float32 the robots' mean terrain level, a device scalar, when their tiles are a
+        curriculum (``TerrainCurriculumCfg.enabled``: robots move between levels as their episodes
+        end: humanoid-rough, g1-rough); None, for the env's whole life, when each robot keeps its
+        level (humanoid-footsteps-stairs). Training writes it to ``metrics.csv`` once an iteration
+        (``rl.progress.terrain_level_reader``); reading it to the host is a sync, so no more often."""
+        return self._tiles.mean_level() if self._tiles.cfg.enabled else None
+
     def tile_kinds(self) -> tuple[tuple[str, ...], torch.Tensor]:
         """(the terrain's kind names, in column order; (N,) int64 the column of each env's tile,
         an index into the names). An evaluation reports each kind's episodes on its own

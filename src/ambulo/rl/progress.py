@@ -1,11 +1,13 @@
 """What ambulo does at the end of every training iteration, on each rank.
 
 Rank 0 (``TrainingProgress.iteration_done``, called by ``log_writer.ProgressWriter`` once rsl-rl
-has logged the iteration): append the headline numbers to ``metrics.csv`` (from ``start``: rows
-of a killed run's later iterations are dropped), advance the progress bar (unless ``verbose``,
-when rsl-rl's own report prints instead), evaluate when ``periodic`` is due, end training there if
-``stop`` was asked or (``stop_at_criterion``) the criteria hold, and hand the iteration's
-numbers to ``on_scalars`` (``training_scalars``, ``evaluation_scalars``: the web viewer's curves).
+has logged the iteration, or by ``offpolicy.OffPolicyRunner``): append the headline numbers to
+``metrics.csv`` (from ``start``: rows of a killed run's later iterations are dropped; on a task
+with a terrain curriculum also the robots' mean level, ``terrain_level_reader``), advance the
+progress bar (unless ``verbose``, when rsl-rl's own report prints instead), evaluate when
+``periodic`` is due, end training there if ``stop`` was asked or (``stop_at_criterion``) the
+criteria hold, and hand the iteration's numbers to ``on_scalars`` (``training_scalars``,
+``evaluation_scalars``: the web viewer's curves).
 
 The other ranks (``TrainingProgress.follow``, called by ``ppo.AmbuloPPO`` after each update):
 only the work every rank must share, at the same point of the iteration: the stop request, their
@@ -24,7 +26,7 @@ from tqdm import tqdm
 
 from . import distributed, interrupt
 from .episodes import EpisodeStats
-from .metrics import MetricsCsv
+from .metrics import TERRAIN_LEVEL, MetricsCsv
 from .periodic_eval import PeriodicEval, eval_due, summary
 
 
@@ -59,7 +61,9 @@ class TrainingProgress:
         self.on_scalars = on_scalars
         self.bar = tqdm(total=total, initial=start, desc=f"train {run_dir.parent.name}", unit="it",
                         disable=verbose or not rank.is_main)
-        self.metrics = MetricsCsv(run_dir / "metrics.csv", start) if rank.is_main else None
+        self.terrain_level = terrain_level_reader(runner) if rank.is_main else None
+        extra = (TERRAIN_LEVEL,) if self.terrain_level is not None else ()
+        self.metrics = MetricsCsv(run_dir / "metrics.csv", start, extra) if rank.is_main else None
         self._next_iteration = start
         """The iteration ``follow`` closes next (the other ranks have no logger to say it)."""
 
@@ -75,8 +79,9 @@ class TrainingProgress:
     def iteration_done(self, iteration: int, collect_s: float, learn_s: float, action_std: float) -> None:
         """Rank 0, once rsl-rl logged ``iteration`` (and before its periodic checkpoint)."""
         reward, length_s = self.means()
+        extras = {} if self.terrain_level is None else {TERRAIN_LEVEL: self.terrain_level()}
         row = self.metrics.append(iteration, self.steps_per_iteration, reward, length_s, collect_s, learn_s,
-                                  action_std)
+                                  action_std, extras)
         self.bar.update(1)
         self.bar.set_postfix(reward=row[2] or "-", ep_len_s=row[3] or "-", fps=row[4])
         if self.on_scalars is not None:
@@ -104,6 +109,19 @@ class TrainingProgress:
 
     def close(self) -> None:
         self.bar.close()
+
+
+def terrain_level_reader(runner) -> Callable[[], float] | None:
+    """What reads the mean terrain level of ``runner``'s task env (one host read, once an
+    iteration), or None when its levels do not move: the env's optional
+    ``mean_terrain_level()`` (``envs.terrain_ground.TerrainGround``: None without a curriculum).
+    Both runners hold the task env wrapped in ``vecenv.RslRlVecEnv`` as ``runner.env``; a
+    runner without one (tests' stand-ins) has no level."""
+    env = getattr(getattr(runner, "env", None), "env", None)
+    hook = getattr(env, "mean_terrain_level", None)
+    if hook is None or hook() is None:  # fixed for the env's life: decided once, with the header
+        return None
+    return lambda: float(hook())
 
 
 def end_training(progress: TrainingProgress, *others) -> None:
@@ -136,4 +154,5 @@ def evaluation_scalars(result: dict[str, Any]) -> dict[str, float]:
     return scalars
 
 
-__all__ = ["CriterionReached", "TrainingProgress", "end_training", "evaluation_scalars", "training_scalars"]
+__all__ = ["CriterionReached", "TrainingProgress", "end_training", "evaluation_scalars", "terrain_level_reader",
+           "training_scalars"]

@@ -8,7 +8,8 @@ rsl-rl's ``as_jit``/``as_onnx``/``obs_groups``), ``alg.train_mode``, ``logger.wr
 
 The step path has no host sync: actions, noise, the ring's writes and samples and the updates
 are device work queued one after another; the host reads the device once an iteration (the
-loss means and the episode statistics).
+loss means, the episode statistics and, on a terrain curriculum, the mean level ``metrics.csv``
+records: ``progress.terrain_level_reader``).
 
 Time-outs bootstrap: the env returns each world's observation before its reset
 (``RLEnv.return_final_obs``), stored as the step's next observation. The critic's observation
