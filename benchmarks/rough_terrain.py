@@ -12,6 +12,7 @@ and the best of each is kept; CUDA timings are bracketed by synchronizations.
     python benchmarks/rough_terrain.py --num-envs 16 --steps 20          # CPU engine
     python benchmarks/rough_terrain.py --rough-set terrain.spacing_m=0.1  # a lever, on both rough variants
     python benchmarks/rough_terrain.py --engine warp --num-envs 16 --steps 20  # MuJoCo Warp, Warp's CPU device
+    python benchmarks/rough_terrain.py --device cuda --broadphases nxn,sap_tile  # MuJoCo Warp's broadphases
     python benchmarks/rough_terrain.py --rough-set \
         "terrain.box_kinds=('flat','stairs_up','stairs_down','stepping_stones')"  # stones as boxes
 
@@ -76,13 +77,18 @@ def main():
     parser.add_argument("--rough-set", action="append", default=[], metavar="KEY=VALUE",
                         help="an envs.make override of both humanoid-rough variants (a Python literal value), "
                              "e.g. terrain.spacing_m=0.1 or sole_sphere_radius_m=None; repeatable")
+    parser.add_argument("--broadphases", default="",
+                        help="comma-separated PhysicsCfg.broadphase values (nxn, sap_tile, sap_segmented): one more "
+                             "rough variant each, stepped alternately with the others in this process")
     args = parser.parse_args()
+    broadphases = [b for b in args.broadphases.split(",") if b]
     rough_set = dict(parse_override(item) for item in args.rough_set)
     generator = torch.Generator(device=args.device).manual_seed(0)
     variants = {
         "flat": make("humanoid-walk", args),
         "rough": make("humanoid-rough", args, **rough_set),
         "rough_no_latency": make("humanoid-rough", args, **rough_set, **{"transfer.action_latency_range_s": None}),
+        **{f"rough_{b}": make("humanoid-rough", args, **{**rough_set, "physics.broadphase": b}) for b in broadphases},
     }
     best = dict.fromkeys(variants, 0.0)
     for _ in range(args.repeats):
@@ -92,7 +98,8 @@ def main():
               "env_steps_per_s": {k: round(v, 1) for k, v in best.items()},
               "ratio": round(best["rough"] / best["flat"], 3),
               "ratio_no_latency": round(best["rough_no_latency"] / best["flat"], 3),
-              "target_ratio": TARGET_RATIO}
+              "target_ratio": TARGET_RATIO,
+              **{f"ratio_{b}": round(best[f"rough_{b}"] / best["flat"], 3) for b in broadphases}}
     for name, value in best.items():
         print(f"{name:18s} {value:12.1f} env-steps/s")
     print("RESULT " + json.dumps(result))

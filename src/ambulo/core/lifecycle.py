@@ -98,7 +98,8 @@ class Simulation:
             log.warning(warning)
         kwargs = {"num_threads": self.num_threads,
                   "max_contacts_per_world": self.physics.max_contacts_per_world,
-                  "max_constraints_per_world": self.physics.max_constraints_per_world}
+                  "max_constraints_per_world": self.physics.max_constraints_per_world,
+                  "broadphase": self.physics.broadphase}
         self.engine = make_engine(self.model, self.num_worlds, self.device, self.engine_name, **kwargs)
         for component in self.components.values():
             component.initialize(self.engine)

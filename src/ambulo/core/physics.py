@@ -24,6 +24,8 @@ INTEGRATORS = {
     "rk4": mujoco.mjtIntegrator.mjINT_RK4,
 }
 _CONES = {"pyramidal": mujoco.mjtCone.mjCONE_PYRAMIDAL, "elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC}
+BROADPHASES = ("auto", "nxn", "sap_tile", "sap_segmented")
+"""``PhysicsCfg.broadphase`` values; the last three name MuJoCo Warp's ``BroadphaseType`` members."""
 _SOLVERS = {"newton": mujoco.mjtSolver.mjSOL_NEWTON, "cg": mujoco.mjtSolver.mjSOL_CG,
             "pgs": mujoco.mjtSolver.mjSOL_PGS}
 
@@ -54,6 +56,13 @@ class PhysicsCfg(Checked):
     model. Raise it when the engine reports a contact overflow. The CPU engine grows its own."""
     max_constraints_per_world: int | None = None
     """GPU engine: constraint rows per world (``njmax``); None sizes it from the contacts."""
+    broadphase: Literal["auto", "nxn", "sap_tile", "sap_segmented"] = "auto"
+    """GPU engine: how MuJoCo Warp finds candidate geom pairs. ``nxn`` tests every pair that
+    contype/conaffinity allow; the sweep-and-prune kinds sort bounding spheres along one axis per
+    world. ``auto`` is MuJoCo Warp's choice (nxn below 250,000 allowed pairs). On humanoid-rough
+    (23 robot geoms x 489 terrain boxes: 11,247 pairs a world) nxn is the fastest on an H200,
+    sap_tile half as fast (``benchmarks/rough_terrain.py --broadphases``). The CPU engine has its
+    own and ignores this."""
 
     def __post_init__(self):
         self.check()
@@ -73,6 +82,9 @@ class PhysicsCfg(Checked):
         check_positive("impratio", self.impratio, "pass a ratio > 0; 1 is MuJoCo's default")
         check_positive("tolerance", self.tolerance, "pass a small number >= 0, e.g. 1e-8 (0 never stops early)",
                        allow_zero=True)
+        if self.broadphase not in BROADPHASES:
+            raise InvalidValueError("broadphase", self.broadphase, "unknown broadphase",
+                                    f"use one of {list(BROADPHASES)}")
         for name in ("max_contacts_per_world", "max_constraints_per_world"):
             if getattr(self, name) is not None:
                 check_int(name, getattr(self, name), f"pass None (sized from the model) or a whole number, "

@@ -173,6 +173,8 @@ class GpuEngine:
         model (see ``contact_capacity``).
       max_constraints_per_world: constraint rows per world (``njmax``); None sizes it from the
         model and the contact buffer.
+      broadphase: ``"auto"`` (MuJoCo Warp's choice), ``"nxn"``, ``"sap_tile"`` or
+        ``"sap_segmented"`` (``PhysicsCfg.broadphase``).
       use_graphs: capture step and forward in CUDA graphs (CUDA only).
       overflow_check_steps: steps between the overflow checks (each one host sync).
       num_threads, divergence_dump_dir: accepted for the CpuEngine signature; the first is
@@ -189,6 +191,7 @@ class GpuEngine:
         keyframe: int | str | None = None,
         max_contacts_per_world: int | None = None,
         max_constraints_per_world: int | None = None,
+        broadphase: str = "auto",
         use_graphs: bool = True,
         overflow_check_steps: int = 100,
         num_threads: int = 0,
@@ -223,6 +226,8 @@ class GpuEngine:
         with wp.ScopedDevice(self.wp_device):
             self.wp_model = mjw.put_model(self.model)
             self.wp_model.opt.warn_overflow = 0  # checked by check_overflow, not printed per kernel
+            if broadphase != "auto":
+                self.wp_model.opt.broadphase = mjw.BroadphaseType[broadphase.upper()]
             self.wp_data = mjw.put_data(self.model, data, nworld=self.num_worlds,
                                         nconmax=self.nconmax, njmax=self.njmax)
         self._tensors: dict[str, torch.Tensor] = {}
