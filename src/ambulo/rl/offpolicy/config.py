@@ -11,6 +11,7 @@ An *iteration* is ``num_steps_per_env`` env steps of every world followed by
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -77,7 +78,10 @@ class OffPolicyCfg(Checked):
     init_alpha: float = field(default=0.001, metadata=rule(minimum=0.0, strict=True))
     """fast-sac: initial entropy temperature (small: large batches learn fast, FastSAC)."""
     target_entropy_per_action: float = field(default=0.0, metadata=rule(signed=True))
-    """fast-sac: the temperature is tuned so the policy's entropy stays near this x num_actions."""
+    """fast-sac: the temperature is tuned so the entropy of the actions stays near this x
+    num_actions, nats, in action units: the same noise on the joints whatever the bounds (the tanh
+    output's entropy is this less each bound's log). 0 is a uniform spread over a range of 1 per
+    action; log 2 (0.693, the walking tasks') that of the tanh output at bound 2."""
     log_std_range: tuple[float, float] = (-5.0, 0.0)
     """fast-sac: the actor's log std is squashed into this range."""
     action_bound: float = field(default=1.0, metadata=rule(minimum=0.0, strict=True))
@@ -88,7 +92,11 @@ class OffPolicyCfg(Checked):
     bounds). One bound that suits flat ground (2.0: 0.5 rad) cannot climb: humanoid-rough's PPO
     walker asks its knees for 3.6 on 0.15 m stairs (99th percentile, CPU engine), and a FastSAC
     policy pinned at its bound saturates the tanh, so its entropy estimate falls and the tuned
-    temperature widens the std (session 15's rough run: std 0.21 -> 0.37, falls 0.04 -> 0.73)."""
+    temperature widens the std (session 15's rough run: std 0.21 -> 0.37, falls 0.04 -> 0.73).
+    The entropy target is in action units, so wider bounds do not widen the joints' noise. Before
+    that was so, session 17's rough run with these bounds still collapsed (training reward peaked
+    at iteration ~300, then fell while the tanh std grew 0.12 -> 0.36: up to 2.9 action units of
+    noise on a knee bounded at 8)."""
     cpu_threads: int = 1
     """torch intra-op threads while training on the CPU (0: torch's default). The networks are
     small: more threads add waiting on a busy CPU more than they add speed (an update took 10x
@@ -133,7 +141,11 @@ def _walking() -> dict[str, Any]:
     median of 0.18, a 99th percentile of 1.51 and a maximum of 1.99 over 8 x 100 steps."""
     return dict(num_envs=1024, max_iterations=20000, num_steps_per_env=8, save_interval=250,
                 buffer_steps_per_env=1024, batch_size=32768, updates_per_step=2, learning_starts=8,
-                v_min=-10.0, v_max=10.0, action_bound=2.0, amp=True)
+                v_min=-10.0, v_max=10.0, action_bound=2.0, amp=True,
+                # the tanh output's entropy target 0 that the flat walkers were trained with, restated
+                # in action units at bound 2 (the joint-limit bounds of the rough tasks then keep the
+                # joints' noise where it was on flat ground, not up to 4x wider)
+                target_entropy_per_action=math.log(2.0))
 
 
 def _rough_walking() -> dict[str, Any]:

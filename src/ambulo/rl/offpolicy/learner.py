@@ -7,8 +7,8 @@ critics; the actor updated every ``policy_delay`` critic updates against the sma
 critics' means.
 
 fast-sac: the target's returns carry the entropy bonus (``- discount * alpha * log pi(a'|s')``),
-the actor minimizes ``alpha * log pi - Q`` and ``alpha`` is tuned so the policy's entropy tracks
-``target_entropy_per_action * num_actions``. fast-td3: a deterministic actor, target actions
+the actor minimizes ``alpha * log pi - Q`` and ``alpha`` is tuned so the entropy of the actions (in
+action units, whatever their bounds) tracks ``target_entropy_per_action * num_actions``. fast-td3: a deterministic actor, target actions
 smoothed by clipped Gaussian noise.
 
 Every loss and statistic stays on the device; ``stats`` sums them for one read per iteration.
@@ -58,7 +58,12 @@ class FastOffPolicy(nn.Module):
         self.to(device)
         self.device = torch.device(device)
         self.atoms = categorical.support(cfg.v_min, cfg.v_max, cfg.num_atoms, self.device)
-        self.target_entropy = cfg.target_entropy_per_action * num_actions
+        # the target is the entropy of the actions themselves (joint targets in action units); the
+        # log-probabilities are of the tanh output, whose entropy is the actions' less sum(log bound):
+        # a joint bounded at 8 explores in a tanh range 4x narrower than one bounded at 2, so wider
+        # (joint-limit) bounds keep the same noise on the joints instead of multiplying it
+        self.target_entropy = cfg.target_entropy_per_action * num_actions \
+            - float(self.actor.action_bound.log().sum())
         self.graphed = cfg.cuda_graph and self.device.type == "cuda"
         """Updates replayed as CUDA graphs (``cuda_graph``; CUDA only)."""
         # fused: the step counts live on the device (the default Adam reads each one back per step);
