@@ -71,6 +71,12 @@ class OffPolicyCfg(Checked):
     exploration_noise_std_range: tuple[float, float] = (0.001, 0.4)
     """fast-td3: each world draws its Gaussian action-noise std in this range at every reset
     (FastTD3's mixed noise: some worlds explore, some refine)."""
+    noise_hold_steps: int = field(default=1, metadata=rule(minimum=1))
+    """Exploration noise is drawn anew every this many env steps per world (and at its reset),
+    held between (both algorithms; 1: every step). Noise drawn each 20 ms step averages out in the
+    legs' dynamics before it moves the robot; held for several steps it is a push in one direction
+    that can take a robot up a step it would not otherwise try (gSDE's consistent exploration,
+    which made SAC climb Isaac Lab's rough pyramids in A. Raffin's 2025 study)."""
     target_noise_std: float = field(default=0.001, metadata=rule(minimum=0.0))
     """fast-td3: target policy smoothing noise."""
     target_noise_clip: float = field(default=0.5, metadata=rule(minimum=0.0))

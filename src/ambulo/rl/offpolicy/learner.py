@@ -90,15 +90,17 @@ class FastOffPolicy(nn.Module):
 
     # -- acting ----------------------------------------------------------------------------------
     @torch.no_grad()
-    def explore(self, obs: torch.Tensor, noise_std: torch.Tensor | None = None) -> torch.Tensor:
+    def explore(self, obs: torch.Tensor, noise_std: torch.Tensor | None = None,
+                noise: torch.Tensor | None = None) -> torch.Tensor:
         """Training actions: sampled (fast-sac) or the actor's plus Gaussian noise of per-world
-        ``noise_std`` (N, 1), clipped to the action bound (fast-td3)."""
+        ``noise_std`` (N, 1), clipped to the action bound (fast-td3). ``noise``: (N, A) standard
+        normal draws to use (``noise_hold_steps``); None draws fresh ones."""
         with torch.autocast(self.device.type, torch.bfloat16, enabled=self.autocast):
             if self.sac:
-                actions = self.actor.sample(obs)[0]
+                actions = self.actor.sample(obs, noise)[0]
             else:
                 actions = self.actor(obs)
-                actions = actions + torch.randn_like(actions) * noise_std
+                actions = actions + (torch.randn_like(actions) if noise is None else noise) * noise_std
         bound = self.actor.action_bound
         return torch.clamp(actions.float(), -bound, bound)
 

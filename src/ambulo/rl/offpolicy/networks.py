@@ -89,13 +89,15 @@ class Actor(nn.Module):
         log_std = self.log_std_min + 0.5 * (self.log_std_max - self.log_std_min) * (torch.tanh(raw) + 1.0)
         return mean, log_std
 
-    def sample(self, obs: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    def sample(self, obs: torch.Tensor, noise: torch.Tensor | None = None
+               ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Reparameterized actions (B, A), their log-probabilities (B,) under the squashed
-        Gaussian, and the std (B, A)."""
+        Gaussian, and the std (B, A). ``noise``: (B, A) standard normal draws to use (held
+        exploration noise); None draws fresh ones."""
         mean, log_std = self.distribution(obs)
         mean, log_std = mean.float(), log_std.float()  # log-probabilities in float32 under autocast
         std = log_std.exp()
-        pre = mean + std * torch.randn_like(mean)
+        pre = mean + std * (torch.randn_like(mean) if noise is None else noise)
         squashed = torch.tanh(pre)
         # log N(pre; mean, std) - log|d tanh/d pre|, the latter written stably
         log_prob = (-0.5 * ((pre - mean) / std).square() - log_std - 0.5 * math.log(2 * math.pi)).sum(dim=1)

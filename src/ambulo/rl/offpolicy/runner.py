@@ -131,6 +131,10 @@ class OffPolicyRunner:
                                env.num_actions, env.device)
         self._noise_std = torch.zeros(env.num_envs, 1, device=env.device)
         self._draw_noise(torch.ones(env.num_envs, dtype=torch.bool, device=env.device))
+        # held exploration noise (noise_hold_steps > 1): (N, A) standard normal draws and (N,) the
+        # steps each world has held them; a world redraws when the count wraps or it resets
+        self._held_noise = torch.zeros(env.num_envs, env.num_actions, device=env.device)
+        self._held_steps = torch.zeros(env.num_envs, dtype=torch.long, device=env.device)
         obs = self.env.get_observations()
         self._obs, self._critic_obs = obs["policy"], obs.get("critic", None)
 
@@ -150,6 +154,8 @@ class OffPolicyRunner:
         if self.env_steps < cfg.random_steps:
             actions = (torch.rand(env.num_envs, env.num_actions, generator=self.generator, device=self.device)
                        * 2.0 - 1.0) * self.alg.actor.action_bound
+        elif cfg.noise_hold_steps > 1:
+            actions = self.alg.explore(obs, self._noise_std, self._hold_noise())
         else:
             actions = self.alg.explore(obs, self._noise_std)
         if self._final_critic is not None:
@@ -163,7 +169,19 @@ class OffPolicyRunner:
         self._obs, self._critic_obs = next_obs["policy"], next_obs.get("critic", None)
         if not self.alg.sac:
             self._draw_noise(ended)
+        if cfg.noise_hold_steps > 1:  # a reset world draws new noise at its next step
+            self._held_steps = torch.where(ended, 0, self._held_steps)
         self.env_steps += 1
+
+    def _hold_noise(self) -> torch.Tensor:
+        """(N, A) the exploration noise of this step: drawn anew in the worlds whose hold has run
+        out (or that reset), the held draws elsewhere. One fresh draw for all worlds, selected
+        with a mask: no host sync."""
+        fresh = torch.randn(self._held_noise.shape, generator=self.generator, device=self.device)
+        redraw = self._held_steps == 0
+        self._held_noise = torch.where(redraw[:, None], fresh, self._held_noise)
+        self._held_steps = (self._held_steps + 1) % self.cfg.noise_hold_steps
+        return self._held_noise
 
     def learn(self, num_learning_iterations: int, init_at_random_ep_len: bool = False) -> None:
         """Run ``num_learning_iterations`` iterations from ``current_learning_iteration``."""
