@@ -49,7 +49,7 @@ from .navigator import MODES, NavigatorCfg
 from .randomization import RandomizationCfg
 from .world import NavWorldCfg
 
-WALKERS = ("policy", "zmp")
+WALKERS = ("policy", "zmp", "footsteps")
 
 
 @dataclass(frozen=True)
@@ -85,9 +85,14 @@ def zmp_walker_available() -> bool:
 
 def make_walker(name: str):
     """The walker ``name`` (``WALKERS``): None for the navigator's default ``PolicyWalker``, the ZMP
-    adapter for ``zmp``; ``InvalidValueError`` when it is unknown or not available."""
+    adapter for ``zmp``, the learned footstep walker (``footstep_walker.FootstepPolicyWalker``) for
+    ``footsteps``; ``InvalidValueError`` when it is unknown or not available."""
     if name == "policy":
         return None
+    if name == "footsteps":
+        from .footstep_walker import FootstepPolicyWalker
+
+        return FootstepPolicyWalker()
     if name != "zmp":
         raise InvalidValueError("walker", name, "unknown walker", f"use one of {', '.join(WALKERS)}")
     if not zmp_walker_available():

@@ -14,6 +14,12 @@ with ``stand_hold.PositionHold``: the policy creeps ~4 cm/s when commanded zero.
 camera has not seen the floor (near the start, and where the navigator says: ``add_blind_zone``) it
 walks slowly, and a foot that feels an obstacle makes it step back and refuse plans through it
 (``caution``; ``felt_xy_m`` for the navigator's map).
+
+The other walkers (``benchmark.make_walker(name)``): ``footstep_walker.FootstepPolicyWalker``
+("footsteps"), the learned humanoid-footsteps policy, puts its feet on the plan's footsteps, fed
+them as its training env feeds them (it stands with this module's velocity policy and position
+hold); ``zmp_walker.ZmpWalker`` ("zmp") steps on them with preview control of the ZMP. Both plan
+from their own feet (``start_feet``).
 """
 
 from __future__ import annotations
