@@ -173,3 +173,17 @@ def test_viewer_web_gets_the_navigators_map_plan_footsteps_and_path(web_episode)
     walked = viewer.feed.get("path")
     goal = np.array([float(v) for v in GOAL.split(",")])
     assert np.linalg.norm(walked[-1][:2] - goal) < 0.35  # the page's walked path ends at the goal
+
+
+def test_walker_offers_every_walker_of_the_benchmark():
+    """``--walker`` (a literal tuple: the CLI imports the navigation package only when it runs) names the same
+    walkers as ``navigation.benchmark.WALKERS``, the learned footstep walker among them."""
+    import argparse
+
+    from ambulo.cli import navigate
+
+    parser = argparse.ArgumentParser()
+    navigate.add_commands(parser.add_subparsers())
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices["navigate"]
+    walker = next(a for a in sub._actions if a.dest == "walker")
+    assert tuple(walker.choices) == benchmark.WALKERS

@@ -277,9 +277,10 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--mode", default="oracle",
                    help="oracle (true pose and map), mapping (true pose, online map) or full (visual odometry "
                         "and online map); comma-separated with --episodes (default oracle)")
-    p.add_argument("--walker", default="policy", choices=("policy", "zmp"),
+    p.add_argument("--walker", default="policy", choices=("policy", "zmp", "footsteps"),
                    help="policy: the shipped walking policy (default); zmp: the ZMP preview-control walker "
-                        "stepping on the planned footholds (use it in oracle mode)")
+                        "stepping on the planned footholds (use it in oracle mode); footsteps: the shipped "
+                        "footstep-following policy stepping on the planned footholds")
     p.add_argument("--randomize", action="store_true", help="domain randomization (friction, mass, lights, "
                    "colours, pushes, sensor noise)")
     p.add_argument("--video", metavar="OUT.mp4", help="film the episode: head camera beside the top-down map")
