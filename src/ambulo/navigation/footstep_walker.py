@@ -47,13 +47,13 @@ import numpy as np
 import torch
 
 from ..envs.humanoid_footsteps import HumanoidFootstepsCfg, HumanoidFootstepsEnv, humanoid_footsteps_cfg
-from ..nav import FootstepPlan, PlanStatus
+from ..nav import FootstepPlan
 from ..policies.footstep_policy import FOOTSTEP_TASK, FootstepPolicy
 from ..policies.walking import WalkingPolicy
 from ..robots import humanoid
 from ..utils.validate import Checked
 from .stand_hold import PositionHold, StandHoldCfg
-from .walkers import BalanceMonitor, BalanceReport, body_path
+from .walkers import BalanceMonitor, BalanceReport, plan_refusal
 from .world import NavWorld
 
 
@@ -221,18 +221,7 @@ class FootstepPolicyWalker:
 
     # -- the Walker interface ---------------------------------------------------------------------
     def refuse(self, plan: FootstepPlan) -> str | None:
-        if plan.status in (PlanStatus.START_IN_COLLISION, PlanStatus.GOAL_IN_COLLISION):
-            return f"the plan failed ({plan.status.value}): {plan.detail}"
-        if plan.num_steps < 1:
-            return "the plan has no step"
-        path = body_path(plan)
-        offset = float(np.linalg.norm(path[0] - self._pose[:2]))
-        if offset > self.cfg.max_start_offset_m:
-            return f"the plan starts {offset:.2f} m from the robot (more than {self.cfg.max_start_offset_m} m)"
-        jumps = np.linalg.norm(np.diff(path, axis=0), axis=1)
-        if len(jumps) and jumps.max() > self.cfg.max_step_m:
-            return f"the plan's body moves {jumps.max():.2f} m in one step (more than {self.cfg.max_step_m} m)"
-        return None
+        return plan_refusal(plan, self._pose[:2], self.cfg.max_start_offset_m, self.cfg.max_step_m)
 
     def start_feet(self) -> tuple[np.ndarray, int]:
         """((2, 3) left and right soles at the next touchdown, the pose estimate's frame; the foot kept

@@ -54,6 +54,24 @@ def body_path(plan: FootstepPlan) -> np.ndarray:
     return 0.5 * (feet[:-1] + feet[1:])
 
 
+def plan_refusal(plan: FootstepPlan, pose_xy_m: np.ndarray, max_start_offset_m: float, max_step_m: float) -> str | None:
+    """Why a walker at ``pose_xy_m`` (pose estimate frame) cannot take ``plan``, in one line, or None: the
+    planner failed, the plan has no step, its body path starts more than ``max_start_offset_m`` away or
+    moves more than ``max_step_m`` in one step."""
+    if plan.status in (PlanStatus.START_IN_COLLISION, PlanStatus.GOAL_IN_COLLISION):
+        return f"the plan failed ({plan.status.value}): {plan.detail}"
+    if plan.num_steps < 1:
+        return "the plan has no step"
+    path = body_path(plan)
+    offset = float(np.linalg.norm(path[0] - pose_xy_m))
+    if offset > max_start_offset_m:
+        return f"the plan starts {offset:.2f} m from the robot (more than {max_start_offset_m} m)"
+    jumps = np.linalg.norm(np.diff(path, axis=0), axis=1)
+    if len(jumps) and jumps.max() > max_step_m:
+        return f"the plan's body moves {jumps.max():.2f} m in one step (more than {max_step_m} m)"
+    return None
+
+
 @dataclass
 class BalanceReport:
     """The robot's balance now (world frame, m)."""
@@ -214,17 +232,10 @@ class PolicyWalker:
         self._back_off_dir_b = np.array([-1.0, 0.0])
 
     def refuse(self, plan: FootstepPlan) -> str | None:
-        if plan.status in (PlanStatus.START_IN_COLLISION, PlanStatus.GOAL_IN_COLLISION):
-            return f"the plan failed ({plan.status.value}): {plan.detail}"
-        if plan.num_steps < 1:
-            return "the plan has no step"
+        reason = plan_refusal(plan, self._pose[:2], self.cfg.max_start_offset_m, self.cfg.max_step_m)
+        if reason is not None:
+            return reason
         path = body_path(plan)
-        offset = float(np.linalg.norm(path[0] - self._pose[:2]))
-        if offset > self.cfg.max_start_offset_m:
-            return f"the plan starts {offset:.2f} m from the robot (more than {self.cfg.max_start_offset_m} m)"
-        jumps = np.linalg.norm(np.diff(path, axis=0), axis=1)
-        if len(jumps) and jumps.max() > self.cfg.max_step_m:
-            return f"the plan's body moves {jumps.max():.2f} m in one step (more than {self.cfg.max_step_m} m)"
         near = self._felt_distance_m(path)
         if self.cfg.caution is not None and near < self.cfg.caution.felt_clearance_m:
             return f"the plan's body passes {near:.2f} m from an obstacle the feet felt"
@@ -371,4 +382,4 @@ class PolicyWalker:
         return self.tracker.remaining_m if self.tracker.path is not None else 0.0
 
 
-__all__ = ["BalanceMonitor", "BalanceReport", "PolicyWalker", "PolicyWalkerCfg", "Walker", "body_path"]
+__all__ = ["BalanceMonitor", "BalanceReport", "PolicyWalker", "PolicyWalkerCfg", "Walker", "body_path", "plan_refusal"]

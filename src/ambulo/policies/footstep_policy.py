@@ -14,7 +14,7 @@ import torch
 
 from ..core.entity import Entity
 from .footstep_obs import FOOTSTEP_COMMAND_SIZE, FOOTSTEP_POLICY_TERMS, footstep_policy_terms
-from .shipped import ShippedPolicy, load_policy
+from .shipped import ShippedPolicy, contract_terms, load_policy
 from .walking import WalkingPolicy
 
 FOOTSTEP_TASK = "humanoid-footsteps"
@@ -32,13 +32,8 @@ class FootstepPolicy(WalkingPolicy):
 
     def __init__(self, entity: Entity | None = None, task: str = FOOTSTEP_TASK, policy: ShippedPolicy | None = None):
         self.policy = policy or load_policy(task)
-        c = self.contract = self.policy.contract
-        terms = [t["name"] for t in c["observation_terms"]]
-        if tuple(terms) != FOOTSTEP_POLICY_TERMS:
-            raise ValueError(f"the {self.policy.task} policy's contract lists observation terms {terms}; "
-                             f"{type(self).__name__} builds {list(FOOTSTEP_POLICY_TERMS)} (the humanoid-footsteps "
-                             "task's): re-export the policy from a humanoid-footsteps run")
-        by_name = {t["name"]: t for t in c["observation_terms"]}
+        self.contract = self.policy.contract
+        by_name = contract_terms(self.policy, FOOTSTEP_POLICY_TERMS, type(self).__name__, "humanoid-footsteps")
         if float(by_name["footsteps"]["scale"]) != 1.0:
             raise ValueError(f"the {self.policy.task} policy scales its footsteps by {by_name['footsteps']['scale']}; "
                              "the humanoid-footsteps task feeds them unscaled")

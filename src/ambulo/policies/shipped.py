@@ -86,6 +86,16 @@ class ShippedPolicy:
             return self._jit(obs.detach().to("cpu", torch.float32)).to(obs.device)
 
 
+def contract_terms(policy: ShippedPolicy, terms: tuple[str, ...], runner: str, source_task: str) -> dict[str, dict]:
+    """The observation terms of ``policy``'s contract by name, after checking they are ``terms`` in that
+    order (what ``runner`` builds); ``ValueError`` naming the fix (re-export from a ``source_task`` run)."""
+    listed = [t["name"] for t in policy.contract["observation_terms"]]
+    if tuple(listed) != terms:
+        raise ValueError(f"the {policy.task} policy's contract lists observation terms {listed}; {runner} builds "
+                         f"{list(terms)} (the {source_task} task's): re-export the policy from a {source_task} run")
+    return {t["name"]: t for t in policy.contract["observation_terms"]}
+
+
 def read_contract(task: str = POLICY_TASK) -> dict[str, Any]:
     """``task``'s ``contract.json`` as a dict, without loading the network."""
     return json.loads((policy_dir(task) / "contract.json").read_text())
@@ -96,4 +106,4 @@ def load_policy(task: str = POLICY_TASK) -> ShippedPolicy:
     return ShippedPolicy(task, read_contract(task), policy_dir(task))
 
 
-__all__ = ["POLICY_DIR", "ShippedPolicy", "load_policy", "policy_dir", "read_contract", "shipped_tasks"]
+__all__ = ["POLICY_DIR", "ShippedPolicy", "contract_terms", "load_policy", "policy_dir", "read_contract", "shipped_tasks"]

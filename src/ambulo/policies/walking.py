@@ -27,7 +27,7 @@ import torch
 
 from ..core.entity import Entity
 from ..robots.humanoid import POLICY_TASK
-from .shipped import ShippedPolicy, load_policy
+from .shipped import ShippedPolicy, contract_terms, load_policy
 from .velocity_obs import VELOCITY_POLICY_TERMS, velocity_policy_terms
 
 _COMMAND_RANGES = ("lin_vel_x_m_s", "lin_vel_y_m_s", "yaw_rate_rad_s")
@@ -48,12 +48,7 @@ class WalkingPolicy:
         self.policy = policy or load_policy(task)
         c = self.policy.contract
         self.contract = c
-        terms = [t["name"] for t in c["observation_terms"]]
-        if tuple(terms) != VELOCITY_POLICY_TERMS:
-            raise ValueError(f"the {self.policy.task} policy's contract lists observation terms {terms}; "
-                             f"{type(self).__name__} builds {list(VELOCITY_POLICY_TERMS)} (the humanoid-walk "
-                             "task's): re-export the policy from a humanoid-walk run")
-        by_name = {t["name"]: t for t in c["observation_terms"]}
+        by_name = contract_terms(self.policy, VELOCITY_POLICY_TERMS, type(self).__name__, "humanoid-walk")
         self._cmd_scale = torch.tensor(by_name["velocity_commands"]["scale"], dtype=torch.float32)
         self._joint_vel_scale = float(by_name["joint_vel"]["scale"])
         self._ang_vel_scale = float(by_name["base_ang_vel"]["scale"])
