@@ -13,7 +13,7 @@ import torch
 from ambulo.nav import FootstepPlan, FootstepPlanner, GridMap, PlanStatus
 from ambulo.navigation import Navigator, NavigatorCfg, NavWorld, NavWorldCfg, Walker
 from ambulo.navigation.benchmark import make_walker
-from ambulo.navigation.footstep_walker import FootstepPolicyWalker
+from ambulo.navigation.footstep_walker import FootstepPolicyWalker, FootstepWalkerCfg
 
 pytest.importorskip("onnxruntime")
 
@@ -245,4 +245,29 @@ def test_the_navigator_reaches_a_goal_with_the_footstep_walker(room):
     assert np.linalg.norm(world.true_pose()[:2] - np.array([3.0, 0.2])) < 0.3
     errors = [e for _, _, e in walker.touchdowns]
     assert len(errors) >= 10 and np.median(errors) <= 0.05
+    world.close()
+
+
+# -- the arms' swing ------------------------------------------------------------------------------
+@pytest.mark.parametrize("arm_swing_scale, touches", [(None, False), (1.0, True)], ids=["default", "as_trained"])
+def test_walking_0_57m_from_a_wall_its_arms_stay_off_it(room, arm_swing_scale, touches):
+    """8 steps of 0.15 m along the room's north wall (its face 0.57 m to the left of the body path):
+    with the walker's default ``arm_swing_scale`` nothing touches the wall; with the arms as the
+    policy swings them (1.0: a forearm reaches 0.60-0.63 m to the side) a forearm meets it, so the
+    distance tests the swing."""
+    wall_face_y_m = 1.95  # conftest.ROOM_XML: wall_north at y = 2.0, 0.05 m half thick
+    # the start stance's soles are centred ~2 cm right of the pelvis: the body path 0.57 m from the wall
+    world = NavWorld.from_file(room, start_pose=(-1.0, wall_face_y_m - 0.55, 0.0), cfg=NavWorldCfg(record_gyro=False))
+    cfg = FootstepWalkerCfg() if arm_swing_scale is None else FootstepWalkerCfg(arm_swing_scale=arm_swing_scale)
+    walker = FootstepPolicyWalker(cfg)
+    walker.bind(world)
+    walker.reset()
+    _run(world, walker, 0.3)
+    plan = _straight_plan(walker.start_feet()[0], 8)
+    assert wall_face_y_m - _end_body_xy(plan)[1] == pytest.approx(0.57, abs=0.02)
+    walker.set_plan(plan, final=True)
+    _run(world, walker, 4.0)
+    assert not world.fell and walker.arrived
+    walls = [body for _, body in world.collisions if "wall" in body]
+    assert bool(walls) is touches, world.collisions
     world.close()
