@@ -42,7 +42,7 @@ import torch
 from ambulo import envs
 from ambulo.envs.humanoid_footsteps import PLACEMENT_BAR_M
 from ambulo.nav.footsteps import FootstepPlanner
-from ambulo.nav.grid_map import GridMap
+from ambulo.nav.grid_map import GridMap, terrain_grid_map
 from ambulo.rl import runs
 from ambulo.rl.evaluate import eval_episode_length_s, run_episodes
 
@@ -86,19 +86,9 @@ MAP_SIZE_M = 8.0
 
 
 def terrain_map(terrain, center_xy_m) -> GridMap:
-    """The planner's map of ``MAP_SIZE_M`` around ``center_xy_m``: free, with the heights of the
-    ``TerrainGrid`` ``terrain``. Its cells are the terrain's sample cells (same spacing, corners on
-    the samples) and each reads the height at its centre: a riser's cell, the one the hfield ramps
-    over, reads halfway between its treads (5 cm off both at 0.10 m risers, more than the
-    planner's 2 cm foothold spread), so no planned sole reaches onto a ramp (with cells at any
-    offset to the samples, 33 of 152 planned soles on 8 plans did)."""
-    res = float(terrain.spacing_m)
-    n = int(round(MAP_SIZE_M / res))
-    corner = np.asarray(center_xy_m, float) - MAP_SIZE_M / 2
-    origin = terrain.origin_xy_m + np.round((corner - terrain.origin_xy_m) / res) * res
-    centers = origin[:, None] + (np.arange(n) + 0.5) * res  # (2, n): x, y of cell centres
-    heights = terrain.height_at(centers[0][None, :], centers[1][:, None])  # (num_y, num_x)
-    return GridMap.from_array(np.zeros((n, n), bool), origin_xy_m=tuple(origin), resolution_m=res, height_m=heights)
+    """The planner's map of ``MAP_SIZE_M`` around ``center_xy_m`` on the terrain's sample cells
+    (``nav.grid_map.terrain_grid_map``)."""
+    return terrain_grid_map(terrain, center_xy_m, MAP_SIZE_M)
 
 
 class PlannerPlans:

@@ -248,3 +248,20 @@ def crossed_cells(u0, v0, u1, v1, max_lines: int) -> tuple[np.ndarray, np.ndarra
     t = np.sort(np.where((t >= 0) & (t <= 1), t, 1.0), axis=-1)  # off-segment and 0/0: the end
     mid = np.concatenate([0.5 * (t[..., :-1] + t[..., 1:]), t[..., -1:]], axis=-1)
     return u0[..., None] + du[..., None] * mid, v0[..., None] + dv[..., None] * mid
+
+
+def terrain_grid_map(terrain, center_xy_m, size_m: float = 8.0) -> GridMap:
+    """A free ``size_m`` square map around ``center_xy_m`` with the heights of a terrain (a
+    ``scenes.terrain.TerrainGrid``: ``spacing_m``, ``origin_xy_m``, ``height_at``), for the footstep
+    planner. Its cells are the terrain's sample cells (same spacing, corners on the samples) and each
+    reads the height at its centre: a riser's cell, the one the hfield ramps over, reads halfway
+    between its treads (5 cm off both at 0.10 m risers, more than the planner's 2 cm foothold
+    spread), so no planned sole reaches onto a ramp (with cells at any offset to the samples, 33 of
+    152 planned soles on 8 plans did)."""
+    res = float(terrain.spacing_m)
+    n = int(round(size_m / res))
+    corner = np.asarray(center_xy_m, float) - size_m / 2
+    origin = terrain.origin_xy_m + np.round((corner - terrain.origin_xy_m) / res) * res
+    centers = origin[:, None] + (np.arange(n) + 0.5) * res  # (2, n): x, y of cell centres
+    heights = terrain.height_at(centers[0][None, :], centers[1][:, None])  # (num_y, num_x)
+    return GridMap.from_array(np.zeros((n, n), bool), origin_xy_m=tuple(origin), resolution_m=res, height_m=heights)
