@@ -52,6 +52,7 @@ import torch
 
 from ..envs.humanoid_footsteps import HumanoidFootstepsCfg, HumanoidFootstepsEnv, humanoid_footsteps_cfg
 from ..nav import FootstepPlan
+from ..nav.footstep_lattice import compose, relative
 from ..policies.footstep_policy import FOOTSTEP_TASK, FootstepPolicy
 from ..policies.walking import WalkingPolicy
 from ..robots import humanoid
@@ -389,16 +390,7 @@ class FootstepPolicyWalker:
     def _to_plan(self, xyyaw_w: np.ndarray) -> np.ndarray:
         """(K, 3) simulator-world poses in the pose estimate's frame: relative to the true base,
         placed at the estimate (module docstring; the identity when the estimate is the truth)."""
-        true = self.world.true_pose()
-        c, s = math.cos(true[2]), math.sin(true[2])
-        rel = xyyaw_w[:, :2] - true[:2]
-        rel_b = np.stack([c * rel[:, 0] + s * rel[:, 1], -s * rel[:, 0] + c * rel[:, 1]], 1)
-        ce, se = math.cos(self._pose[2]), math.sin(self._pose[2])
-        out = np.empty_like(xyyaw_w)
-        out[:, 0] = self._pose[0] + ce * rel_b[:, 0] - se * rel_b[:, 1]
-        out[:, 1] = self._pose[1] + se * rel_b[:, 0] + ce * rel_b[:, 1]
-        out[:, 2] = np.angle(np.exp(1j * (xyyaw_w[:, 2] - true[2] + self._pose[2])))
-        return out
+        return compose(self._pose, relative(self.world.true_pose(), xyyaw_w))
 
     def balance(self) -> BalanceReport:
         return self.monitor.report()

@@ -14,7 +14,7 @@ import torch
 
 from ..core.entity import Entity
 from .footstep_obs import FOOTSTEP_COMMAND_SIZE, FOOTSTEP_POLICY_TERMS, footstep_policy_terms
-from .shipped import ShippedPolicy, contract_terms, load_policy
+from .shipped import ShippedPolicy
 from .walking import WalkingPolicy
 
 FOOTSTEP_TASK = "humanoid-footsteps"
@@ -30,20 +30,17 @@ class FootstepPolicy(WalkingPolicy):
       policy: a loaded ``ShippedPolicy``; its contract must list ``FOOTSTEP_POLICY_TERMS``.
     """
 
+    TERMS = FOOTSTEP_POLICY_TERMS
+    SOURCE_TASK = "humanoid-footsteps"
+
     def __init__(self, entity: Entity | None = None, task: str = FOOTSTEP_TASK, policy: ShippedPolicy | None = None):
-        self.policy = policy or load_policy(task)
-        self.contract = self.policy.contract
-        by_name = contract_terms(self.policy, FOOTSTEP_POLICY_TERMS, type(self).__name__, "humanoid-footsteps")
+        super().__init__(entity, task, policy)
+
+    def _read_command_terms(self, by_name: dict[str, dict]) -> None:
+        """The footsteps are fed unscaled and have no trained ranges (a footstep is a place)."""
         if float(by_name["footsteps"]["scale"]) != 1.0:
             raise ValueError(f"the {self.policy.task} policy scales its footsteps by {by_name['footsteps']['scale']}; "
                              "the humanoid-footsteps task feeds them unscaled")
-        self._joint_vel_scale = float(by_name["joint_vel"]["scale"])
-        self._ang_vel_scale = float(by_name["base_ang_vel"]["scale"])
-        self._decimation: int | None = None
-        self._count = 0
-        self.entity: Entity | None = None
-        if entity is not None:
-            self.bind(entity)
 
     def command_tensor(self, command) -> torch.Tensor:
         """(N, 10) float32 footstep command (no ranges to clip to: a footstep is a place)."""

@@ -44,23 +44,31 @@ class WalkingPolicy:
       policy: a loaded ``ShippedPolicy``; its contract must list ``VELOCITY_POLICY_TERMS``.
     """
 
+    TERMS = VELOCITY_POLICY_TERMS
+    """The observation terms this runner builds, in order (the contract must list them)."""
+    SOURCE_TASK = "humanoid-walk"
+    """The task whose runs export a policy with ``TERMS`` (named in the error when they differ)."""
+
     def __init__(self, entity: Entity | None = None, task: str = POLICY_TASK, policy: ShippedPolicy | None = None):
         self.policy = policy or load_policy(task)
-        c = self.policy.contract
-        self.contract = c
-        by_name = contract_terms(self.policy, VELOCITY_POLICY_TERMS, type(self).__name__, "humanoid-walk")
-        self._cmd_scale = torch.tensor(by_name["velocity_commands"]["scale"], dtype=torch.float32)
+        self.contract = self.policy.contract
+        by_name = contract_terms(self.policy, self.TERMS, type(self).__name__, self.SOURCE_TASK)
         self._joint_vel_scale = float(by_name["joint_vel"]["scale"])
         self._ang_vel_scale = float(by_name["base_ang_vel"]["scale"])
-        ranges = c["command_ranges"]
-        self._cmd_low = torch.tensor([ranges[k][0] for k in _COMMAND_RANGES])
-        self._cmd_high = torch.tensor([ranges[k][1] for k in _COMMAND_RANGES])
+        self._read_command_terms(by_name)
         self._decimation: int | None = None
         self._count = 0
         self._warned = False
         self.entity: Entity | None = None
         if entity is not None:
             self.bind(entity)
+
+    def _read_command_terms(self, by_name: dict[str, dict]) -> None:
+        """The command's scale and trained ranges from the contract's terms (``by_name``) and ranges."""
+        self._cmd_scale = torch.tensor(by_name["velocity_commands"]["scale"], dtype=torch.float32)
+        ranges = self.contract["command_ranges"]
+        self._cmd_low = torch.tensor([ranges[k][0] for k in _COMMAND_RANGES])
+        self._cmd_high = torch.tensor([ranges[k][1] for k in _COMMAND_RANGES])
 
     def bind(self, entity: Entity) -> None:
         """Drive ``entity`` (checked to have the contract's joints, in order) from now on."""
