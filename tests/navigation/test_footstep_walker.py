@@ -271,3 +271,11 @@ def test_walking_0_57m_from_a_wall_its_arms_stay_off_it(room, arm_swing_scale, t
     walls = [body for _, body in world.collisions if "wall" in body]
     assert bool(walls) is touches, world.collisions
     world.close()
+
+
+def test_a_negative_arm_swing_scale_is_refused_in_one_line():
+    from ambulo.navigation.footstep_walker import FootstepWalkerCfg
+
+    with pytest.raises(Exception, match="arm_swing_scale") as err:
+        FootstepWalkerCfg(arm_swing_scale=-0.5)
+    assert "\n" not in str(err.value)

@@ -56,7 +56,7 @@ from ..nav.footstep_lattice import compose, relative
 from ..policies.footstep_policy import FOOTSTEP_TASK, FootstepPolicy
 from ..policies.walking import WalkingPolicy
 from ..robots import humanoid
-from ..utils.validate import Checked
+from ..utils.validate import Checked, rule
 from .stand_hold import PositionHold, StandHoldCfg
 from .walkers import BalanceMonitor, BalanceReport, plan_refusal
 from .world import NavWorld
@@ -75,7 +75,7 @@ class FootstepWalkerCfg(Checked):
     splice_radius_m: float = 0.05
     """A new plan whose kept-down start foot (row 1) lies this close to the current swing target,
     same side, continues the step in progress, m."""
-    arm_swing_scale: float = 0.4
+    arm_swing_scale: float = field(default=0.4, metadata=rule(minimum=0.0))
     """The arm joints' (shoulders', elbows') targets are the default pose plus this fraction of what
     the policy asks (1: as trained). Its arms swing wide: the forearms reach 0.60-0.63 m to the side
     of the body path (0.27-0.34 m for the velocity policy), so in the apartments' corridors and doors
