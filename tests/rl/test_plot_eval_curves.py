@@ -26,6 +26,11 @@ def test_rows_are_minutes_and_the_criterion_needs_both_engines(tmp_path):
     assert [r["fall_rate"] for r in rows] == [0.3, 0.0, 0.01]
     # met on the GPU but not on the CPU engine is not met
     assert [r["met"] for r in rows] == [False, False, True]
+    assert [r["met_training_engine"] for r in rows] == [False, True, True]
+    assert plot.legend("run", rows)[0] == "run: walks at 3.5 min"
+    # without its last row the run met the criterion on its own engine only: said so, not "walks"
+    assert plot.legend("run", rows[:2])[0] == "run: criterion at 2.5 min, not on the CPU engine"
+    assert plot.legend("run", rows[:1])[0] == "run: not yet"
 
 
 def test_it_writes_a_png(tmp_path):
