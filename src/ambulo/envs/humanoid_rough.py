@@ -177,7 +177,7 @@ register(TaskSpec(
     cfg_fn=humanoid_rough_cfg,
     play_cfg_fn=humanoid_rough_play_cfg,
     ppo_cfg_fn=humanoid_walk_ppo,
-    description="humanoid-walk over a terrain curriculum (slopes, rough, 0.15 m stairs, stones) with a "
+    description="forward walking (0-1 m/s) over a terrain curriculum (slopes, rough, 0.15 m stairs, stones) with a "
                 "height scan and transfer randomization",
     step_metrics=humanoid_rough_metrics,
     criteria=(WALKS_ROUGH,),
