@@ -12,6 +12,7 @@ pose, action scale and control period, the run's settings, its evaluations and t
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import shutil
 import subprocess
@@ -49,6 +50,10 @@ def contract_for(run_dir: Path, checkpoint: str, info: dict, cpu_eval: dict) -> 
             "joint_vel": "joint velocities rad/s, times scale",
             "base_ang_vel": "base angular velocity in the base frame rad/s, times scale",
             "actions": "the previous action (zeros at start)",
+            "height_scan": "base z minus the ground's z under each point of a grid in the base's heading frame "
+                           "(x forward, y left, yaw only), minus height_scan.height_offset_m, clipped to "
+                           "+-height_scan.clip_m, m; x-major: x from -length_m/2 to +length_m/2 (shifted by "
+                           "forward_offset_m), y from -width_m/2 to +width_m/2 within each x, resolution_m apart",
         },
         "joint_names": list(robot.joint_names),
         "default_joint_pos": [round(float(v), 6) for v in robot.default_joint_pos.reshape(-1)],
@@ -71,6 +76,8 @@ def contract_for(run_dir: Path, checkpoint: str, info: dict, cpu_eval: dict) -> 
         contract["command_ranges"] = {"lin_vel_x_m_s": list(cfg.commands.lin_vel_x_m_s),
                                       "lin_vel_y_m_s": list(cfg.commands.lin_vel_y_m_s),
                                       "yaw_rate_rad_s": list(cfg.commands.yaw_rate_rad_s)}
+    if "height_scan" in terms:  # a terrain policy: the grid its scan samples, which a user must rebuild
+        contract["height_scan"] = dataclasses.asdict(cfg.height_scan)
     reached = run_dir / "time_to_criterion.json"
     if reached.is_file():
         r = json.loads(reached.read_text())

@@ -1,0 +1,74 @@
+"""The shipped rough-terrain walker (humanoid-rough, trained on MuJoCo Warp) on the CPU engine, at the hardest level
+of the terrain on the tiles both engines build as boxes (flat, 0.15 m stairs up out of a pit and down off a
+pyramid), so what is checked is the walker and not the engines' heightfield gap (``docs/terrain.md``).
+
+Each row holds one forward command for every robot (``benchmarks/command_tracking.py``'s ``track``: no lateral, yaw,
+standing or heading commands; mean forward speed after 2 s). The bars are the task's and hold with margin for the
+shipped walker (seeds 1-4, 8 robots: flat 0.48 m/s at 0.5 and 0.91-0.92 at 1 m/s, no falls; stairs 0.67-0.84 m/s at
+1 m/s, at most 1 fall of 8). Broken on purpose they fail: actions scaled by 0.3 (flat: no progress at 0.5 m/s, 13
+falls at 1 m/s; stairs 0.15-0.25 m/s), the height scan zeroed (16 and 7 falls on the stairs; flat still passes)."""
+
+import dataclasses
+
+import pytest
+
+from ambulo import envs
+from ambulo.envs.humanoid_rough import WALKS_ROUGH
+from ambulo.policies.shipped import load_policy, read_contract
+from script_loader import ROOT, load_script
+
+TASK = "humanoid-rough"
+WORLDS = 8
+SECONDS, SETTLE_S = 6.0, 2.0
+FORWARD_ONLY = {"commands.lin_vel_y_m_s": (0.0, 0.0), "commands.yaw_rate_rad_s": (0.0, 0.0),
+                "commands.heading_fraction": 0.0, "commands.standing_fraction": 0.0}
+MAX_ERROR_M_S = WALKS_ROUGH.max_values["mean_abs_vel_error_m_s"]
+
+
+@pytest.fixture(scope="module")
+def walk():
+    """``walk(kind, speed_m_s)``: ``track``'s row for ``WORLDS`` robots of the shipped walker on ``kind`` tiles."""
+    track = load_script(ROOT / "benchmarks" / "command_tracking.py").track
+    shipped = load_policy(TASK)
+
+    def run(kind: str, speed_m_s: float) -> dict:
+        env = envs.make(TASK, num_envs=WORLDS, device="cpu", seed=3, play=True,
+                        **FORWARD_ONLY, **{"terrain.kinds": (kind,)})
+        try:
+            steps, settle = round(SECONDS / env.step_dt_s), round(SETTLE_S / env.step_dt_s)
+            return track(env, lambda obs: shipped(obs["policy"]), speed_m_s, steps, settle)
+        finally:
+            env.close()
+    return run
+
+
+@pytest.mark.parametrize("speed_m_s", [0.5, 1.0])
+def test_walks_flat_tiles_at_its_command_without_falling(walk, speed_m_s):
+    row = walk("flat", speed_m_s)
+    assert row["falls"] == 0, row
+    assert abs(row["speed_m_s"] - speed_m_s) <= MAX_ERROR_M_S, row
+
+
+@pytest.mark.parametrize("kind", ["stairs_up", "stairs_down"])
+def test_walks_up_and_down_the_hardest_stairs(walk, kind):
+    """0.15 m risers at a 1 m/s command: it keeps going (no standing at the foot of the stairs) and at most a
+    quarter of the robots fall in 6 s (the CPU engine's 140-episode table has 15 % and 5 % of 20 s episodes)."""
+    row = walk(kind, 1.0)
+    assert row["speed_m_s"] >= 0.5, row
+    assert row["falls"] <= WORLDS // 4, row
+
+
+def test_its_contract_matches_the_task():
+    """The shipped network reads the task's observation as it is today: its terms and sizes and the height scan's
+    grid (a changed ``HeightScanCfg`` default would feed it other points without an error)."""
+    contract = read_contract(TASK)
+    env = envs.make(TASK, num_envs=1, device="cpu", play=True)
+    try:
+        env.reset()
+        terms = {name: int(t.shape[1]) for name, t in env._policy_terms().items()}
+        assert [(t["name"], t["size"]) for t in contract["observation_terms"]] == list(terms.items())
+        assert contract["num_obs"] == env.num_obs
+        assert contract["height_scan"] == dataclasses.asdict(env.cfg.height_scan)
+        assert contract["export"]["onnx_max_abs_diff"] < 1e-4 and contract["export"]["torchscript_max_abs_diff"] < 1e-4
+    finally:
+        env.close()
