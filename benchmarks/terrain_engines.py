@@ -17,7 +17,9 @@ policy trained on MuJoCo Warp falling on the CPU engine even on flat tiles.
 
 ``--box-kinds`` sets which tile kinds are static boxes (``terrain.box_kinds``; default the task's),
 e.g. ``flat,stairs_up,stairs_down,stepping_stones`` for stepping stones as boxes.
-``--warp-device cpu`` runs MuJoCo Warp on Warp's CPU device (no GPU needed; its first build
+``--mujoco-hfield own`` gives MuJoCo C its own heightfield contacts (one per prism a geom overlaps)
+instead of the task's default, Warp's reduction (``engine.mujoco_hfield``); ``--engines mujoco``
+skips the Warp side. ``--warp-device cpu`` runs MuJoCo Warp on Warp's CPU device (no GPU needed; its first build
 compiles the kernels, minutes). Ends with one ``RESULT {json}``; ``ratio`` = MuJoCo C's contacts
 per touching sphere over Warp's (1.0: the engines agree).
 
@@ -78,10 +80,12 @@ def sphere_contact_counts(env) -> np.ndarray:
 
 
 def tile_overrides(args) -> dict:
-    """The terrain overrides of ``--kinds`` and ``--box-kinds``."""
+    """The terrain overrides of ``--kinds``, ``--box-kinds`` and ``--mujoco-hfield``."""
     tiles = {"terrain.kinds": tuple(args.kinds.split(","))}
     if args.box_kinds is not None:
         tiles["terrain.box_kinds"] = tuple(k for k in args.box_kinds.split(",") if k)
+    if args.mujoco_hfield is not None:
+        tiles["mujoco_hfield_contacts_as_warp"] = args.mujoco_hfield == "warp"
     return tiles
 
 
@@ -113,7 +117,8 @@ def falls(args, engine: str, device: str, info: dict, run_dir, ckpt) -> dict:
     result = run_episodes(env, runner.env, runner.get_inference_policy(device=str(env.device)),
                           envs.spec(info["task"]), quiet=True)
     env.close()
-    return {"episodes": args.episodes, "fall_rate": result["fall_rate"],
+    by_kind = {k: {"episodes": v["episodes"], "fall_rate": v["fall_rate"]} for k, v in result.get("by_kind", {}).items()}
+    return {"episodes": args.episodes, "fall_rate": result["fall_rate"], "by_kind": by_kind,
             "mean_episode_length_s": result["mean_episode_length_s"], "seconds": round(time.perf_counter() - t0, 1)}
 
 
@@ -124,6 +129,9 @@ def main() -> None:
     p.add_argument("--kinds", default="flat", help="tile kinds, comma-separated (the terrain's `kinds`)")
     p.add_argument("--box-kinds", help="tile kinds built as static boxes, comma-separated (the terrain's "
                    "`box_kinds`; default: the task's, flat and stairs)")
+    p.add_argument("--mujoco-hfield", choices=("own", "warp"), help="MuJoCo C's heightfield contacts: its "
+                   "own, or reduced as Warp's (the terrain tasks' default)")
+    p.add_argument("--engines", default="mujoco,warp", help="engines to run, comma-separated")
     p.add_argument("--worlds", type=int, default=8, help="resting robots for the contact count")
     p.add_argument("--settle-s", type=float, default=0.5, help="seconds standing before the count")
     p.add_argument("--episodes", type=int, default=16, help="policy episodes per engine (--run)")
@@ -146,8 +154,9 @@ def main() -> None:
         message = err.args[0] if isinstance(err, KeyError) and err.args else err  # a KeyError's str quotes it
         raise SystemExit(f"terrain_engines.py: {message}") from None
     sides = {"mujoco": ("mujoco", "cpu"), "warp": ("warp", args.warp_device)}
+    sides = {k: v for k, v in sides.items() if k in args.engines.split(",")}
     result = {"task": args.task, "kinds": args.kinds, "box_kinds": args.box_kinds, "seed": args.seed,
-              "warp_device": args.warp_device,
+              "warp_device": args.warp_device, "mujoco_hfield": args.mujoco_hfield or "task default",
               "contacts": {k: contacts(args, *v, info) for k, v in sides.items()}}
     for name, c in result["contacts"].items():
         print(f"{name:7s} resting: {c['contacts']} contacts on {c['touching_spheres']} touching sole spheres "
@@ -156,7 +165,7 @@ def main() -> None:
         result["falls"] = {k: falls(args, *v, info, run_dir, ckpt) for k, v in sides.items()}
         for name, f in result["falls"].items():
             print(f"{name:7s} policy: fall rate {f['fall_rate']:.3f} over {f['episodes']} episodes")
-    a, b = (result["contacts"][k]["per_touching_sphere"] for k in ("mujoco", "warp"))
+    a, b = (result["contacts"].get(k, {}).get("per_touching_sphere") for k in ("mujoco", "warp"))
     result["ratio"] = round(a / b, 3) if a and b else None
     print("RESULT " + json.dumps(result))
 
