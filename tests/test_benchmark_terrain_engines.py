@@ -12,8 +12,8 @@ bench = load_script(ROOT / "benchmarks" / "terrain_engines.py")
 
 
 def test_resting_feet_touch_the_terrain_through_their_sole_spheres_only():
-    args = argparse.Namespace(task="humanoid-footsteps-stairs", kinds="flat", box_kinds=None, worlds=2, settle_s=0.5,
-                              seed=7, episode_length_s=20.0)
+    args = argparse.Namespace(task="humanoid-footsteps-stairs", kinds="flat", box_kinds=None, mujoco_hfield=None,
+                              worlds=2, settle_s=0.5, seed=7, episode_length_s=20.0)
     env = bench.make(args, "mujoco", "cpu", args.worlds, None)
     env.reset()
     terrain, soles = bench.geom_ids(env.engine.model)
