@@ -29,6 +29,7 @@ ctypes Python callback that takes the GIL for each geom-heightfield pair (4x slo
 from __future__ import annotations
 
 import ctypes
+import warnings
 from pathlib import Path
 
 import mujoco
@@ -181,10 +182,16 @@ class _Reducer:
         self.xpos_offset, self.xmat_offset = _pointer_offsets()
         self.depth = (ctypes.c_double * 1)(-1.0)  # read by the callback at every call; <= 0: no limit
         original = next(iter(self.original.values()))
-        if compiled is None:
-            compiled = _numba() is not None
-        self.compiled = compiled
-        self.callback_address = (self._compiled(original) if compiled else self._python(original))
+        self.compiled = _numba() is not None if compiled is None else compiled
+        try:
+            self.callback_address = self._compiled(original) if self.compiled else self._python(original)
+        except Exception as err:  # a numba that cannot build the callback: the Python one, slower
+            if compiled:
+                raise
+            warnings.warn(f"reduce_hfield_contacts: numba callback failed ({err}); using the slower Python one",
+                          stacklevel=3)
+            self.compiled = False
+            self.callback_address = self._python(original)
 
     def _python(self, original_address: int) -> int:
         original = _COLLISION_FN(original_address)
