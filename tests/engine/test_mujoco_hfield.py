@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from ambulo.engine.mujoco_hfield import MAX_CONTACTS, reduce_hfield_contacts
-from ambulo.scenes.terrain import TerrainCfg, add_terrain, generate
+from ambulo.scenes.terrain import TerrainCfg, generate
+from terrain_ball import ball_over_terrain
 
 RADIUS_M = 0.02
 LIMIT_M = 0.02
@@ -29,12 +30,7 @@ def spheres(n: int, depth_range_m: tuple[float, float], seed: int = 0,
     """A free 2 cm sphere over hfield tiles; (n, 7) poses at random spots, its lowest point this
     deep under the ground below its centre."""
     grid = generate(TerrainCfg(kinds=kinds, num_levels=2, box_tiles=False))
-    spec = mujoco.MjSpec()
-    add_terrain(spec, grid)
-    body = spec.worldbody.add_body(name="ball")
-    body.add_freejoint()
-    body.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[RADIUS_M, 0, 0], mass=0.2)
-    model = spec.compile()
+    model = ball_over_terrain(grid, RADIUS_M)
     rng = np.random.default_rng(seed)
     low = grid.origin_xy_m + grid.cfg.border_m
     high = low + np.array([grid.num_levels, grid.num_kinds]) * grid.cfg.tile_size_m

@@ -9,7 +9,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from ambulo.scenes.terrain import TerrainCfg, add_terrain, generate
+from ambulo.scenes.terrain import TerrainCfg, generate
+from terrain_ball import ball_over_terrain
 
 mjw = pytest.importorskip("mujoco_warp")
 wp = pytest.importorskip("warp")
@@ -22,12 +23,7 @@ def sunk_spheres(n: int) -> tuple[mujoco.MjModel, np.ndarray, np.ndarray]:
     """A free 2 cm sphere over humanoid-rough's terrain; (n, 7) poses at random spots with it
     2.5-4 cm deep (its centre under the surface: where Warp misfires), and each pose's depth, m."""
     grid = generate(TerrainCfg(box_tiles=False))  # all hfield: box tiles' contacts are analytic and unlimited
-    spec = mujoco.MjSpec()
-    add_terrain(spec, grid)
-    body = spec.worldbody.add_body(name="ball")
-    body.add_freejoint()
-    body.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[RADIUS_M, 0, 0], mass=0.2)
-    model = spec.compile()
+    model = ball_over_terrain(grid, RADIUS_M)
     rng = np.random.default_rng(0)
     low = grid.origin_xy_m + 0.5
     high = grid.origin_xy_m + (np.array(grid.heights_m.shape) - 1) * grid.spacing_m - 0.5
