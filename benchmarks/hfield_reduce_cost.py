@@ -1,7 +1,8 @@
 """What reducing MuJoCo C's heightfield contacts to Warp's costs the CPU engine (``engine.mujoco_hfield``).
 
-The reduction is a ctypes callback per geom-heightfield pair that takes the GIL, so it slows the
-CPU engine's physics on hfield tiles. This steps humanoid-rough's play env on ``--kinds`` tiles
+The reduction wraps MuJoCo's collision function of every geom-heightfield pair (a numba-compiled C
+callback; without numba a ctypes Python one that takes the GIL, ~4x slower on hfield tiles), so it
+could slow the CPU engine's physics there. This steps humanoid-rough's play env on ``--kinds`` tiles
 with a run's policy (``--run``; else zero actions, the default pose) for ``--steps`` env steps,
 with the reduction (the task's default) and with MuJoCo's own contacts, alternating ``--repeats``
 times and keeping the best of each, and reports env-steps/s. Ends with one ``RESULT {json}``.

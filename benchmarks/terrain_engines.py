@@ -150,6 +150,9 @@ def main() -> None:
             raise ValueError(f"task {args.task} has no terrain; give a terrain task "
                              "(humanoid-rough, g1-rough, humanoid-footsteps-stairs)")
         envs.make_cfg(args.task, **tile_overrides(args))
+        unknown = sorted(set(args.engines.split(",")) - {"mujoco", "warp"})
+        if unknown:
+            raise ValueError(f"--engines {args.engines}: unknown {unknown}; give mujoco, warp or mujoco,warp")
     except (OSError, ValueError, KeyError) as err:
         message = err.args[0] if isinstance(err, KeyError) and err.args else err  # a KeyError's str quotes it
         raise SystemExit(f"terrain_engines.py: {message}") from None

@@ -32,7 +32,8 @@ def test_a_wrong_run_task_or_tile_kind_is_one_line_before_anything_is_built(monk
     for args, said in ((["--run", "/no/such/run"], "is neither a run folder"),
                        (["--task", "cartpole"], "task cartpole has no terrain"),
                        (["--kinds", "flat,bogus"], "unknown ['bogus']"),
-                       (["--box-kinds", "flat,rough"], "['rough'] cannot be boxes")):
+                       (["--box-kinds", "flat,rough"], "['rough'] cannot be boxes"),
+                       (["--engines", "mujoco,wrap"], "unknown ['wrap']")):
         monkeypatch.setattr(sys, "argv", ["terrain_engines.py", *args])
         with pytest.raises(SystemExit) as stop:
             bench.main()
