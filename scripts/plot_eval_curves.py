@@ -1,5 +1,7 @@
 """Several runs' periodic evaluations on one time axis: PNG for docs/images.
 
+    python scripts/plot_eval_curves.py --task humanoid-rough --out docs/images/rough_curve.png \\
+        "seed 1=benchmarks/results/h200x2-2026-11-30-s19-rough-fwd-ppo-seed1-evals.csv"
     python scripts/plot_eval_curves.py --out docs/images/locomotion_curves.png \\
         "PPO, 2 GPUs=benchmarks/results/h200x2-2026-11-30-s13-ttw-2gpu-evalsplit-evals.csv" \\
         "FastSAC=benchmarks/results/h200x2-2026-11-30-s13-fast-sac-compile-evals.csv"
@@ -7,7 +9,8 @@
 Each argument is ``LABEL=EVALS_CSV``: an ``evals.csv`` that ``ambulo train --eval-every`` wrote
 (``wall_s`` from the training process's start, kernel compile and earlier evaluations included;
 ``fall_rate``; ``metrics`` as ``name=value`` pairs). Plots the velocity error and the fall rate
-against wall-clock minutes, with the ``walks`` criterion's bars (``--max-vel-error``, ``--max-fall-rate``),
+against wall-clock minutes, with the bars of ``--task``'s criterion (humanoid-walk's ``walks`` without it;
+``--max-vel-error``, ``--max-fall-rate`` override),
 and marks each run's first evaluation that met its criteria (``criteria_met``) on both engines
 when the CSV has the CPU-engine columns filled (a circle), or else its first that met them on the
 engine it trained on only (a square, labelled so). A run of a task judged in blocks (humanoid-walk-robust:
@@ -21,6 +24,7 @@ import argparse
 import csv
 from pathlib import Path
 
+from ambulo import envs
 from ambulo.envs.humanoid_walk import WALKS
 from ambulo.rl.periodic_eval import metrics_from_text, worst_block_from_text
 
@@ -66,16 +70,39 @@ def legend(label: str, rows: list[dict]) -> tuple[str, dict | None, dict | None]
     return f"{label}: not yet", None, None
 
 
+def criterion_bars(task: str | None) -> tuple[float, float]:
+    """(velocity error m/s, fall rate): the largest passing values of ``task``'s criterion over both (its
+    registry entry), humanoid-walk's ``walks`` when ``task`` is None. The marks come from the CSV's
+    ``criteria_met``, so a bar from another task's criterion would be drawn where no mark agrees with it."""
+    if task is None:
+        criterion = WALKS
+    else:
+        try:
+            spec = envs.spec(task)
+        except KeyError as error:
+            raise SystemExit(f"--task: {error.args[0]}") from None
+        criterion = next((c for c in spec.criteria if {"mean_abs_vel_error_m_s", "fall_rate"} <= c.max_values.keys()),
+                         None)
+        if criterion is None:
+            raise SystemExit(f"--task {task}: no criterion bounds the velocity error and the fall rate; "
+                             "give --max-vel-error and --max-fall-rate")
+    return criterion.max_values["mean_abs_vel_error_m_s"], criterion.max_values["fall_rate"]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("runs", nargs="+", help="LABEL=EVALS_CSV")
     parser.add_argument("--out", required=True, type=Path)
     parser.add_argument("--title", default=None)
-    parser.add_argument("--max-vel-error", type=float, default=WALKS.max_values["mean_abs_vel_error_m_s"],
-                        help="the velocity error bar, m/s (default: the walks criterion's)")
-    parser.add_argument("--max-fall-rate", type=float, default=WALKS.max_values["fall_rate"],
-                        help="the fall rate bar (default: the walks criterion's)")
+    parser.add_argument("--task", default=None, help="the runs' task: its criterion gives the bars")
+    parser.add_argument("--max-vel-error", type=float, default=None,
+                        help="the velocity error bar, m/s (default: the task's criterion's)")
+    parser.add_argument("--max-fall-rate", type=float, default=None,
+                        help="the fall rate bar (default: the task's criterion's)")
     args = parser.parse_args()
+    vel_bar, fall_bar = criterion_bars(args.task)
+    args.max_vel_error = vel_bar if args.max_vel_error is None else args.max_vel_error
+    args.max_fall_rate = fall_bar if args.max_fall_rate is None else args.max_fall_rate
     runs = []
     for item in args.runs:
         label, sep, path = item.partition("=")

@@ -84,3 +84,22 @@ def test_the_worst_block_cell_reads_back():
     assert worst_block_from_text(_worst_block_cell(result)) == (
         "gains0.8_lat20ms_com+3+3+3cm", {"fall_rate": 0.0625, "mean_abs_vel_error_m_s": 0.1235, "blocks_failed": 1.0})
     assert _worst_block_cell({"fall_rate": 0.0}) == "" and worst_block_from_text("") is None
+
+
+def test_the_bars_are_the_tasks_criterion():
+    """humanoid-rough's walks_rough allows 0.25 m/s, humanoid-walk's walks 0.2: a rough run's curve drawn against
+    the flat bar would sit above a line its criterion marks do not use."""
+    from ambulo.envs.humanoid_rough import WALKS_ROUGH
+    from ambulo.envs.humanoid_walk import WALKS
+
+    rough = (WALKS_ROUGH.max_values["mean_abs_vel_error_m_s"], WALKS_ROUGH.max_values["fall_rate"])
+    assert plot.criterion_bars("humanoid-rough") == rough == (0.25, 0.05)
+    assert plot.criterion_bars(None) == (WALKS.max_values["mean_abs_vel_error_m_s"], WALKS.max_values["fall_rate"])
+    assert plot.criterion_bars(None) != rough
+
+
+def test_an_unknown_task_is_one_line():
+    import pytest
+
+    with pytest.raises(SystemExit, match="no task named 'humanoid-ruff'.*humanoid-rough"):
+        plot.criterion_bars("humanoid-ruff")
