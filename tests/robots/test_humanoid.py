@@ -38,6 +38,10 @@ def test_named_elements_exist_in_the_compiled_model(model):
     assert model.jnt_type[model.joint("root").id] == mujoco.mjtJoint.mjJNT_FREE
     for body in humanoid.FOOT_BODIES:
         model.body(body)
+    for side in ("left", "right"):  # LEG_BODIES: each side's chain from the pelvis down to its foot
+        thigh, shank, foot = (model.body(b).id for b in humanoid.LEG_BODIES if b.startswith(side))
+        assert [model.body_parentid[b] for b in (thigh, shank, foot)] == [model.body(humanoid.BASE_BODY).id, thigh, shank]
+        assert foot == model.body(f"{side}_foot").id
     for site, foot in zip(humanoid.SOLE_SITES, humanoid.FOOT_BODIES):
         assert model.site_bodyid[model.site(site).id] == model.body(foot).id
     for side in ("left", "right"):

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field, replace
 import torch
 
 from ambulo.core.rows import fill_rows, put_rows
+from ambulo.robots import humanoid
 from ambulo.scenes.terrain import (
     TerrainCfg,
     TerrainCurriculumCfg,
@@ -37,6 +38,21 @@ from .transfer import transfer_cfg_wide
 WALKS_ROUGH = Criterion("walks_rough", max_values={"fall_rate": 0.05, "mean_abs_vel_error_m_s": 0.25})
 """What walking means on the hardest tiles of the terrain curriculum (humanoid-rough, g1-rough):
 the issue's bars, falls <= 5 % and velocity error <= 0.25 m/s (flat ground's ``walks`` asks 0.2)."""
+
+
+HUMANOID_BOX_COLLIDERS = humanoid.LEG_BODIES
+"""humanoid-rough's ``box_collider_bodies`` for the option (off by default: None): the thighs,
+shanks and feet (with their sole spheres), 12 of the robot's 23 colliding geoms, touch the flat,
+stairs and border boxes; pelvis, torso, head and arms pass through them (the hfield still holds
+them). Not the pelvis: a fall ends the episode once the base is 0.5 m over the ground under it
+(``min_base_height_m``), and the pelvis capsule (radius 0.09 m, +-0.07 m across) reaches a box top
+at most one 0.15 m riser above that ground only with the base ~0.3 m over it, so it never touches a
+box before its episode has ended; what a fallen robot does after that (it rests on its legs and on
+the hfield under the boxes) is never learnt from. Not the feet alone: the shipped walker's shins
+and thighs touch stair boxes when it trips (2-8 sampled contacts per 8 robots x 10 s at 1 m/s).
+The shipped walker on the CPU engine, flat and stairs tiles, 8 seeds x 8 robots x 20 s: the
+same trajectories bit for bit with and without (``benchmarks/box_colliders_walk.py``; results in
+``benchmarks/results/cpu-2026-11-30-s19-box-colliders.md``)."""
 
 
 @dataclass(kw_only=True)
@@ -183,5 +199,5 @@ register(TaskSpec(
     criteria=(WALKS_ROUGH,),
 ))
 
-__all__ = ["WALKS_ROUGH", "HumanoidRoughCfg", "HumanoidRoughEnv", "RoughTerrainCfg", "as_rough", "as_rough_play", "humanoid_rough_cfg",
+__all__ = ["HUMANOID_BOX_COLLIDERS", "WALKS_ROUGH", "HumanoidRoughCfg", "HumanoidRoughEnv", "RoughTerrainCfg", "as_rough", "as_rough_play", "humanoid_rough_cfg",
            "humanoid_rough_metrics", "humanoid_rough_play_cfg"]

@@ -19,6 +19,7 @@ from ambulo.scenes.terrain import (
     TerrainHeights,
     add_terrain,
     generate,
+    restrict_box_colliders,
     sphere_soles,
 )
 from ambulo.sensors import ContactSensor, ContactSensorCfg
@@ -49,6 +50,14 @@ class TerrainGroundCfg(Checked):
     (``engine.warp_hfield``): once a sole sphere sinks past its radius Warp's contacts are
     metres deep and sideways, which made robots run away (hundreds of rad/s) and fall. The
     sphere radius: shallower contacts are right. None: Warp's own contacts."""
+    box_collider_bodies: tuple[str, ...] | None = None
+    """Robot bodies (names under ``robot.prim_path``) whose colliding geoms touch the terrain's static
+    boxes (``TerrainCfg.box_tiles``); every other geom passes through the boxes, still stands on the
+    hfield, and self-collisions are unchanged (``scenes.terrain.restrict_box_colliders``). Cuts MuJoCo
+    Warp's nxn broadphase, which tests every colliding geom against every box in every world each
+    physics step (humanoid-rough: 23 geoms x 489 terrain geoms, 11,251 candidate pairs a world with the
+    asset's 4 ``<pair>``s; ``HUMANOID_BOX_COLLIDERS``, the legs: 12 x 488 boxes + 23 x the hfield,
+    5,883). None: every geom touches the boxes."""
     mujoco_hfield_contacts_as_warp: bool = True
     """On the CPU engine (MuJoCo C), reduce heightfield contacts as MuJoCo Warp does: at most 4 a
     geom, Warp's subset, and ``warp_hfield_contact_depth_m`` deep at most (``engine.mujoco_hfield``).
@@ -61,7 +70,7 @@ def add_terrain_ground(env, spec, task: str, soles=sphere_soles) -> None:
     """Add ``env.cfg.terrain`` to ``spec`` as the ground (``env.terrain``: the generated grid) and the
     feet's contact sensor against it (``env.feet``). Reads the cfg's ``terrain``,
     ``terrain_friction``, ``robot.prim_path``, ``feet_bodies``, ``sole_sphere_radius_m`` (None: the
-    feet touch the terrain through their own geoms), ``sole_contact_timeconst_s`` and, on MuJoCo
+    feet touch the terrain through their own geoms), ``sole_contact_timeconst_s``, ``box_collider_bodies`` and, on MuJoCo
     Warp, ``warp_hfield_contact_depth_m`` (``engine.warp_hfield``); ``task`` names the task in the
     error for a cfg that also asks for a ground plane. ``soles(spec, feet, radius_m, timeconst_s)``
     gives the feet (full body names) their sole spheres: ``sphere_soles`` for box feet named as
@@ -74,6 +83,9 @@ def add_terrain_ground(env, spec, task: str, soles=sphere_soles) -> None:
     feet = tuple(f"{cfg.robot.prim_path}/{foot}" for foot in cfg.feet_bodies)
     if cfg.sole_sphere_radius_m is not None:
         soles(spec, feet, cfg.sole_sphere_radius_m, timeconst_s=cfg.sole_contact_timeconst_s)
+    if cfg.box_collider_bodies is not None:  # after the soles: their spheres are the feet's colliders
+        restrict_box_colliders(spec, geom.parent.name,
+                               tuple(f"{cfg.robot.prim_path}/{body}" for body in cfg.box_collider_bodies))
     if _on_warp(cfg):  # process-wide, and set before the engine first steps (graph capture)
         from ambulo.engine.warp_hfield import limit_hfield_contact_depth
 

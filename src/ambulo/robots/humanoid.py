@@ -27,6 +27,9 @@ BASE_BODY = "pelvis"
 FOOT_BODIES = ("left_foot", "right_foot")
 SOLE_SITES = ("left_sole", "right_sole")
 """Sole centres on the ground, x forward: the foot frames of walking patterns."""
+LEG_BODIES = ("left_thigh", "left_shank", "left_foot", "right_thigh", "right_shank", "right_foot")
+"""The legs' bodies below the pelvis, hip to foot (each has one capsule or box; a terrain task adds
+sole spheres to the feet)."""
 LEG_JOINTS = ("hip_roll", "hip_yaw", "hip_pitch", "knee", "ankle_pitch", "ankle_roll")
 """One leg's joints, hip to ankle; the joints are ``left_<name>`` and ``right_<name>``."""
 IMU_SITE = "imu"

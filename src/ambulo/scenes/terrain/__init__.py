@@ -10,10 +10,13 @@
 - ``boxes``: the piecewise-flat tiles (flat, stairs; stepping stones on request) and the border as
   static boxes (``TerrainCfg.box_tiles``, ``box_kinds``), so a resting sphere gets one contact in
   MuJoCo C as in MuJoCo Warp;
+- ``box_colliders``: ``restrict_box_colliders`` (only some bodies touch the boxes: fewer candidate
+  pairs for MuJoCo Warp's broadphase) and ``candidate_geom_pairs``;
 - ``soles``: ``sphere_soles`` (feet touch the hfield through corner spheres: MuJoCo Warp's
   box-hfield contacts are wrong for flat soles).
 """
 
+from .box_colliders import candidate_geom_pairs, restrict_box_colliders
 from .boxes import BOX_KINDS, PIECEWISE_FLAT_KINDS, TerrainBoxes, terrain_boxes
 from .curriculum import TerrainCurriculum, TerrainCurriculumCfg
 from .generator import TERRAIN_PRIM_PATH, TerrainCfg, TerrainGrid, add_terrain, difficulties, generate
@@ -22,5 +25,5 @@ from .soles import sphere_soles
 from .subterrains import KINDS
 
 __all__ = ["BOX_KINDS", "KINDS", "PIECEWISE_FLAT_KINDS", "TERRAIN_PRIM_PATH", "HeightScan", "HeightScanCfg", "TerrainCfg", "TerrainCurriculum",
-           "TerrainBoxes", "TerrainCurriculumCfg", "TerrainGrid", "TerrainHeights", "add_terrain", "difficulties", "generate",
-           "sphere_soles", "terrain_boxes"]
+           "TerrainBoxes", "TerrainCurriculumCfg", "TerrainGrid", "TerrainHeights", "add_terrain", "candidate_geom_pairs", "difficulties",
+           "generate", "restrict_box_colliders", "sphere_soles", "terrain_boxes"]
