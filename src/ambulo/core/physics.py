@@ -63,6 +63,11 @@ class PhysicsCfg(Checked):
     (23 robot geoms x 489 terrain boxes: 11,247 pairs a world) nxn is the fastest on an H200,
     sap_tile half as fast (``benchmarks/rough_terrain.py --broadphases``). The CPU engine has its
     own and ignores this."""
+    compile_workers: int | None = None
+    """GPU engine: threads that compile MuJoCo Warp's kernel modules before a model's first step
+    (``engine.warp_precompile``; Warp alone compiles them one at a time at first launch). None:
+    the machine's cores, at most 16; 0 or 1: Warp's serial compile. Only a first run on a machine
+    (an empty kernel cache) compiles; later runs load the cache either way."""
 
     def __post_init__(self):
         self.check()
@@ -85,6 +90,9 @@ class PhysicsCfg(Checked):
         if self.broadphase not in BROADPHASES:
             raise InvalidValueError("broadphase", self.broadphase, "unknown broadphase",
                                     f"use one of {list(BROADPHASES)}")
+        if self.compile_workers is not None:
+            check_int("compile_workers", self.compile_workers, "pass None (the cores) or a whole number >= 0, "
+                      "e.g. compile_workers=8 (0: serial)", minimum=0)
         for name in ("max_contacts_per_world", "max_constraints_per_world"):
             if getattr(self, name) is not None:
                 check_int(name, getattr(self, name), f"pass None (sized from the model) or a whole number, "

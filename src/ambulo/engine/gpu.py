@@ -43,6 +43,7 @@ import torch
 import warp as wp
 
 from .protocol import KINEMATIC_FIELDS, STATE_FIELDS
+from .warp_precompile import PrecompileReport, default_workers, precompile
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
@@ -176,6 +177,9 @@ class GpuEngine:
       broadphase: ``"auto"`` (MuJoCo Warp's choice), ``"nxn"``, ``"sap_tile"`` or
         ``"sap_segmented"`` (``PhysicsCfg.broadphase``).
       use_graphs: capture step and forward in CUDA graphs (CUDA only).
+      compile_workers: threads that compile a body's Warp modules before its first run
+        (``engine.warp_precompile``; None: the cores, at most 16; 0 or 1: Warp's own serial
+        compile at first launch).
       overflow_check_steps: steps between the overflow checks (each one host sync).
       num_threads, divergence_dump_dir: accepted for the CpuEngine signature; the first is
         unused, the second dumps diverged worlds (costs a host sync per step).
@@ -194,6 +198,7 @@ class GpuEngine:
         broadphase: str = "auto",
         use_graphs: bool = True,
         overflow_check_steps: int = 100,
+        compile_workers: int | None = None,
         num_threads: int = 0,
         divergence_dump_dir: str | os.PathLike | None = None,
     ):
@@ -211,6 +216,9 @@ class GpuEngine:
         render contexts holding model arrays must be rebuilt when it changes."""
         self.use_graphs = bool(use_graphs) and self.device.type == "cuda"
         self.overflow_check_steps = int(overflow_check_steps)
+        self.compile_workers = default_workers() if compile_workers is None else int(compile_workers)
+        self.precompile_reports: dict[tuple, PrecompileReport] = {}
+        """Per body key, what its parallel precompile loaded (``engine.warp_precompile``)."""
         self.divergence_dump_dir = None if divergence_dump_dir is None else Path(divergence_dump_dir)
 
         data = mujoco.MjData(self.model)
@@ -358,6 +366,7 @@ class GpuEngine:
         if key not in self._warmed:
             self._warmed.add(key)
             with _Ticker("compiling MuJoCo Warp kernels") as ticker:
+                self._precompile(key, body)
                 self._run(key, body)
                 if self.device.type == "cuda":
                     torch.cuda.synchronize(self.device)
@@ -374,6 +383,17 @@ class GpuEngine:
             self._graphs[key] = graph
         with self.warp_scope():
             wp.capture_launch(graph)
+
+    def _precompile(self, key: tuple, body: Callable[[], None]) -> None:
+        """Compile ``body``'s modules from ``compile_workers`` threads (a dry run records them; its
+        copies and fills may touch the state, which is restored as ``_capture`` restores it)."""
+        if self.compile_workers <= 1:
+            return
+        saved = {n: t.clone() for n, t in self._state.items()}
+        with self.warp_scope():
+            self.precompile_reports[key] = precompile(body, self.compile_workers)
+        for n, t in self._state.items():
+            t.copy_(saved[n])
 
     def _capture(self, body: Callable[[], None]):
         # a capture cannot load modules: run once eagerly (compiling kernels) on a copy of the

@@ -1,0 +1,112 @@
+"""Compile the Warp modules a body of launches needs in parallel, before the body's first run.
+
+Why: Warp compiles a module when one of its kernels is first launched, so a model's first MuJoCo
+Warp step compiles its modules one after another (the humanoid's took ~2.4 min on an H200 host,
+its 16 cores idle but one). Warp can load a list of modules from a thread pool
+(``wp.force_load(max_workers=)``: NVRTC and Warp's CPU compiler are native calls that release the
+GIL), but MuJoCo Warp builds most of its kernels in factories on a step's first call, so that list
+does not exist before the step has run. ``precompile`` runs the body once with every launch
+recorded instead of executed (kernels are created, modules found, nothing runs on the device),
+then loads the recorded modules in parallel; the body's real first run finds them loaded.
+
+What the dry run does not record (a launch made outside ``wp.launch`` / ``wp.launch_tiled``, a
+kernel a later call creates) is compiled at its first launch as before: missing something costs
+time, never correctness. Warp internals used: ``Kernel.is_generic`` and its overload resolution
+(a generic kernel's module gains the overload at launch) and the launch's block-size resolution;
+on a Warp without them the dry run records nothing and compilation stays serial.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import inspect
+import os
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+
+import warp as wp
+
+_MAX_DEFAULT_WORKERS = 16
+"""The default's cap: each NVRTC compile of a large module holds a few hundred MB."""
+
+
+def default_workers() -> int:
+    """Threads for ``precompile`` when none are given: the machine's cores, at most 16."""
+    return max(1, min(os.cpu_count() or 1, _MAX_DEFAULT_WORKERS))
+
+
+@dataclass
+class PrecompileReport:
+    modules: int
+    """Distinct (module, device, block size) variants the dry run recorded and loaded."""
+    launches: int
+    """Launches the dry run recorded (the body's launch count, repeats included)."""
+    seconds: float
+    """Wall time of the dry run and the parallel loads."""
+
+
+def _resolve_block_dim(device, block_dim):
+    """The block size ``wp.launch`` would load ``block_dim`` as on ``device`` (None: Warp's default)."""
+    from warp._src import context
+
+    return context._resolve_launch_block_dim(device, block_dim)
+
+
+@contextlib.contextmanager
+def recording_launches(variants: dict, counter: list[int]) -> Iterator[None]:
+    """Within the block ``wp.launch`` and ``wp.launch_tiled`` run nothing: each call adds its kernel's
+    module to ``variants[(device alias, block_dim)]`` (an insertion-ordered dict used as a set) and counts
+    itself in ``counter[0]``. Device-side control flow is walked once: ``wp.capture_while`` runs its body
+    once (its condition would never change, the kernels that change it not running) and ``wp.capture_if``
+    both branches. Callers that bound these names before the block are not intercepted."""
+    signature = inspect.signature(wp.launch)
+    originals = {name: getattr(wp, name) for name in ("launch", "launch_tiled", "capture_while", "capture_if")}
+
+    def record(*args, **kwargs):
+        arguments = signature.bind(*args, **kwargs).arguments
+        kernel = arguments["kernel"]
+        stream = arguments.get("stream")
+        device = stream.device if stream is not None else wp.get_device(arguments.get("device"))
+        if kernel.is_generic:  # as wp.launch: the overload for these argument types joins the module
+            types = kernel.infer_argument_types([*arguments.get("inputs", ()), *arguments.get("outputs", ())])
+            kernel = kernel._add_normalized_overload(types)
+        block_dim = _resolve_block_dim(device, arguments.get("block_dim"))
+        variants.setdefault((device.alias, block_dim), {})[kernel.module] = None
+        counter[0] += 1
+
+    def capture_while(condition, while_body, stream=None, **kwargs):
+        if callable(while_body):
+            while_body(**kwargs)
+
+    def capture_if(condition, on_true=None, on_false=None, stream=None, **kwargs):
+        for branch in (on_true, on_false):
+            if callable(branch):
+                branch(**kwargs)
+
+    wp.launch, wp.launch_tiled, wp.capture_while, wp.capture_if = record, record, capture_while, capture_if
+    try:
+        yield
+    finally:
+        for name, original in originals.items():
+            setattr(wp, name, original)
+
+
+def precompile(body: Callable[[], None], max_workers: int | None = None) -> PrecompileReport:
+    """Run ``body`` with its launches recorded, not executed, then load every module it launches from
+    ``max_workers`` threads (None: ``default_workers()``). ``body``'s other effects (array copies,
+    fills) do happen: run it on state the caller restores or is about to overwrite."""
+    start = time.perf_counter()
+    variants: dict = {}
+    counter = [0]
+    try:
+        with recording_launches(variants, counter):
+            body()
+    except (AttributeError, ImportError, TypeError):
+        # a Warp whose launch internals differ: leave compiling to the real first run
+        return PrecompileReport(modules=0, launches=0, seconds=time.perf_counter() - start)
+    workers = default_workers() if max_workers is None else max_workers
+    for (device, block_dim), modules in variants.items():
+        wp.force_load(device=device, modules=list(modules), block_dim=block_dim, max_workers=workers)
+    return PrecompileReport(modules=sum(len(m) for m in variants.values()), launches=counter[0],
+                            seconds=time.perf_counter() - start)

@@ -1,0 +1,85 @@
+"""engine.warp_precompile: a dry run of a body of MuJoCo Warp launches finds every module its real
+first run needs and executes nothing; GpuEngine's first step then loads no module itself.
+
+On Warp's CPU device (``AMBULO_TEST_DEVICE=cuda`` for a GPU). Whether a module compiles or comes from
+Warp's kernel cache does not matter here: what is checked is which (module, block size) variants are
+loaded before and during the real run, through ``Module.load``, the one call a launch loads through."""
+
+import os
+
+import mujoco
+import pytest
+import torch
+
+mjw = pytest.importorskip("mujoco_warp")
+import warp as wp
+from warp._src.context import Module
+
+from ambulo.engine import make_engine
+from ambulo.engine.warp_precompile import precompile, recording_launches
+
+DEVICE = os.environ.get("AMBULO_TEST_DEVICE", "cpu")
+XML = """<mujoco><option timestep="0.002"/><worldbody><geom type="plane" size="5 5 .1"/>
+<body pos="0 0 .3"><freejoint/><geom type="box" size=".05 .05 .05" mass="1"/></body>
+<body pos=".4 0 .3"><freejoint/><geom type="capsule" size=".04 .1" mass="1"/></body>
+</worldbody></mujoco>"""
+
+
+@pytest.fixture
+def loads(monkeypatch):
+    """The (module name, block size) pairs ``Module.load`` is asked for while the fixture lives."""
+    seen = []
+    original = Module.load
+
+    def load(self, device, block_dim=None, *args, **kwargs):
+        seen.append((self.name, block_dim))
+        return original(self, device, block_dim, *args, **kwargs)
+
+    monkeypatch.setattr(Module, "load", load)
+    return seen
+
+
+def _model_and_data():
+    model = mujoco.MjModel.from_xml_string(XML)
+    with wp.ScopedDevice(DEVICE):
+        return mjw.put_model(model), mjw.put_data(model, mujoco.MjData(model), nworld=2)
+
+
+def test_the_dry_run_records_the_steps_modules_and_runs_nothing(loads):
+    m, d = _model_and_data()
+    qpos, time_s = d.qpos.numpy().copy(), d.time.numpy().copy()
+    variants, counter = {}, [0]
+    with wp.ScopedDevice(DEVICE), recording_launches(variants, counter):
+        mjw.step(m, d)
+    assert counter[0] > 20  # a step is dozens of launches
+    assert sum(len(mods) for mods in variants.values()) > 5
+    # nothing ran: no kernel advanced the clock or moved a body, and no module was loaded
+    assert (d.time.numpy() == time_s).all() and (d.qpos.numpy() == qpos).all()
+    assert loads == []
+    assert wp.launch.__module__.startswith("warp")  # the real launch is back
+
+
+def test_after_precompile_the_real_step_loads_nothing_new(loads):
+    m, d = _model_and_data()
+    with wp.ScopedDevice(DEVICE):
+        report = precompile(lambda: mjw.step(m, d), max_workers=2)
+        before = set(loads)
+        assert report.modules > 5 and report.launches > 20
+        mjw.step(m, d)
+    real = set(loads) - before
+    # the real step only looks up variants the precompile already loaded
+    assert real == set(), sorted(real)[:5]
+    assert (d.time.numpy() > 0).all()  # and it did run
+
+
+def test_the_engines_first_step_precompiles_and_steps_as_without_it():
+    model = mujoco.MjModel.from_xml_string(XML)
+    fast = make_engine(model, 2, device=DEVICE, engine="warp", compile_workers=2)
+    serial = make_engine(model, 2, device=DEVICE, engine="warp", compile_workers=0)
+    for _ in range(20):
+        fast.step()
+        serial.step()
+    assert fast.precompile_reports and not serial.precompile_reports
+    # the dry run's copies were undone: both engines stepped the same trajectory
+    torch.testing.assert_close(fast.qpos, serial.qpos, rtol=0, atol=0)
+    assert (fast.qpos[:, 2] < 0.3).all()  # the bodies fell
