@@ -174,3 +174,20 @@ def test_eval_gpu_times_an_evaluation_of_the_shipped_walker():
     assert result["eager_metrics"]["fall_rate"] == 0.0  # the shipped walker stands for half a second
     assert 0.0 < result["eager_metrics"]["mean_abs_vel_error_m_s"] < 1.0
     assert "graph_s" not in result
+
+
+@pytest.mark.slow  # three cold compiles of cartpole's kernels: ~1 min on 2 free cores
+def test_warp_compile_times_serial_parallel_and_a_warm_cache():
+    result = run_benchmark("warp_compile.py", "--task", "cartpole", "--num-envs", "2", "--workers", "0,2")
+    runs = result["runs"]
+    assert runs["serial"]["precompiled_modules"] == 0 < runs["parallel"]["precompiled_modules"]
+    # the warm run finds the parallel run's cache: it compiles nothing, so it is the fastest
+    assert runs["warm"]["engine_compile_s"] < runs["parallel"]["engine_compile_s"]
+    assert result["speedup"] == round(result["seconds"]["serial"] / result["seconds"]["parallel"], 3)
+
+
+def test_warp_compile_refuses_workers_that_are_not_two_numbers():
+    run = subprocess.run([sys.executable, str(BENCHMARKS / "warp_compile.py"), "--workers", "8"],
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode != 0
+    assert "--workers '8': give two whole numbers, serial first" in run.stderr
