@@ -64,7 +64,18 @@ def test_candidate_pairs_follow_the_bits(restrict):
         assert model.geom(hfield).contype[0] == 1 and model.geom(hfield).conaffinity[0] == 1
 
 
-def test_a_named_sphere_stands_on_a_stair_box_and_another_falls_through_onto_the_hfield():
+@pytest.fixture(params=["mujoco_own", "reduced_as_warp"])
+def hfield_contacts(request):
+    """Both of MuJoCo C's hfield contact modes, set explicitly: the reduction is process-wide and a terrain env built
+    by an earlier test leaves it on (``add_terrain_ground``), so the test must not inherit whichever ran last."""
+    from ambulo.engine.mujoco_hfield import reduce_hfield_contacts
+
+    reduce_hfield_contacts(0.02, enabled=request.param == "reduced_as_warp")
+    yield request.param
+    reduce_hfield_contacts(None, enabled=False)
+
+
+def test_a_named_sphere_stands_on_a_stair_box_and_another_falls_through_onto_the_hfield(hfield_contacts):
     model, grid = scene(restrict=True)
     data = mujoco.MjData(model)
     for _ in range(round(1.5 / model.opt.timestep)):  # 1.5 s: 1.3 m of fall and settling
@@ -77,7 +88,13 @@ def test_a_named_sphere_stands_on_a_stair_box_and_another_falls_through_onto_the
     sunk = float(grid.heights_m.min()) - SUNK_M  # the hfield under the boxes
     assert z["hand"] == pytest.approx(sunk + RADIUS_M, abs=2e-3)  # through the box, on the hfield
     assert z["hand_on_rough"] == pytest.approx(float(grid.tile_centers_w[0, 1, 2]) + RADIUS_M, abs=2e-3)
-    assert np.abs(data.qvel).max() < 1e-2  # at rest
+    # at rest on the box and on the rough tile; the hand that fell 1.3 m through the boxes lands on the sunk hfield
+    # at ~5 m/s, and with Warp's subset of contacts (a tilted one near a cell edge kept) it leaves rolling, which
+    # nothing stops on flat ground (no rolling friction): its height is the check there
+    moving = {name: float(np.abs(data.qvel[model.body(name).dofadr[0]:][:6]).max()) for name in BODIES}
+    assert max(moving["leg"], moving["foot"], moving["hand_on_rough"]) < 1e-2, moving
+    if hfield_contacts == "mujoco_own":
+        assert moving["hand"] < 1e-2, moving
 
 
 def test_bad_names_are_one_clear_error():
