@@ -83,3 +83,23 @@ def test_the_engines_first_step_precompiles_and_steps_as_without_it():
     # the dry run's copies were undone: both engines stepped the same trajectory
     torch.testing.assert_close(fast.qpos, serial.qpos, rtol=0, atol=0)
     assert (fast.qpos[:, 2] < 0.3).all()  # the bodies fell
+
+
+def test_a_failing_precompile_is_logged_and_the_engine_compiles_serially(monkeypatch, caplog):
+    """The precompile is an optimization: a Warp whose internals it does not know must cost time, not the run."""
+    import ambulo.engine.gpu as gpu
+
+    def broken(body, max_workers=None):
+        raise AttributeError("no _resolve_launch_block_dim in this Warp")
+
+    monkeypatch.setattr(gpu, "precompile", broken)
+    model = mujoco.MjModel.from_xml_string(XML)
+    engine = make_engine(model, 2, device=DEVICE, engine="warp", compile_workers=2)
+    reference = make_engine(model, 2, device=DEVICE, engine="warp", compile_workers=0)
+    with caplog.at_level("WARNING", logger="ambulo.engine.gpu"):
+        for _ in range(5):
+            engine.step()
+            reference.step()
+    assert "parallel kernel precompile of step failed (AttributeError" in caplog.text
+    assert not engine.precompile_reports
+    torch.testing.assert_close(engine.qpos, reference.qpos, rtol=0, atol=0)

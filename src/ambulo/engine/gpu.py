@@ -390,10 +390,15 @@ class GpuEngine:
         if self.compile_workers <= 1:
             return
         saved = {n: t.clone() for n, t in self._state.items()}
-        with self.warp_scope():
-            self.precompile_reports[key] = precompile(body, self.compile_workers)
-        for n, t in self._state.items():
-            t.copy_(saved[n])
+        try:
+            with self.warp_scope():
+                self.precompile_reports[key] = precompile(body, self.compile_workers)
+        except Exception as error:  # an optimization: the real first run compiles what is missing, serially
+            log.warning("GpuEngine: the parallel kernel precompile of %s failed (%s: %s); Warp compiles the "
+                        "modules at their first launch instead", key[0], type(error).__name__, error)
+        finally:
+            for n, t in self._state.items():
+                t.copy_(saved[n])
 
     def _capture(self, body: Callable[[], None]):
         # a capture cannot load modules: run once eagerly (compiling kernels) on a copy of the

@@ -13,7 +13,7 @@ What the dry run does not record (a launch made outside ``wp.launch`` / ``wp.lau
 kernel a later call creates) is compiled at its first launch as before: missing something costs
 time, never correctness. Warp internals used: ``Kernel.is_generic`` and its overload resolution
 (a generic kernel's module gains the overload at launch) and the launch's block-size resolution;
-on a Warp without them the dry run records nothing and compilation stays serial.
+on a Warp without them ``precompile`` raises and ``GpuEngine`` logs it and compiles serially.
 """
 
 from __future__ import annotations
@@ -99,12 +99,8 @@ def precompile(body: Callable[[], None], max_workers: int | None = None) -> Prec
     start = time.perf_counter()
     variants: dict = {}
     counter = [0]
-    try:
-        with recording_launches(variants, counter):
-            body()
-    except (AttributeError, ImportError, TypeError):
-        # a Warp whose launch internals differ: leave compiling to the real first run
-        return PrecompileReport(modules=0, launches=0, seconds=time.perf_counter() - start)
+    with recording_launches(variants, counter):
+        body()
     workers = default_workers() if max_workers is None else max_workers
     for (device, block_dim), modules in variants.items():
         wp.force_load(device=device, modules=list(modules), block_dim=block_dim, max_workers=workers)
