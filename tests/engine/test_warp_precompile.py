@@ -103,3 +103,23 @@ def test_a_failing_precompile_is_logged_and_the_engine_compiles_serially(monkeyp
     assert "parallel kernel precompile of step failed (AttributeError" in caplog.text
     assert not engine.precompile_reports
     torch.testing.assert_close(engine.qpos, reference.qpos, rtol=0, atol=0)
+
+
+def test_another_threads_launches_run_during_the_dry_run():
+    """The dry run patches ``wp.launch`` on the warp module; a launch from another thread in that window (a viewer
+    rendering) must still run."""
+    import threading
+
+    @wp.kernel
+    def add_one(a: wp.array(dtype=wp.float32)):
+        a[wp.tid()] += 1.0
+
+    values = wp.zeros(4, dtype=wp.float32, device=DEVICE)
+    variants, counter = {}, [0]
+    with recording_launches(variants, counter):
+        worker = threading.Thread(target=lambda: wp.launch(add_one, dim=4, inputs=[values], device=DEVICE))
+        worker.start()
+        worker.join()
+        wp.launch(add_one, dim=4, inputs=[values], device=DEVICE)  # this thread's: recorded, not run
+    assert values.numpy().tolist() == [1.0] * 4
+    assert counter[0] == 1 and [len(m) for m in variants.values()] == [1]

@@ -21,6 +21,7 @@ from __future__ import annotations
 import contextlib
 import inspect
 import os
+import threading
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -59,11 +60,20 @@ def recording_launches(variants: dict, counter: list[int]) -> Iterator[None]:
     module to ``variants[(device alias, block_dim)]`` (an insertion-ordered dict used as a set) and counts
     itself in ``counter[0]``. Device-side control flow is walked once: ``wp.capture_while`` runs its body
     once (its condition would never change, the kernels that change it not running) and ``wp.capture_if``
-    both branches. Callers that bound these names before the block are not intercepted."""
+    both branches. Only this thread's calls: the names are patched on the ``warp`` module, and another thread
+    launching in the window (a viewer's renderer) runs its launches as ever. Callers that bound these names
+    before the block are not intercepted."""
     signature = inspect.signature(wp.launch)
     originals = {name: getattr(wp, name) for name in ("launch", "launch_tiled", "capture_while", "capture_if")}
+    recording_thread = threading.get_ident()
+
+    def other_thread(name: str):
+        """The original ``name`` when the caller is not the recording thread, else None."""
+        return None if threading.get_ident() == recording_thread else originals[name]
 
     def record(*args, **kwargs):
+        if (original := other_thread("launch")) is not None:
+            return original(*args, **kwargs)
         arguments = signature.bind(*args, **kwargs).arguments
         kernel = arguments["kernel"]
         stream = arguments.get("stream")
@@ -75,16 +85,25 @@ def recording_launches(variants: dict, counter: list[int]) -> Iterator[None]:
         variants.setdefault((device.alias, block_dim), {})[kernel.module] = None
         counter[0] += 1
 
+    def record_tiled(*args, **kwargs):
+        if (original := other_thread("launch_tiled")) is not None:
+            return original(*args, **kwargs)
+        return record(*args, **kwargs)
+
     def capture_while(condition, while_body, stream=None, **kwargs):
+        if (original := other_thread("capture_while")) is not None:
+            return original(condition, while_body, stream=stream, **kwargs)
         if callable(while_body):
             while_body(**kwargs)
 
     def capture_if(condition, on_true=None, on_false=None, stream=None, **kwargs):
+        if (original := other_thread("capture_if")) is not None:
+            return original(condition, on_true, on_false, stream=stream, **kwargs)
         for branch in (on_true, on_false):
             if callable(branch):
                 branch(**kwargs)
 
-    wp.launch, wp.launch_tiled, wp.capture_while, wp.capture_if = record, record, capture_while, capture_if
+    wp.launch, wp.launch_tiled, wp.capture_while, wp.capture_if = record, record_tiled, capture_while, capture_if
     try:
         yield
     finally:
