@@ -27,6 +27,7 @@ from .scene import (
                     add_light,
                     add_robot,
                     compile_scene,
+                    geom_collides,
                     new_scene,
 )
 from .semantics import semantic_labels, set_semantic_label
@@ -35,6 +36,6 @@ __all__ = [
     "AssetError", "AttachedRobot", "Component", "DriveDefaults", "Entity", "EntityData", "EntityNames",
     "GroundCfg", "KeyPose", "PhysicsCfg", "PhysicsMaterial", "PrimNotFoundError", "RobotCfg",
     "Simulation", "add_drive", "add_ground", "add_light", "add_robot", "apply_physics",
-    "compile_scene", "ensure_drives", "is_drive", "load_spec", "match_names", "new_scene",
+    "compile_scene", "ensure_drives", "geom_collides", "is_drive", "load_spec", "match_names", "new_scene",
     "semantic_labels", "set_semantic_label",
 ]

@@ -199,6 +199,12 @@ def _keyframes(child: mujoco.MjSpec) -> dict[str, KeyPose]:
     return out
 
 
+def geom_collides(geom: mujoco.MjsGeom) -> bool:
+    """Whether a spec geom takes part in contacts (either of its contype/conaffinity bit fields set);
+    one with both 0 is visual only."""
+    return bool(geom.contype or geom.conaffinity)
+
+
 def compile_scene(spec: mujoco.MjSpec, physics: PhysicsCfg) -> mujoco.MjModel:
     """Apply ``physics`` to ``spec`` and compile it, with a one-line error if it does not."""
     apply_physics(spec, physics)
@@ -209,4 +215,4 @@ def compile_scene(spec: mujoco.MjSpec, physics: PhysicsCfg) -> mujoco.MjModel:
 
 
 __all__ = ["AttachedRobot", "GroundCfg", "KeyPose", "RobotCfg", "add_ground", "add_light",
-           "add_robot", "compile_scene", "new_scene", "resolve_file"]
+           "add_robot", "compile_scene", "geom_collides", "new_scene", "resolve_file"]

@@ -26,6 +26,8 @@ from dataclasses import dataclass
 
 import mujoco
 
+from ambulo.core import geom_collides
+
 from .g1_walk import G1WalkCfg, G1WalkEnv, g1_walk_cfg
 from .humanoid_rough import (
     WALKS_ROUGH,
@@ -53,7 +55,7 @@ def g1_sole_spheres(spec: mujoco.MjSpec, feet: tuple[str, ...], radius_m: float,
     grown = []
     for foot in feet:
         spheres = [g for g in spec.geoms if g.parent is not None and g.parent.name == foot
-                   and g.type == mujoco.mjtGeom.mjGEOM_SPHERE and (g.contype or g.conaffinity)]
+                   and g.type == mujoco.mjtGeom.mjGEOM_SPHERE and geom_collides(g)]
         if not spheres:
             raise ValueError(f"g1_sole_spheres: {foot!r} has no colliding sphere geom")
         for sphere in spheres:

@@ -29,7 +29,7 @@ import warnings
 
 import mujoco
 
-from ambulo.core import DriveDefaults, RobotCfg, add_robot, is_drive
+from ambulo.core import DriveDefaults, RobotCfg, add_robot, geom_collides, is_drive
 from ambulo.core.usd_physx import _exclude_self_collisions
 from ambulo.sim.current import current_world_or_none
 from ambulo.sim.usd_stage import current_usd_stage
@@ -89,10 +89,6 @@ def _robot_bodies(spec, prim_path: str) -> list:
     return [b for b in spec.bodies if b.name.startswith(prim_path + "/")]
 
 
-def _collides(geom) -> bool:
-    return bool(geom.contype or geom.conaffinity)
-
-
 def _fuse_fixed_links(spec, prim_path: str) -> None:
     """Links on fixed joints become part of their parent link (MuJoCo fuses their geoms, masses, inertias)."""
     bodies = _robot_bodies(spec, prim_path)
@@ -123,16 +119,16 @@ def _attach(world, file: str, robot: UrdfRobot, config: ImportConfig, prim_path:
     for body in _robot_bodies(spec, prim_path):
         link = robot.links.get(body.name[len(prim_path) + 1:])
         geoms = list(body.geoms)
-        if config.collision_from_visuals and not any(_collides(g) for g in geoms):
+        if config.collision_from_visuals and not any(geom_collides(g) for g in geoms):
             for geom in geoms:
                 geom.contype = geom.conaffinity = 1
         if config.replace_cylinders_with_capsules:
             for geom in geoms:
                 if geom.type == mujoco.mjtGeom.mjGEOM_CYLINDER:
                     geom.type = mujoco.mjtGeom.mjGEOM_CAPSULE
-        if config.density > 0 and link is not None and not link.has_inertial and any(_collides(g) for g in geoms):
+        if config.density > 0 and link is not None and not link.has_inertial and any(geom_collides(g) for g in geoms):
             for geom in geoms:  # PhysX weighs a link's collision shapes, not its visuals
-                geom.density = float(config.density) if _collides(geom) else 0.0
+                geom.density = float(config.density) if geom_collides(geom) else 0.0
     if config.merge_fixed_joints:
         _fuse_fixed_links(spec, prim_path)
     if not config.self_collision:

@@ -24,13 +24,11 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from ambulo.core import geom_collides
+
 _FREE_BITS = 16
 """Look for the box bit in the low 16 bits: ``core.randomize.placement`` moves static geoms' bits
 into the upper 16 and refuses a model that already uses them."""
-
-
-def _colliding(geom: mujoco.MjsGeom) -> bool:
-    return bool(geom.contype or geom.conaffinity)
 
 
 def restrict_box_colliders(spec: mujoco.MjSpec, terrain_body: str, bodies: tuple[str, ...]) -> int:
@@ -43,14 +41,14 @@ def restrict_box_colliders(spec: mujoco.MjSpec, terrain_body: str, bodies: tuple
     terrain = spec.body(terrain_body)
     if terrain is None:
         raise ValueError(f"restrict_box_colliders: no body {terrain_body!r} in the spec; pass the terrain's body name")
-    boxes = [g for g in terrain.geoms if g.type == mujoco.mjtGeom.mjGEOM_BOX and _colliding(g)]
+    boxes = [g for g in terrain.geoms if g.type == mujoco.mjtGeom.mjGEOM_BOX and geom_collides(g)]
     colliders = []
     for name in bodies:
         body = spec.body(name)
         if body is None:
             raise ValueError(f"restrict_box_colliders: no body {name!r} in the spec; give full body names "
                              "(e.g. '/World/robot/left_foot')")
-        geoms = [g for g in body.geoms if _colliding(g)]
+        geoms = [g for g in body.geoms if geom_collides(g)]
         if not geoms:
             raise ValueError(f"restrict_box_colliders: body {name!r} has no colliding geom (contype or conaffinity "
                              "set); name bodies that touch the ground")
