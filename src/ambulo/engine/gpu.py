@@ -386,16 +386,22 @@ class GpuEngine:
 
     def _precompile(self, key: tuple, body: Callable[[], None]) -> None:
         """Compile ``body``'s modules from ``compile_workers`` threads (a dry run records them; its
-        copies and fills may touch the state, which is restored as ``_capture`` restores it)."""
+        copies and fills may touch the state, which is restored as after ``_capture``'s warm-up)."""
         if self.compile_workers <= 1:
             return
-        saved = {n: t.clone() for n, t in self._state.items()}
         try:
-            with self.warp_scope():
+            with self._state_restored(), self.warp_scope():
                 self.precompile_reports[key] = precompile(body, self.compile_workers)
         except Exception as error:  # an optimization: the real first run compiles what is missing, serially
             log.warning("GpuEngine: the parallel kernel precompile of %s failed (%s: %s); Warp compiles the "
                         "modules at their first launch instead", key[0], type(error).__name__, error)
+
+    @contextlib.contextmanager
+    def _state_restored(self):
+        """The state fields as they were before the block, whatever it ran (a warm-up or dry run)."""
+        saved = {n: t.clone() for n, t in self._state.items()}
+        try:
+            yield
         finally:
             for n, t in self._state.items():
                 t.copy_(saved[n])
@@ -403,11 +409,8 @@ class GpuEngine:
     def _capture(self, body: Callable[[], None]):
         # a capture cannot load modules: run once eagerly (compiling kernels) on a copy of the
         # state, then restore it, so capturing changes nothing
-        saved = {n: t.clone() for n, t in self._state.items()}
-        with self.warp_scope():
+        with self._state_restored(), self.warp_scope():
             body()
-        for n, t in self._state.items():
-            t.copy_(saved[n])
         torch.cuda.synchronize(self.device)
         return capture_graph(self.wp_device, self._capture_stream, body)
 
