@@ -28,6 +28,8 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -40,9 +42,11 @@ from ambulo.policies.shipped import load_policy
 from ambulo.rl.vecenv import RslRlVecEnv
 from ambulo.scenes.terrain import candidate_geom_pairs
 
+# the sibling script's forward-only commands, held the same way
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from command_tracking import FORWARD_ONLY, hold_command
+
 TASK = "humanoid-rough"
-FORWARD_ONLY = {"commands.lin_vel_y_m_s": (0.0, 0.0), "commands.yaw_rate_rad_s": (0.0, 0.0),
-                "commands.heading_fraction": 0.0, "commands.standing_fraction": 0.0}
 
 
 def non_leg_box_contacts(env) -> int:
@@ -86,6 +90,8 @@ def twin_walk(kind: str, seed: int, worlds: int, speed_m_s: float, seconds: floa
     generator = torch.Generator().manual_seed(seed)
     env0 = pair["all"]
     steps, settle = round(seconds / env0.step_dt_s), round(settle_s / env0.step_dt_s)
+    command = torch.zeros_like(env0.commands.command)
+    command[:, 0] = speed_m_s
     speed = {k: torch.zeros(worlds, device=env0.device) for k in pair}
     falls = dict.fromkeys(pair, 0)
     gap_m, first_gap_step = 0.0, None
@@ -94,10 +100,7 @@ def twin_walk(kind: str, seed: int, worlds: int, speed_m_s: float, seconds: floa
         for t in range(steps):
             noise = (torch.rand(worlds, env0.num_actions, generator=generator) * 2 - 1).to(env0.device)
             for k, env in pair.items():
-                env.commands.command.zero_()
-                env.commands.command[:, 0] = speed_m_s
-                env.commands.is_heading.zero_()
-                env.commands.is_standing.zero_()
+                hold_command(env, command)
                 obs[k], _, dones, _ = vecs[k].step(noise if policy is None else policy(obs[k]["policy"]))
                 falls[k] += int(dones.sum())  # episode ends: falls in the play variant (no time-outs); --train adds time-outs
                 if t >= settle:

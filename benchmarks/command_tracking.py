@@ -36,6 +36,19 @@ from ambulo.rl.vecenv import RslRlVecEnv
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from robustness import add_policy_args, policy_maker
 
+FORWARD_ONLY = {"commands.lin_vel_y_m_s": (0.0, 0.0), "commands.yaw_rate_rad_s": (0.0, 0.0),
+                "commands.heading_fraction": 0.0, "commands.standing_fraction": 0.0}
+"""Env overrides under which a velocity task draws forward commands only: no lateral, yaw, heading or
+standing draws (``hold_command`` then pins the forward speed)."""
+
+
+def hold_command(env, command: torch.Tensor) -> None:
+    """Put ``command`` (N, 3) back as every robot's velocity command, neither heading-steered nor standing:
+    call it before each step, after whatever resample the previous step did (timers, a fallen robot's reset)."""
+    env.commands.command.copy_(command)
+    env.commands.is_heading.zero_()
+    env.commands.is_standing.zero_()
+
 
 def track(env, policy, speed_m_s: float, steps: int, settle_steps: int) -> dict:
     """Mean forward speed (m/s), the share of robots below a quarter of ``speed_m_s`` and the falls of
@@ -48,10 +61,7 @@ def track(env, policy, speed_m_s: float, steps: int, settle_steps: int) -> dict:
     with torch.inference_mode():
         obs = vec.reset()
         for t in range(steps):
-            # after the resample a step may do (timers, a fallen robot's reset), so every step sees it
-            env.commands.command.copy_(command)
-            env.commands.is_heading.zero_()
-            env.commands.is_standing.zero_()
+            hold_command(env, command)
             obs, _, dones, _ = vec.step(policy(obs))
             falls += dones.sum()  # episodes have no time-out in the play variant: a done is a fall
             if t >= settle_steps:
@@ -83,8 +93,7 @@ def main():
     if not 0.0 < args.settle_s < args.seconds:
         raise SystemExit(f"command_tracking: --settle-s {args.settle_s} must lie in (0, --seconds {args.seconds})")
     task, make_env, make_policy = policy_maker(args)
-    fixed = {"commands.lin_vel_y_m_s": (0.0, 0.0), "commands.yaw_rate_rad_s": (0.0, 0.0),
-             "commands.heading_fraction": 0.0, "commands.standing_fraction": 0.0}
+    fixed = FORWARD_ONLY
     probe = make_env(1, args.seed, **fixed)
     terrain = getattr(probe.cfg, "terrain", None)
     all_kinds = tuple(terrain.kinds) if terrain is not None else (None,)

@@ -9,8 +9,7 @@ import ambulo.envs as envs
 from script_loader import ROOT, load_script
 
 bench = load_script(ROOT / "benchmarks" / "command_tracking.py")
-FIXED = {"commands.lin_vel_y_m_s": (0.0, 0.0), "commands.yaw_rate_rad_s": (0.0, 0.0),
-         "commands.heading_fraction": 0.0, "commands.standing_fraction": 0.0}
+FIXED = bench.FORWARD_ONLY
 
 
 def test_the_shipped_walker_reaches_the_command_and_a_still_policy_stands():

@@ -27,8 +27,6 @@ ROBOTS_EXTRA = pytest.mark.skipif(importlib.util.find_spec("cmeel") is None,
 TASKS = ["humanoid-rough", pytest.param("g1-rough", marks=ROBOTS_EXTRA)]
 WORLDS = 8
 SECONDS, SETTLE_S = 6.0, 2.0
-FORWARD_ONLY = {"commands.lin_vel_y_m_s": (0.0, 0.0), "commands.yaw_rate_rad_s": (0.0, 0.0),
-                "commands.heading_fraction": 0.0, "commands.standing_fraction": 0.0}
 MAX_ERROR_M_S = WALKS_ROUGH.max_values["mean_abs_vel_error_m_s"]
 
 
@@ -41,15 +39,15 @@ def task(request) -> str:
 @pytest.fixture(scope="module")
 def walk(task):
     """``walk(kind, speed_m_s)``: ``track``'s row for ``WORLDS`` robots of ``task``'s shipped walker on ``kind`` tiles."""
-    track = load_script(ROOT / "benchmarks" / "command_tracking.py").track
+    tracking = load_script(ROOT / "benchmarks" / "command_tracking.py")
     shipped = load_policy(task)
 
     def run(kind: str, speed_m_s: float) -> dict:
         env = envs.make(task, num_envs=WORLDS, device="cpu", seed=3, play=True,
-                        **FORWARD_ONLY, **{"terrain.kinds": (kind,)})
+                        **tracking.FORWARD_ONLY, **{"terrain.kinds": (kind,)})
         try:
             steps, settle = round(SECONDS / env.step_dt_s), round(SETTLE_S / env.step_dt_s)
-            return track(env, lambda obs: shipped(obs["policy"]), speed_m_s, steps, settle)
+            return tracking.track(env, lambda obs: shipped(obs["policy"]), speed_m_s, steps, settle)
         finally:
             env.close()
     return run
