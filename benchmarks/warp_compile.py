@@ -69,6 +69,12 @@ def main() -> None:
     if args.child:
         print("CHILD " + json.dumps(child(args.task, args.device, args.num_envs, int(args.workers))), flush=True)
         return
+    import ambulo.envs as envs
+
+    try:
+        envs.spec(args.task)
+    except KeyError as error:
+        raise SystemExit(f"--task: {error.args[0]}") from None
     try:
         serial, parallel = (int(w) for w in args.workers.split(","))
     except ValueError:

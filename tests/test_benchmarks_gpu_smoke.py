@@ -191,3 +191,10 @@ def test_warp_compile_refuses_workers_that_are_not_two_numbers():
                          capture_output=True, text=True, timeout=120)
     assert run.returncode != 0
     assert "--workers '8': give two whole numbers, serial first" in run.stderr
+
+
+def test_warp_compile_names_an_unknown_task_before_any_run():
+    run = subprocess.run([sys.executable, str(BENCHMARKS / "warp_compile.py"), "--task", "humanoid-ruff"],
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode != 0
+    assert "--task: no task named 'humanoid-ruff'" in run.stderr and "humanoid-rough" in run.stderr
