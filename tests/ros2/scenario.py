@@ -64,6 +64,14 @@ class Peer:
         raise TimeoutError(f"the oracle did not report {event!r} in {timeout_s} s")
 
 
+def wait_matched(world, bridge, topics: list[str], timeout_s: float = 60.0) -> None:
+    """Step until the bridge's writer on each topic has matched the oracle's reader. The oracle's
+    "ready" says it sees the topics in the graph, not that DDS has paired its readers with our
+    writers: a volatile writer drops what it publishes before then, so on a busy machine the
+    oracle could miss a whole window the test later looks at."""
+    step_until(world, lambda: all(bridge.subscribers.get(t, (0, 0.0))[0] > 0 for t in topics), timeout_s)
+
+
 def step_until(world, condition, timeout_s: float = 10.0) -> None:
     end = time.monotonic() + timeout_s
     while not condition():
@@ -93,6 +101,7 @@ def jetbot(out: Path) -> None:
     peer = Peer(["/joint_states", "/imu/data", "/tf", "/tf_static", "/camera/depth", "/clock"])
     ready = peer.wait("ready", world)
     truth["graph_at_ready"] = ready["graph"]
+    wait_matched(world, bridge, ["/joint_states", "/imu/data", "/tf", "/camera/depth", "/clock"])
     for _ in range(60):  # at rest: IMU, images
         world.step(render=False)
     truth["rest_end_ns"] = int(round(world.current_time * 1e9))
@@ -154,6 +163,7 @@ def humanoid(out: Path) -> None:
     bridge = Ros2Bridge(world, BridgeCfg(camera_rate_hz=2.0))
     peer = Peer(["/joint_states", "/imu/data"])
     peer.wait("ready", world)
+    wait_matched(world, bridge, ["/joint_states", "/imu/data"])
     names = list(robot.entity.joint_names)
     targets = np.zeros(len(names))
     for joint, value in (("left_shoulder_roll", 0.5), ("right_shoulder_roll", -0.5), ("left_elbow", 0.8),
@@ -223,6 +233,7 @@ def humanoid_walk(out: Path) -> None:
     world.add_physics_callback("truth", record)
     peer = Peer(["/joint_states", "/odom"])
     peer.wait("ready", world)
+    wait_matched(world, bridge, ["/joint_states", "/odom"])
     for _ in range(int(round(0.5 / world.get_physics_dt()))):  # walking in place before any Twist
         world.step(render=False)
     truth["walking_before_twist"] = bridge.walking
