@@ -15,11 +15,13 @@ and the best of each is kept; CUDA timings are bracketed by synchronizations.
     python benchmarks/rough_terrain.py --device cuda --broadphases nxn,sap_tile  # MuJoCo Warp's broadphases
     python benchmarks/rough_terrain.py --rough-set \
         "terrain.box_kinds=('flat','stairs_up','stairs_down','stepping_stones')"  # stones as boxes
-    python benchmarks/rough_terrain.py --device cuda --num-envs 4096 --steps 100 --leg-box-colliders  # and legs-only boxes
+    python benchmarks/rough_terrain.py --device cuda --num-envs 4096 --steps 100 --all-box-colliders  # and every geom on the boxes
 
-``--leg-box-colliders`` adds both rough variants again with the terrain's boxes colliding only with
-the legs (``box_collider_bodies=HUMANOID_BOX_COLLIDERS``: fewer candidate pairs for MuJoCo Warp's
-nxn broadphase), stepped alternately with the others (``ratio_legs``, ``ratio_legs_no_latency``).
+humanoid-rough's boxes collide with the legs only (its default ``box_collider_bodies``,
+``HUMANOID_BOX_COLLIDERS``: fewer candidate pairs for MuJoCo Warp's nxn broadphase).
+``--all-box-colliders`` adds both rough variants again with every robot geom touching the boxes
+(``box_collider_bodies=None``, the default before session 20), stepped alternately with the others
+(``ratio_all_boxes``, ``ratio_all_boxes_no_latency``).
 
 Ends with one ``RESULT {json}`` line: ``ratio`` = rough (as trained) / flat env-steps/s.
 """
@@ -34,7 +36,6 @@ import time
 import torch
 
 import ambulo.envs as envs
-from ambulo.envs.humanoid_rough import HUMANOID_BOX_COLLIDERS
 
 TARGET_RATIO = 0.5
 
@@ -86,9 +87,9 @@ def main():
     parser.add_argument("--broadphases", default="",
                         help="comma-separated PhysicsCfg.broadphase values (nxn, sap_tile, sap_segmented): one more "
                              "rough variant each, stepped alternately with the others in this process")
-    parser.add_argument("--leg-box-colliders", action="store_true",
-                        help="also time both rough variants with the terrain's boxes colliding only with the legs "
-                             "(box_collider_bodies=HUMANOID_BOX_COLLIDERS)")
+    parser.add_argument("--all-box-colliders", action="store_true",
+                        help="also time both rough variants with every robot geom colliding with the terrain's boxes "
+                             "(box_collider_bodies=None; the task's default is the legs only)")
     args = parser.parse_args()
     broadphases = [b for b in args.broadphases.split(",") if b]
     rough_set = dict(parse_override(item) for item in args.rough_set)
@@ -99,11 +100,11 @@ def main():
         "rough_no_latency": make("humanoid-rough", args, **rough_set, **{"transfer.action_latency_range_s": None}),
         **{f"rough_{b}": make("humanoid-rough", args, **{**rough_set, "physics.broadphase": b}) for b in broadphases},
     }
-    if args.leg_box_colliders:
-        legs = {**rough_set, "box_collider_bodies": HUMANOID_BOX_COLLIDERS}
-        variants["rough_legs"] = make("humanoid-rough", args, **legs)
-        variants["rough_legs_no_latency"] = make("humanoid-rough", args, **legs,
-                                                 **{"transfer.action_latency_range_s": None})
+    if args.all_box_colliders:
+        every = {"box_collider_bodies": None, **rough_set}
+        variants["rough_all_boxes"] = make("humanoid-rough", args, **every)
+        variants["rough_all_boxes_no_latency"] = make("humanoid-rough", args, **every,
+                                                      **{"transfer.action_latency_range_s": None})
     best = dict.fromkeys(variants, 0.0)
     for _ in range(args.repeats):
         for name, env in variants.items():
@@ -114,7 +115,7 @@ def main():
               "ratio_no_latency": round(best["rough_no_latency"] / best["flat"], 3),
               "target_ratio": TARGET_RATIO,
               **{f"ratio_{b}": round(best[f"rough_{b}"] / best["flat"], 3) for b in broadphases},
-              **{f"ratio_{k[6:]}": round(best[k] / best["flat"], 3) for k in best if k.startswith("rough_legs")}}
+              **{f"ratio_{k[6:]}": round(best[k] / best["flat"], 3) for k in best if k.startswith("rough_all_boxes")}}
     for name, value in best.items():
         print(f"{name:22s} {value:12.1f} env-steps/s")
     print("RESULT " + json.dumps(result))

@@ -1,4 +1,4 @@
-"""humanoid-rough with ``box_collider_bodies`` (the legs, ``HUMANOID_BOX_COLLIDERS``): the candidate
+"""humanoid-rough's default ``box_collider_bodies`` (the legs, ``HUMANOID_BOX_COLLIDERS``): the candidate
 geom pairs of MuJoCo's filter, which MuJoCo Warp's nxn broadphase tests every step, go from every
 colliding robot geom x every terrain geom to the legs' 12 x the boxes (the hfield keeps all 23), and
 robots still stand on the box tiles (flat, the stairs pit's floor, the summit) on their soles."""
@@ -19,9 +19,10 @@ ROBOT_GEOMS, LEG_GEOMS = 23, 12  # colliding: 2 thighs, 2 shanks, 8 sole spheres
 EXPLICIT_PAIRS = 4  # the asset's foot-foot and foot-shank <pair>s
 
 
-def make(colliders):
+def make(**colliders):
+    """humanoid-rough as its cfg builds it, or with ``box_collider_bodies=`` given."""
     return envs.make("humanoid-rough", num_envs=3, seed=1, num_threads=1, play=True, engine="mujoco",
-                     box_collider_bodies=colliders, **SMALL)
+                     **colliders, **SMALL)
 
 
 def box_ids(model) -> np.ndarray:
@@ -31,7 +32,7 @@ def box_ids(model) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def legs_env():
-    env = make(HUMANOID_BOX_COLLIDERS)
+    env = make()  # the task's default: the legs, HUMANOID_BOX_COLLIDERS
     yield env
     env.close()
 
@@ -39,13 +40,15 @@ def legs_env():
 def test_only_the_legs_pair_with_the_boxes(legs_env):
     counts = {}
     for name, env in (("all", None), ("legs", legs_env)):
-        own = make(None) if env is None else env
+        own = make(box_collider_bodies=None) if env is None else env
         model = own.engine.model
         boxes = box_ids(model)
         pairs = candidate_geom_pairs(model)
         with_box = np.isin(pairs, boxes).any(axis=1)
         counts[name] = (len(pairs), int(with_box.sum()), {model.geom(int(g)).name for g in pairs[with_box].ravel()
-                                                          if g not in boxes})
+                                                          if g not in boxes},
+                        {model.body(int(model.geom_bodyid[g])).name.rsplit("/", 1)[1]
+                         for g in pairs[with_box].ravel() if g not in boxes})
         if env is None:
             own.close()
     nbox = len(box_ids(legs_env.engine.model))
@@ -53,6 +56,7 @@ def test_only_the_legs_pair_with_the_boxes(legs_env):
     assert counts["legs"][:2] == (LEG_GEOMS * nbox + ROBOT_GEOMS + EXPLICIT_PAIRS, LEG_GEOMS * nbox)
     legs = counts["legs"][2]
     assert len(legs) == LEG_GEOMS and all(n.split("/")[3].split("_")[1] in ("thigh", "shank", "foot") for n in legs)
+    assert counts["legs"][3] == set(HUMANOID_BOX_COLLIDERS)
 
 
 def test_the_warp_model_tests_the_same_fewer_pairs(legs_env):
