@@ -85,6 +85,58 @@ def test_penalties_and_air_time():
     assert rewards.feet_air_time(air, first, 0.4, standing).item() == 0.0
 
 
+def test_single_stance_air_time_by_hand():
+    # env 0: left on the ground 0.3 s, right swinging 0.2 s -> 0.2; env 1: double support -> 0;
+    # env 2: 0.7 s / 0.5 s -> 0.5, capped at 0.4; env 3: as env 0 but told to stand -> 0
+    in_contact = torch.tensor([[True, False], [True, True], [False, True], [True, False]])
+    contact_time = torch.tensor([[0.3, 0.0], [0.3, 0.1], [0.0, 0.7], [0.3, 0.0]])
+    air_time = torch.tensor([[0.0, 0.2], [0.0, 0.0], [0.5, 0.0], [0.0, 0.2]])
+    command = torch.tensor([[0.5, 0.0], [0.5, 0.0], [0.0, -0.3], [0.05, 0.0]])
+    got = rewards.feet_air_time_single_stance(air_time, contact_time, in_contact, 0.4, command)
+    assert got.tolist() == pytest.approx([0.2, 0.0, 0.4, 0.0])
+
+
+def test_a_slow_walks_quick_steps_lose_reward_by_touchdown_and_earn_it_by_single_stance():
+    """Why the single-stance term exists: a slow walk of 0.25 s swings (each foot: 0.25 s in the air,
+    0.35 s on the ground, so 0.05 s of double support at each change) earns a negative touchdown term,
+    less than standing still (0), and a positive single-stance term. The contact timers advance as
+    the contact sensor's do, at the policy step of 0.02 s."""
+    dt, swing_steps, period_steps = 0.02, 12, 30  # 0.24 s swing, 0.6 s a stride
+    air = torch.zeros(1, 2)
+    contact = torch.zeros(1, 2)
+    was_in = torch.ones(1, 2, dtype=torch.bool)
+    last_air = torch.zeros(1, 2)
+    command = torch.tensor([[0.25, 0.0]])
+    touchdown = single = 0.0
+    for step in range(10 * period_steps):
+        phase = step % period_steps
+        in_contact = torch.tensor([[not (0 <= phase < swing_steps), not (15 <= phase < 15 + swing_steps)]])
+        first = in_contact & ~was_in
+        last_air = torch.where(first, air, last_air)  # the flight just ended: 12 steps of 0.02 s
+        air = torch.where(in_contact, 0.0, air + dt)
+        contact = torch.where(in_contact, contact + dt, 0.0)
+        was_in = in_contact
+        touchdown += rewards.feet_air_time(last_air, first, 0.4, command).item()
+        single += rewards.feet_air_time_single_stance(air, contact, in_contact, 0.4, command).item()
+    assert touchdown == pytest.approx(20 * (0.24 - 0.4), abs=1e-4)  # 20 touchdowns of 0.24 s flights
+    assert single > 0.5
+
+
+def test_walk_env_takes_the_air_time_term_the_cfg_names(monkeypatch):
+    calls = []
+    for name in ("feet_air_time", "feet_air_time_single_stance"):
+        real = getattr(rewards, name)
+        monkeypatch.setattr(rewards, name, lambda *a, _real=real, _name=name, **k: calls.append(_name) or _real(*a, **k))
+    for choice in ("single_stance", "touchdown"):
+        env = envs.make("humanoid-walk", num_envs=2, seed=0, num_threads=1, play=True, air_time_reward=choice)
+        calls.clear()
+        env.step(torch.zeros(env.num_envs, env.num_actions))
+        assert set(calls) == {"feet_air_time_single_stance" if choice == "single_stance" else "feet_air_time"}
+        env.close()
+    with pytest.raises(ValueError, match="air_time_reward"):
+        envs.make("humanoid-walk", num_envs=1, seed=0, num_threads=1, air_time_reward="stance")
+
+
 def humanoid(num_envs=2, play=True):
     return envs.make("humanoid-walk", num_envs=num_envs, seed=0, num_threads=1, play=play)
 

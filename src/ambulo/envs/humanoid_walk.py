@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Literal
 
 import torch
 
@@ -51,6 +52,12 @@ class HumanoidWalkCfg(EnvCfg):
     tracking_std: float = field(default=0.5, metadata=rule(minimum=0.0, strict=True))
     """Width of the velocity tracking kernels, m/s and rad/s."""
     air_time_threshold_s: float = field(default=0.4, metadata=rule(minimum=0.0))
+    air_time_reward: Literal["touchdown", "single_stance"] = "touchdown"
+    """The ``feet_air_time`` term: "touchdown" (legged_gym's, ``rewards.feet_air_time``: each touchdown
+    adds its flight time minus ``air_time_threshold_s``, negative for quick steps) or "single_stance"
+    (Isaac Lab's biped term, ``rewards.feet_air_time_single_stance``: time on one foot, capped at the
+    threshold, never negative). The shipped walkers stand still under 0.25 m/s commands; the touchdown
+    term's penalty on a slow walk's short steps is the suspect this option tests."""
     friction_range: tuple[float, float] | None = (0.4, 1.2)
     """Per-env friction of every geom, drawn at start; None keeps the model's."""
     added_base_mass_kg: tuple[float, float] | None = field(default=(-2.0, 3.0), metadata=rule(pair=True))
@@ -316,12 +323,19 @@ class HumanoidWalkEnv(RLEnv):
             "action_rate_l2": rewards.action_rate_l2(self.actions, self.prev_actions),
             "joint_pos_limits": rewards.joint_pos_limits(
                 data.joint_pos, robot.soft_joint_pos_limits[:, 0], robot.soft_joint_pos_limits[:, 1]),
-            "feet_air_time": rewards.feet_air_time(
-                feet.last_air_time_s, feet.first_contact, cfg.air_time_threshold_s, cmd[:, :2]),
+            "feet_air_time": self._feet_air_time(feet, cmd[:, :2]),
             "feet_slide": rewards.feet_slide(data.body_lin_vel_w[:, self.feet_body_ids], feet.in_contact),
             "joint_deviation": rewards.joint_deviation_l1(data.joint_pos_rel[:, self.deviation_joint_ids]),
             "flat_orientation_l2": rewards.flat_orientation_l2(self._gravity_b),
         }
+
+    def _feet_air_time(self, feet, command_xy: torch.Tensor) -> torch.Tensor:
+        """(N,) the ``feet_air_time`` term the cfg's ``air_time_reward`` names."""
+        cfg = self.cfg
+        if cfg.air_time_reward == "single_stance":
+            return rewards.feet_air_time_single_stance(feet.current_air_time_s, feet.current_contact_time_s,
+                                                       feet.in_contact, cfg.air_time_threshold_s, command_xy)
+        return rewards.feet_air_time(feet.last_air_time_s, feet.first_contact, cfg.air_time_threshold_s, command_xy)
 
     def _advance_curriculum(self, track_lin: torch.Tensor) -> None:
         """Widen the command ranges while the envs track well (a mean over all envs, kept on

@@ -67,6 +67,25 @@ def feet_air_time(air_time_s: torch.Tensor, first_contact: torch.Tensor, thresho
     return reward * moving
 
 
+def feet_air_time_single_stance(air_time_s: torch.Tensor, contact_time_s: torch.Tensor, in_contact: torch.Tensor,
+                                threshold_s: float, command_xy: torch.Tensor, min_command: float = 0.1) -> torch.Tensor:
+    """Reward time spent on one foot, every step, up to ``threshold_s`` (Isaac Lab's biped air time term).
+
+    While exactly one foot of (N, 2) ``in_contact`` touches the ground, the reward is the time, s,
+    both feet have been in their current mode (``contact_time_s`` for the stance foot,
+    ``air_time_s`` for the swing foot; the smaller of the two), capped at ``threshold_s``; zero
+    in double support, in flight and while the planar command is below ``min_command`` m/s.
+    Never negative: unlike ``feet_air_time``, whose touchdowns add ``air_time - threshold`` and so
+    penalise the short steps of a slow walk (a robot told to walk at 0.25 m/s earns more by
+    standing, which touches down never), quick steps here earn less, not below zero.
+    """
+    mode_time = torch.where(in_contact, contact_time_s, air_time_s)
+    single_stance = in_contact.sum(dim=-1) == 1
+    reward = torch.where(single_stance, mode_time.min(dim=-1).values, 0.0).clamp(max=threshold_s)
+    moving = torch.linalg.vector_norm(command_xy, dim=-1) > min_command
+    return reward * moving
+
+
 def feet_slide(foot_vel_w: torch.Tensor, in_contact: torch.Tensor) -> torch.Tensor:
     """Planar speed of feet that touch the ground, summed: (N, F, 3) m/s, (N, F) bool -> (N,) m/s."""
     speed = torch.linalg.vector_norm(foot_vel_w[..., :2], dim=-1)
@@ -84,6 +103,7 @@ def flat_orientation_l2(projected_gravity_b: torch.Tensor) -> torch.Tensor:
 
 
 __all__ = [
+    "feet_air_time_single_stance",
     "action_rate_l2",
     "feet_slide",
     "flat_orientation_l2",
