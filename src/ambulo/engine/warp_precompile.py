@@ -12,8 +12,9 @@ then loads the recorded modules in parallel; the body's real first run finds the
 What the dry run does not record (a launch made outside ``wp.launch`` / ``wp.launch_tiled``, a
 kernel a later call creates) is compiled at its first launch as before: missing something costs
 time, never correctness. Warp internals used: ``Kernel.is_generic`` and its overload resolution
-(a generic kernel's module gains the overload at launch) and the launch's block-size resolution;
-on a Warp without them ``precompile`` raises and ``GpuEngine`` logs it and compiles serially.
+(a generic kernel's module gains the overload at launch) and the launch's block-size resolution and
+thread count (a launch of none loads nothing); on a Warp without them ``precompile`` raises and
+``GpuEngine`` logs it and compiles serially.
 """
 
 from __future__ import annotations
@@ -54,15 +55,24 @@ def _resolve_block_dim(device, block_dim):
     return context._resolve_launch_block_dim(device, block_dim)
 
 
+def _launch_size(dim) -> int:
+    """Threads a launch of ``dim`` runs, as ``wp.launch`` counts them (the number it skips the launch on)."""
+    from warp._src import context
+
+    return context._normalize_launch_dim(dim)[1]
+
+
 @contextlib.contextmanager
 def recording_launches(variants: dict, counter: list[int]) -> Iterator[None]:
     """Within the block ``wp.launch`` and ``wp.launch_tiled`` run nothing: each call adds its kernel's
     module to ``variants[(device alias, block_dim)]`` (an insertion-ordered dict used as a set) and counts
-    itself in ``counter[0]``. Device-side control flow is walked once: ``wp.capture_while`` runs its body
-    once (its condition would never change, the kernels that change it not running) and ``wp.capture_if``
-    both branches. Only this thread's calls: the names are patched on the ``warp`` module, and another thread
-    launching in the window (a viewer's renderer) runs its launches as ever. Callers that bound these names
-    before the block are not intercepted."""
+    itself in ``counter[0]``. A launch of no threads is counted, not recorded: ``wp.launch`` returns before
+    loading its module, so the real run never compiles it (MuJoCo Warp launches the features a model lacks,
+    equality constraints, tendons, flexes, over a zero dimension). Device-side control flow is walked once:
+    ``wp.capture_while`` runs its body once (its condition would never change, the kernels that change it
+    not running) and ``wp.capture_if`` both branches. Only this thread's calls: the names are patched on
+    the ``warp`` module, and another thread launching in the window (a viewer's renderer) runs its launches
+    as ever. Callers that bound these names before the block are not intercepted."""
     signature = inspect.signature(wp.launch)
     originals = {name: getattr(wp, name) for name in ("launch", "launch_tiled", "capture_while", "capture_if")}
     recording_thread = threading.get_ident()
@@ -75,6 +85,9 @@ def recording_launches(variants: dict, counter: list[int]) -> Iterator[None]:
         if (original := other_thread("launch")) is not None:
             return original(*args, **kwargs)
         arguments = signature.bind(*args, **kwargs).arguments
+        if _launch_size(arguments["dim"]) == 0:  # wp.launch returns before loading the module: nothing to compile
+            counter[0] += 1
+            return
         kernel = arguments["kernel"]
         stream = arguments.get("stream")
         device = stream.device if stream is not None else wp.get_device(arguments.get("device"))
