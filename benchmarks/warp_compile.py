@@ -8,6 +8,12 @@ nothing compiles: the fastest a first step can be.
 
     python benchmarks/warp_compile.py --device cuda                       # humanoid-rough, 0 vs 16 threads
     python benchmarks/warp_compile.py --device cpu --num-envs 4 --workers 0,2   # Warp's CPU device
+    python benchmarks/warp_compile.py --device cuda --profile      # + where each run's compile time went
+
+``--profile`` times Warp's compile steps in each run: the Python codegen (held under Warp's one codegen
+lock, so serial whatever the threads), the native compile (Clang or NVRTC, run outside it), and how many
+native compiles overlapped on average (``native_overlap``: their summed time over the wall time some ran;
+near the thread count if nothing else serializes them), with the largest modules.
 
 Ends with ``RESULT {json}``: seconds per setting, ``speedup`` = serial / parallel and
 ``parallel_over_floor`` = parallel / warm.
@@ -24,8 +30,51 @@ import tempfile
 import time
 
 
-def child(task: str, device: str, num_envs: int, workers: int) -> dict:
+def _profile_compiles() -> list:
+    """Patch Warp's codegen and native compile to append ``(step, module, start, end)`` to the returned list."""
+    import threading
+
+    from warp._src import build, context
+
+    spans, current = [], threading.local()
+
+    def timed(owner, name: str, step: str, sets_module: bool = False):
+        original = getattr(owner, name)
+
+        def call(*args, **kwargs):
+            if sets_module:
+                current.module = args[0].name
+            begin = time.perf_counter()
+            try:
+                return original(*args, **kwargs)
+            finally:
+                spans.append((step, getattr(current, "module", "?"), begin, time.perf_counter()))
+
+        setattr(owner, name, call)
+
+    timed(context.Module, "load", "load", sets_module=True)
+    timed(context.Module, "_run_codegen", "codegen")
+    timed(build, "build_cpu", "native")
+    timed(build, "build_cuda", "native")
+    return spans
+
+
+def _profile_summary(spans: list) -> dict:
+    total = {step: sum(end - begin for s, _, begin, end in spans if s == step) for step in ("codegen", "native")}
+    native = sorted((begin, end, module) for step, module, begin, end in spans if step == "native")
+    busy, reach = 0.0, float("-inf")  # wall time in which at least one native compile ran
+    for begin, end, _ in native:
+        busy += max(0.0, end - max(begin, reach))
+        reach = max(reach, end)
+    largest = sorted(native, key=lambda span: span[0] - span[1])[:5]
+    return {"modules_compiled": len(native), "codegen_s": round(total["codegen"], 2),
+            "native_s": round(total["native"], 2), "native_overlap": round(total["native"] / busy, 2) if busy else 0.0,
+            "largest_native_s": {module: round(end - begin, 2) for begin, end, module in largest}}
+
+
+def child(task: str, device: str, num_envs: int, workers: int, profile: bool = False) -> dict:
     """In this process: time ``envs.make`` through two env steps of zero actions."""
+    spans = _profile_compiles() if profile else None
     start = time.perf_counter()
     import torch
 
@@ -41,15 +90,16 @@ def child(task: str, device: str, num_envs: int, workers: int) -> dict:
         torch.cuda.synchronize(env.device)
     engine = env.engine
     reports = getattr(engine, "precompile_reports", {})
-    return {"seconds": round(time.perf_counter() - start, 2),
-            "engine_compile_s": round(engine.compile_time_s or 0.0, 2),
-            "precompiled_modules": sum(r.modules for r in reports.values())}
+    result = {"seconds": round(time.perf_counter() - start, 2),
+              "engine_compile_s": round(engine.compile_time_s or 0.0, 2),
+              "precompiled_modules": sum(r.modules for r in reports.values())}
+    return result if spans is None else result | {"profile": _profile_summary(spans)}
 
 
 def measure(args, workers: int, cache_dir: str) -> dict:
     env = dict(os.environ, WARP_CACHE_PATH=cache_dir, CUDA_CACHE_DISABLE="1")
     command = [sys.executable, __file__, "--child", "--task", args.task, "--device", args.device,
-               "--num-envs", str(args.num_envs), "--workers", str(workers)]
+               "--num-envs", str(args.num_envs), "--workers", str(workers)] + ["--profile"] * args.profile
     done = subprocess.run(command, env=env, capture_output=True, text=True, check=False)
     lines = [line for line in done.stdout.splitlines() if line.startswith("CHILD ")]
     if done.returncode != 0 or not lines:
@@ -64,10 +114,13 @@ def main() -> None:
     parser.add_argument("--num-envs", type=int, default=64)
     parser.add_argument("--workers", default="0,16",
                         help="serial,parallel thread counts (the first is the baseline; 0 = Warp's own serial compile)")
+    parser.add_argument("--profile", action="store_true",
+                        help="time Warp's codegen and native compiles in each run (adds a 'profile' entry per run)")
     parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
-        print("CHILD " + json.dumps(child(args.task, args.device, args.num_envs, int(args.workers))), flush=True)
+        result = child(args.task, args.device, args.num_envs, int(args.workers), args.profile)
+        print("CHILD " + json.dumps(result), flush=True)
         return
     import ambulo.envs as envs
 
