@@ -345,8 +345,34 @@ def export(args: argparse.Namespace) -> int:
     return 0
 
 
+_EVAL_KEYS_WITH_FLAGS = {**_ENV_KEYS_WITH_FLAGS, "num_envs": "--episodes", "episode_length_s": "--episode-length-s"}
+"""Task config fields that ``ambulo eval`` sets from its own flags (not by --env-cfg)."""
+
+
+def _eval_env_overrides(args: argparse.Namespace) -> dict[str, Any]:
+    """``ambulo eval --env-cfg`` pairs typed against the evaluated task's config."""
+    if not args.env_cfg:
+        return {}
+    if args.num_gpus is not None:
+        raise CliError("--env-cfg is not carried to --num-gpus processes", "drop one of them")
+    if args.shipped:
+        task = args.run  # checked by _evaluate_shipped
+        from ambulo.policies.shipped import shipped_tasks
+
+        if task not in shipped_tasks():
+            return {}
+    else:
+        _check_run(args.run)
+        from ambulo.rl import runs
+
+        with _rl_errors("the run folder"):
+            task = runs.read_run_info(runs.resolve_run(args.run, args.log_root))["task"]
+    return typed_overrides("--env-cfg", default_env_cfg(task), args.env_cfg, reserved=_EVAL_KEYS_WITH_FLAGS)
+
+
 def evaluate(args: argparse.Namespace) -> int:
     watch = web_watch(args)
+    args.env_overrides = _eval_env_overrides(args)
     if args.shipped:
         result = _evaluate_shipped(args, watch)
     elif args.num_gpus is not None:
@@ -358,7 +384,8 @@ def evaluate(args: argparse.Namespace) -> int:
         with _rl_errors("the run folder (eval.json goes there)"):
             result = run_eval(args.run, checkpoint=args.checkpoint, num_episodes=args.episodes,
                               episode_length_s=args.episode_length_s, seed=args.seed,
-                              log_root=args.log_root, device=args.device, watch=watch)
+                              log_root=args.log_root, device=args.device, watch=watch,
+                              env_overrides=args.env_overrides)
     if not args.require_criteria:
         return 0
     failed = [name for name in result.get("criteria", []) if not result[name]]
@@ -405,7 +432,8 @@ def _evaluate_shipped(args: argparse.Namespace, watch: Callable | None) -> dict:
     from ambulo.rl.evaluate import evaluate_shipped
 
     return evaluate_shipped(args.run, num_episodes=args.episodes, episode_length_s=args.episode_length_s,
-                            seed=args.seed, device=args.device or "cpu", watch=watch)
+                            seed=args.seed, device=args.device or "cpu", watch=watch,
+                            env_overrides=args.env_overrides)
 
 
 def add_commands(subparsers: argparse._SubParsersAction) -> None:
@@ -497,6 +525,9 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--num-gpus", type=whole_above_zero("--num-gpus 2"), default=None,
                    help="split the episodes over N processes, one GPU each (cuda:0..N-1), merged into one "
                         "result (other episodes than one process runs for the seed: each share has its own)")
+    p.add_argument("--env-cfg", action="append", metavar="KEY=VALUE",
+                   help="evaluate under a changed task config, on top of the run's, e.g. "
+                        "friction_range=0.3,0.3 (repeatable; the result names the changes)")
     p.add_argument("--require-criteria", "--require-walk", dest="require_criteria", action="store_true",
                    help="exit 1 unless every success criterion of the task holds (humanoid-walk's "
                         "'walks': fall rate <= 5%% and velocity error <= 0.2 m/s)")

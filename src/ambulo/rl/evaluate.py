@@ -234,14 +234,17 @@ def eval_episode_length_s(task: envs.TaskSpec, episode_length_s: float | None) -
 def evaluate(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = None,
              num_episodes: int | None = None, episode_length_s: float | None = None, seed: int = 12345,
              log_root: str | os.PathLike = "runs", quiet: bool = False, device: str | None = None,
-             watch: Callable[[envs.RLEnv], Any] | None = None, rank: Rank | None = None) -> dict:
+             watch: Callable[[envs.RLEnv], Any] | None = None, rank: Rank | None = None,
+             env_overrides: dict[str, Any] | None = None) -> dict:
     """Evaluate ``run`` and return (and print) a dict of metrics; also written to
     ``<run>/eval.json``. ``num_episodes``: default 100, or the task's blocks' default
     (``eval_blocks``). ``device`` (default: the run's) evaluates on another engine: a policy
     trained on a GPU, evaluated with ``device="cpu"``, is a sim-to-sim check. ``watch``: see
     ``watched`` (the episodes are shown as they run). ``rank``: this process runs its share of
     the episodes in a group of processes (``eval_gpus``; ``device`` is then its own) and gets
-    the merged result; rank 0 alone prints and writes eval.json."""
+    the merged result; rank 0 alone prints and writes eval.json. ``env_overrides``: task config
+    fields set on top of the run's (``ambulo eval --env-cfg``, e.g. a friction or terrain variant);
+    the result names them."""
     rank = rank if rank is not None else Rank()
     run_dir, ckpt = runs.resolve_policy(run, checkpoint, log_root)
     info = runs.read_run_info(run_dir)
@@ -250,7 +253,7 @@ def evaluate(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = N
     share = eval_share(layout.num_episodes, seed, rank, blocks=layout.blocks)
     env = runs.make_env_for_run(info, num_envs=share.episodes, seed=share.seed, play=True, device=device,
                                 episode_length_s=eval_episode_length_s(task, episode_length_s),
-                                **layout.env_overrides)
+                                user_overrides=env_overrides, **layout.env_overrides)
     env.use_cuda_graph()  # on a GPU: 100 worlds are launch-bound, a replayed step is not
     runner = runs.load_runner(run_dir, env, ckpt)
     policy = runner.get_inference_policy(device=str(env.device))
@@ -260,7 +263,7 @@ def evaluate(run: str | os.PathLike, *, checkpoint: str | os.PathLike | None = N
                                 quiet=quiet or not rank.is_main, blocks=layout.run_blocks, **merge)
     result = {"task": info["task"], "run": str(run_dir), "checkpoint": ckpt.name,
               "device": str(env.device) if not rank.distributed else f"{env.device.type} x {rank.world_size}",
-              **measured}
+              **({"env_overrides": env_overrides} if env_overrides else {}), **measured}
     if not rank.is_main:
         env.close()
         return result
@@ -284,10 +287,11 @@ def print_result(result: dict) -> None:
 
 def evaluate_shipped(task: str, *, num_episodes: int | None = None, episode_length_s: float | None = None,
                      seed: int = 12345, device: str = "cpu", quiet: bool = False,
-                     watch: Callable[[envs.RLEnv], Any] | None = None) -> dict:
+                     watch: Callable[[envs.RLEnv], Any] | None = None,
+                     env_overrides: dict[str, Any] | None = None) -> dict:
     """Evaluate the policy that ships with ambulo for ``task`` (``ambulo.policies``) as
     ``evaluate`` measures a run: the same episodes, metrics and criteria; no run folder needed.
-    ``watch``: as ``evaluate``'s."""
+    ``watch``, ``env_overrides``: as ``evaluate``'s."""
     from ambulo.policies.shipped import load_policy
 
     from .vecenv import RslRlVecEnv
@@ -295,14 +299,15 @@ def evaluate_shipped(task: str, *, num_episodes: int | None = None, episode_leng
     shipped = load_policy(task)
     spec = envs.spec(task)
     layout = eval_layout(spec, num_episodes)
+    overrides = {**layout.env_overrides, **(env_overrides or {})}
     env = envs.make(task, num_envs=layout.num_episodes, device=device, seed=seed, play=True,
-                    episode_length_s=eval_episode_length_s(spec, episode_length_s), **layout.env_overrides)
+                    episode_length_s=eval_episode_length_s(spec, episode_length_s), **overrides)
     env.use_cuda_graph()
     with watched(env, watch):
         measured = run_episodes(env, RslRlVecEnv(env), lambda obs: shipped(obs["policy"]), spec,
                                 desc=f"eval shipped {task}", quiet=quiet, blocks=layout.run_blocks)
     result = {"task": task, "policy": str(shipped.folder), "checkpoint": shipped.contract["trained"]["checkpoint"],
-              "device": str(env.device), **measured}
+              "device": str(env.device), **({"env_overrides": env_overrides} if env_overrides else {}), **measured}
     if not quiet:
         print_result(result)
     env.close()

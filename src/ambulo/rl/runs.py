@@ -127,15 +127,18 @@ def _setting(cfg: Any, key: str) -> Any:
 
 
 def make_env_for_run(info: dict[str, Any], *, num_envs: int, seed: int | None = None,
-                     device: str | None = None, play: bool = False, **overrides: Any) -> envs.RLEnv:
+                     device: str | None = None, play: bool = False, user_overrides: dict[str, Any] | None = None,
+                     **overrides: Any) -> envs.RLEnv:
     """The run's task env with its training overrides, resized to ``num_envs``; ``play``
     starts from the task's play variant (no pushes, observation noise or transfer
     randomization), with the training overrides ``play_overrides`` keeps. ``overrides`` (the
-    caller's: an evaluation's episode length, the robustness table's ``transfer``) apply last."""
+    caller's: an evaluation's episode length, the robustness table's ``transfer``; None: not
+    set) apply next, then ``user_overrides`` (``ambulo eval --env-cfg``: dotted keys, None a value)."""
     env_overrides = dict(info.get("env_overrides", {}))
     if play:
         env_overrides = play_overrides(info["task"], env_overrides)
     env_overrides.update({k: v for k, v in overrides.items() if v is not None})
+    env_overrides.update(user_overrides or {})
     return envs.make(info["task"], num_envs=num_envs, device=device or info["device"],
                      seed=info["seed"] if seed is None else seed, play=play, **env_overrides)
 
