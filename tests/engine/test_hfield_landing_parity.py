@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from ambulo.engine.mujoco_hfield import reduce_hfield_contacts
+from hfield_contacts import mujoco_contacts, warp_contacts, warp_model_data
 
 RADIUS_M = 0.05
 LIMIT_M = 0.02
@@ -47,51 +48,6 @@ def sunk(offsets_m: np.ndarray, depth_m: float) -> tuple[mujoco.MjModel, np.ndar
     return model, qpos
 
 
-def mujoco_contacts(model, qpos) -> list[np.ndarray]:
-    """Per pose, MuJoCo C's contacts as (k, 7) rows of (dist, pos, normal), sorted."""
-    data, out = mujoco.MjData(model), []
-    for q in qpos:
-        data.qpos[:] = q
-        mujoco.mj_forward(model, data)
-        out.append(np.array(sorted((c.dist, *c.pos, *c.frame[:3]) for c in data.contact[:data.ncon])).reshape(-1, 7))
-    return out
-
-
-def warp_data(model, qpos, qvel=None):
-    """(mujoco_warp, warp, model, data) on Warp's CPU device for these poses, under the engines' depth
-    limit (switched on here; the caller switches it off)."""
-    mjw = pytest.importorskip("mujoco_warp")
-    wp = pytest.importorskip("warp")
-    from ambulo.engine.warp_hfield import limit_hfield_contact_depth
-
-    wp.init()
-    limit_hfield_contact_depth(LIMIT_M)
-    with wp.ScopedDevice("cpu"):
-        m = mjw.put_model(model)
-        d = mjw.put_data(model, mujoco.MjData(model), nworld=len(qpos), nconmax=8 * len(qpos), njmax=32 * len(qpos))
-        d.qpos = wp.array(qpos.astype(np.float32), dtype=float)
-        if qvel is not None:
-            d.qvel = wp.array(qvel.astype(np.float32), dtype=float)
-    return mjw, wp, m, d
-
-
-def warp_contacts(model, qpos) -> list[np.ndarray]:
-    """The same from MuJoCo Warp's forward pass on its CPU device."""
-    from ambulo.engine.warp_hfield import limit_hfield_contact_depth
-
-    mjw, wp, m, d = warp_data(model, qpos)
-    try:
-        with wp.ScopedDevice("cpu"):
-            mjw.forward(m, d)
-            count = int(d.nacon.numpy()[0])
-            world, dist = d.contact.worldid.numpy()[:count], d.contact.dist.numpy()[:count]
-            pos, normal = d.contact.pos.numpy()[:count], d.contact.frame.numpy()[:count, 0]
-    finally:
-        limit_hfield_contact_depth(None)
-    return [np.array(sorted(zip(dist[w == world], *pos[w == world].T, *normal[w == world].T, strict=True))).reshape(-1, 7)
-            for w in range(len(qpos))]
-
-
 def tilted(own: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(deepest point, the two tilted contacts' rows, their distances from it) of MuJoCo's own set."""
     deepest = own[np.argmin(own[:, 0]), 1:4]
@@ -105,10 +61,10 @@ def test_off_the_mirror_line_the_landing_contacts_are_warps(depth_m):
     """Reduced: Warp's 2 contacts (count, depth, point, normal), the deepest and the tilted one
     further from it (by 0.8 mm here: no tie)."""
     model, qpos = sunk(OFF_THE_MIRROR_M, depth_m)
-    own = mujoco_contacts(model, qpos)
-    warp = warp_contacts(model, qpos)
+    own = mujoco_contacts(model, qpos, normals=True)
+    warp = warp_contacts(model, qpos, LIMIT_M, normals=True)
     reduce_hfield_contacts(LIMIT_M)
-    reduced = mujoco_contacts(model, qpos)
+    reduced = mujoco_contacts(model, qpos, normals=True)
     for o, r, w in zip(own, reduced, warp, strict=True):
         deepest, pair, far = tilted(o)
         assert abs(far[0] - far[1]) > 5e-4
@@ -125,9 +81,9 @@ def test_on_the_mirror_line_the_two_tilted_contacts_tie():
     (b, a), equally far from the deepest point (to 1e-12 m); reduced, one of them is kept (which one,
     rounding decides, on Warp as here)."""
     model, qpos = sunk(ON_THE_MIRROR_M, 0.016)
-    own = mujoco_contacts(model, qpos)
+    own = mujoco_contacts(model, qpos, normals=True)
     reduce_hfield_contacts(LIMIT_M)
-    reduced = mujoco_contacts(model, qpos)
+    reduced = mujoco_contacts(model, qpos, normals=True)
     for o, r in zip(own, reduced, strict=True):
         _, pair, far = tilted(o)
         np.testing.assert_allclose(pair[0, [1, 2]], pair[1, [2, 1]], atol=1e-12)  # (a, b) and (b, a)
@@ -154,7 +110,8 @@ def test_off_the_mirror_line_a_landing_sphere_rolls_as_on_warp():
         cpu.append(data.qvel[:2].copy())
     from ambulo.engine.warp_hfield import limit_hfield_contact_depth
 
-    mjw, wp, m, d = warp_data(model, qpos, qvel)
+    mjw, wp, m, d = warp_model_data(model, qpos, qvel)
+    limit_hfield_contact_depth(LIMIT_M)
     try:
         with wp.ScopedDevice("cpu"):
             for _ in range(steps):

@@ -11,6 +11,7 @@ import pytest
 
 from ambulo.engine.mujoco_hfield import MAX_CONTACTS, reduce_hfield_contacts
 from ambulo.scenes.terrain import TerrainCfg, generate
+from hfield_contacts import mujoco_contacts, warp_contacts
 from terrain_ball import ball_over_terrain
 
 RADIUS_M = 0.02
@@ -50,41 +51,6 @@ def ground_m(model, xy: np.ndarray) -> np.ndarray:
                                           None, 1, -1, hit) for x, y in xy])
 
 
-def mujoco_contacts(model, qpos) -> list[np.ndarray]:
-    """Per pose, MuJoCo C's contacts as (k, 4) rows of (dist, x, y, z), sorted."""
-    data, out = mujoco.MjData(model), []
-    for q in qpos:
-        data.qpos[:] = q
-        mujoco.mj_forward(model, data)
-        rows = [(c.dist, *c.pos) for c in data.contact[:data.ncon]]
-        out.append(np.array(sorted(rows)).reshape(-1, 4))
-    return out
-
-
-def warp_contacts(model, qpos) -> list[np.ndarray]:
-    """The same from MuJoCo Warp's forward pass on its CPU device, under humanoid-rough's limit."""
-    mjw = pytest.importorskip("mujoco_warp")
-    wp = pytest.importorskip("warp")
-    from ambulo.engine.warp_hfield import limit_hfield_contact_depth
-
-    wp.init()
-    limit_hfield_contact_depth(LIMIT_M)
-    try:
-        with wp.ScopedDevice("cpu"):
-            m = mjw.put_model(model)
-            d = mjw.put_data(model, mujoco.MjData(model), nworld=len(qpos), nconmax=8 * len(qpos),
-                             njmax=32 * len(qpos))
-            d.qpos = wp.array(qpos.astype(np.float32), dtype=float)
-            mjw.forward(m, d)
-            count = int(d.nacon.numpy()[0])
-            world, dist = d.contact.worldid.numpy()[:count], d.contact.dist.numpy()[:count]
-            pos = d.contact.pos.numpy()[:count]
-    finally:
-        limit_hfield_contact_depth(None)
-    return [np.array(sorted(zip(dist[world == w], *pos[world == w].T, strict=True))).reshape(-1, 4)
-            for w in range(len(qpos))]
-
-
 def same(a: np.ndarray, b: np.ndarray) -> bool:
     """One pose's contacts agree: count, depth within 20 um, point within 0.1 mm (Warp: float32)."""
     return a.shape == b.shape and np.allclose(a[:, 0], b[:, 0], atol=2e-5) and np.allclose(a[:, 1:], b[:, 1:], atol=1e-4)
@@ -97,7 +63,7 @@ def test_reduced_contacts_of_resting_spheres_are_warps(compiled):
     # not stepping stones: against a stone's steep edge Warp's EPA misfires already 1.5 cm deep
     # (its contacts there are limited), which no reduction of MuJoCo C's true contacts reproduces
     model, qpos = spheres(300, (0.0005, 0.015), kinds=("rough", "slope_up", "slope_down"))
-    warp = warp_contacts(model, qpos)
+    warp = warp_contacts(model, qpos, LIMIT_M)
     own = mujoco_contacts(model, qpos)
     reduce_hfield_contacts(LIMIT_M, compiled=compiled)
     reduced = mujoco_contacts(model, qpos)
