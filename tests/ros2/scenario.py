@@ -135,7 +135,7 @@ def jetbot(out: Path) -> None:
     bridge.publish_costmap(costmap)
     truth["costmap"] = {"stamp_ns": int(round(world.current_time * 1e9)), "data": costmap.occupancy_grid_data().tolist(),
                         "info": costmap.occupancy_grid_info()}
-    step_until(world, lambda: bridge.subscribers.get("/costmap", (0, 0.0))[0] > 0, timeout_s=30.0)  # oracle matched
+    wait_matched(world, bridge, ["/costmap"], timeout_s=30.0)
     end = time.monotonic() + 0.5  # and got the transient-local grid
     step_until(world, lambda: time.monotonic() > end)
     peer.send(do="dump", path=str(out / "oracle.json"), until_clock_ns=truth["end_time_ns"])
