@@ -52,6 +52,21 @@ import time
 from pathlib import Path
 
 
+def child_visible_devices(gpus: list[str], inherited: str | None) -> str:
+    """The CUDA_VISIBLE_DEVICES of a run given ``gpus`` (--gpu-ids): ids of the GPUs *this* process
+    sees. Under an inherited mask (``CUDA_VISIBLE_DEVICES=1 python time_to_walk.py --gpu-ids 0``)
+    id 0 is physical GPU 1; setting the child's mask to the raw id would put the run on GPU 0,
+    beside whatever runs there (session 21 lost half a GPU's speed that way)."""
+    if not inherited:
+        return ",".join(gpus)
+    seen = [d.strip() for d in inherited.split(",") if d.strip()]
+    beyond = [g for g in gpus if not g.isdigit() or int(g) >= len(seen)]
+    if beyond:
+        raise SystemExit(f"--gpu-ids {','.join(beyond)}: CUDA_VISIBLE_DEVICES={inherited} leaves {len(seen)} GPU(s) "
+                         f"visible, numbered 0..{len(seen) - 1}; give ids in that range or unset the variable")
+    return ",".join(seen[int(g)] for g in gpus)
+
+
 def launch(args, algo: str, seed: int, out: Path, gpus: list[str]) -> tuple[subprocess.Popen, Path]:
     """Start one seed's training run on ``gpus`` (CUDA ids; empty: the device as given), through
     torchrun with one rank per GPU when there are several."""
@@ -59,7 +74,7 @@ def launch(args, algo: str, seed: int, out: Path, gpus: list[str]) -> tuple[subp
     root.mkdir(parents=True, exist_ok=True)
     env = dict(os.environ)
     if gpus:
-        env["CUDA_VISIBLE_DEVICES"] = ",".join(gpus)
+        env["CUDA_VISIBLE_DEVICES"] = child_visible_devices(gpus, os.environ.get("CUDA_VISIBLE_DEVICES"))
     ranks = len(gpus) if len(gpus) > 1 else 1
     prefix = ([sys.executable, "-m", "torch.distributed.run", "--standalone", f"--nproc-per-node={ranks}"]
               if ranks > 1 else [sys.executable])
@@ -188,6 +203,7 @@ def run_algo(args, algo: str, out: Path) -> dict:
     """Every seed of ``algo``; its result (``RESULT``'s fields)."""
     seeds = [int(s) for s in args.seeds.split(",")]
     free_gpus = [g for g in args.gpu_ids.split(",") if g]
+    child_visible_devices(free_gpus, os.environ.get("CUDA_VISIBLE_DEVICES"))  # refuse bad ids before any run starts
     if free_gpus and len(free_gpus) < args.gpus_per_run:
         raise SystemExit(f"--gpus-per-run {args.gpus_per_run} needs at least that many --gpu-ids (got {free_gpus})")
     pending, running, done, held = list(seeds), {}, {}, {}

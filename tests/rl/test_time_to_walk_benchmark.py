@@ -1,10 +1,13 @@
 """benchmarks/time_to_walk.py runs end to end on the CPU (cartpole) and reports what it measured."""
 
+import importlib.util
 import json
 import os
 import subprocess
 import sys
 from pathlib import Path
+
+import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -26,3 +29,27 @@ def test_time_to_walk_reports_each_seed_from_its_run_folder(tmp_path):
     assert seed["minutes"] == round(reached["wall_s"] / 60, 2) == result["minutes_median"]
     assert seed["iteration"] == reached["iteration"] and seed["eval"]["balances"] is True
     assert seed["train_env_steps_per_s"] > 0 and seed["iterations"] == reached["iteration"] + 1
+
+
+def _time_to_walk_module():
+    spec = importlib.util.spec_from_file_location("time_to_walk", ROOT / "benchmarks" / "time_to_walk.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_gpu_ids_are_read_through_an_inherited_device_mask():
+    ttw = _time_to_walk_module()
+    assert ttw.child_visible_devices(["0", "1"], None) == "0,1"
+    assert ttw.child_visible_devices(["0"], "") == "0"
+    # the parent sees physical GPUs 1 and 3 as 0 and 1: the child must get the physical ids
+    assert ttw.child_visible_devices(["0"], "1") == "1"
+    assert ttw.child_visible_devices(["1", "0"], "1, 3") == "3,1"
+
+
+def test_gpu_ids_beyond_the_inherited_mask_are_refused_in_one_line():
+    ttw = _time_to_walk_module()
+    with pytest.raises(SystemExit) as refused:
+        ttw.child_visible_devices(["0", "2"], "1,3")
+    message = str(refused.value)
+    assert "\n" not in message and "--gpu-ids 2" in message and "0..1" in message
