@@ -237,6 +237,10 @@ def train(args: argparse.Namespace) -> int:
     sizes = {"num_envs": args.num_envs, "max_iterations": args.max_iterations}
     algo, algo_cfg = getattr(args, "algo", None), getattr(args, "algo_cfg", None)  # a namespace built by hand
     offpolicy = (algo or "ppo") != "ppo"
+    init_from = getattr(args, "init_from", None)
+    if init_from is not None and resume:
+        raise CliError("--init-from and --resume both given (--init-from starts a new run from a checkpoint's "
+                       "weights, --resume continues a run)", "give one of them")
     if resume:
         if args.env_cfg or args.ppo_cfg:
             raise CliError("--env-cfg and --ppo-cfg apply to new runs only (a resumed run keeps "
@@ -286,7 +290,7 @@ def train(args: argparse.Namespace) -> int:
         with _rl_errors("--log-root"):
             run_train(args.task, num_envs=sizes["num_envs"], max_iterations=sizes["max_iterations"],
                       seed=args.seed, device=args.device, resume=resume, log_root=args.log_root,
-                      env_overrides=env_overrides, algo=algo,
+                      env_overrides=env_overrides, algo=algo, init_from=init_from,
                       ppo_overrides=None if offpolicy else ppo_overrides,
                       algo_overrides=ppo_overrides if offpolicy else None,
                       verbose=args.verbose, eval_every=args.eval_every,
@@ -463,6 +467,10 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--resume", nargs="?", const=True, metavar="RUN",
                    help="continue the task's latest run, or RUN, from its newest readable "
                         "checkpoint (SIGINT/SIGTERM during training save one)")
+    p.add_argument("--init-from", metavar="CHECKPOINT_OR_RUN",
+                   help="fine-tune: a new run (its own folder and settings, iteration 0, a fresh optimizer) "
+                        "whose networks start from a model_<it>.pt, or a run folder's newest readable one; "
+                        "the networks must have the task's sizes (run.json records the checkpoint)")
     p.add_argument("--log-root", default="runs", help="where run folders go")
     p.add_argument("--env-cfg", action="append", metavar="KEY=VALUE",
                    help="set a field of the task's config, e.g. episode_length_s=10 (repeatable)")

@@ -114,6 +114,27 @@ def find_checkpoint(run_dir: Path, name: str | os.PathLike | None) -> Path:
     return path
 
 
+def check_same_shapes(checkpoint: Path, saved: dict[str, dict], here: dict[str, dict], task: str) -> None:
+    """``CheckpointError`` naming the tensors whose shapes differ (or that only one side has)
+    between ``saved``, the checkpoint's state dicts by network (``{"actor_state_dict": ...}``),
+    and ``here``, those of the networks ``task`` builds as configured: the observation or action
+    sizes, or the hidden sizes, differ. Checked before ``load_state_dict``, whose own error is a
+    multi-line traceback."""
+    differ = []
+    for net, ours in here.items():
+        theirs = saved.get(net) or {}
+        for key in [*ours, *(k for k in theirs if k not in ours)]:  # the networks' order: input layer first
+            shapes = [("x".join(map(str, d[key].shape)) or "scalar") if key in d else "absent" for d in (theirs, ours)]
+            if shapes[0] != shapes[1]:
+                differ.append(f"{net.removesuffix('_state_dict')}.{key} is {shapes[0]} in it, {shapes[1]} here")
+    if differ:
+        more = f" and {len(differ) - 3} more" if len(differ) > 3 else ""
+        raise CheckpointError(f"the networks of {checkpoint} do not match task {task}'s: "
+                              f"{', '.join(differ[:3])}{more}",
+                              "init from a run with the same observation, action and hidden sizes (or drop "
+                              "the --env-cfg, --ppo-cfg or --algo-cfg settings that change them)")
+
+
 def atomic_torch_save(obj: Any, path: Path) -> None:
     """``torch.save`` through a temporary file, fsync and ``os.replace``: a crash never leaves
     a truncated checkpoint under the final name."""

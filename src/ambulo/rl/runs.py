@@ -13,6 +13,7 @@ import datetime
 import io
 import json
 import os
+import shutil
 import sys
 from pathlib import Path
 from typing import Any
@@ -31,6 +32,7 @@ from .checkpoints import (
     is_checkpoint_name,
     latest_checkpoint,
     latest_valid_checkpoint,
+    read_checkpoint,
 )
 from .config import PpoCfg
 
@@ -87,6 +89,37 @@ def resolve_run(run: str | os.PathLike, root: str | os.PathLike = "runs") -> Pat
         return saved[-1]
     raise FileNotFoundError(f"{run!r} is neither a run folder, a checkpoint nor a task name "
                             f"({', '.join(envs.names())})")
+
+
+def resolve_init_from(source: str | os.PathLike) -> tuple[Path, str]:
+    """The checkpoint ``ambulo train --init-from source`` starts from (absolute), and the
+    algorithm that trained it (its run's ``run.json``, else the checkpoint's own ``algo`` entry,
+    else PPO): ``source`` is a checkpoint file, or a run folder for its newest readable one (as
+    ``--resume`` picks). ``CheckpointError`` in one line, before anything is built, when there is
+    none. A shipped policy is refused: its folder keeps the exported actor only (TorchScript and
+    ONNX with the observation normalizer folded in), no critic and no rsl-rl checkpoint."""
+    path = Path(source)
+    fix = "pass a model_<iteration>.pt or the run folder `ambulo train` printed"
+    if not path.exists():
+        if str(source) == "shipped":
+            raise CheckpointError("--init-from shipped: a shipped policy keeps only its exported actor "
+                                  "(policy.pt/onnx), no critic or rsl-rl checkpoint", fix)
+        raise CheckpointError(f"--init-from {source}: no such checkpoint file or run folder", fix)
+    try:
+        checkpoint = latest_valid_checkpoint(path) if path.is_dir() else path
+        saved = read_checkpoint(checkpoint)
+    except CheckpointError as err:
+        raise CheckpointError(f"cannot init from {source}: {err.problem}", fix) from None
+    info = read_run_info(checkpoint.parent) if (checkpoint.parent / RUN_FILE).is_file() else {}
+    return checkpoint.resolve(), info.get("algo") or saved.get("algo") or "ppo"
+
+
+def discard_new_run(run_dir: Path) -> None:
+    """Remove the run folder this process just made for a run refused before its first
+    iteration (``--init-from`` weights that do not fit): it holds only run.json and empty logs."""
+    shutil.rmtree(run_dir, ignore_errors=True)
+    with contextlib.suppress(OSError):  # and the task's folder, if this run was its first
+        Path(run_dir).parent.rmdir()
 
 
 def note_kept_settings(info: dict[str, Any], **given: Any) -> None:
@@ -182,6 +215,6 @@ def load_runner(run_dir: Path, env: envs.RLEnv, checkpoint: Path):
 
 
 __all__ = ["RUN_FILE", "CheckpointError", "RunError", "atomic_torch_save", "checkpoints",
-           "find_checkpoint", "latest_checkpoint", "latest_valid_checkpoint", "load_runner",
+           "discard_new_run", "find_checkpoint", "latest_checkpoint", "latest_valid_checkpoint", "load_runner",
            "make_env_for_run", "new_run_dir", "play_overrides", "ppo_from_info", "read_run_info",
-           "resolve_policy", "resolve_run", "write_run_info"]
+           "resolve_init_from", "resolve_policy", "resolve_run", "write_run_info"]

@@ -21,6 +21,7 @@ from ambulo.engine import engine_class
 from ambulo.utils.atomic import remove_partial_files
 
 from . import distributed, interrupt, runs
+from .checkpoints import check_same_shapes
 from .config import PpoCfg, ppo_cfg
 from .episodes import EpisodeStats
 from .log_writer import ProgressWriter
@@ -87,6 +88,21 @@ class AmbuloRunner(OnPolicyRunner):
         self.current_learning_iteration += 1  # the checkpoint's iteration is complete
         return self.current_learning_iteration
 
+    def load_for_init(self, path: Path, task: str) -> None:
+        """``ambulo train --init-from``: the networks of ``path`` (actor, critic and their
+        observation normalizers), after checking they have this run's shapes; not its iteration,
+        RNG states or episode statistics (a new run starts at 0).
+
+        Nor its optimizer: a fine-tune usually changes the reward, so the value targets move and
+        Adam's moment estimates of the old run's gradients would steer the first updates wrongly;
+        and the learning rate (adaptive or scheduled) restarts from this run's setting instead of
+        the rate the old run ended at. Adam starts fresh, as rsl-rl's own ``load_cfg`` allows."""
+        saved = torch.load(path, weights_only=False, map_location=str(self.device))
+        nets = ("actor_state_dict", "critic_state_dict")
+        here = self.alg.save()
+        check_same_shapes(path, saved, {net: here[net] for net in nets}, task)
+        self.alg.load(saved, {"actor": True, "critic": True}, strict=True)
+
 
 def runner_cfg(env: envs.RLEnv, ppo: PpoCfg) -> dict[str, Any]:
     """rsl-rl-lib's ``train_cfg`` as ``ambulo train`` runs it: the task's PPO settings
@@ -152,7 +168,8 @@ def train(task: str | None = None, *, num_envs: int | None = None,
           env_overrides: dict[str, Any] | None = None, ppo_overrides: dict[str, Any] | None = None,
           verbose: bool = False, eval_every: int | None = None, stop_at_criterion: bool = False,
           started_s: float | None = None, watch: Callable[[envs.RLEnv], Any] | None = None,
-          algo: str | None = None, algo_overrides: dict[str, Any] | None = None) -> Path:
+          algo: str | None = None, algo_overrides: dict[str, Any] | None = None,
+          init_from: str | os.PathLike | None = None) -> Path:
     """Train ``task`` with PPO (or ``algo``); return the run directory.
 
     Args:
@@ -168,6 +185,11 @@ def train(task: str | None = None, *, num_envs: int | None = None,
       env_overrides: task config fields to change, dotted keys reach nested ones
         (e.g. ``{"episode_length_s": 10.0, "physics.solver_iterations": 20}``); saved in run.json.
       verbose: print rsl-rl's full report each iteration instead of a progress bar.
+      init_from: a checkpoint file, or a run folder (its newest readable checkpoint): a new run
+        whose networks start from that checkpoint's weights (``AmbuloRunner.load_for_init``: a
+        fresh optimizer, iteration 0), with its own settings; its run.json records the checkpoint
+        under ``init_from``. The networks must match the task's as configured, and ``algo`` must
+        be the algorithm that trained it (``RunError`` in one line otherwise, no folder left).
       eval_every: evaluate the policy every this many iterations as ``ambulo eval`` does and
         time the first evaluation that meets the task's criteria (``ambulo.rl.periodic_eval``).
       stop_at_criterion: with ``eval_every``, end training at that first success. A success on
@@ -190,11 +212,18 @@ def train(task: str | None = None, *, num_envs: int | None = None,
     started_s = time.monotonic() if started_s is None else started_s
     if stop_at_criterion and not eval_every:
         raise ValueError("stopping at the criterion needs periodic evaluation; give eval_every too")
+    if init_from is not None and resume:
+        raise ValueError("init_from starts a new run; resume continues one: give one of them")
     resume_point = _resume_point(task, resume, log_root) if resume else None
+    init_point = runs.resolve_init_from(init_from) if init_from is not None else None
     run_algo = runs.read_run_info(resume_point[0]).get("algo", "ppo") if resume_point else algo or "ppo"
     if algo is not None and algo != run_algo:
         raise ValueError(f"{resume_point[0]} was trained with {run_algo}, not {algo}; drop the algorithm "
                          "to resume it, or start a new run")
+    if init_point is not None and init_point[1] != run_algo:
+        raise runs.RunError(f"cannot init a {run_algo} run from {init_point[0]}: {init_point[1]} trained it",
+                            f"add --algo {init_point[1]}, or init from a {run_algo} run")
+    init_checkpoint = init_point[0] if init_point is not None else None
     if run_algo != "ppo":
         from .train_offpolicy import train_offpolicy
 
@@ -202,7 +231,7 @@ def train(task: str | None = None, *, num_envs: int | None = None,
                                device=device, resume_point=resume_point, log_root=log_root,
                                env_overrides=env_overrides, algo_overrides=algo_overrides, verbose=verbose,
                                eval_every=eval_every, stop_at_criterion=stop_at_criterion, started_s=started_s,
-                               report=_report_time_to_criterion, watch=watch)
+                               report=_report_time_to_criterion, watch=watch, init_from=init_checkpoint)
     rank = distributed.current()
     if resume:
         run_dir, checkpoint = resume_point
@@ -225,6 +254,8 @@ def train(task: str | None = None, *, num_envs: int | None = None,
         info = {"task": task, "seed": 0 if seed is None else seed, "device": device or "cpu",
                 "env_overrides": dict(env_overrides or {}), "ppo": dataclasses.asdict(ppo),
                 "ambulo_version": ambulo.__version__, "world_size": rank.world_size}
+        if init_checkpoint is not None:
+            info["init_from"] = str(init_checkpoint)
         # rank 0 owns the run folder; the other ranks write nothing
         run_dir = runs.new_run_dir(task, log_root) if rank.is_main else Path(log_root) / task / f"rank{rank.rank}"
         if rank.is_main:
@@ -237,6 +268,14 @@ def train(task: str | None = None, *, num_envs: int | None = None,
     progress_box: list[TrainingProgress] = []
     with contextlib.redirect_stdout(io.StringIO()) if not verbose else contextlib.nullcontext():
         runner = _make_runner(env, ppo, run_dir, rank, episodes, progress_box)
+    if init_checkpoint is not None:
+        try:
+            runner.load_for_init(init_checkpoint, info["task"])
+        except runs.CheckpointError:  # networks of other sizes: refused, and no run folder left
+            env.close()  # (rsl-rl opens its TensorBoard writer in ``learn``: none yet)
+            if rank.is_main:
+                runs.discard_new_run(run_dir)
+            raise
     runner.add_git_repo_to_log(ambulo.__file__)
     runner.started_s = started_s
     start = 0
@@ -246,7 +285,8 @@ def train(task: str | None = None, *, num_envs: int | None = None,
         print(f"resuming {run_dir} from {checkpoint.name} at iteration {start}")
     elif rank.is_main:
         ranks = f" x {rank.world_size} ranks" if rank.distributed else ""
-        print(f"training {info['task']} with {ppo.num_envs} envs{ranks} -> {run_dir}")
+        weights = f" from the weights of {init_checkpoint}" if init_checkpoint is not None else ""
+        print(f"training {info['task']} with {ppo.num_envs} envs{ranks}{weights} -> {run_dir}")
     remaining = ppo.max_iterations - start
     if remaining <= 0:
         print(f"{run_dir} already ran {start} of {ppo.max_iterations} iterations")

@@ -40,11 +40,13 @@ def train_offpolicy(task: str | None, *, algo: str, num_envs: int | None = None,
                     verbose: bool = False, eval_every: int | None = None, stop_at_criterion: bool = False,
                     started_s: float | None = None,
                     report: Callable[[PeriodicEval], None] | None = None,
-                    watch: Callable[[envs.RLEnv], Any] | None = None) -> Path:
+                    watch: Callable[[envs.RLEnv], Any] | None = None, init_from: Path | None = None) -> Path:
     """Train ``task`` with ``algo``; return the run folder. Arguments as ``rl.train.train``'s;
     ``resume_point``: (run folder, checkpoint) of a run to continue (``train._resume_point``),
     ``report``: prints the time to the criterion at the end; ``watch``: as ``train``'s (the web
-    viewer on the training env, its curves fed each iteration)."""
+    viewer on the training env, its curves fed each iteration); ``init_from``: the checkpoint
+    (from ``runs.resolve_init_from``) whose networks a new run starts from
+    (``OffPolicyRunner.load_for_init``)."""
     started_s = time.monotonic() if started_s is None else started_s
     if stop_at_criterion and not eval_every:
         raise ValueError("stopping at the criterion needs periodic evaluation; give eval_every too")
@@ -68,6 +70,8 @@ def train_offpolicy(task: str | None, *, algo: str, num_envs: int | None = None,
         info = {"task": task, "algo": algo, "seed": 0 if seed is None else seed, "device": device or "cpu",
                 "env_overrides": dict(env_overrides or {}), "offpolicy": dataclasses.asdict(cfg),
                 "ambulo_version": ambulo.__version__, "world_size": 1}
+        if init_from is not None:
+            info["init_from"] = str(init_from)
         run_dir = runs.new_run_dir(task, log_root)
         runs.write_run_info(run_dir, info)
 
@@ -79,13 +83,22 @@ def train_offpolicy(task: str | None, *, algo: str, num_envs: int | None = None,
     runner = OffPolicyRunner(env, cfg, episodes=episodes, writer=writer, seed=info["seed"], run_dir=run_dir,
                              on_iteration=lambda *args: progress_box[0].iteration_done(*args))
     runner.started_s = started_s
+    if init_from is not None:
+        try:
+            runner.load_for_init(init_from, info["task"])
+        except runs.CheckpointError:  # networks of other sizes: refused, and no run folder left
+            env.close()
+            writer.close()
+            runs.discard_new_run(run_dir)
+            raise
     start = 0
     if resume_point is not None:
         start = runner.load_for_resume(checkpoint)
         started_s = runner.started_s  # the earlier segments' wall time included
         print(f"resuming {run_dir} from {checkpoint.name} at iteration {start} (the replay ring refills)")
     else:
-        print(f"training {info['task']} with {cfg.algo}, {cfg.num_envs} envs -> {run_dir}")
+        weights = f" from the weights of {init_from}" if init_from is not None else ""
+        print(f"training {info['task']} with {cfg.algo}, {cfg.num_envs} envs{weights} -> {run_dir}")
     remaining = cfg.max_iterations - start
     if remaining <= 0:
         print(f"{run_dir} already ran {start} of {cfg.max_iterations} iterations")

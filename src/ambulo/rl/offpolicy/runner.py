@@ -27,7 +27,7 @@ import torch
 
 from ambulo.envs import RLEnv
 
-from ..checkpoints import atomic_torch_save
+from ..checkpoints import atomic_torch_save, check_same_shapes
 from ..episodes import EpisodeStats
 from ..vecenv import RslRlVecEnv
 from .config import OffPolicyCfg
@@ -271,6 +271,16 @@ class OffPolicyRunner:
         self.started_s -= float(infos.get("wall_s", 0.0))  # the earlier segments' wall time (PPO's runner does too)
         self.current_learning_iteration += 1
         return self.current_learning_iteration
+
+    def load_for_init(self, path: Path, task: str) -> None:
+        """``ambulo train --init-from``: the networks of ``path`` (actor, critics, their targets and
+        normalizers, SAC's temperature), after checking they have this run's shapes; not its
+        optimizers, update count, iteration or RNG states (a new run starts at 0). The optimizers
+        start fresh: a fine-tune's changed reward moves the value targets, so Adam's moment
+        estimates of the old run's gradients would mislead the first updates."""
+        saved = torch.load(path, weights_only=False, map_location=str(self.device))
+        check_same_shapes(path, saved, {"model": self.alg.state_dict()}, task)
+        self.alg.load_state(saved, optimizers=False)
 
     def get_inference_policy(self, device: str | None = None) -> InferencePolicy:
         self.alg.eval()
