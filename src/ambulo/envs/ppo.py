@@ -45,6 +45,10 @@ class PpoCfg(Checked):
     max_grad_norm: float = field(default=1.0, metadata=rule(minimum=0.0, strict=True))
     init_at_random_ep_len: bool = True
     """Start envs at random points of their first episode so resets spread out in time."""
+    symmetry: bool = False
+    """Train on every mini-batch and its left-right mirror image too (rsl-rl's ``Symmetry`` data
+    augmentation, ``envs.symmetry``): the batch doubles, and the policy learns each gait for both
+    legs. Walking tasks only (a task whose observations have no mirror rule is refused)."""
 
     def to_rsl_rl(self, has_critic_obs: bool) -> dict[str, Any]:
         """The ``train_cfg`` dict of ``rsl_rl.runners.OnPolicyRunner`` (rsl-rl-lib 5.x)."""

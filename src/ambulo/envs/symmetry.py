@@ -12,7 +12,7 @@ Everything is derived from the robot model and the task's observation terms, nev
   name, a waist joint, pairs with itself). The sign comes from the joints' world axes at the model's
   rest pose: a hinge's angle is a rotation about its axis, and reflection maps a rotation axis ``a``
   to ``(-a_x, a_y, -a_z)`` (an axial vector), so a roll or yaw joint flips sign and a pitch joint
-  keeps it, whatever sign the file wrote the axis with. The pairing is checked: mirrored anchors and
+  keeps it, whatever sign the file wrote the axis with (a slide's axis is a polar vector). The pairing is checked: mirrored anchors and
   axes must coincide, and the default pose must be its own mirror image.
 - observation terms, by name (``TERM_RULES``): vectors, axial vectors, commands, joint-space terms,
   per-foot terms (the feet swapped) and the height scan (each point swapped with its image across
@@ -32,6 +32,8 @@ import mujoco
 import numpy as np
 import torch
 
+from ..utils.checks import InvalidValueError
+
 POLAR = (1.0, -1.0, 1.0)
 """Sign of each component of a vector (position, velocity, gravity) under y -> -y."""
 AXIAL = (-1.0, 1.0, -1.0)
@@ -39,6 +41,14 @@ AXIAL = (-1.0, 1.0, -1.0)
 reflection's determinant -1 times the polar signs."""
 COMMAND = (1.0, -1.0, -1.0)
 """(vx, vy, yaw rate): forward speed kept, lateral speed and turning reversed."""
+
+class SymmetryError(InvalidValueError):
+    """A robot or task that cannot be mirrored: one line naming what and how to go on (the CLI shows
+    it as bad input, not as a bug)."""
+
+    def __init__(self, message: str):
+        ValueError.__init__(self, message)
+
 
 _SIDES = (("left", "right"), ("Left", "Right"), ("LEFT", "RIGHT"))
 
@@ -99,22 +109,27 @@ def joint_mirror(model: mujoco.MjModel, prim_path: str, joint_names: list[str], 
     for i, name in enumerate(joint_names):
         partner = mirror_name(name)
         if partner not in position:
-            raise ValueError(f"{prim_path}: joint {name!r} has no mirror partner {partner!r}; "
-                             "symmetry needs left_/right_ joint pairs")
+            raise SymmetryError(f"{prim_path}: joint {name!r} has no mirror partner {partner!r}; "
+                             "symmetry needs left_/right_ joint pairs; train it without symmetry")
         j = position[partner]
         if np.abs(anchors[i] * polar - anchors[j]).max() > 1.0e-3:
-            raise ValueError(f"{prim_path}: joints {name!r} and {partner!r} are not at mirror-image places "
+            raise SymmetryError(f"{prim_path}: joints {name!r} and {partner!r} are not at mirror-image places "
                              f"({anchors[i].round(4).tolist()} vs {anchors[j].round(4).tolist()} m in the base frame)")
-        dot = float(np.dot(axes[i] * axial, axes[j]))
+        kind = model.jnt_type[ids[i]]
+        if kind not in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
+            raise SymmetryError(f"{prim_path}: joint {name!r} is neither a hinge nor a slide; symmetry mirrors those only; train it without symmetry")
+        # a hinge turns about its axis (an axial vector), a slide moves along it (a polar one)
+        reflect = axial if kind == int(mujoco.mjtJoint.mjJNT_HINGE) else polar
+        dot = float(np.dot(axes[i] * reflect, axes[j]))
         if abs(abs(dot) - 1.0) > tol:
-            raise ValueError(f"{prim_path}: joint axes of {name!r} and {partner!r} are not mirror images "
+            raise SymmetryError(f"{prim_path}: joint axes of {name!r} and {partner!r} are not mirror images "
                              f"({axes[i].round(4).tolist()} vs {axes[j].round(4).tolist()})")
         index[i], sign[i] = j, np.sign(dot)
     mirrored = sign * np.asarray(default_pos, dtype=np.float64)[index]
     bad = np.flatnonzero(np.abs(mirrored - default_pos) > 1.0e-6)
     if bad.size:
         names = [joint_names[b] for b in bad[:4]]
-        raise ValueError(f"{prim_path}: the default pose is not its own mirror image at joints {names}; "
+        raise SymmetryError(f"{prim_path}: the default pose is not its own mirror image at joints {names}; "
                          "symmetry needs a left-right symmetric default pose")
     return index, sign
 
@@ -124,7 +139,7 @@ def pair_mirror(names: list[str]) -> np.ndarray:
     position = {n: i for i, n in enumerate(names)}
     missing = [n for n in names if mirror_name(n) not in position]
     if missing:
-        raise ValueError(f"{missing} have no mirror partner among {names}")
+        raise SymmetryError(f"{missing} have no mirror partner among {names}")
     return np.asarray([position[mirror_name(n)] for n in names], np.int64)
 
 
@@ -136,7 +151,7 @@ def points_mirror(points_xy: np.ndarray, *, tol: float = 1.0e-5) -> np.ndarray:
     dist = np.abs(image[:, None, :] - pts[None, :, :]).max(axis=-1)  # (P, P)
     index = dist.argmin(axis=1)
     if (dist[np.arange(len(pts)), index] > tol).any():
-        raise ValueError("the height scan's points are not symmetric about the heading axis "
+        raise SymmetryError("the height scan's points are not symmetric about the heading axis "
                          "(HeightScanCfg: give an odd number of points across, centred)")
     return index
 
@@ -154,7 +169,7 @@ class TaskMirror:
 def _vector_rule(signs):
     def rule(size, ctx):
         if size % 3:
-            raise ValueError(f"a 3-vector term of size {size}")
+            raise SymmetryError(f"a 3-vector term of size {size}")
         return np.arange(size), np.tile(signs, size // 3)
     return rule
 
@@ -162,21 +177,21 @@ def _vector_rule(signs):
 def _joint_rule(size, ctx):
     index, sign = ctx["joints"]
     if size != len(index):
-        raise ValueError(f"a joint-space term of size {size} for {len(index)} joints")
+        raise SymmetryError(f"a joint-space term of size {size} for {len(index)} joints")
     return index, sign
 
 
 def _feet_rule(size, ctx):
     index = ctx["feet"]
     if size != len(index):
-        raise ValueError(f"a per-foot term of size {size} for {len(index)} feet")
+        raise SymmetryError(f"a per-foot term of size {size} for {len(index)} feet")
     return index, np.ones(size)
 
 
 def _scan_rule(size, ctx):
     index = ctx.get("scan")
     if index is None or size != len(index):
-        raise ValueError(f"a height scan of size {size} without the task's scan points")
+        raise SymmetryError(f"a height scan of size {size} without the task's scan points")
     return index, np.ones(size)
 
 
@@ -206,13 +221,13 @@ def _terms_mirror(terms: list[tuple[str, torch.Tensor]], ctx: dict, task: str, d
     for name, value in terms:
         rule = TERM_RULES.get(name)
         if rule is None:
-            raise ValueError(f"{task}: observation term {name!r} has no mirror rule; add one to "
+            raise SymmetryError(f"{task}: observation term {name!r} has no mirror rule; add one to "
                              "ambulo.envs.symmetry.TERM_RULES or train without symmetry")
         size = int(value.shape[1])
         try:
             i, s = rule(size, ctx)
-        except ValueError as err:
-            raise ValueError(f"{task}: term {name!r}: {err}") from None
+        except SymmetryError as err:
+            raise SymmetryError(f"{task}: term {name!r}: {err}") from None
         index.append(np.asarray(i) + start)
         sign.append(np.asarray(s, np.float64))
         start += size
@@ -233,8 +248,8 @@ def task_mirror(env) -> TaskMirror:
     if getattr(env, "scanner", None) is not None:
         ctx["scan"] = points_mirror(env.scanner.points_h.cpu().numpy())
     if env.num_actions != len(joints[0]):
-        raise ValueError(f"{task}: {env.num_actions} actions for {len(joints[0])} joints; symmetry needs one "
-                         "action a joint")
+        raise SymmetryError(f"{task}: {env.num_actions} actions for {len(joints[0])} joints; symmetry needs one "
+                         "action a joint; train it without symmetry")
     # the critic's columns are the policy terms (noise-free) and then the privileged ones (RLEnv)
     policy = list(env._policy_terms().items())
     privileged = env._privileged_terms()
@@ -244,4 +259,4 @@ def task_mirror(env) -> TaskMirror:
 
 
 __all__ = ["AXIAL", "COMMAND", "POLAR", "TERM_RULES", "Reflection", "TaskMirror", "joint_mirror", "mirror_name",
-           "pair_mirror", "points_mirror", "task_mirror"]
+           "pair_mirror", "points_mirror", "task_mirror", "SymmetryError"]

@@ -116,7 +116,8 @@ def resolve_init_from(source: str | os.PathLike) -> tuple[Path, str]:
 
 def discard_new_run(run_dir: Path) -> None:
     """Remove the run folder this process just made for a run refused before its first
-    iteration (``--init-from`` weights that do not fit): it holds only run.json and empty logs."""
+    iteration (``--init-from`` weights that do not fit, symmetry asked of a task that cannot be
+    mirrored): it holds only run.json and empty logs."""
     shutil.rmtree(run_dir, ignore_errors=True)
     with contextlib.suppress(OSError):  # and the task's folder, if this run was its first
         Path(run_dir).parent.rmdir()

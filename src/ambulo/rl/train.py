@@ -18,6 +18,7 @@ from rsl_rl.runners import OnPolicyRunner
 import ambulo
 from ambulo import envs
 from ambulo.engine import engine_class
+from ambulo.envs.symmetry import SymmetryError
 from ambulo.utils.atomic import remove_partial_files
 
 from . import distributed, interrupt, runs
@@ -30,6 +31,7 @@ from .periodic_eval import PeriodicEval, resume_evals
 from .ppo import AmbuloPPO
 from .progress import CriterionReached, TrainingProgress, end_training
 from .sampling import SyncFreeGaussian
+from .symmetry import env_mirror, mirror_augmentation
 from .vecenv import RslRlVecEnv
 
 
@@ -112,6 +114,10 @@ def runner_cfg(env: envs.RLEnv, ppo: PpoCfg) -> dict[str, Any]:
     training runs; the log writer is added by ``train``."""
     cfg = ppo.to_rsl_rl(env.num_privileged_obs > 0)
     cfg["algorithm"]["class_name"] = AmbuloPPO
+    if ppo.symmetry:
+        env_mirror(env)  # refuse an asymmetric robot or a term without a mirror rule before training
+        cfg["algorithm"]["symmetry_cfg"] = {"use_data_augmentation": True, "use_mirror_loss": False,
+                                            "mirror_loss_coeff": 0.0, "data_augmentation_func": mirror_augmentation}
     cfg["actor"]["distribution_cfg"]["class_name"] = SyncFreeGaussian
     cfg["check_for_nan"] = False
     return cfg
@@ -266,8 +272,14 @@ def train(task: str | None = None, *, num_envs: int | None = None,
                                 device=distributed.rank_device(info["device"], rank))
     episodes = EpisodeStats(ppo.num_envs, env.device) if rank.is_main else None
     progress_box: list[TrainingProgress] = []
-    with contextlib.redirect_stdout(io.StringIO()) if not verbose else contextlib.nullcontext():
-        runner = _make_runner(env, ppo, run_dir, rank, episodes, progress_box)
+    try:
+        with contextlib.redirect_stdout(io.StringIO()) if not verbose else contextlib.nullcontext():
+            runner = _make_runner(env, ppo, run_dir, rank, episodes, progress_box)
+    except SymmetryError:  # symmetry asked of a task that cannot be mirrored: no run folder left
+        env.close()
+        if rank.is_main and not resume:
+            runs.discard_new_run(run_dir)
+        raise
     if init_checkpoint is not None:
         try:
             runner.load_for_init(init_checkpoint, info["task"])

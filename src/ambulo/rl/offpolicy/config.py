@@ -103,6 +103,12 @@ class OffPolicyCfg(Checked):
     that was so, session 17's rough run with these bounds still collapsed (training reward peaked
     at iteration ~300, then fell while the tanh std grew 0.12 -> 0.36: up to 2.9 action units of
     noise on a knee bounded at 8)."""
+    symmetry: bool = False
+    """Replace the second half of every sampled batch with the left-right mirror images of its
+    transitions (observations, actions and next observations reflected, returns kept;
+    ``envs.symmetry``): each update learns every gait for both legs, at the same batch size and
+    cost. FastSAC's ``use_symmetry`` on humanoids. Walking tasks only (a task whose observations
+    have no mirror rule is refused)."""
     cpu_threads: int = 1
     """torch intra-op threads while training on the CPU (0: torch's default). The networks are
     small: more threads add waiting on a busy CPU more than they add speed (an update took 10x

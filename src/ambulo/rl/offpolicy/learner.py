@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import copy
 import math
+from typing import TYPE_CHECKING
 
 import torch
 from torch import nn
@@ -32,6 +33,9 @@ from .graphs import UpdateGraphs
 from .networks import Actor, TwinCategoricalCritic
 from .replay import Batch, ReplayRing
 
+if TYPE_CHECKING:
+    from ambulo.envs.symmetry import TaskMirror
+
 STAT_NAMES = ("critic_loss", "actor_loss", "alpha", "entropy", "q_mean", "action_std")
 """What ``FastOffPolicy.stats`` accumulates (per update; actor terms per actor update)."""
 
@@ -40,10 +44,15 @@ class FastOffPolicy(nn.Module):
     """Networks, optimizers and the update of one off-policy learner (see the module docstring)."""
 
     def __init__(self, cfg: OffPolicyCfg, num_obs: int, num_critic_obs: int, num_actions: int,
-                 device: torch.device | str, action_bounds: torch.Tensor | None = None):
+                 device: torch.device | str, action_bounds: torch.Tensor | None = None,
+                 mirror: TaskMirror | None = None):
         """``action_bounds``: (num_actions,) each action's bound (``cfg.joint_limit_bounds``: the
-        env's ``action_bounds()``); None: ``cfg.action_bound`` for every action."""
+        env's ``action_bounds()``); None: ``cfg.action_bound`` for every action. ``mirror``: the
+        task's mirror maps (``envs.symmetry.task_mirror``), required by ``cfg.symmetry``."""
         super().__init__()
+        if cfg.symmetry and mirror is None:
+            raise ValueError("OffPolicyCfg.symmetry needs the task's mirror maps (envs.symmetry.task_mirror)")
+        self.mirror = mirror if cfg.symmetry else None
         self.cfg, self.num_actions = cfg, num_actions
         self.sac = cfg.algo == "fast-sac"
         self.actor = Actor(num_obs, num_actions, cfg.actor_hidden_dims, stochastic=self.sac,
@@ -139,6 +148,8 @@ class FastOffPolicy(nn.Module):
     def _update(self, batch: Batch, with_actor: bool) -> None:
         """A critic update, an actor (and alpha) update if ``with_actor``, the target's Polyak
         step: device work only (what a CUDA graph captures; no host counter changes)."""
+        if self.mirror is not None:
+            batch = self._mirror_half(batch)
         self._critic_step(batch)
         if with_actor:
             self._actor_step(batch)
@@ -146,6 +157,21 @@ class FastOffPolicy(nn.Module):
             target, online = list(self.critic_target.parameters()), list(self.critic.parameters())
             torch._foreach_lerp_(target, online, self.cfg.tau)
             torch._foreach_copy_(list(self.critic_target.buffers()), list(self.critic.buffers()))
+
+    def _mirror_half(self, batch: Batch) -> Batch:
+        """``batch`` with its second half replaced by the mirror images of those transitions
+        (``cfg.symmetry``). The returns and discounts stay: the mirror image of a transition earns
+        the same reward. The replay ring keeps only what the worlds did."""
+        m, half = self.mirror, batch.obs.shape[0] // 2
+        critic = m.critic or m.policy  # no privileged observations: the critic reads the policy's
+
+        def mirrored(x: torch.Tensor, reflect) -> torch.Tensor:
+            return torch.cat([x[:half], reflect(x[half:])])
+
+        return Batch(obs=mirrored(batch.obs, m.policy), critic_obs=mirrored(batch.critic_obs, critic),
+                     actions=mirrored(batch.actions, m.actions), returns=batch.returns, discount=batch.discount,
+                     next_obs=mirrored(batch.next_obs, m.policy),
+                     next_critic_obs=mirrored(batch.next_critic_obs, critic))
 
     def _critic_update(self, batch: Batch) -> None:
         cfg = self.cfg

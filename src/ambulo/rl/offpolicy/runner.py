@@ -26,6 +26,7 @@ from pathlib import Path
 import torch
 
 from ambulo.envs import RLEnv
+from ambulo.envs.symmetry import task_mirror
 
 from ..checkpoints import atomic_torch_save, check_same_shapes
 from ..episodes import EpisodeStats
@@ -112,7 +113,8 @@ class OffPolicyRunner:
         self.logger = _Logger(writer)
         critic_obs = env.num_privileged_obs or env.num_obs
         self.alg = FastOffPolicy(cfg, env.num_obs, critic_obs, env.num_actions, env.device,
-                                 action_bounds=joint_limit_bounds(env) if cfg.joint_limit_bounds else None)
+                                 action_bounds=joint_limit_bounds(env) if cfg.joint_limit_bounds else None,
+                                 mirror=task_mirror(env) if cfg.symmetry else None)
         self.current_learning_iteration = 0
         self.started_s = time.monotonic()
         """``time.monotonic()`` the run's wall time counts from (``train_offpolicy`` sets it; a
