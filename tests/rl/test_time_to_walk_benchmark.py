@@ -1,6 +1,5 @@
 """benchmarks/time_to_walk.py runs end to end on the CPU (cartpole) and reports what it measured."""
 
-import importlib.util
 import json
 import os
 import subprocess
@@ -8,6 +7,8 @@ import sys
 from pathlib import Path
 
 import pytest
+
+from script_loader import load_script
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -32,10 +33,7 @@ def test_time_to_walk_reports_each_seed_from_its_run_folder(tmp_path):
 
 
 def _time_to_walk_module():
-    spec = importlib.util.spec_from_file_location("time_to_walk", ROOT / "benchmarks" / "time_to_walk.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script(ROOT / "benchmarks" / "time_to_walk.py")
 
 
 def test_gpu_ids_are_read_through_an_inherited_device_mask():
