@@ -9,14 +9,20 @@ nothing compiles: the fastest a first step can be.
     python benchmarks/warp_compile.py --device cuda                       # humanoid-rough, 0 vs 16 threads
     python benchmarks/warp_compile.py --device cpu --num-envs 4 --workers 0,2   # Warp's CPU device
     python benchmarks/warp_compile.py --device cuda --profile      # + where each run's compile time went
+    python benchmarks/warp_compile.py --device cuda --processes 8  # + a cold run compiling in 8 forked processes
 
 ``--profile`` times Warp's compile steps in each run: the Python codegen (held under Warp's one codegen
 lock, so serial whatever the threads), the native compile (Clang or NVRTC, run outside it), and how many
 native compiles overlapped on average (``native_overlap``: their summed time over the wall time some ran;
 near the thread count if nothing else serializes them), with the largest modules.
 
-Ends with ``RESULT {json}``: seconds per setting, ``speedup`` = serial / parallel and
-``parallel_over_floor`` = parallel / warm.
+``--processes N`` adds a third cold run: the parallel run's threads, with N forked processes compiling
+the modules into the cache first (``PhysicsCfg.compile_processes``; one process's NVRTC compiles largely
+one at a time). Its profile covers the parent process only.
+
+Ends with ``RESULT {json}``: seconds per setting, ``speedup`` = serial / parallel,
+``parallel_over_floor`` = parallel / warm and, with ``--processes``, ``processes_speedup`` = parallel /
+processes and ``processes_over_floor`` = processes / warm.
 """
 
 from __future__ import annotations
@@ -72,7 +78,7 @@ def _profile_summary(spans: list) -> dict:
             "largest_native_s": {module: round(end - begin, 2) for begin, end, module in largest}}
 
 
-def child(task: str, device: str, num_envs: int, workers: int, profile: bool = False) -> dict:
+def child(task: str, device: str, num_envs: int, workers: int, profile: bool = False, processes: int = 0) -> dict:
     """In this process: time ``envs.make`` through two env steps of zero actions."""
     spans = _profile_compiles() if profile else None
     start = time.perf_counter()
@@ -81,7 +87,7 @@ def child(task: str, device: str, num_envs: int, workers: int, profile: bool = F
     import ambulo.envs as envs
 
     env = envs.make(task, num_envs=num_envs, device=device, engine="warp", seed=0,
-                    **{"physics.compile_workers": workers})
+                    **{"physics.compile_workers": workers, "physics.compile_processes": processes})
     env.reset()
     actions = torch.zeros(env.num_envs, env.num_actions, device=env.device)
     for _ in range(2):
@@ -92,14 +98,17 @@ def child(task: str, device: str, num_envs: int, workers: int, profile: bool = F
     reports = getattr(engine, "precompile_reports", {})
     result = {"seconds": round(time.perf_counter() - start, 2),
               "engine_compile_s": round(engine.compile_time_s or 0.0, 2),
-              "precompiled_modules": sum(r.modules for r in reports.values())}
+              "precompiled_modules": sum(r.modules for r in reports.values()),
+              "compile_processes": sum(r.processes for r in reports.values()),
+              "compile_process_failures": sum(r.process_failures for r in reports.values())}
     return result if spans is None else result | {"profile": _profile_summary(spans)}
 
 
-def measure(args, workers: int, cache_dir: str) -> dict:
+def measure(args, workers: int, cache_dir: str, processes: int = 0) -> dict:
     env = dict(os.environ, WARP_CACHE_PATH=cache_dir, CUDA_CACHE_DISABLE="1")
     command = [sys.executable, __file__, "--child", "--task", args.task, "--device", args.device,
-               "--num-envs", str(args.num_envs), "--workers", str(workers)] + ["--profile"] * args.profile
+               "--num-envs", str(args.num_envs), "--workers", str(workers),
+               "--processes", str(processes)] + ["--profile"] * args.profile
     done = subprocess.run(command, env=env, capture_output=True, text=True, check=False)
     lines = [line for line in done.stdout.splitlines() if line.startswith("CHILD ")]
     if done.returncode != 0 or not lines:
@@ -116,10 +125,12 @@ def main() -> None:
                         help="serial,parallel thread counts (the first is the baseline; 0 = Warp's own serial compile)")
     parser.add_argument("--profile", action="store_true",
                         help="time Warp's codegen and native compiles in each run (adds a 'profile' entry per run)")
+    parser.add_argument("--processes", type=int, default=0,
+                        help="also time a cold run whose modules N forked processes compile first (0: no such run)")
     parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
-        result = child(args.task, args.device, args.num_envs, int(args.workers), args.profile)
+        result = child(args.task, args.device, args.num_envs, int(args.workers), args.profile, args.processes)
         print("CHILD " + json.dumps(result), flush=True)
         return
     import ambulo.envs as envs
@@ -137,14 +148,21 @@ def main() -> None:
         for name, workers in (("serial", serial), ("parallel", parallel)):
             results[name] = measure(args, workers, os.path.join(root, name))
             print(name, workers, results[name], flush=True)
+        if args.processes > 1:
+            results["processes"] = measure(args, parallel, os.path.join(root, "processes"), args.processes)
+            print("processes", args.processes, results["processes"], flush=True)
         results["warm"] = measure(args, parallel, os.path.join(root, "parallel"))  # nothing left to compile
         print("warm", results["warm"], flush=True)
     seconds = {k: v["seconds"] for k, v in results.items()}
-    print("RESULT " + json.dumps({
-        "task": args.task, "device": args.device, "num_envs": args.num_envs,
-        "workers": {"serial": serial, "parallel": parallel}, "seconds": seconds, "runs": results,
-        "speedup": round(seconds["serial"] / seconds["parallel"], 3),
-        "parallel_over_floor": round(seconds["parallel"] / seconds["warm"], 3)}))
+    result = {"task": args.task, "device": args.device, "num_envs": args.num_envs,
+              "workers": {"serial": serial, "parallel": parallel}, "seconds": seconds, "runs": results,
+              "speedup": round(seconds["serial"] / seconds["parallel"], 3),
+              "parallel_over_floor": round(seconds["parallel"] / seconds["warm"], 3)}
+    if "processes" in seconds:
+        result |= {"processes": args.processes,
+                   "processes_speedup": round(seconds["parallel"] / seconds["processes"], 3),
+                   "processes_over_floor": round(seconds["processes"] / seconds["warm"], 3)}
+    print("RESULT " + json.dumps(result))
 
 
 if __name__ == "__main__":

@@ -15,8 +15,8 @@ mjw = pytest.importorskip("mujoco_warp")
 import warp as wp
 from warp._src.context import Module
 
-from ambulo.engine import make_engine
-from ambulo.engine.warp_precompile import precompile, recording_launches
+from ambulo.engine import make_engine, warp_precompile
+from ambulo.engine.warp_precompile import compile_in_processes, precompile, recording_launches
 
 DEVICE = os.environ.get("AMBULO_TEST_DEVICE", "cpu")
 XML = """<mujoco><option timestep="0.002"/><worldbody><geom type="plane" size="5 5 .1"/>
@@ -125,7 +125,7 @@ def test_a_failing_precompile_is_logged_and_the_engine_compiles_serially(monkeyp
     """The precompile is an optimization: a Warp whose internals it does not know must cost time, not the run."""
     import ambulo.engine.gpu as gpu
 
-    def broken(body, max_workers=None):
+    def broken(body, max_workers=None, processes=0):
         raise AttributeError("no _resolve_launch_block_dim in this Warp")
 
     monkeypatch.setattr(gpu, "precompile", broken)
@@ -177,3 +177,72 @@ def test_the_benchmarks_profile_sums_codegen_and_native_and_counts_their_overlap
     assert summary["codegen_s"] == 1.5 and summary["native_s"] == 6.0 and summary["modules_compiled"] == 3
     assert summary["native_overlap"] == round(6.0 / 5.0, 2)
     assert list(summary["largest_native_s"]) == ["b", "a", "c"]
+
+
+@wp.kernel(module="unique")
+def _add_one(values: wp.array(dtype=wp.float32)):
+    i = wp.tid()
+    values[i] = values[i] + 1.0
+
+
+@wp.kernel(module="unique")
+def _double(values: wp.array(dtype=wp.float32)):
+    i = wp.tid()
+    values[i] = values[i] * 2.0
+
+
+def _two_module_body(values):
+    def body():
+        wp.launch(_add_one, dim=4, inputs=[values], device=DEVICE)
+        wp.launch(_double, dim=4, inputs=[values], device=DEVICE)
+    return body
+
+
+@pytest.fixture
+def fresh_cache(tmp_path, monkeypatch):
+    """An empty Warp kernel cache for the test; Warp's own is back afterwards (initialized first, so
+    what is restored is its real folder, not the unset value Warp's first use would fill in)."""
+    wp.init()
+    monkeypatch.setattr(wp.config, "kernel_cache_dir", str(tmp_path))
+    return tmp_path
+
+
+def _in_cache(device, block_dim, module) -> bool:
+    """Whether the module's binary is in Warp's kernel cache (its folder: Warp's first use appends its version)."""
+    folder = os.path.join(wp.config.kernel_cache_dir, module.get_module_identifier(block_dim))
+    return os.path.exists(os.path.join(folder, module._get_compile_output_name(device, block_dim=block_dim)))
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="forked compile processes need os.fork")
+def test_forked_processes_compile_each_module_into_the_kernel_cache(fresh_cache):
+    values = wp.zeros(4, dtype=wp.float32, device=DEVICE)
+    variants, counter = {}, [0]
+    with recording_launches(variants, counter):
+        _two_module_body(values)()
+    jobs = [(wp.get_device(d), block_dim, m) for (d, block_dim), mods in variants.items() for m in mods]
+    assert len(jobs) == 2 and not any(_in_cache(*job) for job in jobs)
+    assert compile_in_processes(variants, processes=2) == (2, 0)
+    assert all(_in_cache(*job) for job in jobs)  # the children compiled both, one each
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="forked compile processes need os.fork")
+def test_failing_compile_processes_cost_time_not_correctness(fresh_cache, monkeypatch):
+
+    def broken(module, device, block_dim):
+        raise RuntimeError("NVRTC out of memory")
+
+    monkeypatch.setattr(warp_precompile, "_compile_into_cache", broken)
+    values = wp.zeros(4, dtype=wp.float32, device=DEVICE)
+    report = precompile(_two_module_body(values), max_workers=1, processes=2)
+    assert (report.processes, report.process_failures, report.modules) == (2, 2, 2)
+    _two_module_body(values)()  # the loads compiled what the children did not: the kernels run
+    assert values.numpy().tolist() == [2.0] * 4
+
+
+def test_the_engine_takes_compile_processes_from_the_physics_config():
+    model = mujoco.MjModel.from_xml_string(XML)
+    engine = make_engine(model, 2, device=DEVICE, engine="warp", compile_workers=2, compile_processes=2)
+    engine.step()
+    (report,) = engine.precompile_reports.values()
+    assert engine.compile_processes == 2 and report.processes == (2 if hasattr(os, "fork") else 0)
+    assert report.process_failures == 0

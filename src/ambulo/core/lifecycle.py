@@ -100,7 +100,8 @@ class Simulation:
                   "max_contacts_per_world": self.physics.max_contacts_per_world,
                   "max_constraints_per_world": self.physics.max_constraints_per_world,
                   "broadphase": self.physics.broadphase,
-                  "compile_workers": self.physics.compile_workers}
+                  "compile_workers": self.physics.compile_workers,
+                  "compile_processes": self.physics.compile_processes}
         self.engine = make_engine(self.model, self.num_worlds, self.device, self.engine_name, **kwargs)
         for component in self.components.values():
             component.initialize(self.engine)

@@ -68,6 +68,12 @@ class PhysicsCfg(Checked):
     (``engine.warp_precompile``; Warp alone compiles them one at a time at first launch). None:
     the machine's cores, at most 16; 0 or 1: Warp's serial compile. Only a first run on a machine
     (an empty kernel cache) compiles; later runs load the cache either way."""
+    compile_processes: int = 0
+    """GPU engine: with more than 1, that many forked processes compile the modules into Warp's
+    kernel cache before the threads load them (``warp_precompile.compile_in_processes``: within
+    one process NVRTC compiles largely one at a time: 16 threads overlapped 2.2 compiles on an H200
+    host). 0: threads only (the default until it is timed on a GPU: ``benchmarks/warp_compile.py
+    --processes``). Ignored where the OS has no fork."""
 
     def __post_init__(self):
         self.check()
@@ -90,6 +96,8 @@ class PhysicsCfg(Checked):
         if self.broadphase not in BROADPHASES:
             raise InvalidValueError("broadphase", self.broadphase, "unknown broadphase",
                                     f"use one of {list(BROADPHASES)}")
+        check_int("compile_processes", self.compile_processes, "pass 0 (threads only) or a whole number of "
+                  "processes, e.g. compile_processes=8", minimum=0)
         if self.compile_workers is not None:
             check_int("compile_workers", self.compile_workers, "pass None (the cores) or a whole number >= 0, "
                       "e.g. compile_workers=8 (0: serial)", minimum=0)

@@ -50,6 +50,7 @@ def make_engine(model, num_worlds: int = 1, device: str = "cpu", engine: str = "
         kwargs.pop("max_constraints_per_world", None)
         kwargs.pop("broadphase", None)
         kwargs.pop("compile_workers", None)
+        kwargs.pop("compile_processes", None)
         return CpuEngine(model, num_worlds, **kwargs)
     return cls(model, num_worlds, device=device, **kwargs)
 

@@ -180,6 +180,9 @@ class GpuEngine:
       compile_workers: threads that compile a body's Warp modules before its first run
         (``engine.warp_precompile``; None: the cores, at most 16; 0 or 1: Warp's own serial
         compile at first launch).
+      compile_processes: with more than 1, that many forked processes first compile the modules
+        into Warp's kernel cache (``warp_precompile.compile_in_processes``: NVRTC compiles largely
+        one at a time within a process); the threads then load them. 0: threads only.
       overflow_check_steps: steps between the overflow checks (each one host sync).
       num_threads, divergence_dump_dir: accepted for the CpuEngine signature; the first is
         unused, the second dumps diverged worlds (costs a host sync per step).
@@ -199,6 +202,7 @@ class GpuEngine:
         use_graphs: bool = True,
         overflow_check_steps: int = 100,
         compile_workers: int | None = None,
+        compile_processes: int = 0,
         num_threads: int = 0,
         divergence_dump_dir: str | os.PathLike | None = None,
     ):
@@ -217,6 +221,7 @@ class GpuEngine:
         self.use_graphs = bool(use_graphs) and self.device.type == "cuda"
         self.overflow_check_steps = int(overflow_check_steps)
         self.compile_workers = default_workers() if compile_workers is None else int(compile_workers)
+        self.compile_processes = int(compile_processes)
         self.precompile_reports: dict[tuple, PrecompileReport] = {}
         """Per body key, what its parallel precompile loaded (``engine.warp_precompile``)."""
         self.divergence_dump_dir = None if divergence_dump_dir is None else Path(divergence_dump_dir)
@@ -387,11 +392,11 @@ class GpuEngine:
     def _precompile(self, key: tuple, body: Callable[[], None]) -> None:
         """Compile ``body``'s modules from ``compile_workers`` threads (a dry run records them; its
         copies and fills may touch the state, which is restored as after ``_capture``'s warm-up)."""
-        if self.compile_workers <= 1:
+        if self.compile_workers <= 1 and self.compile_processes <= 1:
             return
         try:
             with self._state_restored(), self.warp_scope():
-                self.precompile_reports[key] = precompile(body, self.compile_workers)
+                self.precompile_reports[key] = precompile(body, self.compile_workers, self.compile_processes)
         except Exception as error:  # an optimization: the real first run compiles what is missing, serially
             log.warning("GpuEngine: the parallel kernel precompile of %s failed (%s: %s); Warp compiles the "
                         "modules at their first launch instead", key[0], type(error).__name__, error)

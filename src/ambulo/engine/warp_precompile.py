@@ -22,6 +22,7 @@ from __future__ import annotations
 import contextlib
 import inspect
 import os
+import signal
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -46,6 +47,10 @@ class PrecompileReport:
     """Launches the dry run recorded (the body's launch count, repeats included)."""
     seconds: float
     """Wall time of the dry run and the parallel loads."""
+    processes: int = 0
+    """Child processes that compiled into the kernel cache before the loads (0: threads only)."""
+    process_failures: int = 0
+    """Children that failed or timed out (what they missed compiles in the loads, from threads)."""
 
 
 def _resolve_block_dim(device, block_dim):
@@ -124,17 +129,75 @@ def recording_launches(variants: dict, counter: list[int]) -> Iterator[None]:
             setattr(wp, name, original)
 
 
-def precompile(body: Callable[[], None], max_workers: int | None = None) -> PrecompileReport:
+def _compile_into_cache(module, device, block_dim) -> None:
+    """What ``Module.load`` does before it loads: the module's binary for ``block_dim`` compiled into
+    Warp's kernel cache (nothing if it is there), without loading it into a device context. Warp
+    internals: the options, output name and arch ``load`` resolves, then ``Module._compile``."""
+    module.get_module_hash(block_dim)  # resolves (and keeps) this block size's options
+    options = module.resolved_options[block_dim]
+    output_name = module._get_compile_output_name(device, block_dim=block_dim)
+    output_arch = module._get_compile_arch(device)
+    module_dir = os.path.join(wp.config.kernel_cache_dir, module.get_module_identifier(block_dim))
+    module._compile(device, module_dir, output_name, output_arch, options=options)
+
+
+def compile_in_processes(variants: dict, processes: int, timeout_s: float = 900.0) -> tuple[int, int]:
+    """Compile the recorded ``variants`` into Warp's kernel cache from ``processes`` forked children,
+    the modules dealt round-robin; returns (children started, children that failed or timed out).
+
+    Why processes: in one process NVRTC compiles largely one at a time (16 threads overlapped 2.2
+    compiles on average on an H200 host, session 21), and Warp's codegen holds a lock; each child
+    has its own. A fork inherits the recorded modules, so a child needs no model of its own; it only
+    generates code and runs the compiler (no device context is touched), and Warp's cache writes
+    (a per-process build folder renamed into place) are safe between processes. A child that fails
+    costs time, not correctness: the parent's loads compile what is missing."""
+    jobs = [(device, block_dim, module) for (device, block_dim), modules in variants.items() for module in modules]
+    if processes <= 1 or len(jobs) < 2 or not hasattr(os, "fork"):
+        return 0, 0
+    children = []
+    for k in range(min(processes, len(jobs))):
+        pid = os.fork()
+        if pid == 0:  # the child: compile its share and leave at once (no atexit, no torch teardown)
+            code = 0
+            try:
+                for device, block_dim, module in jobs[k::processes]:
+                    try:
+                        _compile_into_cache(module, wp.get_device(device), block_dim)
+                    except Exception:
+                        code = 1
+            finally:
+                os._exit(code)
+        children.append(pid)
+    deadline, failed = time.monotonic() + timeout_s, 0
+    for pid in children:
+        while True:
+            done, status = os.waitpid(pid, os.WNOHANG)
+            if done:
+                failed += int(not os.WIFEXITED(status) or os.WEXITSTATUS(status) != 0)
+                break
+            if time.monotonic() > deadline:
+                os.kill(pid, signal.SIGKILL)
+                os.waitpid(pid, 0)
+                failed += 1
+                break
+            time.sleep(0.05)
+    return len(children), failed
+
+
+def precompile(body: Callable[[], None], max_workers: int | None = None, processes: int = 0) -> PrecompileReport:
     """Run ``body`` with its launches recorded, not executed, then load every module it launches from
-    ``max_workers`` threads (None: ``default_workers()``). ``body``'s other effects (array copies,
-    fills) do happen: run it on state the caller restores or is about to overwrite."""
+    ``max_workers`` threads (None: ``default_workers()``); with ``processes`` > 1, forked children
+    first compile the modules into the kernel cache (``compile_in_processes``) and the threads then
+    load them from it. ``body``'s other effects (array copies, fills) do happen: run it on state the
+    caller restores or is about to overwrite."""
     start = time.perf_counter()
     variants: dict = {}
     counter = [0]
     with recording_launches(variants, counter):
         body()
+    started, failed = compile_in_processes(variants, processes)
     workers = default_workers() if max_workers is None else max_workers
     for (device, block_dim), modules in variants.items():
         wp.force_load(device=device, modules=list(modules), block_dim=block_dim, max_workers=workers)
     return PrecompileReport(modules=sum(len(m) for m in variants.values()), launches=counter[0],
-                            seconds=time.perf_counter() - start)
+                            seconds=time.perf_counter() - start, processes=started, process_failures=failed)
