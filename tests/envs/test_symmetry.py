@@ -174,3 +174,29 @@ def test_mirrored_world_on_stairs_observes_the_mirrored_height_scan():
     # the scan saw a step edge (readings differ by a riser), unsymmetric in the robot's own frame
     assert float(obs[0, scan].max() - obs[0, scan].min()) > 0.1
     assert float((obs[0, scan] - obs[1, scan]).abs().max()) > 0.1
+
+
+def test_mirrored_world_follows_the_mirrored_footsteps():
+    """humanoid-footsteps: world 1 is world 0's mirror image, its two targets reflected (y and yaw
+    negated) and their sides swapped; it observes the mirror image of world 0's footstep command
+    and sole poses."""
+    env = envs.make("humanoid-footsteps", num_envs=2, device="cpu", seed=3, play=True)
+    env.reset()
+    m = task_mirror(env)
+    gen = torch.Generator().manual_seed(2)
+    robot = env.robot
+    robot.write_joint_state(pos=robot.default_joint_pos[None] + 0.1 * torch.randn(1, robot.num_joints, generator=gen,
+                                                                                  dtype=torch.float64),
+                            env_ids=torch.tensor([0]))
+    env.engine.forward()
+    _mirror_world(env, m, 0, 1)
+    env.targets_xyyaw_w[1] = env.targets_xyyaw_w[0] * torch.tensor([1.0, -1.0, -1.0])
+    env.target_sides[1] = -env.target_sides[0]
+    for _ in range(5):
+        a = 0.3 * torch.randn(1, env.num_actions, generator=gen)
+        obs, _, dones, extras = env.step(torch.cat([a, m.actions(a)]))
+        assert not dones.any()
+        torch.testing.assert_close(obs[1], m.policy(obs[0:1])[0], rtol=0, atol=1e-5)
+        critic = extras["observations"]["critic"]
+        torch.testing.assert_close(critic[1], m.critic(critic[0:1])[0], rtol=0, atol=1e-5)
+    assert float((obs[1] - obs[0]).abs().max()) > 0.1

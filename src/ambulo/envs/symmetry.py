@@ -15,8 +15,9 @@ Everything is derived from the robot model and the task's observation terms, nev
   keeps it, whatever sign the file wrote the axis with (a slide's axis is a polar vector). The pairing is checked: mirrored anchors and
   axes must coincide, and the default pose must be its own mirror image.
 - observation terms, by name (``TERM_RULES``): vectors, axial vectors, commands, joint-space terms,
-  per-foot terms (the feet swapped) and the height scan (each point swapped with its image across
-  the heading axis). A term without a rule is refused: a wrong mirror teaches a wrong policy, so
+  per-foot terms (the feet swapped), the height scan (each point swapped with its image across
+  the heading axis), footstep commands (lateral offset, yaw and side negated, the order kept) and
+  sole poses (the soles swapped). A term without a rule is refused: a wrong mirror teaches a wrong policy, so
   a new term must say how it reflects.
 
 ``task_mirror(env)`` returns a ``TaskMirror`` of index-and-sign maps; applying one is a gather and a
@@ -195,6 +196,21 @@ def _scan_rule(size, ctx):
     return index, np.ones(size)
 
 
+def _footsteps_rule(size, ctx):
+    # per target (the next two, in order): x, y, [z,] cos yaw, sin yaw, side (+1 left), heading frame
+    per = {10: (1.0, -1.0, 1.0, -1.0, -1.0), 12: (1.0, -1.0, 1.0, 1.0, -1.0, -1.0)}.get(size)
+    if per is None:
+        raise SymmetryError(f"a footstep command of size {size} (10 or 12: two targets of x, y, [z,] cos, sin, side)")
+    return np.arange(size), np.tile(per, 2)
+
+
+def _soles_rule(size, ctx):
+    index = ctx.get("soles")
+    if index is None or size != 3 * len(index):
+        raise SymmetryError(f"a per-sole (x, y, yaw) term of size {size} without the task's sole sites")
+    return (np.concatenate([np.arange(3) + 3 * j for j in index]), np.tile((1.0, -1.0, -1.0), len(index)))
+
+
 def _scalar_rule(size, ctx):
     return np.arange(size), np.ones(size)
 
@@ -211,6 +227,8 @@ TERM_RULES = {
     "feet_contact": _feet_rule,
     "feet_height_over_ground": _feet_rule,
     "height_scan": _scan_rule,
+    "footsteps": _footsteps_rule,
+    "soles_b": _soles_rule,
 }
 """How each observation term reflects, by the name the task gives it (``_policy_terms`` and
 ``_privileged_terms``): ``rule(size, context) -> (index, sign)`` over the term's own columns."""
@@ -245,6 +263,8 @@ def task_mirror(env) -> TaskMirror:
     ctx = {"joints": joints}
     if getattr(env, "feet_body_ids", None) is not None:
         ctx["feet"] = pair_mirror([robot.body_names[i] for i in env.feet_body_ids.tolist()])
+    if getattr(env.cfg, "sole_sites", None):
+        ctx["soles"] = pair_mirror(list(env.cfg.sole_sites))
     if getattr(env, "scanner", None) is not None:
         ctx["scan"] = points_mirror(env.scanner.points_h.cpu().numpy())
     if env.num_actions != len(joints[0]):
