@@ -56,6 +56,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 import torch
 from torch.utils._python_dispatch import TorchDispatchMode
 
+from ambulo.envs.symmetry import Reflection, TaskMirror
 from ambulo.rl.offpolicy.config import offpolicy_cfg
 from ambulo.rl.offpolicy.learner import FastOffPolicy
 from ambulo.rl.offpolicy.replay import ReplayRing
@@ -199,9 +200,22 @@ def make_ring(cfg, sizes: dict, device: torch.device, seed: int = 0) -> ReplayRi
     return ring
 
 
+def stand_in_mirror(sizes: dict, device: torch.device) -> TaskMirror:
+    """Mirror maps of the right sizes for ``--algo-cfg symmetry=true`` without building the task's env:
+    a reversed order with alternating signs costs what the task's own gather-and-sign maps cost."""
+    def reflection(size: int) -> Reflection:
+        sign = torch.ones(size, device=device)
+        sign[1::2] = -1.0
+        return Reflection(torch.arange(size - 1, -1, -1, device=device), sign)
+
+    return TaskMirror(policy=reflection(sizes["obs"]), critic=reflection(sizes["critic_obs"]),
+                      actions=reflection(sizes["actions"]))
+
+
 def make_learner(cfg, sizes: dict, device: torch.device) -> FastOffPolicy:
     torch.manual_seed(0)
-    return FastOffPolicy(cfg, sizes["obs"], sizes["critic_obs"], sizes["actions"], device)
+    mirror = stand_in_mirror(sizes, device) if cfg.symmetry else None
+    return FastOffPolicy(cfg, sizes["obs"], sizes["critic_obs"], sizes["actions"], device, mirror=mirror)
 
 
 # -- the stages ----------------------------------------------------------------------------------
@@ -450,7 +464,7 @@ def main(argv=None) -> dict:
                   cfg=dict(num_envs=base.num_envs, buffer_steps_per_env=base.buffer_steps_per_env,
                            actor_hidden_dims=base.actor_hidden_dims, critic_hidden_dims=base.critic_hidden_dims,
                            num_atoms=base.num_atoms, policy_delay=base.policy_delay, n_step=base.n_step,
-                           amp=base.amp and cuda, critic_layer_norm=base.critic_layer_norm),
+                           amp=base.amp and cuda, critic_layer_norm=base.critic_layer_norm, symmetry=base.symmetry),
                   ceiling=ceiling, updates=args.updates, repeats=args.repeats, warmup=args.warmup,
                   batches={}, skipped={})
     emit("BENCH", dict(stage="ceiling", **ceiling))

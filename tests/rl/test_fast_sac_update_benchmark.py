@@ -68,3 +68,21 @@ def test_fast_sac_update_benchmark_reports_times_phases_flops_and_kernels():
     assert any(k["name"] in ("aten::addmm", "aten::mm") and k["matmul"] for k in profile["top"])
     assert 0 < profile["matmul_ms_per_update"] < profile["total_ms_per_update"]
     assert profile["float32_matmul_ops"] > 0
+
+
+def test_the_benchmark_times_updates_with_symmetry_on():
+    """``--algo-cfg symmetry=true``: the learner mirrors half of each batch through stand-in maps of the
+    task's sizes (no env is built), so the update cost includes the mirroring."""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT / "src"), os.environ.get("PYTHONPATH", "")]),
+           "OMP_NUM_THREADS": "1"}
+    run = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "fast_sac_update.py"), "--device", "cpu",
+                          "--batch-size", "32", "--updates", "2", "--warmup", "1", "--repeats", "1",
+                          "--matmul-size", "64", "--obs", str(OBS), "--critic-obs", str(CRITIC_OBS),
+                          "--actions", str(ACTIONS), "--algo-cfg", "num_envs=16", "buffer_steps_per_env=16",
+                          f"num_atoms={ATOMS}", f"actor_hidden_dims={ACTOR_HIDDEN}",
+                          f"critic_hidden_dims={CRITIC_HIDDEN}", "symmetry=true"],
+                         cwd=ROOT, env=env, capture_output=True, text=True, timeout=180)
+    assert run.returncode == 0, run.stderr[-3000:]
+    (line,) = [x for x in run.stdout.splitlines() if x.startswith("RESULT ")]
+    result = json.loads(line[len("RESULT "):])
+    assert result["cfg"]["symmetry"] is True and result["batches"]["32"]["modes"]["eager"]["gpu_ms"] > 0
