@@ -92,7 +92,7 @@ def joint_mirror(model: mujoco.MjModel, prim_path: str, joint_names: list[str], 
     """(index, sign), each (J,): mirrored joint ``i`` reads ``sign[i] * q[index[i]]``.
 
     ``joint_names`` are relative to ``prim_path`` (``Entity.joint_names``); ``default_pos`` (J,) the
-    default joint positions, rad. Raises ValueError naming the joint when the model is not
+    default joint positions, rad. Raises SymmetryError naming the joint when the model is not
     mirror-symmetric (a missing partner, anchors or axes that are not mirror images, an asymmetric
     default pose)."""
     data = mujoco.MjData(model)
@@ -111,27 +111,28 @@ def joint_mirror(model: mujoco.MjModel, prim_path: str, joint_names: list[str], 
         partner = mirror_name(name)
         if partner not in position:
             raise SymmetryError(f"{prim_path}: joint {name!r} has no mirror partner {partner!r}; "
-                             "symmetry needs left_/right_ joint pairs; train it without symmetry")
+                                "symmetry needs left_/right_ joint pairs; train it without symmetry")
         j = position[partner]
         if np.abs(anchors[i] * polar - anchors[j]).max() > 1.0e-3:
             raise SymmetryError(f"{prim_path}: joints {name!r} and {partner!r} are not at mirror-image places "
-                             f"({anchors[i].round(4).tolist()} vs {anchors[j].round(4).tolist()} m in the base frame)")
+                                f"({anchors[i].round(4).tolist()} vs {anchors[j].round(4).tolist()} m in the base frame)")
         kind = model.jnt_type[ids[i]]
         if kind not in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
-            raise SymmetryError(f"{prim_path}: joint {name!r} is neither a hinge nor a slide; symmetry mirrors those only; train it without symmetry")
+            raise SymmetryError(f"{prim_path}: joint {name!r} is neither a hinge nor a slide; symmetry mirrors "
+                                "those only; train it without symmetry")
         # a hinge turns about its axis (an axial vector), a slide moves along it (a polar one)
         reflect = axial if kind == int(mujoco.mjtJoint.mjJNT_HINGE) else polar
         dot = float(np.dot(axes[i] * reflect, axes[j]))
         if abs(abs(dot) - 1.0) > tol:
             raise SymmetryError(f"{prim_path}: joint axes of {name!r} and {partner!r} are not mirror images "
-                             f"({axes[i].round(4).tolist()} vs {axes[j].round(4).tolist()})")
+                                f"({axes[i].round(4).tolist()} vs {axes[j].round(4).tolist()})")
         index[i], sign[i] = j, np.sign(dot)
     mirrored = sign * np.asarray(default_pos, dtype=np.float64)[index]
     bad = np.flatnonzero(np.abs(mirrored - default_pos) > 1.0e-6)
     if bad.size:
         names = [joint_names[b] for b in bad[:4]]
         raise SymmetryError(f"{prim_path}: the default pose is not its own mirror image at joints {names}; "
-                         "symmetry needs a left-right symmetric default pose")
+                            "symmetry needs a left-right symmetric default pose; train it without symmetry")
     return index, sign
 
 
@@ -153,7 +154,7 @@ def points_mirror(points_xy: np.ndarray, *, tol: float = 1.0e-5) -> np.ndarray:
     index = dist.argmin(axis=1)
     if (dist[np.arange(len(pts)), index] > tol).any():
         raise SymmetryError("the height scan's points are not symmetric about the heading axis "
-                         "(HeightScanCfg: give an odd number of points across, centred)")
+                            "(HeightScanCfg: give an odd number of points across, centred)")
     return index
 
 
@@ -240,7 +241,7 @@ def _terms_mirror(terms: list[tuple[str, torch.Tensor]], ctx: dict, task: str, d
         rule = TERM_RULES.get(name)
         if rule is None:
             raise SymmetryError(f"{task}: observation term {name!r} has no mirror rule; add one to "
-                             "ambulo.envs.symmetry.TERM_RULES or train without symmetry")
+                                "ambulo.envs.symmetry.TERM_RULES or train without symmetry")
         size = int(value.shape[1])
         try:
             i, s = rule(size, ctx)
@@ -269,7 +270,7 @@ def task_mirror(env) -> TaskMirror:
         ctx["scan"] = points_mirror(env.scanner.points_h.cpu().numpy())
     if env.num_actions != len(joints[0]):
         raise SymmetryError(f"{task}: {env.num_actions} actions for {len(joints[0])} joints; symmetry needs one "
-                         "action a joint; train it without symmetry")
+                            "action a joint; train it without symmetry")
     # the critic's columns are the policy terms (noise-free) and then the privileged ones (RLEnv)
     policy = list(env._policy_terms().items())
     privileged = env._privileged_terms()
