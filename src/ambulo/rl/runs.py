@@ -15,10 +15,12 @@ import json
 import os
 import shutil
 import sys
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 from ambulo import envs
+from ambulo.envs.symmetry import SymmetryError
 from ambulo.envs.transfer import PLAY_KEEPS
 from ambulo.utils.atomic import atomic_write_json
 from ambulo.utils.overrides import replace_dotted
@@ -123,6 +125,22 @@ def discard_new_run(run_dir: Path) -> None:
         Path(run_dir).parent.rmdir()
 
 
+@contextlib.contextmanager
+def refused_before_training(run_dir: Path, *closers: Callable[[], None], discard: bool = True) -> Iterator[None]:
+    """Within the block, a refusal of the run as configured (``CheckpointError``: ``--init-from``
+    weights of other shapes; ``SymmetryError``: symmetry asked of a task that cannot be mirrored)
+    calls ``closers`` (the env, a log writer) and, with ``discard`` (a new run, made by this
+    process), removes its folder (``discard_new_run``) before the error goes on: nothing is left."""
+    try:
+        yield
+    except (CheckpointError, SymmetryError):
+        for close in closers:
+            close()
+        if discard:
+            discard_new_run(run_dir)
+        raise
+
+
 def note_kept_settings(info: dict[str, Any], **given: Any) -> None:
     """One line when a resume was given settings that differ from the run's: a resumed run
     keeps its run.json (its networks, batch and RNG streams continue), as --env-cfg does.
@@ -218,4 +236,5 @@ def load_runner(run_dir: Path, env: envs.RLEnv, checkpoint: Path):
 __all__ = ["RUN_FILE", "CheckpointError", "RunError", "atomic_torch_save", "checkpoints",
            "discard_new_run", "find_checkpoint", "latest_checkpoint", "latest_valid_checkpoint", "load_runner",
            "make_env_for_run", "new_run_dir", "play_overrides", "ppo_from_info", "read_run_info",
+           "refused_before_training",
            "resolve_init_from", "resolve_policy", "resolve_run", "write_run_info"]

@@ -18,7 +18,6 @@ from rsl_rl.runners import OnPolicyRunner
 import ambulo
 from ambulo import envs
 from ambulo.engine import engine_class
-from ambulo.envs.symmetry import SymmetryError
 from ambulo.utils.atomic import remove_partial_files
 
 from . import distributed, interrupt, runs
@@ -272,22 +271,12 @@ def train(task: str | None = None, *, num_envs: int | None = None,
                                 device=distributed.rank_device(info["device"], rank))
     episodes = EpisodeStats(ppo.num_envs, env.device) if rank.is_main else None
     progress_box: list[TrainingProgress] = []
-    try:
+    # (rsl-rl opens its TensorBoard writer in ``learn``: none to close yet)
+    with runs.refused_before_training(run_dir, env.close, discard=rank.is_main and not resume):
         with contextlib.redirect_stdout(io.StringIO()) if not verbose else contextlib.nullcontext():
             runner = _make_runner(env, ppo, run_dir, rank, episodes, progress_box)
-    except SymmetryError:  # symmetry asked of a task that cannot be mirrored: no run folder left
-        env.close()
-        if rank.is_main and not resume:
-            runs.discard_new_run(run_dir)
-        raise
-    if init_checkpoint is not None:
-        try:
+        if init_checkpoint is not None:
             runner.load_for_init(init_checkpoint, info["task"])
-        except runs.CheckpointError:  # networks of other sizes: refused, and no run folder left
-            env.close()  # (rsl-rl opens its TensorBoard writer in ``learn``: none yet)
-            if rank.is_main:
-                runs.discard_new_run(run_dir)
-            raise
     runner.add_git_repo_to_log(ambulo.__file__)
     runner.started_s = started_s
     start = 0

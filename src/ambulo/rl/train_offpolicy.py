@@ -23,7 +23,6 @@ from torch.utils.tensorboard import SummaryWriter
 import ambulo
 from ambulo import envs
 from ambulo.engine import engine_class
-from ambulo.envs.symmetry import SymmetryError
 from ambulo.utils.atomic import remove_partial_files
 
 from . import distributed, interrupt, runs
@@ -81,24 +80,12 @@ def train_offpolicy(task: str | None, *, algo: str, num_envs: int | None = None,
     episodes = EpisodeStats(cfg.num_envs, env.device)
     writer = SummaryWriter(log_dir=str(run_dir), flush_secs=10)
     progress_box: list[TrainingProgress] = []
-    try:
+    with runs.refused_before_training(run_dir, env.close, writer.close, discard=resume_point is None):
         runner = OffPolicyRunner(env, cfg, episodes=episodes, writer=writer, seed=info["seed"], run_dir=run_dir,
                                  on_iteration=lambda *args: progress_box[0].iteration_done(*args))
-    except SymmetryError:  # symmetry asked of a task that cannot be mirrored: no run folder left
-        env.close()
-        writer.close()
-        if resume_point is None:
-            runs.discard_new_run(run_dir)
-        raise
-    runner.started_s = started_s
-    if init_from is not None:
-        try:
+        if init_from is not None:
             runner.load_for_init(init_from, info["task"])
-        except runs.CheckpointError:  # networks of other sizes: refused, and no run folder left
-            env.close()
-            writer.close()
-            runs.discard_new_run(run_dir)
-            raise
+    runner.started_s = started_s
     start = 0
     if resume_point is not None:
         start = runner.load_for_resume(checkpoint)
