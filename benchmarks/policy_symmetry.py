@@ -25,22 +25,14 @@ import sys
 from pathlib import Path
 
 import torch
-from tensordict import TensorDict
 
 from ambulo.envs.symmetry import TaskMirror, task_mirror
+from ambulo.rl.symmetry import mirrored_obs
 from ambulo.rl.vecenv import RslRlVecEnv
 
 # the sibling script's one way to load a run's checkpoint or a shipped policy
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from robustness import add_policy_args, policy_maker
-
-
-def mirrored_obs(obs: TensorDict, mirror: TaskMirror) -> TensorDict:
-    """``obs``'s groups reflected (``policy`` by the actor's map, ``critic`` by the critic's)."""
-    groups = {"policy": mirror.policy(obs["policy"])}
-    if "critic" in obs.keys() and mirror.critic is not None:
-        groups["critic"] = mirror.critic(obs["critic"])
-    return TensorDict(groups, batch_size=obs.batch_size, device=obs.device)
 
 
 @torch.no_grad()

@@ -6,6 +6,7 @@ import torch
 from ambulo import envs
 from ambulo.envs.symmetry import task_mirror
 from ambulo.policies.shipped import load_policy
+from ambulo.rl.symmetry import mirrored_obs
 from script_loader import ROOT, load_script
 
 bench = load_script(ROOT / "benchmarks" / "policy_symmetry.py")
@@ -24,7 +25,7 @@ def test_a_symmetrized_policy_measures_zero_and_the_shipped_walker_does_not():
         return shipped(obs["policy"])
 
     def symmetrized(obs):  # (pi(o) + M pi(M o)) / 2 answers M o with M of its answer to o (M M = I)
-        return 0.5 * (raw(obs) + mirror.actions(raw(bench.mirrored_obs(obs, mirror))))
+        return 0.5 * (raw(obs) + mirror.actions(raw(mirrored_obs(obs, mirror))))
 
     exact = _run(symmetrized, env, mirror)
     env.reset()

@@ -25,25 +25,29 @@ def env_mirror(env) -> TaskMirror:
     return mirror
 
 
+def mirrored_obs(obs: TensorDict, mirror: TaskMirror) -> TensorDict:
+    """``obs``'s groups reflected: ``policy`` by the actor's map, ``critic`` (the task's privileged
+    observations) by the critic's; another group has no map and is refused."""
+    groups = {}
+    for key, value in obs.items():
+        if key == "policy":
+            reflect = mirror.policy
+        elif key == "critic" and mirror.critic is not None:
+            reflect = mirror.critic
+        else:
+            raise ValueError(f"symmetry: no mirror map for the observation group {key!r}")
+        groups[key] = reflect(value)
+    return TensorDict(groups, batch_size=obs.batch_size, device=obs.device)
+
+
 def mirror_augmentation(env, obs: TensorDict | None = None, actions: torch.Tensor | None = None
                         ) -> tuple[TensorDict | None, torch.Tensor | None]:
     """``obs`` (B groups: ``policy``, and ``critic`` when the task has privileged observations)
     and ``actions`` (B, A), each followed by its mirror image: (2B, ...). Either may be None."""
     mirror = env_mirror(env)
-    doubled = None
-    if obs is not None:
-        groups = {}
-        for key, value in obs.items():
-            if key == "policy":
-                reflect = mirror.policy
-            elif key == "critic" and mirror.critic is not None:
-                reflect = mirror.critic
-            else:
-                raise ValueError(f"symmetry: no mirror map for the observation group {key!r}")
-            groups[key] = torch.cat([value, reflect(value)])
-        doubled = TensorDict(groups, batch_size=[2 * obs.batch_size[0]], device=obs.device)
+    doubled = None if obs is None else torch.cat([obs, mirrored_obs(obs, mirror)])
     mirrored_actions = None if actions is None else torch.cat([actions, mirror.actions(actions)])
     return doubled, mirrored_actions
 
 
-__all__ = ["env_mirror", "mirror_augmentation"]
+__all__ = ["env_mirror", "mirror_augmentation", "mirrored_obs"]
