@@ -17,6 +17,7 @@ from warp._src.context import Module
 
 from ambulo.engine import make_engine, warp_precompile
 from ambulo.engine.warp_precompile import compile_in_processes, precompile, recording_launches
+from script_loader import ROOT, load_script
 
 DEVICE = os.environ.get("AMBULO_TEST_DEVICE", "cpu")
 XML = """<mujoco><option timestep="0.002"/><worldbody><geom type="plane" size="5 5 .1"/>
@@ -164,13 +165,7 @@ def test_another_threads_launches_run_during_the_dry_run():
 def test_the_benchmarks_profile_sums_codegen_and_native_and_counts_their_overlap():
     """benchmarks/warp_compile.py --profile: two native compiles that overlap for 1 s of their 2 s + 3 s make
     5 s of compile in 4 s of wall time (1.25 on average at once); a third 1 s after a gap adds 1 s to each."""
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parents[2] / "benchmarks" / "warp_compile.py"
-    spec = importlib.util.spec_from_file_location("warp_compile_benchmark", path)
-    benchmark = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(benchmark)
+    benchmark = load_script(ROOT / "benchmarks" / "warp_compile.py")
     spans = [("codegen", "a", 0.0, 0.5), ("native", "a", 0.5, 2.5), ("codegen", "b", 0.5, 1.5),
              ("native", "b", 1.5, 4.5), ("native", "c", 10.0, 11.0), ("load", "a", 0.0, 2.6)]
     summary = benchmark._profile_summary(spans)
