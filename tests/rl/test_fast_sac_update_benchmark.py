@@ -36,7 +36,8 @@ def test_fast_sac_update_benchmark_reports_times_phases_flops_and_kernels():
                           "--profile", "--profile-updates", "2", "--matmul-size", "256",
                           "--obs", str(OBS), "--critic-obs", str(CRITIC_OBS), "--actions", str(ACTIONS),
                           "--algo-cfg", "num_envs=16", "buffer_steps_per_env=16", f"num_atoms={ATOMS}",
-                          f"actor_hidden_dims={ACTOR_HIDDEN}", f"critic_hidden_dims={CRITIC_HIDDEN}"],
+                          f"actor_hidden_dims={ACTOR_HIDDEN}", f"critic_hidden_dims={CRITIC_HIDDEN}",
+                          "policy_delay=2"],  # the hand count below: the actor every 2nd update
                          cwd=ROOT, env=env, capture_output=True, text=True, timeout=180)
     assert run.returncode == 0, run.stderr[-3000:]
     (line,) = [x for x in run.stdout.splitlines() if x.startswith("RESULT ")]
