@@ -256,7 +256,7 @@ class GpuEngine:
         self._diverged_total = torch.zeros((), dtype=torch.long, device=self.device)
         self._steps_since_check = 0
         self.compile_time_s: float | None = None
-        """Seconds the first runs of step and forward took (kernel compile or cache load)."""
+        """Seconds the first runs of step, forward and set_const took (kernel compile or cache load)."""
         self._warmed: set[tuple] = set()
         self.steps_in_capture = 0
         """``step`` calls recorded into torch CUDA graphs so far (see ``count_steps``)."""
@@ -344,8 +344,23 @@ class GpuEngine:
                          "cam_mat0", "light_pos0", "light_poscom0", "light_dir0"):
                 if name in _batchable_fields() and getattr(self.wp_model, name).size:
                     self.model_field(name)
-        with self.warp_scope():
-            mjw.set_const(self.wp_model, self.wp_data)
+        m, d = self.wp_model, self.wp_data
+
+        def body():
+            mjw.set_const(m, d)
+
+        def run():
+            with self.warp_scope():
+                body()
+
+        # run eagerly, never in a graph (it is rare), but its first run precompiled like a step's: its
+        # modules (set_const's own, the Cholesky tiles of its inertia solve) compiled serially otherwise,
+        # and a task that randomizes masses calls it in envs.make, before any step
+        key = ("set_const",)
+        if key in self._warmed:
+            run()
+        else:
+            self._first_run(key, body, run)
 
     # -- stepping -------------------------------------------------------------
     @contextlib.contextmanager
@@ -369,14 +384,7 @@ class GpuEngine:
                 body()
             return
         if key not in self._warmed:
-            self._warmed.add(key)
-            with _Ticker("compiling MuJoCo Warp kernels") as ticker:
-                self._precompile(key, body)
-                self._run(key, body)
-                if self.device.type == "cuda":
-                    torch.cuda.synchronize(self.device)
-            self.compile_time_s = (self.compile_time_s or 0.0) + ticker.elapsed_s
-            log.info("GpuEngine: first %s (kernel compile or cache load) took %.1f s", key[0], ticker.elapsed_s)
+            self._first_run(key, body, lambda: self._run(key, body))
             return
         if not self.use_graphs:
             with self.warp_scope():
@@ -388,6 +396,18 @@ class GpuEngine:
             self._graphs[key] = graph
         with self.warp_scope():
             wp.capture_launch(graph)
+
+    def _first_run(self, key: tuple, body: Callable[[], None], run: Callable[[], None]) -> None:
+        """The first ``run`` of ``key`` (``body``'s launches, however run), its modules precompiled first:
+        it compiles (or loads from Warp's cache) its kernels, timed into ``compile_time_s``, with progress lines."""
+        self._warmed.add(key)
+        with _Ticker("compiling MuJoCo Warp kernels") as ticker:
+            self._precompile(key, body)
+            run()
+            if self.device.type == "cuda":
+                torch.cuda.synchronize(self.device)
+        self.compile_time_s = (self.compile_time_s or 0.0) + ticker.elapsed_s
+        log.info("GpuEngine: first %s (kernel compile or cache load) took %.1f s", key[0], ticker.elapsed_s)
 
     def _precompile(self, key: tuple, body: Callable[[], None]) -> None:
         """Compile ``body``'s modules from ``compile_workers`` threads (a dry run records them; its
