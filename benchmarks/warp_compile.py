@@ -14,7 +14,9 @@ nothing compiles: the fastest a first step can be.
 ``--profile`` times Warp's compile steps in each run: the Python codegen (held under Warp's one codegen
 lock, so serial whatever the threads), the native compile (Clang or NVRTC, run outside it), and how many
 native compiles overlapped on average (``native_overlap``: their summed time over the wall time some ran;
-near the thread count if nothing else serializes them), with the largest modules.
+near the thread count if nothing else serializes them), with the largest modules, and ``serial_native_s``:
+the native compiles that ran one at a time on the critical path, outside the precompile's parallel loads (in
+its dry run, or after it at a module's first launch: what the precompile missed), with their seconds.
 
 ``--processes N`` adds a third cold run: the parallel run's threads, with N forked processes compiling
 the modules into the cache first (``PhysicsCfg.compile_processes``; one process's NVRTC compiles largely
@@ -37,10 +39,15 @@ import time
 
 
 def _profile_compiles() -> list:
-    """Patch Warp's codegen and native compile to append ``(step, module, start, end)`` to the returned list."""
+    """Patch Warp's codegen and native compile to append ``(step, module, start, end)`` to the returned list,
+    and GpuEngine's precompiles and their dry runs to append ``("precompile" | "dry_run", "", start, end)``."""
+    import contextlib
     import threading
 
     from warp._src import build, context
+
+    import ambulo.engine.gpu as gpu
+    from ambulo.engine import warp_precompile
 
     spans, current = [], threading.local()
 
@@ -62,7 +69,36 @@ def _profile_compiles() -> list:
     timed(context.Module, "_run_codegen", "codegen")
     timed(build, "build_cpu", "native")
     timed(build, "build_cuda", "native")
+    timed(gpu, "precompile", "precompile")  # GpuEngine calls it by this name
+    recording = warp_precompile.recording_launches  # precompile calls it by this name
+
+    @contextlib.contextmanager
+    def timed_recording(*args, **kwargs):
+        begin = time.perf_counter()
+        try:
+            with recording(*args, **kwargs):
+                yield
+        finally:
+            spans.append(("dry_run", "", begin, time.perf_counter()))
+
+    warp_precompile.recording_launches = timed_recording
     return spans
+
+
+def _serial_native(spans: list) -> dict:
+    """``{module: seconds}`` of the native compiles outside a precompile's parallel loads: in a dry run, or
+    outside any precompile (a module's first launch compiling it). Both run one at a time on the caller's
+    thread, so they add up on the cold start's critical path."""
+    windows = {step: [(begin, end) for s, _, begin, end in spans if s == step] for step in ("precompile", "dry_run")}
+
+    def within(step: str, begin: float, end: float) -> bool:
+        return any(w_begin <= begin and end <= w_end for w_begin, w_end in windows[step])
+
+    serial = {}
+    for step, module, begin, end in spans:
+        if step == "native" and (within("dry_run", begin, end) or not within("precompile", begin, end)):
+            serial[module] = round(serial.get(module, 0.0) + end - begin, 2)
+    return dict(sorted(serial.items(), key=lambda item: -item[1]))
 
 
 def _profile_summary(spans: list) -> dict:
@@ -75,13 +111,14 @@ def _profile_summary(spans: list) -> dict:
     largest = sorted(native, key=lambda span: span[0] - span[1])[:5]
     return {"modules_compiled": len(native), "codegen_s": round(total["codegen"], 2),
             "native_s": round(total["native"], 2), "native_overlap": round(total["native"] / busy, 2) if busy else 0.0,
-            "largest_native_s": {module: round(end - begin, 2) for begin, end, module in largest}}
+            "largest_native_s": {module: round(end - begin, 2) for begin, end, module in largest},
+            "serial_native_s": _serial_native(spans)}
 
 
 def child(task: str, device: str, num_envs: int, workers: int, profile: bool = False, processes: int = 0) -> dict:
     """In this process: time ``envs.make`` through two env steps of zero actions."""
+    start = time.perf_counter()  # before the profile's hooks, which import torch and Warp as the run does
     spans = _profile_compiles() if profile else None
-    start = time.perf_counter()
     import torch
 
     import ambulo.envs as envs

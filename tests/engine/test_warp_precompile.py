@@ -174,6 +174,15 @@ def test_the_benchmarks_profile_sums_codegen_and_native_and_counts_their_overlap
     assert list(summary["largest_native_s"]) == ["b", "a", "c"]
 
 
+def test_the_benchmarks_profile_names_the_compiles_outside_the_parallel_loads():
+    """--profile's serial_native_s: a native compile in a precompile's dry run or after it (a module's first launch)
+    ran alone on the critical path; one in the precompile's loads did not."""
+    benchmark = load_script(ROOT / "benchmarks" / "warp_compile.py")
+    spans = [("precompile", "", 0.0, 10.0), ("dry_run", "", 0.0, 3.0), ("native", "queried", 1.0, 2.5),
+             ("native", "loaded", 4.0, 9.0), ("native", "missed", 12.0, 13.0), ("native", "missed", 14.0, 14.5)]
+    assert benchmark._profile_summary(spans)["serial_native_s"] == {"queried": 1.5, "missed": 1.5}
+
+
 @wp.kernel(module="unique")
 def _add_one(values: wp.array(dtype=wp.float32)):
     i = wp.tid()
