@@ -22,6 +22,15 @@ its dry run, or after it at a module's first launch: what the precompile missed)
 the modules into the cache first (``PhysicsCfg.compile_processes``; one process's NVRTC compiles largely
 one at a time). Its profile covers the parent process only.
 
+``--cuda-output ptx|cubin`` makes Warp emit that format (``wp.config.cuda_output``) in every run; each run
+reports the format Warp used (``cuda_output``). PTX is compiled again by the CUDA driver when a module
+loads (its JIT cache, ``~/.nv/ComputeCache``, keeps the result unless ``CUDA_CACHE_DISABLE`` is set); a
+cubin is final. ``--driver-cache`` adds two more cold runs with the parallel threads and an empty Warp
+cache each, the driver's JIT cache on, in a folder of its own: empty for the first, and as the first left
+it for the second (``parallel_driver_cold``, ``parallel_driver_warm``). On one H200 in session 22, runs of
+``ambulo train`` with an empty Warp cache started ~45 s sooner after other runs on the machine than the
+first one did; this tells whether the driver's cache is why.
+
 Ends with ``RESULT {json}``: seconds per setting, ``speedup`` = serial / parallel,
 ``parallel_over_floor`` = parallel / warm and, with ``--processes``, ``processes_speedup`` = parallel /
 processes and ``processes_over_floor`` = processes / warm.
@@ -115,11 +124,15 @@ def _profile_summary(spans: list) -> dict:
             "serial_native_s": _serial_native(spans)}
 
 
-def child(task: str, device: str, num_envs: int, workers: int, profile: bool = False, processes: int = 0) -> dict:
+def child(task: str, device: str, num_envs: int, workers: int, profile: bool = False, processes: int = 0,
+          cuda_output: str | None = None) -> dict:
     """In this process: time ``envs.make`` through two env steps of zero actions."""
     start = time.perf_counter()  # before the profile's hooks, which import torch and Warp as the run does
     spans = _profile_compiles() if profile else None
     import torch
+    import warp as wp
+
+    wp.config.cuda_output = cuda_output  # None: Warp's choice (PTX when the driver is at least its toolkit)
 
     import ambulo.envs as envs
 
@@ -137,15 +150,23 @@ def child(task: str, device: str, num_envs: int, workers: int, profile: bool = F
               "engine_compile_s": round(engine.compile_time_s or 0.0, 2),
               "precompiled_modules": sum(r.modules for r in reports.values()),
               "compile_processes": sum(r.processes for r in reports.values()),
-              "compile_process_failures": sum(r.process_failures for r in reports.values())}
+              "compile_process_failures": sum(r.process_failures for r in reports.values()),
+              "cuda_output": wp.get_device(str(env.device)).get_cuda_output_format() if env.device.type == "cuda" else None}
     return result if spans is None else result | {"profile": _profile_summary(spans)}
 
 
-def measure(args, workers: int, cache_dir: str, processes: int = 0) -> dict:
+def measure(args, workers: int, cache_dir: str, processes: int = 0, driver_cache_dir: str | None = None) -> dict:
+    """One run in a process of its own, with ``cache_dir`` as Warp's kernel cache and the CUDA driver's JIT
+    cache off, or in ``driver_cache_dir`` when given."""
     env = dict(os.environ, WARP_CACHE_PATH=cache_dir, CUDA_CACHE_DISABLE="1")
+    if driver_cache_dir is not None:
+        env.pop("CUDA_CACHE_DISABLE")
+        env["CUDA_CACHE_PATH"] = driver_cache_dir
     command = [sys.executable, __file__, "--child", "--task", args.task, "--device", args.device,
                "--num-envs", str(args.num_envs), "--workers", str(workers),
                "--processes", str(processes)] + ["--profile"] * args.profile
+    if args.cuda_output:
+        command += ["--cuda-output", args.cuda_output]
     done = subprocess.run(command, env=env, capture_output=True, text=True, check=False)
     lines = [line for line in done.stdout.splitlines() if line.startswith("CHILD ")]
     if done.returncode != 0 or not lines:
@@ -164,10 +185,15 @@ def main() -> None:
                         help="time Warp's codegen and native compiles in each run (adds a 'profile' entry per run)")
     parser.add_argument("--processes", type=int, default=0,
                         help="also time a cold run whose modules N forked processes compile first (0: no such run)")
+    parser.add_argument("--cuda-output", choices=("ptx", "cubin"), default=None,
+                        help="the CUDA format Warp emits in every run (default: Warp's choice)")
+    parser.add_argument("--driver-cache", action="store_true",
+                        help="also time two cold runs with the CUDA driver's JIT cache on: empty, then as the first left it")
     parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
-        result = child(args.task, args.device, args.num_envs, int(args.workers), args.profile, args.processes)
+        result = child(args.task, args.device, args.num_envs, int(args.workers), args.profile, args.processes,
+                       args.cuda_output)
         print("CHILD " + json.dumps(result), flush=True)
         return
     import ambulo.envs as envs
@@ -188,13 +214,19 @@ def main() -> None:
         if args.processes > 1:
             results["processes"] = measure(args, parallel, os.path.join(root, "processes"), args.processes)
             print("processes", args.processes, results["processes"], flush=True)
+        if args.driver_cache:  # an empty Warp cache each time; the driver's cache empty, then filled by the first
+            driver_dir = os.path.join(root, "driver")
+            for name in ("parallel_driver_cold", "parallel_driver_warm"):
+                results[name] = measure(args, parallel, os.path.join(root, name), driver_cache_dir=driver_dir)
+                print(name, results[name], flush=True)
         results["warm"] = measure(args, parallel, os.path.join(root, "parallel"))  # nothing left to compile
         print("warm", results["warm"], flush=True)
     seconds = {k: v["seconds"] for k, v in results.items()}
     result = {"task": args.task, "device": args.device, "num_envs": args.num_envs,
               "workers": {"serial": serial, "parallel": parallel}, "seconds": seconds, "runs": results,
               "speedup": round(seconds["serial"] / seconds["parallel"], 3),
-              "parallel_over_floor": round(seconds["parallel"] / seconds["warm"], 3)}
+              "parallel_over_floor": round(seconds["parallel"] / seconds["warm"], 3),
+              "cuda_output": results["parallel"]["cuda_output"]}
     if "processes" in seconds:
         result |= {"processes": args.processes,
                    "processes_speedup": round(seconds["parallel"] / seconds["processes"], 3),

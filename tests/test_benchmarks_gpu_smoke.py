@@ -178,12 +178,19 @@ def test_eval_gpu_times_an_evaluation_of_the_shipped_walker():
 
 @pytest.mark.slow  # three cold compiles of cartpole's kernels: ~1 min on 2 free cores
 def test_warp_compile_times_serial_parallel_and_a_warm_cache():
-    result = run_benchmark("warp_compile.py", "--task", "cartpole", "--num-envs", "2", "--workers", "0,2")
+    result = run_benchmark("warp_compile.py", "--task", "cartpole", "--num-envs", "2", "--workers", "0,2",
+                           "--driver-cache")
     runs = result["runs"]
     assert runs["serial"]["precompiled_modules"] == 0 < runs["parallel"]["precompiled_modules"]
     # the warm run finds the parallel run's cache: it compiles nothing, so it is the fastest
     assert runs["warm"]["engine_compile_s"] < runs["parallel"]["engine_compile_s"]
     assert result["speedup"] == round(result["seconds"]["serial"] / result["seconds"]["parallel"], 3)
+    # --driver-cache: two more runs, each from an empty Warp cache of its own (they compile as much as the
+    # parallel run, not a warm run's nothing); on the CPU no CUDA format is reported
+    for name in ("parallel_driver_cold", "parallel_driver_warm"):
+        assert runs[name]["precompiled_modules"] == runs["parallel"]["precompiled_modules"]
+        assert runs[name]["engine_compile_s"] > 2 * runs["warm"]["engine_compile_s"], name
+    assert result["cuda_output"] is None and runs["serial"]["cuda_output"] is None
 
 
 def test_warp_compile_refuses_workers_that_are_not_two_numbers():
