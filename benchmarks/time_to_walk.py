@@ -11,7 +11,10 @@ the task's criterion (humanoid-walk's ``walks``: fall rate <= 5 %, mean velocity
 m/s over 100 episodes of 20 s) on the training device and then, for the same checkpoint, on the
 CPU engine (``ambulo.rl.periodic_eval``: a success on the GPU engine alone does not stop the run),
 with both evaluations' output. A run that has not walked by
-``--max-minutes`` is stopped with SIGINT (it saves) and counts as not reached.
+``--max-minutes`` is stopped with SIGINT (it saves) and counts as not reached. Each seed's entry
+also splits its minutes: ``eval_s_included`` (the evaluations), the iterations' collect and learn
+times (``metrics.csv``) and ``startup_s``, the rest (imports, env build, the kernel compile): what
+a warm or cold kernel cache, or a machine's earlier runs, change.
 
 The ceiling is the physics alone: raw ``mujoco_warp.step`` of the task's model at the same
 number of worlds, free running in a CUDA graph (``benchmarks/env_gpu.py``'s ``RawWarp``), in
@@ -115,8 +118,10 @@ def run_summary(root: Path) -> dict:
     run = runs[-1].parent
     out: dict = {"run": str(run), "reached": False}
     reached = run / "time_to_criterion.json"
+    wall_s = None
     if reached.is_file():
         info = json.loads(reached.read_text())
+        wall_s = info["wall_s"]
         out.update(reached=True, minutes=round(info["wall_s"] / 60, 2), iteration=info["iteration"],
                    env_steps=info["env_steps"], eval=info["eval"], eval_cpu_engine=info.get("eval_cpu_engine"),
                    eval_s_included=info["eval_s_included"])
@@ -128,6 +133,10 @@ def run_summary(root: Path) -> dict:
         out["train_env_steps_per_s"] = round(steps / max(sum(spans), 1e-9))
         out["collect_s_per_it"] = round(statistics.median(float(r["collect_s"]) for r in rows), 3)
         out["learn_s_per_it"] = round(statistics.median(float(r["learn_s"]) for r in rows), 3)
+        if out["reached"]:  # what was neither training nor evaluating: imports, env build, kernel compile
+            trained = sum(float(r["collect_s"]) + float(r["learn_s"]) for r in rows
+                          if int(r["iteration"]) <= out["iteration"])
+            out["startup_s"] = round(wall_s - out["eval_s_included"] - trained, 1)
     evals = run / "evals.csv"
     if evals.is_file():
         out["evals"] = [dict(r) for r in csv.DictReader(open(evals))]

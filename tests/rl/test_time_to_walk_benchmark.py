@@ -51,3 +51,17 @@ def test_gpu_ids_beyond_the_inherited_mask_are_refused_in_one_line():
         ttw.child_visible_devices(["0", "2"], "1,3")
     message = str(refused.value)
     assert "\n" not in message and "--gpu-ids 2" in message and "0..1" in message
+
+
+def test_start_up_is_the_wall_time_neither_training_nor_evaluating(tmp_path):
+    """By hand: met at 12.5 s, iteration 1, 2.0 s of evaluations; iterations 0 and 1 took 1.5 + 0.5 and
+    0.25 + 0.25 s (iteration 2, after the criterion, does not count): start-up 12.5 - 2.0 - 2.5 = 8.0 s."""
+    run = tmp_path / "cartpole" / "2026-12-01_00-00-00"
+    run.mkdir(parents=True)
+    (run / "run.json").write_text("{}")
+    (run / "time_to_criterion.json").write_text(json.dumps(
+        {"wall_s": 12.5, "iteration": 1, "env_steps": 64, "eval": {}, "eval_s_included": 2.0}))
+    (run / "metrics.csv").write_text("iteration,env_steps,collect_s,learn_s\n0,32,1.5,0.5\n1,64,0.25,0.25\n"
+                                     "2,96,9.0,9.0\n")
+    summary = _time_to_walk_module().run_summary(tmp_path)
+    assert summary["reached"] and summary["startup_s"] == 8.0
