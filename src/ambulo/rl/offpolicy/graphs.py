@@ -40,7 +40,7 @@ class UpdateGraphs:
         if generators and not hasattr(torch.cuda.CUDAGraph, "register_generator_state"):
             raise RuntimeError(f"OffPolicyCfg.cuda_graph: torch {torch.__version__} cannot advance the sampling "
                                "generator inside a CUDA graph (CUDAGraph.register_generator_state, torch >= 2.5); "
-                               "set cuda_graph=false")
+                               "set cuda_graph=false (`--algo-cfg cuda_graph=false`)")
         self.device, self.warmup, self.generators = device, warmup, tuple(generators)
         self.stream = torch.cuda.Stream(device)
         """The side stream of the warm-up calls and the captures."""
@@ -94,7 +94,8 @@ class UpdateGraphs:
                 fn()
         except Exception as error:  # one clear error, never a silent fall back to eager updates
             raise RuntimeError(f"OffPolicyCfg.cuda_graph: capturing the update failed ({type(error).__name__}: "
-                               f"{error}); train with cuda_graph=false (eager updates) instead") from error
+                               f"{error}); train with cuda_graph=false (eager updates: "
+                               "`--algo-cfg cuda_graph=false`) instead") from error
         current.wait_stream(self.stream)
         self.captures += 1
         return graph
