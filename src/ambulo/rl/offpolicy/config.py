@@ -163,9 +163,10 @@ def _fast_td3_scale() -> dict[str, Any]:
 def _walking(algo: str) -> dict[str, Any]:
     """Flat walking, fast-sac: FastSAC's humanoid recipe (Amazon FAR's holosoma defaults, read, not copied) on
     ``_fast_td3_scale``'s worlds and action bounds: batches of 8192 with 8 updates per env step
-    (the same samples per env step as 32k x 2, in updates that each cost a quarter), the actor
-    every 4th update, discount 0.97, Polyak 0.125, critics 768-384-192 with weight decay, a +-20
-    return support, left-right mirror augmentation and the updates replayed as CUDA graphs. On one
+    (the same samples per env step as 32k x 2, in updates of a quarter the size that each take a
+    third of the time on an H200), the actor every 4th update, discount 0.97, Polyak 0.125, critics
+    768-384-192 with weight decay, a +-20 return support, left-right mirror augmentation and the
+    updates replayed as CUDA graphs. On one
     H200 humanoid-walk met ``walks`` on both engines in 3.01-3.17 min (median 3.07, 3 seeds, 4.1 M
     env steps each) against 5.47 min and 7.4 M with ``_fast_td3_scale`` plus graphs and symmetry,
     and PPO's 3.50 min and 29.5 M in the same session (benchmarks/results/h200-2026-12-01-session22.md).
