@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import copy
 import math
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import torch
@@ -38,6 +39,31 @@ if TYPE_CHECKING:
 
 STAT_NAMES = ("critic_loss", "actor_loss", "alpha", "entropy", "q_mean", "action_std")
 """What ``FastOffPolicy.stats`` accumulates (per update; actor terms per actor update)."""
+
+
+def compiled_step(update: Callable[[Batch], None], name: str,
+                  compile_fn: Callable[[Callable], Callable] = torch.compile) -> Callable[[Batch], None]:
+    """``compile_fn(update)`` (``torch.compile``) whose failure at its first call (where
+    torch.compile builds: a missing compiler or Triton, an unsupported op) raises one RuntimeError
+    naming the setting to turn it off. ``compile`` is a walking task's default, not a user's
+    choice. Later calls run unguarded: an error there is the update's own."""
+    compiled = compile_fn(update)
+    built = False
+
+    def step(batch: Batch) -> None:
+        nonlocal built
+        if built:
+            return compiled(batch)
+        try:
+            compiled(batch)
+        except Exception as error:
+            first = (str(error).strip().splitlines() or [""])[0][:200]
+            raise RuntimeError(f"OffPolicyCfg.compile: torch.compile of the {name} update failed "
+                               f"({type(error).__name__}: {first}); train without it: "
+                               "`--algo-cfg compile=false`") from error
+        built = True
+
+    return step
 
 
 class FastOffPolicy(nn.Module):
@@ -94,8 +120,8 @@ class FastOffPolicy(nn.Module):
         self._critic_step = self._critic_update
         self._actor_step = self._actor_update
         if cfg.compile and self.device.type == "cuda":
-            self._critic_step = torch.compile(self._critic_update)
-            self._actor_step = torch.compile(self._actor_update)
+            self._critic_step = compiled_step(self._critic_update, "critic")
+            self._actor_step = compiled_step(self._actor_update, "actor")
 
     # -- acting ----------------------------------------------------------------------------------
     @torch.no_grad()
@@ -265,4 +291,4 @@ class FastOffPolicy(nn.Module):
             self.graphs.reset()
 
 
-__all__ = ["STAT_NAMES", "FastOffPolicy"]
+__all__ = ["STAT_NAMES", "FastOffPolicy", "compiled_step"]
