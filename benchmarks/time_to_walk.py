@@ -13,7 +13,9 @@ CPU engine (``ambulo.rl.periodic_eval``: a success on the GPU engine alone does 
 with both evaluations' output. A run that has not walked by
 ``--max-minutes`` is stopped with SIGINT (it saves) and counts as not reached. Each seed's entry
 also splits its minutes: ``eval_s_included`` (the evaluations), the iterations' collect and learn
-times (``metrics.csv``) and ``startup_s``, the rest (imports, env build, the kernel compile): what
+times (``metrics.csv``) and ``startup_s``, the rest (imports, env build, the kernel compile; with
+``--eval-async``, counted to the judged checkpoint's save, and ``verdict_lag_s`` from there to the
+verdict): what
 a warm or cold kernel cache, or a machine's earlier runs, change.
 
 The ceiling is the physics alone: raw ``mujoco_warp.step`` of the task's model at the same
@@ -83,7 +85,8 @@ def launch(args, algo: str, seed: int, out: Path, gpus: list[str]) -> tuple[subp
               if ranks > 1 else [sys.executable])
     cmd = [*prefix, "-m", "ambulo.cli", "train", args.task, "--device", args.device,
            "--seed", str(seed), "--eval-every", str(eval_every(args.eval_every, algo)),
-           *([] if args.keep_training else ["--stop-at-criterion"]), "--max-iterations", str(args.max_iterations), "--log-root", str(root)]
+           *([] if args.keep_training else ["--stop-at-criterion"]), *(["--eval-async"] if args.eval_async else []),
+           "--max-iterations", str(args.max_iterations), "--log-root", str(root)]
     if args.num_envs:
         cmd += ["--num-envs", str(args.num_envs)]
     for pair in args.env_cfg or []:
@@ -125,6 +128,9 @@ def run_summary(root: Path) -> dict:
         out.update(reached=True, minutes=round(info["wall_s"] / 60, 2), iteration=info["iteration"],
                    env_steps=info["env_steps"], eval=info["eval"], eval_cpu_engine=info.get("eval_cpu_engine"),
                    eval_s_included=info["eval_s_included"])
+        if info.get("eval_async"):  # judged in the background: the verdict came this long after the save
+            wall_s = info["checkpoint_wall_s"]  # training went on meanwhile: start-up counts to the save
+            out.update(eval_async=True, verdict_lag_s=round(info["wall_s"] - wall_s, 1))
     rows = list(csv.DictReader(open(run / "metrics.csv"))) if (run / "metrics.csv").is_file() else []
     if rows:
         spans = [float(r["collect_s"]) + float(r["learn_s"]) for r in rows[1:]] or [1e-9]
@@ -186,6 +192,8 @@ def main() -> None:
     p.add_argument("--ppo-cfg", action="append")
     p.add_argument("--algo-cfg", action="append", help="the off-policy algorithms' settings (OffPolicyCfg)")
     p.add_argument("--out", default="/tmp/ambulo-time-to-walk")
+    p.add_argument("--eval-async", action="store_true",
+                   help="evaluate in a worker process while training goes on (ambulo train --eval-async)")
     p.add_argument("--no-ceiling", action="store_true")
     p.add_argument("--keep-training", action="store_true",
                    help="train on to --max-minutes after the criterion (for the best policy); the "

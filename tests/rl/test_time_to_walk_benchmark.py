@@ -65,3 +65,19 @@ def test_start_up_is_the_wall_time_neither_training_nor_evaluating(tmp_path):
                                      "2,96,9.0,9.0\n")
     summary = _time_to_walk_module().run_summary(tmp_path)
     assert summary["reached"] and summary["startup_s"] == 8.0
+
+
+def test_start_up_of_a_run_judged_in_the_background_counts_to_the_judged_save(tmp_path):
+    """By hand: iteration 1's checkpoint saved at 11.0 s, its verdict at 12.5 s (training went on:
+    iteration 2's 18 s are past it); 0.1 s of saving: start-up 11.0 - 0.1 - 2.5 = 8.4 s, lag 1.5 s."""
+    run = tmp_path / "cartpole" / "2026-12-01_00-00-00"
+    run.mkdir(parents=True)
+    (run / "run.json").write_text("{}")
+    (run / "time_to_criterion.json").write_text(json.dumps(
+        {"wall_s": 12.5, "iteration": 1, "env_steps": 64, "eval": {}, "eval_s_included": 0.1,
+         "eval_async": True, "checkpoint_wall_s": 11.0}))
+    (run / "metrics.csv").write_text("iteration,env_steps,collect_s,learn_s\n0,32,1.5,0.5\n1,64,0.25,0.25\n"
+                                     "2,96,9.0,9.0\n")
+    summary = _time_to_walk_module().run_summary(tmp_path)
+    assert summary["minutes"] == round(12.5 / 60, 2)  # the time to the criterion is the verdict's
+    assert summary["startup_s"] == 8.4 and summary["verdict_lag_s"] == 1.5 and summary["eval_async"]

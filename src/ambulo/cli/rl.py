@@ -279,6 +279,11 @@ def train(args: argparse.Namespace) -> int:
     _check_writable(args.log_root, "--log-root", folder=True)
     if args.stop_at_criterion and not args.eval_every:
         raise CliError("--stop-at-criterion needs --eval-every", "add e.g. --eval-every 50")
+    if args.eval_async and not args.eval_every:
+        raise CliError("--eval-async needs --eval-every", "add e.g. --eval-every 50")
+    if args.eval_async and args.num_gpus is not None:
+        raise CliError("--eval-async evaluates beside one training process, not --num-gpus ranks",
+                       "drop --eval-async (the ranks evaluate together)")
     watch = web_watch(args)
     if args.num_gpus is not None and os.environ.get("LOCAL_RANK") is None:
         return _train_on_gpus(args, watch)
@@ -294,7 +299,8 @@ def train(args: argparse.Namespace) -> int:
                       ppo_overrides=None if offpolicy else ppo_overrides,
                       algo_overrides=ppo_overrides if offpolicy else None,
                       verbose=args.verbose, eval_every=args.eval_every,
-                      stop_at_criterion=args.stop_at_criterion, started_s=STARTED_S, watch=watch)
+                      stop_at_criterion=args.stop_at_criterion, started_s=STARTED_S, watch=watch,
+                      eval_async=args.eval_async)
     except TrainingInterrupted as stopped:  # SIGINT/SIGTERM: says what was saved, how to resume
         print(f"ambulo train: {stopped}", file=sys.stderr)
         return stopped.exit_status
@@ -489,6 +495,9 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--stop-at-criterion", action="store_true",
                    help="with --eval-every: end training at the first evaluation that meets them "
                         "(on a GPU: that also meets them on the CPU engine, evaluated then)")
+    p.add_argument("--eval-async", action="store_true",
+                   help="with --eval-every: evaluate in a worker process while training goes on (the "
+                        "verdict a few iterations later; its log: <run>/eval_worker.log)")
     p.add_argument("--num-gpus", type=whole_above_zero("--num-gpus 2"), default=None, metavar="N",
                    help="train on GPUs 0..N-1 as N data-parallel ranks (torchrun's, started for you; "
                         "--num-envs per GPU)")

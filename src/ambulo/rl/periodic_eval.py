@@ -125,12 +125,14 @@ class PeriodicEval:
     def __init__(self, info: dict[str, Any], run_dir: Path, *, every: int, started_s: float,
                  steps_per_iteration: int, num_episodes: int | None = None, seed: int = 12345,
                  device: str | None = None, start: int = 0, confirm_on_cpu_engine: bool = True,
-                 rank: Rank | None = None):
+                 rank: Rank | None = None, build_env: bool = True, records: bool = True):
         """``start`` > 0: the run resumes at that iteration (``resume_evals``).
         ``confirm_on_cpu_engine``: a success on another engine counts only once the CPU engine
         confirms it (see the module docstring). ``rank``: this process's place in a data-parallel
         run (default: the only one); ``device`` is then this rank's. ``num_episodes``: default 100,
-        or the task's blocks' default (``eval_blocks``: the criteria are judged in every block)."""
+        or the task's blocks' default (``eval_blocks``: the criteria are judged in every block).
+        ``build_env`` False: no evaluation env here (``eval_async``: a worker process evaluates);
+        ``records`` False: write nothing to the run folder (that worker: its parent records)."""
         self.task = envs.spec(info["task"])
         if not self.task.criteria:
             raise ValueError(f"--eval-every: task {info['task']!r} declares no success criterion to "
@@ -144,16 +146,16 @@ class PeriodicEval:
         self.rank = rank if rank is not None else Rank()
         self.share = eval_share(self.num_episodes, seed, self.rank, blocks=self.layout.blocks)
         """This rank's episodes (all of them in one process)."""
-        self.env = runs.make_env_for_run(info, num_envs=self.share.episodes, seed=self.share.seed, play=True,
-                                         device=device, episode_length_s=self.episode_length_s,
-                                         **self.layout.env_overrides)
-        # 100 worlds are launch-bound on a GPU: each evaluation's 1,000 steps replay one CUDA graph
-        self.env.use_cuda_graph()
-        self.vec_env = RslRlVecEnv(self.env)
-        # each evaluation starts the env's generator where a fresh env's stands, so it draws the
-        # episodes `ambulo eval` draws for this seed and device
-        self._rng_state = self.env.generator.get_state()
-        self.confirm = confirm_on_cpu_engine and not is_cpu_engine(self.env)
+        self.env: envs.RLEnv | None = None
+        self.confirm: bool | None = None
+        """Whether a success is confirmed on the CPU engine (False when the evaluation env is it);
+        None until the env is built (``eval_async.BackgroundEval``: its worker's env)."""
+        self.on_cpu_engine: bool | None = None
+        """Whether the evaluation env is the CPU engine (None until built, as ``confirm``)."""
+        if build_env:
+            self._build_env(device, confirm_on_cpu_engine)
+        self.eval_device = str(self.env.device) if self.env is not None else None
+        """The evaluation env's device, as ``time_to_criterion.json`` names it."""
         self.cpu_env: envs.RLEnv | None = None
         """The CPU-engine evaluation env, built at the first success to confirm."""
         self.eval_s = 0.0
@@ -162,7 +164,7 @@ class PeriodicEval:
         self.reached: dict[str, Any] | None = None
         """The first evaluation that met the criteria (``time_to_criterion.json``), if any yet;
         rank 0's is the run's (the others do not read the resumed run's)."""
-        if not self.rank.is_main:
+        if not self.rank.is_main or not records:
             return  # rank 0 writes the run folder
         if start > 0:
             self.reached = resume_evals(self.run_dir, start)
@@ -172,6 +174,28 @@ class PeriodicEval:
     def due(self, iteration: int) -> bool:
         return eval_due(iteration, self.every)
 
+    def _build_env(self, device: str | None, confirm_on_cpu_engine: bool) -> None:
+        self.env = runs.make_env_for_run(self.info, num_envs=self.share.episodes, seed=self.share.seed, play=True,
+                                         device=device, episode_length_s=self.episode_length_s,
+                                         **self.layout.env_overrides)
+        # 100 worlds are launch-bound on a GPU: each evaluation's 1,000 steps replay one CUDA graph
+        self.env.use_cuda_graph()
+        self.vec_env = RslRlVecEnv(self.env)
+        # each evaluation starts the env's generator where a fresh env's stands, so it draws the
+        # episodes `ambulo eval` draws for this seed and device
+        self._rng_state = self.env.generator.get_state()
+        self.on_cpu_engine = is_cpu_engine(self.env)
+        self.confirm = confirm_on_cpu_engine and not self.on_cpu_engine
+
+    def poll(self) -> list[tuple[int, dict[str, Any], float]]:
+        """Evaluations finished since the last call, as (iteration, result, wall s): none here,
+        where ``__call__`` returns its own (``eval_async.BackgroundEval`` returns its worker's)."""
+        return []
+
+    def finish(self) -> None:
+        """Training ran all its iterations: nothing is left to evaluate here (``eval_async``
+        waits for its worker)."""
+
     def __call__(self, runner, iteration: int) -> dict[str, Any]:
         """Save ``model_<iteration>.pt``, evaluate it (and confirm a success on the CPU engine),
         log it; return the eval result (``result["cpu_engine"]``: the confirmation, if run).
@@ -180,25 +204,32 @@ class PeriodicEval:
         if self.rank.is_main:
             runner.save(str(checkpoint))
         began = time.monotonic()
-        self.env.generator.set_state(self._rng_state)  # the same commands and resets every time
         policy = runner.get_inference_policy(device=str(self.env.device))
         try:
-            result = run_episodes(self.env, self.vec_env, policy, self.task, blocks=self.layout.run_blocks,
-                                  **self._merge())
-            met = self._met(result)
-            cpu = self._cpu_engine_eval(policy) if met and self.confirm else None
+            result, met, cpu, confirmed = self.evaluate(policy)
         finally:
             runner.alg.train_mode()  # get_inference_policy switched it to eval mode
         self.eval_s += time.monotonic() - began
         wall_s = time.monotonic() - self.started_s
-        confirmed = met and (not self.confirm or self._met(cpu))
-        if cpu is not None:
-            result = {**result, "cpu_engine": cpu}
         if self.rank.is_main:
             self._record(runner, iteration, checkpoint, wall_s, result, met, cpu, confirmed)
         elif confirmed and self.reached is None:
             self.reached = {"iteration": iteration}
         return result
+
+    def evaluate(self, policy) -> tuple[dict[str, Any], bool, dict[str, Any] | None, bool]:
+        """``policy`` over this evaluation's episodes (and, when they meet the criteria off the
+        CPU engine, over the same episodes on it): (result, met, the CPU engine's result or None,
+        confirmed). ``result["cpu_engine"]`` holds the confirmation when it ran."""
+        self.env.generator.set_state(self._rng_state)  # the same commands and resets every time
+        result = run_episodes(self.env, self.vec_env, policy, self.task, blocks=self.layout.run_blocks,
+                              **self._merge())
+        met = self._met(result)
+        cpu = self._cpu_engine_eval(policy) if met and self.confirm else None
+        confirmed = met and (not self.confirm or self._met(cpu))
+        if cpu is not None:
+            result = {**result, "cpu_engine": cpu}
+        return result, met, cpu, confirmed
 
     def _record(self, runner, iteration: int, checkpoint: Path, wall_s: float, result: dict[str, Any],
                 met: bool, cpu: dict[str, Any] | None, confirmed: bool) -> None:
@@ -234,9 +265,14 @@ class PeriodicEval:
                             "checkpoint": checkpoint.name, "wall_s": round(wall_s, 1),
                             "env_steps": (iteration + 1) * self.steps_per_iteration,
                             "eval_s_included": round(self.eval_s, 1), "eval": result,
-                            "eval_device": str(self.env.device),
-                            "eval_cpu_engine": cpu if cpu is not None else result if is_cpu_engine(self.env) else None}
+                            "eval_device": self.eval_device,
+                            "eval_cpu_engine": cpu if cpu is not None else result if self.on_cpu_engine else None,
+                            **self._reached_extras(iteration)}
             atomic_write_json(self.run_dir / TIME_FILE, self.reached, indent=2, fsync=True)
+
+    def _reached_extras(self, iteration: int) -> dict[str, Any]:
+        """More fields of ``time_to_criterion.json`` (``eval_async``: when the checkpoint was saved)."""
+        return {}
 
     def _merge(self) -> dict[str, Any]:
         """``run_episodes``' ``merge`` argument in a data-parallel run (nothing in one process):
@@ -262,7 +298,8 @@ class PeriodicEval:
                             blocks=self.layout.run_blocks, **self._merge())
 
     def close(self) -> None:
-        self.env.close()
+        if self.env is not None:
+            self.env.close()
         if self.cpu_env is not None:
             self.cpu_env.close()
 

@@ -41,7 +41,9 @@ class TrainingProgress:
       runner: the ``OnPolicyRunner`` (evaluations read its policy and save its checkpoint).
       episodes: the main rank's ``EpisodeStats`` (None on the other ranks).
       periodic: this rank's ``PeriodicEval`` (every rank of a data-parallel run has one: each
-        evaluates its share of the episodes), or None without ``--eval-every``.
+        evaluates its share of the episodes), an ``eval_async.BackgroundEval`` (``--eval-async``:
+        a worker process evaluates while training goes on; its results are polled every
+        iteration), or None without ``--eval-every``.
       start, total: the first iteration this process runs and the run's iteration count.
       step_dt_s: the env's policy step, s (episode lengths in the CSV are in seconds).
       steps_per_iteration: env steps of all ranks in one iteration.
@@ -87,11 +89,20 @@ class TrainingProgress:
         if self.on_scalars is not None:
             self.on_scalars(iteration, training_scalars(reward, length_s, float(row[4])))
         self.stop.check()
-        if self.periodic is not None and self.periodic.due(iteration):
-            result = self.periodic(self.runner, iteration)
-            self.bar.write(summary(result, iteration, time.monotonic() - self.periodic.started_s))
+        if self.periodic is None:
+            return
+        due = self.periodic.due(iteration)
+        finished = []
+        if due:
+            result = self.periodic(self.runner, iteration)  # None: handed to a background worker
+            if result is not None:
+                finished.append((iteration, result, time.monotonic() - self.periodic.started_s))
+        finished += self.periodic.poll()  # the background worker's evaluations (``eval_async``)
+        for evaluated, result, wall_s in finished:
+            self.bar.write(summary(result, evaluated, wall_s))
             if self.on_scalars is not None:
-                self.on_scalars(iteration, evaluation_scalars(result))
+                self.on_scalars(evaluated, evaluation_scalars(result))
+        if due or finished:  # a data-parallel run evaluates in step: only `due` ever holds there
             reached = distributed.agree(self.periodic.reached is not None, self.rank, self.device)
             if self.stop_at_criterion and reached:
                 raise CriterionReached

@@ -24,6 +24,7 @@ from . import distributed, interrupt, runs
 from .checkpoints import check_same_shapes
 from .config import PpoCfg, ppo_cfg
 from .episodes import EpisodeStats
+from .eval_async import check_eval_args, make_periodic_eval
 from .log_writer import ProgressWriter
 from .logger import EpisodeLogger
 from .periodic_eval import PeriodicEval, resume_evals
@@ -155,6 +156,13 @@ def _resume_point(task: str | None, resume: str | os.PathLike | bool,
                                    ) from None
 
 
+def _saved_at(reached: dict[str, Any]) -> str:
+    """When the judged checkpoint was saved, for an evaluation in the background (``eval_async``)."""
+    if not reached.get("eval_async"):
+        return ""
+    return f" saved at {reached['checkpoint_wall_s'] / 60:.2f} min, judged in the background"
+
+
 def _report_time_to_criterion(periodic: PeriodicEval) -> None:
     reached = periodic.reached
     names = " and ".join(c.name for c in periodic.task.criteria)
@@ -163,7 +171,7 @@ def _report_time_to_criterion(periodic: PeriodicEval) -> None:
         return
     confirmed = " (confirmed on the CPU engine)" if periodic.confirm else ""
     print(f"{names} reached{confirmed} at iteration {reached['iteration']} after {reached['wall_s'] / 60:.2f} min "
-          f"({reached['env_steps']:,} env steps, {reached['checkpoint']}; "
+          f"({reached['env_steps']:,} env steps, {reached['checkpoint']}{_saved_at(reached)}; "
           f"{periodic.run_dir / 'time_to_criterion.json'})")
 
 
@@ -174,7 +182,7 @@ def train(task: str | None = None, *, num_envs: int | None = None,
           verbose: bool = False, eval_every: int | None = None, stop_at_criterion: bool = False,
           started_s: float | None = None, watch: Callable[[envs.RLEnv], Any] | None = None,
           algo: str | None = None, algo_overrides: dict[str, Any] | None = None,
-          init_from: str | os.PathLike | None = None) -> Path:
+          init_from: str | os.PathLike | None = None, eval_async: bool = False) -> Path:
     """Train ``task`` with PPO (or ``algo``); return the run directory.
 
     Args:
@@ -200,6 +208,8 @@ def train(task: str | None = None, *, num_envs: int | None = None,
       stop_at_criterion: with ``eval_every``, end training at that first success. A success on
         an engine other than the CPU engine (a GPU's) counts only once the same policy meets the
         criteria on the CPU engine too (``ambulo.rl.periodic_eval``).
+      eval_async: with ``eval_every``, evaluate in a worker process while training goes on
+        (``ambulo.rl.eval_async``); one process only.
       started_s: ``time.monotonic()`` the timing counts from (default: now; the CLI passes
         the time it started).
       algo: ``"ppo"`` (default) or an off-policy learner, ``"fast-sac"`` or ``"fast-td3"``
@@ -215,8 +225,7 @@ def train(task: str | None = None, *, num_envs: int | None = None,
     ``interrupt.TrainingInterrupted`` (see ``ambulo.rl.interrupt``).
     """
     started_s = time.monotonic() if started_s is None else started_s
-    if stop_at_criterion and not eval_every:
-        raise ValueError("stopping at the criterion needs periodic evaluation; give eval_every too")
+    check_eval_args(eval_every, stop_at_criterion, eval_async)
     if init_from is not None and resume:
         raise ValueError("init_from starts a new run; resume continues one: give one of them")
     resume_point = _resume_point(task, resume, log_root) if resume else None
@@ -236,8 +245,12 @@ def train(task: str | None = None, *, num_envs: int | None = None,
                                device=device, resume_point=resume_point, log_root=log_root,
                                env_overrides=env_overrides, algo_overrides=algo_overrides, verbose=verbose,
                                eval_every=eval_every, stop_at_criterion=stop_at_criterion, started_s=started_s,
-                               report=_report_time_to_criterion, watch=watch, init_from=init_checkpoint)
+                               report=_report_time_to_criterion, watch=watch, init_from=init_checkpoint,
+                               eval_async=eval_async)
     rank = distributed.current()
+    if eval_async and rank.distributed:
+        raise ValueError("--eval-async evaluates in one worker beside one training process; a data-parallel "
+                         "run evaluates across its ranks: drop --eval-async")
     if resume:
         run_dir, checkpoint = resume_point
         info = runs.read_run_info(run_dir)
@@ -296,9 +309,9 @@ def train(task: str | None = None, *, num_envs: int | None = None,
     stop = interrupt.StopRequest()
     periodic = None
     if eval_every:  # every rank evaluates its share of the episodes; rank 0 records them
-        periodic = PeriodicEval(info, run_dir, every=eval_every, started_s=started_s,
-                                steps_per_iteration=ppo.num_steps_per_env * ppo.num_envs * rank.world_size,
-                                device=str(env.device), start=start, rank=rank)
+        periodic = make_periodic_eval(info, run_dir, every=eval_every, started_s=started_s,
+                                      steps_per_iteration=ppo.num_steps_per_env * ppo.num_envs * rank.world_size,
+                                      device=str(env.device), start=start, rank=rank, eval_async=eval_async)
     elif resume and rank.is_main:  # evaluations of a crashed run's later iterations go, with or without --eval-every
         resume_evals(run_dir, start)
     watcher = watch(env) if watch is not None and rank.is_main else None
@@ -316,6 +329,8 @@ def train(task: str | None = None, *, num_envs: int | None = None,
         with contextlib.redirect_stdout(io.StringIO()) if not verbose else contextlib.nullcontext():
             interrupt.learn(runner, stop, run_dir, remaining,
                             init_at_random_ep_len=ppo.init_at_random_ep_len and not resume)
+            if periodic is not None:  # evaluations still running in a background worker
+                periodic.finish()
     except CriterionReached:
         pass
     finally:

@@ -27,6 +27,7 @@ from ambulo.utils.atomic import remove_partial_files
 
 from . import distributed, interrupt, runs
 from .episodes import EpisodeStats
+from .eval_async import check_eval_args, make_periodic_eval
 from .offpolicy import OffPolicyRunner, offpolicy_cfg
 from .offpolicy.config import cfg_from_info
 from .periodic_eval import PeriodicEval, resume_evals
@@ -40,7 +41,8 @@ def train_offpolicy(task: str | None, *, algo: str, num_envs: int | None = None,
                     verbose: bool = False, eval_every: int | None = None, stop_at_criterion: bool = False,
                     started_s: float | None = None,
                     report: Callable[[PeriodicEval], None] | None = None,
-                    watch: Callable[[envs.RLEnv], Any] | None = None, init_from: Path | None = None) -> Path:
+                    watch: Callable[[envs.RLEnv], Any] | None = None, init_from: Path | None = None,
+                    eval_async: bool = False) -> Path:
     """Train ``task`` with ``algo``; return the run folder. Arguments as ``rl.train.train``'s;
     ``resume_point``: (run folder, checkpoint) of a run to continue (``train._resume_point``),
     ``report``: prints the time to the criterion at the end; ``watch``: as ``train``'s (the web
@@ -48,8 +50,7 @@ def train_offpolicy(task: str | None, *, algo: str, num_envs: int | None = None,
     (from ``runs.resolve_init_from``) whose networks a new run starts from
     (``OffPolicyRunner.load_for_init``)."""
     started_s = time.monotonic() if started_s is None else started_s
-    if stop_at_criterion and not eval_every:
-        raise ValueError("stopping at the criterion needs periodic evaluation; give eval_every too")
+    check_eval_args(eval_every, stop_at_criterion, eval_async)
     if distributed.current().distributed:
         raise ValueError(f"--algo {algo} trains in one process; start it without torchrun")
     if resume_point is not None:
@@ -103,8 +104,9 @@ def train_offpolicy(task: str | None, *, algo: str, num_envs: int | None = None,
     steps_per_iteration = cfg.num_steps_per_env * cfg.num_envs
     periodic = None
     if eval_every:
-        periodic = PeriodicEval(info, run_dir, every=eval_every, started_s=started_s,
-                                steps_per_iteration=steps_per_iteration, device=str(env.device), start=start)
+        periodic = make_periodic_eval(info, run_dir, every=eval_every, started_s=started_s,
+                                      steps_per_iteration=steps_per_iteration, device=str(env.device), start=start,
+                                      eval_async=eval_async)
     elif resume_point is not None:
         resume_evals(run_dir, start)
     stop = interrupt.StopRequest()
@@ -117,6 +119,8 @@ def train_offpolicy(task: str | None, *, algo: str, num_envs: int | None = None,
     progress_box.append(progress)
     try:
         interrupt.learn(runner, stop, run_dir, remaining, init_at_random_ep_len=resume_point is None)
+        if periodic is not None:  # evaluations still running in a background worker
+            periodic.finish()
     except CriterionReached:
         pass
     finally:

@@ -1,0 +1,112 @@
+"""The worker process of ``eval_async.BackgroundEval`` (``python -m ambulo.rl.eval_worker``).
+
+It reads JSON lines on stdin: first the evaluation's settings (``info``, ``run_dir``,
+``num_episodes``, ``seed``, ``device``, ``confirm_on_cpu_engine``), then one ``{"iteration",
+"checkpoint"}`` per checkpoint to judge. It builds its ``PeriodicEval`` (recording nothing: the
+training process records) at the first checkpoint, so its kernels load from the cache the
+training process has filled by then, and answers ``{"ready", ...}`` once. For each checkpoint it
+answers ``{"iteration", "result", "met", "cpu", "confirmed", "eval_s", "skipped"}``; when several
+wait, it judges the newest and lists the others under ``skipped``. On an error it answers
+``{"error": "Type: message"}`` and exits 1. End of stdin ends it. Anything printed (by ambulo,
+MuJoCo or Warp) goes to stderr, the run's ``eval_worker.log``: stdout carries only the answers.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import sys
+import threading
+import time
+from collections import deque
+from pathlib import Path
+
+
+def _answers():
+    """A line writer on the real stdout; fd 1 then points at stderr, so stray prints (Python's or
+    a C library's) cannot corrupt the answers."""
+    out = os.fdopen(os.dup(1), "w", buffering=1)
+    os.dup2(2, 1)
+    sys.stdout = sys.stderr
+
+    def answer(message: dict) -> None:
+        out.write(json.dumps(message) + "\n")
+
+    return answer
+
+
+def serve() -> int:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # training's Ctrl-C is training's to handle
+    answer = _answers()
+    jobs: deque = deque()
+    arrived = threading.Condition()
+    done = []
+
+    def read() -> None:
+        for line in sys.stdin:
+            with arrived:
+                jobs.append(json.loads(line))
+                arrived.notify()
+        with arrived:
+            done.append(True)
+            arrived.notify()
+
+    threading.Thread(target=read, daemon=True).start()
+    try:
+        with arrived:
+            while not jobs and not done:
+                arrived.wait()
+            if not jobs:
+                return 0
+            settings = jobs.popleft()
+        periodic = None
+        while True:
+            with arrived:
+                while not jobs and not done:
+                    arrived.wait()
+                if not jobs:
+                    return 0
+                waiting = list(jobs)
+                jobs.clear()
+            if periodic is None:
+                periodic = _evaluator(settings)
+                answer({"ready": True, "confirm": periodic.confirm, "on_cpu_engine": periodic.on_cpu_engine,
+                        "eval_device": periodic.eval_device})
+                with arrived:  # checkpoints saved while the env was built: judge the newest
+                    waiting += list(jobs)
+                    jobs.clear()
+            newest = waiting[-1]
+            began = time.monotonic()
+            result, met, cpu, confirmed = _judge(periodic, settings, Path(newest["checkpoint"]))
+            answer({"iteration": newest["iteration"], "result": result, "met": met, "cpu": cpu,
+                    "confirmed": confirmed, "eval_s": round(time.monotonic() - began, 2),
+                    "skipped": [job["iteration"] for job in waiting[:-1]]})
+    except Exception as error:  # the training process reports it and stops
+        import traceback
+
+        traceback.print_exc()
+        first = (str(error).strip().splitlines() or [""])[0][:300]
+        answer({"error": f"{type(error).__name__}: {first}"})
+        return 1
+
+
+def _evaluator(settings: dict):
+    from .periodic_eval import PeriodicEval
+
+    return PeriodicEval(settings["info"], Path(settings["run_dir"]), every=1, started_s=time.monotonic(),
+                        steps_per_iteration=1, num_episodes=settings["num_episodes"], seed=settings["seed"],
+                        device=settings["device"], confirm_on_cpu_engine=settings["confirm_on_cpu_engine"],
+                        records=False)
+
+
+def _judge(periodic, settings: dict, checkpoint: Path):
+    """``checkpoint``'s deterministic policy through ``periodic.evaluate``."""
+    from . import runs
+
+    runner = runs.load_runner(Path(settings["run_dir"]), periodic.env, checkpoint)
+    return periodic.evaluate(runner.get_inference_policy(device=str(periodic.env.device)))
+
+
+if __name__ == "__main__":
+    sys.exit(serve())

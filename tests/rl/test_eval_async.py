@@ -1,0 +1,129 @@
+"""--eval-async: a worker process judges the checkpoints while training goes on, exactly as the
+synchronous evaluation would, and the training process records what it finds."""
+
+import csv
+import json
+import shutil
+import time
+
+import pytest
+
+from ambulo.cli import main
+from ambulo.rl import evaluate
+from ambulo.rl.eval_async import WORKER_LOG, BackgroundEval
+from ambulo.rl.runs import read_run_info
+
+
+@pytest.fixture(scope="module")
+def async_run(tmp_path_factory):
+    root = tmp_path_factory.mktemp("runs")
+    status = main(["train", "cartpole", "--num-envs", "256", "--max-iterations", "200", "--seed", "0",
+                   "--eval-every", "10", "--stop-at-criterion", "--eval-async", "--log-root", str(root)])
+    assert status == 0
+    return next(root.glob("cartpole/*"))
+
+
+def test_training_stops_once_the_worker_finds_the_criterion_met(async_run):
+    rows = list(csv.DictReader(open(async_run / "evals.csv")))
+    met = [r["criteria_met"] == "True" for r in rows]
+    assert met[-1] and not any(met[:-1])
+    iterations = [int(r["iteration"]) for r in rows]
+    assert iterations == sorted(iterations) and all((i + 1) % 10 == 0 for i in iterations)
+    reached = json.loads((async_run / "time_to_criterion.json").read_text())
+    last = iterations[-1]
+    assert reached["iteration"] == last and reached["checkpoint"] == f"model_{last}.pt" and reached["eval_async"]
+    # the verdict comes after the checkpoint; training went on meanwhile, but stopped
+    assert reached["checkpoint_wall_s"] <= reached["wall_s"]
+    trained = int(list(csv.DictReader(open(async_run / "metrics.csv")))[-1]["iteration"])
+    assert last <= trained < 199
+    assert reached["eval_s_included"] < 0.5 * reached["wall_s"]  # the trainer only saved and handed over
+
+
+def test_the_worker_judges_as_ambulo_eval_does(async_run):
+    """Its numbers are `ambulo eval`'s for the same checkpoint and seed: the same episodes."""
+    reached = json.loads((async_run / "time_to_criterion.json").read_text())
+    again = evaluate(async_run, checkpoint=reached["checkpoint"], quiet=True)
+    for key in ("fall_rate", "mean_return", "mean_episode_length_s", "balances"):
+        assert again[key] == reached["eval"][key], key
+    first = list(csv.DictReader(open(async_run / "evals.csv")))[0]
+    early = evaluate(async_run, checkpoint=f"model_{first['iteration']}.pt", quiet=True)
+    assert f"{early['mean_return']:.2f}" == first["mean_return"]
+
+
+class _Saver:
+    """A runner stand-in whose checkpoints are copies of a file (or garbage)."""
+
+    logger = None
+
+    def __init__(self, source=None):
+        self.source = source
+
+    def save(self, path):
+        if self.source is None:
+            open(path, "wb").write(b"not a checkpoint")
+        else:
+            shutil.copy(self.source, path)
+
+
+def _copy_run(async_run, tmp_path):
+    run = tmp_path / "run"
+    run.mkdir()
+    shutil.copy(async_run / "run.json", run / "run.json")
+    return run
+
+
+def test_the_newest_waiting_checkpoint_is_judged_and_older_ones_skipped(async_run, tmp_path):
+    run = _copy_run(async_run, tmp_path)
+    reached = json.loads((async_run / "time_to_criterion.json").read_text())
+    periodic = BackgroundEval(read_run_info(run), run, every=10, started_s=time.monotonic(), steps_per_iteration=1)
+    saver = _Saver(async_run / reached["checkpoint"])
+    periodic(saver, 9)
+    periodic(saver, 19)  # handed over while the worker still builds its env
+    try:
+        finished = periodic.poll(block=True, timeout_s=120)
+    finally:
+        periodic.close()
+    assert [it for it, _, _ in finished] == [19] and periodic.skipped == [9]
+    rows = list(csv.DictReader(open(run / "evals.csv")))
+    assert [r["iteration"] for r in rows] == ["19"] and rows[0]["criteria_met"] == "True"
+
+
+def test_a_failing_worker_ends_training_with_its_error(async_run, tmp_path):
+    run = _copy_run(async_run, tmp_path)
+    periodic = BackgroundEval(read_run_info(run), run, every=10, started_s=time.monotonic(), steps_per_iteration=1)
+    periodic(_Saver(), 9)
+    with pytest.raises(RuntimeError, match=r"the background evaluation failed \(\w+Error: .*drop --eval-async"):
+        periodic.poll(block=True, timeout_s=120)
+    periodic.close()
+    assert "Traceback" in (run / WORKER_LOG).read_text()
+    assert not (run / "time_to_criterion.json").exists()
+
+
+def test_eval_async_needs_eval_every(tmp_path, capsys):
+    assert main(["train", "cartpole", "--eval-async", "--log-root", str(tmp_path)]) == 2
+    assert "--eval-async needs --eval-every" in capsys.readouterr().err
+    assert not any(tmp_path.iterdir())
+
+
+def test_an_off_policy_run_records_the_evaluations_still_running_when_it_ends(tmp_path):
+    """Training ends (its iterations done) with evaluations under way: they are waited for and
+    recorded; the worker loads fast-sac's actor as `ambulo eval` does."""
+    assert main(["train", "cartpole", "--algo", "fast-sac", "--max-iterations", "10", "--seed", "0",
+                 "--eval-every", "5", "--eval-async", "--log-root", str(tmp_path)]) == 0
+    run = next(tmp_path.glob("cartpole/*"))
+    rows = list(csv.DictReader(open(run / "evals.csv")))
+    assert [r["iteration"] for r in rows][-1] == "9"
+    again = evaluate(run, checkpoint="model_9.pt", quiet=True)
+    assert f"{again['mean_return']:.2f}" == rows[-1]["mean_return"]
+
+
+def test_a_stopped_run_does_not_wait_for_the_evaluation_under_way(async_run, tmp_path):
+    """Ctrl-C, the criterion or an error end training at once: ``close`` ends the worker without
+    recording what it had not finished (``finish``, after the last iteration, waits)."""
+    run = _copy_run(async_run, tmp_path)
+    reached = json.loads((async_run / "time_to_criterion.json").read_text())
+    periodic = BackgroundEval(read_run_info(run), run, every=10, started_s=time.monotonic(), steps_per_iteration=1)
+    periodic(_Saver(async_run / reached["checkpoint"]), 9)
+    periodic.close()
+    assert periodic._proc.poll() is not None
+    assert list(csv.DictReader(open(run / "evals.csv"))) == [] and periodic.pending
