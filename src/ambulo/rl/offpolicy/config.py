@@ -168,7 +168,8 @@ def _sac_recipe() -> dict[str, Any]:
     768-384-192 with weight decay, a +-20 return support, left-right mirror augmentation, and the
     updates compiled (``torch.compile``) and replayed as CUDA graphs: on an H200 a compiled graphed
     update took 1.51 ms against 2.64 ms graphed alone (the fusion removes most of the casts and
-    LayerNorm/SiLU passes that bound it), a one-off ~45 s compile included in the times below."""
+    LayerNorm/SiLU passes that bound it). The compile (~43 s on that H200) is paid once a machine:
+    Inductor caches what it built (``TORCHINDUCTOR_CACHE_DIR``) as Warp caches its kernels."""
     return dict(_fast_td3_scale(), batch_size=8192, updates_per_step=8, policy_delay=4, gamma=0.97,
                 tau=0.125, critic_hidden_dims=(768, 384, 192), weight_decay=1.0e-3, v_min=-20.0, v_max=20.0,
                 symmetry=True, cuda_graph=True, compile=True)
@@ -177,7 +178,7 @@ def _sac_recipe() -> dict[str, Any]:
 def _walking(algo: str) -> dict[str, Any]:
     """Flat walking: ``_sac_recipe`` for fast-sac. On one H200 humanoid-walk met ``walks`` on both
     engines in 3.01-3.17 min (median 3.07, 3 seeds, 4.1 M env steps each) uncompiled, and in 2.72
-    min compiled (seed 0, 3.17 uncompiled), against 5.47 min and 7.4 M with ``_fast_td3_scale`` plus
+    min compiled (seed 0, 3.17 uncompiled; Inductor's cache warm, Warp's empty), against 5.47 min and 7.4 M with ``_fast_td3_scale`` plus
     graphs and symmetry, and PPO's median 3.50 min (3.00-4.21, 29.5-39.3 M; sessions 22 and 23,
     benchmarks/results/h200-2026-12-01-session23.md). fast-td3 keeps ``_fast_td3_scale``: the
     recipe is SAC's and has not been tried with TD3."""
