@@ -125,6 +125,15 @@ class OffPolicyCfg(Checked):
     compiled kernels are captured: the walking recipe's default). A capture that fails raises (no silent
     eager fall back). Ignored on the CPU."""
 
+    overlap_collect: bool = False
+    """Run each env step's collection while the updates of the steps before it run, on a second
+    CUDA stream (``offpolicy.overlap``): the env's and the networks' kernels, each too small to
+    fill a GPU, then share it. The worlds act with a copy of the actor refreshed after every
+    step's updates (one step behind the sequential order), the observation normalizers are
+    updated between steps, and the updates sample everything but the slot being written, with
+    their own generator. On the CPU the same order runs one step after another (what the tests
+    check). Not yet timed on a GPU."""
+
     def __post_init__(self) -> None:
         super().__post_init__()
         if self.v_max <= self.v_min:

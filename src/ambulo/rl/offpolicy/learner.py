@@ -126,17 +126,19 @@ class FastOffPolicy(nn.Module):
     # -- acting ----------------------------------------------------------------------------------
     @torch.no_grad()
     def explore(self, obs: torch.Tensor, noise_std: torch.Tensor | None = None,
-                noise: torch.Tensor | None = None) -> torch.Tensor:
+                noise: torch.Tensor | None = None, actor: Actor | None = None) -> torch.Tensor:
         """Training actions: sampled (fast-sac) or the actor's plus Gaussian noise of per-world
         ``noise_std`` (N, 1), clipped to the action bound (fast-td3). ``noise``: (N, A) standard
-        normal draws to use (``noise_hold_steps``); None draws fresh ones."""
+        normal draws to use (``noise_hold_steps``); None draws fresh ones. ``actor``: a copy to act
+        with (``overlap_collect``); default the one being trained."""
+        actor = self.actor if actor is None else actor
         with torch.autocast(self.device.type, torch.bfloat16, enabled=self.autocast):
             if self.sac:
-                actions = self.actor.sample(obs, noise)[0]
+                actions = actor.sample(obs, noise)[0]
             else:
-                actions = self.actor(obs)
+                actions = actor(obs)
                 actions = actions + (torch.randn_like(actions) if noise is None else noise) * noise_std
-        bound = self.actor.action_bound
+        bound = actor.action_bound
         return torch.clamp(actions.float(), -bound, bound)
 
     def train_mode(self) -> None:

@@ -62,6 +62,13 @@ class ReplayRing:
         self.size_device = torch.zeros((), dtype=torch.int64, device=device)
         """``ptr`` and ``size`` on the device (``fill_`` from the host counters: a kernel argument,
         no sync): what sampling reads, so a CUDA graph of it sees the current ring."""
+        self.base_device = torch.zeros((), dtype=torch.int64, device=device)
+        """The slot that sample index 0 maps to: 0, or with ``write_ahead`` the oldest slot kept."""
+        self.write_ahead = False
+        """Sampling runs while the next step is written (``OffPolicyCfg.overlap_collect``): ``add``
+        leaves the device counters alone, ``publish`` sets them from the host's, and sampling
+        skips the slot the next ``add`` overwrites. The other stream then reads counters that
+        nothing changes under it and never a half-written slot."""
 
     def add(self, obs: torch.Tensor, critic_obs: torch.Tensor | None, actions: torch.Tensor,
             rewards: torch.Tensor, next_obs: torch.Tensor, next_critic_obs: torch.Tensor | None,
@@ -80,8 +87,19 @@ class ReplayRing:
         self.ended[i] = ended
         self.ptr = (i + 1) % self.capacity
         self.size = min(self.size + 1, self.capacity)
+        if not self.write_ahead:
+            self.ptr_device.fill_(self.ptr)
+            self.size_device.fill_(self.size)
+
+    def publish(self) -> None:
+        """``write_ahead``: make the steps added so far what sampling draws from, less the slot
+        the next ``add`` overwrites (the oldest, once the ring is full): ``capacity - 1`` slots
+        at most, from ``(ptr - size) mod capacity`` on. Call it on the stream that adds, before
+        the sampling stream waits for that stream."""
+        size = min(self.size, self.capacity - 1)
         self.ptr_device.fill_(self.ptr)
-        self.size_device.fill_(self.size)
+        self.size_device.fill_(size)
+        self.base_device.fill_((self.ptr - size) % self.capacity)
 
     def sample(self, batch_size: int, n_step: int, gamma: float,
                generator: torch.Generator | None = None) -> Batch:
@@ -93,7 +111,7 @@ class ReplayRing:
         # floor(u * n) of u ~ U[0, 1): uniform over 0 .. n-1 (to float32's 2**-24 grain); the clamp
         # catches u * n rounding up to n. n is the device size: no host value is baked into a graph
         t = (torch.rand(batch_size, generator=generator, device=dev) * self.size_device).long()
-        t = t.clamp_max(self.size_device - 1)
+        t = (t.clamp_max(self.size_device - 1) + self.base_device) % self.capacity
         e = (torch.rand(batch_size, generator=generator, device=dev) * self.num_envs).long()
         e = e.clamp_max(self.num_envs - 1)
         return self.transitions(t, e, n_step, gamma)

@@ -34,6 +34,7 @@ from ..vecenv import RslRlVecEnv
 from .config import OffPolicyCfg
 from .learner import FastOffPolicy
 from .networks import Actor
+from .overlap import OverlappedSteps
 from .replay import ReplayRing
 
 
@@ -139,6 +140,8 @@ class OffPolicyRunner:
         self._held_steps = torch.zeros(env.num_envs, dtype=torch.long, device=env.device)
         obs = self.env.get_observations()
         self._obs, self._critic_obs = obs["policy"], obs.get("critic", None)
+        self.overlap = OverlappedSteps(self, seed) if cfg.overlap_collect else None
+        """Collection beside the updates (``cfg.overlap_collect``), or None."""
 
     def _draw_noise(self, worlds: torch.Tensor) -> None:
         """fast-td3's per-world exploration std, drawn anew where ``worlds`` (N,) is set."""
@@ -146,20 +149,21 @@ class OffPolicyRunner:
         fresh = torch.rand(self.raw_env.num_envs, 1, generator=self.generator, device=self.device)
         self._noise_std = torch.where(worlds[:, None], low + (high - low) * fresh, self._noise_std)
 
-    def _collect(self) -> None:
-        """One env step of every world into the ring."""
+    def _collect(self, acting: Actor | None = None) -> None:
+        """One env step of every world into the ring. ``acting``: the actor copy to act with
+        (``overlap.OverlappedSteps``, which then updates the normalizers itself)."""
         cfg, env = self.cfg, self.raw_env
         obs, critic_obs = self._obs, self._critic_obs
-        if cfg.obs_normalization:
+        if cfg.obs_normalization and acting is None:
             self.alg.actor.normalizer.update(obs)
             self.alg.critic.normalizer.update(obs if critic_obs is None else critic_obs)
         if self.env_steps < cfg.random_steps:
             actions = (torch.rand(env.num_envs, env.num_actions, generator=self.generator, device=self.device)
                        * 2.0 - 1.0) * self.alg.actor.action_bound
         elif cfg.noise_hold_steps > 1:
-            actions = self.alg.explore(obs, self._noise_std, self._hold_noise())
+            actions = self.alg.explore(obs, self._noise_std, self._hold_noise(), actor=acting)
         else:
-            actions = self.alg.explore(obs, self._noise_std)
+            actions = self.alg.explore(obs, self._noise_std, actor=acting)
         if self._final_critic is not None:
             (next_obs, rewards, dones, extras), final_critic = self._final_critic.step(
                 lambda: self.env.step(actions))
@@ -202,10 +206,16 @@ class OffPolicyRunner:
             self.env.episode_length_buf = torch.randint(0, high, (self.raw_env.num_envs,),
                                                         generator=self.generator, device=self.device)
         start = self.current_learning_iteration
+        if self.overlap is not None:  # act with the weights this run starts from (a resume's, an init's)
+            self.overlap.refresh()
         for it in range(start, start + num_learning_iterations):
             self.current_learning_iteration = it
             collect_s = learn_s = 0.0
             for _ in range(cfg.num_steps_per_env):
+                if self.overlap is not None:
+                    collected_s, queued_s = self.overlap.step()
+                    collect_s, learn_s = collect_s + collected_s, learn_s + queued_s
+                    continue
                 began = time.perf_counter()
                 self._collect()
                 collected = time.perf_counter()
@@ -248,6 +258,8 @@ class OffPolicyRunner:
                  "env_steps": self.env_steps,
                  "infos": {**(infos or {}), "env_rng": self.raw_env.generator.get_state(),
                            "torch_rng": torch.get_rng_state(), "sampling_rng": self.generator.get_state(),
+                           **({"overlap_rng": self.overlap.generator.get_state()} if getattr(self, "overlap", None)
+                              else {}),
                            "episode_returns": self.episodes.returns() if self.episodes is not None else [],
                            "episode_lengths": self.episodes.lengths() if self.episodes is not None else [],
                            "wall_s": time.monotonic() - self.started_s}}
@@ -268,6 +280,8 @@ class OffPolicyRunner:
         self.raw_env.generator.set_state(infos["env_rng"].cpu())
         torch.set_rng_state(infos["torch_rng"].cpu())
         self.generator.set_state(infos["sampling_rng"].cpu())
+        if self.overlap is not None and "overlap_rng" in infos:
+            self.overlap.generator.set_state(infos["overlap_rng"].cpu())
         if self.episodes is not None:
             self.episodes.restore(infos.get("episode_returns", []), infos.get("episode_lengths", []))
         self.started_s -= float(infos.get("wall_s", 0.0))  # the earlier segments' wall time (PPO's runner does too)
