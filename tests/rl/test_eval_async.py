@@ -3,14 +3,16 @@ synchronous evaluation would, and the training process records what it finds."""
 
 import csv
 import json
+import queue
 import shutil
 import time
+from types import SimpleNamespace
 
 import pytest
 
 from ambulo.cli import main
 from ambulo.rl import evaluate
-from ambulo.rl.eval_async import WORKER_LOG, BackgroundEval
+from ambulo.rl.eval_async import ANSWER, WORKER_LOG, BackgroundEval
 from ambulo.rl.runs import read_run_info
 
 
@@ -127,3 +129,14 @@ def test_a_stopped_run_does_not_wait_for_the_evaluation_under_way(async_run, tmp
     periodic.close()
     assert periodic._proc.poll() is not None
     assert list(csv.DictReader(open(run / "evals.csv"))) == [] and periodic.pending
+
+
+def test_lines_that_are_not_answers_go_to_the_log(tmp_path):
+    """A library may print to stdout while the worker imports ambulo, before it points fd 1 at its log."""
+    periodic = BackgroundEval.__new__(BackgroundEval)  # the reader alone, on scripted output
+    periodic._proc = SimpleNamespace(stdout=[b"Warp 1.19.0 initialized\n", (ANSWER + '{"ready": true}\n').encode()])
+    periodic._log, periodic._replies = open(tmp_path / "log", "ab"), queue.Queue()
+    periodic._read()
+    periodic._log.close()
+    assert periodic._replies.get_nowait() == {"ready": True} and periodic._replies.get_nowait() is None
+    assert (tmp_path / "log").read_bytes() == b"Warp 1.19.0 initialized\n"

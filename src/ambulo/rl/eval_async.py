@@ -37,6 +37,9 @@ from typing import Any
 from .periodic_eval import PeriodicEval
 
 WORKER_LOG = "eval_worker.log"
+ANSWER = "ambulo-eval "
+"""What starts each of the worker's answers on its stdout; other lines (a library printing while
+ambulo is imported, before the worker points fd 1 at its log) go to the log."""
 
 
 class BackgroundEval(PeriodicEval):
@@ -81,7 +84,14 @@ class BackgroundEval(PeriodicEval):
 
     def _read(self) -> None:
         for line in self._proc.stdout:
-            self._replies.put(json.loads(line))
+            text = line.decode(errors="replace")
+            if text.startswith(ANSWER):
+                self._replies.put(json.loads(text[len(ANSWER):]))
+            else:
+                try:
+                    self._log.write(line)
+                except ValueError:  # the log closed as the worker ended
+                    pass
         self._replies.put(None)  # the worker's end
 
     def __call__(self, runner, iteration: int) -> None:
@@ -137,8 +147,11 @@ class BackgroundEval(PeriodicEval):
     def _raise_failure(self, error: str | None = None) -> None:
         """The worker failed: end training with its error in one line."""
         if error is None:
-            self._proc.wait(timeout=30)
-            error = f"it exited with status {self._proc.returncode}"
+            try:
+                self._proc.wait(timeout=30)
+                error = f"it exited with status {self._proc.returncode}"
+            except subprocess.TimeoutExpired:
+                error = "its answers stopped"
         self._stop(kill=True)
         raise RuntimeError(f"the background evaluation failed ({error}; log: {self.run_dir / WORKER_LOG}); "
                            "train with evaluations in the training process: drop --eval-async")
@@ -186,4 +199,4 @@ def make_periodic_eval(info: dict[str, Any], run_dir: Path, *, eval_async: bool 
     return PeriodicEval(info, run_dir, **kwargs)
 
 
-__all__ = ["WORKER_LOG", "BackgroundEval", "check_eval_args", "make_periodic_eval"]
+__all__ = ["ANSWER", "WORKER_LOG", "BackgroundEval", "check_eval_args", "make_periodic_eval"]

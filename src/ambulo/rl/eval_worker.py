@@ -6,7 +6,8 @@ It reads JSON lines on stdin: first the evaluation's settings (``info``, ``run_d
 training process records) at the first checkpoint, so its kernels load from the cache the
 training process has filled by then, and answers ``{"ready", ...}`` once. For each checkpoint it
 answers ``{"iteration", "result", "met", "cpu", "confirmed", "eval_s", "skipped"}``; when several
-wait, it judges the newest and lists the others under ``skipped``. On an error it answers
+wait, it judges the newest and lists the others under ``skipped``. Each answer is one line that
+starts with ``eval_async.ANSWER``. On an error it answers
 ``{"error": "Type: message"}`` and exits 1. End of stdin ends it. Anything printed (by ambulo,
 MuJoCo or Warp) goes to stderr, the run's ``eval_worker.log``: stdout carries only the answers.
 """
@@ -22,6 +23,8 @@ import time
 from collections import deque
 from pathlib import Path
 
+from .eval_async import ANSWER
+
 
 def _answers():
     """A line writer on the real stdout; fd 1 then points at stderr, so stray prints (Python's or
@@ -31,7 +34,7 @@ def _answers():
     sys.stdout = sys.stderr
 
     def answer(message: dict) -> None:
-        out.write(json.dumps(message) + "\n")
+        out.write(ANSWER + json.dumps(message) + "\n")
 
     return answer
 
