@@ -143,7 +143,7 @@ def test_training_curves_include_each_evaluation_and_its_criteria(tmp_path):
     evaluation = {"fall_rate": 0.25, "mean_return": 3.0, "mean_abs_lin_vel_error": 0.3, "criteria": ["walks"],
                   "walks": False}
     periodic = type("Periodic", (), {"due": lambda self, it: it == 1, "started_s": time.monotonic(), "reached": None,
-                                     "__call__": lambda self, runner, it: evaluation})()
+                                     "__call__": lambda self, runner, it: evaluation, "poll": lambda self: []})()
     sent = []
     (tmp_path / "task" / "run").mkdir(parents=True)
     progress = TrainingProgress(SimpleNamespace(device="cpu"), tmp_path / "task" / "run", start=0, total=2,
