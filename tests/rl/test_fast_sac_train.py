@@ -53,3 +53,15 @@ def test_balances_cartpole_and_exports(tmp_path, algo):
     assert result["balances"] and result["fall_rate"] <= 0.05
     exported = export(run_dir, out_dir=tmp_path / "exported")
     assert exported["onnx_max_abs_diff"] < 1e-4 and exported["torchscript_max_abs_diff"] < 1e-5
+
+
+@pytest.mark.slow
+def test_balances_cartpole_collecting_beside_the_updates_judged_in_the_background(tmp_path):
+    """``overlap_collect`` (the worlds act with an actor one update round old) still solves cartpole,
+    and ``eval_async`` stops the run at the worker's first success."""
+    run_dir = train("cartpole", algo="fast-sac", seed=0, log_root=tmp_path, eval_every=25, stop_at_criterion=True,
+                    max_iterations=300, algo_overrides={"overlap_collect": True}, eval_async=True)
+    rows = list(csv.DictReader(open(run_dir / "evals.csv")))
+    assert rows[-1]["criteria_met"] == "True", rows
+    assert read_run_info(run_dir)["offpolicy"]["overlap_collect"] is True
+    assert evaluate(run_dir, checkpoint=f"model_{rows[-1]['iteration']}.pt", quiet=True)["balances"]
