@@ -140,3 +140,18 @@ def test_lines_that_are_not_answers_go_to_the_log(tmp_path):
     periodic._log.close()
     assert periodic._replies.get_nowait() == {"ready": True} and periodic._replies.get_nowait() is None
     assert (tmp_path / "log").read_bytes() == b"Warp 1.19.0 initialized\n"
+
+
+@pytest.mark.slow
+def test_a_success_off_the_cpu_engine_is_confirmed_on_it_by_the_worker(tmp_path):
+    """MuJoCo Warp (on the CPU here, as a GPU run would): the worker's success counts once its
+    CPU-engine confirmation holds, and the record says both."""
+    assert main(["train", "cartpole", "--num-envs", "64", "--max-iterations", "60", "--seed", "0", "--env-cfg",
+                 "engine=warp", "--eval-every", "10", "--stop-at-criterion", "--eval-async",
+                 "--log-root", str(tmp_path)]) == 0
+    run = next(tmp_path.glob("cartpole/*"))
+    rows = list(csv.DictReader(open(run / "evals.csv")))
+    assert rows[-1]["criteria_met"] == "True" and rows[-1]["cpu_engine_criteria_met"] == "True"
+    assert all(r["cpu_engine_metrics"] == "" for r in rows[:-1])  # confirmed only what met the criteria
+    reached = json.loads((run / "time_to_criterion.json").read_text())
+    assert reached["eval_async"] and reached["eval_cpu_engine"]["balances"] is True
