@@ -152,7 +152,7 @@ class BackgroundEval(PeriodicEval):
                 error = f"it exited with status {self._proc.returncode}"
             except subprocess.TimeoutExpired:
                 error = "its answers stopped"
-        self._stop(kill=True)
+        self._stop()
         raise RuntimeError(f"the background evaluation failed ({error}; log: {self.run_dir / WORKER_LOG}); "
                            "train with evaluations in the training process: drop --eval-async")
 
@@ -165,21 +165,16 @@ class BackgroundEval(PeriodicEval):
     def close(self) -> None:
         """End the worker, without waiting for an evaluation under way (training stopped: at the
         criterion, interrupted, or failed; ``finish`` waited when it ran to its end)."""
-        self._stop(kill=True)
+        self._stop()
 
-    def _stop(self, kill: bool) -> None:
+    def _stop(self) -> None:
         if self._proc.poll() is None:
-            try:
-                self._proc.stdin.close()  # the worker ends after its current evaluation
-            except OSError:
-                pass
-            if kill:
-                self._proc.kill()
-            try:
-                self._proc.wait(timeout=60)
-            except subprocess.TimeoutExpired:
-                self._proc.kill()
-                self._proc.wait()
+            self._proc.kill()
+            self._proc.wait()
+        try:
+            self._proc.stdin.close()
+        except OSError:  # its pipe broke with the worker
+            pass
         self._log.close()
 
 

@@ -5,7 +5,7 @@ It reads JSON lines on stdin: first the evaluation's settings (``info``, ``run_d
 "checkpoint"}`` per checkpoint to judge. It builds its ``PeriodicEval`` (recording nothing: the
 training process records) at the first checkpoint, so its kernels load from the cache the
 training process has filled by then, and answers ``{"ready", ...}`` once. For each checkpoint it
-answers ``{"iteration", "result", "met", "cpu", "confirmed", "eval_s", "skipped"}``; when several
+answers ``{"iteration", "result", "met", "cpu", "confirmed", "skipped"}``; when several
 wait, it judges the newest and lists the others under ``skipped``. Each answer is one line that
 starts with ``eval_async.ANSWER``. On an error it answers
 ``{"error": "Type: message"}`` and exits 1. End of stdin ends it. Anything printed (by ambulo,
@@ -55,36 +55,35 @@ def serve() -> int:
             done.append(True)
             arrived.notify()
 
+    def take(wait: bool = True) -> list[dict]:
+        """Every message arrived so far (waiting for one when ``wait``); [] once stdin ended."""
+        with arrived:
+            while wait and not jobs and not done:
+                arrived.wait()
+            taken = list(jobs)
+            jobs.clear()
+            return taken
+
     threading.Thread(target=read, daemon=True).start()
     try:
-        with arrived:
-            while not jobs and not done:
-                arrived.wait()
-            if not jobs:
-                return 0
-            settings = jobs.popleft()
-        periodic = None
+        waiting = take()
+        if not waiting:
+            return 0
+        settings, waiting, periodic = waiting[0], waiting[1:], None
         while True:
-            with arrived:
-                while not jobs and not done:
-                    arrived.wait()
-                if not jobs:
-                    return 0
-                waiting = list(jobs)
-                jobs.clear()
+            waiting = waiting or take()
+            if not waiting:
+                return 0
             if periodic is None:
                 periodic = _evaluator(settings)
                 answer({"ready": True, "confirm": periodic.confirm, "on_cpu_engine": periodic.on_cpu_engine,
                         "eval_device": periodic.eval_device})
-                with arrived:  # checkpoints saved while the env was built: judge the newest
-                    waiting += list(jobs)
-                    jobs.clear()
+                waiting += take(wait=False)  # checkpoints saved while the env was built: judge the newest
             newest = waiting[-1]
-            began = time.monotonic()
             result, met, cpu, confirmed = _judge(periodic, settings, Path(newest["checkpoint"]))
             answer({"iteration": newest["iteration"], "result": result, "met": met, "cpu": cpu,
-                    "confirmed": confirmed, "eval_s": round(time.monotonic() - began, 2),
-                    "skipped": [job["iteration"] for job in waiting[:-1]]})
+                    "confirmed": confirmed, "skipped": [job["iteration"] for job in waiting[:-1]]})
+            waiting = []
     except Exception as error:  # the training process reports it and stops
         import traceback
 

@@ -68,9 +68,7 @@ class OverlappedSteps:
         collected = time.perf_counter()
         if self.stream is not None:
             torch.cuda.current_stream(runner.device).wait_stream(self.stream)
-        if cfg.obs_normalization:  # after the updates that read the normalizers
-            runner.alg.actor.normalizer.update(obs)
-            runner.alg.critic.normalizer.update(obs if critic_obs is None else critic_obs)
+        runner.update_normalizers(obs, critic_obs)  # after the updates that read them
         self.refresh()
         return collected - queued, (queued - began) + (time.perf_counter() - collected)
 

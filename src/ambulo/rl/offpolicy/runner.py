@@ -126,6 +126,8 @@ class OffPolicyRunner:
         self.generator = torch.Generator(device=env.device)
         self.generator.manual_seed(seed)
         """Replay sampling and exploration-noise draws."""
+        self.overlap: OverlappedSteps | None = None
+        """Collection beside the updates (``cfg.overlap_collect``, set below when training), or None."""
         if not training:
             return
         env.return_final_obs = True
@@ -140,8 +142,8 @@ class OffPolicyRunner:
         self._held_steps = torch.zeros(env.num_envs, dtype=torch.long, device=env.device)
         obs = self.env.get_observations()
         self._obs, self._critic_obs = obs["policy"], obs.get("critic", None)
-        self.overlap = OverlappedSteps(self, seed) if cfg.overlap_collect else None
-        """Collection beside the updates (``cfg.overlap_collect``), or None."""
+        if cfg.overlap_collect:
+            self.overlap = OverlappedSteps(self, seed)
 
     def _draw_noise(self, worlds: torch.Tensor) -> None:
         """fast-td3's per-world exploration std, drawn anew where ``worlds`` (N,) is set."""
@@ -154,9 +156,8 @@ class OffPolicyRunner:
         (``overlap.OverlappedSteps``, which then updates the normalizers itself)."""
         cfg, env = self.cfg, self.raw_env
         obs, critic_obs = self._obs, self._critic_obs
-        if cfg.obs_normalization and acting is None:
-            self.alg.actor.normalizer.update(obs)
-            self.alg.critic.normalizer.update(obs if critic_obs is None else critic_obs)
+        if acting is None:
+            self.update_normalizers(obs, critic_obs)
         if self.env_steps < cfg.random_steps:
             actions = (torch.rand(env.num_envs, env.num_actions, generator=self.generator, device=self.device)
                        * 2.0 - 1.0) * self.alg.actor.action_bound
@@ -178,6 +179,13 @@ class OffPolicyRunner:
         if cfg.noise_hold_steps > 1:  # a reset world draws new noise at its next step
             self._held_steps = torch.where(ended, 0, self._held_steps)
         self.env_steps += 1
+
+    def update_normalizers(self, obs: torch.Tensor, critic_obs: torch.Tensor | None) -> None:
+        """The learner's observation normalizers take one step's (N, ...) observations
+        (``cfg.obs_normalization``; the critic's reads the policy's when there are no privileged ones)."""
+        if self.cfg.obs_normalization:
+            self.alg.actor.normalizer.update(obs)
+            self.alg.critic.normalizer.update(obs if critic_obs is None else critic_obs)
 
     def _hold_noise(self) -> torch.Tensor:
         """(N, A) the exploration noise of this step: drawn anew in the worlds whose hold has run
@@ -258,8 +266,7 @@ class OffPolicyRunner:
                  "env_steps": self.env_steps,
                  "infos": {**(infos or {}), "env_rng": self.raw_env.generator.get_state(),
                            "torch_rng": torch.get_rng_state(), "sampling_rng": self.generator.get_state(),
-                           **({"overlap_rng": self.overlap.generator.get_state()} if getattr(self, "overlap", None)
-                              else {}),
+                           **({"overlap_rng": self.overlap.generator.get_state()} if self.overlap else {}),
                            "episode_returns": self.episodes.returns() if self.episodes is not None else [],
                            "episode_lengths": self.episodes.lengths() if self.episodes is not None else [],
                            "wall_s": time.monotonic() - self.started_s}}
