@@ -5,6 +5,8 @@ import csv
 import json
 import queue
 import shutil
+import subprocess
+import sys
 import time
 from types import SimpleNamespace
 
@@ -140,6 +142,31 @@ def test_lines_that_are_not_answers_go_to_the_log(tmp_path):
     periodic._log.close()
     assert periodic._replies.get_nowait() == {"ready": True} and periodic._replies.get_nowait() is None
     assert (tmp_path / "log").read_bytes() == b"Warp 1.19.0 initialized\n"
+
+
+def test_the_worker_stops_quietly_once_training_is_gone(async_run, tmp_path):
+    """Training killed (its end of the answer pipe closed, stdin left open): the worker's next answer
+    finds no reader; it logs one line and exits 0, without a traceback."""
+    run = _copy_run(async_run, tmp_path)
+    reached = json.loads((async_run / "time_to_criterion.json").read_text())
+    shutil.copy(async_run / reached["checkpoint"], run / "model_9.pt")
+    info = read_run_info(run)
+    log = open(tmp_path / "worker.log", "wb")
+    proc = subprocess.Popen([sys.executable, "-m", "ambulo.rl.eval_worker"], stdin=subprocess.PIPE,
+                            stdout=subprocess.PIPE, stderr=log)
+    proc.stdout.close()  # nothing will read the answers
+    for message in ({"info": info, "run_dir": str(run), "num_episodes": 8, "seed": 0, "device": "cpu",
+                     "confirm_on_cpu_engine": True}, {"iteration": 9, "checkpoint": str(run / "model_9.pt")}):
+        proc.stdin.write((json.dumps(message) + "\n").encode())
+    proc.stdin.flush()
+    try:
+        assert proc.wait(timeout=120) == 0
+    finally:
+        proc.kill()
+        proc.stdin.close()
+        log.close()
+    text = (tmp_path / "worker.log").read_text()
+    assert "the training process is gone" in text and "Traceback" not in text and "Exception" not in text
 
 
 @pytest.mark.slow

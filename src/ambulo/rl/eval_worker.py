@@ -8,7 +8,8 @@ training process has filled by then, and answers ``{"ready", ...}`` once. For ea
 answers ``{"iteration", "result", "met", "cpu", "confirmed", "skipped"}``; when several
 wait, it judges the newest and lists the others under ``skipped``. Each answer is one line that
 starts with ``eval_async.ANSWER``. On an error it answers
-``{"error": "Type: message"}`` and exits 1. End of stdin ends it. Anything printed (by ambulo,
+``{"error": "Type: message"}`` and exits 1. End of stdin ends it; so does a broken answer pipe
+(training killed without closing it: one line in the log, exit 0, no traceback). Anything printed (by ambulo,
 MuJoCo or Warp) goes to stderr, the run's ``eval_worker.log``: stdout carries only the answers.
 """
 
@@ -34,9 +35,19 @@ def _answers():
     sys.stdout = sys.stderr
 
     def answer(message: dict) -> None:
-        out.write(ANSWER + json.dumps(message) + "\n")
+        try:
+            out.write(ANSWER + json.dumps(message) + "\n")
+        except BrokenPipeError as error:
+            # the training process is gone (killed, or ended without closing us): nothing reads the
+            # answers; point the fd at /dev/null so the buffer's flush at exit cannot fail again
+            os.dup2(os.open(os.devnull, os.O_WRONLY), out.fileno())
+            raise TrainingGone from error
 
     return answer
+
+
+class TrainingGone(Exception):
+    """The pipe to the training process broke: the worker has no one to answer and stops."""
 
 
 def serve() -> int:
@@ -84,6 +95,9 @@ def serve() -> int:
             answer({"iteration": newest["iteration"], "result": result, "met": met, "cpu": cpu,
                     "confirmed": confirmed, "skipped": [job["iteration"] for job in waiting[:-1]]})
             waiting = []
+    except TrainingGone:
+        print("the training process is gone (its pipe broke); the worker stops", file=sys.stderr)
+        return 0
     except Exception as error:  # the training process reports it and stops
         import traceback
 
