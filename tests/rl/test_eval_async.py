@@ -169,6 +169,46 @@ def test_the_worker_stops_quietly_once_training_is_gone(async_run, tmp_path):
     assert "the training process is gone" in text and "Traceback" not in text and "Exception" not in text
 
 
+def test_the_worker_judges_on_the_cpu_engine_first(async_run, tmp_path):
+    """A success off the CPU engine needs both engines: the worker judges the CPU engine first and
+    runs the evaluation env only for a policy that meets the criteria there, so a failing one
+    (most of them) leaves the GPU to training. Here the evaluation env is MuJoCo C too, told to
+    confirm as a GPU run's would."""
+    from ambulo.rl.eval_worker import _judge
+    from ambulo.rl.periodic_eval import PeriodicEval
+
+    run = _copy_run(async_run, tmp_path)
+    # the first checkpoint (saved even if the worker skipped it) fails; the last met the criteria
+    first, last = "9", list(csv.DictReader(open(async_run / "evals.csv")))[-1]["iteration"]
+    for it in (first, last):
+        shutil.copy(async_run / f"model_{it}.pt", run / f"model_{it}.pt")
+    periodic = PeriodicEval(read_run_info(run), run, every=1, started_s=time.monotonic(), steps_per_iteration=1)
+    periodic.confirm = True  # as off the CPU engine
+    runs_of_eval_env = []
+    run_eval_env = periodic._run
+    periodic._run = lambda policy: runs_of_eval_env.append(1) or run_eval_env(policy)
+    settings = {"run_dir": str(run)}
+
+    result, met, cpu, confirmed = _judge(periodic, settings, run / f"model_{first}.pt")
+    assert (result["eval_engine"], met, cpu, confirmed) == ("cpu", False, None, False) and not runs_of_eval_env
+    again = evaluate(run, checkpoint=f"model_{first}.pt", device="cpu", quiet=True)  # the CPU engine's numbers
+    assert result["mean_return"] == again["mean_return"] and result["fall_rate"] == again["fall_rate"]
+    periodic._record(SimpleNamespace(logger=None), int(first), run / f"model_{first}.pt", 1.0, result, met, cpu,
+                     confirmed)
+
+    result, met, cpu, confirmed = _judge(periodic, settings, run / f"model_{last}.pt")
+    assert met and confirmed and cpu is not None and result["cpu_engine"] == cpu and len(runs_of_eval_env) == 1
+    assert "eval_engine" not in result
+    periodic._record(SimpleNamespace(logger=None), int(last), run / f"model_{last}.pt", 2.0, result, met, cpu,
+                     confirmed)
+    periodic.close()
+    written = list(csv.DictReader(open(run / "evals.csv")))
+    assert [r["eval_engine"] for r in written] == ["cpu", "training"]
+    assert written[0]["criteria_met"] == "False" and written[0]["cpu_engine_metrics"] == ""
+    assert written[1]["cpu_engine_criteria_met"] == "True"
+    assert json.loads((run / "time_to_criterion.json").read_text())["iteration"] == int(last)
+
+
 @pytest.mark.slow
 def test_a_success_off_the_cpu_engine_is_confirmed_on_it_by_the_worker(tmp_path):
     """MuJoCo Warp (on the CPU here, as a GPU run would): the worker's success counts once its

@@ -6,8 +6,13 @@ FastSAC's humanoid-walk evaluations (100 episodes of 20 s) took ~3.6 s against 7
 iterations between them, and a rough-terrain one ~8 s against ~17 s for 100 iterations (session
 23). Here the training process only saves ``model_<it>.pt`` and hands its path to a worker
 (``eval_worker``, started here with the same interpreter and environment), which evaluates it
-exactly as the synchronous evaluation would (the same ``PeriodicEval.evaluate``: episodes, seed,
-CPU-engine confirmation) on its own env, on the training device. The training process records
+to the same verdict as the synchronous evaluation (the same ``PeriodicEval.evaluate``: episodes,
+seed, both engines) on its own env, on the training device. Where a success needs the CPU
+engine's confirmation (a GPU run) it judges the CPU engine first and runs its GPU env only for a
+checkpoint that meets the criteria there: on an H200 its GPU evaluations slowed FastSAC's rough
+iterations (0.178 s with one every 100 iterations, 0.219 s every 50; session 24), and most
+checkpoints fail. Such a row holds the CPU engine's numbers (``evals.csv``'s ``eval_engine``:
+``cpu``). The training process records
 each result when it arrives, at the end of an iteration: the ``evals.csv`` row, TensorBoard and,
 at the first success, ``time_to_criterion.json``, whose ``wall_s`` is the time the verdict was
 known (what ``--stop-at-criterion`` stops at), beside ``checkpoint_wall_s``, when the judged

@@ -4,7 +4,10 @@ It reads JSON lines on stdin: first the evaluation's settings (``info``, ``run_d
 ``num_episodes``, ``seed``, ``device``, ``confirm_on_cpu_engine``), then one ``{"iteration",
 "checkpoint"}`` per checkpoint to judge. It builds its ``PeriodicEval`` (recording nothing: the
 training process records) at the first checkpoint, so its kernels load from the cache the
-training process has filled by then, and answers ``{"ready", ...}`` once. For each checkpoint it
+training process has filled by then, and answers ``{"ready", ...}`` once. It judges on the CPU
+engine first (``PeriodicEval.evaluate(cpu_first=True)``) where a success needs its confirmation:
+the evaluation env, which shares the training GPU, runs only for a checkpoint that meets the
+criteria there; its threads run at a lower priority (``nice`` 10). For each checkpoint it
 answers ``{"iteration", "result", "met", "cpu", "confirmed", "skipped"}``; when several
 wait, it judges the newest and lists the others under ``skipped``. Each answer is one line that
 starts with ``eval_async.ANSWER``. On an error it answers
@@ -52,6 +55,7 @@ class TrainingGone(Exception):
 
 def serve() -> int:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # training's Ctrl-C is training's to handle
+    os.nice(10)  # the CPU-engine evaluation's threads yield to training's host thread
     answer = _answers()
     jobs: deque = deque()
     arrived = threading.Condition()
@@ -121,7 +125,8 @@ def _judge(periodic, settings: dict, checkpoint: Path):
     from . import runs
 
     runner = runs.load_runner(Path(settings["run_dir"]), periodic.env, checkpoint)
-    return periodic.evaluate(runner.get_inference_policy(device=str(periodic.env.device)))
+    # the CPU engine first: most checkpoints fail there, and the GPU stays training's
+    return periodic.evaluate(runner.get_inference_policy(device=str(periodic.env.device)), cpu_first=True)
 
 
 if __name__ == "__main__":

@@ -62,7 +62,7 @@ from .vecenv import RslRlVecEnv
 
 EVAL_COLUMNS = ("iteration", "wall_s", "env_steps", "fall_rate", "mean_episode_length_s",
                 "mean_return", "metrics", "criteria_met", "cpu_engine_metrics", "cpu_engine_criteria_met",
-                "worst_block", "cpu_engine_worst_block", "by_kind")
+                "worst_block", "cpu_engine_worst_block", "by_kind", "eval_engine")
 """``criteria_met``: on the evaluation env's engine (the training device's); ``cpu_engine_*``: the
 same policy on the CPU engine, empty when not run (the evaluation env is the CPU engine, or its
 evaluation did not meet the criteria). An evaluation in blocks (``eval_blocks``): ``fall_rate``
@@ -71,7 +71,11 @@ block nearest to failing, its name then ``name=value`` pairs: its fall rate, its
 ``blocks_failed`` (``worst_block_from_text``); empty for a task without blocks. ``by_kind``: a
 terrain task's fall rate and first step metric on each tile kind, ``kind:fall/err`` pairs
 (``eval_kinds.kinds_cell``, read by ``kinds_from_text``), reported, not judged; empty without
-terrain. Columns are only ever appended: readers take them by name."""
+terrain. ``eval_engine``: ``training`` when the row's first columns are the evaluation env's (the
+training engine's), ``cpu`` when they are the CPU engine's: ``--eval-async``'s worker judges on the
+CPU engine first (``evaluate(cpu_first=True)``) and runs the evaluation env only for a policy that
+meets the criteria there (empty in files written before the column). Columns are only ever
+appended: readers take them by name."""
 TIME_FILE = "time_to_criterion.json"
 
 
@@ -217,13 +221,26 @@ class PeriodicEval:
             self.reached = {"iteration": iteration}
         return result
 
-    def evaluate(self, policy) -> tuple[dict[str, Any], bool, dict[str, Any] | None, bool]:
+    def evaluate(self, policy, *, cpu_first: bool = False
+                 ) -> tuple[dict[str, Any], bool, dict[str, Any] | None, bool]:
         """``policy`` over this evaluation's episodes (and, when they meet the criteria off the
         CPU engine, over the same episodes on it): (result, met, the CPU engine's result or None,
-        confirmed). ``result["cpu_engine"]`` holds the confirmation when it ran."""
-        self.env.generator.set_state(self._rng_state)  # the same commands and resets every time
-        result = run_episodes(self.env, self.vec_env, policy, self.task, blocks=self.layout.run_blocks,
-                              **self._merge())
+        confirmed). ``result["cpu_engine"]`` holds the confirmation when it ran.
+
+        ``cpu_first`` (``--eval-async``'s worker, which shares the training GPU): when a success
+        needs the CPU engine's confirmation, judge there first and run the evaluation env only for
+        a policy that meets the criteria on the CPU engine. One that does not is reported by its
+        CPU-engine result (``result["eval_engine"] == "cpu"``; met False, cpu None). The verdict is
+        the same in either order (both engines must meet); most evaluations fail, so the GPU is
+        left to training."""
+        if cpu_first and self.confirm:
+            cpu = self._cpu_engine_eval(policy)
+            if not self._met(cpu):
+                return {**cpu, "eval_engine": "cpu"}, False, None, False
+            result = self._run(policy)
+            met = self._met(result)
+            return {**result, "cpu_engine": cpu}, met, cpu, met
+        result = self._run(policy)
         met = self._met(result)
         cpu = self._cpu_engine_eval(policy) if met and self.confirm else None
         confirmed = met and (not self.confirm or self._met(cpu))
@@ -231,32 +248,42 @@ class PeriodicEval:
             result = {**result, "cpu_engine": cpu}
         return result, met, cpu, confirmed
 
+    def _run(self, policy) -> dict[str, Any]:
+        """``policy`` over this evaluation's episodes in the evaluation env."""
+        self.env.generator.set_state(self._rng_state)  # the same commands and resets every time
+        return run_episodes(self.env, self.vec_env, policy, self.task, blocks=self.layout.run_blocks,
+                            **self._merge())
+
     def _record(self, runner, iteration: int, checkpoint: Path, wall_s: float, result: dict[str, Any],
                 met: bool, cpu: dict[str, Any] | None, confirmed: bool) -> None:
         """Rank 0: the evals.csv row, TensorBoard's scalars, and the first success's record."""
-        result = {k: v for k, v in result.items() if k != "cpu_engine"}
+        engine = result.get("eval_engine", "training")  # "cpu": the CPU engine's, judged first
+        result = {k: v for k, v in result.items() if k not in ("cpu_engine", "eval_engine")}
         row = [iteration, f"{wall_s:.1f}", (iteration + 1) * self.steps_per_iteration,
                f"{result['fall_rate']:.3f}", f"{result['mean_episode_length_s']:.2f}",
                f"{result['mean_return']:.2f}", _metrics_text(result), met,
                "" if cpu is None else f"fall_rate={cpu['fall_rate']:.3f} {_metrics_text(cpu)}",
                "" if cpu is None else self._met(cpu), _worst_block_cell(result),
-               "" if cpu is None else _worst_block_cell(cpu), kinds_cell(result)]
+               "" if cpu is None else _worst_block_cell(cpu), kinds_cell(result), engine]
         line = io.StringIO()
         csv.writer(line).writerow(row)
         with open(self._csv, "a") as f:
             f.write(line.getvalue())
         writer = getattr(runner.logger, "writer", None)
         if writer is not None:
+            # a row judged on the CPU engine first has no evaluation-env numbers: its own series
+            prefix = "eval_cpu_engine" if engine == "cpu" else "eval"
             for key in ("fall_rate", "mean_episode_length_s", *_metrics(result)):
-                writer.add_scalar(f"eval/{key}", result[key], iteration)
-            writer.add_scalar("eval/criteria_met", float(met), iteration)
+                writer.add_scalar(f"{prefix}/{key}", result[key], iteration)
+            if engine != "cpu":
+                writer.add_scalar("eval/criteria_met", float(met), iteration)
             worst = worst_block(result)  # the block the criteria are nearest to failing in, whichever it is
             if worst is not None:
                 for key in ("fall_rate", *_metrics(worst)):
-                    writer.add_scalar(f"eval/worst_block_{key}", worst[key], iteration)
+                    writer.add_scalar(f"{prefix}/worst_block_{key}", worst[key], iteration)
             for name, kind in result.get("by_kind", {}).items():  # a terrain task's tile kinds, reported
                 for key in ("fall_rate", *step_metrics(kind)):
-                    writer.add_scalar(f"eval_by_kind/{name}/{key}", kind[key], iteration)
+                    writer.add_scalar(f"{prefix}_by_kind/{name}/{key}", kind[key], iteration)
             if cpu is not None:
                 for key in ("fall_rate", *_metrics(cpu)):
                     writer.add_scalar(f"eval_cpu_engine/{key}", cpu[key], iteration)
@@ -362,7 +389,8 @@ def summary(result: dict[str, Any], iteration: int, wall_s: float) -> str:
         worst = [text for text in (worst_block_text(res), most_falls_text(res)) if text]
         return "; ".join([one(res), *worst])
 
-    line = f"eval @ it {iteration} ({wall_s / 60:.1f} min): {one_and_worst(result)}"
+    where = "on the CPU engine (judged there first): " if result.get("eval_engine") == "cpu" else ""
+    line = f"eval @ it {iteration} ({wall_s / 60:.1f} min): {where}{one_and_worst(result)}"
     if "cpu_engine" in result:
         line += f"; on the CPU engine: {one_and_worst(result['cpu_engine'])}"
     return line
