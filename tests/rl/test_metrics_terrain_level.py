@@ -1,5 +1,5 @@
-"""metrics.csv's ``terrain_level`` column: the mean level of a terrain curriculum, written once an
-iteration by PPO and the off-policy runner, absent for every other task (their files keep their
+"""metrics.csv's ``terrain_level`` column: the mean level of a terrain curriculum (then each tile
+kind's, ``terrain_level_<kind>``), written once an iteration by PPO and the off-policy runner, absent for every other task (their files keep their
 layout byte for byte), and kept safe across resumes (``rl.metrics``' rule: a resume keeps every
 recorded column and adds the run's own, earlier rows empty there)."""
 
@@ -17,6 +17,9 @@ from ambulo.rl.metrics import COLUMNS, TERRAIN_LEVEL, MetricsCsv
 from ambulo.rl.progress import TrainingProgress
 
 BASE_HEADER = ",".join(COLUMNS)
+KINDS = ("flat", "rough", "slope_up", "slope_down", "stairs_up", "stairs_down", "stepping_stones")
+LEVEL_COLUMNS = (TERRAIN_LEVEL, *(f"{TERRAIN_LEVEL}_{kind}" for kind in KINDS))
+"""humanoid-rough's: the mean level, then each tile kind's."""
 # 3 levels of 4 m tiles; 0.1 s episodes (5 policy steps) end inside an iteration, so the curriculum
 # moves robots from their first level (the hardest) before the first row is written
 SMALL = {"terrain.num_levels": 3, "terrain.tile_size_m": 4.0, "terrain.platform_size_m": 1.0,
@@ -98,6 +101,19 @@ def test_resuming_without_the_column_keeps_the_recorded_levels(tmp_path):
 # -- the env's hook --------------------------------------------------------------------------------
 
 
+def test_each_kind_reports_the_mean_level_of_its_robots_a_repeated_kind_pooled():
+    rough = envs.make("humanoid-rough", num_envs=7, seed=0,
+                      **{**SMALL, "terrain.kinds": ("flat", "stairs_up", "flat")})
+    try:
+        # env i on column i % 3: flat gets envs 0, 2, 3, 5, 6; stairs_up envs 1, 4
+        rough.curriculum.levels[:] = torch.tensor([0, 2, 1, 2, 1, 0, 2])
+        names, levels = rough.terrain_levels_by_kind()
+        assert names == ("flat", "stairs_up")
+        assert levels.tolist() == pytest.approx([(0 + 1 + 2 + 0 + 2) / 5, (2 + 1) / 2])
+    finally:
+        rough.close()
+
+
 def test_only_a_moving_curriculum_reports_a_level():
     rough = envs.make("humanoid-rough", num_envs=3, seed=0, **SMALL)
     stairs = envs.make("humanoid-footsteps-stairs", num_envs=3, seed=0, num_threads=1,
@@ -107,6 +123,7 @@ def test_only_a_moving_curriculum_reports_a_level():
         rough.curriculum.levels[:] = torch.tensor([0, 1, 1])
         assert rough.mean_terrain_level().item() == pytest.approx(2 / 3)
         assert stairs.mean_terrain_level() is None  # each robot keeps its level (no curriculum)
+        assert stairs.terrain_levels_by_kind() is None
     finally:
         rough.close()
         stairs.close()
@@ -139,12 +156,17 @@ def test_training_on_the_terrain_writes_the_curriculums_level(tmp_path, recorded
         run = train("humanoid-rough", algo=algo, num_envs=4, max_iterations=3, seed=0, log_root=tmp_path,
                     env_overrides=SMALL, algo_overrides=TINY_SAC)
     table = _table(run / "metrics.csv")
-    assert tuple(table[0]) == (*COLUMNS, TERRAIN_LEVEL)
+    assert tuple(table[0]) == (*COLUMNS, *LEVEL_COLUMNS)
     assert [r["iteration"] for r in table] == ["0", "1", "2"]
     assert recorded[0] == 2.0  # at construction: every robot on its first level
     written = [float(r[TERRAIN_LEVEL]) for r in table]
     assert written == pytest.approx(recorded[1:], abs=5e-5)  # one read an iteration, the env's own
     assert written[0] < 2.0  # the curriculum moved robots down in the first iteration: the column follows it
+    for row in table:  # 4 robots on the first 4 kinds, one each: their levels average to the mean
+        each = [row[f"{TERRAIN_LEVEL}_{kind}"] for kind in KINDS]
+        assert each[4:] == ["", "", ""]  # no robot on stairs or stones
+        assert sum(float(v) for v in each[:4]) / 4 == pytest.approx(float(row[TERRAIN_LEVEL]), abs=2e-4)
+        assert all(float(v) in (0.0, 1.0, 2.0) for v in each[:4])  # one robot's level: a whole number
 
 
 def test_resuming_a_run_from_before_the_column_adds_it(tmp_path):
@@ -160,7 +182,7 @@ def test_resuming_a_run_from_before_the_column_adds_it(tmp_path):
     (run / "model_2.pt").unlink()  # killed during iteration 2: the resume repeats it
     train(resume=run, max_iterations=4)
     table = _table(path)
-    assert tuple(table[0]) == (*COLUMNS, TERRAIN_LEVEL)
+    assert tuple(table[0]) == (*COLUMNS, *LEVEL_COLUMNS)
     assert [r["iteration"] for r in table] == ["0", "1", "2", "3"]
     assert [r["mean_reward"] for r in table[:2]] == [r["mean_reward"] for r in old[:2]]
     assert [r[TERRAIN_LEVEL] for r in table[:2]] == ["", ""]

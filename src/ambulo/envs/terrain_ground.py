@@ -135,6 +135,19 @@ class TerrainGround:
         (``rl.progress.terrain_level_reader``); reading it to the host is a sync, so no more often."""
         return self._tiles.mean_level() if self._tiles.cfg.enabled else None
 
+    def terrain_levels_by_kind(self) -> tuple[tuple[str, ...], torch.Tensor] | None:
+        """(the kinds' names, each once; (K,) float32 the mean level of the robots on each kind, nan
+        for a kind without robots), on the device, when the tiles are a curriculum (None otherwise,
+        as ``mean_terrain_level``). A kind named twice in ``TerrainCfg.kinds`` pools its columns.
+        Training writes it beside the mean (``metrics.csv``'s ``terrain_level_<kind>``): where
+        the curriculum holds the robots of each kind, e.g. stepping stones far below the others."""
+        if not self._tiles.cfg.enabled:
+            return None
+        kinds = tuple(self.terrain.cfg.kinds)
+        names = tuple(dict.fromkeys(kinds))
+        group = torch.tensor([names.index(kind) for kind in kinds], dtype=torch.long)
+        return names, self._tiles.mean_level_by_group(group, len(names))
+
     def tile_kinds(self) -> tuple[tuple[str, ...], torch.Tensor]:
         """(the terrain's kind names, in column order; (N,) int64 the column of each env's tile,
         an index into the names). An evaluation reports each kind's episodes on its own

@@ -22,6 +22,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import torch
 from tqdm import tqdm
 
 from . import distributed, interrupt
@@ -63,8 +64,8 @@ class TrainingProgress:
         self.on_scalars = on_scalars
         self.bar = tqdm(total=total, initial=start, desc=f"train {run_dir.parent.name}", unit="it",
                         disable=verbose or not rank.is_main)
-        self.terrain_level = terrain_level_reader(runner) if rank.is_main else None
-        extra = (TERRAIN_LEVEL,) if self.terrain_level is not None else ()
+        reader = terrain_level_reader(runner) if rank.is_main else None
+        extra, self.terrain_level = reader if reader is not None else ((), None)
         self.metrics = MetricsCsv(run_dir / "metrics.csv", start, extra) if rank.is_main else None
         self._next_iteration = start
         """The iteration ``follow`` closes next (the other ranks have no logger to say it)."""
@@ -81,7 +82,7 @@ class TrainingProgress:
     def iteration_done(self, iteration: int, collect_s: float, learn_s: float, action_std: float) -> None:
         """Rank 0, once rsl-rl logged ``iteration`` (and before its periodic checkpoint)."""
         reward, length_s = self.means()
-        extras = {} if self.terrain_level is None else {TERRAIN_LEVEL: self.terrain_level()}
+        extras = {} if self.terrain_level is None else self.terrain_level()
         row = self.metrics.append(iteration, self.steps_per_iteration, reward, length_s, collect_s, learn_s,
                                   action_std, extras)
         self.bar.update(1)
@@ -122,17 +123,28 @@ class TrainingProgress:
         self.bar.close()
 
 
-def terrain_level_reader(runner) -> Callable[[], float] | None:
-    """What reads the mean terrain level of ``runner``'s task env (one host read, once an
-    iteration), or None when its levels do not move: the env's optional
-    ``mean_terrain_level()`` (``envs.terrain_ground.TerrainGround``: None without a curriculum).
-    Both runners hold the task env wrapped in ``vecenv.RslRlVecEnv`` as ``runner.env``; a
-    runner without one (tests' stand-ins) has no level."""
+def terrain_level_reader(runner) -> tuple[tuple[str, ...], Callable[[], dict[str, float]]] | None:
+    """(the ``metrics.csv`` columns, what reads their values: one host read, once an iteration) of
+    ``runner``'s task env's terrain levels, or None when its levels do not move: the env's optional
+    ``mean_terrain_level()`` (``envs.terrain_ground.TerrainGround``: None without a curriculum) as
+    ``terrain_level``, then, where the env has ``terrain_levels_by_kind()``, each kind's mean as
+    ``terrain_level_<kind>``. Both runners hold the task env wrapped in ``vecenv.RslRlVecEnv`` as
+    ``runner.env``; a runner without one (tests' stand-ins) has no level."""
     env = getattr(getattr(runner, "env", None), "env", None)
     hook = getattr(env, "mean_terrain_level", None)
     if hook is None or hook() is None:  # fixed for the env's life: decided once, with the header
         return None
-    return lambda: float(hook())
+    by_kind = getattr(env, "terrain_levels_by_kind", None)
+    kinds = by_kind() if by_kind is not None else None
+    if kinds is None:
+        return (TERRAIN_LEVEL,), lambda: {TERRAIN_LEVEL: float(hook())}
+    columns = (TERRAIN_LEVEL, *(f"{TERRAIN_LEVEL}_{name}" for name in kinds[0]))
+
+    def read() -> dict[str, float]:
+        values = torch.cat([hook().reshape(1), by_kind()[1]]).tolist()  # one host read for all
+        return dict(zip(columns, values))
+
+    return columns, read
 
 
 def end_training(progress: TrainingProgress, *others) -> None:
