@@ -2,6 +2,7 @@
 
     python scripts/plot_falls.py RUN --checkpoint model_2051.pt --kinds stepping_stones,stairs_down \\
         --episodes 70 --out docs/images/rough_falls.png
+    python scripts/plot_falls.py --shipped humanoid-rough --kinds stepping_stones --out /tmp/shipped_falls.png
 
 For each kind, ``--episodes`` robots walk one evaluation episode each (the play variant, as ``ambulo eval``
 runs it) on a terrain of that kind alone, every robot on the hardest level, on the CPU engine. The plot
@@ -24,32 +25,47 @@ from ambulo.rl.evaluate import eval_episode_length_s
 from ambulo.rl.vecenv import RslRlVecEnv
 
 
-def kind_paths(run: Path, checkpoint: str, kind: str, episodes: int, seed: int, episode_length_s: float | None):
-    """One episode per robot on the hardest ``kind`` tile: (paths (T, N, 2) base xy in the world
-    frame, m, nan after its episode ended; fell (N,) bool; the env's terrain grid)."""
-    info = runs.read_run_info(run)
-    task = envs.spec(info["task"])
-    env = runs.make_env_for_run(info, num_envs=episodes, seed=seed, device="cpu", play=True, engine="mujoco",
-                                episode_length_s=eval_episode_length_s(task, episode_length_s),
-                                **{"terrain.kinds": (kind,)})
-    try:
-        vec_env = RslRlVecEnv(env)
+def kind_paths(run: Path | None, checkpoint: str | None, kind: str, episodes: int, seed: int,
+               episode_length_s: float | None, shipped: str | None = None):
+    """One episode per robot on the hardest ``kind`` tile, with ``run``'s ``checkpoint`` or the policy
+    ambulo ships for task ``shipped``: (paths (T, N, 2) base xy in the world frame, m, nan after its
+    episode ended; fell (N,) bool; the env's terrain grid)."""
+    overrides = {"terrain.kinds": (kind,)}
+    if shipped is not None:
+        from ambulo.policies.shipped import load_policy
+
+        spec, policy_file = envs.spec(shipped), load_policy(shipped)
+        env = envs.make(shipped, num_envs=episodes, device="cpu", seed=seed, play=True,
+                        episode_length_s=eval_episode_length_s(spec, episode_length_s), **overrides)
+        policy = lambda obs: policy_file(obs["policy"])
+    else:
+        info = runs.read_run_info(run)
+        env = runs.make_env_for_run(info, num_envs=episodes, seed=seed, device="cpu", play=True, engine="mujoco",
+                                    episode_length_s=eval_episode_length_s(envs.spec(info["task"]), episode_length_s),
+                                    **overrides)
         policy = runs.load_runner(run, env, run / checkpoint).get_inference_policy(device="cpu")
-        running = torch.ones(episodes, dtype=torch.bool)
-        fell = torch.zeros(episodes, dtype=torch.bool)
-        paths = []
-        obs = vec_env.reset()
-        for _ in range(env.max_episode_length):
-            xy = env.robot.data.root_pos_w[:, :2].float().clone()
-            paths.append(torch.where(running[:, None], xy, torch.nan))
-            with torch.inference_mode():
-                obs, _, dones, extras = vec_env.step(policy(obs))
-            ended = running & dones.bool()
-            fell |= ended & extras["terminated"]
-            running &= ~dones.bool()
-        return torch.stack(paths).numpy(), fell.numpy(), env.terrain
+    try:
+        return (*_walk(env, policy), env.terrain)
     finally:
         env.close()
+
+
+def _walk(env, policy) -> tuple[np.ndarray, np.ndarray]:
+    """(paths (T, N, 2), fell (N,)) of one episode in each of ``env``'s worlds under ``policy``."""
+    vec_env = RslRlVecEnv(env)
+    running = torch.ones(env.num_envs, dtype=torch.bool)
+    fell = torch.zeros(env.num_envs, dtype=torch.bool)
+    paths = []
+    obs = vec_env.reset()
+    for _ in range(env.max_episode_length):
+        xy = env.robot.data.root_pos_w[:, :2].float().clone()  # the state the policy acts on
+        paths.append(torch.where(running[:, None], xy, torch.nan))
+        with torch.inference_mode():
+            obs, _, dones, extras = vec_env.step(policy(obs))
+        ended = running & dones.bool()
+        fell |= ended & extras["terminated"]
+        running &= ~dones.bool()
+    return torch.stack(paths).numpy(), fell.numpy()
 
 
 def plot(panels, out: Path) -> None:
@@ -83,18 +99,21 @@ def plot(panels, out: Path) -> None:
 
 def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("run", type=Path)
-    p.add_argument("--checkpoint", required=True)
+    p.add_argument("run", type=Path, nargs="?", help="a run folder (with --checkpoint)")
+    p.add_argument("--checkpoint")
+    p.add_argument("--shipped", metavar="TASK", help="the policy ambulo ships for TASK, in place of a run")
     p.add_argument("--kinds", default="stepping_stones", help="comma list of tile kinds (one panel each)")
     p.add_argument("--episodes", type=int, default=70)
     p.add_argument("--seed", type=int, default=12345)
     p.add_argument("--episode-length-s", type=float)
     p.add_argument("--out", type=Path, required=True)
     args = p.parse_args(argv)
+    if (args.shipped is None) == (args.run is None) or (args.run is not None and not args.checkpoint):
+        p.error("give a run folder with --checkpoint, or --shipped TASK")
     panels = []
     for kind in args.kinds.split(","):
         paths, fell, grid = kind_paths(args.run, args.checkpoint, kind, args.episodes, args.seed,
-                                       args.episode_length_s)
+                                       args.episode_length_s, shipped=args.shipped)
         centre = grid.tile_centers_w[-1, 0, :2]
         last = np.array([paths[~np.isnan(paths[:, i, 0]), i][-1] for i in range(paths.shape[1])])
         where = np.linalg.norm(last[fell] - centre, axis=1)

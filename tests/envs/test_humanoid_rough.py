@@ -242,3 +242,18 @@ def test_commands_ask_for_forward_walking_only(play):
     assert (cmd[:, 0] >= 0.0).all() and (cmd[:, 1] == 0.0).all()
     top = 1.0 if play else 0.4  # training starts from 0.4 of each range (the command curriculum)
     assert cmd[:, 0].max().item() > 0.9 * top and cmd[:, 2].min().item() < -0.9 * top
+
+
+def test_the_evaluation_reports_each_robots_distance_from_its_start():
+    """``distance_from_start_m``, reported by tile kind: a walker that stays on its start platform shows
+    a small one beside flat ground's. Here: each robot teleported by a hand-chosen offset from where its
+    episode started reads that offset's length after one step (a standing robot moves by mm)."""
+    env = make(num_envs=3, **{"curriculum.enabled": False})
+    env.reset()
+    start = env.robot.data.root_pos_w[:, :2].float().clone()
+    offset = torch.tensor([[0.3, 0.4], [0.0, -1.2], [0.0, 0.0]])
+    env.robot.write_root_pose(pos_w=torch.cat([start + offset, env.robot.data.root_pos_w[:, 2:].float()], 1))
+    env.engine.forward()
+    env.step(torch.zeros(3, env.num_actions))
+    distance = envs.spec("humanoid-rough").step_metrics(env)["distance_from_start_m"]
+    torch.testing.assert_close(distance, torch.tensor([0.5, 1.2, 0.0]), atol=0.02, rtol=0)

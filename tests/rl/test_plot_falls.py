@@ -4,9 +4,9 @@ are those ``ambulo eval`` counts for the same run, seed, episodes and terrain (a
 from __future__ import annotations
 
 import pytest
-from script_loader import ROOT, load_script
 
 from ambulo.rl import evaluate, train
+from script_loader import ROOT, load_script
 
 plot_falls = load_script(ROOT / "scripts" / "plot_falls.py")
 SMALL = {"terrain.num_levels": 3, "terrain.tile_size_m": 4.0, "terrain.platform_size_m": 1.0,
@@ -41,3 +41,19 @@ def test_the_script_writes_the_picture(rough_run, tmp_path, capsys):
     lines = capsys.readouterr().out.splitlines()
     assert lines[0].startswith("stepping_stones: fall rate") and lines[1].startswith("flat: fall rate")
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_the_shipped_walkers_falls_are_those_ambulo_eval_counts():
+    from ambulo.rl.evaluate import evaluate_shipped
+
+    _, fell, _ = plot_falls.kind_paths(None, None, "stairs_down", episodes=4, seed=5, episode_length_s=2.0,
+                                       shipped="humanoid-rough")
+    reference = evaluate_shipped("humanoid-rough", num_episodes=4, episode_length_s=2.0, seed=5, quiet=True,
+                                 env_overrides={"terrain.kinds": ("stairs_down",)})
+    assert fell.mean() == pytest.approx(reference["fall_rate"])
+
+
+def test_a_run_or_a_shipped_policy_is_needed(capsys):
+    with pytest.raises(SystemExit):
+        plot_falls.main(["--out", "x.png"])
+    assert "give a run folder with --checkpoint, or --shipped TASK" in capsys.readouterr().err
