@@ -110,10 +110,16 @@ def main(argv: list[str] | None = None) -> None:
     args = p.parse_args(argv)
     if (args.shipped is None) == (args.run is None) or (args.run is not None and not args.checkpoint):
         p.error("give a run folder with --checkpoint, or --shipped TASK")
+    task = args.shipped or runs.read_run_info(args.run)["task"]
+    if not hasattr(envs.spec(task).cfg_fn(), "terrain"):
+        p.error(f"task {task} has no terrain tiles; give a run or --shipped task of a terrain task (humanoid-rough, ...)")
     panels = []
     for kind in args.kinds.split(","):
-        paths, fell, grid = kind_paths(args.run, args.checkpoint, kind, args.episodes, args.seed,
-                                       args.episode_length_s, shipped=args.shipped)
+        try:
+            paths, fell, grid = kind_paths(args.run, args.checkpoint, kind, args.episodes, args.seed,
+                                           args.episode_length_s, shipped=args.shipped)
+        except (ValueError, KeyError, OSError) as error:  # a task without terrain, an unknown kind or run
+            p.error(f"{str(error).splitlines()[0]} (a terrain task's run or --shipped task, and its kinds)")
         centre = grid.tile_centers_w[-1, 0, :2]
         last = np.array([paths[~np.isnan(paths[:, i, 0]), i][-1] for i in range(paths.shape[1])])
         where = np.linalg.norm(last[fell] - centre, axis=1)

@@ -53,7 +53,13 @@ def test_the_shipped_walkers_falls_are_those_ambulo_eval_counts():
     assert fell.mean() == pytest.approx(reference["fall_rate"])
 
 
-def test_a_run_or_a_shipped_policy_is_needed(capsys):
-    with pytest.raises(SystemExit):
-        plot_falls.main(["--out", "x.png"])
-    assert "give a run folder with --checkpoint, or --shipped TASK" in capsys.readouterr().err
+def test_bad_input_gets_one_line(capsys, tmp_path):
+    out = str(tmp_path / "x.png")
+    for argv, says in ((["--out", out], "give a run folder with --checkpoint, or --shipped TASK"),
+                       (["--shipped", "humanoid-walk", "--out", out], "task humanoid-walk has no terrain tiles"),
+                       (["--shipped", "humanoid-rough", "--kinds", "stones", "--episodes", "1", "--out", out],
+                        "unknown ['stones']")):
+        with pytest.raises(SystemExit):
+            plot_falls.main(argv)
+        assert says in capsys.readouterr().err
+    assert not (tmp_path / "x.png").exists()
