@@ -21,7 +21,7 @@ import torch
 
 from ambulo import envs
 from ambulo.rl import runs
-from ambulo.rl.evaluate import eval_episode_length_s
+from ambulo.rl.evaluate import episode_records, eval_episode_length_s
 from ambulo.rl.vecenv import RslRlVecEnv
 
 
@@ -34,38 +34,27 @@ def kind_paths(run: Path | None, checkpoint: str | None, kind: str, episodes: in
     if shipped is not None:
         from ambulo.policies.shipped import load_policy
 
-        spec, policy_file = envs.spec(shipped), load_policy(shipped)
+        task, policy_file = envs.spec(shipped), load_policy(shipped)
         env = envs.make(shipped, num_envs=episodes, device="cpu", seed=seed, play=True,
-                        episode_length_s=eval_episode_length_s(spec, episode_length_s), **overrides)
+                        episode_length_s=eval_episode_length_s(task, episode_length_s), **overrides)
         policy = lambda obs: policy_file(obs["policy"])
     else:
         info = runs.read_run_info(run)
+        task = envs.spec(info["task"])
         env = runs.make_env_for_run(info, num_envs=episodes, seed=seed, device="cpu", play=True, engine="mujoco",
-                                    episode_length_s=eval_episode_length_s(envs.spec(info["task"]), episode_length_s),
-                                    **overrides)
+                                    episode_length_s=eval_episode_length_s(task, episode_length_s), **overrides)
         policy = runs.load_runner(run, env, run / checkpoint).get_inference_policy(device="cpu")
     try:
-        return (*_walk(env, policy), env.terrain)
+        paths = []
+
+        def record(running: torch.Tensor) -> None:  # each robot's base before the policy acts, nan once ended
+            xy = env.robot.data.root_pos_w[:, :2].float()
+            paths.append(torch.where(running[:, None], xy, torch.nan))
+
+        records = episode_records(env, RslRlVecEnv(env), policy, task, on_step=record)
+        return torch.stack(paths).cpu().numpy(), records.failed.cpu().numpy(), env.terrain
     finally:
         env.close()
-
-
-def _walk(env, policy) -> tuple[np.ndarray, np.ndarray]:
-    """(paths (T, N, 2), fell (N,)) of one episode in each of ``env``'s worlds under ``policy``."""
-    vec_env = RslRlVecEnv(env)
-    running = torch.ones(env.num_envs, dtype=torch.bool)
-    fell = torch.zeros(env.num_envs, dtype=torch.bool)
-    paths = []
-    obs = vec_env.reset()
-    for _ in range(env.max_episode_length):
-        xy = env.robot.data.root_pos_w[:, :2].float().clone()  # the state the policy acts on
-        paths.append(torch.where(running[:, None], xy, torch.nan))
-        with torch.inference_mode():
-            obs, _, dones, extras = vec_env.step(policy(obs))
-        ended = running & dones.bool()
-        fell |= ended & extras["terminated"]
-        running &= ~dones.bool()
-    return torch.stack(paths).numpy(), fell.numpy()
 
 
 def plot(panels, out: Path) -> None:

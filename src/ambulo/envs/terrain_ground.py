@@ -125,6 +125,11 @@ class TerrainGround:
         self.scanner = HeightScan(self.cfg.height_scan, self.heights)
         self._default_root_z = self.robot.data.root_pos_w[:, 2].float().clone()  # the initial state's
         self._tiles = TerrainCurriculum(tiles_cfg, self.terrain, self.num_envs, self.generator, self.device)
+        # each env's kind by name (fixed: an env keeps its column), for terrain_levels_by_kind
+        columns = tuple(self.terrain.cfg.kinds)
+        self._kind_names = tuple(dict.fromkeys(columns))
+        name_of_column = torch.tensor([self._kind_names.index(kind) for kind in columns], device=self.device)
+        self._kind_name_of_env = name_of_column[self._tiles.kinds]
         return self._tiles
 
     def mean_terrain_level(self) -> torch.Tensor | None:
@@ -143,10 +148,7 @@ class TerrainGround:
         the curriculum holds the robots of each kind, e.g. stepping stones far below the others."""
         if not self._tiles.cfg.enabled:
             return None
-        kinds = tuple(self.terrain.cfg.kinds)
-        names = tuple(dict.fromkeys(kinds))
-        group = torch.tensor([names.index(kind) for kind in kinds], dtype=torch.long)
-        return names, self._tiles.mean_level_by_group(group, len(names))
+        return self._kind_names, self._tiles.mean_level_by_group(self._kind_name_of_env, len(self._kind_names))
 
     def tile_kinds(self) -> tuple[tuple[str, ...], torch.Tensor]:
         """(the terrain's kind names, in column order; (N,) int64 the column of each env's tile,

@@ -181,8 +181,11 @@ def summarize_kinds(records: EpisodeRecords, names: Sequence[str], kind: torch.T
 
 
 def episode_records(env: envs.RLEnv, vec_env, policy: Callable, task: envs.TaskSpec, *,
-                    desc: str = "eval", quiet: bool = True) -> EpisodeRecords:
-    """Run one episode in each env of ``env`` (see ``run_episodes``); what each one did."""
+                    desc: str = "eval", quiet: bool = True,
+                    on_step: Callable[[torch.Tensor], None] | None = None) -> EpisodeRecords:
+    """Run one episode in each env of ``env`` (see ``run_episodes``); what each one did.
+    ``on_step(running)``, if given, sees each step's state before the policy acts on it, with the
+    (N,) bool of the envs whose episode is still running (``scripts/plot_falls.py``: the paths)."""
     n, dev = env.num_envs, env.device
     running = torch.ones(n, dtype=torch.bool, device=dev)
     failed = torch.zeros(n, dtype=torch.bool, device=dev)
@@ -194,6 +197,8 @@ def episode_records(env: envs.RLEnv, vec_env, policy: Callable, task: envs.TaskS
     # the loop never reads a device value back: an early end when every episode is over would
     # cost a host sync per step, more than the few steps it saves
     for _ in tqdm(range(env.max_episode_length), desc=desc, unit="step", disable=quiet):
+        if on_step is not None:
+            on_step(running)
         with torch.inference_mode():
             actions = policy(obs)
         if task.step_metrics is not None:  # of the state the policy acted on, for running envs

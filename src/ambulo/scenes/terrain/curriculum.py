@@ -120,11 +120,9 @@ class TerrainCurriculum:
         """() float32 mean level over the envs (a device scalar, for logging)."""
         return self.levels.float().mean()
 
-    def mean_level_by_group(self, group_of_kind: torch.Tensor, num_groups: int) -> torch.Tensor:
-        """(num_groups,) float32 mean level of the envs of each group of kind columns
-        (``group_of_kind``: (num_kinds,) int64, each column's group; nan for a group without envs),
-        on the device, for logging."""
-        group = group_of_kind.to(self.device)[self.kinds]
+    def mean_level_by_group(self, group: torch.Tensor, num_groups: int) -> torch.Tensor:
+        """(num_groups,) float32 mean level of each group's envs (``group``: (N,) int64 on the device,
+        each env's group; nan for a group without envs), on the device, for logging."""
         sums = torch.zeros(num_groups, device=self.device).index_add_(0, group, self.levels.float())
         return sums / torch.bincount(group, minlength=num_groups).float()
 
