@@ -144,13 +144,18 @@ def test_lines_that_are_not_answers_go_to_the_log(tmp_path):
     assert (tmp_path / "log").read_bytes() == b"Warp 1.19.0 initialized\n"
 
 
-def test_the_worker_stops_quietly_once_training_is_gone(async_run, tmp_path):
+@pytest.mark.parametrize("broken", [False, True])
+def test_the_worker_stops_quietly_once_training_is_gone(async_run, tmp_path, broken):
     """Training killed (its end of the answer pipe closed, stdin left open): the worker's next answer
-    finds no reader; it logs one line and exits 0, without a traceback."""
+    finds no reader; it logs one line and exits 0, without a traceback. A worker that fails before
+    its first answer (settings naming no task) leaves that error's traceback and exit status 1, not a
+    second one for the broken pipe it reports the error to."""
     run = _copy_run(async_run, tmp_path)
     reached = json.loads((async_run / "time_to_criterion.json").read_text())
     shutil.copy(async_run / reached["checkpoint"], run / "model_9.pt")
     info = read_run_info(run)
+    if broken:
+        info = {**info, "task": "no-such-task"}
     log = open(tmp_path / "worker.log", "wb")
     proc = subprocess.Popen([sys.executable, "-m", "ambulo.rl.eval_worker"], stdin=subprocess.PIPE,
                             stdout=subprocess.PIPE, stderr=log)
@@ -160,13 +165,17 @@ def test_the_worker_stops_quietly_once_training_is_gone(async_run, tmp_path):
         proc.stdin.write((json.dumps(message) + "\n").encode())
     proc.stdin.flush()
     try:
-        assert proc.wait(timeout=120) == 0
+        assert proc.wait(timeout=120) == (1 if broken else 0)
     finally:
         proc.kill()
         proc.stdin.close()
         log.close()
     text = (tmp_path / "worker.log").read_text()
-    assert "the training process is gone" in text and "Traceback" not in text and "Exception" not in text
+    assert "BrokenPipeError" not in text and "TrainingGone" not in text
+    if broken:
+        assert text.count("Traceback") == 1 and "no-such-task" in text
+    else:
+        assert "the training process is gone" in text and "Traceback" not in text and "Exception" not in text
 
 
 def test_the_worker_judges_on_the_cpu_engine_first(async_run, tmp_path):

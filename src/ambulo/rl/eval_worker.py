@@ -18,6 +18,7 @@ MuJoCo or Warp) goes to stderr, the run's ``eval_worker.log``: stdout carries on
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -107,7 +108,8 @@ def serve() -> int:
 
         traceback.print_exc()
         first = (str(error).strip().splitlines() or [""])[0][:300]
-        answer({"error": f"{type(error).__name__}: {first}"})
+        with contextlib.suppress(TrainingGone):  # no one left to tell: the traceback above is in the log
+            answer({"error": f"{type(error).__name__}: {first}"})
         return 1
 
 
