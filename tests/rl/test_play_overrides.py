@@ -24,6 +24,14 @@ def test_a_leaf_the_play_variant_leaves_alone_carries_over():
     assert kept == {"terrain.spacing_m": 0.1}
 
 
+def test_training_kind_weights_do_not_change_what_the_evaluation_pools():
+    # equal to the play variant's (None) and still dropped: the whole curriculum is training's own
+    for task in ("humanoid-rough", "g1-rough"):
+        kept = play_overrides(task, {"curriculum.kind_weights": (1.0,) * 6 + (2.0,), "action_scale": 0.3})
+        assert kept == {"action_scale": 0.3}
+        assert envs.make_cfg(task, play=True, **kept).curriculum.kind_weights is None
+
+
 def test_the_robust_variant_trains_under_the_wide_ranges_and_evaluates_nominal():
     walk, robust = envs.spec("humanoid-walk"), envs.spec("humanoid-walk-robust")
     assert robust.cfg_fn().transfer == transfer_cfg_wide()

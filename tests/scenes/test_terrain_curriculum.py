@@ -3,7 +3,7 @@
 import pytest
 import torch
 
-from ambulo.scenes.terrain import TerrainCfg, TerrainCurriculum, TerrainCurriculumCfg, generate
+from ambulo.scenes.terrain import TerrainCfg, TerrainCurriculum, TerrainCurriculumCfg, generate, weighted_columns
 
 GRID = generate(TerrainCfg(num_levels=3, tile_size_m=4.0, platform_size_m=1.0, border_m=1.0,
                            kinds=("flat", "stairs_up")))
@@ -71,3 +71,26 @@ def test_the_command_rule_moves_up_robots_that_covered_what_they_were_asked_with
     no_falls_given = curriculum([1, 1, 1, 1, 1])
     no_falls_given.update(None, distance_m, asked_m)
     assert no_falls_given.levels.tolist() == [2, 2, 1, 1, 2]
+
+
+def test_kind_weights_share_the_envs_by_largest_remainder_interleaved():
+    stones_twice = weighted_columns((1, 1, 1, 1, 1, 1, 2), 1024)
+    assert torch.bincount(stones_twice).tolist() == [128] * 6 + [256]
+    assert set(stones_twice[:8].tolist()) == set(range(7))  # the first envs already hold every column
+    # 10 envs at 1:1:1 -> 3.33 each: the one left over goes to the lowest column of the tied remainders
+    assert torch.bincount(weighted_columns((1, 1, 1), 10)).tolist() == [4, 3, 3]
+    assert torch.bincount(weighted_columns((1, 2), 10)).tolist() == [3, 7]  # 3.33, 6.67: the larger remainder
+    # 8 at 0:1:3 -> 0, 2, 6; column 2's six spread around column 1's two (at 1/4 and 3/4 of the way)
+    assert weighted_columns((0, 1, 3), 8).tolist() == [2, 1, 2, 2, 2, 1, 2, 2]
+    assert weighted_columns((1, 1, 1), 9).tolist() == [0, 1, 2] * 3  # equal shares: i % num_kinds
+
+
+def test_the_curriculum_places_envs_by_kind_weights_and_names_a_wrong_count():
+    c = TerrainCurriculum(TerrainCurriculumCfg(kind_weights=(1.0, 3.0), init_level=-1), GRID, 8,
+                          torch.Generator(), "cpu")
+    assert torch.bincount(c.kinds).tolist() == [2, 6]
+    assert torch.equal(c.origins_w, c.centers_w[c.levels, c.kinds])
+    with pytest.raises(ValueError, match=r"3 weights for the terrain's 2 kind columns \['flat', 'stairs_up'\]"):
+        TerrainCurriculum(TerrainCurriculumCfg(kind_weights=(1.0, 1.0, 2.0)), GRID, 8, torch.Generator(), "cpu")
+    with pytest.raises(ValueError, match="at least one kind a weight above 0"):
+        TerrainCurriculumCfg(kind_weights=(0.0, 0.0))

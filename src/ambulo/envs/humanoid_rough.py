@@ -33,7 +33,7 @@ from ambulo.utils.math import rotate_yaw
 from .humanoid_walk import HumanoidWalkCfg, HumanoidWalkEnv, as_play, humanoid_walk_cfg, humanoid_walk_ppo
 from .registry import Criterion, TaskSpec, register
 from .terrain_ground import TerrainGround, TerrainGroundCfg
-from .transfer import transfer_cfg_wide
+from .transfer import PLAY_KEEPS, transfer_cfg_wide
 
 WALKS_ROUGH = Criterion("walks_rough", max_values={"fall_rate": 0.05, "mean_abs_vel_error_m_s": 0.25})
 """What walking means on the hardest tiles of the terrain curriculum (humanoid-rough, g1-rough):
@@ -62,7 +62,10 @@ class RoughTerrainCfg(TerrainGroundCfg):
     """What a walking task on the terrain curriculum adds to its cfg (a dataclass mixin: humanoid-rough
     and g1-rough list it after their walking cfg): the terrain ground's and the curriculum's."""
 
-    curriculum: TerrainCurriculumCfg = field(default_factory=TerrainCurriculumCfg)
+    curriculum: TerrainCurriculumCfg = field(default_factory=TerrainCurriculumCfg, metadata={PLAY_KEEPS: True})
+    """Training's terrain curriculum. Play and evaluation keep their own (``as_rough_play``: every robot
+    on the hardest level, the kinds in equal shares) whatever the run trained with: its
+    ``kind_weights`` must not change what ``walks_rough`` pools."""
     scan_in_actor: bool = True
     """The actor sees the height scan; False: only the critic does (a blind walker)."""
 

@@ -29,7 +29,8 @@ from ambulo.utils.validate import Checked, rule
 from .delay import DelayBuffer
 
 PLAY_KEEPS = "play_keeps"
-"""Field metadata key: a task config's ``transfer`` field carries ``metadata={PLAY_KEEPS: True}``:
+"""Field metadata key: a task config's ``transfer`` field (and a rough task's ``curriculum``) carries
+``metadata={PLAY_KEEPS: True}``:
 a training-only setting that play and evaluation envs keep at the play variant's value whatever
 the run trained with (``rl.runs.play_overrides``), also where the training default equals it."""
 

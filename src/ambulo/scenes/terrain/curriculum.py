@@ -1,7 +1,7 @@
 """The terrain curriculum (legged_gym's): robots that walked far move to harder tiles.
 
 Every env has a level (a row of the terrain grid) and a kind (a column, fixed: env ``i`` takes
-column ``i % num_kinds``). When an episode ends, its env moves up a level if the robot got farther
+column ``i % num_kinds``, or by ``kind_weights``). When an episode ends, its env moves up a level if the robot got farther
 than ``up_distance_fraction`` of a tile from where it started (legged_gym's rule), or if it covered
 ``up_command_fraction`` of how far its commands would have carried it, they asked for at least
 ``up_min_command_m`` and it did not fall (the command rule, below); and down one if it ended closer
@@ -16,6 +16,11 @@ ends 2.1 m from its start on average and passes 4 m in 6.5 % of its episodes
 (``benchmarks/curriculum_demotions.py``); the command curriculum widens the ranges only while
 tracking is good, which the terrain makes hard, so the two curricula held each other back: mean
 level 1.96 -> 2.30 of 9 after 8 minutes on an H200 (session 13), while evaluation is on level 9.
+
+Columns can be shared unequally in training (``kind_weights``): session 27's FastSAC runs held
+every kind but the stepping stones near level 6 of 9 from iteration ~1500, while the stones, on
+1/7 of the envs, were still climbing at 4 of 9 when the runs ended and gave most of the falls the
+criterion counts. Evaluation always shares the kinds equally.
 
 Everything is (N,) tensors written through row selectors (``core.rows``): no per-env loop, no
 host sync.
@@ -48,10 +53,38 @@ class TerrainCurriculumCfg(Checked):
     up_command_fraction: float | None = field(default=0.8, metadata=rule(minimum=0.0, strict=True))
     """Also move up after covering this share of the commanded displacement without a fall, when the
     commands asked for at least ``up_min_command_m``; None: legged_gym's distance rule only."""
+    kind_weights: tuple[float, ...] | None = field(default=None, metadata=rule(minimum=0.0))
+    """Share of the envs on each column of ``TerrainCfg.kinds``, in its order (relative weights: (1, 1, 2)
+    puts a half of the envs on the third column); None: equal shares, env ``i`` on column ``i % num_kinds``.
+    Training only: a rough task's play and evaluation take none of the training curriculum's settings
+    (``RoughTerrainCfg.curriculum`` is marked ``PLAY_KEEPS``) and judge every kind on an equal share."""
     up_min_command_m: float = field(default=2.0, metadata=rule(minimum=0.0))
     """The command rule judges only episodes whose commands asked for this much displacement, m: a
     robot starts on a platform whose edge is 1 m away (``TerrainCfg.platform_size_m``), so 2 m takes it
     over a metre of the tile's terrain."""
+
+    def __post_init__(self):
+        super().__post_init__()  # each weight finite and >= 0 first: the sum below needs it
+        if self.kind_weights is not None and not sum(self.kind_weights) > 0:
+            raise ValueError(f"TerrainCurriculumCfg.kind_weights {list(self.kind_weights)} gives no env a "
+                             "column; give at least one kind a weight above 0")
+
+
+def weighted_columns(weights: tuple[float, ...], num_envs: int) -> torch.Tensor:
+    """(num_envs,) int64 each env's column when column ``k`` takes a ``weights[k] / sum(weights)`` share
+    of the envs: the counts rounded by largest remainder (ties to the lower column), the columns
+    interleaved in env order (column ``k``'s ``j``-th env sits at ``(j + 1/2) / count_k`` of the way), so
+    the first envs already hold every column in about its share."""
+    w = torch.tensor(weights, dtype=torch.float64)
+    exact = w / w.sum() * num_envs
+    counts = exact.floor().long()
+    short = num_envs - int(counts.sum())
+    # stable sort by descending remainder: equal remainders keep column order
+    order = torch.sort(exact - counts, descending=True, stable=True).indices
+    counts[order[:short]] += 1
+    columns = torch.repeat_interleave(torch.arange(len(weights)), counts)
+    place = torch.cat([(torch.arange(c, dtype=torch.float64) + 0.5) / c for c in counts.tolist() if c > 0])
+    return columns[torch.sort(place, stable=True).indices]
 
 
 class TerrainCurriculum:
@@ -71,7 +104,13 @@ class TerrainCurriculum:
         self.max_level = self.num_levels - 1
         self.tile_size_m = float(grid.cfg.tile_size_m)
         self.centers_w = torch.as_tensor(grid.tile_centers_w, dtype=torch.float32, device=self.device)
-        self.kinds = torch.arange(num_envs, device=self.device) % num_kinds
+        if cfg.kind_weights is None:
+            self.kinds = torch.arange(num_envs, device=self.device) % num_kinds
+        elif len(cfg.kind_weights) != num_kinds:
+            raise ValueError(f"TerrainCurriculumCfg.kind_weights has {len(cfg.kind_weights)} weights for the terrain's "
+                             f"{num_kinds} kind columns {list(grid.cfg.kinds)}; give one weight per column, in order")
+        else:
+            self.kinds = weighted_columns(cfg.kind_weights, num_envs).to(self.device)
         if cfg.init_level is None:
             top = min(cfg.max_init_level, self.max_level)
             self.levels = torch.randint(0, top + 1, (num_envs,), generator=generator, device=self.device)
@@ -127,4 +166,4 @@ class TerrainCurriculum:
         return sums / torch.bincount(group, minlength=num_groups).float()
 
 
-__all__ = ["TerrainCurriculum", "TerrainCurriculumCfg"]
+__all__ = ["TerrainCurriculum", "TerrainCurriculumCfg", "weighted_columns"]
