@@ -127,6 +127,20 @@ def test_bad_env_cfg(capsys, pair, parts):
     _fails(capsys, ["train", "cartpole", "--env-cfg", pair], "ambulo train: error: --env-cfg", *parts)
 
 
+@pytest.mark.parametrize("pairs, parts", [
+    (["curriculum.kind_weights=1,2"], ("2 weights for the 7 columns of terrain.kinds", "one weight per column")),
+    (["curriculum.kind_weights=0,0,0,0,0,0,0"], ("gives no env a column", "a weight above 0")),
+    (["curriculum.kind_weights=1,2", "terrain.kinds=flat,stairs_up"], ("set terrain.kinds first",)),
+])
+def test_bad_kind_weights_fail_as_parsed_before_a_run_folder(capsys, tmp_path, pairs, parts):
+    env_cfg = [arg for pair in pairs for arg in ("--env-cfg", pair)]
+    # one iteration of 2 envs bounds the run that a missing check would start
+    _fails(capsys, ["train", "humanoid-rough", "--device", "cpu", "--num-envs", "2", "--max-iterations", "1",
+                    "--log-root", str(tmp_path), *env_cfg],
+           "ambulo train: error: --env-cfg bad value", *parts)
+    assert not any(tmp_path.iterdir())
+
+
 def test_unknown_run(capsys):
     _fails(capsys, ["eval", "nosuch"], "ambulo eval: error: no run folder, checkpoint or task named 'nosuch'",
            "pass the folder `ambulo train` printed")
