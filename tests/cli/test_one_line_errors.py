@@ -131,11 +131,13 @@ def test_bad_env_cfg(capsys, pair, parts):
     (["curriculum.kind_weights=1,2"], ("2 weights for the 7 columns of terrain.kinds", "one weight per column")),
     (["curriculum.kind_weights=0,0,0,0,0,0,0"], ("gives no env a column", "a weight above 0")),
     (["curriculum.kind_weights=1,2", "terrain.kinds=flat,stairs_up"], ("set terrain.kinds first",)),
+    (["levels.kind_weights=1,2"], ("levels.kind_weights has 2 weights for the 3 columns of terrain.kinds",)),
 ])
 def test_bad_kind_weights_fail_as_parsed_before_a_run_folder(capsys, tmp_path, pairs, parts):
     env_cfg = [arg for pair in pairs for arg in ("--env-cfg", pair)]
+    task = "humanoid-footsteps-stairs" if pairs[0].startswith("levels.") else "humanoid-rough"
     # one iteration of 2 envs bounds the run that a missing check would start
-    _fails(capsys, ["train", "humanoid-rough", "--device", "cpu", "--num-envs", "2", "--max-iterations", "1",
+    _fails(capsys, ["train", task, "--device", "cpu", "--num-envs", "2", "--max-iterations", "1",
                     "--log-root", str(tmp_path), *env_cfg],
            "ambulo train: error: --env-cfg bad value", *parts)
     assert not any(tmp_path.iterdir())

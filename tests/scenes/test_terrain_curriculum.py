@@ -90,7 +90,7 @@ def test_the_curriculum_places_envs_by_kind_weights_and_names_a_wrong_count():
                           torch.Generator(), "cpu")
     assert torch.bincount(c.kinds).tolist() == [2, 6]
     assert torch.equal(c.origins_w, c.centers_w[c.levels, c.kinds])
-    with pytest.raises(ValueError, match=r"3 weights for the terrain's 2 kind columns \['flat', 'stairs_up'\]"):
+    with pytest.raises(ValueError, match=r"3 weights for the 2 columns of terrain.kinds \['flat', 'stairs_up'\]"):
         TerrainCurriculum(TerrainCurriculumCfg(kind_weights=(1.0, 1.0, 2.0)), GRID, 8, torch.Generator(), "cpu")
     with pytest.raises(ValueError, match="at least one kind a weight above 0"):
         TerrainCurriculumCfg(kind_weights=(0.0, 0.0))

@@ -69,16 +69,6 @@ class RoughTerrainCfg(TerrainGroundCfg):
     scan_in_actor: bool = True
     """The actor sees the height scan; False: only the critic does (a blind walker)."""
 
-    def __post_init__(self):
-        super().__post_init__()
-        # here, not only where the curriculum is built: `--env-cfg curriculum.kind_weights=1,2` then
-        # fails in one line as it is parsed, before a run folder exists
-        weights, kinds = self.curriculum.kind_weights, self.terrain.kinds if self.terrain else None
-        if weights is not None and kinds is not None and len(weights) != len(kinds):
-            raise ValueError(f"curriculum.kind_weights has {len(weights)} weights for the {len(kinds)} columns of "
-                             f"terrain.kinds {list(kinds)}; give one weight per column, in order (set terrain.kinds "
-                             "first when changing both)")
-
 
 @dataclass(kw_only=True)
 class HumanoidRoughCfg(HumanoidWalkCfg, RoughTerrainCfg):

@@ -6,7 +6,7 @@ feet down: ``scenes.terrain.sphere_soles``)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import torch
 
@@ -16,8 +16,10 @@ from ambulo.scenes.terrain import (
     HeightScanCfg,
     TerrainCfg,
     TerrainCurriculum,
+    TerrainCurriculumCfg,
     TerrainHeights,
     add_terrain,
+    check_kind_weights,
     generate,
     restrict_box_colliders,
     sphere_soles,
@@ -64,6 +66,16 @@ class TerrainGroundCfg(Checked):
     MuJoCo C keeps one contact per prism a sole sphere overlaps, many tilted off the ground: a
     policy trained on Warp fell in 0.17-0.38 of its episodes on MuJoCo C's hfield tiles against
     0.016 on Warp, and in 0.008-0.016 with this. False: MuJoCo C's own contacts."""
+
+    def __post_init__(self):
+        super().__post_init__()
+        # each tiles setting of the task (humanoid-rough's ``curriculum``, footsteps-stairs' ``levels``)
+        # against the terrain here, not only where the tiles are built: `--env-cfg curriculum.kind_weights=1,2`
+        # then fails in one line as it is parsed, before a run folder exists
+        for f in fields(self):
+            tiles = getattr(self, f.name)
+            if isinstance(tiles, TerrainCurriculumCfg):
+                check_kind_weights(tiles.kind_weights, self.terrain.kinds, f"{f.name}.kind_weights")
 
 
 def add_terrain_ground(env, spec, task: str, soles=sphere_soles) -> None:

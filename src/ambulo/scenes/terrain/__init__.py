@@ -18,12 +18,12 @@
 
 from .box_colliders import candidate_geom_pairs, restrict_box_colliders
 from .boxes import BOX_KINDS, PIECEWISE_FLAT_KINDS, TerrainBoxes, terrain_boxes
-from .curriculum import TerrainCurriculum, TerrainCurriculumCfg, weighted_columns
+from .curriculum import TerrainCurriculum, TerrainCurriculumCfg, check_kind_weights, weighted_columns
 from .generator import TERRAIN_PRIM_PATH, TerrainCfg, TerrainGrid, add_terrain, difficulties, generate
 from .heights import HeightScan, HeightScanCfg, TerrainHeights
 from .soles import sphere_soles
 from .subterrains import KINDS
 
 __all__ = ["BOX_KINDS", "KINDS", "PIECEWISE_FLAT_KINDS", "TERRAIN_PRIM_PATH", "HeightScan", "HeightScanCfg", "TerrainCfg", "TerrainCurriculum",
-           "TerrainBoxes", "TerrainCurriculumCfg", "TerrainGrid", "TerrainHeights", "add_terrain", "candidate_geom_pairs", "difficulties",
+           "TerrainBoxes", "TerrainCurriculumCfg", "TerrainGrid", "TerrainHeights", "add_terrain", "candidate_geom_pairs", "check_kind_weights", "difficulties",
            "generate", "restrict_box_colliders", "sphere_soles", "terrain_boxes", "weighted_columns"]

@@ -70,6 +70,16 @@ class TerrainCurriculumCfg(Checked):
                              "column; give at least one kind a weight above 0")
 
 
+def check_kind_weights(weights: tuple[float, ...] | None, kinds: tuple[str, ...], key: str = "kind_weights") -> None:
+    """ValueError unless ``weights`` (a ``TerrainCurriculumCfg.kind_weights``, at config ``key``) is None or has
+    one weight per column of ``kinds`` (``TerrainCfg.kinds``). A task's cfg checks it as it is built
+    (``envs.terrain_ground.TerrainGroundCfg``), the curriculum again for a caller that builds one alone."""
+    if weights is not None and len(weights) != len(kinds):
+        raise ValueError(f"{key} has {len(weights)} weights for the {len(kinds)} columns of terrain.kinds "
+                         f"{list(kinds)}; give one weight per column, in order (set terrain.kinds first when "
+                         "changing both)")
+
+
 def weighted_columns(weights: tuple[float, ...], num_envs: int) -> torch.Tensor:
     """(num_envs,) int64 each env's column when column ``k`` takes a ``weights[k] / sum(weights)`` share
     of the envs: the counts rounded by largest remainder (ties to the lower column), the columns
@@ -104,11 +114,9 @@ class TerrainCurriculum:
         self.max_level = self.num_levels - 1
         self.tile_size_m = float(grid.cfg.tile_size_m)
         self.centers_w = torch.as_tensor(grid.tile_centers_w, dtype=torch.float32, device=self.device)
+        check_kind_weights(cfg.kind_weights, grid.cfg.kinds)
         if cfg.kind_weights is None:
             self.kinds = torch.arange(num_envs, device=self.device) % num_kinds
-        elif len(cfg.kind_weights) != num_kinds:
-            raise ValueError(f"TerrainCurriculumCfg.kind_weights has {len(cfg.kind_weights)} weights for the terrain's "
-                             f"{num_kinds} kind columns {list(grid.cfg.kinds)}; give one weight per column, in order")
         else:
             self.kinds = weighted_columns(cfg.kind_weights, num_envs).to(self.device)
         if cfg.init_level is None:
@@ -166,4 +174,4 @@ class TerrainCurriculum:
         return sums / torch.bincount(group, minlength=num_groups).float()
 
 
-__all__ = ["TerrainCurriculum", "TerrainCurriculumCfg", "weighted_columns"]
+__all__ = ["TerrainCurriculum", "TerrainCurriculumCfg", "check_kind_weights", "weighted_columns"]
