@@ -20,7 +20,9 @@ level 1.96 -> 2.30 of 9 after 8 minutes on an H200 (session 13), while evaluatio
 Columns can be shared unequally in training (``kind_weights``): session 27's FastSAC runs held
 every kind but the stepping stones near level 6 of 9 from iteration ~1500, while the stones, on
 1/7 of the envs, were still climbing at 4 of 9 when the runs ended and gave most of the falls the
-criterion counts. Evaluation always shares the kinds equally.
+criterion counts. Evaluation always shares the kinds equally. It did not help FastSAC (session 28:
+the stones fell more, 0.56 of their hardest episodes against 0.45, as the policy attempted them), so
+it stays off by default.
 
 Everything is (N,) tensors written through row selectors (``core.rows``): no per-env loop, no
 host sync.
