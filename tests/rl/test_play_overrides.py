@@ -30,6 +30,10 @@ def test_training_kind_weights_do_not_change_what_the_evaluation_pools():
         kept = play_overrides(task, {"curriculum.kind_weights": (1.0,) * 6 + (2.0,), "action_scale": 0.3})
         assert kept == {"action_scale": 0.3}
         assert envs.make_cfg(task, play=True, **kept).curriculum.kind_weights is None
+    # humanoid-footsteps-stairs' fixed levels likewise: its placement errors pool every column equally
+    kept = play_overrides("humanoid-footsteps-stairs", {"levels.kind_weights": (1.0, 2.0, 1.0), "action_scale": 0.3})
+    assert kept == {"action_scale": 0.3}
+    assert envs.make_cfg("humanoid-footsteps-stairs", play=True, **kept).levels.kind_weights is None
 
 
 def test_the_robust_variant_trains_under_the_wide_ranges_and_evaluates_nominal():

@@ -43,6 +43,7 @@ from .humanoid_footsteps import (
 from .humanoid_walk import as_play, humanoid_walk_ppo
 from .registry import TaskSpec, register
 from .terrain_ground import TerrainGround, TerrainGroundCfg
+from .transfer import PLAY_KEEPS
 
 STAIR_RISER_M = 0.10
 """The issue's step height (issue 30 item 4: footsteps "over 0.10 m steps"), m."""
@@ -62,8 +63,11 @@ class HumanoidFootstepsStairsCfg(HumanoidFootstepsCfg, TerrainGroundCfg):
 
     terrain: TerrainCfg = field(default_factory=stairs_terrain_cfg)
     levels: TerrainCurriculumCfg = field(default_factory=lambda: TerrainCurriculumCfg(enabled=False,
-                                                                                       max_init_level=3))
-    """Which level (riser) each robot gets: uniform over the levels, kept (``enabled`` False)."""
+                                                                                       max_init_level=3),
+                                         metadata={PLAY_KEEPS: True})
+    """Which level (riser) each robot gets: uniform over the levels, kept (``enabled`` False). Training
+    only (``PLAY_KEEPS``): play and evaluation put every robot on the 0.10 m level with each column an
+    equal share whatever the run trained with (``levels.kind_weights`` included)."""
     treads: TreadSnapCfg = field(default_factory=TreadSnapCfg)
 
 def humanoid_footsteps_stairs_cfg() -> HumanoidFootstepsStairsCfg:

@@ -29,10 +29,10 @@ from ambulo.utils.validate import Checked, rule
 from .delay import DelayBuffer
 
 PLAY_KEEPS = "play_keeps"
-"""Field metadata key: a task config's ``transfer`` field (and a rough task's ``curriculum``) carries
-``metadata={PLAY_KEEPS: True}``:
-a training-only setting that play and evaluation envs keep at the play variant's value whatever
-the run trained with (``rl.runs.play_overrides``), also where the training default equals it."""
+"""Field metadata key: a task config's ``transfer`` field (and a rough task's ``curriculum``,
+humanoid-footsteps-stairs' ``levels``) carries ``metadata={PLAY_KEEPS: True}``: a training-only
+setting that play and evaluation envs keep at the play variant's value whatever the run trained
+with (``rl.runs.play_overrides``), also where the training default equals it."""
 
 
 @dataclass(kw_only=True)
