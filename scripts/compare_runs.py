@@ -111,28 +111,34 @@ def main(argv: list[str] | None = None) -> None:
             parser.error(f"{item!r}: give LABEL=PATH")
         if not Path(path).exists():
             parser.error(f"{path}: no such run folder or file")
-        runs.append((label, *read_run(Path(path))))
+        runs.append((label, Path(path)))
 
+    column = "terrain_level" if args.level_kind is None else f"terrain_level_{args.level_kind}"
     kinds: list[str] = []
     summaries = []
-    for label, evals, _metrics in runs:
-        n, pooled, by_kind = falls_by_kind(evals, args.from_iteration)
+    for label, path in runs:
+        try:
+            evals, metrics = read_run(path)
+            n, pooled, by_kind = falls_by_kind(evals, args.from_iteration)
+            levels = levels_at(metrics, column, at)
+            last_iteration = metrics[-1]["iteration"] if metrics else None
+        except (KeyError, ValueError) as error:  # a missing column, a cell that is not a number, not UTF-8
+            raise SystemExit(f"{path}: not the evals.csv / metrics.csv of `ambulo train --eval-every` "
+                             f"({type(error).__name__}: {error}); pass a run folder, its .tgz or its evals.csv") from None
         kinds += [k for k in by_kind if k not in kinds]
-        summaries.append((label, n, pooled, by_kind))
+        summaries.append((label, n, pooled, by_kind, levels, last_iteration))
     print(f"Falls, mean over the evaluations from iteration {args.from_iteration} on:\n")
     print("| run | evaluations | pooled | " + " | ".join(kinds) + " |")
     print("|---|---|---|" + "---|" * len(kinds))
-    for label, n, pooled, by_kind in summaries:
+    for label, n, pooled, by_kind, _, _ in summaries:
         print(f"| {label} | {n} | {_cell(pooled, 3)} | " + " | ".join(_cell(by_kind.get(k), 2) for k in kinds) + " |")
 
-    column = "terrain_level" if args.level_kind is None else f"terrain_level_{args.level_kind}"
     print(f"\nTraining's mean `{column}` (metrics.csv) at or before each iteration:\n")
     print("| run | " + " | ".join(f"it {t}" for t in at) + " | last |")
     print("|---|" + "---|" * (len(at) + 1))
-    for label, _, metrics in runs:
-        values = levels_at(metrics, column, at)
-        last = f"{_cell(values[-1], 2)} ({metrics[-1]['iteration']})" if metrics else "-"
-        print(f"| {label} | " + " | ".join(_cell(v, 2) for v in values[:-1]) + f" | {last} |")
+    for label, _, _, _, levels, last_iteration in summaries:
+        last = "-" if last_iteration is None else f"{_cell(levels[-1], 2)} ({last_iteration})"
+        print(f"| {label} | " + " | ".join(_cell(v, 2) for v in levels[:-1]) + f" | {last} |")
 
 
 if __name__ == "__main__":

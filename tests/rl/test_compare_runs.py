@@ -69,3 +69,12 @@ def test_bad_paths_are_one_line_naming_them(tmp_path):
     (tmp_path / "broken.tgz").write_bytes(b"not a tar")
     with pytest.raises(SystemExit, match="not a readable .tgz"):
         compare.read_run(tmp_path / "broken.tgz")
+
+
+@pytest.mark.parametrize("text", ["iteration,wall_s\n99,10.0\n",  # no fall_rate column
+                                  EVALS.replace("199,", "two,", 1)])  # an iteration that is not a number
+def test_a_malformed_evals_csv_is_one_line_naming_it(tmp_path, text):
+    path = tmp_path / "bad-evals.csv"
+    path.write_text(text)
+    with pytest.raises(SystemExit, match=r"bad-evals.csv: not the evals.csv / metrics.csv of .*pass a run folder"):
+        compare.main([f"a={path}"])
