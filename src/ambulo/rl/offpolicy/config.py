@@ -207,11 +207,12 @@ def _rough_walking(algo: str) -> dict[str, Any]:
     127.8 M; seed 1 had not by 7.6 min (falls 0.08-0.12, most on stepping stones). Its
     evaluations at equal iterations matched session 23's sequential run (0.213 m/s, falls 0.07-0.08
     at iteration 1199), so the overlap does not cost learning; ``gamma=0.99`` did (0.32-0.38 m/s,
-    falls 0.16-0.25 to 9.1 min). Over sessions 24-27, 4 of 7 runs met the 8.9 min bar (6.05-8.42
-    min) and 3 did not, at falls 0.06-0.12 held up by the hardest stepping stones, which these
-    walkers step onto where PPO's stay on their platform; a quarter of the worlds on the stones
-    (``curriculum.kind_weights``) made them fall more (session 28). fast-td3 keeps
-    ``_fast_td3_scale``."""
+    falls 0.16-0.25 to 9.1 min). Seeds 0, 1, 2 run to 12 min (session 29) met it on both engines
+    at 11.16, 5.89 and 4.96 min: a median of 5.89 min and 13.1 M env steps against PPO's 18.0 min and
+    157.3 M on both engines. The hardest stepping stones still fall on about a quarter of their
+    episodes (these walkers step onto them where PPO's stay on their platform); a quarter of the
+    worlds on the stones (``curriculum.kind_weights``) made them fall more (session 28). fast-td3
+    keeps ``_fast_td3_scale``."""
     if algo != "fast-sac":
         return dict(_fast_td3_scale(), joint_limit_bounds=True)
     return dict(_sac_recipe(), joint_limit_bounds=True, noise_hold_steps=4, overlap_collect=True)
