@@ -88,6 +88,7 @@ def test_time_budget_stops_evaluates_and_a_pause_resumes(tiny_dataset, tmp_path)
     paused = train(tiny_dataset, tmp_path / "pause", tiny_cfg(epochs=10_000, max_minutes=10.0,
                                                              pause_after_minutes=0.01), show_progress=False)
     assert paused.stopped == "pause" and paused.evaluations == []
+    assert load_trained(tmp_path / "pause" / "checkpoint.pt")[1]["elapsed_s"] == paused.elapsed_s
     resumed = train(tiny_dataset, tmp_path / "pause", tiny_cfg(epochs=paused.epoch + 2, max_minutes=10.0),
                     resume=True, show_progress=False)
     assert resumed.stopped == "epochs" and resumed.losses[0][0] == paused.step + 1

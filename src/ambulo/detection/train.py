@@ -200,6 +200,7 @@ def train(dataset_dir: str | Path, run_dir: str | Path, cfg: TrainCfg, resume: b
         pending.clear()
 
     epoch, stopped, last_eval_s = start_epoch - 1, "epochs", elapsed()
+    saved_elapsed_s = None  # the last checkpoint's clock: what this call reports and a resume counts from
     try:
         for epoch in range(start_epoch, cfg.epochs):
             model.train()
@@ -256,16 +257,19 @@ def train(dataset_dir: str | Path, run_dir: str | Path, cfg: TrainCfg, resume: b
                     for name, ap in m["per_class"].items():
                         writer.add_scalar(f"eval_{prefix}ap/{name}", ap, step)
                 atomic_write_json(run_dir / "metrics.json", evaluations, indent=1)
+            saved_elapsed_s = elapsed()
             save_checkpoint(run_dir / CHECKPOINT, model, optimizer, scheduler, step=step, epoch=epoch, cfg=cfg,
                             model_cfg=model_cfg, categories=[c["name"] for c in categories],
                             category_ids=category_ids, canvas_hw=canvas, evaluations=evaluations,
-                            elapsed_s=elapsed())
+                            elapsed_s=saved_elapsed_s)
             if stopped != "epochs":
                 break
     finally:
         writer.close()
+    # closing the event file can take a while on a busy disk: counted in neither the report nor the checkpoint,
+    # so a resume continues from exactly the time this call reports
     return TrainResult(run_dir=run_dir, step=step, epoch=epoch, losses=losses, evaluations=evaluations,
-                       elapsed_s=elapsed(), stopped=stopped)
+                       elapsed_s=elapsed() if saved_elapsed_s is None else saved_elapsed_s, stopped=stopped)
 
 
 def save_checkpoint(path: Path, model, optimizer, scheduler, *, step: int, epoch: int, cfg: TrainCfg,
